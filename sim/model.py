@@ -1,0 +1,117 @@
+"""The face's data: geometry (FaceMesh), rig (FaceRig = mesh + muscles + wrinkles), the compiled
+simulation model (FaceModel), the per-step state (FaceState) and the inputs (FaceControl).
+
+Units everywhere in `sim`: centimetres, grams, seconds (forces in dyn = g*cm/s^2). Right-handed,
++Y up, the face looks along +Z, +X is the face's own left. `_l` / `_r` name the face's own sides.
+
+Who fills what:
+- `sim.face_builder` builds a `FaceMesh` procedurally (no third-party mesh).
+- `sim.muscles` places muscles on a mesh from its landmarks, giving a `FaceRig`.
+- `sim.rigfile` saves and loads a `FaceRig` (no pickle), `sim.transfer` makes one for another head.
+- `sim.build.compile_model(rig)` makes the `FaceModel` the integrator runs: springs, masses, muscle
+  influence precomputed from rest geometry.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Union
+
+import numpy as np
+
+FloatArray = np.ndarray
+IntArray = np.ndarray
+
+
+@dataclass(eq=False)
+class FaceMesh:
+    """The skin surface and what the rig needs to know about its regions.
+
+    vertices:      (N, 3) float64, cm, rest pose.
+    triangles:     (M, 3) int32, counter-clockwise seen from outside (normals point out of the skin).
+    landmarks:     name -> vertex index, names as in the project's landmark vocabulary.
+    held:          (N,) bool: skin bound to skull/scalp at the boundary (pinned by the integrator).
+    jaw_weight:    (N,) float64 in [0, 1]: how rigidly a vertex follows the jaw's rotation.
+    jaw_pivot:     (3,) cm, a point on the jaw hinge axis; jaw_axis (3,) unit, rotation axis
+                   (positive `jaw` opens the mouth).
+    eye_centers:   (2, 3) cm, centres of the eyeballs, row 0 = left (+X), row 1 = right.
+    eye_radius:    cm, eyeball radius.
+    eye_loops:     two int arrays: vertex indices around each eye opening, in order (left, right).
+    mouth_loop:    int array: vertex indices around the mouth opening between the lips, in order.
+    regions:       name -> (N,) bool masks (e.g. "upper_lid_l", "lower_lip", "forehead"), optional.
+    """
+
+    vertices: FloatArray
+    triangles: IntArray
+    landmarks: dict[str, int]
+    held: np.ndarray
+    jaw_weight: FloatArray
+    jaw_pivot: FloatArray
+    jaw_axis: FloatArray
+    eye_centers: FloatArray
+    eye_radius: float
+    eye_loops: tuple[IntArray, IntArray]
+    mouth_loop: IntArray
+    regions: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def landmark(self, name: str) -> FloatArray:
+        """Rest position (3,) of a named landmark."""
+        return self.vertices[self.landmarks[name]]
+
+
+@dataclass(frozen=True, eq=False)
+class LinearMuscle:
+    """Seed 000 section 3.1. attachment m^A on the skull, insertion m^I in the skin (cm);
+    radius R_j (cm), max angle phi_j (rad), strength exponent eta_j, force scale alpha_L (dyn)."""
+
+    name: str
+    attachment: FloatArray
+    insertion: FloatArray
+    radius: float
+    angle: float
+    eta: float
+    scale: float
+
+
+@dataclass(frozen=True, eq=False)
+class SphincterMuscle:
+    """Seed 000 section 3.2. centre o (cm), unit axes of the ellipse (major, minor), semi-axes a, b
+    (cm), force scale alpha_S (dyn)."""
+
+    name: str
+    center: FloatArray
+    major_axis: FloatArray
+    minor_axis: FloatArray
+    a: float
+    b: float
+    scale: float
+
+
+@dataclass(frozen=True, eq=False)
+class SheetMuscle:
+    """Seed 000 section 3.3. Attachment line A1-A2, insertion line I1-I2 (cm); zone length L_j and
+    width W_j (cm), strength exponent eta_j, force scale alpha_st (dyn)."""
+
+    name: str
+    attach1: FloatArray
+    attach2: FloatArray
+    insert1: FloatArray
+    insert2: FloatArray
+    length: float
+    width: float
+    eta: float
+    scale: float
+
+
+Muscle = Union[LinearMuscle, SphincterMuscle, SheetMuscle]
+
+
+@dataclass(eq=False)
+class FaceRig:
+    """Everything needed to simulate one face: its mesh, its muscles (channel name -> one or more
+    muscle parts), and its wrinkle lines (filled by `sim.wrinkles`; may be empty)."""
+
+    mesh: FaceMesh
+    muscles: dict[str, tuple[Muscle, ...]]
+    wrinkles: tuple = ()
+    name: str = "default"
