@@ -39,6 +39,8 @@ class FaceMesh:
     eye_loops:     two int arrays: vertex indices around each eye opening, in order (left, right).
     mouth_loop:    int array: vertex indices around the mouth opening between the lips, in order.
     regions:       name -> (N,) bool masks (e.g. "upper_lid_l", "lower_lip", "forehead"), optional.
+    uv:            (N, 2) float64 or None: the flat parameterisation the mesh was built on (the
+                   builder's (u, v) chart), used to lay out wrinkle lines and for rig transfer.
     """
 
     vertices: FloatArray
@@ -53,6 +55,7 @@ class FaceMesh:
     eye_loops: tuple[IntArray, IntArray]
     mouth_loop: IntArray
     regions: dict[str, np.ndarray] = field(default_factory=dict)
+    uv: FloatArray | None = None
 
     def landmark(self, name: str) -> FloatArray:
         """Rest position (3,) of a named landmark."""
