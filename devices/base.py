@@ -1,0 +1,232 @@
+"""The Device base class: lifecycle, listeners and the one reader thread with reconnection.
+
+Backends fill in four small hooks (``_open``, ``_read``, ``_close_handle``, ``_set_light``); the
+base owns everything a live show depends on: a reader thread that never dies from an exception,
+lost/connected status events, reopening within ``reconnect_interval`` after a device comes back,
+and an idempotent ``close``.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from devices.errors import DeviceError
+from devices.events import ControlEvent, EventKind, StatusEvent
+from devices.spec import DeviceSpec
+from devices.warn import WarningCounter
+
+log = logging.getLogger("devices")
+
+Event = ControlEvent | StatusEvent
+Listener = Callable[[Event], None]
+
+
+@dataclass(frozen=True, slots=True)
+class ControlInfo:
+    """A declared control: its name in events, its kind, the range of ``value`` and whether it has
+    a light ``set_light`` can drive. For dials the range bounds one event's change in turns."""
+
+    name: str
+    kind: EventKind
+    lo: float = 0.0
+    hi: float = 1.0
+    has_light: bool = False
+
+
+class Device:
+    """Base class of every backend. Construct through ``devices.open_device``."""
+
+    scheme: ClassVar[str] = ""
+    #: The accepted query options and the spec form, shown when a spec is wrong.
+    OPTIONS: ClassVar[frozenset[str]] = frozenset()
+    FORM: ClassVar[str] = "SCHEME://LOCATION"
+    #: Seconds between reopen attempts while lost (the hot-plug promise is "within 1 s").
+    reconnect_interval: ClassVar[float] = 0.2
+    #: Upper bound of one blocking read; reads return as soon as data arrives.
+    read_timeout: ClassVar[float] = 0.1
+
+    def __init__(self, spec: DeviceSpec, **options: Any) -> None:
+        spec.check_options(self.OPTIONS, self.FORM)
+        self.spec: str = spec.text
+        self.parsed = spec
+        self.description: str = spec.text
+        self.controls: list[ControlInfo] = []
+        self.warnings = WarningCounter(spec.text)
+        self._listeners: tuple[Listener, ...] = ()
+        self._listener_lock = threading.Lock()
+        self._connected = False
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._closed = False
+        self._lights: dict[str, float] = {}
+
+    # ----------------------------------------------------------------- public API
+    @property
+    def connected(self) -> bool:
+        """True while the hardware is open and answering."""
+        return self._connected
+
+    @property
+    def exhausted(self) -> bool:
+        """True when a finite source (a mock script) has delivered everything it ever will."""
+        return False
+
+    def control(self, name: str) -> ControlInfo | None:
+        """The declared control called ``name``, if any."""
+        for info in self.controls:
+            if info.name == name:
+                return info
+        return None
+
+    def add_listener(self, fn: Listener) -> None:
+        """Call ``fn(event)`` from the reader thread for every event; it must be quick."""
+        with self._listener_lock:
+            self._listeners = (*self._listeners, fn)
+
+    def remove_listener(self, fn: Listener) -> None:
+        """Stop calling ``fn``; unknown listeners are ignored."""
+        with self._listener_lock:
+            self._listeners = tuple(f for f in self._listeners if f is not fn)
+
+    def open(self) -> None:
+        """Open the hardware now; raises DeviceError naming the spec when it is not there."""
+        try:
+            self._open()
+        except DeviceError:
+            self._safe_close_handle()
+            raise
+        except Exception as err:
+            self._safe_close_handle()
+            raise DeviceError(f"{self.spec}: cannot open: {err}") from err
+        self._connected = True
+
+    def start(self) -> None:
+        """Start the reader thread (once). It reports ``connected`` first when the device is open."""
+        if self._closed:
+            raise DeviceError(f"{self.spec}: device is closed")
+        if self._thread is not None:
+            return
+        self._thread = threading.Thread(target=self._run, name=f"device {self.spec}", daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        """Stop the reader thread and release the hardware; safe to call any number of times."""
+        if self._closed:
+            return
+        self._closed = True
+        self._stop.set()
+        self._wake()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=3.0)
+        self._safe_close_handle()
+        self._connected = False
+
+    def set_light(self, control: str, on: bool | float) -> None:
+        """Light a button (True/False or a 0..1 level); a silent no-op where there is no light."""
+        level = max(0.0, min(1.0, float(on)))
+        info = self.control(control)
+        if info is None or not info.has_light:
+            return
+        self._lights[control] = level
+        if self._connected:
+            try:
+                self._set_light(control, level)
+            except Exception as err:  # a failing light must never reach the live loop
+                self.warnings.warn("light", f"cannot set light {control}: {err}")
+
+    def __enter__(self) -> Device:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.spec} connected={self._connected}>"
+
+    # ----------------------------------------------------------------- hooks
+    def _open(self) -> None:
+        """Open the hardware handle and initialise the box; raise OSError/DeviceError if absent."""
+        raise NotImplementedError
+
+    def _read(self, timeout: float) -> Iterable[ControlEvent]:
+        """Wait up to ``timeout`` for input and return the decoded events; raise OSError when the
+        device is gone. Must return promptly after ``_wake``."""
+        raise NotImplementedError
+
+    def _close_handle(self) -> None:
+        """Release the hardware handle; called after loss and on close, possibly twice."""
+
+    def _set_light(self, control: str, level: float) -> None:
+        """Drive one light; only called for controls declared with ``has_light``."""
+
+    def _wake(self) -> None:
+        """Make a blocked ``_read`` return early (close is waiting)."""
+
+    def _restore_lights(self) -> None:
+        """Re-send remembered light states after a reconnect, so a toggle keeps glowing."""
+        for name, level in list(self._lights.items()):
+            try:
+                self._set_light(name, level)
+            except Exception as err:
+                self.warnings.warn("light", f"cannot restore light {name}: {err}")
+
+    # ----------------------------------------------------------------- reader thread
+    def emit(self, event: Event) -> None:
+        """Hand one event to every listener; a failing listener is logged, never fatal."""
+        for fn in self._listeners:
+            try:
+                fn(event)
+            except Exception as err:
+                self.warnings.warn("listener", f"listener {fn!r} failed: {err!r}")
+
+    def _status(self, status: str, detail: str = "") -> None:
+        self.emit(StatusEvent(self.spec, status, time.monotonic(), detail))  # type: ignore[arg-type]
+
+    def _safe_close_handle(self) -> None:
+        try:
+            self._close_handle()
+        except Exception as err:
+            log.debug("%s: closing handle failed: %s", self.spec, err)
+
+    def _lose(self, err: BaseException) -> None:
+        """The device went away: drop the stale handle and tell the listeners once."""
+        self._connected = False
+        self._safe_close_handle()
+        log.warning("%s: lost (%s)", self.spec, err)
+        self._status("lost", str(err))
+
+    def _try_reopen(self) -> bool:
+        try:
+            self._open()
+        except Exception as err:
+            self._safe_close_handle()
+            log.debug("%s: reopen failed: %s", self.spec, err)
+            return False
+        self._connected = True
+        self._restore_lights()
+        self._status("connected", "reopened")
+        return True
+
+    def _run(self) -> None:
+        if self._connected:
+            self._restore_lights()
+            self._status("connected")
+        while not self._stop.is_set():
+            if not self._connected:
+                if not self._try_reopen():
+                    self._stop.wait(self.reconnect_interval)
+                continue
+            try:
+                events = list(self._read(self.read_timeout))
+            except Exception as err:  # OSError, SerialException, CanError, parser bugs alike
+                if self._stop.is_set():
+                    break
+                self._lose(err)
+                continue
+            for event in events:
+                self.emit(event)

@@ -1,0 +1,90 @@
+"""Scheme -> backend registry with lazy imports and the ``puppet.devices`` entry-point group.
+
+Importing ``devices`` never imports hidapi, python-can or glfw: a backend module is imported only
+when a spec names its scheme, so a missing optional library fails that one spec, clearly.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+from importlib.metadata import entry_points
+from typing import Any
+
+from devices.base import Device
+from devices.errors import DeviceError, DeviceSpecError
+from devices.spec import parse_spec
+
+log = logging.getLogger("devices")
+
+#: Built-in backends: scheme -> (module, class name).
+BACKENDS: dict[str, tuple[str, str]] = {
+    "sgi": ("devices.sgi", "SgiDevice"),
+    "firmata": ("devices.firmata", "FirmataDevice"),
+    "serial": ("devices.textserial", "TextSerialDevice"),
+    "hid": ("devices.hid.device", "HidDevice"),
+    "can": ("devices.candev", "CanDevice"),
+    "keyboard": ("devices.keyboard", "KeyboardDevice"),
+    "mock": ("devices.mock", "MockDevice"),
+}
+
+ENTRY_POINT_GROUP = "puppet.devices"
+
+
+def _plugin_backends() -> dict[str, tuple[str, str]]:
+    """Third-party backends declared as ``scheme = "module:Class"`` in the entry-point group."""
+    found: dict[str, tuple[str, str]] = {}
+    try:
+        eps = entry_points(group=ENTRY_POINT_GROUP)
+    except Exception as err:  # broken metadata must not break built-in devices
+        log.warning("cannot read %s entry points: %s", ENTRY_POINT_GROUP, err)
+        return found
+    for ep in eps:
+        module, _, attr = ep.value.partition(":")
+        if module and attr:
+            found[ep.name.lower()] = (module.strip(), attr.strip())
+    return found
+
+
+def known_schemes() -> list[str]:
+    """Every scheme a spec may use, built-in and plugged in."""
+    return sorted(set(BACKENDS) | set(_plugin_backends()))
+
+
+def backend_class(scheme: str) -> type[Device]:
+    """Import and return the class for ``scheme``; DeviceSpecError for an unknown scheme."""
+    target = BACKENDS.get(scheme) or _plugin_backends().get(scheme)
+    if target is None:
+        raise DeviceSpecError(
+            f"unknown device scheme {scheme!r}; expected one of {', '.join(known_schemes())} "
+            "(SCHEME://LOCATION[?OPTIONS])"
+        )
+    module_name, class_name = target
+    try:
+        module = importlib.import_module(module_name)
+        cls = getattr(module, class_name)
+    except (ImportError, AttributeError) as err:
+        raise DeviceError(f"backend {scheme!r} ({module_name}:{class_name}) cannot be loaded: {err}") from err
+    if not (isinstance(cls, type) and issubclass(cls, Device)):
+        raise DeviceError(f"backend {scheme!r} ({module_name}:{class_name}) is not a devices.Device")
+    return cls
+
+
+def open_device(spec: str, *, require: bool = True, **options: Any) -> Device:
+    """Parse ``spec``, build its backend and open it (the reader thread is not started).
+
+    With ``require=False`` a device that is not plugged in yet is returned unconnected; once
+    started it connects by itself when it appears. ``options`` go to the backend (e.g. a mock's
+    ``clock``).
+    """
+    parsed = parse_spec(spec)
+    cls = backend_class(parsed.scheme)
+    device = cls(parsed, **options)
+    try:
+        device.open()
+    except DeviceError:
+        if require:
+            device.close()
+            raise
+        log.info("%s: not present yet; will connect when it appears", spec)
+    return device

@@ -1,0 +1,153 @@
+"""Specs, the backend registry, EventQueue and the base reader thread's loss/reconnect handling."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterable
+from typing import Any
+
+import pytest
+
+import devices
+from devices import ControlEvent, Device, DeviceError, DeviceSpecError, EventQueue, StatusEvent, parse_spec
+from devices.base import ControlInfo
+from devices.spec import DeviceSpec
+
+
+def test_spec_parsing() -> None:
+    s = parse_spec("serial:///dev/ttyUSB1?baud=115200")
+    assert (s.scheme, s.location, s.query) == ("serial", "/dev/ttyUSB1", {"baud": "115200"})
+    assert s.get_int("baud", 9600) == 115200
+    assert parse_spec("hid://077d:0410").location == "077d:0410"
+    assert parse_spec("can://virtual/panel?dbc=x.dbc&bitrate=250000").query["bitrate"] == "250000"
+    for bad in ("/dev/ttyUSB0", "", "9x://a", "sgi://a?x=1&x=2"):
+        with pytest.raises(DeviceSpecError):
+            parse_spec(bad)
+    with pytest.raises(DeviceSpecError, match="outside"):
+        parse_spec("sgi://a?counts_per_turn=0").get_int("counts_per_turn", 200, lo=1)
+
+
+def test_unknown_scheme_and_option_show_the_expected_form() -> None:
+    with pytest.raises(DeviceSpecError, match="expected one of .*sgi"):
+        devices.open_device("nope://x")
+    with pytest.raises(DeviceSpecError, match="keyboard://"):
+        devices.open_device("keyboard://?colour=red")
+
+
+def test_importing_devices_imports_no_backend_library() -> None:
+    import subprocess
+    import sys
+
+    code = "import sys, devices; print(sorted(m for m in ('hid','can','cantools','glfw','serial') if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+class FlakyDevice(Device):
+    """A backend whose 'hardware' can be unplugged and replugged by the test."""
+
+    scheme = "flaky"
+    reconnect_interval = 0.01
+    read_timeout = 0.01
+
+    def __init__(self, spec: DeviceSpec, **options: Any) -> None:
+        super().__init__(spec, **options)
+        self.present = threading.Event()
+        self.present.set()
+        self.opens = 0
+        self.closes = 0
+        self.pending: list[float] = []
+        self.controls = [ControlInfo("button0", "button", 0, 1, True)]
+        self.lights: list[tuple[str, float]] = []
+
+    def _open(self) -> None:
+        if not self.present.is_set():
+            raise OSError("not there")
+        self.opens += 1
+
+    def _read(self, timeout: float) -> Iterable[ControlEvent]:
+        if not self.present.is_set():
+            raise OSError("read error")
+        if self.pending:
+            return [ControlEvent(self.spec, "button0", "button", self.pending.pop(0), t=1.0)]
+        self._stop.wait(timeout)
+        return ()
+
+    def _close_handle(self) -> None:
+        self.closes += 1
+
+    def _set_light(self, control: str, level: float) -> None:
+        self.lights.append((control, level))
+
+
+def _wait_for(q: EventQueue, pred: Any, timeout: float = 5.0) -> list[Any]:
+    seen = []
+    while True:
+        e = q.get(timeout=timeout)
+        assert e is not None, f"timed out; saw {seen}"
+        seen.append(e)
+        if pred(e):
+            return seen
+
+
+def test_loss_and_reconnect_with_plugin_registry(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(devices.BACKENDS, "flaky", (__name__, "FlakyDevice"))
+    dev = devices.open_device("flaky://x")
+    assert isinstance(dev, FlakyDevice) and dev.connected
+    q = EventQueue()
+    boom_calls = []
+
+    def boom(e: Any) -> None:
+        boom_calls.append(e)
+        raise RuntimeError("a buggy listener")
+
+    dev.add_listener(boom)
+    dev.add_listener(q)
+    dev.set_light("button0", True)
+    dev.set_light("nonexistent", True)  # silent no-op
+    dev.start()
+    assert isinstance(q.get(timeout=5), StatusEvent)
+    dev.pending.append(1.0)
+    _wait_for(q, lambda e: isinstance(e, ControlEvent))
+    dev.present.clear()
+    lost = _wait_for(q, lambda e: isinstance(e, StatusEvent))[-1]
+    assert lost.status == "lost" and not dev.connected
+    closes = dev.closes
+    assert closes >= 1  # the stale handle was closed
+    dev.present.set()
+    back = _wait_for(q, lambda e: isinstance(e, StatusEvent))[-1]
+    assert back.status == "connected" and dev.connected
+    assert dev.lights.count(("button0", 1.0)) >= 2  # the light came back on after the replug
+    dev.pending.append(0.0)
+    assert _wait_for(q, lambda e: isinstance(e, ControlEvent))[-1].value == 0.0
+    assert boom_calls and dev.warnings.counts["listener"] >= 1
+    dev.close()
+    dev.close()
+    assert not dev.connected
+
+
+def test_missing_device_raises_or_waits(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(devices.BACKENDS, "flaky", (__name__, "FlakyDevice"))
+    monkeypatch.setattr(FlakyDevice, "_open", lambda self: (_ for _ in ()).throw(OSError("absent")))
+    with pytest.raises(DeviceError, match="flaky://gone"):
+        devices.open_device("flaky://gone")
+    dev = devices.open_device("flaky://gone", require=False)
+    assert not dev.connected
+    dev.close()
+
+
+def test_entry_point_backends_are_found(monkeypatch: pytest.MonkeyPatch) -> None:
+    class EP:
+        name, value = "myplug", f"{__name__}:FlakyDevice"
+
+    monkeypatch.setattr(devices.registry, "entry_points", lambda group: [EP()] if group == "puppet.devices" else [])
+    assert "myplug" in devices.known_schemes()
+    assert devices.backend_class("myplug") is FlakyDevice
+
+
+def test_event_queue_drops_oldest_when_full() -> None:
+    q = EventQueue(maxsize=2)
+    for i in range(3):
+        q.put(StatusEvent(f"d{i}", "lost"))
+    assert [e.device for e in q.drain()] == ["d1", "d2"] and q.dropped == 1
+    assert q.drain() == [] and q.get(timeout=0.01) is None
