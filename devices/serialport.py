@@ -1,0 +1,121 @@
+"""Shared plumbing of the serial-port backends (``sgi://``, ``serial://``, ``firmata://``).
+
+Reads block in ``select`` inside pyserial and return as soon as one byte arrives, so latency is
+not bounded by a poll interval; ``cancel_read`` wakes the reader for close and for queued
+host->box writes. The port is reopened by path, so a box behind a stable udev symlink
+(``/dev/serial/by-id/...``) comes back by itself after an unplug.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections.abc import Iterable
+from typing import Any
+
+from devices.base import Device
+from devices.errors import DeviceSpecError
+from devices.events import ControlEvent
+from devices.spec import DeviceSpec
+
+
+class SerialPortDevice(Device):
+    """A device on a serial port; subclasses parse bytes and may talk to the box."""
+
+    BAUDRATE = 9600
+    OPTIONS = frozenset({"baud"})
+    #: After this long without data, check that the path still names the port we hold.
+    IDLE_CHECK = 0.5
+
+    def __init__(self, spec: DeviceSpec, **options: Any) -> None:
+        super().__init__(spec, **options)
+        if not spec.location:
+            raise DeviceSpecError(f"{spec.text}: no port given; expected {self.FORM}")
+        self.path = spec.location
+        self.baudrate = spec.get_int("baud", self.BAUDRATE, lo=50, hi=4_000_000)
+        self._port: Any = None
+        self._write_lock = threading.Lock()
+        self._port_id: tuple[int, int] | None = None
+        self._last_data = 0.0
+
+    # ---------------------------------------------------------------- port handling
+    def _open(self) -> None:
+        import serial  # lazily: pyserial is only needed by serial backends
+
+        self._close_handle()
+        self._port = serial.Serial(self.path, self.baudrate, timeout=self.read_timeout, write_timeout=1.0)
+        self._port_id = self._identity()
+        self._last_data = time.monotonic()
+        self._handshake()
+
+    def _identity(self) -> tuple[int, int] | None:
+        try:
+            st = os.stat(self.path)
+        except OSError:
+            return None
+        return (st.st_rdev, st.st_ino)
+
+    def _close_handle(self) -> None:
+        port, self._port = self._port, None
+        if port is not None:
+            port.close()
+
+    def _wake(self) -> None:
+        port = self._port
+        if port is not None and hasattr(port, "cancel_read"):
+            try:
+                port.cancel_read()
+            except Exception:
+                pass
+
+    def write(self, data: bytes, pace: float = 0.0) -> None:
+        """Send bytes to the box; with ``pace`` > 0 one byte at a time, ``pace`` seconds apart,
+        for boxes that choke on bursts (the SGI box)."""
+        port = self._port
+        if port is None:
+            raise OSError("port not open")
+        with self._write_lock:
+            if pace <= 0:
+                port.write(data)
+                return
+            for i in range(len(data)):
+                port.write(data[i : i + 1])
+                time.sleep(pace)
+
+    def read_raw(self, timeout: float) -> tuple[bytes, float]:
+        """Whatever bytes arrive within ``timeout`` (returns at the first byte) and the monotonic
+        time taken right after the read."""
+        port = self._port
+        if port is None:
+            raise OSError("port not open")
+        port.timeout = timeout
+        data = port.read(port.in_waiting or 1)
+        t = time.monotonic()
+        if data:
+            waiting = port.in_waiting
+            if waiting:
+                data += port.read(waiting)
+        return data, t
+
+    def _read(self, timeout: float) -> Iterable[ControlEvent]:
+        self._before_read()
+        data, t = self.read_raw(timeout)
+        if not data:
+            if t - self._last_data > self.IDLE_CHECK:
+                self._last_data = t
+                if self._identity() != self._port_id:
+                    raise OSError(f"{self.path} vanished or now names another port")
+            return ()
+        self._last_data = t
+        return self._parse(data, t)
+
+    # ---------------------------------------------------------------- hooks
+    def _handshake(self) -> None:
+        """Talk to the box after opening (reset, enable reports); raise OSError if it is not there."""
+
+    def _before_read(self) -> None:
+        """Run queued host->box work in the reader thread (it owns the pacing)."""
+
+    def _parse(self, data: bytes, t: float) -> list[ControlEvent]:
+        raise NotImplementedError
