@@ -1,0 +1,223 @@
+"""Keyframe curves: the seed's "2D graphs of force amplitude over time" as an editable text file.
+
+    facepuppet-curves 1
+    # curve TARGET [linear|smooth|step] [replace|add|max]; then "time value" lines, seconds
+    curve zygomaticus_major smooth replace
+      0.000  0
+      0.500  0.8
+    end
+
+TARGET is anything a mapping binding accepts: a channel, a `_l/_r` pair as one, an AU (`AU12`) or an
+expression (`expr:happiness`); values are in channel units (0..1 weights for AUs and expressions).
+A curve acts between its first and last key; outside that span the channel keeps its underlying
+value (the recording, or neutral). `replace` sets the value, `add` adds to it, `max` takes the larger.
+Curves are evaluated at each tick's time, so playing them is as deterministic as a recording."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from puppet.errors import ChannelError, ConfigError
+from puppet.mapping.targets import Target, Vocabulary
+
+MAGIC = "facepuppet-curves"
+INTERPS = ("linear", "smooth", "step")
+MODES = ("replace", "add", "max")
+SPAN_EPS = 1e-6  # key times are written with 6 decimals
+
+
+@dataclass
+class Curve:
+    """One curve: sorted key times (s) and values."""
+
+    target: str
+    interp: str
+    mode: str
+    times: np.ndarray
+    values: np.ndarray
+    line: int = 0
+
+    def at(self, t: float) -> float | None:
+        """Value at time t, or None outside the keyed span."""
+        ts, vs = self.times, self.values
+        if len(ts) == 0 or t < ts[0] - SPAN_EPS or t > ts[-1] + SPAN_EPS:
+            return None
+        k = int(np.searchsorted(ts, t, side="right")) - 1
+        k = min(max(k, 0), len(ts) - 1)
+        if k == len(ts) - 1 or self.interp == "step":
+            return float(vs[k])
+        span = ts[k + 1] - ts[k]
+        u = 0.0 if span <= 0 else (t - ts[k]) / span
+        if self.interp == "smooth":
+            u = u * u * (3.0 - 2.0 * u)
+        return float(vs[k] + (vs[k + 1] - vs[k]) * u)
+
+
+@dataclass
+class CurveSet:
+    curves: list[Curve]
+    source: str = "<curves>"
+
+    @property
+    def duration(self) -> float:
+        return max((float(c.times[-1]) for c in self.curves if len(c.times)), default=0.0)
+
+
+def parse_curves(text: str, source: str = "<curves>") -> CurveSet:
+    """Parse the text format; errors name file:line."""
+    curves: list[Curve] = []
+    cur: dict | None = None
+    seen_magic = False
+
+    def fail(lineno: int, msg: str) -> ConfigError:
+        return ConfigError(f"{source}:{lineno}: {msg}")
+
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        s = line.split("#", 1)[0].strip()
+        if not s:
+            continue
+        parts = s.split()
+        if not seen_magic:
+            if parts[0] != MAGIC or len(parts) != 2 or parts[1] != "1":
+                raise fail(lineno, f"expected the first line to be '{MAGIC} 1'")
+            seen_magic = True
+            continue
+        if parts[0] == "curve":
+            if cur is not None:
+                raise fail(lineno, "expected 'end' before the next curve")
+            if len(parts) < 2 or len(parts) > 4:
+                raise fail(lineno, "expected 'curve TARGET [linear|smooth|step] [replace|add|max]'")
+            interp, mode = "linear", "replace"
+            for word in parts[2:]:
+                if word in INTERPS:
+                    interp = word
+                elif word in MODES:
+                    mode = word
+                else:
+                    raise fail(lineno, f"unknown word {word!r}; expected one of {', '.join(INTERPS + MODES)}")
+            cur = {"target": parts[1], "interp": interp, "mode": mode, "keys": [], "line": lineno}
+        elif parts[0] == "end":
+            if cur is None:
+                raise fail(lineno, "'end' without a 'curve'")
+            keys = cur["keys"]
+            if not keys:
+                raise fail(lineno, f"curve {cur['target']} has no keys")
+            curves.append(Curve(cur["target"], cur["interp"], cur["mode"], np.array([k[0] for k in keys]),
+                                np.array([k[1] for k in keys]), cur["line"]))
+            cur = None
+        else:
+            if cur is None:
+                raise fail(lineno, f"expected 'curve TARGET ...' or a comment, got {s!r}")
+            if len(parts) != 2:
+                raise fail(lineno, "expected a key as 'time value' (two numbers)")
+            try:
+                t, v = float(parts[0]), float(parts[1])
+            except ValueError:
+                raise fail(lineno, f"expected two numbers 'time value', got {s!r}") from None
+            if not (np.isfinite(t) and np.isfinite(v)) or t < 0:
+                raise fail(lineno, "expected a finite time >= 0 and a finite value")
+            if cur["keys"] and t < cur["keys"][-1][0]:
+                raise fail(lineno, f"key time {t} goes back in time (keys must be in order)")
+            cur["keys"].append((t, v))
+    if cur is not None:
+        raise fail(cur["line"], f"curve {cur['target']} is not closed with 'end'")
+    if not seen_magic:
+        raise ConfigError(f"{source}:1: empty curves file; expected '{MAGIC} 1'")
+    return CurveSet(curves, source)
+
+
+def load_curves(path: str | Path) -> CurveSet:
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as err:
+        raise ConfigError(f"{p}: cannot read the curves file: {err.strerror}") from err
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{p}: the curves file is not UTF-8 text") from err
+    return parse_curves(text, str(p))
+
+
+class CurveLayer:
+    """Curves resolved against a face: `apply(values, t)` overlays them on one tick's values."""
+
+    def __init__(self, curves: CurveSet, vocab: Vocabulary) -> None:
+        self.vocab = vocab
+        self.lo = np.array([c.lo for c in vocab.channels])
+        self.hi = np.array([c.hi for c in vocab.channels])
+        self.items: list[tuple[Curve, Target]] = []
+        for c in curves.curves:
+            try:
+                self.items.append((c, vocab.resolve(c.target)))
+            except ChannelError as err:
+                raise ConfigError(f"{curves.source}:{c.line}: {err}") from err
+
+    def apply(self, values: np.ndarray, t: float) -> np.ndarray:
+        out = values.copy()
+        for curve, target in self.items:
+            v = curve.at(t)
+            if v is None:
+                continue
+            for ch, w in target.channels:
+                x = v if target.direct else v * w
+                if curve.mode == "replace":
+                    out[ch] = x
+                elif curve.mode == "add":
+                    out[ch] = out[ch] + x
+                else:
+                    out[ch] = max(out[ch], x)
+        np.clip(out, self.lo, self.hi, out=out)
+        return out
+
+
+def _simplify(y: np.ndarray, tol: float) -> list[int]:
+    """Ramer-Douglas-Peucker on (index, y): the keys a linear curve needs to stay within tol."""
+    n = len(y)
+    if n <= 2:
+        return list(range(n))
+    keep = np.zeros(n, dtype=bool)
+    keep[0] = keep[-1] = True
+    stack = [(0, n - 1)]
+    while stack:
+        a, b = stack.pop()
+        if b - a < 2:
+            continue
+        x = np.arange(a + 1, b)
+        line = y[a] + (y[b] - y[a]) * (x - a) / (b - a)
+        err = np.abs(y[a + 1:b] - line)
+        k = int(np.argmax(err))
+        if err[k] > tol:
+            m = a + 1 + k
+            keep[m] = True
+            stack += [(a, m), (m, b)]
+    return np.flatnonzero(keep).tolist()
+
+
+def curves_from_values(values: np.ndarray, names: list[str], rate: float, vocab: Vocabulary,
+                       tolerance: float = 0.002) -> str:
+    """Keyframe curves text for a (ticks, C) array of channel values: only channels that move,
+    `_l/_r` pairs that move together as one curve, keys reduced to within `tolerance` of the range."""
+    lines = [f"{MAGIC} 1", "# exported by puppet replay; edit and play back with: puppet replay --curves FILE",
+             "# curve TARGET [linear|smooth|step] [replace|add|max]; keys are 'seconds value'"]
+    done: set[str] = set()
+    spans = {c.name: (c.hi - c.lo) or 1.0 for c in vocab.channels}
+    for j, name in enumerate(names):
+        if name in done:
+            continue
+        col = values[:, j]
+        if len(col) == 0 or np.all(col == col[0]):
+            continue
+        target = name
+        if name.endswith("_l") and name[:-2] + "_r" in names:
+            k = names.index(name[:-2] + "_r")
+            if np.array_equal(values[:, k], col):
+                target = name[:-2]
+                done.add(name[:-2] + "_r")
+        done.add(name)
+        keys = _simplify(col, tolerance * spans.get(name, 1.0))
+        lines.append(f"curve {target} linear replace")
+        lines += [f"  {k / rate:.6f}  {col[k]:.6g}" for k in keys]
+        lines.append("end")
+    return "\n".join(lines) + "\n"

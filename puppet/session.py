@@ -1,0 +1,231 @@
+"""Session recordings: JSON Lines, one record per line, written as the performance happens.
+
+Line 1 is the header (format, version, program, rig identity and hash, channel list, tick rate,
+mapping text, start time). Then, in tick order:
+  {"t": "ev",  "tick": k, "dev", "ctl", "kind", "value", "delta", "raw", "time"}  raw device events
+  {"t": "st",  "tick": k, "dev", "status", "detail"}                            device came/went
+  {"t": "v",   "tick": k, "v": {channel: value, ...}}  channel values applied to sim step k, changes only
+  {"t": "mark","tick": k, "label"}                                                a marker
+  {"t": "sync","tick": k}     ticks < k are complete (written at every flush)
+  {"t": "end", "ticks": n}    clean end: n ticks were simulated
+Floats are written with repr (what `json` does), the shortest text that reads back to the same
+double, so a replay feeds the simulator bit-identical values. No pickle, nothing executable.
+A writer is a context manager that flushes at least every 100 ms; a reader accepts a file cut by a
+crash and returns everything up to the last complete record, with a warning."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+from devices.events import ControlEvent, StatusEvent
+from puppet.errors import ConfigError
+
+FORMAT = "facepuppet-session"
+VERSION = 1
+FLUSH_SECONDS = 0.1
+
+
+def _json(obj: dict[str, Any]) -> str:
+    return json.dumps(obj, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+
+
+class SessionWriter:
+    """Writes one recording. Call `event`, `values`, `marker` as ticks happen and `tick(k)` once
+    per tick (it flushes when 100 ms have passed); `close(n)` writes the end record."""
+
+    def __init__(self, path: str | Path, header: dict[str, Any], *, clock: Callable[[], float] = time.monotonic,
+                 flush_seconds: float = FLUSH_SECONDS) -> None:
+        self.path = Path(path)
+        self._clock = clock
+        self._flush_seconds = flush_seconds
+        self.channels: list[str] = list(header["channels"])
+        try:
+            self._file: IO[str] | None = open(self.path, "w", encoding="utf-8", newline="\n")
+        except OSError as err:
+            raise ConfigError(f"{self.path}: cannot write the recording: {err.strerror}") from err
+        full = {"t": "header", "format": FORMAT, "version": VERSION, **header}
+        self._last: np.ndarray | None = None
+        self._last_flush = self._clock()
+        self._done_ticks = 0
+        self._write(full)
+        self.flush()
+
+    def _write(self, rec: dict[str, Any]) -> None:
+        if self._file is not None:
+            self._file.write(_json(rec) + "\n")
+
+    def event(self, tick: int, ev: ControlEvent | StatusEvent, t0: float = 0.0) -> None:
+        """A raw device event applied at tick boundary `tick`; `time` is relative to t0."""
+        if isinstance(ev, StatusEvent):
+            self._write({"t": "st", "tick": tick, "dev": ev.device, "status": ev.status, "detail": ev.detail})
+            return
+        raw = ev.raw if isinstance(ev.raw, (int, float, str)) or ev.raw is None else repr(ev.raw)
+        self._write({"t": "ev", "tick": tick, "dev": ev.device, "ctl": ev.control, "kind": ev.kind,
+                     "value": float(ev.value), "delta": ev.delta, "raw": raw, "time": ev.t - t0})
+
+    def values(self, tick: int, values: np.ndarray) -> None:
+        """Channel values applied to sim step `tick`; only the ones that changed are written."""
+        if self._last is None:
+            changed = range(len(values))
+        else:
+            changed = np.flatnonzero(values != self._last).tolist()
+        if len(changed):
+            self._write({"t": "v", "tick": tick, "v": {self.channels[i]: float(values[i]) for i in changed}})
+        self._last = values.copy()
+
+    def marker(self, tick: int, label: str) -> None:
+        self._write({"t": "mark", "tick": tick, "label": label})
+
+    def tick(self, done_ticks: int) -> None:
+        """`done_ticks` ticks are complete; flush if the last flush is 100 ms old."""
+        self._done_ticks = done_ticks
+        if self._clock() - self._last_flush >= self._flush_seconds:
+            self.flush()
+
+    def flush(self) -> None:
+        if self._file is None:
+            return
+        if self._done_ticks:
+            self._write({"t": "sync", "tick": self._done_ticks})
+        self._file.flush()
+        self._last_flush = self._clock()
+
+    def close(self, ticks: int | None = None) -> None:
+        """Write the end record, flush and fsync. Idempotent."""
+        if self._file is None:
+            return
+        n = self._done_ticks if ticks is None else ticks
+        self._write({"t": "end", "ticks": n})
+        self._file.flush()
+        try:
+            os.fsync(self._file.fileno())
+        except OSError:
+            pass
+        self._file.close()
+        self._file = None
+
+    def __enter__(self) -> SessionWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+@dataclass
+class Session:
+    """A recording read back. `values` holds tick -> {channel index: value} (changes only)."""
+
+    path: Path
+    header: dict[str, Any]
+    channels: list[str]
+    tick_rate: float
+    ticks: int
+    values: dict[int, dict[int, float]] = field(default_factory=dict)
+    events: list[dict[str, Any]] = field(default_factory=list)
+    markers: list[tuple[int, str]] = field(default_factory=list)
+    complete: bool = True
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def duration(self) -> float:
+        return self.ticks / self.tick_rate
+
+    def iter_values(self, defaults: np.ndarray, names: list[str] | None = None) -> Iterator[np.ndarray]:
+        """Full channel arrays for ticks 0..ticks-1, starting from `defaults`; with `names`
+        (the live face's channel order) values are placed by name."""
+        order = self._order(names)
+        cur = np.array(defaults, dtype=np.float64, copy=True)
+        for k in range(self.ticks):
+            ch = self.values.get(k)
+            if ch:
+                for i, v in ch.items():
+                    j = order[i]
+                    if j >= 0:
+                        cur[j] = v
+            yield cur.copy()
+
+    def value_array(self, defaults: np.ndarray, names: list[str] | None = None) -> np.ndarray:
+        """(ticks, C) array of every tick's channel values."""
+        out = np.empty((self.ticks, len(defaults)), dtype=np.float64)
+        for k, row in enumerate(self.iter_values(defaults, names)):
+            out[k] = row
+        return out
+
+    def _order(self, names: list[str] | None) -> list[int]:
+        if names is None:
+            return list(range(len(self.channels)))
+        pos = {n: j for j, n in enumerate(names)}
+        return [pos.get(n, -1) for n in self.channels]
+
+
+def read_session(path: str | Path) -> Session:
+    """Read a recording. A file cut short (crash, SIGKILL) reads up to its last complete record
+    and gets a warning in `session.warnings`; a file that is not a recording is a ConfigError."""
+    p = Path(path)
+    try:
+        fh = open(p, "rb")
+    except OSError as err:
+        raise ConfigError(f"{p}: cannot read the recording: {err.strerror}") from err
+    with fh:
+        data = fh.read()
+    lines = data.split(b"\n")
+    try:
+        header = json.loads(lines[0])
+    except (ValueError, UnicodeDecodeError) as err:
+        raise ConfigError(f"{p}:1: not a facepuppet recording (no readable header)") from err
+    if not isinstance(header, dict) or header.get("format") != FORMAT:
+        raise ConfigError(f"{p}:1: not a facepuppet recording (header format is not {FORMAT!r})")
+    if header.get("version") != VERSION:
+        raise ConfigError(f"{p}:1: recording format version {header.get('version')!r} is not supported (expected {VERSION})")
+    try:
+        channels = [str(c) for c in header["channels"]]
+        rate = float(header["tick_rate"])
+    except (KeyError, TypeError, ValueError) as err:
+        raise ConfigError(f"{p}:1: recording header lacks channels or tick_rate") from err
+    index = {n: i for i, n in enumerate(channels)}
+    s = Session(p, header, channels, rate, 0, complete=False)
+    last_tick = -1
+    sync = 0
+    # the final element is b"" after a trailing newline; anything else there is a cut-off line
+    body = lines[1:]
+    for lineno, raw in enumerate(body, start=2):
+        if not raw.strip():
+            continue
+        try:
+            rec = json.loads(raw)
+            kind = rec["t"]
+            if kind == "end":
+                s.ticks = int(rec["ticks"])
+                s.complete = True
+                break
+            tick = int(rec["tick"])
+        except (ValueError, KeyError, TypeError, UnicodeDecodeError):
+            cut = lineno == len(lines) or all(not x.strip() for x in lines[lineno:])
+            why = "was cut off (crash or kill)" if cut else f"has a damaged record at line {lineno}"
+            s.warnings.append(f"{p}: recording {why}; reading it up to its last complete record")
+            break
+        if kind == "v":
+            s.values[tick] = {index[n]: float(v) for n, v in rec["v"].items() if n in index}
+            last_tick = max(last_tick, tick)
+        elif kind in ("ev", "st"):
+            s.events.append(rec)
+        elif kind == "mark":
+            s.markers.append((tick, str(rec.get("label", ""))))
+        elif kind == "sync":
+            sync = max(sync, tick)
+    if not s.complete:
+        s.ticks = max(sync, last_tick + 1)
+        if not s.warnings:
+            s.warnings.append(f"{p}: recording has no end record (the program was stopped); "
+                              f"reading its {s.ticks} complete ticks")
+    for k in [k for k in s.values if k >= s.ticks]:
+        del s.values[k]
+    return s

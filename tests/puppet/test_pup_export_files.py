@@ -1,0 +1,69 @@
+"""File exporters on their own: PC2 header and data, OBJ order, ARKit and channel CSVs."""
+
+from __future__ import annotations
+
+import csv
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from puppet.export.arkit import ARKIT_SHAPES, UNSUPPORTED, ArkitCsvWriter, timecode
+from puppet.export.channels_csv import ChannelCsvWriter
+from puppet.export.pc2 import PC2Writer, read_pc2, write_obj
+
+
+def test_pc2_header_and_samples_read_back(tmp_path: Path) -> None:
+    frames = [np.random.default_rng(k).normal(size=(5, 3)) for k in range(4)]
+    w = PC2Writer(tmp_path / "a.pc2", 5, start_frame=1.0, sampling=1.0)
+    for f in frames:
+        w.add(f)
+    w.close()
+    raw = (tmp_path / "a.pc2").read_bytes()
+    assert raw[:12] == b"POINTCACHE2\0"
+    assert struct.unpack_from("<iiffi", raw, 12) == (1, 5, 1.0, 1.0, 4)
+    assert len(raw) == 32 + 4 * 5 * 3 * 4
+    head, data = read_pc2(tmp_path / "a.pc2")
+    assert head["num_samples"] == 4 and data.dtype == np.float32
+    assert np.array_equal(data, np.array(frames, dtype=np.float32))
+
+
+def test_obj_keeps_vertex_order(tmp_path: Path) -> None:
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.5]], dtype=float)
+    write_obj(tmp_path / "m.obj", v, np.array([[0, 1, 2]]), "rest pose")
+    lines = (tmp_path / "m.obj").read_text().splitlines()
+    vs = [list(map(float, x.split()[1:])) for x in lines if x.startswith("v ")]
+    assert vs == v.tolist() and "f 1 2 3" in lines and lines[0] == "# rest pose"
+
+
+def test_arkit_csv_header_timecode_and_mapping(tmp_path: Path) -> None:
+    names = ["zygomaticus_major_l", "zygomaticus_major_r", "jaw", "eyes_yaw", "eyes_pitch"]
+    w = ArkitCsvWriter(tmp_path / "a.csv", names, 30)
+    w.add(0, np.array([0.0, 0.0, 0.0, 0.0, 0.0]))
+    w.add(31, np.array([0.7, 0.2, 0.5, 0.4, -0.3]))
+    w.close()
+    rows = list(csv.reader(open(tmp_path / "a.csv")))
+    head = rows[0]
+    assert head[:3] == ["Timecode", "BlendShapeCount", "EyeBlinkLeft"] and len(head) == 2 + 52 + 9
+    assert len(ARKIT_SHAPES) == 52 and "CheekPuff" in UNSUPPORTED
+    r = dict(zip(head, rows[2]))
+    assert r["Timecode"] == "00:00:01:01.000" and r["BlendShapeCount"] == "61"
+    assert float(r["MouthSmileLeft"]) == pytest.approx(0.7) and float(r["MouthSmileRight"]) == pytest.approx(0.2)
+    assert float(r["JawOpen"]) == 0.5
+    assert float(r["EyeLookOutLeft"]) == pytest.approx(0.4) and float(r["EyeLookInRight"]) == pytest.approx(0.4)
+    assert float(r["EyeLookDownLeft"]) == pytest.approx(0.3) and float(r["EyeLookUpLeft"]) == 0.0
+
+
+def test_timecode_rolls_over() -> None:
+    assert timecode(60 * 3600 + 59, 60) == "00:01:00:59.000"
+
+
+def test_channel_csv_is_exact(tmp_path: Path) -> None:
+    w = ChannelCsvWriter(tmp_path / "c.csv", ["a", "b"])
+    vals = np.array([1 / 3, 2 / 7])
+    w.add(0, 0.0, 0, vals)
+    w.close()
+    rows = list(csv.reader(open(tmp_path / "c.csv")))
+    assert rows[0] == ["frame", "time", "tick", "a", "b"]
+    assert [float(x) for x in rows[1][3:]] == vals.tolist()
