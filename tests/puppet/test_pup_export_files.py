@@ -56,7 +56,8 @@ def test_arkit_csv_header_timecode_and_mapping(tmp_path: Path) -> None:
 
 
 def test_timecode_rolls_over() -> None:
-    assert timecode(60 * 3600 + 59, 60) == "00:01:00:59.000"
+    assert timecode(60 * 3600 + 59, 60) == "01:00:00:59.000"
+    assert timecode(61 * 60, 60) == "00:01:01:00.000"
 
 
 def test_channel_csv_is_exact(tmp_path: Path) -> None:
