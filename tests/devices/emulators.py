@@ -201,3 +201,75 @@ class TextBoxEmulator:
 
     def send(self, text: str) -> None:
         self.port.write(text.encode("ascii"))
+
+
+class FirmataEmulator:
+    """An Arduino running StandardFirmata (+ FirmataEncoder): answers the version and firmware
+    queries, records pin modes, reporting enables and the sampling interval, and reports inputs
+    only once the host enabled them, as the firmware does."""
+
+    def __init__(self, link: Path, name: str = "StandardFirmata.ino") -> None:
+        self.name = name
+        self.pin_modes: dict[int, int] = {}
+        self.report_analog: set[int] = set()
+        self.report_ports: set[int] = set()
+        self.sampling_ms: int | None = None
+        self.encoders: dict[int, tuple[int, int]] = {}
+        self.levels = [1] * 24  # pull-ups: idle high
+        self.configured = threading.Event()
+        self._pending = b""
+        self.port = PtyPort(link, self._on_bytes)
+
+    def _on_bytes(self, data: bytes) -> None:
+        self._pending += data
+        while self._pending:
+            b = self._pending[0]
+            if b == 0xF9:
+                self._pending = self._pending[1:]
+                self.port.write(bytes([0xF9, 2, 5]))
+            elif b == 0xF0:
+                end = self._pending.find(0xF7)
+                if end < 0:
+                    return
+                self._sysex(self._pending[1:end])
+                self._pending = self._pending[end + 1 :]
+            elif b == 0xF4 or b & 0xF0 in (0xC0, 0xD0):
+                n = 3 if b == 0xF4 else 2
+                if len(self._pending) < n:
+                    return
+                msg, self._pending = self._pending[:n], self._pending[n:]
+                if b == 0xF4:
+                    self.pin_modes[msg[1]] = msg[2]
+                elif b & 0xF0 == 0xC0 and msg[1]:
+                    self.report_analog.add(b & 0x0F)
+                elif b & 0xF0 == 0xD0 and msg[1]:
+                    self.report_ports.add(b & 0x0F)
+                    self.configured.set()
+            else:
+                self._pending = self._pending[1:]
+
+    def _sysex(self, body: bytes) -> None:
+        if body[:1] == b"\x79":
+            text = b"".join(bytes([ord(c) & 0x7F, ord(c) >> 7]) for c in self.name)
+            self.port.write(bytes([0xF0, 0x79, 2, 5]) + text + b"\xf7")
+        elif body[:1] == b"\x7a":
+            self.sampling_ms = body[1] | body[2] << 7
+        elif body[:2] == b"\x61\x00":
+            self.encoders[body[2]] = (body[3], body[4])
+
+    def analog(self, ch: int, value: int) -> None:
+        if ch in self.report_analog:
+            self.port.write(bytes([0xE0 | ch, value & 0x7F, (value >> 7) & 0x7F]))
+
+    def digital(self, pin: int, level: int) -> None:
+        self.levels[pin] = level
+        port = pin // 8
+        if port in self.report_ports:
+            mask = sum(self.levels[port * 8 + i] << i for i in range(8))
+            self.port.write(bytes([0x90 | port, mask & 0x7F, mask >> 7]))
+
+    def encoder(self, n: int, position: int) -> None:
+        mag = abs(position)
+        head = n | (0x40 if position < 0 else 0)
+        self.port.write(bytes([0xF0, 0x61, head, mag & 0x7F, (mag >> 7) & 0x7F, (mag >> 14) & 0x7F,
+                               (mag >> 21) & 0x7F, 0xF7]))
