@@ -176,6 +176,7 @@ class Mapper:
                 return
             b.button.press(down)
         elif kind == "relative":
+            self._resync_relative(b)
             if b.spec.encoding is not None:
                 raw = ev.raw if isinstance(ev.raw, (int, float)) and not isinstance(ev.raw, bool) else ev.value
                 turns = F.decode_relative(int(raw), b.spec.encoding, b.spec.bits) / b.spec.counts_per_turn
@@ -185,6 +186,17 @@ class Mapper:
         else:
             lo, hi = b.spec.src_range or b.declared or (0.0, 1.0)
             b.src = min(1.0, max(0.0, (ev.value - lo) / (hi - lo)))
+
+    def _resync_relative(self, b: Binding) -> None:
+        """A relative control nudges the value the face has now: if another binding moved the
+        channel since this one last drove it, continue from there (no jump back)."""
+        if b.target is None or not b.target.direct:
+            return
+        cur = float(self.values[b.target.channels[0][0]])
+        if abs(cur - b.value) > 1e-9 and self.panic_left <= 0.0:
+            b.src = min(1.0, max(0.0, b.to_norm(cur)))
+            b.chain.reset(b.src)
+            b.value = cur
 
     # --- per tick --------------------------------------------------------------------------------
     def step(self, dt: float) -> np.ndarray:

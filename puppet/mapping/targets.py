@@ -79,7 +79,7 @@ class Vocabulary:
         if all(p in self.index for p in pair):
             c = self.channels[self.index[pair[0]]]
             return Target(name, True, tuple((self.index[p], 1.0) for p in pair), c.lo, c.hi, c.default)
-        if re.fullmatch(r"[Aa][Uu]\d+", name):
+        if re.fullmatch(r"[Aa][Uu]\d+(_[LRlr])?", name):
             w = self.au_weights(name)
             return Target(name.upper(), False, tuple(sorted(w.items())), 0.0, 1.0, 0.0)
         if name.lower().startswith("expr:"):
@@ -90,7 +90,8 @@ class Vocabulary:
             acc: dict[int, float] = {}
             for au, intensity in table.items():
                 for i, w in self.au_weights(au).items():
-                    acc[i] = acc.get(i, 0.0) + float(intensity) * w
+                    # sim.facs combines an expression's AUs by max per channel; so do we
+                    acc[i] = max(acc.get(i, 0.0), float(intensity) * w)
             return Target(f"expr:{ex}", False, tuple(sorted(acc.items())), 0.0, 1.0, 0.0)
         raise ChannelError(self.unknown_message(name))
 

@@ -147,3 +147,13 @@ def test_status_events_show_on_hud() -> None:
     assert m.binding_status()[0][2] == "connected"
     m.feed(StatusEvent("mock://", "lost"))
     assert m.binding_status()[0][2] == "lost" and "LOST" in m.hud_lines()[0]
+
+
+def test_relative_nudges_continue_from_the_current_value() -> None:
+    m = mapper('[[binding]]\ncontrol = "key:9"\ntarget = "age"\ninput = "relative"\ngain = 0.05\n'
+               '[[binding]]\ncontrol = "key:8"\ntarget = "age"\ninput = "relative"\ngain = -0.05\n')
+    up, down = ev("key:9", 1, "key"), ev("key:8", 1, "key")
+    rel = lambda c: ev(c, 0, "key")  # noqa: E731
+    v = run(m, {0: [up, rel("key:9")], 1: [up, rel("key:9")], 2: [down, rel("key:8")]}, 3)
+    ages = [x[idx("age")] for x in v]
+    assert ages == pytest.approx([36.0, 42.0, 36.0])

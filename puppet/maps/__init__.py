@@ -1,0 +1,1 @@
+"""Shipped default mapping files, one per supported kind of control box."""
