@@ -34,7 +34,7 @@ A_NODES = np.arange(11, dtype=np.float64)  # 0 .. 10 by 1
 ALPHA_STEP = np.pi / 20.0
 ALPHA_NODES_2D = ALPHA_STEP * np.arange(11)  # 0 .. pi/2 (section 5.1)
 ALPHA_NODES_3D = ALPHA_STEP * np.arange(21)  # 0 .. pi (section 5.2 footnote)
-ASYM_RATIO = 0.4
+ASYM_RATIO = 0.25
 
 # Composite Gauss-Legendre rule on [0, 1]: 16 panels of 8 nodes, so the sharp speed dips of
 # nearly looping segments are still integrated to ~1e-6.

@@ -19,6 +19,7 @@ AGE_0 = 35.0  # years: dilatation starts (section 5, "35 years old approx.")
 AGE_MAX = 90.0  # years: the age of maximum dilatation
 DIL_MAX = 0.4  # relative arc-length surplus across a wrinkle at AGE_MAX
 FULL_RELEASE_STRAIN = 0.08  # compression strain across a wrinkle that frees all the surplus
+INPLANE_LOSS_AT_MAX = 0.4  # fraction of a compression aged skin no longer absorbs in its plane
 A_CAP_RATIO = 1.0  # the tangent norm never exceeds the chord: rolls at most 3/4 as tall as wide
 _A_SAMPLES = 33  # samples of S(a) when the tangent norm must grow
 
@@ -39,12 +40,15 @@ def released_surplus(
 
     Reading of section 5 chosen for a live face: eq 10's surplus dil(d_init) - d_init is skin the
     surrounding tension keeps flat while the face rests; compression across the wrinkle (the
-    dynamics moving P0 and P1 together) releases it, fully at FULL_RELEASE_STRAIN. The young
-    skin's own in-plane shortening is the springs' job, so no bulge forms below AGE_0 and none
-    without compression. `emphasis` is the paper's per-wrinkle coefficient."""
-    strain = np.clip((d_init - s_now) / d_init, 0.0, None)
-    release = np.minimum(strain / FULL_RELEASE_STRAIN, 1.0)
-    return (dilatation(d_init, age) - d_init) * release * emphasis
+    dynamics moving P0 and P1 together) releases it, fully at FULL_RELEASE_STRAIN. Aged skin
+    has also lost elasticity (`sim.wrinkles.aging`: k_l falls by the same fraction), so that
+    fraction of the compression itself, which young skin absorbs in its plane, goes into the
+    bulge too. Young skin's in-plane shortening is the springs' job: no bulge forms below AGE_0
+    and none without compression. `emphasis` is the paper's per-wrinkle coefficient."""
+    compression = np.clip(d_init - s_now, 0.0, None)
+    release = np.minimum(compression / (d_init * FULL_RELEASE_STRAIN), 1.0)
+    unabsorbed = INPLANE_LOSS_AT_MAX * (dilatation(1.0, age) - 1.0) / DIL_MAX
+    return ((dilatation(d_init, age) - d_init) * release + unabsorbed * compression) * emphasis
 
 
 @dataclass(frozen=True)
