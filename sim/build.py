@@ -1,0 +1,235 @@
+"""`compile_model(rig) -> FaceModel`: everything the integrator needs, as flat frozen arrays.
+
+Skin parameters (`SkinParams`) are given per unit area so a face behaves the same at every mesh
+resolution: node masses, damping, tethers and muscle forces all scale with the node's lumped area,
+and spring stiffness comes from a membrane modulus (see `sim.springs.build_springs`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass, field
+from functools import lru_cache
+
+import numpy as np
+import scipy.sparse as sp
+
+from sim.channels import CHANNEL_INDEX, CHANNEL_SPECS, ChannelSpec
+from sim.model import FaceMesh, FaceRig
+from sim.muscles import muscle_field
+from sim.springs import build_springs, vertex_areas
+from sim.state import FaceState, rest_state
+
+
+@dataclass(frozen=True)
+class SkinParams:
+    """Material of the face, scale-free (per unit area), in cm, g, s.
+
+    areal_density:  g/cm^2, skin plus subcutaneous tissue (~3 mm at ~1 g/cm^3).
+    sheet_modulus:  dyn/cm, 2D Young's modulus of the skin membrane at low strain (k_l).
+    high_ratio:     k_h / k_l, the stiffening beyond the strain threshold (seed 000 eq 3).
+    strain_threshold: eps^c as a relative strain.
+    bend_ratio:     bending spring stiffness relative to its edge spring.
+    tether:         dyn/cm^3, seed 003 eq 9's feedback stiffness k per unit area (skin to skull).
+    mass_damping:   1/s, c_i = mass_damping * m_i (seed 000 eq 23's velocity damping).
+    viscosity:      s, axial spring damping per unit stiffness relative to the value that critically
+                    damps the mesh's stiffest mode (1.0); dermis is viscoelastic and this lets the
+                    explicit step run at its stability bound. Barely touches the slow expression modes.
+    gravity:        whether m_i g acts; g in cm/s^2 along -Y.
+    jaw_max_angle:  rad, jaw rotation at jaw = 1 (AU27).
+    """
+
+    areal_density: float = 0.3
+    sheet_modulus: float = 6000.0
+    high_ratio: float = 3.0
+    strain_threshold: float = 0.15
+    bend_ratio: float = 0.3
+    tether: float = 3000.0
+    mass_damping: float = 120.0
+    viscosity: float = 1.0
+    gravity: bool = True
+    g: float = 981.0
+    jaw_max_angle: float = 0.35
+
+
+@dataclass(frozen=True, eq=False)
+class FaceModel:
+    """The compiled face. Arrays are read-only. N vertices, M triangles, S springs, C channels.
+
+    rig, mesh:           the source FaceRig and its FaceMesh.
+    rest (N,3) cm; triangles (M,3) int32.
+    spring_indices (S,2) int32: edge springs first (n_edge_springs of them), then bending springs.
+    spring_rest_length (S,) cm; spring_k_low, spring_k_high (S,) dyn/cm; spring_damping (S,) dyn*s/cm
+    (axial, along the spring); strain_threshold: relative strain eps^c.
+    area (N,) cm^2 lumped; mass (N,) g; damping (N,) g/s (c_i); rest_stiffness (N,) dyn/cm (eq 9 k);
+    held (N,) bool (pinned); jaw_weight (N,); jaw_pivot (3,); jaw_axis (3,); gravity (3,) cm/s^2.
+    muscle_matrix: scipy CSR (3N, C): column c = channel c's nodal force (dyn) at activation 1,
+                   flattened xyz per vertex; zero columns for non-muscle channels.
+    channels, channel_index: the channel specs (see sim.channels) and name -> column.
+    params: the SkinParams; hash: hex identity of the rig + parameters (for recordings).
+    """
+
+    rig: FaceRig
+    mesh: FaceMesh
+    rest: np.ndarray
+    triangles: np.ndarray
+    spring_indices: np.ndarray
+    n_edge_springs: int
+    spring_rest_length: np.ndarray
+    spring_k_low: np.ndarray
+    spring_k_high: np.ndarray
+    spring_damping: np.ndarray
+    strain_threshold: float
+    area: np.ndarray
+    mass: np.ndarray
+    damping: np.ndarray
+    rest_stiffness: np.ndarray
+    held: np.ndarray
+    jaw_weight: np.ndarray
+    jaw_pivot: np.ndarray
+    jaw_axis: np.ndarray
+    gravity: np.ndarray
+    muscle_matrix: sp.csr_matrix
+    params: SkinParams
+    omega_max: float
+    channels: tuple[ChannelSpec, ...] = CHANNEL_SPECS
+    channel_index: dict[str, int] = field(default_factory=lambda: dict(CHANNEL_INDEX))
+    hash: str = ""
+
+    @property
+    def n_vertices(self) -> int:
+        return len(self.rest)
+
+    def rest_state(self) -> FaceState:
+        """A fresh state at rest."""
+        return rest_state(self.rest)
+
+    def control(self):  # type: ignore[no-untyped-def]
+        """A fresh FaceControl at the channel defaults."""
+        from sim.state import FaceControl
+
+        return FaceControl(self)
+
+    def landmark_index(self, name: str) -> int:
+        return int(self.mesh.landmarks[name])
+
+
+def omega_bound(
+    rest: np.ndarray,
+    springs: np.ndarray,
+    k: np.ndarray,
+    tether: np.ndarray,
+    mass: np.ndarray,
+    free: np.ndarray,
+) -> float:
+    """Upper bound (rad/s) on the highest natural frequency of the free nodes at rest, by block
+    Gershgorin on M^-1/2 K M^-1/2: omega^2 <= max_i [lambda_max(K_ii) / m_i + sum_j k_ij / sqrt(m_i m_j)]
+    with K_ii = sum_j k_ij u_ij u_ij^T + k_r,i I and j over free neighbours (held ones are fixed)."""
+    i, j = springs[:, 0].astype(np.int64), springs[:, 1].astype(np.int64)
+    d = rest[j] - rest[i]
+    u = d / np.linalg.norm(d, axis=1)[:, None]
+    outer = k[:, None, None] * u[:, :, None] * u[:, None, :]
+    kii = np.zeros((len(rest), 3, 3))
+    np.add.at(kii, i, outer)
+    np.add.at(kii, j, outer)
+    kii += tether[:, None, None] * np.eye(3)
+    diag = np.linalg.eigvalsh(kii)[:, -1] / mass
+    coupling = k / np.sqrt(mass[i] * mass[j])
+    off = np.zeros(len(rest))
+    np.add.at(off, i, np.where(free[j], coupling, 0.0))
+    np.add.at(off, j, np.where(free[i], coupling, 0.0))
+    bound = np.where(free, diag + off, 0.0)
+    return float(np.sqrt(bound.max()))
+
+
+def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray) -> sp.csr_matrix:
+    n = len(rest)
+    cols = []
+    for spec in CHANNEL_SPECS:
+        parts = rig.muscles.get(spec.name, ())
+        if spec.kind == "muscle" and parts:
+            cols.append(sp.csc_matrix(muscle_field(parts, rest, area).reshape(3 * n, 1)))
+        else:
+            cols.append(sp.csc_matrix((3 * n, 1)))
+    m = sp.hstack(cols).tocsr()
+    m.eliminate_zeros()
+    return m
+
+
+def _rig_digest(rig: FaceRig, params: SkinParams) -> str:
+    h = hashlib.sha256()
+    mesh = rig.mesh
+    for arr in (mesh.vertices, mesh.triangles, mesh.held, mesh.jaw_weight, mesh.jaw_pivot, mesh.jaw_axis):
+        a = np.ascontiguousarray(arr)
+        h.update(str(a.dtype).encode() + str(a.shape).encode() + a.tobytes())
+    for name in sorted(rig.muscles):
+        for m in rig.muscles[name]:
+            h.update(type(m).__name__.encode() + name.encode())
+            for key, val in sorted(vars(m).items()):
+                raw = val.encode() if isinstance(val, str) else np.asarray(val, np.float64).tobytes()
+                h.update(key.encode() + raw)
+    h.update(json.dumps(asdict(params), sort_keys=True).encode())
+    return h.hexdigest()[:16]
+
+
+def _frozen(a: np.ndarray, dtype: type | None = None) -> np.ndarray:
+    out = np.array(a, dtype=dtype, copy=True)
+    out.setflags(write=False)
+    return out
+
+
+def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
+    """Springs, masses, tethers and muscle fields from the rig's rest geometry, frozen."""
+    p = params or SkinParams()
+    mesh = rig.mesh
+    rest = np.asarray(mesh.vertices, dtype=np.float64)
+    tris = np.asarray(mesh.triangles, dtype=np.int32)
+    springs, rest_len, k_low, n_edge = build_springs(rest, tris, p.sheet_modulus, p.bend_ratio)
+    area = vertex_areas(rest, tris)
+    area = np.maximum(area, 1e-6)
+    mass = p.areal_density * area
+    held = np.asarray(mesh.held, dtype=bool)
+    tether = p.tether * area
+    k_high = p.high_ratio * k_low
+    omega = omega_bound(rest, springs, k_high, tether, mass, ~held)
+    omega_low = omega_bound(rest, springs, k_low, tether, mass, ~held)
+    spring_damping = p.viscosity * (2.0 / omega_low) * k_low
+    model = FaceModel(
+        rig=rig,
+        mesh=mesh,
+        rest=_frozen(rest),
+        triangles=_frozen(tris),
+        spring_indices=_frozen(springs),
+        n_edge_springs=n_edge,
+        spring_rest_length=_frozen(rest_len),
+        spring_k_low=_frozen(k_low),
+        spring_k_high=_frozen(k_high),
+        spring_damping=_frozen(spring_damping),
+        strain_threshold=p.strain_threshold,
+        area=_frozen(area),
+        mass=_frozen(mass),
+        damping=_frozen(p.mass_damping * mass),
+        rest_stiffness=_frozen(tether),
+        held=_frozen(held),
+        jaw_weight=_frozen(np.clip(mesh.jaw_weight, 0.0, 1.0), np.float64),
+        jaw_pivot=_frozen(mesh.jaw_pivot, np.float64),
+        jaw_axis=_frozen(np.asarray(mesh.jaw_axis) / np.linalg.norm(mesh.jaw_axis), np.float64),
+        gravity=_frozen([0.0, -p.g if p.gravity else 0.0, 0.0], np.float64),
+        muscle_matrix=_muscle_matrix(rig, rest, area),
+        params=p,
+        omega_max=omega,
+        hash=_rig_digest(rig, p),
+    )
+    from sim.integrator import warm_up
+
+    warm_up()
+    return model
+
+
+@lru_cache(maxsize=4)
+def default_model(resolution: int = 0) -> FaceModel:
+    """The default face at a mesh resolution (0 ~ 700 vertices, 1 ~ 3k, 2 ~ 12k), cached."""
+    from sim.rig import default_rig
+
+    return compile_model(default_rig(resolution))

@@ -1,0 +1,104 @@
+"""The face's control channels: one per muscle (activation 0..1), the jaw, the eyes and age.
+
+The list is static so that a channel's index never depends on which rig is loaded: a recording made
+on one rig replays on another. Each muscle channel names the muscle model it uses (seed 000 section 3)
+and the FACS action units it takes part in (see `sim.facs`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+class ChannelError(ValueError):
+    """An unknown channel, AU or expression name, or a value outside a channel's range. The message
+    names the valid choices, so it can be shown to a user as one line."""
+
+
+@dataclass(frozen=True)
+class ChannelSpec:
+    """One input of the face. kind: "muscle" | "jaw" | "eyes" | "age"; lo..hi is the valid range and
+    default the value at rest; muscle_type: "linear" | "sphincter" | "sheet" for muscles, else None."""
+
+    name: str
+    kind: str
+    aus: tuple[str, ...]
+    lo: float
+    hi: float
+    default: float
+    muscle_type: str | None
+    doc: str
+
+
+def _muscle(name: str, muscle_type: str, aus: tuple[str, ...], doc: str) -> ChannelSpec:
+    return ChannelSpec(name, "muscle", aus, 0.0, 1.0, 0.0, muscle_type, doc)
+
+
+def _pair(base: str, muscle_type: str, aus: tuple[str, ...], doc: str) -> tuple[ChannelSpec, ...]:
+    return (
+        _muscle(f"{base}_l", muscle_type, aus, doc + " (face's left)"),
+        _muscle(f"{base}_r", muscle_type, aus, doc + " (face's right)"),
+    )
+
+
+CHANNEL_SPECS: tuple[ChannelSpec, ...] = (
+    *_pair("frontalis_inner", "sheet", ("AU1",), "inner brow raiser, frontalis pars medialis"),
+    *_pair("frontalis_outer", "sheet", ("AU2",), "outer brow raiser, frontalis pars lateralis"),
+    *_pair("corrugator", "linear", ("AU4",), "brow lowerer, draws the brows down and together"),
+    _muscle("procerus", "linear", ("AU4",), "brow lowerer, pulls the skin between the brows down"),
+    *_pair("orbicularis_oculi", "sphincter", ("AU6",), "cheek raiser, orbicularis oculi pars orbitalis"),
+    *_pair(
+        "orbicularis_oculi_lid",
+        "sphincter",
+        ("AU7", "AU43", "AU45"),
+        "lid tightener / blink, orbicularis oculi pars palpebralis; 1 closes the lids",
+    ),
+    *_pair(
+        "levator_labii_alaeque_nasi",
+        "linear",
+        ("AU9",),
+        "nose wrinkler, raises the nose wings and the upper lip",
+    ),
+    *_pair("levator_labii", "linear", ("AU10",), "upper lip raiser"),
+    *_pair("zygomaticus_minor", "linear", ("AU11",), "nasolabial deepener"),
+    *_pair("zygomaticus_major", "linear", ("AU12",), "lip corner puller (smile)"),
+    *_pair("levator_anguli_oris", "linear", ("AU13",), "sharp lip puller, raises the mouth corner"),
+    *_pair("buccinator", "linear", ("AU14",), "dimpler, draws the mouth corner back"),
+    *_pair("depressor_anguli_oris", "linear", ("AU15",), "lip corner depressor"),
+    *_pair("depressor_labii", "linear", ("AU16",), "lower lip depressor"),
+    _muscle("mentalis", "sheet", ("AU17",), "chin raiser, pushes the chin boss and lower lip up"),
+    *_pair("risorius", "linear", ("AU20",), "lip stretcher, pulls the mouth corner sideways"),
+    _muscle(
+        "orbicularis_oris", "sphincter", ("AU23", "AU24"), "lip tightener / pressor, around the mouth"
+    ),
+    ChannelSpec(
+        "jaw", "jaw", ("AU26", "AU27"), 0.0, 1.0, 0.0, None, "jaw opening, 0 closed .. 1 fully open"
+    ),
+    ChannelSpec(
+        "eyes_yaw", "eyes", (), -1.0, 1.0, 0.0, None, "gaze left/right, + = towards the face's left"
+    ),
+    ChannelSpec("eyes_pitch", "eyes", (), -1.0, 1.0, 0.0, None, "gaze up/down, + = up"),
+    ChannelSpec("age", "age", (), 0.0, 120.0, 30.0, None, "age in years; drives the wrinkles"),
+)
+
+CHANNEL_NAMES: tuple[str, ...] = tuple(spec.name for spec in CHANNEL_SPECS)
+CHANNEL_INDEX: dict[str, int] = {name: i for i, name in enumerate(CHANNEL_NAMES)}
+MUSCLE_CHANNELS: tuple[str, ...] = tuple(s.name for s in CHANNEL_SPECS if s.kind == "muscle")
+
+
+def channel_spec(name: str) -> ChannelSpec:
+    """The spec of a channel, or ChannelError listing the valid names."""
+    try:
+        return CHANNEL_SPECS[CHANNEL_INDEX[name]]
+    except KeyError:
+        raise ChannelError(
+            f"unknown channel {name!r}; valid channels: {', '.join(CHANNEL_NAMES)}"
+        ) from None
+
+
+def check_value(spec: ChannelSpec, value: float) -> float:
+    """value as float if it lies in the channel's range, else ChannelError naming the range."""
+    v = float(value)
+    if not (spec.lo <= v <= spec.hi):  # also rejects NaN
+        raise ChannelError(f"channel {spec.name!r} takes values in {spec.lo:g}..{spec.hi:g}, got {value!r}")
+    return v

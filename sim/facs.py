@@ -1,0 +1,104 @@
+"""FACS action units and expression presets in terms of the face's channels.
+
+AU -> muscles after the AU/muscle table in peers-facs-formats.md section D.2; expressions after
+section D.1 (EMFACS-style combinations). AU5 (upper lid raiser) is not a skin muscle and has no
+channel, so presets that list it leave it out. A side suffix restricts a bilateral AU to one side of
+the face: "AU12_L" (the face's own left) or "AU12_R".
+
+Combination rule: applying an AU sets each of its channels to max(current, weight * intensity), so
+presets and AUs that share a muscle do not add up beyond what either asks for.
+"""
+
+from __future__ import annotations
+
+from sim.channels import ChannelError, channel_spec, check_value
+from sim.state import FaceControl
+
+
+def _both(base: str, w: float = 1.0) -> dict[str, float]:
+    return {f"{base}_l": w, f"{base}_r": w}
+
+
+_BASE: dict[str, dict[str, float]] = {
+    "AU1": _both("frontalis_inner"),
+    "AU2": _both("frontalis_outer"),
+    "AU4": {**_both("corrugator"), "procerus": 0.8},
+    "AU6": _both("orbicularis_oculi"),
+    "AU7": _both("orbicularis_oculi_lid", 0.45),
+    "AU9": {**_both("levator_labii_alaeque_nasi"), **_both("levator_labii", 0.3)},
+    "AU10": _both("levator_labii"),
+    "AU11": _both("zygomaticus_minor"),
+    "AU12": _both("zygomaticus_major"),
+    "AU13": _both("levator_anguli_oris"),
+    "AU14": _both("buccinator"),
+    "AU15": _both("depressor_anguli_oris"),
+    "AU16": _both("depressor_labii"),
+    "AU17": {"mentalis": 1.0},
+    "AU20": _both("risorius"),
+    "AU23": {"orbicularis_oris": 0.7},
+    "AU24": {"orbicularis_oris": 1.0},
+    "AU25": {**_both("depressor_labii", 0.4), "jaw": 0.1},
+    "AU26": {"jaw": 0.5},
+    "AU27": {"jaw": 1.0},
+    "AU43": _both("orbicularis_oculi_lid"),
+    "AU45": _both("orbicularis_oculi_lid"),
+}
+
+
+def _sided(table: dict[str, dict[str, float]]) -> dict[str, dict[str, float]]:
+    out = dict(table)
+    for au, chans in table.items():
+        for suffix, keep in (("_L", "_l"), ("_R", "_r")):
+            side = {c: w for c, w in chans.items() if c.endswith(keep)}
+            if side:
+                out[au + suffix] = side
+    return out
+
+
+AU_TABLE: dict[str, dict[str, float]] = _sided(_BASE)
+"""AU name ("AU12", or one-sided "AU12_L" / "AU12_R") -> {channel: weight}."""
+
+EXPRESSIONS: dict[str, dict[str, float]] = {
+    "happiness": {"AU6": 0.8, "AU12": 1.0},
+    "sadness": {"AU1": 1.0, "AU4": 0.35, "AU15": 1.0},
+    "surprise": {"AU1": 1.0, "AU2": 1.0, "AU26": 0.8},
+    "fear": {"AU1": 1.0, "AU2": 0.6, "AU4": 0.4, "AU20": 1.0, "AU26": 0.5},
+    "anger": {"AU4": 1.0, "AU7": 1.0, "AU23": 1.0},
+    "disgust": {"AU9": 1.0, "AU10": 0.7, "AU4": 0.4, "AU17": 0.4},
+    "contempt": {"AU12_R": 0.6, "AU14_R": 0.6},
+}
+"""Expression name -> {AU: intensity 0..1}. Contempt is one-sided (the face's right)."""
+
+
+def _normalise_au(au: str) -> str:
+    key = au.strip().upper()
+    if not key.startswith("AU"):
+        key = "AU" + key
+    return key
+
+
+def apply_au(control: FaceControl, au: str, intensity: float) -> None:
+    """Raise the channels of one AU to weight * intensity (intensity 0..1); ChannelError for an
+    unknown AU or an out-of-range intensity."""
+    key = _normalise_au(au)
+    if key not in AU_TABLE:
+        raise ChannelError(f"unknown action unit {au!r}; valid: {', '.join(AU_TABLE)}")
+    v = float(intensity)
+    if not (0.0 <= v <= 1.0):
+        raise ChannelError(f"action unit {key} takes intensities in 0..1, got {intensity!r}")
+    for channel, weight in AU_TABLE[key].items():
+        spec = channel_spec(channel)
+        target = check_value(spec, min(spec.hi, weight * v))
+        control.set(channel, max(control.get(channel), target))
+
+
+def apply_expression(control: FaceControl, name: str, weight: float = 1.0) -> None:
+    """Apply a preset's AUs scaled by weight (0..1); ChannelError for an unknown name or weight."""
+    key = name.strip().lower()
+    if key not in EXPRESSIONS:
+        raise ChannelError(f"unknown expression {name!r}; valid: {', '.join(EXPRESSIONS)}")
+    w = float(weight)
+    if not (0.0 <= w <= 1.0):
+        raise ChannelError(f"expression {key} takes weights in 0..1, got {weight!r}")
+    for au, intensity in EXPRESSIONS[key].items():
+        apply_au(control, au, intensity * w)

@@ -1,0 +1,264 @@
+"""The integrator: seed 000 eq 23 with seed 003 eq 9's feedback force, advanced by explicit RK2.
+
+Per node i (free, not held):
+    m_i a_i = Q_i (springs, eqs 1-5) + axial spring damping - c_i v_i + k_r,i (target_i - x_i)
+              + sum_c a_c F_c,i (muscles) + m_i g
+RK2 reading chosen: the explicit *midpoint* method (Numerical Recipes' "second-order Runge-Kutta",
+the paper's ref [16]): k1 = f(y); k2 = f(y + h/2 k1); y += h k2.
+
+Jaw: `jaw` rotates the rest target of each vertex about the jaw hinge by jaw * jaw_max_angle, blended
+by the vertex's jaw_weight (target = rest + w (R rest - rest)); the eq 9 tether then carries the skin
+along, and held vertices (pinned) are placed on their target each frame, so a held chin edge follows
+the jaw rigidly while held scalp and ear edges stay put.
+
+Substeps: the step h is the largest h for which the RK2 amplification factor of every linear mode
+(natural frequency up to the Gershgorin bound `model.omega_max`, with the model's mass and spring
+damping) stays <= 1, times SAFETY; substeps = ceil(frame_dt / h). See `stable_step`.
+
+The whole frame runs in one compiled (numba, serial) kernel: no threads, fixed summation order, so
+the same inputs give bit-identical positions.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from sim.build import FaceModel
+from sim.channels import CHANNEL_INDEX
+from sim.state import FaceControl, FaceState
+
+SAFETY = 0.8  # fraction of the linear stability limit used as the step (covers geometric stiffness)
+BLOWUP_DISPLACEMENT = 6.0  # cm (x face scale): farther from its target than this is a blow-up
+SETTLE_SPEED = 0.02  # cm/s: the face counts as settled when no vertex moves faster
+
+
+@numba.njit(cache=True, fastmath=False)
+def _accel(x, v, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, inv_m, free, out):  # type: ignore[no-untyped-def]
+    n = x.shape[0]
+    for i in range(n):
+        for d in range(3):
+            out[i, d] = ext[i, d] - kr[i] * x[i, d] - c[i] * v[i, d]
+    for s in range(springs.shape[0]):
+        i = springs[s, 0]
+        j = springs[s, 1]
+        dx = x[j, 0] - x[i, 0]
+        dy = x[j, 1] - x[i, 1]
+        dz = x[j, 2] - x[i, 2]
+        r = math.sqrt(dx * dx + dy * dy + dz * dz)
+        inv = 1.0 / r
+        ux = dx * inv
+        uy = dy * inv
+        uz = dz * inv
+        stretch = r - rest_len[s]
+        knee = thr * rest_len[s]
+        if stretch <= knee:
+            f = k_low[s] * stretch
+        else:
+            f = k_low[s] * knee + k_high[s] * (stretch - knee)
+        rel = (v[j, 0] - v[i, 0]) * ux + (v[j, 1] - v[i, 1]) * uy + (v[j, 2] - v[i, 2]) * uz
+        f += k_damp[s] * rel
+        out[i, 0] += f * ux
+        out[i, 1] += f * uy
+        out[i, 2] += f * uz
+        out[j, 0] -= f * ux
+        out[j, 1] -= f * uy
+        out[j, 2] -= f * uz
+    for i in range(n):
+        w = inv_m[i] if free[i] else 0.0
+        for d in range(3):
+            out[i, d] *= w
+
+
+@numba.njit(cache=True, fastmath=False)
+def _rk2_frame(x, v, n_sub, h, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, inv_m, free,
+               a1, xm, vm):  # type: ignore[no-untyped-def]
+    """n_sub explicit-midpoint substeps of size h, in place on x, v."""
+    n = x.shape[0]
+    half = 0.5 * h
+    for _ in range(n_sub):
+        _accel(x, v, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, inv_m, free, a1)
+        for i in range(n):
+            for d in range(3):
+                xm[i, d] = x[i, d] + half * v[i, d]
+                vm[i, d] = v[i, d] + half * a1[i, d]
+        _accel(xm, vm, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, inv_m, free, a1)
+        for i in range(n):
+            for d in range(3):
+                x[i, d] += h * vm[i, d]
+                v[i, d] += h * a1[i, d]
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's on-disk cache) the kernel on a two-node system, so the first
+    live frame does not stall. Called by compile_model."""
+    x = np.array([[0.0, 0.0, 0.0], [1.1, 0.0, 0.0]])
+    v = np.zeros_like(x)
+    springs = np.array([[0, 1]], dtype=np.int32)
+    one = np.ones(1)
+    ones2 = np.ones(2)
+    _rk2_frame(x, v, 1, 1e-3, springs, one, one, one, one, 0.1, np.zeros_like(x), ones2, ones2, ones2,
+               np.ones(2, dtype=np.bool_), np.zeros_like(x), np.zeros_like(x), np.zeros_like(x))
+
+
+def rk2_amplification(z: np.ndarray) -> np.ndarray:
+    """|R(z)| of any two-stage second-order explicit Runge-Kutta method on y' = lambda y, z = h lambda."""
+    return np.abs(1.0 + z + 0.5 * z * z)
+
+
+def stable_step(omega_max: float, mass_rate: float, visc: float, high_ratio: float) -> float:
+    """Largest h (s) for which RK2 damps every mode of the linearised skin.
+
+    A mode of the soft springs with omega^2 = mu has damping rate c/m = mass_rate + visc * mu (mass
+    damping plus axial spring damping, which scales with the soft stiffness); past the strain
+    threshold the same mode stiffens to high_ratio * mu with unchanged damping. omega_max bounds the
+    stiff regime. We scan mu over (0, omega_max^2 / high_ratio] in both regimes and bisect h."""
+    mu = np.linspace(0.0, omega_max**2 / high_ratio, 2001)[1:]
+    lambdas = []
+    for stiff in (mu, high_ratio * mu):
+        b = mass_rate + visc * mu
+        disc = np.sqrt((0.25 * b * b - stiff).astype(np.complex128))
+        lambdas.append(-0.5 * b + disc)
+        lambdas.append(-0.5 * b - disc)
+    lam = np.concatenate(lambdas)
+    lo, hi = 0.0, 4.0 / omega_max
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if np.all(rk2_amplification(mid * lam) <= 1.0 + 1e-12):
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@dataclass(frozen=True)
+class GuardEvent:
+    """The blow-up guard fired at simulated time `time` (s) for `reason`; the state was restored to
+    the start of that frame with zero velocity."""
+
+    time: float
+    reason: str
+
+
+def jaw_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rotation matrix about a unit axis (Rodrigues)."""
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+
+
+class Simulator:
+    """Advances a FaceState by whole frames of frame_dt seconds under a FaceControl."""
+
+    def __init__(self, model: FaceModel, frame_dt: float = 1.0 / 60.0) -> None:
+        self.model = model
+        self.frame_dt = float(frame_dt)
+        p = model.params
+        omega_low = model.omega_max / math.sqrt(p.high_ratio)
+        visc = float(np.max(model.spring_damping / np.maximum(model.spring_k_low, 1e-30)))
+        self.stable_dt = stable_step(model.omega_max, p.mass_damping, visc, p.high_ratio)
+        del omega_low
+        self.substeps = max(1, math.ceil(self.frame_dt / (SAFETY * self.stable_dt)))
+        self.dt = self.frame_dt / self.substeps
+        self.guard_events: list[GuardEvent] = []
+        n = model.n_vertices
+        self._free = np.ascontiguousarray(~model.held)
+        self._inv_m = 1.0 / model.mass
+        self._springs = np.ascontiguousarray(model.spring_indices)
+        self._ext = np.zeros((n, 3))
+        self._target = np.array(model.rest)
+        self._a1 = np.zeros((n, 3))
+        self._xm = np.zeros((n, 3))
+        self._vm = np.zeros((n, 3))
+        self._bound = BLOWUP_DISPLACEMENT * _face_scale(model)
+        self._jaw_i = CHANNEL_INDEX["jaw"]
+
+    # -- the force terms that are constant over a frame
+
+    def rest_target(self, jaw: float) -> np.ndarray:
+        """Eq 9's rest positions with the jaw opened by `jaw` (0..1), (N,3) cm."""
+        m = self.model
+        if jaw == 0.0:
+            return np.array(m.rest)
+        rot = jaw_rotation(m.jaw_axis, jaw * m.params.jaw_max_angle)
+        rotated = (m.rest - m.jaw_pivot) @ rot.T + m.jaw_pivot
+        return m.rest + m.jaw_weight[:, None] * (rotated - m.rest)
+
+    def muscle_forces(self, control: FaceControl) -> np.ndarray:
+        """Seed 000 eqs 9, 14, 18 summed over channels: (N,3) dyn, one sparse mat-vec."""
+        a = np.where([s.kind == "muscle" for s in self.model.channels], control.values, 0.0)
+        return (self.model.muscle_matrix @ a).reshape(-1, 3)
+
+    def gravity_forces(self) -> np.ndarray:
+        """m_i g, (N,3) dyn (zero when gravity is switched off)."""
+        return self.model.mass[:, None] * self.model.gravity[None, :]
+
+    def feedback_target_forces(self, target: np.ndarray) -> np.ndarray:
+        """The constant part k_r,i target_i of seed 003 eq 9's F_r = k_r (target - x) (the -k_r x part
+        is evaluated per substep in the kernel)."""
+        return self.model.rest_stiffness[:, None] * target
+
+    def external_forces(self, control: FaceControl) -> np.ndarray:
+        """Every force term that does not depend on x or v within a frame, (N,3) dyn."""
+        self._target = self.rest_target(float(control.values[self._jaw_i]))
+        return self.muscle_forces(control) + self.gravity_forces() + self.feedback_target_forces(self._target)
+
+    # -- stepping
+
+    def step(self, state: FaceState, control: FaceControl) -> FaceState:
+        """Advance `state` by one frame in place (and return it). On NaN or blow-up, restore the state
+        at the start of the frame with zero velocity and append a GuardEvent."""
+        m = self.model
+        saved_x = state.positions.copy()
+        saved_v = state.velocities.copy()
+        ext = self.external_forces(control)
+        x, v = state.positions, state.velocities
+        held = m.held
+        x[held] = self._target[held]
+        v[held] = 0.0
+        _rk2_frame(x, v, self.substeps, self.dt, self._springs, m.spring_rest_length, m.spring_k_low,
+                   m.spring_k_high, m.spring_damping, m.strain_threshold, ext, m.rest_stiffness,
+                   m.damping, self._inv_m, self._free, self._a1, self._xm, self._vm)
+        reason = self._check(x)
+        if reason:
+            x[...] = saved_x
+            v[...] = 0.0
+            self.guard_events.append(GuardEvent(state.time + self.frame_dt, reason))
+        del saved_v
+        state.time += self.frame_dt
+        values = control.values
+        state.eye_yaw = float(values[CHANNEL_INDEX["eyes_yaw"]])
+        state.eye_pitch = float(values[CHANNEL_INDEX["eyes_pitch"]])
+        state.age = float(values[CHANNEL_INDEX["age"]])
+        state.surface[...] = x
+        return state
+
+    def _check(self, x: np.ndarray) -> str:
+        if not np.all(np.isfinite(x)):
+            return "non-finite positions"
+        dev = float(np.max(np.abs(x - self._target)))
+        if dev > self._bound:
+            return f"displacement {dev:.3g} cm beyond {self._bound:.3g} cm"
+        return ""
+
+    def settle(self, state: FaceState, control: FaceControl, max_seconds: float = 5.0) -> float:
+        """Step until no vertex moves faster than SETTLE_SPEED (after at least 0.1 s) or max_seconds
+        have passed; returns the simulated seconds."""
+        frames = 0
+        limit = max(1, int(round(max_seconds / self.frame_dt)))
+        while frames < limit:
+            self.step(state, control)
+            frames += 1
+            if frames * self.frame_dt >= 0.1:
+                speed = float(np.sqrt(np.max(np.sum(state.velocities**2, axis=1))))
+                if speed < SETTLE_SPEED:
+                    break
+        return frames * self.frame_dt
+
+
+def _face_scale(model: FaceModel) -> float:
+    """Inter-pupillary distance relative to 6.3 cm (1.0 for an average adult)."""
+    ec = model.mesh.eye_centers
+    return float(np.linalg.norm(ec[0] - ec[1]) / 6.3)

@@ -1,0 +1,193 @@
+"""Placing the face's muscles on any mesh from its landmarks.
+
+Every point is a landmark plus an anatomical offset given in centimetres *of a reference face*
+(inter-pupillary distance 6.3 cm), scaled by this face's own size, then put on the skin (its depth
+taken from the nearest front-facing vertex) and, for skull attachments, pushed behind the skin along
+-Z. Nothing refers to vertex numbers, so the same code rigs any head with the landmarks; rig transfer
+relies on that.
+
+Landmarks used, from the project vocabulary (`sim.transfer.landmarks.LANDMARK_NAMES`), each with a
+fallback derived from the mesh's eye loops, mouth loop, eye centres or other landmarks when the mesh
+lacks it: eye_inner_l/r, eye_outer_l/r, brow_inner_l/r, brow_outer_l/r, nose_bridge, nose_tip,
+nose_wing_l/r, mouth_corner_l/r, upper_lip_center, lower_lip_center, chin.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sim.model import FaceMesh, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+
+REFERENCE_IPD = 6.3  # cm, inter-pupillary distance of the reference face the offsets are given on
+BASE_FORCE = 3000.0  # dyn/cm^2 of skin, the force density of a muscle of strength 1
+
+
+class FaceFrame:
+    """Landmarks of one mesh in a form placement can use: scaled offsets, skin projection, sides."""
+
+    def __init__(self, mesh: FaceMesh) -> None:
+        self.mesh = mesh
+        v = mesh.vertices
+        self.s = float(np.linalg.norm(mesh.eye_centers[0] - mesh.eye_centers[1]) / REFERENCE_IPD)
+        self.mid_x = float(0.5 * (mesh.eye_centers[0, 0] + mesh.eye_centers[1, 0]))
+        self._front_xy = v[:, :2]
+        self.points: dict[str, np.ndarray] = {}
+        for side, sign, loop in (("l", 1.0, mesh.eye_loops[0]), ("r", -1.0, mesh.eye_loops[1])):
+            ring = v[np.asarray(loop)]
+            lateral = sign * (ring[:, 0] - self.mid_x)
+            self._set(f"eye_inner_{side}", ring[np.argmin(lateral)])
+            self._set(f"eye_outer_{side}", ring[np.argmax(lateral)])
+            self._set(f"eye_top_{side}", ring[np.argmax(ring[:, 1])])
+            self._set(f"eye_bottom_{side}", ring[np.argmin(ring[:, 1])])
+        mouth = v[np.asarray(mesh.mouth_loop)]
+        self._set("mouth_corner_l", mouth[np.argmax(mouth[:, 0])])
+        self._set("mouth_corner_r", mouth[np.argmin(mouth[:, 0])])
+        self.mouth_center = 0.5 * (self.get("mouth_corner_l") + self.get("mouth_corner_r"))
+        self.mouth_center[1] = float(np.mean(mouth[:, 1]))
+        s = self.s
+        for side, sign in (("l", 1.0), ("r", -1.0)):
+            inner, outer = self.get(f"eye_inner_{side}"), self.get(f"eye_outer_{side}")
+            self._set(f"brow_inner_{side}", self.skin(inner + s * np.array([-0.1 * sign, 1.3, 0.0])))
+            self._set(f"brow_outer_{side}", self.skin(outer + s * np.array([0.3 * sign, 1.1, 0.0])))
+            self._set(f"nose_wing_{side}", None)
+        eyes_mid = 0.5 * (self.get("eye_inner_l") + self.get("eye_inner_r"))
+        self._set("nose_bridge", self.skin(eyes_mid + s * np.array([0.0, 0.3, 0.0])))
+        self._set("nose_tip", self._nose_tip())
+        for side, sign in (("l", 1.0), ("r", -1.0)):
+            tip = self.get("nose_tip")
+            self._set(f"nose_wing_{side}", self.skin(tip + s * np.array([1.6 * sign, -0.4, 0.0])))
+        mc = self.mouth_center
+        self._set("upper_lip_center", self.skin(mc + s * np.array([0.0, 0.5, 0.0])))
+        self._set("lower_lip_center", self.skin(mc + s * np.array([0.0, -0.5, 0.0])))
+        self._set("chin", self.skin(mc + s * np.array([0.0, -3.6, 0.0])))
+
+    def _set(self, name: str, fallback: np.ndarray | None) -> None:
+        """Prefer the mesh's own landmark; else the fallback (None = decide later)."""
+        if name in self.mesh.landmarks:
+            self.points[name] = np.array(self.mesh.landmark(name), dtype=np.float64)
+        elif fallback is not None:
+            self.points[name] = np.array(fallback, dtype=np.float64)
+
+    def get(self, name: str) -> np.ndarray:
+        return self.points[name].copy()
+
+    def _nose_tip(self) -> np.ndarray:
+        v = self.mesh.vertices
+        eyes_y = float(self.mesh.eye_centers[:, 1].mean())
+        band = (np.abs(v[:, 0] - self.mid_x) < 0.8 * self.s) & (v[:, 1] < eyes_y) & (
+            v[:, 1] > self.mouth_center[1]
+        )
+        cand = v[band] if band.any() else v
+        return cand[np.argmax(cand[:, 2])]
+
+    def skin(self, p: np.ndarray) -> np.ndarray:
+        """p moved along Z onto the skin: z of the front-most of the vertices nearest in (x, y)."""
+        d2 = np.sum((self._front_xy - p[:2]) ** 2, axis=1)
+        near = np.argpartition(d2, min(6, len(d2) - 1))[:6]
+        return np.array([p[0], p[1], self.mesh.vertices[near, 2].max()])
+
+    def at(self, name: str, side: float, dx: float, dy: float, depth: float = 0.0) -> np.ndarray:
+        """Landmark + (lateral dx, up dy) reference-face cm, on the skin, then depth cm behind it.
+        side: +1 for the face's left, -1 for its right (dx > 0 is away from the midline)."""
+        p = self.get(name) + self.s * np.array([side * dx, dy, 0.0])
+        q = self.skin(p)
+        q[2] -= self.s * depth
+        return q
+
+
+def _linear(f: FaceFrame, name: str, attach: np.ndarray, insert: np.ndarray, *, reach: float = 1.5,
+            angle: float = 0.6, eta: float = 1.0, strength: float = 1.0) -> LinearMuscle:
+    length = float(np.linalg.norm(insert - attach))
+    return LinearMuscle(name, attach, insert, reach * length, angle, eta, BASE_FORCE * strength)
+
+
+def _sheet(f: FaceFrame, name: str, a1: np.ndarray, a2: np.ndarray, i1: np.ndarray, i2: np.ndarray, *,
+           width: float, reach: float = 1.35, eta: float = 1.0, strength: float = 1.0) -> SheetMuscle:
+    span = float(np.linalg.norm(0.5 * (a1 + a2) - 0.5 * (i1 + i2)))
+    return SheetMuscle(name, a1, a2, i1, i2, reach * span, width * f.s, eta, BASE_FORCE * strength)
+
+
+def _sphincter(f: FaceFrame, name: str, center: np.ndarray, a: float, b: float,
+               strength: float) -> SphincterMuscle:
+    major = np.array([1.0, 0.0, 0.0])
+    minor = np.array([0.0, 1.0, 0.0])
+    return SphincterMuscle(name, center, major, minor, a * f.s, b * f.s, BASE_FORCE * strength)
+
+
+def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle, ...]]:
+    """The paired muscles of one side (sg = +1 left, -1 right)."""
+    out: dict[str, tuple[Muscle, ...]] = {}
+    bi, bo = f"brow_inner_{side}", f"brow_outer_{side}"
+    mc = f"mouth_corner_{side}"
+    eye_c = f.mesh.eye_centers[0 if side == "l" else 1]
+    f.points[f"eye_center_{side}"] = np.array(eye_c, dtype=np.float64)
+    ec = f"eye_center_{side}"
+    out[f"frontalis_inner_{side}"] = (_sheet(
+        f, f"frontalis_inner_{side}",
+        f.at(bi, sg, 0.0, 4.5, 0.3), f.at(bi, sg, 1.4, 4.6, 0.3),
+        f.at(bi, sg, 0.0, 0.2), f.at(bi, sg, 1.4, 0.3), width=1.8, strength=1.3),)
+    out[f"frontalis_outer_{side}"] = (_sheet(
+        f, f"frontalis_outer_{side}",
+        f.at(bo, sg, -1.6, 4.3, 0.3), f.at(bo, sg, 0.2, 4.0, 0.3),
+        f.at(bo, sg, -1.6, 0.2), f.at(bo, sg, 0.2, 0.0), width=2.2, strength=1.3),)
+    out[f"corrugator_{side}"] = (_linear(
+        f, f"corrugator_{side}", f.at(bi, sg, -0.7, -0.6, 0.5), f.at(bi, sg, 1.3, 0.3),
+        reach=1.4, angle=0.5, strength=1.6),)
+    out[f"orbicularis_oculi_{side}"] = (_sphincter(
+        f, f"orbicularis_oculi_{side}", f.at(ec, sg, 0.1, -0.1), 3.0, 2.4, 1.2),)
+    top, bottom = f.get(f"eye_top_{side}"), f.get(f"eye_bottom_{side}")
+    lid_c = f.skin(0.5 * (f.get(f"eye_inner_{side}") + f.get(f"eye_outer_{side}")))
+    lid_c[1] = bottom[1] + 0.3 * (top[1] - bottom[1])
+    half_w = 0.5 * abs(f.get(f"eye_outer_{side}")[0] - f.get(f"eye_inner_{side}")[0]) / f.s
+    out[f"orbicularis_oculi_lid_{side}"] = (_sphincter(
+        f, f"orbicularis_oculi_lid_{side}", lid_c, half_w + 0.4, 1.25, 2.5),)
+    out[f"levator_labii_alaeque_nasi_{side}"] = (_linear(
+        f, f"levator_labii_alaeque_nasi_{side}", f.at(f"eye_inner_{side}", sg, -0.3, -0.2, 0.4),
+        f.at(f"nose_wing_{side}", sg, 0.0, -0.2), reach=1.3, angle=0.35, strength=1.3),)
+    out[f"levator_labii_{side}"] = (_linear(
+        f, f"levator_labii_{side}", f.at(ec, sg, -0.2, -1.7, 0.4), f.at(mc, sg, -1.1, 0.6),
+        reach=1.25, angle=0.4, strength=1.2),)
+    out[f"zygomaticus_minor_{side}"] = (_linear(
+        f, f"zygomaticus_minor_{side}", f.at(ec, sg, 1.1, -2.2, 0.4), f.at(mc, sg, -0.5, 0.5),
+        reach=1.25, angle=0.35, strength=1.0),)
+    out[f"zygomaticus_major_{side}"] = (_linear(
+        f, f"zygomaticus_major_{side}", f.at(f"eye_outer_{side}", sg, 1.3, -2.9, 0.5),
+        f.at(mc, sg, 0.1, 0.0), reach=1.3, angle=0.45, strength=1.5),)
+    out[f"levator_anguli_oris_{side}"] = (_linear(
+        f, f"levator_anguli_oris_{side}", f.at(mc, sg, -0.4, 2.8, 0.5), f.at(mc, sg, 0.0, 0.1),
+        reach=1.3, angle=0.4, strength=1.2),)
+    out[f"buccinator_{side}"] = (_linear(
+        f, f"buccinator_{side}", f.at(mc, sg, 3.0, 0.0, 1), f.at(mc, sg, 0.1, 0.0),
+        reach=1.3, angle=0.4, strength=1.2),)
+    out[f"depressor_anguli_oris_{side}"] = (_linear(
+        f, f"depressor_anguli_oris_{side}", f.at(mc, sg, 0.6, -3.0, 0.4), f.at(mc, sg, 0.0, -0.1),
+        reach=1.3, angle=0.4, strength=1.4),)
+    out[f"depressor_labii_{side}"] = (_linear(
+        f, f"depressor_labii_{side}", f.at("lower_lip_center", sg, 1.1, -3.0, 0.4),
+        f.at("lower_lip_center", sg, 0.7, -0.1), reach=1.3, angle=0.4, strength=1.2),)
+    out[f"risorius_{side}"] = (_linear(
+        f, f"risorius_{side}", f.at(mc, sg, 3.4, 0.2, 0.4), f.at(mc, sg, 0.1, 0.0),
+        reach=1.3, angle=0.35, strength=1.2),)
+    return out
+
+
+def place_muscles(mesh: FaceMesh) -> dict[str, tuple[Muscle, ...]]:
+    """Channel name -> muscle parts, placed from the mesh's landmarks (see the module docstring)."""
+    from sim.channels import MUSCLE_CHANNELS
+
+    f = FaceFrame(mesh)
+    out: dict[str, tuple[Muscle, ...]] = {}
+    out.update(_side_muscles(f, "l", 1.0))
+    out.update(_side_muscles(f, "r", -1.0))
+    out["procerus"] = (_linear(
+        f, "procerus", f.at("nose_bridge", 1.0, 0.0, -1.8, 0.4), f.at("nose_bridge", 1.0, 0.0, 1.0),
+        reach=1.35, angle=0.35, strength=1.4),)
+    out["mentalis"] = (_sheet(
+        f, "mentalis",
+        f.at("lower_lip_center", 1.0, 0.9, -1.2, 0.5), f.at("lower_lip_center", -1.0, 0.9, -1.2, 0.5),
+        f.at("chin", 1.0, 1.0, 0.3), f.at("chin", -1.0, 1.0, 0.3), width=2.4, reach=1.5,
+        strength=1.2),)
+    half_mouth = 0.5 * abs(f.get("mouth_corner_l")[0] - f.get("mouth_corner_r")[0]) / f.s
+    out["orbicularis_oris"] = (_sphincter(
+        f, "orbicularis_oris", f.skin(f.mouth_center), half_mouth + 0.7, 1.9, 1.2),)
+    return {name: out[name] for name in MUSCLE_CHANNELS}

@@ -1,0 +1,188 @@
+"""The default rig and the rig file.
+
+Rig file (`.npz`, version 1), read with `allow_pickle=False` so loading never executes code:
+- `header`: a 0-d unicode array holding JSON: {"format": "facepuppet-rig", "version": 1, "name",
+  "eye_radius", "landmarks": {name: vertex index}, "regions": [names], "muscles": [{"channel",
+  "type": "linear"|"sphincter"|"sheet", "name", and the type's fields: points as [x, y, z] lists (cm),
+  scalars as numbers}]}.
+- arrays: `vertices` (N,3) f8, `triangles` (M,3) i4, `held` (N,) bool, `jaw_weight` (N,) f8,
+  `jaw_pivot` (3,), `jaw_axis` (3,), `eye_centers` (2,3), `eye_loop_l`, `eye_loop_r`, `mouth_loop`
+  (int), `uv` (N,2) optional, `region_<name>` (N,) bool per region.
+Wrinkle lines are not stored: `sim.wrinkles` lays them from the mesh's uv chart.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from dataclasses import fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim.model import FaceMesh, FaceRig, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+
+FORMAT = "facepuppet-rig"
+VERSION = 1
+_TYPES: dict[str, type] = {"linear": LinearMuscle, "sphincter": SphincterMuscle, "sheet": SheetMuscle}
+_TYPE_NAMES = {cls: name for name, cls in _TYPES.items()}
+
+
+class RigFileError(ValueError):
+    """A rig file cannot be read: the message is one line naming the file and what is wrong."""
+
+
+def default_rig(resolution: int = 0) -> FaceRig:
+    """The procedural default face with muscles placed from its landmarks."""
+    from sim.face_builder import build_face_mesh
+    from sim.muscles import place_muscles
+
+    mesh = build_face_mesh(resolution)
+    return FaceRig(mesh=mesh, muscles=place_muscles(mesh), name=f"default-{resolution}")
+
+
+def _muscle_json(channel: str, m: Muscle) -> dict[str, Any]:
+    out: dict[str, Any] = {"channel": channel, "type": _TYPE_NAMES[type(m)]}
+    for f in fields(m):
+        val = getattr(m, f.name)
+        out[f.name] = val if isinstance(val, str) else np.asarray(val, dtype=np.float64).tolist()
+    return out
+
+
+def save_rig(rig: FaceRig, path: str | Path) -> None:
+    """Write the rig file described in the module docstring."""
+    mesh = rig.mesh
+    header = {
+        "format": FORMAT,
+        "version": VERSION,
+        "name": rig.name,
+        "eye_radius": float(mesh.eye_radius),
+        "landmarks": {k: int(v) for k, v in mesh.landmarks.items()},
+        "regions": sorted(mesh.regions),
+        "muscles": [_muscle_json(ch, m) for ch, parts in rig.muscles.items() for m in parts],
+    }
+    arrays: dict[str, np.ndarray] = {
+        "header": np.array(json.dumps(header)),
+        "vertices": np.asarray(mesh.vertices, np.float64),
+        "triangles": np.asarray(mesh.triangles, np.int32),
+        "held": np.asarray(mesh.held, bool),
+        "jaw_weight": np.asarray(mesh.jaw_weight, np.float64),
+        "jaw_pivot": np.asarray(mesh.jaw_pivot, np.float64),
+        "jaw_axis": np.asarray(mesh.jaw_axis, np.float64),
+        "eye_centers": np.asarray(mesh.eye_centers, np.float64),
+        "eye_loop_l": np.asarray(mesh.eye_loops[0], np.int64),
+        "eye_loop_r": np.asarray(mesh.eye_loops[1], np.int64),
+        "mouth_loop": np.asarray(mesh.mouth_loop, np.int64),
+    }
+    if mesh.uv is not None:
+        arrays["uv"] = np.asarray(mesh.uv, np.float64)
+    for name, mask in mesh.regions.items():
+        arrays[f"region_{name}"] = np.asarray(mask, bool)
+    with open(path, "wb") as fh:
+        np.savez_compressed(fh, **arrays)
+
+
+def _array(data: Any, key: str, path: str, shape: tuple[int | None, ...], kind: str) -> np.ndarray:
+    if key not in data.files:
+        raise RigFileError(f"{path}: rig file lacks the array {key!r}")
+    a = data[key]
+    if a.dtype.kind not in kind:
+        raise RigFileError(f"{path}: array {key!r} has dtype {a.dtype}, expected kind {kind!r}")
+    if len(a.shape) != len(shape) or any(s is not None and s != n for s, n in zip(shape, a.shape)):
+        raise RigFileError(f"{path}: array {key!r} has shape {a.shape}, expected {shape}")
+    if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
+        raise RigFileError(f"{path}: array {key!r} holds non-finite values")
+    return a
+
+
+def _muscle(entry: Any, path: str) -> tuple[str, Muscle]:
+    if not isinstance(entry, dict) or entry.get("type") not in _TYPES:
+        raise RigFileError(f"{path}: muscle entry {entry!r:.80} lacks a type in {sorted(_TYPES)}")
+    cls = _TYPES[entry["type"]]
+    kwargs: dict[str, Any] = {}
+    for f in fields(cls):
+        if f.name not in entry:
+            raise RigFileError(f"{path}: {entry['type']} muscle lacks the field {f.name!r}")
+        val = entry[f.name]
+        if f.name == "name":
+            kwargs[f.name] = str(val)
+            continue
+        try:
+            arr = np.asarray(val, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise RigFileError(f"{path}: muscle field {f.name!r} is not numeric: {val!r:.60}") from None
+        if not np.all(np.isfinite(arr)) or arr.shape not in ((), (3,)):
+            raise RigFileError(f"{path}: muscle field {f.name!r} must be a finite number or [x, y, z]")
+        kwargs[f.name] = float(arr) if arr.shape == () else arr
+    channel = entry.get("channel")
+    if not isinstance(channel, str):
+        raise RigFileError(f"{path}: muscle {kwargs['name']!r} lacks its channel name")
+    return channel, cls(**kwargs)
+
+
+def load_rig(path: str | Path) -> FaceRig:
+    """Read a rig file; RigFileError (a ValueError) with a one-line message if it is malformed."""
+    p = str(path)
+    try:
+        with np.load(p, allow_pickle=False) as data:
+            return _parse(data, p)
+    except RigFileError:
+        raise
+    except FileNotFoundError:
+        raise RigFileError(f"{p}: no such rig file") from None
+    except (OSError, ValueError, zipfile.BadZipFile, KeyError, EOFError) as err:
+        raise RigFileError(f"{p}: not a readable rig file ({type(err).__name__}: {err})".splitlines()[0]) from err
+
+
+def _parse(data: Any, p: str) -> FaceRig:
+    header_arr = _array(data, "header", p, (), "U")
+    try:
+        header = json.loads(str(header_arr))
+    except json.JSONDecodeError as err:
+        raise RigFileError(f"{p}: header is not JSON ({err})") from err
+    if not isinstance(header, dict) or header.get("format") != FORMAT:
+        raise RigFileError(f"{p}: not a {FORMAT} file")
+    if header.get("version") != VERSION:
+        raise RigFileError(f"{p}: rig file version {header.get('version')!r}, this program reads {VERSION}")
+    verts = _array(data, "vertices", p, (None, 3), "f")
+    n = len(verts)
+    tris = _array(data, "triangles", p, (None, 3), "iu")
+    if tris.size and (tris.min() < 0 or tris.max() >= n):
+        raise RigFileError(f"{p}: triangles refer to vertices outside 0..{n - 1}")
+    loops = [_array(data, k, p, (None,), "iu") for k in ("eye_loop_l", "eye_loop_r", "mouth_loop")]
+    for loop in loops:
+        if loop.size and (loop.min() < 0 or loop.max() >= n):
+            raise RigFileError(f"{p}: an eye or mouth loop refers to vertices outside 0..{n - 1}")
+    landmarks = header.get("landmarks", {})
+    if not isinstance(landmarks, dict) or not all(
+        isinstance(v, int) and 0 <= v < n for v in landmarks.values()
+    ):
+        raise RigFileError(f"{p}: landmarks must map names to vertex indices in 0..{n - 1}")
+    regions = {}
+    for name in header.get("regions", []):
+        regions[str(name)] = _array(data, f"region_{name}", p, (n,), "b")
+    uv = _array(data, "uv", p, (n, 2), "f") if "uv" in data.files else None
+    mesh = FaceMesh(
+        vertices=verts.astype(np.float64),
+        triangles=tris.astype(np.int32),
+        landmarks={str(k): int(v) for k, v in landmarks.items()},
+        held=_array(data, "held", p, (n,), "b"),
+        jaw_weight=_array(data, "jaw_weight", p, (n,), "f"),
+        jaw_pivot=_array(data, "jaw_pivot", p, (3,), "f"),
+        jaw_axis=_array(data, "jaw_axis", p, (3,), "f"),
+        eye_centers=_array(data, "eye_centers", p, (2, 3), "f"),
+        eye_radius=float(header.get("eye_radius", 1.2)),
+        eye_loops=(loops[0], loops[1]),
+        mouth_loop=loops[2],
+        regions=regions,
+        uv=uv,
+    )
+    muscles: dict[str, tuple[Muscle, ...]] = {}
+    entries = header.get("muscles", [])
+    if not isinstance(entries, list):
+        raise RigFileError(f"{p}: 'muscles' must be a list")
+    for entry in entries:
+        channel, m = _muscle(entry, p)
+        muscles[channel] = muscles.get(channel, ()) + (m,)
+    return FaceRig(mesh=mesh, muscles=muscles, name=str(header.get("name", "rig")))
