@@ -1,0 +1,136 @@
+"""Carry rig geometry from the reference surface to the new one.
+
+The correspondence is the reference mesh deformed onto the new surface (same triangles, every
+vertex cast back onto the new face). A rig point is written as (reference triangle, barycentric
+foot point, offset in the local frame at the foot) and rebuilt on the deformed triangle with the
+offset scaled by the local stretch, so deep points (skull attachments, eye centres, the jaw hinge)
+stay at the same relative depth under the new skin."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.model import LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+from sim.transfer.geometry import closest_points, triangle_normals, vertex_normals
+
+FloatArray = np.ndarray
+IntArray = np.ndarray
+
+
+def _unit(v: FloatArray) -> FloatArray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
+
+
+def _frames(normals: FloatArray, tv: FloatArray, bary: FloatArray) -> FloatArray:
+    """(P, 3, 3) rows (t1, t2, n): n the interpolated vertex normal, t1 the first triangle edge
+    made tangent, t2 = n x t1."""
+    n = _unit(np.einsum("pk,pkj->pj", bary, normals))
+    e = tv[:, 1] - tv[:, 0]
+    t1 = _unit(e - np.einsum("pj,pj->p", e, n)[:, None] * n)
+    return np.stack([t1, np.cross(n, t1), n], axis=1)
+
+
+@dataclass
+class SurfaceMap:
+    """The reference mesh and its image on the new surface, with per-vertex stretch
+    sqrt(area new / area reference), clipped to [0.2, 5] so one bad triangle cannot explode it.
+
+    Points within `deep` cm of the skin use the local frame at their foot point; deeper ones (the
+    jaw hinge, far behind the mask's edge) blend towards a moving-least-squares affine map fitted
+    to the vertex correspondences around them, which a single boundary frame cannot match."""
+
+    ref_vertices: FloatArray
+    triangles: IntArray
+    new_vertices: FloatArray
+    deep: float = 2.0
+
+    def __post_init__(self) -> None:
+        self.ref_normals = vertex_normals(self.ref_vertices, self.triangles)
+        self.new_normals = vertex_normals(self.new_vertices, self.triangles)
+        a_ref = np.linalg.norm(triangle_normals(self.ref_vertices, self.triangles), axis=1)
+        a_new = np.linalg.norm(triangle_normals(self.new_vertices, self.triangles), axis=1)
+        ratio = np.sqrt(np.clip(a_new / np.maximum(a_ref, 1e-300), 0.04, 25.0))
+        acc = np.zeros(len(self.ref_vertices))
+        wsum = np.zeros(len(self.ref_vertices))
+        for k in range(3):
+            np.add.at(acc, self.triangles[:, k], a_ref * ratio)
+            np.add.at(wsum, self.triangles[:, k], a_ref)
+        self.stretch = np.divide(acc, wsum, out=np.ones_like(acc), where=wsum > 0)
+
+    def points(self, points: FloatArray) -> FloatArray:
+        """Map reference-frame points (P, 3) onto the new face."""
+        pts = np.atleast_2d(np.asarray(points, float))
+        foot, tri, bary, _ = closest_points(pts, self.ref_vertices, self.triangles)
+        idx = self.triangles[tri]
+        f_ref = _frames(self.ref_normals[idx], self.ref_vertices[idx], bary)
+        f_new = _frames(self.new_normals[idx], self.new_vertices[idx], bary)
+        local = np.einsum("pij,pj->pi", f_ref, pts - foot)
+        scale = np.einsum("pk,pk->p", bary, self.stretch[idx])
+        new_foot = np.einsum("pk,pkj->pj", bary, self.new_vertices[idx])
+        near = new_foot + scale[:, None] * np.einsum("pij,pi->pj", f_new, local)
+        dist = np.linalg.norm(pts - foot, axis=1)
+        blend = np.clip(dist / self.deep - 1.0, 0.0, 1.0)
+        out = near.copy()
+        for i in np.nonzero(blend > 0)[0]:
+            out[i] = (1 - blend[i]) * near[i] + blend[i] * self._affine(pts[i], dist[i])
+        return out
+
+    def _affine(self, p: FloatArray, dist: float) -> FloatArray:
+        """Moving least squares: the affine map best matching the correspondences, weighted by a
+        Gaussian of width dist around p, applied to p."""
+        d2 = ((self.ref_vertices - p) ** 2).sum(axis=1)
+        w = np.sqrt(np.exp(-0.5 * d2 / (dist * dist)))
+        a = np.column_stack([self.ref_vertices - p, np.ones(len(d2))]) * w[:, None]
+        sol, *_ = np.linalg.lstsq(a, self.new_vertices * w[:, None], rcond=None)
+        return sol[3]
+
+    def point(self, p: FloatArray) -> FloatArray:
+        return self.points(np.asarray(p, float)[None])[0]
+
+
+def _length_ratio(m: SurfaceMap, a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray, float]:
+    pa, pb = m.points(np.stack([a, b]))
+    before = float(np.linalg.norm(b - a))
+    return pa, pb, float(np.linalg.norm(pb - pa)) / before if before > 0 else 1.0
+
+
+def carry_muscle(m: SurfaceMap, muscle: Muscle) -> Muscle:
+    """One muscle on the new face: points mapped, zone sizes scaled by how much the muscle's own
+    extent stretched; angles, exponents and force scales kept."""
+    if isinstance(muscle, LinearMuscle):
+        a, i, s = _length_ratio(m, muscle.attachment, muscle.insertion)
+        return LinearMuscle(muscle.name, a, i, muscle.radius * s, muscle.angle, muscle.eta, muscle.scale)
+    if isinstance(muscle, SphincterMuscle):
+        c = np.asarray(muscle.center, float)
+        ends = np.stack([c, c + muscle.a * muscle.major_axis, c - muscle.a * muscle.major_axis,
+                         c + muscle.b * muscle.minor_axis, c - muscle.b * muscle.minor_axis])
+        c2, ma, mb, na, nb = m.points(ends)
+        major = ma - mb
+        a = 0.5 * float(np.linalg.norm(major))
+        major = major / np.linalg.norm(major)
+        minor = na - nb
+        minor = minor - (minor @ major) * major
+        b = 0.5 * float(np.linalg.norm(na - nb))
+        return SphincterMuscle(muscle.name, c2, major, minor / np.linalg.norm(minor), a, b, muscle.scale)
+    if isinstance(muscle, SheetMuscle):
+        pts = np.stack([muscle.attach1, muscle.attach2, muscle.insert1, muscle.insert2]).astype(float)
+        a1, a2, i1, i2 = m.points(pts)
+        along = np.linalg.norm(0.5 * (i1 + i2) - 0.5 * (a1 + a2)) / max(
+            np.linalg.norm(0.5 * (pts[2] + pts[3]) - 0.5 * (pts[0] + pts[1])), 1e-12)
+        across = (np.linalg.norm(a2 - a1) + np.linalg.norm(i2 - i1)) / max(
+            np.linalg.norm(pts[1] - pts[0]) + np.linalg.norm(pts[3] - pts[2]), 1e-12)
+        return SheetMuscle(muscle.name, a1, a2, i1, i2, muscle.length * float(along),
+                           muscle.width * float(across), muscle.eta, muscle.scale)
+    raise TypeError(f"unknown muscle type {type(muscle).__name__}")
+
+
+def muscle_points(muscle: Muscle) -> FloatArray:
+    """The defining points of a muscle, for comparisons and reports."""
+    if isinstance(muscle, LinearMuscle):
+        return np.stack([muscle.attachment, muscle.insertion])
+    if isinstance(muscle, SphincterMuscle):
+        return np.asarray(muscle.center, float)[None]
+    return np.stack([muscle.attach1, muscle.attach2, muscle.insert1, muscle.insert2])

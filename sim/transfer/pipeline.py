@@ -1,0 +1,285 @@
+"""Transfer a reference rig onto a new head (seed 003 section 3.2, extended to the whole rig):
+orient the head from its landmarks, fit and unroll one cylinder per face, pin the reference's
+characteristic points onto the new face's, relax (eq 8), cast back, and carry every rig element."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import RBFInterpolator
+from scipy.spatial import cKDTree
+
+from sim.model import FaceMesh, FaceRig
+from sim.transfer.carry import SurfaceMap, carry_muscle
+from sim.transfer.cylinder import Cylinder, fit_cylinder
+from sim.transfer.flatten import CylinderChart, flat_triangulation, project_back
+from sim.transfer.frame import Similarity, fit_similarity, landmark_axes, rotation_angle
+from sim.transfer.geometry import (closest_points, edge_use_counts, locate_2d, triangle_normals,
+                                   unique_edges)
+from sim.transfer.landmarks import LANDMARK_NAMES, LandmarkFile, TransferError, require
+from sim.transfer.meshfile import HeadMesh
+from sim.transfer.openings import find_openings
+from sim.transfer.relax import Relaxation, relax_mask
+
+FloatArray = np.ndarray
+IntArray = np.ndarray
+FORWARD = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass(frozen=True)
+class TransferOptions:
+    """Tolerances, all relative to the outer-eye-corner distance (about 9 cm on an adult).
+    region: landmarks' neighbourhood that both cylinders are fitted to; landmark_offset: how far a
+    landmark point may lie off the surface; shape: RMS landmark misfit after the best similarity
+    above which the layout is not a face's; frame_angle: degrees the fitted rotation may differ
+    from the one read off chin/forehead, sides and nose."""
+
+    region: float = 0.6
+    landmark_offset: float = 0.1
+    shape: float = 0.2
+    frame_angle: float = 35.0
+
+
+@dataclass
+class Transfer:
+    """A transferred rig and the figures its report shows (lengths in cm, project frame)."""
+
+    rig: FaceRig
+    similarity: Similarity
+    reference_cylinder: Cylinder
+    new_cylinder: Cylinder
+    relaxation: Relaxation
+    shape_residuals: dict[str, float]
+    landmark_errors: dict[str, float]
+    ray_misses: int
+    folded_triangles: int
+    outside_vertices: int
+    flipped_winding: bool
+    dropped_vertices: int
+    notes: list[str] = field(default_factory=list)
+
+
+def _resolve(lf: LandmarkFile, head: HeadMesh, names: list[str], opt: TransferOptions):
+    """Landmark points on the welded mesh (file units) and their nearest vertices."""
+    pts: dict[str, FloatArray] = {}
+    for n in names:
+        e = lf.entries[n]
+        if isinstance(e, (int, np.integer)):
+            if not 0 <= e < len(head.file_to_vertex):
+                raise TransferError(f"{lf.path}: landmark {n!r} is vertex {e}, but {head.path} has "
+                                    f"{len(head.file_to_vertex)} vertices (indices are 0-based)")
+            pts[n] = head.vertices[head.file_to_vertex[e]]
+        else:
+            pts[n] = np.asarray(e, float)
+    width = float(np.linalg.norm(pts["eye_outer_l"] - pts["eye_outer_r"]))
+    if width <= 0:
+        raise TransferError(f"{lf.path}: eye_outer_l and eye_outer_r coincide; this is not a face")
+    raw = np.stack([pts[n] for n in names])
+    foot, tri, bary, dist = closest_points(raw, head.vertices, head.triangles)
+    for n, d in zip(names, dist):
+        if d > opt.landmark_offset * width:
+            raise TransferError(
+                f"{lf.path}: landmark {n!r} lies {d:.3g} units off the surface of {head.path} "
+                f"(limit {opt.landmark_offset * width:.3g}); check its coordinates and units")
+    corners = head.triangles[tri]
+    vid = corners[np.arange(len(names)), bary.argmax(axis=1)]
+    return {n: foot[i] for i, n in enumerate(names)}, {n: int(vid[i]) for i, n in enumerate(names)}, width
+
+
+def _orient(pts: dict[str, FloatArray], ref: dict[str, FloatArray], names: list[str],
+            lf: LandmarkFile, opt: TransferOptions) -> tuple[Similarity, dict[str, float]]:
+    src = np.stack([pts[n] for n in names])
+    dst = np.stack([ref[n] for n in names])
+    limit = opt.shape * float(np.linalg.norm(ref["eye_outer_l"] - ref["eye_outer_r"]))
+    sim = fit_similarity(src, dst)
+    resid = np.linalg.norm(sim.apply(src) - dst, axis=1)
+    if np.sqrt(np.mean(resid ** 2)) > limit:
+        mirror = fit_similarity(src * [-1.0, 1.0, 1.0], dst)
+        if np.sqrt(np.mean(np.linalg.norm(mirror.apply(src * [-1.0, 1.0, 1.0]) - dst, axis=1) ** 2)) <= limit:
+            raise TransferError(f"{lf.path}: the landmarks fit a face only when mirrored: _l/_r must "
+                                "name the face's own left/right (or the mesh is mirrored)")
+        worst = names[int(resid.argmax())]
+        raise TransferError(f"{lf.path}: the landmarks do not have the layout of a face (worst: "
+                            f"{worst}, {resid.max():.1f} cm off after the best fit)")
+    if rotation_angle(sim.rotation, landmark_axes(pts)) > opt.frame_angle:
+        raise TransferError(f"{lf.path}: the landmarks do not have the layout of a face (chin, "
+                            "forehead and sides disagree with the best fit on the head's orientation)")
+    return sim, {n: float(r) for n, r in zip(names, resid)}
+
+
+def _face_component(head: HeadMesh, vids: list[int]) -> tuple[FloatArray, IntArray, IntArray]:
+    """Keep the connected surface that holds the landmarks; eyeballs, teeth and other separate
+    parts are dropped. Returns (vertices, triangles, old -> new index with -1 for dropped)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(head.vertices)
+    e = unique_edges(head.triangles)
+    graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    main = np.bincount(label[vids]).argmax()
+    keep = label == main
+    remap = -np.ones(n, dtype=np.int64)
+    remap[keep] = np.arange(keep.sum())
+    tri = head.triangles[keep[head.triangles].all(axis=1)]
+    return head.vertices[keep], remap[tri].astype(np.int32), remap
+
+
+def _region(vertices: FloatArray, landmark_pts: FloatArray, radius: float) -> np.ndarray:
+    d, _ = cKDTree(landmark_pts).query(vertices)
+    return d < radius
+
+
+def _check_surface(vertices: FloatArray, triangles: IntArray, region: np.ndarray, path: str) -> bool:
+    """The face region must be an oriented manifold; returns True when the whole mesh's winding
+    had to be flipped so normals point out of the skin."""
+    tri = triangles[region[triangles].all(axis=1)]
+    if len(tri) == 0:
+        raise TransferError(f"{path}: no surface near the landmarks; this is not a face mesh")
+    edges, counts = edge_use_counts(tri)
+    if (counts > 2).any():
+        a, b = edges[np.argmax(counts > 2)]
+        raise TransferError(f"{path}: the face is not manifold ({int((counts > 2).sum())} edges "
+                            f"shared by 3+ triangles, e.g. vertices {a}-{b}); repair the mesh")
+    directed = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    if len(np.unique(directed, axis=0)) < len(directed):
+        raise TransferError(f"{path}: the face's triangles are not consistently oriented; "
+                            "repair the mesh (e.g. recalculate normals)")
+    return float(triangle_normals(vertices, tri).sum(axis=0) @ FORWARD) < 0
+
+
+def _flat_fit(ref_uv: FloatArray, new_uv: FloatArray) -> FloatArray:
+    """Least-squares 2D affine map (3, 2) from reference to new flat landmarks."""
+    a = np.column_stack([ref_uv, np.ones(len(ref_uv))])
+    return np.linalg.lstsq(a, new_uv, rcond=None)[0]
+
+
+def _signed_areas(p: FloatArray, tri: IntArray) -> FloatArray:
+    a, b, c = p[tri[:, 0]], p[tri[:, 1]], p[tri[:, 2]]
+    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+
+
+def transfer_rig(
+    reference: FaceRig,
+    head: HeadMesh,
+    landmarks: LandmarkFile,
+    name: str = "imported",
+    options: TransferOptions | None = None,
+) -> Transfer:
+    """Make a rig for `head` from `reference` (see docs/import-face.md)."""
+    opt = options or TransferOptions()
+    ref = reference.mesh
+    names = [n for n in LANDMARK_NAMES if n in ref.landmarks]
+    require(landmarks, names)
+    pts, vids, _ = _resolve(landmarks, head, names, opt)
+    ref_pts = {n: ref.landmark(n) for n in names}
+    sim, shape = _orient(pts, ref_pts, names, landmarks, opt)
+    ref_width = float(np.linalg.norm(ref_pts["eye_outer_l"] - ref_pts["eye_outer_r"]))
+
+    verts, tris, remap = _face_component(head, list(vids.values()))
+    verts = sim.apply(verts)
+    lm_new = {n: sim.apply(pts[n]) for n in names}
+    lm_vid = {n: int(remap[vids[n]]) for n in names}
+    lm_arr = np.stack([lm_new[n] for n in names])
+    region_new = _region(verts, lm_arr, opt.region * ref_width)
+    flipped = _check_surface(verts, tris, region_new, head.path)
+    if flipped:
+        tris = tris[:, ::-1].copy()
+    region_ref = _region(ref.vertices, np.stack([ref_pts[n] for n in names]), opt.region * ref_width)
+
+    cyl_ref = fit_cylinder(ref.vertices[region_ref])
+    cyl_new = fit_cylinder(verts[region_new])
+    chart_ref, chart_new = CylinderChart.facing(cyl_ref, FORWARD), CylinderChart.facing(cyl_new, FORWARD)
+    uv_ref, _ = chart_ref.flatten(ref.vertices)
+    uv_new, _, keep = flat_triangulation(chart_new, verts, tris)
+    ref_ids = np.array([ref.landmarks[n] for n in names])
+    lm_uv_new, _ = chart_new.flatten(lm_arr)
+
+    # Rest shape of eq 8: the reference mask placed on the new face by the best affine fit of the
+    # characteristic points; the springs then absorb only what an affine map cannot.
+    aff = _flat_fit(uv_ref[ref_ids], lm_uv_new)
+    rest_pos = np.column_stack([uv_ref, np.ones(len(uv_ref))]) @ aff
+    tps = RBFInterpolator(uv_ref[ref_ids], lm_uv_new - rest_pos[ref_ids], kernel="thin_plate_spline")
+    start = rest_pos + tps(uv_ref)
+    start[ref_ids] = lm_uv_new
+    fixed = np.zeros(len(uv_ref), bool)
+    fixed[ref_ids] = True
+    edges = unique_edges(ref.triangles)
+    rest = np.linalg.norm(rest_pos[edges[:, 1]] - rest_pos[edges[:, 0]], axis=1)
+    relax = relax_mask(start, edges, rest, fixed, stiffness=rest.mean() / np.maximum(rest, 1e-12))
+    flat = relax.positions
+    folded = int((np.sign(_signed_areas(flat, ref.triangles)) != np.sign(_signed_areas(rest_pos, ref.triangles))).sum())
+
+    on_new, hit = project_back(chart_new, flat, verts, tris, uv_new, keep)
+    errors = {n: float(np.linalg.norm(on_new[i] - lm_new[n])) for n, i in zip(names, ref_ids)}
+    on_new[ref_ids] = lm_arr
+    smap = SurfaceMap(ref.vertices, ref.triangles, on_new)
+
+    tri, bary, inside = locate_2d(uv_new, flat, ref.triangles)
+    declared = _declared(landmarks, head, remap)
+    mesh = _new_mesh(reference, smap, verts, tris, tri, bary, inside, lm_new, lm_vid, declared,
+                     landmarks.path, head.path)
+    muscles = {ch: tuple(carry_muscle(smap, m) for m in parts) for ch, parts in reference.muscles.items()}
+    rig = FaceRig(mesh=mesh, muscles=muscles, wrinkles=_carry_wrinkles(reference, smap), name=name)
+    return Transfer(rig, sim, cyl_ref, cyl_new, relax, shape, errors, int((~hit).sum()), folded,
+                    int((~inside).sum()), flipped, int((remap < 0).sum()))
+
+
+def _interp(values: FloatArray, tri: IntArray, bary: FloatArray, triangles: IntArray) -> FloatArray:
+    w = np.clip(bary, 0.0, None)
+    w = w / w.sum(axis=1, keepdims=True)
+    v = values[triangles[tri]]
+    return np.einsum("pk,pk...->p...", w, v)
+
+
+def _new_mesh(reference: FaceRig, smap: SurfaceMap, verts: FloatArray, tris: IntArray,
+              tri: IntArray, bary: FloatArray, inside: np.ndarray, lm_new: dict[str, FloatArray],
+              lm_vid: dict[str, int], declared: dict[str, IntArray], lm_path: str,
+              mesh_path: str) -> FaceMesh:
+    """The new FaceMesh: per-vertex fields pulled back from the reference through the relaxed flat
+    correspondence; vertices outside the reference mask are held (bound to the skull)."""
+    ref = reference.mesh
+    rt = ref.triangles
+    held = (_interp(ref.held.astype(float), tri, bary, rt) > 0.5) | ~inside
+    jaw = np.where(inside, _interp(np.asarray(ref.jaw_weight, float), tri, bary, rt), 0.0)
+    regions = {k: (_interp(m.astype(float), tri, bary, rt) > 0.5) & inside for k, m in ref.regions.items()}
+    uv = None if ref.uv is None else _interp(np.asarray(ref.uv, float), tri, bary, rt)
+    landmarks = dict(lm_vid)
+    extra = [n for n in ref.landmarks if n not in landmarks]
+    if extra:
+        carried = smap.points(np.stack([ref.landmark(n) for n in extra]))
+        _, near = cKDTree(verts).query(carried)
+        landmarks.update({n: int(i) for n, i in zip(extra, near)})
+    eyes = smap.points(np.asarray(ref.eye_centers, float))
+    widths = [np.linalg.norm(lm_new[f"eye_outer_{s}"] - lm_new[f"eye_inner_{s}"])
+              / np.linalg.norm(ref.landmark(f"eye_outer_{s}") - ref.landmark(f"eye_inner_{s}")) for s in "lr"]
+    pivot = np.asarray(ref.jaw_pivot, float)
+    axis = np.asarray(ref.jaw_axis, float)
+    p0, p1 = smap.points(np.stack([pivot - axis, pivot + axis]))
+    new_axis = (p1 - p0) / np.linalg.norm(p1 - p0)
+    openings = find_openings(verts, tris, lm_new, declared, mesh_path, lm_path)
+    return FaceMesh(
+        vertices=verts, triangles=tris.astype(np.int32), landmarks=landmarks, held=held,
+        jaw_weight=np.clip(jaw, 0.0, 1.0), jaw_pivot=smap.point(pivot), jaw_axis=new_axis,
+        eye_centers=eyes, eye_radius=float(ref.eye_radius * np.mean(widths)),
+        eye_loops=(openings["eye_l"], openings["eye_r"]), mouth_loop=openings["mouth"],
+        regions=regions, uv=uv)
+
+
+def _declared(lf: LandmarkFile, head: HeadMesh, remap: IntArray) -> dict[str, IntArray]:
+    """Declared opening loops, from the file's vertex indices to the kept surface's."""
+    out: dict[str, IntArray] = {}
+    for key, loop in lf.openings.items():
+        if loop.min() < 0 or loop.max() >= len(head.file_to_vertex):
+            raise TransferError(f"{lf.path}: opening {key!r} names a vertex outside {head.path}'s "
+                                f"{len(head.file_to_vertex)} vertices")
+        mapped = remap[head.file_to_vertex[loop]]
+        if (mapped < 0).any():
+            raise TransferError(f"{lf.path}: opening {key!r} is not on the face surface of {head.path}")
+        out[key] = mapped
+    return out
+
+
+def _carry_wrinkles(reference: FaceRig, smap: SurfaceMap) -> tuple:
+    return ()

@@ -1,0 +1,189 @@
+"""Transfer the synthetic reference rig onto transformed, re-meshed copies of itself (known
+answer) and check the error cases, independently of the default face."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from sim.transfer.carry import muscle_points
+from sim.transfer.landmarks import TransferError, parse_landmarks
+from sim.transfer.meshfile import from_arrays
+from sim.transfer.pipeline import transfer_rig
+from sim.transfer.synthetic import synthetic_mesh, synthetic_rig
+
+ROT = Rotation.from_euler("xyz", [20, -35, 60], degrees=True).as_matrix()
+OFFSET = np.array([3.0, -40.0, 7.0])
+# Points of the rig (skin and up to 1.3 cm under it) land within this of where the known
+# transform puts them, in cm of the project frame; 12% anisotropy, different vertex count.
+TOLERANCE_CM = 0.3
+
+
+@pytest.fixture(scope="module")
+def reference():
+    return synthetic_rig(48, 44)
+
+
+def _target(reference, stretch=(1.12, 0.93, 1.05), n=(70, 58), scale=10.0):
+    v, t, _ = synthetic_mesh(*n, full_head=True)
+    affine = scale * ROT @ np.diag(stretch)
+    head = from_arrays(v @ affine.T + OFFSET, t, "head.obj")
+    points = {k: (reference.mesh.landmark(k) @ affine.T + OFFSET).tolist() for k in reference.mesh.landmarks}
+    return head, points, lambda p: np.asarray(p) @ affine.T + OFFSET
+
+
+@pytest.fixture(scope="module")
+def transferred(reference):
+    head, points, known = _target(reference)
+    return transfer_rig(reference, head, parse_landmarks(points, "lm.json"), name="head"), known
+
+
+def test_muscles_recovered_after_undoing_the_known_transform(reference, transferred) -> None:
+    res, known = transferred
+    assert set(res.rig.muscles) == set(reference.muscles)
+    for ch, parts in reference.muscles.items():
+        for before, after in zip(parts, res.rig.muscles[ch]):
+            expected = res.similarity.apply(known(muscle_points(before)))
+            err = np.linalg.norm(muscle_points(after) - expected, axis=1)
+            assert err.max() < TOLERANCE_CM, (ch, before.name, err)
+
+
+def test_eyes_jaw_and_landmarks_follow(reference, transferred) -> None:
+    res, known = transferred
+    mesh = res.rig.mesh
+    sim = res.similarity
+    assert np.linalg.norm(mesh.eye_centers - sim.apply(known(reference.mesh.eye_centers)), axis=1).max() < TOLERANCE_CM
+    assert mesh.eye_radius == pytest.approx(reference.mesh.eye_radius, rel=0.15)
+    # the hinge lies well off the mask; a looser bound
+    assert np.linalg.norm(mesh.jaw_pivot - sim.apply(known(reference.mesh.jaw_pivot))) < 3 * TOLERANCE_CM
+    assert abs(mesh.jaw_axis @ [1.0, 0.0, 0.0]) > 0.99
+    # landmarks are vertices of the new mesh: within one edge of where they belong
+    edge = np.linalg.norm(mesh.vertices[mesh.triangles[:, 1]] - mesh.vertices[mesh.triangles[:, 0]], axis=1).max()
+    for name in reference.mesh.landmarks:
+        expected = sim.apply(known(reference.mesh.landmark(name)))
+        assert np.linalg.norm(mesh.landmark(name) - expected) < edge, name
+
+
+def test_new_mesh_is_in_the_project_frame(reference, transferred) -> None:
+    """cm, +Y up, looking along +Z, +X = the face's own left, whatever the file's frame."""
+    res, _ = transferred
+    m = res.rig.mesh
+    assert m.landmark("forehead_center")[1] > m.landmark("chin")[1] + 15
+    assert m.landmark("eye_outer_l")[0] > m.landmark("eye_outer_r")[0] + 7
+    assert m.landmark("nose_tip")[2] > m.landmark("eye_outer_l")[2] + 2
+    assert res.similarity.scale == pytest.approx(0.1, rel=0.1)  # the file was in mm
+
+
+def test_back_of_head_is_held_and_face_is_free(transferred) -> None:
+    res, _ = transferred
+    m = res.rig.mesh
+    behind = m.vertices[:, 2] < -2
+    assert m.held[behind].all()
+    assert not m.held[m.landmarks["mouth_corner_l"]] and not m.held[m.landmarks["cheek_r"]]
+    assert m.jaw_weight[m.landmarks["chin"]] > 0.9 and m.jaw_weight[m.landmarks["forehead_center"]] == 0
+    assert m.regions["forehead"][m.landmarks["forehead_center"]]
+
+
+def test_openings_are_found_around_the_right_landmarks(transferred) -> None:
+    res, _ = transferred
+    m = res.rig.mesh
+    for loop, lm in ((m.eye_loops[0], "upper_lid_l"), (m.eye_loops[1], "upper_lid_r"),
+                     (m.mouth_loop, "mouth_corner_l")):
+        assert m.landmarks[lm] in set(loop.tolist())
+
+
+def test_already_aligned_copy_is_reproduced_exactly(reference) -> None:
+    v, t = reference.mesh.vertices, reference.mesh.triangles
+    points = {k: int(i) for k, i in reference.mesh.landmarks.items()}
+    res = transfer_rig(reference, from_arrays(v, t), parse_landmarks(points))
+    for ch, parts in reference.muscles.items():
+        for before, after in zip(parts, res.rig.muscles[ch]):
+            assert np.allclose(muscle_points(after), muscle_points(before), atol=1e-6)
+    assert np.array_equal(res.rig.mesh.held, reference.mesh.held)
+
+
+# --- errors -------------------------------------------------------------------------------------
+
+def _points(reference):
+    return {k: int(i) for k, i in reference.mesh.landmarks.items()}
+
+
+def test_missing_landmark_is_named(reference) -> None:
+    pts = _points(reference)
+    del pts["nose_tip"], pts["chin"]
+    with pytest.raises(TransferError, match=r"lm\.json: missing landmark\(s\) nose_tip, chin"):
+        transfer_rig(reference, from_arrays(reference.mesh.vertices, reference.mesh.triangles),
+                     parse_landmarks(pts, "lm.json"))
+
+
+def test_landmark_off_the_surface_is_named(reference) -> None:
+    pts = {k: reference.mesh.landmark(k).tolist() for k in reference.mesh.landmarks}
+    pts["chin"] = (reference.mesh.landmark("chin") + [0, 0, 3.0]).tolist()
+    with pytest.raises(TransferError, match="'chin' lies .* off the surface of face.obj"):
+        transfer_rig(reference, from_arrays(reference.mesh.vertices, reference.mesh.triangles, "face.obj"),
+                     parse_landmarks(pts, "lm.json"))
+
+
+def test_swapped_sides_are_refused(reference) -> None:
+    pts = _points(reference)
+    swapped = {(k[:-1] + ("r" if k.endswith("_l") else "l")) if k[-2:] in ("_l", "_r") else k: v
+               for k, v in pts.items()}
+    with pytest.raises(TransferError, match="face's own left"):
+        transfer_rig(reference, from_arrays(reference.mesh.vertices, reference.mesh.triangles),
+                     parse_landmarks(swapped, "lm.json"))
+
+
+def test_mirrored_mesh_is_refused(reference) -> None:
+    m = reference.mesh
+    with pytest.raises(TransferError, match="mirrored"):
+        transfer_rig(reference, from_arrays(m.vertices * [-1, 1, 1], m.triangles[:, ::-1]),
+                     parse_landmarks(_points(reference), "lm.json"))
+
+
+def test_scrambled_landmarks_are_not_a_face(reference) -> None:
+    pts = _points(reference)
+    names = sorted(pts)
+    rng = np.random.default_rng(0)
+    vals = [pts[n] for n in names]
+    keep = {"forehead_center", "chin", "nose_tip", "eye_outer_l", "eye_outer_r"}
+    movable = [i for i, n in enumerate(names) if n not in keep]
+    perm = rng.permutation(movable)
+    for i, j in zip(movable, perm):
+        pts[names[i]] = vals[j]
+    with pytest.raises(TransferError, match="do not have the layout of a face"):
+        transfer_rig(reference, from_arrays(reference.mesh.vertices, reference.mesh.triangles),
+                     parse_landmarks(pts, "lm.json"))
+
+
+def test_closed_mouth_needs_an_opening_or_a_declaration(reference) -> None:
+    """Fill the mouth hole: refused naming the mouth; declaring a loop makes it acceptable."""
+    m = reference.mesh
+    loop = m.mouth_loop
+    centre = len(m.vertices)
+    verts = np.vstack([m.vertices, m.vertices[loop].mean(axis=0)])
+    fan = np.stack([np.roll(loop, -1), loop, np.full(len(loop), centre)], axis=1)
+    tris = np.vstack([m.triangles, fan])
+    with pytest.raises(TransferError, match=r"closed.obj: no opening for the mouth .*openings\.mouth in lm\.json"):
+        transfer_rig(reference, from_arrays(verts, tris, "closed.obj"), parse_landmarks(_points(reference), "lm.json"))
+    data = {"landmarks": _points(reference), "openings": {"mouth": [int(i) for i in loop]}}
+    res = transfer_rig(reference, from_arrays(verts, tris, "closed.obj"), parse_landmarks(data, "lm.json"))
+    assert np.array_equal(res.rig.mesh.mouth_loop, loop)
+
+
+def test_non_manifold_face_is_refused(reference) -> None:
+    m = reference.mesh
+    tri = m.triangles[np.nonzero((m.triangles == m.landmarks["cheek_l"]).any(axis=1))[0][0]]
+    extra = len(m.vertices)
+    verts = np.vstack([m.vertices, m.vertices[tri].mean(axis=0) + [0, 0, 0.5]])
+    tris = np.vstack([m.triangles, [[tri[0], tri[1], extra]]])
+    with pytest.raises(TransferError, match="bad.ply: the face is not manifold"):
+        transfer_rig(reference, from_arrays(verts, tris, "bad.ply"), parse_landmarks(_points(reference), "lm.json"))
+
+
+def test_inward_winding_is_flipped(reference) -> None:
+    m = reference.mesh
+    res = transfer_rig(reference, from_arrays(m.vertices, m.triangles[:, ::-1]), parse_landmarks(_points(reference)))
+    assert res.flipped_winding
+    n = np.cross(*(res.rig.mesh.vertices[res.rig.mesh.triangles[:, k]] - res.rig.mesh.vertices[res.rig.mesh.triangles[:, 0]] for k in (1, 2)))
+    assert n.sum(axis=0)[2] > 0
