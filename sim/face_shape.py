@@ -41,6 +41,9 @@ _D = _spline(
     [8.3, 7.8, 7.6, 7.3, 7.0, 6.2, 5.6],
 )
 
+SLICE_POWER = 0.8
+"""Slices are (1 - cos)^p in depth: p < 1 narrows the front (nose ahead, eyes set back)."""
+
 V_CURL = -11.9
 """Chart height below which the midline turns back under the chin (arc of radius R_CURL)."""
 R_CURL = 1.6
@@ -55,6 +58,10 @@ EYE_CENTER_XY = (3.1, 0.12)
 EYE_RADIUS = 1.2
 LID_RADIUS = EYE_RADIUS + 0.07
 """cm: the lid margin lies on this sphere, just over the eyeball."""
+
+EYE_PROTRUSION = 0.8
+LID_SOFTNESS = 0.3
+"""cm: width of the rounded fold where the lids meet the socket (the lid creases)."""
 
 # Mouth slit (chart): centre height, corner u, half-height of the slit at the middle.
 MOUTH_V = -7.2
@@ -99,7 +106,7 @@ def _g(x: FloatArray, y: FloatArray, cx: float, cy: float, sx: float, sy: float)
 def _nose_profile(y: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Nose ridge height above the base (cm) and its half-width scale, along the midline."""
     ys = np.array([1.4, 0.6, -0.5, -2.0, -3.3, -4.2, -4.75, -5.05, -5.4])
-    hs = np.array([0.0, 0.22, 0.55, 1.05, 1.6, 2.05, 1.25, 0.25, 0.0])
+    hs = np.array([0.0, 0.12, 0.5, 1.05, 1.6, 2.05, 1.25, 0.25, 0.0])
     ws = np.array([0.7, 0.6, 0.55, 0.6, 0.75, 0.85, 0.9, 0.9, 0.9])
     order = np.argsort(ys)
     h = np.interp(y, ys[order], hs[order])
@@ -112,12 +119,13 @@ def features(x: FloatArray, y: FloatArray) -> FloatArray:
     """Displacement (cm, along the base normal) of the facial relief at frontal (x, y)."""
     ax = np.abs(x)
     f = np.zeros_like(x)
-    f += 0.5 * _g(ax, y, 2.7, 1.6, 1.9, 0.55)  # brow ridge
+    f += 0.6 * _g(ax, y, 2.7, 1.75, 1.9, 0.5)  # brow ridge
     f += 0.25 * _g(ax, y, 0.0, 1.3, 0.9, 0.7)  # glabella
-    f -= 0.3 * _g(ax, y, 0.0, 0.55, 0.8, 0.5)  # nasion
-    f -= 0.5 * _g(ax, y, 3.1, 0.1, 1.5, 1.1)  # eye socket
+    f -= 0.45 * _g(ax, y, 0.0, 0.6, 0.9, 0.5)  # nasion
+    f -= 0.9 * _g(ax, y, 3.0, 0.2, 1.7, 1.0)  # eye socket
+    f -= 0.45 * _g(ax, y, 1.75, 0.0, 0.55, 0.55)  # inner eye corner
     f -= 0.35 * _g(ax, y, 5.7, 2.4, 1.1, 1.4)  # temple
-    f += 0.55 * _g(ax, y, 4.4, -2.0, 1.4, 1.0)  # cheekbone
+    f += 0.7 * _g(ax, y, 4.5, -1.7, 1.4, 0.9)  # cheekbone
     f += 0.35 * _g(ax, y, 3.4, -4.2, 1.4, 1.4)  # cheek fat
     f -= 0.2 * _g(ax, y, 2.3, -2.6, 0.8, 0.9)  # tear trough / nose-cheek junction
     h, w = _nose_profile(y)
@@ -126,22 +134,28 @@ def features(x: FloatArray, y: FloatArray) -> FloatArray:
     f += 0.25 * _g(ax, y, 0.7, -4.75, 0.5, 0.3)  # nostril sill
     f += 0.55 * _g(ax, y, 0.0, -6.2, 2.3, 0.9)  # upper lip body
     f -= 0.12 * _g(ax, y, 0.0, -5.7, 0.35, 0.5)  # philtrum groove
-    f += 0.25 * _g(ax, y, 0.0, -6.9, 1.8, 0.28)  # upper vermilion
-    f += 0.45 * _g(ax, y, 0.0, -7.65, 1.7, 0.45)  # lower lip
-    f -= 0.25 * _g(ax, y, 2.8, -7.2, 0.45, 0.45)  # mouth corner dimple
+    f += 0.35 * _g(ax, y, 0.0, -6.9, 1.8, 0.3)  # upper vermilion
+    f += 0.55 * _g(ax, y, 0.0, -7.65, 1.6, 0.45)  # lower lip
+    f -= 0.35 * _g(ax, y, 2.8, -7.2, 0.5, 0.45)  # mouth corner dimple
     f -= 0.35 * _g(ax, y, 0.0, -8.75, 1.7, 0.4)  # chin crease (mentolabial sulcus)
     f += 0.75 * _g(ax, y, 0.0, -10.5, 1.6, 1.0)  # chin
     return f
 
 
-def _eye_lid_depth(dx: FloatArray, dy: FloatArray) -> FloatArray:
-    """Height (cm) of the lid surface above the eye centre: the lid sphere near the opening,
-    easing (C1) to a shallow floor beyond the eyeball's silhouette."""
-    r = np.hypot(dx, dy) / LID_RADIUS
-    inside = np.sqrt(np.clip(1.0 - np.minimum(r, 0.8) ** 2, 0.0, 1.0))
-    k = 0.35
-    tail = 0.6 - (0.8 / 0.6) * k * np.tanh((r - 0.8) / k)
-    return LID_RADIUS * np.where(r <= 0.8, inside, tail)
+def _ball_height(dx: FloatArray, dy: FloatArray) -> FloatArray:
+    """Height (cm) of the lid sphere above the eye centre, continued steeply (C1) past 95 % of its
+    radius so that a smooth max with the socket can take over there."""
+    r = np.hypot(dx, dy)
+    r0 = 0.95 * LID_RADIUS
+    h0 = np.sqrt(LID_RADIUS**2 - r0**2)
+    inside = np.sqrt(np.clip(LID_RADIUS**2 - np.minimum(r, r0) ** 2, 0.0, None))
+    return np.where(r <= r0, inside, h0 - (r0 / h0) * (r - r0))
+
+
+def _smooth_max(a: FloatArray, b: FloatArray, k: float) -> FloatArray:
+    """max(a, b) with the corner rounded over a width k (C1): where the lids fold into the socket."""
+    h = np.maximum(k - np.abs(a - b), 0.0) / k
+    return np.maximum(a, b) + h * h * k / 4.0
 
 
 def _smoothstep(e0: float, e1: float, x: FloatArray) -> FloatArray:
@@ -173,19 +187,21 @@ def base_surface(u: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray, 
     zm = np.where(below, _ZM(V_CURL) - R_CURL * (1.0 - np.cos(phi)), _ZM(vs))
     w, d = _W(vs), _D(vs)
     x = w * np.sin(theta)
-    z = zm - d * (1.0 - np.cos(theta))
-    n = np.stack([d * np.sin(theta), np.zeros_like(x), w * np.cos(theta)], axis=1)
+    z = zm - d * (1.0 - np.cos(theta)) ** SLICE_POWER
+    one_c = np.maximum(1.0 - np.cos(theta), 1e-12)
+    dz = d * SLICE_POWER * one_c ** (SLICE_POWER - 1.0) * np.sin(theta)
+    n = np.stack([dz, np.zeros_like(x), w * np.cos(theta)], axis=1)
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     return np.stack([x, y, z], axis=1), n, np.stack([x, y], axis=1)
 
 
 def eye_center() -> FloatArray:
-    """Left eyeball centre (3,): behind the socket so the lid sphere meets the face smoothly."""
+    """Left eyeball centre (3,): the ball's front stands EYE_PROTRUSION out of the socket floor."""
     cx, cy = EYE_CENTER_XY
     u = chart_u(cx, cy)
     p, n, xy = base_surface(np.array([u]), np.array([cy]))
     surf = p[0] + features(xy[:, 0], xy[:, 1])[0] * n[0]
-    return np.array([cx, cy, surf[2] - LID_RADIUS + 0.75])
+    return np.array([cx, cy, surf[2] - LID_RADIUS + EYE_PROTRUSION])
 
 
 def surface(u: FloatArray, v: FloatArray) -> FloatArray:
@@ -196,11 +212,12 @@ def surface(u: FloatArray, v: FloatArray) -> FloatArray:
     au = np.abs(u)
     p, n, xy = base_surface(au, v)
     pts = p + features(xy[:, 0], xy[:, 1])[:, None] * n
-    # Lids: lay the skin on the eyeball sphere near the opening.
+    # Lids: the skin wraps over the eyeball where the ball stands out of the socket.
     ec = eye_center()
     w = eye_weight(xy[:, 0], xy[:, 1])
-    lid = np.stack([xy[:, 0], xy[:, 1], ec[2] + _eye_lid_depth(xy[:, 0] - ec[0], xy[:, 1] - ec[1])], axis=1)
-    pts = (1.0 - w[:, None]) * pts + w[:, None] * lid
+    pts[:, 0] = (1.0 - w) * pts[:, 0] + w * xy[:, 0]
+    ball = ec[2] + _ball_height(pts[:, 0] - ec[0], xy[:, 1] - ec[1])
+    pts[:, 2] = _smooth_max(pts[:, 2], ball, LID_SOFTNESS)
     # Lips roll inwards at the slit and the corners tuck in.
     gap = np.abs(v - MOUTH_V) - mouth_half_height(au)
     near = np.exp(-np.maximum(gap, 0.0) / 0.18) * np.exp(-((au / 4.0) ** 8))
