@@ -16,7 +16,7 @@ instead of doubling it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -101,57 +101,63 @@ class _Spec:
     asym_plus: bool = False
     emphasis: float = 1.0
     furrow: float = 0.35
-    extra: dict = field(default_factory=dict)
 
 
 _FRONTALIS = ("frontalis_inner_l", "frontalis_inner_r", "frontalis_outer_l", "frontalis_outer_r")
-_FOREHEAD_X = (-3.7, -2.4, -1.2, 0.0, 1.2, 2.4, 3.7)
+_EYE = ("orbicularis_oculi_{s}", "zygomaticus_major_{s}")
 
 
 def _forehead(k: int, dy: float, below: float, above: float) -> _Spec:
-    # gently arched: the lines rise over each brow and dip a little at the midline
-    offs = tuple((x, dy + 0.18 * np.sin(np.pi * abs(x) / 3.7) - 0.05) for x in _FOREHEAD_X)
+    # the lines droop a little towards the temples
+    xs = np.linspace(-4.4, 4.4, 9)
+    offs = tuple((float(x), float(dy - 0.35 * (x / 4.6) ** 2)) for x in xs)
     return _Spec(f"forehead_{k}", "eyes_mid", offs, _FRONTALIS, below, above, paired=False)
 
 
+def _ray(name: str, degrees: float, r0: float, minus: float, plus: float) -> _Spec:
+    a = np.radians(degrees)
+    offs = tuple((float(r * np.cos(a)), float(r * np.sin(a))) for r in (r0, 1.25, 1.9))
+    return _Spec(name, "eye_outer", offs, _EYE, minus, plus, emphasis=0.9)
+
+
 # Lines drawn on the face's left (+X) with dx > 0 away from the midline; paired lines are mirrored.
+# Where the default face's builder lays vertex rows along a wrinkle (sim.face_chart), the line
+# follows that row, so each furrow has vertices on it and rolls have rows to rise on.
 REFERENCE_MASK: tuple[_Spec, ...] = (
     # horizontal forehead lines; the rolls lie between consecutive lines
-    _forehead(1, 2.75, 0.35, 0.75),
-    _forehead(2, 3.5, 0.0, 0.75),
-    _forehead(3, 4.25, 0.0, 0.5),
+    _forehead(1, 3.08, 0.45, 1.0),
+    _forehead(2, 4.08, 0.0, 1.0),
+    _forehead(3, 5.08, 0.0, 0.6),
     # vertical glabellar lines (corrugators draw the brows together); drawn upwards, so "+" is
     # medial on the left and lateral on the right: the left line carries the roll between the two
-    _Spec("glabella_vertical_l", "eyes_mid", ((0.48, 0.85), (0.5, 1.5), (0.56, 2.15)),
-          ("corrugator_l", "corrugator_r", "procerus"), 0.4, 1.0, paired=False, emphasis=1.2),
-    _Spec("glabella_vertical_r", "eyes_mid", ((-0.48, 0.85), (-0.5, 1.5), (-0.56, 2.15)),
+    _Spec("glabella_vertical_l", "eyes_mid", ((0.6, 0.78), (0.62, 1.58), (0.68, 2.38)),
+          ("corrugator_l", "corrugator_r", "procerus"), 0.4, 1.25, paired=False, emphasis=1.2),
+    _Spec("glabella_vertical_r", "eyes_mid", ((-0.6, 0.78), (-0.62, 1.58), (-0.68, 2.38)),
           ("corrugator_l", "corrugator_r", "procerus"), 0.0, 0.4, paired=False, emphasis=1.2),
-    # oblique glabellar lines, above the inner brow heads
-    _Spec("glabella_oblique", "eyes_mid", ((0.95, 1.05), (1.2, 1.6), (1.5, 2.2)),
+    # oblique glabellar lines above the inner brow heads; the roll medial to them is the
+    # vertical line's
+    _Spec("glabella_oblique", "eyes_mid", ((1.05, 0.95), (1.35, 1.6), (1.75, 2.2)),
           ("corrugator_{s}", "procerus"), 0.35, 0.0),
     # nasal-root line: procerus pulls the glabella down, compressing the skin at the nasion
     _Spec("nasal_root", "eyes_mid", ((-0.8, 0.42), (0.0, 0.36), (0.8, 0.42)),
           ("procerus", "corrugator_l", "corrugator_r"), 0.3, 0.3, paired=False),
-    # crow's feet fanning from the outer eye corner; rolls between them
-    _Spec("crows_foot_upper", "eye_outer", ((0.45, 0.2), (1.35, 0.62)),
-          ("orbicularis_oculi_{s}", "zygomaticus_major_{s}"), 0.3, 0.25, emphasis=0.9),
-    _Spec("crows_foot_middle", "eye_outer", ((0.5, -0.12), (1.45, -0.12)),
-          ("orbicularis_oculi_{s}", "zygomaticus_major_{s}"), 0.3, 0.0, emphasis=0.9),
-    _Spec("crows_foot_lower", "eye_outer", ((0.4, -0.45), (1.25, -0.88)),
-          ("orbicularis_oculi_{s}", "zygomaticus_major_{s}"), 0.25, 0.0, emphasis=0.9),
-    # lower-lid line, under the lower lid margin (drawn outwards, "+" is towards the eye)
-    _Spec("lower_lid", "eye_center", ((-1.0, -0.78), (-0.35, -1.0), (0.35, -1.02), (1.0, -0.85)),
-          ("orbicularis_oculi_{s}", "orbicularis_oculi_lid_{s}", "zygomaticus_major_{s}"),
-          0.3, 0.22, emphasis=0.8),
+    # crow's feet fanning from the outer eye corner (drawn outwards: "+" is up); rolls between
+    _ray("crows_foot_upper", 20.0, 0.75, 0.4, 0.35),
+    _ray("crows_foot_middle", 0.0, 0.6, 0.4, 0.0),
+    _ray("crows_foot_lower", -20.0, 0.75, 0.35, 0.0),
+    # lower-lid line along the second ring of rows under the lid (drawn outwards, "+" is up)
+    _Spec("lower_lid", "eye_center", ((-1.28, -0.57), (-0.64, -0.91), (0.0, -1.08), (0.64, -0.96),
+                                      (1.28, -0.55)),
+          (*_EYE, "orbicularis_oculi_lid_{s}"), 0.3, 0.25, emphasis=0.8),
     # nasolabial fold from above the nose wing to beside the mouth corner; drawn downwards, so
     # "+" is lateral on the left: the large cheek roll there is asymmetric (section 5.2)
-    _Spec("nasolabial", "mouth_corner", ((-1.0, 2.95), (-0.55, 1.85), (-0.1, 0.85), (0.3, 0.0),
-                                         (0.42, -0.65)),
+    _Spec("nasolabial", "mouth_corner", ((-0.7, 3.05), (-0.29, 2.54), (0.06, 1.93), (0.34, 1.22),
+                                         (0.55, 0.41), (0.7, -0.5)),
           ("levator_labii_{s}", "levator_labii_alaeque_nasi_{s}", "zygomaticus_major_{s}",
            "zygomaticus_minor_{s}", "levator_anguli_oris_{s}"),
           0.3, 0.85, asym_plus=True, emphasis=1.2, furrow=0.5),
     # marionette line from below the mouth corner towards the jaw
-    _Spec("marionette", "mouth_corner", ((0.12, -0.45), (0.05, -1.25), (-0.15, -2.0)),
+    _Spec("marionette", "mouth_corner", ((0.4, -0.55), (0.5, -1.6), (0.6, -2.8)),
           ("depressor_anguli_oris_{s}",), 0.35, 0.35),
     # perioral lines: short vertical lines above the upper and below the lower lip
     *(
@@ -165,8 +171,8 @@ REFERENCE_MASK: tuple[_Spec, ...] = (
         for i, x in enumerate((0.5, 1.1), start=1)
     ),
     # chin crease (mentolabial sulcus): mentalis pushes the chin boss up into it
-    _Spec("chin_crease", "mouth_center", ((-1.5, -1.3), (-0.8, -1.52), (0.0, -1.58), (0.8, -1.52),
-                                          (1.5, -1.3)),
+    _Spec("chin_crease", "mouth_center",
+          tuple((float(x), float(-1.55 + 0.25 * (x / 1.9) ** 2)) for x in np.linspace(-1.8, 1.8, 7)),
           ("mentalis", "depressor_labii_l", "depressor_labii_r"), 0.5, 0.35, paired=False),
 )
 
