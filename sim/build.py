@@ -36,7 +36,13 @@ class SkinParams:
     viscosity:      s, axial spring damping per unit stiffness relative to the value that critically
                     damps the mesh's stiffest mode (1.0); dermis is viscoelastic and this lets the
                     explicit step run at its stability bound. Barely touches the slow expression modes.
-    gravity:        whether m_i g acts; g in cm/s^2 along -Y.
+    min_mass_fraction: mass scaling for the explicit step: a node's *inertial* mass is at least this
+                    fraction of the median nodal mass. The default mesh is graded (elements at the
+                    mouth corners and lid margins are 20x smaller than on the cheek) and omega ~ 1/edge,
+                    so a handful of tiny nodes would set the step for the whole face; raising their
+                    inertia does not change any static pose (gravity and tethers keep the true mass
+                    and area).
+    gravity:        whether m_i g acts (true mass); g in cm/s^2 along -Y.
     jaw_max_angle:  rad, jaw rotation at jaw = 1 (AU27).
     """
 
@@ -48,6 +54,7 @@ class SkinParams:
     tether: float = 3000.0
     mass_damping: float = 120.0
     viscosity: float = 1.0
+    min_mass_fraction: float = 0.5
     gravity: bool = True
     g: float = 981.0
     jaw_max_angle: float = 0.35
@@ -62,7 +69,8 @@ class FaceModel:
     spring_indices (S,2) int32: edge springs first (n_edge_springs of them), then bending springs.
     spring_rest_length (S,) cm; spring_k_low, spring_k_high (S,) dyn/cm; spring_damping (S,) dyn*s/cm
     (axial, along the spring); strain_threshold: relative strain eps^c.
-    area (N,) cm^2 lumped; mass (N,) g; damping (N,) g/s (c_i); rest_stiffness (N,) dyn/cm (eq 9 k);
+    area (N,) cm^2 lumped; mass (N,) g inertial (after mass scaling); weight (N,) dyn, the true
+    mass times g (zero with gravity off); damping (N,) g/s (c_i); rest_stiffness (N,) dyn/cm (eq 9 k);
     held (N,) bool (pinned); jaw_weight (N,); jaw_pivot (3,); jaw_axis (3,); gravity (3,) cm/s^2.
     muscle_matrix: scipy CSR (3N, C): column c = channel c's nodal force (dyn) at activation 1,
                    flattened xyz per vertex; zero columns for non-muscle channels.
@@ -83,6 +91,7 @@ class FaceModel:
     strain_threshold: float
     area: np.ndarray
     mass: np.ndarray
+    weight: np.ndarray
     damping: np.ndarray
     rest_stiffness: np.ndarray
     held: np.ndarray
@@ -143,6 +152,40 @@ def omega_bound(
     return float(np.sqrt(bound.max()))
 
 
+def stiffness_matrix(rest: np.ndarray, springs: np.ndarray, k: np.ndarray, tether: np.ndarray) -> sp.csr_matrix:
+    """The skin's linear stiffness at rest, (3N, 3N) dyn/cm, xyz interleaved per vertex:
+    sum over springs of k_s (e_i - e_j)(e_i - e_j)^T (x) u_s u_s^T, plus k_r,i I on the diagonal."""
+    n = len(rest)
+    i, j = springs[:, 0].astype(np.int64), springs[:, 1].astype(np.int64)
+    d = rest[j] - rest[i]
+    u = d / np.linalg.norm(d, axis=1)[:, None]
+    blocks = k[:, None, None] * u[:, :, None] * u[:, None, :]  # (S,3,3)
+    a, b = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
+    rows, cols, vals = [], [], []
+    for p, q, sign in ((i, i, 1.0), (j, j, 1.0), (i, j, -1.0), (j, i, -1.0)):
+        rows.append((3 * p[:, None, None] + a).ravel())
+        cols.append((3 * q[:, None, None] + b).ravel())
+        vals.append((sign * blocks).ravel())
+    rows.append(np.arange(3 * n))
+    cols.append(np.arange(3 * n))
+    vals.append(np.repeat(tether, 3))
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * n, 3 * n))
+
+
+def omega_exact(stiffness: sp.csr_matrix, mass: np.ndarray, free: np.ndarray) -> float:
+    """Highest natural frequency (rad/s) of the free nodes at rest: sqrt of the largest eigenvalue of
+    M^-1/2 K M^-1/2 restricted to free degrees of freedom (Lanczos, scipy eigsh)."""
+    from scipy.sparse.linalg import eigsh
+
+    dof = np.repeat(free, 3)
+    scale = 1.0 / np.sqrt(np.repeat(mass, 3)[dof])
+    kf = stiffness[dof][:, dof]
+    a = sp.diags(scale) @ kf @ sp.diags(scale)
+    v0 = np.ones(a.shape[0])  # fixed start vector: the result is reproducible
+    lam = eigsh(a, k=1, which="LA", tol=1e-6, v0=v0, return_eigenvectors=False)
+    return float(np.sqrt(lam[0]))
+
+
 def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray) -> sp.csr_matrix:
     n = len(rest)
     cols = []
@@ -188,12 +231,15 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
     springs, rest_len, k_low, n_edge = build_springs(rest, tris, p.sheet_modulus, p.bend_ratio)
     area = vertex_areas(rest, tris)
     area = np.maximum(area, 1e-6)
-    mass = p.areal_density * area
+    true_mass = p.areal_density * area
     held = np.asarray(mesh.held, dtype=bool)
+    floor = p.min_mass_fraction * float(np.median(true_mass[~held] if (~held).any() else true_mass))
+    mass = np.maximum(true_mass, floor)
+    gravity = np.array([0.0, -p.g if p.gravity else 0.0, 0.0])
     tether = p.tether * area
     k_high = p.high_ratio * k_low
-    omega = omega_bound(rest, springs, k_high, tether, mass, ~held)
-    omega_low = omega_bound(rest, springs, k_low, tether, mass, ~held)
+    omega = omega_exact(stiffness_matrix(rest, springs, k_high, tether), mass, ~held)
+    omega_low = omega_exact(stiffness_matrix(rest, springs, k_low, tether), mass, ~held)
     spring_damping = p.viscosity * (2.0 / omega_low) * k_low
     model = FaceModel(
         rig=rig,
@@ -209,13 +255,14 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
         strain_threshold=p.strain_threshold,
         area=_frozen(area),
         mass=_frozen(mass),
+        weight=_frozen(true_mass[:, None] * gravity[None, :]),
         damping=_frozen(p.mass_damping * mass),
         rest_stiffness=_frozen(tether),
         held=_frozen(held),
         jaw_weight=_frozen(np.clip(mesh.jaw_weight, 0.0, 1.0), np.float64),
         jaw_pivot=_frozen(mesh.jaw_pivot, np.float64),
         jaw_axis=_frozen(np.asarray(mesh.jaw_axis) / np.linalg.norm(mesh.jaw_axis), np.float64),
-        gravity=_frozen([0.0, -p.g if p.gravity else 0.0, 0.0], np.float64),
+        gravity=_frozen(gravity),
         muscle_matrix=_muscle_matrix(rig, rest, area),
         params=p,
         omega_max=omega,

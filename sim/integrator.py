@@ -150,23 +150,32 @@ def jaw_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
 
 
 class Simulator:
-    """Advances a FaceState by whole frames of frame_dt seconds under a FaceControl."""
+    """Advances a FaceState by whole frames of frame_dt seconds under a FaceControl.
 
-    def __init__(self, model: FaceModel, frame_dt: float = 1.0 / 60.0) -> None:
+    wrinkles: fill state.surface with the wrinkle bulges (sim.wrinkles) after each frame; turn off
+    when only the dynamics matter (benchmarks, analysis): surface then equals positions."""
+
+    def __init__(self, model: FaceModel, frame_dt: float = 1.0 / 60.0, wrinkles: bool = True) -> None:
         self.model = model
+        self.wrinkles = wrinkles
         self.frame_dt = float(frame_dt)
         p = model.params
-        omega_low = model.omega_max / math.sqrt(p.high_ratio)
         visc = float(np.max(model.spring_damping / np.maximum(model.spring_k_low, 1e-30)))
         self.stable_dt = stable_step(model.omega_max, p.mass_damping, visc, p.high_ratio)
-        del omega_low
         self.substeps = max(1, math.ceil(self.frame_dt / (SAFETY * self.stable_dt)))
         self.dt = self.frame_dt / self.substeps
         self.guard_events: list[GuardEvent] = []
         n = model.n_vertices
         self._free = np.ascontiguousarray(~model.held)
         self._inv_m = 1.0 / model.mass
-        self._springs = np.ascontiguousarray(model.spring_indices)
+        # writeable contiguous copies: one numba signature (the warm-up's) for every call
+        self._springs = np.array(model.spring_indices, dtype=np.int32, order="C")
+        self._rest_len = np.array(model.spring_rest_length, order="C")
+        self._k_low = np.array(model.spring_k_low, order="C")
+        self._k_high = np.array(model.spring_k_high, order="C")
+        self._k_damp = np.array(model.spring_damping, order="C")
+        self._kr = np.array(model.rest_stiffness, order="C")
+        self._c = np.array(model.damping, order="C")
         self._ext = np.zeros((n, 3))
         self._target = np.array(model.rest)
         self._a1 = np.zeros((n, 3))
@@ -192,8 +201,8 @@ class Simulator:
         return (self.model.muscle_matrix @ a).reshape(-1, 3)
 
     def gravity_forces(self) -> np.ndarray:
-        """m_i g, (N,3) dyn (zero when gravity is switched off)."""
-        return self.model.mass[:, None] * self.model.gravity[None, :]
+        """m_i g with the true (not scaled) mass, (N,3) dyn (zero when gravity is switched off)."""
+        return np.array(self.model.weight)
 
     def feedback_target_forces(self, target: np.ndarray) -> np.ndarray:
         """The constant part k_r,i target_i of seed 003 eq 9's F_r = k_r (target - x) (the -k_r x part
@@ -218,9 +227,9 @@ class Simulator:
         held = m.held
         x[held] = self._target[held]
         v[held] = 0.0
-        _rk2_frame(x, v, self.substeps, self.dt, self._springs, m.spring_rest_length, m.spring_k_low,
-                   m.spring_k_high, m.spring_damping, m.strain_threshold, ext, m.rest_stiffness,
-                   m.damping, self._inv_m, self._free, self._a1, self._xm, self._vm)
+        _rk2_frame(x, v, self.substeps, self.dt, self._springs, self._rest_len, self._k_low, self._k_high,
+                   self._k_damp, m.strain_threshold, ext, self._kr, self._c, self._inv_m, self._free,
+                   self._a1, self._xm, self._vm)
         reason = self._check(x)
         if reason:
             x[...] = saved_x
@@ -232,8 +241,18 @@ class Simulator:
         state.eye_yaw = float(values[CHANNEL_INDEX["eyes_yaw"]])
         state.eye_pitch = float(values[CHANNEL_INDEX["eyes_pitch"]])
         state.age = float(values[CHANNEL_INDEX["age"]])
-        state.surface[...] = x
+        self._surface(state)
         return state
+
+    def _surface(self, state: FaceState) -> None:
+        """state.surface = positions plus the wrinkle bulges at state.age (sim.wrinkles), or the
+        positions alone when the rig has no wrinkle lines."""
+        if self.wrinkles and self.model.rig.wrinkles:
+            from sim.wrinkles.layer import apply_wrinkles
+
+            apply_wrinkles(self.model, state)
+        else:
+            state.surface[...] = state.positions
 
     def _check(self, x: np.ndarray) -> str:
         if not np.all(np.isfinite(x)):

@@ -131,8 +131,8 @@ def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle,
         f.at(bo, sg, -1.6, 4.3, 0.3), f.at(bo, sg, 0.2, 4.0, 0.3),
         f.at(bo, sg, -1.6, 0.2), f.at(bo, sg, 0.2, 0.0), width=2.2, strength=1.3),)
     out[f"corrugator_{side}"] = (_linear(
-        f, f"corrugator_{side}", f.at(bi, sg, -0.7, -0.6, 0.5), f.at(bi, sg, 1.3, 0.3),
-        reach=1.4, angle=0.5, strength=1.6),)
+        f, f"corrugator_{side}", f.at(bi, sg, -0.9, -0.5, 0.5), f.at(bi, sg, 0.7, 0.2),
+        reach=1.8, angle=0.6, strength=2.0),)
     out[f"orbicularis_oculi_{side}"] = (_sphincter(
         f, f"orbicularis_oculi_{side}", f.at(ec, sg, 0.1, -0.1), 3.0, 2.4, 1.2),)
     top, bottom = f.get(f"eye_top_{side}"), f.get(f"eye_bottom_{side}")
@@ -140,7 +140,7 @@ def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle,
     lid_c[1] = bottom[1] + 0.3 * (top[1] - bottom[1])
     half_w = 0.5 * abs(f.get(f"eye_outer_{side}")[0] - f.get(f"eye_inner_{side}")[0]) / f.s
     out[f"orbicularis_oculi_lid_{side}"] = (_sphincter(
-        f, f"orbicularis_oculi_lid_{side}", lid_c, half_w + 0.4, 1.25, 2.5),)
+        f, f"orbicularis_oculi_lid_{side}", lid_c, half_w + 0.4, 1.25, 2.9),)
     out[f"levator_labii_alaeque_nasi_{side}"] = (_linear(
         f, f"levator_labii_alaeque_nasi_{side}", f.at(f"eye_inner_{side}", sg, -0.3, -0.2, 0.4),
         f.at(f"nose_wing_{side}", sg, 0.0, -0.2), reach=1.3, angle=0.35, strength=1.3),)
@@ -181,7 +181,7 @@ def place_muscles(mesh: FaceMesh) -> dict[str, tuple[Muscle, ...]]:
     out.update(_side_muscles(f, "r", -1.0))
     out["procerus"] = (_linear(
         f, "procerus", f.at("nose_bridge", 1.0, 0.0, -1.8, 0.4), f.at("nose_bridge", 1.0, 0.0, 1.0),
-        reach=1.35, angle=0.35, strength=1.4),)
+        reach=1.35, angle=0.4, strength=2.2),)
     out["mentalis"] = (_sheet(
         f, "mentalis",
         f.at("lower_lip_center", 1.0, 0.9, -1.2, 0.5), f.at("lower_lip_center", -1.0, 0.9, -1.2, 0.5),

@@ -4,11 +4,12 @@ Rig file (`.npz`, version 1), read with `allow_pickle=False` so loading never ex
 - `header`: a 0-d unicode array holding JSON: {"format": "facepuppet-rig", "version": 1, "name",
   "eye_radius", "landmarks": {name: vertex index}, "regions": [names], "muscles": [{"channel",
   "type": "linear"|"sphincter"|"sheet", "name", and the type's fields: points as [x, y, z] lists (cm),
-  scalars as numbers}]}.
+  scalars as numbers}], "wrinkles": [WrinkleLine.to_dict() entries: name, points [[x, y], ...],
+  muscles, widths, flags]}.
 - arrays: `vertices` (N,3) f8, `triangles` (M,3) i4, `held` (N,) bool, `jaw_weight` (N,) f8,
   `jaw_pivot` (3,), `jaw_axis` (3,), `eye_centers` (2,3), `eye_loop_l`, `eye_loop_r`, `mouth_loop`
   (int), `uv` (N,2) optional, `region_<name>` (N,) bool per region.
-Wrinkle lines are not stored: `sim.wrinkles` lays them from the mesh's uv chart.
+Wrinkle lines (`sim.wrinkles.mask.WrinkleLine`) are stored as their plain `to_dict` form.
 """
 
 from __future__ import annotations
@@ -39,7 +40,17 @@ def default_rig(resolution: int = 0) -> FaceRig:
     from sim.muscles import place_muscles
 
     mesh = build_face_mesh(resolution)
-    return FaceRig(mesh=mesh, muscles=place_muscles(mesh), name=f"default-{resolution}")
+    return FaceRig(mesh=mesh, muscles=place_muscles(mesh), wrinkles=_default_wrinkles(mesh),
+                   name=f"default-{resolution}")
+
+
+def _default_wrinkles(mesh: FaceMesh) -> tuple:
+    """The reference wrinkle mask laid on this mesh (empty if sim.wrinkles is not available)."""
+    try:
+        from sim.wrinkles.mask import default_mask
+    except ImportError:
+        return ()
+    return tuple(default_mask(mesh))
 
 
 def _muscle_json(channel: str, m: Muscle) -> dict[str, Any]:
@@ -61,6 +72,7 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
         "landmarks": {k: int(v) for k, v in mesh.landmarks.items()},
         "regions": sorted(mesh.regions),
         "muscles": [_muscle_json(ch, m) for ch, parts in rig.muscles.items() for m in parts],
+        "wrinkles": [w.to_dict() for w in rig.wrinkles],
     }
     arrays: dict[str, np.ndarray] = {
         "header": np.array(json.dumps(header)),
@@ -185,4 +197,21 @@ def _parse(data: Any, p: str) -> FaceRig:
     for entry in entries:
         channel, m = _muscle(entry, p)
         muscles[channel] = muscles.get(channel, ()) + (m,)
-    return FaceRig(mesh=mesh, muscles=muscles, name=str(header.get("name", "rig")))
+    return FaceRig(mesh=mesh, muscles=muscles, wrinkles=_wrinkles(header.get("wrinkles", []), p),
+                   name=str(header.get("name", "rig")))
+
+
+def _wrinkles(entries: Any, p: str) -> tuple:
+    if not entries:
+        return ()
+    from sim.wrinkles.mask import WrinkleLine
+
+    if not isinstance(entries, list):
+        raise RigFileError(f"{p}: 'wrinkles' must be a list")
+    out = []
+    for entry in entries:
+        try:
+            out.append(WrinkleLine.from_dict(entry))
+        except (KeyError, ValueError, TypeError, AttributeError) as err:
+            raise RigFileError(f"{p}: malformed wrinkle line ({type(err).__name__}: {err})") from err
+    return tuple(out)
