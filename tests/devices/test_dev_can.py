@@ -1,0 +1,114 @@
+"""can:// on python-can's virtual bus with the example DBCs, injected error frames and bad frames."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterator
+from pathlib import Path
+
+import can
+import cantools
+import pytest
+from test_dev_sgi import controls, wait_for
+
+from devices import DeviceSpecError, EventQueue, StatusEvent, open_device
+from devices.candev import CanDevice
+
+EXAMPLES = Path(__file__).parents[2] / "examples" / "can"
+PANEL = EXAMPLES / "panel.dbc"
+BJM1 = EXAMPLES / "j1939_bjm1.dbc"
+_channels = itertools.count()
+
+
+@pytest.fixture
+def channel() -> str:
+    return f"facepuppet-test-{next(_channels)}"
+
+
+@pytest.fixture
+def panel_bus(channel: str) -> Iterator[can.BusABC]:
+    bus = can.Bus(interface="virtual", channel=channel)
+    yield bus
+    bus.shutdown()
+
+
+def _open(spec: str) -> tuple[CanDevice, EventQueue]:
+    d = open_device(spec)
+    assert isinstance(d, CanDevice)
+    q = EventQueue()
+    d.add_listener(q)
+    d.start()
+    wait_for(q, lambda e: isinstance(e, StatusEvent))
+    return d, q
+
+
+def test_panel_dials_buttons_faders_and_bus_errors(channel: str, panel_bus: can.BusABC) -> None:
+    db = cantools.database.load_file(PANEL)
+    d, q = _open(f"can://virtual/{channel}?dbc={PANEL}")
+    names = {c.name: c.kind for c in d.controls}
+    assert sum(k == "dial" for k in names.values()) == 8 and sum(k == "button" for k in names.values()) == 16
+    dials = {f"Dial{i}": 0 for i in range(8)}
+
+    def send(name: str, **values: float) -> None:
+        msg = db.get_message_by_name(name)
+        panel_bus.send(can.Message(arbitration_id=msg.frame_id, data=msg.encode(values), is_extended_id=False))
+
+    send("PanelDials", **dials)  # baseline counters
+    send("PanelDials", **{**dials, "Dial3": 5})
+    send("PanelDials", **{**dials, "Dial3": 250})  # 5 -> 250 wraps backwards: -11
+    buttons = {f"Button{i}": 0 for i in range(16)}
+    send("PanelButtons", **{**buttons, "Button12": 1})
+    panel_bus.send(can.Message(arbitration_id=0x004, is_error_frame=True, data=bytes([0, 0x10, 0, 0, 0, 0, 0, 0])))
+    panel_bus.send(can.Message(arbitration_id=0x101, data=b"\x01", is_extended_id=False))  # too short for the DBC
+    panel_bus.send(can.Message(arbitration_id=0x555, data=b"\x01\x02", is_extended_id=False))  # not in the DBC
+    send("PanelFaders", Fader0=0.25, Fader1=1.0)
+    send("PanelButtons", **buttons)
+    got = controls(wait_for(q, lambda e: getattr(e, "control", "") == "Button12" and e.value == 0))
+    assert [(e.control, e.delta if e.kind == "dial" else e.value) for e in got] == [
+        ("Dial3", 5), ("Dial3", -11), ("Button12", 1.0), ("Fader0", 0.25), ("Fader1", 1.0), ("Button12", 0.0)]
+    assert got[0].value == pytest.approx(5 / 24)
+    assert d.connected
+    assert d.bus_errors["controller problem, RX passive"] == 1
+    assert d.warnings.counts["decode"] == 1 and d.decoder.unknown_frames == 1
+    d.close()
+
+
+def test_j1939_joystick_any_source_address(channel: str, panel_bus: can.BusABC) -> None:
+    db = cantools.database.load_file(BJM1)
+    msg = db.get_message_by_name("BJM1")
+    d, q = _open(f"can://virtual/{channel}?dbc={BJM1}")
+    assert d.control("Joystick1XAxisPosition").lo == -1.0  # type: ignore[union-attr]
+    base = {s.name: 0 for s in msg.signals}
+    frame = msg.encode({**base, "Joystick1XAxisPosition": 50.0, "Jstk1XAxsLvrLftNgtvPstnStts": 1,
+                        "Joystick1Button1PressedStatus": 1, "Joystick1Button12PressedStatus": 3})
+    panel_bus.send(can.Message(arbitration_id=0x0CFDD613, data=frame, is_extended_id=True))  # source 0x13
+    frame2 = msg.encode({**base, "Joystick1YAxisPosition": 100.0, "Joystick1Button1PressedStatus": 2})
+    panel_bus.send(can.Message(arbitration_id=0x0CFDD613, data=frame2, is_extended_id=True))
+    got = controls(wait_for(q, lambda e: getattr(e, "control", "") == "Joystick1YAxisPosition" and e.value == 1))
+    seen = [(e.control, e.value) for e in got]
+    assert ("Joystick1XAxisPosition", -0.5) in seen and ("Joystick1Button1PressedStatus", 1.0) in seen
+    assert ("Joystick1YAxisPosition", 1.0) in seen
+    assert not any(c.startswith("Jstk1") for c, _ in seen)  # status signals are ignored
+    assert d.warnings.counts["range"] == 1  # the button's "error" state
+    d.close()
+
+
+def test_bus_failure_is_a_lost_device_that_comes_back(channel: str) -> None:
+    d, q = _open(f"can://virtual/{channel}?dbc={PANEL}")
+    d._bus.shutdown()  # the interface went down under us
+    assert wait_for(q, lambda e: isinstance(e, StatusEvent))[-1].status == "lost"
+    assert wait_for(q, lambda e: isinstance(e, StatusEvent))[-1].status == "connected"
+    d.close()
+
+
+def test_bad_specs(tmp_path: Path) -> None:
+    with pytest.raises(DeviceSpecError, match="DBC file"):
+        open_device("can://virtual/x")
+    with pytest.raises(DeviceSpecError, match="not found"):
+        open_device("can://virtual/x?dbc=/nonexistent.dbc")
+    bad = tmp_path / "bad.dbc"
+    bad.write_text("BO_ this is not a dbc")
+    with pytest.raises(DeviceSpecError, match="cannot load"):
+        open_device(f"can://virtual/x?dbc={bad}")
+    with pytest.raises(DeviceSpecError, match="INTERFACE/CHANNEL"):
+        open_device(f"can://virtual?dbc={PANEL}")
