@@ -1,0 +1,137 @@
+"""The wrinkle mask on the default face, driven by the real muscles and dynamics."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from sim.build import compile_model
+from sim.channels import MUSCLE_CHANNELS
+from sim.facs import apply_au
+from sim.integrator import Simulator
+from sim.rig import default_rig
+from sim.state import FaceControl
+from sim.wrinkles import AGE_0, apply_wrinkles, default_mask, layer_for
+from sim.wrinkles.layer import vertex_normals
+
+
+@pytest.fixture(scope="module")
+def face():
+    rig = default_rig(0)
+    if not rig.wrinkles:
+        rig = dataclasses.replace(rig, wrinkles=default_mask(rig.mesh))
+    model = compile_model(rig)
+    return model, Simulator(model)
+
+
+def _settled(face, channels: dict[str, float]):
+    model, sim = face
+    state = model.rest_state()
+    control = FaceControl(model)
+    for name, value in channels.items():
+        control.set(name, value)
+    sim.settle(state, control, max_seconds=2.0)
+    return state
+
+
+def _swap_side(name: str) -> str:
+    if name.endswith("_l"):
+        return name[:-2] + "_r"
+    if name.endswith("_r"):
+        return name[:-2] + "_l"
+    return name
+
+
+def test_mask_lines_name_real_channels_and_mirror(face) -> None:
+    model, _ = face
+    lines = {ln.name: ln for ln in model.rig.wrinkles}
+    assert len(lines) >= 20
+    for ln in lines.values():
+        assert ln.muscles and set(ln.muscles) <= set(MUSCLE_CHANNELS), ln.name
+    for name, ln in lines.items():
+        if name.endswith("_l") and name[:-2] + "_r" in lines:
+            other = lines[name[:-2] + "_r"]
+            mirrored = ln.points * [-1.0, 1.0]
+            np.testing.assert_allclose(other.points, mirrored, atol=1e-9)
+            assert {_swap_side(m) for m in ln.muscles} == set(other.muscles)
+    kinds = {"forehead", "glabella_vertical", "glabella_oblique", "nasal_root", "crows_foot",
+             "lower_lid", "nasolabial", "marionette", "lip_upper", "lip_lower", "chin_crease"}
+    assert all(any(n.startswith(k) for n in lines) for k in kinds)
+
+
+def test_every_main_line_has_vertices_on_every_resolution() -> None:
+    for res in (0, 1):
+        rig = default_rig(res)
+        lines = default_mask(rig.mesh)
+        from sim.wrinkles import compile_wrinkles
+
+        layer = compile_wrinkles(rig.mesh.vertices, rig.mesh.triangles, lines)
+        counts = dict(zip(layer.line_names, (len(v) for v in layer.line_vertices)))
+        for name, n in counts.items():
+            if not name.startswith(("lip_", "glabella_oblique")):
+                assert n >= 3, (res, name, n)
+
+
+def test_no_bulge_at_rest_or_below_age_0(face) -> None:
+    model, _ = face
+    state = model.rest_state()
+    state.age = 90.0
+    apply_wrinkles(model, state)
+    np.testing.assert_array_equal(state.surface, state.positions)
+    frown = _settled(face, {"corrugator_l": 1, "corrugator_r": 1, "procerus": 1})
+    frown.age = AGE_0 - 1
+    apply_wrinkles(model, frown)
+    np.testing.assert_array_equal(frown.surface, frown.positions)
+
+
+GROUPS = {
+    "forehead_2": ("frontalis_inner_l", "frontalis_inner_r", "frontalis_outer_l", "frontalis_outer_r"),
+    "glabella_vertical_l": ("corrugator_l", "corrugator_r", "procerus"),
+    "nasolabial_l": ("levator_labii_l", "zygomaticus_major_l"),
+    "chin_crease": ("mentalis",),
+    "crows_foot_middle_l": ("orbicularis_oculi_l",),
+    "marionette_l": ("depressor_anguli_oris_l",),
+}
+
+
+@pytest.mark.parametrize("line", sorted(GROUPS))
+def test_a_line_bulges_when_its_own_muscles_contract(face, line: str) -> None:
+    model, _ = face
+    channels = GROUPS[line]
+    lines = {ln.name: ln for ln in model.rig.wrinkles}
+    assert set(channels) <= set(lines[line].muscles)
+    state = _settled(face, {c: 1.0 for c in channels})
+    layer = layer_for(model)
+    verts = layer.line_vertices[layer.line_names.index(line)]
+    young = np.linalg.norm(layer.displacement(state.positions, 30.0)[verts], axis=1).max()
+    old = np.linalg.norm(layer.displacement(state.positions, 75.0)[verts], axis=1).max()
+    assert young == 0.0
+    assert old > 0.02, old  # cm
+
+
+def _crease_depth(model, surface: np.ndarray, region: np.ndarray, radius: float = 0.6) -> float:
+    """Deepest groove in a region: for each vertex, how far the skin within `radius` (rest cm)
+    rises above it along its normal, on average. Pure geometry of the drawn surface."""
+    rest = model.rest
+    tree = cKDTree(rest)
+    n = vertex_normals(surface, model.triangles)
+    depths = [
+        np.mean((surface[tree.query_ball_point(rest[i], radius)] - surface[i]) @ n[i])
+        for i in np.flatnonzero(region)
+    ]
+    return float(max(depths))
+
+
+def test_frown_creases_the_glabella_deeper_at_75_than_at_30(face) -> None:
+    model, _ = face
+    frown = _settled(face, {"corrugator_l": 1, "corrugator_r": 1, "procerus": 1})
+    region = model.rig.mesh.regions["glabella"]
+    depth = {}
+    for age in (30.0, 75.0):
+        frown.age = age
+        apply_wrinkles(model, frown)
+        depth[age] = _crease_depth(model, frown.surface, region)
+    assert depth[75.0] > depth[30.0] + 0.015, depth  # at least 0.15 mm deeper
