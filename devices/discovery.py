@@ -1,0 +1,167 @@
+"""What is plugged in: serial ports (optionally probed for SGI boxes and Firmata boards), HID
+devices with a profile or a usable report descriptor, CAN channels, and the keyboard fallback."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any
+
+log = logging.getLogger("devices")
+
+#: Generic Desktop usages that are control boxes rather than keyboards and mice.
+_PANEL_USAGES = {(0x01, 0x04): "joystick", (0x01, 0x05): "gamepad", (0x01, 0x08): "multi-axis controller"}
+_NOT_PANELS = {(0x01, 0x02): "mouse", (0x01, 0x06): "keyboard"}
+
+
+@dataclass(frozen=True, slots=True)
+class DeviceInfo:
+    """One candidate: the spec to open it, what it is, its kind and whether it can drive channels."""
+
+    spec: str
+    description: str
+    kind: str
+    usable: bool
+
+
+def discover(probe: bool = False, hid_api_module: Any = None) -> list[DeviceInfo]:
+    """Everything found; each family is looked at independently so one failure hides nothing else."""
+    found: list[DeviceInfo] = []
+    for family in (lambda: serial_ports(probe), lambda: hid_devices(probe, hid_api_module), can_channels):
+        try:
+            found += family()
+        except Exception as err:  # a broken driver stack must not hide the other families
+            log.warning("device discovery: %s", err)
+    found.append(DeviceInfo("keyboard://", "keyboard of the application window (always available)", "keyboard", True))
+    return found
+
+
+def probe_serial_port(path: str) -> str | None:
+    """``"sgi"`` or ``"firmata"`` when the box on ``path`` answers like one, else None.
+    Writes a reset byte at 9600 baud and a version query at 57600 baud: opt-in only."""
+    from devices.errors import DeviceError
+    from devices.firmata import FirmataDevice
+    from devices.sgi import SgiDevice
+    from devices.spec import parse_spec
+
+    class QuickSgi(SgiDevice):
+        RESET_TRIES = 2
+        RESET_WAIT = 0.3
+
+    for scheme, cls, query in (("sgi", QuickSgi, ""), ("firmata", FirmataDevice, "?boot_wait=2.5")):
+        dev = cls(parse_spec(f"{scheme}://{path}{query}"))
+        try:
+            dev.open()
+            return scheme
+        except DeviceError:
+            continue
+        finally:
+            dev.close()
+    return None
+
+
+def serial_ports(probe: bool = False) -> list[DeviceInfo]:
+    """Serial ports with USB VID:PID and description; probed ones get their real scheme."""
+    from serial.tools import list_ports
+
+    out = []
+    for port in sorted(list_ports.comports(), key=lambda p: p.device):
+        usb = f"USB {port.vid:04x}:{port.pid:04x} " if port.vid is not None else ""
+        desc = f"{usb}{port.description or port.device}"
+        if port.serial_number:
+            desc += f" (serial {port.serial_number})"
+        if probe:
+            scheme = probe_serial_port(port.device)
+            if scheme == "sgi":
+                out.append(DeviceInfo(f"sgi://{port.device}", f"SGI dial-and-button box; {desc}", "serial", True))
+                continue
+            if scheme == "firmata":
+                out.append(DeviceInfo(f"firmata://{port.device}", f"Firmata board; {desc}", "serial", True))
+                continue
+            desc += "; no SGI/Firmata answer (try serial:// for the text protocol)"
+        out.append(DeviceInfo(f"serial://{port.device}", desc, "serial", port.vid is not None or probe))
+    return out
+
+
+def hid_devices(probe: bool = False, api: Any = None) -> list[DeviceInfo]:
+    """HID devices that have a profile, declare a joystick/gamepad usage, or (with ``probe``) whose
+    report descriptor yields buttons or axes."""
+    from devices.hid.profiles import known_name
+
+    if api is None:
+        from devices.hid.transport import hid_api
+
+        api = hid_api()
+    entries = api.enumerate(0, 0)
+    counts: dict[tuple[int, int], int] = {}
+    for e in entries:
+        counts[(e["vendor_id"], e["product_id"])] = counts.get((e["vendor_id"], e["product_id"]), 0) + 1
+    out, seen = [], set()
+    for e in entries:
+        if e["path"] in seen:
+            continue
+        seen.add(e["path"])
+        vid, pid = e["vendor_id"], e["product_id"]
+        spec = f"hid://{vid:04x}:{pid:04x}"
+        if counts[(vid, pid)] > 1 and e.get("serial_number"):
+            spec += f"?serial={e['serial_number']}"
+        product = (e.get("product_string") or "").strip() or "HID device"
+        name = known_name(vid, pid)
+        usage = (e.get("usage_page", 0), e.get("usage", 0))
+        if name:
+            out.append(DeviceInfo(spec, f"{name} (built-in profile)", "hid", True))
+        elif usage in _PANEL_USAGES:
+            out.append(DeviceInfo(spec, f"{product} ({_PANEL_USAGES[usage]}, from its descriptor)", "hid", True))
+        elif usage in _NOT_PANELS:
+            out.append(DeviceInfo(spec, f"{product} ({_NOT_PANELS[usage]})", "hid", False))
+        elif probe:
+            ok, why = _descriptor_usable(api, e)
+            out.append(DeviceInfo(spec, f"{product} ({why})", "hid", ok))
+        else:
+            out.append(DeviceInfo(spec, f"{product} (use --probe to read its report descriptor)", "hid", False))
+    return out
+
+
+def _descriptor_usable(api: Any, entry: dict[str, Any]) -> tuple[bool, str]:
+    from devices.hid.descriptor import GenericDecoder, ReportDescriptor
+    from devices.hid.transport import HidHandle
+
+    try:
+        handle = HidHandle.open_path(api, entry["path"])
+    except Exception as err:
+        return False, f"cannot open: {err} (permissions? see docs/devices.md)"
+    try:
+        dec = GenericDecoder("probe", ReportDescriptor.parse(handle.report_descriptor()))
+    except Exception as err:
+        return False, f"unreadable report descriptor: {err}"
+    finally:
+        handle.close()
+    if not dec.usable():
+        return False, "no buttons or axes in its report descriptor"
+    kinds = sorted({c.kind for c in dec.controls})
+    return True, f"{len(dec.controls)} controls ({', '.join(kinds)}) from its report descriptor"
+
+
+def can_channels() -> list[DeviceInfo]:
+    """SocketCAN interfaces that exist, plus the channel python-can's configuration names."""
+    import can
+
+    configs: list[dict[str, Any]] = []
+    try:
+        configs += can.detect_available_configs(interfaces=["socketcan"])
+    except Exception as err:
+        log.debug("socketcan detection: %s", err)
+    try:
+        cfg = can.util.load_config()
+        if cfg.get("interface") and cfg.get("channel") is not None:
+            configs.append(cfg)
+    except Exception as err:
+        log.debug("python-can configuration: %s", err)
+    out, seen = [], set()
+    for cfg in configs:
+        key = (cfg["interface"], str(cfg["channel"]))
+        if key not in seen:
+            seen.add(key)
+            out.append(DeviceInfo(f"can://{key[0]}/{key[1]}?dbc=PANEL.dbc",
+                                  f"CAN channel {key[1]} ({key[0]}); name your panel's DBC file", "can", True))
+    return out

@@ -1,0 +1,53 @@
+"""Discovery: HID listing through a fake hidapi, probing emulated serial boxes, `puppet devices`."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from emulators import FirmataEmulator, SgiBoxEmulator
+from fakehid import FakeHidApi, FakeHidUnit
+from test_dev_hid import MAPLE_RDESC
+
+from devices.discovery import discover, probe_serial_port
+
+
+def test_hid_listing_profiles_usages_and_probed_descriptors(monkeypatch: pytest.MonkeyPatch) -> None:
+    pm = FakeHidUnit(0x077D, 0x0410, "A")
+    pad = FakeHidUnit(0x1EAF, 0x0024, "", MAPLE_RDESC, "Maple")
+    mouse = FakeHidUnit(0x046D, 0xC077, "", b"", "Mouse")
+    mouse.info.update(usage_page=1, usage=2)
+    api = FakeHidApi(pm, pad, mouse)
+    import devices.discovery as disc
+
+    monkeypatch.setattr(disc, "serial_ports", lambda probe: [])  # never poke the host's real ports
+    infos = {i.spec: i for i in discover(probe=False, hid_api_module=api) if i.kind == "hid"}
+    assert infos["hid://077d:0410"].usable and "PowerMate" in infos["hid://077d:0410"].description
+    assert not infos["hid://1eaf:0024"].usable and "--probe" in infos["hid://1eaf:0024"].description
+    assert not infos["hid://046d:c077"].usable
+    probed = {i.spec: i for i in discover(probe=True, hid_api_module=api) if i.kind == "hid"}
+    assert probed["hid://1eaf:0024"].usable and "39 controls" in probed["hid://1eaf:0024"].description
+    assert any(i.spec == "keyboard://" for i in discover(hid_api_module=api))
+
+
+def test_probe_tells_sgi_from_firmata(tmp_path: Path) -> None:
+    sgi = SgiBoxEmulator(tmp_path / "a")
+    fir = FirmataEmulator(tmp_path / "b")
+    try:
+        assert probe_serial_port(str(sgi.port.link)) == "sgi"
+        assert probe_serial_port(str(fir.port.link)) == "firmata"
+    finally:
+        sgi.port.close()
+        fir.port.close()
+
+
+def test_puppet_devices_json_runs() -> None:
+    out = subprocess.run([sys.executable, "-m", "puppet", "devices", "--json"], capture_output=True, text=True,
+                         timeout=60, cwd=Path(__file__).parents[2])
+    assert out.returncode == 0, out.stderr
+    rows = [json.loads(line) for line in out.stdout.splitlines()]
+    assert {"spec": "keyboard://", "kind": "keyboard", "usable": True} == {k: rows[-1][k] for k in ("spec", "kind", "usable")}
+    assert all(set(r) == {"spec", "description", "kind", "usable"} for r in rows)
