@@ -31,14 +31,20 @@ JAW_AXIS = np.array([1.0, 0.0, 0.0])
 
 
 def _in_polygon(pts: FloatArray, poly: FloatArray) -> np.ndarray:
-    """Even-odd point-in-polygon test, vectorised over pts."""
-    x, y = pts[:, 0][:, None], pts[:, 1][:, None]
-    x0, y0 = poly[:, 0][None, :], poly[:, 1][None, :]
-    x1, y1 = np.roll(poly[:, 0], -1)[None, :], np.roll(poly[:, 1], -1)[None, :]
-    crosses = (y0 > y) != (y1 > y)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        xc = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
-    return (crosses & (x < xc)).sum(axis=1) % 2 == 1
+    """Even-odd point-in-polygon test, vectorised over pts (one pass per polygon edge)."""
+    x, y = pts[:, 0], pts[:, 1]
+    inside = np.zeros(len(pts), bool)
+    lo, hi = poly.min(axis=0), poly.max(axis=0)
+    box = (x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1])
+    xb, yb = x[box], y[box]
+    acc = np.zeros(len(xb), bool)
+    for (x0, y0), (x1, y1) in zip(poly, np.roll(poly, -1, axis=0)):
+        if y0 == y1:
+            continue
+        crosses = (y0 > yb) != (y1 > yb)
+        acc ^= crosses & (xb < x0 + (yb - y0) * (x1 - x0) / (y1 - y0))
+    inside[box] = acc
+    return inside
 
 
 def _border(s: float) -> tuple[FloatArray, int]:
@@ -111,8 +117,7 @@ def _layout(resolution: int) -> tuple[fc.ChartLayout, FloatArray, FloatArray]:
             continue
         forehead = name.startswith("forehead")
         base = fc.resample(line, (0.8 if forehead else 0.55) * s)
-        flank = 0.5 if forehead else 0.3
-        rows += [base, fc._offset(base, flank * s), fc._offset(base, -flank * s)]
+        rows += [base, fc._offset(base, 0.3 * s), fc._offset(base, -0.3 * s)]
     pts = np.vstack(rows)
     pts[np.abs(pts[:, 0]) < 0.15 * s, 0] = 0.0
     pts = pts[pts[:, 0] >= 0.0]

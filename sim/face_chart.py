@@ -17,7 +17,7 @@ from sim import face_shape as fs
 
 FloatArray = np.ndarray
 
-H_MIN, H_MAX = 0.3, 1.3
+H_MIN, H_MAX = 0.3, 1.45
 """cm: vertex spacing at resolution 0 next to the eyes and mouth, and on the forehead/cheek sides."""
 U_SIDE = 9.6
 """chart u of the side border (about 78 degrees round the head: in front of the ears)."""
