@@ -176,6 +176,8 @@ class Simulator:
         self._k_damp = np.array(model.spring_damping, order="C")
         self._kr = np.array(model.rest_stiffness, order="C")
         self._c = np.array(model.damping, order="C")
+        self._threshold = float(model.strain_threshold)
+        self._skin_age: float | None = None  # the age the springs were last scaled for
         self._ext = np.zeros((n, 3))
         self._target = np.array(model.rest)
         self._a1 = np.zeros((n, 3))
@@ -227,8 +229,9 @@ class Simulator:
         held = m.held
         x[held] = self._target[held]
         v[held] = 0.0
+        self._age_skin(float(control.values[CHANNEL_INDEX["age"]]))
         _rk2_frame(x, v, self.substeps, self.dt, self._springs, self._rest_len, self._k_low, self._k_high,
-                   self._k_damp, m.strain_threshold, ext, self._kr, self._c, self._inv_m, self._free,
+                   self._k_damp, self._threshold, ext, self._kr, self._c, self._inv_m, self._free,
                    self._a1, self._xm, self._vm)
         reason = self._check(x)
         if reason:
@@ -243,6 +246,20 @@ class Simulator:
         state.age = float(values[CHANNEL_INDEX["age"]])
         self._surface(state)
         return state
+
+    def _age_skin(self, age: float) -> None:
+        """Aged skin is softer at low strain and stiffens later (seed 003 section 2; the law is
+        sim.wrinkles.aging.skin_params_for_age): rescale the springs when the age channel moves.
+        k_h is never raised, so the stable substep stays valid."""
+        if age == self._skin_age:
+            return
+        from sim.wrinkles.aging import skin_params_for_age
+
+        skin = skin_params_for_age(age, float(self.model.strain_threshold))
+        np.multiply(self.model.spring_k_low, skin.k_low_scale, out=self._k_low)
+        np.multiply(self.model.spring_k_high, min(skin.k_high_scale, 1.0), out=self._k_high)
+        self._threshold = skin.strain_threshold
+        self._skin_age = age
 
     def _surface(self, state: FaceState) -> None:
         """state.surface = positions plus the wrinkle bulges at state.age (sim.wrinkles), or the

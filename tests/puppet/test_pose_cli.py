@@ -1,0 +1,109 @@
+"""The `puppet pose` and `puppet channels` contract: outputs, option handling and exit-2 errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from puppet.cli import main
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "puppet", *args], capture_output=True, text=True)
+
+
+def test_pose_npz_has_the_contract_arrays_and_the_smile_moves_the_corners(tmp_path: Path) -> None:
+    out = tmp_path / "smile.npz"
+    assert main(["pose", "--expression", "happiness", "--seconds", "0.5", "--out", str(out)]) == 0
+    with np.load(out, allow_pickle=False) as d:
+        rest, pos, tris = d["rest"], d["positions"], d["triangles"]
+        names, idx = list(d["landmark_names"]), d["landmark_indices"]
+    n = len(rest)
+    assert pos.shape == (n, 3) and tris.shape[1] == 3 and tris.max() < n
+    assert len(names) == len(idx) > 10
+    corner = idx[names.index("mouth_corner_l")]
+    assert pos[corner, 1] - rest[corner, 1] > 0.2  # up by more than 2 mm
+
+
+def test_pose_settles_by_default_and_combines_options(tmp_path: Path) -> None:
+    out = tmp_path / "p.npz"
+    res = _cli("pose", "--set", "jaw=0.5", "--au", "AU12_L=0.8", "--expression", "surprise=0.5",
+               "--age", "60", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    assert "wrote" in res.stdout
+    with np.load(out) as d:
+        names = list(d["landmark_names"])
+        chin = d["landmark_indices"][names.index("chin")]
+        assert d["positions"][chin, 1] < d["rest"][chin, 1] - 1.0  # the jaw is open
+
+
+def test_pose_obj(tmp_path: Path) -> None:
+    out = tmp_path / "p.obj"
+    assert main(["pose", "--seconds", "0.1", "--out", str(out)]) == 0
+    lines = out.read_text().splitlines()
+    assert sum(1 for ln in lines if ln.startswith("v ")) > 500
+    assert sum(1 for ln in lines if ln.startswith("f ")) > 1000
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--set", "nosuch=1"], "zygomaticus_major_l"),  # names the valid channels
+        (["--set", "jaw=1.5"], "0..1"),
+        (["--set", "jaw"], "CHANNEL=VALUE"),
+        (["--set", "jaw=abc"], "number"),
+        (["--au", "AU99=1"], "AU12"),
+        (["--au", "AU12=2"], "0..1"),
+        (["--expression", "joy"], "happiness"),
+        (["--expression", "anger=3"], "0..1"),
+        (["--age", "500"], "0..120"),
+    ],
+)
+def test_bad_channel_au_expression_or_value_is_one_line_exit_2(
+    tmp_path: Path, args: list[str], needle: str
+) -> None:
+    out = tmp_path / "x.npz"
+    res = _cli("pose", *args, "--out", str(out))
+    assert res.returncode == 2
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("puppet: error:") and needle in lines[0]
+    assert not out.exists()
+
+
+def test_malformed_rig_file_is_one_line_exit_2(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a zip at all")
+    res = _cli("pose", "--rig", str(bad), "--out", str(tmp_path / "x.npz"))
+    assert res.returncode == 2
+    assert res.stderr.count("\n") == 1 and str(bad) in res.stderr
+
+
+def test_unknown_output_type_is_an_error(tmp_path: Path) -> None:
+    res = _cli("pose", "--out", str(tmp_path / "x.stl"))
+    assert res.returncode == 2 and ".npz" in res.stderr
+
+
+def test_channels_json_lists_every_channel() -> None:
+    res = _cli("channels", "--json")
+    assert res.returncode == 0
+    rows = json.loads(res.stdout)
+    names = [r["name"] for r in rows]
+    for must in ("zygomaticus_major_l", "orbicularis_oris", "jaw", "eyes_yaw", "eyes_pitch", "age",
+                 "procerus", "mentalis", "orbicularis_oculi_lid_r"):
+        assert must in names
+    oris = rows[names.index("orbicularis_oris")]
+    assert oris["muscle_type"] == "sphincter" and "AU23" in oris["aus"] and oris["kind"] == "muscle"
+    age = rows[names.index("age")]
+    assert age["default"] == 30 and age["hi"] >= 100
+    assert all({"name", "kind", "aus", "lo", "hi", "default", "muscle_type"} <= set(r) for r in rows)
+
+
+def test_channels_table(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["channels"]) == 0
+    text = capsys.readouterr().out
+    assert "zygomaticus_major_l" in text and "sphincter" in text and "AU12" in text
