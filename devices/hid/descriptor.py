@@ -20,6 +20,9 @@ from devices.warn import WarningCounter
 
 PAGE_DESKTOP, PAGE_SIMULATION, PAGE_BUTTON, PAGE_CONSUMER = 0x01, 0x02, 0x09, 0x0C
 MAX_USAGES = 4096
+MAX_COUNT = 65535
+#: Controls made from one variable field at most (a vendor blob reusing one usage is not 4096 axes).
+MAX_SLOTS = 256
 
 NAMED_USAGES: dict[int, str] = {
     PAGE_DESKTOP << 16 | 0x30: "x", PAGE_DESKTOP << 16 | 0x31: "y", PAGE_DESKTOP << 16 | 0x32: "z",
@@ -125,6 +128,8 @@ class ReportDescriptor:
                         raise DescriptorError(f"report ID {u} out of range")
                     glob["id"], out.numbered = u, True
                 elif tag == 9:
+                    if u > MAX_COUNT:
+                        raise DescriptorError(f"report count {u} is not plausible")
                     glob["count"] = u
                 elif tag == 10:
                     stack.append(dict(glob))
@@ -208,7 +213,7 @@ class GenericDecoder:
                 if buttons:
                     self._arrays.setdefault(f.report_id, []).append((f, buttons))
                 continue
-            for k in range(f.count):
+            for k in range(min(f.count, MAX_SLOTS)):
                 u = f.usages[min(k, len(f.usages) - 1)]
                 if u >> 16 == PAGE_BUTTON:
                     info = ControlInfo(f"button{(u & 0xFFFF) - 1}", "button")

@@ -84,6 +84,10 @@ def test_malformed_descriptors_are_rejected() -> None:
         ReportDescriptor.parse(b"\xc0")
     with pytest.raises(DescriptorError):
         ReportDescriptor.parse(b"\x85\x00")
+    with pytest.raises(DescriptorError, match="count"):
+        ReportDescriptor.parse(bytes.fromhex("05 01 09 30 75 08 97 ff ff ff ff 81 02"))
+    huge = GenericDecoder("h", ReportDescriptor.parse(bytes.fromhex("05 01 09 30 15 00 25 7f 75 08 96 00 10 81 02")))
+    assert len(huge.controls) == 256
 
 
 @pytest.fixture
