@@ -135,3 +135,68 @@ def test_frown_creases_the_glabella_deeper_at_75_than_at_30(face) -> None:
         apply_wrinkles(model, frown)
         depth[age] = _crease_depth(model, frown.surface, region)
     assert depth[75.0] > depth[30.0] + 0.015, depth  # at least 0.15 mm deeper
+
+
+def test_simulator_step_draws_the_bulges_from_the_age_channel(face) -> None:
+    model, sim = face
+    for age, expect_bulge in ((30.0, False), (75.0, True)):
+        state = model.rest_state()
+        control = FaceControl(model)
+        apply_au(control, "AU4", 1.0)
+        control.set("age", age)
+        sim.settle(state, control, max_seconds=2.0)
+        assert state.age == age
+        moved = np.linalg.norm(state.surface - state.positions, axis=1).max()
+        assert (moved > 0.02) == expect_bulge, (age, moved)
+
+
+def test_aged_skin_is_softer_and_stiffens_later() -> None:
+    from sim.wrinkles import skin_params_for_age
+
+    young = [skin_params_for_age(a, 0.15) for a in (0, 20, 30, AGE_0)]
+    assert all(p.k_low_scale == 1.0 and p.strain_threshold == 0.15 for p in young)
+    old = [skin_params_for_age(a, 0.15) for a in (45, 60, 75, 90)]
+    assert all(b.k_low_scale < a.k_low_scale for a, b in zip(old, old[1:]))
+    assert all(b.strain_threshold > a.strain_threshold for a, b in zip(old, old[1:]))
+    assert all(p.k_high_scale <= 1.0 for p in old)  # never shortens the stable step
+
+
+def test_aged_face_deforms_more_under_the_same_frown(face) -> None:
+    model, sim = face
+    travel = {}
+    for age in (30.0, 85.0):
+        state = model.rest_state()
+        control = FaceControl(model)
+        apply_au(control, "AU4", 1.0)
+        control.set("age", age)
+        sim.settle(state, control, max_seconds=2.0)
+        travel[age] = np.linalg.norm(state.positions - model.rest, axis=1).max()
+    assert travel[85.0] > travel[30.0] * 1.02, travel
+    assert not sim.guard_events
+
+
+def test_rig_file_keeps_the_wrinkle_lines(tmp_path, face) -> None:
+    from sim.rig import load_rig, save_rig
+
+    model, _ = face
+    path = tmp_path / "face.rig.npz"
+    save_rig(model.rig, path)
+    back = load_rig(path)
+    assert [w.name for w in back.wrinkles] == [w.name for w in model.rig.wrinkles]
+    for a, b in zip(back.wrinkles, model.rig.wrinkles):
+        np.testing.assert_allclose(a.points, b.points)
+        assert (a.muscles, a.width_minus, a.width_plus, a.asym_plus, a.emphasis) == (
+            b.muscles, b.width_minus, b.width_plus, b.asym_plus, b.emphasis)
+
+
+def test_puppet_pose_age_75_creases_the_frown_deeper(tmp_path, face) -> None:
+    from puppet.cli import main
+
+    model, _ = face
+    depth = {}
+    for age in (30, 75):
+        out = tmp_path / f"frown_{age}.npz"
+        assert main(["pose", "--au", "AU4=1", "--age", str(age), "--seconds", "1.5", "--out", str(out)]) == 0
+        surface = np.load(out)["surface"]
+        depth[age] = _crease_depth(model, surface, model.rig.mesh.regions["glabella"])
+    assert depth[75] > depth[30] + 0.015, depth
