@@ -1,0 +1,207 @@
+"""Geometry the renderer derives from the face model: built once in `populate`, then only the cheap
+per-frame parts (normals, cavity rims, muscle ends) are recomputed from the drawn surface."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+from scipy import sparse
+
+from sim.model import FaceMesh, FaceRig, LinearMuscle, SheetMuscle, SphincterMuscle
+
+# Linear-light albedos: skin, lips.
+SKIN = np.array([0.62, 0.40, 0.30])
+LIPS = np.array([0.50, 0.17, 0.16])
+
+
+class NormalComputer:
+    """Area-weighted vertex normals of a moving surface.
+
+    The vertex-triangle incidence is a sparse matrix built once, so each frame is one cross product
+    and one sparse product (no Python loop, no np.add.at)."""
+
+    def __init__(self, triangles: np.ndarray, n_vertices: int) -> None:
+        self.tri = np.ascontiguousarray(triangles, dtype=np.int64)
+        m = len(self.tri)
+        rows = self.tri.ravel()
+        cols = np.repeat(np.arange(m), 3)
+        self.incidence = sparse.csr_matrix(
+            (np.ones(3 * m, np.float32), (rows, cols)), shape=(n_vertices, m))
+
+    def __call__(self, positions: np.ndarray) -> np.ndarray:
+        p = np.asarray(positions, dtype=np.float32)
+        a = np.take(p, self.tri[:, 0], axis=0)
+        e1 = np.take(p, self.tri[:, 1], axis=0) - a
+        e2 = np.take(p, self.tri[:, 2], axis=0) - a
+        n = self.incidence @ np.cross(e1, e2)
+        length = np.sqrt(np.einsum("ij,ij->i", n, n))
+        n /= np.maximum(length, 1e-12)[:, None]
+        return n.astype(np.float32, copy=False)
+
+
+def unique_edges(triangles: np.ndarray) -> np.ndarray:
+    """(E, 2) int32 undirected edges of a triangle mesh, each once."""
+    t = np.asarray(triangles)
+    e = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    e.sort(axis=1)
+    return np.unique(e, axis=0).astype(np.int32)
+
+
+def _region_mask(mesh: FaceMesh, words: Iterable[str], avoid: Iterable[str] = ()) -> np.ndarray:
+    mask = np.zeros(len(mesh.vertices), bool)
+    for name, m in mesh.regions.items():
+        low = name.lower()
+        if any(w in low for w in words) and not any(a in low for a in avoid):
+            mask |= np.asarray(m, bool)
+    return mask
+
+
+def _smooth(mask: np.ndarray, triangles: np.ndarray, rounds: int = 2) -> np.ndarray:
+    """Blur a per-vertex mask over mesh neighbours so tints fade instead of stepping."""
+    n = len(mask)
+    e = unique_edges(triangles)
+    adj = sparse.coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
+                            shape=(n, n)).tocsr() + sparse.eye(n, format="csr")
+    deg = np.asarray(adj.sum(axis=1)).ravel()
+    v = mask.astype(float)
+    for _ in range(rounds):
+        v = (adj @ v) / deg
+    return v
+
+
+def skin_tint(mesh: FaceMesh) -> np.ndarray:
+    """(N, 3) float32 linear albedo: skin, with the red of the lips (the vermilion).
+
+    The vermilion is the part of the lip regions (named *lip*, not *lid*) near the mouth opening;
+    without lip regions, a band around the mouth loop. Brows are drawn per pixel by the shader
+    (see `brow_polylines`), sharper than vertex colours on a coarse mesh."""
+    v = mesh.vertices
+    col = np.tile(SKIN, (len(v), 1))
+    if len(mesh.mouth_loop) == 0:
+        return col.astype(np.float32)
+    loop = v[mesh.mouth_loop]
+    width = float(np.ptp(loop[:, 0])) or 1.0
+    d = np.min(np.linalg.norm(v[:, None, :] - loop[None, :, :], axis=2), axis=1)
+    lips = _region_mask(mesh, ("lip",), ("lid",))
+    band = d < 0.12 * width
+    lips = (lips & band) if lips.any() else band
+    w = lips[:, None].astype(float)
+    return (SKIN * (1 - w) + LIPS * w).astype(np.float32)
+
+
+def brow_polylines(mesh: FaceMesh) -> np.ndarray:
+    """(2, 3, 3) rest points inner -> mid -> outer of each brow from the landmarks
+    brow_{inner,mid,outer}_{l,r}, or an empty (0, 3, 3) array when the mesh has none."""
+    lines = []
+    for side in ("l", "r"):
+        names = [f"brow_{part}_{side}" for part in ("inner", "mid", "outer")]
+        if all(n in mesh.landmarks for n in names):
+            lines.append([mesh.landmark(n) for n in names])
+    return np.array(lines, float).reshape(-1, 3, 3)
+
+
+def uv_sphere(rings: int = 16, segments: int = 24) -> tuple[np.ndarray, np.ndarray]:
+    """Unit sphere with its poles on +-Z (the eye's gaze axis): (V, 3) float32, (T, 3) int32."""
+    th = np.linspace(0.0, np.pi, rings + 1)
+    ph = np.linspace(0.0, 2 * np.pi, segments + 1)
+    t, p = np.meshgrid(th, ph, indexing="ij")
+    pos = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], -1).reshape(-1, 3)
+    idx = np.arange((rings + 1) * (segments + 1)).reshape(rings + 1, segments + 1)
+    a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]
+    tris = np.concatenate([np.stack([a, c, d], -1).reshape(-1, 3),
+                           np.stack([a, d, b], -1).reshape(-1, 3)])
+    return pos.astype(np.float32), tris.astype(np.int32)
+
+
+def eye_rotation(yaw: float, pitch: float) -> np.ndarray:
+    """3x3 rotation turning the gaze (+Z) by yaw towards +X (the face's left) and pitch towards +Y."""
+    cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rx = np.array([[1, 0, 0], [0, cp, sp], [0, -sp, cp]])  # +pitch lifts +Z towards +Y
+    return ry @ rx
+
+
+class Cavity:
+    """A dark pocket behind a hole of the skin (the mouth, the eye sockets): rings that shrink
+    and recede from the hole's rim to an apex, so the background never shows through a hole."""
+
+    RINGS = ((1.0, 0.0), (0.8, 0.35), (0.5, 0.9), (0.2, 1.3))  # (scale about centre, depth/width)
+
+    def __init__(self, loop: np.ndarray, rest: np.ndarray) -> None:
+        self.loop = np.asarray(loop, np.int64)
+        m, k = len(self.loop), len(self.RINGS)
+        rim = rest[self.loop]
+        self.width = float(max(np.ptp(rim[:, 0]), np.ptp(rim[:, 1]), 1e-3))
+        tris = []
+        for r in range(k - 1):
+            for i in range(m):
+                j = (i + 1) % m
+                a, b, c, d = r * m + i, r * m + j, (r + 1) * m + i, (r + 1) * m + j
+                tris += [(a, b, d), (a, d, c)]
+        apex = k * m
+        tris += [((k - 1) * m + i, (k - 1) * m + (i + 1) % m, apex) for i in range(m)]
+        self.triangles = np.array(tris, np.int32)
+        self.depth = np.r_[np.repeat([d for _, d in self.RINGS], m), 1.6].astype(np.float32)
+        self.n_vertices = apex + 1
+
+    def positions(self, surface: np.ndarray) -> np.ndarray:
+        rim = np.take(surface, self.loop, axis=0)
+        c = rim.mean(axis=0)
+        out = np.empty((self.n_vertices, 3), np.float32)
+        m = len(self.loop)
+        for r, (scale, depth) in enumerate(self.RINGS):
+            out[r * m:(r + 1) * m] = c + scale * (rim - c) - (0, 0, depth * self.width * 0.5)
+        out[-1] = c - (0, 0, 1.6 * self.width * 0.5)
+        return out
+
+
+class MuscleLines:
+    """Line segments showing the rig's muscles (seed 000 Fig. 6/8): linear muscles from attachment
+    to insertion, sphincters as ellipses, sheets as quads with a few fibres. Ends in the skin
+    (insertions, sphincters) follow their nearest vertex; skull attachments stay put."""
+
+    def __init__(self, rig: FaceRig, rest: np.ndarray, ellipse_segments: int = 32) -> None:
+        ends: list[np.ndarray] = []
+        flags: list[bool] = []
+        for parts in rig.muscles.values():
+            for mus in parts:
+                for seg, in_skin in _muscle_segments(mus, ellipse_segments):
+                    ends.extend(seg)
+                    flags.extend(in_skin)
+        self.fixed = np.array(ends, float).reshape(-1, 3)
+        self.skin = np.array(flags, bool)
+        if len(self.fixed):
+            d = np.linalg.norm(self.fixed[:, None, :] - rest[None, :, :], axis=2)
+            self.vertex = np.argmin(d, axis=1)
+        else:
+            self.vertex = np.zeros(0, np.int64)
+        self.offset = self.fixed - rest[self.vertex]
+
+    def __len__(self) -> int:
+        return len(self.fixed)
+
+    def positions(self, surface: np.ndarray) -> np.ndarray:
+        """(2S, 3) float32 segment ends for the current surface."""
+        out = self.fixed.copy()
+        if self.skin.any():
+            out[self.skin] = surface[self.vertex[self.skin]] + self.offset[self.skin]
+        return out.astype(np.float32)
+
+
+def _muscle_segments(mus: object, n: int) -> list[tuple[np.ndarray, tuple[bool, bool]]]:
+    """Segments of one muscle, each with which of its two ends lies in the skin."""
+    if isinstance(mus, LinearMuscle):
+        return [(np.array([mus.attachment, mus.insertion]), (False, True))]
+    if isinstance(mus, SphincterMuscle):
+        t = np.linspace(0, 2 * np.pi, n + 1)
+        ring = (mus.center + mus.a * np.cos(t)[:, None] * mus.major_axis
+                + mus.b * np.sin(t)[:, None] * mus.minor_axis)
+        return [(ring[i:i + 2], (True, True)) for i in range(n)]
+    if isinstance(mus, SheetMuscle):
+        a1, a2, i1, i2 = mus.attach1, mus.attach2, mus.insert1, mus.insert2
+        segs = [(np.array([a1, a2]), (False, False)), (np.array([i1, i2]), (True, True))]
+        for f in np.linspace(0.0, 1.0, 4):
+            segs.append((np.array([a1 + f * (a2 - a1), i1 + f * (i2 - i1)]), (False, True)))
+        return segs
+    return []

@@ -1,0 +1,299 @@
+"""`FaceRenderer`: draws a face state with moderngl into whatever framebuffer is bound, so the glfw
+window and the EGL offscreen renderer share every pixel of it. `populate(model)` uploads what never
+changes; `draw(state)` uploads the surface and its normals and nothing else that is per-vertex."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import moderngl
+import numpy as np
+
+from render import shaders
+from render.camera import OrbitCamera
+from render.hud import HudInfo, HudRenderer
+from render.meshdata import (Cavity, MuscleLines, NormalComputer, brow_polylines, eye_rotation, skin_tint,
+                             unique_edges, uv_sphere)
+from render.trails import TrailHistory
+
+VIEWS = ("shaded", "wireframe", "muscles", "trails", "heat")
+ANTIALIAS = ("fxaa", "none")
+EYE_YAW_MAX = math.radians(30.0)
+EYE_PITCH_MAX = math.radians(20.0)
+MAX_TRAIL_NODES = 4000
+STILL_PATH_CM = 0.02  # nodes that moved less than this over the trail window count as motionless
+MOUTH_RIM = (0.20, 0.035, 0.03)
+SOCKET_RIM = (0.05, 0.03, 0.03)
+
+
+def _mat(m: np.ndarray) -> bytes:
+    """Row-major numpy matrix -> column-major float32 bytes for a GLSL uniform."""
+    return np.ascontiguousarray(m.T, dtype=np.float32).tobytes()
+
+
+class FaceRenderer:
+    """Renders one face model. Attributes a caller may change between frames: `view` (one of
+    VIEWS), `camera` (OrbitCamera), `antialias` ("fxaa" | "none"), `supersample` (n: render n x n
+    samples per pixel, for offline export), `heat_scale` (cm of displacement at the top of the
+    heat colour map), `trails` (TrailHistory, recorded from the states drawn)."""
+
+    def __init__(self, ctx: moderngl.Context, view: str = "shaded", antialias: str = "fxaa",
+                 supersample: int = 1) -> None:
+        self.ctx = ctx
+        self.view = view
+        self.antialias = antialias
+        self.supersample = supersample
+        self.camera = OrbitCamera()
+        self.heat_scale = 0.8
+        self.model: Any = None
+        self.trails: TrailHistory | None = None
+        self.skin_prog = ctx.program(vertex_shader=shaders.SKIN_VS, fragment_shader=shaders.SKIN_FS)
+        self.eye_prog = ctx.program(vertex_shader=shaders.EYE_VS, fragment_shader=shaders.EYE_FS)
+        self.cavity_prog = ctx.program(vertex_shader=shaders.CAVITY_VS, fragment_shader=shaders.CAVITY_FS)
+        self.line_prog = ctx.program(**shaders.line_program_sources())
+        self.trail_prog = ctx.program(**shaders.line_program_sources(trail=True))
+        self.point_prog = ctx.program(vertex_shader=shaders.POINT_VS, fragment_shader=shaders.POINT_FS)
+        self.post_prog = ctx.program(vertex_shader=shaders.POST_VS, fragment_shader=shaders.POST_FS)
+        self.post_vao = ctx.vertex_array(self.post_prog, [])
+        self.hud = HudRenderer(ctx)
+        self._scene: tuple[tuple[int, int], moderngl.Framebuffer, moderngl.Texture, moderngl.Renderbuffer] | None = None
+        self._gl: list[Any] = []
+
+    @property
+    def view(self) -> str:
+        return self._view
+
+    @view.setter
+    def view(self, name: str) -> None:
+        if name not in VIEWS:
+            raise ValueError(f"unknown view {name!r}; choose one of {', '.join(VIEWS)}")
+        self._view = name
+
+    # -- setup ------------------------------------------------------------------------------------
+    def populate(self, model: Any) -> None:
+        """Upload the model's static data and build the per-frame index arrays (once per model)."""
+        self._release_model()
+        ctx = self.ctx
+        mesh = model.mesh
+        rest = np.asarray(model.rest, np.float32)
+        n = len(rest)
+        tris = np.asarray(model.triangles, np.int32)
+        self.model = model
+        self.normals = NormalComputer(tris, n)
+        self.camera.fit(rest.min(axis=0), rest.max(axis=0))
+        brows = brow_polylines(mesh)
+        self.skin_prog["n_brows"].value = len(brows)
+        if len(brows):
+            self.skin_prog["brows"].write(np.resize(brows.astype(np.float32), (6, 3)).tobytes())
+        g = self._gl
+        self.pos_vbo = ctx.buffer(reserve=n * 12, dynamic=True)
+        self.nrm_vbo = ctx.buffer(reserve=n * 12, dynamic=True)
+        col_vbo = ctx.buffer(skin_tint(mesh).tobytes())
+        rest_vbo = ctx.buffer(rest.tobytes())
+        tri_ibo = ctx.buffer(tris.tobytes())
+        edge_ibo = ctx.buffer(unique_edges(tris).tobytes())
+        g += [self.pos_vbo, self.nrm_vbo, col_vbo, rest_vbo, tri_ibo, edge_ibo]
+        self.skin_vao = ctx.vertex_array(self.skin_prog, [
+            (self.pos_vbo, "3f", "in_pos"), (self.nrm_vbo, "3f", "in_normal"),
+            (col_vbo, "3f", "in_color"), (rest_vbo, "3f", "in_rest")], tri_ibo)
+        self.edge_vao = ctx.vertex_array(self.line_prog, [(self.pos_vbo, "3f", "in_pos")], edge_ibo)
+        sphere, sphere_tris = uv_sphere()
+        sph_vbo, sph_ibo = ctx.buffer(sphere.tobytes()), ctx.buffer(sphere_tris.tobytes())
+        self.eye_vao = ctx.vertex_array(self.eye_prog, [(sph_vbo, "3f", "in_pos")], sph_ibo)
+        g += [sph_vbo, sph_ibo, self.skin_vao, self.edge_vao, self.eye_vao]
+        self.cavities = []
+        loops = [(mesh.mouth_loop, MOUTH_RIM)] + [(lp, SOCKET_RIM) for lp in mesh.eye_loops]
+        for loop, rim in loops:
+            if len(loop) < 3:
+                continue
+            cav = Cavity(loop, rest)
+            vbo = ctx.buffer(reserve=cav.n_vertices * 12, dynamic=True)
+            dep, ibo = ctx.buffer(cav.depth.tobytes()), ctx.buffer(cav.triangles.tobytes())
+            vao = ctx.vertex_array(self.cavity_prog, [(vbo, "3f", "in_pos"), (dep, "1f", "in_depth")], ibo)
+            g += [vbo, dep, ibo, vao]
+            self.cavities.append((cav, vbo, vao, rim))
+        self.muscles = MuscleLines(model.rig, rest)
+        self.muscle_vbo = ctx.buffer(reserve=max(len(self.muscles), 1) * 12, dynamic=True)
+        self.muscle_vao = ctx.vertex_array(self.line_prog, [(self.muscle_vbo, "3f", "in_pos")])
+        g += [self.muscle_vbo, self.muscle_vao]
+        self._populate_trails(n)
+
+    def _populate_trails(self, n: int) -> None:
+        """GPU ring of trail samples: each new sample overwrites one slot; segments between
+        consecutive slots are fixed index pairs, and the shader drops the pair across the ring's
+        seam. Large meshes draw trails for an even subset of nodes (a 12k-node tangle reads worse)."""
+        self.trails = TrailHistory(n)
+        k = self.trails.capacity
+        nodes = np.arange(n) if n <= MAX_TRAIL_NODES else np.linspace(0, n - 1, MAX_TRAIL_NODES).astype(int)
+        slots = np.arange(k)
+        a = (slots[:, None] * n + nodes[None, :]).ravel()
+        b = (((slots + 1) % k)[:, None] * n + nodes[None, :]).ravel()
+        pairs = np.stack([a, b], axis=1).astype(np.int32)
+        self.trail_vbo = self.ctx.buffer(reserve=k * n * 12)
+        trail_ibo = self.ctx.buffer(pairs.tobytes())
+        self.trail_vao = self.ctx.vertex_array(self.trail_prog, [(self.trail_vbo, "3f", "in_pos")], trail_ibo)
+        self.path_vbo = self.ctx.buffer(reserve=n * 4, dynamic=True)
+        self.dot_vao = self.ctx.vertex_array(self.point_prog, [
+            (self.pos_vbo, "3f", "in_pos"), (self.path_vbo, "1f", "in_path")])
+        self._gl += [self.trail_vbo, trail_ibo, self.trail_vao, self.path_vbo, self.dot_vao]
+
+    def _scene_target(self, w: int, h: int) -> tuple[moderngl.Framebuffer, moderngl.Texture]:
+        """The internal framebuffer the 3D passes render into (resized lazily)."""
+        if self._scene is None or self._scene[0] != (w, h):
+            if self._scene is not None:
+                for obj in self._scene[1:]:
+                    obj.release()
+            tex = self.ctx.texture((w, h), 4)
+            tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            tex.repeat_x = tex.repeat_y = False
+            depth = self.ctx.depth_renderbuffer((w, h))
+            fbo = self.ctx.framebuffer([tex], depth)
+            self._scene = ((w, h), fbo, tex, depth)
+        return self._scene[1], self._scene[2]
+
+    # -- per frame --------------------------------------------------------------------------------
+    def draw(self, state: Any, hud: HudInfo | None = None, record: bool = True) -> None:
+        """Draw `state` into the bound framebuffer's viewport; record its surface for the trails."""
+        if self.model is None or self.trails is None:
+            raise RuntimeError("FaceRenderer.draw before populate(model)")
+        ctx = self.ctx
+        target = ctx.fbo
+        vx, vy, w, h = target.viewport
+        ss = max(1, int(self.supersample))
+        surface = np.ascontiguousarray(state.surface, dtype=np.float32)
+        self.pos_vbo.write(surface.tobytes())
+        self.nrm_vbo.write(self.normals(surface).tobytes())
+        if record or self.trails.count == 0:
+            self.trails.push(surface, getattr(state, "time", None))
+        view_m, proj = self.camera.matrices(w / max(h, 1))
+        mvp = proj @ view_m
+        fbo, tex = self._scene_target(w * ss, h * ss)
+        fbo.use()
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable_only(moderngl.DEPTH_TEST)
+        self._draw_scene(state, surface, mvp, view_m, (w * ss, h * ss), ss)
+        target.use()
+        target.viewport = (vx, vy, w, h)
+        ctx.enable_only(moderngl.NOTHING)
+        tex.use(0)
+        self.post_prog["scene"].value = 0
+        self.post_prog["ss"].value = ss
+        self.post_prog["fxaa"].value = int(self.antialias == "fxaa" and ss == 1)
+        self.post_prog["texel"].value = (1.0 / (w * ss), 1.0 / (h * ss))
+        self.post_vao.render(moderngl.TRIANGLES, vertices=3)
+        if hud is not None:
+            if self.view == "heat":
+                hud = HudInfo(**{**hud.__dict__, "lines": hud.lines + [
+                    f"heat: blue = still, red ≥ {self.heat_scale:g} cm from rest"]})
+            self.hud.draw(hud, (w, h), view=self.view, age=getattr(state, "age", None))
+
+    def _draw_scene(self, state: Any, surface: np.ndarray, mvp: np.ndarray, view_m: np.ndarray,
+                    size: tuple[int, int], ss: int) -> None:
+        view = self.view
+        for prog in (self.skin_prog, self.eye_prog):
+            prog["mvp"].write(_mat(mvp))
+            prog["view"].write(_mat(view_m))
+        self.skin_prog["mode"].value = {"muscles": 1, "trails": 1, "heat": 2}.get(view, 0)
+        self.skin_prog["heat_scale"].value = float(self.heat_scale)
+        self._draw_cavities(surface, mvp)
+        self.skin_vao.render(moderngl.TRIANGLES)
+        self._draw_eyes(state)
+        for prog in (self.line_prog, self.trail_prog):
+            prog["mvp"].write(_mat(mvp))
+            prog["viewport"].value = (float(size[0]), float(size[1]))
+        if view in ("wireframe", "muscles"):
+            dark = view == "muscles"
+            self._lines(self.edge_vao, (0.06, 0.07, 0.09, 0.75 if dark else 0.4), 1.0 * ss, 2e-4)
+        if view == "muscles" and len(self.muscles):
+            self.muscle_vbo.write(self.muscles.positions(surface).tobytes())
+            self.ctx.disable(moderngl.DEPTH_TEST)   # muscles lie under the skin: always show them
+            self._lines(self.muscle_vao, (0.93, 0.08, 0.06, 1.0), 2.0 * ss, 0.0)
+            self.ctx.enable(moderngl.DEPTH_TEST)
+        if view == "trails":
+            self._draw_trails(mvp, ss)
+
+    def _draw_cavities(self, surface: np.ndarray, mvp: np.ndarray) -> None:
+        """Dark pockets behind the mouth and eye openings, drawn first and without depth writes:
+        a backdrop that shows only through the holes, so it can never hide an eyeball."""
+        self.cavity_prog["mvp"].write(_mat(mvp))
+        fbo = self.ctx.fbo
+        fbo.depth_mask = False
+        for cav, vbo, vao, rim in self.cavities:
+            vbo.write(cav.positions(surface).tobytes())
+            self.cavity_prog["rim_color"].value = rim
+            vao.render(moderngl.TRIANGLES)
+        fbo.depth_mask = True
+
+    def _draw_eyes(self, state: Any) -> None:
+        mesh = self.model.mesh
+        yaw = float(np.clip(getattr(state, "eye_yaw", 0.0), -1, 1)) * EYE_YAW_MAX
+        pitch = float(np.clip(getattr(state, "eye_pitch", 0.0), -1, 1)) * EYE_PITCH_MAX
+        self.eye_prog["rot"].write(_mat(eye_rotation(yaw, pitch)))
+        self.eye_prog["radius"].value = float(mesh.eye_radius)
+        for c in np.asarray(mesh.eye_centers, float):
+            self.eye_prog["center"].value = tuple(c)
+            self.eye_vao.render(moderngl.TRIANGLES)
+
+    def _lines(self, vao: moderngl.VertexArray, color: tuple[float, float, float, float],
+               width: float, bias: float) -> None:
+        prog = vao.program
+        prog["color"].value = color
+        prog["width"].value = width
+        prog["bias"].value = bias
+        self.ctx.enable(moderngl.BLEND)
+        self.ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA,
+                               moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA)
+        vao.render(moderngl.LINES)
+        self.ctx.disable(moderngl.BLEND)
+
+    def _draw_trails(self, mvp: np.ndarray, ss: int) -> None:
+        tr = self.trails
+        assert tr is not None
+        n = tr.frames.shape[1]
+        for slot in sorted(tr.dirty):
+            self.trail_vbo.write(tr.frames[slot].tobytes(), offset=slot * n * 12)
+        tr.dirty.clear()
+        self.ctx.enable(moderngl.PROGRAM_POINT_SIZE)
+        self.point_prog["mvp"].write(_mat(mvp))
+        self.point_prog["size"].value = 2.0 * ss
+        self.point_prog["color"].value = (0.1, 0.25, 1.0, 1.0)
+        self.point_prog["still"].value = STILL_PATH_CM
+        self.path_vbo.write(tr.path.tobytes())
+        self.dot_vao.render(moderngl.POINTS)
+        p = self.trail_prog
+        for name, value in (("trail_n", n), ("trail_k", tr.capacity), ("trail_head", tr.head),
+                            ("trail_count", tr.count)):
+            p[name].value = value
+        self.ctx.disable(moderngl.DEPTH_TEST)  # past positions may lie under today's skin
+        self._lines(self.trail_vao, (1.0, 1.0, 1.0, 1.0), 1.5 * ss, 0.0)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+
+    def project(self, points: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+        """(K, 2) pixel positions (origin top-left) of world points in a `size` image drawn with
+        the current camera: lets tests and overlays find the mouth or an eye in a frame."""
+        w, h = size
+        view_m, proj = self.camera.matrices(w / max(h, 1))
+        p = np.c_[np.asarray(points, float).reshape(-1, 3), np.ones(len(np.reshape(points, (-1, 3))))]
+        clip = p @ (proj @ view_m).T
+        ndc = clip[:, :2] / clip[:, 3:4]
+        return np.c_[(ndc[:, 0] + 1) * 0.5 * w, (1 - ndc[:, 1]) * 0.5 * h]
+
+    # -- teardown ---------------------------------------------------------------------------------
+    def _release_model(self) -> None:
+        for obj in reversed(self._gl):
+            obj.release()
+        self._gl = []
+        self.model = None
+
+    def release(self) -> None:
+        """Free every GL object this renderer made (the context stays the caller's)."""
+        self._release_model()
+        if self._scene is not None:
+            for obj in self._scene[1:]:
+                obj.release()
+            self._scene = None
+        for obj in (self.post_vao, self.skin_prog, self.eye_prog, self.cavity_prog, self.line_prog,
+                    self.trail_prog, self.point_prog, self.post_prog):
+            obj.release()
+        self.hud.release()

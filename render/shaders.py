@@ -1,0 +1,347 @@
+"""GLSL 3.30 sources. Lighting happens in linear light in view space (the lights move with the
+camera, so an orbited face stays readable) and is gamma-encoded at the end of each surface shader,
+so the post pass (FXAA, supersample resolve) works on perceptual values as FXAA expects."""
+
+from __future__ import annotations
+
+HEADER = "#version 330 core\n"
+
+# Key/fill/rim lights plus a sky/ground ambient, wrap diffuse for a soft skin look, Blinn specular.
+LIGHTING = """
+vec3 light(vec3 albedo, vec3 n, vec3 p, float spec, float shininess) {
+    vec3 v = normalize(-p);
+    vec3 key_d = normalize(vec3(-0.45, 0.55, 0.75));
+    vec3 fill_d = normalize(vec3(0.75, 0.05, 0.6));
+    vec3 rim_d = normalize(vec3(0.3, 0.6, -0.8));
+    float key = max((dot(n, key_d) + 0.35) / 1.35, 0.0);
+    float fill = max((dot(n, fill_d) + 0.2) / 1.2, 0.0);
+    vec3 sky = mix(vec3(0.16, 0.15, 0.14), vec3(0.30, 0.33, 0.38), 0.5 + 0.5 * n.y);
+    vec3 c = albedo * (key * vec3(1.55, 1.45, 1.32) + fill * vec3(0.32, 0.37, 0.46) + sky);
+    vec3 h = normalize(key_d + v);
+    c += spec * pow(max(dot(n, h), 0.0), shininess) * vec3(1.0, 0.97, 0.92) * float(dot(n, key_d) > 0.0);
+    float edge = pow(1.0 - max(dot(n, v), 0.0), 3.0);
+    c += edge * max(dot(n, rim_d) + 0.4, 0.0) * vec3(0.30, 0.32, 0.36);
+    return c;
+}
+vec3 encode(vec3 c) {
+    c = vec3(1.0) - exp(-1.15 * c);              // soft shoulder instead of hard clipping
+    return pow(c, vec3(1.0 / 2.2));
+}
+vec3 ramp(float t) {                              // blue -> cyan -> green -> yellow -> red
+    t = clamp(t, 0.0, 1.0);
+    vec3 c = clamp(vec3(1.5 - abs(4.0 * t - 3.0), 1.5 - abs(4.0 * t - 2.0), 1.5 - abs(4.0 * t - 1.0)),
+                   0.0, 1.0);
+    return c;
+}
+"""
+
+SKIN_VS = HEADER + """
+uniform mat4 mvp;
+uniform mat4 view;
+in vec3 in_pos;
+in vec3 in_normal;
+in vec3 in_color;
+in vec3 in_rest;
+out vec3 v_pos;
+out vec3 v_normal;
+out vec3 v_color;
+out vec3 v_rest;
+out float v_disp;
+void main() {
+    gl_Position = mvp * vec4(in_pos, 1.0);
+    v_pos = (view * vec4(in_pos, 1.0)).xyz;
+    v_normal = mat3(view) * in_normal;
+    v_color = in_color;
+    v_rest = in_rest;
+    v_disp = length(in_pos - in_rest);
+}
+"""
+
+# mode 0: skin; 1: pale clay (under muscles/trails, so the lines read); 2: heat map.
+SKIN_FS = HEADER + LIGHTING + """
+uniform int mode;
+uniform float heat_scale;
+uniform int n_brows;
+uniform vec3 brows[6];          // per brow: inner, mid, outer (rest positions)
+in vec3 v_pos;
+in vec3 v_normal;
+in vec3 v_color;
+in vec3 v_rest;
+in float v_disp;
+out vec4 frag;
+float seg_dist(vec3 p, vec3 a, vec3 b, out float t) {
+    vec3 ab = b - a;
+    t = clamp(dot(p - a, ab) / dot(ab, ab), 0.0, 1.0);
+    return length(p - a - t * ab);
+}
+float brow_weight(vec3 p) {     // a soft band that tapers from the inner end to the outer end
+    float w = 0.0;
+    for (int i = 0; i < n_brows; ++i) {
+        for (int k = 0; k < 2; ++k) {
+            float t;
+            float d = seg_dist(p, brows[3 * i + k], brows[3 * i + k + 1], t);
+            float along = (float(k) + t) / 2.0;
+            float r = mix(0.55, 0.28, along);
+            w = max(w, smoothstep(r, 0.35 * r, d) * mix(0.95, 0.75, along));
+        }
+    }
+    return w * (0.85 + 0.15 * sin(p.x * 37.0 + p.y * 23.0));
+}
+void main() {
+    vec3 n = normalize(v_normal);
+    vec3 albedo = mix(v_color, vec3(0.06, 0.04, 0.028), brow_weight(v_rest));
+    float spec = 0.12;
+    if (mode == 1) { albedo = vec3(0.55); spec = 0.0; }
+    if (mode == 2) { albedo = 0.6 * pow(ramp(v_disp / heat_scale), vec3(2.2)); spec = 0.05; }
+    if (!gl_FrontFacing) { n = -n; albedo *= 0.35; spec = 0.0; }
+    frag = vec4(encode(light(albedo, n, v_pos, spec, 28.0)), 1.0);
+}
+"""
+
+EYE_VS = HEADER + """
+uniform mat4 mvp;
+uniform mat4 view;
+uniform mat3 rot;
+uniform vec3 center;
+uniform float radius;
+in vec3 in_pos;
+out vec3 v_local;
+out vec3 v_pos;
+out vec3 v_normal;
+void main() {
+    vec3 w = center + radius * (rot * in_pos);
+    gl_Position = mvp * vec4(w, 1.0);
+    v_local = in_pos;
+    v_pos = (view * vec4(w, 1.0)).xyz;
+    v_normal = mat3(view) * (rot * in_pos);
+}
+"""
+
+# The gaze is +Z of the eyeball: iris and pupil are caps around it, sized like a human eye.
+EYE_FS = HEADER + LIGHTING + """
+in vec3 v_local;
+in vec3 v_pos;
+in vec3 v_normal;
+out vec4 frag;
+void main() {
+    vec3 d = normalize(v_local);
+    float ang = acos(clamp(d.z, -1.0, 1.0));
+    float around = atan(d.y, d.x);
+    vec3 sclera = vec3(0.72, 0.68, 0.64) * (0.85 + 0.15 * smoothstep(1.6, 0.6, ang));
+    float streak = 0.75 + 0.25 * sin(around * 29.0) * sin(around * 7.0 + ang * 40.0);
+    vec3 iris = vec3(0.16, 0.10, 0.05) * streak * mix(1.0, 0.45, smoothstep(0.40, 0.52, ang));
+    vec3 col = mix(iris, sclera, smoothstep(0.50, 0.54, ang));
+    col = mix(vec3(0.005), col, smoothstep(0.20, 0.23, ang));
+    frag = vec4(encode(light(col, normalize(v_normal), v_pos, 0.9, 90.0)), 1.0);
+}
+"""
+
+CAVITY_VS = HEADER + """
+uniform mat4 mvp;
+in vec3 in_pos;
+in float in_depth;
+out float v_depth;
+void main() {
+    gl_Position = mvp * vec4(in_pos, 1.0);
+    v_depth = in_depth;
+}
+"""
+
+CAVITY_FS = HEADER + """
+uniform vec3 rim_color;
+in float v_depth;
+out vec4 frag;
+void main() {
+    vec3 c = mix(rim_color, vec3(0.004, 0.002, 0.002), smoothstep(0.0, 0.9, v_depth));
+    frag = vec4(pow(c, vec3(1.0 / 2.2)), 1.0);
+}
+"""
+
+# Thick lines: a geometry shader widens each segment into a screen-space quad, since core-profile
+# line widths above 1 px are not portable. `bias` pulls lines towards the camera so lines lying on
+# the skin win the depth test against it.
+LINE_VS = HEADER + """
+uniform mat4 mvp;
+uniform int trail_n;
+uniform int trail_k;
+uniform int trail_head;
+uniform int trail_count;
+in vec3 in_pos;
+#ifdef VERTEX_COLOR
+in vec4 in_color;
+#endif
+out vec4 g_color;
+out float g_rel;
+void main() {
+    gl_Position = mvp * vec4(in_pos, 1.0);
+#ifdef VERTEX_COLOR
+    g_color = in_color;
+#else
+    g_color = vec4(1.0);
+#endif
+    g_rel = 0.0;
+#ifdef TRAIL
+    int slot = gl_VertexID / trail_n;
+    int rel = (trail_head - slot + trail_k) % trail_k;    // 0 = newest sample
+    g_rel = float(rel);
+    float t = trail_count > 1 ? 1.0 - float(rel) / float(trail_count - 1) : 0.0;
+    g_color = vec4(ramp(t), 1.0);
+#endif
+}
+"""
+
+LINE_GS = HEADER + """
+layout(lines) in;
+layout(triangle_strip, max_vertices = 4) out;
+uniform vec2 viewport;
+uniform float width;
+uniform float bias;
+uniform int trail_count;
+in vec4 g_color[];
+in float g_rel[];
+out vec4 f_color;
+void main() {
+#ifdef TRAIL
+    float r0 = g_rel[0], r1 = g_rel[1];
+    if (abs(r0 - r1) != 1.0 || max(r0, r1) >= float(trail_count)) return;   // ring wrap / unfilled
+#endif
+    vec4 a = gl_in[0].gl_Position, b = gl_in[1].gl_Position;
+    if (a.w <= 0.0 || b.w <= 0.0) return;
+    vec2 sa = a.xy / a.w * viewport, sb = b.xy / b.w * viewport;
+    vec2 dir = sb - sa;
+    float len = length(dir);
+    dir = len > 1e-4 ? dir / len : vec2(1.0, 0.0);
+    vec2 off = vec2(-dir.y, dir.x) * width / viewport;
+    a.z -= bias * a.w; b.z -= bias * b.w;
+    f_color = g_color[0]; gl_Position = a + vec4(off * a.w, 0.0, 0.0); EmitVertex();
+    f_color = g_color[0]; gl_Position = a - vec4(off * a.w, 0.0, 0.0); EmitVertex();
+    f_color = g_color[1]; gl_Position = b + vec4(off * b.w, 0.0, 0.0); EmitVertex();
+    f_color = g_color[1]; gl_Position = b - vec4(off * b.w, 0.0, 0.0); EmitVertex();
+    EndPrimitive();
+}
+"""
+
+LINE_FS = HEADER + """
+uniform vec4 color;
+in vec4 f_color;
+out vec4 frag;
+void main() { frag = f_color * color; }
+"""
+
+# Dots for the nodes that did not move (their trail is empty); moving nodes are clipped away.
+POINT_VS = HEADER + """
+uniform mat4 mvp;
+uniform float size;
+uniform float still;
+in vec3 in_pos;
+in float in_path;
+void main() {
+    gl_Position = mvp * vec4(in_pos, 1.0);
+    gl_Position.z -= 1e-4 * gl_Position.w;
+    if (in_path > still) gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
+    gl_PointSize = size;
+}
+"""
+
+POINT_FS = HEADER + """
+uniform vec4 color;
+out vec4 frag;
+void main() { frag = color; }
+"""
+
+POST_VS = HEADER + """
+out vec2 v_uv;
+void main() {
+    vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2);   // one triangle covering the screen
+    v_uv = p;
+    gl_Position = vec4(2.0 * p - 1.0, 0.0, 1.0);
+}
+"""
+
+# The scene is premultiplied colour over a transparent clear, so the background is composited here
+# (after antialiasing, which then also smooths the face's silhouette against it).
+POST_FS = HEADER + """
+uniform sampler2D scene;
+uniform int ss;
+uniform int fxaa;
+uniform vec2 texel;
+in vec2 v_uv;
+out vec4 frag;
+vec3 bg;
+vec3 comp(vec4 s) { return s.rgb + bg * (1.0 - s.a); }
+float luma(vec3 c) { return dot(c, vec3(0.299, 0.587, 0.114)); }
+vec3 fxaa_at(vec2 uv) {
+    vec3 m = comp(texture(scene, uv));
+    vec3 nw = comp(texture(scene, uv + texel * vec2(-1.0, -1.0)));
+    vec3 ne = comp(texture(scene, uv + texel * vec2(1.0, -1.0)));
+    vec3 sw = comp(texture(scene, uv + texel * vec2(-1.0, 1.0)));
+    vec3 se = comp(texture(scene, uv + texel * vec2(1.0, 1.0)));
+    float lm = luma(m), lnw = luma(nw), lne = luma(ne), lsw = luma(sw), lse = luma(se);
+    float lo = min(lm, min(min(lnw, lne), min(lsw, lse)));
+    float hi = max(lm, max(max(lnw, lne), max(lsw, lse)));
+    if (hi - lo < max(0.04, hi * 0.12)) return m;                  // flat: nothing to smooth
+    vec2 dir = vec2((lsw + lse) - (lnw + lne), (lnw + lsw) - (lne + lse));
+    float reduce = max((lnw + lne + lsw + lse) * 0.03125, 1.0 / 128.0);
+    dir = clamp(dir / (min(abs(dir.x), abs(dir.y)) + reduce), vec2(-8.0), vec2(8.0)) * texel;
+    vec3 a = 0.5 * (comp(texture(scene, uv - dir / 6.0)) + comp(texture(scene, uv + dir / 6.0)));
+    vec3 b = 0.5 * a + 0.25 * (comp(texture(scene, uv - dir * 0.5)) + comp(texture(scene, uv + dir * 0.5)));
+    float lb = luma(b);
+    return (lb < lo || lb > hi) ? a : b;
+}
+void main() {
+    float vig = length(v_uv - vec2(0.5, 0.55));
+    bg = mix(vec3(0.21, 0.215, 0.225), vec3(0.36, 0.365, 0.375), v_uv.y) * (1.05 - 0.35 * vig * vig);
+    vec3 c;
+    if (ss > 1) {
+        ivec2 base = ivec2(gl_FragCoord.xy) * ss;
+        vec4 acc = vec4(0.0);
+        for (int j = 0; j < ss; ++j)
+            for (int i = 0; i < ss; ++i) acc += texelFetch(scene, base + ivec2(i, j), 0);
+        c = comp(acc / float(ss * ss));
+    } else if (fxaa == 1) {
+        c = fxaa_at(v_uv);
+    } else {
+        c = comp(texture(scene, v_uv));
+    }
+    frag = vec4(c, 1.0);
+}
+"""
+
+HUD_VS = HEADER + """
+uniform vec2 viewport;
+in vec2 in_pos;
+in vec2 in_uv;
+in vec4 in_color;
+out vec2 v_uv;
+out vec4 v_color;
+void main() {
+    gl_Position = vec4(in_pos / viewport * vec2(2.0, -2.0) + vec2(-1.0, 1.0), 0.0, 1.0);
+    v_uv = in_uv;
+    v_color = in_color;
+}
+"""
+
+HUD_FS = HEADER + """
+uniform sampler2D atlas;
+in vec2 v_uv;
+in vec4 v_color;
+out vec4 frag;
+void main() {
+    float a = v_uv.x < 0.0 ? 1.0 : texture(atlas, v_uv).r;
+    frag = vec4(v_color.rgb, v_color.a * a);
+}
+"""
+
+
+def line_program_sources(vertex_color: bool = False, trail: bool = False) -> dict[str, str]:
+    """Sources for the thick-line program, specialised by #defines."""
+    defs = ("#define VERTEX_COLOR\n" if vertex_color else "") + ("#define TRAIL\n" if trail else "")
+
+    def spec(src: str) -> str:
+        return src.replace(HEADER, HEADER + defs, 1)
+
+    return {"vertex_shader": spec(LINE_VS.replace(HEADER, HEADER + LIGHTING_RAMP_ONLY, 1)),
+            "geometry_shader": spec(LINE_GS), "fragment_shader": spec(LINE_FS)}
+
+
+LIGHTING_RAMP_ONLY = LIGHTING[LIGHTING.index("vec3 ramp"):]
