@@ -9,6 +9,7 @@ stay at the same relative depth under the new skin."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -134,3 +135,43 @@ def muscle_points(muscle: Muscle) -> FloatArray:
     if isinstance(muscle, SphincterMuscle):
         return np.asarray(muscle.center, float)[None]
     return np.stack([muscle.attach1, muscle.attach2, muscle.insert1, muscle.insert2])
+
+
+def frontal_to_surface(vertices: FloatArray, triangles: IntArray, xy: FloatArray) -> FloatArray:
+    """Drop frontal (x, y) points onto the skin along -Z (the first, outermost hit), the way
+    `sim.wrinkles` lays its lines; points off the mesh take the nearest triangle's plane."""
+    from scipy.spatial import cKDTree
+
+    from sim.transfer.geometry import locate_2d, ray_triangle
+
+    xy = np.atleast_2d(np.asarray(xy, float))
+    tv = vertices[triangles]
+    k = min(24, len(triangles))
+    _, cand = cKDTree(tv[:, :, :2].mean(axis=1)).query(xy, k=k)
+    cand = cand.reshape(len(xy), k)
+    top = float(vertices[:, 2].max()) + 1.0
+    origins = np.column_stack([xy, np.full(len(xy), top)])
+    down = np.array([0.0, 0.0, -1.0])
+    c = tv[cand]
+    t = ray_triangle(origins[:, None], down, c[..., 0, :], c[..., 1, :], c[..., 2, :]).min(axis=1)
+    out = origins + np.where(np.isfinite(t), t, 0.0)[:, None] * down
+    miss = ~np.isfinite(t)
+    if miss.any():
+        tri, bary, _ = locate_2d(xy[miss], vertices[:, :2], triangles)
+        out[miss] = np.einsum("pk,pkj->pj", bary, vertices[triangles[tri]])
+    return out
+
+
+def carry_wrinkle(m: SurfaceMap, line: Any) -> Any:
+    """A wrinkle line of `sim.wrinkles` (frontal (x, y) polyline + roll widths) on the new face:
+    its points dropped onto the reference skin, carried, and seen from the front again; roll
+    widths scaled by the line's own change of length."""
+    from dataclasses import replace
+
+    pts3 = frontal_to_surface(m.ref_vertices, m.triangles, line.points)
+    new3 = m.points(pts3)
+    before = np.linalg.norm(np.diff(pts3, axis=0), axis=1).sum()
+    after = np.linalg.norm(np.diff(new3, axis=0), axis=1).sum()
+    s = float(after / before) if before > 0 else 1.0
+    return replace(line, points=new3[:, :2].copy(), width_minus=line.width_minus * s,
+                   width_plus=line.width_plus * s)

@@ -71,6 +71,26 @@ def boundary_loops(triangles: IntArray) -> list[IntArray]:
     return loops
 
 
+def in_polygon(points: FloatArray, polygon: FloatArray) -> np.ndarray:
+    """Even-odd rule: which 2D points lie inside the closed polygon (K, 2)."""
+    x, y = points[:, 0][:, None], points[:, 1][:, None]
+    x0, y0 = polygon[:, 0][None], polygon[:, 1][None]
+    x1, y1 = np.roll(polygon[:, 0], -1)[None], np.roll(polygon[:, 1], -1)[None]
+    crosses = (y0 > y) != (y1 > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xc = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+    return (crosses & (x < xc)).sum(axis=1) % 2 == 1
+
+
+def outer_loop(points2d: FloatArray, triangles: IntArray) -> IntArray:
+    """The boundary loop enclosing the largest flat area: a mask's outer border (the others are
+    its openings)."""
+    def area(loop: IntArray) -> float:
+        p = points2d[loop]
+        return abs(float(np.dot(p[:, 0], np.roll(p[:, 1], -1)) - np.dot(p[:, 1], np.roll(p[:, 0], -1))))
+    return max(boundary_loops(triangles), key=area)
+
+
 def _closest_on_segments(p: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
     ab = b - a
     t = np.einsum("...k,...k->...", p - a, ab) / np.maximum(np.einsum("...k,...k->...", ab, ab), 1e-300)

@@ -11,12 +11,12 @@ from scipy.interpolate import RBFInterpolator
 from scipy.spatial import cKDTree
 
 from sim.model import FaceMesh, FaceRig
-from sim.transfer.carry import SurfaceMap, carry_muscle
+from sim.transfer.carry import SurfaceMap, carry_muscle, carry_wrinkle
 from sim.transfer.cylinder import Cylinder, fit_cylinder
 from sim.transfer.flatten import CylinderChart, flat_triangulation, project_back
 from sim.transfer.frame import Similarity, fit_similarity, landmark_axes, rotation_angle
-from sim.transfer.geometry import (closest_points, edge_use_counts, locate_2d, triangle_normals,
-                                   unique_edges)
+from sim.transfer.geometry import (closest_points, edge_use_counts, in_polygon, locate_2d, outer_loop,
+                                   triangle_normals, unique_edges)
 from sim.transfer.landmarks import LANDMARK_NAMES, LandmarkFile, TransferError, require
 from sim.transfer.meshfile import HeadMesh
 from sim.transfer.openings import find_openings
@@ -216,7 +216,10 @@ def transfer_rig(
     on_new[ref_ids] = lm_arr
     smap = SurfaceMap(ref.vertices, ref.triangles, on_new)
 
-    tri, bary, inside = locate_2d(uv_new, flat, ref.triangles)
+    tri, bary, _ = locate_2d(uv_new, flat, ref.triangles)
+    # inside the mask's outer border, or less than about a triangle beyond it (the two meshes'
+    # borders never match exactly; the reference decides there what is held)
+    inside = in_polygon(uv_new, flat[outer_loop(flat, ref.triangles)]) | (bary.min(axis=1) > -0.75)
     declared = _declared(landmarks, head, remap)
     mesh = _new_mesh(reference, smap, verts, tris, tri, bary, inside, lm_new, lm_vid, declared,
                      landmarks.path, head.path)
@@ -238,7 +241,9 @@ def _new_mesh(reference: FaceRig, smap: SurfaceMap, verts: FloatArray, tris: Int
               lm_vid: dict[str, int], declared: dict[str, IntArray], lm_path: str,
               mesh_path: str) -> FaceMesh:
     """The new FaceMesh: per-vertex fields pulled back from the reference through the relaxed flat
-    correspondence; vertices outside the reference mask are held (bound to the skull)."""
+    correspondence (from the nearest reference triangle where a vertex falls in an opening, a gap
+    or just past the border); vertices farther out than the reference mask's outer border are
+    held (bound to the skull)."""
     ref = reference.mesh
     rt = ref.triangles
     held = (_interp(ref.held.astype(float), tri, bary, rt) > 0.5) | ~inside
@@ -282,4 +287,6 @@ def _declared(lf: LandmarkFile, head: HeadMesh, remap: IntArray) -> dict[str, In
 
 
 def _carry_wrinkles(reference: FaceRig, smap: SurfaceMap) -> tuple:
-    return ()
+    """The reference's wrinkle lines (seed 003's wrinkle mask) on the new face; lines of a type
+    this module does not know (no frontal `points`) are dropped rather than guessed."""
+    return tuple(carry_wrinkle(smap, w) for w in reference.wrinkles if hasattr(w, "points"))

@@ -1,0 +1,92 @@
+"""``puppet import-face MESH --landmarks FILE --out RIG``: give any head mesh the default face's
+muscles, wrinkles, jaw, eyes and held border (seed 003 section 3; see docs/import-face.md).
+
+Writes the rig (load it anywhere with ``--rig RIG``), a markdown report next to it
+(``RIG.report.md``: scale, fit residuals, landmark distances, muscles) and a picture of the
+transferred muscles on the new face (``RIG.png``)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from puppet.errors import ConfigError
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``import-face`` subcommand."""
+    p = subparsers.add_parser(
+        "import-face", help="make a rig for your own head mesh",
+        description="Transfer the default face's rig (muscles, wrinkles, jaw, eyes, held border) onto "
+                    "a head mesh (OBJ, PLY, glTF/GLB; any scale and orientation) marked with landmarks.")
+    p.add_argument("mesh", metavar="MESH", help="head or face mesh: .obj, .ply, .gltf, .glb, .off, .stl")
+    p.add_argument("--landmarks", required=True, metavar="FILE",
+                   help="JSON: landmark name -> vertex index or [x, y, z] (docs/import-face.md)")
+    p.add_argument("--out", required=True, metavar="RIG", help="rig file to write (.npz)")
+    p.add_argument("--rig", metavar="RIG", default=None,
+                   help="rig to transfer from (default: the built-in face at --resolution)")
+    p.add_argument("--resolution", type=int, choices=(0, 1, 2), default=1,
+                   help="resolution of the built-in reference face (default 1)")
+    p.add_argument("--name", default=None, help="rig name (default: the mesh file's stem)")
+    p.add_argument("--no-image", action="store_true", help="do not render the muscles picture")
+    p.set_defaults(func=run)
+
+
+def _reference(args: argparse.Namespace) -> Any:
+    from sim.rig import RigFileError, default_rig, load_rig
+
+    if args.rig is None:
+        return default_rig(args.resolution)
+    try:
+        return load_rig(args.rig)
+    except RigFileError as err:
+        raise ConfigError(str(err)) from err
+
+
+def _render(model: Any, path: Path) -> str | None:
+    """Render the muscles view; a missing OpenGL stack is a warning, not a failed import."""
+    try:
+        from render.offscreen import render_to_file
+
+        render_to_file(model, model.rest_state(), path, size=(960, 960), view="muscles")
+    except Exception as err:  # EGL/Mesa missing or broken: the rig itself is still good
+        print(f"puppet: warning: could not render {path} ({type(err).__name__}: {err})".splitlines()[0],
+              file=sys.stderr)
+        return None
+    return str(path)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Read, transfer, compile (proves the rig simulates), save, report, render."""
+    from sim.build import compile_model
+    from sim.rig import save_rig
+    from sim.transfer import TransferError, read_landmarks, read_mesh, transfer_rig
+    from sim.transfer.report import format_report
+
+    out = Path(args.out)
+    if out.suffix.lower() != ".npz":
+        raise ConfigError(f"{out}: rig files end in .npz")
+    if not out.parent.is_dir():
+        raise ConfigError(f"{out}: the folder {out.parent} does not exist")
+    start = time.perf_counter()
+    try:
+        head = read_mesh(args.mesh)
+        landmarks = read_landmarks(args.landmarks)
+        result = transfer_rig(_reference(args), head, landmarks, name=args.name or Path(args.mesh).stem)
+    except TransferError as err:
+        raise ConfigError(str(err)) from err
+    model = compile_model(result.rig)
+    save_rig(result.rig, out)
+    seconds = time.perf_counter() - start
+    image = None if args.no_image else _render(model, out.with_suffix(".png"))
+    report = out.with_suffix(".report.md")
+    report.write_text(format_report(result, args.mesh, args.landmarks, seconds,
+                                    Path(image).name if image else None), encoding="utf-8")
+    m = result.rig.mesh
+    print(f"wrote {out} ({len(m.vertices)} vertices, {sum(len(p) for p in result.rig.muscles.values())} "
+          f"muscle parts, scale x{result.similarity.scale:.4g} to cm) in {seconds:.1f} s")
+    print(f"report: {report}" + (f"; picture: {image}" if image else ""))
+    return 0

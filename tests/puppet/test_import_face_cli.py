@@ -1,0 +1,88 @@
+"""`puppet import-face` end to end in a subprocess: OBJ + landmark JSON in, rig + report +
+picture out; bad inputs give one `puppet: error:` line naming the file and exit status 2."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+
+def _puppet(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "puppet", *args], capture_output=True, text=True,
+                          cwd=cwd, timeout=120)
+
+
+@pytest.fixture(scope="module")
+def head(tmp_path_factory) -> tuple[Path, dict, np.ndarray]:
+    """The default face re-meshed, in millimetres, lying on its side, written as OBJ."""
+    import trimesh
+
+    from sim.face_builder import build_face_mesh
+
+    mesh = build_face_mesh(0)
+    rot = Rotation.from_euler("zyx", [90, 25, -10], degrees=True).as_matrix()
+    verts = 10.0 * mesh.vertices @ rot.T + [120.0, 5.0, -30.0]
+    d = tmp_path_factory.mktemp("head")
+    trimesh.Trimesh(verts, mesh.triangles, process=False).export(d / "head.obj")
+    return d, {k: int(v) for k, v in mesh.landmarks.items()}, verts
+
+
+def test_import_face_writes_rig_report_and_picture(head) -> None:
+    from PIL import Image
+
+    from sim.build import compile_model
+    from sim.rig import load_rig
+
+    d, lms, verts = head
+    # half the landmarks as vertex indices, half as points: both forms are accepted
+    data = {k: (v if i % 2 else verts[v].tolist()) for i, (k, v) in enumerate(sorted(lms.items()))}
+    (d / "landmarks.json").write_text(json.dumps({"landmarks": data}))
+    out = _puppet("import-face", "head.obj", "--landmarks", "landmarks.json", "--out", "head.npz", cwd=d)
+    assert out.returncode == 0, out.stderr
+    assert "wrote head.npz" in out.stdout
+    rig = load_rig(d / "head.npz")
+    assert rig.name == "head" and len(rig.muscles) > 20
+    top, chin = rig.mesh.landmark("forehead_center"), rig.mesh.landmark("chin")
+    assert top[1] - chin[1] > 10  # cm and upright, although the file was mm and on its side
+    compile_model(rig)
+    report = (d / "head.report.md").read_text()
+    assert "scale to cm: x0.1" in report and "muscles transferred: " in report
+    assert "| nose_tip |" in report
+    img = np.asarray(Image.open(d / "head.png").convert("RGB")).astype(int)
+    red = (img[..., 0] > 150) & (img[..., 1] < 80) & (img[..., 2] < 80)
+    assert red.sum() > 500  # the muscles are drawn over the face
+
+
+def _error_line(out: subprocess.CompletedProcess) -> str:
+    assert out.returncode == 2, (out.stdout, out.stderr)
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("puppet: error: "), out.stderr
+    return lines[0]
+
+
+def test_missing_landmark_is_one_clear_line(head) -> None:
+    d, lms, _ = head
+    (d / "partial.json").write_text(json.dumps({k: v for k, v in lms.items() if k != "subnasale"}))
+    line = _error_line(_puppet("import-face", "head.obj", "--landmarks", "partial.json", "--out",
+                               "x.npz", cwd=d))
+    assert "partial.json: missing landmark(s) subnasale" in line
+    assert not (d / "x.npz").exists()
+
+
+def test_bad_inputs_are_one_clear_line(head) -> None:
+    d, lms, verts = head
+    far = dict(lms)
+    far["nose_tip"] = (verts[lms["nose_tip"]] + [0.0, 0.0, 500.0]).tolist()
+    (d / "far.json").write_text(json.dumps(far))
+    line = _error_line(_puppet("import-face", "head.obj", "--landmarks", "far.json", "--out", "x.npz", cwd=d))
+    assert "far.json: landmark 'nose_tip' lies" in line and "head.obj" in line
+    (d / "blob.ply").write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                                "property float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n")
+    line = _error_line(_puppet("import-face", "blob.ply", "--landmarks", "far.json", "--out", "x.npz", cwd=d))
+    assert "blob.ply" in line
