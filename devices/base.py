@@ -184,8 +184,12 @@ class Device:
             except Exception as err:
                 self.warnings.warn("listener", f"listener {fn!r} failed: {err!r}")
 
-    def _status(self, status: str, detail: str = "") -> None:
-        self.emit(StatusEvent(self.spec, status, time.monotonic(), detail))  # type: ignore[arg-type]
+    def _now(self) -> float:
+        """The clock of status events; a scripted device replaces it with its script clock."""
+        return time.monotonic()
+
+    def _status(self, status: str, detail: str = "", t: float | None = None) -> None:
+        self.emit(StatusEvent(self.spec, status, self._now() if t is None else t, detail))  # type: ignore[arg-type]
 
     def _safe_close_handle(self) -> None:
         try:

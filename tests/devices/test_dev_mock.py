@@ -83,6 +83,7 @@ def test_threaded_playback_as_fast_as_possible_includes_scripted_unplug(tmp_path
     dev.close()
     statuses = [e.status for e in got if isinstance(e, StatusEvent)]
     assert statuses == ["connected", "lost"]
+    assert [e.t for e in got if isinstance(e, StatusEvent)] == [0.0, 3.0]  # script time, reproducible
     controls = [e for e in got if isinstance(e, ControlEvent)]
     assert controls == [e for e in dev.play_all() if e.t < 3.0]  # nothing after the unplug
 
@@ -140,3 +141,13 @@ def test_puppet_monitor_bad_spec_is_one_line() -> None:
                          capture_output=True, text=True, timeout=60, cwd=Path(__file__).parents[2])
     assert out.returncode == 2
     assert out.stderr.strip().startswith("puppet: error: mock://missing.toml") and len(out.stderr.splitlines()) == 1
+
+
+@pytest.mark.parametrize("name", ["sgi_rehearsal.toml", "unplug.json"])
+def test_example_scripts_load_and_stay_in_range(name: str) -> None:
+    dev = open_device(f"mock://{Path(__file__).parents[2] / 'examples' / 'mock' / name}")
+    events = dev.play_all()
+    assert events
+    for e in events:
+        info = dev.control(e.control)
+        assert info is not None and info.lo <= e.value <= info.hi
