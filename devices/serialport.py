@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections import deque
 from collections.abc import Iterable
 from typing import Any
 
@@ -36,6 +37,7 @@ class SerialPortDevice(Device):
         self.baudrate = spec.get_int("baud", self.BAUDRATE, lo=50, hi=4_000_000)
         self._port: Any = None
         self._write_lock = threading.Lock()
+        self._outbox: deque[bytes] = deque()
         self._port_id: tuple[int, int] | None = None
         self._last_data = 0.0
 
@@ -83,6 +85,16 @@ class SerialPortDevice(Device):
                 port.write(data[i : i + 1])
                 time.sleep(pace)
 
+    def send_later(self, data: bytes) -> None:
+        """Queue bytes for the reader thread to write, so a caller (the live loop setting a light)
+        never blocks on a slow or vanished port."""
+        self._outbox.append(data)
+        self._wake()
+
+    def _flush_outbox(self) -> None:
+        while self._outbox:
+            self.write(self._outbox.popleft())
+
     def read_raw(self, timeout: float) -> tuple[bytes, float]:
         """Whatever bytes arrive within ``timeout`` (returns at the first byte) and the monotonic
         time taken right after the read."""
@@ -99,6 +111,7 @@ class SerialPortDevice(Device):
         return data, t
 
     def _read(self, timeout: float) -> Iterable[ControlEvent]:
+        self._flush_outbox()
         self._before_read()
         data, t = self.read_raw(timeout)
         if not data:

@@ -140,4 +140,4 @@ class TextSerialDevice(SerialPortDevice):
         return events
 
     def _set_light(self, control: str, level: float) -> None:
-        self.write(f"L{control.removeprefix('button')} {1 if level >= 0.5 else 0}\n".encode("ascii"))
+        self.send_later(f"L{control.removeprefix('button')} {1 if level >= 0.5 else 0}\n".encode("ascii"))

@@ -8,6 +8,7 @@ Hot-plug: when a read fails the handle is closed, and the device is looked up ag
 from __future__ import annotations
 
 import time
+from collections import deque
 from collections.abc import Iterable
 from typing import Any
 
@@ -38,6 +39,8 @@ class HidDevice(Device):
     scheme = "hid"
     FORM = "hid://VID:PID[?serial=S&index=N&counts_per_turn=N&generic=1]"
     OPTIONS = frozenset({"serial", "index", "counts_per_turn", "generic"})
+    #: Short reads bound how long a queued light command waits (hidapi reads cannot be woken).
+    read_timeout = 0.02
 
     def __init__(self, spec: DeviceSpec, hid_api_module: Any = None, **options: Any) -> None:
         super().__init__(spec, **options)
@@ -48,6 +51,7 @@ class HidDevice(Device):
         self.force_generic = spec.get_bool("generic", False)
         self._api = hid_api_module
         self._handle: HidHandle | None = None
+        self._outbox: deque[Command] = deque()
         self.decoder: Profile | GenericDecoder | None = None
         self.report_size = 64
 
@@ -98,6 +102,8 @@ class HidDevice(Device):
         handle = self._handle
         if handle is None:
             raise OSError("not open")
+        while self._outbox:
+            self._send(self._outbox.popleft())
         data = handle.read(self.report_size, int(timeout * 1000))
         t = time.monotonic()
         if not data:
@@ -120,15 +126,11 @@ class HidDevice(Device):
             handle.write(cmd.data)
 
     def _set_light(self, control: str, level: float) -> None:
+        """Queued for the reader thread: a USB write may take a while and the caller is the live loop."""
         if isinstance(self.decoder, Profile):
-            for cmd in self.decoder.light(control, level):
-                self._send(cmd)
+            self._outbox.extend(self.decoder.light(control, level))
 
     def set_pulse(self, on: bool, speed: int = 255) -> None:
         """PowerMate only: pulse the LED (speed 0..510, 255 normal); a no-op elsewhere."""
         if isinstance(self.decoder, PowerMateProfile) and self._connected:
-            try:
-                for cmd in self.decoder.pulse(on, speed):
-                    self._send(cmd)
-            except OSError as err:
-                self.warnings.warn("light", f"cannot pulse: {err}")
+            self._outbox.extend(self.decoder.pulse(on, speed))
