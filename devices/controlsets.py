@@ -48,6 +48,11 @@ def text_controls(n_buttons: int = 16, n_dials: int = 8, n_axes: int = 8) -> lis
     return buttons(n_buttons, lights=True) + dials(n_dials) + axes(n_axes)
 
 
+def firmata_controls() -> list[ControlInfo]:
+    """An Arduino Uno under StandardFirmata with the backend's default pins: A0-A5, D2-D12."""
+    return axes(6) + buttons(11, start=2)
+
+
 def keyboard_controls() -> list[ControlInfo]:
     """The keyboard fallback's declared keys."""
     from devices.keyboard import _NAMED
@@ -61,6 +66,7 @@ CONTROL_SETS = {
     "shuttlexpress": lambda: shuttle_controls(5),
     "shuttlepro": lambda: shuttle_controls(15),
     "serial": text_controls,
+    "firmata": firmata_controls,
     "keyboard": keyboard_controls,
 }
 

@@ -151,3 +151,13 @@ def test_example_scripts_load_and_stay_in_range(name: str) -> None:
     for e in events:
         info = dev.control(e.control)
         assert info is not None and info.lo <= e.value <= info.hi
+
+
+def test_impersonated_control_sets_match_the_real_backends(tmp_path: Path) -> None:
+    from devices.controlsets import control_set
+
+    for scheme in ("sgi", "firmata", "serial"):
+        real = open_device(f"{scheme}://{tmp_path / 'absent'}", require=False)
+        assert not real.connected and real.controls == control_set(scheme)
+        real.close()
+    assert open_device("keyboard://").controls == control_set("keyboard")
