@@ -105,28 +105,36 @@ def _layout(resolution: int) -> tuple[fc.ChartLayout, FloatArray, FloatArray]:
         lower_lid_l=int(e[n_eye + n_eye // 2]), upper_lip_center=int(lay.mouth_upper[0]),
         lower_lip_center=int(lay.mouth_lower[0]), mouth_corner_l=int(lay.mouth_upper[-1]),
     )
-    rows: list[FloatArray] = []
-    for k, grow in enumerate((0.22, 0.47, 0.8)):
-        rows.append(fc.eye_loop_chart(max(int(round(n_eye * (1.0 + 0.12 * k) * min(1.0, 0.55 / s + 0.45))), 6), grow * s))
-    for grow in (0.25, 0.55):
-        u_, l_ = fc.mouth_half_loop(8 * 2**resolution + 1, grow * s)
-        rows += [u_, l_]
-    for name, line in fc.wrinkle_lines().items():
-        if name.startswith("crows_feet"):
-            rows.append(line)
-            continue
-        forehead = name.startswith("forehead")
-        base = fc.resample(line, (0.8 if forehead else 0.55) * s)
-        rows += [base, fc._offset(base, 0.3 * s), fc._offset(base, -0.3 * s)]
-    pts = np.vstack(rows)
+    pts = np.vstack(_rows(resolution))
     pts[np.abs(pts[:, 0]) < 0.15 * s, 0] = 0.0
     pts = pts[pts[:, 0] >= 0.0]
     poly = np.vstack([border, [[0.0, fc.V_TOP]]])
     pts = pts[_in_polygon(pts, border) & ~_in_holes(pts, lay)]
     lay.add(pts, min_dist=0.17 * s)
     _midline(lay, s)
+    n_fixed = len(lay.array())
     _fill(lay, s * FILL_SCALE[resolution], border)
+    _relax(lay, n_fixed, poly)
     return lay, poly, border
+
+
+def _rows(resolution: int) -> list[FloatArray]:
+    """Lid and lip rings, then the wrinkle lines, then their flank rows (earlier rows win where
+    two come closer than the thinning distance)."""
+    s = 0.5**resolution
+    n_eye = 10 * 2**resolution
+    rings = [fc.eye_loop_chart(int(round(n_eye * (1.0 + 0.05 * k))), g * s) for k, g in enumerate((0.22, 0.47, 0.8))]
+    for grow in (0.25, 0.55):
+        rings += list(fc.mouth_half_loop(8 * 2**resolution + 1, grow * s))
+    lines, flanks = [], []
+    for name, line in fc.wrinkle_lines().items():
+        if name.startswith("crows"):
+            (flanks if "flank" in name else lines).append(fc.resample(line, 0.42 * s))
+            continue
+        base = fc.resample(line, (0.8 if name.startswith("forehead") else 0.55) * s)
+        lines.append(base)
+        flanks += [fc._offset(base, 0.3 * s), fc._offset(base, -0.3 * s)]
+    return rings + lines + flanks
 
 
 def _in_holes(pts: FloatArray, lay: fc.ChartLayout) -> np.ndarray:
@@ -182,6 +190,26 @@ def _fill(lay: fc.ChartLayout, s: float, border: FloatArray) -> None:
             chosen.append(i)
             alive[tree.query_ball_point(cand[i], 0.8 * h[i])] = False
     lay.add(cand[np.sort(chosen)])
+
+
+def _relax(lay: fc.ChartLayout, n_fixed: int, poly: FloatArray, rounds: int = 3) -> None:
+    """A few damped Laplacian steps on the fill points (rows stay put): evens out the triangles
+    where the fill meets the ends of the rows."""
+    pts = lay.array()
+    for _ in range(rounds):
+        tri = Delaunay(pts).simplices
+        e = np.vstack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+        e = np.vstack([e, e[:, ::-1]])
+        total = np.zeros_like(pts)
+        np.add.at(total, e[:, 0], pts[e[:, 1]])
+        deg = np.bincount(e[:, 0], minlength=len(pts))[:, None]
+        target = 0.5 * pts + 0.5 * total / np.maximum(deg, 1)
+        move = np.zeros(len(pts), bool)
+        move[n_fixed:] = True
+        ok = _in_polygon(target, poly) & ~_in_holes(target, lay) & (target[:, 0] > 0.0)
+        move &= ok
+        pts[move] = target[move]
+    lay.points = [pts]
 
 
 def _triangulate(pts: FloatArray, poly: FloatArray, lay: fc.ChartLayout) -> np.ndarray:

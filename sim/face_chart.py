@@ -97,11 +97,13 @@ def wrinkle_lines() -> dict[str, FloatArray]:
         lines[f"forehead_{k}"] = to_chart(np.stack([x, v0 - 0.35 * (x / 4.6) ** 2], axis=1))
     lines["glabella"] = to_chart(np.array([[0.6, 0.9], [0.62, 1.7], [0.68, 2.5]]))
     ox, oy = fs.EYE_OUTER
-    for k, ang in enumerate((-40.0, -20.0, 0.0, 20.0, 40.0)):
-        # Crow's feet: the rays at -20, 0, +20 degrees; the others flank them.
+    for ang in (-30.0, -20.0, -10.0, 0.0, 10.0, 20.0, 30.0):
+        # Crow's feet: the rays at -20, 0, +20 degrees; the ones between and outside flank them.
         a = np.radians(ang)
-        r = np.linspace(0.6 + 0.15 * (k % 2), 1.9, 5)
-        lines[f"crows_feet_{k}"] = to_chart(np.stack([ox + r * np.cos(a), oy + r * np.sin(a)], axis=1))
+        wrinkle = ang in (-20.0, 0.0, 20.0)
+        r = np.linspace(0.6 if wrinkle else 0.95, 1.9, 5 if wrinkle else 4)
+        kind = "crows_feet" if wrinkle else "crows_flank"
+        lines[f"{kind}_{int(ang):+d}"] = to_chart(np.stack([ox + r * np.cos(a), oy + r * np.sin(a)], axis=1))
     t = np.linspace(0.0, 1.0, 12)
     bez = ((1 - t) ** 2)[:, None] * [1.95, -4.15] + (2 * t * (1 - t))[:, None] * [3.05, -5.3] + (t**2)[:, None] * [3.35, -7.7]
     lines["nasolabial"] = to_chart(bez)

@@ -128,12 +128,16 @@ def features(x: FloatArray, y: FloatArray) -> FloatArray:
     f += 0.7 * _g(ax, y, 4.5, -1.7, 1.4, 0.9)  # cheekbone
     f += 0.35 * _g(ax, y, 3.4, -4.2, 1.4, 1.4)  # cheek fat
     f -= 0.2 * _g(ax, y, 2.3, -2.6, 0.8, 0.9)  # tear trough / nose-cheek junction
-    h, w = _nose_profile(y)
+    # The nose's underside rises towards the wings, so it is lowest at the columella.
+    h, w = _nose_profile(y + 0.3 * np.minimum(ax / 1.3, 1.2) ** 2)
     f += h * np.exp(-((ax / w) ** 2) * (1.0 + 0.3 * (ax / w) ** 2))  # bridge and tip
-    f += 0.75 * _g(ax, y, 1.35, -4.55, 0.5, 0.45)  # alar wing
-    f += 0.25 * _g(ax, y, 0.7, -4.75, 0.5, 0.3)  # nostril sill
+    f += 0.3 * _g(ax, y, 0.0, -4.05, 0.5, 0.5)  # tip lobule
+    f += 0.7 * _g(ax, y, 1.3, -4.5, 0.5, 0.42)  # alar wing
+    f -= 0.18 * _g(ax, y, 1.9, -4.3, 0.3, 0.5)  # alar groove
+    f += 0.2 * _g(ax, y, 0.75, -4.8, 0.45, 0.25)  # nostril sill
     f += 0.55 * _g(ax, y, 0.0, -6.2, 2.3, 0.9)  # upper lip body
     f -= 0.12 * _g(ax, y, 0.0, -5.7, 0.35, 0.5)  # philtrum groove
+    f += 0.08 * _g(ax, y, 0.45, -5.8, 0.18, 0.6)  # philtral ridges
     f += 0.35 * _g(ax, y, 0.0, -6.9, 1.8, 0.3)  # upper vermilion
     f += 0.55 * _g(ax, y, 0.0, -7.65, 1.6, 0.45)  # lower lip
     f -= 0.35 * _g(ax, y, 2.8, -7.2, 0.5, 0.45)  # mouth corner dimple

@@ -242,7 +242,7 @@ def test_finer_around_eyes_and_mouth_than_on_forehead(mesh0: FaceMesh) -> None:
     mid = v[e].mean(axis=1)
     near_eye = np.linalg.norm(mid[:, :2] - mesh0.eye_centers[0, :2], axis=1) < 1.8
     near_mouth = np.hypot(mid[:, 0] / 3.0, (mid[:, 1] - mesh0.landmark("upper_lip_center")[1]) / 0.8) < 1.0
-    side = (np.abs(mid[:, 0]) > 5.5) & (mid[:, 1] > -4.0)
+    side = (np.abs(mid[:, 0]) > 4.8) & (mid[:, 1] < -1.5) & (mid[:, 1] > -6.5)  # lateral cheek
     assert np.median(length[near_eye]) < 0.6 * np.median(length[side])
     assert np.median(length[near_mouth]) < 0.6 * np.median(length[side])
 
@@ -260,3 +260,28 @@ def test_uv_chart_is_flat_and_mirrored(mesh: FaceMesh) -> None:
 def test_bad_resolution_is_a_value_error() -> None:
     with pytest.raises(ValueError, match="resolution"):
         build_face_mesh(3)
+
+
+def test_wrinkle_lines_have_rows_on_both_sides(mesh0: FaceMesh) -> None:
+    """Seed 003 section 2: every expressive wrinkle line has vertices on it and on either side
+    within about 3 mm, so a furrow and its rolls can be shaped."""
+    from sim.face_chart import resample, wrinkle_lines
+
+    uv = mesh0.uv
+    assert uv is not None
+    for name, line in wrinkle_lines().items():
+        if name.startswith("crows_flank"):
+            continue  # rows beside the crow's feet, not wrinkles
+        if name.startswith("crows_feet"):
+            line = line[:3]  # the rays fan out: only near the eye corner are they 3 mm apart
+        pts = resample(line, 0.2)[1:-1]
+        tang = np.gradient(pts, axis=0)
+        tang /= np.linalg.norm(tang, axis=1, keepdims=True)
+        for p, t in zip(pts, tang):
+            rel = uv - p
+            along = rel @ t
+            across = rel @ np.array([-t[1], t[0]])
+            near = np.abs(along) < 0.45
+            assert (near & (np.abs(across) < 0.05)).any(), (name, p)
+            assert (near & (across > 0.1) & (across < 0.4)).any(), (name, p)
+            assert (near & (across < -0.1) & (across > -0.4)).any(), (name, p)
