@@ -81,10 +81,16 @@ class FaceFrame:
         return cand[np.argmax(cand[:, 2])]
 
     def skin(self, p: np.ndarray) -> np.ndarray:
-        """p moved along Z onto the skin: z of the front-most of the vertices nearest in (x, y)."""
-        d2 = np.sum((self._front_xy - p[:2]) ** 2, axis=1)
-        near = np.argpartition(d2, min(6, len(d2) - 1))[:6]
-        return np.array([p[0], p[1], self.mesh.vertices[near, 2].max()])
+        """p moved along Z onto the front of the skin: inverse-distance-weighted z of the vertices
+        within 0.4 reference cm (in x, y) of p's nearest vertex, keeping only the front-most layer
+        (z within 0.5 cm of the largest) where the surface folds back (lids, lips, nose). Defined by
+        distances only, so it is mirror-symmetric and scale-invariant (no tie-breaking by index)."""
+        d = np.sqrt(np.sum((self._front_xy - p[:2]) ** 2, axis=1))
+        near = d <= d.min() + 0.4 * self.s
+        z = self.mesh.vertices[near, 2]
+        front = z >= z.max() - 0.5 * self.s
+        w = 1.0 / (d[near][front] + 0.05 * self.s)
+        return np.array([p[0], p[1], float(np.sum(w * z[front]) / np.sum(w))])
 
     def at(self, name: str, side: float, dx: float, dy: float, depth: float = 0.0) -> np.ndarray:
         """Landmark + (lateral dx, up dy) reference-face cm, on the skin, then depth cm behind it.

@@ -1,0 +1,122 @@
+"""Expression presets, blink and jaw on the procedural default face: each moves the landmarks the way
+the expression does (FACS descriptions), clearly (mm to ~1 cm) but boundedly."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim import facs
+from sim.build import FaceModel
+from sim.channels import ChannelError
+from sim.integrator import Simulator
+from sim.state import FaceControl
+
+
+@pytest.fixture(scope="module")
+def poses(face_model: FaceModel) -> dict[str, np.ndarray]:
+    """Settled displacement (N,3) for every preset (wrinkles off: only the dynamics matter here)."""
+    out = {}
+    for name in facs.EXPRESSIONS:
+        c = FaceControl()
+        facs.apply_expression(c, name, 1.0)
+        sim = Simulator(face_model, wrinkles=False)
+        state = face_model.rest_state()
+        sim.settle(state, c, max_seconds=3.0)
+        assert not sim.guard_events
+        out[name] = state.positions - face_model.rest
+    return out
+
+
+def _d(model: FaceModel, disp: np.ndarray, name: str) -> np.ndarray:
+    return disp[model.mesh.landmarks[name]]
+
+
+def test_every_preset_is_visible_and_bounded(face_model: FaceModel, poses: dict[str, np.ndarray]) -> None:
+    for name, disp in poses.items():
+        mag = np.linalg.norm(disp, axis=1)
+        assert 0.3 < mag.max() < 2.5, name  # mm to ~1 cm (the open jaw of surprise moves the chin more)
+
+
+def test_happiness_mouth_corners_up_and_out(face_model: FaceModel, poses: dict[str, np.ndarray]) -> None:
+    left, right = (_d(face_model, poses["happiness"], f"mouth_corner_{s}") for s in "lr")
+    assert left[1] > 0.3 and right[1] > 0.3
+    assert left[0] > 0.2 and right[0] < -0.2  # +X is the face's left
+
+
+def test_surprise_brows_up(face_model: FaceModel, poses: dict[str, np.ndarray]) -> None:
+    for lm in ("brow_inner_l", "brow_inner_r", "brow_mid_l", "brow_outer_r"):
+        assert _d(face_model, poses["surprise"], lm)[1] > 0.2, lm
+    assert _d(face_model, poses["surprise"], "chin")[1] < -0.5  # AU26 jaw drop
+
+
+def test_anger_inner_brows_down_and_together(face_model: FaceModel, poses: dict[str, np.ndarray]) -> None:
+    left, right = (_d(face_model, poses["anger"], f"brow_inner_{s}") for s in "lr")
+    assert left[1] < -0.1 and right[1] < -0.1
+    assert left[0] < -0.2 and right[0] > 0.2  # towards the midline
+
+
+def test_sadness_inner_brows_up_mouth_corners_down(face_model: FaceModel, poses: dict[str, np.ndarray]) -> None:
+    for s in "lr":
+        assert _d(face_model, poses["sadness"], f"brow_inner_{s}")[1] > 0.1
+        assert _d(face_model, poses["sadness"], f"mouth_corner_{s}")[1] < -0.3
+
+
+def test_disgust_nose_wings_and_upper_lip_up(face_model: FaceModel, poses: dict[str, np.ndarray]) -> None:
+    for lm in ("nose_wing_l", "nose_wing_r", "upper_lip_center"):
+        assert _d(face_model, poses["disgust"], lm)[1] > 0.3, lm
+
+
+def test_fear_brows_up_lips_stretched(face_model: FaceModel, poses: dict[str, np.ndarray]) -> None:
+    assert _d(face_model, poses["fear"], "brow_inner_l")[1] > 0.1
+    assert _d(face_model, poses["fear"], "mouth_corner_l")[0] > 0.2  # AU20 pulls the corners sideways
+
+
+def test_contempt_moves_one_mouth_corner_only(face_model: FaceModel, poses: dict[str, np.ndarray]) -> None:
+    moved = np.linalg.norm(_d(face_model, poses["contempt"], "mouth_corner_r"))
+    still = np.linalg.norm(_d(face_model, poses["contempt"], "mouth_corner_l"))
+    assert moved > 0.4 and still < 0.2 * moved
+
+
+def test_blink_closes_the_lids(face_model: FaceModel) -> None:
+    m = face_model
+    c = FaceControl()
+    facs.apply_au(c, "AU45", 1.0)
+    sim = Simulator(m, wrinkles=False)
+    state = m.rest_state()
+    sim.settle(state, c, max_seconds=2.0)
+    for s in "lr":
+        up, low = m.mesh.landmarks[f"upper_lid_{s}"], m.mesh.landmarks[f"lower_lid_{s}"]
+        opening = m.rest[up, 1] - m.rest[low, 1]
+        now = state.positions[up, 1] - state.positions[low, 1]
+        assert opening > 0.8 and abs(now) < 0.2 * opening  # from ~1 cm to within 2 mm
+
+
+def test_jaw_opens_and_closes(face_model: FaceModel) -> None:
+    m = face_model
+    sim = Simulator(m, wrinkles=False)
+    state = m.rest_state()
+    c = FaceControl()
+    c.set("jaw", 1.0)
+    sim.settle(state, c, max_seconds=2.0)
+    chin = m.mesh.landmarks["chin"]
+    brow = m.mesh.landmarks["brow_inner_l"]
+    drop = m.rest[chin, 1] - state.positions[chin, 1]
+    assert 1.5 < drop < 5.0 and abs(state.positions[brow, 1] - m.rest[brow, 1]) < 0.1
+    sim.settle(state, FaceControl(), max_seconds=3.0)
+    assert np.abs(state.positions - m.rest).max() < 1e-3
+
+
+def test_facs_names_and_ranges() -> None:
+    c = FaceControl()
+    facs.apply_au(c, "au12_l", 0.5)
+    assert c.get("zygomaticus_major_l") == 0.5 and c.get("zygomaticus_major_r") == 0.0
+    facs.apply_au(c, "AU12", 0.3)  # max-combined, never lowers
+    assert c.get("zygomaticus_major_l") == 0.5 and c.get("zygomaticus_major_r") == 0.3
+    for bad in (lambda: facs.apply_au(c, "AU99", 1), lambda: facs.apply_au(c, "AU12", 1.5),
+                lambda: facs.apply_expression(c, "joy"), lambda: c.set("nope", 0.0),
+                lambda: c.set("jaw", -0.1)):
+        with pytest.raises(ChannelError):
+            bad()
+    for expr in facs.EXPRESSIONS.values():
+        assert all(au in facs.AU_TABLE for au in expr)

@@ -1,0 +1,100 @@
+"""The rig file: round trip, identity hash, and one-line errors for malformed files."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim.build import compile_model
+from sim.model import FaceRig
+from sim.rig import RigFileError, load_rig, save_rig
+
+
+def test_round_trip_keeps_mesh_muscles_and_hash(synth_rig: FaceRig, tmp_path: Path) -> None:
+    path = tmp_path / "face.npz"
+    save_rig(synth_rig, path)
+    back = load_rig(path)
+    a, b = synth_rig.mesh, back.mesh
+    for field in ("vertices", "triangles", "held", "jaw_weight", "jaw_pivot", "jaw_axis", "eye_centers",
+                  "mouth_loop", "uv"):
+        assert np.array_equal(getattr(a, field), getattr(b, field)), field
+    assert a.landmarks == b.landmarks and set(a.regions) == set(b.regions)
+    assert all(np.array_equal(x, y) for x, y in zip(a.eye_loops, b.eye_loops))
+    assert set(back.muscles) == set(synth_rig.muscles)
+    for name, parts in synth_rig.muscles.items():
+        for m0, m1 in zip(parts, back.muscles[name]):
+            assert type(m0) is type(m1)
+            for k, v in vars(m0).items():
+                assert np.array_equal(np.asarray(v), np.asarray(getattr(m1, k))), (name, k)
+    assert compile_model(back).hash == compile_model(synth_rig).hash
+
+
+def test_hash_changes_with_a_muscle(synth_rig: FaceRig) -> None:
+    import dataclasses
+
+    muscles = dict(synth_rig.muscles)
+    zyg = muscles["zygomaticus_major_l"][0]
+    muscles["zygomaticus_major_l"] = (dataclasses.replace(zyg, scale=zyg.scale * 1.01),)
+    other = FaceRig(synth_rig.mesh, muscles, name=synth_rig.name)
+    assert compile_model(other).hash != compile_model(synth_rig).hash
+
+
+def _rewrite(src: Path, dst: Path, **changes: object) -> None:
+    with np.load(src, allow_pickle=False) as d:
+        arrays = {k: d[k] for k in d.files}
+    for k, v in changes.items():
+        if v is None:
+            arrays.pop(k)
+        else:
+            arrays[k] = v  # type: ignore[assignment]
+    with open(dst, "wb") as fh:
+        np.savez(fh, **arrays)
+
+
+def _header(src: Path) -> dict:
+    with np.load(src, allow_pickle=False) as d:
+        return json.loads(str(d["header"]))
+
+
+@pytest.mark.parametrize("case", ["garbage", "missing", "no_header", "version", "tri_range", "muscle_field",
+                                  "pickled", "nan", "landmark"])
+def test_malformed_rig_raises_one_line_naming_the_file(synth_rig: FaceRig, tmp_path: Path, case: str) -> None:
+    good = tmp_path / "good.npz"
+    save_rig(synth_rig, good)
+    bad = tmp_path / f"{case}.npz"
+    head = _header(good)
+    if case == "garbage":
+        bad.write_bytes(b"PK\x03\x04 this is not a zip")
+    elif case == "missing":
+        bad = tmp_path / "nowhere.npz"
+    elif case == "no_header":
+        _rewrite(good, bad, header=None)
+    elif case == "version":
+        head["version"] = 99
+        _rewrite(good, bad, header=np.array(json.dumps(head)))
+    elif case == "tri_range":
+        with np.load(good) as d:
+            tris = d["triangles"].copy()
+        tris[0, 0] = 10**6
+        _rewrite(good, bad, triangles=tris)
+    elif case == "muscle_field":
+        del head["muscles"][0]["scale"]
+        _rewrite(good, bad, header=np.array(json.dumps(head)))
+    elif case == "pickled":
+        _rewrite(good, bad, vertices=np.array([{"evil": 1}], dtype=object))
+    elif case == "nan":
+        with np.load(good) as d:
+            v = d["vertices"].copy()
+        v[3, 1] = np.nan
+        _rewrite(good, bad, vertices=v)
+    elif case == "landmark":
+        head["landmarks"]["chin"] = -5
+        _rewrite(good, bad, header=np.array(json.dumps(head)))
+    with pytest.raises(RigFileError) as info:
+        load_rig(bad)
+    msg = str(info.value)
+    assert isinstance(info.value, ValueError)
+    assert str(bad) in msg and "\n" not in msg
