@@ -104,7 +104,7 @@ class TextParser:
             self._bad("range", raw, "button value must be 0 or 1")
             return
         pressed = value == 1
-        if self._down.get(n) == pressed:
+        if self._down.get(n, False) == pressed:  # buttons start released
             return
         self._down[n] = pressed
         out.append(ControlEvent(self.device, f"button{n}", "button", float(value), None, int(value), t))
