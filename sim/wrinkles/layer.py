@@ -30,7 +30,7 @@ FloatArray = np.ndarray
 IntArray = np.ndarray
 
 STATION_STEP = 0.15  # cm between stations along a line
-TAPER = 0.35  # cm over which a wrinkle fades in at each end of its line
+TAPER = 0.5  # cm over which a wrinkle fades in at each end of its line
 FURROW_HALF_WIDTH = 0.12  # cm, half width of the microfurrow groove
 
 

@@ -51,7 +51,7 @@ class WrinkleLine:
     asym_minus: bool = False
     asym_plus: bool = False
     emphasis: float = 1.0
-    furrow: float = 0.35
+    furrow: float = 0.5
 
     def to_dict(self) -> dict:
         """Plain JSON-able form, for rig files."""
@@ -82,7 +82,7 @@ class WrinkleLine:
             asym_minus=bool(data.get("asym_minus", False)),
             asym_plus=bool(data.get("asym_plus", False)),
             emphasis=float(data.get("emphasis", 1.0)),
-            furrow=float(data.get("furrow", 0.35)),
+            furrow=float(data.get("furrow", 0.5)),
         )
 
 
@@ -100,7 +100,7 @@ class _Spec:
     asym_minus: bool = False
     asym_plus: bool = False
     emphasis: float = 1.0
-    furrow: float = 0.35
+    furrow: float = 0.5
 
 
 _FRONTALIS = ("frontalis_inner_l", "frontalis_inner_r", "frontalis_outer_l", "frontalis_outer_r")
@@ -155,7 +155,7 @@ REFERENCE_MASK: tuple[_Spec, ...] = (
                                          (0.55, 0.41), (0.7, -0.5)),
           ("levator_labii_{s}", "levator_labii_alaeque_nasi_{s}", "zygomaticus_major_{s}",
            "zygomaticus_minor_{s}", "levator_anguli_oris_{s}"),
-          0.3, 0.85, asym_plus=True, emphasis=1.2, furrow=0.5),
+          0.3, 0.85, asym_plus=True, emphasis=1.0, furrow=0.5),
     # marionette line from below the mouth corner towards the jaw
     _Spec("marionette", "mouth_corner", ((0.4, -0.55), (0.5, -1.6), (0.6, -2.8)),
           ("depressor_anguli_oris_{s}",), 0.35, 0.35),
