@@ -205,8 +205,8 @@ class GenericDecoder:
 
     def _plan(self) -> None:
         for f in self.desc.fields:
-            if f.constant or not f.usages:
-                continue
+            if f.constant or not f.usages or f.logical_max < f.logical_min:
+                continue  # padding, or a range no value can be inside
             if not f.variable:  # an array: slots hold the index of the pressed usage
                 buttons = {u: self._add(ControlInfo(f"button{(u & 0xFFFF) - 1}", "button"))
                            for u in f.usages if u >> 16 == PAGE_BUTTON}

@@ -86,6 +86,8 @@ def test_malformed_descriptors_are_rejected() -> None:
         ReportDescriptor.parse(b"\x85\x00")
     with pytest.raises(DescriptorError, match="count"):
         ReportDescriptor.parse(bytes.fromhex("05 01 09 30 75 08 97 ff ff ff ff 81 02"))
+    upside_down = GenericDecoder("u", ReportDescriptor.parse(bytes.fromhex("05 01 09 30 15 1e 25 00 75 08 95 01 81 02")))
+    assert upside_down.controls == []  # logical max below min: no value can be valid
     huge = GenericDecoder("h", ReportDescriptor.parse(bytes.fromhex("05 01 09 30 15 00 25 7f 75 08 96 00 10 81 02")))
     assert len(huge.controls) == 256
 
