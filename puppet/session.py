@@ -6,6 +6,7 @@ mapping text, start time). Then, in tick order:
   {"t": "st",  "tick": k, "dev", "status", "detail"}                            device came/went
   {"t": "v",   "tick": k, "v": {channel: value, ...}}  channel values applied to sim step k, changes only
   {"t": "mark","tick": k, "label"}                                                a marker
+  {"t": "chk", "tick": k, "sha"}  digest of the positions after k ticks (replay verifies it)
   {"t": "sync","tick": k}     ticks < k are complete (written at every flush)
   {"t": "end", "ticks": n}    clean end: n ticks were simulated
 Floats are written with repr (what `json` does), the shortest text that reads back to the same
@@ -84,6 +85,10 @@ class SessionWriter:
     def marker(self, tick: int, label: str) -> None:
         self._write({"t": "mark", "tick": tick, "label": label})
 
+    def check(self, tick: int, digest: str) -> None:
+        """A digest of the simulated positions after `tick` ticks, for replay to verify."""
+        self._write({"t": "chk", "tick": tick, "sha": digest})
+
     def tick(self, done_ticks: int) -> None:
         """`done_ticks` ticks are complete; flush if the last flush is 100 ms old."""
         self._done_ticks = done_ticks
@@ -131,6 +136,7 @@ class Session:
     values: dict[int, dict[int, float]] = field(default_factory=dict)
     events: list[dict[str, Any]] = field(default_factory=list)
     markers: list[tuple[int, str]] = field(default_factory=list)
+    checks: dict[int, str] = field(default_factory=dict)
     complete: bool = True
     warnings: list[str] = field(default_factory=list)
 
@@ -219,6 +225,8 @@ def read_session(path: str | Path) -> Session:
             s.events.append(rec)
         elif kind == "mark":
             s.markers.append((tick, str(rec.get("label", ""))))
+        elif kind == "chk":
+            s.checks[tick] = str(rec.get("sha", ""))
         elif kind == "sync":
             sync = max(sync, tick)
     if not s.complete:
@@ -228,4 +236,5 @@ def read_session(path: str | Path) -> Session:
                               f"reading its {s.ticks} complete ticks")
     for k in [k for k in s.values if k >= s.ticks]:
         del s.values[k]
+    s.checks = {k: v for k, v in s.checks.items() if k <= s.ticks}
     return s

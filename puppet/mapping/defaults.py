@@ -45,7 +45,7 @@ def default_map_name(spec: str, kind: str = "") -> str | None:
         m = re.search(r"impersonate=([a-z]+)", spec)
         box = m.group(1) if m else "sgi"
         return {"shuttlepro": "shuttlexpress", "serial": "textbox"}.get(box, box) if box in (
-            "sgi", "powermate", "shuttlexpress", "shuttlepro", "serial", "keyboard") else "sgi"
+            "sgi", "powermate", "shuttlexpress", "shuttlepro", "serial", "keyboard", "firmata") else "sgi"
     if scheme == "hid":
         ids = rest.split("?", 1)[0].lower()
         for key, name in HID_MAPS.items():

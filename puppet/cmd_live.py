@@ -1,0 +1,151 @@
+"""`puppet live`: perform with the control boxes plugged in (or the keyboard), optionally recording."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = subparsers.add_parser(
+        "live",
+        help="perform live: control boxes (or the keyboard) drive the face",
+        description="Perform live. With no --device, every supported box found is used; with none, the "
+        "keyboard of the face window. ESC eases the face back to neutral, M drops a marker. "
+        "See docs/live.md.",
+    )
+    p.add_argument("--device", action="append", default=[], metavar="SPEC",
+                   help="a device spec (sgi:///dev/ttyUSB0, mock://script.toml, ...); repeatable")
+    p.add_argument("--map", metavar="FILE", help="mapping file (default: the shipped map of each device)")
+    p.add_argument("--rig", metavar="PATH", help="rig file (default: the built-in face)")
+    p.add_argument("--record", metavar="FILE", help="record the session to FILE (JSON Lines)")
+    p.add_argument("--headless", action="store_true", help="no window: for scripted and recorded runs")
+    p.add_argument("--duration", type=float, metavar="S", help="stop cleanly after S seconds")
+    p.add_argument("--fullscreen", action="store_true", help="fullscreen window")
+    p.set_defaults(func=run)
+
+
+def _open_devices(specs: list[str], warn: Any) -> list[Any]:
+    import devices
+
+    opened = []
+    if specs:
+        for spec in specs:
+            opened.append(devices.open_device(spec))  # a bad spec is the user's error: one line, exit 2
+        return opened
+    try:
+        found = devices.discover()
+    except Exception as err:  # discovery must never stop a show
+        warn(f"device discovery failed ({err}); using the keyboard")
+        found = []
+    for info in found:
+        if not getattr(info, "usable", True):
+            continue
+        try:
+            opened.append(devices.open_device(info.spec))
+        except devices.DeviceError as err:
+            warn(f"skipping {info.spec}: {err}")
+    return opened
+
+
+def run(args: argparse.Namespace) -> int:
+    from puppet import live
+
+    def warn(msg: str) -> None:
+        print(f"puppet: {msg}", file=sys.stderr)
+
+    live.check_duration(args.duration)
+    windowed = not args.headless and live.display_available()
+    snapshot: Path | None = None
+    record = args.record
+    if not args.headless and not windowed:
+        record = record or str(live.default_record_path())
+        snapshot = Path(record).with_suffix(".png")
+        warn(f"no display found (DISPLAY is not set): running headless, recording to {record} and "
+             f"saving the last frame to {snapshot}; replay with `puppet replay {record} --out video.mp4`")
+    face = live.load_face(args.rig)
+    devs = _open_devices(list(args.device), warn)
+    if windowed and not any(d.spec.startswith("keyboard") for d in devs):
+        import devices
+
+        devs.append(devices.open_device("keyboard://"))  # ESC / M, and the fallback when alone
+    if not devs:
+        warn("no control box found and no window for the keyboard: the face stays neutral")
+    try:
+        return _perform(args, live, face, devs, windowed, record, snapshot, warn)
+    finally:
+        for d in devs:
+            try:
+                d.close()
+            except Exception:  # closing must not hide the real outcome
+                pass
+
+
+def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], windowed: bool,
+             record: str | None, snapshot: Path | None, warn: Any) -> int:
+    import devices
+    from puppet.mapping import Mapper
+    from puppet.session import SessionWriter
+
+    specs = [d.spec for d in devs]
+    spec = live.build_mapping(face.vocab, args.map, specs, system_keys=windowed)
+    mapper = Mapper(spec, face.vocab)
+    for d in devs:
+        mapper.declare_controls(d.spec, d.controls)
+    virtual = bool(devs) and all(getattr(getattr(d, "script", None), "speed", 1.0) == 0 for d in devs)
+    writer = SessionWriter(record, live.session_header(face, spec, live.TICK_RATE, specs)) if record else None
+    by_spec = {d.spec: d for d in devs}
+
+    def lights(dev: str, ctl: str, on: bool) -> None:
+        d = by_spec.get(dev)
+        if d is not None:
+            try:
+                d.set_light(ctl, on)
+            except devices.DeviceError:
+                pass
+
+    import time
+
+    t0 = time.monotonic()
+    core = live.LiveCore(face, mapper, writer=writer, t0=0.0 if virtual else t0, lights=lights)
+    stop = live.StopFlag()
+    stop.install()
+    try:
+        if virtual:
+            duration = args.duration or max(d.script.duration for d in devs) or 1.0
+            live.run_virtual(core, live.scripted_events(devs), duration, stop=stop)
+        elif windowed:
+            from puppet.live import run_window
+
+            queue = devices.EventQueue()
+            for d in devs:
+                d.add_listener(queue)
+                d.start()
+            run_window(core, queue.drain, args.duration, devs, fullscreen=args.fullscreen, stop=stop)
+        else:
+            queue = devices.EventQueue()
+            for d in devs:
+                d.add_listener(queue)
+                d.start()
+            live.run_realtime(core, queue.drain, args.duration, stop=stop)
+    finally:
+        stop.restore()
+        if writer is not None:
+            writer.close(core.tick_count)
+    p50, p99 = core.latency.percentile(50), core.latency.percentile(99)
+    lat = f"; input-to-frame latency p50 {p50 * 1e3:.1f} ms, p99 {p99 * 1e3:.1f} ms" if p50 is not None else ""
+    where = f" to {record}" if record else ""
+    print(f"puppet: performed {core.tick_count} ticks ({core.tick_count / core.rate:.2f} s){where}{lat}")
+    if snapshot is not None:
+        try:
+            from render.offscreen import OffscreenRenderer, save_image
+
+            with OffscreenRenderer(face.model, (1280, 720)) as r:
+                save_image(r.render_frame(core.state), snapshot)
+            print(f"puppet: last frame saved to {snapshot}")
+        except Exception as err:  # a missing GL must not lose the recording
+            warn(f"could not render the snapshot ({err}); the recording is intact")
+    return 0
+

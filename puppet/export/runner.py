@@ -1,0 +1,157 @@
+"""One entry point for every export, chosen by the output's suffix:
+
+  .mp4         video (imageio-ffmpeg, H.264, any view)
+  folder/      PNG frames frame_000000.png ... (a path without suffix, or an existing folder)
+  .png         one still frame (at --from)
+  .pc2         point cache + a rest .obj beside it with the same vertex order (Blender Mesh Cache)
+  .arkit.csv   Live Link Face-style ARKit blendshape CSV
+  .csv         native channel curves
+  .curves      keyframe curves text, editable, playable with `puppet replay --curves`
+
+Every export shows a tqdm progress bar and writes its frame rate explicitly."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from puppet.errors import ConfigError, PuppetError
+from puppet.replay import Performance, frame_ticks, iter_frames
+
+
+@dataclass
+class ExportOptions:
+    fps: float = 30.0
+    start: float = 0.0
+    end: float | None = None
+    speed: float = 1.0
+    view: str = "shaded"
+    size: tuple[int, int] = (1280, 720)
+    start_frame: float = 1.0
+
+
+def kind_of(out: Path) -> str:
+    name = out.name.lower()
+    if name.endswith(".arkit.csv"):
+        return "arkit"
+    suffix = out.suffix.lower()
+    if out.is_dir() or suffix == "" or str(out).endswith(("/", "\\")):
+        return "frames"
+    kinds = {".mp4": "mp4", ".png": "png", ".pc2": "pc2", ".csv": "csv", ".curves": "curves"}
+    if suffix not in kinds:
+        raise PuppetError(f"{out}: unknown export type {suffix!r}; expected .mp4, a folder for PNG frames, "
+                          ".png, .pc2, .csv, .arkit.csv or .curves")
+    return kinds[suffix]
+
+
+def _bar(total: int, what: str) -> tqdm:
+    return tqdm(total=total, desc=what, unit="frame", file=sys.stderr, dynamic_ncols=True, leave=False)
+
+
+def export(perf: Performance, out: str | Path, opts: ExportOptions) -> str:
+    """Write `perf` to `out`; returns a one-line summary for the user."""
+    out = Path(out)
+    kind = kind_of(out)
+    if kind != "frames" and not out.parent.exists():
+        raise ConfigError(f"{out}: folder {out.parent} does not exist")
+    ticks = frame_ticks(perf, opts.fps, opts.start, opts.end, opts.speed)
+    if kind == "png":
+        ticks = ticks[:1]
+    names = [c.name for c in perf.face.vocab.channels]
+    if kind == "curves":
+        from puppet.curves import curves_from_values
+
+        a = ticks[0]
+        b = max(ticks[-1], a + 1)
+        with _bar(1, "curves") as bar:
+            text = curves_from_values(perf.values[a:b], names, perf.rate, perf.face.vocab)
+            bar.update(1)
+        out.write_text(text, encoding="utf-8")
+        return f"wrote keyframe curves for ticks {a}..{b} to {out}"
+    if kind in ("csv", "arkit"):
+        return _export_csv(perf, out, kind, ticks, names, opts)
+    if kind == "pc2":
+        return _export_pc2(perf, out, ticks, opts)
+    return _export_images(perf, out, kind, ticks, opts)
+
+
+def _export_csv(perf: Performance, out: Path, kind: str, ticks: list[int], names: list[str],
+                opts: ExportOptions) -> str:
+    from puppet.export.arkit import ArkitCsvWriter
+    from puppet.export.channels_csv import ChannelCsvWriter
+
+    w: Any = ArkitCsvWriter(out, names, opts.fps) if kind == "arkit" else ChannelCsvWriter(out, names)
+    with _bar(len(ticks), out.name) as bar:
+        for j, k in enumerate(ticks):
+            vals = perf.values[max(0, k - 1)]
+            if kind == "arkit":
+                w.add(j, vals)
+            else:
+                w.add(j, j / opts.fps, k, vals)
+            bar.update(1)
+    w.close()
+    return f"wrote {len(ticks)} frames at {opts.fps:g} fps to {out}"
+
+
+def _export_pc2(perf: Performance, out: Path, ticks: list[int], opts: ExportOptions) -> str:
+    from puppet.export.pc2 import PC2Writer, write_obj
+
+    model = perf.face.model
+    obj = out.with_suffix(".obj")
+    write_obj(obj, model.rest, model.triangles,
+              f"facepuppet rest pose, {len(model.rest)} vertices in simulation order (cm, +Y up)\n"
+              f"point cache: {out.name}, {opts.fps:g} fps, starts at frame {opts.start_frame:g}")
+    w = PC2Writer(out, len(model.rest), start_frame=opts.start_frame, sampling=1.0)
+    try:
+        with _bar(len(ticks), out.name) as bar:
+            for _, _, state, _ in iter_frames(perf, ticks):
+                w.add(state.surface)
+                bar.update(1)
+    finally:
+        w.close()
+    return (f"wrote {len(ticks)} samples at {opts.fps:g} fps (start frame {opts.start_frame:g}) to {out} "
+            f"and the rest mesh to {obj}; set the Blender scene to {opts.fps:g} fps")
+
+
+def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], opts: ExportOptions) -> str:
+    try:
+        from render.offscreen import OffscreenRenderer, save_image
+    except ImportError as err:
+        raise PuppetError(f"video and image export need the renderer: {err}") from err
+    try:
+        renderer = OffscreenRenderer(perf.face.model, opts.size, view=opts.view)
+    except ValueError as err:
+        raise PuppetError(str(err)) from err
+    except Exception as err:  # no EGL / GL: one clear line, not a traceback
+        raise PuppetError(f"cannot create an offscreen OpenGL context: {err}") from err
+    writer: Any = None
+    try:
+        if kind == "mp4":
+            import imageio.v2 as imageio
+
+            writer = imageio.get_writer(str(out), fps=opts.fps, codec="libx264", quality=7,
+                                        pixelformat="yuv420p", macro_block_size=2,
+                                        ffmpeg_params=["-preset", "veryfast"], ffmpeg_log_level="error")
+        elif kind == "frames":
+            out.mkdir(parents=True, exist_ok=True)
+        with _bar(len(ticks), out.name or str(out)) as bar:
+            for j, _, state, _ in iter_frames(perf, ticks):
+                img = renderer.render_frame(state)
+                if kind == "mp4":
+                    writer.append_data(img)
+                elif kind == "png":
+                    save_image(img, out)
+                else:
+                    save_image(img, out / f"frame_{j:06d}.png")
+                bar.update(1)
+    finally:
+        if writer is not None:
+            writer.close()
+        renderer.release()
+    if kind == "png":
+        return f"wrote a {opts.size[0]}x{opts.size[1]} still to {out}"
+    return f"wrote {len(ticks)} frames at {opts.fps:g} fps ({opts.size[0]}x{opts.size[1]}, view {opts.view}) to {out}"

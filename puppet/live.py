@@ -1,0 +1,328 @@
+"""The live loop: device events -> mapping -> channel values -> simulator, at a fixed 60 Hz tick.
+
+`LiveCore` is the deterministic part shared with replay: one `tick(events)` applies the events at
+the tick boundary, steps the mapping's filters with the tick's dt, records, and advances the
+Simulator once. Drivers around it decide *when* ticks happen: `run_virtual` (mock scripts, as fast
+as possible on script time), `run_realtime` (headless, wall clock), and the window driver in
+`puppet.live_window` (ticks decoupled from vsync). Latency is event timestamp -> frame presented."""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+import os
+import signal
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from devices.events import ControlEvent, StatusEvent
+from puppet.errors import ConfigError, PuppetError
+from puppet.mapping import Mapper, MappingSpec, Vocabulary, load_mapping
+from puppet.mapping.defaults import default_map_name, load_default_map, merge
+from puppet.session import SessionWriter
+
+TICK_RATE = 60.0
+CHECK_TICKS = 60  # a digest of the positions once a second lets replay prove it matches
+Event = ControlEvent | StatusEvent
+
+#: Keys that work in any window session, whatever the mapping says (unless it binds them itself).
+SYSTEM_KEYS = """version = 1
+name = "system keys"
+device = "keyboard"
+[[binding]]
+control = "key:ESCAPE"
+action = "panic"
+label = "ESC panic"
+[[binding]]
+control = "key:M"
+action = "marker"
+label = "M marker"
+"""
+
+
+class LatencyMeter:
+    """Input-to-frame latency over the last `window` events, in seconds."""
+
+    def __init__(self, window: int = 600) -> None:
+        self.samples: deque[float] = deque(maxlen=window)
+        self.all: list[float] = []
+        self.keep_all = False
+
+    def add(self, seconds: float) -> None:
+        if math.isfinite(seconds) and seconds >= 0.0:
+            self.samples.append(seconds)
+            if self.keep_all:
+                self.all.append(seconds)
+
+    def percentile(self, q: float) -> float | None:
+        if not self.samples:
+            return None
+        return float(np.percentile(np.fromiter(self.samples, float), q))
+
+
+@dataclass
+class Face:
+    """A compiled face and what a recording needs to find it again."""
+
+    model: Any
+    vocab: Vocabulary
+    rig: dict[str, Any]
+
+
+def load_face(rig_path: str | None = None, resolution: int = 0) -> Face:
+    """The default face, or the rig file at rig_path (a one-line ConfigError if it is wrong)."""
+    import sim
+
+    if rig_path:
+        try:
+            rig = sim.load_rig(rig_path)
+            model = sim.compile_model(rig)
+        except FileNotFoundError as err:
+            raise ConfigError(f"{rig_path}: rig file not found") from err
+        except (OSError, ValueError, KeyError) as err:
+            raise ConfigError(f"{rig_path}: cannot load the rig: {err}") from err
+        info = {"name": getattr(rig, "name", "rig"), "hash": model.hash, "path": str(Path(rig_path).resolve())}
+    else:
+        model = sim.default_model(resolution)
+        info = {"name": "default", "hash": model.hash, "resolution": resolution, "path": None}
+    return Face(model, Vocabulary.from_model(model), info)
+
+
+def build_mapping(vocab: Vocabulary, map_path: str | None, device_specs: Sequence[str],
+                  system_keys: bool = False) -> MappingSpec:
+    """The user's mapping file, or the default map of every device; checked against the face."""
+    parts: list[tuple[MappingSpec, str | None]] = []
+    if map_path:
+        spec = load_mapping(map_path)
+        Mapper(spec, vocab)  # check targets now, with the user's file:line
+        parts.append((spec, None))
+    else:
+        for dev in device_specs:
+            name = default_map_name(dev)
+            if name is None:
+                continue
+            try:
+                spec = load_default_map(name)
+            except (FileNotFoundError, ConfigError):
+                continue
+            parts.append((spec, dev))
+    if system_keys:
+        bound = {b.control for s, _ in parts for b in s.bindings}
+        sys_spec = _parse_system_keys()
+        sys_spec.bindings = [b for b in sys_spec.bindings if b.control not in bound]
+        if sys_spec.bindings:
+            parts.append((sys_spec, None))
+    merged = merge(parts, map_path or "default maps")
+    return merged
+
+
+def _parse_system_keys() -> MappingSpec:
+    from puppet.mapping import parse_mapping
+
+    return parse_mapping(SYSTEM_KEYS, "<system keys>")
+
+
+def session_header(face: Face, spec: MappingSpec, rate: float, devices: Sequence[str]) -> dict[str, Any]:
+    from puppet import __version__
+
+    return {
+        "program": f"facepuppet {__version__}",
+        "start_time": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds"),
+        "rig": face.rig,
+        "channels": [c.name for c in face.vocab.channels],
+        "tick_rate": rate,
+        "mapping": {"source": spec.source, "text": spec.text},
+        "devices": list(devices),
+    }
+
+
+class LiveCore:
+    """The fixed-tick core: same Simulator, same start state, same values per tick as replay."""
+
+    def __init__(self, face: Face, mapper: Mapper, *, rate: float = TICK_RATE,
+                 writer: SessionWriter | None = None, t0: float = 0.0,
+                 lights: Callable[[str, str, bool], None] | None = None) -> None:
+        import sim
+
+        self.face, self.mapper, self.rate, self.dt = face, mapper, rate, 1.0 / rate
+        self.sim = sim.Simulator(face.model, self.dt)
+        self.state = face.model.rest_state()
+        self.control = sim.FaceControl(face.model)
+        self.writer, self.t0, self.lights = writer, t0, lights
+        self.tick_count = 0
+        self.latency = LatencyMeter()
+        self.unpresented: list[float] = []
+        self.values = np.array(mapper.values, copy=True)
+        self.markers: list[tuple[int, str]] = []
+
+    def tick(self, events: Iterable[Event]) -> None:
+        """Apply `events` at this tick boundary, then advance one tick."""
+        k = self.tick_count
+        for ev in events:
+            if self.writer is not None:
+                self.writer.event(k, ev, self.t0)
+            self.mapper.feed(ev)
+            if isinstance(ev, ControlEvent):
+                self.unpresented.append(ev.t)
+        values = self.mapper.step(self.dt)
+        for label in self.mapper.take_markers():
+            self.mark(label)
+        if self.writer is not None:
+            self.writer.values(k, values)
+        self.values = values
+        self.control.values[...] = values
+        self.sim.step(self.state, self.control)
+        self.tick_count = k + 1
+        if self.writer is not None:
+            if self.tick_count % CHECK_TICKS == 0:
+                from puppet.replay import state_digest
+
+                self.writer.check(self.tick_count, state_digest(self.state))
+            self.writer.tick(self.tick_count)
+        if self.lights is not None:
+            for dev, ctl, on in self.mapper.light_changes():
+                self.lights(dev, ctl, on)
+
+    def mark(self, label: str) -> None:
+        self.markers.append((self.tick_count, label))
+        if self.writer is not None:
+            self.writer.marker(self.tick_count, label)
+
+    def presented(self, t: float) -> None:
+        """A frame showing every tick so far reached the screen (or the encoder) at time t."""
+        for te in self.unpresented:
+            self.latency.add(t - te)
+        self.unpresented.clear()
+
+
+@dataclass
+class StopFlag:
+    """Set by SIGINT/SIGTERM so a run ends cleanly (recording closed) instead of dying."""
+
+    stopped: bool = False
+    _old: dict[int, Any] = field(default_factory=dict)
+
+    def install(self) -> None:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            try:
+                self._old[sig] = signal.signal(sig, self._handle)
+            except ValueError:  # not the main thread
+                pass
+
+    def _handle(self, signum: int, frame: object) -> None:
+        self.stopped = True
+
+    def restore(self) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+
+def scripted_events(devices: Sequence[Any]) -> list[Event]:
+    """Every event of mock devices' scripts on script time, in time order (virtual clock)."""
+    out: list[tuple[float, int, Event]] = []
+    n = 0
+    for dev in devices:
+        script = dev.script
+        for it in script.items:
+            if it.status:
+                ev: Event = StatusEvent(dev.spec, it.status, it.t, "scripted")
+            else:
+                info = script.controls[it.control]
+                ev = ControlEvent(dev.spec, it.control, info.kind, it.value, it.delta, it.raw, it.t)
+            out.append((it.t, n, ev))
+            n += 1
+    out.sort(key=lambda x: (x[0], x[1]))
+    return [e for _, _, e in out]
+
+
+def run_virtual(core: LiveCore, events: Sequence[Event], duration: float,
+                on_frame: Callable[[LiveCore], None] | None = None, stop: StopFlag | None = None) -> None:
+    """Run ticks as fast as possible on script time: tick k applies events with t <= k*dt."""
+    n_ticks = max(1, int(round(duration * core.rate)))
+    i = 0
+    for k in range(n_ticks):
+        if stop is not None and stop.stopped:
+            break
+        boundary = k * core.dt + 1e-12
+        batch = []
+        while i < len(events) and events[i].t <= boundary:
+            batch.append(events[i])
+            i += 1
+        core.tick(batch)
+        if on_frame is not None:
+            on_frame(core)
+
+
+def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None,
+                 clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep,
+                 on_frame: Callable[[LiveCore], None] | None = None, stop: StopFlag | None = None) -> None:
+    """Headless, on the wall clock: tick k happens at t0 + k*dt and takes the events stamped up to
+    then; a late loop catches up at most 4 ticks at once, then drops wall time rather than lag."""
+    pending: list[Event] = []
+    start = clock()
+    k0 = 0
+    while True:
+        if stop is not None and stop.stopped:
+            break
+        if duration is not None and core.tick_count >= int(round(duration * core.rate)):
+            break
+        boundary = start + (core.tick_count - k0) * core.dt
+        now = clock()
+        if now < boundary:
+            sleep(min(boundary - now, 0.05))
+            continue
+        if now - boundary > 4 * core.dt:  # fell behind (machine busy): re-anchor the schedule
+            start, k0 = now, core.tick_count
+            boundary = now
+        pending += drain()
+        batch = [e for e in pending if e.t <= boundary]
+        pending = [e for e in pending if e.t > boundary]
+        core.tick(batch)
+        if on_frame is not None:
+            on_frame(core)
+        core.presented(clock())
+
+
+def display_available() -> bool:
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def default_record_path() -> Path:
+    stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    return Path(f"puppet-{stamp}.jsonl")
+
+
+def check_duration(duration: float | None) -> None:
+    if duration is not None and not (duration > 0 and math.isfinite(duration)):
+        raise PuppetError(f"--duration must be a positive number of seconds, got {duration}")
+
+
+def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None, devs: Sequence[Any],
+               fullscreen: bool = False, stop: StopFlag | None = None) -> None:
+    """The windowed driver: ticks on the wall clock, frames at vsync."""
+    try:
+        from render.window import FaceWindow  # noqa: F401
+    except ImportError:
+        import sys
+
+        print("puppet: this build has no face window yet (render.window is missing): running headless",
+              file=sys.stderr)
+        run_realtime(core, drain, duration, stop=stop)
+        return
+    _run_face_window(core, drain, duration, devs, fullscreen, stop)
+
+
+def run_replay_window(perf: Any, start: float = 0.0, end: float | None = None, speed: float = 1.0,
+                      view: str = "shaded") -> int:
+    """Replay in the window with transport keys."""
+    try:
+        from render.window import FaceWindow  # noqa: F401
+    except ImportError as err:
+        raise PuppetError("this build has no face window (render.window is missing); use --headless or --out") from err
+    return _replay_face_window(perf, start, end, speed, view)

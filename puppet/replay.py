@@ -1,0 +1,159 @@
+"""Replay: re-simulate a recording (optionally with keyframe curves layered on it) and export it.
+
+The recording's channel values per tick go through the same Simulator from the same rest state as
+the live loop did, so every tick's positions are bit-identical to the live session's. Frames for
+export are sampled from ticks on an explicit frame clock: frame j of an export at `fps` with
+`speed` shows the performance at t_j = from + j * speed / fps, i.e. the state after round(t_j * rate)
+ticks; a recording's "chk" records (a digest of the positions every second) are verified on the way."""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from puppet.curves import CurveLayer, CurveSet
+from puppet.errors import ConfigError, PuppetError
+from puppet.live import Face, load_face
+from puppet.session import Session
+
+CHECKPOINT_TICKS = 60
+
+
+def state_digest(state: Any) -> str:
+    """A short digest of the positions, to check determinism between runs."""
+    return hashlib.sha1(np.ascontiguousarray(state.positions).tobytes()).hexdigest()[:16]
+
+
+@dataclass
+class Performance:
+    """What to re-simulate: a full (ticks, C) array of channel values at `rate` ticks per second."""
+
+    face: Face
+    values: np.ndarray
+    rate: float
+    markers: list[tuple[int, str]]
+    checks: dict[int, str]
+
+    @property
+    def ticks(self) -> int:
+        return int(self.values.shape[0])
+
+    @property
+    def duration(self) -> float:
+        return self.ticks / self.rate
+
+
+def face_for(session: Session | None, rig_path: str | None) -> Face:
+    """The face a recording was made with: --rig, else the recorded rig path, else the built-in
+    face at the recorded resolution; a hash mismatch is a warning (the motion will differ)."""
+    if session is None:
+        return load_face(rig_path)
+    rig = session.header.get("rig") or {}
+    path = rig_path or rig.get("path")
+    if path and not Path(path).exists():
+        raise ConfigError(f"{session.path}: recorded with rig {path}, which is missing; pass --rig PATH")
+    face = load_face(path, int(rig.get("resolution", 0) or 0))
+    want = rig.get("hash")
+    if want and face.rig["hash"] != want:
+        import sys
+
+        print(f"puppet: warning: {session.path} was recorded with rig hash {want}, but the face loaded now "
+              f"has {face.rig['hash']} (another rig or program version): the replay will not be "
+              f"bit-identical; pass --rig with the recording's rig", file=sys.stderr)
+    return face
+
+
+def build_performance(session: Session | None, curves: CurveSet | None, rig_path: str | None = None,
+                      rate: float = 60.0) -> Performance:
+    """Channel values per tick from a recording and/or curves (curves layered over the recording)."""
+    if session is None and curves is None:
+        raise PuppetError("nothing to replay: give a recording FILE and/or --curves FILE")
+    face = face_for(session, rig_path)
+    names = [c.name for c in face.vocab.channels]
+    defaults = np.array(face.vocab.defaults(), dtype=np.float64)
+    markers: list[tuple[int, str]] = []
+    checks: dict[int, str] = {}
+    if session is not None:
+        rate = session.tick_rate
+        values = session.value_array(defaults, names)
+        markers = list(session.markers)
+        checks = dict(session.checks)
+    else:
+        assert curves is not None
+        n = max(1, int(np.ceil(curves.duration * rate)) + 1)
+        values = np.tile(defaults, (n, 1))
+    if curves is not None:
+        layer = CurveLayer(curves, face.vocab)
+        if session is not None and curves.duration * rate > values.shape[0]:
+            extra = int(np.ceil(curves.duration * rate)) + 1 - values.shape[0]
+            values = np.vstack([values, np.tile(values[-1], (extra, 1))])
+        values = np.array([layer.apply(values[k], k / rate) for k in range(values.shape[0])])
+    return Performance(face, values, rate, markers, checks)
+
+
+class Replayer:
+    """Steps a fresh Simulator through a Performance; `seek(k)` reaches the state after k ticks,
+    restoring the nearest earlier checkpoint when going back (so the window can scrub)."""
+
+    def __init__(self, perf: Performance) -> None:
+        import sim
+
+        self.perf = perf
+        self.sim = sim.Simulator(perf.face.model, 1.0 / perf.rate)
+        self.control = sim.FaceControl(perf.face.model)
+        self.state = perf.face.model.rest_state()
+        self.tick = 0
+        self.checkpoints: dict[int, Any] = {0: self.state.copy()}
+        self.verified = 0
+        self.mismatches: list[int] = []
+
+    def step(self) -> None:
+        k = self.tick
+        if k >= self.perf.ticks:
+            return
+        self.control.values[...] = self.perf.values[k]
+        self.sim.step(self.state, self.control)
+        self.tick = k + 1
+        want = self.perf.checks.get(self.tick)
+        if want is not None and self.tick not in self.checkpoints:
+            if state_digest(self.state) == want:
+                self.verified += 1
+            else:
+                self.mismatches.append(self.tick)
+        if self.tick % CHECKPOINT_TICKS == 0 and self.tick not in self.checkpoints:
+            self.checkpoints[self.tick] = self.state.copy()
+
+    def seek(self, k: int) -> None:
+        k = max(0, min(int(k), self.perf.ticks))
+        if k < self.tick:
+            base = max(t for t in self.checkpoints if t <= k)
+            self.state.assign(self.checkpoints[base])
+            self.tick = base
+        while self.tick < k:
+            self.step()
+
+
+def frame_ticks(perf: Performance, fps: float, start: float = 0.0, end: float | None = None,
+                speed: float = 1.0) -> list[int]:
+    """The tick shown by each exported frame (see the module docstring)."""
+    if fps <= 0 or speed <= 0:
+        raise PuppetError("--fps and --speed must be positive")
+    end = perf.duration if end is None else min(end, perf.duration)
+    if start < 0 or start > end:
+        raise PuppetError(f"--from {start} must lie in 0..{end:.3f} s (the end of the replay)")
+    n = max(1, int(round((end - start) * fps / speed)))
+    return [min(perf.ticks, int(round((start + j * speed / fps) * perf.rate))) for j in range(n)]
+
+
+def iter_frames(perf: Performance, ticks: list[int]) -> Iterator[tuple[int, int, Any, np.ndarray]]:
+    """(frame, tick, state, values) for each requested tick, simulating forward once."""
+    rp = Replayer(perf)
+    for j, k in enumerate(ticks):
+        rp.seek(k)
+        vals = perf.values[k - 1] if k > 0 else perf.values[0]
+        yield j, k, rp.state, vals

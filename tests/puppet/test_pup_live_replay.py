@@ -1,0 +1,198 @@
+"""End to end: mock device -> mapping -> live loop with recording -> replay, bit for bit; crash
+safety under SIGKILL; the command line, including the no-display fallback."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import devices
+from puppet import live
+from puppet.mapping import Mapper
+from puppet.replay import Replayer, build_performance
+from puppet.session import SessionWriter, read_session
+
+SCRIPT = """
+impersonate = "sgi"
+speed = {speed}
+duration = {duration}
+[[ramp]]
+control = "dial1"
+start = 0.05
+duration = 0.5
+from = 0.0
+to = 0.9
+rate = 50
+[[ramp]]
+control = "dial7"
+start = 0.3
+duration = 0.4
+from = 0.0
+to = 0.5
+rate = 40
+[[events]]
+t = 0.2
+control = "button0"
+value = 1
+[[events]]
+t = 0.25
+control = "button0"
+value = 0
+[[events]]
+t = 0.6
+control = "button7"
+value = 1
+[[events]]
+t = 0.62
+control = "button7"
+value = 0
+[[events]]
+t = 0.7
+control = "button30"
+value = 1
+"""
+
+ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
+
+
+def script(tmp_path: Path, speed: float = 0, duration: float = 1.0) -> str:
+    p = tmp_path / "script.toml"
+    p.write_text(SCRIPT.format(speed=speed, duration=duration))
+    return f"mock://{p}"
+
+
+def puppet(*args: str, env: dict | None = None, timeout: float = 90) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "puppet", *args], capture_output=True, text=True,
+                          env=env or ENV, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def face() -> live.Face:
+    return live.load_face()
+
+
+def test_live_run_and_replay_are_bit_identical_at_every_tick(tmp_path: Path, face: live.Face) -> None:
+    dev = devices.open_device(script(tmp_path))
+    spec = live.build_mapping(face.vocab, None, [dev.spec])
+    mapper = Mapper(spec, face.vocab)
+    rec = tmp_path / "take.jsonl"
+    writer = SessionWriter(rec, live.session_header(face, spec, live.TICK_RATE, [dev.spec]))
+    core = live.LiveCore(face, mapper, writer=writer)
+    live_positions: list[bytes] = []
+    live.run_virtual(core, live.scripted_events([dev]), 1.0,
+                     on_frame=lambda c: live_positions.append(c.state.positions.tobytes()))
+    writer.close(core.tick_count)
+    dev.close()
+    assert core.tick_count == 60 and core.markers == [(42, "sgi marker")]
+    # the performance moved the face: smile and jaw are on, so the check below is not vacuous
+    assert live_positions[-1] != face.model.rest.tobytes()
+    session = read_session(rec)
+    assert session.complete and session.ticks == 60 and session.markers == [(42, "sgi marker")]
+    assert any(e["ctl"] == "dial1" for e in session.events)
+    for _ in range(2):  # two independent replays
+        rp = Replayer(build_performance(session, None))
+        for k in range(60):
+            rp.step()
+            assert rp.state.positions.tobytes() == live_positions[k], f"tick {k} differs"
+        assert rp.verified == 1 and not rp.mismatches
+
+
+def test_cli_record_then_replay_verifies(tmp_path: Path) -> None:
+    rec = tmp_path / "s.jsonl"
+    out = puppet("live", "--device", script(tmp_path), "--headless", "--record", str(rec), "--duration", "1.5")
+    assert out.returncode == 0, out.stderr
+    assert "performed 90 ticks" in out.stdout
+    out = puppet("replay", str(rec), "--headless")
+    assert out.returncode == 0, out.stderr
+    assert "bit-identical to the live session at 1 checkpoints" in out.stdout
+
+
+def test_sigkill_during_recording_leaves_a_replayable_file(tmp_path: Path) -> None:
+    rec = tmp_path / "killed.jsonl"
+    proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--device", script(tmp_path, speed=1, duration=60),
+                             "--headless", "--record", str(rec), "--duration", "60"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=ENV)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:  # wait until a good part is on disk (sync records)
+            if rec.exists() and rec.read_text().count('"t":"sync"') >= 8:
+                break
+            time.sleep(0.05)
+        else:
+            pytest.fail("the recording never got flushed")
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(10)
+    text = rec.read_text()
+    assert '"t":"end"' not in text
+    s = read_session(rec)
+    assert not s.complete and s.warnings and s.ticks >= 40
+    out = puppet("replay", str(rec), "--headless")
+    assert out.returncode == 0, out.stderr
+    assert "warning" in out.stderr and f"replayed {s.ticks} ticks" in out.stdout
+
+
+def test_sigterm_stops_cleanly_and_closes_the_recording(tmp_path: Path) -> None:
+    rec = tmp_path / "term.jsonl"
+    proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--device", script(tmp_path, speed=1, duration=60),
+                             "--headless", "--record", str(rec)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=ENV)
+    deadline = time.monotonic() + 60
+    while not (rec.exists() and '"t":"sync"' in rec.read_text()) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
+    assert read_session(rec).complete and "performed" in out
+
+
+def test_no_display_falls_back_to_headless_and_says_where(tmp_path: Path) -> None:
+    env = {k: v for k, v in ENV.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    out = subprocess.run([sys.executable, "-m", "puppet", "live", "--device", script(tmp_path), "--duration", "0.5"],
+                         capture_output=True, text=True, env=env, cwd=tmp_path, timeout=90)
+    assert out.returncode == 0, out.stderr
+    first = out.stderr.strip().splitlines()[0]
+    assert "no display" in first and "recording to" in first
+    recs = list(tmp_path.glob("puppet-*.jsonl"))
+    assert len(recs) == 1 and read_session(recs[0]).ticks == 30
+    assert recs[0].with_suffix(".png").exists()
+
+
+@pytest.mark.parametrize("args,msg", [
+    (["live", "--device", "nosuch://x", "--headless", "--duration", "1"], "nosuch"),
+    (["live", "--device", "mock://", "--headless", "--duration", "-1"], "--duration"),
+    (["replay", "/nonexistent.jsonl", "--headless"], "nonexistent.jsonl"),
+    (["replay", "--headless"], "recording FILE"),
+])
+def test_user_errors_are_one_line(args: list[str], msg: str) -> None:
+    out = puppet(*args)
+    assert out.returncode == 2
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("puppet: error:") and msg in lines[0]
+
+
+def test_bad_mapping_file_is_one_line_with_location(tmp_path: Path) -> None:
+    m = tmp_path / "bad.toml"
+    m.write_text('[[binding]]\ncontrol = "dial0"\ntarget = "jaw"\nfilters = [{type = "smoth"}]\n')
+    out = puppet("live", "--device", script(tmp_path), "--map", str(m), "--headless", "--duration", "0.1")
+    assert out.returncode == 2
+    assert out.stderr.strip() == (f"puppet: error: {m}:4:13: expected one of range, invert, curve, deadzone, "
+                                  "smooth, one_euro, slew for type, got 'smoth'")
+
+
+def test_recording_header(tmp_path: Path) -> None:
+    rec = tmp_path / "h.jsonl"
+    assert puppet("live", "--device", script(tmp_path), "--headless", "--record", str(rec)).returncode == 0
+    head = json.loads(rec.read_text().splitlines()[0])
+    assert head["format"] == "facepuppet-session" and head["version"] == 1 and head["tick_rate"] == 60.0
+    assert head["rig"]["hash"] and "jaw" in head["channels"] and head["program"].startswith("facepuppet")
+    assert "dial0" in head["mapping"]["text"] and head["start_time"].endswith("+00:00")
+    assert np.isfinite(read_session(rec).value_array(np.zeros(len(head["channels"])))).all()
