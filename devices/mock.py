@@ -38,6 +38,8 @@ from devices.events import ControlEvent
 from devices.spec import DeviceSpec
 
 Clock = Callable[[], float]
+#: Samples one generator may produce (a typo in ``rate`` must not eat the memory).
+MAX_SAMPLES = 100_000
 Sleep = Callable[[float], None]
 
 
@@ -142,9 +144,12 @@ class Script:
 
     def _samples(self, g: dict[str, Any]) -> tuple[float, float, int]:
         start, duration, rate = float(g.get("start", 0)), float(g.get("duration", 1)), float(g.get("rate", 50))
-        if duration < 0 or rate <= 0:
-            raise self._error("generator needs duration >= 0 and rate > 0")
-        return start, duration, max(1, int(round(duration * rate)))
+        if not (math.isfinite(start) and 0 <= duration < math.inf and 0 < rate < math.inf):
+            raise self._error("generator needs a finite start, duration >= 0 and rate > 0")
+        n = max(1, int(round(duration * rate)))
+        if n > MAX_SAMPLES:
+            raise self._error(f"generator of {n} samples; at most {MAX_SAMPLES}")
+        return start, duration, n
 
     def _curve(self, g: dict[str, Any], where: str, f: Callable[[float], float]) -> list[Item]:
         info = self.info(str(g["control"]), where)
@@ -176,8 +181,8 @@ class Script:
         info = self.info(str(g["control"]), where)
         start, period = float(g.get("start", 0)), float(g.get("period", 0.5))
         duty, count = float(g.get("duty", 0.5)), int(g.get("count", 4))
-        if period <= 0 or not 0 < duty < 1:
-            raise self._error(f"{where}: needs period > 0 and 0 < duty < 1")
+        if not (0 < period < math.inf and 0 < duty < 1 and 0 <= count <= MAX_SAMPLES and math.isfinite(start)):
+            raise self._error(f"{where}: needs period > 0, 0 < duty < 1 and 0 <= count <= {MAX_SAMPLES}")
         out = []
         for k in range(count):
             out.append(self._item(info, start + k * period, 1.0, where))
@@ -198,7 +203,10 @@ def load_script(location: str, query: dict[str, str], origin: str) -> Script:
             raise DeviceSpecError(f"{origin}: mock script {path} is not valid: {err}") from err
     else:
         data = {}
-        duration, rate = float(query.get("duration", 2.0)), float(query.get("rate", 50))
+        try:
+            duration, rate = float(query.get("duration", 2.0)), float(query.get("rate", 50))
+        except ValueError as err:
+            raise DeviceSpecError(f"{origin}: duration and rate must be numbers") from err
         if "impersonate" in query:
             data["impersonate"] = query["impersonate"]
         for key, kind in (("sine", "sine"), ("ramp", "ramp"), ("buttons", "pattern")):
@@ -211,12 +219,23 @@ def load_script(location: str, query: dict[str, str], origin: str) -> Script:
         data["duration"] = duration
     for key in ("speed", "loop", "counts_per_turn"):
         if key in query:
-            data[key] = {"speed": float, "counts_per_turn": int}.get(key, lambda v: v not in ("0", "false", "no"))(query[key])
+            convert = {"speed": float, "counts_per_turn": int}.get(key, lambda v: v not in ("0", "false", "no"))
+            try:
+                data[key] = convert(query[key])
+            except ValueError as err:
+                raise DeviceSpecError(f"{origin}: option {key}={query[key]!r} is not valid") from err
+    return build_script(data, origin)
+
+
+def build_script(data: Any, origin: str) -> Script:
+    """Compile script data; any malformed entry becomes one DeviceSpecError naming the script."""
+    if not isinstance(data, dict):
+        raise DeviceSpecError(f"{origin}: a mock script is a table of keys, not {type(data).__name__}")
     try:
         return Script(data, origin)
-    except (KeyError, TypeError, ValueError) as err:
-        if isinstance(err, DeviceSpecError):
-            raise
+    except DeviceSpecError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as err:
         raise DeviceSpecError(f"{origin}: bad mock script entry: {err!r}") from err
 
 

@@ -164,3 +164,32 @@ def test_can_random_frames(which: int, frames: list[tuple[int, bytes, bool]]) ->
     for fid, data, err in frames:
         msg = can.Message(arbitration_id=fid, data=data, is_extended_id=fid > 0x7FF, is_error_frame=err and fid == 0x4)
         check(dec.decode(msg, 0.0), dec.controls)
+
+
+scalars = st.one_of(st.integers(-1000, 1000), st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=6),
+                    st.booleans(), st.none())
+entry = st.dictionaries(st.sampled_from(["t", "control", "value", "delta", "start", "duration", "rate", "from", "to",
+                                         "freq", "amplitude", "offset", "period", "duty", "count", "status", "kind",
+                                         "name", "lo", "hi"]),
+                        st.one_of(scalars, st.sampled_from(["dial0", "button3", "x", "key:A", "lost"])), max_size=8)
+script = st.dictionaries(st.sampled_from(["events", "ramp", "sine", "pattern", "status", "controls", "impersonate",
+                                          "speed", "loop", "counts_per_turn", "duration"]),
+                         st.one_of(st.lists(entry, max_size=3), scalars, st.sampled_from(["sgi", "nope"])), max_size=6)
+
+
+@FUZZ
+@given(script)
+def test_mock_scripts_fail_cleanly_or_stay_in_range(data: dict[str, object]) -> None:
+    import json
+
+    from devices.errors import DeviceSpecError
+    from devices.mock import build_script
+
+    try:
+        s = build_script(json.loads(json.dumps(data, default=str)), "fuzz")
+    except DeviceSpecError:
+        return  # the only way a bad script may fail
+    for it in s.items:
+        if not it.status:
+            info = s.controls[it.control]
+            assert info.lo <= it.value <= info.hi

@@ -110,6 +110,10 @@ def test_inline_generators_and_bad_scripts(tmp_path: Path) -> None:
     ev = dev.play_all()
     assert {e.control for e in ev} == {"dial2", "button1"}
     assert all(e.kind == "dial" for e in ev if e.control == "dial2")
+    with pytest.raises(DeviceSpecError, match="speed"):
+        open_device("mock://?sine=x&speed=fast")
+    with pytest.raises(DeviceSpecError, match="samples"):
+        open_device("mock://?sine=x&rate=1e9")
     with pytest.raises(DeviceSpecError, match="not on the impersonated box"):
         open_device("mock://?impersonate=sgi&sine=x")
     with pytest.raises(DeviceSpecError, match="outside"):

@@ -170,3 +170,31 @@ def test_parser_keeps_state_across_chunks_and_rejects_jumps() -> None:
     assert p.feed(bytes([0x30, 0x40, 0x00]), 9.0) == []  # a 16000-count jump is not a movement
     assert p.warnings.counts["range"] == 1
     assert [e.delta for e in p.feed(bytes([0x30, 0x40, 0x01]), 10.0)] == [1]
+
+
+def test_puppet_monitor_json_against_the_emulated_box(box: SgiBoxEmulator) -> None:
+    import json
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "puppet", "monitor", f"sgi://{box.port.link}", "--json",
+                             "--duration", "30"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=Path(__file__).parents[2])
+    try:
+        assert proc.stdout is not None
+        first = json.loads(proc.stdout.readline())
+        assert first["status"] == "connected" and first["device"] == f"sgi://{box.port.link}"
+        box.wait_ready()
+        box.turn(5, -4)
+        box.button(30, True)
+        dial = json.loads(proc.stdout.readline())
+        button = json.loads(proc.stdout.readline())
+        assert {k: dial[k] for k in ("control", "kind", "delta")} == {"control": "dial5", "kind": "dial", "delta": -4}
+        assert dial["value"] == pytest.approx(-4 / 200) and dial["raw"] == -4
+        assert {k: button[k] for k in ("control", "kind", "value")} == {"control": "button30", "kind": "button", "value": 1}
+        assert "delta" not in button
+        box.unplug()
+        assert json.loads(proc.stdout.readline())["status"] == "lost"
+    finally:
+        proc.terminate()
+        proc.wait(10)
