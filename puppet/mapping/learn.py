@@ -1,0 +1,105 @@
+"""Learn mode's file side: add or update one binding in a mapping file with tomlkit, so the user's
+comments, order and formatting survive. Re-learning a control keeps its filters and settings and
+only changes the target (what MIDI-learn users ask for)."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import tomlkit
+from tomlkit.exceptions import TOMLKitError
+
+from puppet.errors import ConfigError
+from puppet.mapping.config import parse_mapping
+
+NEW_FILE_HEADER = """# facepuppet mapping file (see docs/live.md for every key).
+# Written by `puppet learn`; edit freely: comments are kept when learn adds bindings.
+"""
+
+
+def device_key(spec: str) -> str:
+    """What a learned binding stores as `device`: the scheme, so the map still works when the box
+    comes back on another port (ttyUSB0 -> ttyUSB1)."""
+    return spec.split("://", 1)[0] if "://" in spec else spec
+
+
+def default_settings(kind: str, mode: str | None) -> dict[str, Any]:
+    """Starting settings for a freshly learned control of this event kind."""
+    if kind == "dial":
+        return {"gain": 0.5, "filters": [{"type": "smooth", "rise": 0.04, "fall": 0.08}]}
+    if kind == "axis":
+        return {"filters": [{"type": "deadzone", "width": 0.02}, {"type": "one_euro", "min_cutoff": 1.5, "beta": 0.3}]}
+    settings: dict[str, Any] = {"mode": mode or "momentary"}
+    if mode == "trigger":
+        settings.update({"attack": 0.06, "hold": 0.04, "release": 0.12})
+    else:
+        settings["filters"] = [{"type": "smooth", "rise": 0.1, "fall": 0.2}]
+    return settings
+
+
+def _inline(v: Any) -> Any:
+    if isinstance(v, list):
+        arr = tomlkit.array()
+        for x in v:
+            arr.append(_inline(x))
+        return arr
+    if isinstance(v, dict):
+        t = tomlkit.inline_table()
+        for k, x in v.items():
+            t[k] = x
+        return t
+    return v
+
+
+def learn_binding(path: str | Path, control: str, device: str, target: str, kind: str,
+                  mode: str | None = None) -> str:
+    """Add (or retarget) the binding of `control` on `device` to `target` in the file at `path`
+    (created if missing). Returns "added" or "updated". The result is parsed again before it
+    replaces the file, so a learn never leaves a broken mapping behind."""
+    p = Path(path)
+    if p.exists():
+        try:
+            doc = tomlkit.parse(p.read_text(encoding="utf-8"))
+        except (TOMLKitError, UnicodeDecodeError) as err:
+            parse_mapping(p.read_text(encoding="utf-8", errors="replace"), str(p))  # locates the error
+            raise ConfigError(f"{p}: cannot read the mapping file: {err}") from err
+    else:
+        doc = tomlkit.parse(NEW_FILE_HEADER)
+        doc["version"] = 1
+        doc["name"] = p.stem
+    dev = device_key(device)
+    bindings = doc.get("binding")
+    if bindings is None:
+        bindings = tomlkit.aot()
+        doc["binding"] = bindings
+    result = "added"
+    for b in bindings:
+        if b.get("control") == control and b.get("device", dev) == dev and "target" in b:
+            b["target"] = target
+            if mode is not None and kind in ("button", "key"):
+                b["mode"] = mode
+            result = "updated"
+            break
+    else:
+        t = tomlkit.table()
+        t["control"] = control
+        t["device"] = dev
+        t["target"] = target
+        for k, v in default_settings(kind, mode).items():
+            t[k] = _inline(v)
+        t.add(tomlkit.nl())
+        bindings.append(t)
+    text = tomlkit.dumps(doc)
+    parse_mapping(text, str(p))  # never write something we could not read back
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=str(p.parent.resolve()))
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, p)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return result

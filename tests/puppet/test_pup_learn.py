@@ -1,0 +1,95 @@
+"""Learn mode: touching controls writes working bindings, keeping the file's comments."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from devices.events import ControlEvent
+from puppet.errors import ConfigError
+from puppet.mapping import Mapper, load_mapping
+from puppet.mapping.learn import learn_binding
+from puppet_helpers import DT, idx, vocab
+
+SCRIPT = """
+impersonate = "sgi"
+speed = 0
+[[ramp]]
+control = "dial3"
+start = 0.0
+duration = 0.2
+from = 0.0
+to = 0.3
+rate = 50
+[[events]]
+t = 0.5
+control = "button5"
+value = 1
+[[events]]
+t = 0.55
+control = "button5"
+value = 0
+"""
+
+EXISTING = """# my show's map -- keep this comment
+version = 1
+name = "show"
+
+[[binding]]
+control = "dial0"   # the age dial
+device = "sgi"
+target = "age"
+"""
+
+
+def test_cli_learn_writes_working_bindings_and_keeps_comments(tmp_path: Path) -> None:
+    script = tmp_path / "touch.toml"
+    script.write_text(SCRIPT)
+    mp = tmp_path / "show.toml"
+    mp.write_text(EXISTING)
+    out = subprocess.run([sys.executable, "-m", "puppet", "learn", "--device", f"mock://{script}", "--map", str(mp),
+                          "--timeout", "3"], input="nonsense\njaw\nzygomaticus_major\ntoggle\n",
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert "unknown target 'nonsense'" in out.stdout and "added: dial3 -> jaw" in out.stdout
+    text = mp.read_text()
+    assert "# my show's map -- keep this comment" in text and "# the age dial" in text
+    spec = load_mapping(mp)
+    assert [(b.control, b.target) for b in spec.bindings] == [
+        ("dial0", "age"), ("dial3", "jaw"), ("button5", "zygomaticus_major")]
+    assert spec.bindings[2].mode == "toggle"
+    from puppet.live import load_face
+
+    face = load_face()
+    m = Mapper(spec, face.vocab)
+    names = [c.name for c in face.vocab.channels]
+    m.feed(ControlEvent("mock://other.toml", "dial3", "dial", 0.5))  # another script/port of the same kind: still bound
+    m.feed(ControlEvent("mock://other.toml", "button5", "button", 1.0))
+    for _ in range(120):
+        v = m.step(DT)
+    assert v[names.index("jaw")] == pytest.approx(0.25, abs=1e-3)
+    assert v[names.index("zygomaticus_major_l")] == pytest.approx(1.0, abs=1e-3)
+
+
+def test_relearn_keeps_settings_and_new_file_is_created(tmp_path: Path) -> None:
+    mp = tmp_path / "new.toml"
+    assert learn_binding(mp, "button1", "mock://x", "jaw", "button", "trigger") == "added"
+    assert learn_binding(mp, "button1", "mock://x", "expr:happiness", "button") == "updated"
+    spec = load_mapping(mp)
+    assert len(spec.bindings) == 1
+    b = spec.bindings[0]
+    assert (b.target, b.mode, b.attack, b.device) == ("expr:happiness", "trigger", 0.06, "mock")
+    m = Mapper(spec, vocab())
+    m.feed(ControlEvent("mock://x", "button1", "button", 1.0))
+    assert max(m.step(DT)[idx("zygomaticus_major_l")] for _ in range(6)) > 0.5
+
+
+def test_learn_refuses_to_touch_a_broken_file(tmp_path: Path) -> None:
+    mp = tmp_path / "broken.toml"
+    mp.write_text("[[binding]]\ncontrol = \n")
+    with pytest.raises(ConfigError, match=r"broken.toml:2:\d+"):
+        learn_binding(mp, "dial0", "sgi://", "jaw", "dial")
+    assert mp.read_text() == "[[binding]]\ncontrol = \n"
