@@ -101,7 +101,8 @@ class SerialPortDevice(Device):
         port = self._port
         if port is None:
             raise OSError("port not open")
-        port.timeout = timeout
+        if port.timeout != timeout:  # the setter reconfigures the tty (tcsetattr): only on change
+            port.timeout = timeout
         data = port.read(port.in_waiting or 1)
         t = time.monotonic()
         if data:
