@@ -133,18 +133,18 @@ def _rows(resolution: int) -> list[FloatArray]:
             continue
         base = fc.resample(line, (0.8 if name.startswith("forehead") else 0.55) * s)
         lines.append(base)
-        flanks += [fc._offset(base, 0.3 * s), fc._offset(base, -0.3 * s)]
+        flanks += [fc.offset(base, 0.3 * s), fc.offset(base, -0.3 * s)]
     return rings + lines + flanks
 
 
 def _in_holes(pts: FloatArray, lay: fc.ChartLayout) -> np.ndarray:
-    """Points inside (or on) the left eye opening or the left half of the mouth slit."""
+    """Points inside (or just outside) the left eye opening or the left half of the mouth slit:
+    the holes are grown a little so that nothing is placed on top of their loops."""
     allp = lay.array()
     eye = allp[lay.eye_loop]
     mouth = np.vstack([allp[lay.mouth_upper], allp[lay.mouth_lower][::-1]])
-    grow = 0.02
     c_e = eye.mean(axis=0)
-    eye_g = c_e + (eye - c_e) * (1.0 + grow * 3)
+    eye_g = c_e + (eye - c_e) * 1.06
     mouth_g = mouth.copy()
     mouth_g[:, 1] = fs.MOUTH_V + (mouth[:, 1] - fs.MOUTH_V) * 1.2
     mouth_g[mouth_g[:, 0] > 0, 0] += 0.05

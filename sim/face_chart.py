@@ -55,7 +55,7 @@ def resample(poly: FloatArray, spacing: float, closed: bool = False) -> FloatArr
     return out[:-1] if closed else out
 
 
-def _offset(poly: FloatArray, d: float) -> FloatArray:
+def offset(poly: FloatArray, d: float) -> FloatArray:
     """The polyline moved sideways by d (to its left in the chart)."""
     tang = np.gradient(poly, axis=0)
     tang /= np.linalg.norm(tang, axis=1, keepdims=True)

@@ -111,7 +111,6 @@ def _nose_profile(y: FloatArray) -> tuple[FloatArray, FloatArray]:
     order = np.argsort(ys)
     h = np.interp(y, ys[order], hs[order])
     w = np.interp(y, ys[order], ws[order])
-    # Smooth the piecewise-linear ridge with a cosine ease between knots.
     return h, w
 
 
