@@ -33,12 +33,14 @@ class TransferOptions:
     region: landmarks' neighbourhood that both cylinders are fitted to; landmark_offset: how far a
     landmark point may lie off the surface; shape: RMS landmark misfit after the best similarity
     above which the layout is not a face's; frame_angle: degrees the fitted rotation may differ
-    from the one read off chin/forehead, sides and nose."""
+    from the one read off chin/forehead, sides and nose; area_stiffness: weight of the anti-fold
+    area term added to eq 8's springs (0 = the paper's springs alone)."""
 
     region: float = 0.6
     landmark_offset: float = 0.1
     shape: float = 0.2
     frame_angle: float = 35.0
+    area_stiffness: float = 10.0
 
 
 @dataclass
@@ -207,7 +209,9 @@ def transfer_rig(
     fixed[ref_ids] = True
     edges = unique_edges(ref.triangles)
     rest = np.linalg.norm(rest_pos[edges[:, 1]] - rest_pos[edges[:, 0]], axis=1)
-    relax = relax_mask(start, edges, rest, fixed, stiffness=rest.mean() / np.maximum(rest, 1e-12))
+    relax = relax_mask(start, edges, rest, fixed, stiffness=rest.mean() / np.maximum(rest, 1e-12),
+                       triangles=ref.triangles, rest_area=0.5 * _signed_areas(rest_pos, ref.triangles),
+                       area_stiffness=opt.area_stiffness)
     flat = relax.positions
     folded = int((np.sign(_signed_areas(flat, ref.triangles)) != np.sign(_signed_areas(rest_pos, ref.triangles))).sum())
 
