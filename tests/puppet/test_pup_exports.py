@@ -1,0 +1,125 @@
+"""Exports from a replay: frame counts and rates, PC2 equal to the simulation, curves round trip."""
+
+from __future__ import annotations
+
+import csv
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import devices
+from puppet import live
+from puppet.curves import load_curves
+from puppet.export.pc2 import read_pc2
+from puppet.export.runner import ExportOptions, export
+from puppet.mapping import Mapper
+from puppet.replay import Replayer, build_performance
+from puppet.session import SessionWriter, read_session
+
+SCRIPT = """
+impersonate = "sgi"
+speed = 0
+duration = 1.0
+[[ramp]]
+control = "dial1"
+start = 0.0
+duration = 0.6
+from = 0.0
+to = 1.0
+rate = 50
+[[ramp]]
+control = "dial7"
+start = 0.2
+duration = 0.5
+from = 0.0
+to = 0.6
+rate = 50
+"""
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = tmp_path_factory.mktemp("rec")
+    (d / "s.toml").write_text(SCRIPT)
+    face = live.load_face()
+    dev = devices.open_device(f"mock://{d / 's.toml'}")
+    spec = live.build_mapping(face.vocab, None, [dev.spec])
+    rec = d / "take.jsonl"
+    w = SessionWriter(rec, live.session_header(face, spec, 60.0, [dev.spec]))
+    core = live.LiveCore(face, Mapper(spec, face.vocab), writer=w)
+    live.run_virtual(core, live.scripted_events([dev]), 1.0)
+    w.close(core.tick_count)
+    dev.close()
+    return rec
+
+
+def test_mp4_frame_count_and_rate(recording: Path, tmp_path: Path) -> None:
+    import imageio.v2 as imageio
+
+    perf = build_performance(read_session(recording), None)
+    out = tmp_path / "v.mp4"
+    export(perf, out, ExportOptions(fps=24, size=(160, 96), start=0.25, end=0.75))
+    reader = imageio.get_reader(str(out))
+    frames = [f for f in reader]
+    assert reader.get_meta_data()["fps"] == pytest.approx(24)
+    assert len(frames) == 12 and frames[0].shape == (96, 160, 3)
+    assert np.abs(frames[0].astype(int) - frames[-1].astype(int)).mean() > 0.05  # the face moved
+    # speed 2 halves the frame count; PNG frames land in a folder
+    export(perf, tmp_path / "pngs", ExportOptions(fps=10, size=(64, 48), speed=2.0))
+    assert len(list((tmp_path / "pngs").glob("frame_*.png"))) == 5
+
+
+def test_pc2_matches_the_simulation_and_obj_order(recording: Path, tmp_path: Path) -> None:
+    perf = build_performance(read_session(recording), None)
+    out = tmp_path / "face.pc2"
+    export(perf, out, ExportOptions(fps=30))
+    head, data = read_pc2(out)
+    n = len(perf.face.model.rest)
+    assert head == {"version": 1, "num_points": n, "start_frame": 1.0, "sampling": 1.0, "num_samples": 30}
+    rp = Replayer(perf)
+    for j in (0, 7, 29):
+        rp.seek(2 * j)  # 30 fps from 60 Hz ticks: every other tick
+        assert np.array_equal(data[j], rp.state.surface.astype(np.float32))
+    obj = [list(map(float, ln.split()[1:])) for ln in (tmp_path / "face.obj").read_text().splitlines()
+           if ln.startswith("v ")]
+    assert np.allclose(obj, perf.face.model.rest, atol=1e-5)
+
+
+def test_csv_and_arkit_rows(recording: Path, tmp_path: Path) -> None:
+    perf = build_performance(read_session(recording), None)
+    export(perf, tmp_path / "c.csv", ExportOptions(fps=60))
+    export(perf, tmp_path / "a.arkit.csv", ExportOptions(fps=60))
+    rows = list(csv.DictReader(open(tmp_path / "c.csv")))
+    assert len(rows) == 60 and float(rows[-1]["zygomaticus_major_l"]) > 0.5
+    ark = list(csv.DictReader(open(tmp_path / "a.arkit.csv")))
+    assert len(ark) == 60 and ark[59]["Timecode"] == "00:00:00:59.000"
+    assert float(ark[-1]["MouthSmileLeft"]) > 0.5 and float(ark[-1]["JawOpen"]) > 0.2
+
+
+def test_curves_export_edit_and_replay_alone_or_layered(recording: Path, tmp_path: Path) -> None:
+    run = lambda *a: subprocess.run([sys.executable, "-m", "puppet", "replay", *a],  # noqa: E731
+                                    capture_output=True, text=True, timeout=120)
+    cur = tmp_path / "take.curves"
+    out = run(str(recording), "--out", str(cur))
+    assert out.returncode == 0, out.stderr
+    cs = load_curves(cur)
+    assert {c.target for c in cs.curves} >= {"zygomaticus_major", "jaw"}
+    # edit: add a brow raise; play the curves alone and layered over the recording
+    cur.write_text(cur.read_text() + "curve frontalis_inner smooth\n  0.1 0\n  0.5 1\n  0.9 1\nend\n")
+    alone, layered = tmp_path / "alone.csv", tmp_path / "layered.csv"
+    assert run("--curves", str(cur), "--out", str(alone)).returncode == 0
+    assert run(str(recording), "--curves", str(cur), "--out", str(layered)).returncode == 0
+    a = list(csv.DictReader(open(alone)))
+    b = list(csv.DictReader(open(layered)))
+    assert float(a[40]["frontalis_inner_l"]) == 1.0 and float(b[40]["frontalis_inner_r"]) == 1.0
+    rec = read_session(recording).value_array(np.zeros(len(read_session(recording).channels)))
+    j = read_session(recording).channels.index("zygomaticus_major_l")
+    assert abs(float(a[40]["zygomaticus_major_l"]) - rec[40, j]) < 0.01  # curves reproduce the take
+    # a broken curves file: one line, file:line
+    bad = tmp_path / "bad.curves"
+    bad.write_text("facepuppet-curves 1\ncurve jaw\n 0 zero\nend\n")
+    out = run("--curves", str(bad), "--headless")
+    assert out.returncode == 2 and out.stderr.strip().startswith(f"puppet: error: {bad}:3:")
