@@ -111,7 +111,7 @@ def throughput() -> dict[str, dict[str, float]]:
     from devices.textserial import TextParser
 
     sys.path.insert(0, str(ROOT / "tests" / "devices"))
-    from test_dev_hid import MAPLE_RDESC, MAPLE_REPORT
+    from devdata import MAPLE_RDESC, MAPLE_REPORT
 
     def run(name: str, feed: Callable[[bytes, float], list[Any]], unit: bytes, events_per_unit: int) -> dict[str, float]:
         stream = unit * max(1, (1 << 20) // len(unit))

@@ -9,14 +9,12 @@ from pathlib import Path
 import can
 import cantools
 import pytest
-from test_dev_sgi import controls, wait_for
+from devdata import BJM1_DBC, PANEL_DBC, controls, wait_for
 
 from devices import DeviceSpecError, EventQueue, StatusEvent, open_device
 from devices.candev import CanDevice
 
-EXAMPLES = Path(__file__).parents[2] / "examples" / "can"
-PANEL = EXAMPLES / "panel.dbc"
-BJM1 = EXAMPLES / "j1939_bjm1.dbc"
+PANEL, BJM1 = PANEL_DBC, BJM1_DBC
 _channels = itertools.count()
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from emulators import FirmataEmulator, SgiBoxEmulator
 from fakehid import FakeHidApi, FakeHidUnit
-from test_dev_hid import MAPLE_RDESC
+from devdata import MAPLE_RDESC
 
 from devices.discovery import discover, probe_serial_port
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 from emulators import FirmataEmulator
-from test_dev_sgi import controls, wait_for
+from devdata import controls, wait_for
 
 from devices import DeviceError, EventQueue, StatusEvent, open_device
 from devices.firmata import FirmataDevice, FirmataParser

@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import can
 import cantools
+from devdata import BJM1_DBC as BJM1
+from devdata import MAPLE_RDESC, MAPLE_REPORT, ROLLER_EVENTS, ROLLER_RDESC
+from devdata import PANEL_DBC as PANEL
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_dev_can import BJM1, PANEL
-from test_dev_hid import MAPLE_RDESC, MAPLE_REPORT, ROLLER_EVENTS, ROLLER_RDESC
 
 from devices.base import ControlInfo
 from devices.candev import CanDecoder

@@ -2,30 +2,15 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import pytest
+from devdata import controls, wait_for
 from emulators import SgiBoxEmulator
 
-from devices import ControlEvent, EventQueue, StatusEvent, open_device
+from devices import EventQueue, StatusEvent, open_device
 from devices.sgi import SgiDevice, SgiParser, button_code, button_index
-
-
-def wait_for(q: EventQueue, pred: Callable[[Any], bool], timeout: float = 5.0) -> list[Any]:
-    """Events up to and including the first matching one."""
-    seen: list[Any] = []
-    while True:
-        e = q.get(timeout=timeout)
-        assert e is not None, f"timed out; saw {seen}"
-        seen.append(e)
-        if pred(e):
-            return seen
-
-
-def controls(events: list[Any]) -> list[ControlEvent]:
-    return [e for e in events if isinstance(e, ControlEvent)]
 
 
 @pytest.fixture

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 from emulators import TextBoxEmulator
-from test_dev_sgi import controls, wait_for
+from devdata import controls, wait_for
 
 from devices import EventQueue, StatusEvent, open_device
 from devices.textserial import TextParser, TextSerialDevice
