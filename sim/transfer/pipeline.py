@@ -19,12 +19,13 @@ from sim.transfer.geometry import (closest_points, edge_use_counts, in_polygon, 
                                    triangle_normals, unique_edges)
 from sim.transfer.landmarks import LANDMARK_NAMES, LandmarkFile, TransferError, require
 from sim.transfer.meshfile import HeadMesh
-from sim.transfer.openings import find_openings
+from sim.transfer.openings import cut_slit, find_openings, is_closed_path, is_hole_loop, open_loop
 from sim.transfer.relax import Relaxation, relax_mask
 
 FloatArray = np.ndarray
 IntArray = np.ndarray
 FORWARD = np.array([0.0, 0.0, 1.0])
+UP = np.array([0.0, 1.0, 0.0])
 
 
 @dataclass(frozen=True)
@@ -110,22 +111,22 @@ def _orient(pts: dict[str, FloatArray], ref: dict[str, FloatArray], names: list[
     return sim, {n: float(r) for n, r in zip(names, resid)}
 
 
-def _face_component(head: HeadMesh, vids: list[int]) -> tuple[FloatArray, IntArray, IntArray]:
+def _face_component(vertices: FloatArray, triangles: IntArray, vids: list[int]) -> tuple[FloatArray, IntArray, IntArray]:
     """Keep the connected surface that holds the landmarks; eyeballs, teeth and other separate
     parts are dropped. Returns (vertices, triangles, old -> new index with -1 for dropped)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    n = len(head.vertices)
-    e = unique_edges(head.triangles)
+    n = len(vertices)
+    e = unique_edges(triangles)
     graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
     _, label = connected_components(graph, directed=False)
     main = np.bincount(label[vids]).argmax()
     keep = label == main
     remap = -np.ones(n, dtype=np.int64)
     remap[keep] = np.arange(keep.sum())
-    tri = head.triangles[keep[head.triangles].all(axis=1)]
-    return head.vertices[keep], remap[tri].astype(np.int32), remap
+    tri = triangles[keep[triangles].all(axis=1)]
+    return vertices[keep], remap[tri].astype(np.int32), remap
 
 
 def _region(vertices: FloatArray, landmark_pts: FloatArray, radius: float) -> np.ndarray:
@@ -179,10 +180,27 @@ def transfer_rig(
     sim, shape = _orient(pts, ref_pts, names, landmarks, opt)
     ref_width = float(np.linalg.norm(ref_pts["eye_outer_l"] - ref_pts["eye_outer_r"]))
 
-    verts, tris, remap = _face_component(head, list(vids.values()))
+    declared = _declared(landmarks, head)
+    tris = head.triangles
+    for key, loop in declared.items():  # a declared closed loop: open what it encloses
+        if is_closed_path(loop, tris) and not is_hole_loop(loop, tris):
+            tris = open_loop(tris, loop, key, landmarks.path)
+    verts, tris, remap = _face_component(head.vertices, tris, list(vids.values()))
+    declared = {k: remap[v] for k, v in declared.items()}
+    for key, loop in declared.items():
+        if (loop < 0).any():
+            raise TransferError(f"{landmarks.path}: opening {key!r} is not on the face surface of {head.path}")
     verts = sim.apply(verts)
     lm_new = {n: sim.apply(pts[n]) for n in names}
     lm_vid = {n: int(remap[vids[n]]) for n in names}
+    cut: list[IntArray] = []
+    for key, path in list(declared.items()):
+        if not is_hole_loop(path, tris):
+            verts, tris, declared[key], lower = cut_slit(verts, tris, path, UP, key, landmarks.path)
+            cut.append(declared[key])
+            for n in names:  # a lower-lip or lower-lid landmark on the cut moves to the lower copy
+                if n.startswith("lower_") and lm_vid[n] in lower:
+                    lm_vid[n] = lower[lm_vid[n]]
     lm_arr = np.stack([lm_new[n] for n in names])
     region_new = _region(verts, lm_arr, opt.region * ref_width)
     flipped = _check_surface(verts, tris, region_new, head.path)
@@ -220,17 +238,32 @@ def transfer_rig(
     on_new[ref_ids] = lm_arr
     smap = SurfaceMap(ref.vertices, ref.triangles, on_new)
 
-    tri, bary, _ = locate_2d(uv_new, flat, ref.triangles)
+    tri, bary, _ = locate_2d(_probes(chart_new, verts, tris, cut, uv_new), flat, ref.triangles)
     # inside the mask's outer border, or less than about a triangle beyond it (the two meshes'
     # borders never match exactly; the reference decides there what is held)
     inside = in_polygon(uv_new, flat[outer_loop(flat, ref.triangles)]) | (bary.min(axis=1) > -0.75)
-    declared = _declared(landmarks, head, remap)
     mesh = _new_mesh(reference, smap, verts, tris, tri, bary, inside, lm_new, lm_vid, declared,
                      landmarks.path, head.path)
     muscles = {ch: tuple(carry_muscle(smap, m) for m in parts) for ch, parts in reference.muscles.items()}
     rig = FaceRig(mesh=mesh, muscles=muscles, wrinkles=_carry_wrinkles(reference, smap), name=name)
     return Transfer(rig, sim, cyl_ref, cyl_new, relax, shape, errors, int((~hit).sum()), folded,
                     int((~inside).sum()), flipped, int((remap < 0).sum()))
+
+
+def _probes(chart: CylinderChart, verts: FloatArray, tris: IntArray, cut: list[IntArray],
+            uv: FloatArray) -> FloatArray:
+    """Where each new vertex looks up the reference's fields: its own flat position, except on a
+    cut slit, where both lips (lids) sit at one place: those look a little into their own side
+    (the mean of their triangles' centroids), so the lower lip gets the lower lip's jaw weight."""
+    if not cut:
+        return uv
+    probes = uv.copy()
+    centroids = verts[tris].mean(axis=1)
+    for loop in cut:
+        for v in loop:
+            near = centroids[(tris == v).any(axis=1)].mean(axis=0)
+            probes[v] = chart.flatten(0.5 * (verts[v] + near)[None])[0][0]
+    return probes
 
 
 def _interp(values: FloatArray, tri: IntArray, bary: FloatArray, triangles: IntArray) -> FloatArray:
@@ -276,17 +309,14 @@ def _new_mesh(reference: FaceRig, smap: SurfaceMap, verts: FloatArray, tris: Int
         regions=regions, uv=uv)
 
 
-def _declared(lf: LandmarkFile, head: HeadMesh, remap: IntArray) -> dict[str, IntArray]:
-    """Declared opening loops, from the file's vertex indices to the kept surface's."""
+def _declared(lf: LandmarkFile, head: HeadMesh) -> dict[str, IntArray]:
+    """Declared openings, from the file's vertex indices to the welded mesh's."""
     out: dict[str, IntArray] = {}
     for key, loop in lf.openings.items():
         if loop.min() < 0 or loop.max() >= len(head.file_to_vertex):
             raise TransferError(f"{lf.path}: opening {key!r} names a vertex outside {head.path}'s "
                                 f"{len(head.file_to_vertex)} vertices")
-        mapped = remap[head.file_to_vertex[loop]]
-        if (mapped < 0).any():
-            raise TransferError(f"{lf.path}: opening {key!r} is not on the face surface of {head.path}")
-        out[key] = mapped
+        out[key] = head.file_to_vertex[loop]
     return out
 
 

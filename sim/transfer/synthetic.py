@@ -66,17 +66,20 @@ def surface_point(theta: FloatArray, h: FloatArray, depth: float = 0.0) -> Float
     return np.stack([r * np.sin(theta), h + 0 * r, r * np.cos(theta)], axis=-1)
 
 
-def _in_openings(theta: FloatArray, h: FloatArray) -> np.ndarray:
+def _in_openings(theta: FloatArray, h: FloatArray, mouth: bool = True) -> np.ndarray:
     hole = np.zeros(theta.shape, bool)
     for (t, e) in EYES:
         hole |= ((theta - t) / EYE_AXES[0]) ** 2 + ((h - e) / EYE_AXES[1]) ** 2 < 1.0
     (t, e), (a, b) = MOUTH
-    return hole | (((theta - t) / a) ** 2 + ((h - e) / b) ** 2 < 1.0)
+    return hole | (mouth & (((theta - t) / a) ** 2 + ((h - e) / b) ** 2 < 1.0))
 
 
-def synthetic_mesh(n_theta: int = 48, n_h: int = 44, full_head: bool = False) -> tuple[FloatArray, np.ndarray, FloatArray]:
+def synthetic_mesh(
+    n_theta: int = 48, n_h: int = 44, full_head: bool = False, mouth_open: bool = True
+) -> tuple[FloatArray, np.ndarray, FloatArray]:
     """(vertices, triangles, (theta, h) per vertex) of the synthetic skin with its openings; a
-    full head wraps all the way round (open at crown and neck), otherwise a face mask."""
+    full head wraps all the way round (open at crown and neck), otherwise a face mask; with
+    mouth_open False the lips are closed (no mouth hole), like many scans."""
     t_lo, t_hi = (-np.pi, np.pi) if full_head else (-1.45, 1.45)
     thetas = np.linspace(t_lo, t_hi, n_theta, endpoint=not full_head)
     hs = np.linspace(*H_RANGE, n_h)
@@ -90,7 +93,7 @@ def synthetic_mesh(n_theta: int = 48, n_h: int = 44, full_head: bool = False) ->
     tris = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([b, d, c], -1).reshape(-1, 3)])
     th, h = tt.ravel(), hh.ravel()
     cen_t = np.angle(np.exp(1j * th[tris]).mean(axis=1))
-    tris = tris[~_in_openings(cen_t, h[tris].mean(axis=1))]
+    tris = tris[~_in_openings(cen_t, h[tris].mean(axis=1), mouth_open)]
     used = np.unique(tris)
     remap = -np.ones(th.size, dtype=np.int64)
     remap[used] = np.arange(len(used))

@@ -187,3 +187,35 @@ def test_inward_winding_is_flipped(reference) -> None:
     assert res.flipped_winding
     n = np.cross(*(res.rig.mesh.vertices[res.rig.mesh.triangles[:, k]] - res.rig.mesh.vertices[res.rig.mesh.triangles[:, 0]] for k in (1, 2)))
     assert n.sum(axis=0)[2] > 0
+
+
+def test_closed_lips_are_cut_open_along_a_declared_lip_line(reference) -> None:
+    """A head scanned with the mouth closed: the file names the lip line (corner to corner); the
+    importer cuts a slit there, the lower lip takes the copies and the lower-lip landmark."""
+    from sim.transfer.geometry import boundary_loops
+
+    v, t, param = synthetic_mesh(64, 45, full_head=True, mouth_open=False)
+    line = np.nonzero((np.abs(param[:, 1] + 5.0) < 0.01) & (np.abs(param[:, 0]) < 0.3))[0]
+    line = line[np.argsort(param[line, 0])]
+    pts = {k: reference.mesh.landmark(k).tolist() for k in reference.mesh.landmarks}
+    pts.update(mouth_corner_r=int(line[0]), mouth_corner_l=int(line[-1]),
+               upper_lip_center=int(line[3]), lower_lip_center=int(line[3]))
+    data = {"landmarks": pts, "openings": {"mouth": line.tolist()}}
+    res = transfer_rig(reference, from_arrays(v, t), parse_landmarks(data, "lm.json"))
+    m = res.rig.mesh
+    assert len(m.vertices) == len(v) + len(line) - 2
+    assert any(set(lp.tolist()) == set(m.mouth_loop.tolist()) for lp in boundary_loops(m.triangles))
+    upper, lower = m.mouth_loop[1:len(line) - 1], m.mouth_loop[len(line):]
+    assert not m.regions["lower_lip"][upper].any() and m.regions["lower_lip"][lower].all()
+    assert m.landmarks["lower_lip_center"] in set(lower.tolist())
+    assert m.landmarks["upper_lip_center"] == line[3]
+    assert np.allclose(m.vertices[lower], m.vertices[upper[::-1]])  # a slit: closed at rest
+
+
+def test_declared_opening_must_follow_mesh_edges(reference) -> None:
+    v, t, param = synthetic_mesh(64, 45, full_head=True, mouth_open=False)
+    line = np.nonzero((np.abs(param[:, 1] + 5.0) < 0.01) & (np.abs(param[:, 0]) < 0.3))[0]
+    pts = {k: reference.mesh.landmark(k).tolist() for k in reference.mesh.landmarks}
+    data = {"landmarks": pts, "openings": {"mouth": [int(line[0]), int(line[3]), int(line[-1])]}}
+    with pytest.raises(TransferError, match=r"lm\.json: opening 'mouth': vertices .* are not joined by a mesh edge"):
+        transfer_rig(reference, from_arrays(v, t), parse_landmarks(data, "lm.json"))
