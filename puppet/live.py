@@ -262,9 +262,8 @@ def run_virtual(core: LiveCore, events: Sequence[Event], duration: float,
 def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None,
                  clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep,
                  on_frame: Callable[[LiveCore], None] | None = None, stop: StopFlag | None = None) -> None:
-    """Headless, on the wall clock: tick k happens at t0 + k*dt and takes the events stamped up to
-    then; a late loop catches up at most 4 ticks at once, then drops wall time rather than lag."""
-    pending: list[Event] = []
+    """Headless, on the wall clock: tick k happens at t0 + k*dt and takes every event that has
+    arrived; a loop more than 4 ticks late drops wall time (re-anchors) rather than lag behind."""
     start = clock()
     k0 = 0
     while True:
@@ -280,10 +279,9 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
         if now - boundary > 4 * core.dt:  # fell behind (machine busy): re-anchor the schedule
             start, k0 = now, core.tick_count
             boundary = now
-        pending += drain()
-        batch = [e for e in pending if e.t <= boundary]
-        pending = [e for e in pending if e.t > boundary]
-        core.tick(batch)
+        # everything that arrived by now goes into this tick: waiting for the next boundary would
+        # only add latency, and the recording keeps the tick each event was applied at
+        core.tick(drain())
         if on_frame is not None:
             on_frame(core)
         core.presented(clock())

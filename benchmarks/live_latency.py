@@ -1,0 +1,134 @@
+"""Input-to-frame latency of the live loop at 60 Hz: event timestamp (taken by the device reader
+right after the read) -> the frame that shows it is ready (headless: the tick's simulation step is
+done; with --render WxH, also drawn offscreen and read back, as a window would before swapping).
+
+Two sources:
+1. `mock://` playing a dense dial script in real time (the device thread stamps each event);
+2. the SGI dial-and-button box emulator on a pseudo-terminal (tests/devices/emulators.py), turned
+   at random moments, read by the real `sgi://` backend.
+The fixed tick bounds the wait for the next tick boundary by one tick (16.7 ms); the target is
+p99 <= one frame + 2 ms = 18.7 ms.
+
+Run:  .venv/bin/python benchmarks/live_latency.py [--seconds 10] [--render 640x360] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import random
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "devices")]
+
+import numpy as np  # noqa: E402
+
+import devices  # noqa: E402
+from puppet import live  # noqa: E402
+from puppet.mapping import Mapper  # noqa: E402
+
+MOCK = """
+impersonate = "sgi"
+speed = 1
+duration = {seconds}
+[[sine]]
+control = "dial1"
+start = 0.0
+duration = {seconds}
+freq = 0.5
+amplitude = 0.4
+offset = 0.5
+rate = 97
+"""
+
+
+def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int, int] | None,
+             drive: Any = None) -> dict[str, float]:
+    spec = live.build_mapping(face.vocab, None, [d.spec for d in devs])
+    mapper = Mapper(spec, face.vocab)
+    core = live.LiveCore(face, mapper)
+    core.latency.keep_all = True
+    queue = devices.EventQueue()
+    renderer = None
+    if render is not None:
+        from render.offscreen import OffscreenRenderer
+
+        renderer = OffscreenRenderer(face.model, render)
+    on_frame = (lambda c: renderer.render_frame(c.state)) if renderer is not None else None
+    for d in devs:
+        d.add_listener(queue)
+        d.start()
+    stop = threading.Event()
+    th = None
+    if drive is not None:
+        th = threading.Thread(target=drive, args=(stop,), daemon=True)
+        th.start()
+    try:
+        live.run_realtime(core, queue.drain, seconds, on_frame=on_frame)
+    finally:
+        stop.set()
+        if th is not None:
+            th.join(2)
+        for d in devs:
+            d.close()
+        if renderer is not None:
+            renderer.release()
+    lat = np.array(core.latency.all) * 1000
+    return {"events": int(lat.size), "p50_ms": float(np.percentile(lat, 50)), "p99_ms": float(np.percentile(lat, 99)),
+            "max_ms": float(lat.max()), "ticks": core.tick_count, "target_ms": 1000 / 60 + 2}
+
+
+def mock_source(face: live.Face, seconds: float, render: tuple[int, int] | None, tmp: Path) -> dict[str, float]:
+    script = tmp / "dense.toml"
+    script.write_text(MOCK.format(seconds=seconds + 1))
+    dev = devices.open_device(f"mock://{script}")
+    return run_loop(face, [dev], seconds, render)
+
+
+def sgi_source(face: live.Face, seconds: float, render: tuple[int, int] | None, tmp: Path) -> dict[str, float]:
+    from emulators import SgiBoxEmulator
+
+    box = SgiBoxEmulator(tmp / "sgi")
+    try:
+        dev = devices.open_device(f"sgi://{box.port.link}")
+
+        def drive(stop: threading.Event) -> None:
+            box.wait_ready(10)
+            rng = random.Random(7)
+            while not stop.is_set():
+                box.turn(rng.randrange(8), rng.choice((-2, -1, 1, 2)))
+                time.sleep(rng.uniform(0.005, 0.025))  # random phase against the 60 Hz tick
+
+        return run_loop(face, [dev], seconds, render, drive)
+    finally:
+        box.port.close()
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=10.0)
+    ap.add_argument("--render", default=None, help="also render each frame offscreen at WxH")
+    ap.add_argument("--json", action="store_true")
+    a = ap.parse_args()
+    render = tuple(int(x) for x in a.render.split("x")) if a.render else None
+    face = live.load_face()
+    with tempfile.TemporaryDirectory() as d:
+        res = {"mock": mock_source(face, a.seconds, render, Path(d)),
+               "sgi_pty": sgi_source(face, a.seconds, render, Path(d))}
+    if a.json:
+        print(json.dumps(res, indent=2))
+    else:
+        for name, r in res.items():
+            print(f"{name:8s} events {r['events']:5d}  p50 {r['p50_ms']:5.1f} ms  p99 {r['p99_ms']:5.1f} ms  "
+                  f"max {r['max_ms']:5.1f} ms  (target p99 <= {r['target_ms']:.1f} ms)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
