@@ -75,7 +75,7 @@ def parse_landmarks(data: object, path: str = "<landmarks>") -> LandmarkFile:
         raise TransferError(f"{path}: expected a JSON object of landmark name -> index or point")
     openings_raw = {}
     if "landmarks" in data:
-        unknown_keys = set(data) - {"landmarks", "openings", "units", "comment"}
+        unknown_keys = set(data) - {"landmarks", "openings", "comment"}
         if unknown_keys:
             raise TransferError(f"{path}: unknown key(s) {sorted(unknown_keys)}; expected "
                                 "'landmarks' and optionally 'openings'")
