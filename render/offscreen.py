@@ -27,21 +27,23 @@ class OffscreenRenderer:
     """Renders frames of one model at a fixed size into numpy arrays.
 
     `supersample` n renders n x n samples per pixel and averages them (offline quality);
-    with 1, the live FXAA pass antialiases. Pass `ctx` to share a context (tests, many renderers);
-    otherwise one is created and released by `release()`."""
+    `antialias` "fxaa" adds the post pass instead (with supersample 1). Pass `ctx` to share a
+    context (tests, many renderers); otherwise one is created and released by `release()`."""
 
     def __init__(self, model: Any, size: tuple[int, int] = (1280, 720), view: str = "shaded",
-                 supersample: int = 1, ctx: moderngl.Context | None = None) -> None:
+                 supersample: int = 1, ctx: moderngl.Context | None = None,
+                 antialias: str = "none") -> None:
         self._own_ctx = ctx is None
         self.ctx = ctx if ctx is not None else create_context()
         self.size = (int(size[0]), int(size[1]))
         if min(self.size) < 1:
             raise ValueError(f"image size must be positive, got {size}")
         self._previous_fbo = self.ctx.fbo  # rebound on release so GL never points at a freed one
-        self.renderer = FaceRenderer(self.ctx, view=view, supersample=supersample)
+        self.renderer = FaceRenderer(self.ctx, view=view, antialias=antialias, supersample=supersample)
         self.renderer.populate(model)
         self._color = self.ctx.renderbuffer(self.size, 4)
-        self.fbo = self.ctx.framebuffer([self._color])
+        self._depth = self.ctx.depth_renderbuffer(self.size)
+        self.fbo = self.ctx.framebuffer([self._color], self._depth)
 
     @property
     def view(self) -> str:
@@ -68,6 +70,7 @@ class OffscreenRenderer:
         self.renderer.release()
         self.fbo.release()
         self._color.release()
+        self._depth.release()
         if self._own_ctx:
             self.ctx.release()
 

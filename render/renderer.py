@@ -13,18 +13,26 @@ import numpy as np
 from render import shaders
 from render.camera import OrbitCamera
 from render.hud import HudInfo, HudRenderer
-from render.meshdata import (Cavity, MuscleLines, NormalComputer, brow_polylines, eye_rotation, skin_tint,
+from render.meshdata import (Cavity, brow_coords, MuscleLines, NormalComputer, eye_rotation, skin_tint,
                              unique_edges, uv_sphere)
 from render.trails import TrailHistory
 
 VIEWS = ("shaded", "wireframe", "muscles", "trails", "heat")
 ANTIALIAS = ("fxaa", "none")
+BACKGROUND = (0.29, 0.295, 0.305)  # neutral grey, display (gamma-encoded) values
 EYE_YAW_MAX = math.radians(30.0)
 EYE_PITCH_MAX = math.radians(20.0)
 MAX_TRAIL_NODES = 4000
 STILL_PATH_CM = 0.02  # nodes that moved less than this over the trail window count as motionless
 MOUTH_RIM = (0.20, 0.035, 0.03)
 SOCKET_RIM = (0.05, 0.03, 0.03)
+
+
+def affordable_antialias(ctx: moderngl.Context) -> str:
+    """"fxaa" on a GPU; "none" on a software rasterizer, where the full-screen FXAA pass alone
+    costs several frames' budget at 720p (measured in benchmarks/render_frame.py)."""
+    name = str(ctx.info.get("GL_RENDERER", "")).lower()
+    return "none" if any(w in name for w in ("llvmpipe", "softpipe", "swrast", "software")) else "fxaa"
 
 
 def _mat(m: np.ndarray) -> bytes:
@@ -36,9 +44,13 @@ class FaceRenderer:
     """Renders one face model. Attributes a caller may change between frames: `view` (one of
     VIEWS), `camera` (OrbitCamera), `antialias` ("fxaa" | "none"), `supersample` (n: render n x n
     samples per pixel, for offline export), `heat_scale` (cm of displacement at the top of the
-    heat colour map), `trails` (TrailHistory, recorded from the states drawn)."""
+    heat colour map), `trails` (TrailHistory, recorded from the states drawn).
 
-    def __init__(self, ctx: moderngl.Context, view: str = "shaded", antialias: str = "fxaa",
+    With antialias "none" and no supersampling the scene is drawn straight into the target; FXAA
+    and supersampling render into an internal framebuffer and resolve with one full-screen pass,
+    which on llvmpipe costs more than the face itself (see docs/rendering.md)."""
+
+    def __init__(self, ctx: moderngl.Context, view: str = "shaded", antialias: str = "none",
                  supersample: int = 1) -> None:
         self.ctx = ctx
         self.view = view
@@ -48,17 +60,28 @@ class FaceRenderer:
         self.heat_scale = 0.8
         self.model: Any = None
         self.trails: TrailHistory | None = None
-        self.skin_prog = ctx.program(vertex_shader=shaders.SKIN_VS, fragment_shader=shaders.SKIN_FS)
+        self.skin_progs = {kind: ctx.program(vertex_shader=shaders.SKIN_VS,
+                                             fragment_shader=shaders.skin_source(kind))
+                           for kind in ("SKIN", "CLAY", "HEAT")}
         self.eye_prog = ctx.program(vertex_shader=shaders.EYE_VS, fragment_shader=shaders.EYE_FS)
         self.cavity_prog = ctx.program(vertex_shader=shaders.CAVITY_VS, fragment_shader=shaders.CAVITY_FS)
         self.line_prog = ctx.program(**shaders.line_program_sources())
         self.trail_prog = ctx.program(**shaders.line_program_sources(trail=True))
         self.point_prog = ctx.program(vertex_shader=shaders.POINT_VS, fragment_shader=shaders.POINT_FS)
-        self.post_prog = ctx.program(vertex_shader=shaders.POST_VS, fragment_shader=shaders.POST_FS)
-        self.post_vao = ctx.vertex_array(self.post_prog, [])
+        self._post: dict[str, tuple[moderngl.Program, moderngl.VertexArray]] = {}
         self.hud = HudRenderer(ctx)
         self._scene: tuple[tuple[int, int], moderngl.Framebuffer, moderngl.Texture, moderngl.Renderbuffer] | None = None
         self._gl: list[Any] = []
+
+    @property
+    def antialias(self) -> str:
+        return self._antialias
+
+    @antialias.setter
+    def antialias(self, mode: str) -> None:
+        if mode not in ANTIALIAS:
+            raise ValueError(f"unknown antialias {mode!r}; choose one of {', '.join(ANTIALIAS)}")
+        self._antialias = mode
 
     @property
     def view(self) -> str:
@@ -82,26 +105,25 @@ class FaceRenderer:
         self.model = model
         self.normals = NormalComputer(tris, n)
         self.camera.fit(rest.min(axis=0), rest.max(axis=0))
-        brows = brow_polylines(mesh)
-        self.skin_prog["n_brows"].value = len(brows)
-        if len(brows):
-            self.skin_prog["brows"].write(np.resize(brows.astype(np.float32), (6, 3)).tobytes())
         g = self._gl
         self.pos_vbo = ctx.buffer(reserve=n * 12, dynamic=True)
         self.nrm_vbo = ctx.buffer(reserve=n * 12, dynamic=True)
         col_vbo = ctx.buffer(skin_tint(mesh).tobytes())
         rest_vbo = ctx.buffer(rest.tobytes())
+        brow_vbo = ctx.buffer(brow_coords(mesh).tobytes())
         tri_ibo = ctx.buffer(tris.tobytes())
         edge_ibo = ctx.buffer(unique_edges(tris).tobytes())
-        g += [self.pos_vbo, self.nrm_vbo, col_vbo, rest_vbo, tri_ibo, edge_ibo]
-        self.skin_vao = ctx.vertex_array(self.skin_prog, [
-            (self.pos_vbo, "3f", "in_pos"), (self.nrm_vbo, "3f", "in_normal"),
-            (col_vbo, "3f", "in_color"), (rest_vbo, "3f", "in_rest")], tri_ibo)
+        g += [self.pos_vbo, self.nrm_vbo, col_vbo, rest_vbo, brow_vbo, tri_ibo, edge_ibo]
+        self.skin_vaos = {}
+        for kind, prog in self.skin_progs.items():
+            attrs = [(self.pos_vbo, "3f", "in_pos"), (self.nrm_vbo, "3f", "in_normal"),
+                     (col_vbo, "3f", "in_color"), (rest_vbo, "3f", "in_rest"), (brow_vbo, "2f", "in_brow")]
+            self.skin_vaos[kind] = ctx.vertex_array(prog, [a for a in attrs if a[2] in prog], tri_ibo)
         self.edge_vao = ctx.vertex_array(self.line_prog, [(self.pos_vbo, "3f", "in_pos")], edge_ibo)
         sphere, sphere_tris = uv_sphere()
         sph_vbo, sph_ibo = ctx.buffer(sphere.tobytes()), ctx.buffer(sphere_tris.tobytes())
         self.eye_vao = ctx.vertex_array(self.eye_prog, [(sph_vbo, "3f", "in_pos")], sph_ibo)
-        g += [sph_vbo, sph_ibo, self.skin_vao, self.edge_vao, self.eye_vao]
+        g += [sph_vbo, sph_ibo, *self.skin_vaos.values(), self.edge_vao, self.eye_vao]
         self.cavities = []
         loops = [(mesh.mouth_loop, MOUTH_RIM)] + [(lp, SOCKET_RIM) for lp in mesh.eye_loops]
         for loop, rim in loops:
@@ -159,6 +181,8 @@ class FaceRenderer:
             raise RuntimeError("FaceRenderer.draw before populate(model)")
         ctx = self.ctx
         target = ctx.fbo
+        if target is None:
+            raise RuntimeError("FaceRenderer.draw needs a bound framebuffer (fbo.use())")
         vx, vy, w, h = target.viewport
         ss = max(1, int(self.supersample))
         surface = np.ascontiguousarray(state.surface, dtype=np.float32)
@@ -168,36 +192,59 @@ class FaceRenderer:
             self.trails.push(surface, getattr(state, "time", None))
         view_m, proj = self.camera.matrices(w / max(h, 1))
         mvp = proj @ view_m
-        fbo, tex = self._scene_target(w * ss, h * ss)
-        fbo.use()
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        post = self._post_program(ss)
+        if post is None:  # straight into the target: no extra full-screen pass
+            fbo, tex = target, None
+            whole = (vx, vy, w, h) == (0, 0, *fbo.size)  # a scissored clear is slow on llvmpipe
+            fbo.clear(*BACKGROUND, 1.0, depth=1.0, viewport=None if whole else (vx, vy, w, h))
+        else:
+            fbo, tex = self._scene_target(w * ss, h * ss)
+            fbo.use()
+            fbo.clear(*BACKGROUND, 1.0, depth=1.0)
         ctx.enable_only(moderngl.DEPTH_TEST)
         self._draw_scene(state, surface, mvp, view_m, (w * ss, h * ss), ss)
-        target.use()
-        target.viewport = (vx, vy, w, h)
         ctx.enable_only(moderngl.NOTHING)
-        tex.use(0)
-        self.post_prog["scene"].value = 0
-        self.post_prog["ss"].value = ss
-        self.post_prog["fxaa"].value = int(self.antialias == "fxaa" and ss == 1)
-        self.post_prog["texel"].value = (1.0 / (w * ss), 1.0 / (h * ss))
-        self.post_vao.render(moderngl.TRIANGLES, vertices=3)
+        if post is not None and tex is not None:
+            target.use()
+            target.viewport = (vx, vy, w, h)
+            tex.use(0)
+            prog, vao = post
+            prog["scene"].value = 0
+            if "texel" in prog:
+                prog["texel"].value = (1.0 / w, 1.0 / h)
+            vao.render(moderngl.TRIANGLES, vertices=3)
         if hud is not None:
             if self.view == "heat":
                 hud = HudInfo(**{**hud.__dict__, "lines": hud.lines + [
                     f"heat: blue = still, red ≥ {self.heat_scale:g} cm from rest"]})
             self.hud.draw(hud, (w, h), view=self.view, age=getattr(state, "age", None))
 
+    def _post_program(self, ss: int) -> tuple[moderngl.Program, moderngl.VertexArray] | None:
+        """The pass from the internal framebuffer to the target, or None to draw directly."""
+        if ss > 1:
+            key = f"resolve{ss}"
+            src = shaders.resolve_source(ss)
+        elif self.antialias == "fxaa":
+            key, src = "fxaa", shaders.FXAA_FS
+        else:
+            return None
+        if key not in self._post:
+            prog = self.ctx.program(vertex_shader=shaders.POST_VS, fragment_shader=src)
+            self._post[key] = (prog, self.ctx.vertex_array(prog, []))
+        return self._post[key]
+
     def _draw_scene(self, state: Any, surface: np.ndarray, mvp: np.ndarray, view_m: np.ndarray,
                     size: tuple[int, int], ss: int) -> None:
         view = self.view
-        for prog in (self.skin_prog, self.eye_prog):
+        kind = {"muscles": "CLAY", "trails": "CLAY", "heat": "HEAT"}.get(view, "SKIN")
+        skin = self.skin_progs[kind]
+        for prog in (skin, self.eye_prog):
             prog["mvp"].write(_mat(mvp))
             prog["view"].write(_mat(view_m))
-        self.skin_prog["mode"].value = {"muscles": 1, "trails": 1, "heat": 2}.get(view, 0)
-        self.skin_prog["heat_scale"].value = float(self.heat_scale)
+        if kind == "HEAT":
+            skin["heat_scale"].value = float(self.heat_scale)
         self._draw_cavities(surface, mvp)
-        self.skin_vao.render(moderngl.TRIANGLES)
+        self.skin_vaos[kind].render(moderngl.TRIANGLES)
         self._draw_eyes(state)
         for prog in (self.line_prog, self.trail_prog):
             prog["mvp"].write(_mat(mvp))
@@ -293,7 +340,10 @@ class FaceRenderer:
             for obj in self._scene[1:]:
                 obj.release()
             self._scene = None
-        for obj in (self.post_vao, self.skin_prog, self.eye_prog, self.cavity_prog, self.line_prog,
-                    self.trail_prog, self.point_prog, self.post_prog):
+        for prog, vao in self._post.values():
+            vao.release()
+            prog.release()
+        for obj in (*self.skin_progs.values(), self.eye_prog, self.cavity_prog, self.line_prog,
+                    self.trail_prog, self.point_prog):
             obj.release()
         self.hud.release()

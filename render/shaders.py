@@ -1,6 +1,7 @@
 """GLSL 3.30 sources. Lighting happens in linear light in view space (the lights move with the
 camera, so an orbited face stays readable) and is gamma-encoded at the end of each surface shader,
-so the post pass (FXAA, supersample resolve) works on perceptual values as FXAA expects."""
+so the optional post pass (FXAA, supersample resolve) works on perceptual values as FXAA expects.
+Variants are separate programs chosen by #define: llvmpipe executes both sides of a branch."""
 
 from __future__ import annotations
 
@@ -19,13 +20,13 @@ vec3 light(vec3 albedo, vec3 n, vec3 p, float spec, float shininess) {
     vec3 c = albedo * (key * vec3(1.55, 1.45, 1.32) + fill * vec3(0.32, 0.37, 0.46) + sky);
     vec3 h = normalize(key_d + v);
     c += spec * pow(max(dot(n, h), 0.0), shininess) * vec3(1.0, 0.97, 0.92) * float(dot(n, key_d) > 0.0);
-    float edge = pow(1.0 - max(dot(n, v), 0.0), 3.0);
+    float edge = 1.0 - max(dot(n, v), 0.0);
+    edge = edge * edge * edge;
     c += edge * max(dot(n, rim_d) + 0.4, 0.0) * vec3(0.30, 0.32, 0.36);
     return c;
 }
-vec3 encode(vec3 c) {
-    c = vec3(1.0) - exp(-1.15 * c);              // soft shoulder instead of hard clipping
-    return pow(c, vec3(1.0 / 2.2));
+vec3 encode(vec3 c) {              // gamma 2.0: sqrt is far cheaper than pow on llvmpipe
+    return sqrt(clamp(c, 0.0, 1.0));
 }
 vec3 ramp(float t) {                              // blue -> cyan -> green -> yellow -> red
     t = clamp(t, 0.0, 1.0);
@@ -42,57 +43,51 @@ in vec3 in_pos;
 in vec3 in_normal;
 in vec3 in_color;
 in vec3 in_rest;
+in vec2 in_brow;
 out vec3 v_pos;
 out vec3 v_normal;
 out vec3 v_color;
-out vec3 v_rest;
+out vec2 v_brow;
 out float v_disp;
 void main() {
     gl_Position = mvp * vec4(in_pos, 1.0);
     v_pos = (view * vec4(in_pos, 1.0)).xyz;
     v_normal = mat3(view) * in_normal;
     v_color = in_color;
-    v_rest = in_rest;
+    v_brow = in_brow;
     v_disp = length(in_pos - in_rest);
 }
 """
 
-# mode 0: skin; 1: pale clay (under muscles/trails, so the lines read); 2: heat map.
+# Specialised by #define: SKIN (tinted skin: lips and brows are in the vertex colour), CLAY (pale, under muscles/trails so the
+# lines read), HEAT (displacement colour map).
 SKIN_FS = HEADER + LIGHTING + """
-uniform int mode;
 uniform float heat_scale;
-uniform int n_brows;
-uniform vec3 brows[6];          // per brow: inner, mid, outer (rest positions)
 in vec3 v_pos;
 in vec3 v_normal;
 in vec3 v_color;
-in vec3 v_rest;
+in vec2 v_brow;
 in float v_disp;
 out vec4 frag;
-float seg_dist(vec3 p, vec3 a, vec3 b, out float t) {
-    vec3 ab = b - a;
-    t = clamp(dot(p - a, ab) / dot(ab, ab), 0.0, 1.0);
-    return length(p - a - t * ab);
-}
-float brow_weight(vec3 p) {     // a soft band that tapers from the inner end to the outer end
-    float w = 0.0;
-    for (int i = 0; i < n_brows; ++i) {
-        for (int k = 0; k < 2; ++k) {
-            float t;
-            float d = seg_dist(p, brows[3 * i + k], brows[3 * i + k + 1], t);
-            float along = (float(k) + t) / 2.0;
-            float r = mix(0.55, 0.28, along);
-            w = max(w, smoothstep(r, 0.35 * r, d) * mix(0.95, 0.75, along));
-        }
-    }
-    return w * (0.85 + 0.15 * sin(p.x * 37.0 + p.y * 23.0));
-}
 void main() {
     vec3 n = normalize(v_normal);
-    vec3 albedo = mix(v_color, vec3(0.06, 0.04, 0.028), brow_weight(v_rest));
+#if defined(CLAY)
+    vec3 albedo = vec3(0.55);
+    float spec = 0.0;
+#elif defined(HEAT)
+    vec3 albedo = ramp(v_disp / heat_scale);
+    albedo = 0.6 * albedo * albedo;
+    float spec = 0.05;
+#else
+    // brow: a band across the brow line, thick at the inner end, thin and faded at the outer
+    float u = v_brow.y;
+    float half_w = mix(0.42, 0.16, clamp(u, 0.0, 1.0)) * smoothstep(-0.06, 0.05, u)
+                   * (1.0 - smoothstep(0.95, 1.08, u));
+    float brow = (1.0 - smoothstep(0.4 * half_w, half_w + 1e-4, abs(v_brow.x - 0.1 * half_w)))
+                 * mix(0.95, 0.7, clamp(u, 0.0, 1.0)) * float(half_w > 1e-3);
+    vec3 albedo = mix(v_color, vec3(0.055, 0.037, 0.026), brow);
     float spec = 0.12;
-    if (mode == 1) { albedo = vec3(0.55); spec = 0.0; }
-    if (mode == 2) { albedo = 0.6 * pow(ramp(v_disp / heat_scale), vec3(2.2)); spec = 0.05; }
+#endif
     if (!gl_FrontFacing) { n = -n; albedo *= 0.35; spec = 0.0; }
     frag = vec4(encode(light(albedo, n, v_pos, spec, 28.0)), 1.0);
 }
@@ -127,7 +122,7 @@ void main() {
     vec3 d = normalize(v_local);
     float ang = acos(clamp(d.z, -1.0, 1.0));
     float around = atan(d.y, d.x);
-    vec3 sclera = vec3(0.72, 0.68, 0.64) * (0.85 + 0.15 * smoothstep(1.6, 0.6, ang));
+    vec3 sclera = vec3(0.72, 0.68, 0.64) * (1.0 - 0.15 * smoothstep(0.6, 1.6, ang));
     float streak = 0.75 + 0.25 * sin(around * 29.0) * sin(around * 7.0 + ang * 40.0);
     vec3 iris = vec3(0.16, 0.10, 0.05) * streak * mix(1.0, 0.45, smoothstep(0.40, 0.52, ang));
     vec3 col = mix(iris, sclera, smoothstep(0.50, 0.54, ang));
@@ -258,54 +253,53 @@ void main() {
 }
 """
 
-# The scene is premultiplied colour over a transparent clear, so the background is composited here
-# (after antialiasing, which then also smooths the face's silhouette against it).
-POST_FS = HEADER + """
+# FXAA-style pass (after Lottes' FXAA: luma edge detection, then a blend along the edge direction
+# with a guard against overshoot). Software GL runs every branch, so there is no early-out.
+FXAA_FS = HEADER + """
 uniform sampler2D scene;
-uniform int ss;
-uniform int fxaa;
 uniform vec2 texel;
 in vec2 v_uv;
 out vec4 frag;
-vec3 bg;
-vec3 comp(vec4 s) { return s.rgb + bg * (1.0 - s.a); }
 float luma(vec3 c) { return dot(c, vec3(0.299, 0.587, 0.114)); }
-vec3 fxaa_at(vec2 uv) {
-    vec3 m = comp(texture(scene, uv));
-    vec3 nw = comp(texture(scene, uv + texel * vec2(-1.0, -1.0)));
-    vec3 ne = comp(texture(scene, uv + texel * vec2(1.0, -1.0)));
-    vec3 sw = comp(texture(scene, uv + texel * vec2(-1.0, 1.0)));
-    vec3 se = comp(texture(scene, uv + texel * vec2(1.0, 1.0)));
-    float lm = luma(m), lnw = luma(nw), lne = luma(ne), lsw = luma(sw), lse = luma(se);
+void main() {
+    vec3 m = texture(scene, v_uv).rgb;
+    float lnw = luma(texture(scene, v_uv + texel * vec2(-1.0, -1.0)).rgb);
+    float lne = luma(texture(scene, v_uv + texel * vec2(1.0, -1.0)).rgb);
+    float lsw = luma(texture(scene, v_uv + texel * vec2(-1.0, 1.0)).rgb);
+    float lse = luma(texture(scene, v_uv + texel * vec2(1.0, 1.0)).rgb);
+    float lm = luma(m);
     float lo = min(lm, min(min(lnw, lne), min(lsw, lse)));
     float hi = max(lm, max(max(lnw, lne), max(lsw, lse)));
-    if (hi - lo < max(0.04, hi * 0.12)) return m;                  // flat: nothing to smooth
     vec2 dir = vec2((lsw + lse) - (lnw + lne), (lnw + lsw) - (lne + lse));
     float reduce = max((lnw + lne + lsw + lse) * 0.03125, 1.0 / 128.0);
     dir = clamp(dir / (min(abs(dir.x), abs(dir.y)) + reduce), vec2(-8.0), vec2(8.0)) * texel;
-    vec3 a = 0.5 * (comp(texture(scene, uv - dir / 6.0)) + comp(texture(scene, uv + dir / 6.0)));
-    vec3 b = 0.5 * a + 0.25 * (comp(texture(scene, uv - dir * 0.5)) + comp(texture(scene, uv + dir * 0.5)));
+    vec3 a = 0.5 * (texture(scene, v_uv - dir / 6.0).rgb + texture(scene, v_uv + dir / 6.0).rgb);
+    vec3 b = 0.5 * a + 0.25 * (texture(scene, v_uv - dir * 0.5).rgb + texture(scene, v_uv + dir * 0.5).rgb);
     float lb = luma(b);
-    return (lb < lo || lb > hi) ? a : b;
-}
-void main() {
-    float vig = length(v_uv - vec2(0.5, 0.55));
-    bg = mix(vec3(0.21, 0.215, 0.225), vec3(0.36, 0.365, 0.375), v_uv.y) * (1.05 - 0.35 * vig * vig);
-    vec3 c;
-    if (ss > 1) {
-        ivec2 base = ivec2(gl_FragCoord.xy) * ss;
-        vec4 acc = vec4(0.0);
-        for (int j = 0; j < ss; ++j)
-            for (int i = 0; i < ss; ++i) acc += texelFetch(scene, base + ivec2(i, j), 0);
-        c = comp(acc / float(ss * ss));
-    } else if (fxaa == 1) {
-        c = fxaa_at(v_uv);
-    } else {
-        c = comp(texture(scene, v_uv));
-    }
-    frag = vec4(c, 1.0);
+    vec3 c = (lb < lo || lb > hi) ? a : b;
+    frag = vec4(hi - lo < max(0.04, hi * 0.12) ? m : c, 1.0);
 }
 """
+
+# Supersample resolve: the mean of each SS x SS block. For SS = 2 one bilinear tap at the block's
+# centre weighs its four texels equally, which is four times cheaper on a software rasterizer.
+RESOLVE_FS = HEADER + """
+uniform sampler2D scene;
+in vec2 v_uv;
+out vec4 frag;
+void main() {
+#if SS == 2
+    frag = vec4(texture(scene, v_uv).rgb, 1.0);
+#else
+    ivec2 base = ivec2(gl_FragCoord.xy) * SS;
+    vec3 acc = vec3(0.0);
+    for (int j = 0; j < SS; ++j)
+        for (int i = 0; i < SS; ++i) acc += texelFetch(scene, base + ivec2(i, j), 0).rgb;
+    frag = vec4(acc / float(SS * SS), 1.0);
+#endif
+}
+"""
+
 
 HUD_VS = HEADER + """
 uniform vec2 viewport;
@@ -331,6 +325,15 @@ void main() {
     frag = vec4(v_color.rgb, v_color.a * a);
 }
 """
+
+
+def skin_source(kind: str) -> str:
+    """The skin fragment shader for kind "SKIN", "CLAY" or "HEAT"."""
+    return SKIN_FS.replace(HEADER, HEADER + f"#define {kind}\n", 1)
+
+
+def resolve_source(ss: int) -> str:
+    return RESOLVE_FS.replace(HEADER, HEADER + f"#define SS {int(ss)}\n", 1)
 
 
 def line_program_sources(vertex_color: bool = False, trail: bool = False) -> dict[str, str]:

@@ -1,0 +1,108 @@
+"""Milliseconds per rendered frame on this machine's OpenGL (Mesa llvmpipe where there is no GPU),
+for the default face at resolutions 0 (~700 nodes) and 2 (~12k nodes), every view, with and
+without the HUD, as a share of a 60 Hz frame (16.7 ms).
+
+Each frame uploads a new surface (the live loop's work) and ends with ctx.finish(), so the time
+is real rendering work, not queued commands. Two figures: wall-clock time, and the CPU time of the
+whole process (llvmpipe's rasterizer threads included), which is what the frame costs a machine
+and stays meaningful when other programs compete for the cores.
+Run: .venv/bin/python benchmarks/render_frame.py
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+FRAME_60HZ_MS = 1000.0 / 60.0
+
+
+def _states(model: object, n: int) -> list[object]:
+    """A short happiness onset, so surfaces (and trails) change every frame."""
+    from sim.facs import apply_expression
+    from sim.integrator import Simulator
+    from sim.state import FaceControl
+
+    sim = Simulator(model)
+    state = model.rest_state()  # type: ignore[attr-defined]
+    out = []
+    for k in range(n):
+        control = FaceControl(model)
+        apply_expression(control, "happiness", min(1.0, (k + 1) / n))
+        sim.step(state, control)
+        out.append(state.copy())
+    return out
+
+
+Row = tuple[str, bool, float, float]
+
+
+def _timed(fn: object, frames: int) -> tuple[float, float]:
+    """(wall ms, cpu ms) per call of fn(i)."""
+    w, c = time.perf_counter(), time.process_time()
+    for i in range(frames):
+        fn(i)  # type: ignore[operator]
+    return ((time.perf_counter() - w) / frames * 1000.0, (time.process_time() - c) / frames * 1000.0)
+
+
+def bench(resolution: int, size: tuple[int, int], frames: int, ctx: object) -> list[Row]:
+    from render.hud import HudInfo
+    from render.offscreen import OffscreenRenderer
+    from render.renderer import VIEWS
+    from sim import default_model
+
+    model = default_model(resolution)
+    states = _states(model, 30)
+    hud = HudInfo(channels=[("zygomaticus_major_l", 0.8, 0, 1), ("jaw", 0.3, 0, 1)], age=30,
+                  devices=[("sgi:///dev/ttyS0", True), ("keyboard://", True)], fps=60.0,
+                  latency_ms=12.0, lines=["? help"])
+    rows = []
+    with OffscreenRenderer(model, size, ctx=ctx) as off:  # type: ignore[arg-type]
+        for view in VIEWS:
+            off.view = view
+            for with_hud in (False, True):
+                off.fbo.use()
+                for s in states[:5]:  # warm-up: shader compilation, buffer allocation
+                    off.renderer.draw(s, hud if with_hud else None)
+                off.ctx.finish()
+
+                def frame(i: int, h: HudInfo | None = hud if with_hud else None) -> None:
+                    off.fbo.use()
+                    off.renderer.draw(states[i % len(states)], h)
+                    off.ctx.finish()
+
+                rows.append((view, with_hud, *_timed(frame, frames)))
+        off.view = "shaded"
+        rows.append(("shaded+read", True, *_timed(lambda i: off.render_frame(states[i % len(states)], hud), frames)))
+        off.renderer.antialias = "fxaa"
+        rows.append(("shaded+fxaa", True, *_timed(lambda i: off.render_frame(states[i % len(states)], hud), frames)))
+        off.renderer.antialias = "none"
+        off.renderer.supersample = 2
+        rows.append(("shaded+ss2", True, *_timed(lambda i: off.render_frame(states[i % len(states)], hud), frames)))
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", default="1280x720")
+    ap.add_argument("--frames", type=int, default=40)
+    ap.add_argument("--resolutions", default="0,2")
+    args = ap.parse_args()
+    size = tuple(int(v) for v in args.size.lower().split("x"))
+    from render.offscreen import create_context
+
+    ctx = create_context()
+    print(f"renderer: {ctx.info['GL_RENDERER']}, {size[0]}x{size[1]}, {args.frames} frames each")
+    from sim import default_model
+
+    for res in (int(r) for r in args.resolutions.split(",")):
+        n = len(default_model(res).rest)
+        print(f"\nresolution {res} ({n} nodes)")
+        print(f"{'view':<14}{'HUD':<5}{'wall ms':>9}{'cpu ms':>9}{'wall % of 60 Hz':>17}")
+        for view, with_hud, wall, cpu in bench(res, size, args.frames, ctx):  # type: ignore[arg-type]
+            print(f"{view:<14}{'yes' if with_hud else 'no':<5}{wall:>9.2f}{cpu:>9.2f}"
+                  f"{wall / FRAME_60HZ_MS * 100:>16.0f}%")
+
+
+if __name__ == "__main__":
+    main()
