@@ -106,24 +106,27 @@ def table(asymmetric: bool = False, alpha_to_pi: bool = True) -> ArcTable:
 
 def _cell(x: FloatArray, first: float, step: float, n: int) -> tuple[FloatArray, FloatArray]:
     """Cell index and local coordinate in [0, 1] of x on a uniform grid (clamped to the grid)."""
-    t = (x - first) / step
-    i = np.clip(np.floor(t), 0, n - 2).astype(np.intp)
-    return i, np.clip(t - i, 0.0, 1.0)
+    t = np.minimum(np.maximum((x - first) / step, 0.0), n - 1.0)
+    i = np.minimum(t.astype(np.intp), n - 2)
+    return i, t - i
 
 
 def trilinear(tab: ArcTable, d: FloatArray, a: FloatArray, alpha: FloatArray) -> FloatArray:
     """Eq 14: S at (d, a, alpha) in table units, the weighted sum of the eight corners of the
     grid cube around the point (clamped to the grid)."""
     d, a, alpha = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (d, a, alpha)))
+    n_a, n_k = tab.values.shape[1], tab.values.shape[2]
     i, fd = _cell(d, D_NODES[0], 1.0, len(D_NODES))
-    j, fa = _cell(a, A_NODES[0], 1.0, len(A_NODES))
-    k, fl = _cell(alpha, 0.0, ALPHA_STEP, len(tab.alpha_nodes))
-    s = tab.values
+    j, fa = _cell(a, A_NODES[0], 1.0, n_a)
+    k, fl = _cell(alpha, 0.0, ALPHA_STEP, n_k)
+    flat = tab.values.ravel()
+    base = (i * n_a + j) * n_k + k
     out = np.zeros(d.shape)
     for di, wd in ((0, 1.0 - fd), (1, fd)):
         for aj, wa in ((0, 1.0 - fa), (1, fa)):
-            for lk, wl in ((0, 1.0 - fl), (1, fl)):
-                out += s[i + di, j + aj, k + lk] * (wd * wa * wl)
+            w = wd * wa
+            corner = base + (di * n_a + aj) * n_k
+            out += w * ((1.0 - fl) * np.take(flat, corner) + fl * np.take(flat, corner + 1))
     return out
 
 
@@ -138,3 +141,19 @@ def lookup(tab: ArcTable, d: FloatArray, a: FloatArray, alpha: FloatArray) -> Fl
     """S in cm for a chord d and tangent norm a in cm: eq 14 read at the scaled coordinates."""
     k = table_scale(d, a)
     return trilinear(tab, k * d, k * a, alpha) / k
+
+
+def lookup_alpha_profile(tab: ArcTable, d: FloatArray, a: FloatArray) -> FloatArray:
+    """S in cm at every alpha node of the table for each query, (Q, K): eq 14 with the alpha
+    weights left to the caller (S is then piecewise linear in alpha, which the solver inverts)."""
+    d = np.asarray(d, dtype=np.float64)
+    a = np.asarray(a, dtype=np.float64)
+    k = table_scale(d, a)
+    i, fd = _cell(k * d, D_NODES[0], 1.0, len(D_NODES))
+    j, fa = _cell(k * a, A_NODES[0], 1.0, len(A_NODES))
+    s = tab.values
+    out = s[i, j] * ((1 - fd) * (1 - fa))[:, None]
+    out += s[i + 1, j] * (fd * (1 - fa))[:, None]
+    out += s[i, j + 1] * ((1 - fd) * fa)[:, None]
+    out += s[i + 1, j + 1] * (fd * fa)[:, None]
+    return out / k[:, None]

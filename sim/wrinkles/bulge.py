@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.wrinkles.arclength import ASYM_RATIO, ArcTable, lookup, table
+from sim.wrinkles.arclength import ASYM_RATIO, ArcTable, lookup, lookup_alpha_profile, table
 
 FloatArray = np.ndarray
 
@@ -21,7 +21,7 @@ DIL_MAX = 0.4  # relative arc-length surplus across a wrinkle at AGE_MAX
 FULL_RELEASE_STRAIN = 0.08  # compression strain across a wrinkle that frees all the surplus
 INPLANE_LOSS_AT_MAX = 0.4  # fraction of a compression aged skin no longer absorbs in its plane
 A_CAP_RATIO = 1.0  # the tangent norm never exceeds the chord: rolls at most 3/4 as tall as wide
-_A_SAMPLES = 33  # samples of S(a) when the tangent norm must grow
+_A_SAMPLES = 9  # samples bracketing S(a) when the tangent norm must grow
 
 
 def dilatation(d_init: FloatArray, age: float | FloatArray) -> FloatArray:
@@ -73,6 +73,15 @@ def _first_crossing(x: FloatArray, y: FloatArray, target: FloatArray) -> FloatAr
     return x0 + np.clip(f, 0.0, 1.0) * (x1 - x0)
 
 
+def _profile_at(profile: FloatArray, alpha: FloatArray, step: float) -> FloatArray:
+    """Linear interpolation of per-row node values (Q, K) at one alpha per row."""
+    t = np.clip(alpha / step, 0.0, profile.shape[1] - 1.0)
+    k = np.minimum(np.floor(t).astype(np.intp), profile.shape[1] - 2)
+    rows = np.arange(len(alpha))
+    f = t - k
+    return profile[rows, k] * (1.0 - f) + profile[rows, k + 1] * f
+
+
 def solve_segment(
     d: FloatArray, d_real: FloatArray, alpha_min: FloatArray, tab: ArcTable | None = None
 ) -> Segment:
@@ -81,28 +90,58 @@ def solve_segment(
     The tangent norm starts at a = d/3 (flat skin at alpha = 0). If S(d, a, alpha_max) with
     alpha_max = alpha_min + pi/2 reaches d_real, alpha in [alpha_min, alpha_max] is interpolated
     so that S = d_real; otherwise alpha = alpha_max and a grows until S(d, a, alpha_max) = d_real
-    (capped at A_CAP_RATIO * d). Both inversions are of the piecewise-linear S of eq 14."""
+    (capped at A_CAP_RATIO * d). S is eq 14's interpolation throughout: piecewise linear in alpha
+    (inverted exactly), smooth and increasing in a (bracketed on a few samples, then two steps of
+    false position)."""
     tab = table() if tab is None else tab
     d = np.asarray(d, dtype=np.float64)
     d_real = np.asarray(d_real, dtype=np.float64)
     alpha_min = np.clip(np.asarray(alpha_min, dtype=np.float64), 0.0, np.pi / 2)
     alpha_max = alpha_min + np.pi / 2
     a0 = d / 3.0
-    # alpha search: the table's alpha nodes inside [alpha_min, alpha_max] plus both ends
-    nodes = np.clip(tab.alpha_nodes[None, :], alpha_min[:, None], alpha_max[:, None])
-    alphas = np.concatenate([alpha_min[:, None], nodes, alpha_max[:, None]], axis=1)
-    s_alpha = lookup(tab, d[:, None], a0[:, None], alphas)
+    # alpha search over the table's nodes inside [alpha_min, alpha_max] plus both ends
+    profile = lookup_alpha_profile(tab, d, a0)
+    step = float(tab.alpha_nodes[1] - tab.alpha_nodes[0])
+    s_lo = _profile_at(profile, alpha_min, step)
+    s_hi = _profile_at(profile, alpha_max, step)
+    nodes = tab.alpha_nodes[None, :]
+    below, above = nodes < alpha_min[:, None], nodes > alpha_max[:, None]
+    alphas = np.clip(nodes, alpha_min[:, None], alpha_max[:, None])
+    s_nodes = np.where(below, s_lo[:, None], np.where(above, s_hi[:, None], profile))
+    alphas = np.concatenate([alpha_min[:, None], alphas, alpha_max[:, None]], axis=1)
+    s_alpha = np.concatenate([s_lo[:, None], s_nodes, s_hi[:, None]], axis=1)
     alpha = _first_crossing(alphas, s_alpha, d_real)
     grow = np.maximum.reduce(s_alpha, axis=1) < d_real
     a = a0.copy()
     if np.any(grow):
         g = np.flatnonzero(grow)
-        frac = np.linspace(0.0, 1.0, _A_SAMPLES)[None, :]
-        a_try = a0[g, None] + frac * (A_CAP_RATIO * d[g, None] - a0[g, None])
-        s_a = lookup(tab, d[g, None], a_try, alpha_max[g, None])
-        a[g] = _first_crossing(a_try, s_a, d_real[g])
+        a[g] = _grow_tangent(tab, d[g], d_real[g], alpha_max[g])
         alpha[g] = alpha_max[g]
     return Segment(a=a, alpha=alpha)
+
+
+def _grow_tangent(tab: ArcTable, d: FloatArray, d_real: FloatArray, alpha: FloatArray) -> FloatArray:
+    """The tangent norm a in [d/3, A_CAP_RATIO d] with S(d, a, alpha) = d_real (or the cap)."""
+    frac = np.linspace(0.0, 1.0, _A_SAMPLES)[None, :]
+    lo_a, hi_a = d / 3.0, A_CAP_RATIO * d
+    a_try = lo_a[:, None] + frac * (hi_a - lo_a)[:, None]
+    s_a = lookup(tab, d[:, None], a_try, alpha[:, None])
+    s_a = np.maximum.accumulate(s_a, axis=1)
+    n = a_try.shape[1]
+    j = np.clip((s_a < d_real[:, None]).sum(axis=1), 1, n - 1)
+    rows = np.arange(len(d))
+    a_l, a_h = a_try[rows, j - 1], a_try[rows, j]
+    s_l, s_h = s_a[rows, j - 1], s_a[rows, j]
+    capped = s_h < d_real
+    for _ in range(2):  # false position inside the bracket
+        f = np.clip((d_real - s_l) / np.maximum(s_h - s_l, 1e-15), 0.0, 1.0)
+        a_m = a_l + f * (a_h - a_l)
+        s_m = lookup(tab, d, a_m, alpha)
+        up = s_m < d_real
+        a_l, s_l = np.where(up, a_m, a_l), np.where(up, s_m, s_l)
+        a_h, s_h = np.where(up, a_h, a_m), np.where(up, s_h, s_m)
+    f = np.clip((d_real - s_l) / np.maximum(s_h - s_l, 1e-15), 0.0, 1.0)
+    return np.where(capped, hi_a, a_l + f * (a_h - a_l))
 
 
 def control_heights(

@@ -18,18 +18,20 @@ from __future__ import annotations
 
 import weakref
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from sim.wrinkles.arclength import lookup, table
-from sim.wrinkles.bulge import bezier_height, control_heights, released_surplus, solve_segment
+from sim.wrinkles.bulge import Segment, bezier_height, control_heights, released_surplus
+from sim.wrinkles.kernels import solve_rolls
 from sim.wrinkles.mask import WrinkleLine
 
 FloatArray = np.ndarray
 IntArray = np.ndarray
 
-STATION_STEP = 0.15  # cm between stations along a line
+STATION_STEP = 0.25  # cm between stations along a line (heights are interpolated between)
 TAPER = 0.5  # cm over which a wrinkle fades in at each end of its line
 FURROW_HALF_WIDTH = 0.12  # cm, half width of the microfurrow groove
 
@@ -317,6 +319,12 @@ def compile_wrinkles(
 # ---------------------------------------------------------------- per frame
 
 
+@lru_cache(maxsize=1)
+def _stacked_tables() -> FloatArray:
+    """The symmetric and asymmetric tables as one (2, 21, 11, 21) array for the kernel."""
+    return np.ascontiguousarray(np.stack([table(False).values, table(True).values]))
+
+
 def _anchor_points(layer: WrinkleLayer, positions: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Current anchor positions (A, 3) and their triangles' unit normals (A, 3)."""
     corners = np.take(positions, layer.anchor_tri, axis=0)  # (A, 3, 3)
@@ -356,13 +364,14 @@ def roll_heights(
     surplus = released_surplus(layer.roll_d_init, s_nat, age, layer.roll_emphasis)
     dh0 = np.zeros_like(d)
     dh1 = np.zeros_like(d)
-    active = surplus > 1e-7
-    for asym in (False, True):
-        sel = np.flatnonzero(active & (layer.roll_asym == asym))
-        if len(sel) == 0:
-            continue
-        seg = solve_segment(d[sel], s_nat[sel] + surplus[sel], alpha_min[sel], table(asym))
-        h0, h1 = control_heights(seg, asym)
+    sel = np.flatnonzero(surplus > 1e-7)
+    if len(sel):
+        a = np.empty(len(sel))
+        alpha = np.empty(len(sel))
+        asym = layer.roll_asym[sel]
+        solve_rolls(_stacked_tables(), asym.astype(np.int64), d[sel], s_nat[sel] + surplus[sel],
+                    alpha_min[sel], a, alpha)
+        h0, h1 = control_heights(Segment(a=a, alpha=alpha), asym)
         nat = d[sel] / 3.0 * np.sin(alpha_min[sel])
         dh0[sel] = h0 - nat
         dh1[sel] = h1 - nat

@@ -101,3 +101,23 @@ def test_surplus_needs_both_age_and_compression() -> None:
     assert np.all(bulge.released_surplus(d_init, compressed, 30.0, 1.0) == 0)
     s = [bulge.released_surplus(d_init, compressed, age, 1.0)[0] for age in (40, 55, 70, 85)]
     assert np.all(np.diff(s) > 0)
+
+
+def test_compiled_kernel_matches_the_numpy_reference() -> None:
+    from sim.wrinkles.kernels import solve_rolls
+
+    rng = np.random.default_rng(4)
+    n = 500
+    d = rng.uniform(0.05, 1.5, n)
+    alpha_min = rng.uniform(-0.2, 1.0, n)
+    d_real = d * rng.uniform(0.95, 2.2, n)
+    which = rng.integers(0, 2, n)
+    tables = np.stack([arc.table(False).values, arc.table(True).values])
+    a = np.empty(n)
+    alpha = np.empty(n)
+    solve_rolls(tables, which.astype(np.int64), d, d_real, alpha_min, a, alpha)
+    for w in (0, 1):
+        m = which == w
+        ref = bulge.solve_segment(d[m], d_real[m], alpha_min[m], arc.table(bool(w)))
+        np.testing.assert_allclose(a[m], ref.a, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(alpha[m], ref.alpha, rtol=1e-9, atol=1e-12)
