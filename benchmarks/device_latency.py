@@ -1,8 +1,8 @@
 """Device latency and parser throughput.
 
-1. Latency: a box emulator writes a report into a pseudo-terminal; we time from the write of the
-   report's last byte to the moment the event reaches a listener of a started device (pyserial read
-   in select, parse, dispatch). The bytes are paced at the line's byte time (the pty itself has no
+1. Latency: a box emulator, in a separate process like real hardware, writes a report into a
+   pseudo-terminal; we time from the write of the report's last byte to the moment the event
+   reaches a listener of a started device (pyserial read in select, parse, dispatch). The bytes are paced at the line's byte time (the pty itself has no
    baud rate), so on real hardware add the wire time of one report to these numbers: 3 bytes at
    9600 baud ~ 3.1 ms for the SGI box, a 6-byte line at 115200 baud ~ 0.5 ms for the text protocol.
 2. Throughput: each parser alone, fed a long valid byte stream in 4 KiB chunks.
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import statistics
 import sys
 import tempfile
@@ -36,8 +37,38 @@ def percentile(values: list[float], p: float) -> float:
     return ordered[min(len(ordered) - 1, int(round(p / 100 * (len(ordered) - 1))))]
 
 
-def measure(spec: str, send: Callable[[int], float], n: int, warmup: int = 20) -> dict[str, float]:
-    """``send(i)`` writes one report and returns the monotonic time of its last byte."""
+def box_process(kind: str, link: str, conn: Any) -> None:
+    """The box, in its own process as real hardware would be: it must not share our GIL."""
+    emu: Any = SgiBoxEmulator(Path(link)) if kind == "sgi" else TextBoxEmulator(Path(link))
+    conn.send("ready")
+    while (i := conn.recv()) is not None:
+        if kind == "sgi":
+            t = paced_write(emu.port.write, emu.dial_packet(i % 8, 1 if i % 2 else -1), 10 / 9600)
+        else:
+            t = paced_write(emu.port.write, f"D{i % 8} {'+1' if i % 2 else '-1'}\n".encode(), 10 / 115200)
+        conn.send(t)
+    emu.port.close()
+
+
+def paced_write(write: Callable[[bytes], None], data: bytes, byte_time: float) -> float:
+    """Write like a serial line: one byte per ``byte_time``; returns the time of the last byte."""
+    t = 0.0
+    for i in range(len(data)):
+        if i:
+            time.sleep(byte_time)
+        t = time.monotonic()
+        write(data[i : i + 1])
+    return t
+
+
+def latency(kind: str, spec_template: str, n: int, tmp: Path, warmup: int = 20) -> dict[str, float]:
+    """Latency over ``n`` reports; CLOCK_MONOTONIC is system-wide, so the box's write time and
+    our arrival time compare directly across the two processes."""
+    link = tmp / kind
+    parent, child = multiprocessing.get_context("fork").Pipe()
+    proc = multiprocessing.get_context("fork").Process(target=box_process, args=(kind, str(link), child))
+    proc.start()  # forked before any device thread exists
+    assert parent.recv() == "ready"
     arrived = threading.Event()
     stamp: list[float] = []
 
@@ -46,7 +77,7 @@ def measure(spec: str, send: Callable[[int], float], n: int, warmup: int = 20) -
             stamp.append(time.monotonic())
             arrived.set()
 
-    dev = open_device(spec)
+    dev = open_device(spec_template.format(link=link))
     dev.add_listener(listener)
     dev.start()
     lat: list[float] = []
@@ -54,53 +85,32 @@ def measure(spec: str, send: Callable[[int], float], n: int, warmup: int = 20) -
         for i in range(n + warmup):
             arrived.clear()
             stamp.clear()
-            t_write = send(i)
+            parent.send(i)
+            # wait for the event first: reading the box's timestamp now would wake this thread
+            # just as the reader needs the GIL, and measure our own contention
             if not arrived.wait(2.0):
-                raise RuntimeError(f"{spec}: event {i} never arrived")
+                raise RuntimeError(f"{kind}: event {i} never arrived")
+            t_write = parent.recv()
             if i >= warmup:
                 lat.append((stamp[0] - t_write) * 1000)
             time.sleep(0.002)
     finally:
         dev.close()
+        parent.send(None)
+        proc.join(5)
     return {"n": len(lat), "p50_ms": statistics.median(lat), "p99_ms": percentile(lat, 99), "max_ms": max(lat)}
 
 
-def paced_write(write: Callable[[bytes], None], data: bytes, byte_time: float) -> float:
-    """Write like a serial line: one byte per ``byte_time``; returns the time of the last byte."""
-    t = 0.0
-    for i in range(len(data)):
-        if i:
-            time.sleep(byte_time)  # sleeping, not spinning: a spin would hold the GIL from the reader
-        t = time.monotonic()
-        write(data[i : i + 1])
-    return t
-
-
 def sgi_latency(n: int, tmp: Path) -> dict[str, float]:
-    box = SgiBoxEmulator(tmp / "sgi")
-    try:
-        spec = f"sgi://{box.port.link}"
-
-        def send(i: int) -> float:
-            packet = box.dial_packet(i % 8, 1 if i % 2 else -1)
-            return paced_write(box.port.write, packet, 10 / 9600)
-
-        result = measure(spec, send, n)
-        result["wire_ms"] = 3 * 10 / 9600 * 1000
-        return result
-    finally:
-        box.port.close()
+    result = latency("sgi", "sgi://{link}", n, tmp)
+    result["wire_ms"] = 3 * 10 / 9600 * 1000
+    return result
 
 
 def text_latency(n: int, tmp: Path) -> dict[str, float]:
-    box = TextBoxEmulator(tmp / "text")
-    try:
-        spec = f"serial://{box.port.link}?baud=115200"
-        result = measure(spec, lambda i: paced_write(box.port.write, f"D{i % 8} {'+1' if i % 2 else '-1'}\n".encode(), 10 / 115200), n)
-        result["wire_ms"] = 6 * 10 / 115200 * 1000
-        return result
-    finally:
-        box.port.close()
+    result = latency("text", "serial://{link}?baud=115200", n, tmp)
+    result["wire_ms"] = 6 * 10 / 115200 * 1000
+    return result
 
 
 def throughput() -> dict[str, dict[str, float]]:

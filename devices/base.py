@@ -9,6 +9,7 @@ and an idempotent ``close``.
 from __future__ import annotations
 
 import logging
+import os
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -216,7 +217,19 @@ class Device:
         self._status("connected", "reopened")
         return True
 
+    def _raise_priority(self) -> None:
+        """With ``PUPPET_REALTIME_DEVICES=1``, run this reader thread under SCHED_FIFO so a busy
+        machine cannot delay a control event; needs CAP_SYS_NICE (or an rtprio limit), and is
+        skipped with one log line when not permitted."""
+        if os.environ.get("PUPPET_REALTIME_DEVICES") != "1" or not hasattr(os, "sched_setscheduler"):
+            return
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(10))  # 0 = this thread on Linux
+        except OSError as err:
+            log.info("%s: real-time priority not permitted (%s)", self.spec, err)
+
     def _run(self) -> None:
+        self._raise_priority()
         if self._connected:
             self._restore_lights()
             self._status("connected")

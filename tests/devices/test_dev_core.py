@@ -151,3 +151,35 @@ def test_event_queue_drops_oldest_when_full() -> None:
         q.put(StatusEvent(f"d{i}", "lost"))
     assert [e.device for e in q.drain()] == ["d1", "d2"] and q.dropped == 1
     assert q.drain() == [] and q.get(timeout=0.01) is None
+
+
+def test_opt_in_realtime_reader_thread(monkeypatch: pytest.MonkeyPatch) -> None:
+    import os
+
+    def can_go_realtime() -> bool:
+        result: list[bool] = []
+
+        def trial() -> None:
+            try:
+                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(10))
+                result.append(True)
+            except OSError:
+                result.append(False)
+
+        t = threading.Thread(target=trial)
+        t.start()
+        t.join()
+        return result[0]
+
+    policies: list[int] = []
+    monkeypatch.setenv("PUPPET_REALTIME_DEVICES", "1")
+    dev = devices.open_device("mock://?sine=x&duration=0.1&rate=10&speed=0")
+    dev.add_listener(lambda e: policies.append(os.sched_getscheduler(0)))
+    q = EventQueue()
+    dev.add_listener(q)
+    dev.start()
+    assert q.get(timeout=5) is not None
+    dev.close()
+    expected = os.SCHED_FIFO if can_go_realtime() else os.SCHED_OTHER
+    assert policies and set(policies) == {expected}
+    assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the caller's thread is untouched
