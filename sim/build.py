@@ -31,6 +31,7 @@ class SkinParams:
     high_ratio:     k_h / k_l, the stiffening beyond the strain threshold (seed 000 eq 3).
     strain_threshold: eps^c as a relative strain.
     bend_ratio:     bending spring stiffness relative to its edge spring.
+    max_stiffness_ratio: cap on an edge spring's stiffness, in medians (sliver triangles).
     tether:         dyn/cm^3, seed 003 eq 9's feedback stiffness k per unit area (skin to skull).
     mass_damping:   1/s, c_i = mass_damping * m_i (seed 000 eq 23's velocity damping).
     viscosity:      s, axial spring damping per unit stiffness relative to the value that critically
@@ -51,10 +52,11 @@ class SkinParams:
     high_ratio: float = 3.0
     strain_threshold: float = 0.15
     bend_ratio: float = 0.3
+    max_stiffness_ratio: float = 3.0
     tether: float = 3000.0
     mass_damping: float = 120.0
     viscosity: float = 1.0
-    min_mass_fraction: float = 0.5
+    min_mass_fraction: float = 0.75
     gravity: bool = True
     g: float = 981.0
     jaw_max_angle: float = 0.35
@@ -228,7 +230,8 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
     mesh = rig.mesh
     rest = np.asarray(mesh.vertices, dtype=np.float64)
     tris = np.asarray(mesh.triangles, dtype=np.int32)
-    springs, rest_len, k_low, n_edge = build_springs(rest, tris, p.sheet_modulus, p.bend_ratio)
+    springs, rest_len, k_low, n_edge = build_springs(rest, tris, p.sheet_modulus, p.bend_ratio,
+                                                    p.max_stiffness_ratio)
     area = vertex_areas(rest, tris)
     area = np.maximum(area, 1e-6)
     true_mass = p.areal_density * area

@@ -11,6 +11,10 @@ by the vertex's jaw_weight (target = rest + w (R rest - rest)); the eq 9 tether 
 along, and held vertices (pinned) are placed on their target each frame, so a held chin edge follows
 the jaw rigidly while held scalp and ear edges stay put.
 
+Method: explicit RK2 is the paper's method and the default; `method="auto"` switches to the
+linearly implicit integrator of `sim.implicit` only when RK2's work per frame (substeps x springs)
+exceeds RK2_WORK_LIMIT, i.e. for the 12k face (see benchmarks/sim_step.py).
+
 Substeps: the step h is the largest h for which the RK2 amplification factor of every linear mode
 (natural frequency up to the Gershgorin bound `model.omega_max`, with the model's mass and spring
 damping) stays <= 1, times SAFETY; substeps = ceil(frame_dt / h). See `stable_step`.
@@ -34,6 +38,8 @@ from sim.state import FaceControl, FaceState
 SAFETY = 0.8  # fraction of the linear stability limit used as the step (covers geometric stiffness)
 BLOWUP_DISPLACEMENT = 6.0  # cm (x face scale): farther from its target than this is a blow-up
 SETTLE_SPEED = 0.02  # cm/s: the face counts as settled when no vertex moves faster
+RK2_WORK_LIMIT = 200_000  # spring evaluations per frame (substeps x springs, two per RK2 substep
+# each) above which method="auto" picks the implicit integrator: ~3 ms of one core here
 
 
 @numba.njit(cache=True, fastmath=False)
@@ -155,15 +161,31 @@ class Simulator:
     wrinkles: fill state.surface with the wrinkle bulges (sim.wrinkles) after each frame; turn off
     when only the dynamics matter (benchmarks, analysis): surface then equals positions."""
 
-    def __init__(self, model: FaceModel, frame_dt: float = 1.0 / 60.0, wrinkles: bool = True) -> None:
+    def __init__(self, model: FaceModel, frame_dt: float = 1.0 / 60.0, wrinkles: bool = True,
+                 method: str = "auto") -> None:
         self.model = model
         self.wrinkles = wrinkles
         self.frame_dt = float(frame_dt)
         p = model.params
         visc = float(np.max(model.spring_damping / np.maximum(model.spring_k_low, 1e-30)))
         self.stable_dt = stable_step(model.omega_max, p.mass_damping, visc, p.high_ratio)
-        self.substeps = max(1, math.ceil(self.frame_dt / (SAFETY * self.stable_dt)))
+        self.rk2_substeps = max(1, math.ceil(self.frame_dt / (SAFETY * self.stable_dt)))
+        if method == "auto":
+            work = self.rk2_substeps * len(model.spring_indices)
+            method = "rk2" if work <= RK2_WORK_LIMIT else "implicit"
+        if method not in ("rk2", "implicit"):
+            raise ValueError(f"unknown integration method {method!r}; valid: auto, rk2, implicit")
+        self.method = method
+        self._implicit = None
+        if method == "rk2":
+            self.substeps = self.rk2_substeps
+        else:
+            from sim.implicit import ImplicitStepper, implicit_substeps
+
+            self.substeps = implicit_substeps(model, self.frame_dt)
         self.dt = self.frame_dt / self.substeps
+        if method == "implicit":
+            self._implicit = ImplicitStepper(model, self.dt)
         self.guard_events: list[GuardEvent] = []
         n = model.n_vertices
         self._free = np.ascontiguousarray(~model.held)
@@ -223,22 +245,24 @@ class Simulator:
         at the start of the frame with zero velocity and append a GuardEvent."""
         m = self.model
         saved_x = state.positions.copy()
-        saved_v = state.velocities.copy()
         ext = self.external_forces(control)
         x, v = state.positions, state.velocities
         held = m.held
         x[held] = self._target[held]
         v[held] = 0.0
         self._age_skin(float(control.values[CHANNEL_INDEX["age"]]))
-        _rk2_frame(x, v, self.substeps, self.dt, self._springs, self._rest_len, self._k_low, self._k_high,
-                   self._k_damp, self._threshold, ext, self._kr, self._c, self._inv_m, self._free,
-                   self._a1, self._xm, self._vm)
+        if self._implicit is None:
+            _rk2_frame(x, v, self.substeps, self.dt, self._springs, self._rest_len, self._k_low,
+                       self._k_high, self._k_damp, self._threshold, ext, self._kr, self._c, self._inv_m,
+                       self._free, self._a1, self._xm, self._vm)
+        else:
+            self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
+                                                            self._k_high, self._threshold))
         reason = self._check(x)
         if reason:
             x[...] = saved_x
             v[...] = 0.0
             self.guard_events.append(GuardEvent(state.time + self.frame_dt, reason))
-        del saved_v
         state.time += self.frame_dt
         values = control.values
         state.eye_yaw = float(values[CHANNEL_INDEX["eyes_yaw"]])

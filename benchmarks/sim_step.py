@@ -1,0 +1,102 @@
+"""How fast the face simulates: for resolutions 0, 1, 2 and both integrators, microseconds per step,
+substeps per 60 Hz frame, and the share of a 60 Hz frame on one core.
+
+    .venv/bin/python benchmarks/sim_step.py [--resolutions 0 1 2] [--frames 30]
+
+Method: the default face (gravity on) under the happiness preset, wrinkles off (their layer's cost is
+printed on its own line), numba kernels warmed up first; each figure is the best of 3 runs of
+--frames frames (the best run is the one least disturbed by other processes on the machine). A
+"step" is one RK2 substep (two force evaluations) or one implicit substep (one spring pass and one
+prefactored solve). The last block compares the two integrators' transients on the default face:
+time for the left mouth corner to reach 90 % of its settled AU12 displacement.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+FRAME = 1.0 / 60.0
+
+
+def _frame_ms(sim: object, model: object, control: object, frames: int) -> float:
+    state = model.rest_state()  # type: ignore[attr-defined]
+    for _ in range(2):
+        sim.step(state, control)  # type: ignore[attr-defined]
+    best = float("inf")
+    for _ in range(3):
+        t0 = time.perf_counter()
+        for _ in range(frames):
+            sim.step(state, control)  # type: ignore[attr-defined]
+        best = min(best, (time.perf_counter() - t0) / frames)
+    return best * 1e3
+
+
+def _rise_time(model: object, method: str) -> float:
+    from sim.integrator import Simulator
+    from sim.state import FaceControl
+
+    c = FaceControl()
+    c.set("zygomaticus_major_l", 1.0)
+    sim = Simulator(model, wrinkles=False, method=method)  # type: ignore[arg-type]
+    state = model.rest_state()  # type: ignore[attr-defined]
+    i = model.mesh.landmarks["mouth_corner_l"]  # type: ignore[attr-defined]
+    track = []
+    for _ in range(120):
+        sim.step(state, c)
+        track.append(np.linalg.norm(state.positions[i] - model.rest[i]))  # type: ignore[attr-defined]
+    final = track[-1]
+    k = next(n for n, d in enumerate(track) if d >= 0.9 * final)
+    return (k + 1) * FRAME
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--resolutions", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--frames", type=int, default=30)
+    args = parser.parse_args()
+
+    from sim import facs
+    from sim.build import compile_model
+    from sim.integrator import Simulator
+    from sim.rig import default_rig
+    from sim.state import FaceControl
+
+    control = FaceControl()
+    facs.apply_expression(control, "happiness")
+    print(f"{'res':>3} {'verts':>6} {'springs':>7} {'method':>8} {'auto':>4} {'substeps':>8} "
+          f"{'us/step':>8} {'ms/frame':>8} {'% of 60Hz':>9}")
+    models = {}
+    for res in args.resolutions:
+        t0 = time.perf_counter()
+        model = compile_model(default_rig(res))
+        models[res] = model
+        compile_s = time.perf_counter() - t0
+        auto = Simulator(model, wrinkles=False).method
+        for method in ("rk2", "implicit"):
+            sim = Simulator(model, wrinkles=False, method=method)
+            frames = args.frames if sim.substeps * len(model.spring_indices) < 3e6 else 3
+            ms = _frame_ms(sim, model, control, frames)
+            mark = "*" if method == auto else ""
+            print(f"{res:>3} {model.n_vertices:>6} {len(model.spring_indices):>7} {method:>8} {mark:>4} "
+                  f"{sim.substeps:>8} {1e3 * ms / sim.substeps:>8.1f} {ms:>8.2f} {100 * ms / (1e3 * FRAME):>8.1f}%")
+        print(f"    compile_model: {compile_s:.2f} s")
+    if 0 in models:
+        from sim.wrinkles.layer import apply_wrinkles
+
+        m = models[0]
+        state = m.rest_state()
+        state.age = 70.0
+        apply_wrinkles(m, state)
+        t0 = time.perf_counter()
+        for _ in range(30):
+            apply_wrinkles(m, state)
+        print(f"wrinkle layer (res 0, age 70): {(time.perf_counter() - t0) / 30 * 1e3:.2f} ms/frame")
+        for method in ("rk2", "implicit"):
+            print(f"AU12 rise to 90 % (res 0, {method}): {_rise_time(m, method) * 1e3:.0f} ms")
+
+
+if __name__ == "__main__":
+    main()
