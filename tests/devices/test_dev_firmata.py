@@ -64,6 +64,16 @@ def test_inputs_become_events(board: FirmataEmulator, dev: tuple[FirmataDevice, 
     assert got[-1].delta == 6
 
 
+def test_garbage_and_truncated_messages_on_the_wire(board: FirmataEmulator, dev: tuple[FirmataDevice, EventQueue]) -> None:
+    d, q = dev
+    board.port.write(bytes([0x01, 0x7F, 0xE0, 0x10, 0x95, 0xAB, 0xF0, 0x61, 0x00]))  # noise, cut-short messages
+    board.port.write(bytes([0xF7]))
+    board.digital(4, 0)
+    got = controls(wait_for(q, lambda e: getattr(e, "control", "") == "button4"))
+    assert got[-1].value == 1.0 and d.connected
+    assert d.warnings.counts["garbage"] >= 2 and d.warnings.counts["truncated"] >= 1
+
+
 def test_unplug_and_replug(board: FirmataEmulator, dev: tuple[FirmataDevice, EventQueue]) -> None:
     _, q = dev
     board.port.unplug()
