@@ -28,6 +28,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
 
 def _open_devices(specs: list[str], warn: Any) -> list[Any]:
+    """The devices named on the command line, or every usable box found (not the keyboard)."""
     import devices
 
     opened = []
@@ -41,7 +42,7 @@ def _open_devices(specs: list[str], warn: Any) -> list[Any]:
         warn(f"device discovery failed ({err}); using the keyboard")
         found = []
     for info in found:
-        if not getattr(info, "usable", True):
+        if not getattr(info, "usable", True) or info.spec.startswith("keyboard"):
             continue
         try:
             opened.append(devices.open_device(info.spec))
@@ -67,14 +68,18 @@ def run(args: argparse.Namespace) -> int:
              f"saving the last frame to {snapshot}; replay with `puppet replay {record} --out video.mp4`")
     face = live.load_face(args.rig)
     devs = _open_devices(list(args.device), warn)
+    mapped = [(d.spec, d.description) for d in devs]  # these get their default maps
     if windowed and not any(d.spec.startswith("keyboard") for d in devs):
         import devices
 
-        devs.append(devices.open_device("keyboard://"))  # ESC / M, and the fallback when alone
+        kb = devices.open_device("keyboard://")  # ESC / M always; the whole key map when alone
+        if not devs:
+            mapped.append((kb.spec, kb.description))
+        devs.append(kb)
     if not devs:
         warn("no control box found and no window for the keyboard: the face stays neutral")
     try:
-        return _perform(args, live, face, devs, windowed, record, snapshot, warn)
+        return _perform(args, live, face, devs, mapped, windowed, record, snapshot, warn)
     finally:
         for d in devs:
             try:
@@ -83,14 +88,14 @@ def run(args: argparse.Namespace) -> int:
                 pass
 
 
-def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], windowed: bool,
-             record: str | None, snapshot: Path | None, warn: Any) -> int:
+def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], mapped: list[tuple[str, str]],
+             windowed: bool, record: str | None, snapshot: Path | None, warn: Any) -> int:
     import devices
     from puppet.mapping import Mapper
     from puppet.session import SessionWriter
 
     specs = [d.spec for d in devs]
-    spec = live.build_mapping(face.vocab, args.map, specs, system_keys=windowed)
+    spec = live.build_mapping(face.vocab, args.map, mapped, system_keys=windowed)
     mapper = Mapper(spec, face.vocab)
     for d in devs:
         mapper.declare_controls(d.spec, d.controls)

@@ -94,17 +94,19 @@ def load_face(rig_path: str | None = None, resolution: int = 0) -> Face:
     return Face(model, Vocabulary.from_model(model), info)
 
 
-def build_mapping(vocab: Vocabulary, map_path: str | None, device_specs: Sequence[str],
+def build_mapping(vocab: Vocabulary, map_path: str | None, device_specs: Sequence[str | tuple[str, str]],
                   system_keys: bool = False) -> MappingSpec:
-    """The user's mapping file, or the default map of every device; checked against the face."""
+    """The user's mapping file, or the default map of every device (specs, or (spec, description)
+    pairs so a HID gamepad is recognised by what it says it is); checked against the face."""
     parts: list[tuple[MappingSpec, str | None]] = []
     if map_path:
         spec = load_mapping(map_path)
         Mapper(spec, vocab)  # check targets now, with the user's file:line
         parts.append((spec, None))
     else:
-        for dev in device_specs:
-            name = default_map_name(dev)
+        for item in device_specs:
+            dev, desc = (item, "") if isinstance(item, str) else item
+            name = default_map_name(dev, desc)
             if name is None:
                 continue
             try:

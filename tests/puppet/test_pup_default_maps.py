@@ -56,3 +56,18 @@ def test_merged_maps_keep_devices_apart(vocab: Vocabulary) -> None:
     m.step(1 / 60)
     lit = {(d, c) for d, c, on in m.light_changes() if on}
     assert {(b, "button0"), (a, "button1")} <= lit
+
+
+def test_can_panel_map_uses_the_example_dbc_signals() -> None:
+    import re
+    from pathlib import Path
+
+    dbc = Path(__file__).resolve().parents[2] / "examples" / "can" / "j1939_bjm1.dbc"
+    signals = set(re.findall(r"^\s*SG_ (\w+)", dbc.read_text(), re.M))
+    spec = load_default_map("can_panel")
+    assert {b.control for b in spec.bindings} <= signals
+    assert default_map_name(f"can://virtual/panel?dbc={dbc}") == "can_panel"
+
+
+def test_gamepad_found_by_description() -> None:
+    assert default_map_name("hid://046d:c21d", "Logitech Gamepad F310 (gamepad, from its descriptor)") == "gamepad"
