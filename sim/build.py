@@ -33,6 +33,10 @@ class SkinParams:
     bend_ratio:     bending spring stiffness relative to its edge spring.
     max_stiffness_ratio: cap on an edge spring's stiffness, in medians (sliver triangles).
     tether:         dyn/cm^3, seed 003 eq 9's feedback stiffness k per unit area (skin to skull).
+    support:        dyn/cm^3, extra stiffness per unit area against motion along the rest normal only
+                    (the fat and bone under the skin resist indentation more than sliding). Without
+                    it a membrane with only spring bending is bistable under the muscles' in-plane
+                    compression: the pulled skin buckles in or out depending on the transient.
     mass_damping:   1/s, c_i = mass_damping * m_i (seed 000 eq 23's velocity damping).
     viscosity:      s, axial spring damping per unit stiffness relative to the value that critically
                     damps the mesh's stiffest mode (1.0); dermis is viscoelastic and this lets the
@@ -54,6 +58,7 @@ class SkinParams:
     bend_ratio: float = 0.3
     max_stiffness_ratio: float = 3.0
     tether: float = 3000.0
+    support: float = 9000.0
     mass_damping: float = 120.0
     viscosity: float = 1.0
     min_mass_fraction: float = 0.75
@@ -73,6 +78,7 @@ class FaceModel:
     (axial, along the spring); strain_threshold: relative strain eps^c.
     area (N,) cm^2 lumped; mass (N,) g inertial (after mass scaling); weight (N,) dyn, the true
     mass times g (zero with gravity off); damping (N,) g/s (c_i); rest_stiffness (N,) dyn/cm (eq 9 k);
+    rest_normal (N,3) unit area-weighted vertex normals at rest; support_stiffness (N,) dyn/cm;
     held (N,) bool (pinned); jaw_weight (N,); jaw_pivot (3,); jaw_axis (3,); gravity (3,) cm/s^2.
     muscle_matrix: scipy CSR (3N, C): column c = channel c's nodal force (dyn) at activation 1,
                    flattened xyz per vertex; zero columns for non-muscle channels.
@@ -96,6 +102,8 @@ class FaceModel:
     weight: np.ndarray
     damping: np.ndarray
     rest_stiffness: np.ndarray
+    rest_normal: np.ndarray
+    support_stiffness: np.ndarray
     held: np.ndarray
     jaw_weight: np.ndarray
     jaw_pivot: np.ndarray
@@ -188,6 +196,17 @@ def omega_exact(stiffness: sp.csr_matrix, mass: np.ndarray, free: np.ndarray) ->
     return float(np.sqrt(lam[0]))
 
 
+def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Unit area-weighted vertex normals (N,3), pointing out of the skin (CCW triangles)."""
+    a, b, c = (vertices[triangles[:, k]] for k in range(3))
+    fn = np.cross(b - a, c - a)
+    out = np.zeros_like(vertices)
+    for k in range(3):
+        np.add.at(out, triangles[:, k], fn)
+    norm = np.linalg.norm(out, axis=1)
+    return out / np.where(norm > 0, norm, 1.0)[:, None]
+
+
 def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray) -> sp.csr_matrix:
     n = len(rest)
     cols = []
@@ -241,8 +260,10 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
     gravity = np.array([0.0, -p.g if p.gravity else 0.0, 0.0])
     tether = p.tether * area
     k_high = p.high_ratio * k_low
-    omega = omega_exact(stiffness_matrix(rest, springs, k_high, tether), mass, ~held)
-    omega_low = omega_exact(stiffness_matrix(rest, springs, k_low, tether), mass, ~held)
+    support = p.support * area
+    bound = tether + support  # isotropic stand-in for k_r I + k_n n n^T: an upper bound
+    omega = omega_exact(stiffness_matrix(rest, springs, k_high, bound), mass, ~held)
+    omega_low = omega_exact(stiffness_matrix(rest, springs, k_low, bound), mass, ~held)
     spring_damping = p.viscosity * (2.0 / omega_low) * k_low
     model = FaceModel(
         rig=rig,
@@ -261,6 +282,8 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
         weight=_frozen(true_mass[:, None] * gravity[None, :]),
         damping=_frozen(p.mass_damping * mass),
         rest_stiffness=_frozen(tether),
+        rest_normal=_frozen(vertex_normals(rest, tris)),
+        support_stiffness=_frozen(support),
         held=_frozen(held),
         jaw_weight=_frozen(np.clip(mesh.jaw_weight, 0.0, 1.0), np.float64),
         jaw_pivot=_frozen(mesh.jaw_pivot, np.float64),

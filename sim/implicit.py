@@ -163,17 +163,21 @@ class ImplicitStepper:
         mass = np.asarray(model.mass)
         self.mass_h2 = mass / h**2
         self.damp_h = np.asarray(model.damping) / h
+        self.kn = np.asarray(model.support_stiffness)
         a = (laplacian(n, springs, np.asarray(model.spring_k_high))
-             + sp.diags(self.mass_h2 + self.damp_h + np.asarray(model.rest_stiffness))).tocsr()
+             + sp.diags(self.mass_h2 + self.damp_h + np.asarray(model.rest_stiffness) + self.kn)).tocsr()
         self.a_fh = a[self.free][:, self.held].tocsr()
         self.solver = PrefactoredSolver(a[self.free][:, self.free])
         self._rhs = np.zeros((n, 3))
         self._y = np.zeros((n, 3))
         self._xf = np.zeros((len(self.free), 3))
 
-    def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple) -> None:  # type: ignore[type-arg]
-        """n_sub substeps in place. ext: the frame-constant forces (muscles, gravity, k_r target);
-        springs: (indices, rest lengths, k_low, k_high, threshold) as the kernel takes them."""
+    def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
+              normal: np.ndarray) -> None:
+        """n_sub substeps in place. ext: the frame-constant forces (muscles, gravity, the target terms
+        of the tether and of the normal support); springs: (indices, rest lengths, k_low, k_high,
+        threshold) as the kernel takes them; normal (N,3): the support's normals this frame. The
+        support k_n n n^T enters like a spring: k_n I in the matrix, k_n (y - n (n . y)) on the right."""
         h, f = self.h, self.free
         idx, rest_len, k_low, k_high, thr = springs
         held_term = self.a_fh @ x[self.held]  # held nodes do not move within a frame
@@ -184,6 +188,8 @@ class ImplicitStepper:
             self._rhs += ext
             self._rhs += self.damp_h[:, None] * x
             _pd_springs(self._y, idx, rest_len, k_low, k_high, thr, self._rhs)
+            ny = np.einsum("ij,ij->i", normal, self._y)
+            self._rhs += self.kn[:, None] * (self._y - ny[:, None] * normal)
             rhs_f = np.take(self._rhs, f, axis=0)
             rhs_f -= held_term
             self.solver.solve(rhs_f, self._xf)

@@ -43,11 +43,12 @@ RK2_WORK_LIMIT = 200_000  # spring evaluations per frame (substeps x springs, tw
 
 
 @numba.njit(cache=True, fastmath=False)
-def _accel(x, v, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, inv_m, free, out):  # type: ignore[no-untyped-def]
+def _accel(x, v, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_m, free, out):  # type: ignore[no-untyped-def]
     n = x.shape[0]
     for i in range(n):
+        nx = nrm[i, 0] * x[i, 0] + nrm[i, 1] * x[i, 1] + nrm[i, 2] * x[i, 2]
         for d in range(3):
-            out[i, d] = ext[i, d] - kr[i] * x[i, d] - c[i] * v[i, d]
+            out[i, d] = ext[i, d] - kr[i] * x[i, d] - c[i] * v[i, d] - kn[i] * nx * nrm[i, d]
     for s in range(springs.shape[0]):
         i = springs[s, 0]
         j = springs[s, 1]
@@ -80,18 +81,18 @@ def _accel(x, v, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, inv_
 
 
 @numba.njit(cache=True, fastmath=False)
-def _rk2_frame(x, v, n_sub, h, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, inv_m, free,
-               a1, xm, vm):  # type: ignore[no-untyped-def]
+def _rk2_frame(x, v, n_sub, h, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_m,
+               free, a1, xm, vm):  # type: ignore[no-untyped-def]
     """n_sub explicit-midpoint substeps of size h, in place on x, v."""
     n = x.shape[0]
     half = 0.5 * h
     for _ in range(n_sub):
-        _accel(x, v, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, inv_m, free, a1)
+        _accel(x, v, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_m, free, a1)
         for i in range(n):
             for d in range(3):
                 xm[i, d] = x[i, d] + half * v[i, d]
                 vm[i, d] = v[i, d] + half * a1[i, d]
-        _accel(xm, vm, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, inv_m, free, a1)
+        _accel(xm, vm, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_m, free, a1)
         for i in range(n):
             for d in range(3):
                 x[i, d] += h * vm[i, d]
@@ -106,8 +107,9 @@ def warm_up() -> None:
     springs = np.array([[0, 1]], dtype=np.int32)
     one = np.ones(1)
     ones2 = np.ones(2)
-    _rk2_frame(x, v, 1, 1e-3, springs, one, one, one, one, 0.1, np.zeros_like(x), ones2, ones2, ones2,
-               np.ones(2, dtype=np.bool_), np.zeros_like(x), np.zeros_like(x), np.zeros_like(x))
+    _rk2_frame(x, v, 1, 1e-3, springs, one, one, one, one, 0.1, np.zeros_like(x), ones2, ones2,
+               np.zeros_like(x), ones2, ones2, np.ones(2, dtype=np.bool_), np.zeros_like(x),
+               np.zeros_like(x), np.zeros_like(x))
 
 
 def rk2_amplification(z: np.ndarray) -> np.ndarray:
@@ -198,6 +200,8 @@ class Simulator:
         self._k_damp = np.array(model.spring_damping, order="C")
         self._kr = np.array(model.rest_stiffness, order="C")
         self._c = np.array(model.damping, order="C")
+        self._kn = np.array(model.support_stiffness, order="C")
+        self._normal = np.array(model.rest_normal, order="C")
         self._threshold = float(model.strain_threshold)
         self._skin_age: float | None = None  # the age the springs were last scaled for
         self._ext = np.zeros((n, 3))
@@ -233,10 +237,26 @@ class Simulator:
         is evaluated per substep in the kernel)."""
         return self.model.rest_stiffness[:, None] * target
 
+    def support_target_forces(self, target: np.ndarray, jaw: float) -> np.ndarray:
+        """The constant part k_n,i n_i (n_i . target_i) of the normal support F_n = k_n n n.(target - x)
+        (see SkinParams.support); n_i is the rest normal, turned with the jaw like the target. Sets
+        the normals the kernel uses for the -k_n n (n . x) part."""
+        m = self.model
+        if jaw == 0.0:
+            self._normal[...] = m.rest_normal
+        else:
+            rot = jaw_rotation(m.jaw_axis, jaw * m.params.jaw_max_angle)
+            n = m.rest_normal + m.jaw_weight[:, None] * (m.rest_normal @ rot.T - m.rest_normal)
+            self._normal[...] = n / np.linalg.norm(n, axis=1)[:, None]
+        proj = np.einsum("ij,ij->i", self._normal, target)
+        return (m.support_stiffness * proj)[:, None] * self._normal
+
     def external_forces(self, control: FaceControl) -> np.ndarray:
         """Every force term that does not depend on x or v within a frame, (N,3) dyn."""
-        self._target = self.rest_target(float(control.values[self._jaw_i]))
-        return self.muscle_forces(control) + self.gravity_forces() + self.feedback_target_forces(self._target)
+        jaw = float(control.values[self._jaw_i])
+        self._target = self.rest_target(jaw)
+        return (self.muscle_forces(control) + self.gravity_forces() + self.feedback_target_forces(self._target)
+                + self.support_target_forces(self._target, jaw))
 
     # -- stepping
 
@@ -253,11 +273,11 @@ class Simulator:
         self._age_skin(float(control.values[CHANNEL_INDEX["age"]]))
         if self._implicit is None:
             _rk2_frame(x, v, self.substeps, self.dt, self._springs, self._rest_len, self._k_low,
-                       self._k_high, self._k_damp, self._threshold, ext, self._kr, self._c, self._inv_m,
-                       self._free, self._a1, self._xm, self._vm)
+                       self._k_high, self._k_damp, self._threshold, ext, self._kr, self._c, self._normal,
+                       self._kn, self._inv_m, self._free, self._a1, self._xm, self._vm)
         else:
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
-                                                            self._k_high, self._threshold))
+                                                            self._k_high, self._threshold), self._normal)
         reason = self._check(x)
         if reason:
             x[...] = saved_x

@@ -1,0 +1,80 @@
+"""The implicit (projective-dynamics) integrator for big meshes: same equilibria as RK2, exact
+prefactored solves, rest stays rest, determinism, and the automatic choice."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import spsolve
+
+from sim.build import FaceModel
+from sim.implicit import PrefactoredSolver, laplacian
+from sim.integrator import RK2_WORK_LIMIT, Simulator
+from sim.state import FaceControl
+
+
+def _settled(model: FaceModel, control: FaceControl, method: str) -> tuple[Simulator, np.ndarray]:
+    sim = Simulator(model, wrinkles=False, method=method)
+    state = model.rest_state()
+    sim.settle(state, control, max_seconds=5.0)
+    return sim, state.positions
+
+
+def test_prefactored_solve_matches_a_direct_solve(synth_model: FaceModel) -> None:
+    n = synth_model.n_vertices
+    a = laplacian(n, np.asarray(synth_model.spring_indices), np.asarray(synth_model.spring_k_high))
+    a = (a + sp.diags(np.asarray(synth_model.mass) * 3600.0)).tocsc()
+    b = np.random.default_rng(3).normal(size=(n, 3))
+    out = np.zeros_like(b)
+    PrefactoredSolver(a).solve(b, out)
+    assert np.allclose(out, spsolve(a, b), rtol=1e-10, atol=1e-12)
+
+
+def test_the_rk2_equilibrium_is_a_fixed_point_of_the_implicit_step(synth_model_nograv: FaceModel) -> None:
+    """Both integrators balance the same forces. (From rest they may land in different equilibria
+    where the pulled skin buckles; see docs/simulation.md.)"""
+    m = synth_model_nograv
+    c = FaceControl()
+    c.set("zygomaticus_major_l", 1.0)
+    c.set("frontalis_inner_r", 0.7)
+    c.set("jaw", 0.4)
+    rk2 = Simulator(m, wrinkles=False, method="rk2")
+    state = m.rest_state()
+    rk2.settle(state, c, max_seconds=3.0)
+    for _ in range(120):  # well past the settle criterion
+        rk2.step(state, c)
+    explicit = state.positions.copy()
+    motion = np.linalg.norm(explicit - m.rest, axis=1).max()
+    imp = Simulator(m, wrinkles=False, method="implicit")
+    state.velocities[...] = 0.0
+    for _ in range(60):
+        imp.step(state, c)
+    assert imp.substeps < 4 and motion > 0.5
+    assert np.linalg.norm(state.positions - explicit, axis=1).max() < 1e-3 * motion
+    # and it settles a pose from rest by itself
+    c2 = FaceControl()
+    c2.set("frontalis_inner_l", 1.0)
+    _, a = _settled(m, c2, "implicit")
+    _, b = _settled(m, c2, "rk2")
+    assert np.linalg.norm(a - b, axis=1).max() < 0.05 * np.linalg.norm(b - m.rest, axis=1).max()
+
+
+def test_implicit_keeps_rest_and_is_deterministic(synth_model_nograv: FaceModel) -> None:
+    _, pos = _settled(synth_model_nograv, FaceControl(), "implicit")
+    assert np.abs(pos - synth_model_nograv.rest).max() < 1e-9
+    c = FaceControl()
+    c.set("orbicularis_oris", 1.0)
+    runs = []
+    for _ in range(2):
+        sim = Simulator(synth_model_nograv, wrinkles=False, method="implicit")
+        state = synth_model_nograv.rest_state()
+        for _ in range(20):
+            sim.step(state, c)
+        runs.append(state.positions.tobytes())
+    assert runs[0] == runs[1]
+
+
+def test_auto_keeps_rk2_while_it_is_cheap(synth_model: FaceModel) -> None:
+    sim = Simulator(synth_model)
+    assert sim.rk2_substeps * len(synth_model.spring_indices) <= RK2_WORK_LIMIT
+    assert sim.method == "rk2" and sim.substeps == sim.rk2_substeps
