@@ -165,6 +165,11 @@ class Device:
     def _set_light(self, control: str, level: float) -> None:
         """Drive one light; only called for controls declared with ``has_light``."""
 
+    @property
+    def closing(self) -> bool:
+        """True once close() was called; long handshakes check it to give up early."""
+        return self._stop.is_set()
+
     def _wake(self) -> None:
         """Make a blocked ``_read`` return early (close is waiting)."""
 
@@ -211,6 +216,9 @@ class Device:
         except Exception as err:
             self._safe_close_handle()
             log.debug("%s: reopen failed: %s", self.spec, err)
+            return False
+        if self._stop.is_set():  # close() came while we were opening: do not leak the handle
+            self._safe_close_handle()
             return False
         self._connected = True
         self._restore_lights()

@@ -204,6 +204,8 @@ class FirmataDevice(SerialPortDevice):
         next_query = 0.0
         while self.parser.version is None:
             now = time.monotonic()
+            if self.closing:
+                raise OSError("device is closing")
             if now >= deadline:
                 raise OSError(f"{self.path}: no Firmata board answered the version query")
             if now >= next_query:

@@ -164,6 +164,8 @@ class SgiDevice(SerialPortDevice):
         reports from before the reset and are dropped."""
         deadline = time.monotonic() + seconds
         while (left := deadline - time.monotonic()) > 0:
+            if self.closing:
+                raise OSError("device is closing")
             data, _t = self.read_raw(max(0.001, left))
             if RESET in data and not settle:
                 return True

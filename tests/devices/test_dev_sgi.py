@@ -183,3 +183,22 @@ def test_puppet_monitor_json_against_the_emulated_box(box: SgiBoxEmulator) -> No
     finally:
         proc.terminate()
         proc.wait(10)
+
+
+def test_close_while_waiting_for_a_silent_box_is_prompt(tmp_path: Path) -> None:
+    import threading
+
+    from emulators import PtyPort
+
+    silent = PtyPort(tmp_path / "silent")
+    try:
+        d = open_device(f"sgi://{silent.link}", require=False)  # nobody answers the reset
+        d.start()
+        started = threading.Event()
+        closer = threading.Thread(target=lambda: (started.set(), d.close()))
+        closer.start()
+        started.wait()
+        closer.join(2.0)  # a full handshake would take 5 x 0.5 s
+        assert not closer.is_alive() and not d.connected
+    finally:
+        silent.close()
