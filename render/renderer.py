@@ -66,9 +66,12 @@ class FaceRenderer:
         self.eye_prog = ctx.program(vertex_shader=shaders.EYE_VS, fragment_shader=shaders.EYE_FS)
         self.cavity_prog = ctx.program(vertex_shader=shaders.CAVITY_VS, fragment_shader=shaders.CAVITY_FS)
         self.line_prog = ctx.program(**shaders.line_program_sources())
+        self.thick_prog = ctx.program(**shaders.line_program_sources(thick=True))
         self.trail_prog = ctx.program(**shaders.line_program_sources(trail=True))
         self.point_prog = ctx.program(vertex_shader=shaders.POINT_VS, fragment_shader=shaders.POINT_FS)
         self._post: dict[str, tuple[moderngl.Program, moderngl.VertexArray]] = {}
+        widths = ctx.info.get("GL_ALIASED_LINE_WIDTH_RANGE", (1.0, 1.0))
+        self._max_line_width = float(widths[1]) if isinstance(widths, (tuple, list)) else 1.0
         self.hud = HudRenderer(ctx)
         self._scene: tuple[tuple[int, int], moderngl.Framebuffer, moderngl.Texture, moderngl.Renderbuffer] | None = None
         self._gl: list[Any] = []
@@ -137,7 +140,7 @@ class FaceRenderer:
             self.cavities.append((cav, vbo, vao, rim))
         self.muscles = MuscleLines(model.rig, rest)
         self.muscle_vbo = ctx.buffer(reserve=max(len(self.muscles), 1) * 12, dynamic=True)
-        self.muscle_vao = ctx.vertex_array(self.line_prog, [(self.muscle_vbo, "3f", "in_pos")])
+        self.muscle_vao = ctx.vertex_array(self.thick_prog, [(self.muscle_vbo, "3f", "in_pos")])
         g += [self.muscle_vbo, self.muscle_vao]
         self._populate_trails(n)
 
@@ -148,6 +151,7 @@ class FaceRenderer:
         self.trails = TrailHistory(n)
         k = self.trails.capacity
         nodes = np.arange(n) if n <= MAX_TRAIL_NODES else np.linspace(0, n - 1, MAX_TRAIL_NODES).astype(int)
+        self.trail_nodes = len(nodes)
         slots = np.arange(k)
         a = (slots[:, None] * n + nodes[None, :]).ravel()
         b = (((slots + 1) % k)[:, None] * n + nodes[None, :]).ravel()
@@ -246,12 +250,12 @@ class FaceRenderer:
         self._draw_cavities(surface, mvp)
         self.skin_vaos[kind].render(moderngl.TRIANGLES)
         self._draw_eyes(state)
-        for prog in (self.line_prog, self.trail_prog):
+        for prog in (self.line_prog, self.thick_prog, self.trail_prog):
             prog["mvp"].write(_mat(mvp))
-            prog["viewport"].value = (float(size[0]), float(size[1]))
+        self.thick_prog["viewport"].value = (float(size[0]), float(size[1]))
         if view in ("wireframe", "muscles"):
             dark = view == "muscles"
-            self._lines(self.edge_vao, (0.06, 0.07, 0.09, 0.75 if dark else 0.4), 1.0 * ss, 2e-4)
+            self._lines(self.edge_vao, (0.06, 0.07, 0.09, 0.75 if dark else 0.4), 1.0, 2e-4)
         if view == "muscles" and len(self.muscles):
             self.muscle_vbo.write(self.muscles.positions(surface).tobytes())
             self.ctx.disable(moderngl.DEPTH_TEST)   # muscles lie under the skin: always show them
@@ -283,15 +287,22 @@ class FaceRenderer:
             self.eye_vao.render(moderngl.TRIANGLES)
 
     def _lines(self, vao: moderngl.VertexArray, color: tuple[float, float, float, float],
-               width: float, bias: float) -> None:
+               width: float, bias: float, ranges: list[tuple[int, int]] | None = None) -> None:
+        """Blend lines over the scene; `ranges` are (first, count) slices of the index buffer."""
         prog = vao.program
         prog["color"].value = color
-        prog["width"].value = width
         prog["bias"].value = bias
         self.ctx.enable(moderngl.BLEND)
         self.ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA,
                                moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA)
-        vao.render(moderngl.LINES)
+        if "width" in prog:
+            prog["width"].value = width
+        else:  # native lines: widths in final pixels, so scaled by the supersampling factor
+            self.ctx.line_width = min(max(1.0, round(width * self.supersample)), self._max_line_width)
+        for first, count in ranges if ranges is not None else [(0, -1)]:
+            if count:
+                vao.render(moderngl.LINES, vertices=count, first=first)
+        self.ctx.line_width = 1.0
         self.ctx.disable(moderngl.BLEND)
 
     def _draw_trails(self, mvp: np.ndarray, ss: int) -> None:
@@ -312,8 +323,14 @@ class FaceRenderer:
         for name, value in (("trail_n", n), ("trail_k", tr.capacity), ("trail_head", tr.head),
                             ("trail_count", tr.count)):
             p[name].value = value
+        # index blocks are per ring slot (slot s -> s+1); draw those from the oldest sample up to
+        # the newest, in at most two slices, skipping the seam and the unfilled slots
+        block = 2 * self.trail_nodes
+        first, segs, k = tr.oldest, tr.count - 1, tr.capacity
+        head_part = min(segs, k - first)
+        ranges = [(first * block, head_part * block), (0, (segs - head_part) * block)]
         self.ctx.disable(moderngl.DEPTH_TEST)  # past positions may lie under today's skin
-        self._lines(self.trail_vao, (1.0, 1.0, 1.0, 1.0), 1.5 * ss, 0.0)
+        self._lines(self.trail_vao, (1.0, 1.0, 1.0, 1.0), 1.5, 0.0, ranges)
         self.ctx.enable(moderngl.DEPTH_TEST)
 
     def project(self, points: np.ndarray, size: tuple[int, int]) -> np.ndarray:
@@ -343,7 +360,7 @@ class FaceRenderer:
         for prog, vao in self._post.values():
             vao.release()
             prog.release()
-        for obj in (*self.skin_progs.values(), self.eye_prog, self.cavity_prog, self.line_prog,
+        for obj in (*self.skin_progs.values(), self.eye_prog, self.cavity_prog, self.line_prog, self.thick_prog,
                     self.trail_prog, self.point_prog):
             obj.release()
         self.hud.release()

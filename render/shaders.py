@@ -72,7 +72,7 @@ out vec4 frag;
 void main() {
     vec3 n = normalize(v_normal);
 #if defined(CLAY)
-    vec3 albedo = vec3(0.55);
+    vec3 albedo = vec3(0.36);
     float spec = 0.0;
 #elif defined(HEAT)
     vec3 albedo = ramp(v_disp / heat_scale);
@@ -152,33 +152,25 @@ void main() {
 }
 """
 
-# Thick lines: a geometry shader widens each segment into a screen-space quad, since core-profile
-# line widths above 1 px are not portable. `bias` pulls lines towards the camera so lines lying on
-# the skin win the depth test against it.
+# Lines. `bias` pulls them towards the camera so lines lying on the skin win the depth test. Thick
+# lines: a geometry shader widens each segment into a screen-space quad (core-profile line widths
+# above 1 px are not portable). Trails: the vertex index tells the ring slot, hence the age.
 LINE_VS = HEADER + """
 uniform mat4 mvp;
 uniform int trail_n;
 uniform int trail_k;
 uniform int trail_head;
 uniform int trail_count;
+uniform float bias;
 in vec3 in_pos;
-#ifdef VERTEX_COLOR
-in vec4 in_color;
-#endif
 out vec4 g_color;
-out float g_rel;
 void main() {
     gl_Position = mvp * vec4(in_pos, 1.0);
-#ifdef VERTEX_COLOR
-    g_color = in_color;
-#else
+    gl_Position.z -= bias * gl_Position.w;
     g_color = vec4(1.0);
-#endif
-    g_rel = 0.0;
 #ifdef TRAIL
     int slot = gl_VertexID / trail_n;
     int rel = (trail_head - slot + trail_k) % trail_k;    // 0 = newest sample
-    g_rel = float(rel);
     float t = trail_count > 1 ? 1.0 - float(rel) / float(trail_count - 1) : 0.0;
     g_color = vec4(ramp(t), 1.0);
 #endif
@@ -190,16 +182,9 @@ layout(lines) in;
 layout(triangle_strip, max_vertices = 4) out;
 uniform vec2 viewport;
 uniform float width;
-uniform float bias;
-uniform int trail_count;
 in vec4 g_color[];
-in float g_rel[];
 out vec4 f_color;
 void main() {
-#ifdef TRAIL
-    float r0 = g_rel[0], r1 = g_rel[1];
-    if (abs(r0 - r1) != 1.0 || max(r0, r1) >= float(trail_count)) return;   // ring wrap / unfilled
-#endif
     vec4 a = gl_in[0].gl_Position, b = gl_in[1].gl_Position;
     if (a.w <= 0.0 || b.w <= 0.0) return;
     vec2 sa = a.xy / a.w * viewport, sb = b.xy / b.w * viewport;
@@ -207,7 +192,6 @@ void main() {
     float len = length(dir);
     dir = len > 1e-4 ? dir / len : vec2(1.0, 0.0);
     vec2 off = vec2(-dir.y, dir.x) * width / viewport;
-    a.z -= bias * a.w; b.z -= bias * b.w;
     f_color = g_color[0]; gl_Position = a + vec4(off * a.w, 0.0, 0.0); EmitVertex();
     f_color = g_color[0]; gl_Position = a - vec4(off * a.w, 0.0, 0.0); EmitVertex();
     f_color = g_color[1]; gl_Position = b + vec4(off * b.w, 0.0, 0.0); EmitVertex();
@@ -218,7 +202,12 @@ void main() {
 
 LINE_FS = HEADER + """
 uniform vec4 color;
+#ifdef THIN
+in vec4 g_color;
+#define f_color g_color
+#else
 in vec4 f_color;
+#endif
 out vec4 frag;
 void main() { frag = f_color * color; }
 """
@@ -336,15 +325,19 @@ def resolve_source(ss: int) -> str:
     return RESOLVE_FS.replace(HEADER, HEADER + f"#define SS {int(ss)}\n", 1)
 
 
-def line_program_sources(vertex_color: bool = False, trail: bool = False) -> dict[str, str]:
-    """Sources for the thick-line program, specialised by #defines."""
-    defs = ("#define VERTEX_COLOR\n" if vertex_color else "") + ("#define TRAIL\n" if trail else "")
+def line_program_sources(thick: bool = False, trail: bool = False) -> dict[str, str]:
+    """Sources for a line program: thick (widened by the geometry shader, costly on llvmpipe, for
+    the few muscle lines) or thin native 1-px lines (wireframe, trails)."""
+    defs = ("#define TRAIL\n" if trail else "") + ("" if thick else "#define THIN\n")
 
     def spec(src: str) -> str:
         return src.replace(HEADER, HEADER + defs, 1)
 
-    return {"vertex_shader": spec(LINE_VS.replace(HEADER, HEADER + LIGHTING_RAMP_ONLY, 1)),
-            "geometry_shader": spec(LINE_GS), "fragment_shader": spec(LINE_FS)}
+    out = {"vertex_shader": spec(LINE_VS.replace(HEADER, HEADER + LIGHTING_RAMP_ONLY, 1)),
+           "fragment_shader": spec(LINE_FS)}
+    if thick:
+        out["geometry_shader"] = spec(LINE_GS)
+    return out
 
 
 LIGHTING_RAMP_ONLY = LIGHTING[LIGHTING.index("vec3 ramp"):]
