@@ -24,9 +24,14 @@ _NAMED = (
     [*string.ascii_uppercase, *string.digits]
     + [f"F{i}" for i in range(1, 13)]
     + ["SPACE", "ENTER", "TAB", "BACKSPACE", "ESCAPE", "LEFT", "RIGHT", "UP", "DOWN"]
-    + ["LEFT_SHIFT", "RIGHT_SHIFT", "LEFT_CONTROL", "RIGHT_CONTROL", "LEFT_ALT", "RIGHT_ALT"]
+    + ["HOME", "END", "PAGE_UP", "PAGE_DOWN", "INSERT", "DELETE", "SHIFT", "CTRL", "ALT"]
     + [f"KP_{i}" for i in range(10)]
 )
+
+
+#: Left and right modifiers are one control, named as render/window.py names them (upper-cased).
+_MODIFIERS = {"LEFT_SHIFT": "SHIFT", "RIGHT_SHIFT": "SHIFT", "LEFT_CONTROL": "CTRL", "RIGHT_CONTROL": "CTRL",
+              "LEFT_ALT": "ALT", "RIGHT_ALT": "ALT"}
 
 
 @lru_cache(maxsize=1)
@@ -38,14 +43,15 @@ def _glfw_names() -> dict[int, str]:
         if attr.startswith("KEY_") and attr not in ("KEY_LAST", "KEY_UNKNOWN"):
             code = getattr(glfw, attr)
             if isinstance(code, int):
-                names.setdefault(code, attr[4:])
+                names.setdefault(code, _MODIFIERS.get(attr[4:], attr[4:]))
     return names
 
 
 def glfw_key_name(key: int) -> str | None:
     """The key name used in ``key:NAME`` controls for a glfw key code (``glfw.KEY_A`` -> ``A``,
-    ``glfw.KEY_LEFT_SHIFT`` -> ``LEFT_SHIFT``); None for unknown keys. Layout-independent on purpose:
-    a puppeteer's key map must not change with the keyboard layout."""
+    ``glfw.KEY_LEFT_SHIFT`` -> ``SHIFT``, ``glfw.KEY_F5`` -> ``F5``); None for unknown keys. These are
+    the upper-cased names render/window.py passes to its key callbacks on a US layout, so
+    ``window.add_key_callback(keyboard.feed_key)`` and ``glfw_key_callback`` name keys alike."""
     return _glfw_names().get(key)
 
 
