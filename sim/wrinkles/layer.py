@@ -34,6 +34,7 @@ IntArray = np.ndarray
 STATION_STEP = 0.25  # cm between stations along a line (heights are interpolated between)
 TAPER = 0.5  # cm over which a wrinkle fades in at each end of its line
 FURROW_HALF_WIDTH = 0.12  # cm, half width of the microfurrow groove
+FURROW_MAX_DEPTH = 0.06  # cm: a microfurrow, however tall its rolls, stays a fine groove
 
 
 @dataclass(eq=False)
@@ -44,6 +45,8 @@ class WrinkleLayer:
     anchor_tri (A, 3) int, anchor_bary (A, 3): barycentric surface points.
     roll_far, roll_line (R,) int: anchors of P0 (across) and P1 (on the line) of each roll;
     roll_asym (R,) bool; roll_emphasis (R,); roll_d_init (R,) cm: the natural arc at rest.
+    roll_prev, roll_next (R,) int: the neighbouring roll along the same line and side (itself at
+    the ends).
     entry_vertex (V,) int; entry_roll0/1 (V,) int and entry_lam (V,): the two stations' rolls and the
     weight of the second; entry_b1, entry_b2 (V,): Bezier weights of P'0, P'1 at the vertex's t;
     entry_taper (V,).
@@ -60,6 +63,8 @@ class WrinkleLayer:
     roll_asym: np.ndarray
     roll_emphasis: FloatArray
     roll_d_init: FloatArray
+    roll_prev: IntArray
+    roll_next: IntArray
     entry_vertex: IntArray
     entry_roll0: IntArray
     entry_roll1: IntArray
@@ -156,7 +161,7 @@ class _Builder:
         self.anchor_tri: list[IntArray] = []
         self.anchor_bary: list[FloatArray] = []
         self.n_anchor = 0
-        self.rolls: dict[str, list] = {k: [] for k in ("far", "line", "asym", "emph")}
+        self.rolls: dict[str, list] = {k: [] for k in ("far", "line", "asym", "emph", "prev", "next")}
         self.entries: dict[str, list] = {
             k: [] for k in ("v", "r0", "r1", "lam", "b1", "b2", "taper")
         }
@@ -195,6 +200,8 @@ class _Builder:
             far_idx, _, _ = self.anchors((p + sign * w * across)[:, :2])
             first_roll = len(self.rolls["far"])
             roll_ids[:, side] = first_roll + np.arange(n_st)
+            self.rolls["prev"].extend(first_roll + np.maximum(np.arange(n_st) - 1, 0))
+            self.rolls["next"].extend(first_roll + np.minimum(np.arange(n_st) + 1, n_st - 1))
             self.rolls["far"].extend(far_idx)
             self.rolls["line"].extend(s_idx)
             self.rolls["asym"].extend([asyms[side]] * n_st)
@@ -284,6 +291,8 @@ class _Builder:
             roll_asym=arr(r["asym"], bool),
             roll_emphasis=arr(r["emph"]),
             roll_d_init=np.zeros(len(r["far"])),
+            roll_prev=arr(r["prev"], np.int64),
+            roll_next=arr(r["next"], np.int64),
             entry_vertex=arr(e["v"], np.int64),
             entry_roll0=arr(e["r0"], np.int64),
             entry_roll1=arr(e["r1"], np.int64),
@@ -378,12 +387,21 @@ def roll_heights(
     return dh0, dh1, up, n_line
 
 
+def _smooth_along(layer: WrinkleLayer, h: FloatArray, passes: int = 2) -> FloatArray:
+    """Heights smoothed along each line ([1, 2, 1] / 4 over neighbouring stations): a crest follows
+    its wrinkle evenly instead of copying every local ripple of the dynamics' compression."""
+    for _ in range(passes):
+        h = 0.25 * np.take(h, layer.roll_prev) + 0.5 * h + 0.25 * np.take(h, layer.roll_next)
+    return h
+
+
 def wrinkle_displacement(layer: WrinkleLayer, positions: FloatArray, age: float) -> FloatArray:
     """(N, 3) cm: the rolls' heights along their planes' normals plus the microfurrow groove."""
     out = np.zeros((layer.n_vertices, 3))
     if len(layer.roll_far) == 0:
         return out
     dh0, dh1, up, n_line = roll_heights(layer, positions, age)
+    dh0, dh1 = _smooth_along(layer, dh0), _smooth_along(layer, dh1)
     lam = layer.entry_lam
     r0, r1 = layer.entry_roll0, layer.entry_roll1
     h0 = (1 - lam) * np.take(dh0, r0) + lam * np.take(dh0, r1)
@@ -398,7 +416,7 @@ def wrinkle_displacement(layer: WrinkleLayer, positions: FloatArray, age: float)
         np.where(sr[:, 0] >= 0, crest[np.maximum(sr[:, 0], 0)], 0.0),
         np.where(sr[:, 1] >= 0, crest[np.maximum(sr[:, 1], 0)], 0.0),
     )
-    st_depth = st_crest * layer.station_furrow
+    st_depth = np.minimum(st_crest * layer.station_furrow, FURROW_MAX_DEPTH)
     st_roll = np.where(sr[:, 1] >= 0, sr[:, 1], sr[:, 0])
     st_normal = n_line[st_roll]
     fl = layer.furrow_lam

@@ -155,7 +155,7 @@ REFERENCE_MASK: tuple[_Spec, ...] = (
                                          (0.55, 0.41), (0.7, -0.5)),
           ("levator_labii_{s}", "levator_labii_alaeque_nasi_{s}", "zygomaticus_major_{s}",
            "zygomaticus_minor_{s}", "levator_anguli_oris_{s}"),
-          0.3, 0.85, asym_plus=True, emphasis=1.0, furrow=0.5),
+          0.3, 0.85, asym_plus=True, emphasis=1.0, furrow=0.3),
     # marionette line from below the mouth corner towards the jaw
     _Spec("marionette", "mouth_corner", ((0.4, -0.55), (0.5, -1.6), (0.6, -2.8)),
           ("depressor_anguli_oris_{s}",), 0.35, 0.35),

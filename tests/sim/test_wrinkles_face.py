@@ -112,7 +112,7 @@ def test_a_line_bulges_when_its_own_muscles_contract(face, line: str) -> None:
     assert old > 0.02, old  # cm
 
 
-def _crease_depth(model, surface: np.ndarray, region: np.ndarray, radius: float = 0.6) -> float:
+def _crease_depth(model, surface: np.ndarray, region: np.ndarray, radius: float = 0.4) -> float:
     """Deepest groove in a region: for each vertex, how far the skin within `radius` (rest cm)
     rises above it along its normal, on average. Pure geometry of the drawn surface."""
     rest = model.rest
