@@ -61,7 +61,7 @@ class SkinParams:
     support: float = 9000.0
     mass_damping: float = 120.0
     viscosity: float = 1.0
-    min_mass_fraction: float = 0.75
+    min_mass_fraction: float = 1.0
     gravity: bool = True
     g: float = 981.0
     jaw_max_angle: float = 0.35

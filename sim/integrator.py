@@ -192,12 +192,16 @@ class Simulator:
         n = model.n_vertices
         self._free = np.ascontiguousarray(~model.held)
         self._inv_m = 1.0 / model.mass
-        # writeable contiguous copies: one numba signature (the warm-up's) for every call
-        self._springs = np.array(model.spring_indices, dtype=np.int32, order="C")
-        self._rest_len = np.array(model.spring_rest_length, order="C")
-        self._k_low = np.array(model.spring_k_low, order="C")
-        self._k_high = np.array(model.spring_k_high, order="C")
-        self._k_damp = np.array(model.spring_damping, order="C")
+        # writeable contiguous copies: one numba signature (the warm-up's) for every call; springs
+        # in vertex order (a fixed permutation, so still deterministic) for cache locality
+        order = np.lexsort((model.spring_indices[:, 1], model.spring_indices[:, 0]))
+        self._springs = np.array(model.spring_indices[order], dtype=np.int32, order="C")
+        self._rest_len = np.array(model.spring_rest_length[order], order="C")
+        self._k_low = np.array(model.spring_k_low[order], order="C")
+        self._k_high = np.array(model.spring_k_high[order], order="C")
+        self._k_damp = np.array(model.spring_damping[order], order="C")
+        self._k_low_base = self._k_low.copy()
+        self._k_high_base = self._k_high.copy()
         self._kr = np.array(model.rest_stiffness, order="C")
         self._c = np.array(model.damping, order="C")
         self._kn = np.array(model.support_stiffness, order="C")
@@ -300,8 +304,8 @@ class Simulator:
         from sim.wrinkles.aging import skin_params_for_age
 
         skin = skin_params_for_age(age, float(self.model.strain_threshold))
-        np.multiply(self.model.spring_k_low, skin.k_low_scale, out=self._k_low)
-        np.multiply(self.model.spring_k_high, min(skin.k_high_scale, 1.0), out=self._k_high)
+        np.multiply(self._k_low_base, skin.k_low_scale, out=self._k_low)
+        np.multiply(self._k_high_base, min(skin.k_high_scale, 1.0), out=self._k_high)
         self._threshold = skin.strain_threshold
         self._skin_age = age
 
