@@ -207,7 +207,7 @@ class Device:
         """The device went away: drop the stale handle and tell the listeners once."""
         self._connected = False
         self._safe_close_handle()
-        log.warning("%s: lost (%s)", self.spec, err)
+        self.warnings.warn("lost", f"lost ({err}); reconnecting")  # rate-limited: a flapping bus
         self._status("lost", str(err))
 
     def _try_reopen(self) -> bool:

@@ -8,6 +8,7 @@ host->box writes. The port is reopened by path, so a box behind a stable udev sy
 
 from __future__ import annotations
 
+import errno
 import os
 import threading
 import time
@@ -46,7 +47,13 @@ class SerialPortDevice(Device):
         import serial  # lazily: pyserial is only needed by serial backends
 
         self._close_handle()
-        self._port = serial.Serial(self.path, self.baudrate, timeout=self.read_timeout, write_timeout=1.0)
+        try:
+            self._port = serial.Serial(self.path, self.baudrate, timeout=self.read_timeout, write_timeout=1.0)
+        except serial.SerialException as err:
+            if err.errno == errno.EACCES:
+                raise OSError(f"{self.path}: permission denied; add your user to the 'dialout' group "
+                              "(sudo usermod -aG dialout $USER, then log in again)") from err
+            raise
         self._port_id = self._identity()
         self._last_data = time.monotonic()
         self._handshake()

@@ -67,7 +67,11 @@ class HidDevice(Device):
     def _open(self) -> None:
         api = self._api or hid_api()
         info = self._find(api)
-        handle = HidHandle.open_path(api, info["path"])
+        try:
+            handle = HidHandle.open_path(api, info["path"])
+        except OSError as err:
+            raise OSError(f"cannot open {self.vid:04x}:{self.pid:04x}: {err} (permissions or a kernel driver? "
+                          "see 'Permissions' in docs/devices.md)") from err
         self._handle = handle
         if self.serial is None and info.get("serial_number"):
             self.serial = info["serial_number"]  # come back to this very unit after an unplug

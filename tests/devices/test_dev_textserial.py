@@ -79,3 +79,18 @@ def test_parser_counts_and_ranges() -> None:
     assert p.feed(b"B0 1\nB0 1\n", 1.0)[0].value == 1 and p.feed(b"B0 1\n", 2.0) == []
     assert p.feed(b"D0 +11\nD0 0\n", 3.0) == []
     assert p.feed(b"A0 -0.01\n", 4.0)[0].value == 0.0
+
+
+def test_permission_denied_says_what_to_do(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import errno
+
+    import serial
+
+    from devices import DeviceError
+
+    def denied(self: serial.Serial) -> None:  # what a user outside 'dialout' gets from pyserial
+        raise serial.SerialException(errno.EACCES, f"could not open port {self.port}: Permission denied")
+
+    monkeypatch.setattr(serial.Serial, "open", denied)
+    with pytest.raises(DeviceError, match="dialout"):
+        open_device(f"serial://{tmp_path / 'ttyUSB9'}")
