@@ -3,8 +3,8 @@
 Analog inputs become axes (``axis0`` = A0, normalised by the ADC resolution), digital pins become
 buttons (``button2`` = D2, pull-ups on, pressed = low), and FirmataEncoder reports become dials.
 
-Why our own parser rather than pyfirmata2: pyfirmata2 runs its own polling iterator thread over its
-own ``serial.Serial``, hands out values without read timestamps, has no notion of a lost and
+Why our own parser rather than pyfirmata2: pyfirmata2 sleeps a fixed 5 s on every open, runs its own
+polling iterator thread over its own ``serial.Serial``, hands out values without read timestamps, has no notion of a lost and
 reopened port, and knows nothing of encoders. The protocol subset a control box needs is small
 (MIDI-style framing, three message types, a few sysex replies), so it is parsed here in the one
 reader thread, with the same latency, hot-plug and bad-input behaviour as the other serial boxes.

@@ -106,3 +106,47 @@ def test_parser_truncation_range_and_stray_bytes() -> None:
     assert p.warnings.counts["range"] == 1
     assert p.feed(bytes([0x05, 0x06]), 3.0) == [] and p.warnings.counts["garbage"] == 2
     assert p.feed(bytes([0xE0, 0x7F, 0x07]), 4.0)[0].value == 1.0
+
+
+def test_the_emulator_speaks_firmata_a_maintained_client_understands(board: FirmataEmulator,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """Cross-check of the test double: pyfirmata2 (an independent Firmata client) drives the
+    emulator and decodes its analog and digital reports, so our parser is tested against real
+    Firmata framing, not just against itself."""
+    import threading
+
+    import pyfirmata2
+    import pyfirmata2.pyfirmata2 as core
+
+    monkeypatch.setattr(core, "BOARD_SETUP_WAIT_TIME", 0)  # its fixed 5 s wait for an Arduino reset
+    client = pyfirmata2.Board(str(board.port.link), pyfirmata2.BOARDS["arduino"])
+    got: dict[str, object] = {}
+    done = threading.Event()
+
+    def record(key: str) -> object:
+        def cb(value: object) -> None:
+            got[key] = value
+            if len(got) == 2:
+                done.set()
+        return cb
+
+    try:
+        client.samplingOn(20)
+        client.analog[2].register_callback(record("a2"))
+        client.analog[2].enable_reporting()
+        pin = client.get_pin("d:3:u")  # INPUT_PULLUP
+        pin.register_callback(record("d3"))
+        pin.enable_reporting()
+        assert board.configured.wait(5)
+        import time
+
+        deadline = time.monotonic() + 5
+        while 2 not in board.report_analog and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert board.sampling_ms == 20 and board.pin_modes[3] == 11
+        board.analog(2, 1023)
+        board.digital(3, 0)
+        assert done.wait(5), got
+        assert got == {"a2": 1.0, "d3": False}
+    finally:
+        client.exit()
