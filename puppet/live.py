@@ -4,7 +4,7 @@
 the tick boundary, steps the mapping's filters with the tick's dt, records, and advances the
 Simulator once. Drivers around it decide *when* ticks happen: `run_virtual` (mock scripts, as fast
 as possible on script time), `run_realtime` (headless, wall clock), and the window driver in
-`puppet.live_window` (ticks decoupled from vsync). Latency is event timestamp -> frame presented."""
+`run_window` (ticks decoupled from the frame rate). Latency is event timestamp -> frame presented."""
 
 from __future__ import annotations
 
@@ -303,26 +303,186 @@ def check_duration(duration: float | None) -> None:
         raise PuppetError(f"--duration must be a positive number of seconds, got {duration}")
 
 
+
+# --- the window drivers --------------------------------------------------------------------------
+
+WINDOW_KEYS = "ESC eases to neutral   M marker   F1 help   F3 HUD   F4 view   F11 fullscreen   F10 quit"
+REPLAY_KEYS = "SPACE pause   LEFT/RIGHT seek 1 s   UP/DOWN speed   HOME restart   N next marker   ESC quit"
+
+
+def _window_or_none(model: Any, title: str) -> Any:
+    """A FaceWindow, or None (with one line saying why) when no window can be opened here."""
+    import sys
+
+    try:
+        from render.window import FaceWindow, NoDisplayError
+    except ImportError as err:
+        print(f"puppet: no face window in this build ({err}): running headless", file=sys.stderr)
+        return None
+    try:
+        win = FaceWindow(model, title=title)
+    except NoDisplayError as err:
+        print(f"puppet: {err}: running headless", file=sys.stderr)
+        return None
+    win.builtin_keys = False  # our keys: ESC is the panic key here, letters belong to the key map
+    return win
+
+
+def _common_key(win: Any, name: str) -> bool:
+    """Window keys shared by live and replay; True if handled."""
+    from render.renderer import VIEWS
+
+    if name == "f10":
+        win.request_close()
+    elif name == "f11":
+        win.toggle_fullscreen()
+    elif name == "f1":
+        win.show_help = not win.show_help
+    elif name == "f3":
+        win.show_hud = not win.show_hud
+    elif name == "f4":
+        r = win.renderer
+        r.view = VIEWS[(VIEWS.index(r.view) + 1) % len(VIEWS)]
+    else:
+        return False
+    return True
+
+
+def live_hud(core: LiveCore, devs: Sequence[Any], keymap: bool) -> Any:
+    """What the HUD shows live: active channels, each device connected/lost, latency, the key map
+    when the keyboard is the control box, and bindings waiting for pickup or on a lost device."""
+    from render.hud import HudInfo, active_channels
+
+    mapper = core.mapper
+    status = [(d.spec, bool(mapper.status.get(d.spec, d.connected))) for d in devs]
+    p50, p99 = core.latency.percentile(50), core.latency.percentile(99)
+    lines = []
+    if p50 is not None and p99 is not None:
+        lines.append(f"input->frame p50 {p50 * 1e3:.1f} ms  p99 {p99 * 1e3:.1f} ms")
+    if keymap:
+        lines += [b.spec.label for b in mapper.bindings if b.spec.label]
+    for b in mapper.bindings:
+        what = b.spec.target or b.spec.action
+        if b.device is not None and not mapper.status.get(b.device, True):
+            lines.append(f"LOST {b.spec.control} -> {what} ({b.device})")
+        elif b.kind == "absolute" and not b.engaged:
+            lines.append(f"move {b.spec.control} to pick up {what}")
+    lines.append(WINDOW_KEYS)
+    return HudInfo(channels=active_channels(core.face.model.channels, core.values),
+                   devices=status, latency_ms=None if p50 is None else p50 * 1e3, lines=lines[-24:])
+
+
 def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None, devs: Sequence[Any],
                fullscreen: bool = False, stop: StopFlag | None = None) -> None:
-    """The windowed driver: ticks on the wall clock, frames at vsync."""
-    try:
-        from render.window import FaceWindow  # noqa: F401
-    except ImportError:
-        import sys
-
-        print("puppet: this build has no face window yet (render.window is missing): running headless",
-              file=sys.stderr)
+    """Ticks on the wall clock (at most 4 per frame, then the schedule re-anchors), frames at the
+    window's pace; latency is measured when the frame showing an event has been swapped."""
+    win = _window_or_none(core.face.model, "facepuppet live")
+    if win is None:
         run_realtime(core, drain, duration, stop=stop)
         return
-    _run_face_window(core, drain, duration, devs, fullscreen, stop)
+    kb = next((d for d in devs if d.spec.startswith("keyboard")), None)
+    keymap = kb is not None and len(devs) == 1
+    if fullscreen:
+        win.toggle_fullscreen()
+
+    def on_key(name: str, action: str, t: float) -> None:
+        if action == "press" and _common_key(win, name):
+            return
+        if kb is not None:
+            kb.feed_key(name, action, t)  # type: ignore[arg-type]
+
+    win.add_key_callback(on_key)
+    sched = {"start": time.monotonic(), "k0": 0}
+    limit = None if duration is None else int(round(duration * core.rate))
+
+    def on_frame(w: Any, now: float) -> None:
+        if (stop is not None and stop.stopped) or (limit is not None and core.tick_count >= limit):
+            w.request_close()
+            return
+        ran = 0
+        while sched["start"] + (core.tick_count - sched["k0"]) * core.dt <= now and ran < 4:
+            core.tick(drain())
+            ran += 1
+            if limit is not None and core.tick_count >= limit:
+                break
+        if sched["start"] + (core.tick_count - sched["k0"]) * core.dt < now - 4 * core.dt:
+            sched["start"], sched["k0"] = now, core.tick_count  # too far behind: drop wall time
+        w.state = core.state
+        w.hud = live_hud(core, devs, keymap)
+
+    win.add_frame_callback(on_frame)
+    try:
+        while True:
+            t_frame = time.monotonic()
+            if not win.step():
+                break
+            core.presented(time.monotonic())
+            # without vsync (a virtual display) do not redraw faster than the tick
+            nxt = sched["start"] + (core.tick_count - sched["k0"]) * core.dt
+            if time.monotonic() - t_frame < 0.004:
+                time.sleep(max(0.0, min(nxt - time.monotonic(), core.dt)))
+    finally:
+        win.close()
 
 
 def run_replay_window(perf: Any, start: float = 0.0, end: float | None = None, speed: float = 1.0,
                       view: str = "shaded") -> int:
-    """Replay in the window with transport keys."""
+    """Play a Performance in the window with transport keys (see REPLAY_KEYS)."""
+    from render.hud import HudInfo, active_channels
+
+    from puppet.replay import Replayer
+
+    win = _window_or_none(perf.face.model, "facepuppet replay")
+    if win is None:
+        raise PuppetError("no window can be opened here: use --headless or --out")
     try:
-        from render.window import FaceWindow  # noqa: F401
-    except ImportError as err:
-        raise PuppetError("this build has no face window (render.window is missing); use --headless or --out") from err
-    return _replay_face_window(perf, start, end, speed, view)
+        win.renderer.view = view
+    except ValueError as err:
+        win.close()
+        raise PuppetError(str(err)) from err
+    rp = Replayer(perf)
+    end_tick = perf.ticks if end is None else max(0, min(perf.ticks, int(round(end * perf.rate))))
+    play = {"pos": float(start * perf.rate), "speed": speed, "paused": False, "last": time.monotonic()}
+
+    def on_key(name: str, action: str, t: float) -> None:
+        if action not in ("press", "repeat") or _common_key(win, name):
+            return
+        if name in ("escape", "q"):
+            win.request_close()
+        elif name == "space":
+            play["paused"] = not play["paused"]
+        elif name in ("left", "right"):
+            play["pos"] += (-1 if name == "left" else 1) * perf.rate
+        elif name == "up":
+            play["speed"] = min(play["speed"] * 2, 16.0)
+        elif name == "down":
+            play["speed"] = max(play["speed"] / 2, 1 / 16)
+        elif name == "home":
+            play["pos"] = start * perf.rate
+        elif name == "n":
+            nxt = [k for k, _ in perf.markers if k > play["pos"] + 0.5]
+            if nxt:
+                play["pos"] = float(nxt[0])
+        play["pos"] = min(max(play["pos"], 0.0), float(end_tick))
+
+    def on_frame(w: Any, now: float) -> None:
+        if not play["paused"]:
+            play["pos"] = min(float(end_tick), play["pos"] + (now - play["last"]) * perf.rate * play["speed"])
+        play["last"] = now
+        rp.seek(int(play["pos"]))
+        w.state = rp.state
+        marks = [label for k, label in perf.markers if abs(k - rp.tick) < perf.rate * 0.5]
+        status = "paused" if play["paused"] else ("end" if rp.tick >= end_tick else "playing")
+        lines = [f"{rp.tick / perf.rate:7.2f} / {end_tick / perf.rate:.2f} s   x{play['speed']:g}   {status}"]
+        lines += [f"marker: {m}" for m in marks] + [REPLAY_KEYS]
+        vals = perf.values[max(0, rp.tick - 1)]
+        w.hud = HudInfo(channels=active_channels(perf.face.model.channels, vals), lines=lines)
+
+    win.add_key_callback(on_key)
+    win.add_frame_callback(on_frame)
+    try:
+        while win.step():
+            time.sleep(0.001)
+    finally:
+        win.close()
+    return 0
