@@ -89,6 +89,8 @@ class KeyboardDevice(Device):
     def feed_key(self, name: str, action: KeyAction, t: float | None = None) -> None:
         """Deliver one key event from the window thread. Repeats, and presses of a key already
         down (a repeat without the flag), are dropped so a held key is one press."""
+        if self._closed:
+            return
         if t is None:
             t = time.monotonic()
         key = str(name).upper()

@@ -66,6 +66,7 @@ class HidDevice(Device):
 
     def _open(self) -> None:
         api = self._api or hid_api()
+        self._close_handle()  # never two handles on one device
         info = self._find(api)
         try:
             handle = HidHandle.open_path(api, info["path"])

@@ -31,6 +31,8 @@ def test_repeats_and_double_presses_are_filtered() -> None:
     assert [(e.control, e.value, e.t) for e in events] == [("key:A", 1.0, 1.0), ("key:A", 0.0, 1.3)]
     assert all(e.kind == "key" and e.device == "keyboard://" for e in events)
     dev.close()
+    dev.feed_key("B", "press", 2.0)  # a window outliving the device must not reach its listeners
+    assert q.drain() == []
 
 
 def test_glfw_key_names() -> None:
