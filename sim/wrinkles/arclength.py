@@ -14,7 +14,8 @@ Readings chosen where the scanned text is ambiguous:
   where the segment starts to loop): read there, eq 14 errs by up to ~75 %. So a query in
   centimetres is read at table coordinates (k d, k a) with k = min(20.1 / d, 10 / a) table units
   per cm -- the largest scale that stays on the grid -- and the result divided by k. With the
-  solver's a <= d this lands at d in [10, 20.1], where eq 14 on the paper's grid is within 1 %.
+  solver's a <= 0.95 d this lands at d in [10.5, 20.1], where eq 14 on the paper's grid is within
+  0.7 % (measured against quadrature; the lower half of the grid errs by up to ~90 %).
 - Asymmetric wrinkles (section 5.2, "a tabulation of S more adapted to that case"): the far end
   P0 rises at ASYM_RATIO * alpha, the end on the furrow P1 at alpha, both with norm a, so the crest
   leans towards the furrow as a nasolabial cheek roll does. It has its own table.

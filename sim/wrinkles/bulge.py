@@ -20,7 +20,7 @@ AGE_MAX = 90.0  # years: the age of maximum dilatation
 DIL_MAX = 0.4  # relative arc-length surplus across a wrinkle at AGE_MAX
 FULL_RELEASE_STRAIN = 0.08  # compression strain across a wrinkle that frees all the surplus
 INPLANE_LOSS_AT_MAX = 0.4  # fraction of a compression aged skin no longer absorbs in its plane
-A_CAP_RATIO = 1.0  # the tangent norm never exceeds the chord: rolls at most 3/4 as tall as wide
+A_CAP_RATIO = 0.95  # the tangent norm stays below the chord: rolls at most ~0.7 as tall as wide
 _A_SAMPLES = 9  # samples bracketing S(a) when the tangent norm must grow
 
 

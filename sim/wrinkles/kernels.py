@@ -13,8 +13,8 @@ import numpy as np
 from numba import njit
 
 from sim.wrinkles.arclength import A_NODES, ALPHA_STEP, D_NODES
-from sim.wrinkles.bulge import A_CAP_RATIO, _A_SAMPLES
 
+# the paper's grid (fixed by section 5.1, so safe to freeze into the compiled code)
 _D0 = float(D_NODES[0])
 _D_MAX = float(D_NODES[-1])
 _A_MAX = float(A_NODES[-1])
@@ -46,9 +46,8 @@ def _s(values: np.ndarray, d: float, a: float, alpha: float) -> float:
 
 
 @njit(cache=True)
-def _grow(values: np.ndarray, d: float, target: float, alpha: float) -> float:
-    lo_a, hi_a = d / 3.0, A_CAP_RATIO * d
-    n = _A_SAMPLES
+def _grow(values: np.ndarray, d: float, target: float, alpha: float, a_cap: float, n: int) -> float:
+    lo_a, hi_a = d / 3.0, a_cap * d
     a_l, s_l = lo_a, _s(values, d, lo_a, alpha)
     a_h, s_h = hi_a, s_l
     found = False
@@ -83,8 +82,12 @@ def solve_rolls(
     alpha_min: np.ndarray,
     out_a: np.ndarray,
     out_alpha: np.ndarray,
+    a_cap: float,
+    n_samples: int,
 ) -> None:
-    """bulge.solve_segment for each cross-section q, with table tables[which[q]]."""
+    """bulge.solve_segment for each cross-section q, with table tables[which[q]]; a_cap and
+    n_samples are bulge.A_CAP_RATIO and bulge._A_SAMPLES (arguments, so a cached compiled kernel
+    never keeps stale values)."""
     half_pi = 0.5 * math.pi
     for q in range(d.shape[0]):
         values = tables[which[q]]
@@ -117,4 +120,4 @@ def solve_rolls(
                 break
         if not done:
             out_alpha[q] = amax
-            out_a[q] = _grow(values, d[q], target, amax)
+            out_a[q] = _grow(values, d[q], target, amax, a_cap, n_samples)

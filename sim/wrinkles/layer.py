@@ -24,7 +24,14 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sim.wrinkles.arclength import lookup, table
-from sim.wrinkles.bulge import Segment, bezier_height, control_heights, released_surplus
+from sim.wrinkles.bulge import (
+    _A_SAMPLES,
+    A_CAP_RATIO,
+    Segment,
+    bezier_height,
+    control_heights,
+    released_surplus,
+)
 from sim.wrinkles.kernels import solve_rolls
 from sim.wrinkles.mask import WrinkleLine
 
@@ -379,7 +386,7 @@ def roll_heights(
         alpha = np.empty(len(sel))
         asym = layer.roll_asym[sel]
         solve_rolls(_stacked_tables(), asym.astype(np.int64), d[sel], s_nat[sel] + surplus[sel],
-                    alpha_min[sel], a, alpha)
+                    alpha_min[sel], a, alpha, A_CAP_RATIO, _A_SAMPLES)
         h0, h1 = control_heights(Segment(a=a, alpha=alpha), asym)
         nat = d[sel] / 3.0 * np.sin(alpha_min[sel])
         dh0[sel] = h0 - nat

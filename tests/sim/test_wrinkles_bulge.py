@@ -35,12 +35,12 @@ def test_table_on_its_upper_half_matches_direct_arc_length(asymmetric: bool) -> 
 
 @pytest.mark.parametrize("asymmetric", [False, True])
 def test_lookup_in_cm_matches_direct_arc_length(asymmetric: bool) -> None:
-    """Any chord in cm with a <= d (the solver's domain) is read within 1 %."""
+    """Any chord in cm with a <= A_CAP_RATIO d (the solver's domain) is read within 1 %."""
     rng = np.random.default_rng(2)
     tab = arc.table(asymmetric)
-    for _ in range(300):
+    for _ in range(400):
         d = rng.uniform(0.02, 3.0)
-        a, al = rng.uniform(0, d), rng.uniform(0, np.pi)
+        a, al = rng.uniform(0, bulge.A_CAP_RATIO * d), rng.uniform(0, np.pi)
         a0 = arc.ASYM_RATIO * al if asymmetric else al
         exact = _quad_arc(d, a, a0, al)
         assert abs(arc.lookup(tab, d, a, al) / exact - 1) < 0.01, (d, a, al)
@@ -58,7 +58,7 @@ def test_solved_segment_has_the_target_arc_length(asymmetric: bool) -> None:
     alpha_min = rng.uniform(0, 0.6, n)
     tab = arc.table(asymmetric)
     lo = arc.arc_length(d, d / 3, alpha_min)
-    hi = arc.lookup(tab, d, d, alpha_min + np.pi / 2)
+    hi = arc.lookup(tab, d, bulge.A_CAP_RATIO * d, alpha_min + np.pi / 2)
     d_real = lo + rng.uniform(0.0, 1.0, n) * (hi - lo)
     seg = bulge.solve_segment(d, d_real, alpha_min, tab)
     a0 = arc.ASYM_RATIO * seg.alpha if asymmetric else seg.alpha
@@ -115,7 +115,8 @@ def test_compiled_kernel_matches_the_numpy_reference() -> None:
     tables = np.stack([arc.table(False).values, arc.table(True).values])
     a = np.empty(n)
     alpha = np.empty(n)
-    solve_rolls(tables, which.astype(np.int64), d, d_real, alpha_min, a, alpha)
+    solve_rolls(tables, which.astype(np.int64), d, d_real, alpha_min, a, alpha,
+                bulge.A_CAP_RATIO, bulge._A_SAMPLES)
     for w in (0, 1):
         m = which == w
         ref = bulge.solve_segment(d[m], d_real[m], alpha_min[m], arc.table(bool(w)))
