@@ -262,7 +262,7 @@ def _probes(chart: CylinderChart, verts: FloatArray, tris: IntArray, cut: list[I
     for loop in cut:
         for v in loop:
             near = centroids[(tris == v).any(axis=1)].mean(axis=0)
-            probes[v] = chart.flatten(0.5 * (verts[v] + near)[None])[0][0]
+            probes[v] = chart.flatten(near[None])[0][0]
     return probes
 
 

@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 from sim.transfer.cylinder import Cylinder, cylinder_energy, cylinder_gradient, fit_cylinder
 from sim.transfer.flatten import CylinderChart, flat_triangulation, project_back
 from sim.transfer.geometry import boundary_loops, closest_points, locate_2d, unique_edges
-from sim.transfer.relax import relax_mask, spring_forces
+from sim.transfer.relax import area_forces, relax_mask, spring_forces
 
 
 def cylinder_points(rng: np.random.Generator, axis, origin, r, n=400, arc=2.4, noise=0.0):
@@ -155,8 +155,13 @@ def _grid_mesh(n=12):
     return g, t
 
 
-def test_relaxation_carries_a_rigid_motion_of_the_fixed_points() -> None:
-    """Move the pinned points rigidly: the relaxed mesh (eq 8 at rest) follows rigidly."""
+def _signed_areas(p, t):
+    a, b, c = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
+    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+
+
+def test_relaxation_returns_to_a_rigid_motion_of_the_fixed_points() -> None:
+    """Pinned points moved rigidly, free nodes disturbed: eq 8 brings back the rigid copy."""
     g, t = _grid_mesh()
     e = unique_edges(t)
     rest = np.linalg.norm(g[e[:, 1]] - g[e[:, 0]], axis=1)
@@ -164,12 +169,34 @@ def test_relaxation_carries_a_rigid_motion_of_the_fixed_points() -> None:
     fixed[[0, 11, 132, 143, 70]] = True
     rot = Rotation.from_euler("z", 30, degrees=True).as_matrix()[:2, :2]
     target = g @ rot.T + [5.0, -2.0]
-    start = g.copy()
-    start[fixed] = target[fixed]
+    start = target + np.where(fixed[:, None], 0.0, np.random.default_rng(6).normal(0, 0.15, g.shape))
     out = relax_mask(start, e, rest, fixed)
     assert out.converged
     assert np.abs(out.positions - target).max() < 1e-3
     assert np.array_equal(out.positions[fixed], target[fixed])
+
+
+def test_area_term_keeps_the_mask_from_folding() -> None:
+    """Start far from the answer (pins turned 60 degrees, the rest left behind): springs alone
+    settle folded; with the area term the same relaxation ends unfolded and rigid."""
+    g, t = _grid_mesh()
+    e = unique_edges(t)
+    rest = np.linalg.norm(g[e[:, 1]] - g[e[:, 0]], axis=1)
+    fixed = np.zeros(len(g), bool)
+    fixed[[0, 11, 132, 143, 70]] = True
+    rot = Rotation.from_euler("z", 60, degrees=True).as_matrix()[:2, :2]
+    target = g @ rot.T
+    start = g.copy()
+    start[fixed] = target[fixed]
+    rest_area = 0.5 * _signed_areas(g, t)
+    springs_only = relax_mask(start, e, rest, fixed)
+    assert (_signed_areas(springs_only.positions, t) < 0).any()
+    with_area = relax_mask(start, e, rest, fixed, triangles=t, rest_area=rest_area, area_stiffness=10.0)
+    assert with_area.converged
+    assert (_signed_areas(with_area.positions, t) > 0).all()
+    assert np.abs(with_area.positions - target).max() < 1e-2
+    forces = area_forces(target, t.astype(np.int64), rest_area, 10.0)
+    assert np.abs(forces).max() < 1e-9  # the term is zero at the rest shape
 
 
 def test_relaxation_comes_to_rest_between_stretched_anchors() -> None:
