@@ -136,9 +136,15 @@ class FaceWindow:
         screen.viewport = (0, 0, max(w, 1), max(h, 1))
         self.renderer.draw(self.state, hud=self._hud_for_frame())
 
-    def step(self) -> bool:
-        """One frame: events, frame callbacks, draw, swap. False once the window should close."""
-        glfw.poll_events()
+    def step(self, wait: float | None = None) -> bool:
+        """One frame: events, frame callbacks, draw, swap. False once the window should close.
+
+        wait: block up to this many seconds for an event first (a still face needs no redraws
+        until the viewer does something); None polls, for a live face changing every frame."""
+        if wait is None:
+            glfw.poll_events()
+        else:
+            glfw.wait_events_timeout(wait)
         now = time.monotonic()
         if self._last_frame is not None:
             dt = max(now - self._last_frame, 1e-6)
@@ -152,10 +158,10 @@ class FaceWindow:
         glfw.swap_buffers(self.win)
         return not self.should_close
 
-    def run(self, max_frames: int | None = None) -> None:
-        """Show frames until the window is closed (or `max_frames` were shown)."""
+    def run(self, max_frames: int | None = None, wait: float | None = None) -> None:
+        """Show frames until the window is closed (or `max_frames` were shown); see `step`."""
         n = 0
-        while self.step():
+        while self.step(wait):
             n += 1
             if max_frames is not None and n >= max_frames:
                 break
