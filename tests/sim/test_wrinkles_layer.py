@@ -113,3 +113,14 @@ def test_asymmetric_roll_leans_to_the_furrow(patch) -> None:
         centroids.append(np.sum(ys * zs) / np.sum(zs))
     assert abs(centroids[1] - width / 2) < 0.05
     assert centroids[0] < centroids[1] - 0.03
+
+
+def test_line_round_trips_through_its_plain_form_and_rejects_bad_points() -> None:
+    back = WrinkleLine.from_dict(LINE.to_dict())
+    np.testing.assert_array_equal(back.points, LINE.points)
+    assert (back.name, back.muscles, back.width_minus, back.width_plus) == (
+        LINE.name, LINE.muscles, LINE.width_minus, LINE.width_plus)
+    bad = LINE.to_dict()
+    bad["points"] = [[0.0, 1.0, 2.0]]
+    with pytest.raises(ValueError, match="points"):
+        WrinkleLine.from_dict(bad)
