@@ -78,7 +78,10 @@ def run(args: argparse.Namespace) -> int:
         result = transfer_rig(_reference(args), head, landmarks, name=args.name or Path(args.mesh).stem)
     except TransferError as err:
         raise ConfigError(str(err)) from err
-    model = compile_model(result.rig)
+    try:
+        model = compile_model(result.rig)
+    except ValueError as err:  # a reference rig the builder rejects once moved onto this mesh
+        raise ConfigError(f"{args.mesh}: the transferred rig does not compile ({err})".splitlines()[0]) from err
     save_rig(result.rig, out)
     seconds = time.perf_counter() - start
     image = None if args.no_image else _render(model, out.with_suffix(".png"))

@@ -86,3 +86,26 @@ def test_bad_inputs_are_one_clear_line(head) -> None:
                                 "property float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n")
     line = _error_line(_puppet("import-face", "blob.ply", "--landmarks", "far.json", "--out", "x.npz", cwd=d))
     assert "blob.ply" in line
+
+
+def test_transfer_from_a_rig_file_without_picture(head, capsys) -> None:
+    """--rig picks the rig to transfer from (here a saved built-in face); --no-image skips the
+    picture. Run in-process through the same dispatcher."""
+    from puppet.cli import main
+    from sim.rig import default_rig, load_rig, save_rig
+
+    d, lms, _ = head
+    ref = default_rig(0)
+    ref.name = "my-reference"
+    save_rig(ref, d / "ref.npz")
+    (d / "idx.json").write_text(json.dumps(lms))
+    code = main(["import-face", str(d / "head.obj"), "--landmarks", str(d / "idx.json"), "--out",
+                 str(d / "from_ref.npz"), "--rig", str(d / "ref.npz"), "--no-image", "--name", "mine"])
+    assert code == 0, capsys.readouterr().err
+    rig = load_rig(d / "from_ref.npz")
+    assert rig.name == "mine" and set(rig.muscles) == set(ref.muscles)
+    assert not (d / "from_ref.png").exists() and (d / "from_ref.report.md").exists()
+    (d / "broken.npz").write_bytes(b"not a rig")
+    code = main(["import-face", str(d / "head.obj"), "--landmarks", str(d / "idx.json"), "--out",
+                 str(d / "x.npz"), "--rig", str(d / "broken.npz")])
+    assert code == 2 and "broken.npz" in capsys.readouterr().err
