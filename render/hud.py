@@ -19,7 +19,7 @@ FONT_PATHS = (
     "/usr/share/fonts/dejavu/DejaVuSans.ttf",
     "/usr/share/fonts/TTF/DejaVuSans.ttf",
 )
-CHARSET = "".join(chr(c) for c in range(32, 127)) + "°±µ•·–—←→↑↓…≤≥×"
+CHARSET = "".join(chr(c) for c in (*range(32, 127), *range(161, 256))) + "°±µ•·–—←→↑↓…≤≥×"
 
 Color = tuple[float, float, float, float]
 WHITE: Color = (0.95, 0.95, 0.95, 1.0)
@@ -84,12 +84,20 @@ class FontAtlas:
         rows = -(-len(CHARSET) // cols)
         img = Image.new("L", (cols * self.cell_w, rows * self.cell_h), 0)
         draw = ImageDraw.Draw(img)
+        # per glyph: its ink box inside the cell (x, y, w, h in px) and that box in uv, so a quad
+        # covers ink only (fill is what costs on a software rasterizer)
+        self.box: dict[str, tuple[int, int, int, int]] = {}
         self.uv: dict[str, tuple[float, float, float, float]] = {}
         w, h = img.size
         for k, ch in enumerate(CHARSET):
             x, y = (k % cols) * self.cell_w, (k // cols) * self.cell_h
             draw.text((x + 1, y + 1), ch, fill=255, font=font)
-            self.uv[ch] = (x / w, y / h, (x + self.cell_w) / w, (y + self.cell_h) / h)
+            x0, y0, x1, y1 = font.getbbox(ch) if hasattr(font, "getbbox") else (0, 0, self.cell_w - 2, self.cell_h - 2)
+            x0, y0 = max(int(x0), -1), max(int(y0), -1)
+            x1, y1 = min(int(x1) + 1, self.cell_w - 1), min(int(y1) + 1, self.cell_h - 1)
+            self.box[ch] = (x0 + 1, y0 + 1, max(x1 - x0, 0), max(y1 - y0, 0))
+            bx, by, bw, bh = self.box[ch]
+            self.uv[ch] = ((x + bx) / w, (y + by) / h, (x + bx + bw) / w, (y + by + bh) / h)
         self.image = img
 
     def width(self, text: str) -> float:
@@ -127,10 +135,11 @@ class HudRenderer:
         x = float(round(x))
         y = float(round(y))
         for ch in s:
-            uv = fa.uv.get(ch) or fa.uv["?"]
-            if ch != " ":
-                gx = float(round(x))  # whole pixels keep NEAREST-sampled glyphs crisp
-                self._quad(gx, y, gx + fa.cell_w, y + fa.cell_h, uv, color)
+            key = ch if ch in fa.uv else "?"
+            bx, by, bw, bh = fa.box[key]
+            if bw and bh:
+                gx = float(round(x)) + bx  # whole pixels keep NEAREST-sampled glyphs crisp
+                self._quad(gx, y + by, gx + bw, y + by + bh, fa.uv[key], color)
             x += fa.advance.get(ch, fa.advance["?"])
         return x
 
