@@ -79,6 +79,9 @@ class FaceModel:
     area (N,) cm^2 lumped; mass (N,) g inertial (after mass scaling); weight (N,) dyn, the true
     mass times g (zero with gravity off); damping (N,) g/s (c_i); rest_stiffness (N,) dyn/cm (eq 9 k);
     rest_normal (N,3) unit area-weighted vertex normals at rest; support_stiffness (N,) dyn/cm;
+    eye_contact (K,) int: vertices that may touch an eyeball; eye_contact_eye (K,) int: which one
+    (0 left, 1 right); eye_contact_radius (cm): they are kept at least this far from the eye centres
+    (the lids slide over the eyeballs instead of passing through them).
     held (N,) bool (pinned); jaw_weight (N,); jaw_pivot (3,); jaw_axis (3,); gravity (3,) cm/s^2.
     muscle_matrix: scipy CSR (3N, C): column c = channel c's nodal force (dyn) at activation 1,
                    flattened xyz per vertex; zero columns for non-muscle channels.
@@ -104,6 +107,9 @@ class FaceModel:
     rest_stiffness: np.ndarray
     rest_normal: np.ndarray
     support_stiffness: np.ndarray
+    eye_contact: np.ndarray
+    eye_contact_eye: np.ndarray
+    eye_contact_radius: float
     held: np.ndarray
     jaw_weight: np.ndarray
     jaw_pivot: np.ndarray
@@ -196,6 +202,23 @@ def omega_exact(stiffness: sp.csr_matrix, mass: np.ndarray, free: np.ndarray) ->
     return float(np.sqrt(lam[0]))
 
 
+def _eye_contact(mesh: FaceMesh, rest: np.ndarray, held: np.ndarray) -> dict:
+    """Free vertices within 1 cm outside an eyeball at rest, and a contact radius that the rest pose
+    respects: the eyeball radius plus half a millimetre, or less if the lids lie closer at rest.
+    Vertices inside the sphere at rest (a mesh not built around its eyeballs) are left out."""
+    centres = np.asarray(mesh.eye_centers, dtype=np.float64)
+    dist = np.linalg.norm(rest[:, None, :] - centres[None, :, :], axis=2)  # (N, 2)
+    eye = np.argmin(dist, axis=1)
+    gap = dist[np.arange(len(rest)), eye] - float(mesh.eye_radius)
+    near = np.flatnonzero((gap >= 0.0) & (gap < 1.0) & ~held)  # a mesh without lids on the eyes
+    clearance = min(0.05, 0.8 * float(gap[near].min())) if len(near) else 0.0  # may cross them
+    return {
+        "eye_contact": _frozen(near.astype(np.int64)),
+        "eye_contact_eye": _frozen(eye[near].astype(np.int64)),
+        "eye_contact_radius": float(mesh.eye_radius) + max(clearance, 0.0),
+    }
+
+
 def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Unit area-weighted vertex normals (N,3), pointing out of the skin (CCW triangles)."""
     a, b, c = (vertices[triangles[:, k]] for k in range(3))
@@ -283,6 +306,7 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
         damping=_frozen(p.mass_damping * mass),
         rest_stiffness=_frozen(tether),
         rest_normal=_frozen(vertex_normals(rest, tris)),
+        **_eye_contact(mesh, rest, held),
         support_stiffness=_frozen(support),
         held=_frozen(held),
         jaw_weight=_frozen(np.clip(mesh.jaw_weight, 0.0, 1.0), np.float64),

@@ -49,9 +49,9 @@ CHANNEL_SPECS: tuple[ChannelSpec, ...] = (
     *_pair("orbicularis_oculi", "sphincter", ("AU6",), "cheek raiser, orbicularis oculi pars orbitalis"),
     *_pair(
         "orbicularis_oculi_lid",
-        "sphincter",
+        "sheet",
         ("AU7", "AU43", "AU45"),
-        "lid tightener / blink, orbicularis oculi pars palpebralis; 1 closes the lids",
+        "lid tightener / blink, orbicularis oculi pars palpebralis (two sheets, one per lid); 1 closes the lids",
     ),
     *_pair(
         "levator_labii_alaeque_nasi",

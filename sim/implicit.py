@@ -28,6 +28,7 @@ frame. The price is a slower rise (benchmarks/sim_step.py measures it against RK
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numba
 import numpy as np
@@ -173,11 +174,12 @@ class ImplicitStepper:
         self._xf = np.zeros((len(self.free), 3))
 
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
-              normal: np.ndarray) -> None:
+              normal: np.ndarray, contact: Callable[[np.ndarray, np.ndarray], None]) -> None:
         """n_sub substeps in place. ext: the frame-constant forces (muscles, gravity, the target terms
         of the tether and of the normal support); springs: (indices, rest lengths, k_low, k_high,
         threshold) as the kernel takes them; normal (N,3): the support's normals this frame. The
-        support k_n n n^T enters like a spring: k_n I in the matrix, k_n (y - n (n . y)) on the right."""
+        support k_n n n^T enters like a spring: k_n I in the matrix, k_n (y - n (n . y)) on the right.
+        contact(x, v) is applied after each substep (the eyeballs)."""
         h, f = self.h, self.free
         idx, rest_len, k_low, k_high, thr = springs
         held_term = self.a_fh @ x[self.held]  # held nodes do not move within a frame
@@ -196,3 +198,4 @@ class ImplicitStepper:
             xf_old = np.take(x, f, axis=0)
             v[f] = (self._xf - xf_old) * (1.0 / h)
             x[f] = self._xf
+            contact(x, v)

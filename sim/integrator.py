@@ -81,9 +81,35 @@ def _accel(x, v, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm,
 
 
 @numba.njit(cache=True, fastmath=False)
+def _eye_contact(x, v, idx, eye, centres, radius):  # type: ignore[no-untyped-def]
+    """Keeps the contact vertices outside the eyeball spheres: a vertex inside is put back on the
+    sphere and loses the inward part of its velocity (the eyeball is rigid and frictionless)."""
+    for k in range(idx.shape[0]):
+        i = idx[k]
+        e = eye[k]
+        dx = x[i, 0] - centres[e, 0]
+        dy = x[i, 1] - centres[e, 1]
+        dz = x[i, 2] - centres[e, 2]
+        r = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if r < radius and r > 0.0:
+            nx = dx / r
+            ny = dy / r
+            nz = dz / r
+            x[i, 0] = centres[e, 0] + nx * radius
+            x[i, 1] = centres[e, 1] + ny * radius
+            x[i, 2] = centres[e, 2] + nz * radius
+            vn = v[i, 0] * nx + v[i, 1] * ny + v[i, 2] * nz
+            if vn < 0.0:
+                v[i, 0] -= vn * nx
+                v[i, 1] -= vn * ny
+                v[i, 2] -= vn * nz
+
+
+@numba.njit(cache=True, fastmath=False)
 def _rk2_frame(x, v, n_sub, h, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_m,
-               free, a1, xm, vm):  # type: ignore[no-untyped-def]
-    """n_sub explicit-midpoint substeps of size h, in place on x, v."""
+               free, a1, xm, vm, eye_idx, eye_of, centres, radius):  # type: ignore[no-untyped-def]
+    """n_sub explicit-midpoint substeps of size h, in place on x, v, each followed by the eyeball
+    contact."""
     n = x.shape[0]
     half = 0.5 * h
     for _ in range(n_sub):
@@ -97,6 +123,7 @@ def _rk2_frame(x, v, n_sub, h, springs, rest_len, k_low, k_high, k_damp, thr, ex
             for d in range(3):
                 x[i, d] += h * vm[i, d]
                 v[i, d] += h * a1[i, d]
+        _eye_contact(x, v, eye_idx, eye_of, centres, radius)
 
 
 def warm_up() -> None:
@@ -109,7 +136,8 @@ def warm_up() -> None:
     ones2 = np.ones(2)
     _rk2_frame(x, v, 1, 1e-3, springs, one, one, one, one, 0.1, np.zeros_like(x), ones2, ones2,
                np.zeros_like(x), ones2, ones2, np.ones(2, dtype=np.bool_), np.zeros_like(x),
-               np.zeros_like(x), np.zeros_like(x))
+               np.zeros_like(x), np.zeros_like(x), np.array([1], dtype=np.int64),
+               np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 5.0]]), 1.0)
 
 
 def rk2_amplification(z: np.ndarray) -> np.ndarray:
@@ -205,6 +233,9 @@ class Simulator:
         self._kr = np.array(model.rest_stiffness, order="C")
         self._c = np.array(model.damping, order="C")
         self._kn = np.array(model.support_stiffness, order="C")
+        self._eyes = (np.array(model.eye_contact, dtype=np.int64), np.array(model.eye_contact_eye, dtype=np.int64),
+                      np.array(model.mesh.eye_centers, dtype=np.float64, order="C"),
+                      float(model.eye_contact_radius))
         self._normal = np.array(model.rest_normal, order="C")
         self._threshold = float(model.strain_threshold)
         self._skin_age: float | None = None  # the age the springs were last scaled for
@@ -278,10 +309,11 @@ class Simulator:
         if self._implicit is None:
             _rk2_frame(x, v, self.substeps, self.dt, self._springs, self._rest_len, self._k_low,
                        self._k_high, self._k_damp, self._threshold, ext, self._kr, self._c, self._normal,
-                       self._kn, self._inv_m, self._free, self._a1, self._xm, self._vm)
+                       self._kn, self._inv_m, self._free, self._a1, self._xm, self._vm, *self._eyes)
         else:
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
-                                                            self._k_high, self._threshold), self._normal)
+                                                            self._k_high, self._threshold), self._normal,
+                                 lambda xx, vv: _eye_contact(xx, vv, *self._eyes))
         reason = self._check(x)
         if reason:
             x[...] = saved_x

@@ -120,6 +120,40 @@ def _sphincter(f: FaceFrame, name: str, center: np.ndarray, a: float, b: float,
     return SphincterMuscle(name, center, major, minor, a * f.s, b * f.s, BASE_FORCE * strength)
 
 
+def _lids(f: FaceFrame, side: str, sg: float) -> tuple[Muscle, ...]:
+    """Orbicularis oculi pars palpebralis as two sheets, the upper lid pulled down and the lower lid
+    up towards the line where the lids meet (a third of the opening above the lower margin).
+
+    Why not eq 14's sphincter: its pull towards one centre point drags the lid corners inwards as
+    hard as the margins down, and the closed lids crumpled into a star around that point. The
+    palpebral fibres run along the lids, and a curved band of them shortening flattens the lid onto
+    the eyeball: a uniform pull across each lid, which is what a sheet (eqs 18-22) gives."""
+    s = f.s
+    inner, outer = f.get(f"eye_inner_{side}"), f.get(f"eye_outer_{side}")
+    top, bottom = f.get(f"eye_top_{side}")[1], f.get(f"eye_bottom_{side}")[1]
+    meet = bottom + 0.35 * (top - bottom)
+    x_in, x_out = inner[0] - sg * 0.2 * s, outer[0] + sg * 0.2 * s
+    width = abs(x_out - x_in) / s + 0.2
+
+    def pt(x: float, y: float) -> np.ndarray:
+        return f.skin(np.array([x, y, 0.0]))
+
+    # the attachment line lies where the lids meet, on the front of the eyeball (lid thickness
+    # 1 mm): the pull then has the forward component that keeps a closing lid on the eyeball
+    # instead of driving it through the eyeball along the chord
+    centre = f.mesh.eye_centers[0 if side == "l" else 1]
+    radius = f.mesh.eye_radius + 0.1 * s
+    za = float(centre[2] + np.sqrt(max(radius**2 - (meet - centre[1]) ** 2, 0.0)))
+    a1, a2 = np.array([x_in, meet, za]), np.array([x_out, meet, za])
+    upper = _sheet(f, f"orbicularis_oculi_lid_upper_{side}", a1, a2,
+                   pt(x_in, top + 0.3 * s), pt(x_out, top + 0.3 * s), width=width, reach=1.7,
+                   strength=2.25)
+    lower = _sheet(f, f"orbicularis_oculi_lid_lower_{side}", a1, a2,
+                   pt(x_in, bottom - 0.3 * s), pt(x_out, bottom - 0.3 * s), width=width, reach=1.6,
+                   strength=1.35)
+    return (upper, lower)
+
+
 def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle, ...]]:
     """The paired muscles of one side (sg = +1 left, -1 right)."""
     out: dict[str, tuple[Muscle, ...]] = {}
@@ -141,12 +175,7 @@ def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle,
         reach=1.8, angle=0.6, strength=2.0),)
     out[f"orbicularis_oculi_{side}"] = (_sphincter(
         f, f"orbicularis_oculi_{side}", f.at(ec, sg, 0.1, -0.1), 3.0, 2.4, 1.2),)
-    top, bottom = f.get(f"eye_top_{side}"), f.get(f"eye_bottom_{side}")
-    lid_c = f.skin(0.5 * (f.get(f"eye_inner_{side}") + f.get(f"eye_outer_{side}")))
-    lid_c[1] = bottom[1] + 0.3 * (top[1] - bottom[1])
-    half_w = 0.5 * abs(f.get(f"eye_outer_{side}")[0] - f.get(f"eye_inner_{side}")[0]) / f.s
-    out[f"orbicularis_oculi_lid_{side}"] = (_sphincter(
-        f, f"orbicularis_oculi_lid_{side}", lid_c, half_w + 0.4, 1.25, 2.9),)
+    out[f"orbicularis_oculi_lid_{side}"] = _lids(f, side, sg)
     out[f"levator_labii_alaeque_nasi_{side}"] = (_linear(
         f, f"levator_labii_alaeque_nasi_{side}", f.at(f"eye_inner_{side}", sg, -0.3, -0.2, 0.4),
         f.at(f"nose_wing_{side}", sg, 0.0, -0.2), reach=1.3, angle=0.35, strength=1.3),)

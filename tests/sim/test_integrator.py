@@ -166,3 +166,19 @@ def test_gravity_switch(synth_rig: FaceRig) -> None:
     off = compile_model(synth_rig, SkinParams(gravity=False))
     assert on.hash != off.hash
     assert on.gravity[1] < 0 and off.gravity[1] == 0
+
+
+def test_skin_never_passes_through_the_eyeballs(face_model: FaceModel) -> None:
+    m = face_model
+    c = FaceControl()
+    for name in ("orbicularis_oculi_lid_l", "orbicularis_oculi_lid_r", "orbicularis_oculi_l",
+                 "frontalis_inner_r", "corrugator_l"):
+        c.set(name, 1.0)
+    sim = Simulator(m, wrinkles=False)
+    state = m.rest_state()
+    assert len(m.eye_contact) > 20
+    for _ in range(60):
+        sim.step(state, c)
+        for k in range(2):
+            d = np.linalg.norm(state.positions[m.eye_contact] - m.mesh.eye_centers[k], axis=1)
+            assert d.min() >= m.eye_contact_radius - 1e-9

@@ -126,7 +126,7 @@ def test_placement_is_mirror_symmetric(synth_rig: FaceRig) -> None:
 def test_placement_follows_the_landmarks_of_a_scaled_head(synth_rig: FaceRig) -> None:
     mesh = synth_rig.mesh
     big = dataclasses.replace(mesh, vertices=mesh.vertices * 1.2, eye_centers=mesh.eye_centers * 1.2,
-                              jaw_pivot=mesh.jaw_pivot * 1.2)
+                              jaw_pivot=mesh.jaw_pivot * 1.2, eye_radius=mesh.eye_radius * 1.2)
     placed = place_muscles(big)
     for name, parts in synth_rig.muscles.items():
         assert np.allclose(_points(placed[name][0]), _points(parts[0]) * np.where(
