@@ -63,7 +63,8 @@ class Transfer:
     notes: list[str] = field(default_factory=list)
 
 
-def _resolve(lf: LandmarkFile, head: HeadMesh, names: list[str], opt: TransferOptions):
+def _resolve(lf: LandmarkFile, head: HeadMesh, names: list[str],
+             opt: TransferOptions) -> tuple[dict[str, FloatArray], dict[str, int]]:
     """Landmark points on the welded mesh (file units) and their nearest vertices."""
     pts: dict[str, FloatArray] = {}
     for n in names:
@@ -87,11 +88,13 @@ def _resolve(lf: LandmarkFile, head: HeadMesh, names: list[str], opt: TransferOp
                 f"(limit {opt.landmark_offset * width:.3g}); check its coordinates and units")
     corners = head.triangles[tri]
     vid = corners[np.arange(len(names)), bary.argmax(axis=1)]
-    return {n: foot[i] for i, n in enumerate(names)}, {n: int(vid[i]) for i, n in enumerate(names)}, width
+    return {n: foot[i] for i, n in enumerate(names)}, {n: int(vid[i]) for i, n in enumerate(names)}
 
 
 def _orient(pts: dict[str, FloatArray], ref: dict[str, FloatArray], names: list[str],
             lf: LandmarkFile, opt: TransferOptions) -> tuple[Similarity, dict[str, float]]:
+    """The file -> project frame similarity, refusing mirrored and non-face layouts; also each
+    landmark's distance from the reference's after the fit (cm)."""
     src = np.stack([pts[n] for n in names])
     dst = np.stack([ref[n] for n in names])
     limit = opt.shape * float(np.linalg.norm(ref["eye_outer_l"] - ref["eye_outer_r"]))
@@ -130,6 +133,7 @@ def _face_component(vertices: FloatArray, triangles: IntArray, vids: list[int]) 
 
 
 def _region(vertices: FloatArray, landmark_pts: FloatArray, radius: float) -> np.ndarray:
+    """Vertices within `radius` of a landmark: the part of a face both cylinders are fitted to."""
     d, _ = cKDTree(landmark_pts).query(vertices)
     return d < radius
 
@@ -163,6 +167,53 @@ def _signed_areas(p: FloatArray, tri: IntArray) -> FloatArray:
     return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
 
 
+@dataclass
+class _Head:
+    """The new head in the project frame, ready for the transfer (indices after welding, dropping
+    separate parts and cutting declared slits)."""
+
+    vertices: FloatArray
+    triangles: IntArray
+    landmarks: dict[str, FloatArray]
+    landmark_vertex: dict[str, int]
+    openings: dict[str, IntArray]
+    cut: list[IntArray]
+    flipped: bool
+    dropped: int
+
+
+def _bring_in(head: HeadMesh, lf: LandmarkFile, names: list[str], pts: dict[str, FloatArray],
+              vids: dict[str, int], sim: Similarity, region_radius: float) -> _Head:
+    """Open declared closed loops, keep the landmarked surface, move it into the project frame,
+    cut declared lip/lid lines, check the face is an oriented manifold (flipping inward winding)."""
+    declared = _declared(lf, head)
+    tris = head.triangles
+    for key, loop in declared.items():  # a declared closed loop: open what it encloses
+        if is_closed_path(loop, tris) and not is_hole_loop(loop, tris):
+            tris = open_loop(tris, loop, key, lf.path)
+    verts, tris, remap = _face_component(head.vertices, tris, list(vids.values()))
+    declared = {k: remap[v] for k, v in declared.items()}
+    for key, loop in declared.items():
+        if (loop < 0).any():
+            raise TransferError(f"{lf.path}: opening {key!r} is not on the face surface of {head.path}")
+    verts = sim.apply(verts)
+    lm_new = {n: sim.apply(pts[n]) for n in names}
+    lm_vid = {n: int(remap[vids[n]]) for n in names}
+    cut: list[IntArray] = []
+    for key, path in list(declared.items()):
+        if not is_hole_loop(path, tris):
+            verts, tris, declared[key], lower = cut_slit(verts, tris, path, UP, key, lf.path)
+            cut.append(declared[key])
+            for n in names:  # a lower-lip or lower-lid landmark on the cut moves to the lower copy
+                if n.startswith("lower_") and lm_vid[n] in lower:
+                    lm_vid[n] = lower[lm_vid[n]]
+    region = _region(verts, np.stack([lm_new[n] for n in names]), region_radius)
+    flipped = _check_surface(verts, tris, region, head.path)
+    if flipped:
+        tris = tris[:, ::-1].copy()
+    return _Head(verts, tris, lm_new, lm_vid, declared, cut, flipped, int((remap < 0).sum()))
+
+
 def transfer_rig(
     reference: FaceRig,
     head: HeadMesh,
@@ -175,79 +226,72 @@ def transfer_rig(
     ref = reference.mesh
     names = [n for n in LANDMARK_NAMES if n in ref.landmarks]
     require(landmarks, names)
-    pts, vids, _ = _resolve(landmarks, head, names, opt)
+    pts, vids = _resolve(landmarks, head, names, opt)
     ref_pts = {n: ref.landmark(n) for n in names}
     sim, shape = _orient(pts, ref_pts, names, landmarks, opt)
-    ref_width = float(np.linalg.norm(ref_pts["eye_outer_l"] - ref_pts["eye_outer_r"]))
+    radius = opt.region * float(np.linalg.norm(ref_pts["eye_outer_l"] - ref_pts["eye_outer_r"]))
+    new = _bring_in(head, landmarks, names, pts, vids, sim, radius)
+    lm_arr = np.stack([new.landmarks[n] for n in names])
 
-    declared = _declared(landmarks, head)
-    tris = head.triangles
-    for key, loop in declared.items():  # a declared closed loop: open what it encloses
-        if is_closed_path(loop, tris) and not is_hole_loop(loop, tris):
-            tris = open_loop(tris, loop, key, landmarks.path)
-    verts, tris, remap = _face_component(head.vertices, tris, list(vids.values()))
-    declared = {k: remap[v] for k, v in declared.items()}
-    for key, loop in declared.items():
-        if (loop < 0).any():
-            raise TransferError(f"{landmarks.path}: opening {key!r} is not on the face surface of {head.path}")
-    verts = sim.apply(verts)
-    lm_new = {n: sim.apply(pts[n]) for n in names}
-    lm_vid = {n: int(remap[vids[n]]) for n in names}
-    cut: list[IntArray] = []
-    for key, path in list(declared.items()):
-        if not is_hole_loop(path, tris):
-            verts, tris, declared[key], lower = cut_slit(verts, tris, path, UP, key, landmarks.path)
-            cut.append(declared[key])
-            for n in names:  # a lower-lip or lower-lid landmark on the cut moves to the lower copy
-                if n.startswith("lower_") and lm_vid[n] in lower:
-                    lm_vid[n] = lower[lm_vid[n]]
-    lm_arr = np.stack([lm_new[n] for n in names])
-    region_new = _region(verts, lm_arr, opt.region * ref_width)
-    flipped = _check_surface(verts, tris, region_new, head.path)
-    if flipped:
-        tris = tris[:, ::-1].copy()
-    region_ref = _region(ref.vertices, np.stack([ref_pts[n] for n in names]), opt.region * ref_width)
-
-    cyl_ref = fit_cylinder(ref.vertices[region_ref])
-    cyl_new = fit_cylinder(verts[region_new])
-    chart_ref, chart_new = CylinderChart.facing(cyl_ref, FORWARD), CylinderChart.facing(cyl_new, FORWARD)
-    uv_ref, _ = chart_ref.flatten(ref.vertices)
-    uv_new, _, keep = flat_triangulation(chart_new, verts, tris)
+    # seed 003 section 3.1: one cylinder per face, fitted near the landmarks, unrolled
+    cyl_ref = fit_cylinder(ref.vertices[_region(ref.vertices, np.stack(list(ref_pts.values())), radius)])
+    cyl_new = fit_cylinder(new.vertices[_region(new.vertices, lm_arr, radius)])
+    chart_new = CylinderChart.facing(cyl_new, FORWARD)
+    uv_ref, _ = CylinderChart.facing(cyl_ref, FORWARD).flatten(ref.vertices)
+    uv_new, _, keep = flat_triangulation(chart_new, new.vertices, new.triangles)
     ref_ids = np.array([ref.landmarks[n] for n in names])
     lm_uv_new, _ = chart_new.flatten(lm_arr)
 
-    # Rest shape of eq 8: the reference mask placed on the new face by the best affine fit of the
-    # characteristic points; the springs then absorb only what an affine map cannot.
-    aff = _flat_fit(uv_ref[ref_ids], lm_uv_new)
-    rest_pos = np.column_stack([uv_ref, np.ones(len(uv_ref))]) @ aff
-    tps = RBFInterpolator(uv_ref[ref_ids], lm_uv_new - rest_pos[ref_ids], kernel="thin_plate_spline")
-    start = rest_pos + tps(uv_ref)
-    start[ref_ids] = lm_uv_new
-    fixed = np.zeros(len(uv_ref), bool)
-    fixed[ref_ids] = True
-    edges = unique_edges(ref.triangles)
-    rest = np.linalg.norm(rest_pos[edges[:, 1]] - rest_pos[edges[:, 0]], axis=1)
-    relax = relax_mask(start, edges, rest, fixed, stiffness=rest.mean() / np.maximum(rest, 1e-12),
-                       triangles=ref.triangles, rest_area=0.5 * _signed_areas(rest_pos, ref.triangles),
-                       area_stiffness=opt.area_stiffness)
+    # section 3.2: move the characteristic points, relax (eq 8), project back
+    relax, rest_pos = _relax(uv_ref, ref.triangles, ref_ids, lm_uv_new, opt.area_stiffness)
     flat = relax.positions
-    folded = int((np.sign(_signed_areas(flat, ref.triangles)) != np.sign(_signed_areas(rest_pos, ref.triangles))).sum())
-
-    on_new, hit = project_back(chart_new, flat, verts, tris, uv_new, keep)
-    errors = {n: float(np.linalg.norm(on_new[i] - lm_new[n])) for n, i in zip(names, ref_ids)}
+    folded = int((np.sign(_signed_areas(flat, ref.triangles))
+                  != np.sign(_signed_areas(rest_pos, ref.triangles))).sum())
+    on_new, hit = project_back(chart_new, flat, new.vertices, new.triangles, uv_new, keep)
+    errors = {n: float(np.linalg.norm(on_new[i] - new.landmarks[n])) for n, i in zip(names, ref_ids)}
     on_new[ref_ids] = lm_arr
     smap = SurfaceMap(ref.vertices, ref.triangles, on_new)
 
-    tri, bary, _ = locate_2d(_probes(chart_new, verts, tris, cut, uv_new), flat, ref.triangles)
+    # the rig: per-vertex fields pulled back through the chart, points carried forward
+    tri, bary, _ = locate_2d(_probes(chart_new, new.vertices, new.triangles, new.cut, uv_new), flat, ref.triangles)
     # inside the mask's outer border, or less than about a triangle beyond it (the two meshes'
     # borders never match exactly; the reference decides there what is held)
     inside = in_polygon(uv_new, flat[outer_loop(flat, ref.triangles)]) | (bary.min(axis=1) > -0.75)
-    mesh = _new_mesh(reference, smap, verts, tris, tri, bary, inside, lm_new, lm_vid, declared,
-                     landmarks.path, head.path)
+    mesh = _new_mesh(reference, smap, new, tri, bary, inside, landmarks.path, head.path)
     muscles = {ch: tuple(carry_muscle(smap, m) for m in parts) for ch, parts in reference.muscles.items()}
     rig = FaceRig(mesh=mesh, muscles=muscles, wrinkles=_carry_wrinkles(reference, smap), name=name)
+    notes = []
+    if not relax.converged:
+        notes.append(f"the relaxation stopped before coming to rest (residual {relax.residual:.2g})")
+    if folded:
+        notes.append(f"{folded} triangles of the relaxed mask are folded: check the landmarks near them")
+    if max(shape.values()) > 1.5:
+        worst = max(shape, key=shape.get)  # type: ignore[arg-type]
+        notes.append(f"{worst} is {shape[worst]:.1f} cm from where the reference face has it: check it")
     return Transfer(rig, sim, cyl_ref, cyl_new, relax, shape, errors, int((~hit).sum()), folded,
-                    int((~inside).sum()), flipped, int((remap < 0).sum()))
+                    int((~inside).sum()), new.flipped, new.dropped, notes)
+
+
+def _relax(uv_ref: FloatArray, triangles: IntArray, ref_ids: IntArray, targets: FloatArray,
+           area_stiffness: float) -> tuple[Relaxation, FloatArray]:
+    """Eq 8 on the unrolled reference mask with its characteristic points moved to `targets`.
+
+    Rest shape: the mask placed on the new face by the best affine fit of the characteristic
+    points (so the springs absorb only what an affine map cannot); start: that placement plus a
+    thin-plate spline through the points' residuals. Returns the relaxation and the rest shape."""
+    aff = _flat_fit(uv_ref[ref_ids], targets)
+    rest_pos = np.column_stack([uv_ref, np.ones(len(uv_ref))]) @ aff
+    tps = RBFInterpolator(uv_ref[ref_ids], targets - rest_pos[ref_ids], kernel="thin_plate_spline")
+    start = rest_pos + tps(uv_ref)
+    start[ref_ids] = targets
+    fixed = np.zeros(len(uv_ref), bool)
+    fixed[ref_ids] = True
+    edges = unique_edges(triangles)
+    rest = np.linalg.norm(rest_pos[edges[:, 1]] - rest_pos[edges[:, 0]], axis=1)
+    relax = relax_mask(start, edges, rest, fixed, stiffness=rest.mean() / np.maximum(rest, 1e-12),
+                       triangles=triangles, rest_area=0.5 * _signed_areas(rest_pos, triangles),
+                       area_stiffness=area_stiffness)
+    return relax, rest_pos
 
 
 def _probes(chart: CylinderChart, verts: FloatArray, tris: IntArray, cut: list[IntArray],
@@ -273,21 +317,20 @@ def _interp(values: FloatArray, tri: IntArray, bary: FloatArray, triangles: IntA
     return np.einsum("pk,pk...->p...", w, v)
 
 
-def _new_mesh(reference: FaceRig, smap: SurfaceMap, verts: FloatArray, tris: IntArray,
-              tri: IntArray, bary: FloatArray, inside: np.ndarray, lm_new: dict[str, FloatArray],
-              lm_vid: dict[str, int], declared: dict[str, IntArray], lm_path: str,
-              mesh_path: str) -> FaceMesh:
+def _new_mesh(reference: FaceRig, smap: SurfaceMap, new: _Head, tri: IntArray, bary: FloatArray,
+              inside: np.ndarray, lm_path: str, mesh_path: str) -> FaceMesh:
     """The new FaceMesh: per-vertex fields pulled back from the reference through the relaxed flat
     correspondence (from the nearest reference triangle where a vertex falls in an opening, a gap
     or just past the border); vertices farther out than the reference mask's outer border are
     held (bound to the skull)."""
     ref = reference.mesh
     rt = ref.triangles
+    verts, tris, lm_new = new.vertices, new.triangles, new.landmarks
     held = (_interp(ref.held.astype(float), tri, bary, rt) > 0.5) | ~inside
     jaw = np.where(inside, _interp(np.asarray(ref.jaw_weight, float), tri, bary, rt), 0.0)
     regions = {k: (_interp(m.astype(float), tri, bary, rt) > 0.5) & inside for k, m in ref.regions.items()}
     uv = None if ref.uv is None else _interp(np.asarray(ref.uv, float), tri, bary, rt)
-    landmarks = dict(lm_vid)
+    landmarks = dict(new.landmark_vertex)
     extra = [n for n in ref.landmarks if n not in landmarks]
     if extra:
         carried = smap.points(np.stack([ref.landmark(n) for n in extra]))
@@ -300,7 +343,7 @@ def _new_mesh(reference: FaceRig, smap: SurfaceMap, verts: FloatArray, tris: Int
     axis = np.asarray(ref.jaw_axis, float)
     p0, p1 = smap.points(np.stack([pivot - axis, pivot + axis]))
     new_axis = (p1 - p0) / np.linalg.norm(p1 - p0)
-    openings = find_openings(verts, tris, lm_new, declared, mesh_path, lm_path)
+    openings = find_openings(verts, tris, lm_new, new.openings, mesh_path, lm_path)
     return FaceMesh(
         vertices=verts, triangles=tris.astype(np.int32), landmarks=landmarks, held=held,
         jaw_weight=np.clip(jaw, 0.0, 1.0), jaw_pivot=smap.point(pivot), jaw_axis=new_axis,

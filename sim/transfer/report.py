@@ -47,6 +47,10 @@ def format_report(t: Transfer, mesh_path: str, landmarks_path: str, seconds: flo
         f"eye loops {len(m.eye_loops[0])} + {len(m.eye_loops[1])} vertices, mouth loop {len(m.mouth_loop)}",
         f"- wrinkle lines transferred: {len(rig.wrinkles)}",
         "",
+    ]
+    if t.notes:
+        lines += ["## Check", ""] + [f"- {n}" for n in t.notes] + [""]
+    lines += [
         "## Landmark distances (cm)",
         "",
         "How far each landmark of the new face is from the reference face's after the best",
