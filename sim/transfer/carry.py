@@ -39,9 +39,11 @@ class SurfaceMap:
     """The reference mesh and its image on the new surface, with per-vertex stretch
     sqrt(area new / area reference), clipped to [0.2, 5] so one bad triangle cannot explode it.
 
-    Points within `deep` cm of the skin use the local frame at their foot point; deeper ones (the
-    jaw hinge, far behind the mask's edge) blend towards a moving-least-squares affine map fitted
-    to the vertex correspondences around them, which a single boundary frame cannot match."""
+    A point on the skin uses the local frame at its foot point; deeper points blend (linearly, fully
+    at `deep` cm) towards a moving-least-squares affine map fitted to the vertex correspondences
+    around them. The frame alone scales depth by the surface stretch and so misses a head's
+    stretch in depth (eye centres); the affine map sees it, and it is the only sensible carrier for
+    points far off the mask (the jaw hinge), which one boundary frame cannot place."""
 
     ref_vertices: FloatArray
     triangles: IntArray
@@ -73,17 +75,17 @@ class SurfaceMap:
         new_foot = np.einsum("pk,pkj->pj", bary, self.new_vertices[idx])
         near = new_foot + scale[:, None] * np.einsum("pij,pi->pj", f_new, local)
         dist = np.linalg.norm(pts - foot, axis=1)
-        blend = np.clip(dist / self.deep - 1.0, 0.0, 1.0)
+        blend = np.clip(dist / self.deep, 0.0, 1.0)
         out = near.copy()
         for i in np.nonzero(blend > 0)[0]:
-            out[i] = (1 - blend[i]) * near[i] + blend[i] * self._affine(pts[i], dist[i])
+            out[i] = (1 - blend[i]) * near[i] + blend[i] * self._affine(pts[i], max(dist[i], 0.5 * self.deep))
         return out
 
-    def _affine(self, p: FloatArray, dist: float) -> FloatArray:
+    def _affine(self, p: FloatArray, width: float) -> FloatArray:
         """Moving least squares: the affine map best matching the correspondences, weighted by a
-        Gaussian of width dist around p, applied to p."""
+        Gaussian of width `width` (cm) around p, applied to p."""
         d2 = ((self.ref_vertices - p) ** 2).sum(axis=1)
-        w = np.sqrt(np.exp(-0.5 * d2 / (dist * dist)))
+        w = np.sqrt(np.exp(-0.5 * d2 / (width * width)))
         a = np.column_stack([self.ref_vertices - p, np.ones(len(d2))]) * w[:, None]
         sol, *_ = np.linalg.lstsq(a, self.new_vertices * w[:, None], rcond=None)
         return sol[3]
