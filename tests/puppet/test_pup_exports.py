@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import csv
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -99,19 +97,20 @@ def test_csv_and_arkit_rows(recording: Path, tmp_path: Path) -> None:
     assert float(ark[-1]["MouthSmileLeft"]) > 0.5 and float(ark[-1]["JawOpen"]) > 0.2
 
 
-def test_curves_export_edit_and_replay_alone_or_layered(recording: Path, tmp_path: Path) -> None:
-    run = lambda *a: subprocess.run([sys.executable, "-m", "puppet", "replay", *a],  # noqa: E731
-                                    capture_output=True, text=True, timeout=120)
+def test_curves_export_edit_and_replay_alone_or_layered(recording: Path, tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    from puppet.cli import main
+
+    run = lambda *a: main(["replay", *a])  # noqa: E731  (in-process: the same code path as the CLI)
     cur = tmp_path / "take.curves"
-    out = run(str(recording), "--out", str(cur))
-    assert out.returncode == 0, out.stderr
+    assert run(str(recording), "--out", str(cur)) == 0
     cs = load_curves(cur)
     assert {c.target for c in cs.curves} >= {"zygomaticus_major", "jaw"}
     # edit: add a brow raise; play the curves alone and layered over the recording
     cur.write_text(cur.read_text() + "curve frontalis_inner smooth\n  0.1 0\n  0.5 1\n  0.9 1\nend\n")
     alone, layered = tmp_path / "alone.csv", tmp_path / "layered.csv"
-    assert run("--curves", str(cur), "--out", str(alone)).returncode == 0
-    assert run(str(recording), "--curves", str(cur), "--out", str(layered)).returncode == 0
+    assert run("--curves", str(cur), "--out", str(alone)) == 0
+    assert run(str(recording), "--curves", str(cur), "--out", str(layered)) == 0
     a = list(csv.DictReader(open(alone)))
     b = list(csv.DictReader(open(layered)))
     assert float(a[40]["frontalis_inner_l"]) == 1.0 and float(b[40]["frontalis_inner_r"]) == 1.0
@@ -121,5 +120,6 @@ def test_curves_export_edit_and_replay_alone_or_layered(recording: Path, tmp_pat
     # a broken curves file: one line, file:line
     bad = tmp_path / "bad.curves"
     bad.write_text("facepuppet-curves 1\ncurve jaw\n 0 zero\nend\n")
-    out = run("--curves", str(bad), "--headless")
-    assert out.returncode == 2 and out.stderr.strip().startswith(f"puppet: error: {bad}:3:")
+    capsys.readouterr()
+    assert run("--curves", str(bad), "--headless") == 2
+    assert capsys.readouterr().err.strip().startswith(f"puppet: error: {bad}:3:")
