@@ -53,7 +53,10 @@ def direction(alpha: float, beta: float, fixed: int = 1, z0: float = 1.0) -> Flo
     return d
 
 
-def _residuals(x: FloatArray, points: FloatArray, fixed: int, z0: float):
+def _residuals(
+    x: FloatArray, points: FloatArray, fixed: int, z0: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """GP_i, d, GP_i ^ d and f_i = |GP_i ^ d|^2 - r^2 |d|^2, shared by eq 1 and eqs 2-7."""
     g, r = x[:3], x[5]
     d = direction(x[3], x[4], fixed, z0)
     gp = points - g

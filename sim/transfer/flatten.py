@@ -59,7 +59,9 @@ class CylinderChart:
         return origins + np.asarray(rho, float)[:, None] * dirs
 
 
-def flat_triangulation(chart: CylinderChart, vertices: FloatArray, triangles: IntArray):
+def flat_triangulation(
+    chart: CylinderChart, vertices: FloatArray, triangles: IntArray
+) -> tuple[FloatArray, FloatArray, IntArray]:
     """Flatten a mesh on a chart, dropping triangles that straddle the seam (behind the head).
     Returns (uv (N,2), rho (N,), kept triangle indices)."""
     uv, rho = chart.flatten(vertices)

@@ -69,7 +69,9 @@ def area_forces(positions: FloatArray, triangles: IntArray, rest_area: FloatArra
 
 
 @numba.njit(cache=True)
-def _steps(p, v, edges, rest, k, triangles, rest_area, k_area, m, h, dt, free, count):  # type: ignore[no-untyped-def]
+def _steps(p: FloatArray, v: FloatArray, edges: IntArray, rest: FloatArray, k: FloatArray, triangles: IntArray,
+           rest_area: FloatArray, k_area: float, m: FloatArray, h: FloatArray, dt: float, free: np.ndarray,
+           count: int) -> None:
     """`count` semi-implicit Euler steps of m a = F_springs (+ F_area) - h v, fixed nodes held."""
     for _ in range(count):
         f = spring_forces(p, edges, rest, k)

@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from sim.model import LinearMuscle, SheetMuscle, SphincterMuscle
+from sim.transfer.cylinder import Cylinder
 from sim.transfer.pipeline import Transfer
 
 
-def _cyl(c) -> str:
+def _cyl(c: Cylinder) -> str:
     return (f"radius {c.radius:.2f} cm, axis ({c.axis[0]:+.3f}, {c.axis[1]:+.3f}, {c.axis[2]:+.3f}), "
             f"RMS distance of the fitted skin {c.residual_rms:.2f} cm "
             f"({100 * c.residual_rms / c.radius:.1f} % of the radius), {c.iterations} CG iterations")
