@@ -51,6 +51,64 @@ def _open_devices(specs: list[str], warn: Any) -> list[Any]:
     return opened
 
 
+class DeviceWatcher:
+    """Boxes plugged in after the start: discovery is polled in a thread (opening may block), and
+    each new box is adopted in the loop thread at a tick boundary with its default map."""
+
+    def __init__(self, devs: list[Any], queue: Any, interval: float = 2.0) -> None:
+        import threading
+
+        self.devs, self.queue, self.interval = devs, queue, interval
+        self.known = {d.spec for d in devs}
+        self._new: list[Any] = []
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="device-watcher", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def _run(self) -> None:
+        import devices
+
+        while not self._stop.wait(self.interval):
+            try:
+                found = devices.discover()
+            except Exception:  # a flaky bus must not end the show
+                continue
+            for info in found:
+                if info.spec in self.known or not getattr(info, "usable", True) or info.spec.startswith("keyboard"):
+                    continue
+                self.known.add(info.spec)
+                try:
+                    dev = devices.open_device(info.spec)
+                except devices.DeviceError:
+                    continue
+                with self._lock:
+                    self._new.append(dev)
+
+    def adopt(self, core: Any) -> None:
+        """Loop thread: give new boxes their default maps and start them."""
+        with self._lock:
+            new, self._new = self._new, []
+        for dev in new:
+            from puppet.mapping.defaults import default_map_name, load_default_map, merge
+
+            name = default_map_name(dev.spec, dev.description)
+            if name is not None:
+                core.mapper.add_spec(merge([(load_default_map(name), dev.spec)]))
+                core.mapper.declare_controls(dev.spec, dev.controls)
+            dev.add_listener(self.queue)
+            dev.start()
+            self.devs.append(dev)
+            core.mark(f"plugged in: {dev.spec}")
+            print(f"puppet: new control box {dev.spec} ({name or 'no default map'})", file=sys.stderr)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5)
+
+
 def run(args: argparse.Namespace) -> int:
     from puppet import live
 
@@ -79,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
     if not devs:
         warn("no control box found and no window for the keyboard: the face stays neutral")
     try:
-        return _perform(args, live, face, devs, mapped, windowed, record, snapshot, warn)
+        return _perform(args, live, face, devs, mapped, windowed, record, snapshot, warn, watch=not args.device)
     finally:
         for d in devs:
             try:
@@ -89,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], mapped: list[tuple[str, str]],
-             windowed: bool, record: str | None, snapshot: Path | None, warn: Any) -> int:
+             windowed: bool, record: str | None, snapshot: Path | None, warn: Any, watch: bool = False) -> int:
     import devices
     from puppet.mapping import Mapper
     from puppet.session import SessionWriter
@@ -117,6 +175,12 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     core = live.LiveCore(face, mapper, writer=writer, t0=0.0 if virtual else t0, lights=lights)
     stop = live.StopFlag()
     stop.install()
+    watcher = None
+    queue = devices.EventQueue()
+    if watch and not virtual:
+        watcher = DeviceWatcher(devs, queue)
+        core.before_tick.append(watcher.adopt)
+        watcher.start()
     try:
         if virtual:
             duration = args.duration or max(d.script.duration for d in devs) or 1.0
@@ -124,19 +188,19 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         elif windowed:
             from puppet.live import run_window
 
-            queue = devices.EventQueue()
             for d in devs:
                 d.add_listener(queue)
                 d.start()
             run_window(core, queue.drain, args.duration, devs, fullscreen=args.fullscreen, stop=stop)
         else:
-            queue = devices.EventQueue()
             for d in devs:
                 d.add_listener(queue)
                 d.start()
             live.run_realtime(core, queue.drain, args.duration, stop=stop)
     finally:
         stop.restore()
+        if watcher is not None:
+            watcher.close()
         if writer is not None:
             writer.close(core.tick_count)
     p50, p99 = core.latency.percentile(50), core.latency.percentile(99)

@@ -162,9 +162,13 @@ class LiveCore:
         self.unpresented: list[float] = []
         self.values = np.array(mapper.values, copy=True)
         self.markers: list[tuple[int, str]] = []
+        #: run in the loop thread at each tick boundary (e.g. adopting a box plugged in mid-show)
+        self.before_tick: list[Callable[[LiveCore], None]] = []
 
     def tick(self, events: Iterable[Event]) -> None:
         """Apply `events` at this tick boundary, then advance one tick."""
+        for hook in self.before_tick:
+            hook(self)
         k = self.tick_count
         for ev in events:
             if self.writer is not None:

@@ -112,23 +112,10 @@ class Mapper:
             if rule is None:
                 rule = spec.default_combine or ("last" if c.kind in ("eyes", "age") else "max")
             self.rules.append(rule)
-        self.groups = {g: RadioGroup(g, allow) for g, allow in spec.radio_allow_none.items()}
+        self.groups: dict[str, RadioGroup] = {}
         self.bindings: list[Binding] = []
         self.by_control: dict[str, list[Binding]] = {}
-        for bs in spec.bindings:
-            target = None
-            if bs.target is not None:
-                try:
-                    target = vocab.resolve(bs.target)
-                except ChannelError as err:
-                    raise spec.error(bs.path + ("target",), str(err)) from err
-            group = None
-            if bs.group is not None:
-                group = self.groups.setdefault(bs.group, RadioGroup(bs.group))
-            b = Binding(bs, target, F.Chain([build_filter(f) for f in bs.filters]),
-                        ButtonState(bs.mode, group, bs.attack, bs.hold, bs.release))
-            self.bindings.append(b)
-            self.by_control.setdefault(bs.control, []).append(b)
+        self._add(spec)
         self.tick = 0
         self.status: dict[str, bool] = {}
         self.panic_left = 0.0
@@ -137,6 +124,35 @@ class Mapper:
         self._lights: dict[tuple[str, str], bool] = {}
         self._n = n
         for b in self.bindings:
+            self._reset_binding(b)
+
+    def _add(self, spec: MappingSpec) -> list[Binding]:
+        for g, allow in spec.radio_allow_none.items():
+            self.groups.setdefault(g, RadioGroup(g, allow))
+        added = []
+        for bs in spec.bindings:
+            target = None
+            if bs.target is not None:
+                try:
+                    target = self.vocab.resolve(bs.target)
+                except ChannelError as err:
+                    raise spec.error(bs.path + ("target",), str(err)) from err
+            group = None
+            if bs.group is not None:
+                group = self.groups.setdefault(bs.group, RadioGroup(bs.group))
+            b = Binding(bs, target, F.Chain([build_filter(f) for f in bs.filters]),
+                        ButtonState(bs.mode, group, bs.attack, bs.hold, bs.release))
+            added.append(b)
+        self.bindings += added
+        for b in added:
+            self.by_control.setdefault(b.spec.control, []).append(b)
+        return added
+
+    def add_spec(self, spec: MappingSpec) -> None:
+        """Add the bindings of another map while running (a box plugged in mid-show); raises
+        ConfigError before changing anything if a target is unknown."""
+        Mapper(spec, self.vocab)  # check first: all or nothing
+        for b in self._add(spec):
             self._reset_binding(b)
 
     # --- input -----------------------------------------------------------------------------------

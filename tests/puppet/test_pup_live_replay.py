@@ -196,3 +196,33 @@ def test_recording_header(tmp_path: Path) -> None:
     assert head["rig"]["hash"] and "jaw" in head["channels"] and head["program"].startswith("facepuppet")
     assert "dial0" in head["mapping"]["text"] and head["start_time"].endswith("+00:00")
     assert np.isfinite(read_session(rec).value_array(np.zeros(len(head["channels"])))).all()
+
+
+def test_box_plugged_in_mid_show_is_adopted_with_its_map(tmp_path: Path, face: live.Face,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    from devices.discovery import DeviceInfo
+    from devices.events import ControlEvent
+    from puppet.cmd_live import DeviceWatcher
+
+    new_spec = script(tmp_path)
+    monkeypatch.setattr(devices, "discover", lambda probe=False: [DeviceInfo(new_spec, "rehearsal box", "mock", True)])
+    core = live.LiveCore(face, Mapper(live.build_mapping(face.vocab, None, []), face.vocab))
+    queue = devices.EventQueue()
+    devs: list = []
+    w = DeviceWatcher(devs, queue, interval=0.05)
+    core.before_tick.append(w.adopt)
+    w.start()
+    try:
+        deadline = time.monotonic() + 10
+        while not devs and time.monotonic() < deadline:
+            core.tick([])
+            time.sleep(0.02)
+    finally:
+        w.close()
+        for d in devs:
+            d.close()
+    assert [d.spec for d in devs] == [new_spec] and core.markers[-1][1] == f"plugged in: {new_spec}"
+    core.tick([ControlEvent(new_spec, "dial7", "dial", 0.5)])  # its default (SGI) map is live
+    for _ in range(30):
+        core.tick([])
+    assert core.values[[c.name for c in face.vocab.channels].index("jaw")] > 0.4
