@@ -151,6 +151,15 @@ def _pd_springs(y, springs, rest_len, k_low, k_high, thr, out):  # type: ignore[
         out[i, 2] -= scale * dz
 
 
+def warm_up() -> None:
+    """Compile (or load from numba's cache) this module's kernels on a tiny system."""
+    a = sp.csc_matrix(np.array([[2.0, -1.0], [-1.0, 2.0]]))
+    PrefactoredSolver(a).solve(np.ones((2, 3)), np.zeros((2, 3)))
+    y = np.array([[0.0, 0.0, 0.0], [1.1, 0.0, 0.0]])
+    one = np.ones(1)
+    _pd_springs(y, np.array([[0, 1]], dtype=np.int32), one, one, one, 0.1, np.zeros_like(y))
+
+
 class ImplicitStepper:
     """Runs the substeps of one frame for a Simulator (method "implicit")."""
 

@@ -127,8 +127,13 @@ def _rk2_frame(x, v, n_sub, h, springs, rest_len, k_low, k_high, k_damp, thr, ex
 
 
 def warm_up() -> None:
-    """Compile (or load from numba's on-disk cache) the kernel on a two-node system, so the first
-    live frame does not stall. Called by compile_model."""
+    """Compile (or load from numba's on-disk cache) the kernels of both integrators on a two-node
+    system, so the first live frame does not stall. Called by compile_model."""
+    from sim.implicit import warm_up as warm_up_implicit
+
+    warm_up_implicit()
+    _eye_contact(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64),
+                 np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 1.0]]), 0.5)
     x = np.array([[0.0, 0.0, 0.0], [1.1, 0.0, 0.0]])
     v = np.zeros_like(x)
     springs = np.array([[0, 1]], dtype=np.int32)
