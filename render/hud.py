@@ -113,7 +113,7 @@ class HudRenderer:
         self.vbo = ctx.buffer(reserve=8 * 4 * 6 * 512, dynamic=True)
         self.vao = ctx.vertex_array(self.prog, [(self.vbo, "2f 2f 4f", "in_pos", "in_uv", "in_color")])
         self._atlas: tuple[int, FontAtlas, moderngl.Texture] | None = None
-        self._quads: list[np.ndarray] = []
+        self._quads: list[tuple[float, ...]] = []  # x0 y0 x1 y1 u0 v0 u1 v1 r g b a
 
     def atlas(self, px: int) -> tuple[FontAtlas, moderngl.Texture]:
         if self._atlas is None or self._atlas[0] != px:
@@ -145,10 +145,7 @@ class HudRenderer:
 
     def _quad(self, x0: float, y0: float, x1: float, y1: float,
               uv: tuple[float, float, float, float], c: Color) -> None:
-        u0, v0, u1, v1 = uv
-        self._quads.append(np.array([
-            [x0, y0, u0, v0, *c], [x1, y0, u1, v0, *c], [x1, y1, u1, v1, *c],
-            [x0, y0, u0, v0, *c], [x1, y1, u1, v1, *c], [x0, y1, u0, v1, *c]], np.float32))
+        self._quads.append((x0, y0, x1, y1, *uv, *c))
 
     # -- layout ---------------------------------------------------------------------------------
     def draw(self, info: HudInfo, size: tuple[int, int], view: str = "", age: float | None = None) -> None:
@@ -211,7 +208,14 @@ class HudRenderer:
     def _flush(self, tex: moderngl.Texture, size: tuple[int, int]) -> None:
         if not self._quads:
             return
-        data = np.concatenate(self._quads)
+        q = np.array(self._quads, np.float32)
+        # two triangles per quad: corners (x0,y0) (x1,y0) (x1,y1) (x0,y0) (x1,y1) (x0,y1)
+        xs, ys = np.array([0, 2, 2, 0, 2, 0]), np.array([1, 1, 3, 1, 3, 3])
+        data = np.empty((len(q), 6, 8), np.float32)
+        data[:, :, 0], data[:, :, 1] = q[:, xs], q[:, ys]
+        data[:, :, 2], data[:, :, 3] = q[:, xs + 4], q[:, ys + 4]
+        data[:, :, 4:] = q[:, None, 8:]
+        data = data.reshape(-1, 8)
         raw = data.tobytes()
         if len(raw) > self.vbo.size:
             self.vbo.orphan(len(raw) * 2)

@@ -123,7 +123,7 @@ class FaceRenderer:
                      (col_vbo, "3f", "in_color"), (rest_vbo, "3f", "in_rest"), (brow_vbo, "2f", "in_brow")]
             self.skin_vaos[kind] = ctx.vertex_array(prog, [a for a in attrs if a[2] in prog], tri_ibo)
         self.edge_vao = ctx.vertex_array(self.line_prog, [(self.pos_vbo, "3f", "in_pos")], edge_ibo)
-        sphere, sphere_tris = uv_sphere()
+        sphere, sphere_tris = uv_sphere(12, 20)
         sph_vbo, sph_ibo = ctx.buffer(sphere.tobytes()), ctx.buffer(sphere_tris.tobytes())
         self.eye_vao = ctx.vertex_array(self.eye_prog, [(sph_vbo, "3f", "in_pos")], sph_ibo)
         g += [sph_vbo, sph_ibo, *self.skin_vaos.values(), self.edge_vao, self.eye_vao]
@@ -247,8 +247,8 @@ class FaceRenderer:
             prog["view"].write(_mat(view_m))
         if kind == "HEAT":
             skin["heat_scale"].value = float(self.heat_scale)
-        self._draw_cavities(surface, mvp)
         self.skin_vaos[kind].render(moderngl.TRIANGLES)
+        self._draw_cavities(surface, mvp)
         self._draw_eyes(state)
         for prog in (self.line_prog, self.thick_prog, self.trail_prog):
             prog["mvp"].write(_mat(mvp))
@@ -265,8 +265,9 @@ class FaceRenderer:
             self._draw_trails(mvp, ss)
 
     def _draw_cavities(self, surface: np.ndarray, mvp: np.ndarray) -> None:
-        """Dark pockets behind the mouth and eye openings, drawn first and without depth writes:
-        a backdrop that shows only through the holes, so it can never hide an eyeball."""
+        """Dark pockets behind the mouth and eye openings, drawn after the skin (which hides most
+        of them cheaply) and without depth writes: a backdrop that shows only through the holes,
+        so it can never hide an eyeball drawn after it."""
         self.cavity_prog["mvp"].write(_mat(mvp))
         fbo = self.ctx.fbo
         fbo.depth_mask = False
@@ -282,9 +283,11 @@ class FaceRenderer:
         pitch = float(np.clip(getattr(state, "eye_pitch", 0.0), -1, 1)) * EYE_PITCH_MAX
         self.eye_prog["rot"].write(_mat(eye_rotation(yaw, pitch)))
         self.eye_prog["radius"].value = float(mesh.eye_radius)
+        self.ctx.enable(moderngl.CULL_FACE)  # the back of an eyeball is never seen
         for c in np.asarray(mesh.eye_centers, float):
             self.eye_prog["center"].value = tuple(c)
             self.eye_vao.render(moderngl.TRIANGLES)
+        self.ctx.disable(moderngl.CULL_FACE)
 
     def _lines(self, vao: moderngl.VertexArray, color: tuple[float, float, float, float],
                width: float, bias: float, ranges: list[tuple[int, int]] | None = None) -> None:
