@@ -182,3 +182,17 @@ def test_skin_never_passes_through_the_eyeballs(face_model: FaceModel) -> None:
         for k in range(2):
             d = np.linalg.norm(state.positions[m.eye_contact] - m.mesh.eye_centers[k], axis=1)
             assert d.min() >= m.eye_contact_radius - 1e-9
+
+
+@pytest.mark.parametrize("method", ["rk2", "implicit"])
+def test_default_face_all_channels_full_ten_seconds(face_model: FaceModel, method: str) -> None:
+    c = FaceControl()
+    for spec in CHANNEL_SPECS:
+        c.set(spec.name, spec.hi)
+    sim = Simulator(face_model, wrinkles=False, method=method)
+    state = face_model.rest_state()
+    for _ in range(600):
+        sim.step(state, c)
+    disp = np.linalg.norm(state.positions - face_model.rest, axis=1)
+    assert np.all(np.isfinite(state.positions)) and not sim.guard_events
+    assert 1.0 < disp.max() < 5.0  # the open jaw moves the chin ~3.5 cm
