@@ -256,6 +256,8 @@ def _rig_digest(rig: FaceRig, params: SkinParams) -> str:
             for key, val in sorted(vars(m).items()):
                 raw = val.encode() if isinstance(val, str) else np.asarray(val, np.float64).tobytes()
                 h.update(key.encode() + raw)
+    for line in rig.wrinkles:  # WrinkleLine.to_dict() is plain JSON
+        h.update(json.dumps(line.to_dict(), sort_keys=True).encode())
     h.update(json.dumps(asdict(params), sort_keys=True).encode())
     return h.hexdigest()[:16]
 

@@ -98,3 +98,15 @@ def test_malformed_rig_raises_one_line_naming_the_file(synth_rig: FaceRig, tmp_p
     msg = str(info.value)
     assert isinstance(info.value, ValueError)
     assert str(bad) in msg and "\n" not in msg
+
+
+def test_default_rig_with_wrinkles_round_trips(tmp_path: Path) -> None:
+    from sim.rig import default_rig
+
+    rig = default_rig(0)
+    assert rig.wrinkles  # the wrinkle mask is part of the default rig
+    path = tmp_path / "default.npz"
+    save_rig(rig, path)
+    back = load_rig(path)
+    assert [w.name for w in back.wrinkles] == [w.name for w in rig.wrinkles]
+    assert compile_model(back).hash == compile_model(rig).hash
