@@ -2,7 +2,9 @@
 
 Per node i (free, not held):
     m_i a_i = Q_i (springs, eqs 1-5) + axial spring damping - c_i v_i + k_r,i (target_i - x_i)
+              + k_n,i n_i n_i.(target_i - x_i) (normal support, see SkinParams.support)
               + sum_c a_c F_c,i (muscles) + m_i g
+and after every substep the vertices near the eyeballs are kept outside them (`_eye_contact`).
 RK2 reading chosen: the explicit *midpoint* method (Numerical Recipes' "second-order Runge-Kutta",
 the paper's ref [16]): k1 = f(y); k2 = f(y + h/2 k1); y += h k2.
 
@@ -13,14 +15,15 @@ the jaw rigidly while held scalp and ear edges stay put.
 
 Method: explicit RK2 is the paper's method and the default; `method="auto"` switches to the
 linearly implicit integrator of `sim.implicit` only when RK2's work per frame (substeps x springs)
-exceeds RK2_WORK_LIMIT, i.e. for the 12k face (see benchmarks/sim_step.py).
+exceeds RK2_WORK_LIMIT, i.e. for the 3k and 12k faces (see benchmarks/sim_step.py).
 
 Substeps: the step h is the largest h for which the RK2 amplification factor of every linear mode
-(natural frequency up to the Gershgorin bound `model.omega_max`, with the model's mass and spring
-damping) stays <= 1, times SAFETY; substeps = ceil(frame_dt / h). See `stable_step`.
+(natural frequency up to `model.omega_max`, the largest eigenfrequency of the skin at rest computed
+by compile_model, with the model's mass and spring damping) stays <= 1, times SAFETY;
+substeps = ceil(frame_dt / h). See `stable_step` and docs/simulation.md.
 
 The whole frame runs in one compiled (numba, serial) kernel: no threads, fixed summation order, so
-the same inputs give bit-identical positions.
+the same inputs give bit-identical positions (on one machine and build).
 """
 
 from __future__ import annotations

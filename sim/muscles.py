@@ -5,8 +5,10 @@ channel an (N,3) force per unit activation; a step then only scales and sums the
 geometry: the paper's fields are defined there (Fig. 3-5 show them on the neutral face), the skin
 moves a few mm against muscle lengths of 3-6 cm, so directions change by a few degrees, and a fixed
 field makes the muscle term free per substep. The force stays attached to the skin point it was
-computed for (a material, not a spatial, field). `tests/sim/test_muscles.py` measures the effect of
-re-evaluating the field at the deformed pose.
+computed for (a material, not a spatial, field). docs/simulation.md measures how far eq 10's
+direction at the settled pose is from the precomputed one (a few degrees for the linear muscles,
+checked by `tests/sim/test_muscles.py`) and why the sphincters should not be re-evaluated (a pull to a
+point that skin can reach flips; zone edges are discontinuous).
 
 Force scale reading: the paper's alpha is a per-node force, which would make a finer mesh pull harder.
 We read alpha as a force per unit skin area (dyn/cm^2) and multiply it by each node's lumped area.
