@@ -176,11 +176,17 @@ def sheet_zone(m: SheetMuscle, x: np.ndarray) -> np.ndarray:
     return ((lateral <= 0.5 * m.width) & (forward >= 0.0)).astype(np.float64)
 
 
+def sheet_falloff(lam: np.ndarray, eta: float, delta: float) -> np.ndarray:
+    """Eq 20: Theta(lambda_ji), the same two-branch fall-off as eq 12 (same reading of the second
+    branch), with the sheet's lambda (eq 21) and delta (eq 22)."""
+    return length_falloff(lam, eta, delta)
+
+
 def sheet_force(m: SheetMuscle, x: np.ndarray) -> np.ndarray:
-    """Eq 18: f_ji = alpha_st Theta(lambda_ji) m_j, with Theta the eq 20 fall-off (same form as
-    eq 12, see `length_falloff`), restricted to the sheet's rectangle; alpha_st is m.scale."""
+    """Eq 18: f_ji = alpha_st Theta(lambda_ji) m_j, Theta from eq 20, restricted to the sheet's
+    rectangle; alpha_st is m.scale."""
     lam = sheet_length_ratio(m, x)
-    w = m.scale * length_falloff(lam, m.eta, sheet_length_ratio_limit(m)) * sheet_zone(m, x)
+    w = m.scale * sheet_falloff(lam, m.eta, sheet_length_ratio_limit(m)) * sheet_zone(m, x)
     return w[:, None] * sheet_direction(m)[None, :]
 
 

@@ -25,6 +25,7 @@ from sim.muscles import (
     muscle_field,
     place_muscles,
     sheet_direction,
+    sheet_falloff,
     sheet_force,
     sheet_length_ratio,
     sheet_length_ratio_limit,
@@ -90,6 +91,7 @@ def test_sheet_eqs_18_to_22() -> None:
     assert sheet_length_ratio_limit(SHEET) == pytest.approx(1.5)  # eq 22
     x = np.array([[0.0, 2, 0], [0.5, -1, 0], [1.5, 2, 0], [0.0, 5, 0], [0.0, -3, 0]])
     assert sheet_length_ratio(SHEET, x)[:2] == pytest.approx([0.5, 1.25])  # eq 21
+    assert sheet_falloff(np.array([0.5, 1.25, 1.5]), 1.0, 1.5) == pytest.approx([C45, C45, 0.0], abs=1e-12)
     f = sheet_force(SHEET, x)  # eqs 18, 20
     assert np.allclose(f[0], [0, 3 * C45, 0]) and np.allclose(f[1], [0, 3 * C45, 0])
     assert np.allclose(f[2:], 0.0)  # outside the width, behind the attachment, beyond L
