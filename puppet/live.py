@@ -154,6 +154,9 @@ class LiveCore:
 
         self.face, self.mapper, self.rate, self.dt = face, mapper, rate, 1.0 / rate
         self.sim = sim.Simulator(face.model, self.dt)
+        # the first step pays for JIT compilation: pay it now on a throw-away simulator, not on
+        # the first events of the show (the real Simulator starts fresh, as replay's does)
+        sim.Simulator(face.model, self.dt).step(face.model.rest_state(), sim.FaceControl(face.model))
         self.state = face.model.rest_state()
         self.control = sim.FaceControl(face.model)
         self.writer, self.t0, self.lights = writer, t0, lights
