@@ -86,7 +86,8 @@ def load_face(rig_path: str | None = None, resolution: int = 0) -> Face:
         except FileNotFoundError as err:
             raise ConfigError(f"{rig_path}: rig file not found") from err
         except (OSError, ValueError, KeyError) as err:
-            raise ConfigError(f"{rig_path}: cannot load the rig: {err}") from err
+            msg = str(err) if str(err).startswith(str(rig_path)) else f"{rig_path}: cannot load the rig: {err}"
+            raise ConfigError(msg) from err
         info = {"name": getattr(rig, "name", "rig"), "hash": model.hash, "path": str(Path(rig_path).resolve())}
     else:
         model = sim.default_model(resolution)

@@ -213,22 +213,25 @@ def read_session(path: str | Path) -> Session:
                 s.complete = True
                 break
             tick = int(rec["tick"])
-        except (ValueError, KeyError, TypeError, UnicodeDecodeError):
+            if kind == "v":
+                vals = {index[n]: float(v) for n, v in rec["v"].items() if n in index}
+                if not all(np.isfinite(x) for x in vals.values()):
+                    raise ValueError("non-finite channel value")
+                s.values[tick] = vals
+                last_tick = max(last_tick, tick)
+            elif kind in ("ev", "st"):
+                s.events.append(rec)
+            elif kind == "mark":
+                s.markers.append((tick, str(rec.get("label", ""))))
+            elif kind == "chk":
+                s.checks[tick] = str(rec.get("sha", ""))
+            elif kind == "sync":
+                sync = max(sync, tick)
+        except (ValueError, KeyError, TypeError, AttributeError, UnicodeDecodeError):
             cut = lineno == len(lines) or all(not x.strip() for x in lines[lineno:])
             why = "was cut off (crash or kill)" if cut else f"has a damaged record at line {lineno}"
             s.warnings.append(f"{p}: recording {why}; reading it up to its last complete record")
             break
-        if kind == "v":
-            s.values[tick] = {index[n]: float(v) for n, v in rec["v"].items() if n in index}
-            last_tick = max(last_tick, tick)
-        elif kind in ("ev", "st"):
-            s.events.append(rec)
-        elif kind == "mark":
-            s.markers.append((tick, str(rec.get("label", ""))))
-        elif kind == "chk":
-            s.checks[tick] = str(rec.get("sha", ""))
-        elif kind == "sync":
-            sync = max(sync, tick)
     if not s.complete:
         s.ticks = max(sync, last_tick + 1)
         if not s.warnings:

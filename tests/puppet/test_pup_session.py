@@ -97,3 +97,18 @@ def test_values_placed_by_name_on_another_channel_order(tmp_path: Path) -> None:
         w.tick(1)
     s = read_session(p)
     assert s.value_array(np.zeros(4), ["c", "x", "a", "b"])[0].tolist() == [3.0, 0.0, 1.0, 2.0]
+
+
+@pytest.mark.parametrize("bad", ['{"t":"v","tick":3,"v":{"a":"x"}}', '{"t":"v","tick":"3"x}', '[1,2]',
+                                 '{"t":"v","tick":3,"v":[1]}', '{"t":"v","tick":3,"v":{"a":1e999}}'])
+def test_damaged_record_stops_reading_with_a_warning(tmp_path: Path, bad: str) -> None:
+    p = tmp_path / "s.jsonl"
+    with SessionWriter(p, header()) as w:
+        for k in range(3):
+            w.values(k, np.array([k, 0.0, 0.0], dtype=float))
+            w.tick(k + 1)
+    lines = p.read_text().splitlines()
+    lines.insert(-1, bad)
+    p.write_text("\n".join(lines) + "\n")
+    s = read_session(p)
+    assert s.ticks == 3 and s.warnings and "damaged record" in s.warnings[0]
