@@ -83,9 +83,9 @@ def skin_tint(mesh: FaceMesh) -> np.ndarray:
     width = float(np.ptp(loop[:, 0])) or 1.0
     d = np.min(np.linalg.norm(v[:, None, :] - loop[None, :, :], axis=2), axis=1)
     lips = _region_mask(mesh, ("lip",), ("lid",))
-    band = d < 0.12 * width
-    lips = (lips & band) if lips.any() else band
-    w = lips[:, None].astype(float)
+    band = 0.15 * width
+    fade = np.clip((band - d) / (0.3 * band), 0.0, 1.0)  # soft vermilion border on fine meshes
+    w = (fade * lips if lips.any() else fade)[:, None]
     return (SKIN * (1 - w) + LIPS * w).astype(np.float32)
 
 
