@@ -74,6 +74,35 @@ def _grow(values: np.ndarray, d: float, target: float, alpha: float, a_cap: floa
 
 
 @njit(cache=True)
+def _solve_one(values: np.ndarray, d: float, target: float, alpha_min: float, a_cap: float,
+               n_samples: int) -> tuple[float, float]:
+    """bulge.solve_segment for one cross-section: (a, alpha)."""
+    half_pi = 0.5 * math.pi
+    n_alpha = values.shape[2]
+    amin = min(max(alpha_min, 0.0), half_pi)
+    amax = amin + half_pi
+    a0 = d / 3.0
+    prev_al = amin
+    prev_s = _s(values, d, a0, amin)
+    if prev_s >= target:
+        return a0, amin
+    for m in range(n_alpha + 1):
+        al = m * ALPHA_STEP if m < n_alpha else amax
+        if al <= amin:
+            continue
+        if al >= amax:
+            al = amax
+        s = max(_s(values, d, a0, al), prev_s)
+        if s >= target:
+            f = (target - prev_s) / (s - prev_s) if s > prev_s else 1.0
+            return a0, prev_al + min(max(f, 0.0), 1.0) * (al - prev_al)
+        prev_al, prev_s = al, s
+        if al >= amax:
+            break
+    return _grow(values, d, target, amax, a_cap, n_samples), amax
+
+
+@njit(cache=True)
 def solve_rolls(
     tables: np.ndarray,
     which: np.ndarray,
@@ -88,36 +117,114 @@ def solve_rolls(
     """bulge.solve_segment for each cross-section q, with table tables[which[q]]; a_cap and
     n_samples are bulge.A_CAP_RATIO and bulge._A_SAMPLES (arguments, so a cached compiled kernel
     never keeps stale values)."""
-    half_pi = 0.5 * math.pi
     for q in range(d.shape[0]):
-        values = tables[which[q]]
-        n_alpha = values.shape[2]
-        amin = min(max(alpha_min[q], 0.0), half_pi)
-        amax = amin + half_pi
-        a0 = d[q] / 3.0
-        target = d_real[q]
-        prev_al = amin
-        prev_s = _s(values, d[q], a0, amin)
-        out_a[q] = a0
-        if prev_s >= target:
-            out_alpha[q] = amin
+        out_a[q], out_alpha[q] = _solve_one(tables[which[q]], d[q], d_real[q], alpha_min[q], a_cap,
+                                            n_samples)
+
+
+@njit(cache=True)
+def frame_displacement(
+    pos: np.ndarray,
+    anchor_tri: np.ndarray,
+    anchor_bary: np.ndarray,
+    rolls: tuple,
+    entries: tuple,
+    stations: tuple,
+    furrows: tuple,
+    tables: np.ndarray,
+    params: np.ndarray,
+    n_samples: int,
+    out: np.ndarray,
+) -> None:
+    """layer.wrinkle_displacement in one pass (the numpy version is the reference).
+
+    rolls = (far, line, asym, emphasis, d_init, prev, next); entries = (vertex, roll0, roll1, lam,
+    b1, b2, taper); stations = (rolls (S, 2), furrow ratio); furrows = (vertex, station0, station1,
+    lam, weight); params = (dil - 1, unabsorbed fraction, full-release strain, a_cap, asym ratio,
+    furrow max depth, smoothing passes)."""
+    far, line, asym, emph, d_init, prev, nxt = rolls
+    extra, unabsorbed, release_strain, a_cap, ratio, furrow_max = (
+        params[0], params[1], params[2], params[3], params[4], params[5])
+    passes = int(params[6])
+    n_a = anchor_tri.shape[0]
+    pts = np.zeros((n_a, 3))
+    nrm = np.zeros((n_a, 3))
+    for i in range(n_a):
+        t0, t1, t2 = anchor_tri[i, 0], anchor_tri[i, 1], anchor_tri[i, 2]
+        for c in range(3):
+            pts[i, c] = (anchor_bary[i, 0] * pos[t0, c] + anchor_bary[i, 1] * pos[t1, c]
+                         + anchor_bary[i, 2] * pos[t2, c])
+        ux, uy, uz = pos[t1, 0] - pos[t0, 0], pos[t1, 1] - pos[t0, 1], pos[t1, 2] - pos[t0, 2]
+        vx, vy, vz = pos[t2, 0] - pos[t0, 0], pos[t2, 1] - pos[t0, 1], pos[t2, 2] - pos[t0, 2]
+        nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+        ln = max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-12)
+        nrm[i, 0], nrm[i, 1], nrm[i, 2] = nx / ln, ny / ln, nz / ln
+    n_r = far.shape[0]
+    up = np.zeros((n_r, 3))
+    n_line = np.zeros((n_r, 3))
+    dh0 = np.zeros(n_r)
+    dh1 = np.zeros(n_r)
+    for r in range(n_r):
+        p0, p1 = far[r], line[r]
+        ch = pts[p1] - pts[p0]
+        d = max(math.sqrt(ch[0] ** 2 + ch[1] ** 2 + ch[2] ** 2), 1e-9)
+        e = ch / d
+        nb = nrm[p0] + nrm[p1]
+        nbe = nb[0] * e[0] + nb[1] * e[1] + nb[2] * e[2]
+        u = nb - nbe * e
+        lu = max(math.sqrt(u[0] ** 2 + u[1] ** 2 + u[2] ** 2), 1e-12)
+        u = u / lu
+        up[r] = u
+        n_line[r] = nrm[p1]
+        n0e = nrm[p0, 0] * e[0] + nrm[p0, 1] * e[1] + nrm[p0, 2] * e[2]
+        n0u = nrm[p0, 0] * u[0] + nrm[p0, 1] * u[1] + nrm[p0, 2] * u[2]
+        n1e = nrm[p1, 0] * e[0] + nrm[p1, 1] * e[1] + nrm[p1, 2] * e[2]
+        n1u = nrm[p1, 0] * u[0] + nrm[p1, 1] * u[1] + nrm[p1, 2] * u[2]
+        amin = min(max(0.5 * (math.atan2(-n0e, n0u) + math.atan2(n1e, n1u)), 0.0), 0.5 * math.pi)
+        s_nat = _s(tables[0], d, d / 3.0, amin)
+        comp = max(d_init[r] - s_nat, 0.0)
+        release = min(comp / (d_init[r] * release_strain), 1.0)
+        surplus = (extra * d_init[r] * release + unabsorbed * comp) * emph[r]
+        if surplus <= 1e-7:
             continue
-        done = False
-        for m in range(n_alpha + 1):
-            al = m * ALPHA_STEP if m < n_alpha else amax
-            if al <= amin:
-                continue
-            if al >= amax:
-                al = amax
-            s = max(_s(values, d[q], a0, al), prev_s)
-            if s >= target:
-                f = (target - prev_s) / (s - prev_s) if s > prev_s else 1.0
-                out_alpha[q] = prev_al + min(max(f, 0.0), 1.0) * (al - prev_al)
-                done = True
-                break
-            prev_al, prev_s = al, s
-            if al >= amax:
-                break
-        if not done:
-            out_alpha[q] = amax
-            out_a[q] = _grow(values, d[q], target, amax, a_cap, n_samples)
+        k = 1 if asym[r] else 0
+        a, alpha = _solve_one(tables[k], d, s_nat + surplus, amin, a_cap, n_samples)
+        nat = d / 3.0 * math.sin(amin)
+        dh0[r] = a * math.sin((ratio if asym[r] else 1.0) * alpha) - nat
+        dh1[r] = a * math.sin(alpha) - nat
+    for _ in range(passes):
+        s0 = np.empty(n_r)
+        s1 = np.empty(n_r)
+        for r in range(n_r):
+            s0[r] = 0.25 * dh0[prev[r]] + 0.5 * dh0[r] + 0.25 * dh0[nxt[r]]
+            s1[r] = 0.25 * dh1[prev[r]] + 0.5 * dh1[r] + 0.25 * dh1[nxt[r]]
+        dh0, dh1 = s0, s1
+    ev, er0, er1, elam, eb1, eb2, etaper = entries
+    for q in range(ev.shape[0]):
+        lam = elam[q]
+        r0, r1 = er0[q], er1[q]
+        h0 = (1.0 - lam) * dh0[r0] + lam * dh0[r1]
+        h1 = (1.0 - lam) * dh1[r0] + lam * dh1[r1]
+        h = max(eb1[q] * h0 + eb2[q] * h1, 0.0) * etaper[q]
+        for c in range(3):
+            out[ev[q], c] += h * ((1.0 - lam) * up[r0, c] + lam * up[r1, c])
+    st_rolls, st_furrow = stations
+    n_s = st_rolls.shape[0]
+    depth = np.zeros(n_s)
+    st_n = np.zeros((n_s, 3))
+    for i in range(n_s):
+        crest = 0.0
+        for side in range(2):
+            r = st_rolls[i, side]
+            if r >= 0:
+                crest = max(crest, 0.375 * (dh0[r] + dh1[r]))
+        depth[i] = min(crest * st_furrow[i], furrow_max)
+        r = st_rolls[i, 1] if st_rolls[i, 1] >= 0 else st_rolls[i, 0]
+        if r >= 0:
+            st_n[i] = n_line[r]
+    fv, fs0, fs1, flam, fw = furrows
+    for q in range(fv.shape[0]):
+        lam = flam[q]
+        dq = ((1.0 - lam) * depth[fs0[q]] + lam * depth[fs1[q]]) * fw[q]
+        for c in range(3):
+            out[fv[q], c] -= dq * ((1.0 - lam) * st_n[fs0[q], c] + lam * st_n[fs1[q], c])

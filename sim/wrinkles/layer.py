@@ -24,15 +24,20 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sim.wrinkles.arclength import lookup, table
+from sim.wrinkles.arclength import ASYM_RATIO
 from sim.wrinkles.bulge import (
     _A_SAMPLES,
     A_CAP_RATIO,
+    DIL_MAX,
+    FULL_RELEASE_STRAIN,
+    INPLANE_LOSS_AT_MAX,
     Segment,
+    dilatation,
     bezier_height,
     control_heights,
     released_surplus,
 )
-from sim.wrinkles.kernels import solve_rolls
+from sim.wrinkles.kernels import frame_displacement, solve_rolls
 from sim.wrinkles.mask import WrinkleLine
 
 FloatArray = np.ndarray
@@ -41,6 +46,7 @@ IntArray = np.ndarray
 STATION_STEP = 0.25  # cm between stations along a line (heights are interpolated between)
 TAPER = 0.5  # cm over which a wrinkle fades in at each end of its line
 FURROW_HALF_WIDTH = 0.12  # cm, half width of the microfurrow groove
+SMOOTH_PASSES = 2  # [1, 2, 1] / 4 passes over the crest heights along each line
 FURROW_MAX_DEPTH = 0.06  # cm: a microfurrow, however tall its rolls, stays a fine groove
 
 
@@ -91,8 +97,9 @@ class WrinkleLayer:
     line_vertices: tuple[IntArray, ...]
 
     def displacement(self, positions: FloatArray, age: float) -> FloatArray:
-        """(N, 3) cm to add to `positions` for the wrinkles at `age` years."""
-        return wrinkle_displacement(self, positions, age)
+        """(N, 3) cm to add to `positions` for the wrinkles at `age` years (compiled kernel; the
+        numpy `wrinkle_displacement` is its reference)."""
+        return compiled_displacement(self, positions, age)
 
 
 # ---------------------------------------------------------------- rest geometry helpers
@@ -394,10 +401,10 @@ def roll_heights(
     return dh0, dh1, up, n_line
 
 
-def _smooth_along(layer: WrinkleLayer, h: FloatArray, passes: int = 2) -> FloatArray:
+def _smooth_along(layer: WrinkleLayer, h: FloatArray, passes: int | None = None) -> FloatArray:
     """Heights smoothed along each line ([1, 2, 1] / 4 over neighbouring stations): a crest follows
     its wrinkle evenly instead of copying every local ripple of the dynamics' compression."""
-    for _ in range(passes):
+    for _ in range(SMOOTH_PASSES if passes is None else passes):
         h = 0.25 * np.take(h, layer.roll_prev) + 0.5 * h + 0.25 * np.take(h, layer.roll_next)
     return h
 
@@ -434,6 +441,33 @@ def wrinkle_displacement(layer: WrinkleLayer, positions: FloatArray, age: float)
     for c in range(3):
         out[:, c] = np.bincount(layer.entry_vertex, disp[:, c], layer.n_vertices)
         out[:, c] += np.bincount(layer.furrow_vertex, fdisp[:, c], layer.n_vertices)
+    return out
+
+
+def compiled_displacement(layer: WrinkleLayer, positions: FloatArray, age: float) -> FloatArray:
+    """wrinkle_displacement through kernels.frame_displacement: same numbers, one compiled pass."""
+    out = np.zeros((layer.n_vertices, 3))
+    if len(layer.roll_far) == 0:
+        return out
+    extra = float(dilatation(1.0, age)) - 1.0
+    params = np.array([extra, INPLANE_LOSS_AT_MAX * extra / DIL_MAX, FULL_RELEASE_STRAIN,
+                       A_CAP_RATIO, ASYM_RATIO, FURROW_MAX_DEPTH, float(SMOOTH_PASSES)])
+    frame_displacement(
+        np.ascontiguousarray(positions, dtype=np.float64),
+        layer.anchor_tri,
+        layer.anchor_bary,
+        (layer.roll_far, layer.roll_line, layer.roll_asym, layer.roll_emphasis, layer.roll_d_init,
+         layer.roll_prev, layer.roll_next),
+        (layer.entry_vertex, layer.entry_roll0, layer.entry_roll1, layer.entry_lam, layer.entry_b1,
+         layer.entry_b2, layer.entry_taper),
+        (layer.station_rolls, layer.station_furrow),
+        (layer.furrow_vertex, layer.furrow_station0, layer.furrow_station1, layer.furrow_lam,
+         layer.furrow_weight),
+        _stacked_tables(),
+        params,
+        _A_SAMPLES,
+        out,
+    )
     return out
 
 

@@ -200,3 +200,15 @@ def test_puppet_pose_age_75_creases_the_frown_deeper(tmp_path, face) -> None:
         surface = np.load(out)["surface"]
         depth[age] = _crease_depth(model, surface, model.rig.mesh.regions["glabella"])
     assert depth[75] > depth[30] + 0.015, depth
+
+
+def test_compiled_frame_matches_the_numpy_reference_on_the_face(face) -> None:
+    from sim.wrinkles.layer import compiled_displacement, wrinkle_displacement
+
+    model, _ = face
+    state = _settled(face, {"corrugator_l": 1, "corrugator_r": 1, "procerus": 1,
+                            "zygomaticus_major_l": 1, "zygomaticus_major_r": 1, "mentalis": 0.7})
+    layer = layer_for(model)
+    ref = wrinkle_displacement(layer, state.positions, 80.0)
+    assert np.abs(ref).max() > 0.05
+    np.testing.assert_allclose(compiled_displacement(layer, state.positions, 80.0), ref, rtol=1e-9, atol=1e-12)

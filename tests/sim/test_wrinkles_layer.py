@@ -124,3 +124,20 @@ def test_line_round_trips_through_its_plain_form_and_rejects_bad_points() -> Non
     bad["points"] = [[0.0, 1.0, 2.0]]
     with pytest.raises(ValueError, match="points"):
         WrinkleLine.from_dict(bad)
+
+
+def test_compiled_frame_matches_the_numpy_reference(patch) -> None:
+    from sim.wrinkles.layer import compiled_displacement
+
+    v, t = patch
+    lines = (LINE, WrinkleLine("a", np.array([[-2.0, 1.2], [2.0, 1.3]]), ("m",), 0.3, 0.8,
+                               asym_plus=True, emphasis=1.5),
+             WrinkleLine("n", np.array([[-1.0, -1.5], [1.0, -1.5]]), ("m",), 0.0, 0.0))
+    layer = compile_wrinkles(v, t, lines)
+    rng = np.random.default_rng(5)
+    for age in (30, 50, 85):
+        p = _squeeze(v, 0.88) + rng.normal(0, 0.01, v.shape)
+        ref = wrinkle_displacement(layer, p, age)
+        got = compiled_displacement(layer, p, age)
+        np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-12)
+        assert (np.abs(ref).max() > 0) == (age > AGE_0)
