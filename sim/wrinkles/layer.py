@@ -485,6 +485,12 @@ def layer_for(model: object) -> WrinkleLayer:
     return layer
 
 
+def warm_up(model: object) -> None:
+    """Compile the model's wrinkle layer and run its kernel once (numba compiles it, or loads it
+    from its on-disk cache), so the first live frame does not stall."""
+    compiled_displacement(layer_for(model), np.asarray(model.rest), 30.0)  # type: ignore[attr-defined]
+
+
 def apply_wrinkles(model: object, state: object) -> None:
     """Set state.surface = state.positions displaced by the model's wrinkles at state.age."""
     pos = state.positions  # type: ignore[attr-defined]
