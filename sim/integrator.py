@@ -203,6 +203,10 @@ class Simulator:
                  method: str = "auto") -> None:
         self.model = model
         self.wrinkles = wrinkles
+        if wrinkles and model.rig.wrinkles:  # build the wrinkle layer and load its kernel now, not
+            from sim.wrinkles.layer import warm_up as warm_up_wrinkles  # on the first live frame
+
+            warm_up_wrinkles(model)
         self.frame_dt = float(frame_dt)
         p = model.params
         visc = float(np.max(model.spring_damping / np.maximum(model.spring_k_low, 1e-30)))
