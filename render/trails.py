@@ -59,12 +59,15 @@ class TrailHistory:
         return True
 
     def set(self, frames: Sequence[np.ndarray] | np.ndarray) -> None:
-        """Replace the history with given surfaces, oldest first (only the newest `capacity` kept)."""
+        """Replace the history with given surfaces, oldest first. A longer history than the ring
+        holds is thinned evenly (keeping the first and the newest), so the whole span is drawn."""
         arr = np.asarray(frames, np.float32)
         if arr.ndim != 3 or arr.shape[1:] != self.frames.shape[1:]:
             raise ValueError(f"history must be (K, {self.frames.shape[1]}, 3), got {arr.shape}")
         self.clear()
-        for f in arr[-self.capacity:]:
+        if len(arr) > self.capacity:
+            arr = arr[np.unique(np.linspace(0, len(arr) - 1, self.capacity).round().astype(int))]
+        for f in arr:
             self.push(f)
 
     def ordered(self) -> np.ndarray:

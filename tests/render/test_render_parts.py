@@ -50,8 +50,10 @@ def test_trail_history_set_rejects_wrong_shape() -> None:
     tr = TrailHistory(5)
     with pytest.raises(ValueError, match="history"):
         tr.set(np.zeros((3, 4, 3)))
-    tr.set(np.zeros((100, 5, 3)))
-    assert tr.count == tr.capacity
+    long = np.arange(100, dtype=np.float32)[:, None, None] * np.ones((100, 5, 3), np.float32)
+    tr.set(long)  # more frames than slots: thinned evenly over the whole span
+    kept = tr.ordered()[:, 0, 0]
+    assert tr.count == tr.capacity and kept[0] == 0 and kept[-1] == 99
 
 
 def test_eye_rotation_turns_gaze_left_and_up() -> None:
