@@ -19,7 +19,8 @@ FONT_PATHS = (
     "/usr/share/fonts/dejavu/DejaVuSans.ttf",
     "/usr/share/fonts/TTF/DejaVuSans.ttf",
 )
-CHARSET = "".join(chr(c) for c in (*range(32, 127), *range(161, 256))) + "°±µ•·–—←→↑↓…≤≥×"
+CHARSET = ("".join(chr(c) for c in (*range(32, 127), *range(161, 256)))
+           + "°±µ•·–—←→↑↓…≤≥×")
 
 Color = tuple[float, float, float, float]
 WHITE: Color = (0.95, 0.95, 0.95, 1.0)
@@ -55,7 +56,8 @@ def active_channels(specs: Iterable[object], values: Sequence[float],
     out = []
     for spec, v in zip(specs, values):
         if abs(float(v) - float(spec.default)) > tol:  # type: ignore[attr-defined]
-            out.append((spec.name, float(v), float(spec.lo), float(spec.hi)))  # type: ignore[attr-defined]
+            lo, hi = float(spec.lo), float(spec.hi)  # type: ignore[attr-defined]
+            out.append((spec.name, float(v), lo, hi))  # type: ignore[attr-defined]
     return out
 
 
@@ -92,7 +94,8 @@ class FontAtlas:
         for k, ch in enumerate(CHARSET):
             x, y = (k % cols) * self.cell_w, (k // cols) * self.cell_h
             draw.text((x + 1, y + 1), ch, fill=255, font=font)
-            x0, y0, x1, y1 = font.getbbox(ch) if hasattr(font, "getbbox") else (0, 0, self.cell_w - 2, self.cell_h - 2)
+            full = (0, 0, self.cell_w - 2, self.cell_h - 2)
+            x0, y0, x1, y1 = font.getbbox(ch) if hasattr(font, "getbbox") else full
             x0, y0 = max(int(x0), -1), max(int(y0), -1)
             x1, y1 = min(int(x1) + 1, self.cell_w - 1), min(int(y1) + 1, self.cell_h - 1)
             self.box[ch] = (x0 + 1, y0 + 1, max(x1 - x0, 0), max(y1 - y0, 0))
@@ -148,7 +151,8 @@ class HudRenderer:
         self._quads.append((x0, y0, x1, y1, *uv, *c))
 
     # -- layout ---------------------------------------------------------------------------------
-    def draw(self, info: HudInfo, size: tuple[int, int], view: str = "", age: float | None = None) -> None:
+    def draw(self, info: HudInfo, size: tuple[int, int], view: str = "",
+             age: float | None = None) -> None:
         w, h = size
         px = int(np.clip(round(h / 46), 11, 28))
         fa, tex = self.atlas(px)
@@ -167,7 +171,8 @@ class HudRenderer:
         if info.latency_ms is not None:
             status.append((f"latency {info.latency_ms:.1f} ms", WHITE))
         for name, connected in info.devices:
-            status.append((f"• {name} {'connected' if connected else 'lost'}", OK if connected else LOST))
+            word, color = ("connected", OK) if connected else ("lost", LOST)
+            status.append((f"• {name} {word}", color))
         if status:
             pw = max(fa.width(s) for s, _ in status) + 2 * pad
             x0 = w - pw - pad

@@ -64,7 +64,8 @@ class FaceRenderer:
                                              fragment_shader=shaders.skin_source(kind))
                            for kind in ("SKIN", "CLAY", "HEAT")}
         self.eye_prog = ctx.program(vertex_shader=shaders.EYE_VS, fragment_shader=shaders.EYE_FS)
-        self.cavity_prog = ctx.program(vertex_shader=shaders.CAVITY_VS, fragment_shader=shaders.CAVITY_FS)
+        self.cavity_prog = ctx.program(vertex_shader=shaders.CAVITY_VS,
+                                       fragment_shader=shaders.CAVITY_FS)
         self.line_prog = ctx.program(**shaders.line_program_sources())
         self.thick_prog = ctx.program(**shaders.line_program_sources(thick=True))
         self.trail_prog = ctx.program(**shaders.line_program_sources(trail=True))
@@ -73,7 +74,8 @@ class FaceRenderer:
         widths = ctx.info.get("GL_ALIASED_LINE_WIDTH_RANGE", (1.0, 1.0))
         self._max_line_width = float(widths[1]) if isinstance(widths, (tuple, list)) else 1.0
         self.hud = HudRenderer(ctx)
-        self._scene: tuple[tuple[int, int], moderngl.Framebuffer, moderngl.Texture, moderngl.Renderbuffer] | None = None
+        self._scene: tuple[tuple[int, int], moderngl.Framebuffer, moderngl.Texture,
+                           moderngl.Renderbuffer] | None = None
         self._gl: list[Any] = []
 
     @property
@@ -120,7 +122,8 @@ class FaceRenderer:
         self.skin_vaos = {}
         for kind, prog in self.skin_progs.items():
             attrs = [(self.pos_vbo, "3f", "in_pos"), (self.nrm_vbo, "3f", "in_normal"),
-                     (col_vbo, "3f", "in_color"), (rest_vbo, "3f", "in_rest"), (brow_vbo, "2f", "in_brow")]
+                     (col_vbo, "3f", "in_color"), (rest_vbo, "3f", "in_rest"),
+                     (brow_vbo, "2f", "in_brow")]
             self.skin_vaos[kind] = ctx.vertex_array(prog, [a for a in attrs if a[2] in prog], tri_ibo)
         self.edge_vao = ctx.vertex_array(self.line_prog, [(self.pos_vbo, "3f", "in_pos")], edge_ibo)
         sphere, sphere_tris = uv_sphere(12, 20)
@@ -135,7 +138,8 @@ class FaceRenderer:
             cav = Cavity(loop, rest)
             vbo = ctx.buffer(reserve=cav.n_vertices * 12, dynamic=True)
             dep, ibo = ctx.buffer(cav.depth.tobytes()), ctx.buffer(cav.triangles.tobytes())
-            vao = ctx.vertex_array(self.cavity_prog, [(vbo, "3f", "in_pos"), (dep, "1f", "in_depth")], ibo)
+            vao = ctx.vertex_array(self.cavity_prog,
+                                   [(vbo, "3f", "in_pos"), (dep, "1f", "in_depth")], ibo)
             g += [vbo, dep, ibo, vao]
             self.cavities.append((cav, vbo, vao, rim))
         self.muscles = MuscleLines(model.rig, rest)
@@ -150,7 +154,9 @@ class FaceRenderer:
         seam. Large meshes draw trails for an even subset of nodes (a 12k-node tangle reads worse)."""
         self.trails = TrailHistory(n)
         k = self.trails.capacity
-        nodes = np.arange(n) if n <= MAX_TRAIL_NODES else np.linspace(0, n - 1, MAX_TRAIL_NODES).astype(int)
+        nodes = np.arange(n)
+        if n > MAX_TRAIL_NODES:
+            nodes = np.linspace(0, n - 1, MAX_TRAIL_NODES).astype(int)
         self.trail_nodes = len(nodes)
         slots = np.arange(k)
         a = (slots[:, None] * n + nodes[None, :]).ravel()
@@ -158,7 +164,8 @@ class FaceRenderer:
         pairs = np.stack([a, b], axis=1).astype(np.int32)
         self.trail_vbo = self.ctx.buffer(reserve=k * n * 12)
         trail_ibo = self.ctx.buffer(pairs.tobytes())
-        self.trail_vao = self.ctx.vertex_array(self.trail_prog, [(self.trail_vbo, "3f", "in_pos")], trail_ibo)
+        self.trail_vao = self.ctx.vertex_array(self.trail_prog, [(self.trail_vbo, "3f", "in_pos")],
+                                               trail_ibo)
         self.path_vbo = self.ctx.buffer(reserve=n * 4, dynamic=True)
         self.dot_vao = self.ctx.vertex_array(self.point_prog, [
             (self.pos_vbo, "3f", "in_pos"), (self.path_vbo, "1f", "in_path")])
@@ -363,7 +370,8 @@ class FaceRenderer:
         for prog, vao in self._post.values():
             vao.release()
             prog.release()
-        for obj in (*self.skin_progs.values(), self.eye_prog, self.cavity_prog, self.line_prog, self.thick_prog,
+        for obj in (*self.skin_progs.values(), self.eye_prog, self.cavity_prog, self.line_prog,
+                    self.thick_prog,
                     self.trail_prog, self.point_prog):
             obj.release()
         self.hud.release()

@@ -77,8 +77,8 @@ void main() {
 }
 """
 
-# Specialised by #define: SKIN (tinted skin: lips and brows are in the vertex colour), CLAY (pale, under muscles/trails so the
-# lines read), HEAT (displacement colour map).
+# Specialised by #define: SKIN (tinted skin: lips in the vertex colour, brows from interpolated brow
+# coordinates), CLAY (pale, under muscles/trails so the lines read), HEAT (displacement colour map).
 SKIN_FS = HEADER + LIGHTING + """
 uniform float heat_scale;
 in vec3 v_pos;
