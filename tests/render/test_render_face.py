@@ -125,3 +125,19 @@ def test_supersampling_smooths_the_silhouette(gl, faces: Faces) -> None:
         soft = off.render_frame(faces.rest)
     edge = skin_mask(hard) ^ np.roll(skin_mask(hard), 1, axis=1)
     assert np.abs(hard.astype(int) - soft.astype(int))[edge].mean() > 3
+
+
+def test_fxaa_softens_edges_and_leaves_flat_areas_alone(gl, faces: Faces) -> None:
+    with OffscreenRenderer(faces.model, (160, 120), ctx=gl) as off:
+        hard = off.render_frame(faces.rest).astype(int)
+        off.renderer.antialias = "fxaa"
+        soft = off.render_frame(faces.rest).astype(int)
+    skin = skin_mask(hard)
+    edge = skin ^ np.roll(skin, 1, axis=1)
+    near = edge.copy()
+    for dy in (-2, -1, 0, 1, 2):
+        for dx in (-2, -1, 0, 1, 2):
+            near |= np.roll(np.roll(edge, dy, axis=0), dx, axis=1)
+    diff = np.abs(hard - soft).sum(-1)
+    assert diff[edge].mean() > 10
+    assert (diff[~near & ~skin] == 0).mean() > 0.99  # plain background untouched
