@@ -172,6 +172,11 @@ class Cavity:
         self.triangles = np.array(tris, np.int32)
         self.depth = np.r_[np.repeat([d for _, d in self.RINGS], m), 1.6].astype(np.float32)
         self.n_vertices = apex + 1
+        # upper teeth: the upper half of the second and third rings, behind the upper lip
+        above = (rim[:, 1] > rim[:, 1].mean()).astype(np.float32)
+        self.teeth = np.zeros(self.n_vertices, np.float32)
+        self.teeth[m:2 * m] = above
+        self.teeth[2 * m:3 * m] = above
 
     def positions(self, surface: np.ndarray) -> np.ndarray:
         rim = np.take(surface, self.loop, axis=0)

@@ -138,9 +138,10 @@ class FaceRenderer:
             cav = Cavity(loop, rest)
             vbo = ctx.buffer(reserve=cav.n_vertices * 12, dynamic=True)
             dep, ibo = ctx.buffer(cav.depth.tobytes()), ctx.buffer(cav.triangles.tobytes())
-            vao = ctx.vertex_array(self.cavity_prog,
-                                   [(vbo, "3f", "in_pos"), (dep, "1f", "in_depth")], ibo)
-            g += [vbo, dep, ibo, vao]
+            teeth = ctx.buffer(cav.teeth.tobytes())
+            vao = ctx.vertex_array(self.cavity_prog, [(vbo, "3f", "in_pos"), (dep, "1f", "in_depth"),
+                                                      (teeth, "1f", "in_teeth")], ibo)
+            g += [vbo, dep, teeth, ibo, vao]
             self.cavities.append((cav, vbo, vao, rim))
         self.muscles = MuscleLines(model.rig, rest)
         self.muscle_vbo = ctx.buffer(reserve=max(len(self.muscles), 1) * 12, dynamic=True)
@@ -281,6 +282,7 @@ class FaceRenderer:
         for cav, vbo, vao, rim in self.cavities:
             vbo.write(cav.positions(surface).tobytes())
             self.cavity_prog["rim_color"].value = rim
+            self.cavity_prog["teeth"].value = 1.0 if rim == MOUTH_RIM else 0.0
             vao.render(moderngl.TRIANGLES)
         fbo.depth_mask = True
 

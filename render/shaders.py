@@ -157,19 +157,25 @@ CAVITY_VS = HEADER + """
 uniform mat4 mvp;
 in vec3 in_pos;
 in float in_depth;
+in float in_teeth;
 out float v_depth;
+out float v_teeth;
 void main() {
     gl_Position = mvp * vec4(in_pos, 1.0);
     v_depth = in_depth;
+    v_teeth = in_teeth;
 }
 """
 
 CAVITY_FS = HEADER + """
 uniform vec3 rim_color;
+uniform float teeth;             // 1 for the mouth, 0 for the eye sockets
 in float v_depth;
+in float v_teeth;
 out vec4 frag;
 void main() {
-    vec3 c = mix(rim_color, vec3(0.004, 0.002, 0.002), smoothstep(0.0, 0.9, v_depth));
+    vec3 c = mix(rim_color, vec3(0.004, 0.002, 0.002), smoothstep(0.0, 0.6, v_depth));
+    c = mix(c, vec3(0.40, 0.38, 0.33) * (1.1 - v_depth), teeth * smoothstep(0.3, 0.6, v_teeth));
     frag = vec4(sqrt(c), 1.0);
 }
 """
