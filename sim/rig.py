@@ -137,6 +137,12 @@ def load_rig(path: str | Path) -> FaceRig:
     """Read a rig file; RigFileError (a ValueError) with a one-line message if it is malformed."""
     p = str(path)
     try:
+        if not Path(p).is_file():
+            raise RigFileError(f"{p}: no such rig file")
+        if not zipfile.is_zipfile(p):
+            raise RigFileError(
+                f"{p}: not a rig file (a rig is an .npz archive written by `puppet import-face`)"
+            )
         with np.load(p, allow_pickle=False) as data:
             return _parse(data, p)
     except RigFileError:

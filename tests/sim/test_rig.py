@@ -110,3 +110,13 @@ def test_default_rig_with_wrinkles_round_trips(tmp_path: Path) -> None:
     back = load_rig(path)
     assert [w.name for w in back.wrinkles] == [w.name for w in rig.wrinkles]
     assert compile_model(back).hash == compile_model(rig).hash
+
+
+def test_a_text_file_given_as_rig_is_one_clear_line(tmp_path) -> None:
+    from sim.rig import RigFileError, load_rig
+
+    bad = tmp_path / "notes.npz"
+    bad.write_text("not a rig\n")
+    with pytest.raises(RigFileError, match="not a rig file") as info:
+        load_rig(bad)
+    assert "pickle" not in str(info.value)
