@@ -32,6 +32,7 @@ class ExportOptions:
     view: str = "shaded"
     size: tuple[int, int] = (1280, 720)
     start_frame: float = 1.0
+    parallel: bool = True  # render in a second process while this one simulates (long exports)
 
 
 def kind_of(out: Path) -> str:
@@ -118,40 +119,14 @@ def _export_pc2(perf: Performance, out: Path, ticks: list[int], opts: ExportOpti
 
 
 def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], opts: ExportOptions) -> str:
-    try:
-        from render.offscreen import OffscreenRenderer, save_image
-    except ImportError as err:
-        raise PuppetError(f"video and image export need the renderer: {err}") from err
-    try:
-        renderer = OffscreenRenderer(perf.face.model, opts.size, view=opts.view)
-    except ValueError as err:
-        raise PuppetError(str(err)) from err
-    except Exception as err:  # no EGL / GL: one clear line, not a traceback
-        raise PuppetError(f"cannot create an offscreen OpenGL context: {err}") from err
-    writer: Any = None
-    try:
-        if kind == "mp4":
-            import imageio.v2 as imageio
+    from puppet.export.video import PARALLEL_MIN_FRAMES, render_parallel, render_serial
 
-            writer = imageio.get_writer(str(out), fps=opts.fps, codec="libx264", quality=7,
-                                        pixelformat="yuv420p", macro_block_size=2,
-                                        ffmpeg_params=["-preset", "veryfast"], ffmpeg_log_level="error")
-        elif kind == "frames":
-            out.mkdir(parents=True, exist_ok=True)
-        with _bar(len(ticks), out.name or str(out)) as bar:
-            for j, _, state, _ in iter_frames(perf, ticks):
-                img = renderer.render_frame(state)
-                if kind == "mp4":
-                    writer.append_data(img)
-                elif kind == "png":
-                    save_image(img, out)
-                else:
-                    save_image(img, out / f"frame_{j:06d}.png")
-                bar.update(1)
-    finally:
-        if writer is not None:
-            writer.close()
-        renderer.release()
+    frames = ((j, state) for j, _, state, _ in iter_frames(perf, ticks))
+    with _bar(len(ticks), out.name or str(out)) as bar:
+        if len(ticks) >= PARALLEL_MIN_FRAMES and opts.parallel:
+            render_parallel(perf.face.model, out, kind, opts.fps, opts.size, opts.view, frames, bar.update)
+        else:
+            render_serial(perf.face.model, out, kind, opts.fps, opts.size, opts.view, frames, bar.update)
     if kind == "png":
         return f"wrote a {opts.size[0]}x{opts.size[1]} still to {out}"
     return f"wrote {len(ticks)} frames at {opts.fps:g} fps ({opts.size[0]}x{opts.size[1]}, view {opts.view}) to {out}"

@@ -123,3 +123,20 @@ def test_curves_export_edit_and_replay_alone_or_layered(recording: Path, tmp_pat
     capsys.readouterr()
     assert run("--curves", str(bad), "--headless") == 2
     assert capsys.readouterr().err.strip().startswith(f"puppet: error: {bad}:3:")
+
+
+def test_long_export_renders_in_a_second_process(recording: Path, tmp_path: Path) -> None:
+    import imageio.v2 as imageio
+
+    from puppet.errors import PuppetError
+    from puppet.export.video import PARALLEL_MIN_FRAMES
+
+    perf = build_performance(read_session(recording), None)
+    fps = 120.0  # 1 s of performance at 120 fps: enough frames for the parallel path
+    assert fps * perf.duration >= PARALLEL_MIN_FRAMES
+    out = tmp_path / "long.mp4"
+    export(perf, out, ExportOptions(fps=fps, size=(64, 48)))
+    reader = imageio.get_reader(str(out))
+    assert reader.count_frames() == 120 and reader.get_meta_data()["fps"] == pytest.approx(120)
+    with pytest.raises(PuppetError, match="unknown view 'xray'"):
+        export(perf, tmp_path / "bad.mp4", ExportOptions(fps=fps, size=(64, 48), view="xray"))
