@@ -2,10 +2,10 @@
 (seconds of performance exported per second of wall time; target >= 2x). Also times the data
 exports (PC2, channel CSV, ARKit CSV) that need no rendering.
 
-The performance is a 4 s scripted SGI-box take recorded through the real live loop (virtual clock).
+The performance is an 8 s scripted SGI-box take recorded through the real live loop (virtual clock).
 Rendering is offscreen (EGL; Mesa's llvmpipe on a machine without a GPU).
 
-Run:  .venv/bin/python benchmarks/export.py [--seconds 4] [--fps 30] [--size 1280x720] [--json]
+Run:  .venv/bin/python benchmarks/export.py [--seconds 8] [--fps 30] [--size 1280x720] [--json]
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def record(tmp: Path, seconds: float) -> Path:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=4.0)
+    ap.add_argument("--seconds", type=float, default=8.0)
     ap.add_argument("--fps", type=float, default=30.0)
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--json", action="store_true")

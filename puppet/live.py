@@ -367,8 +367,9 @@ def live_hud(core: LiveCore, devs: Sequence[Any], keymap: bool) -> Any:
     lines = []
     if p50 is not None and p99 is not None:
         lines.append(f"input->frame p50 {p50 * 1e3:.1f} ms  p99 {p99 * 1e3:.1f} ms")
-    if keymap:
-        lines += [b.spec.label for b in mapper.bindings if b.spec.label]
+    if keymap:  # four keys a line, so the whole map fits on the screen
+        labels = [b.spec.label for b in mapper.bindings if b.spec.label]
+        lines += ["   ".join(labels[i:i + 4]) for i in range(0, len(labels), 4)]
     for b in mapper.bindings:
         what = b.spec.target or b.spec.action
         if b.device is not None and not mapper.status.get(b.device, True):

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import devices
+from devices.events import ControlEvent
 from puppet import live
 from puppet.mapping import Mapper
 from puppet.replay import Replayer, build_performance
@@ -226,3 +227,23 @@ def test_box_plugged_in_mid_show_is_adopted_with_its_map(tmp_path: Path, face: l
     for _ in range(30):
         core.tick([])
     assert core.values[[c.name for c in face.vocab.channels].index("jaw")] > 0.4
+
+
+def test_hud_shows_key_map_latency_and_lost_devices(face: live.Face) -> None:
+    from devices.events import StatusEvent
+
+    kb = devices.open_device("keyboard://")
+    core = live.LiveCore(face, Mapper(live.build_mapping(face.vocab, None, [kb.spec], system_keys=True), face.vocab))
+    core.tick([ControlEvent(kb.spec, "key:A", "key", 1.0, None, "A", 0.0)])
+    core.presented(0.012)
+    hud = live.live_hud(core, [kb], keymap=True)
+    text = "\n".join(hud.lines)
+    assert "Q brow up" in text and "A smile" in text and "ESC panic" in text and len(hud.lines) <= 24
+    assert hud.latency_ms == pytest.approx(12.0)
+    assert any(name.startswith("zygomaticus_major") for name, *_ in hud.channels)
+    assert hud.devices == [(kb.spec, True)]
+    core.tick([StatusEvent(kb.spec, "lost")])
+    hud = live.live_hud(core, [kb], keymap=False)
+    assert hud.devices == [(kb.spec, False)] and any(line.startswith("LOST key:A") for line in hud.lines)
+    assert "A smile" not in "\n".join(hud.lines)
+    kb.close()
