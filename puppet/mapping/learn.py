@@ -94,7 +94,10 @@ def learn_binding(path: str | Path, control: str, device: str, target: str, kind
         bindings.append(t)
     text = tomlkit.dumps(doc)
     parse_mapping(text, str(p))  # never write something we could not read back
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=str(p.parent.resolve()))
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=str(p.parent.resolve()))
+    except OSError as err:
+        raise ConfigError(f"{p}: cannot write the mapping file: {err.strerror}") from err
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)

@@ -93,3 +93,8 @@ def test_learn_refuses_to_touch_a_broken_file(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match=r"broken.toml:2:\d+"):
         learn_binding(mp, "dial0", "sgi://", "jaw", "dial")
     assert mp.read_text() == "[[binding]]\ncontrol = \n"
+
+
+def test_learn_into_a_missing_folder_is_a_config_error(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="cannot write the mapping file"):
+        learn_binding(tmp_path / "nope" / "m.toml", "dial0", "sgi://", "jaw", "dial")
