@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         from puppet.export.runner import ExportOptions, export, kind_of
 
         kind = kind_of(__import__("pathlib").Path(args.out))
-        fps = args.fps or (30.0 if kind in ("mp4", "frames", "png") else perf.rate)
+        fps = args.fps if args.fps is not None else (30.0 if kind in ("mp4", "frames", "png") else perf.rate)
         opts = ExportOptions(fps=fps, start=args.start, end=args.end, speed=args.speed, view=args.view,
                              size=args.size)
         print(f"puppet: {export(perf, args.out, opts)}")

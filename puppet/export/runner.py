@@ -59,6 +59,13 @@ def export(perf: Performance, out: str | Path, opts: ExportOptions) -> str:
     kind = kind_of(out)
     if kind != "frames" and not out.parent.exists():
         raise ConfigError(f"{out}: folder {out.parent} does not exist")
+    if kind in ("mp4", "frames", "png"):
+        try:
+            from render.renderer import VIEWS
+        except ImportError as err:
+            raise PuppetError(f"video and image export need the renderer: {err}") from err
+        if opts.view not in VIEWS:
+            raise PuppetError(f"unknown view {opts.view!r}; choose one of {', '.join(VIEWS)}")
     ticks = frame_ticks(perf, opts.fps, opts.start, opts.end, opts.speed)
     if kind == "png":
         ticks = ticks[:1]
