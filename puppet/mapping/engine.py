@@ -170,6 +170,10 @@ class Mapper:
         """Apply one event (at a tick boundary)."""
         if isinstance(event, StatusEvent):
             self.status[event.device] = event.status == "connected"
+            if event.status == "lost":  # an unplugged box cannot release what it held down
+                for b in self.bindings:
+                    if b.device == event.device and b.kind == "button" and b.button.down:
+                        b.button.press(False)
             return
         self.status.setdefault(event.device, True)
         for b in self.by_control.get(event.control, ()):

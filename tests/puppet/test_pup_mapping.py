@@ -157,3 +157,15 @@ def test_relative_nudges_continue_from_the_current_value() -> None:
     v = run(m, {0: [up, rel("key:9")], 1: [up, rel("key:9")], 2: [down, rel("key:8")]}, 3)
     ages = [x[idx("age")] for x in v]
     assert ages == pytest.approx([36.0, 42.0, 36.0])
+
+
+def test_a_lost_device_releases_held_buttons_but_keeps_toggles() -> None:
+    from devices.events import StatusEvent
+
+    m = mapper('[[binding]]\ncontrol = "held"\ntarget = "jaw"\n'
+               '[[binding]]\ncontrol = "tog"\ntarget = "zygomaticus_major"\nmode = "toggle"\n')
+    v = run(m, {0: [ev("held", 1, "button"), ev("tog", 1, "button")]}, 2)
+    assert v[-1][idx("jaw")] == 1.0
+    m.feed(StatusEvent("mock://", "lost"))
+    v = m.step(DT)
+    assert v[idx("jaw")] == 0.0 and v[idx("zygomaticus_major_l")] == 1.0
