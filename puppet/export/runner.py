@@ -122,7 +122,8 @@ def _export_pc2(perf: Performance, out: Path, ticks: list[int], opts: ExportOpti
     finally:
         w.close()
     return (f"wrote {len(ticks)} samples at {opts.fps:g} fps (start frame {opts.start_frame:g}) to {out} "
-            f"and the rest mesh to {obj}; set the Blender scene to {opts.fps:g} fps")
+            f"and the rest mesh to {obj}; in Blender: scene at {opts.fps:g} fps, Mesh Cache modifier "
+            "Time Mode Frame, Frame Start 1, Forward -Z, Up +Y (docs/live.md)")
 
 
 def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], opts: ExportOptions) -> str:
