@@ -95,11 +95,16 @@ class DeviceWatcher:
             from puppet.mapping.defaults import default_map_name, load_default_map, merge
 
             name = default_map_name(dev.spec, dev.description)
-            if name is not None:
-                core.mapper.add_spec(merge([(load_default_map(name), dev.spec)]))
-                core.mapper.declare_controls(dev.spec, dev.controls)
-            dev.add_listener(self.queue)
-            dev.start()
+            try:
+                if name is not None:
+                    core.mapper.add_spec(merge([(load_default_map(name), dev.spec)]))
+                    core.mapper.declare_controls(dev.spec, dev.controls)
+                dev.add_listener(self.queue)
+                dev.start()
+            except Exception as err:  # a box that fails to start must not stop the show
+                print(f"puppet: cannot use {dev.spec}: {err}", file=sys.stderr)
+                dev.close()
+                continue
             self.devs.append(dev)
             core.mark(f"plugged in: {dev.spec}")
             print(f"puppet: new control box {dev.spec} ({name or 'no default map'})", file=sys.stderr)

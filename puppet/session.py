@@ -54,6 +54,7 @@ class SessionWriter:
             raise ConfigError(f"{self.path}: cannot write the recording: {err.strerror}") from err
         full = {"t": "header", "format": FORMAT, "version": VERSION, **header}
         self._last: np.ndarray | None = None
+        self.error: OSError | None = None
         self._last_flush = self._clock()
         self._done_ticks = 0
         self._write(full)
@@ -61,7 +62,24 @@ class SessionWriter:
 
     def _write(self, rec: dict[str, Any]) -> None:
         if self._file is not None:
-            self._file.write(_json(rec) + "\n")
+            try:
+                self._file.write(_json(rec) + "\n")
+            except OSError as err:
+                self._fail(err)
+
+    def _fail(self, err: OSError) -> None:
+        """Disk full or gone: stop recording, keep what is on disk, and let the show go on."""
+        import sys
+
+        self.error = err
+        print(f"puppet: warning: recording to {self.path} stopped: {err.strerror or err}; "
+              f"the part written so far is readable", file=sys.stderr)
+        try:
+            if self._file is not None:
+                self._file.close()
+        except OSError:
+            pass
+        self._file = None
 
     def event(self, tick: int, ev: ControlEvent | StatusEvent, t0: float = 0.0) -> None:
         """A raw device event applied at tick boundary `tick`; `time` is relative to t0."""
@@ -100,7 +118,11 @@ class SessionWriter:
             return
         if self._done_ticks:
             self._write({"t": "sync", "tick": self._done_ticks})
-        self._file.flush()
+        try:
+            if self._file is not None:
+                self._file.flush()
+        except OSError as err:
+            self._fail(err)
         self._last_flush = self._clock()
 
     def close(self, ticks: int | None = None) -> None:
@@ -109,12 +131,17 @@ class SessionWriter:
             return
         n = self._done_ticks if ticks is None else ticks
         self._write({"t": "end", "ticks": n})
-        self._file.flush()
+        if self._file is None:
+            return
         try:
+            self._file.flush()
             os.fsync(self._file.fileno())
         except OSError:
             pass
-        self._file.close()
+        try:
+            self._file.close()
+        except OSError:
+            pass
         self._file = None
 
     def __enter__(self) -> SessionWriter:

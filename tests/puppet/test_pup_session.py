@@ -112,3 +112,29 @@ def test_damaged_record_stops_reading_with_a_warning(tmp_path: Path, bad: str) -
     p.write_text("\n".join(lines) + "\n")
     s = read_session(p)
     assert s.ticks == 3 and s.warnings and "damaged record" in s.warnings[0]
+
+
+def test_disk_full_stops_recording_but_not_the_show(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / "s.jsonl"
+    w = SessionWriter(p, header())
+    w.values(0, np.array([1.0, 2.0, 3.0]))
+    w.tick(1)
+    w.flush()
+
+    class Full:
+        def write(self, s: str) -> int:
+            raise OSError(28, "No space left on device")
+
+        def flush(self) -> None:
+            pass
+
+        def close(self) -> None:
+            pass
+
+    w._file.close()  # type: ignore[union-attr]
+    w._file = Full()  # type: ignore[assignment]
+    w.values(1, np.array([1.5, 2.0, 3.0]))  # must not raise
+    w.tick(2)
+    w.close(2)
+    assert w.error is not None and "No space left" in capsys.readouterr().err
+    assert read_session(p).ticks == 1
