@@ -315,6 +315,8 @@ def check_duration(duration: float | None) -> None:
 # --- the window drivers --------------------------------------------------------------------------
 
 WINDOW_KEYS = "ESC eases to neutral   M marker   F1 help   F3 HUD   F4 view   F11 fullscreen   F10 quit"
+HELP_LINES = ["mouse: drag to orbit, scroll to zoom   F5: reset the view   F4: next view",
+              "views: shaded, wireframe, muscles, trails, heat   F3: HUD on/off   F11: fullscreen"]
 REPLAY_KEYS = "SPACE pause   LEFT/RIGHT seek 1 s   UP/DOWN speed   HOME restart   N next marker   ESC quit"
 
 
@@ -344,8 +346,10 @@ def _common_key(win: Any, name: str) -> bool:
         win.request_close()
     elif name == "f11":
         win.toggle_fullscreen()
-    elif name == "f1":
-        win.show_help = not win.show_help
+    elif name == "f1":  # our own help: the window's built-in help describes keys we turned off
+        win.puppet_help = not getattr(win, "puppet_help", False)
+    elif name == "f5":
+        win.renderer.camera.reset()
     elif name == "f3":
         win.show_hud = not win.show_hud
     elif name == "f4":
@@ -356,7 +360,7 @@ def _common_key(win: Any, name: str) -> bool:
     return True
 
 
-def live_hud(core: LiveCore, devs: Sequence[Any], keymap: bool) -> Any:
+def live_hud(core: LiveCore, devs: Sequence[Any], keymap: bool, help: bool = False) -> Any:
     """What the HUD shows live: active channels, each device connected/lost, latency, the key map
     when the keyboard is the control box, and bindings waiting for pickup or on a lost device."""
     from render.hud import HudInfo, active_channels
@@ -377,6 +381,8 @@ def live_hud(core: LiveCore, devs: Sequence[Any], keymap: bool) -> Any:
         elif b.kind == "absolute" and not b.engaged:
             lines.append(f"move {b.spec.control} to pick up {what}")
     lines.append(WINDOW_KEYS)
+    if help:
+        lines += HELP_LINES
     return HudInfo(channels=active_channels(core.face.model.channels, core.values),
                    devices=status, latency_ms=None if p50 is None else p50 * 1e3, lines=lines[-24:])
 
@@ -417,7 +423,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
         if sched["start"] + (core.tick_count - sched["k0"]) * core.dt < now - 4 * core.dt:
             sched["start"], sched["k0"] = now, core.tick_count  # too far behind: drop wall time
         w.state = core.state
-        w.hud = live_hud(core, devs, keymap)
+        w.hud = live_hud(core, devs, keymap, getattr(w, "puppet_help", False))
 
     win.add_frame_callback(on_frame)
     try:
@@ -484,6 +490,8 @@ def run_replay_window(perf: Any, start: float = 0.0, end: float | None = None, s
         status = "paused" if play["paused"] else ("end" if rp.tick >= end_tick else "playing")
         lines = [f"{rp.tick / perf.rate:7.2f} / {end_tick / perf.rate:.2f} s   x{play['speed']:g}   {status}"]
         lines += [f"marker: {m}" for m in marks] + [REPLAY_KEYS]
+        if getattr(w, "puppet_help", False):
+            lines += HELP_LINES
         vals = perf.values[max(0, rp.tick - 1)]
         w.hud = HudInfo(channels=active_channels(perf.face.model.channels, vals), lines=lines)
 
