@@ -120,7 +120,8 @@ def _layout(resolution: int) -> tuple[fc.ChartLayout, FloatArray, FloatArray]:
 
 def _rows(resolution: int) -> list[FloatArray]:
     """Lid and lip rings, then the wrinkle lines, then their flank rows (earlier rows win where
-    two come closer than the thinning distance)."""
+    two come closer than the thinning distance). Row steps and flank distances are per line
+    (`fc.ROW_STEP`, `fc.FLANK`), halved at each resolution step."""
     s = 0.5**resolution
     n_eye = 10 * 2**resolution
     rings = [fc.eye_loop_chart(int(round(n_eye * (1.0 + 0.05 * k))), g * s) for k, g in enumerate((0.22, 0.47, 0.8))]
@@ -131,9 +132,12 @@ def _rows(resolution: int) -> list[FloatArray]:
         if name.startswith("crows"):
             (flanks if "flank" in name else lines).append(fc.resample(line, 0.42 * s))
             continue
-        base = fc.resample(line, (0.8 if name.startswith("forehead") else 0.55) * s)
+        step = next((h for k, h in fc.ROW_STEP.items() if name.startswith(k)), 0.55)
+        gap = next((h for k, h in fc.FLANK.items() if name.startswith(k)), 0.3)
+        base = fc.resample(line, step * s)
         lines.append(base)
-        flanks += [fc.offset(base, 0.3 * s), fc.offset(base, -0.3 * s)]
+        sides = (-1.0,) if name in fc.ONE_SIDED else (1.0, -1.0)
+        flanks += [fc.offset(base, side * gap * s) for side in sides]
     return rings + lines + flanks
 
 

@@ -19,6 +19,8 @@ FloatArray = np.ndarray
 
 H_MIN, H_MAX = 0.3, 1.45
 """cm: vertex spacing at resolution 0 next to the eyes and mouth, and on the forehead/cheek sides."""
+SIDE_COARSEN = 0.4
+"""fraction by which the fill's spacing grows further on the cheek sides, towards the ears."""
 U_SIDE = 9.6
 """chart u of the side border (about 78 degrees round the head: in front of the ears)."""
 V_TOP = 7.0
@@ -29,6 +31,24 @@ JAW_BORDER = np.array(
 )
 FOREHEAD_LINES = (3.2, 4.2, 5.2)
 """chart heights of the horizontal forehead wrinkle rows (at the midline)."""
+NASAL_ROOT_DY = 0.36
+"""cm above the eye centres: the nasal-root line, just under the nasion (y = 0.6)."""
+GLABELLA_OBLIQUE = ((1.05, 0.95), (1.41, 1.5), (1.75, 2.2))
+"""frontal (x, y - eye centre height) of the oblique glabellar line, through the inner brow head."""
+LIP_UPPER_X = (0.45, 0.95, 1.45)
+LIP_LOWER_X = (0.5, 1.1)
+"""frontal x of the perioral lines' ends nearest the lips (the mask's, sim.wrinkles.mask); the upper
+lines' flank rows (0.25 cm) are shared between neighbours, the lower ones' (0.3 cm) too."""
+FLANK = {"lip_upper": 0.25}
+"""cm at resolution 0 between a wrinkle row and its flank rows, by line-name prefix (default 0.3)."""
+ONE_SIDED = ("glabella_oblique",)
+"""lines with a flank row on their right (lateral) side only: the skin medial to the oblique
+glabellar line is the vertical line's roll, which has its own rows."""
+ROW_STEP = {
+    "forehead": 0.8, "nasolabial": 0.7, "marionette": 0.7, "chin_crease": 0.65, "lip": 0.16, "nasal_root": 0.3,
+    "glabella_oblique": 0.55,
+}
+"""cm at resolution 0 between the vertices along a wrinkle row, by line-name prefix (default 0.55)."""
 
 
 def sizing(u: FloatArray, v: FloatArray) -> FloatArray:
@@ -41,7 +61,10 @@ def sizing(u: FloatArray, v: FloatArray) -> FloatArray:
     g = np.maximum(np.exp(-((np.maximum(rho_e - 1.0, 0.0) / 1.0) ** 2)), np.exp(-((np.maximum(rho_m - 1.0, 0.0) / 0.9) ** 2)))
     g = np.maximum(g, 0.8 * np.exp(-((au / 1.5) ** 2) - ((v + 4.5) / 1.1) ** 2))
     g = np.maximum(g, 0.45 * np.exp(-((au / 2.0) ** 2) - ((v + 1.5) / 2.5) ** 2))
-    return H_MAX - (H_MAX - H_MIN) * g
+    h = H_MAX - (H_MAX - H_MIN) * g
+    # Coarser still on the cheek sides, where nothing creases.
+    side = np.clip((au - 5.5) / 2.5, 0.0, 1.0)
+    return h * (1.0 + SIDE_COARSEN * side**2)
 
 
 def resample(poly: FloatArray, spacing: float, closed: bool = False) -> FloatArray:
@@ -65,6 +88,23 @@ def offset(poly: FloatArray, d: float) -> FloatArray:
 def to_chart(xy: FloatArray) -> FloatArray:
     """Frontal (x, y) of the left half -> chart (u, v)."""
     return np.stack([fs.chart_u(xy[:, 0], xy[:, 1]), xy[:, 1]], axis=1)
+
+
+def frontal_to_chart(xy: FloatArray, iters: int = 6) -> FloatArray:
+    """Left-half frontal (x, y) of the skin itself (after the relief, the lids and the lips have
+    moved it) -> chart (u, v), by Newton steps on `fs.surface` from `to_chart`. For rows that
+    must lie exactly under a wrinkle line of the mask, which is given on the skin."""
+    xy = np.asarray(xy, dtype=float)
+    uv = to_chart(xy)
+    eps = 1e-5
+    for _ in range(iters):
+        p = fs.surface(uv[:, 0], uv[:, 1])[:, :2]
+        pu = fs.surface(uv[:, 0] + eps, uv[:, 1])[:, :2]
+        pv = fs.surface(uv[:, 0], uv[:, 1] + eps)[:, :2]
+        j = np.stack([(pu - p) / eps, (pv - p) / eps], axis=2)  # (N, 2 xy, 2 uv)
+        uv = uv + np.linalg.solve(j, (xy - p)[:, :, None])[:, :, 0]
+        uv[:, 0] = np.maximum(uv[:, 0], 0.0)
+    return uv
 
 
 def eye_loop_chart(n: int, grow: float = 0.0) -> FloatArray:
@@ -110,6 +150,16 @@ def wrinkle_lines() -> dict[str, FloatArray]:
     lines["marionette"] = to_chart(np.array([[3.05, -7.75], [3.15, -8.8], [3.25, -10.0]]))
     x = np.linspace(0.0, 1.9, 8)
     lines["chin_crease"] = to_chart(np.stack([x, -8.75 + 0.25 * (x / 1.9) ** 2], axis=1))
+    # Lines placed on the skin itself (the mask's, sim.wrinkles.mask): the nasal root at the
+    # nasion, the oblique glabellar lines above the inner brow heads, and the short perioral lines.
+    ey = fs.EYE_CENTER_XY[1]
+    x = np.linspace(0.0, 0.8, 5)
+    lines["nasal_root"] = frontal_to_chart(np.stack([x, ey + NASAL_ROOT_DY + 0.06 * (x / 0.8) ** 2], axis=1))
+    lines["glabella_oblique"] = frontal_to_chart(np.array(GLABELLA_OBLIQUE) + [0.0, ey])
+    for i, x0 in enumerate(LIP_UPPER_X, start=1):
+        lines[f"lip_upper_{i}"] = frontal_to_chart(np.array([[x0, fs.MOUTH_V + 0.62], [x0 + 0.05, fs.MOUTH_V + 1.15]]))
+    for i, x0 in enumerate(LIP_LOWER_X, start=1):
+        lines[f"lip_lower_{i}"] = frontal_to_chart(np.array([[x0, fs.MOUTH_V - 0.78], [x0 + 0.05, fs.MOUTH_V - 1.18]]))
     return lines
 
 

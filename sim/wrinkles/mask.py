@@ -134,10 +134,10 @@ REFERENCE_MASK: tuple[_Spec, ...] = (
           ("corrugator_l", "corrugator_r", "procerus"), 0.4, 1.25, paired=False, emphasis=1.2),
     _Spec("glabella_vertical_r", "eyes_mid", ((-0.6, 0.78), (-0.62, 1.58), (-0.68, 2.38)),
           ("corrugator_l", "corrugator_r", "procerus"), 0.0, 0.4, paired=False, emphasis=1.2),
-    # oblique glabellar lines above the inner brow heads; the roll medial to them is the
+    # oblique glabellar lines through the inner brow heads; the roll medial to them is the
     # vertical line's
-    _Spec("glabella_oblique", "eyes_mid", ((1.05, 0.95), (1.35, 1.6), (1.75, 2.2)),
-          ("corrugator_{s}", "procerus"), 0.35, 0.0),
+    _Spec("glabella_oblique", "eyes_mid", ((1.05, 0.95), (1.41, 1.5), (1.75, 2.2)),
+          ("corrugator_{s}", "procerus"), 0.5, 0.0),
     # nasal-root line: procerus pulls the glabella down, compressing the skin at the nasion
     _Spec("nasal_root", "eyes_mid", ((-0.8, 0.42), (0.0, 0.36), (0.8, 0.42)),
           ("procerus", "corrugator_l", "corrugator_r"), 0.3, 0.3, paired=False),
@@ -159,16 +159,20 @@ REFERENCE_MASK: tuple[_Spec, ...] = (
     # marionette line from below the mouth corner towards the jaw
     _Spec("marionette", "mouth_corner", ((0.4, -0.55), (0.5, -1.6), (0.6, -2.8)),
           ("depressor_anguli_oris_{s}",), 0.35, 0.35),
-    # perioral lines: short vertical lines above the upper and below the lower lip
+    # perioral lines: short vertical lines above the upper and below the lower lip. The builder
+    # lays a row on each and flank rows halfway between neighbours, so, as on the forehead, each
+    # line carries the roll on its medial side (up to the next line in) and the outermost one
+    # also the lateral roll. Upper lines are drawn upwards ("+" medial on the left), lower ones
+    # downwards ("+" lateral on the left).
     *(
         _Spec(f"lip_upper_{i}", "mouth_center", ((x, 0.62), (x + 0.05, 1.15)),
-              ("orbicularis_oris",), 0.18, 0.18, emphasis=0.8)
-        for i, x in enumerate((0.45, 0.95, 1.45), start=1)
+              ("orbicularis_oris",), lateral, medial, emphasis=0.8)
+        for i, (x, lateral, medial) in enumerate(((0.45, 0.0, 0.45), (0.95, 0.0, 0.5), (1.45, 0.5, 0.5)), start=1)
     ),
     *(
         _Spec(f"lip_lower_{i}", "mouth_center", ((x, -0.78), (x + 0.05, -1.18)),
-              ("orbicularis_oris",), 0.18, 0.18, emphasis=0.8)
-        for i, x in enumerate((0.5, 1.1), start=1)
+              ("orbicularis_oris",), medial, lateral, emphasis=0.8)
+        for i, (x, medial, lateral) in enumerate(((0.5, 0.5, 0.6), (1.1, 0.0, 0.6)), start=1)
     ),
     # chin crease (mentolabial sulcus): mentalis pushes the chin boss up into it
     _Spec("chin_crease", "mouth_center",

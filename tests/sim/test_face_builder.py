@@ -264,8 +264,9 @@ def test_bad_resolution_is_a_value_error() -> None:
 
 def test_wrinkle_lines_have_rows_on_both_sides(mesh0: FaceMesh) -> None:
     """Seed 003 section 2: every expressive wrinkle line has vertices on it and on either side
-    within about 3 mm, so a furrow and its rolls can be shaped."""
-    from sim.face_chart import resample, wrinkle_lines
+    within about 3 mm, so a furrow and its rolls can be shaped (only on its lateral side for a
+    line whose medial roll is another line's)."""
+    from sim.face_chart import ONE_SIDED, resample, wrinkle_lines
 
     uv = mesh0.uv
     assert uv is not None
@@ -274,8 +275,9 @@ def test_wrinkle_lines_have_rows_on_both_sides(mesh0: FaceMesh) -> None:
             continue  # rows beside the crow's feet, not wrinkles
         if name.startswith("crows_feet"):
             line = line[:3]  # the rays fan out: only near the eye corner are they 3 mm apart
-        pts = resample(line, 0.2)[1:-1]
-        tang = np.gradient(pts, axis=0)
+        every = resample(line, 0.2)
+        pts = every[1:-1]
+        tang = np.gradient(every, axis=0)[1:-1]  # short lines (perioral) have one inner point
         tang /= np.linalg.norm(tang, axis=1, keepdims=True)
         for p, t in zip(pts, tang):
             rel = uv - p
@@ -283,5 +285,5 @@ def test_wrinkle_lines_have_rows_on_both_sides(mesh0: FaceMesh) -> None:
             across = rel @ np.array([-t[1], t[0]])
             near = np.abs(along) < 0.45
             assert (near & (np.abs(across) < 0.05)).any(), (name, p)
-            assert (near & (across > 0.1) & (across < 0.4)).any(), (name, p)
+            assert name in ONE_SIDED or (near & (across > 0.1) & (across < 0.4)).any(), (name, p)
             assert (near & (across < -0.1) & (across > -0.4)).any(), (name, p)
