@@ -59,7 +59,7 @@ def implicit_substeps(model: FaceModel, frame_dt: float) -> int:
     return max(1, math.ceil(frame_dt * omega_r / OMEGA_H))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _lu_solve(b, perm_r, perm_c, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_diag, y, out):  # type: ignore[no-untyped-def]
     """x = Pc U^-1 L^-1 Pr b for 3 right-hand sides; L unit lower, U upper, both CSC."""
     n = b.shape[0]
@@ -126,7 +126,7 @@ class PrefactoredSolver:
         return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _pd_springs(y, springs, rest_len, k_low, k_high, thr, out):  # type: ignore[no-untyped-def]
     """Adds sum_s k_h (e_j - e_i) d_s to out (the local step; see the module docstring)."""
     for s in range(springs.shape[0]):

@@ -45,7 +45,7 @@ RK2_WORK_LIMIT = 200_000  # spring evaluations per frame (substeps x springs, tw
 # each) above which method="auto" picks the implicit integrator: ~3 ms of one core here
 
 
-@numba.njit(cache=True, fastmath=False)
+@numba.njit(cache=True, fastmath=False, nogil=True)
 def _accel(x, v, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_m, free, out):  # type: ignore[no-untyped-def]
     n = x.shape[0]
     for i in range(n):
@@ -83,7 +83,7 @@ def _accel(x, v, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm,
             out[i, d] *= w
 
 
-@numba.njit(cache=True, fastmath=False)
+@numba.njit(cache=True, fastmath=False, nogil=True)
 def _eye_contact(x, v, idx, eye, centres, radius):  # type: ignore[no-untyped-def]
     """Keeps the contact vertices outside the eyeball spheres: a vertex inside is put back on the
     sphere and loses the inward part of its velocity (the eyeball is rigid and frictionless)."""
@@ -108,7 +108,7 @@ def _eye_contact(x, v, idx, eye, centres, radius):  # type: ignore[no-untyped-de
                 v[i, 2] -= vn * nz
 
 
-@numba.njit(cache=True, fastmath=False)
+@numba.njit(cache=True, fastmath=False, nogil=True)
 def _rk2_frame(x, v, n_sub, h, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_m,
                free, a1, xm, vm, eye_idx, eye_of, centres, radius):  # type: ignore[no-untyped-def]
     """n_sub explicit-midpoint substeps of size h, in place on x, v, each followed by the eyeball

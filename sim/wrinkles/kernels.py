@@ -20,14 +20,14 @@ _D_MAX = float(D_NODES[-1])
 _A_MAX = float(A_NODES[-1])
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, nogil=True)
 def _cell(x: float, first: float, step: float, n: int) -> tuple[int, float]:
     t = min(max((x - first) / step, 0.0), n - 1.0)
     i = min(int(t), n - 2)
     return i, t - i
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _s(values: np.ndarray, d: float, a: float, alpha: float) -> float:
     """Eq 14 read at the scaled coordinates of a query in cm (arclength.lookup)."""
     k = min(_D_MAX / max(d, 1e-12), _A_MAX / max(a, 1e-12))
@@ -45,7 +45,7 @@ def _s(values: np.ndarray, d: float, a: float, alpha: float) -> float:
     return out / k
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _grow(values: np.ndarray, d: float, target: float, alpha: float, a_cap: float, n: int) -> float:
     lo_a, hi_a = d / 3.0, a_cap * d
     a_l, s_l = lo_a, _s(values, d, lo_a, alpha)
@@ -73,7 +73,7 @@ def _grow(values: np.ndarray, d: float, target: float, alpha: float, a_cap: floa
     return a_l + f * (a_h - a_l)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _solve_one(values: np.ndarray, d: float, target: float, alpha_min: float, a_cap: float,
                n_samples: int) -> tuple[float, float]:
     """bulge.solve_segment for one cross-section: (a, alpha)."""
@@ -102,7 +102,7 @@ def _solve_one(values: np.ndarray, d: float, target: float, alpha_min: float, a_
     return _grow(values, d, target, amax, a_cap, n_samples), amax
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def solve_rolls(
     tables: np.ndarray,
     which: np.ndarray,
@@ -122,7 +122,7 @@ def solve_rolls(
                                             n_samples)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def frame_displacement(
     pos: np.ndarray,
     anchor_tri: np.ndarray,
