@@ -24,6 +24,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--headless", action="store_true", help="no window: for scripted and recorded runs")
     p.add_argument("--duration", type=float, metavar="S", help="stop cleanly after S seconds")
     p.add_argument("--fullscreen", action="store_true", help="fullscreen window")
+    p.add_argument("--demo", action="store_true",
+                   help="perform the built-in demo (about 20 s): in the window when there is a display, "
+                   "else headless into a recording, an MP4 and a PNG in the current folder")
     p.set_defaults(func=run)
 
 
@@ -116,21 +119,31 @@ class DeviceWatcher:
 
 def run(args: argparse.Namespace) -> int:
     from puppet import live
+    from puppet.errors import PuppetError
 
     def warn(msg: str) -> None:
         print(f"puppet: {msg}", file=sys.stderr)
 
     live.check_duration(args.duration)
     windowed = not args.headless and live.display_available()
+    if args.demo:
+        if args.device:
+            raise PuppetError("--demo plays its own scripted box: leave out --device")
+        return _demo(args, live, windowed, warn)
     snapshot: Path | None = None
     record = args.record
+    devs = _open_devices(list(args.device), warn)
+    if not devs and not windowed:
+        length = "about 20 s" if args.duration is None else f"at most {args.duration:g} s"
+        warn(f"no control box and no display: performing the built-in demo ({length}) headless into a "
+             "recording, an MP4 and a PNG here (`puppet live --demo` does this on purpose)")
+        return _demo(args, live, False, warn, quiet=True)
     if not args.headless and not windowed:
         record = record or str(live.default_record_path())
         snapshot = Path(record).with_suffix(".png")
         warn(f"no display found (DISPLAY is not set): running headless, recording to {record} and "
              f"saving the last frame to {snapshot}; replay with `puppet replay {record} --out video.mp4`")
     face = live.load_face(args.rig)
-    devs = _open_devices(list(args.device), warn)
     mapped = [(d.spec, d.description) for d in devs]  # these get their default maps
     if windowed and not any(d.spec.startswith("keyboard") for d in devs):
         import devices
@@ -139,8 +152,6 @@ def run(args: argparse.Namespace) -> int:
         if not devs:
             mapped.append((kb.spec, kb.description))
         devs.append(kb)
-    if not devs:
-        warn("no control box found and no window for the keyboard: the face stays neutral")
     try:
         return _perform(args, live, face, devs, mapped, windowed, record, snapshot, warn, watch=not args.device)
     finally:
@@ -223,3 +234,57 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
             warn(f"could not render the snapshot ({err}); the recording is intact")
     return 0
 
+
+
+def _demo(args: argparse.Namespace, live: Any, windowed: bool, warn: Any, quiet: bool = False) -> int:
+    """The built-in demo through the real mock:// device -> SGI map -> simulator path. In a window
+    it plays in real time (and records); headless it runs on script time, records, exports an MP4
+    of the recording (re-simulated, as `puppet replay` would) and saves the last frame as a PNG."""
+    import devices
+    from puppet.demo import SCRIPT
+
+    stamp = live.default_record_path().name.replace("puppet-", "puppet-demo-")
+    record = Path(args.record or stamp)
+    spec = f"mock://{SCRIPT}" + ("?speed=1" if windowed else "")
+    dev = devices.open_device(spec)
+    if args.duration is None or args.duration > dev.script.duration:
+        args.duration = dev.script.duration
+    if not quiet:
+        where = "in the window" if windowed else "headless"
+        warn(f"performing the built-in demo ({args.duration:.1f} s) {where}, recording to {record}")
+    face = live.load_face(args.rig)
+    devs = [dev]
+    mapped = [(dev.spec, dev.description)]
+    if windowed:
+        devs.append(devices.open_device("keyboard://"))  # ESC panic, M marker
+    try:
+        snapshot = None if windowed else record.with_suffix(".png")
+        code = _perform(args, live, face, devs, mapped, windowed, str(record), snapshot, warn)
+    finally:
+        for d in devs:
+            try:
+                d.close()
+            except Exception:  # closing must not hide the real outcome
+                pass
+    if code or windowed:
+        print(f"puppet: replay with `puppet replay {record}`; make a video with "
+              f"`puppet replay {record} --out {record.with_suffix('.mp4')}`")
+        return code
+    return _demo_files(record, warn)
+
+
+def _demo_files(record: Path, warn: Any) -> int:
+    """The demo's MP4, made by replaying its recording (as `puppet replay --out` does)."""
+    from puppet.export.runner import ExportOptions, export
+    from puppet.replay import build_performance
+    from puppet.session import read_session
+
+    mp4 = record.with_suffix(".mp4")
+    try:
+        export(build_performance(read_session(record), None), mp4, ExportOptions(fps=30.0))
+        print(f"puppet: video written to {mp4}")
+    except Exception as err:  # a missing GL or encoder must not lose the recording
+        warn(f"could not write {mp4} ({err}); the recording is intact")
+    print(f"puppet: demo recorded to {record}; replay it with `puppet replay {record}` "
+          f"(or `puppet replay {record} --out other.mp4 --view wireframe`)")
+    return 0
