@@ -269,32 +269,77 @@ def run_virtual(core: LiveCore, events: Sequence[Event], duration: float,
             on_frame(core)
 
 
+#: the last part of a wait before a tick boundary is spent spinning: a sleep wakes up late by the
+#: scheduler's latency (often 0.1-1 ms, more on a busy machine), a spin does not
+SPIN_S = 0.0015
+#: while the loop runs, a thread waiting for the GIL gets it after at most this long (CPython's
+#: default is 5 ms: a device thread holding the GIL at a tick boundary would delay the tick by that)
+SWITCH_INTERVAL_S = 0.0005
+
+
+def wait_until(deadline: float, clock: Callable[[], float] = time.monotonic,
+               sleep: Callable[[float], None] = time.sleep, stop: StopFlag | None = None,
+               spin: float = SPIN_S) -> float:
+    """Wait for an absolute deadline (no drift from relative sleeps): sleep to within `spin` of it,
+    then spin, yielding the GIL to the device threads. Returns the clock when it returned. With an
+    injected sleep (tests' fake clocks) it only sleeps: a fake clock does not move while spinning."""
+    real = sleep is time.sleep
+    while True:
+        now = clock()
+        rem = deadline - now
+        if rem <= 0 or (stop is not None and stop.stopped):
+            return now
+        if rem > spin or not real:
+            sleep(min(rem - spin, 0.05) if real else min(rem, 0.05))
+        else:
+            time.sleep(0)  # releases the GIL for a moment; returns at once
+
+
+class _SwitchInterval:
+    """Shorter GIL hand-over while the live loop runs (restored after)."""
+
+    def __enter__(self) -> None:
+        import sys
+
+        self.old = sys.getswitchinterval()
+        sys.setswitchinterval(min(self.old, SWITCH_INTERVAL_S))
+
+    def __exit__(self, *exc: object) -> None:
+        import sys
+
+        sys.setswitchinterval(self.old)
+
+
 def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None,
                  clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep,
                  on_frame: Callable[[LiveCore], None] | None = None, stop: StopFlag | None = None) -> None:
     """Headless, on the wall clock: tick k happens at t0 + k*dt and takes every event that has
-    arrived; a loop more than 4 ticks late drops wall time (re-anchors) rather than lag behind."""
+    arrived; a loop more than 4 ticks late drops wall time (re-anchors) rather than lag behind.
+
+    The critical path from a boundary is kept short: wait for it on an absolute deadline (sleep, then
+    a short spin), drain the input at that moment, tick, render (`on_frame`, which should finish the
+    frame, e.g. read it back), and only then stamp the frame as presented."""
     start = clock()
     k0 = 0
-    while True:
-        if stop is not None and stop.stopped:
-            break
-        if duration is not None and core.tick_count >= int(round(duration * core.rate)):
-            break
-        boundary = start + (core.tick_count - k0) * core.dt
-        now = clock()
-        if now < boundary:
-            sleep(min(boundary - now, 0.05))
-            continue
-        if now - boundary > 4 * core.dt:  # fell behind (machine busy): re-anchor the schedule
-            start, k0 = now, core.tick_count
-            boundary = now
-        # everything that arrived by now goes into this tick: waiting for the next boundary would
-        # only add latency, and the recording keeps the tick each event was applied at
-        core.tick(drain())
-        if on_frame is not None:
-            on_frame(core)
-        core.presented(clock())
+    limit = None if duration is None else int(round(duration * core.rate))
+    with _SwitchInterval():
+        while True:
+            if stop is not None and stop.stopped:
+                break
+            if limit is not None and core.tick_count >= limit:
+                break
+            boundary = start + (core.tick_count - k0) * core.dt
+            now = wait_until(boundary, clock, sleep, stop)
+            if stop is not None and stop.stopped:
+                break
+            if now - boundary > 4 * core.dt:  # fell behind (machine busy): re-anchor the schedule
+                start, k0 = now, core.tick_count
+            # everything that arrived by now goes into this tick: waiting for the next boundary would
+            # only add latency, and the recording keeps the tick each event was applied at
+            core.tick(drain())
+            if on_frame is not None:
+                on_frame(core)
+            core.presented(clock())
 
 
 def display_available() -> bool:
@@ -411,6 +456,8 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
     limit = None if duration is None else int(round(duration * core.rate))
 
     def on_frame(w: Any, now: float) -> None:
+        # runs right after the window polled its input and right before it draws: the ticks due
+        # take the freshest input, and nothing slow (the HUD) sits between them and the frame
         if (stop is not None and stop.stopped) or (limit is not None and core.tick_count >= limit):
             w.request_close()
             return
@@ -423,19 +470,23 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
         if sched["start"] + (core.tick_count - sched["k0"]) * core.dt < now - 4 * core.dt:
             sched["start"], sched["k0"] = now, core.tick_count  # too far behind: drop wall time
         w.state = core.state
-        w.hud = live_hud(core, devs, keymap, getattr(w, "puppet_help", False))
 
     win.add_frame_callback(on_frame)
+    win.hud = live_hud(core, devs, keymap)
     try:
-        while True:
-            t_frame = time.monotonic()
-            if not win.step():
-                break
-            core.presented(time.monotonic())
-            # without vsync (a virtual display) do not redraw faster than the tick
-            nxt = sched["start"] + (core.tick_count - sched["k0"]) * core.dt
-            if time.monotonic() - t_frame < 0.004:
-                time.sleep(max(0.0, min(nxt - time.monotonic(), core.dt)))
+        with _SwitchInterval():
+            while True:
+                t_frame = time.monotonic()
+                if not win.step():
+                    break
+                core.presented(time.monotonic())  # after the swap: the frame is on its way to the screen
+                # the HUD for the next frame is built off the critical path (it is one frame old)
+                win.hud = live_hud(core, devs, keymap, getattr(win, "puppet_help", False))
+                # without vsync (a virtual display) do not redraw faster than the tick: wait for the
+                # next boundary on an absolute deadline, so the tick runs as soon as it is due
+                if time.monotonic() - t_frame < 0.004:
+                    nxt = sched["start"] + (core.tick_count - sched["k0"]) * core.dt
+                    wait_until(min(nxt, time.monotonic() + core.dt), stop=stop)
     finally:
         win.close()
 

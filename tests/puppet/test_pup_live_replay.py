@@ -247,3 +247,47 @@ def test_hud_shows_key_map_latency_and_lost_devices(face: live.Face) -> None:
     assert hud.devices == [(kb.spec, False)] and any(line.startswith("LOST key:A") for line in hud.lines)
     assert "A smile" not in "\n".join(hud.lines)
     kb.close()
+
+
+class FakeClock:
+    """A clock that only moves when slept on (records every sleep)."""
+
+    def __init__(self) -> None:
+        self.t = 100.0
+        self.sleeps: list[float] = []
+
+    def __call__(self) -> float:
+        return self.t
+
+    def sleep(self, s: float) -> None:
+        self.sleeps.append(s)
+        self.t += max(s, 0.0)
+
+
+def test_wait_until_reaches_the_absolute_deadline_without_spinning_on_a_fake_clock() -> None:
+    clk = FakeClock()
+    woke = live.wait_until(100.2, clk, clk.sleep)
+    assert woke >= 100.2 and clk.t == woke
+    assert all(s <= 0.05 + 1e-12 for s in clk.sleeps)  # chunks, so a stop flag is noticed
+    stop = live.StopFlag(stopped=True)
+    assert live.wait_until(200.0, clk, clk.sleep, stop=stop) == clk.t  # a stop ends the wait at once
+    assert live.wait_until(50.0, clk, clk.sleep) == clk.t  # a past deadline does not wait
+
+
+def test_realtime_ticks_drain_input_at_each_boundary(face: live.Face) -> None:
+    clk = FakeClock()
+    spec = live.build_mapping(face.vocab, None, ["mock://"])
+    core = live.LiveCore(face, Mapper(spec, face.vocab))
+    arrivals = {3: [ControlEvent("mock://", "dial7", "dial", 0.25, 50.0, 50, 100.04)]}
+    drained_at: list[float] = []
+
+    def drain() -> list:
+        k = len(drained_at)
+        drained_at.append(clk.t)
+        return arrivals.get(k, [])
+
+    live.run_realtime(core, drain, 0.1, clock=clk, sleep=clk.sleep)
+    assert core.tick_count == 6 and len(drained_at) == 6
+    assert drained_at == pytest.approx([100.0 + k / 60 for k in range(6)])  # on the boundaries
+    assert core.latency.samples and core.latency.samples[0] == pytest.approx(100.05 - 100.04)
+    assert core.values[[c.name for c in face.vocab.channels].index("jaw")] > 0
