@@ -360,12 +360,16 @@ def check_duration(duration: float | None) -> None:
 # --- the window drivers --------------------------------------------------------------------------
 
 WINDOW_KEYS = "ESC eases to neutral   M marker   F1 help   F3 HUD   F4 view   F11 fullscreen   F10 quit"
-HELP_LINES = ["mouse: drag to orbit, scroll to zoom   F5: reset the view   F4: next view",
-              "views: shaded, wireframe, muscles, trails, heat   F3: HUD on/off   F11: fullscreen"]
+#: keys both windows answer (`_common_key`); the window's own keys (1-5, R, H, V, Esc) are off
+COMMON_HELP = ["F1 or ?: this help   F3: HUD on/off   F4: next view (shaded, wireframe, muscles, trails, heat)",
+               "F5: reset the view   F11: fullscreen   F10: quit   mouse: drag to orbit, scroll to zoom"]
+LIVE_HELP = ["ESC: ease back to neutral (panic)   M: drop a marker", *COMMON_HELP]
+KEYMAP_HELP = "letters, digits, arrows, SPACE: the key map above (the keyboard is the control box)"
 REPLAY_KEYS = "SPACE pause   LEFT/RIGHT seek 1 s   UP/DOWN speed   HOME restart   N next marker   ESC quit"
+REPLAY_HELP = [REPLAY_KEYS, *COMMON_HELP]
 
 
-def _window_or_none(model: Any, title: str) -> Any:
+def _window_or_none(model: Any, title: str, key_help: list[str]) -> Any:
     """A FaceWindow, or None (with one line saying why) when no window can be opened here."""
     import sys
 
@@ -375,11 +379,12 @@ def _window_or_none(model: Any, title: str) -> Any:
         print(f"puppet: no face window in this build ({err}): running headless", file=sys.stderr)
         return None
     try:
-        win = FaceWindow(model, title=title)
+        # our keys, not the window's: ESC is the panic key here, letters and digits belong to the
+        # key map; the window's help lists ours
+        win = FaceWindow(model, title=title, builtin_keys=False, key_help=key_help)
     except NoDisplayError as err:
         print(f"puppet: {err}: running headless", file=sys.stderr)
         return None
-    win.builtin_keys = False  # our keys: ESC is the panic key here, letters belong to the key map
     return win
 
 
@@ -391,8 +396,8 @@ def _common_key(win: Any, name: str) -> bool:
         win.request_close()
     elif name == "f11":
         win.toggle_fullscreen()
-    elif name == "f1":  # our own help: the window's built-in help describes keys we turned off
-        win.puppet_help = not getattr(win, "puppet_help", False)
+    elif name == "f1":  # the window shows the key help it was given (ours)
+        win.show_help = not win.show_help
     elif name == "f5":
         win.renderer.camera.reset()
     elif name == "f3":
@@ -426,8 +431,8 @@ def live_hud(core: LiveCore, devs: Sequence[Any], keymap: bool, help: bool = Fal
         elif b.kind == "absolute" and not b.engaged:
             lines.append(f"move {b.spec.control} to pick up {what}")
     lines.append(WINDOW_KEYS)
-    if help:
-        lines += HELP_LINES
+    if help:  # the window adds its key help itself (FaceWindow.key_help); this is for other HUDs
+        lines += LIVE_HELP
     return HudInfo(channels=active_channels(core.face.model.channels, core.values),
                    devices=status, latency_ms=None if p50 is None else p50 * 1e3, lines=lines[-24:])
 
@@ -436,12 +441,12 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
                fullscreen: bool = False, stop: StopFlag | None = None) -> None:
     """Ticks on the wall clock (at most 4 per frame, then the schedule re-anchors), frames at the
     window's pace; latency is measured when the frame showing an event has been swapped."""
-    win = _window_or_none(core.face.model, "facepuppet live")
+    kb = next((d for d in devs if d.spec.startswith("keyboard")), None)
+    keymap = kb is not None and len(devs) == 1
+    win = _window_or_none(core.face.model, "facepuppet live", [*LIVE_HELP, *([KEYMAP_HELP] if keymap else [])])
     if win is None:
         run_realtime(core, drain, duration, stop=stop)
         return
-    kb = next((d for d in devs if d.spec.startswith("keyboard")), None)
-    keymap = kb is not None and len(devs) == 1
     if fullscreen:
         win.toggle_fullscreen()
 
@@ -481,7 +486,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
                     break
                 core.presented(time.monotonic())  # after the swap: the frame is on its way to the screen
                 # the HUD for the next frame is built off the critical path (it is one frame old)
-                win.hud = live_hud(core, devs, keymap, getattr(win, "puppet_help", False))
+                win.hud = live_hud(core, devs, keymap)
                 # without vsync (a virtual display) do not redraw faster than the tick: wait for the
                 # next boundary on an absolute deadline, so the tick runs as soon as it is due
                 if time.monotonic() - t_frame < 0.004:
@@ -498,7 +503,7 @@ def run_replay_window(perf: Any, start: float = 0.0, end: float | None = None, s
 
     from puppet.replay import Replayer
 
-    win = _window_or_none(perf.face.model, "facepuppet replay")
+    win = _window_or_none(perf.face.model, "facepuppet replay", REPLAY_HELP)
     if win is None:
         raise PuppetError("no window can be opened here: use --headless or --out")
     try:
@@ -540,9 +545,7 @@ def run_replay_window(perf: Any, start: float = 0.0, end: float | None = None, s
         marks = [label for k, label in perf.markers if abs(k - rp.tick) < perf.rate * 0.5]
         status = "paused" if play["paused"] else ("end" if rp.tick >= end_tick else "playing")
         lines = [f"{rp.tick / perf.rate:7.2f} / {end_tick / perf.rate:.2f} s   x{play['speed']:g}   {status}"]
-        lines += [f"marker: {m}" for m in marks] + [REPLAY_KEYS]
-        if getattr(w, "puppet_help", False):
-            lines += HELP_LINES
+        lines += [f"marker: {m}" for m in marks] + [REPLAY_KEYS + "   F1 help"]
         vals = perf.values[max(0, rp.tick - 1)]
         w.hud = HudInfo(channels=active_channels(perf.face.model.channels, vals), lines=lines)
 

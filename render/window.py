@@ -23,11 +23,13 @@ from render.renderer import VIEWS, FaceRenderer, affordable_antialias
 KeyCallback = Callable[[str, str, float], None]
 FrameCallback = Callable[["FaceWindow", float], None]
 
+#: help for the window's own keys (`builtin_keys`); an owner that turns them off passes its own
 HELP_LINES = [
     "drag: orbit   scroll: zoom   R / Home: reset view",
     "1-5: shaded, wireframe, muscles, trails, heat   V: next view",
-    "F11: fullscreen   F2: antialiasing   H: HUD   ?: this help   Esc: quit",
+    "F11: fullscreen   F2: antialiasing   H: HUD   F1 / ?: this help   Esc: quit",
 ]
+MOUSE_HELP = ["drag: orbit   scroll: zoom"]
 _ACTIONS = {glfw.PRESS: "press", glfw.RELEASE: "release", glfw.REPEAT: "repeat"}
 _SPECIAL = {
     glfw.KEY_SPACE: "space", glfw.KEY_ESCAPE: "escape", glfw.KEY_ENTER: "enter", glfw.KEY_TAB: "tab",
@@ -58,11 +60,17 @@ class FaceWindow:
 
     Hooks for the live loop: `add_key_callback(fn(name, action, t))` receives every key press,
     release and repeat (t = time.monotonic()); `add_frame_callback(fn(window, t))` runs before each
-    frame is drawn, where the loop steps the face and sets `window.state` / `window.hud`."""
+    frame is drawn, where the loop steps the face and sets `window.state` / `window.hud`.
+
+    Keys: with `builtin_keys` (the default) the window answers its own keys (HELP_LINES). An owner
+    with its own keys sets `builtin_keys = False` and gives `key_help`, the lines the help shows
+    (toggled by `show_help`; `?` toggles it too whenever there is help to show), so the help always
+    lists the keys that are actually active."""
 
     def __init__(self, model: Any, size: tuple[int, int] = (1280, 720), title: str = "facepuppet",
                  view: str = "shaded", visible: bool = True, vsync: bool = True,
-                 antialias: str | None = None) -> None:
+                 antialias: str | None = None, builtin_keys: bool = True,
+                 key_help: list[str] | None = None) -> None:
         if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
             raise NoDisplayError("no display: DISPLAY is not set")
         with warnings.catch_warnings():
@@ -95,7 +103,8 @@ class FaceWindow:
         self.hud: HudInfo | None = None
         self.show_hud = True
         self.show_help = False
-        self.builtin_keys = True
+        self.builtin_keys = builtin_keys
+        self.key_help: list[str] | None = None if key_help is None else list(key_help)
         self.fps = 0.0
         self._last_frame: float | None = None
         self._drag: tuple[float, float] | None = None
@@ -195,8 +204,15 @@ class FaceWindow:
         if hud.fps is None and self.fps > 0:
             hud = replace(hud, fps=self.fps)
         if self.show_help:
-            hud = replace(hud, lines=[*hud.lines, *HELP_LINES])
+            hud = replace(hud, lines=[*hud.lines, *self.help_lines])
         return hud
+
+    @property
+    def help_lines(self) -> list[str]:
+        """What the help shows: the owner's key help, else the window's own keys when they are on."""
+        if self.key_help is not None:
+            return list(self.key_help)
+        return list(HELP_LINES if self.builtin_keys else MOUSE_HELP)
 
     # -- input ----------------------------------------------------------------------------------
     def _on_key(self, win: Any, key: int, scancode: int, action: int, mods: int) -> None:
@@ -227,7 +243,7 @@ class FaceWindow:
             self.request_close()
 
     def _on_char(self, win: Any, codepoint: int) -> None:
-        if self.builtin_keys and chr(codepoint) == "?":
+        if chr(codepoint) == "?" and (self.builtin_keys or self.key_help is not None):
             self.show_help = not self.show_help
 
     def _on_mouse_button(self, win: Any, button: int, action: int, mods: int) -> None:

@@ -93,3 +93,53 @@ def test_replay_window_transport_keys_and_quit(xvfb_display: str, tmp_path: Path
             proc.kill()
             proc.wait()
     assert proc.returncode == 0
+
+
+KEY_HELP_PROBE = r"""
+import json, sys
+from render.window import FaceWindow, HELP_LINES
+from puppet import live
+from sim import default_model
+
+model = default_model(0)
+out = {}
+win = live._window_or_none(model, "probe live", live.LIVE_HELP)
+out["live_builtin"] = win.builtin_keys
+win.renderer.view = "wireframe"
+live._common_key(win, "f1")                      # F1: the window's help, showing our keys
+out["live_f1"] = win._hud_for_frame().lines
+win._on_key(None, 49, 0, 1, 0)                    # "1" pressed: the window's own keys stay off
+win._on_key(None, 256, 0, 1, 0)                   # Esc pressed: no quit (it is the panic key)
+out["live_view_after_key"] = win.renderer.view
+out["live_closing"] = win.should_close
+win._on_char(None, ord("?"))                      # ? toggles the same help
+out["live_q_off"] = win.show_help
+win.close()
+view = FaceWindow(model, title="probe view")      # `puppet view`: the window's own keys
+view._on_char(None, ord("?"))
+out["view_help"] = view._hud_for_frame().lines
+view._builtin("2")
+out["view_after_2"] = view.renderer.view
+view.close()
+json.dump(out, sys.stdout)
+"""
+
+
+def test_window_help_lists_the_keys_that_are_active(xvfb_display: str) -> None:
+    import json
+
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "DISPLAY": xvfb_display, "PYTHONPATH": str(root)}
+    run = subprocess.run([sys.executable, "-c", KEY_HELP_PROBE], env=env, cwd=root, capture_output=True,
+                         text=True, timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]
+    out = json.loads(run.stdout)
+    live_help = "\n".join(out["live_f1"])
+    assert out["live_builtin"] is False
+    assert "F10: quit" in live_help and "ESC: ease back to neutral" in live_help and "F5: reset the view" in live_help
+    assert "Esc: quit" not in live_help and "1-5" not in live_help and "R / Home" not in live_help
+    assert out["live_view_after_key"] == "wireframe" and out["live_closing"] is False
+    assert out["live_q_off"] is False
+    view_help = "\n".join(out["view_help"])
+    assert "1-5" in view_help and "Esc: quit" in view_help and "F10" not in view_help
+    assert out["view_after_2"] == "wireframe"
