@@ -117,6 +117,8 @@ class HudRenderer:
         self.vao = ctx.vertex_array(self.prog, [(self.vbo, "2f 2f 4f", "in_pos", "in_uv", "in_color")])
         self._atlas: tuple[int, FontAtlas, moderngl.Texture] | None = None
         self._quads: list[tuple[float, ...]] = []  # x0 y0 x1 y1 u0 v0 u1 v1 r g b a
+        self._key: tuple[object, ...] | None = None  # what the uploaded vertices show
+        self._count = 0
 
     def atlas(self, px: int) -> tuple[FontAtlas, moderngl.Texture]:
         if self._atlas is None or self._atlas[0] != px:
@@ -156,6 +158,12 @@ class HudRenderer:
         w, h = size
         px = int(np.clip(round(h / 46), 11, 28))
         fa, tex = self.atlas(px)
+        shown = [None if x is None else round(float(x), 1) for x in (age, info.age, info.fps, info.latency_ms)]
+        key = (px, w, h, view, *shown, tuple(info.channels),
+               tuple(info.devices), tuple(info.lines))
+        if key == self._key:  # unchanged since the last frame: draw the uploaded vertices again
+            self._render(tex, size)
+            return
         self._quads = []
         lh = round(fa.line * 1.25)
         pad = round(px * 0.6)
@@ -187,6 +195,7 @@ class HudRenderer:
             for i, s in enumerate(info.lines):
                 self.text(fa, 2 * pad, y0 + pad / 2 + i * lh, s, WHITE)
         self._flush(tex, size)
+        self._key = key
 
     def _channels(self, fa: FontAtlas, chans: Sequence[tuple[str, float, float, float]],
                   pad: int, lh: int) -> None:
@@ -211,6 +220,7 @@ class HudRenderer:
             self.text(fa, bx + bar_w + pad, y, text, DIM)
 
     def _flush(self, tex: moderngl.Texture, size: tuple[int, int]) -> None:
+        self._count = 0
         if not self._quads:
             return
         q = np.array(self._quads, np.float32)
@@ -225,12 +235,18 @@ class HudRenderer:
         if len(raw) > self.vbo.size:
             self.vbo.orphan(len(raw) * 2)
         self.vbo.write(raw)
+        self._count = len(data)
+        self._render(tex, size)
+
+    def _render(self, tex: moderngl.Texture, size: tuple[int, int]) -> None:
+        if not self._count:
+            return
         self.prog["viewport"].value = (float(size[0]), float(size[1]))
         tex.use(0)
         self.prog["atlas"].value = 0
         self.ctx.enable_only(moderngl.BLEND)
         self.ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
-        self.vao.render(moderngl.TRIANGLES, vertices=len(data))
+        self.vao.render(moderngl.TRIANGLES, vertices=self._count)
         self.ctx.disable(moderngl.BLEND)
 
     def release(self) -> None:

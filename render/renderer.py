@@ -60,7 +60,7 @@ class FaceRenderer:
         self.heat_scale = 0.8
         self.model: Any = None
         self.trails: TrailHistory | None = None
-        self.skin_progs = {kind: ctx.program(vertex_shader=shaders.SKIN_VS,
+        self.skin_progs = {kind: ctx.program(vertex_shader=shaders.skin_source(kind, vertex=True),
                                              fragment_shader=shaders.skin_source(kind))
                            for kind in ("SKIN", "CLAY", "HEAT")}
         self.eye_prog = ctx.program(vertex_shader=shaders.EYE_VS, fragment_shader=shaders.EYE_FS)
@@ -130,19 +130,30 @@ class FaceRenderer:
         sph_vbo, sph_ibo = ctx.buffer(sphere.tobytes()), ctx.buffer(sphere_tris.tobytes())
         self.eye_vao = ctx.vertex_array(self.eye_prog, [(sph_vbo, "3f", "in_pos")], sph_ibo)
         g += [sph_vbo, sph_ibo, *self.skin_vaos.values(), self.edge_vao, self.eye_vao]
+        # every cavity in one buffer and one draw call: rim colour and teeth per vertex
         self.cavities = []
         loops = [(mesh.mouth_loop, MOUTH_RIM)] + [(lp, SOCKET_RIM) for lp in mesh.eye_loops]
+        tris, depth, teeth, rims, base = [], [], [], [], 0
         for loop, rim in loops:
             if len(loop) < 3:
                 continue
             cav = Cavity(loop, rest)
-            vbo = ctx.buffer(reserve=cav.n_vertices * 12, dynamic=True)
-            dep, ibo = ctx.buffer(cav.depth.tobytes()), ctx.buffer(cav.triangles.tobytes())
-            teeth = ctx.buffer(cav.teeth.tobytes())
-            vao = ctx.vertex_array(self.cavity_prog, [(vbo, "3f", "in_pos"), (dep, "1f", "in_depth"),
-                                                      (teeth, "1f", "in_teeth")], ibo)
-            g += [vbo, dep, teeth, ibo, vao]
-            self.cavities.append((cav, vbo, vao, rim))
+            self.cavities.append(cav)
+            tris.append(cav.triangles + base)
+            depth.append(cav.depth)
+            teeth.append(cav.teeth * (1.0 if rim == MOUTH_RIM else 0.0))
+            rims.append(np.tile(np.asarray(rim, np.float32), (cav.n_vertices, 1)))
+            base += cav.n_vertices
+        self.cavity_vao = None
+        if self.cavities:
+            self.cavity_vbo = ctx.buffer(reserve=base * 12, dynamic=True)
+            bufs = [ctx.buffer(np.concatenate(a).astype(np.float32).tobytes())
+                    for a in (depth, teeth, rims)]
+            ibo = ctx.buffer(np.concatenate(tris).astype(np.int32).tobytes())
+            self.cavity_vao = ctx.vertex_array(self.cavity_prog, [
+                (self.cavity_vbo, "3f", "in_pos"), (bufs[0], "1f", "in_depth"),
+                (bufs[1], "1f", "in_teeth"), (bufs[2], "3f", "in_rim")], ibo)
+            g += [self.cavity_vbo, *bufs, ibo, self.cavity_vao]
         self.muscles = MuscleLines(model.rig, rest)
         self.muscle_vbo = ctx.buffer(reserve=max(len(self.muscles), 1) * 12, dynamic=True)
         self.muscle_vao = ctx.vertex_array(self.thick_prog, [(self.muscle_vbo, "3f", "in_pos")])
@@ -202,8 +213,7 @@ class FaceRenderer:
         self.nrm_vbo.write(self.normals(surface).tobytes())
         if record or self.trails.count == 0:
             self.trails.push(surface, getattr(state, "time", None))
-        view_m, proj = self.camera.matrices(w / max(h, 1))
-        mvp = proj @ view_m
+        view_m, mvp = self._matrices(w / max(h, 1))
         post = self._post_program(ss)
         if post is None:  # straight into the target: no extra full-screen pass
             fbo, tex = target, None
@@ -230,6 +240,16 @@ class FaceRenderer:
                 hud = HudInfo(**{**hud.__dict__, "lines": hud.lines + [
                     f"heat: blue = still, red ≥ {self.heat_scale:g} cm from rest"]})
             self.hud.draw(hud, (w, h), view=self.view, age=getattr(state, "age", None))
+
+    def _matrices(self, aspect: float) -> tuple[np.ndarray, np.ndarray]:
+        """(view, projection @ view), recomputed only when the camera or the aspect changes."""
+        cam = self.camera
+        key = (aspect, cam.yaw, cam.pitch, cam.scale, cam.fov_y, cam.margin, cam.lo.tobytes(),
+               cam.hi.tobytes())
+        if getattr(self, "_camera_key", None) != key:
+            view_m, proj = cam.matrices(aspect)
+            self._camera_key, self._camera_mats = key, (view_m, proj @ view_m)
+        return self._camera_mats
 
     def _post_program(self, ss: int) -> tuple[moderngl.Program, moderngl.VertexArray] | None:
         """The pass from the internal framebuffer to the target, or None to draw directly."""
@@ -276,14 +296,13 @@ class FaceRenderer:
         """Dark pockets behind the mouth and eye openings, drawn after the skin (which hides most
         of them cheaply) and without depth writes: a backdrop that shows only through the holes,
         so it can never hide an eyeball drawn after it."""
+        if self.cavity_vao is None:
+            return
         self.cavity_prog["mvp"].write(_mat(mvp))
+        self.cavity_vbo.write(np.concatenate([c.positions(surface) for c in self.cavities]).tobytes())
         fbo = self.ctx.fbo
         fbo.depth_mask = False
-        for cav, vbo, vao, rim in self.cavities:
-            vbo.write(cav.positions(surface).tobytes())
-            self.cavity_prog["rim_color"].value = rim
-            self.cavity_prog["teeth"].value = 1.0 if rim == MOUTH_RIM else 0.0
-            vao.render(moderngl.TRIANGLES)
+        self.cavity_vao.render(moderngl.TRIANGLES)
         fbo.depth_mask = True
 
     def _draw_eyes(self, state: Any) -> None:

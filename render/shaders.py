@@ -50,68 +50,94 @@ vec3 ramp(float t) {                              // blue -> cyan -> green -> ye
 }
 """
 
+LIGHTING_RAMP_ONLY = LIGHTING[LIGHTING.index("vec3 ramp"):]
+
+# The skin does everything smooth per vertex, so the pixel work is small: llvmpipe shades every
+# pixel on the CPU, and it pays per pixel for every interpolated value (fewer varyings, fewer
+# operations). Per vertex: the lit albedo (diffuse + ambient + rim), the Blinn half vector and the
+# brow band's half width and strength along it. Per pixel: the brow edge (one smoothstep, crisp on
+# a coarse mesh), a specular with exponent 32 by squaring, and the gamma encoding.
 SKIN_VS = HEADER + LIGHTING + """
 uniform mat4 mvp;
 uniform mat4 view;
+uniform float heat_scale;
 in vec3 in_pos;
 in vec3 in_normal;
 in vec3 in_color;
 in vec3 in_rest;
 in vec2 in_brow;
-out vec3 v_pos;
 out vec3 v_normal;
-out vec3 v_color;
-out vec2 v_brow;
-out float v_disp;
+out vec3 v_half;
+out vec3 v_lit;
+#if defined(SKIN)
+out vec3 v_brow_lit;
+out vec3 v_brow;       // signed distance across the brow line, half width, strength
+#elif defined(HEAT)
+out float v_disp;      // the colour map per pixel: interpolated colours would wash it out
 out vec3 v_diffuse;
-out vec3 v_rim;
+#endif
 void main() {
     gl_Position = mvp * vec4(in_pos, 1.0);
-    v_pos = (view * vec4(in_pos, 1.0)).xyz;
-    v_normal = mat3(view) * in_normal;
-    v_diffuse = diffuse_light(v_normal);
-    v_rim = rim_light(v_normal, normalize(-v_pos));
-    v_color = in_color;
-    v_brow = in_brow;
-    v_disp = length(in_pos - in_rest);
+    vec3 p = (view * vec4(in_pos, 1.0)).xyz;
+    vec3 n = mat3(view) * in_normal;
+    vec3 v = normalize(-p);
+    vec3 diffuse = diffuse_light(n);
+    v_normal = n;
+    v_half = normalize(KEY_D + v);
+#if defined(CLAY)
+    vec3 albedo = vec3(0.36);
+#elif defined(HEAT)
+    vec3 albedo = vec3(0.0);
+    v_disp = length(in_pos - in_rest) / heat_scale;
+    v_diffuse = diffuse;
+#else
+    vec3 albedo = in_color;
+    // brow: a band across the brow line, thick at the inner end, thin and faded at the outer
+    float u = in_brow.y;
+    float half_w = mix(0.42, 0.16, clamp(u, 0.0, 1.0)) * smoothstep(-0.06, 0.05, u)
+                   * (1.0 - smoothstep(0.95, 1.08, u));
+    v_brow = vec3(in_brow.x - 0.1 * half_w, half_w, mix(0.95, 0.7, clamp(u, 0.0, 1.0)));
+    v_brow_lit = (vec3(0.055, 0.037, 0.026) - albedo) * diffuse;
+#endif
+    v_lit = albedo * diffuse + rim_light(n, v);
 }
 """
 
-# Specialised by #define: SKIN (tinted skin: lips in the vertex colour, brows from interpolated brow
-# coordinates), CLAY (pale, under muscles/trails so the lines read), HEAT (displacement colour map).
-SKIN_FS = HEADER + LIGHTING + """
-uniform float heat_scale;
-in vec3 v_pos;
+# Specialised by #define: SKIN (tinted skin: lips in the vertex colour, brows from the interpolated
+# brow band), CLAY (pale, under muscles/trails so the lines read), HEAT (displacement colour map).
+SKIN_FS = HEADER + LIGHTING_RAMP_ONLY + """
 in vec3 v_normal;
-in vec3 v_color;
-in vec2 v_brow;
+in vec3 v_half;
+in vec3 v_lit;
+#if defined(SKIN)
+in vec3 v_brow_lit;
+in vec3 v_brow;
+#elif defined(HEAT)
 in float v_disp;
 in vec3 v_diffuse;
-in vec3 v_rim;
+#endif
 out vec4 frag;
 void main() {
-    vec3 n = normalize(v_normal);
-#if defined(CLAY)
-    vec3 albedo = vec3(0.36);
-    float spec = 0.0;
+    vec3 c = v_lit;
+#if defined(SKIN)
+    float brow = (1.0 - smoothstep(0.4 * v_brow.y, v_brow.y + 1e-4, abs(v_brow.x))) * v_brow.z
+                 * float(v_brow.y > 1e-3);
+    c += brow * v_brow_lit;
+    const float spec = 0.12;
 #elif defined(HEAT)
-    vec3 albedo = ramp(v_disp / heat_scale);
-    albedo = 0.6 * albedo * albedo;
-    float spec = 0.05;
+    vec3 albedo = ramp(v_disp);
+    c += 0.6 * albedo * albedo * v_diffuse;
+    const float spec = 0.05;
 #else
-    // brow: a band across the brow line, thick at the inner end, thin and faded at the outer
-    float u = v_brow.y;
-    float half_w = mix(0.42, 0.16, clamp(u, 0.0, 1.0)) * smoothstep(-0.06, 0.05, u)
-                   * (1.0 - smoothstep(0.95, 1.08, u));
-    float brow = (1.0 - smoothstep(0.4 * half_w, half_w + 1e-4, abs(v_brow.x - 0.1 * half_w)))
-                 * mix(0.95, 0.7, clamp(u, 0.0, 1.0)) * float(half_w > 1e-3);
-    vec3 albedo = mix(v_color, vec3(0.055, 0.037, 0.026), brow);
-    float spec = 0.12;
+    const float spec = 0.0;
 #endif
-    vec3 c = albedo * v_diffuse + v_rim;
-    if (gl_FrontFacing) c += specular32(n, normalize(-v_pos), spec);
-    else c = 0.35 * albedo * v_diffuse;   // the inside of the mask, seen through an opening
-    frag = vec4(encode(c), 1.0);
+#if !defined(CLAY)
+    float x = max(dot(v_normal, v_half), 0.0) * inversesqrt(dot(v_normal, v_normal));
+    x *= x; x *= x; x *= x; x *= x; x *= x;
+    c += spec * x * vec3(1.0, 0.97, 0.92);
+#endif
+    // the inside of the mask, seen through an opening: dim, unlit
+    frag = vec4(sqrt(clamp(gl_FrontFacing ? c : 0.3 * c, 0.0, 1.0)), 1.0);
 }
 """
 
@@ -158,24 +184,27 @@ uniform mat4 mvp;
 in vec3 in_pos;
 in float in_depth;
 in float in_teeth;
+in vec3 in_rim;
 out float v_depth;
 out float v_teeth;
+out vec3 v_rim;
 void main() {
     gl_Position = mvp * vec4(in_pos, 1.0);
     v_depth = in_depth;
     v_teeth = in_teeth;
+    v_rim = in_rim;
 }
 """
 
+# All cavities in one draw: the rim colour and the teeth (mouth only) are vertex attributes.
 CAVITY_FS = HEADER + """
-uniform vec3 rim_color;
-uniform float teeth;             // 1 for the mouth, 0 for the eye sockets
 in float v_depth;
 in float v_teeth;
+in vec3 v_rim;
 out vec4 frag;
 void main() {
-    vec3 c = mix(rim_color, vec3(0.004, 0.002, 0.002), smoothstep(0.0, 0.6, v_depth));
-    c = mix(c, vec3(0.40, 0.38, 0.33) * (1.1 - v_depth), teeth * smoothstep(0.3, 0.6, v_teeth));
+    vec3 c = mix(v_rim, vec3(0.004, 0.002, 0.002), smoothstep(0.0, 0.6, v_depth));
+    c = mix(c, vec3(0.40, 0.38, 0.33) * (1.1 - v_depth), smoothstep(0.3, 0.6, v_teeth));
     frag = vec4(sqrt(c), 1.0);
 }
 """
@@ -344,9 +373,9 @@ void main() {
 """
 
 
-def skin_source(kind: str) -> str:
-    """The skin fragment shader for kind "SKIN", "CLAY" or "HEAT"."""
-    return SKIN_FS.replace(HEADER, HEADER + f"#define {kind}\n", 1)
+def skin_source(kind: str, vertex: bool = False) -> str:
+    """The skin fragment (or vertex) shader for kind "SKIN", "CLAY" or "HEAT"."""
+    return (SKIN_VS if vertex else SKIN_FS).replace(HEADER, HEADER + f"#define {kind}\n", 1)
 
 
 def resolve_source(ss: int) -> str:
@@ -367,5 +396,3 @@ def line_program_sources(thick: bool = False, trail: bool = False) -> dict[str, 
         out["geometry_shader"] = spec(LINE_GS)
     return out
 
-
-LIGHTING_RAMP_ONLY = LIGHTING[LIGHTING.index("vec3 ramp"):]

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import Faces, skin_mask, with_eyes
+from render_faces import Faces, skin_mask, with_eyes
 
 from render.offscreen import OffscreenRenderer, render_to_file
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import Faces, skin_mask
+from render_faces import Faces, skin_mask
 
 from render.hud import HudInfo, active_channels
 from render.offscreen import OffscreenRenderer

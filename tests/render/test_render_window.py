@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import Faces
+from render_faces import Faces
 
 from render.offscreen import OffscreenRenderer
 
