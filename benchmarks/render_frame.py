@@ -6,12 +6,18 @@ Each frame uploads a new surface (the live loop's work) and ends with ctx.finish
 is real rendering work, not queued commands. Two figures: wall-clock time, and the CPU time of the
 whole process (llvmpipe's rasterizer threads included), which is what the frame costs a machine
 and stays meaningful when other programs compete for the cores.
-Run: .venv/bin/python benchmarks/render_frame.py
+llvmpipe rasterises on LP_NUM_THREADS threads (default: one per core); the run prints the value
+used. `--lp-threads 1,2` reruns the benchmark once per value in a fresh process (the variable is
+read when the driver loads).
+Run: .venv/bin/python benchmarks/render_frame.py [--lp-threads 1,2]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
+import sys
 import time
 
 FRAME_60HZ_MS = 1000.0 / 60.0
@@ -56,6 +62,8 @@ def bench(resolution: int, size: tuple[int, int], frames: int, ctx: object) -> l
     hud = HudInfo(channels=[("zygomaticus_major_l", 0.8, 0, 1), ("jaw", 0.3, 0, 1)], age=30,
                   devices=[("sgi:///dev/ttyS0", True), ("keyboard://", True)], fps=60.0,
                   latency_ms=12.0, lines=["? help"])
+    # the fps reading changes every frame, as it does live, so the HUD is rebuilt every frame
+    huds = [HudInfo(**{**hud.__dict__, "fps": 58.0 + 0.1 * k}) for k in range(len(states))]
     rows = []
     with OffscreenRenderer(model, size, ctx=ctx) as off:  # type: ignore[arg-type]
         for view in VIEWS:
@@ -66,19 +74,23 @@ def bench(resolution: int, size: tuple[int, int], frames: int, ctx: object) -> l
                     off.renderer.draw(s, hud if with_hud else None)
                 off.ctx.finish()
 
-                def frame(i: int, h: HudInfo | None = hud if with_hud else None) -> None:
+                def frame(i: int, h: bool = with_hud) -> None:
                     off.fbo.use()
-                    off.renderer.draw(states[i % len(states)], h)
+                    off.renderer.draw(states[i % len(states)], huds[i % len(huds)] if h else None)
                     off.ctx.finish()
 
                 rows.append((view, with_hud, *_timed(frame, frames)))
         off.view = "shaded"
-        rows.append(("shaded+read", True, *_timed(lambda i: off.render_frame(states[i % len(states)], hud), frames)))
+
+        def exported(i: int) -> None:
+            off.render_frame(states[i % len(states)], huds[i % len(huds)])
+
+        rows.append(("shaded+read", True, *_timed(exported, frames)))
         off.renderer.antialias = "fxaa"
-        rows.append(("shaded+fxaa", True, *_timed(lambda i: off.render_frame(states[i % len(states)], hud), frames)))
+        rows.append(("shaded+fxaa", True, *_timed(exported, frames)))
         off.renderer.antialias = "none"
         off.renderer.supersample = 2
-        rows.append(("shaded+ss2", True, *_timed(lambda i: off.render_frame(states[i % len(states)], hud), frames)))
+        rows.append(("shaded+ss2", True, *_timed(exported, frames)))
     return rows
 
 
@@ -87,12 +99,25 @@ def main() -> None:
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--frames", type=int, default=40)
     ap.add_argument("--resolutions", default="0,2")
+    ap.add_argument("--lp-threads", default="", help="comma-separated LP_NUM_THREADS values to compare")
     args = ap.parse_args()
+    if args.lp_threads:
+        for n in args.lp_threads.split(","):
+            argv = [a for a in sys.argv[1:] if not a.startswith("--lp-threads")]
+            if "--lp-threads" in sys.argv:  # the "--lp-threads VALUE" form
+                i = sys.argv.index("--lp-threads")
+                argv = sys.argv[1:i] + sys.argv[i + 2:]
+            print(f"\n=== LP_NUM_THREADS={n} ===", flush=True)
+            subprocess.run([sys.executable, __file__, *argv], env={**os.environ, "LP_NUM_THREADS": n},
+                           check=True)
+        return
     size = tuple(int(v) for v in args.size.lower().split("x"))
     from render.offscreen import create_context
 
     ctx = create_context()
-    print(f"renderer: {ctx.info['GL_RENDERER']}, {size[0]}x{size[1]}, {args.frames} frames each")
+    threads = os.environ.get("LP_NUM_THREADS", f"unset (llvmpipe default: {os.cpu_count()} cores)")
+    print(f"renderer: {ctx.info['GL_RENDERER']}, {size[0]}x{size[1]}, {args.frames} frames each, "
+          f"LP_NUM_THREADS={threads}, load average {os.getloadavg()[0]:.1f}")
     from sim import default_model
 
     for res in (int(r) for r in args.resolutions.split(",")):

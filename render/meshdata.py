@@ -74,23 +74,42 @@ def _smooth(mask: np.ndarray, triangles: np.ndarray, rounds: int = 2) -> np.ndar
     return v
 
 
+def _distance_to_loop(points: np.ndarray, loop: np.ndarray) -> np.ndarray:
+    """(N,) distance of 2-D points to a closed polyline (not just to its nodes)."""
+    a, b = loop, np.roll(loop, -1, axis=0)
+    ab = b - a
+    t = np.einsum("nkd,kd->nk", points[:, None, :] - a[None], ab) / np.maximum(
+        np.einsum("kd,kd->k", ab, ab), 1e-12)
+    q = a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]
+    return np.min(np.linalg.norm(points[:, None, :] - q, axis=2), axis=1)
+
+
 def skin_tint(mesh: FaceMesh) -> np.ndarray:
     """(N, 3) float32 linear albedo: skin, with the red of the lips (the vermilion).
 
-    The vermilion is the part of the lip regions (named *lip*, not *lid*) near the mouth opening;
-    without lip regions, a band around the mouth loop. Brows: see `brow_coords`."""
+    The vermilion is a smooth function of the front-view distance to the mouth opening (the
+    polyline through the mouth loop, not its nodes), a band that narrows towards the corners and
+    fades out over its outer half. A smooth weight stays smooth when interpolated over a coarse
+    mesh, where a per-region mask came out blotchy. Brows: see `brow_coords`."""
     v = mesh.vertices
     col = np.tile(SKIN, (len(v), 1))
-    if len(mesh.mouth_loop) == 0:
+    if len(mesh.mouth_loop) < 3:
         return col.astype(np.float32)
-    loop = v[mesh.mouth_loop]
+    loop = v[mesh.mouth_loop][:, :2]
     width = float(np.ptp(loop[:, 0])) or 1.0
-    d = np.min(np.linalg.norm(v[:, None, :] - loop[None, :, :], axis=2), axis=1)
-    lips = _region_mask(mesh, ("lip",), ("lid",))
-    band = 0.15 * width
-    fade = np.clip((band - d) / (0.3 * band), 0.0, 1.0)  # soft vermilion border on fine meshes
-    w = (fade * lips if lips.any() else fade)[:, None]
+    d = _distance_to_loop(v[:, :2], loop)
+    across = np.clip((v[:, 0] - loop[:, 0].mean()) / (0.5 * width), -1.0, 1.0)
+    band = 0.16 * width * (0.6 + 0.4 * (1.0 - across**2))    # narrower at the corners
+    t = np.clip((d - 0.45 * band) / (0.55 * band), 0.0, 1.0)
+    w = 1.0 - t * t * (3.0 - 2.0 * t)                         # smoothstep fade
+    w *= v[:, 2] > loop_depth(v, mesh.mouth_loop, width)      # only the front, not inside the mouth
+    w = w[:, None]
     return (SKIN * (1 - w) + LIPS * w).astype(np.float32)
+
+
+def loop_depth(v: np.ndarray, loop: np.ndarray, width: float) -> float:
+    """A depth (z) behind the mouth opening: vertices behind it are not lips."""
+    return float(v[loop][:, 2].min() - 0.3 * width)
 
 
 def brow_polylines(mesh: FaceMesh) -> np.ndarray:

@@ -70,7 +70,6 @@ out vec3 v_normal;
 out vec3 v_half;
 out vec3 v_lit;
 #if defined(SKIN)
-out vec3 v_brow_lit;
 out vec3 v_brow;       // signed distance across the brow line, half width, strength
 #elif defined(HEAT)
 out float v_disp;      // the colour map per pixel: interpolated colours would wash it out
@@ -97,7 +96,6 @@ void main() {
     float half_w = mix(0.42, 0.16, clamp(u, 0.0, 1.0)) * smoothstep(-0.06, 0.05, u)
                    * (1.0 - smoothstep(0.95, 1.08, u));
     v_brow = vec3(in_brow.x - 0.1 * half_w, half_w, mix(0.95, 0.7, clamp(u, 0.0, 1.0)));
-    v_brow_lit = (vec3(0.055, 0.037, 0.026) - albedo) * diffuse;
 #endif
     v_lit = albedo * diffuse + rim_light(n, v);
 }
@@ -110,7 +108,6 @@ in vec3 v_normal;
 in vec3 v_half;
 in vec3 v_lit;
 #if defined(SKIN)
-in vec3 v_brow_lit;
 in vec3 v_brow;
 #elif defined(HEAT)
 in float v_disp;
@@ -122,7 +119,7 @@ void main() {
 #if defined(SKIN)
     float brow = (1.0 - smoothstep(0.4 * v_brow.y, v_brow.y + 1e-4, abs(v_brow.x))) * v_brow.z
                  * float(v_brow.y > 1e-3);
-    c += brow * v_brow_lit;
+    c *= 1.0 - 0.91 * brow;    // brow hair: about a tenth of the skin's albedo in every channel
     const float spec = 0.12;
 #elif defined(HEAT)
     vec3 albedo = ramp(v_disp);
