@@ -3,7 +3,8 @@
 exports (PC2, channel CSV, ARKit CSV) that need no rendering.
 
 The performance is an 8 s scripted SGI-box take recorded through the real live loop (virtual clock).
-Rendering is offscreen (EGL; Mesa's llvmpipe on a machine without a GPU).
+Rendering is offscreen (EGL; Mesa's llvmpipe on a machine without a GPU), one render process per core;
+H.264 with x264 `ultrafast` at CRF 20 (puppet.export.video defaults).
 
 Run:  .venv/bin/python benchmarks/export.py [--seconds 8] [--fps 30] [--size 1280x720] [--json]
 """

@@ -34,6 +34,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--view", default="shaded", metavar="V",
                    help="shaded, wireframe, muscles, trails or heat")
     p.add_argument("--size", type=_size, default=(1280, 720), metavar="WxH", help="video/image size")
+    p.add_argument("--supersample", type=int, default=1, metavar="N",
+                   help="video/images: N x N samples per pixel (smoother edges, N*N times the rendering; "
+                   "default 1)")
+    p.add_argument("--crf", type=int, metavar="Q",
+                   help="video: H.264 quality, 0 (lossless) to 51 (worst); default 20")
     p.add_argument("--curves", metavar="FILE", help="keyframe curves, alone or layered over the recording")
     p.add_argument("--rig", metavar="PATH", help="the rig the recording was made with, if not the recorded path")
     p.set_defaults(func=run)
@@ -60,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         kind = kind_of(__import__("pathlib").Path(args.out))
         fps = args.fps if args.fps is not None else (30.0 if kind in ("mp4", "frames", "png") else perf.rate)
         opts = ExportOptions(fps=fps, start=args.start, end=args.end, speed=args.speed, view=args.view,
-                             size=args.size)
+                             size=args.size, supersample=args.supersample, crf=args.crf)
         print(f"puppet: {export(perf, args.out, opts)}")
         return 0
     if not args.headless and live.display_available():

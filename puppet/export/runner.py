@@ -32,7 +32,11 @@ class ExportOptions:
     view: str = "shaded"
     size: tuple[int, int] = (1280, 720)
     start_frame: float = 1.0
-    parallel: bool = True  # render in a second process while this one simulates (long exports)
+    parallel: bool = True  # render in other processes while this one simulates (long exports)
+    workers: int | None = None  # render processes (default: one per core)
+    supersample: int = 1  # samples per pixel along each axis for video and images (2 = 4 samples)
+    crf: int | None = None  # H.264 constant rate factor (default puppet.export.video.DEFAULT_CRF)
+    preset: str | None = None  # x264 preset (default ultrafast)
 
 
 def kind_of(out: Path) -> str:
@@ -127,14 +131,21 @@ def _export_pc2(perf: Performance, out: Path, ticks: list[int], opts: ExportOpti
 
 
 def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], opts: ExportOptions) -> str:
-    from puppet.export.video import PARALLEL_MIN_FRAMES, render_parallel, render_serial
+    from puppet.export.video import DEFAULT_CRF, DEFAULT_PRESET, PARALLEL_MIN_FRAMES, render_parallel, render_serial
 
+    if not 1 <= opts.supersample <= 4:
+        raise PuppetError(f"--supersample must be 1 to 4, got {opts.supersample}")
+    crf = DEFAULT_CRF if opts.crf is None else opts.crf
+    if not 0 <= crf <= 51:
+        raise PuppetError(f"--crf must be 0 to 51, got {crf}")
+    enc = {"supersample": opts.supersample, "preset": opts.preset or DEFAULT_PRESET, "crf": crf}
     frames = ((j, state) for j, _, state, _ in iter_frames(perf, ticks))
     with _bar(len(ticks), out.name or str(out)) as bar:
         if len(ticks) >= PARALLEL_MIN_FRAMES and opts.parallel:
-            render_parallel(perf.face.model, out, kind, opts.fps, opts.size, opts.view, frames, bar.update)
+            render_parallel(perf.face.model, out, kind, opts.fps, opts.size, opts.view, frames, bar.update,
+                            workers=opts.workers, **enc)
         else:
-            render_serial(perf.face.model, out, kind, opts.fps, opts.size, opts.view, frames, bar.update)
+            render_serial(perf.face.model, out, kind, opts.fps, opts.size, opts.view, frames, bar.update, **enc)
     if kind == "png":
         return f"wrote a {opts.size[0]}x{opts.size[1]} still to {out}"
     return f"wrote {len(ticks)} frames at {opts.fps:g} fps ({opts.size[0]}x{opts.size[1]}, view {opts.view}) to {out}"

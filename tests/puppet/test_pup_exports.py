@@ -140,3 +140,36 @@ def test_long_export_renders_in_a_second_process(recording: Path, tmp_path: Path
     assert reader.count_frames() == 120 and reader.get_meta_data()["fps"] == pytest.approx(120)
     with pytest.raises(PuppetError, match="unknown view 'xray'"):
         export(perf, tmp_path / "bad.mp4", ExportOptions(fps=fps, size=(64, 48), view="xray"))
+
+
+@pytest.mark.parametrize("view", ["shaded", "trails"])
+def test_render_pool_gives_the_serial_frames_in_order(recording: Path, tmp_path: Path, view: str) -> None:
+    import imageio.v2 as imageio
+
+    perf = build_performance(read_session(recording), None)
+    opts = dict(fps=120.0, size=(96, 64), view=view)
+    export(perf, tmp_path / "serial.mp4", ExportOptions(parallel=False, **opts))
+    export(perf, tmp_path / "pool.mp4", ExportOptions(workers=2, **opts))
+    a = [f for f in imageio.get_reader(str(tmp_path / "serial.mp4"))]
+    b = [f for f in imageio.get_reader(str(tmp_path / "pool.mp4"))]
+    assert len(a) == len(b) == 120
+    assert all(np.array_equal(x, y) for x, y in zip(a, b))  # same frames, same order, same encoder
+    assert np.abs(a[0].astype(int) - a[-1].astype(int)).mean() > 0.05
+    if view == "shaded":  # PNG frames written by the pool's processes themselves
+        export(perf, tmp_path / "pngs", ExportOptions(workers=2, fps=120.0, size=(64, 48)))
+        assert len(list((tmp_path / "pngs").glob("frame_*.png"))) == 120
+
+
+def test_odd_size_and_options_are_checked(recording: Path, tmp_path: Path) -> None:
+    import imageio.v2 as imageio
+
+    from puppet.errors import PuppetError
+
+    perf = build_performance(read_session(recording), None)
+    export(perf, tmp_path / "odd.mp4", ExportOptions(fps=10, size=(65, 47), supersample=2, crf=30))
+    frames = [f for f in imageio.get_reader(str(tmp_path / "odd.mp4"))]
+    assert len(frames) == 10 and frames[0].shape == (48, 66, 3)  # padded to even for H.264
+    with pytest.raises(PuppetError, match="--crf"):
+        export(perf, tmp_path / "x.mp4", ExportOptions(crf=99))
+    with pytest.raises(PuppetError, match="--supersample"):
+        export(perf, tmp_path / "x.mp4", ExportOptions(supersample=0))
