@@ -13,8 +13,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         "live",
         help="perform live: control boxes (or the keyboard) drive the face",
         description="Perform live. With no --device, every supported box found is used; with none, the "
-        "keyboard of the face window. ESC eases the face back to neutral, M drops a marker. "
-        "See docs/live.md.",
+        "keyboard of the face window; with neither a box nor a display, the built-in demo (--demo). "
+        "ESC eases the face back to neutral, M drops a marker. See docs/live.md.",
     )
     p.add_argument("--device", action="append", default=[], metavar="SPEC",
                    help="a device spec (sgi:///dev/ttyUSB0, mock://script.toml, ...); repeatable")
