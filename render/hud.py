@@ -116,7 +116,8 @@ class HudRenderer:
         self.vbo = ctx.buffer(reserve=8 * 4 * 6 * 512, dynamic=True)
         self.vao = ctx.vertex_array(self.prog, [(self.vbo, "2f 2f 4f", "in_pos", "in_uv", "in_color")])
         self._atlas: tuple[int, FontAtlas, moderngl.Texture] | None = None
-        self._quads: list[tuple[float, ...]] = []  # x0 y0 x1 y1 u0 v0 u1 v1 r g b a
+        self._quads: list[np.ndarray] = []  # (k, 12): x0 y0 x1 y1 u0 v0 u1 v1 r g b a
+        self._text_cache: dict[tuple[object, ...], tuple[np.ndarray, float]] = {}
         self._key: tuple[object, ...] | None = None  # what the uploaded vertices show
         self._count = 0
 
@@ -125,6 +126,7 @@ class HudRenderer:
             if self._atlas is not None:
                 self._atlas[2].release()
             fa = FontAtlas(px)
+            self._text_cache.clear()
             tex = self.ctx.texture(fa.image.size, 1, fa.image.tobytes())
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             tex.repeat_x = tex.repeat_y = False
@@ -133,24 +135,34 @@ class HudRenderer:
 
     # -- building quads -------------------------------------------------------------------------
     def rect(self, x: float, y: float, w: float, h: float, color: Color) -> None:
-        self._quad(x, y, x + w, y + h, (-1.0, -1.0, -1.0, -1.0), color)
+        self._quads.append(np.array([[x, y, x + w, y + h, -1.0, -1.0, -1.0, -1.0, *color]], np.float32))
 
     def text(self, fa: FontAtlas, x: float, y: float, s: str, color: Color) -> float:
-        """Draw `s` with its top-left at (x, y); returns the pen position after it."""
+        """Draw `s` with its top-left at (x, y); returns the pen position after it. The glyph
+        quads of a string are laid out once (at the origin) and reused while it is shown."""
         x = float(round(x))
         y = float(round(y))
-        for ch in s:
-            key = ch if ch in fa.uv else "?"
-            bx, by, bw, bh = fa.box[key]
-            if bw and bh:
-                gx = float(round(x)) + bx  # whole pixels keep NEAREST-sampled glyphs crisp
-                self._quad(gx, y + by, gx + bw, y + by + bh, fa.uv[key], color)
-            x += fa.advance.get(ch, fa.advance["?"])
-        return x
-
-    def _quad(self, x0: float, y0: float, x1: float, y1: float,
-              uv: tuple[float, float, float, float], c: Color) -> None:
-        self._quads.append((x0, y0, x1, y1, *uv, *c))
+        key = (id(fa), s, color)
+        hit = self._text_cache.get(key)
+        if hit is None:
+            rows, pen = [], 0.0
+            for ch in s:
+                k = ch if ch in fa.uv else "?"
+                bx, by, bw, bh = fa.box[k]
+                if bw and bh:
+                    gx = float(round(pen)) + bx  # whole pixels keep NEAREST-sampled glyphs crisp
+                    rows.append((gx, by, gx + bw, by + bh, *fa.uv[k], *color))
+                pen += fa.advance.get(ch, fa.advance["?"])
+            if len(self._text_cache) > 256:
+                self._text_cache.clear()
+            hit = self._text_cache[key] = (np.array(rows, np.float32).reshape(-1, 12), pen)
+        quads, pen = hit
+        if len(quads):
+            q = quads.copy()
+            q[:, [0, 2]] += x
+            q[:, [1, 3]] += y
+            self._quads.append(q)
+        return x + pen
 
     # -- layout ---------------------------------------------------------------------------------
     def draw(self, info: HudInfo, size: tuple[int, int], view: str = "",
@@ -223,7 +235,7 @@ class HudRenderer:
         self._count = 0
         if not self._quads:
             return
-        q = np.array(self._quads, np.float32)
+        q = np.concatenate(self._quads)
         # two triangles per quad: corners (x0,y0) (x1,y0) (x1,y1) (x0,y0) (x1,y1) (x0,y1)
         xs, ys = np.array([0, 2, 2, 0, 2, 0]), np.array([1, 1, 3, 1, 3, 3])
         data = np.empty((len(q), 6, 8), np.float32)

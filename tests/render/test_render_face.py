@@ -72,32 +72,27 @@ def test_eyes_follow_eyes_yaw(gl, faces: Faces) -> None:
     assert right - left > 4.0
 
 
-def _close_lids(faces: Faces) -> object:
-    """Turn the skin above each eye opening down around the eyeball's centre, as a real upper lid
-    slides over the eye, until the opening's top edge reaches its bottom edge."""
+def _blink(faces: Faces) -> object:
+    """The face with both lids closed by the simulation (orbicularis oculi, lid part, fully on)."""
+    from sim.integrator import Simulator
+    from sim.state import FaceControl
+
+    control = FaceControl(faces.model)
+    for side in ("l", "r"):
+        control.set(f"orbicularis_oculi_lid_{side}", 1.0)
     closed = faces.rest.copy()
-    surf = closed.surface
-    mesh = faces.model.mesh
-    for c, loop in zip(mesh.eye_centers, mesh.eye_loops):
-        rim = surf[loop] - c
-        mid = rim[np.abs(rim[:, 0]) < 0.5 * np.abs(rim[:, 0]).max()]  # not the corners
-        ang = np.arctan2(mid[:, 1], mid[:, 2])
-        a = ang.max() - ang.min() + 0.05
-        rel = surf - c
-        lid = (np.linalg.norm(rel, axis=1) < 2.2 * mesh.eye_radius) & (rel[:, 1] > rim[:, 1].mean())
-        ca, sa = np.cos(a), np.sin(a)
-        y, z = rel[lid, 1], rel[lid, 2]
-        surf[lid, 1] = c[1] + ca * y - sa * z
-        surf[lid, 2] = c[2] + sa * y + ca * z
+    Simulator(faces.model).settle(closed, control)
     return closed
 
 
-def test_closed_lids_hide_the_eye(gl, faces: Faces) -> None:
+def test_closed_lids_hide_the_eyes(gl, faces: Faces) -> None:
+    closed = _blink(faces)
     with OffscreenRenderer(faces.model, (640, 480), ctx=gl) as off:
-        _, n_open = _pupil(off, faces, faces.rest, 0)
-        _, n_closed = _pupil(off, faces, _close_lids(faces), 0)
-    assert n_open > 15
-    assert n_closed < 0.1 * n_open
+        for eye in (0, 1):
+            _, n_open = _pupil(off, faces, faces.rest, eye)
+            _, n_closed = _pupil(off, faces, closed, eye)
+            assert n_open > 15
+            assert n_closed < 0.1 * n_open, (eye, n_open, n_closed)
 
 
 @pytest.mark.parametrize("suffix", [".png", ".jpg"])
