@@ -111,21 +111,24 @@ class FaceRenderer:
         self.normals = NormalComputer(tris, n)
         self.camera.fit(rest.min(axis=0), rest.max(axis=0))
         g = self._gl
-        self.pos_vbo = ctx.buffer(reserve=n * 12, dynamic=True)
-        self.nrm_vbo = ctx.buffer(reserve=n * 12, dynamic=True)
+        # positions and normals interleaved in one buffer, one write per frame
+        self.pos_vbo = ctx.buffer(reserve=n * 24, dynamic=True)
         col_vbo = ctx.buffer(skin_tint(mesh).tobytes())
         rest_vbo = ctx.buffer(rest.tobytes())
         brow_vbo = ctx.buffer(brow_coords(mesh).tobytes())
         tri_ibo = ctx.buffer(tris.tobytes())
         edge_ibo = ctx.buffer(unique_edges(tris).tobytes())
-        g += [self.pos_vbo, self.nrm_vbo, col_vbo, rest_vbo, brow_vbo, tri_ibo, edge_ibo]
+        g += [self.pos_vbo, col_vbo, rest_vbo, brow_vbo, tri_ibo, edge_ibo]
         self.skin_vaos = {}
         for kind, prog in self.skin_progs.items():
-            attrs = [(self.pos_vbo, "3f", "in_pos"), (self.nrm_vbo, "3f", "in_normal"),
-                     (col_vbo, "3f", "in_color"), (rest_vbo, "3f", "in_rest"),
+            pn = [a for a in ("in_pos", "in_normal") if a in prog]
+            pn_fmt = "3f 3f" if len(pn) == 2 else ("3f 3x4" if pn == ["in_pos"] else "3x4 3f")
+            attrs = [(self.pos_vbo, pn_fmt, *pn)] if pn else []
+            attrs += [(col_vbo, "3f", "in_color"), (rest_vbo, "3f", "in_rest"),
                      (brow_vbo, "2f", "in_brow")]
-            self.skin_vaos[kind] = ctx.vertex_array(prog, [a for a in attrs if a[2] in prog], tri_ibo)
-        self.edge_vao = ctx.vertex_array(self.line_prog, [(self.pos_vbo, "3f", "in_pos")], edge_ibo)
+            self.skin_vaos[kind] = ctx.vertex_array(
+                prog, [a for a in attrs if a[0] is self.pos_vbo or a[2] in prog], tri_ibo)
+        self.edge_vao = ctx.vertex_array(self.line_prog, [(self.pos_vbo, "3f 3x4", "in_pos")], edge_ibo)
         sphere, sphere_tris = uv_sphere(12, 20)
         sph_vbo, sph_ibo = ctx.buffer(sphere.tobytes()), ctx.buffer(sphere_tris.tobytes())
         self.eye_vao = ctx.vertex_array(self.eye_prog, [(sph_vbo, "3f", "in_pos")], sph_ibo)
@@ -180,7 +183,7 @@ class FaceRenderer:
                                                trail_ibo)
         self.path_vbo = self.ctx.buffer(reserve=n * 4, dynamic=True)
         self.dot_vao = self.ctx.vertex_array(self.point_prog, [
-            (self.pos_vbo, "3f", "in_pos"), (self.path_vbo, "1f", "in_path")])
+            (self.pos_vbo, "3f 3x4", "in_pos"), (self.path_vbo, "1f", "in_path")])
         self._gl += [self.trail_vbo, trail_ibo, self.trail_vao, self.path_vbo, self.dot_vao]
 
     def _scene_target(self, w: int, h: int) -> tuple[moderngl.Framebuffer, moderngl.Texture]:
@@ -209,8 +212,7 @@ class FaceRenderer:
         vx, vy, w, h = target.viewport
         ss = max(1, int(self.supersample))
         surface = np.ascontiguousarray(state.surface, dtype=np.float32)
-        self.pos_vbo.write(surface.tobytes())
-        self.nrm_vbo.write(self.normals(surface).tobytes())
+        self.pos_vbo.write(self.normals.interleaved(surface))  # positions + normals, one upload
         if record or self.trails.count == 0:
             self.trails.push(surface, getattr(state, "time", None))
         view_m, mvp = self._matrices(w / max(h, 1))

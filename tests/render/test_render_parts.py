@@ -72,3 +72,19 @@ def test_camera_frames_box_for_any_aspect_and_resets() -> None:
     assert cam.pitch < 1.5 and cam.scale < 1.0
     cam.reset()
     assert cam.yaw == 0.0 and cam.pitch == 0.0 and cam.scale == 1.0
+
+
+def test_interleaved_buffer_holds_positions_and_area_weighted_normals() -> None:
+    pos, tris = uv_sphere(6, 9)
+    rng = np.random.default_rng(0)
+    moved = (pos * (1.0 + 0.2 * rng.random((len(pos), 1)))).astype(np.float32)
+    out = NormalComputer(tris, len(pos)).interleaved(moved)
+    assert out.shape == (len(pos), 6) and out.dtype == np.float32
+    assert np.array_equal(out[:, :3], moved)
+    # reference: each triangle's cross product (twice its area times its normal) summed per corner
+    a, b, c = (moved[tris[:, k]].astype(np.float64) for k in range(3))
+    acc = np.zeros((len(pos), 3))
+    for k in range(3):
+        np.add.at(acc, tris[:, k], np.cross(b - a, c - a))
+    ref = acc / np.maximum(np.linalg.norm(acc, axis=1, keepdims=True), 1e-12)
+    assert np.allclose(out[:, 3:], ref, atol=1e-5)
