@@ -1,10 +1,15 @@
 """The heads-up display drawn over any view: active channels as bars, the face's age, device
 status, fps and input-to-frame latency, and free lines (key help, messages). Text comes from a
-glyph atlas rasterised once per size with Pillow, so a frame costs one small buffer upload."""
+glyph atlas rasterised once per size with Pillow. The HUD is drawn into a cached layer (a texture)
+only when what it shows changes, and the fps / latency readings change it at most every
+NUMBER_PERIOD s (as fast as anyone reads them); a frame composites the layer with one textured
+quad per panel."""
 
 from __future__ import annotations
 
+import math
 import os
+import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
@@ -29,6 +34,7 @@ PANEL: Color = (0.05, 0.06, 0.07, 0.55)
 BAR_BG: Color = (1.0, 1.0, 1.0, 0.15)
 BAR: Color = (0.98, 0.72, 0.30, 0.95)
 OK: Color = (0.35, 0.85, 0.40, 1.0)
+NUMBER_PERIOD = 0.25  # s: the shown fps / latency readings update at most this often
 LOST: Color = (0.95, 0.30, 0.25, 1.0)
 
 
@@ -118,8 +124,18 @@ class HudRenderer:
         self._atlas: tuple[int, FontAtlas, moderngl.Texture] | None = None
         self._quads: list[np.ndarray] = []  # (k, 12): x0 y0 x1 y1 u0 v0 u1 v1 r g b a
         self._text_cache: dict[tuple[object, ...], tuple[np.ndarray, float]] = {}
-        self._key: tuple[object, ...] | None = None  # what the uploaded vertices show
+        self._key: tuple[object, ...] | None = None  # what the layer shows
         self._count = 0
+        self.clock = time.monotonic  # for the readings' update period (tests replace it)
+        self._readings: tuple[float | None, float | None] = (None, None)
+        self._readings_t = -math.inf
+        # the cached layer: premultiplied RGBA the size of the viewport, and the panel quads
+        self.layer_prog = ctx.program(vertex_shader=shaders.HUD_LAYER_VS,
+                                      fragment_shader=shaders.HUD_LAYER_FS)
+        self.layer_vbo = ctx.buffer(reserve=2 * 4 * 6 * 16, dynamic=True)
+        self.layer_vao = ctx.vertex_array(self.layer_prog, [(self.layer_vbo, "2f", "in_pos")])
+        self._layer: tuple[tuple[int, int], moderngl.Texture, moderngl.Framebuffer] | None = None
+        self._layer_count = 0
 
     def atlas(self, px: int) -> tuple[FontAtlas, moderngl.Texture]:
         if self._atlas is None or self._atlas[0] != px:
@@ -170,11 +186,14 @@ class HudRenderer:
         w, h = size
         px = int(np.clip(round(h / 46), 11, 28))
         fa, tex = self.atlas(px)
+        fps, latency = self._held_readings(info)
+        if (fps, latency) != (info.fps, info.latency_ms):
+            info = HudInfo(**{**info.__dict__, "fps": fps, "latency_ms": latency})
         shown = [None if x is None else round(float(x), 1) for x in (age, info.age, info.fps, info.latency_ms)]
         key = (px, w, h, view, *shown, tuple(info.channels),
                tuple(info.devices), tuple(info.lines))
-        if key == self._key:  # unchanged since the last frame: draw the uploaded vertices again
-            self._render(tex, size)
+        if key == self._key:  # unchanged since the layer was drawn: composite it again
+            self._composite(size)
             return
         self._quads = []
         lh = round(fa.line * 1.25)
@@ -208,6 +227,17 @@ class HudRenderer:
                 self.text(fa, 2 * pad, y0 + pad / 2 + i * lh, s, WHITE)
         self._flush(tex, size)
         self._key = key
+        self._composite(size)
+
+    def _held_readings(self, info: HudInfo) -> tuple[float | None, float | None]:
+        """The fps and latency to show: the given ones, but changed at most every NUMBER_PERIOD s
+        (a reading that appears or disappears shows at once)."""
+        now = self.clock()
+        held = self._readings
+        present = (info.fps is not None, info.latency_ms is not None)
+        if present != (held[0] is not None, held[1] is not None) or now - self._readings_t >= NUMBER_PERIOD:
+            self._readings, self._readings_t = (info.fps, info.latency_ms), now
+        return self._readings
 
     def _channels(self, fa: FontAtlas, chans: Sequence[tuple[str, float, float, float]],
                   pad: int, lh: int) -> None:
@@ -232,7 +262,9 @@ class HudRenderer:
             self.text(fa, bx + bar_w + pad, y, text, DIM)
 
     def _flush(self, tex: moderngl.Texture, size: tuple[int, int]) -> None:
-        self._count = 0
+        """Draw the quads into the layer (once per change of content) and set the panel quads
+        that composite it."""
+        self._count = self._layer_count = 0
         if not self._quads:
             return
         q = np.concatenate(self._quads)
@@ -248,21 +280,86 @@ class HudRenderer:
             self.vbo.orphan(len(raw) * 2)
         self.vbo.write(raw)
         self._count = len(data)
-        self._render(tex, size)
+        layer_tex, layer_fbo = self._layer_target(size)
+        target = self.ctx.fbo
+        layer_fbo.use()
+        layer_fbo.clear(0.0, 0.0, 0.0, 0.0)
+        # colour blended as over the frame; alpha accumulated as coverage: the layer ends up
+        # premultiplied, and compositing it with (ONE, ONE_MINUS_SRC_ALPHA) equals drawing the
+        # quads one after another over the frame
+        self._render(tex, size, (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA,
+                                 moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA))
+        if target is not None:
+            target.use()
+        rects = _regions(q)
+        w, h = size
+        x0 = np.clip(np.floor(rects[:, 0]), 0, w)
+        y0 = np.clip(np.floor(rects[:, 1]), 0, h)
+        x1 = np.clip(np.ceil(rects[:, 2]), 0, w)
+        y1 = np.clip(np.ceil(rects[:, 3]), 0, h)
+        corners = np.stack([x0, y0, x1, y0, x1, y1, x0, y0, x1, y1, x0, y1], 1).astype(np.float32)
+        raw = corners.tobytes()
+        if len(raw) > self.layer_vbo.size:
+            self.layer_vbo.orphan(len(raw) * 2)
+        self.layer_vbo.write(raw)
+        self._layer_count = 6 * len(rects)
 
-    def _render(self, tex: moderngl.Texture, size: tuple[int, int]) -> None:
+    def _layer_target(self, size: tuple[int, int]) -> tuple[moderngl.Texture, moderngl.Framebuffer]:
+        if self._layer is None or self._layer[0] != size:
+            if self._layer is not None:
+                self._layer[2].release()
+                self._layer[1].release()
+            tex = self.ctx.texture(size, 4)
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self._layer = (size, tex, self.ctx.framebuffer([tex]))
+        return self._layer[1], self._layer[2]
+
+    def _render(self, tex: moderngl.Texture, size: tuple[int, int],
+                blend: tuple[int, ...] = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA)) -> None:
         if not self._count:
             return
         self.prog["viewport"].value = (float(size[0]), float(size[1]))
         tex.use(0)
         self.prog["atlas"].value = 0
         self.ctx.enable_only(moderngl.BLEND)
-        self.ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
+        self.ctx.blend_func = blend
         self.vao.render(moderngl.TRIANGLES, vertices=self._count)
         self.ctx.disable(moderngl.BLEND)
 
+    def _composite(self, size: tuple[int, int]) -> None:
+        """The cached layer over the bound framebuffer's viewport, one quad per panel."""
+        if not self._layer_count or self._layer is None:
+            return
+        target = self.ctx.fbo
+        vx, vy = target.viewport[:2] if target is not None else (0, 0)
+        self.layer_prog["viewport"].value = (float(size[0]), float(size[1]))
+        self.layer_prog["origin"].value = (int(vx), int(vy))
+        self._layer[1].use(0)
+        self.layer_prog["layer"].value = 0
+        self.ctx.enable_only(moderngl.BLEND)
+        self.ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
+        self.layer_vao.render(moderngl.TRIANGLES, vertices=self._layer_count)
+        self.ctx.disable(moderngl.BLEND)
+
     def release(self) -> None:
-        for obj in (self.vao, self.vbo, self.prog):
+        for obj in (self.vao, self.vbo, self.prog, self.layer_vao, self.layer_vbo, self.layer_prog):
             obj.release()
+        if self._layer is not None:
+            self._layer[2].release()
+            self._layer[1].release()
         if self._atlas is not None:
             self._atlas[2].release()
+
+
+def _regions(q: np.ndarray) -> np.ndarray:
+    """(R, 4) x0 y0 x1 y1 boxes covering every quad of `q` (rows x0 y0 x1 y1 ...): the panels,
+    plus any quad that lies outside all of them."""
+    panel = np.all(np.isclose(q[:, 8:12], PANEL), axis=1)
+    boxes = q[panel, :4]
+    rest = q[~panel, :4]
+    if len(boxes):
+        inside = ((rest[:, None, 0] >= boxes[None, :, 0] - 0.5) & (rest[:, None, 1] >= boxes[None, :, 1] - 0.5)
+                  & (rest[:, None, 2] <= boxes[None, :, 2] + 0.5)
+                  & (rest[:, None, 3] <= boxes[None, :, 3] + 0.5)).any(axis=1)
+        rest = rest[~inside]
+    return np.concatenate([boxes, rest]).astype(np.float64)

@@ -370,6 +370,26 @@ void main() {
 """
 
 
+# The HUD's cached layer (premultiplied RGBA, the size of the viewport) composited over the frame:
+# one texel per pixel, so texelFetch at the pixel's own position (no filtering, no uv varying).
+HUD_LAYER_VS = HEADER + """
+uniform vec2 viewport;
+in vec2 in_pos;
+void main() {
+    gl_Position = vec4(in_pos / viewport * vec2(2.0, -2.0) + vec2(-1.0, 1.0), 0.0, 1.0);
+}
+"""
+
+HUD_LAYER_FS = HEADER + """
+uniform sampler2D layer;
+uniform ivec2 origin;
+out vec4 frag;
+void main() {
+    frag = texelFetch(layer, ivec2(gl_FragCoord.xy) - origin, 0);
+}
+"""
+
+
 def skin_source(kind: str, vertex: bool = False) -> str:
     """The skin fragment (or vertex) shader for kind "SKIN", "CLAY" or "HEAT"."""
     return (SKIN_VS if vertex else SKIN_FS).replace(HEADER, HEADER + f"#define {kind}\n", 1)

@@ -111,3 +111,37 @@ def test_active_channels_lists_only_values_off_their_default() -> None:
     specs = [Spec("jaw", 0, 1, 0), Spec("age", 20, 90, 30), Spec("eyes_yaw", -1, 1, 0)]
     assert active_channels(specs, [0.0, 45.0, -0.5]) == [("age", 45.0, 20.0, 90.0),
                                                         ("eyes_yaw", -0.5, -1.0, 1.0)]
+
+
+def test_hud_readings_update_at_most_every_period(gl, faces: Faces) -> None:
+    from render import hud as hud_mod
+
+    now = [100.0]
+    base = HudInfo(age=30, fps=10.0, latency_ms=5.0)
+    with OffscreenRenderer(faces.model, (480, 360), ctx=gl) as off:
+        off.renderer.hud.clock = lambda: now[0]
+        first = off.render_frame(faces.rest, hud=base).astype(int)
+        now[0] += 0.3 * hud_mod.NUMBER_PERIOD
+        held = off.render_frame(faces.rest, hud=HudInfo(age=30, fps=88.8, latency_ms=77.7)).astype(int)
+        now[0] += hud_mod.NUMBER_PERIOD
+        moved = off.render_frame(faces.rest, hud=HudInfo(age=30, fps=88.8, latency_ms=77.7)).astype(int)
+        gone = off.render_frame(faces.rest, hud=HudInfo(age=30)).astype(int)
+        plain_age = off.render_frame(faces.rest, hud=HudInfo(age=30)).astype(int)
+    assert np.array_equal(first, held)          # within the period the old readings stay
+    assert np.abs(moved - first).sum(-1).max() > 100   # after it the new ones show
+    assert np.array_equal(gone, plain_age)      # a reading that disappears goes at once
+
+
+def test_hud_layer_composites_like_drawing_over_the_frame(gl, faces: Faces) -> None:
+    """The cached HUD layer drawn again (content unchanged) gives the same pixels, and the HUD
+    only changes pixels inside its panels."""
+    info = HudInfo(channels=[("jaw", 0.5, 0.0, 1.0)], age=64, devices=[("kbd", True)],
+                   lines=["press ? for help"])
+    with OffscreenRenderer(faces.model, (480, 360), ctx=gl) as off:
+        plain = off.render_frame(faces.rest).astype(int)
+        once = off.render_frame(faces.rest, hud=info).astype(int)
+        again = off.render_frame(faces.rest, hud=info).astype(int)
+    assert np.array_equal(once, again)
+    changed = np.abs(once - plain).sum(-1) > 0
+    h, w = changed.shape
+    assert not changed[h // 3: 2 * h // 3, w // 3: 2 * w // 3].any()   # the face in the middle is untouched
