@@ -6,12 +6,17 @@ Two sources:
 1. `mock://` playing a dense dial script in real time (the device thread stamps each event);
 2. the SGI dial-and-button box emulator on a pseudo-terminal (tests/devices/emulators.py), turned
    at random moments, read by the real `sgi://` backend.
+The loop records to a temporary file, as `puppet live` does (--no-record: it does not).
 The fixed tick bounds the wait for the next tick boundary by one tick (16.7 ms); the target is
 p99 <= one frame + 2 ms = 18.7 ms. "work after the boundary" is drain + tick (+ render and readback):
 an event that just missed a boundary waits ~16.5 ms (the 99th percentile of a uniform wait) plus that,
-which is the floor printed for p99.
+which is the floor printed for p99. The breakdown below each line times the parts (perf_counter,
+p50 / p99 over the ticks): how late the loop woke after the boundary, the drain, applying the events,
+the mapping (filters, combine, values into the FaceControl), the simulator step (RK2 frame, forces,
+wrinkle surface), the tick's tail (digest copy, lights), the render; "recording (after frame)" is
+the JSON and flush, done after the frame is ready and so not part of the latency.
 
-Run:  .venv/bin/python benchmarks/live_latency.py [--seconds 10] [--render 640x360] [--json]
+Run:  .venv/bin/python benchmarks/live_latency.py [--seconds 10] [--render 640x360] [--no-record] [--json]
 """
 
 from __future__ import annotations
@@ -51,11 +56,18 @@ rate = 97
 
 
 def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int, int] | None,
-             drive: Any = None) -> dict[str, float]:
+             drive: Any = None, record: Path | None = None) -> dict[str, Any]:
     spec = live.build_mapping(face.vocab, None, [d.spec for d in devs])
     mapper = Mapper(spec, face.vocab)
-    core = live.LiveCore(face, mapper)
+    writer = None
+    if record is not None:
+        from puppet.session import SessionWriter
+
+        writer = SessionWriter(record, live.session_header(face, spec, live.TICK_RATE, [d.spec for d in devs]))
+    core = live.LiveCore(face, mapper, writer=writer)
     core.latency.keep_all = True
+    spans = live.Spans() if hasattr(live, "Spans") else None
+    core.spans = spans
     queue = devices.EventQueue()
     renderer = None
     if render is not None:
@@ -69,11 +81,18 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
 
     def drain() -> list[Any]:
         starts.append(time.monotonic())
-        return queue.drain()
+        t = time.perf_counter()
+        out = queue.drain()
+        if spans is not None:
+            spans.add("drain", time.perf_counter() - t)
+        return out
 
     def on_frame(c: live.LiveCore) -> None:
         if renderer is not None:
+            t = time.perf_counter()
             renderer.render_frame(c.state)  # reads the pixels back: the frame is finished
+            if spans is not None:
+                spans.add("render + readback", time.perf_counter() - t)
         work.append(time.monotonic() - starts[-1])
     for d in devs:
         d.add_listener(queue)
@@ -86,6 +105,8 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
     try:
         live.run_realtime(core, drain, seconds, on_frame=on_frame)
     finally:
+        if writer is not None:
+            writer.close(core.tick_count)
         stop.set()
         if th is not None:
             th.join(2)
@@ -100,17 +121,22 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
             "work_p50_ms": float(np.percentile(wk, 50)), "work_p99_ms": float(np.percentile(wk, 99)),
             # the floor: a uniform wait for the next boundary (events arrive at random phase) plus
             # this run's measured work after a boundary, combined as independent
-            "floor_p99_ms": float(np.percentile(np.add.outer(np.linspace(0, 1000 / 60, 400), wk), 99))}
+            "floor_p99_ms": float(np.percentile(np.add.outer(np.linspace(0, 1000 / 60, 400), wk), 99)),
+            "spans_ms": {} if spans is None else {
+                k: [float(np.percentile(np.array(v) * 1000, 50)), float(np.percentile(np.array(v) * 1000, 99))]
+                for k, v in spans.data.items()}}
 
 
-def mock_source(face: live.Face, seconds: float, render: tuple[int, int] | None, tmp: Path) -> dict[str, float]:
+def mock_source(face: live.Face, seconds: float, render: tuple[int, int] | None, tmp: Path,
+                record: bool = True) -> dict[str, Any]:
     script = tmp / "dense.toml"
     script.write_text(MOCK.format(seconds=seconds + 1))
     dev = devices.open_device(f"mock://{script}")
-    return run_loop(face, [dev], seconds, render)
+    return run_loop(face, [dev], seconds, render, record=tmp / "mock.jsonl" if record else None)
 
 
-def sgi_source(face: live.Face, seconds: float, render: tuple[int, int] | None, tmp: Path) -> dict[str, float]:
+def sgi_source(face: live.Face, seconds: float, render: tuple[int, int] | None, tmp: Path,
+               record: bool = True) -> dict[str, Any]:
     from emulators import SgiBoxEmulator
 
     box = SgiBoxEmulator(tmp / "sgi")
@@ -124,7 +150,7 @@ def sgi_source(face: live.Face, seconds: float, render: tuple[int, int] | None, 
                 box.turn(rng.randrange(8), rng.choice((-2, -1, 1, 2)))
                 time.sleep(rng.uniform(0.005, 0.025))  # random phase against the 60 Hz tick
 
-        return run_loop(face, [dev], seconds, render, drive)
+        return run_loop(face, [dev], seconds, render, drive, record=tmp / "sgi.jsonl" if record else None)
     finally:
         box.port.close()
 
@@ -133,13 +159,14 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=10.0)
     ap.add_argument("--render", default=None, help="also render each frame offscreen at WxH")
+    ap.add_argument("--no-record", action="store_true", help="do not record the session (live records)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     render = tuple(int(x) for x in a.render.split("x")) if a.render else None
     face = live.load_face()
     with tempfile.TemporaryDirectory() as d:
-        res = {"mock": mock_source(face, a.seconds, render, Path(d)),
-               "sgi_pty": sgi_source(face, a.seconds, render, Path(d))}
+        res = {"mock": mock_source(face, a.seconds, render, Path(d), not a.no_record),
+               "sgi_pty": sgi_source(face, a.seconds, render, Path(d), not a.no_record)}
     if a.json:
         print(json.dumps(res, indent=2))
     else:
@@ -147,6 +174,8 @@ def main() -> int:
             print(f"{name:8s} events {r['events']:5d}  p50 {r['p50_ms']:5.1f} ms  p99 {r['p99_ms']:5.1f} ms  "
                   f"max {r['max_ms']:5.1f} ms  (target p99 <= {r['target_ms']:.1f} ms)   work after the boundary "
                   f"p50 {r['work_p50_ms']:.1f} p99 {r['work_p99_ms']:.1f} ms -> floor p99 ~{r['floor_p99_ms']:.1f} ms")
+            for k, (p50, p99) in r["spans_ms"].items():
+                print(f"{'':10s}{k:26s} p50 {p50:6.3f}  p99 {p99:6.3f} ms")
     return 0
 
 

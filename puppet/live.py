@@ -145,8 +145,38 @@ def session_header(face: Face, spec: MappingSpec, rate: float, devices: Sequence
     }
 
 
+class Spans:
+    """Where the time goes after a tick boundary: perf_counter seconds per named span, one entry
+    per tick (or per frame for the spans a driver adds). Off unless a LiveCore is given one."""
+
+    def __init__(self) -> None:
+        self.data: dict[str, list[float]] = {}
+
+    def add(self, name: str, seconds: float) -> None:
+        lst = self.data.get(name)
+        if lst is None:
+            lst = self.data[name] = []
+        lst.append(seconds)
+
+
+def _positions_digest(positions: np.ndarray) -> Callable[[], str]:
+    """The `chk` digest of positions copied now, computed later (off the critical path); the same
+    text as puppet.replay.state_digest."""
+    import hashlib
+
+    def digest() -> str:
+        return hashlib.sha1(positions.tobytes()).hexdigest()[:16]
+
+    return digest
+
+
 class LiveCore:
-    """The fixed-tick core: same Simulator, same start state, same values per tick as replay."""
+    """The fixed-tick core: same Simulator, same start state, same values per tick as replay.
+
+    `tick` does only what the frame needs: apply the events, step the filters, one simulator step.
+    What the recording needs is kept as is (events, the value array, a copy of the positions for
+    the digest) and turned into JSON by `after_frame`, which the drivers call once the frame is
+    published (the writer is put in deferred mode here)."""
 
     def __init__(self, face: Face, mapper: Mapper, *, rate: float = TICK_RATE,
                  writer: SessionWriter | None = None, t0: float = 0.0,
@@ -161,6 +191,8 @@ class LiveCore:
         self.state = face.model.rest_state()
         self.control = sim.FaceControl(face.model)
         self.writer, self.t0, self.lights = writer, t0, lights
+        if writer is not None:
+            writer.defer = True
         self.tick_count = 0
         self.latency = LatencyMeter()
         self.unpresented: list[float] = []
@@ -168,36 +200,64 @@ class LiveCore:
         self.markers: list[tuple[int, str]] = []
         #: run in the loop thread at each tick boundary (e.g. adopting a box plugged in mid-show)
         self.before_tick: list[Callable[[LiveCore], None]] = []
+        #: set to a Spans to time the parts of each tick (benchmarks/live_latency.py)
+        self.spans: Spans | None = None
 
     def tick(self, events: Iterable[Event]) -> None:
         """Apply `events` at this tick boundary, then advance one tick."""
+        sp = self.spans
+        if sp is not None:
+            pc = time.perf_counter
+            t_a = pc()
         for hook in self.before_tick:
             hook(self)
         k = self.tick_count
+        writer, mapper, unpresented = self.writer, self.mapper, self.unpresented
         for ev in events:
-            if self.writer is not None:
-                self.writer.event(k, ev, self.t0)
-            self.mapper.feed(ev)
+            if writer is not None:
+                writer.event(k, ev, self.t0)
+            mapper.feed(ev)
             if isinstance(ev, ControlEvent):
-                self.unpresented.append(ev.t)
-        values = self.mapper.step(self.dt)
-        for label in self.mapper.take_markers():
+                unpresented.append(ev.t)
+        if sp is not None:
+            t_b = pc()
+        values = mapper.step(self.dt)
+        for label in mapper.take_markers():
             self.mark(label)
-        if self.writer is not None:
-            self.writer.values(k, values)
+        if writer is not None:
+            writer.values(k, values)
         self.values = values
         self.control.values[...] = values
+        if sp is not None:
+            t_c = pc()
         self.sim.step(self.state, self.control)
+        if sp is not None:
+            t_d = pc()
         self.tick_count = k + 1
-        if self.writer is not None:
+        if writer is not None:
             if self.tick_count % CHECK_TICKS == 0:
-                from puppet.replay import state_digest
-
-                self.writer.check(self.tick_count, state_digest(self.state))
-            self.writer.tick(self.tick_count)
+                writer.check(self.tick_count, _positions_digest(self.state.positions.copy()))
+            writer.tick(self.tick_count)
         if self.lights is not None:
-            for dev, ctl, on in self.mapper.light_changes():
+            for dev, ctl, on in mapper.light_changes():
                 self.lights(dev, ctl, on)
+        if sp is not None:
+            t_e = pc()
+            sp.add("events", t_b - t_a)
+            sp.add("mapping", t_c - t_b)
+            sp.add("sim step", t_d - t_c)
+            sp.add("tick tail", t_e - t_d)
+
+    def after_frame(self) -> None:
+        """The frame is published: write the recording's records kept since the last call and
+        flush it if the last flush is 100 ms old."""
+        if self.writer is not None:
+            if self.spans is not None:
+                t = time.perf_counter()
+                self.writer.service()
+                self.spans.add("recording (after frame)", time.perf_counter() - t)
+            else:
+                self.writer.service()
 
     def mark(self, label: str) -> None:
         self.markers.append((self.tick_count, label))
@@ -267,6 +327,7 @@ def run_virtual(core: LiveCore, events: Sequence[Event], duration: float,
         core.tick(batch)
         if on_frame is not None:
             on_frame(core)
+        core.after_frame()
 
 
 #: the last part of a wait before a tick boundary is spent spinning: a sleep wakes up late by the
@@ -332,6 +393,8 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
             now = wait_until(boundary, clock, sleep, stop)
             if stop is not None and stop.stopped:
                 break
+            if core.spans is not None:
+                core.spans.add("woke late", max(0.0, now - boundary))
             if now - boundary > 4 * core.dt:  # fell behind (machine busy): re-anchor the schedule
                 start, k0 = now, core.tick_count
             # everything that arrived by now goes into this tick: waiting for the next boundary would
@@ -340,6 +403,7 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
             if on_frame is not None:
                 on_frame(core)
             core.presented(clock())
+            core.after_frame()  # the recording's JSON, flush: after the frame, not before it
 
 
 def display_available() -> bool:
@@ -485,6 +549,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
                 if not win.step():
                     break
                 core.presented(time.monotonic())  # after the swap: the frame is on its way to the screen
+                core.after_frame()
                 # the HUD for the next frame is built off the critical path (it is one frame old)
                 win.hud = live_hud(core, devs, keymap)
                 # without vsync (a virtual display) do not redraw faster than the tick: wait for the

@@ -40,7 +40,13 @@ def _json(obj: dict[str, Any]) -> str:
 
 class SessionWriter:
     """Writes one recording. Call `event`, `values`, `marker` as ticks happen and `tick(k)` once
-    per tick (it flushes when 100 ms have passed); `close(n)` writes the end record."""
+    per tick (it flushes when 100 ms have passed); `close(n)` writes the end record.
+
+    With `defer = True` (what the live loop sets) those calls only keep what they were given, and
+    the JSON is made, written and flushed by `service()`, which the loop calls after the frame is
+    published: no serialisation on the critical path. The file is the same, record for record;
+    `flush` and `close` write whatever is kept first, so a `sync` still covers every record of the
+    ticks before it."""
 
     def __init__(self, path: str | Path, header: dict[str, Any], *, clock: Callable[[], float] = time.monotonic,
                  flush_seconds: float = FLUSH_SECONDS) -> None:
@@ -57,6 +63,8 @@ class SessionWriter:
         self.error: OSError | None = None
         self._last_flush = self._clock()
         self._done_ticks = 0
+        self.defer = False
+        self._kept: list[tuple[Any, ...]] = []
         self._write(full)
         self.flush()
 
@@ -83,6 +91,12 @@ class SessionWriter:
 
     def event(self, tick: int, ev: ControlEvent | StatusEvent, t0: float = 0.0) -> None:
         """A raw device event applied at tick boundary `tick`; `time` is relative to t0."""
+        if self.defer:
+            self._kept.append((self._event, tick, ev, t0))
+            return
+        self._event(tick, ev, t0)
+
+    def _event(self, tick: int, ev: ControlEvent | StatusEvent, t0: float) -> None:
         if isinstance(ev, StatusEvent):
             self._write({"t": "st", "tick": tick, "dev": ev.device, "status": ev.status, "detail": ev.detail})
             return
@@ -92,6 +106,12 @@ class SessionWriter:
 
     def values(self, tick: int, values: np.ndarray) -> None:
         """Channel values applied to sim step `tick`; only the ones that changed are written."""
+        if self.defer:
+            self._kept.append((self._values, tick, values.copy()))
+            return
+        self._values(tick, values)
+
+    def _values(self, tick: int, values: np.ndarray) -> None:
         if self._last is None:
             changed = range(len(values))
         else:
@@ -101,19 +121,47 @@ class SessionWriter:
         self._last = values.copy()
 
     def marker(self, tick: int, label: str) -> None:
+        if self.defer:
+            self._kept.append((self._marker, tick, label))
+            return
+        self._marker(tick, label)
+
+    def _marker(self, tick: int, label: str) -> None:
         self._write({"t": "mark", "tick": tick, "label": label})
 
-    def check(self, tick: int, digest: str) -> None:
-        """A digest of the simulated positions after `tick` ticks, for replay to verify."""
-        self._write({"t": "chk", "tick": tick, "sha": digest})
+    def check(self, tick: int, digest: str | Callable[[], str]) -> None:
+        """A digest of the simulated positions after `tick` ticks, for replay to verify (or a
+        function that computes it, called when the record is written)."""
+        if self.defer:
+            self._kept.append((self._check, tick, digest))
+            return
+        self._check(tick, digest)
+
+    def _check(self, tick: int, digest: str | Callable[[], str]) -> None:
+        self._write({"t": "chk", "tick": tick, "sha": digest if isinstance(digest, str) else digest()})
 
     def tick(self, done_ticks: int) -> None:
-        """`done_ticks` ticks are complete; flush if the last flush is 100 ms old."""
+        """`done_ticks` ticks are complete; flush if the last flush is 100 ms old (deferred: at
+        the next `service()`)."""
         self._done_ticks = done_ticks
+        if not self.defer:
+            self.service()
+
+    def service(self) -> None:
+        """Write what was kept, and flush if the last flush is 100 ms old."""
+        if self._kept:
+            self._write_kept()
         if self._clock() - self._last_flush >= self._flush_seconds:
             self.flush()
 
+    def _write_kept(self) -> None:
+        kept, self._kept = self._kept, []
+        for fn, *args in kept:
+            fn(*args)
+
     def flush(self) -> None:
+        if self._kept:
+            self._write_kept()
         if self._file is None:
             return
         if self._done_ticks:
@@ -127,6 +175,8 @@ class SessionWriter:
 
     def close(self, ticks: int | None = None) -> None:
         """Write the end record, flush and fsync. Idempotent."""
+        if self._kept:
+            self._write_kept()
         if self._file is None:
             return
         n = self._done_ticks if ticks is None else ticks
