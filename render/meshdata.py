@@ -69,6 +69,23 @@ class NormalComputer:
         return self.interleaved(positions)[:, 3:].copy()
 
 
+def spatial_order(triangles: np.ndarray, positions: np.ndarray, bits: int = 10) -> np.ndarray:
+    """The triangles reordered along a Z-order (Morton) curve of their centroids in the front view
+    (x, y), so consecutive triangles share vertices and screen tiles: llvmpipe shades the
+    vertices of a run of triangles once per batch (an index-keyed cache) and bins neighbours into
+    the same tiles. Same triangles, same winding; only the drawing order changes."""
+    t = np.asarray(triangles)
+    if len(t) == 0:
+        return t.copy()
+    c = np.asarray(positions, np.float64)[t].mean(axis=1)[:, :2]
+    lo, span = c.min(axis=0), np.maximum(np.ptp(c, axis=0), 1e-12)
+    q = ((c - lo) / span * ((1 << bits) - 1)).astype(np.int64)
+    code = np.zeros(len(t), np.int64)
+    for b in range(bits):
+        code |= ((q[:, 0] >> b) & 1) << (2 * b) | ((q[:, 1] >> b) & 1) << (2 * b + 1)
+    return t[np.argsort(code, kind="stable")]
+
+
 def unique_edges(triangles: np.ndarray) -> np.ndarray:
     """(E, 2) int32 undirected edges of a triangle mesh, each once."""
     t = np.asarray(triangles)

@@ -14,7 +14,7 @@ from render import shaders
 from render.camera import OrbitCamera
 from render.hud import HudInfo, HudRenderer
 from render.meshdata import (Cavity, brow_coords, MuscleLines, NormalComputer, eye_rotation, skin_tint,
-                             unique_edges, uv_sphere)
+                             spatial_order, unique_edges, uv_sphere)
 from render.trails import TrailHistory
 
 VIEWS = ("shaded", "wireframe", "muscles", "trails", "heat")
@@ -116,7 +116,7 @@ class FaceRenderer:
         col_vbo = ctx.buffer(skin_tint(mesh).tobytes())
         rest_vbo = ctx.buffer(rest.tobytes())
         brow_vbo = ctx.buffer(brow_coords(mesh).tobytes())
-        tri_ibo = ctx.buffer(tris.tobytes())
+        tri_ibo = ctx.buffer(spatial_order(tris, rest).astype(np.int32).tobytes())
         edge_ibo = ctx.buffer(unique_edges(tris).tobytes())
         g += [self.pos_vbo, col_vbo, rest_vbo, brow_vbo, tri_ibo, edge_ibo]
         self.skin_vaos = {}

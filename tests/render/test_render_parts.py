@@ -88,3 +88,24 @@ def test_interleaved_buffer_holds_positions_and_area_weighted_normals() -> None:
         np.add.at(acc, tris[:, k], np.cross(b - a, c - a))
     ref = acc / np.maximum(np.linalg.norm(acc, axis=1, keepdims=True), 1e-12)
     assert np.allclose(out[:, 3:], ref, atol=1e-5)
+
+
+def test_spatial_order_keeps_every_triangle_and_its_winding() -> None:
+    from render.meshdata import spatial_order
+
+    gx, gy = np.meshgrid(np.arange(12.0), np.arange(9.0))
+    pos = np.c_[gx.ravel(), gy.ravel(), np.zeros(gx.size)]
+    idx = np.arange(gx.size).reshape(gx.shape)
+    a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]
+    tris = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
+    out = spatial_order(tris, pos)
+    assert out.shape == tris.shape
+    # same set of triangles, each as the same cyclic sequence (winding kept)
+    def canon(t: np.ndarray) -> list[tuple[int, ...]]:
+        return sorted(tuple(np.roll(r, -int(np.argmin(r)))) for r in t)
+    assert canon(out) == canon(tris)
+    # neighbours in the new order lie closer together than in a shuffled order
+    c = pos[out].mean(axis=1)
+    shuffled = pos[tris[np.random.default_rng(1).permutation(len(tris))]].mean(axis=1)
+    step = np.linalg.norm(np.diff(c, axis=0), axis=1).mean()
+    assert step < 0.5 * np.linalg.norm(np.diff(shuffled, axis=0), axis=1).mean()
