@@ -217,39 +217,66 @@ def eye_rotation(yaw: float, pitch: float) -> np.ndarray:
 
 class Cavity:
     """A dark pocket behind a hole of the skin (the mouth, the eye sockets): rings that shrink
-    and recede from the hole's rim to an apex, so the background never shows through a hole."""
+    and recede from the hole's rim to an apex, so the background never shows through a hole.
+    The rim ring follows every node of the hole's loop; the inner rings, mostly hidden behind
+    the skin, take at most MAX_INNER of them (evenly spaced), so a fine mesh's 128-node mouth
+    does not cost a thousand thin triangles per frame."""
 
     RINGS = ((1.0, 0.0), (0.8, 0.35), (0.5, 0.9), (0.2, 1.3))  # (scale about centre, depth/width)
+    MAX_INNER = 32
 
     def __init__(self, loop: np.ndarray, rest: np.ndarray) -> None:
         self.loop = np.asarray(loop, np.int64)
         m, k = len(self.loop), len(self.RINGS)
         rim = rest[self.loop]
         self.width = float(max(np.ptp(rim[:, 0]), np.ptp(rim[:, 1]), 1e-3))
+        # which loop positions each ring uses: all on the rim, an even subset inside
+        inner = np.unique(np.linspace(0, m, min(m, self.MAX_INNER), endpoint=False).astype(np.int64))
+        rings = [np.arange(m)] + [inner] * (k - 1)
+        starts = np.cumsum([0] + [len(r) for r in rings])
         tris = []
         for r in range(k - 1):
-            for i in range(m):
-                j = (i + 1) % m
-                a, b, c, d = r * m + i, r * m + j, (r + 1) * m + i, (r + 1) * m + j
-                tris += [(a, b, d), (a, d, c)]
-        apex = k * m
-        tris += [((k - 1) * m + i, (k - 1) * m + (i + 1) % m, apex) for i in range(m)]
+            a_n, b_n = len(rings[r]), len(rings[r + 1])
+            if a_n == b_n:
+                for i in range(a_n):
+                    j = (i + 1) % a_n
+                    a, b = starts[r] + i, starts[r] + j
+                    c, d = starts[r + 1] + i, starts[r + 1] + j
+                    tris += [(a, b, d), (a, d, c)]
+            else:  # the rim (a_n nodes) stitched to a coarser ring (b_n): a fan per inner step
+                pos_b = rings[r + 1]
+                owner = np.searchsorted(pos_b, np.arange(a_n), side="right") - 1  # inner node at or before
+                for i in range(a_n):
+                    j = (i + 1) % a_n
+                    a, b = starts[r] + i, starts[r] + j
+                    oi, oj = owner[i] % b_n, owner[j] % b_n
+                    c, d = starts[r + 1] + oi, starts[r + 1] + oj
+                    tris.append((a, b, d))
+                    if oi != oj:
+                        tris.append((a, d, c))
+        last = rings[-1]
+        apex = int(starts[-1])
+        base = int(starts[-2])
+        tris += [(base + i, base + (i + 1) % len(last), apex) for i in range(len(last))]
         self.triangles = np.array(tris, np.int32)
-        self.depth = np.r_[np.repeat([d for _, d in self.RINGS], m), 1.6].astype(np.float32)
+        self.depth = np.r_[np.concatenate([np.full(len(rg), d) for rg, (_, d) in zip(rings, self.RINGS)]),
+                           1.6].astype(np.float32)
         self.n_vertices = apex + 1
         # upper teeth: the upper half of the second and third rings, behind the upper lip
         above = (rim[:, 1] > rim[:, 1].mean()).astype(np.float32)
         self.teeth = np.zeros(self.n_vertices, np.float32)
-        self.teeth[m:2 * m] = above
-        self.teeth[2 * m:3 * m] = above
+        self.teeth[starts[1]:starts[2]] = above[rings[1]]
+        self.teeth[starts[2]:starts[3]] = above[rings[2]]
         # per vertex: which rim node it scales from, the scale about the centre, the depth (cm)
-        self._index = np.r_[np.tile(self.loop, k), self.loop[:1]]
-        self._scale = np.r_[np.repeat([s for s, _ in self.RINGS], m), 0.0].astype(np.float32)[:, None]
+        self._index = np.r_[np.concatenate([self.loop[rg] for rg in rings]), self.loop[:1]]
+        self._scale = np.r_[np.concatenate([np.full(len(rg), sc) for rg, (sc, _) in zip(rings, self.RINGS)]),
+                            0.0].astype(np.float32)[:, None]
         self._drop = (self.depth * self.width * 0.5).astype(np.float32)
+        self._m = m
 
     def positions(self, surface: np.ndarray) -> np.ndarray:
         rim = np.take(surface, self._index, axis=0)
-        c = rim[:-1].mean(axis=0)
+        c = rim[:self._m].mean(axis=0)
         out = c + self._scale * (rim - c)
         out[:, 2] -= self._drop
         return out.astype(np.float32, copy=False)
