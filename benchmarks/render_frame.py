@@ -2,7 +2,8 @@
 for the default face at resolutions 0 (~700 nodes) and 2 (~12k nodes), every view, with and
 without the HUD, as a share of a 60 Hz frame (16.7 ms).
 
-Each frame uploads a new surface (the live loop's work) and ends with ctx.finish(), so the time
+Each frame uploads a new surface (the live loop's work), offers the HUD a new fps reading (shown
+at most every 0.25 s, as live) and ends with ctx.finish(), so the time
 is real rendering work, not queued commands. Two figures: wall-clock time, and the CPU time of the
 whole process (llvmpipe's rasterizer threads included), which is what the frame costs a machine
 and stays meaningful when other programs compete for the cores.
@@ -62,7 +63,8 @@ def bench(resolution: int, size: tuple[int, int], frames: int, ctx: object) -> l
     hud = HudInfo(channels=[("zygomaticus_major_l", 0.8, 0, 1), ("jaw", 0.3, 0, 1)], age=30,
                   devices=[("sgi:///dev/ttyS0", True), ("keyboard://", True)], fps=60.0,
                   latency_ms=12.0, lines=["? help"])
-    # the fps reading changes every frame, as it does live, so the HUD is rebuilt every frame
+    # the fps reading changes every frame, as it does live; the HUD shows a new reading at most
+    # every render.hud.NUMBER_PERIOD s of real time (as live), redrawing its cached layer then
     huds = [HudInfo(**{**hud.__dict__, "fps": 58.0 + 0.1 * k}) for k in range(len(states))]
     rows = []
     with OffscreenRenderer(model, size, ctx=ctx) as off:  # type: ignore[arg-type]
