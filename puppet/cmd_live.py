@@ -117,6 +117,14 @@ class DeviceWatcher:
         self._thread.join(timeout=5)
 
 
+def _close_all(devs: list[Any]) -> None:
+    for d in devs:
+        try:
+            d.close()
+        except Exception:  # closing must not hide the real outcome
+            pass
+
+
 def run(args: argparse.Namespace) -> int:
     from puppet import live
     from puppet.errors import PuppetError
@@ -155,11 +163,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         return _perform(args, live, face, devs, mapped, windowed, record, snapshot, warn, watch=not args.device)
     finally:
-        for d in devs:
-            try:
-                d.close()
-            except Exception:  # closing must not hide the real outcome
-                pass
+        _close_all(devs)
 
 
 def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], mapped: list[tuple[str, str]],
@@ -261,11 +265,7 @@ def _demo(args: argparse.Namespace, live: Any, windowed: bool, warn: Any, quiet:
         snapshot = None if windowed else record.with_suffix(".png")
         code = _perform(args, live, face, devs, mapped, windowed, str(record), snapshot, warn)
     finally:
-        for d in devs:
-            try:
-                d.close()
-            except Exception:  # closing must not hide the real outcome
-                pass
+        _close_all(devs)
     if code or windowed:
         print(f"puppet: replay with `puppet replay {record}`; make a video with "
               f"`puppet replay {record} --out {record.with_suffix('.mp4')}`")
