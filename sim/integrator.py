@@ -45,45 +45,67 @@ RK2_WORK_LIMIT = 200_000  # spring evaluations per frame (substeps x springs, tw
 # each) above which method="auto" picks the implicit integrator: ~3 ms of one core here
 
 
-@numba.njit(cache=True, fastmath=False, nogil=True)
-def _accel(x, v, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_m, free, out):  # type: ignore[no-untyped-def]
+# numba options of every kernel: no fastmath (bit-identical results on any machine with IEEE
+# doubles); error_model="numpy" lets a division by zero give inf instead of raising, which removes
+# a branch from the inner loops and lets LLVM vectorize the spring math (sqrt and division are
+# exactly rounded in SIMD too, so the results do not change).
+KERNEL = dict(cache=True, fastmath=False, nogil=True, error_model="numpy")
+
+
+@numba.njit(**KERNEL)
+def _spring_forces(xf, vf, si3, sj3, rest_len, k_low, k_high, k_damp, thr, dx, dy, dz, gx, gy, gz, fx, fy, fz):  # type: ignore[no-untyped-def]
+    """Force on the first node of every spring (eqs 1-5 on relative strain, two slopes meeting at
+    the knee thr * rest length, plus axial damping), into fx, fy, fz. xf, vf are the flat (3N)
+    positions and velocities, si3/sj3 the springs' node indices times 3. Three passes: gather the
+    edge vectors, the per-spring math (vectorized: no indexing), later a scatter (_node_forces)."""
+    for s in range(si3.shape[0]):
+        i = si3[s]
+        j = sj3[s]
+        dx[s] = xf[j] - xf[i]
+        dy[s] = xf[j + 1] - xf[i + 1]
+        dz[s] = xf[j + 2] - xf[i + 2]
+        gx[s] = vf[j] - vf[i]
+        gy[s] = vf[j + 1] - vf[i + 1]
+        gz[s] = vf[j + 2] - vf[i + 2]
+    for s in range(si3.shape[0]):
+        r = math.sqrt(dx[s] * dx[s] + dy[s] * dy[s] + dz[s] * dz[s])
+        inv = 1.0 / r
+        ux = dx[s] * inv
+        uy = dy[s] * inv
+        uz = dz[s] * inv
+        stretch = r - rest_len[s]
+        knee = thr * rest_len[s]
+        soft = k_low[s] * stretch
+        stiff = k_low[s] * knee + k_high[s] * (stretch - knee)
+        f = soft if stretch <= knee else stiff
+        f += k_damp[s] * (gx[s] * ux + gy[s] * uy + gz[s] * uz)
+        fx[s] = f * ux
+        fy[s] = f * uy
+        fz[s] = f * uz
+
+
+@numba.njit(**KERNEL)
+def _node_forces(x, v, si3, sj3, fx, fy, fz, ext, kr, c, nrm, kn, out):  # type: ignore[no-untyped-def]
+    """out = the constant forces, minus the tether, damping and normal support terms at (x, v),
+    plus the springs' forces (fx, fy, fz) scattered to both ends in spring order."""
     n = x.shape[0]
     for i in range(n):
         nx = nrm[i, 0] * x[i, 0] + nrm[i, 1] * x[i, 1] + nrm[i, 2] * x[i, 2]
         for d in range(3):
             out[i, d] = ext[i, d] - kr[i] * x[i, d] - c[i] * v[i, d] - kn[i] * nx * nrm[i, d]
-    for s in range(springs.shape[0]):
-        i = springs[s, 0]
-        j = springs[s, 1]
-        dx = x[j, 0] - x[i, 0]
-        dy = x[j, 1] - x[i, 1]
-        dz = x[j, 2] - x[i, 2]
-        r = math.sqrt(dx * dx + dy * dy + dz * dz)
-        inv = 1.0 / r
-        ux = dx * inv
-        uy = dy * inv
-        uz = dz * inv
-        stretch = r - rest_len[s]
-        knee = thr * rest_len[s]
-        if stretch <= knee:
-            f = k_low[s] * stretch
-        else:
-            f = k_low[s] * knee + k_high[s] * (stretch - knee)
-        rel = (v[j, 0] - v[i, 0]) * ux + (v[j, 1] - v[i, 1]) * uy + (v[j, 2] - v[i, 2]) * uz
-        f += k_damp[s] * rel
-        out[i, 0] += f * ux
-        out[i, 1] += f * uy
-        out[i, 2] += f * uz
-        out[j, 0] -= f * ux
-        out[j, 1] -= f * uy
-        out[j, 2] -= f * uz
-    for i in range(n):
-        w = inv_m[i] if free[i] else 0.0
-        for d in range(3):
-            out[i, d] *= w
+    of = out.reshape(3 * n)
+    for s in range(si3.shape[0]):
+        i = si3[s]
+        j = sj3[s]
+        of[i] += fx[s]
+        of[i + 1] += fy[s]
+        of[i + 2] += fz[s]
+        of[j] -= fx[s]
+        of[j + 1] -= fy[s]
+        of[j + 2] -= fz[s]
 
 
-@numba.njit(cache=True, fastmath=False, nogil=True)
+@numba.njit(**KERNEL)
 def _eye_contact(x, v, idx, eye, centres, radius):  # type: ignore[no-untyped-def]
     """Keeps the contact vertices outside the eyeball spheres: a vertex inside is put back on the
     sphere and loses the inward part of its velocity (the eyeball is rigid and frictionless)."""
@@ -108,24 +130,34 @@ def _eye_contact(x, v, idx, eye, centres, radius):  # type: ignore[no-untyped-de
                 v[i, 2] -= vn * nz
 
 
-@numba.njit(cache=True, fastmath=False, nogil=True)
-def _rk2_frame(x, v, n_sub, h, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_m,
-               free, a1, xm, vm, eye_idx, eye_of, centres, radius):  # type: ignore[no-untyped-def]
+@numba.njit(**KERNEL)
+def _rk2_frame(x, v, n_sub, h, si3, sj3, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_mass,
+               force, xm, vm, work, eye_idx, eye_of, centres, radius):  # type: ignore[no-untyped-def]
     """n_sub explicit-midpoint substeps of size h, in place on x, v, each followed by the eyeball
-    contact."""
+    contact. inv_mass is 1/m for free nodes and 0 for held ones; force (N,3) and work (9,S) are
+    scratch."""
     n = x.shape[0]
     half = 0.5 * h
+    xf = x.reshape(3 * n)
+    vf = v.reshape(3 * n)
+    xmf = xm.reshape(3 * n)
+    vmf = vm.reshape(3 * n)
+    dx, dy, dz, gx, gy, gz, fx, fy, fz = work[0], work[1], work[2], work[3], work[4], work[5], work[6], work[7], work[8]
     for _ in range(n_sub):
-        _accel(x, v, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_m, free, a1)
+        _spring_forces(xf, vf, si3, sj3, rest_len, k_low, k_high, k_damp, thr, dx, dy, dz, gx, gy, gz, fx, fy, fz)
+        _node_forces(x, v, si3, sj3, fx, fy, fz, ext, kr, c, nrm, kn, force)
         for i in range(n):
+            w = inv_mass[i]
             for d in range(3):
                 xm[i, d] = x[i, d] + half * v[i, d]
-                vm[i, d] = v[i, d] + half * a1[i, d]
-        _accel(xm, vm, springs, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_m, free, a1)
+                vm[i, d] = v[i, d] + half * (force[i, d] * w)
+        _spring_forces(xmf, vmf, si3, sj3, rest_len, k_low, k_high, k_damp, thr, dx, dy, dz, gx, gy, gz, fx, fy, fz)
+        _node_forces(xm, vm, si3, sj3, fx, fy, fz, ext, kr, c, nrm, kn, force)
         for i in range(n):
+            w = inv_mass[i]
             for d in range(3):
                 x[i, d] += h * vm[i, d]
-                v[i, d] += h * a1[i, d]
+                v[i, d] += h * (force[i, d] * w)
         _eye_contact(x, v, eye_idx, eye_of, centres, radius)
 
 
@@ -139,12 +171,11 @@ def warm_up() -> None:
                  np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 1.0]]), 0.5)
     x = np.array([[0.0, 0.0, 0.0], [1.1, 0.0, 0.0]])
     v = np.zeros_like(x)
-    springs = np.array([[0, 1]], dtype=np.int32)
     one = np.ones(1)
     ones2 = np.ones(2)
-    _rk2_frame(x, v, 1, 1e-3, springs, one, one, one, one, 0.1, np.zeros_like(x), ones2, ones2,
-               np.zeros_like(x), ones2, ones2, np.ones(2, dtype=np.bool_), np.zeros_like(x),
-               np.zeros_like(x), np.zeros_like(x), np.array([1], dtype=np.int64),
+    _rk2_frame(x, v, 1, 1e-3, np.array([0], dtype=np.uint32), np.array([3], dtype=np.uint32), one, one, one,
+               one, 0.1, np.zeros_like(x), ones2, ones2, np.zeros_like(x), ones2, ones2, np.zeros_like(x),
+               np.zeros_like(x), np.zeros_like(x), np.zeros((9, 1)), np.array([1], dtype=np.int64),
                np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 5.0]]), 1.0)
 
 
@@ -231,11 +262,15 @@ class Simulator:
         self.guard_events: list[GuardEvent] = []
         n = model.n_vertices
         self._free = np.ascontiguousarray(~model.held)
-        self._inv_m = 1.0 / model.mass
+        self._inv_m = np.ascontiguousarray(np.where(self._free, 1.0 / model.mass, 0.0))  # 0: held
         # writeable contiguous copies: one numba signature (the warm-up's) for every call; springs
         # in vertex order (a fixed permutation, so still deterministic) for cache locality
         order = np.lexsort((model.spring_indices[:, 1], model.spring_indices[:, 0]))
         self._springs = np.array(model.spring_indices[order], dtype=np.int32, order="C")
+        # the RK2 kernel's flat indices (3 x node), unsigned: no negative-index wraparound in the loop
+        self._si3 = np.ascontiguousarray(3 * self._springs[:, 0], dtype=np.uint32)
+        self._sj3 = np.ascontiguousarray(3 * self._springs[:, 1], dtype=np.uint32)
+        self._work = np.zeros((9, len(self._springs)))
         self._rest_len = np.array(model.spring_rest_length[order], order="C")
         self._k_low = np.array(model.spring_k_low[order], order="C")
         self._k_high = np.array(model.spring_k_high[order], order="C")
@@ -319,9 +354,9 @@ class Simulator:
         v[held] = 0.0
         self._age_skin(float(control.values[CHANNEL_INDEX["age"]]))
         if self._implicit is None:
-            _rk2_frame(x, v, self.substeps, self.dt, self._springs, self._rest_len, self._k_low,
+            _rk2_frame(x, v, self.substeps, self.dt, self._si3, self._sj3, self._rest_len, self._k_low,
                        self._k_high, self._k_damp, self._threshold, ext, self._kr, self._c, self._normal,
-                       self._kn, self._inv_m, self._free, self._a1, self._xm, self._vm, *self._eyes)
+                       self._kn, self._inv_m, self._a1, self._xm, self._vm, self._work, *self._eyes)
         else:
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
                                                             self._k_high, self._threshold), self._normal,
