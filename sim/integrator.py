@@ -106,6 +106,41 @@ def _node_forces(x, v, si3, sj3, fx, fy, fz, ext, kr, c, nrm, kn, out):  # type:
 
 
 @numba.njit(**KERNEL)
+def _constant_forces(indptr, indices, data, values, is_muscle, weight, kr, target, kn, nrm, out):  # type: ignore[no-untyped-def]
+    """The forces constant over a frame, (N,3) dyn, into out: per node
+    muscles (seed 000 eqs 9, 14, 18: the CSR (3N, C) muscle matrix times the muscle channels'
+    activations, other channels counted as 0) + gravity m_i g (`weight`) + the constant part
+    k_r,i target_i of seed 003 eq 9's F_r = k_r (target - x) + the constant part k_n,i n_i (n_i .
+    target_i) of the normal support F_n = k_n n n.(target - x); the -k_r x and -k_n n (n . x)
+    parts are evaluated per substep (_node_forces)."""
+    n = out.shape[0]
+    for i in range(n):
+        support = kn[i] * (nrm[i, 0] * target[i, 0] + nrm[i, 1] * target[i, 1] + nrm[i, 2] * target[i, 2])
+        for d in range(3):
+            row = 3 * i + d
+            acc = 0.0
+            for k in range(indptr[row], indptr[row + 1]):
+                c = indices[k]
+                if is_muscle[c]:
+                    acc += data[k] * values[c]
+            out[i, d] = acc + weight[i, d] + kr[i] * target[i, d] + support * nrm[i, d]
+
+
+@numba.njit(**KERNEL)
+def _max_deviation(x, target):  # type: ignore[no-untyped-def]
+    """max |x - target| over all coordinates, or -1 if any coordinate of x is not finite."""
+    worst = 0.0
+    for i in range(x.shape[0]):
+        for d in range(3):
+            if not math.isfinite(x[i, d]):
+                return -1.0
+            dev = abs(x[i, d] - target[i, d])
+            if dev > worst:
+                worst = dev
+    return worst
+
+
+@numba.njit(**KERNEL)
 def _eye_contact(x, v, idx, eye, centres, radius):  # type: ignore[no-untyped-def]
     """Keeps the contact vertices outside the eyeball spheres: a vertex inside is put back on the
     sphere and loses the inward part of its velocity (the eyeball is rigid and frictionless)."""
@@ -167,6 +202,10 @@ def warm_up() -> None:
     from sim.implicit import warm_up as warm_up_implicit
 
     warm_up_implicit()
+    x1 = np.zeros((1, 3))
+    _constant_forces(np.zeros(4, dtype=np.int32), np.zeros(0, dtype=np.int32), np.zeros(0), np.zeros(1),
+                     np.ones(1, dtype=np.bool_), x1, np.ones(1), x1, np.ones(1), x1, np.zeros((1, 3)))
+    _max_deviation(x1, x1)
     _eye_contact(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64),
                  np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 1.0]]), 0.5)
     x = np.array([[0.0, 0.0, 0.0], [1.1, 0.0, 0.0]])
@@ -287,6 +326,11 @@ class Simulator:
         self._threshold = float(model.strain_threshold)
         self._skin_age: float | None = None  # the age the springs were last scaled for
         self._ext = np.zeros((n, 3))
+        self._saved_x = np.zeros((n, 3))
+        self._held = np.flatnonzero(model.held)
+        self._is_muscle = np.array([s.kind == "muscle" for s in model.channels], dtype=np.bool_)
+        self._weight = np.ascontiguousarray(model.weight, dtype=np.float64)
+        self._jaw: float | None = None  # the jaw the target and support normals were set for
         self._target = np.array(model.rest)
         self._a1 = np.zeros((n, 3))
         self._xm = np.zeros((n, 3))
@@ -305,51 +349,39 @@ class Simulator:
         rotated = (m.rest - m.jaw_pivot) @ rot.T + m.jaw_pivot
         return m.rest + m.jaw_weight[:, None] * (rotated - m.rest)
 
-    def muscle_forces(self, control: FaceControl) -> np.ndarray:
-        """Seed 000 eqs 9, 14, 18 summed over channels: (N,3) dyn, one sparse mat-vec."""
-        a = np.where([s.kind == "muscle" for s in self.model.channels], control.values, 0.0)
-        return (self.model.muscle_matrix @ a).reshape(-1, 3)
-
-    def gravity_forces(self) -> np.ndarray:
-        """m_i g with the true (not scaled) mass, (N,3) dyn (zero when gravity is switched off)."""
-        return np.array(self.model.weight)
-
-    def feedback_target_forces(self, target: np.ndarray) -> np.ndarray:
-        """The constant part k_r,i target_i of seed 003 eq 9's F_r = k_r (target - x) (the -k_r x part
-        is evaluated per substep in the kernel)."""
-        return self.model.rest_stiffness[:, None] * target
-
-    def support_target_forces(self, target: np.ndarray, jaw: float) -> np.ndarray:
-        """The constant part k_n,i n_i (n_i . target_i) of the normal support F_n = k_n n n.(target - x)
-        (see SkinParams.support); n_i is the rest normal, turned with the jaw like the target. Sets
-        the normals the kernel uses for the -k_n n (n . x) part."""
+    def _set_jaw(self, jaw: float) -> None:
+        """The jaw-dependent frame constants: eq 9's target (`rest_target`) and the support normals
+        n_i (the rest normals turned with the jaw like the target), recomputed only when jaw moves."""
+        if jaw == self._jaw:
+            return
         m = self.model
+        self._target = self.rest_target(jaw)
         if jaw == 0.0:
             self._normal[...] = m.rest_normal
         else:
             rot = jaw_rotation(m.jaw_axis, jaw * m.params.jaw_max_angle)
             n = m.rest_normal + m.jaw_weight[:, None] * (m.rest_normal @ rot.T - m.rest_normal)
             self._normal[...] = n / np.linalg.norm(n, axis=1)[:, None]
-        proj = np.einsum("ij,ij->i", self._normal, target)
-        return (m.support_stiffness * proj)[:, None] * self._normal
+        self._jaw = jaw
 
     def external_forces(self, control: FaceControl) -> np.ndarray:
-        """Every force term that does not depend on x or v within a frame, (N,3) dyn."""
-        jaw = float(control.values[self._jaw_i])
-        self._target = self.rest_target(jaw)
-        return (self.muscle_forces(control) + self.gravity_forces() + self.feedback_target_forces(self._target)
-                + self.support_target_forces(self._target, jaw))
+        """Every force term that does not depend on x or v within a frame, (N,3) dyn (a buffer the
+        simulator reuses): see `_constant_forces`."""
+        self._set_jaw(float(control.values[self._jaw_i]))
+        mm = self.model.muscle_matrix
+        _constant_forces(mm.indptr, mm.indices, mm.data, control.values, self._is_muscle, self._weight,
+                         self._kr, self._target, self._kn, self._normal, self._ext)
+        return self._ext
 
     # -- stepping
 
     def step(self, state: FaceState, control: FaceControl) -> FaceState:
         """Advance `state` by one frame in place (and return it). On NaN or blow-up, restore the state
         at the start of the frame with zero velocity and append a GuardEvent."""
-        m = self.model
-        saved_x = state.positions.copy()
-        ext = self.external_forces(control)
         x, v = state.positions, state.velocities
-        held = m.held
+        np.copyto(self._saved_x, x)
+        ext = self.external_forces(control)
+        held = self._held
         x[held] = self._target[held]
         v[held] = 0.0
         self._age_skin(float(control.values[CHANNEL_INDEX["age"]]))
@@ -363,7 +395,7 @@ class Simulator:
                                  lambda xx, vv: _eye_contact(xx, vv, *self._eyes))
         reason = self._check(x)
         if reason:
-            x[...] = saved_x
+            x[...] = self._saved_x
             v[...] = 0.0
             self.guard_events.append(GuardEvent(state.time + self.frame_dt, reason))
         state.time += self.frame_dt
@@ -399,9 +431,9 @@ class Simulator:
             state.surface[...] = state.positions
 
     def _check(self, x: np.ndarray) -> str:
-        if not np.all(np.isfinite(x)):
+        dev = _max_deviation(x, self._target)
+        if dev < 0.0:
             return "non-finite positions"
-        dev = float(np.max(np.abs(x - self._target)))
         if dev > self._bound:
             return f"displacement {dev:.3g} cm beyond {self._bound:.3g} cm"
         return ""

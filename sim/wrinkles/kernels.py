@@ -166,20 +166,23 @@ def frame_displacement(
     dh1 = np.zeros(n_r)
     for r in range(n_r):
         p0, p1 = far[r], line[r]
-        ch = pts[p1] - pts[p0]
-        d = max(math.sqrt(ch[0] ** 2 + ch[1] ** 2 + ch[2] ** 2), 1e-9)
-        e = ch / d
-        nb = nrm[p0] + nrm[p1]
-        nbe = nb[0] * e[0] + nb[1] * e[1] + nb[2] * e[2]
-        u = nb - nbe * e
-        lu = max(math.sqrt(u[0] ** 2 + u[1] ** 2 + u[2] ** 2), 1e-12)
-        u = u / lu
-        up[r] = u
-        n_line[r] = nrm[p1]
-        n0e = nrm[p0, 0] * e[0] + nrm[p0, 1] * e[1] + nrm[p0, 2] * e[2]
-        n0u = nrm[p0, 0] * u[0] + nrm[p0, 1] * u[1] + nrm[p0, 2] * u[2]
-        n1e = nrm[p1, 0] * e[0] + nrm[p1, 1] * e[1] + nrm[p1, 2] * e[2]
-        n1u = nrm[p1, 0] * u[0] + nrm[p1, 1] * u[1] + nrm[p1, 2] * u[2]
+        # scalars throughout: no small arrays allocated per roll
+        cx = pts[p1, 0] - pts[p0, 0]
+        cy = pts[p1, 1] - pts[p0, 1]
+        cz = pts[p1, 2] - pts[p0, 2]
+        d = max(math.sqrt(cx ** 2 + cy ** 2 + cz ** 2), 1e-9)
+        ex, ey, ez = cx / d, cy / d, cz / d
+        bx, by, bz = nrm[p0, 0] + nrm[p1, 0], nrm[p0, 1] + nrm[p1, 1], nrm[p0, 2] + nrm[p1, 2]
+        nbe = bx * ex + by * ey + bz * ez
+        ux, uy, uz = bx - nbe * ex, by - nbe * ey, bz - nbe * ez
+        lu = max(math.sqrt(ux ** 2 + uy ** 2 + uz ** 2), 1e-12)
+        ux, uy, uz = ux / lu, uy / lu, uz / lu
+        up[r, 0], up[r, 1], up[r, 2] = ux, uy, uz
+        n_line[r, 0], n_line[r, 1], n_line[r, 2] = nrm[p1, 0], nrm[p1, 1], nrm[p1, 2]
+        n0e = nrm[p0, 0] * ex + nrm[p0, 1] * ey + nrm[p0, 2] * ez
+        n0u = nrm[p0, 0] * ux + nrm[p0, 1] * uy + nrm[p0, 2] * uz
+        n1e = nrm[p1, 0] * ex + nrm[p1, 1] * ey + nrm[p1, 2] * ez
+        n1u = nrm[p1, 0] * ux + nrm[p1, 1] * uy + nrm[p1, 2] * uz
         amin = min(max(0.5 * (math.atan2(-n0e, n0u) + math.atan2(n1e, n1u)), 0.0), 0.5 * math.pi)
         s_nat = _s(tables[0], d, d / 3.0, amin)
         comp = max(d_init[r] - s_nat, 0.0)
@@ -221,7 +224,7 @@ def frame_displacement(
         depth[i] = min(crest * st_furrow[i], furrow_max)
         r = st_rolls[i, 1] if st_rolls[i, 1] >= 0 else st_rolls[i, 0]
         if r >= 0:
-            st_n[i] = n_line[r]
+            st_n[i, 0], st_n[i, 1], st_n[i, 2] = n_line[r, 0], n_line[r, 1], n_line[r, 2]
     fv, fs0, fs1, flam, fw = furrows
     for q in range(fv.shape[0]):
         lam = flam[q]
