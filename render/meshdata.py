@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-import numba
 import numpy as np
 from scipy import sparse
 
@@ -16,43 +15,12 @@ SKIN = np.array([0.58, 0.40, 0.31])
 LIPS = np.array([0.50, 0.17, 0.16])
 
 
-@numba.njit(cache=True, nogil=True)
-def _interleave_normals(pos: np.ndarray, tri: np.ndarray, out: np.ndarray) -> None:
-    """out[:, 0:3] = pos; out[:, 3:6] = unit area-weighted vertex normals, in one pass over the
-    triangles (each triangle's cross product, twice its area times its normal, added to its three
-    corners) and one over the vertices."""
-    n = pos.shape[0]
-    for i in range(n):
-        out[i, 0] = pos[i, 0]
-        out[i, 1] = pos[i, 1]
-        out[i, 2] = pos[i, 2]
-        out[i, 3] = 0.0
-        out[i, 4] = 0.0
-        out[i, 5] = 0.0
-    for t in range(tri.shape[0]):
-        a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
-        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
-        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
-        cx = e1y * e2z - e1z * e2y
-        cy = e1z * e2x - e1x * e2z
-        cz = e1x * e2y - e1y * e2x
-        for v in (a, b, c):
-            out[v, 3] += cx
-            out[v, 4] += cy
-            out[v, 5] += cz
-    for i in range(n):
-        x, y, z = out[i, 3], out[i, 4], out[i, 5]
-        length = np.sqrt(x * x + y * y + z * z)
-        inv = np.float32(1.0) / max(length, np.float32(1e-12))
-        out[i, 3] = x * inv
-        out[i, 4] = y * inv
-        out[i, 5] = z * inv
-
-
 class NormalComputer:
-    """Area-weighted vertex normals of a moving surface, by a compiled kernel (numba) that writes
-    positions and normals interleaved into one preallocated (N, 6) float32 array: each frame is
-    one pass over the triangles and one upload of `interleaved(positions)`."""
+    """Area-weighted vertex normals of a moving surface, by a compiled kernel (numba,
+    render.normals_kernel) that writes positions and normals interleaved into one preallocated
+    (N, 6) float32 array: each frame is one pass over the triangles and one upload of
+    `interleaved(positions)`. The kernel is loaded at the first call, not at import: a render
+    process that is handed the interleaved rows (puppet.export.video) never loads numba at all."""
 
     def __init__(self, triangles: np.ndarray, n_vertices: int) -> None:
         self.tri = np.ascontiguousarray(triangles, dtype=np.int32)
@@ -60,8 +28,10 @@ class NormalComputer:
 
     def interleaved(self, positions: np.ndarray) -> np.ndarray:
         """(N, 6) float32 rows x y z nx ny nz (the same array every call: upload it, don't keep it)."""
+        from render.normals_kernel import interleave_normals
+
         p = np.ascontiguousarray(positions, dtype=np.float32)
-        _interleave_normals(p, self.tri, self.buffer)
+        interleave_normals(p, self.tri, self.buffer)
         return self.buffer
 
     def __call__(self, positions: np.ndarray) -> np.ndarray:

@@ -211,8 +211,13 @@ class FaceRenderer:
             raise RuntimeError("FaceRenderer.draw needs a bound framebuffer (fbo.use())")
         vx, vy, w, h = target.viewport
         ss = max(1, int(self.supersample))
-        surface = np.ascontiguousarray(state.surface, dtype=np.float32)
-        self.pos_vbo.write(self.normals.interleaved(surface))  # positions + normals, one upload
+        rows = getattr(state, "interleaved", None)  # x y z nx ny nz rows made elsewhere (an export's
+        if rows is None:  # render process is handed them with the frame: see puppet.export.video)
+            surface = np.ascontiguousarray(state.surface, dtype=np.float32)
+            rows = self.normals.interleaved(surface)
+        else:
+            surface = np.ascontiguousarray(rows[:, :3])
+        self.pos_vbo.write(rows)  # positions + normals, one upload
         if record or self.trails.count == 0:
             self.trails.push(surface, getattr(state, "time", None))
         view_m, mvp = self._matrices(w / max(h, 1))

@@ -107,18 +107,32 @@ class FrameSink:
 FRAME_HEAD = struct.Struct("<iI")  # frame number (-1 ends), payload bytes
 
 
-def _pack(j: int, state: Any) -> bytes:
-    body = np.ascontiguousarray(state.surface, dtype="<f8").tobytes() + struct.pack(
+class RenderFrame:
+    """What a render process draws: the surface as the renderer's float32 rows x y z nx ny nz
+    (`interleaved`, made by the simulating process with the renderer's own normal kernel, so the
+    frames equal a serial export's bit for bit and the render process never loads numba), plus the
+    state's scalars."""
+
+    def __init__(self, interleaved: np.ndarray, time: float, eye_yaw: float, eye_pitch: float,
+                 age: float) -> None:
+        self.interleaved = interleaved
+        self.surface = interleaved[:, :3]
+        self.positions = self.surface
+        self.time, self.eye_yaw, self.eye_pitch, self.age = time, eye_yaw, eye_pitch, age
+
+
+def _pack(j: int, state: Any, normals: Any) -> bytes:
+    """One frame for a render process: its number, then the interleaved rows and the scalars."""
+    rows = normals.interleaved(np.ascontiguousarray(state.surface, dtype=np.float32))
+    body = rows.astype("<f4", copy=False).tobytes() + struct.pack(
         "<4d", state.time, state.eye_yaw, state.eye_pitch, state.age)
     return FRAME_HEAD.pack(j, len(body)) + body
 
 
-def _unpack_state(body: bytes) -> Any:
-    from sim.state import FaceState
-
-    pts = np.frombuffer(body[:-32], dtype="<f8").reshape(-1, 3)
+def _unpack_state(body: bytes) -> RenderFrame:
+    rows = np.frombuffer(body[:-32], dtype="<f4").reshape(-1, 6)
     t, yaw, pitch, age = struct.unpack("<4d", body[-32:])
-    return FaceState(pts, np.zeros_like(pts), pts, t, yaw, pitch, age)
+    return RenderFrame(rows, t, yaw, pitch, age)
 
 
 def _read_exact(f: Any, n: int) -> bytes:
@@ -328,8 +342,11 @@ def render_parallel(model: Any, out: Path, kind: str, fps: float, size: tuple[in
                 progress(state["done"] - shown)
                 shown = state["done"]
 
+        from render.meshdata import NormalComputer
+
+        normals = NormalComputer(model.triangles, len(model.rest))  # the renderer's, for its rows
         for j, st in frames:
-            pool[j % n].put(_pack(j, st), alive)
+            pool[j % n].put(_pack(j, st, normals), alive)
             alive()
         for w in pool:
             w.put(None, alive)

@@ -1,0 +1,40 @@
+"""The compiled vertex-normal kernel of render.meshdata.NormalComputer, in its own module so that
+importing the renderer does not import numba (a render process of an export never needs it)."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, nogil=True)
+def interleave_normals(pos: np.ndarray, tri: np.ndarray, out: np.ndarray) -> None:
+    """out[:, 0:3] = pos; out[:, 3:6] = unit area-weighted vertex normals, in one pass over the
+    triangles (each triangle's cross product, twice its area times its normal, added to its three
+    corners) and one over the vertices."""
+    n = pos.shape[0]
+    for i in range(n):
+        out[i, 0] = pos[i, 0]
+        out[i, 1] = pos[i, 1]
+        out[i, 2] = pos[i, 2]
+        out[i, 3] = 0.0
+        out[i, 4] = 0.0
+        out[i, 5] = 0.0
+    for t in range(tri.shape[0]):
+        a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
+        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
+        cx = e1y * e2z - e1z * e2y
+        cy = e1z * e2x - e1x * e2z
+        cz = e1x * e2y - e1y * e2x
+        for v in (a, b, c):
+            out[v, 3] += cx
+            out[v, 4] += cy
+            out[v, 5] += cz
+    for i in range(n):
+        x, y, z = out[i, 3], out[i, 4], out[i, 5]
+        length = np.sqrt(x * x + y * y + z * z)
+        inv = np.float32(1.0) / max(length, np.float32(1e-12))
+        out[i, 3] = x * inv
+        out[i, 4] = y * inv
+        out[i, 5] = z * inv
