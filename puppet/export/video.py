@@ -107,6 +107,17 @@ class FrameSink:
 FRAME_HEAD = struct.Struct("<iI")  # frame number (-1 ends), payload bytes
 
 
+class RenderModel:
+    """What the renderer reads of a face model (its rig, mesh, rest positions and triangles), rebuilt
+    in a render process from the face's rig file (sim.rig: npz + JSON, read without pickle)."""
+
+    def __init__(self, rig: Any) -> None:
+        self.rig = rig
+        self.mesh = rig.mesh
+        self.rest = np.asarray(rig.mesh.vertices, np.float64)
+        self.triangles = np.asarray(rig.mesh.triangles, np.int32)
+
+
 class RenderFrame:
     """What a render process draws: the surface as the renderer's float32 rows x y z nx ny nz
     (`interleaved`, made by the simulating process with the renderer's own normal kernel, so the
@@ -147,12 +158,11 @@ def _read_exact(f: Any, n: int) -> bytes:
 
 def worker_main() -> int:
     """A render process (`python -c ...worker_main()`): a fresh interpreter, so it never shares an
-    OpenGL context with its parent nor re-runs the parent's command. Reads the face once, then frames
-    (positions) on stdin; answers on stdout with binary records FRAME_HEAD(j, n) + n bytes: the raw
+    OpenGL context with its parent nor re-runs the parent's command. Reads the face from the rig file
+    named in its configuration (argv[1], JSON), then frames (RenderFrame rows) on stdin; answers on stdout with binary records FRAME_HEAD(j, n) + n bytes: the raw
     frame for a video (the parent encodes, in order), nothing for files it saved itself; j = -2 is
     an error message, j = -1 the end."""
     import json
-    import pickle
     import sys
 
     cfg = json.loads(sys.argv[1])
@@ -166,8 +176,9 @@ def worker_main() -> int:
         out.flush()
 
     try:
-        (n,) = struct.unpack("<Q", _read_exact(inp, 8))
-        model = pickle.loads(_read_exact(inp, n))  # our own parent's compiled face, over a private pipe
+        from sim.rig import load_rig
+
+        model = RenderModel(load_rig(cfg["rig"]))
         sink = FrameSink(model, Path(cfg["out"]), cfg["kind"], cfg["fps"], tuple(cfg["size"]), cfg["view"],
                          supersample=cfg.get("supersample", 1), encode=False)
     except Exception as err:  # reported to the parent as one message
@@ -212,7 +223,7 @@ def render_serial(model: Any, out: Path, kind: str, fps: float, size: tuple[int,
 class _Worker:
     """One render process with a feeding thread (states in) and a reading thread (frames out)."""
 
-    def __init__(self, cfg: str, blob: bytes, results: "_queue.Queue[tuple[int, bytes | None]]",
+    def __init__(self, cfg: str, results: "_queue.Queue[tuple[int, bytes | None]]",
                  env: dict[str, str] | None = None) -> None:
         import subprocess
         import sys
@@ -222,7 +233,6 @@ class _Worker:
             [sys.executable, "-c", "import sys; from puppet.export.video import worker_main; sys.exit(worker_main())",
              cfg], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env)
         self.outbox: _queue.Queue[bytes | None] = _queue.Queue(maxsize=AHEAD_FRAMES)
-        self.outbox.put(struct.pack("<Q", len(blob)) + blob)
         self.results = results
         self._feed = threading.Thread(target=self._write, name="render-feed", daemon=True)
         self._read_t = threading.Thread(target=self._read, name="render-read", daemon=True)
@@ -272,28 +282,37 @@ def render_parallel(model: Any, out: Path, kind: str, fps: float, size: tuple[in
                     frames: Iterable[tuple[int, Any]], progress: Callable[[int], None], supersample: int = 1,
                     preset: str = DEFAULT_PRESET, crf: int = DEFAULT_CRF, workers: int | None = None) -> None:
     """Simulate here, render in `workers` processes (frame j goes to worker j mod N), encode here in
-    frame order (a thread feeds ffmpeg, which runs as its own process). The compiled face is handed
-    to each worker once, pickled on its private pipe (compiling it again would cost over a second
-    per worker); after that only positions go out and raw frames come back."""
+    frame order (a thread feeds ffmpeg, which runs as its own process). The workers read the face
+    from its rig file (written to a private temporary folder: what the renderer needs is the rig's
+    mesh and muscles, not the compiled dynamics); after that only the renderer's vertex rows go
+    out and raw frames come back."""
     import json
-    import pickle
+    import tempfile
     import threading
+
+    from sim.rig import save_rig
 
     n = workers or render_workers()
     if view == "trails":
         n = 1  # the trails are drawn from the frames one renderer has seen: all of them, in order
-    cfg = json.dumps({"out": str(out), "kind": kind, "fps": fps, "size": list(size), "view": view,
-                      "supersample": supersample})
     if kind == "frames":
         out.mkdir(parents=True, exist_ok=True)
+    scratch = tempfile.TemporaryDirectory(prefix="puppet-export-")
+    rig_path = Path(scratch.name) / "face.npz"
+    try:
+        save_rig(model.rig, rig_path)
+    except OSError as err:
+        scratch.cleanup()
+        raise PuppetError(f"cannot write the face for the render processes to {rig_path}: {err}") from err
+    cfg = json.dumps({"out": str(out), "kind": kind, "fps": fps, "size": list(size), "view": view,
+                      "supersample": supersample, "rig": str(rig_path)})
     results: _queue.Queue[tuple[int, bytes | None]] = _queue.Queue()
-    blob = pickle.dumps(model, protocol=pickle.HIGHEST_PROTOCOL)
     env = None
     if n > 1 and "LP_NUM_THREADS" not in os.environ:
         # the processes already share the cores: one rasterizer thread each (llvmpipe would start one
         # per core in every process, which only adds hand-offs); a user's LP_NUM_THREADS wins
         env = {**os.environ, "LP_NUM_THREADS": "1"}
-    pool = [_Worker(cfg, blob, results, env) for _ in range(n)]
+    pool = [_Worker(cfg, results, env) for _ in range(n)]
     encoder: Encoder | None = None
     state = {"error": None, "done": 0, "ended": 0}
 
@@ -368,3 +387,4 @@ def render_parallel(model: Any, out: Path, kind: str, fps: float, size: tuple[in
                 encoder.close()
             except Exception:  # the real error is already on its way
                 pass
+        scratch.cleanup()
