@@ -38,7 +38,7 @@ from sim.build import FaceModel
 from sim.channels import CHANNEL_INDEX
 from sim.state import FaceControl, FaceState
 
-SAFETY = 0.8  # fraction of the linear stability limit used as the step (covers geometric stiffness)
+SAFETY = 0.9  # fraction of the linear stability limit used as the step (covers geometric stiffness)
 BLOWUP_DISPLACEMENT = 6.0  # cm (x face scale): farther from its target than this is a blow-up
 SETTLE_SPEED = 0.02  # cm/s: the face counts as settled when no vertex moves faster
 RK2_WORK_LIMIT = 200_000  # spring evaluations per frame (substeps x springs, two per RK2 substep
