@@ -269,6 +269,9 @@ class Mapper:
             x = b.button.level(dt)
         else:
             x = b.src
+            if (b.chain.settled_at(x, dt) and b.active == (b.kind is not None)
+                    and not (b.kind == "absolute" and b.pickup and not b.engaged)):
+                return  # a control at rest whose filters have settled: this step changes nothing
         if b.kind == "absolute" and b.pickup and not b.engaged:
             here = b.chain.static_value(x)
             there = self._current_norm(b)

@@ -13,11 +13,14 @@ from typing import Protocol
 
 
 class Filter(Protocol):
-    """One stage: `step(x, dt)` returns the filtered value; `reset(x)` jumps the state to x."""
+    """One stage: `step(x, dt)` returns the filtered value; `reset(x)` jumps the state to x;
+    `state()` is everything `step` reads besides its arguments and parameters (None: memoryless)."""
 
     def step(self, x: float, dt: float) -> float: ...
 
     def reset(self, x: float) -> None: ...
+
+    def state(self) -> object: ...
 
 
 def _clamp(x: float, lo: float = 0.0, hi: float = 1.0) -> float:
@@ -43,6 +46,9 @@ class RangeMap:
     def reset(self, x: float) -> None:
         pass
 
+    def state(self) -> object:
+        return None
+
 
 @dataclass
 class Invert:
@@ -53,6 +59,9 @@ class Invert:
 
     def reset(self, x: float) -> None:
         pass
+
+    def state(self) -> object:
+        return None
 
 
 @dataclass
@@ -78,6 +87,9 @@ class Curve:
     def reset(self, x: float) -> None:
         pass
 
+    def state(self) -> object:
+        return None
+
 
 @dataclass
 class DeadZone:
@@ -100,6 +112,9 @@ class DeadZone:
     def reset(self, x: float) -> None:
         pass
 
+    def state(self) -> object:
+        return None
+
 
 @dataclass
 class Smooth:
@@ -121,6 +136,9 @@ class Smooth:
 
     def reset(self, x: float) -> None:
         self.y = x
+
+    def state(self) -> object:
+        return self.y
 
 
 @dataclass
@@ -156,6 +174,9 @@ class OneEuro:
     def reset(self, x: float) -> None:
         self.x_prev, self.dx_prev = x, 0.0
 
+    def state(self) -> object:
+        return (self.x_prev, self.dx_prev)
+
 
 @dataclass
 class Slew:
@@ -179,19 +200,41 @@ class Slew:
     def reset(self, x: float) -> None:
         self.y = x
 
+    def state(self) -> object:
+        return self.y
+
 
 @dataclass
 class Chain:
-    """Filters applied in the order written in the mapping file."""
+    """Filters applied in the order written in the mapping file.
+
+    A chain that has settled is not run again: when a step with input x and dt left every stage's
+    state as it was, the same x and dt can only give the same output again (each stage is a
+    function of its state and arguments), so until the input, dt or a reset changes, `step`
+    returns that output without running the stages. Most controls sit still most of the time."""
 
     stages: list[Filter] = field(default_factory=list)
+    _settled: tuple[float, float, float] | None = field(default=None, repr=False, compare=False)
+
+    def settled_at(self, x: float, dt: float) -> bool:
+        """True when `step(x, dt)` would return the last output and change nothing."""
+        done = self._settled
+        return done is not None and done[0] == x and done[1] == dt
 
     def step(self, x: float, dt: float) -> float:
+        done = self._settled
+        if done is not None and done[0] == x and done[1] == dt:
+            return done[2]
+        before = [f.state() for f in self.stages]
+        y = x
         for f in self.stages:
-            x = f.step(x, dt)
-        return x
+            y = f.step(y, dt)
+        settled = all(f.state() == b for f, b in zip(self.stages, before))
+        self._settled = (x, dt, y) if settled else None
+        return y
 
     def reset(self, x: float) -> None:
+        self._settled = None
         for f in self.stages:
             f.reset(x)
             x = f.step(x, 0.0)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -112,3 +114,33 @@ def test_smoothing_filters_stay_within_input_hull(xs: list[float]) -> None:
         f.reset(xs[0])
         out = run(f, xs)
         assert all(min(xs) - 1e-12 <= y <= max(xs) + 1e-12 and math.isfinite(y) for y in out)
+
+
+@pytest.mark.parametrize("with_one_euro", [False, True])
+def test_a_settled_chain_gives_exactly_what_running_its_stages_would(with_one_euro: bool) -> None:
+    # the chain stops running its stages once they settle; that shortcut must never change a value
+    def stages() -> list:
+        out = [F.DeadZone(0.02), F.Smooth(0.05, 0.2), F.Slew(3.0)]
+        return out + [F.OneEuro(1.0, 0.5, 1.0)] if with_one_euro else out
+
+    chain = F.Chain(stages())
+    plain = stages()
+    rng = np.random.default_rng(3)
+    x, skipped = 0.0, 0
+    for k in range(6000):
+        if k % 1000 == 0:
+            x = float(rng.uniform(0, 1))  # a move, then a long hold: the filters settle on it
+        if k == 3500:
+            chain.reset(0.3)
+            y = 0.3
+            for f in plain:
+                f.reset(y)
+                y = f.step(y, 0.0)
+        skipped += chain.settled_at(x, 1 / 60)
+        want = x
+        for f in plain:
+            want = f.step(want, 1 / 60)
+        assert chain.step(x, 1 / 60) == want, k
+    # smoothing (to the last bit) and slew settle within a few hundred ticks of a hold; the One-Euro
+    # derivative estimate decays for longer before it stops changing
+    assert skipped > (1000 if with_one_euro else 4000)
