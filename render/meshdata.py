@@ -6,7 +6,6 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 import numpy as np
-from scipy import sparse
 
 from sim.model import FaceMesh, FaceRig, LinearMuscle, SheetMuscle, SphincterMuscle
 
@@ -74,15 +73,18 @@ def _region_mask(mesh: FaceMesh, words: Iterable[str], avoid: Iterable[str] = ()
 
 
 def _smooth(mask: np.ndarray, triangles: np.ndarray, rounds: int = 2) -> np.ndarray:
-    """Blur a per-vertex mask over mesh neighbours so tints fade instead of stepping."""
+    """Blur a per-vertex mask over mesh neighbours so tints fade instead of stepping: each round a
+    vertex takes the mean of itself and its neighbours. (numpy only: a render process of an export
+    should not pay for importing scipy.)"""
     n = len(mask)
     e = unique_edges(triangles)
-    adj = sparse.coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
-                            shape=(n, n)).tocsr() + sparse.eye(n, format="csr")
-    deg = np.asarray(adj.sum(axis=1)).ravel()
+    deg = 1.0 + np.bincount(e[:, 0], minlength=n) + np.bincount(e[:, 1], minlength=n)
     v = mask.astype(float)
     for _ in range(rounds):
-        v = (adj @ v) / deg
+        total = v.copy()
+        np.add.at(total, e[:, 0], v[e[:, 1]])
+        np.add.at(total, e[:, 1], v[e[:, 0]])
+        v = total / deg
     return v
 
 
