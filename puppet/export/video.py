@@ -158,10 +158,11 @@ def _read_exact(f: Any, n: int) -> bytes:
 
 def worker_main() -> int:
     """A render process (`python -c ...worker_main()`): a fresh interpreter, so it never shares an
-    OpenGL context with its parent nor re-runs the parent's command. Reads the face from the rig file
-    named in its configuration (argv[1], JSON), then frames (RenderFrame rows) on stdin; answers on stdout with binary records FRAME_HEAD(j, n) + n bytes: the raw
-    frame for a video (the parent encodes, in order), nothing for files it saved itself; j = -2 is
-    an error message, j = -1 the end."""
+    OpenGL context with its parent nor re-runs the parent's command. Reads the face from the rig
+    file named in its configuration (argv[1], JSON), then frames (RenderFrame rows) on stdin;
+    answers on stdout with binary records FRAME_HEAD(j, n) + n bytes: the raw frame for a video (the
+    parent encodes, in order), nothing for files it saved itself; j = -2 is an error message, j = -1
+    the end."""
     import json
     import sys
 
@@ -312,7 +313,11 @@ def render_parallel(model: Any, out: Path, kind: str, fps: float, size: tuple[in
         # the processes already share the cores: one rasterizer thread each (llvmpipe would start one
         # per core in every process, which only adds hand-offs); a user's LP_NUM_THREADS wins
         env = {**os.environ, "LP_NUM_THREADS": "1"}
-    pool = [_Worker(cfg, results, env) for _ in range(n)]
+    try:
+        pool = [_Worker(cfg, results, env) for _ in range(n)]
+    except OSError as err:
+        scratch.cleanup()
+        raise PuppetError(f"cannot start a render process: {err}") from err
     encoder: Encoder | None = None
     state = {"error": None, "done": 0, "ended": 0}
 
