@@ -313,9 +313,13 @@ def render_parallel(model: Any, out: Path, kind: str, fps: float, size: tuple[in
         # the processes already share the cores: one rasterizer thread each (llvmpipe would start one
         # per core in every process, which only adds hand-offs); a user's LP_NUM_THREADS wins
         env = {**os.environ, "LP_NUM_THREADS": "1"}
+    pool: list[_Worker] = []
     try:
-        pool = [_Worker(cfg, results, env) for _ in range(n)]
+        for _ in range(n):
+            pool.append(_Worker(cfg, results, env))
     except OSError as err:
+        for w in pool:
+            w.stop()
         scratch.cleanup()
         raise PuppetError(f"cannot start a render process: {err}") from err
     encoder: Encoder | None = None
