@@ -94,6 +94,7 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
             if spans is not None:
                 spans.add("render + readback", time.perf_counter() - t)
         work.append(time.monotonic() - starts[-1])
+    live.prepare_show()  # as `puppet live` does before it starts the devices
     for d in devs:
         d.add_listener(queue)
         d.start()

@@ -202,6 +202,8 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         core.before_tick.append(watcher.adopt)
         watcher.start()
     try:
+        if not virtual:
+            live.prepare_show()
         if virtual:
             duration = args.duration or max(d.script.duration for d in devs) or 1.0
             live.run_virtual(core, live.scripted_events(devs), duration, stop=stop)

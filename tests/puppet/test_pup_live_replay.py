@@ -291,3 +291,28 @@ def test_realtime_ticks_drain_input_at_each_boundary(face: live.Face) -> None:
     assert drained_at == pytest.approx([100.0 + k / 60 for k in range(6)])  # on the boundaries
     assert core.latency.samples and core.latency.samples[0] == pytest.approx(100.05 - 100.04)
     assert core.values[[c.name for c in face.vocab.channels].index("jaw")] > 0
+
+
+def test_no_garbage_collection_runs_inside_a_tick_and_the_collector_is_restored(face: live.Face) -> None:
+    # a full collection of what numba, numpy and the face leave takes tens of ms: during the show
+    # the collector is off (and the old objects frozen out of it); garbage is collected after frames
+    import gc
+
+    clk = FakeClock()
+    spec = live.build_mapping(face.vocab, None, ["mock://"])
+    core = live.LiveCore(face, Mapper(spec, face.vocab))
+    seen: list[tuple[bool, int]] = []
+    collections: list[int] = []
+    gc.callbacks.append(lambda phase, info: collections.append(info["generation"]) if phase == "start" else None)
+    try:
+        def drain() -> list:
+            seen.append((gc.isenabled(), gc.get_freeze_count()))
+            return []
+
+        live.run_realtime(core, drain, live.GC_FRAMES * 2 / 60.0 + 0.05, clock=clk, sleep=clk.sleep)
+    finally:
+        gc.callbacks.pop()
+    assert seen and all(not enabled and frozen > 10_000 for enabled, frozen in seen)
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+    # the loop's own collections: the young generations once on entry and every GC_FRAMES frames
+    assert collections.count(1) >= 3 and 2 not in collections
