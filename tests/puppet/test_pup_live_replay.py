@@ -303,7 +303,11 @@ def test_no_garbage_collection_runs_inside_a_tick_and_the_collector_is_restored(
     core = live.LiveCore(face, Mapper(spec, face.vocab))
     seen: list[tuple[bool, int]] = []
     collections: list[int] = []
-    gc.callbacks.append(lambda phase, info: collections.append(info["generation"]) if phase == "start" else None)
+    def record(phase: str, info: dict) -> None:
+        if phase == "start" and seen:  # from the first tick on (setup may collect, as any code does)
+            collections.append(info["generation"])
+
+    gc.callbacks.append(record)
     try:
         def drain() -> list:
             seen.append((gc.isenabled(), gc.get_freeze_count()))
@@ -314,5 +318,5 @@ def test_no_garbage_collection_runs_inside_a_tick_and_the_collector_is_restored(
         gc.callbacks.pop()
     assert seen and all(not enabled and frozen > 10_000 for enabled, frozen in seen)
     assert gc.isenabled() and gc.get_freeze_count() == 0
-    # the loop's own collections: the young generations once on entry and every GC_FRAMES frames
-    assert collections.count(1) >= 3 and 2 not in collections
+    # inside the loop only its own collections: the young generations every GC_FRAMES frames
+    assert collections.count(1) >= 2 and set(collections) == {1}
