@@ -135,20 +135,22 @@ def frame_displacement(
     params: np.ndarray,
     n_samples: int,
     out: np.ndarray,
+    scratch: tuple,
 ) -> None:
     """layer.wrinkle_displacement in one pass (the numpy version is the reference).
 
     rolls = (far, line, asym, emphasis, d_init, prev, next); entries = (vertex, roll0, roll1, lam,
     b1, b2, taper); stations = (rolls (S, 2), furrow ratio); furrows = (vertex, station0, station1,
     lam, weight); params = (dil - 1, unabsorbed fraction, full-release strain, a_cap, asym ratio,
-    furrow max depth, smoothing passes)."""
+    furrow max depth, smoothing passes); scratch = work arrays (anchor points and normals (A, 3) x2,
+    roll up and line normals (R, 3) x2, four (R,), station depths (S,) and normals (S, 3)), kept
+    by the caller so that a frame allocates nothing here."""
     far, line, asym, emph, d_init, prev, nxt = rolls
     extra, unabsorbed, release_strain, a_cap, ratio, furrow_max = (
         params[0], params[1], params[2], params[3], params[4], params[5])
     passes = int(params[6])
     n_a = anchor_tri.shape[0]
-    pts = np.zeros((n_a, 3))
-    nrm = np.zeros((n_a, 3))
+    pts, nrm, up, n_line, dh0, dh1, s0, s1, depth, st_n = scratch
     for i in range(n_a):
         t0, t1, t2 = anchor_tri[i, 0], anchor_tri[i, 1], anchor_tri[i, 2]
         for c in range(3):
@@ -160,10 +162,8 @@ def frame_displacement(
         ln = max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-12)
         nrm[i, 0], nrm[i, 1], nrm[i, 2] = nx / ln, ny / ln, nz / ln
     n_r = far.shape[0]
-    up = np.zeros((n_r, 3))
-    n_line = np.zeros((n_r, 3))
-    dh0 = np.zeros(n_r)
-    dh1 = np.zeros(n_r)
+    dh0[:] = 0.0  # rolls without surplus keep 0
+    dh1[:] = 0.0
     for r in range(n_r):
         p0, p1 = far[r], line[r]
         # scalars throughout: no small arrays allocated per roll
@@ -196,12 +196,10 @@ def frame_displacement(
         dh0[r] = a * math.sin((ratio if asym[r] else 1.0) * alpha) - nat
         dh1[r] = a * math.sin(alpha) - nat
     for _ in range(passes):
-        s0 = np.empty(n_r)
-        s1 = np.empty(n_r)
         for r in range(n_r):
             s0[r] = 0.25 * dh0[prev[r]] + 0.5 * dh0[r] + 0.25 * dh0[nxt[r]]
             s1[r] = 0.25 * dh1[prev[r]] + 0.5 * dh1[r] + 0.25 * dh1[nxt[r]]
-        dh0, dh1 = s0, s1
+        dh0, dh1, s0, s1 = s0, s1, dh0, dh1  # the smoothed values become the input of the next pass
     ev, er0, er1, elam, eb1, eb2, etaper = entries
     for q in range(ev.shape[0]):
         lam = elam[q]
@@ -213,8 +211,7 @@ def frame_displacement(
             out[ev[q], c] += h * ((1.0 - lam) * up[r0, c] + lam * up[r1, c])
     st_rolls, st_furrow = stations
     n_s = st_rolls.shape[0]
-    depth = np.zeros(n_s)
-    st_n = np.zeros((n_s, 3))
+    st_n[:, :] = 0.0  # stations without a roll keep no normal
     for i in range(n_s):
         crest = 0.0
         for side in range(2):

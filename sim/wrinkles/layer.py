@@ -16,6 +16,7 @@ normal; the in-plane slide of the material is neglected (at most a few tenths of
 
 from __future__ import annotations
 
+import threading
 import weakref
 from dataclasses import dataclass
 from functools import lru_cache
@@ -467,8 +468,24 @@ def compiled_displacement(layer: WrinkleLayer, positions: FloatArray, age: float
         params,
         _A_SAMPLES,
         out,
+        _scratch(layer),
     )
     return out
+
+
+_SCRATCH: "weakref.WeakKeyDictionary[WrinkleLayer, dict[int, tuple]]" = weakref.WeakKeyDictionary()
+
+
+def _scratch(layer: WrinkleLayer) -> tuple:
+    """The kernel's work arrays for this layer and thread, made once (kernels.frame_displacement)."""
+    per_thread = _SCRATCH.setdefault(layer, {})
+    got = per_thread.get(threading.get_ident())
+    if got is None:
+        n_a, n_r, n_s = len(layer.anchor_tri), len(layer.roll_far), len(layer.station_rolls)
+        got = (np.zeros((n_a, 3)), np.zeros((n_a, 3)), np.zeros((n_r, 3)), np.zeros((n_r, 3)), np.zeros(n_r),
+               np.zeros(n_r), np.zeros(n_r), np.zeros(n_r), np.zeros(n_s), np.zeros((n_s, 3)))
+        per_thread[threading.get_ident()] = got
+    return got
 
 
 # ---------------------------------------------------------------- model glue
