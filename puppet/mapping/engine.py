@@ -222,7 +222,7 @@ class Mapper:
     def step(self, dt: float) -> np.ndarray:
         """Advance every binding by dt and return the channel values (a new array)."""
         self.tick += 1
-        contrib: list[list[tuple[int, float, int]]] = [[] for _ in range(self._n)]
+        contrib: dict[int, list[tuple[int, float, int]]] = {}  # only the channels something drives
         for idx, b in enumerate(self.bindings):
             if b.target is None:
                 continue
@@ -231,12 +231,10 @@ class Mapper:
                 continue
             t = b.target
             for ch, w in t.channels:
-                contrib[ch].append((b.changed_tick * 4096 + idx, b.value if t.direct else b.value * w, idx))
+                contrib.setdefault(ch, []).append(
+                    (b.changed_tick * 4096 + idx, b.value if t.direct else b.value * w, idx))
         values = self.defaults.copy()
-        for ch in range(self._n):
-            cs = contrib[ch]
-            if not cs:
-                continue
+        for ch, cs in contrib.items():
             rule = self.rules[ch]
             if rule == "max":
                 values[ch] = max(v for _, v, _ in cs)
