@@ -450,42 +450,56 @@ def compiled_displacement(layer: WrinkleLayer, positions: FloatArray, age: float
     out = np.zeros((layer.n_vertices, 3))
     if len(layer.roll_far) == 0:
         return out
-    extra = float(dilatation(1.0, age)) - 1.0
-    params = np.array([extra, INPLANE_LOSS_AT_MAX * extra / DIL_MAX, FULL_RELEASE_STRAIN,
-                       A_CAP_RATIO, ASYM_RATIO, FURROW_MAX_DEPTH, float(SMOOTH_PASSES)])
-    frame_displacement(
-        np.ascontiguousarray(positions, dtype=np.float64),
-        layer.anchor_tri,
-        layer.anchor_bary,
-        (layer.roll_far, layer.roll_line, layer.roll_asym, layer.roll_emphasis, layer.roll_d_init,
-         layer.roll_prev, layer.roll_next),
-        (layer.entry_vertex, layer.entry_roll0, layer.entry_roll1, layer.entry_lam, layer.entry_b1,
-         layer.entry_b2, layer.entry_taper),
-        (layer.station_rolls, layer.station_furrow),
-        (layer.furrow_vertex, layer.furrow_station0, layer.furrow_station1, layer.furrow_lam,
-         layer.furrow_weight),
-        _stacked_tables(),
-        params,
-        _A_SAMPLES,
-        out,
-        _scratch(layer),
-    )
+    arrays, scratch = _kernel_args(layer)
+    frame_displacement(np.ascontiguousarray(positions, dtype=np.float64), *arrays, _age_params(age),
+                       _A_SAMPLES, out, scratch)
     return out
 
 
-_SCRATCH: "weakref.WeakKeyDictionary[WrinkleLayer, dict[int, tuple]]" = weakref.WeakKeyDictionary()
+def _age_params(age: float) -> FloatArray:
+    """The kernel's params for `age` (see kernels.frame_displacement); the last one is kept, since
+    the age channel rarely moves."""
+    global _LAST_PARAMS
+    if _LAST_PARAMS is None or _LAST_PARAMS[0] != age:
+        extra = float(dilatation(1.0, age)) - 1.0
+        params = np.array([extra, INPLANE_LOSS_AT_MAX * extra / DIL_MAX, FULL_RELEASE_STRAIN,
+                           A_CAP_RATIO, ASYM_RATIO, FURROW_MAX_DEPTH, float(SMOOTH_PASSES)])
+        _LAST_PARAMS = (age, params)
+    return _LAST_PARAMS[1]
 
 
-def _scratch(layer: WrinkleLayer) -> tuple:
-    """The kernel's work arrays for this layer and thread, made once (kernels.frame_displacement)."""
-    per_thread = _SCRATCH.setdefault(layer, {})
-    got = per_thread.get(threading.get_ident())
-    if got is None:
+_LAST_PARAMS: tuple[float, FloatArray] | None = None
+
+
+def _kernel_args(layer: WrinkleLayer) -> tuple[tuple, tuple]:
+    """The layer's arrays grouped as the kernel takes them, and its work arrays for this thread;
+    built once per layer (and thread), not every frame."""
+    per_layer = _SCRATCH.setdefault(layer, {})
+    arrays = per_layer.get("arrays")
+    if arrays is None:
+        arrays = (
+            layer.anchor_tri,
+            layer.anchor_bary,
+            (layer.roll_far, layer.roll_line, layer.roll_asym, layer.roll_emphasis, layer.roll_d_init,
+             layer.roll_prev, layer.roll_next),
+            (layer.entry_vertex, layer.entry_roll0, layer.entry_roll1, layer.entry_lam, layer.entry_b1,
+             layer.entry_b2, layer.entry_taper),
+            (layer.station_rolls, layer.station_furrow),
+            (layer.furrow_vertex, layer.furrow_station0, layer.furrow_station1, layer.furrow_lam,
+             layer.furrow_weight),
+            _stacked_tables(),
+        )
+        per_layer["arrays"] = arrays
+    scratch = per_layer.get(threading.get_ident())
+    if scratch is None:
         n_a, n_r, n_s = len(layer.anchor_tri), len(layer.roll_far), len(layer.station_rolls)
-        got = (np.zeros((n_a, 3)), np.zeros((n_a, 3)), np.zeros((n_r, 3)), np.zeros((n_r, 3)), np.zeros(n_r),
-               np.zeros(n_r), np.zeros(n_r), np.zeros(n_r), np.zeros(n_s), np.zeros((n_s, 3)))
-        per_thread[threading.get_ident()] = got
-    return got
+        scratch = (np.zeros((n_a, 3)), np.zeros((n_a, 3)), np.zeros((n_r, 3)), np.zeros((n_r, 3)), np.zeros(n_r),
+                   np.zeros(n_r), np.zeros(n_r), np.zeros(n_r), np.zeros(n_s), np.zeros((n_s, 3)))
+        per_layer[threading.get_ident()] = scratch
+    return arrays, scratch
+
+
+_SCRATCH: "weakref.WeakKeyDictionary[WrinkleLayer, dict]" = weakref.WeakKeyDictionary()
 
 
 # ---------------------------------------------------------------- model glue
