@@ -27,8 +27,41 @@ def _clamp(x: float, lo: float = 0.0, hi: float = 1.0) -> float:
     return lo if x < lo else hi if x > hi else x
 
 
+class _Memoryless:
+    """A stage without state: its output depends on its input only."""
+
+    def reset(self, x: float) -> None:
+        pass
+
+    def state(self) -> object:
+        return None
+
+
+class _Follower:
+    """A stage whose whole state is its last output `y` (None until the first sample, which passes
+    through); `_next(x, dt)` is the stage's rule for the next output."""
+
+    y: float | None
+
+    def step(self, x: float, dt: float) -> float:
+        if self.y is None:
+            self.y = x
+            return x
+        self.y = self._next(self.y, x, dt)
+        return self.y
+
+    def _next(self, y: float, x: float, dt: float) -> float:
+        raise NotImplementedError
+
+    def reset(self, x: float) -> None:
+        self.y = x
+
+    def state(self) -> object:
+        return self.y
+
+
 @dataclass
-class RangeMap:
+class RangeMap(_Memoryless):
     """Linear remap of [src_lo, src_hi] to [dst_lo, dst_hi]; `clamp` keeps the output inside."""
 
     src: tuple[float, float] = (0.0, 1.0)
@@ -43,29 +76,17 @@ class RangeMap:
             u = _clamp(u)
         return d0 + u * (d1 - d0)
 
-    def reset(self, x: float) -> None:
-        pass
-
-    def state(self) -> object:
-        return None
-
 
 @dataclass
-class Invert:
+class Invert(_Memoryless):
     """1 - x: a dial that should close what it opens."""
 
     def step(self, x: float, dt: float) -> float:
         return 1.0 - x
 
-    def reset(self, x: float) -> None:
-        pass
-
-    def state(self) -> object:
-        return None
-
 
 @dataclass
-class Curve:
+class Curve(_Memoryless):
     """Response curve: x**gamma, or a piecewise-linear curve through (x, y) points sorted by x.
     Gamma > 1 gives fine control near zero, where small muscle activations live."""
 
@@ -84,15 +105,9 @@ class Curve:
         g = 1.0 if self.gamma is None else self.gamma
         return math.copysign(abs(x) ** g, x)
 
-    def reset(self, x: float) -> None:
-        pass
-
-    def state(self) -> object:
-        return None
-
 
 @dataclass
-class DeadZone:
+class DeadZone(_Memoryless):
     """Zero within `width` of `center`, then rescaled so the output still reaches 0 and 1 at the
     ends: no jump at the edge of the zone. Kills the jitter of a worn pot at rest."""
 
@@ -109,15 +124,9 @@ class DeadZone:
         span = c - w
         return c - (c - x - w) * (c / span) if span > 0 else 0.0
 
-    def reset(self, x: float) -> None:
-        pass
-
-    def state(self) -> object:
-        return None
-
 
 @dataclass
-class Smooth:
+class Smooth(_Follower):
     """First-order low-pass with separate time constants for rising and falling values (seconds):
     a muscle can snap on and relax slowly, or the reverse. 0 means no smoothing that way."""
 
@@ -125,20 +134,10 @@ class Smooth:
     fall: float = 0.05
     y: float | None = None
 
-    def step(self, x: float, dt: float) -> float:
-        if self.y is None:
-            self.y = x
-            return x
-        tau = self.rise if x > self.y else self.fall
+    def _next(self, y: float, x: float, dt: float) -> float:
+        tau = self.rise if x > y else self.fall
         a = 1.0 if tau <= 0.0 else 1.0 - math.exp(-dt / tau)
-        self.y = self.y + a * (x - self.y)
-        return self.y
-
-    def reset(self, x: float) -> None:
-        self.y = x
-
-    def state(self) -> object:
-        return self.y
+        return y + a * (x - y)
 
 
 @dataclass
@@ -179,7 +178,7 @@ class OneEuro:
 
 
 @dataclass
-class Slew:
+class Slew(_Follower):
     """Limits the rate of change to `rate` full ranges per second (`fall` if given for decreasing
     values): a twitchy dial cannot make the face snap."""
 
@@ -187,21 +186,11 @@ class Slew:
     fall: float | None = None
     y: float | None = None
 
-    def step(self, x: float, dt: float) -> float:
-        if self.y is None:
-            self.y = x
-            return x
+    def _next(self, y: float, x: float, dt: float) -> float:
         up = self.rate * dt
         down = (self.rate if self.fall is None else self.fall) * dt
-        d = x - self.y
-        self.y = self.y + (up if d > up else -down if d < -down else d)
-        return self.y
-
-    def reset(self, x: float) -> None:
-        self.y = x
-
-    def state(self) -> object:
-        return self.y
+        d = x - y
+        return y + (up if d > up else -down if d < -down else d)
 
 
 @dataclass
@@ -243,7 +232,7 @@ class Chain:
         """The value with only the memoryless stages applied: where the control 'points', used
         by soft takeover to compare the physical position with the channel's value."""
         for f in self.stages:
-            if isinstance(f, (RangeMap, Invert, Curve, DeadZone)):
+            if isinstance(f, _Memoryless):
                 x = f.step(x, 0.0)
         return x
 
