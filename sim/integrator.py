@@ -332,7 +332,7 @@ class Simulator:
         self._weight = np.ascontiguousarray(model.weight, dtype=np.float64)
         self._jaw: float | None = None  # the jaw the target and support normals were set for
         self._target = np.array(model.rest)
-        self._a1 = np.zeros((n, 3))
+        self._force = np.zeros((n, 3))  # the RK2 kernel's force scratch
         self._xm = np.zeros((n, 3))
         self._vm = np.zeros((n, 3))
         self._bound = BLOWUP_DISPLACEMENT * _face_scale(model)
@@ -388,7 +388,7 @@ class Simulator:
         if self._implicit is None:
             _rk2_frame(x, v, self.substeps, self.dt, self._si3, self._sj3, self._rest_len, self._k_low,
                        self._k_high, self._k_damp, self._threshold, ext, self._kr, self._c, self._normal,
-                       self._kn, self._inv_m, self._a1, self._xm, self._vm, self._work, *self._eyes)
+                       self._kn, self._inv_m, self._force, self._xm, self._vm, self._work, *self._eyes)
         else:
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
                                                             self._k_high, self._threshold), self._normal,

@@ -474,8 +474,7 @@ _LAST_PARAMS: tuple[float, FloatArray] | None = None
 def _kernel_args(layer: WrinkleLayer) -> tuple[tuple, tuple]:
     """The layer's arrays grouped as the kernel takes them, and its work arrays for this thread;
     built once per layer (and thread), not every frame."""
-    per_layer = _SCRATCH.setdefault(layer, {})
-    arrays = per_layer.get("arrays")
+    arrays = _ARGS.get(layer)
     if arrays is None:
         arrays = (
             layer.anchor_tri,
@@ -489,17 +488,19 @@ def _kernel_args(layer: WrinkleLayer) -> tuple[tuple, tuple]:
              layer.furrow_weight),
             _stacked_tables(),
         )
-        per_layer["arrays"] = arrays
-    scratch = per_layer.get(threading.get_ident())
+        _ARGS[layer] = arrays
+    per_thread = _SCRATCH.setdefault(layer, {})
+    scratch = per_thread.get(threading.get_ident())
     if scratch is None:
         n_a, n_r, n_s = len(layer.anchor_tri), len(layer.roll_far), len(layer.station_rolls)
         scratch = (np.zeros((n_a, 3)), np.zeros((n_a, 3)), np.zeros((n_r, 3)), np.zeros((n_r, 3)), np.zeros(n_r),
                    np.zeros(n_r), np.zeros(n_r), np.zeros(n_r), np.zeros(n_s), np.zeros((n_s, 3)))
-        per_layer[threading.get_ident()] = scratch
+        per_thread[threading.get_ident()] = scratch
     return arrays, scratch
 
 
-_SCRATCH: "weakref.WeakKeyDictionary[WrinkleLayer, dict]" = weakref.WeakKeyDictionary()
+_ARGS: "weakref.WeakKeyDictionary[WrinkleLayer, tuple]" = weakref.WeakKeyDictionary()
+_SCRATCH: "weakref.WeakKeyDictionary[WrinkleLayer, dict[int, tuple]]" = weakref.WeakKeyDictionary()
 
 
 # ---------------------------------------------------------------- model glue
