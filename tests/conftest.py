@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import select
 import shutil
 import subprocess
 import time
@@ -11,31 +12,34 @@ from collections.abc import Iterator
 import pytest
 
 
-def _free_display() -> int:
-    for n in range(90, 200):
-        if not os.path.exists(f"/tmp/.X11-unix/X{n}") and not os.path.exists(f"/tmp/.X{n}-lock"):
-            return n
-    raise RuntimeError("no free X display number")
-
-
 @pytest.fixture(scope="session")
 def xvfb_display() -> Iterator[str]:
     """A private Xvfb server; yields its DISPLAY string (e.g. ':93'). Needs the xvfb package,
     which .ci/setup installs; the test fails (not skips) without it."""
     if shutil.which("Xvfb") is None:
         pytest.fail("Xvfb is not installed: run `bash .ci/setup`")
-    n = _free_display()
+    # -displayfd: the server picks a free display number itself and writes it to the pipe, so
+    # test runs started side by side never race for the same number.
+    rfd, wfd = os.pipe()
     proc = subprocess.Popen(
-        ["Xvfb", f":{n}", "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
+        ["Xvfb", "-displayfd", str(wfd), "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
+        pass_fds=(wfd,),
     )
+    os.close(wfd)
     deadline = time.monotonic() + 10
-    while not os.path.exists(f"/tmp/.X11-unix/X{n}"):
-        if proc.poll() is not None or time.monotonic() > deadline:
+    text = b""
+    while not text.endswith(b"\n"):
+        ready, _, _ = select.select([rfd], [], [], max(0.0, deadline - time.monotonic()))
+        chunk = os.read(rfd, 16) if ready else b""
+        if not chunk:
+            os.close(rfd)
             proc.kill()
             pytest.fail("Xvfb did not start")
-        time.sleep(0.05)
+        text += chunk
+    os.close(rfd)
+    n = int(text.strip())
     try:
         yield f":{n}"
     finally:
