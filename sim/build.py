@@ -53,6 +53,10 @@ class SkinParams:
                     vertex's weight at its rest position (`gravity_offsets`), the way the tissue under
                     real skin is pre-stressed by it. Off, the face sags ~1 mm out of its rest shape.
     jaw_max_angle:  rad, jaw rotation at jaw = 1 (AU27).
+    jaw_max_slide:  cm of a reference face (IPD 6.3 cm, scaled by the face's), the condyles' glide
+                    forward and down the articular eminence at jaw = 1 (`jaw_slide_angle` rad below
+                    the horizontal): a wide-open mouth is the hinge rotation plus this translation,
+                    which keeps the chin from swinging back into the throat.
     """
 
     areal_density: float = 0.3
@@ -69,7 +73,9 @@ class SkinParams:
     gravity: bool = True
     g: float = 981.0
     gravity_balanced: bool = True
-    jaw_max_angle: float = 0.35
+    jaw_max_angle: float = 0.55
+    jaw_max_slide: float = 1.4
+    jaw_slide_angle: float = 0.6
 
 
 @dataclass(frozen=True, eq=False)

@@ -263,6 +263,22 @@ def jaw_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
 
 
+def jaw_slide(model: FaceModel) -> np.ndarray:
+    """(3,) cm: the mandible's translation at jaw = 1, forward (perpendicular to the hinge axis, in
+    the horizontal plane of the project frame, +Y up) and down by params.jaw_slide_angle, of length
+    params.jaw_max_slide scaled by the face's size."""
+    p = model.params
+    axis = np.asarray(model.jaw_axis, dtype=np.float64)
+    up = np.array([0.0, 1.0, 0.0])
+    forward = np.cross(axis, up)
+    norm = np.linalg.norm(forward)
+    if norm < 1e-9:
+        return np.zeros(3)
+    forward /= norm
+    direction = math.cos(p.jaw_slide_angle) * forward - math.sin(p.jaw_slide_angle) * up
+    return p.jaw_max_slide * _face_scale(model) * direction
+
+
 class Simulator:
     """Advances a FaceState by whole frames of frame_dt seconds under a FaceControl.
 
@@ -348,7 +364,7 @@ class Simulator:
         if jaw == 0.0:
             return np.array(base)
         rot = jaw_rotation(m.jaw_axis, jaw * m.params.jaw_max_angle)
-        rotated = (m.rest - m.jaw_pivot) @ rot.T + m.jaw_pivot + m.rest_offset @ rot.T
+        rotated = (m.rest - m.jaw_pivot) @ rot.T + m.jaw_pivot + m.rest_offset @ rot.T + jaw * jaw_slide(m)
         return base + m.jaw_weight[:, None] * (rotated - base)
 
     def _set_jaw(self, jaw: float) -> None:
