@@ -1,5 +1,5 @@
-"""A coarse transferred head: the default rig carried onto a 728-vertex synthetic full head (eye and
-mouth holes, the back of the head included), the kind of low-polygon mesh a user imports."""
+"""A coarse transferred head (`sim.transfer.synthetic.coarse_transferred_head`, 437 vertices),
+built once per test session."""
 
 from __future__ import annotations
 
@@ -11,13 +11,9 @@ from sim.model import FaceRig
 
 @lru_cache(maxsize=1)
 def coarse_head_rig() -> FaceRig:
-    from sim.rig import default_rig
-    from sim.transfer import from_arrays, parse_landmarks, transfer_rig
-    from sim.transfer.synthetic import synthetic_landmarks, synthetic_mesh
+    from sim.transfer.synthetic import coarse_transferred_head
 
-    v, t, param = synthetic_mesh(28, 26, full_head=True)
-    lms = parse_landmarks(synthetic_landmarks(t, param), "coarse.json")
-    return transfer_rig(default_rig(0), from_arrays(v, t, "coarse.obj"), lms, name="coarse").rig
+    return coarse_transferred_head()
 
 
 def coarse_head_model(params: SkinParams | None = None) -> FaceModel:
