@@ -131,7 +131,7 @@ def _lids(f: FaceFrame, side: str, sg: float) -> tuple[Muscle, ...]:
     s = f.s
     inner, outer = f.get(f"eye_inner_{side}"), f.get(f"eye_outer_{side}")
     top, bottom = f.get(f"eye_top_{side}")[1], f.get(f"eye_bottom_{side}")[1]
-    meet = bottom + 0.35 * (top - bottom)
+    meet = bottom + 0.2 * (top - bottom)
     x_in, x_out = inner[0] - sg * 0.2 * s, outer[0] + sg * 0.2 * s
     width = abs(x_out - x_in) / s + 0.2
 
@@ -147,7 +147,7 @@ def _lids(f: FaceFrame, side: str, sg: float) -> tuple[Muscle, ...]:
     a1, a2 = np.array([x_in, meet, za]), np.array([x_out, meet, za])
     upper = _sheet(f, f"orbicularis_oculi_lid_upper_{side}", a1, a2,
                    pt(x_in, top + 0.3 * s), pt(x_out, top + 0.3 * s), width=width, reach=1.7,
-                   strength=2.25)
+                   strength=2.3)
     lower = _sheet(f, f"orbicularis_oculi_lid_lower_{side}", a1, a2,
                    pt(x_in, bottom - 0.3 * s), pt(x_out, bottom - 0.3 * s), width=width, reach=1.6,
                    strength=1.35)
@@ -164,17 +164,19 @@ def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle,
     ec = f"eye_center_{side}"
     out[f"frontalis_inner_{side}"] = (_sheet(
         f, f"frontalis_inner_{side}",
-        f.at(bi, sg, 0.0, 4.5, 0.3), f.at(bi, sg, 1.4, 4.6, 0.3),
-        f.at(bi, sg, 0.0, 0.2), f.at(bi, sg, 1.4, 0.3), width=1.8, strength=1.3),)
+        f.at(bi, sg, -0.6, 4.5, 0.3), f.at(bi, sg, 1.1, 4.6, 0.3),
+        f.at(bi, sg, -0.6, -0.2), f.at(bi, sg, 1.1, 0.0), width=1.9, strength=1.5),)
     out[f"frontalis_outer_{side}"] = (_sheet(
         f, f"frontalis_outer_{side}",
-        f.at(bo, sg, -1.6, 4.3, 0.3), f.at(bo, sg, 0.2, 4.0, 0.3),
-        f.at(bo, sg, -1.6, 0.2), f.at(bo, sg, 0.2, 0.0), width=2.2, strength=1.3),)
+        f.at(bo, sg, -2.0, 4.3, 0.3), f.at(bo, sg, 0.2, 4.0, 0.3),
+        f.at(bo, sg, -2.0, 0.2), f.at(bo, sg, 0.2, 0.0), width=2.5, strength=1.5),)
     out[f"corrugator_{side}"] = (_linear(
         f, f"corrugator_{side}", f.at(bi, sg, -0.9, -0.5, 0.5), f.at(bi, sg, 0.7, 0.2),
-        reach=1.8, angle=0.6, strength=2.0),)
+        reach=1.8, angle=0.6, strength=2.0), _linear(
+        f, f"depressor_supercilii_{side}", f.at(bi, sg, -0.3, -1.7, 0.4), f.at(bi, sg, 0.4, 0.3),
+        reach=1.6, angle=0.7, strength=1.2))
     out[f"orbicularis_oculi_{side}"] = (_sphincter(
-        f, f"orbicularis_oculi_{side}", f.at(ec, sg, 0.1, -0.1), 3.0, 2.4, 1.2),)
+        f, f"orbicularis_oculi_{side}", f.at(ec, sg, 0.1, 0.4), 3.0, 2.4, 1.2),)
     out[f"orbicularis_oculi_lid_{side}"] = _lids(f, side, sg)
     out[f"levator_labii_alaeque_nasi_{side}"] = (_linear(
         f, f"levator_labii_alaeque_nasi_{side}", f.at(f"eye_inner_{side}", sg, -0.3, -0.2, 0.4),
@@ -187,7 +189,7 @@ def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle,
         reach=1.25, angle=0.35, strength=1.0),)
     out[f"zygomaticus_major_{side}"] = (_linear(
         f, f"zygomaticus_major_{side}", f.at(f"eye_outer_{side}", sg, 1.3, -2.9, 0.5),
-        f.at(mc, sg, 0.1, 0.0), reach=1.3, angle=0.45, strength=1.5),)
+        f.at(mc, sg, 0.1, 0.0), reach=1.3, angle=0.45, strength=2.2),)
     out[f"levator_anguli_oris_{side}"] = (_linear(
         f, f"levator_anguli_oris_{side}", f.at(mc, sg, -0.4, 2.8, 0.5), f.at(mc, sg, 0.0, 0.1),
         reach=1.3, angle=0.4, strength=1.2),)
