@@ -87,6 +87,18 @@ def new_client(api: str, output: bool = False) -> Any:
         raise DeviceError(f"cannot use the {api.upper()} MIDI API: {hint} ({err})") from err
 
 
+def delete_client(client: Any) -> None:
+    """Release a python-rtmidi client now (``del`` alone leaves it registered with the server)."""
+    if client is None:
+        return
+    try:
+        if client.is_port_open():
+            client.close_port()
+        client.delete()
+    except Exception:
+        pass
+
+
 def foreign_ports(client: Any) -> list[str]:
     """The ports of a client's list that are not ours."""
     return [p for p in client.get_ports() if not p.lower().startswith(CLIENT)]
@@ -143,7 +155,7 @@ class MidiPortDevice(MidiDevice):
         except DeviceError:
             raise
         except Exception as err:  # the server went away under a kept client: start afresh next time
-            self._in = self._out = None
+            self._drop_clients()
             raise OSError(f"MIDI API {self.api} failed: {err}") from err
         mine = [p for p in ports if not p.lower().startswith(CLIENT)]
         idx = find_port(mine, self.name, self.profile.port)
@@ -179,7 +191,14 @@ class MidiPortDevice(MidiDevice):
 
     def close(self) -> None:
         super().close()
-        self._in = self._out = None  # releases the rtmidi clients (and their ALSA/JACK clients)
+        self._drop_clients()
+
+    def _drop_clients(self) -> None:
+        """Close our ALSA/JACK clients: a python-rtmidi object left to the garbage collector
+        keeps its client (and its name) registered with the server."""
+        clients, self._in, self._out = (self._in, self._out), None, None
+        for client in clients:
+            delete_client(client)
 
     def _wake(self) -> None:
         self._inbox.put(None)
@@ -240,4 +259,4 @@ def list_ports(api: str) -> list[tuple[str, str]]:
 
         return [(p, profile_for_port(p)) for p in foreign_ports(client)]
     finally:
-        del client
+        delete_client(client)
