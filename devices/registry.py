@@ -26,6 +26,8 @@ BACKENDS: dict[str, tuple[str, str]] = {
     "can": ("devices.candev", "CanDevice"),
     "keyboard": ("devices.keyboard", "KeyboardDevice"),
     "mock": ("devices.mock", "MockDevice"),
+    "midi": ("devices.midi.port", "MidiPortDevice"),
+    "rawmidi": ("devices.midi.raw", "RawMidiDevice"),
 }
 
 ENTRY_POINT_GROUP = "puppet.devices"
