@@ -26,6 +26,11 @@ BACKENDS: dict[str, tuple[str, str]] = {
     "can": ("devices.candev", "CanDevice"),
     "keyboard": ("devices.keyboard", "KeyboardDevice"),
     "mock": ("devices.mock", "MockDevice"),
+    "osc": ("devices.osc", "OscDevice"),
+    "facecap": ("devices.facestream.facecap", "FaceCapDevice"),
+    "vmc": ("devices.facestream.vmc", "VmcDevice"),
+    "ifacialmocap": ("devices.facestream.ifacialmocap", "IFacialMocapDevice"),
+    "livelink": ("devices.facestream.livelink", "LiveLinkDevice"),
 }
 
 ENTRY_POINT_GROUP = "puppet.devices"
