@@ -124,7 +124,8 @@ def exposure_text(spec: str, what: str, host: str, port: int, allow: tuple[Netwo
         where = "every network interface" + (f" ({', '.join(seen)})" if seen else "")
     else:
         where = host
-    who = ("only datagrams from " + ", ".join(str(n) for n in allow) + " are used") if allow else \
+    names = [str(n.network_address) if n.prefixlen == n.max_prefixlen else str(n) for n in allow]
+    who = ("only datagrams from " + ", ".join(names) + " are used") if allow else \
         "any machine that can reach it can drive the face; limit the senders with allow=ADDR[,ADDR...]"
     return f"{spec}: listening for {what} on UDP port {port} of {where}: {who}"
 
@@ -151,6 +152,7 @@ class UdpListenerDevice(Device):
                 f"{spec.text}: {self.host} would listen beyond this machine; say so with lan=1 "
                 f"({self.scheme}://{self.host}:{self.port}?lan=1, and allow=ADDR,... to accept only those "
                 f"senders), or use 127.0.0.1")
+        self.parsed_host = self.host
         self.exposure = "" if is_loopback(self.host) else \
             exposure_text(spec.text, self.WHAT, self.host, self.port, self.allow)
         self.description = f"{self.WHAT} on udp {self.host}:{self.port}"
@@ -193,6 +195,7 @@ class UdpListenerDevice(Device):
         self.bound = sock.getsockname()[:2]
         if self.exposure and not self._announced:
             self._announced = True
+            self.exposure = exposure_text(self.spec, self.WHAT, self.parsed_host, self.bound[1], self.allow)
             print(self.exposure, file=sys.stderr, flush=True)
 
     def _close_handle(self) -> None:

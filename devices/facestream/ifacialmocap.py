@@ -1,8 +1,8 @@
-"""``ifacialmocap://127.0.0.1:49983[?phone=IP]`` — iFacialMocap (iOS): plain text over UDP, one
+"""``ifacialmocap://127.0.0.1:49983[?phone=IP[:PORT]]`` — iFacialMocap (iOS): plain text over UDP, one
 datagram per frame: ``name-value|name-value|...|=head#rx,ry,rz,px,py,pz|rightEye#...|leftEye#...|``
 with weights 0..100, ``_L``/``_R`` suffixes and keys in any order (version 2 writes ``name&value``).
 The phone streams after a start request: with ``phone=IP`` the device sends it to that phone
-(port 49983) when it opens and again while no frame arrives; the phone then needs this listener to
+(port 49983 unless given) when it opens and again while no frame arrives; the phone then needs this listener to
 be reachable, so ``lan=1`` too."""
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from devices.errors import DeviceSpecError
 from devices.events import ControlEvent
 from devices.facestream import BlendshapeFrames, FaceStreamDevice, arkit_name
 from devices.spec import DeviceSpec
+from devices.udp import is_loopback, split_host_port
 from devices.warn import WarningCounter
 
 START_REQUEST = b"iFacialMocap_sahuasouryya9218sauhuiayeta91555dy3719"
@@ -71,20 +72,26 @@ class IFacialMocapDevice(FaceStreamDevice):
     """iFacialMocap's stream (port 49983). Option ``phone=IP`` asks that phone to start sending."""
 
     scheme = "ifacialmocap"
-    FORM = "ifacialmocap://127.0.0.1:49983[?phone=IP&lan=1&allow=ADDR,...&release=S&mirror=1]"
+    FORM = "ifacialmocap://127.0.0.1:49983[?phone=IP[:PORT]&lan=1&allow=ADDR,...&release=S&mirror=1]"
     OPTIONS = FaceStreamDevice.STREAM_OPTIONS | {"phone"}
     DEFAULT_PORT = PHONE_PORT
     WHAT = "iFacialMocap face tracking"
 
     def __init__(self, spec: DeviceSpec, **options: Any) -> None:
         super().__init__(spec, **options)
-        self.phone = spec.query.get("phone") or None
-        if self.phone is not None:
+        self.phone: tuple[str, int] | None = None
+        if spec.query.get("phone"):
             try:
-                socket.inet_pton(socket.AF_INET6 if ":" in self.phone else socket.AF_INET, self.phone)
-            except OSError as err:
+                host, port = split_host_port(spec.query["phone"], PHONE_PORT, spec.text)
+                socket.inet_pton(socket.AF_INET6 if ":" in host else socket.AF_INET, host)
+            except (OSError, DeviceSpecError) as err:
                 self.close()
-                raise DeviceSpecError(f"{spec.text}: phone={self.phone!r} is not an IP address") from err
+                raise DeviceSpecError(f"{spec.text}: phone={spec.query['phone']!r} is not IP[:PORT]") from err
+            if not self.lan and not is_loopback(host):
+                self.close()
+                raise DeviceSpecError(f"{spec.text}: the phone at {host} streams over the network, which needs a "
+                                      "listener there too: add lan=1 (and allow=" + host + ")")
+            self.phone = (host, port)
         self.parser = IFacialMocapParser(self.spec, self.warnings, self.frames.mirror)
         self.frames = self.parser.frames
         self._requested = 0.0
@@ -107,6 +114,6 @@ class IFacialMocapDevice(FaceStreamDevice):
             return
         self._requested = t
         try:
-            self._sock.sendto(START_REQUEST, (self.phone, PHONE_PORT))
+            self._sock.sendto(START_REQUEST, self.phone)
         except OSError as err:
-            self.warnings.warn("request", f"cannot ask {self.phone} to start streaming: {err}")
+            self.warnings.warn("request", f"cannot ask {self.phone[0]} to start streaming: {err}")
