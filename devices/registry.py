@@ -28,6 +28,11 @@ BACKENDS: dict[str, tuple[str, str]] = {
     "mock": ("devices.mock", "MockDevice"),
     "midi": ("devices.midi.port", "MidiPortDevice"),
     "rawmidi": ("devices.midi.raw", "RawMidiDevice"),
+    "osc": ("devices.osc", "OscDevice"),
+    "facecap": ("devices.facestream.facecap", "FaceCapDevice"),
+    "vmc": ("devices.facestream.vmc", "VmcDevice"),
+    "ifacialmocap": ("devices.facestream.ifacialmocap", "IFacialMocapDevice"),
+    "livelink": ("devices.facestream.livelink", "LiveLinkDevice"),
 }
 
 ENTRY_POINT_GROUP = "puppet.devices"

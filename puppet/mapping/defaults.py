@@ -37,10 +37,24 @@ def load_default_map(name: str) -> MappingSpec:
     return parse_mapping(map_text(name), f"puppet/maps/{name}.toml")
 
 
+#: Network listeners: OSC by profile, face-tracking streams by their blendshapes.
+NET_MAPS = {"facecap": "arkit", "vmc": "arkit", "ifacialmocap": "arkit", "livelink": "arkit"}
+
+
+def osc_map_name(scheme: str, spec: str) -> str | None:
+    """`osc_<profile>` for an osc:// spec, `arkit` for a face-tracking stream, else None."""
+    if scheme == "osc":
+        m = re.search(r"[?&]profile=([a-z]+)", spec.lower())
+        return f"osc_{m.group(1) if m else 'generic'}"
+    return NET_MAPS.get(scheme)
+
+
 def default_map_name(spec: str, kind: str = "") -> str | None:
     """The default map for a device spec (and its discovered kind/description), or None."""
     scheme, _, rest = spec.partition("://")
     scheme = scheme.lower()
+    if scheme == "osc" or scheme in NET_MAPS:
+        return osc_map_name(scheme, spec)
     if scheme == "mock":
         m = re.search(r"impersonate=([a-z]+)", spec)
         box = m.group(1) if m else "sgi"

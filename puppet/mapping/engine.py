@@ -18,6 +18,7 @@ from puppet.mapping import filters as F
 from puppet.mapping.buttons import ButtonState, RadioGroup
 from puppet.mapping.config import BindingSpec, FilterSpec, MappingSpec
 from puppet.mapping.targets import Target, Vocabulary
+from puppet.mapping.templates import expand_spec
 
 PANIC_SECONDS = 0.6
 #: A ring is not updated while its control moves and for this many ticks after its last input.
@@ -132,6 +133,7 @@ class Mapper:
             self._reset_binding(b)
 
     def _add(self, spec: MappingSpec) -> list[Binding]:
+        spec = expand_spec(spec, self.vocab)  # `{channel}`, `{au}`, `{expression}` families
         for g, allow in spec.radio_allow_none.items():
             self.groups.setdefault(g, RadioGroup(g, allow))
         added = []
