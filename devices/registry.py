@@ -26,6 +26,7 @@ BACKENDS: dict[str, tuple[str, str]] = {
     "can": ("devices.candev", "CanDevice"),
     "keyboard": ("devices.keyboard", "KeyboardDevice"),
     "mock": ("devices.mock", "MockDevice"),
+    "panel": ("puppet.panel.device", "PanelDevice"),  # the browser page; its server lives in puppet/panel
 }
 
 ENTRY_POINT_GROUP = "puppet.devices"
