@@ -33,6 +33,7 @@ BACKENDS: dict[str, tuple[str, str]] = {
     "vmc": ("devices.facestream.vmc", "VmcDevice"),
     "ifacialmocap": ("devices.facestream.ifacialmocap", "IFacialMocapDevice"),
     "livelink": ("devices.facestream.livelink", "LiveLinkDevice"),
+    "panel": ("puppet.panel.device", "PanelDevice"),  # the browser page; its server lives in puppet/panel
 }
 
 ENTRY_POINT_GROUP = "puppet.devices"

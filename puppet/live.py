@@ -196,6 +196,7 @@ class LiveCore:
         self.tick_count = 0
         self.latency = LatencyMeter()
         self.unpresented: list[float] = []
+        self.frames = 0  # frames presented (the performer's page shows the rate)
         self.values = np.array(mapper.values, copy=True)
         self.markers: list[tuple[int, str]] = []
         #: run in the loop thread at each tick boundary (e.g. adopting a box plugged in mid-show)
@@ -266,6 +267,7 @@ class LiveCore:
 
     def presented(self, t: float) -> None:
         """A frame showing every tick so far reached the screen (or the encoder) at time t."""
+        self.frames += 1
         for te in self.unpresented:
             self.latency.add(t - te)
         self.unpresented.clear()
@@ -548,7 +550,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
     """Ticks on the wall clock (at most 4 per frame, then the schedule re-anchors), frames at the
     window's pace; latency is measured when the frame showing an event has been swapped."""
     kb = next((d for d in devs if d.spec.startswith("keyboard")), None)
-    keymap = kb is not None and len(devs) == 1
+    keymap = kb is not None and len([d for d in devs if getattr(d, "scheme", "") != "panel"]) == 1
     win = _window_or_none(core.face.model, "facepuppet live", [*LIVE_HELP, *([KEYMAP_HELP] if keymap else [])])
     if win is None:
         run_realtime(core, drain, duration, stop=stop)
