@@ -22,11 +22,14 @@ import numpy as np
 
 from puppet.errors import ChannelError, ConfigError
 from puppet.mapping.targets import Target, Vocabulary
+from safefile import BadFile, quote, read_text
 
 MAGIC = "facepuppet-curves"
 INTERPS = ("linear", "smooth", "step")
 MODES = ("replace", "add", "max")
 SPAN_EPS = 1e-6  # key times are written with 6 decimals
+MAX_SECONDS = 24 * 3600.0  # a day: a replay of the curves is allocated per tick
+MAX_VALUE = 1e9  # values are clamped to the channel's range; beyond this it is a typo
 
 
 @dataclass
@@ -97,33 +100,33 @@ def parse_curves(text: str, source: str = "<curves>") -> CurveSet:
                 elif word in MODES:
                     mode = word
                 else:
-                    raise fail(lineno, f"unknown word {word!r}; expected one of {', '.join(INTERPS + MODES)}")
+                    raise fail(lineno, f"unknown word {quote(word)}; expected one of {', '.join(INTERPS + MODES)}")
             cur = {"target": parts[1], "interp": interp, "mode": mode, "keys": [], "line": lineno}
         elif parts[0] == "end":
             if cur is None:
                 raise fail(lineno, "'end' without a 'curve'")
             keys = cur["keys"]
             if not keys:
-                raise fail(lineno, f"curve {cur['target']} has no keys")
+                raise fail(lineno, f"curve {quote(cur['target'])} has no keys")
             curves.append(Curve(cur["target"], cur["interp"], cur["mode"], np.array([k[0] for k in keys]),
                                 np.array([k[1] for k in keys]), cur["line"]))
             cur = None
         else:
             if cur is None:
-                raise fail(lineno, f"expected 'curve TARGET ...' or a comment, got {s!r}")
+                raise fail(lineno, f"expected 'curve TARGET ...' or a comment, got {quote(s)}")
             if len(parts) != 2:
                 raise fail(lineno, "expected a key as 'time value' (two numbers)")
             try:
                 t, v = float(parts[0]), float(parts[1])
             except ValueError:
-                raise fail(lineno, f"expected two numbers 'time value', got {s!r}") from None
-            if not (np.isfinite(t) and np.isfinite(v)) or t < 0:
-                raise fail(lineno, "expected a finite time >= 0 and a finite value")
+                raise fail(lineno, f"expected two numbers 'time value', got {quote(s)}") from None
+            if not (np.isfinite(t) and np.isfinite(v)) or not 0 <= t <= MAX_SECONDS or abs(v) > MAX_VALUE:
+                raise fail(lineno, f"expected a time in 0..{MAX_SECONDS:g} s and a value within +-{MAX_VALUE:g}")
             if cur["keys"] and t < cur["keys"][-1][0]:
                 raise fail(lineno, f"key time {t} goes back in time (keys must be in order)")
             cur["keys"].append((t, v))
     if cur is not None:
-        raise fail(cur["line"], f"curve {cur['target']} is not closed with 'end'")
+        raise fail(cur["line"], f"curve {quote(cur['target'])} is not closed with 'end'")
     if not seen_magic:
         raise ConfigError(f"{source}:1: empty curves file; expected '{MAGIC} 1'")
     return CurveSet(curves, source)
@@ -132,11 +135,9 @@ def parse_curves(text: str, source: str = "<curves>") -> CurveSet:
 def load_curves(path: str | Path) -> CurveSet:
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ConfigError(f"{p}: cannot read the curves file: {err.strerror}") from err
-    except UnicodeDecodeError as err:
-        raise ConfigError(f"{p}: the curves file is not UTF-8 text") from err
+        text = read_text(p, "curves file", 64 * 1024 * 1024)
+    except BadFile as err:
+        raise ConfigError(str(err)) from err
     return parse_curves(text, str(p))
 
 

@@ -81,8 +81,10 @@ def load_face(rig_path: str | None = None, resolution: int = 0) -> Face:
 
     if rig_path:
         try:
-            rig = sim.load_rig(rig_path)
-            model = sim.compile_model(rig)
+            from sim.rig import load_model
+
+            model = load_model(rig_path)
+            rig = model.rig
         except FileNotFoundError as err:
             raise ConfigError(f"{rig_path}: rig file not found") from err
         except (OSError, ValueError, KeyError) as err:

@@ -250,71 +250,9 @@ class Session:
 
 
 def read_session(path: str | Path) -> Session:
-    """Read a recording. A file cut short (crash, SIGKILL) reads up to its last complete record
-    and gets a warning in `session.warnings`; a file that is not a recording is a ConfigError."""
-    p = Path(path)
-    try:
-        fh = open(p, "rb")
-    except OSError as err:
-        raise ConfigError(f"{p}: cannot read the recording: {err.strerror}") from err
-    with fh:
-        data = fh.read()
-    lines = data.split(b"\n")
-    try:
-        header = json.loads(lines[0])
-    except (ValueError, UnicodeDecodeError) as err:
-        raise ConfigError(f"{p}:1: not a facepuppet recording (no readable header)") from err
-    if not isinstance(header, dict) or header.get("format") != FORMAT:
-        raise ConfigError(f"{p}:1: not a facepuppet recording (header format is not {FORMAT!r})")
-    if header.get("version") != VERSION:
-        raise ConfigError(f"{p}:1: recording format version {header.get('version')!r} is not supported (expected {VERSION})")
-    try:
-        channels = [str(c) for c in header["channels"]]
-        rate = float(header["tick_rate"])
-    except (KeyError, TypeError, ValueError) as err:
-        raise ConfigError(f"{p}:1: recording header lacks channels or tick_rate") from err
-    index = {n: i for i, n in enumerate(channels)}
-    s = Session(p, header, channels, rate, 0, complete=False)
-    last_tick = -1
-    sync = 0
-    # the final element is b"" after a trailing newline; anything else there is a cut-off line
-    body = lines[1:]
-    for lineno, raw in enumerate(body, start=2):
-        if not raw.strip():
-            continue
-        try:
-            rec = json.loads(raw)
-            kind = rec["t"]
-            if kind == "end":
-                s.ticks = int(rec["ticks"])
-                s.complete = True
-                break
-            tick = int(rec["tick"])
-            if kind == "v":
-                vals = {index[n]: float(v) for n, v in rec["v"].items() if n in index}
-                if not all(np.isfinite(x) for x in vals.values()):
-                    raise ValueError("non-finite channel value")
-                s.values[tick] = vals
-                last_tick = max(last_tick, tick)
-            elif kind in ("ev", "st"):
-                s.events.append(rec)
-            elif kind == "mark":
-                s.markers.append((tick, str(rec.get("label", ""))))
-            elif kind == "chk":
-                s.checks[tick] = str(rec.get("sha", ""))
-            elif kind == "sync":
-                sync = max(sync, tick)
-        except (ValueError, KeyError, TypeError, AttributeError, UnicodeDecodeError):
-            cut = lineno == len(lines) or all(not x.strip() for x in lines[lineno:])
-            why = "was cut off (crash or kill)" if cut else f"has a damaged record at line {lineno}"
-            s.warnings.append(f"{p}: recording {why}; reading it up to its last complete record")
-            break
-    if not s.complete:
-        s.ticks = max(sync, last_tick + 1)
-        if not s.warnings:
-            s.warnings.append(f"{p}: recording has no end record (the program was stopped); "
-                              f"reading its {s.ticks} complete ticks")
-    for k in [k for k in s.values if k >= s.ticks]:
-        del s.values[k]
-    s.checks = {k: v for k, v in s.checks.items() if k <= s.ticks}
-    return s
+    """Read a recording, checked at the boundary (see puppet.session_reader). A file cut short
+    (crash, SIGKILL) reads up to its last complete record and gets a warning in
+    `session.warnings`; a file that is not a recording is a ConfigError."""
+    from puppet.session_reader import read_session as read
+
+    return read(path)
