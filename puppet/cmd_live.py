@@ -141,6 +141,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"puppet: {msg}", file=sys.stderr)
 
     live.check_duration(args.duration)
+    live.warm_up_in_background()  # numba's kernels load while the devices open and the face loads
     windowed = not args.headless and live.display_available()
     if args.demo:
         if args.device:
@@ -233,7 +234,8 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     import time
 
     t0 = time.monotonic()
-    core = live.LiveCore(face, mapper, writer=writer, t0=0.0 if virtual else t0, lights=lights)
+    core = live.LiveCore(face, mapper, writer=writer, t0=0.0 if virtual else t0, lights=lights,
+                         wrinkles_later=not virtual)
     for page in panel_devices(devs):
         page.watch(core, devs)
     stop = live.StopFlag()

@@ -76,15 +76,18 @@ class Face:
 
 
 def load_face(rig_path: str | None = None, resolution: int = 0) -> Face:
-    """The default face, or the rig file at rig_path (a one-line ConfigError if it is wrong)."""
+    """The default face, or the rig file at rig_path (a one-line ConfigError if it is wrong);
+    compiled faces come from the on-disk cache when it holds a trustworthy entry (puppet.face_cache)."""
     import sim
+
+    from puppet import face_cache
 
     if rig_path:
         try:
-            from sim.rig import load_model
+            from sim.rig import load_model, load_rig
 
-            model = load_model(rig_path)
-            rig = model.rig
+            rig = load_rig(rig_path)
+            model = face_cache.rig_model(rig, Path(rig_path).read_bytes(), lambda: load_model(rig_path))
         except FileNotFoundError as err:
             raise ConfigError(f"{rig_path}: rig file not found") from err
         except (OSError, ValueError, KeyError) as err:
@@ -92,9 +95,25 @@ def load_face(rig_path: str | None = None, resolution: int = 0) -> Face:
             raise ConfigError(msg) from err
         info = {"name": getattr(rig, "name", "rig"), "hash": model.hash, "path": str(Path(rig_path).resolve())}
     else:
-        model = sim.default_model(resolution)
+        model = face_cache.default_model(resolution)
         info = {"name": "default", "hash": model.hash, "resolution": resolution, "path": None}
     return Face(model, Vocabulary.from_model(model), info)
+
+
+def warm_up_in_background() -> None:
+    """Load the RK2 kernels from numba's cache in a thread (~0.3-0.7 s, most of a warm start)
+    while the caller opens devices and loads the face; the first step waits for it if needed."""
+    import threading
+
+    def run() -> None:
+        try:
+            from sim.integrator import warm_up
+
+            warm_up(implicit=False)
+        except Exception:  # the loop's own first step will compile or report it
+            pass
+
+    threading.Thread(target=run, name="kernel-warm-up", daemon=True).start()
 
 
 def build_mapping(vocab: Vocabulary, map_path: str | None, device_specs: Sequence[str | tuple[str, str]],
@@ -182,14 +201,23 @@ class LiveCore:
 
     def __init__(self, face: Face, mapper: Mapper, *, rate: float = TICK_RATE,
                  writer: SessionWriter | None = None, t0: float = 0.0,
-                 lights: Callable[[str, str, bool], None] | None = None) -> None:
+                 lights: Callable[[str, str, bool], None] | None = None, wrinkles_later: bool = False) -> None:
         import sim
 
         self.face, self.mapper, self.rate, self.dt = face, mapper, rate, 1.0 / rate
-        self.sim = sim.Simulator(face.model, self.dt)
+        # wrinkles_later: the wrinkle layer (~0.5-1 s to build and load) is made in a thread and
+        # switched on at a tick boundary once ready, so the show starts without waiting for it;
+        # wrinkles only displace the drawn surface, never the simulated positions or the recording
+        self._wrinkles_ready = False
+        self.sim = sim.Simulator(face.model, self.dt, wrinkles=not wrinkles_later)
         # the first step pays for JIT compilation: pay it now on a throw-away simulator, not on
         # the first events of the show (the real Simulator starts fresh, as replay's does)
-        sim.Simulator(face.model, self.dt).step(face.model.rest_state(), sim.FaceControl(face.model))
+        sim.Simulator(face.model, self.dt, wrinkles=False).step(face.model.rest_state(), sim.FaceControl(face.model))
+        self._wrinkles_thread = None
+        if wrinkles_later and face.model.rig.wrinkles:  # started after the first frame
+            import threading
+
+            self._wrinkles_thread = threading.Thread(target=self._build_wrinkles, name="wrinkle-layer", daemon=True)
         self.state = face.model.rest_state()
         self.control = sim.FaceControl(face.model)
         self.writer, self.t0, self.lights = writer, t0, lights
@@ -206,12 +234,26 @@ class LiveCore:
         #: set to a Spans to time the parts of each tick (benchmarks/live_latency.py)
         self.spans: Spans | None = None
 
+    def _build_wrinkles(self) -> None:
+        try:
+            from sim.wrinkles.layer import warm_up
+
+            warm_up(self.face.model)
+        except Exception as err:  # the show goes on without wrinkles
+            import sys
+
+            print(f"puppet: warning: no wrinkles this show ({err})", file=sys.stderr)
+            return
+        self._wrinkles_ready = True
+
     def tick(self, events: Iterable[Event]) -> None:
         """Apply `events` at this tick boundary, then advance one tick."""
         sp = self.spans
         if sp is not None:
             pc = time.perf_counter
             t_a = pc()
+        if self._wrinkles_ready and not self.sim.wrinkles:
+            self.sim.wrinkles = True
         for hook in self.before_tick:
             hook(self)
         k = self.tick_count
@@ -253,7 +295,10 @@ class LiveCore:
 
     def after_frame(self) -> None:
         """The frame is published: write the recording's records kept since the last call and
-        flush it if the last flush is 100 ms old."""
+        hand it to the OS; after the first frame, start building the wrinkle layer (wrinkles_later)."""
+        if self._wrinkles_thread is not None:
+            self._wrinkles_thread.start()
+            self._wrinkles_thread = None
         if self.writer is not None:
             if self.spans is not None:
                 t = time.perf_counter()

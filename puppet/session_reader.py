@@ -147,6 +147,8 @@ def read_session(path: str | Path) -> Session:
                 s.checks[tick] = str(rec.get("sha", ""))[:64]
             elif kind == "sync":
                 sync = max(sync, tick)
+            elif kind == "seg":
+                s.segments.append(tick)
         except (ValueError, KeyError, TypeError, UnicodeDecodeError, RecursionError, OverflowError):
             cut = lineno == len(lines) or all(not x.strip() for x in lines[lineno:])
             why = "was cut off (crash or kill)" if cut else f"has a damaged record at line {lineno}"
@@ -166,4 +168,5 @@ def read_session(path: str | Path) -> Session:
         del s.values[k]
     s.markers = [(k, label) for k, label in s.markers if k <= s.ticks]
     s.checks = {k: v for k, v in s.checks.items() if k <= s.ticks}
+    s.segments = [k for k in s.segments if 0 < k < s.ticks]
     return s

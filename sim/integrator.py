@@ -196,12 +196,14 @@ def _rk2_frame(x, v, n_sub, h, si3, sj3, rest_len, k_low, k_high, k_damp, thr, e
         _eye_contact(x, v, eye_idx, eye_of, centres, radius)
 
 
-def warm_up() -> None:
-    """Compile (or load from numba's on-disk cache) the kernels of both integrators on a two-node
-    system, so the first live frame does not stall. Called by compile_model."""
-    from sim.implicit import warm_up as warm_up_implicit
+def warm_up(implicit: bool = True) -> None:
+    """Compile (or load from numba's on-disk cache) the kernels of both integrators (RK2 only with
+    implicit=False) on a two-node system, so the first live frame does not stall. Called by
+    compile_model."""
+    if implicit:
+        from sim.implicit import warm_up as warm_up_implicit
 
-    warm_up_implicit()
+        warm_up_implicit()
     x1 = np.zeros((1, 3))
     _constant_forces(np.zeros(4, dtype=np.int32), np.zeros(0, dtype=np.int32), np.zeros(0), np.zeros(1),
                      np.ones(1, dtype=np.bool_), x1, np.ones(1), x1, np.ones(1), x1, np.zeros((1, 3)))

@@ -11,6 +11,15 @@ from collections.abc import Iterator
 
 import pytest
 
+# compiled faces are cached in a private folder for this run, never in the user's cache
+# (subprocesses inherit it); removed at the end of the run
+_FACE_CACHE = os.environ["PUPPET_CACHE_DIR"] = __import__("tempfile").mkdtemp(prefix="puppet-test-cache-")
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    if os.path.basename(_FACE_CACHE).startswith("puppet-test-cache-"):
+        shutil.rmtree(_FACE_CACHE, ignore_errors=True)
+
 
 @pytest.fixture(scope="session")
 def xvfb_display() -> Iterator[str]:
