@@ -22,6 +22,9 @@ COMMAND_MODULES = (
     "puppet.cmd_learn",
     "puppet.cmd_replay",
     "puppet.cmd_import_face",
+    "puppet.cmd_fit",
+    "puppet.cmd_recognize",
+    "puppet.cmd_templates",
 )
 
 

@@ -1,0 +1,131 @@
+"""A Live Link Face / ARKit blendshape CSV recording -> channel values, through the inverse of the
+mapping `puppet.export.arkit` writes (docs/live.md): each blendshape drives the channel(s) it was
+computed from; where two shapes come from one channel (EyeSquint and CheekSquint) or one shape
+from two channels (BrowDown from corrugator and procerus), the larger wins. Shapes the face cannot
+express (EyeWide, CheekPuff, JawForward, tongue, lip roll, funnel, ...) are ignored and named in
+the report. Head and eye rotation columns are accepted; gaze comes from the EyeLook shapes.
+
+Column names are matched without regard to case (MediaPipe writes `mouthSmileLeft`).
+Timecode HH:MM:SS:FF(.mmm), FF counted at the recording's frame rate (--fps; by default the
+smallest of 24, 25, 30, 50, 60 above every FF in the file)."""
+
+from __future__ import annotations
+
+import csv
+import re
+from pathlib import Path
+
+import numpy as np
+
+from puppet.capture.points import ChannelCapture, check_times
+from puppet.errors import ConfigError
+from puppet.export.arkit import ARKIT_SHAPES, ROTATIONS, UNSUPPORTED
+
+_TC = re.compile(r"(\d+):(\d{2}):(\d{2})[:;](\d+)(?:\.(\d+))?")
+RATES = (24, 25, 30, 50, 60)
+
+
+def _simple(base: str) -> str | None:
+    return {
+        "EyeBlink": "orbicularis_oculi_lid", "EyeSquint": "orbicularis_oculi", "CheekSquint": "orbicularis_oculi",
+        "NoseSneer": "levator_labii_alaeque_nasi", "MouthSmile": "zygomaticus_major",
+        "MouthFrown": "depressor_anguli_oris", "MouthDimple": "buccinator", "MouthStretch": "risorius",
+        "MouthLowerDown": "depressor_labii", "MouthUpperUp": "levator_labii", "BrowOuterUp": "frontalis_outer",
+        "BrowDown": "corrugator",
+    }.get(base)
+
+
+def shape_targets(shape: str) -> list[str]:
+    """The channels one ARKit shape drives (empty: not expressible)."""
+    side = "_l" if shape.endswith("Left") else "_r"
+    base = shape.removesuffix("Left").removesuffix("Right")
+    ch = _simple(base)
+    if ch:
+        return [ch + side] + (["procerus"] if base == "BrowDown" else [])
+    return {"BrowInnerUp": ["frontalis_inner_l", "frontalis_inner_r"], "JawOpen": ["jaw"],
+            "MouthShrugLower": ["mentalis"], "MouthPressLeft": ["orbicularis_oris"],
+            "MouthPressRight": ["orbicularis_oris"]}.get(shape, [])
+
+
+def _timecode(path: Path, lineno: int, text: str) -> tuple[int, int, float]:
+    m = _TC.fullmatch(text.strip())
+    if not m:
+        raise ConfigError(f"{path}:{lineno}: timecode {text!r} is not HH:MM:SS:FF.mmm")
+    hh, mm, ss, ff = (int(m.group(i)) for i in range(1, 5))
+    frac = float("0." + m.group(5)) if m.group(5) else 0.0
+    return hh * 3600 + mm * 60 + ss, ff, frac
+
+
+def read_arkit_csv(path: Path, fps: float | None = None) -> ChannelCapture:
+    from sim.channels import CHANNEL_NAMES
+
+    try:
+        rows = list(csv.reader(path.read_text(encoding="utf-8-sig").splitlines()))
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read the ARKit CSV: {err.strerror}") from err
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{path}: the ARKit CSV is not UTF-8 text") from err
+    header = [h.strip() for h in rows[0]] if rows else []
+    if len(header) < 2 or header[0].lower() != "timecode":
+        raise ConfigError(f"{path}:1: expected a header 'Timecode,BlendShapeCount,EyeBlinkLeft,...'")
+    known = {s.lower(): s for s in (*ARKIT_SHAPES, *ROTATIONS)}
+    known.update({"blendshapecount": "BlendShapeCount", "_neutral": "_neutral"})
+    cols: list[str] = []
+    for j, h in enumerate(header[1:], start=2):
+        name = known.get(h.lower())
+        if name is None:
+            raise ConfigError(f"{path}:1: column {j} {h!r} is not an ARKit blendshape or rotation name")
+        cols.append(name)
+    if len(set(cols)) != len(cols):
+        raise ConfigError(f"{path}:1: a column appears twice")
+    if not any(c in ARKIT_SHAPES for c in cols):
+        raise ConfigError(f"{path}:1: no ARKit blendshape columns")
+    stamps, data = [], []
+    for lineno, row in enumerate(rows[1:], start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise ConfigError(f"{path}:{lineno}: {len(row)} values, expected {len(header)} (file cut off?)")
+        stamps.append(_timecode(path, lineno, row[0]))
+        try:
+            vals = [float(c) for c in row[1:]]
+        except ValueError:
+            raise ConfigError(f"{path}:{lineno}: expected numbers after the timecode") from None
+        if not np.all(np.isfinite(vals)):
+            raise ConfigError(f"{path}:{lineno}: a value is NaN or infinite")
+        data.append(vals)
+    if not data:
+        raise ConfigError(f"{path}: no frames after the header")
+    arr = np.array(data)
+    max_ff = max(s[1] for s in stamps)
+    rate = float(fps) if fps else float(next((r for r in RATES if r > max_ff), max_ff + 1))
+    if max_ff >= rate:
+        raise ConfigError(f"{path}: frame field {max_ff} does not fit --fps {rate:g}")
+    times = np.array([(s + (ff + frac) / rate) for s, ff, frac in stamps])
+    times -= times[0]
+    check_times(str(path), times)
+    values = np.zeros((len(arr), len(CHANNEL_NAMES)))
+    from sim.channels import CHANNEL_SPECS
+
+    values[:] = [s.default for s in CHANNEL_SPECS]
+    index = {n: i for i, n in enumerate(CHANNEL_NAMES)}
+    driven = np.zeros(len(CHANNEL_NAMES), bool)
+    shapes = {c: arr[:, j] for j, c in enumerate(cols) if c in ARKIT_SHAPES}
+    for shape, col in shapes.items():
+        if col.min() < -0.01 or col.max() > 1.01:
+            raise ConfigError(f"{path}: blendshape {shape} leaves 0..1 (min {col.min():.3g}, max {col.max():.3g})")
+        for ch in shape_targets(shape):
+            i = index[ch]
+            values[:, i] = np.maximum(values[:, i], np.clip(col, 0.0, 1.0)) if driven[i] else np.clip(col, 0, 1)
+            driven[i] = True
+    def g(name: str) -> np.ndarray:
+        return shapes.get(name, np.zeros(len(arr)))
+    yaw = 0.5 * ((g("EyeLookOutLeft") - g("EyeLookInLeft")) + (g("EyeLookInRight") - g("EyeLookOutRight")))
+    pitch = 0.5 * ((g("EyeLookUpLeft") - g("EyeLookDownLeft")) + (g("EyeLookUpRight") - g("EyeLookDownRight")))
+    values[:, index["eyes_yaw"]] = np.clip(yaw, -1, 1)
+    values[:, index["eyes_pitch"]] = np.clip(pitch, -1, 1)
+    ignored = [s for s in shapes if s in UNSUPPORTED and np.any(shapes[s] > 0.05)]
+    notes = [f"ARKit timecodes read at {rate:g} fps"]
+    if ignored:
+        notes.append(f"shapes the face cannot express were ignored: {', '.join(ignored)}")
+    return ChannelCapture(path, times, list(CHANNEL_NAMES), values, notes)

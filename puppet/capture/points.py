@@ -1,0 +1,192 @@
+"""Tracked points: the landmark CSV and the correspondence file.
+
+Landmark CSV (the base form): a header `time` then `NAME_x,NAME_y,NAME_z` per point, one row per
+frame, times in seconds, strictly increasing. NAME is a landmark of the rig vocabulary
+(`sim.transfer.landmarks.LANDMARK_NAMES`, e.g. `nose_tip`) or `v<index>` for a rig vertex; any
+subset of at least 4 points; any units and frame (the fit removes scale and rigid motion).
+
+With a correspondence file the names are the input's own (MediaPipe indices, 68-point numbers,
+marker labels) and the file says which rig point each one is:
+
+    {"layout": "ibug-68", "points": {"30": "nose_tip", "48": "mouth_corner_r", ...}}
+
+Input points the correspondence does not name are ignored; a name it lists that the input lacks
+is an error.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from puppet.errors import ConfigError
+
+MIN_POINTS = 4
+_VERTEX = re.compile(r"v(\d+)")
+
+
+@dataclass
+class PointCapture:
+    """times (T,) s; points (T, P, 3) as given; names (P,) the input's names; vertices (P,) rig
+    vertex per point; neutral: the frame at rest, or None for the rig's own skin; notes: what
+    the reader had to do (gaps filled, points ignored), for the report."""
+
+    path: Path
+    times: np.ndarray
+    points: np.ndarray
+    names: list[str]
+    vertices: np.ndarray
+    neutral: int | None = 0
+    notes: list[str] = field(default_factory=list)
+
+
+@dataclass
+class ChannelCapture:
+    """times (T,) s and channel values (T, C) in `channels` order, from a blendshape recording."""
+
+    path: Path
+    times: np.ndarray
+    channels: list[str]
+    values: np.ndarray
+    notes: list[str] = field(default_factory=list)
+
+
+def rig_point(name: str, mesh: Any) -> int | None:
+    """The rig vertex a point name stands for (a landmark name or v<index>), or None."""
+    if name in mesh.landmarks:
+        return int(mesh.landmarks[name])
+    m = _VERTEX.fullmatch(name)
+    if m and int(m.group(1)) < len(mesh.vertices):
+        return int(m.group(1))
+    return None
+
+
+def _unknown(where: str, name: str, mesh: Any) -> ConfigError:
+    some = ", ".join(sorted(mesh.landmarks)[:6])
+    return ConfigError(f"{where}: {name!r} is not a rig landmark ({some}, ...; docs/fit.md lists them) "
+                       f"nor a vertex v0..v{len(mesh.vertices) - 1}; use a correspondence file (--map) "
+                       "for other layouts")
+
+
+def load_correspondence(path: str | Path, mesh: Any) -> dict[str, int]:
+    """input point name -> rig vertex, from a correspondence JSON file."""
+    p = Path(path)
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except OSError as err:
+        raise ConfigError(f"{p}: cannot read the correspondence file: {err.strerror}") from err
+    except (ValueError, UnicodeDecodeError) as err:
+        raise ConfigError(f"{p}: the correspondence file is not valid JSON ({err})") from err
+    if isinstance(data, dict) and "points" in data:
+        extra = set(data) - {"points", "layout", "comment"}
+        if extra:
+            raise ConfigError(f"{p}: unknown key(s) {sorted(extra)}; expected layout, points, comment")
+        data = data["points"]
+    if not isinstance(data, dict) or not data:
+        raise ConfigError(f"{p}: expected {{\"points\": {{\"INPUT_NAME\": \"rig_landmark\", ...}}}}")
+    out: dict[str, int] = {}
+    used: dict[int, str] = {}
+    for key, value in data.items():
+        if not isinstance(value, str):
+            raise ConfigError(f"{p}: point {key!r} must name a rig landmark (a string), got {value!r}")
+        v = rig_point(value, mesh)
+        if v is None:
+            raise _unknown(f"{p}: point {key!r}", value, mesh)
+        if v in used:
+            raise ConfigError(f"{p}: points {used[v]!r} and {key!r} both map to {value!r}; map each rig point once")
+        used[v] = key
+        out[str(key)] = v
+    if len(out) < MIN_POINTS:
+        raise ConfigError(f"{p}: maps {len(out)} points; at least {MIN_POINTS} are needed")
+    return out
+
+
+def resolve_names(where: str, names: list[str], mesh: Any, corr: dict[str, int] | None,
+                  notes: list[str]) -> tuple[list[int], np.ndarray]:
+    """(positions in `names` to keep, rig vertex of each kept one)."""
+    keep: list[int] = []
+    verts: list[int] = []
+    if corr is None:
+        for i, n in enumerate(names):
+            v = rig_point(n, mesh)
+            if v is None:
+                raise _unknown(where, n, mesh)
+            keep.append(i)
+            verts.append(v)
+        if len(set(verts)) != len(verts):
+            raise ConfigError(f"{where}: the same rig point appears twice")
+    else:
+        index = {n: i for i, n in enumerate(names)}
+        missing = [k for k in corr if k not in index]
+        if missing:
+            raise ConfigError(f"{where}: the correspondence names point(s) {', '.join(missing[:5])} that the "
+                              "input does not have; check the layout or the correspondence file")
+        for k, v in corr.items():
+            keep.append(index[k])
+            verts.append(v)
+        ignored = len(names) - len(keep)
+        if ignored:
+            notes.append(f"{ignored} input points not in the correspondence were ignored")
+    if len(keep) < MIN_POINTS:
+        raise ConfigError(f"{where}: {len(keep)} points; at least {MIN_POINTS} are needed")
+    return keep, np.array(verts, dtype=np.int64)
+
+
+def check_times(where: str, times: np.ndarray) -> None:
+    bad = np.flatnonzero(np.diff(times) <= 0)
+    if len(bad):
+        raise ConfigError(f"{where}: times must increase from frame to frame (frame {bad[0] + 1} to {bad[0] + 2})")
+
+
+def read_landmark_csv(path: Path, mesh: Any, corr: dict[str, int] | None = None) -> PointCapture:
+    """The landmark CSV (module docstring)."""
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read the landmark CSV: {err.strerror}") from err
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{path}: the landmark CSV is not UTF-8 text") from err
+    rows = list(csv.reader(text.splitlines()))
+    if not rows or not rows[0]:
+        raise ConfigError(f"{path}:1: empty file; expected a header 'time,NAME_x,NAME_y,NAME_z,...'")
+    header = [h.strip() for h in rows[0]]
+    if header[0].lower() != "time" or (len(header) - 1) % 3 or len(header) < 4:
+        raise ConfigError(f"{path}:1: expected a header 'time' then NAME_x,NAME_y,NAME_z per point")
+    names = []
+    for j in range(1, len(header), 3):
+        stem = header[j][:-2]
+        if [header[j], header[j + 1], header[j + 2]] != [stem + "_x", stem + "_y", stem + "_z"] or not stem:
+            raise ConfigError(f"{path}:1: columns {j + 1}-{j + 3} must be NAME_x,NAME_y,NAME_z, got "
+                              f"{','.join(header[j:j + 3])}")
+        names.append(stem)
+    if len(set(names)) != len(names):
+        raise ConfigError(f"{path}:1: a point appears twice in the header")
+    notes: list[str] = []
+    keep, verts = resolve_names(f"{path}:1", names, mesh, corr, notes)
+    data = []
+    for lineno, row in enumerate(rows[1:], start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise ConfigError(f"{path}:{lineno}: {len(row)} values, expected {len(header)} (file cut off or "
+                              "columns missing?)")
+        try:
+            vals = [float(c) for c in row]
+        except ValueError:
+            raise ConfigError(f"{path}:{lineno}: expected numbers, got {','.join(row)[:60]!r}") from None
+        if not np.all(np.isfinite(vals)):
+            raise ConfigError(f"{path}:{lineno}: a value is NaN or infinite; remove the frame or fill the gap")
+        data.append(vals)
+    if not data:
+        raise ConfigError(f"{path}: no frames after the header")
+    arr = np.array(data)
+    times = arr[:, 0]
+    check_times(str(path), times)
+    pts = arr[:, 1:].reshape(len(arr), -1, 3)[:, keep, :]
+    return PointCapture(path, times, pts, [names[i] for i in keep], verts, 0, notes)

@@ -1,0 +1,161 @@
+"""`puppet fit`: tracked motion -> the channels that explain it, written as a take or curves."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+OUT_KINDS = {".jsonl": "take", ".curves": "curves"}
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = subparsers.add_parser(
+        "fit",
+        help="fit channel activations to tracked motion (landmark CSV, C3D, PC2, ARKit CSV) -> take or curves",
+        description="Analysis by synthesis: per frame, the channel activations (0..max) that best explain "
+        "the tracked skin motion, on a displacement basis built by the simulator, warm-started, smoothed "
+        "over time and re-linearised where channels interact. INPUT: a landmark CSV (header time, "
+        "NAME_x,NAME_y,NAME_z...), a C3D file, a PC2 point cache of the rig (+ .obj beside it), or a Live "
+        "Link Face / ARKit blendshape CSV (converted through the ARKit mapping, then re-simulated). "
+        "--out TAKE.jsonl replays with `puppet replay`; --out FILE.curves with `puppet replay --curves`. "
+        "See docs/fit.md.",
+    )
+    p.add_argument("input", metavar="INPUT", help="the capture")
+    p.add_argument("--rig", metavar="R", help="rig file to fit (default: the built-in face)")
+    p.add_argument("--out", required=True, metavar="TAKE.jsonl|CURVES", help="the take or curves to write")
+    p.add_argument("--map", metavar="CORR.json",
+                   help="correspondence file: input point/marker name -> rig landmark (MediaPipe, 68-point, "
+                   "C3D labels); puppet/capture/layouts/ has the MediaPipe and 68-point ones")
+    p.add_argument("--report", metavar="FILE.csv", help="per-frame report: residual mm, active channels, condition")
+    p.add_argument("--neutral", default="auto", metavar="FRAME|rig",
+                   help="the frame showing the face at rest (default 0), or 'rig' to compare with the rig's own "
+                   "rest (the default for PC2 caches of the rig)")
+    p.add_argument("--fps", type=float, metavar="N", help="frame rate of PC2 samples / ARKit timecodes (default 60)")
+    p.add_argument("--rate", type=float, default=60.0, metavar="HZ", help="tick rate of the written take (default 60)")
+    p.add_argument("--age", type=float, metavar="YEARS", help="age channel of the written take (wrinkles)")
+    p.add_argument("--smooth", type=float, metavar="X", help="temporal smoothing weight (default 0.02)")
+    p.add_argument("--sparsity", type=float, metavar="X", help="L1 weight keeping idle channels at 0 (default 0.004)")
+    p.add_argument("--no-relinearise", action="store_true", help="linear fit only (no settles during the fit)")
+    p.set_defaults(func=run)
+
+
+def _neutral(text: str) -> int | None | str:
+    from puppet.errors import PuppetError
+
+    if text in ("auto", "rig"):
+        return None if text == "rig" else "auto"
+    try:
+        k = int(text)
+    except ValueError:
+        raise PuppetError(f"--neutral takes a frame number or 'rig', got {text!r}") from None
+    if k < 0:
+        raise PuppetError("--neutral frame must be >= 0")
+    return k
+
+
+def _check_out(out: Path) -> str:
+    from puppet.errors import PuppetError
+
+    kind = OUT_KINDS.get(out.suffix.lower())
+    if kind is None:
+        raise PuppetError(f"{out}: --out must end in .jsonl (a take) or .curves (keyframe curves)")
+    if not out.parent.resolve().is_dir():
+        raise PuppetError(f"{out}: the folder {out.parent} does not exist")
+    return kind
+
+
+def summary(result: object, cap: object) -> list[str]:
+    """The report's lines for the terminal."""
+    import numpy as np
+
+    r = result
+    res = np.array([f.residual_mm for f in r.reports])  # type: ignore[attr-defined]
+    mis = np.array([f.misfit for f in r.reports])  # type: ignore[attr-defined]
+    lines = [f"fitted {len(res)} frames on {len(r.vertices)} points "  # type: ignore[attr-defined]
+             f"(basis condition number {r.condition:.0f} at these points)"]  # type: ignore[attr-defined]
+    if r.neutral is not None:  # type: ignore[attr-defined]
+        t = r.neutral  # type: ignore[attr-defined]
+        lines.append(f"neutral frame onto the rig: scale {t.scale:.4g}, rotation {t.angle_degrees:.2f} deg, "
+                     f"translation {np.array2string(t.translation, precision=3)} cm; shape difference "
+                     f"{r.neutral_rms_mm:.2f} mm RMS")  # type: ignore[attr-defined]
+    scales = np.array([f.scale for f in r.reports])  # type: ignore[attr-defined]
+    rots = np.array([f.rotation_degrees for f in r.reports])  # type: ignore[attr-defined]
+    lines.append(f"head motion removed: scale {scales.min():.3f}..{scales.max():.3f} of the neutral, "
+                 f"rotation up to {rots.max():.2f} deg")
+    lines.append(f"residual {np.median(res):.2f} mm median, {np.percentile(res, 95):.2f} mm p95, {res.max():.2f} mm max; "
+                 f"misfit {np.median(mis) * 100:.0f} % median")
+    relin = sum(f.relinearised for f in r.reports)  # type: ignore[attr-defined]
+    lines.append(f"re-linearised {relin} frames ({r.settles} settles in all)")  # type: ignore[attr-defined]
+    acts = r.activations  # type: ignore[attr-defined]
+    used = [(c, float(acts[:, j].max()), float(np.mean(acts[:, j] > 0.05)))
+            for j, c in enumerate(r.channels) if acts[:, j].max() > 0.05]  # type: ignore[attr-defined]
+    used.sort(key=lambda u: -u[1])
+    if used:
+        lines.append("active: " + ", ".join(f"{c} (max {m:.2f}, {f * 100:.0f} % of frames)" for c, m, f in used[:10])
+                     + (f" and {len(used) - 10} more" if len(used) > 10 else ""))
+    else:
+        lines.append("active: none (no motion the channels explain)")
+    for note in getattr(cap, "notes", []):
+        lines.append(note)
+    return lines
+
+
+def run(args: argparse.Namespace) -> int:
+    from puppet.capture import ChannelCapture, read_capture
+    from puppet.capture.take import full_values, resample, write_curves, write_report, write_take
+    from puppet.errors import PuppetError
+    from puppet.live import load_face
+
+    out = Path(args.out)
+    kind = _check_out(out)
+    neutral = _neutral(args.neutral)
+    if args.fps is not None and not args.fps > 0:
+        raise PuppetError("--fps must be positive")
+    if not args.rate > 0:
+        raise PuppetError("--rate must be positive")
+    face = load_face(args.rig)
+    extra = {}
+    if args.age is not None:
+        if not 0 <= args.age <= 120:
+            raise PuppetError("--age takes years in 0..120")
+        extra["age"] = float(args.age)
+    cap = read_capture(args.input, face, args.map, args.fps)
+    if isinstance(cap, ChannelCapture):
+        values = full_values(face, cap.channels, cap.values, extra)
+        lines = [f"converted {len(cap.times)} blendshape frames ({cap.times[-1]:.2f} s) through the inverted "
+                 "ARKit mapping; the take re-simulates them on the physical face", *cap.notes]
+        reports = None
+    else:
+        from puppet.capture.fitting import face_basis, fit_points
+        from sim.fit.solve import FitOptions
+
+        opts = FitOptions()
+        if args.smooth is not None:
+            opts.smooth = args.smooth
+        if args.sparsity is not None:
+            opts.sparsity = args.sparsity
+        if args.no_relinearise:
+            opts.relinearise = None
+        if isinstance(neutral, int) and neutral >= len(cap.times):
+            raise PuppetError(f"--neutral {neutral}: the capture has {len(cap.times)} frames")
+        settler, basis, _ = face_basis(face)
+        result = fit_points(cap, settler, basis, opts, neutral)
+        values = full_values(face, result.channels, result.activations, extra)
+        lines = summary(result, cap)
+        reports = result.reports
+    ticks = resample(cap.times, values, args.rate)
+    source = {"input": str(Path(args.input).resolve()), "kind": "fit" if reports is not None else "arkit"}
+    if kind == "take":
+        write_take(out, face, ticks, args.rate, source)
+    else:
+        write_curves(out, face, ticks, args.rate)
+    if args.report and reports is not None:
+        write_report(Path(args.report), reports)
+    for line in lines:
+        print(f"puppet: {line}")
+    what = "take" if kind == "take" else "keyframe curves"
+    print(f"puppet: wrote a {what} of {len(ticks)} ticks ({len(ticks) / args.rate:.2f} s at {args.rate:g} Hz) "
+          f"to {out}" + (f"; per-frame report in {args.report}" if args.report and reports is not None else ""))
+    sys.stdout.flush()
+    return 0
