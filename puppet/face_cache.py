@@ -162,7 +162,7 @@ def _check_model(arrays: dict[str, np.ndarray], meta: dict[str, Any], rig: Any) 
     springs = a["spring_indices"]
     s = len(springs)
     shapes = {"rest": (n, 3), "triangles": rig.mesh.triangles.shape, "spring_indices": (s, 2),
-              "rest_normal": (n, 3), "weight": (n, 3), "jaw_pivot": (3,), "jaw_axis": (3,), "gravity": (3,)}
+              "rest_normal": (n, 3), "rest_offset": (n, 3), "weight": (n, 3), "jaw_pivot": (3,), "jaw_axis": (3,), "gravity": (3,)}
     for name in ("spring_rest_length", "spring_k_low", "spring_k_high", "spring_damping"):
         shapes[name] = (s,)
     for name in ("area", "mass", "damping", "rest_stiffness", "support_stiffness", "held", "jaw_weight"):
