@@ -21,7 +21,7 @@ import struct
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 from devices.base import ControlInfo
 from devices.errors import DeviceSpecError
@@ -48,8 +48,7 @@ class OscDecodeError(ValueError):
     """A datagram that is not OSC (or is damaged)."""
 
 
-@dataclass(frozen=True, slots=True)
-class OscMessage:
+class OscMessage(NamedTuple):
     """One decoded message: its address, its arguments, and the time tag of the bundle that
     carried it (``None`` outside a bundle; 1 means "immediately")."""
 
@@ -58,35 +57,59 @@ class OscMessage:
     timetag: int | None = None
 
 
+#: Argument type tags python-osc decodes; anything else is refused before it is asked (it would
+#: log a warning per datagram on the root logger).
+TYPE_TAGS = frozenset(",ihfdsbrmtTFN[]")
+_py_message: Any = None
+
+
 def decode_packet(data: bytes) -> list[OscMessage]:
     """Every message of one datagram, bundles flattened in order; OscDecodeError when damaged.
     Bundles are walked iteratively with bounded depth and count, never recursively."""
-    from pythonosc.osc_message import OscMessage as _PyOscMessage
-
     out: list[OscMessage] = []
-    stack: list[tuple[bytes, int | None, int]] = [(data, None, 0)]
+    if not data.startswith(BUNDLE):
+        _message(data, None, out)
+        return out
+    stack: list[tuple[bytes, int]] = [(data, 0)]
     while stack:
-        chunk, tag, depth = stack.pop()
-        if chunk.startswith(BUNDLE):
-            if depth >= MAX_DEPTH:
-                raise OscDecodeError(f"bundles nested deeper than {MAX_DEPTH}")
-            if len(chunk) < 16:
-                raise OscDecodeError("bundle shorter than its header")
-            (inner_tag,) = struct.unpack_from(">Q", chunk, 8)
-            elements = list(_elements(chunk))
-            stack.extend((el, inner_tag, depth + 1) for el in reversed(elements))
-            continue
-        if not chunk.startswith(b"/"):
-            raise OscDecodeError("not an OSC message or bundle")
-        if len(out) >= MAX_MESSAGES:
-            raise OscDecodeError(f"more than {MAX_MESSAGES} messages in one datagram")
-        try:
-            msg = _PyOscMessage(chunk)
-            address, params = msg.address, tuple(msg.params)
-        except Exception as err:  # python-osc raises ParseError, but damaged input finds others
-            raise OscDecodeError(f"damaged message: {err}") from err
-        out.append(OscMessage(address, params, tag))
+        chunk, depth = stack.pop()
+        if depth >= MAX_DEPTH:
+            raise OscDecodeError(f"bundles nested deeper than {MAX_DEPTH}")
+        if len(chunk) < 16:
+            raise OscDecodeError("bundle shorter than its header")
+        (tag,) = struct.unpack_from(">Q", chunk, 8)
+        nested = []
+        for el in _elements(chunk):
+            if el.startswith(BUNDLE):
+                nested.append((el, depth + 1))
+            else:
+                _message(el, tag, out)
+        stack.extend(reversed(nested))
     return out
+
+
+def _message(chunk: bytes, tag: int | None, out: list[OscMessage]) -> None:
+    global _py_message
+    if _py_message is None:
+        from pythonosc.osc_message import OscMessage as _py_message  # noqa: N813 (lazy: devices imports fast)
+    if not chunk.startswith(b"/"):
+        raise OscDecodeError("not an OSC message or bundle")
+    if len(out) >= MAX_MESSAGES:
+        raise OscDecodeError(f"more than {MAX_MESSAGES} messages in one datagram")
+    end = chunk.find(b"\0")
+    start = (end + 4) & ~3
+    if end < 0:
+        raise OscDecodeError("address not terminated")
+    if start < len(chunk):
+        stop = chunk.find(b"\0", start)
+        tags = chunk[start:stop if stop >= 0 else len(chunk)]
+        if not tags.startswith(b",") or not TYPE_TAGS.issuperset(tags.decode("latin-1")):
+            raise OscDecodeError(f"unknown argument types {tags[:16]!r}")
+    try:
+        msg = _py_message(chunk)
+        out.append(OscMessage(msg._address_regexp, tuple(msg._parameters), tag))
+    except Exception as err:  # python-osc raises ParseError, but damaged input finds others
+        raise OscDecodeError(f"damaged message: {err}") from err
 
 
 def _elements(bundle: bytes) -> Iterator[bytes]:

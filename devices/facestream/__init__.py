@@ -7,6 +7,7 @@ time in, events out) and a thin UDP device (``devices.udp``: localhost by defaul
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Mapping
@@ -36,6 +37,7 @@ _BY_KEY = {n.lower(): n for n in ARKIT_NAMES}
 MIRRORED = {n: n.replace("Left", "\0").replace("Right", "Left").replace("\0", "Right") for n in ARKIT_NAMES}
 
 
+@functools.lru_cache(maxsize=1024)
 def arkit_name(name: str) -> str | None:
     """The ARKit name for a sender's spelling: any case (``EyeBlinkLeft``), ``_L``/``_R``
     suffixes (``eyeBlink_L``, iFacialMocap) or ``Left``/``Right``; None when it is none of them."""
