@@ -100,6 +100,23 @@ class BlendshapeFrames:
         return out
 
 
+class OscStreamParser:
+    """What the OSC streams (Face Cap, VMC) share: decode a datagram, count what is not OSC."""
+
+    def __init__(self, device: str, warnings: WarningCounter | None = None, mirror: bool = False) -> None:
+        self.frames = BlendshapeFrames(device, warnings, mirror)
+
+    def messages(self, data: bytes) -> list[Any]:
+        """The datagram's OSC messages; none (counted as garbage) when it is not OSC."""
+        from devices.osc import OscDecodeError, decode_packet
+
+        try:
+            return decode_packet(data)
+        except OscDecodeError as err:
+            self.frames.warnings.warn("garbage", f"not OSC ({err})")
+            return []
+
+
 class FaceStreamDevice(UdpListenerDevice):
     """A face tracker sending to a UDP port. Besides the network options (devices.udp), ``release``
     is the number of seconds without a frame after which the face is let go to neutral (1; 0 keeps
@@ -107,17 +124,21 @@ class FaceStreamDevice(UdpListenerDevice):
 
     STREAM_OPTIONS: ClassVar[frozenset[str]] = UdpListenerDevice.NET_OPTIONS | {"release", "mirror"}
     OPTIONS = STREAM_OPTIONS
+    #: The stream's parser class: ``Parser(device, warnings, mirror)`` with ``feed(data, t)`` and
+    #: ``frames`` (its BlendshapeFrames).
+    PARSER: ClassVar[Any] = None
 
     def __init__(self, spec: DeviceSpec, **options: Any) -> None:
         super().__init__(spec, **options)
         self.release_after = spec.get_float("release", 1.0, lo=0.0)
         self.controls = arkit_controls()
-        self.frames = BlendshapeFrames(self.spec, self.warnings, spec.get_bool("mirror", False))
+        self.parser = self.PARSER(self.spec, self.warnings, spec.get_bool("mirror", False))
+        self.frames: BlendshapeFrames = self.parser.frames
         self._last_frame = 0.0
         self._held = False
 
     def _parse(self, data: bytes, t: float) -> list[ControlEvent]:
-        raise NotImplementedError
+        return self.parser.feed(data, t)  # type: ignore[no-any-return]
 
     def _datagram(self, data: bytes, t: float, sender: str) -> list[ControlEvent]:
         before = self.frames.frames
