@@ -163,3 +163,31 @@ def test_dials_layer_on_top_of_tracking(vocab: Vocabulary) -> None:
     v = run(m, [axis("mouthSmileLeft", 0.9, LIVE)])
     assert v["zygomaticus_major_l"] == pytest.approx(0.9)  # max: tracking beyond the dial wins
     assert v["zygomaticus_major_r"] == pytest.approx(0.55)
+
+
+@pytest.mark.parametrize("name", ["osc_generic", "osc_touchosc", "arkit"])
+def test_damaged_maps_give_one_line_or_a_result(name: str, vocab: Vocabulary) -> None:
+    """Generated damaged variants of the shipped maps (fixed seed): each one loads or fails with a
+    single ConfigError line naming the file and line, never anything else."""
+    from puppet.mapping.defaults import map_text
+
+    text = map_text(name)
+    rng = random.Random(1234)
+    junk = ["{channel}", "{au}", "{expression}", "\"", "[", "]]", "=", "\n", "{", "nan", "-1e400", "{au}{au}"]
+    for k in range(40):
+        chars = list(text)
+        for _ in range(rng.randint(1, 4)):
+            i = rng.randrange(len(chars))
+            op = rng.randrange(3)
+            if op == 0:
+                del chars[i:i + rng.randint(1, 12)]
+            elif op == 1:
+                chars.insert(i, rng.choice(junk))
+            else:
+                chars[i] = rng.choice(junk)
+        bad = "".join(chars)
+        try:
+            Mapper(parse_mapping(bad, f"{name}-{k}.toml"), vocab)
+        except ConfigError as err:
+            msg = str(err)
+            assert msg.startswith(f"{name}-{k}.toml:") and "\n" not in msg.strip(), msg
