@@ -35,6 +35,8 @@ BUNDLE = b"#bundle\x00"
 MAX_DEPTH = 8
 MAX_MESSAGES = 1024
 MAX_ADDRESS = 256
+#: Distinct button addresses remembered (a sender spraying addresses must not grow memory).
+MAX_BUTTONS = 4096
 PATTERN_CHARS = frozenset("*?[]{}")
 #: Seconds between 1900 (OSC time tags) and 1970 (time.time()).
 NTP_EPOCH = 2208988800
@@ -256,6 +258,9 @@ class OscParser:
 
     def _button(self, name: str, down: bool, t: float, out: list[ControlEvent]) -> None:
         if self._down.get(name, False) == down:
+            return
+        if name not in self._down and len(self._down) >= MAX_BUTTONS:
+            self.warnings.warn("range", f"more than {MAX_BUTTONS} button addresses; {name!r} ignored")
             return
         self._down[name] = down
         out.append(ControlEvent(self.device, name, "button", 1.0 if down else 0.0, None, int(down), t))
