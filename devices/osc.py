@@ -181,13 +181,14 @@ def _buttons(names: list[str]) -> list[ControlInfo]:
 def _touchosc() -> OscProfile:
     """TouchOSC's "Simple" layout (the one it opens with): page 1 five faders and four toggles,
     page 2 sixteen pushes and four toggles, page 3 an XY pad and four toggles, page 4 an 8x8
-    multi-toggle and four toggles. Other layouts work too: push/toggle addresses are buttons."""
+    multi-toggle and four toggles. Other layouts work too: push, toggle and button addresses (the
+    current TouchOSC names a control ``/button1``) are buttons."""
     controls = _axes([f"/1/fader{i}" for i in range(1, 6)] + ["/3/xy:0", "/3/xy:1"])
     controls += _buttons([f"/{p}/toggle{i}" for p in range(1, 5) for i in range(1, 5)])
     controls += _buttons([f"/2/push{i}" for i in range(1, 17)])
     controls += _buttons([f"/4/multitoggle/{r}/{c}" for r in range(1, 9) for c in range(1, 9)])
     return OscProfile("touchosc", "TouchOSC (Simple layout)", tuple(controls),
-                      ("*/push*", "*/toggle*", "*/multitoggle*", "*/multipush*", "*/z", "*/led*"))
+                      ("*/push*", "*/toggle*", "*/multitoggle*", "*/multipush*", "*/button*", "*/z"))
 
 
 def _openstage() -> OscProfile:
