@@ -10,6 +10,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -55,7 +56,7 @@ def latest_values(rec: Path) -> dict[str, float]:
     return cur if channels else {}
 
 
-WANT = {"jaw": 0.7, "zygomaticus_major_l": 0.6, "age": 80.0, "eyes_yaw": 0.3}
+WANT = {"jaw": 0.7, "zygomaticus_major_l": 0.6, "age": 80.0, "eyes_yaw": 0.3, "zygomaticus_minor_l": 0.25}
 
 
 def reached(v: dict[str, float]) -> bool:
@@ -63,6 +64,7 @@ def reached(v: dict[str, float]) -> bool:
 
 
 def test_touchosc_and_live_link_face_drive_the_live_face(tmp_path: Path) -> None:
+    """...while another sender floods the OSC port with garbage and a stream of values."""
     osc_port, ll_port = free_port(), free_port()
     rec = tmp_path / "phone.jsonl"
     proc = subprocess.Popen(
@@ -74,6 +76,21 @@ def test_touchosc_and_live_link_face_drive_the_live_face(tmp_path: Path) -> None
     weights[ARKIT_NAMES.index("eyeLookOutLeft")] = 0.3
     weights[ARKIT_NAMES.index("eyeLookInRight")] = 0.3
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    stop = threading.Event()
+
+    def flood() -> None:  # garbage and a stream of another control, as fast as Python sends
+        s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        junk, other = b"\x00garbage" * 8, osc("/face/channel/zygomaticus_minor_l", 0.25)
+        while not stop.is_set():
+            for d in (junk, other, junk):
+                try:
+                    s.sendto(d, ("127.0.0.1", osc_port))
+                except OSError:
+                    pass
+        s.close()
+
+    blaster = threading.Thread(target=flood)
+    blaster.start()
     try:
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline and proc.poll() is None:  # until reached, then 1.5 s more
@@ -87,6 +104,8 @@ def test_touchosc_and_live_link_face_drive_the_live_face(tmp_path: Path) -> None
         proc.send_signal(signal.SIGTERM)
         out, err = proc.communicate(timeout=60)
     finally:
+        stop.set()
+        blaster.join()
         sock.close()
         if proc.poll() is None:
             proc.kill()
