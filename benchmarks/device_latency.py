@@ -6,6 +6,9 @@
    baud rate), so on real hardware add the wire time of one report to these numbers: 3 bytes at
    9600 baud ~ 3.1 ms for the SGI box, a 6-byte line at 115200 baud ~ 0.5 ms for the text protocol.
 2. Throughput: each parser alone, fed a long valid byte stream in 4 KiB chunks.
+3. Network listeners (OSC, face-tracking streams): a sender process sends UDP datagrams to
+   127.0.0.1; we time from just before its sendto to the event at a listener, beside the
+   transport's own floor (a plain socket read by a blocking thread), and each parser's throughput.
 
 Run:  .venv/bin/python benchmarks/device_latency.py [--events N] [--json]
 """
@@ -150,6 +153,173 @@ def throughput() -> dict[str, dict[str, float]]:
     return out
 
 
+# ---------------------------------------------------------------- network listeners: OSC and face streams
+def _net_payloads() -> dict[str, tuple[str, Callable[[int], bytes]]]:
+    """kind -> (spec, datagram i): a TouchOSC fader move, and one frame of each face stream in
+    which one blendshape changes (so every frame gives an event)."""
+    from pythonosc.osc_bundle_builder import IMMEDIATELY, OscBundleBuilder
+    from pythonosc.osc_message_builder import OscMessageBuilder
+
+    from devices.facestream import ARKIT_NAMES
+    from devices.facestream.facecap import FACECAP_ORDER
+    from devices.facestream.livelink import encode_frame
+
+    def msg(address: str, *args: Any) -> Any:
+        b = OscMessageBuilder(address)
+        for a in args:
+            b.add_arg(a)
+        return b.build()
+
+    def bundle(msgs: list[Any]) -> bytes:
+        b = OscBundleBuilder(IMMEDIATELY)
+        for m in msgs:
+            b.add_content(m)
+        return b.build().dgram
+
+    def w(i: int) -> float:
+        return (i % 100) / 100
+
+    def facecap(i: int) -> bytes:
+        return bundle([msg("/W", k, w(i) if name == "jawOpen" else 0.1) for k, name in enumerate(FACECAP_ORDER)])
+
+    def vmc(i: int) -> bytes:
+        vals = [msg("/VMC/Ext/Blend/Val", n, w(i) if n == "jawOpen" else 0.1) for n in ARKIT_NAMES]
+        return bundle(vals + [msg("/VMC/Ext/Blend/Apply")])
+
+    def ifm(i: int) -> bytes:
+        parts = [f"{n.replace('Left', '_L').replace('Right', '_R')}-{i % 100 if n == 'jawOpen' else 10}"
+                 for n in ARKIT_NAMES]
+        return ("|".join(parts) + "|=head#1.0,2.0,3.0,0.1,0.2,0.3|rightEye#1,2,3|leftEye#1,2,3|").encode()
+
+    def livelink(i: int) -> bytes:
+        return encode_frame([w(i) if n == "jawOpen" else 0.1 for n in ARKIT_NAMES])
+
+    return {"osc": ("osc://127.0.0.1:0?profile=touchosc", lambda i: msg("/1/fader1", w(i)).dgram),
+            "facecap": ("facecap://127.0.0.1:0", facecap), "vmc": ("vmc://127.0.0.1:0", vmc),
+            "ifacialmocap": ("ifacialmocap://127.0.0.1:0", ifm), "livelink": ("livelink://127.0.0.1:0", livelink)}
+
+
+def udp_sender(conn: Any) -> None:
+    """The sender (a phone, another program), in its own process: (kind, port, i) -> send time."""
+    import socket
+
+    payloads = _net_payloads()
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    conn.send("ready")
+    while (job := conn.recv()) is not None:
+        kind, port, i = job
+        data = payloads[kind][1](i) if kind != "udp" else b"x" * 32
+        t = time.monotonic()
+        sock.sendto(data, ("127.0.0.1", port))
+        conn.send(t)
+    sock.close()
+
+
+def net_latency(n: int, warmup: int = 20) -> dict[str, dict[str, float]]:
+    """UDP send (in another process) -> event at a listener, for each listener; "udp" is the
+    transport's own floor: a plain socket read by a blocking thread, stamped on return."""
+    import socket
+
+    parent, child = multiprocessing.get_context("fork").Pipe()
+    proc = multiprocessing.get_context("fork").Process(target=udp_sender, args=(child,))
+    proc.start()
+    assert parent.recv() == "ready"
+    arrived = threading.Event()
+    stamp: list[float] = []
+    out: dict[str, dict[str, float]] = {}
+
+    def listener(event: Any) -> None:
+        if isinstance(event, ControlEvent) and not stamp:
+            stamp.append(time.monotonic())
+            arrived.set()
+
+    def measure(kind: str, port: int) -> dict[str, float]:
+        lat: list[float] = []
+        for i in range(n + warmup):
+            arrived.clear()
+            stamp.clear()
+            parent.send((kind, port, i))
+            if not arrived.wait(2.0):
+                raise RuntimeError(f"{kind}: datagram {i} never arrived")
+            t_send = parent.recv()
+            if i >= warmup:
+                lat.append((stamp[0] - t_send) * 1000)
+            time.sleep(0.002)
+        return {"n": len(lat), "p50_ms": statistics.median(lat), "p99_ms": percentile(lat, 99), "max_ms": max(lat)}
+
+    try:
+        floor = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        floor.bind(("127.0.0.1", 0))
+
+        def plain_reader() -> None:
+            while True:
+                data = floor.recv(65536)
+                if data == b"stop":
+                    return
+                listener(ControlEvent("udp", "x", "axis", 0.0))
+
+        th = threading.Thread(target=plain_reader, daemon=True)
+        th.start()
+        out["udp"] = measure("udp", floor.getsockname()[1])
+        floor.sendto(b"stop", floor.getsockname())
+        th.join(2)
+        floor.close()
+        for kind, (spec, _) in _net_payloads().items():
+            dev = open_device(spec)
+            dev.add_listener(listener)
+            dev.start()
+            try:
+                out[kind] = measure(kind, dev.bound[1])
+            finally:
+                dev.close()
+    finally:
+        parent.send(None)
+        proc.join(5)
+    return out
+
+
+def net_throughput() -> dict[str, dict[str, float]]:
+    """Each network parser alone: datagrams/s and events/s."""
+    from devices.facestream.facecap import FaceCapParser
+    from devices.facestream.ifacialmocap import IFacialMocapParser
+    from devices.facestream.livelink import LiveLinkParser
+    from devices.facestream.vmc import VmcParser
+    from devices.osc import PROFILES, OscParser
+
+    payloads = _net_payloads()
+    bundle52 = _net_payloads()["vmc"][1]  # 53 messages: the heaviest OSC frame here
+    parsers: dict[str, tuple[Callable[[bytes, float], list[Any]], Callable[[int], bytes]]] = {
+        "osc message": (OscParser("b", PROFILES["touchosc"]).feed, payloads["osc"][1]),
+        "osc 53-message bundle": (OscParser("b", PROFILES["generic"]).feed, bundle52),
+        "facecap frame": (FaceCapParser("b").feed, payloads["facecap"][1]),
+        "vmc frame": (VmcParser("b").feed, payloads["vmc"][1]),
+        "ifacialmocap frame": (IFacialMocapParser("b").feed, payloads["ifacialmocap"][1]),
+        "livelink frame": (LiveLinkParser("b").feed, payloads["livelink"][1]),
+    }
+    out = {}
+    for name, (feed, make) in parsers.items():
+        data = [make(i) for i in range(200)]
+        reps = 10 if "frame" in name or "bundle" in name else 200
+        t0 = time.perf_counter()
+        count = sum(len(feed(d, 0.0)) for _ in range(reps) for d in data)
+        dt = time.perf_counter() - t0
+        out[name] = {"datagrams_per_s": reps * len(data) / dt, "events_per_s": count / dt}
+    return out
+
+
+def print_net(lat: dict[str, dict[str, float]], thr: dict[str, dict[str, float]]) -> None:
+    floor = lat["udp"]
+    print("latency: UDP send on 127.0.0.1 (another process) -> event at a listener")
+    for name, r in lat.items():
+        extra = "  (the transport alone: a plain socket and a blocking reader)" if name == "udp" else \
+            f"  (p99 {r['p99_ms'] - floor['p99_ms']:+.3f} ms over the transport's)"
+        print(f"  {name:<13} n={r['n']}  p50 {r['p50_ms']:.3f} ms  p99 {r['p99_ms']:.3f} ms  "
+              f"max {r['max_ms']:.3f} ms{extra}")
+    print("network parser throughput (parser alone)")
+    for name, r in thr.items():
+        print(f"  {name:<22} {r['datagrams_per_s']:>10,.0f} datagrams/s {r['events_per_s']:>10,.0f} events/s")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--events", type=int, default=500, help="latency samples per backend")
@@ -159,6 +329,7 @@ def main(argv: list[str] | None = None) -> int:
         tmp = Path(d)
         results = {"latency": {"sgi": sgi_latency(args.events, tmp), "text": text_latency(args.events, tmp)},
                    "throughput": throughput()}
+    results["net_latency"], results["net_throughput"] = net_latency(args.events), net_throughput()
     if args.json:
         print(json.dumps(results, indent=2))
         return 0
@@ -170,6 +341,7 @@ def main(argv: list[str] | None = None) -> int:
     for name, r in results["throughput"].items():
         extra = f"  {r['MB_per_s']:.1f} MB/s" if "MB_per_s" in r else f"  {r['reports_per_s']:,.0f} reports/s"
         print(f"  {name:<12} {r['events_per_s']:>12,.0f} events/s{extra}")
+    print_net(results["net_latency"], results["net_throughput"])
     return 0
 
 

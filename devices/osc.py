@@ -21,7 +21,7 @@ import struct
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 from devices.base import ControlInfo
 from devices.errors import DeviceSpecError
@@ -35,6 +35,8 @@ BUNDLE = b"#bundle\x00"
 MAX_DEPTH = 8
 MAX_MESSAGES = 1024
 MAX_ADDRESS = 256
+#: Distinct button addresses remembered (a sender spraying addresses must not grow memory).
+MAX_BUTTONS = 4096
 PATTERN_CHARS = frozenset("*?[]{}")
 #: Seconds between 1900 (OSC time tags) and 1970 (time.time()).
 NTP_EPOCH = 2208988800
@@ -48,8 +50,7 @@ class OscDecodeError(ValueError):
     """A datagram that is not OSC (or is damaged)."""
 
 
-@dataclass(frozen=True, slots=True)
-class OscMessage:
+class OscMessage(NamedTuple):
     """One decoded message: its address, its arguments, and the time tag of the bundle that
     carried it (``None`` outside a bundle; 1 means "immediately")."""
 
@@ -58,35 +59,59 @@ class OscMessage:
     timetag: int | None = None
 
 
+#: Argument type tags python-osc decodes; anything else is refused before it is asked (it would
+#: log a warning per datagram on the root logger).
+TYPE_TAGS = frozenset(",ihfdsbrmtTFN[]")
+_py_message: Any = None
+
+
 def decode_packet(data: bytes) -> list[OscMessage]:
     """Every message of one datagram, bundles flattened in order; OscDecodeError when damaged.
     Bundles are walked iteratively with bounded depth and count, never recursively."""
-    from pythonosc.osc_message import OscMessage as _PyOscMessage
-
     out: list[OscMessage] = []
-    stack: list[tuple[bytes, int | None, int]] = [(data, None, 0)]
+    if not data.startswith(BUNDLE):
+        _message(data, None, out)
+        return out
+    stack: list[tuple[bytes, int]] = [(data, 0)]
     while stack:
-        chunk, tag, depth = stack.pop()
-        if chunk.startswith(BUNDLE):
-            if depth >= MAX_DEPTH:
-                raise OscDecodeError(f"bundles nested deeper than {MAX_DEPTH}")
-            if len(chunk) < 16:
-                raise OscDecodeError("bundle shorter than its header")
-            (inner_tag,) = struct.unpack_from(">Q", chunk, 8)
-            elements = list(_elements(chunk))
-            stack.extend((el, inner_tag, depth + 1) for el in reversed(elements))
-            continue
-        if not chunk.startswith(b"/"):
-            raise OscDecodeError("not an OSC message or bundle")
-        if len(out) >= MAX_MESSAGES:
-            raise OscDecodeError(f"more than {MAX_MESSAGES} messages in one datagram")
-        try:
-            msg = _PyOscMessage(chunk)
-            address, params = msg.address, tuple(msg.params)
-        except Exception as err:  # python-osc raises ParseError, but damaged input finds others
-            raise OscDecodeError(f"damaged message: {err}") from err
-        out.append(OscMessage(address, params, tag))
+        chunk, depth = stack.pop()
+        if depth >= MAX_DEPTH:
+            raise OscDecodeError(f"bundles nested deeper than {MAX_DEPTH}")
+        if len(chunk) < 16:
+            raise OscDecodeError("bundle shorter than its header")
+        (tag,) = struct.unpack_from(">Q", chunk, 8)
+        nested = []
+        for el in _elements(chunk):
+            if el.startswith(BUNDLE):
+                nested.append((el, depth + 1))
+            else:
+                _message(el, tag, out)
+        stack.extend(reversed(nested))
     return out
+
+
+def _message(chunk: bytes, tag: int | None, out: list[OscMessage]) -> None:
+    global _py_message
+    if _py_message is None:
+        from pythonosc.osc_message import OscMessage as _py_message  # noqa: N813 (lazy: devices imports fast)
+    if not chunk.startswith(b"/"):
+        raise OscDecodeError("not an OSC message or bundle")
+    if len(out) >= MAX_MESSAGES:
+        raise OscDecodeError(f"more than {MAX_MESSAGES} messages in one datagram")
+    end = chunk.find(b"\0")
+    start = (end + 4) & ~3
+    if end < 0:
+        raise OscDecodeError("address not terminated")
+    if start < len(chunk):
+        stop = chunk.find(b"\0", start)
+        tags = chunk[start:stop if stop >= 0 else len(chunk)]
+        if not tags.startswith(b",") or not TYPE_TAGS.issuperset(tags.decode("latin-1")):
+            raise OscDecodeError(f"unknown argument types {tags[:16]!r}")
+    try:
+        msg = _py_message(chunk)
+        out.append(OscMessage(msg._address_regexp, tuple(msg._parameters), tag))
+    except Exception as err:  # python-osc raises ParseError, but damaged input finds others
+        raise OscDecodeError(f"damaged message: {err}") from err
 
 
 def _elements(bundle: bytes) -> Iterator[bytes]:
@@ -156,13 +181,14 @@ def _buttons(names: list[str]) -> list[ControlInfo]:
 def _touchosc() -> OscProfile:
     """TouchOSC's "Simple" layout (the one it opens with): page 1 five faders and four toggles,
     page 2 sixteen pushes and four toggles, page 3 an XY pad and four toggles, page 4 an 8x8
-    multi-toggle and four toggles. Other layouts work too: push/toggle addresses are buttons."""
+    multi-toggle and four toggles. Other layouts work too: push, toggle and button addresses (the
+    current TouchOSC names a control ``/button1``) are buttons."""
     controls = _axes([f"/1/fader{i}" for i in range(1, 6)] + ["/3/xy:0", "/3/xy:1"])
     controls += _buttons([f"/{p}/toggle{i}" for p in range(1, 5) for i in range(1, 5)])
     controls += _buttons([f"/2/push{i}" for i in range(1, 17)])
     controls += _buttons([f"/4/multitoggle/{r}/{c}" for r in range(1, 9) for c in range(1, 9)])
     return OscProfile("touchosc", "TouchOSC (Simple layout)", tuple(controls),
-                      ("*/push*", "*/toggle*", "*/multitoggle*", "*/multipush*", "*/z", "*/led*"))
+                      ("*/push*", "*/toggle*", "*/multitoggle*", "*/multipush*", "*/button*", "*/z"))
 
 
 def _openstage() -> OscProfile:
@@ -233,6 +259,9 @@ class OscParser:
 
     def _button(self, name: str, down: bool, t: float, out: list[ControlEvent]) -> None:
         if self._down.get(name, False) == down:
+            return
+        if name not in self._down and len(self._down) >= MAX_BUTTONS:
+            self.warnings.warn("range", f"more than {MAX_BUTTONS} button addresses; {name!r} ignored")
             return
         self._down[name] = down
         out.append(ControlEvent(self.device, name, "button", 1.0 if down else 0.0, None, int(down), t))

@@ -7,6 +7,7 @@ time in, events out) and a thin UDP device (``devices.udp``: localhost by defaul
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Mapping
@@ -36,6 +37,7 @@ _BY_KEY = {n.lower(): n for n in ARKIT_NAMES}
 MIRRORED = {n: n.replace("Left", "\0").replace("Right", "Left").replace("\0", "Right") for n in ARKIT_NAMES}
 
 
+@functools.lru_cache(maxsize=1024)
 def arkit_name(name: str) -> str | None:
     """The ARKit name for a sender's spelling: any case (``EyeBlinkLeft``), ``_L``/``_R``
     suffixes (``eyeBlink_L``, iFacialMocap) or ``Left``/``Right``; None when it is none of them."""
@@ -98,6 +100,23 @@ class BlendshapeFrames:
         return out
 
 
+class OscStreamParser:
+    """What the OSC streams (Face Cap, VMC) share: decode a datagram, count what is not OSC."""
+
+    def __init__(self, device: str, warnings: WarningCounter | None = None, mirror: bool = False) -> None:
+        self.frames = BlendshapeFrames(device, warnings, mirror)
+
+    def messages(self, data: bytes) -> list[Any]:
+        """The datagram's OSC messages; none (counted as garbage) when it is not OSC."""
+        from devices.osc import OscDecodeError, decode_packet
+
+        try:
+            return decode_packet(data)
+        except OscDecodeError as err:
+            self.frames.warnings.warn("garbage", f"not OSC ({err})")
+            return []
+
+
 class FaceStreamDevice(UdpListenerDevice):
     """A face tracker sending to a UDP port. Besides the network options (devices.udp), ``release``
     is the number of seconds without a frame after which the face is let go to neutral (1; 0 keeps
@@ -105,17 +124,21 @@ class FaceStreamDevice(UdpListenerDevice):
 
     STREAM_OPTIONS: ClassVar[frozenset[str]] = UdpListenerDevice.NET_OPTIONS | {"release", "mirror"}
     OPTIONS = STREAM_OPTIONS
+    #: The stream's parser class: ``Parser(device, warnings, mirror)`` with ``feed(data, t)`` and
+    #: ``frames`` (its BlendshapeFrames).
+    PARSER: ClassVar[Any] = None
 
     def __init__(self, spec: DeviceSpec, **options: Any) -> None:
         super().__init__(spec, **options)
         self.release_after = spec.get_float("release", 1.0, lo=0.0)
         self.controls = arkit_controls()
-        self.frames = BlendshapeFrames(self.spec, self.warnings, spec.get_bool("mirror", False))
+        self.parser = self.PARSER(self.spec, self.warnings, spec.get_bool("mirror", False))
+        self.frames: BlendshapeFrames = self.parser.frames
         self._last_frame = 0.0
         self._held = False
 
     def _parse(self, data: bytes, t: float) -> list[ControlEvent]:
-        raise NotImplementedError
+        return self.parser.feed(data, t)  # type: ignore[no-any-return]
 
     def _datagram(self, data: bytes, t: float, sender: str) -> list[ControlEvent]:
         before = self.frames.frames

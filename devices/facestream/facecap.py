@@ -4,13 +4,8 @@ blendshape (index in Face Cap's own order, weight 0..1), plus head (``/HT``, ``/
 
 from __future__ import annotations
 
-from typing import Any
-
 from devices.events import ControlEvent
-from devices.facestream import BlendshapeFrames, FaceStreamDevice
-from devices.osc import OscDecodeError, decode_packet
-from devices.spec import DeviceSpec
-from devices.warn import WarningCounter
+from devices.facestream import FaceStreamDevice, OscStreamParser
 
 #: Face Cap's blendshape order (``/W`` index -> ARKit name).
 FACECAP_ORDER = (
@@ -27,20 +22,12 @@ FACECAP_ORDER = (
 POSES = frozenset({"/HT", "/HR", "/ELR", "/ERR"})
 
 
-class FaceCapParser:
+class FaceCapParser(OscStreamParser):
     """Face Cap datagrams -> blendshape events."""
 
-    def __init__(self, device: str, warnings: WarningCounter | None = None, mirror: bool = False) -> None:
-        self.frames = BlendshapeFrames(device, warnings, mirror)
-
     def feed(self, data: bytes, t: float) -> list[ControlEvent]:
-        try:
-            messages = decode_packet(data)
-        except OscDecodeError as err:
-            self.frames.warnings.warn("garbage", f"not OSC ({err})")
-            return []
         values: dict[str, float] = {}
-        for m in messages:
+        for m in self.messages(data):
             if m.address == "/W":
                 if (len(m.args) == 2 and isinstance(m.args[0], int) and not isinstance(m.args[0], bool)
                         and isinstance(m.args[1], (int, float)) and not isinstance(m.args[1], bool)):
@@ -60,11 +47,4 @@ class FaceCapDevice(FaceStreamDevice):
     FORM = "facecap://127.0.0.1:8080[?lan=1&allow=ADDR,...&release=S&mirror=1]"
     DEFAULT_PORT = 8080
     WHAT = "Face Cap face tracking (OSC)"
-
-    def __init__(self, spec: DeviceSpec, **options: Any) -> None:
-        super().__init__(spec, **options)
-        self.parser = FaceCapParser(self.spec, self.warnings, self.frames.mirror)
-        self.frames = self.parser.frames
-
-    def _parse(self, data: bytes, t: float) -> list[ControlEvent]:
-        return self.parser.feed(data, t)
+    PARSER = FaceCapParser

@@ -76,6 +76,7 @@ class IFacialMocapDevice(FaceStreamDevice):
     OPTIONS = FaceStreamDevice.STREAM_OPTIONS | {"phone"}
     DEFAULT_PORT = PHONE_PORT
     WHAT = "iFacialMocap face tracking"
+    PARSER = IFacialMocapParser
 
     def __init__(self, spec: DeviceSpec, **options: Any) -> None:
         super().__init__(spec, **options)
@@ -92,12 +93,7 @@ class IFacialMocapDevice(FaceStreamDevice):
                 raise DeviceSpecError(f"{spec.text}: the phone at {host} streams over the network, which needs a "
                                       "listener there too: add lan=1 (and allow=" + host + ")")
             self.phone = (host, port)
-        self.parser = IFacialMocapParser(self.spec, self.warnings, self.frames.mirror)
-        self.frames = self.parser.frames
         self._requested = 0.0
-
-    def _parse(self, data: bytes, t: float) -> list[ControlEvent]:
-        return self.parser.feed(data, t)
 
     def _open(self) -> None:
         super()._open()

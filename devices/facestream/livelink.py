@@ -10,11 +10,8 @@ from __future__ import annotations
 
 import struct
 
-from typing import Any
-
 from devices.events import ControlEvent
 from devices.facestream import ARKIT_NAMES, BlendshapeFrames, FaceStreamDevice
-from devices.spec import DeviceSpec
 from devices.warn import WarningCounter
 
 HEADER = 45  # version + device id + name length
@@ -71,11 +68,4 @@ class LiveLinkDevice(FaceStreamDevice):
     FORM = "livelink://127.0.0.1:11111[?lan=1&allow=ADDR,...&release=S&mirror=1]"
     DEFAULT_PORT = 11111
     WHAT = "Live Link Face face tracking"
-
-    def __init__(self, spec: DeviceSpec, **options: Any) -> None:
-        super().__init__(spec, **options)
-        self.parser = LiveLinkParser(self.spec, self.warnings, self.frames.mirror)
-        self.frames = self.parser.frames
-
-    def _parse(self, data: bytes, t: float) -> list[ControlEvent]:
-        return self.parser.feed(data, t)
+    PARSER = LiveLinkParser

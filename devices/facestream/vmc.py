@@ -5,12 +5,8 @@ and status messages are ignored."""
 
 from __future__ import annotations
 
-from typing import Any
-
 from devices.events import ControlEvent
-from devices.facestream import BlendshapeFrames, FaceStreamDevice, arkit_name
-from devices.osc import OscDecodeError, decode_packet
-from devices.spec import DeviceSpec
+from devices.facestream import FaceStreamDevice, OscStreamParser, arkit_name
 from devices.warn import WarningCounter
 
 #: VRM expression presets a tracker without Perfect Sync sends, as ARKit blendshapes.
@@ -22,21 +18,16 @@ VRM_PRESETS: dict[str, tuple[str, ...]] = {
 MAX_PENDING = 512
 
 
-class VmcParser:
+class VmcParser(OscStreamParser):
     """VMC datagrams -> blendshape events, one frame per Apply."""
 
     def __init__(self, device: str, warnings: WarningCounter | None = None, mirror: bool = False) -> None:
-        self.frames = BlendshapeFrames(device, warnings, mirror)
+        super().__init__(device, warnings, mirror)
         self._pending: dict[str, float] = {}
 
     def feed(self, data: bytes, t: float) -> list[ControlEvent]:
-        try:
-            messages = decode_packet(data)
-        except OscDecodeError as err:
-            self.frames.warnings.warn("garbage", f"not OSC ({err})")
-            return []
         out: list[ControlEvent] = []
-        for m in messages:
+        for m in self.messages(data):
             if m.address == "/VMC/Ext/Blend/Val":
                 self._value(m.args)
             elif m.address == "/VMC/Ext/Blend/Apply":
@@ -67,11 +58,4 @@ class VmcDevice(FaceStreamDevice):
     FORM = "vmc://127.0.0.1:39539[?lan=1&allow=ADDR,...&release=S&mirror=1]"
     DEFAULT_PORT = 39539
     WHAT = "VMC face tracking (OSC)"
-
-    def __init__(self, spec: DeviceSpec, **options: Any) -> None:
-        super().__init__(spec, **options)
-        self.parser = VmcParser(self.spec, self.warnings, self.frames.mirror)
-        self.frames = self.parser.frames
-
-    def _parse(self, data: bytes, t: float) -> list[ControlEvent]:
-        return self.parser.feed(data, t)
+    PARSER = VmcParser

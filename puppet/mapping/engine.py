@@ -248,8 +248,8 @@ class Mapper:
         self.tick += 1
         contrib: dict[int, list[tuple[int, float, int]]] = {}  # only the channels something drives
         for idx, b in enumerate(self.bindings):
-            if b.target is None:
-                continue
+            if b.target is None or b.kind is None:
+                continue  # never touched: at rest by construction (a template map has a hundred)
             self._step_binding(b, dt)
             if not b.active:
                 continue

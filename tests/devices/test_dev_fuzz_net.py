@@ -10,6 +10,7 @@ import struct
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from netdev import osc_bundle, osc_message
+from test_dev_fuzz import edits, mutate  # the serial fuzzers' byte edits
 
 from devices.events import ControlEvent
 from devices.facestream import ARKIT_NAMES
@@ -20,24 +21,7 @@ from devices.facestream.vmc import VmcParser
 from devices.osc import PROFILES, OscDecodeError, OscParser, decode_packet
 
 FUZZ = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-edits = st.lists(st.tuples(st.integers(0, 2), st.integers(0, 10_000), st.integers(0, 255)), max_size=10)
 ARKIT = set(ARKIT_NAMES)
-
-
-def mutate(data: bytes, ops: list[tuple[int, int, int]]) -> bytes:
-    """(op, position, byte): 0 overwrite, 1 insert, 2 delete."""
-    b = bytearray(data)
-    for op, pos, val in ops:
-        if not b and op != 1:
-            continue
-        i = pos % (len(b) + (op == 1))
-        if op == 0:
-            b[i] = val
-        elif op == 1:
-            b.insert(i, val)
-        else:
-            del b[i]
-    return bytes(b)
 
 
 def check_osc(events: list[ControlEvent], profile: str) -> None:

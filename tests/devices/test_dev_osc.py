@@ -14,7 +14,7 @@ import pytest
 from netdev import listening, osc_bundle, osc_message
 
 import devices
-from devices.osc import MAX_DEPTH, OscDevice, decode_packet
+from devices.osc import MAX_DEPTH, PROFILES, OscDevice, decode_packet
 from devices.spec import parse_spec
 from devices.udp import exposure_text, parse_allow, sender_allowed
 
@@ -193,6 +193,8 @@ def test_a_flood_is_bounded_and_the_reader_stays_live() -> None:
 def test_binds_localhost_by_default() -> None:
     with listening("osc://:0") as lis:
         assert lis.dev.bound[0] == "127.0.0.1"
+    with listening("osc://[::1]:0") as lis:  # IPv6 loopback
+        assert lis.dev.bound[0] == "::1"
     with listening("osc://localhost:0") as lis:
         assert lis.dev.bound[0] == "127.0.0.1"
     assert OscDevice(parse_spec("osc://")).port == 9000  # the default port (not opened here)
@@ -235,6 +237,15 @@ def test_sender_allow_list() -> None:
     assert sender_allowed("8.8.8.8", ())
     with pytest.raises(devices.DeviceSpecError, match="allow"):
         parse_allow("192.168.1.300", "s")
+
+
+def test_button_addresses_are_bounded() -> None:
+    from devices.osc import MAX_BUTTONS, OscParser
+
+    p = OscParser("osc://t", PROFILES["generic"])
+    for i in range(MAX_BUTTONS + 10):
+        p.message(f"/b{i}", (True,), 0.0, [])
+    assert len(p._down) == MAX_BUTTONS and p.warnings.counts["range"] == 10
 
 
 def test_port_in_use_is_one_clear_error() -> None:
