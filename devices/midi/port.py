@@ -170,15 +170,22 @@ class MidiPortDevice(MidiDevice):
                 break
         inp.open_port(ports.index(self._port_name), f"{self.name} in")
         inp.set_callback(self._on_message)  # close_port removed the old one: install it every time
-        outs = foreign_ports(out)
-        j = find_port(outs, self.name, self.profile.port)
         self._out_name = ""
-        if j is not None:
-            out.open_port(out.get_ports().index(outs[j]), f"{self.name} out")
-            self._out_name = outs[j]
+        self._open_output()
         self.decoder.reset()
         self.feedback.forget_sent()
         self._next_check = time.monotonic() + PORT_CHECK
+
+    def _open_output(self) -> bool:
+        """Open the box's input port (our output, for lights) if it is there; a box's ports may
+        appear one after the other, so this is tried again at every port check until found."""
+        outs = foreign_ports(self._out)
+        j = find_port(outs, self.name, self.profile.port)
+        if j is None:
+            return False
+        self._out.open_port(self._out.get_ports().index(outs[j]), f"{self.name} out")
+        self._out_name = outs[j]
+        return True
 
     def _close_handle(self) -> None:
         for client in (self._in, self._out):
@@ -236,6 +243,9 @@ class MidiPortDevice(MidiDevice):
         ports = self._in.get_ports() if self._in is not None else []
         if self._port_name not in ports:
             raise OSError(f"MIDI port {clean_name(self._port_name)!r} went away")
+        if not self._out_name and self._out is not None and self._open_output():
+            self.feedback.forget_sent()
+            self._restore_lights()  # the lights port came up after the controls port
 
     def _send_lights(self, now: float) -> float | None:
         msgs, nxt = self.feedback.due(now)
