@@ -6,12 +6,14 @@ import random
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from devices.events import ControlEvent
 from devices.midi.decoder import MidiDecoder, relative_delta
 from devices.midi.feedback import Feedback
 from devices.midi.profile import ProfileError, load_profile, parse_profile, profile_for_port, profile_names
-from devices.midi.tokenizer import MidiTokenizer
+from devices.midi.tokenizer import REALTIME, MidiTokenizer, message_length
 from devices.warn import WarningCounter
 
 
@@ -284,3 +286,58 @@ def test_damaged_profiles_give_a_profile_or_one_line() -> None:
             continue
         for cd in prof.controls:
             assert 0 <= cd.channel <= 15 and cd.kind in ("axis", "dial", "button") and cd.lo < cd.hi
+
+
+# ------------------------------------------------------------------------------------ fuzzing
+FUZZ = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+channel_msgs = st.builds(lambda s, a, b: (s, a, b)[: 1 + message_length(s)],
+                         st.integers(0x80, 0xEF), st.integers(0, 127), st.integers(0, 127))
+
+
+def well_formed(m: tuple[int, ...]) -> bool:
+    if m[0] == 0xF0:
+        return m[-1] == 0xF7 and all(b < 0x80 for b in m[1:-1])
+    return m[0] >= 0x80 and len(m) == 1 + message_length(m[0]) and all(b < 0x80 for b in m[1:])
+
+
+@FUZZ
+@given(st.binary(max_size=400), st.lists(st.integers(0, 400), max_size=8))
+def test_tokenizer_random_bytes_any_chunking(data: bytes, cuts: list[int]) -> None:
+    whole, _ = tok(data, cap=64)
+    t = MidiTokenizer("f", sysex_cap=64, warnings=WarningCounter("f", interval=3600))
+    points = sorted({c % (len(data) + 1) for c in cuts} | {0, len(data)})
+    pieces = [m for a, b in zip(points, points[1:]) for m, _ in t.feed(data[a:b], 0.0)]
+    assert pieces == whole  # chunking never changes the result
+    assert all(well_formed(m) for m in whole)
+
+
+@FUZZ
+@given(st.lists(channel_msgs, min_size=1, max_size=30), st.lists(st.tuples(st.integers(0, 999), st.sampled_from(sorted(REALTIME))), max_size=10),
+       st.booleans())
+def test_realtime_bytes_anywhere_change_nothing(msgs: list[tuple[int, ...]], inserts: list[tuple[int, int]],
+                                                running: bool) -> None:
+    stream = bytearray()
+    last = 0
+    for m in msgs:
+        stream += bytes(m[1:]) if running and m[0] == last and m[0] < 0xF0 else bytes(m)
+        last = m[0]
+    for pos, rt in sorted(inserts, reverse=True):
+        stream.insert(pos % (len(stream) + 1), rt)
+    got, t = tok(bytes(stream))
+    assert [m for m in got if m[0] < 0xF8] == msgs
+    assert len([m for m in got if m[0] >= 0xF8]) == len(inserts)
+    assert t.warnings.total() == 0
+
+
+@FUZZ
+@given(st.sampled_from(profile_names()), st.lists(st.tuples(st.integers(0x80, 0xEF), st.integers(0, 127),
+                                                            st.integers(0, 127)), max_size=60))
+def test_every_profile_decodes_any_message_inside_its_ranges(name: str, msgs: list[tuple[int, int, int]]) -> None:
+    d = MidiDecoder("f", load_profile(name), WarningCounter("f", interval=3600))
+    declared = {c.name: c for c in d.controls()}
+    for m in msgs:
+        for e in d.decode(m[: 1 + message_length(m[0])], 0.0):
+            info = declared[e.control]
+            assert e.kind == info.kind and info.lo <= e.value <= info.hi, (e, info)
+            if e.kind == "button":
+                assert e.value in (0.0, 1.0)
