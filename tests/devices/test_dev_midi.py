@@ -330,10 +330,13 @@ def test_realtime_bytes_anywhere_change_nothing(msgs: list[tuple[int, ...]], ins
 
 
 @FUZZ
-@given(st.sampled_from(profile_names()), st.lists(st.tuples(st.integers(0x80, 0xEF), st.integers(0, 127),
-                                                            st.integers(0, 127)), max_size=60))
+@given(st.sampled_from([*profile_names(), "test"]),
+       st.lists(st.tuples(st.integers(0x80, 0xEF), st.sampled_from([0, 1, 4, 5, 6, 10, 13, 14, 20, 36, 37, 38, 96, 97, 98, 99, 100, 101]) | st.integers(0, 127),
+                          st.integers(0, 127)), max_size=60))
 def test_every_profile_decodes_any_message_inside_its_ranges(name: str, msgs: list[tuple[int, int, int]]) -> None:
-    d = MidiDecoder("f", load_profile(name), WarningCounter("f", interval=3600))
+    """Every shipped profile, and the test profile with 14-bit pairs, NRPN and every encoding."""
+    prof = parse_profile(PROFILE, "test.toml") if name == "test" else load_profile(name)
+    d = MidiDecoder("f", prof, WarningCounter("f", interval=3600))
     declared = {c.name: c for c in d.controls()}
     for m in msgs:
         for e in d.decode(m[: 1 + message_length(m[0])], 0.0):
