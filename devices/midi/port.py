@@ -29,6 +29,8 @@ from devices.spec import DeviceSpec
 
 #: Seconds between checks that the open port still exists.
 PORT_CHECK = 0.25
+#: After the MIDI API itself failed (no JACK server yet), wait this long before trying it again.
+CLIENT_RETRY = 2.0
 #: Our own client name; ports of clients named like this are never opened as a controller.
 CLIENT = "facepuppet"
 APIS = ("alsa", "jack")
@@ -59,10 +61,14 @@ def clean_name(port: str) -> str:
 
 
 def jack_server_running() -> bool:
-    """Whether the JACK server clients would talk to is up (checked without starting one)."""
+    """Whether a JACK server clients could talk to seems up, checked without starting one or
+    letting libjack print its failure: jack2's socket for the server name, or a jack1 folder.
+    Where neither layout applies (not Linux), assume it may be."""
+    if not os.path.isdir("/dev/shm"):
+        return True
     server = os.environ.get("JACK_DEFAULT_SERVER", "default")
     uid = os.getuid() if hasattr(os, "getuid") else 0
-    return os.path.exists(f"/dev/shm/jack_{server}_{uid}_0")
+    return os.path.exists(f"/dev/shm/jack_{server}_{uid}_0") or os.path.isdir(f"/dev/shm/jack-{uid}")
 
 
 def api_available(api: str) -> bool:
@@ -137,11 +143,25 @@ class MidiPortDevice(MidiDevice):
         self._out_name = ""
         self._inbox: queue.SimpleQueue[tuple[list[int], float] | None] = queue.SimpleQueue()
         self._next_check = 0.0
+        self._retry_clients = 0.0
 
     # ------------------------------------------------------------------ handle
     def _clients(self) -> tuple[Any, Any]:
         if self._in is None:
-            self._in = new_client(self.api)
+            now = time.monotonic()
+            if now < self._retry_clients:  # the API failed a moment ago: do not hammer it (nor stderr)
+                raise OSError(f"the {self.api.upper()} MIDI API is not available yet")
+            if not api_available(self.api):
+                self._retry_clients = now + CLIENT_RETRY
+                hint = {"alsa": "no ALSA sequencer (/dev/snd/seq); is this a JACK setup? use api=jack",
+                        "jack": f"no JACK server {os.environ.get('JACK_DEFAULT_SERVER', 'default')!r} running; "
+                                "start it (or use api=alsa)"}[self.api]
+                raise DeviceError(f"{self.spec}: {hint}")
+            try:
+                self._in = new_client(self.api)
+            except DeviceError as err:
+                self._retry_clients = now + CLIENT_RETRY
+                raise DeviceError(f"{self.spec}: {err}") from err
             self._in.ignore_types(sysex=True, timing=True, active_sense=True)
         if self._out is None:
             self._out = new_client(self.api, output=True)

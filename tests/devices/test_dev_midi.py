@@ -344,3 +344,15 @@ def test_every_profile_decodes_any_message_inside_its_ranges(name: str, msgs: li
             assert e.kind == info.kind and info.lo <= e.value <= info.hi, (e, info)
             if e.kind == "button":
                 assert e.value in (0.0, 1.0)
+
+
+def test_port_names_match_by_substring_without_alsa_numbers() -> None:
+    from devices.midi.port import clean_name, find_port
+
+    alsa = ["Midi Through:Midi Through Port-0 14:0", "nanoKONTROL2:nanoKONTROL2 _ CTRL 20:0",
+            "APC mini mk2:APC mini mk2 Notes 24:1", "APC mini mk2:APC mini mk2 Control 24:0"]
+    assert clean_name(alsa[1]) == "nanoKONTROL2:nanoKONTROL2 _ CTRL"
+    assert find_port(alsa, "NANOkontrol2") == 1
+    assert find_port(alsa, "20:0") is None  # the numbers change on replug: never matched
+    assert find_port(alsa, "apc mini mk2", prefer="control") == 3  # LEDs answer on the Control port
+    assert find_port(alsa, "launch control") is None
