@@ -198,6 +198,7 @@ def test_nrpn_data_entry(dec: MidiDecoder) -> None:
 def test_unknown_messages_get_generic_names(dec: MidiDecoder) -> None:
     e = ev(dec, (0xB5, 7, 64), (0x93, 60, 10), (0xE2, 0, 0x40), (0xF8,), (0xC0, 3))
     assert [x.control for x in e] == ["ch6.cc7", "ch4.note60", "ch3.pitchbend"]
+    assert len(ev(dec, (0xB5, 9, 1), (0xB5, 9, 1), (0xB5, 9, 1))) == 3  # maybe a relative encoder: every tick counts
     declared = {c.name for c in dec.controls()}
     assert {"ch6.cc7", "ch4.note60", "ch3.pitchbend", "fader1", "ring"} <= declared
 

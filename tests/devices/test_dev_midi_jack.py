@@ -181,12 +181,14 @@ def test_puppet_learn_binds_a_fader_and_a_button(jack_server: str, tmp_path) -> 
     try:
         wait_for_host(jack_server, "nanoKONTROL2:_MIDI 1")
         assert proc.stdin is not None
-        proc.stdin.write("jaw\nexpr:happiness\ntoggle\nq\n")
+        proc.stdin.write("jaw\nexpr:happiness\ntoggle\nage\n\nq\n")
         proc.stdin.flush()
         box.send((0xB0, 1, 60), (0xB0, 1, 60), (0xB0, 1, 61), gap=0.05)  # a jittering pot: not a touch
         box.send(*[(0xB0, 6, v) for v in range(0, 40, 4)], gap=0.01)     # fader 7 moved
         time.sleep(1.0)  # learn lets the rest of the gesture pass
         box.send((0xB0, 32, 127), (0xB0, 32, 0))                           # S1 pressed
+        time.sleep(1.0)
+        box.send((0xB0, 80, 1), (0xB0, 80, 1), (0xB0, 80, 1), gap=0.02)     # an encoder it has no name for
         time.sleep(1.0)
         box.send((0xB0, 48, 127), (0xB0, 48, 0))                           # M1 pressed: answered with q
         out, err = proc.communicate(timeout=60)
@@ -197,6 +199,9 @@ def test_puppet_learn_binds_a_fader_and_a_button(jack_server: str, tmp_path) -> 
         box.close()
     assert proc.returncode == 0, err
     assert "touched fader7 (axis)" in out and "touched s1 (button)" in out, out
+    assert "touched ch1.cc80 (relative encoder)" in out, out
     spec = load_mapping(show)
-    got = {(b.control, b.device, b.target, b.mode) for b in spec.bindings}
-    assert got == {("fader7", "midi", "jaw", "momentary"), ("s1", "midi", "expr:happiness", "toggle")}
+    got = {(b.control, b.device, b.target, b.mode, b.input, b.encoding) for b in spec.bindings}
+    assert got == {("fader7", "midi", "jaw", "momentary", None, None),
+                   ("s1", "midi", "expr:happiness", "toggle", None, None),
+                   ("ch1.cc80", "midi", "age", "momentary", "relative", "twos_complement")}
