@@ -18,8 +18,9 @@ from devices.warn import WarningCounter
 
 #: Shortest time between two messages to one light or ring (rings follow a fast fader at 50 Hz).
 LIGHT_INTERVAL = 0.02
-#: An input message equal to one sent this recently is our own message coming back.
-ECHO_WINDOW = 0.05
+#: An input message equal to one sent this recently is our own message coming back (a MIDI Thru
+#: echo takes a few ms; a hand pressing the same button again takes well over 0.1 s).
+ECHO_WINDOW = 0.1
 
 
 class Feedback:
