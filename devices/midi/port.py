@@ -144,6 +144,7 @@ class MidiPortDevice(MidiDevice):
         self._inbox: queue.SimpleQueue[tuple[list[int], float] | None] = queue.SimpleQueue()
         self._next_check = 0.0
         self._retry_clients = 0.0
+        self._started_at = float("inf")
 
     # ------------------------------------------------------------------ handle
     def _clients(self) -> tuple[Any, Any]:
@@ -227,6 +228,10 @@ class MidiPortDevice(MidiDevice):
         for client in clients:
             delete_client(client)
 
+    def start(self) -> None:
+        self._started_at = time.monotonic()
+        super().start()
+
     def _wake(self) -> None:
         self._inbox.put(None)
 
@@ -250,8 +255,8 @@ class MidiPortDevice(MidiDevice):
         except queue.Empty:
             return events
         while True:  # everything that has arrived, in one batch
-            if item is not None:
-                events += self._decode(tuple(item[0]), item[1])
+            if item is not None:  # a message queued before start() is read now, and stamped so
+                events += self._decode(tuple(item[0]), max(item[1], self._started_at))
             try:
                 item = self._inbox.get_nowait()
             except queue.Empty:
