@@ -18,6 +18,7 @@ import os
 import queue
 import re
 import sys
+import threading
 import time
 from collections.abc import Iterable
 from typing import Any
@@ -280,18 +281,33 @@ class MidiPortDevice(MidiDevice):
         return nxt
 
 
+_ENUMERATORS: dict[str, Any] = {}
+_ENUM_LOCK = threading.Lock()
+
+
 def list_ports(api: str) -> list[tuple[str, str]]:
     """(input port name, profile) for every controller port on ``api``; [] when the API is not
-    available here. Uses one client per call (the caller polls rarely)."""
+    available here. The ALSA sequencer is asked through one client kept for the process (creating
+    sequencer clients over and over is what makes ALSA run out of memory for some users); a JACK
+    server may be restarted under the same name, so a JACK client is made for each call."""
     if not api_available(api):
         return []
-    try:
-        client = new_client(api)
-    except DeviceError:
-        return []
-    try:
-        from devices.midi.profile import profile_for_port
+    from devices.midi.profile import profile_for_port
 
-        return [(p, profile_for_port(p)) for p in foreign_ports(client)]
-    finally:
-        delete_client(client)
+    with _ENUM_LOCK:
+        keep = api == "alsa"
+        client = _ENUMERATORS.get(api) if keep else None
+        try:
+            if client is None:
+                client = new_client(api)
+                if keep:
+                    _ENUMERATORS[api] = client
+            return [(p, profile_for_port(p)) for p in foreign_ports(client)]
+        except Exception:
+            _ENUMERATORS.pop(api, None)
+            delete_client(client)
+            client = None
+            return []
+        finally:
+            if not keep:
+                delete_client(client)
