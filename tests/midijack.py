@@ -125,3 +125,26 @@ class MidiBox:
         self.proc = None
 
     close = unplug
+
+
+def connected_to(server: str, port: str) -> list[str]:
+    """The ports connected to ``port`` on the JACK server (from ``jack_lsp -c``)."""
+    out = subprocess.run(["jack_lsp", "-s", server, "-c"], capture_output=True, text=True,
+                         env={**os.environ, "JACK_NO_START_SERVER": "1"}).stdout
+    peers: list[str] = []
+    current = None
+    for line in out.splitlines():
+        if line.startswith((" ", "\t")):
+            if current == port:
+                peers.append(line.strip())
+        else:
+            current = line.strip()
+    return peers
+
+
+def wait_for_host(server: str, port: str, timeout: float = 60.0) -> None:
+    """Wait until a facepuppet client has opened ``port``."""
+    deadline = time.monotonic() + timeout
+    while not any(p.startswith("facepuppet") for p in connected_to(server, port)):
+        assert time.monotonic() < deadline, f"nothing opened {port} within {timeout} s"
+        time.sleep(0.05)

@@ -9,7 +9,9 @@ direction by ``dead_band`` counts or less is dropped, so a pot flickering 116/11
 while a continuous move keeps every count.
 
 Messages the profile does not name still become events under generic names (``ch1.cc7``,
-``ch1.note60``, ``ch1.pitchbend``), so any controller can be learned.
+``ch1.note60``, ``ch1.pitchbend``), so any controller can be learned; a generic CC reports every
+message, repeats included, because it may be a relative encoder (``puppet learn`` recognises one,
+and a binding reads it with ``input = "relative"`` and its ``encoding``).
 """
 
 from __future__ import annotations
@@ -133,7 +135,8 @@ class MidiDecoder:
             return self._param(ch, num, val, t)
         cd = self._by_msg.get(("cc", ch, num))
         if cd is None:
-            return self._axis_event(f"ch{ch + 1}.cc{num}", 0.0, 1.0, val, 127, t, dead_band=0)
+            # every message, repeats too: an unprofiled CC may be a relative encoder sending 1, 1, 1
+            return self._axis_event(f"ch{ch + 1}.cc{num}", 0.0, 1.0, val, 127, t, dead_band=0, repeats=True)
         if cd.message == "cc14":
             return self._cc14(cd, num == cd.number, val, t)
         if cd.kind == "button":
@@ -212,15 +215,15 @@ class MidiDecoder:
         return self._axis_event(cd.name, cd.lo, cd.hi, raw, cd.max_raw, t, cd.dead_band)
 
     def _axis_event(self, name: str, lo: float, hi: float, raw: int, top: int, t: float,
-                    dead_band: int) -> list[ControlEvent]:
+                    dead_band: int, repeats: bool = False) -> list[ControlEvent]:
         st = self._axes.get(name)
         if st is None:
             st = self._axes[name] = _Axis()
         if st.last is not None:
             step = raw - st.last
-            if step == 0:
+            if step == 0 and not repeats:
                 return []
-            direction = 1 if step > 0 else -1
+            direction = 1 if step > 0 else -1 if step < 0 else st.direction
             if direction != st.direction and abs(step) <= dead_band and 0 < raw < top:
                 return []  # jitter: a small reversal inside the dead band
             st.direction = direction

@@ -11,13 +11,16 @@ patchbay loop) is recognised as an echo and dropped, so no feedback loop can for
 
 from __future__ import annotations
 
+import threading
+
 from devices.midi.profile import MidiProfile
 from devices.warn import WarningCounter
 
 #: Shortest time between two messages to one light or ring (rings follow a fast fader at 50 Hz).
 LIGHT_INTERVAL = 0.02
-#: An input message equal to one sent this recently is our own message coming back.
-ECHO_WINDOW = 0.05
+#: An input message equal to one sent this recently is our own message coming back (a MIDI Thru
+#: echo takes a few ms; a hand pressing the same button again takes well over 0.1 s).
+ECHO_WINDOW = 0.1
 
 
 class Feedback:
@@ -32,6 +35,7 @@ class Feedback:
         self._when: dict[str, float] = {}
         self._recent: dict[tuple[int, ...], float] = {}
         self.echoes = 0
+        self._lock = threading.Lock()  # requests come from the live loop, sending from the reader
 
     def request(self, control: str, level: float) -> bool:
         """Queue the message that shows ``level`` on ``control``; False if it has no light."""
@@ -39,16 +43,22 @@ class Feedback:
         if cd is None:
             return False
         msg = cd.light.button(level) if cd.light is not None else cd.ring.ring_value(level)  # type: ignore[union-attr]
-        self._pending[control] = msg
+        with self._lock:
+            self._pending[control] = msg
         return True
 
     def forget_sent(self) -> None:
         """After a (re)open the box shows nothing we know of: send every light again."""
-        self._sent.clear()
-        self._when.clear()
+        with self._lock:
+            self._sent.clear()
+            self._when.clear()
 
     def due(self, now: float) -> tuple[list[tuple[int, ...]], float | None]:
         """Messages to send now, and when the next held-back one is due (None: nothing waits)."""
+        with self._lock:
+            return self._due(now)
+
+    def _due(self, now: float) -> tuple[list[tuple[int, ...]], float | None]:
         out: list[tuple[int, ...]] = []
         nxt: float | None = None
         for control, msg in list(self._pending.items()):
@@ -70,10 +80,11 @@ class Feedback:
 
     def is_echo(self, msg: tuple[int, ...], now: float) -> bool:
         """True for input that repeats a message sent within ECHO_WINDOW (dropped, counted)."""
-        when = self._recent.get(msg)
-        if when is None or now - when > ECHO_WINDOW:
-            return False
-        del self._recent[msg]
+        with self._lock:
+            when = self._recent.get(msg)
+            if when is None or now - when > ECHO_WINDOW:
+                return False
+            del self._recent[msg]
         self.echoes += 1
         self.warnings.warn("echo", "input repeats the lights sent to the box (MIDI Thru on, or a loop "
                            "in the MIDI routing?); dropped")

@@ -18,6 +18,7 @@ import os
 import queue
 import re
 import sys
+import threading
 import time
 from collections.abc import Iterable
 from typing import Any
@@ -29,6 +30,8 @@ from devices.spec import DeviceSpec
 
 #: Seconds between checks that the open port still exists.
 PORT_CHECK = 0.25
+#: After the MIDI API itself failed (no JACK server yet), wait this long before trying it again.
+CLIENT_RETRY = 2.0
 #: Our own client name; ports of clients named like this are never opened as a controller.
 CLIENT = "facepuppet"
 APIS = ("alsa", "jack")
@@ -59,10 +62,14 @@ def clean_name(port: str) -> str:
 
 
 def jack_server_running() -> bool:
-    """Whether the JACK server clients would talk to is up (checked without starting one)."""
+    """Whether a JACK server clients could talk to seems up, checked without starting one or
+    letting libjack print its failure: jack2's socket for the server name, or a jack1 folder.
+    Where neither layout applies (not Linux), assume it may be."""
+    if not os.path.isdir("/dev/shm"):
+        return True
     server = os.environ.get("JACK_DEFAULT_SERVER", "default")
     uid = os.getuid() if hasattr(os, "getuid") else 0
-    return os.path.exists(f"/dev/shm/jack_{server}_{uid}_0")
+    return os.path.exists(f"/dev/shm/jack_{server}_{uid}_0") or os.path.isdir(f"/dev/shm/jack-{uid}")
 
 
 def api_available(api: str) -> bool:
@@ -137,11 +144,26 @@ class MidiPortDevice(MidiDevice):
         self._out_name = ""
         self._inbox: queue.SimpleQueue[tuple[list[int], float] | None] = queue.SimpleQueue()
         self._next_check = 0.0
+        self._retry_clients = 0.0
+        self._started_at = float("inf")
 
     # ------------------------------------------------------------------ handle
     def _clients(self) -> tuple[Any, Any]:
         if self._in is None:
-            self._in = new_client(self.api)
+            now = time.monotonic()
+            if now < self._retry_clients:  # the API failed a moment ago: do not hammer it (nor stderr)
+                raise OSError(f"the {self.api.upper()} MIDI API is not available yet")
+            if not api_available(self.api):
+                self._retry_clients = now + CLIENT_RETRY
+                hint = {"alsa": "no ALSA sequencer (/dev/snd/seq); is this a JACK setup? use api=jack",
+                        "jack": f"no JACK server {os.environ.get('JACK_DEFAULT_SERVER', 'default')!r} running; "
+                                "start it (or use api=alsa)"}[self.api]
+                raise DeviceError(f"{self.spec}: {hint}")
+            try:
+                self._in = new_client(self.api)
+            except DeviceError as err:
+                self._retry_clients = now + CLIENT_RETRY
+                raise DeviceError(f"{self.spec}: {err}") from err
             self._in.ignore_types(sysex=True, timing=True, active_sense=True)
         if self._out is None:
             self._out = new_client(self.api, output=True)
@@ -170,15 +192,22 @@ class MidiPortDevice(MidiDevice):
                 break
         inp.open_port(ports.index(self._port_name), f"{self.name} in")
         inp.set_callback(self._on_message)  # close_port removed the old one: install it every time
-        outs = foreign_ports(out)
-        j = find_port(outs, self.name, self.profile.port)
         self._out_name = ""
-        if j is not None:
-            out.open_port(out.get_ports().index(outs[j]), f"{self.name} out")
-            self._out_name = outs[j]
+        self._open_output()
         self.decoder.reset()
         self.feedback.forget_sent()
         self._next_check = time.monotonic() + PORT_CHECK
+
+    def _open_output(self) -> bool:
+        """Open the box's input port (our output, for lights) if it is there; a box's ports may
+        appear one after the other, so this is tried again at every port check until found."""
+        outs = foreign_ports(self._out)
+        j = find_port(outs, self.name, self.profile.port)
+        if j is None:
+            return False
+        self._out.open_port(self._out.get_ports().index(outs[j]), f"{self.name} out")
+        self._out_name = outs[j]
+        return True
 
     def _close_handle(self) -> None:
         for client in (self._in, self._out):
@@ -199,6 +228,10 @@ class MidiPortDevice(MidiDevice):
         clients, self._in, self._out = (self._in, self._out), None, None
         for client in clients:
             delete_client(client)
+
+    def start(self) -> None:
+        self._started_at = time.monotonic()
+        super().start()
 
     def _wake(self) -> None:
         self._inbox.put(None)
@@ -223,8 +256,8 @@ class MidiPortDevice(MidiDevice):
         except queue.Empty:
             return events
         while True:  # everything that has arrived, in one batch
-            if item is not None:
-                events += self._decode(tuple(item[0]), item[1])
+            if item is not None:  # a message queued before start() is read now, and stamped so
+                events += self._decode(tuple(item[0]), max(item[1], self._started_at))
             try:
                 item = self._inbox.get_nowait()
             except queue.Empty:
@@ -236,6 +269,9 @@ class MidiPortDevice(MidiDevice):
         ports = self._in.get_ports() if self._in is not None else []
         if self._port_name not in ports:
             raise OSError(f"MIDI port {clean_name(self._port_name)!r} went away")
+        if not self._out_name and self._out is not None and self._open_output():
+            self.feedback.forget_sent()
+            self._restore_lights()  # the lights port came up after the controls port
 
     def _send_lights(self, now: float) -> float | None:
         msgs, nxt = self.feedback.due(now)
@@ -245,18 +281,33 @@ class MidiPortDevice(MidiDevice):
         return nxt
 
 
+_ENUMERATORS: dict[str, Any] = {}
+_ENUM_LOCK = threading.Lock()
+
+
 def list_ports(api: str) -> list[tuple[str, str]]:
     """(input port name, profile) for every controller port on ``api``; [] when the API is not
-    available here. Uses one client per call (the caller polls rarely)."""
+    available here. The ALSA sequencer is asked through one client kept for the process (creating
+    sequencer clients over and over is what makes ALSA run out of memory for some users); a JACK
+    server may be restarted under the same name, so a JACK client is made for each call."""
     if not api_available(api):
         return []
-    try:
-        client = new_client(api)
-    except DeviceError:
-        return []
-    try:
-        from devices.midi.profile import profile_for_port
+    from devices.midi.profile import profile_for_port
 
-        return [(p, profile_for_port(p)) for p in foreign_ports(client)]
-    finally:
-        delete_client(client)
+    with _ENUM_LOCK:
+        keep = api == "alsa"
+        client = _ENUMERATORS.get(api) if keep else None
+        try:
+            if client is None:
+                client = new_client(api)
+                if keep:
+                    _ENUMERATORS[api] = client
+            return [(p, profile_for_port(p)) for p in foreign_ports(client)]
+        except Exception:
+            _ENUMERATORS.pop(api, None)
+            delete_client(client)
+            client = None
+            return []
+        finally:
+            if not keep:
+                delete_client(client)

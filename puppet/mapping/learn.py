@@ -55,7 +55,7 @@ def _inline(v: Any) -> Any:
 
 
 def learn_binding(path: str | Path, control: str, device: str, target: str, kind: str,
-                  mode: str | None = None) -> str:
+                  mode: str | None = None, settings: dict[str, Any] | None = None) -> str:
     """Add (or retarget) the binding of `control` on `device` to `target` in the file at `path`
     (created if missing). Returns "added" or "updated". The result is parsed again before it
     replaces the file, so a learn never leaves a broken mapping behind."""
@@ -81,6 +81,8 @@ def learn_binding(path: str | Path, control: str, device: str, target: str, kind
             b["target"] = target
             if mode is not None and kind in ("button", "key"):
                 b["mode"] = mode
+            for k, v in (settings or {}).items():
+                b[k] = _inline(v)
             result = "updated"
             break
     else:
@@ -88,7 +90,7 @@ def learn_binding(path: str | Path, control: str, device: str, target: str, kind
         t["control"] = control
         t["device"] = dev
         t["target"] = target
-        for k, v in default_settings(kind, mode).items():
+        for k, v in {**default_settings(kind, mode), **(settings or {})}.items():
             t[k] = _inline(v)
         t.add(tomlkit.nl())
         bindings.append(t)

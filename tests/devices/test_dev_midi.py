@@ -6,12 +6,14 @@ import random
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from devices.events import ControlEvent
 from devices.midi.decoder import MidiDecoder, relative_delta
 from devices.midi.feedback import Feedback
 from devices.midi.profile import ProfileError, load_profile, parse_profile, profile_for_port, profile_names
-from devices.midi.tokenizer import MidiTokenizer
+from devices.midi.tokenizer import REALTIME, MidiTokenizer, message_length
 from devices.warn import WarningCounter
 
 
@@ -196,6 +198,7 @@ def test_nrpn_data_entry(dec: MidiDecoder) -> None:
 def test_unknown_messages_get_generic_names(dec: MidiDecoder) -> None:
     e = ev(dec, (0xB5, 7, 64), (0x93, 60, 10), (0xE2, 0, 0x40), (0xF8,), (0xC0, 3))
     assert [x.control for x in e] == ["ch6.cc7", "ch4.note60", "ch3.pitchbend"]
+    assert len(ev(dec, (0xB5, 9, 1), (0xB5, 9, 1), (0xB5, 9, 1))) == 3  # maybe a relative encoder: every tick counts
     declared = {c.name for c in dec.controls()}
     assert {"ch6.cc7", "ch4.note60", "ch3.pitchbend", "fader1", "ring"} <= declared
 
@@ -284,3 +287,73 @@ def test_damaged_profiles_give_a_profile_or_one_line() -> None:
             continue
         for cd in prof.controls:
             assert 0 <= cd.channel <= 15 and cd.kind in ("axis", "dial", "button") and cd.lo < cd.hi
+
+
+# ------------------------------------------------------------------------------------ fuzzing
+FUZZ = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+channel_msgs = st.builds(lambda s, a, b: (s, a, b)[: 1 + message_length(s)],
+                         st.integers(0x80, 0xEF), st.integers(0, 127), st.integers(0, 127))
+
+
+def well_formed(m: tuple[int, ...]) -> bool:
+    if m[0] == 0xF0:
+        return m[-1] == 0xF7 and all(b < 0x80 for b in m[1:-1])
+    return m[0] >= 0x80 and len(m) == 1 + message_length(m[0]) and all(b < 0x80 for b in m[1:])
+
+
+@FUZZ
+@given(st.binary(max_size=400), st.lists(st.integers(0, 400), max_size=8))
+def test_tokenizer_random_bytes_any_chunking(data: bytes, cuts: list[int]) -> None:
+    whole, _ = tok(data, cap=64)
+    t = MidiTokenizer("f", sysex_cap=64, warnings=WarningCounter("f", interval=3600))
+    points = sorted({c % (len(data) + 1) for c in cuts} | {0, len(data)})
+    pieces = [m for a, b in zip(points, points[1:]) for m, _ in t.feed(data[a:b], 0.0)]
+    assert pieces == whole  # chunking never changes the result
+    assert all(well_formed(m) for m in whole)
+
+
+@FUZZ
+@given(st.lists(channel_msgs, min_size=1, max_size=30), st.lists(st.tuples(st.integers(0, 999), st.sampled_from(sorted(REALTIME))), max_size=10),
+       st.booleans())
+def test_realtime_bytes_anywhere_change_nothing(msgs: list[tuple[int, ...]], inserts: list[tuple[int, int]],
+                                                running: bool) -> None:
+    stream = bytearray()
+    last = 0
+    for m in msgs:
+        stream += bytes(m[1:]) if running and m[0] == last and m[0] < 0xF0 else bytes(m)
+        last = m[0]
+    for pos, rt in sorted(inserts, reverse=True):
+        stream.insert(pos % (len(stream) + 1), rt)
+    got, t = tok(bytes(stream))
+    assert [m for m in got if m[0] < 0xF8] == msgs
+    assert len([m for m in got if m[0] >= 0xF8]) == len(inserts)
+    assert t.warnings.total() == 0
+
+
+@FUZZ
+@given(st.sampled_from([*profile_names(), "test"]),
+       st.lists(st.tuples(st.integers(0x80, 0xEF), st.sampled_from([0, 1, 4, 5, 6, 10, 13, 14, 20, 36, 37, 38, 96, 97, 98, 99, 100, 101]) | st.integers(0, 127),
+                          st.integers(0, 127)), max_size=60))
+def test_every_profile_decodes_any_message_inside_its_ranges(name: str, msgs: list[tuple[int, int, int]]) -> None:
+    """Every shipped profile, and the test profile with 14-bit pairs, NRPN and every encoding."""
+    prof = parse_profile(PROFILE, "test.toml") if name == "test" else load_profile(name)
+    d = MidiDecoder("f", prof, WarningCounter("f", interval=3600))
+    declared = {c.name: c for c in d.controls()}
+    for m in msgs:
+        for e in d.decode(m[: 1 + message_length(m[0])], 0.0):
+            info = declared[e.control]
+            assert e.kind == info.kind and info.lo <= e.value <= info.hi, (e, info)
+            if e.kind == "button":
+                assert e.value in (0.0, 1.0)
+
+
+def test_port_names_match_by_substring_without_alsa_numbers() -> None:
+    from devices.midi.port import clean_name, find_port
+
+    alsa = ["Midi Through:Midi Through Port-0 14:0", "nanoKONTROL2:nanoKONTROL2 _ CTRL 20:0",
+            "APC mini mk2:APC mini mk2 Notes 24:1", "APC mini mk2:APC mini mk2 Control 24:0"]
+    assert clean_name(alsa[1]) == "nanoKONTROL2:nanoKONTROL2 _ CTRL"
+    assert find_port(alsa, "NANOkontrol2") == 1
+    assert find_port(alsa, "20:0") is None  # the numbers change on replug: never matched
+    assert find_port(alsa, "apc mini mk2", prefer="control") == 3  # LEDs answer on the Control port
+    assert find_port(alsa, "launch control") is None

@@ -137,3 +137,71 @@ def test_discovery_lists_jack_ports_with_their_profile(jack_server: str) -> None
         assert spec in found and found[spec].usable and "Korg nanoKONTROL2" in found[spec].description
     finally:
         box.close()
+
+
+def _puppet_env() -> dict[str, str]:
+    import os
+
+    return {**os.environ, "PYTHONUNBUFFERED": "1"}
+
+
+def test_puppet_devices_lists_midi_ports(jack_server: str) -> None:  # noqa: F811
+    import subprocess
+    import sys
+
+    box = MidiBox("nanoKONTROL2").plug()
+    synth = MidiBox("Some Synth").plug()
+    try:
+        out = subprocess.run([sys.executable, "-m", "puppet", "devices"], capture_output=True, text=True,
+                             env=_puppet_env(), timeout=60)
+    finally:
+        box.close()
+        synth.close()
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    nano = next(x for x in lines if x.startswith("midi://nanoKONTROL2?profile=nanokontrol2&api=jack"))
+    assert "Korg nanoKONTROL2" in nano and "LED Mode = External" in nano
+    other = next(x for x in lines if x.startswith("midi://Some Synth?profile=generic&api=jack"))
+    assert "puppet learn" in other and "not usable" in other
+
+
+def test_puppet_learn_binds_a_fader_and_a_button(jack_server: str, tmp_path) -> None:  # noqa: F811
+    import subprocess
+    import sys
+
+    from midijack import wait_for_host
+
+    from puppet.mapping import load_mapping
+
+    box = MidiBox("nanoKONTROL2").plug()
+    show = tmp_path / "show.toml"
+    proc = subprocess.Popen([sys.executable, "-m", "puppet", "learn", "--device", "midi://nanoKONTROL2?api=jack",
+                             "--map", str(show), "--timeout", "20"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=_puppet_env())
+    try:
+        wait_for_host(jack_server, "nanoKONTROL2:_MIDI 1")
+        assert proc.stdin is not None
+        proc.stdin.write("jaw\nexpr:happiness\ntoggle\nage\n\nq\n")
+        proc.stdin.flush()
+        box.send((0xB0, 1, 60), (0xB0, 1, 60), (0xB0, 1, 61), gap=0.05)  # a jittering pot: not a touch
+        box.send(*[(0xB0, 6, v) for v in range(0, 40, 4)], gap=0.01)     # fader 7 moved
+        time.sleep(1.0)  # learn lets the rest of the gesture pass
+        box.send((0xB0, 32, 127), (0xB0, 32, 0))                           # S1 pressed
+        time.sleep(1.0)
+        box.send((0xB0, 80, 1), (0xB0, 80, 1), (0xB0, 80, 1), gap=0.02)     # an encoder it has no name for
+        time.sleep(1.0)
+        box.send((0xB0, 48, 127), (0xB0, 48, 0))                           # M1 pressed: answered with q
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(10)
+        box.close()
+    assert proc.returncode == 0, err
+    assert "touched fader7 (axis)" in out and "touched s1 (button)" in out, out
+    assert "touched ch1.cc80 (relative encoder)" in out, out
+    spec = load_mapping(show)
+    got = {(b.control, b.device, b.target, b.mode, b.input, b.encoding) for b in spec.bindings}
+    assert got == {("fader7", "midi", "jaw", "momentary", None, None),
+                   ("s1", "midi", "expr:happiness", "toggle", None, None),
+                   ("ch1.cc80", "midi", "age", "momentary", "relative", "twos_complement")}

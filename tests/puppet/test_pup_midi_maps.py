@@ -75,3 +75,15 @@ def test_nanokontrol2_through_the_mapper(vocab) -> None:
     before = run([StatusEvent(dev, "lost"), StatusEvent(dev, "connected")], 2)[jaw]
     after = run([ControlEvent(dev, "fader7", "axis", 0.1)], 30)[jaw]
     assert after == pytest.approx(before)
+
+
+def test_a_learned_relative_encoder_under_its_generic_name_turns_its_channel(vocab) -> None:
+    from puppet.mapping import parse_mapping
+
+    text = ('[[binding]]\ncontrol = "ch1.cc80"\ndevice = "midi"\ntarget = "jaw"\ninput = "relative"\n'
+            'encoding = "twos_complement"\ncounts_per_turn = 10\n')
+    m = Mapper(parse_mapping(text, "learned.toml"), vocab)
+    jaw = [c.name for c in vocab.channels].index("jaw")
+    for raw in (1, 1, 1, 1, 127):  # four ticks up, one down: 3 counts of 10 a turn
+        m.feed(ControlEvent("midi://box?api=jack", "ch1.cc80", "axis", raw / 127, None, raw))
+    assert m.step(1 / 60)[jaw] == pytest.approx(0.3)
