@@ -20,6 +20,7 @@ COMMAND_MODULES = (
     "puppet.cmd_devices",
     "puppet.cmd_learn",
     "puppet.cmd_replay",
+    "puppet.cmd_edit",
     "puppet.cmd_import_face",
 )
 

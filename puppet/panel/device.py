@@ -201,9 +201,19 @@ class PanelDevice(Device):
         app.router.add_get("/favicon.ico", lambda r: web.Response(status=204))
         app.router.add_get("/api/layout", lambda r: web.json_response(self.layout))
         app.on_startup.append(self._start_broadcast)
+        app.on_cleanup.append(self._stop_broadcast)
 
     async def _start_broadcast(self, app: Any) -> None:
         app["broadcast"] = asyncio.get_running_loop().create_task(self._broadcast())
+
+    async def _stop_broadcast(self, app: Any) -> None:
+        task = app.get("broadcast")
+        if task is not None:
+            task.cancel()
+            try:
+                await task
+            except (asyncio.CancelledError, Exception):
+                pass
 
     async def _broadcast(self) -> None:
         while True:
