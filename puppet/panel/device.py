@@ -107,6 +107,7 @@ class PanelDevice(Device):
         self._rates = {"t": time.monotonic(), "frames": 0, "ticks": 0, "fps": 0.0, "tps": 0.0}
         self._count = 0
         self.received = 0
+        self._task: asyncio.Task[None] | None = None
 
     # --- device hooks ----------------------------------------------------------------------------
     def _open(self) -> None:
@@ -197,17 +198,20 @@ class PanelDevice(Device):
     def _routes(self, app: Any) -> None:
         from aiohttp import web
 
+        async def layout(request: Any) -> Any:
+            return web.json_response(self.layout)
+
         app.router.add_get("/ws", self._ws)
-        app.router.add_get("/favicon.ico", lambda r: web.Response(status=204))
-        app.router.add_get("/api/layout", lambda r: web.json_response(self.layout))
+        app.router.add_get("/favicon.ico", _no_icon)
+        app.router.add_get("/api/layout", layout)
         app.on_startup.append(self._start_broadcast)
         app.on_cleanup.append(self._stop_broadcast)
 
     async def _start_broadcast(self, app: Any) -> None:
-        app["broadcast"] = asyncio.get_running_loop().create_task(self._broadcast())
+        self._task = asyncio.get_running_loop().create_task(self._broadcast())
 
     async def _stop_broadcast(self, app: Any) -> None:
-        task = app.get("broadcast")
+        task, self._task = self._task, None
         if task is not None:
             task.cancel()
             try:
@@ -287,6 +291,12 @@ class PanelDevice(Device):
             self.clients.pop(name, None)
             self.emit(StatusEvent(client.device, "lost", time.monotonic(), "page closed"))
         return ws
+
+
+async def _no_icon(request: Any) -> Any:
+    from aiohttp import web
+
+    return web.Response(status=204)
 
 
 def _copy(dq: Any) -> list[float]:

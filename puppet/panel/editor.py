@@ -242,4 +242,7 @@ class Editor:
         app.router.add_post(prefix + "/api/curves", post_curves)
         app.router.add_get(prefix + "/api/frame", frame)
         app.router.add_post(prefix + "/api/export", do_export)
-        app.router.add_get("/favicon.ico", lambda r: web.Response(status=204))
+        async def no_icon(request: web.Request) -> web.Response:
+            return web.Response(status=204)
+
+        app.router.add_get(prefix + "/favicon.ico", no_icon)
