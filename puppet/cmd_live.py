@@ -235,7 +235,7 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     t0 = time.monotonic()
     core = live.LiveCore(face, mapper, writer=writer, t0=0.0 if virtual else t0, lights=lights)
     for page in panel_devices(devs):
-        page.watch(core, devs)
+        page.watch(core, devs, record)
     stop = live.StopFlag()
     stop.install()
     watcher = None

@@ -108,6 +108,8 @@ class PanelDevice(Device):
         self._count = 0
         self.received = 0
         self._task: asyncio.Task[None] | None = None
+        self.record: str | None = None
+        self.editor: Any = None  # the `puppet edit` process the editor button started
 
     # --- device hooks ----------------------------------------------------------------------------
     def _open(self) -> None:
@@ -146,6 +148,13 @@ class PanelDevice(Device):
         if self.server is not None and self._stop.is_set():
             self.server.stop()
             self.server = None
+        ed, self.editor = self.editor, None
+        if ed is not None and ed.poll() is None:
+            ed.terminate()
+            try:
+                ed.wait(5)
+            except Exception:
+                ed.kill()
 
     @property
     def url(self) -> str:
@@ -162,9 +171,11 @@ class PanelDevice(Device):
                 pass
 
     # --- the loop's public state ----------------------------------------------------------------
-    def watch(self, core: Any, devs: Sequence[Any]) -> None:
-        """Show pages this live core's state (read from the server thread; nothing runs in the loop)."""
+    def watch(self, core: Any, devs: Sequence[Any], record: str | None = None) -> None:
+        """Show pages this live core's state (read from the server thread; nothing runs in the
+        loop); `record` is the take being recorded, which the page's editor button opens."""
         self.core, self.devs = core, devs
+        self.record = record
 
     def _state(self) -> dict[str, Any]:
         core = self.core
@@ -201,6 +212,7 @@ class PanelDevice(Device):
         async def layout(request: Any) -> Any:
             return web.json_response(self.layout)
 
+        app.router.add_post("/api/edit", self._open_editor)
         app.router.add_get("/ws", self._ws)
         app.router.add_get("/favicon.ico", _no_icon)
         app.router.add_get("/api/layout", layout)
@@ -234,6 +246,22 @@ class PanelDevice(Device):
                         await asyncio.wait_for(c.ws.send_str(text), 0.5)
                     except Exception:  # a stalled page must not stall the others
                         pass
+
+    async def _open_editor(self, request: Any) -> Any:
+        """Start `puppet edit` on the take being recorded, in its own process (the show's process
+        stays as lean as it was), and answer its URL."""
+        from aiohttp import web
+
+        if not self.record:
+            return web.json_response({"ok": False, "error": "this show is not recorded: start it with --record FILE"})
+        if self.editor is not None and self.editor.poll() is None:
+            return web.json_response({"ok": True, "url": self._editor_url})
+        loop = asyncio.get_running_loop()
+        try:
+            self.editor, self._editor_url = await loop.run_in_executor(None, _start_editor, self.record)
+        except Exception as err:
+            return web.json_response({"ok": False, "error": str(err)})
+        return web.json_response({"ok": True, "url": self._editor_url})
 
     def _client_name(self, want: str | None) -> str:
         base = want if want and NAME_RE.fullmatch(want) else None
@@ -291,6 +319,27 @@ class PanelDevice(Device):
             self.clients.pop(name, None)
             self.emit(StatusEvent(client.device, "lost", time.monotonic(), "page closed"))
         return ws
+
+
+def _start_editor(take: str) -> tuple[Any, str]:
+    """`python -m puppet edit TAKE` in a child process; its URL, read from its first line."""
+    import os
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "puppet", "edit", os.path.abspath(take)],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    assert proc.stdout is not None
+    end = time.monotonic() + 60
+    while time.monotonic() < end:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        m = re.search(r"(http://\S+)", line)
+        if m:
+            return proc, m.group(1)
+    proc.kill()
+    raise RuntimeError("the editor did not start")
 
 
 async def _no_icon(request: Any) -> Any:

@@ -74,6 +74,13 @@ def test_page_drives_the_face_with_two_pages(show) -> None:
         states = a.find_elements(By.CSS_SELECTOR, "#devices .dev.ok")
         assert len(states) >= 3  # the server and both pages, connected
         a.save_screenshot(str(d / "panel.png"))
+        # the editor button opens the take recorded so far in the force-graph editor (a new tab)
+        a.find_element(By.ID, "edit").click()
+        wait_for(lambda: len(a.window_handles) == 2, 10, "the editor's tab")
+        a.switch_to.window(a.window_handles[1])
+        wait_for(lambda: "/api" not in a.current_url and a.current_url.startswith("http://127.0.0.1")
+                 and a.execute_script("return !!(window.puppetEditor && window.puppetEditor.ready)"), 90, "the editor")
+        assert a.execute_script("return window.puppetEditor.take.take") == "take.jsonl"
     finally:
         quit_browser(a)
         quit_browser(b)
