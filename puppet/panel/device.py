@@ -199,7 +199,7 @@ class PanelDevice(Device):
             lat.sort()
             st["latency"] = [round(lat[len(lat) // 2] * 1e3, 2), round(lat[min(len(lat) - 1, int(len(lat) * 0.99))] * 1e3, 2)]
         status = dict(_copy_items(core.mapper.status))
-        devices = [[d.spec, bool(status.get(d.spec, d.connected))] for d in self.devs]
+        devices = [[self._base() if d is self else d.spec, bool(status.get(d.spec, d.connected))] for d in self.devs]
         devices += [[c.device, True] for c in list(self.clients.values())]
         st["devices"] = devices
         st["markers"] = [[round(k / core.rate, 2), label] for k, label in core.markers[-8:]]
@@ -247,6 +247,13 @@ class PanelDevice(Device):
                     except Exception:  # a stalled page must not stall the others
                         pass
 
+    def _base(self) -> str:
+        """The spec with the port actually served (the OS's or the fallback's choice)."""
+        base = self.spec.split("?", 1)[0].rstrip("/")
+        if self.server is not None and (not self.port or self.server.port != self.port):
+            base = f"panel://{self.host}:{self.server.port}"
+        return base
+
     async def _open_editor(self, request: Any) -> Any:
         """Start `puppet edit` on the take being recorded, in its own process (the show's process
         stays as lean as it was), and answer its URL."""
@@ -290,10 +297,7 @@ class PanelDevice(Device):
         ws = web.WebSocketResponse(max_msg_size=MAX_MESSAGE, heartbeat=10.0)
         await ws.prepare(request)
         name = self._client_name(request.query.get("name") or role)
-        base = self.spec.split("?", 1)[0].rstrip("/")
-        if self.server is not None and (not self.port or self.server.port != self.port):
-            base = f"panel://{self.host}:{self.server.port}"  # the port the OS or the fallback chose
-        client = Client(name, f"{base}/{name}", ws, allowed, only, role)
+        client = Client(name, f"{self._base()}/{name}", ws, allowed, only, role)
         self.clients[name] = client
         await ws.send_str(json.dumps({"t": "hello", "you": name, "device": client.device, "layout": self.layout,
                                       "allowed": sorted(allowed), "roles": sorted(self.roles)}))
