@@ -108,3 +108,21 @@ def test_page_drives_the_face_with_two_pages(show) -> None:
         moved = r.render_frame(rp.state).astype(float)
         rest = r.render_frame(perf.face.model.rest_state()).astype(float)
     assert np.abs(moved - rest).mean() > 0.5
+
+
+def test_window_with_no_box_gives_keyboard_and_page(xvfb_display: str, tmp_path: Path) -> None:
+    import os
+    import subprocess
+    import sys
+
+    from panel_browser import ROOT
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT), DISPLAY=xvfb_display)
+    r = subprocess.run([sys.executable, "-m", "puppet", "live", "--duration", "2", "--record", "w.jsonl"],
+                       cwd=tmp_path, env=env, capture_output=True, text=True, timeout=180)
+    assert r.returncode == 0, r.stderr
+    assert "performer's page at http://127.0.0.1:" in r.stdout
+    header = json.loads((tmp_path / "w.jsonl").read_text().splitlines()[0])
+    assert "keyboard://" in header["devices"] and any(d.startswith("panel://") for d in header["devices"])
+    text = header["mapping"]["text"]
+    assert 'control = "key:Q"' in text and 'control = "slider:jaw"' in text  # the whole key map and the page's

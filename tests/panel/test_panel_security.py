@@ -196,3 +196,15 @@ def test_edit_command_errors_are_one_line(tmp_path: Path) -> None:
         r = subprocess.run([sys.executable, "-m", "puppet", *args], capture_output=True, text=True, env=env, timeout=120)
         assert r.returncode == 2, (args, r.stderr)
         assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+
+
+def test_lan_url_is_printed_with_a_qr_code(lan_page) -> None:
+    import io
+
+    from puppet.panel import announce
+
+    out = io.StringIO()
+    announce(lan_page, out)
+    text = out.getvalue()
+    assert f"token={lan_page.server.token}" in text
+    assert sum(text.count(c) for c in "█▀▄") > 100  # the QR code in block characters
