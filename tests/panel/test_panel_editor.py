@@ -104,3 +104,75 @@ def test_edit_a_key_and_rerecord_one_channel(take: Path) -> None:
     out = subprocess.run([sys.executable, "-m", "puppet", "replay", str(take), "--curves", str(take.parent / "take.curves"),
                           "--headless"], capture_output=True, text=True, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
     assert out.returncode == 0 and digests[0] in out.stdout
+
+
+def test_editor_operations_overdub_and_export(take: Path) -> None:
+    """Box select, delete, undo/redo, copy/paste, a step segment, snapping to seconds, key
+    reduction, an overdub pass and a CSV export, through the page's own controls."""
+    from selenium.webdriver.common.keys import Keys
+
+    from puppet.curves import load_curves
+
+    (take.parent / "take.curves").unlink(missing_ok=True)  # start from the bare take
+    ed = PuppetProcess("edit", take.name, "--port", "0", cwd=take.parent)
+    drv = browser()
+    js = drv.execute_script
+    try:
+        drv.get(ed.url)
+        wait_for(lambda: js("return window.puppetEditor && window.puppetEditor.ready"), 30, "the editor")
+        wait_for(lambda: js("return document.getElementById('preview').naturalWidth") == 480, 30, "the preview frame")
+        drv.find_element(By.CSS_SELECTOR, '#targets [data-target="mentalis"]').click()
+        for t, v in ((0.5, 0.2), (1.0, 0.4), (1.5, 0.6), (2.0, 0.8)):
+            js(f"window.puppetEditor.api.insertKey({t}, {v})")
+        keys = lambda: js("return window.puppetEditor.curves.filter(c => c.target === 'mentalis')"  # noqa: E731
+                          ".flatMap(c => c.keys).map(k => [k.t, k.v, k.seg])")
+        assert len(keys()) == 4
+        # box-select the two middle keys with a drag over the background, then delete them
+        canvas = drv.find_element(By.ID, "graph")
+        (x1, y1), (x2, y2) = js("return [window.puppetEditor.keyPixel('mentalis', 1), window.puppetEditor.keyPixel('mentalis', 2)]")
+        ActionChains(drv).move_to_element_with_offset(canvas, int(x1) - 12, int(y2) - 12).click_and_hold() \
+            .move_to_element_with_offset(canvas, int(x2) + 12, int(y1) + 12).release().perform()
+        assert js("return window.puppetEditor.sel.size") == 2
+        drv.find_element(By.ID, "del").click()
+        assert [k[0] for k in keys()] == [0.5, 2.0]
+        body = drv.find_element(By.TAG_NAME, "body")
+        body.send_keys(Keys.CONTROL, "z")
+        assert len(keys()) == 4
+        body.send_keys(Keys.CONTROL, Keys.SHIFT, "z")
+        assert len(keys()) == 2
+        body.send_keys(Keys.CONTROL, "z")
+        # the first key's segment becomes a step; copy it and paste at the playhead, snapped to seconds
+        x0, y0 = js("return window.puppetEditor.keyPixel('mentalis', 0)")
+        ActionChains(drv).move_to_element_with_offset(canvas, int(x0), int(y0)).click().perform()
+        drv.find_element(By.CSS_SELECTOR, 'button[data-seg="step"]').click()
+        body.send_keys(Keys.CONTROL, "c")
+        from selenium.webdriver.support.ui import Select
+
+        Select(drv.find_element(By.ID, "snap")).select_by_value("second")
+        js("window.puppetEditor.api.setPlayhead(3.4)")
+        body.send_keys(Keys.CONTROL, "v")
+        ks = keys()
+        assert [k[0] for k in ks] == [0.5, 1.0, 1.5, 2.0, 3.0] and ks[0][2] == "step" and ks[4][2] == "step"
+        # reduction: four keys on one straight line lose the middle ones at any tolerance
+        js("window.puppetEditor.sel.clear()")
+        drv.find_element(By.ID, "reduce").click()
+        assert [k[0] for k in keys()] == [0.5, 2.0, 3.0]
+        # overdub: the input stood still, moved over ticks 10..19, stood still again
+        samples = [0.1] * 10 + [0.1 + 0.03 * i for i in range(1, 11)] + [0.4] * 30
+        js(f"window.puppetEditor.api.commitPass(60, {{'orbicularis_oris': {samples}}}, true)")
+        passes = js("return window.puppetEditor.curves.filter(c => c.target === 'orbicularis_oris')"
+                    ".map(c => [c.keys[0].t, c.keys[c.keys.length - 1].t])")
+        assert passes == [[70 / 60, 79 / 60]]
+        drv.find_element(By.ID, "save").click()
+        wait_for(lambda: (take.parent / "take.curves").exists()
+                 and "orbicularis_oris" in (take.parent / "take.curves").read_text(), 10, "saved")
+        Select(drv.find_element(By.ID, "exportname")).select_by_value(".csv")
+        drv.find_element(By.ID, "export").click()
+        wait_for(lambda: (take.parent / "take-edit.csv").exists(), 60, "the CSV export")
+    finally:
+        quit_browser(drv)
+        ed.stop()
+    cs = load_curves(take.parent / "take.curves")
+    assert any(c.segs and "step" in c.segs for c in cs.curves if c.target == "mentalis")
+    header = (take.parent / "take-edit.csv").read_text().splitlines()[0]
+    assert "mentalis" in header and "orbicularis_oris" in header

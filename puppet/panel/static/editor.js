@@ -328,20 +328,28 @@
   function finishRecording() {
     const R = E.recording; E.recording = null; $("record").textContent = "● record";
     if (!R || R.next <= R.k0) return;
-    push(); const overdub = $("recmode").value === "overdub"; let n = 0;
-    for (const [t, s] of Object.entries(R.samples)) {
-      if (!overdub) { E.curves.push({ target: t, interp: "linear", mode: "replace", keys: keysFromSamples(t, R.k0, s) }); n++; continue; }
-      // overdub: only the runs of ticks where the input moved (gaps under 0.1 s joined)
-      let i = 1; const gap = Math.round(0.1 * rate());
+    commitPass(R.k0, R.samples, $("recmode").value === "overdub");
+  }
+  function commitPass(k0, samples, overdub) {  // {target: [value per tick from k0]} -> curves
+    push(); let n = 0, ticks = 0;
+    for (const [t, s] of Object.entries(samples)) {
+      ticks = Math.max(ticks, s.length);
+      if (!overdub) { E.curves.push({ target: t, interp: "linear", mode: "replace", keys: keysFromSamples(t, k0, s) }); n++; continue; }
+      // overdub: only the runs of ticks where the input moved (stills shorter than 0.1 s joined)
+      const gap = Math.round(0.1 * rate());
+      let i = 1;
       while (i < s.length) {
         if (s[i] === s[i - 1]) { i++; continue; }
-        let j = i; while (j + 1 < s.length) { let g = 0; while (j + 1 + g < s.length && s[j + 1 + g] === s[j + g] && g < gap) g++;
-          if (j + 1 + g >= s.length || g >= gap) break; j += g + 1; }
-        E.curves.push({ target: t, interp: "linear", mode: "replace", keys: keysFromSamples(t, R.k0 + i, s.slice(i, j + 1)) }); n++; i = j + 1;
+        let j = i, still = 0;
+        for (let m = i + 1; m < s.length; m++) {
+          if (s[m] === s[m - 1]) { if (++still >= gap) break; } else { still = 0; j = m; }
+        }
+        E.curves.push({ target: t, interp: "linear", mode: "replace", keys: keysFromSamples(t, k0 + i, s.slice(i, j + 1)) }); n++;
+        i = j + 1;
       }
     }
-    E.lastRecord = { k0: R.k0, k1: R.next - 1, passes: n };
-    msg(`recorded ${R.next - R.k0} ticks into ${n} curve${n === 1 ? "" : "s"} (${overdub ? "overdub" : "replace"})`); changed();
+    E.lastRecord = { k0, k1: k0 + ticks - 1, passes: n };
+    msg(`recorded ${ticks} ticks into ${n} curve${n === 1 ? "" : "s"} (${overdub ? "overdub" : "replace"})`); changed();
   }
 
   // --- wiring ---------------------------------------------------------------------------------------
@@ -378,7 +386,7 @@
   window.addEventListener("resize", draw);
   E.keyPixel = (target, i) => { const ks = E.curves.filter((c) => c.target === target).flatMap((c) => c.keys).sort((a, b) => a.t - b.t);
     const r = cv.getBoundingClientRect(); return [X(ks[i].t) - r.width / 2, Y(ks[i].v) - r.height / 2]; };  // offsets from the centre
-  E.api = { selectTarget, insertKey, fromRecording, setPlayhead, record, play, stop, toJson, sendCurves };
+  E.api = { selectTarget, insertKey, fromRecording, setPlayhead, record, play, stop, toJson, sendCurves, commitPass };
 
   fetch("/api/take" + location.search).then((r) => r.json()).then((take) => {
     E.take = take; $("take").textContent = take.take; $("dur").textContent = dur().toFixed(2);
