@@ -138,9 +138,26 @@ class Editor:
             if self.curves.curves:
                 layer = CurveLayer(self.curves, self.face.vocab)
                 values = np.array([layer.apply(values[k], k / p.rate) for k in range(values.shape[0])])
+            old, old_rp = getattr(self, "_last_perf", None), self._replayer
             self._perf = Performance(self.face, values, p.rate, p.markers, p.checks if not self.curves.curves else {})
             self._replayer = Replayer(self._perf)
+            if old is not None and old_rp is not None and old.values.shape == values.shape:
+                # states before the first tick the edit changed are still right: keep their checkpoints
+                differs = np.flatnonzero(np.any(old.values != values, axis=1))
+                first = int(differs[0]) if len(differs) else values.shape[0]
+                self._replayer.checkpoints.update({k: st for k, st in old_rp.checkpoints.items() if k <= first})
+            self._last_perf = self._perf
         return self._perf
+
+    def _seek(self, k: int) -> Any:
+        """The replayer at tick k, starting from the latest checkpoint at or before k."""
+        rp = self._replayer
+        base = max(t for t in rp.checkpoints if t <= k)
+        if base > rp.tick or k < rp.tick:
+            rp.state.assign(rp.checkpoints[base])
+            rp.tick = base
+        rp.seek(k)
+        return rp
 
     def save(self, name: str | None = None) -> Path:
         from puppet.panel.server import safe_child
@@ -163,8 +180,7 @@ class Editor:
             from render.offscreen import OffscreenRenderer
 
             self._renderer = OffscreenRenderer(self.face.model, PREVIEW_SIZE)
-        rp = self._replayer
-        rp.seek(int(round(min(max(t, 0.0), perf.duration) * perf.rate)))
+        rp = self._seek(int(round(min(max(t, 0.0), perf.duration) * perf.rate)))
         self._renderer.view = view
         img = self._renderer.render_frame(rp.state)
         buf = io.BytesIO()

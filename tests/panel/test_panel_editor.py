@@ -176,3 +176,25 @@ def test_editor_operations_overdub_and_export(take: Path) -> None:
     assert any(c.segs and "step" in c.segs for c in cs.curves if c.target == "mentalis")
     header = (take.parent / "take-edit.csv").read_text().splitlines()[0]
     assert "mentalis" in header and "orbicularis_oris" in header
+
+
+def test_preview_after_an_edit_matches_a_fresh_replay(take: Path) -> None:
+    """The preview keeps the states before the first edited tick; what it shows after an edit is
+    bit for bit what a fresh replay of the edited take shows."""
+    from puppet.panel.editor import Editor
+    from puppet.replay import Replayer, state_digest
+
+    (take.parent / "take.curves").unlink(missing_ok=True)
+    ed = Editor(take)
+    try:
+        ed.performance()
+        ed._seek(300)  # checkpoints up to 5 s
+        ed.set_curves([{"target": "jaw", "keys": [[3.0, 0.1], [4.0, 0.7, "smooth"], [4.5, 0.2]]}])
+        perf = ed.performance()
+        assert 180 in ed._replayer.checkpoints and 240 not in ed._replayer.checkpoints
+        for k in (250, 200, 290):
+            fresh = Replayer(perf)
+            fresh.seek(k)
+            assert state_digest(ed._seek(k).state) == state_digest(fresh.state)
+    finally:
+        ed.close()
