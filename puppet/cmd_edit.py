@@ -19,6 +19,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--port", type=int, default=None, metavar="PORT", help="port (default 8766 or the next free one)")
     p.add_argument("--lan", action="store_true", help="serve the LAN, behind a random token in the printed URL")
     p.add_argument("--rig", metavar="PATH", help="the rig the take was made with, if not the recorded path")
+    p.add_argument("--device", action="append", default=[], metavar="SPEC",
+                   help="a control box to re-record with (its default map, or --map); repeatable")
+    p.add_argument("--map", metavar="FILE", help="mapping file for --device (default: each box's shipped map)")
     p.add_argument("--duration", type=float, metavar="S", help="stop serving after S seconds")
     p.set_defaults(func=run)
 
@@ -35,6 +38,11 @@ def run(args: argparse.Namespace) -> int:
     if args.port is not None and not 0 <= args.port <= 65535:
         raise PuppetError(f"--port {args.port} is outside 0..65535")
     editor = Editor(args.take, args.curves, args.rig)
+    if args.device:
+        from puppet.panel.boxes import BoxFeed
+
+        editor.boxes = BoxFeed(args.device, editor.face.vocab, args.map)
+        editor.boxes.start()
     for w in editor.session.warnings:
         print(f"puppet: warning: {w}", file=sys.stderr)
     srv = PanelServer("0.0.0.0" if args.lan else "127.0.0.1", DEFAULT_PORT + 1 if args.port is None else args.port,
@@ -52,6 +60,8 @@ def run(args: argparse.Namespace) -> int:
     finally:
         stop.restore()
         srv.stop()
+        if editor.boxes is not None:
+            editor.boxes.close()
         editor.close()
     print(f"puppet: editor closed; curves are saved as {editor.curves_name} beside the take when you press save")
     return 0

@@ -80,7 +80,8 @@ def curves_to_json(cs: CurveSet) -> list[dict[str, Any]]:
 class Editor:
     """One take open for editing: its recorded values, the current curves, the preview."""
 
-    def __init__(self, take: str | Path, curves: str | Path | None = None, rig: str | None = None) -> None:
+    def __init__(self, take: str | Path, curves: str | Path | None = None, rig: str | None = None,
+                 boxes: Any = None) -> None:
         from puppet.replay import build_performance
         from puppet.session import read_session
 
@@ -97,6 +98,7 @@ class Editor:
         if curves is not None or path.exists():
             self.curves = load_curves(Path(curves) if curves else path)
             CurveLayer(self.curves, self.face.vocab)  # unknown targets: the file's line
+        self.boxes = boxes  # a puppet.panel.boxes.BoxFeed, or None
         self._perf: Any = None
         self._replayer: Any = None
         self._renderer: Any = None
@@ -116,7 +118,8 @@ class Editor:
                 "aus": sorted(a for a in vocab.aus if a[2:].isdigit()), "expressions": sorted(vocab.expressions),
                 "targets": {t: [[i, w] for i, w in vocab.resolve(t).channels] for t in
                             [*sorted(a for a in vocab.aus if a[2:].isdigit()), *(f"expr:{e}" for e in sorted(vocab.expressions))]},
-                "curves": curves_to_json(self.curves), "curves_name": self.curves_name}
+                "curves": curves_to_json(self.curves), "curves_name": self.curves_name,
+                "boxes": [] if self.boxes is None else [d.spec for d in self.boxes.devs]}
 
     def set_curves(self, data: Any) -> None:
         cs = curves_from_json(data, (self.take.name, self.digest))
@@ -254,6 +257,18 @@ class Editor:
                 return web.json_response({"ok": False, "error": str(err)}, status=400)
             return web.json_response({"ok": True, "message": msg})
 
+        async def box_ws(request: web.Request) -> web.WebSocketResponse:
+            ws = web.WebSocketResponse(max_msg_size=4096, heartbeat=10.0)
+            await ws.prepare(request)
+            try:
+                while not ws.closed and self.boxes is not None:
+                    await ws.send_str(json.dumps(self.boxes.state(), separators=(",", ":")))
+                    await asyncio.sleep(1 / 60)
+            except (ConnectionError, RuntimeError):
+                pass
+            return ws
+
+        app.router.add_get(prefix + "/ws", box_ws)
         app.router.add_get(prefix + "/api/take", take)
         app.router.add_post(prefix + "/api/curves", post_curves)
         app.router.add_get(prefix + "/api/frame", frame)

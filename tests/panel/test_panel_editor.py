@@ -198,3 +198,45 @@ def test_preview_after_an_edit_matches_a_fresh_replay(take: Path) -> None:
             assert state_digest(ed._seek(k).state) == state_digest(fresh.state)
     finally:
         ed.close()
+
+
+JAW_BOX = """impersonate = "sgi"
+speed = 1.0
+duration = 60.0
+[[ramp]]
+control = "dial7"
+start = 0.0
+duration = 60.0
+from = 0.0
+to = 1.0
+rate = 60
+"""
+
+
+def test_rerecord_with_a_box(take: Path) -> None:
+    """`puppet edit --device`: an armed graph follows the box's mapped value during the pass."""
+    from puppet.curves import load_curves
+
+    (take.parent / "take.curves").unlink(missing_ok=True)
+    script = take.parent / "jawbox.toml"
+    script.write_text(JAW_BOX)
+    ed = PuppetProcess("edit", take.name, "--port", "0", "--device", f"mock://{script}", cwd=take.parent)
+    drv = browser()
+    js = drv.execute_script
+    try:
+        drv.get(ed.url)
+        wait_for(lambda: js("return window.puppetEditor && window.puppetEditor.ready"), 30, "the editor")
+        wait_for(lambda: js("return !!(window.puppetEditor.box && window.puppetEditor.box.driven.includes('jaw'))"),
+                 30, "the box driving the jaw")
+        drv.find_element(By.CSS_SELECTOR, '#targets [data-arm="jaw"]').click()
+        js("document.getElementById('pin').value = '1'; document.getElementById('pout').value = '2';")
+        drv.find_element(By.ID, "record").click()
+        wait_for(lambda: js("return window.puppetEditor.lastRecord"), 20, "the recorded pass")
+        drv.find_element(By.ID, "save").click()
+        wait_for(lambda: (take.parent / "take.curves").exists(), 10, "the saved curves")
+        assert "mock://" in drv.find_element(By.ID, "boxes").text
+    finally:
+        quit_browser(drv)
+        ed.stop()
+    (jaw,) = [c for c in load_curves(take.parent / "take.curves").curves if c.target == "jaw"]
+    assert jaw.values[-1] > jaw.values[0] > 0.0  # the box kept turning through the pass

@@ -125,7 +125,14 @@
       const s = document.createElement("input"); s.type = "range"; s.min = 0; s.max = 1000; s.dataset.armed = t; s.style.flex = "1";
       const k = Math.round(E.playhead * rate()); const v = effective(t, k) ?? lo;
       s.value = Math.round((v - lo) / ((hi - lo) || 1) * 1000);
-      E.inputs[t] = () => lo + (hi - lo) * s.value / 1000;
+      const chans = targetChannels(t);
+      // a box driving the graph's channel takes over from the slider (and moves it)
+      E.inputs[t] = () => {
+        if (E.box && chans.length && chans[0][2] && E.box.driven.includes(E.take.channels[chans[0][0]].name)) {
+          const bv = E.box.values[chans[0][0]]; s.value = Math.round((bv - lo) / ((hi - lo) || 1) * 1000); return bv;
+        }
+        return lo + (hi - lo) * s.value / 1000;
+      };
       row.append(lab, s); box.append(row);
     }
   }
@@ -395,5 +402,10 @@
     const add = $("addtarget"); for (const t of [...take.aus, ...take.expressions.map((e) => "expr:" + e)]) { const o = document.createElement("option"); o.textContent = t; add.append(o); }
     fit(); const moving = listTargets().find((t) => targetChannels(t).some(([i]) => take.values[take.channels[i].name]));
     selectTarget(moving || listTargets()[0]); preview(); E.ready = true; requestAnimationFrame(frame);
+    if (take.boxes.length) {  // control boxes given to `puppet edit --device`: their mapped values, live
+      const ws = new WebSocket("ws://" + location.host + "/ws" + location.search);
+      ws.onmessage = (ev) => { E.box = JSON.parse(ev.data); $("boxes").textContent = "boxes: " +
+        E.box.devices.map(([d, ok]) => d + (ok ? "" : " (lost)")).join(", ") + (E.box.driven.length ? " · driving " + E.box.driven.join(", ") : ""); };
+    }
   });
 })();
