@@ -169,8 +169,8 @@ def run(args: argparse.Namespace) -> int:
         if not devs:
             mapped.append((kb.spec, kb.description))
         devs.append(kb)
-    _open_panel(args, face, devs, explicit_panel, warn)
     try:
+        _open_panel(args, face, devs, explicit_panel, warn)
         return _perform(args, live, face, devs, mapped, windowed, record, snapshot, warn, watch=not args.device)
     finally:
         _close_all(devs)
