@@ -21,6 +21,7 @@ COMMAND_MODULES = (
     "puppet.cmd_devices",
     "puppet.cmd_learn",
     "puppet.cmd_replay",
+    "puppet.cmd_edit",
     "puppet.cmd_import_face",
     "puppet.cmd_fit",
     "puppet.cmd_recognize",

@@ -170,8 +170,8 @@ def run(args: argparse.Namespace) -> int:
         if not devs:
             mapped.append((kb.spec, kb.description))
         devs.append(kb)
-    _open_panel(args, face, devs, explicit_panel, warn)
     try:
+        _open_panel(args, face, devs, explicit_panel, warn)
         return _perform(args, live, face, devs, mapped, windowed, record, snapshot, warn, watch=not args.device)
     finally:
         _close_all(devs)
@@ -237,7 +237,7 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     core = live.LiveCore(face, mapper, writer=writer, t0=0.0 if virtual else t0, lights=lights,
                          wrinkles_later=not virtual)
     for page in panel_devices(devs):
-        page.watch(core, devs)
+        page.watch(core, devs, record)
     stop = live.StopFlag()
     stop.install()
     watcher = None

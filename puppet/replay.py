@@ -96,7 +96,12 @@ def build_performance(session: Session | None, curves: CurveSet | None, rig_path
         if session is not None and curves.duration * rate > values.shape[0]:
             extra = int(np.ceil(curves.duration * rate)) + 1 - values.shape[0]
             values = np.vstack([values, np.tile(values[-1] if len(values) else defaults, (extra, 1))])
-        values = np.array([layer.apply(values[k], k / rate) for k in range(values.shape[0])])
+        layered = np.array([layer.apply(values[k], k / rate) for k in range(values.shape[0])])
+        if checks:  # a recording's digests hold up to the first tick the curves change
+            differs = np.flatnonzero(np.any(layered != values, axis=1))
+            if len(differs):
+                checks = {k: v for k, v in checks.items() if k <= int(differs[0])}
+        values = layered
     return Performance(face, values, rate, markers, checks)
 
 

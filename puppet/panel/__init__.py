@@ -17,15 +17,19 @@ def panel_devices(devs: Sequence[Any]) -> list[Any]:
 
 
 def with_panel_map(spec: Any, vocab: Any, devs: Sequence[Any]) -> Any:
-    """The mapping plus the page's bindings when a page device is open (unless the map already
-    binds page controls itself, e.g. written by `puppet learn`)."""
-    if not panel_devices(devs) or any(b.control.startswith(("slider:", "pad:", "button:panic", "button:marker"))
-                                      and (b.device or "").startswith("panel") for b in spec.bindings):
+    """The mapping plus the page's bindings when a page device is open; a page control the map
+    already binds itself (e.g. written by `puppet learn`) keeps the map's binding only."""
+    if not panel_devices(devs):
         return spec
+    from dataclasses import replace
+
     from puppet.mapping.defaults import merge
     from puppet.panel.layout import panel_map
 
-    return merge([(spec, None), (panel_map(vocab), None)], spec.source)
+    page = panel_map(vocab)
+    taken = {b.control for b in spec.bindings if (b.device or "").startswith("panel")}
+    page = replace(page, bindings=[b for b in page.bindings if b.control not in taken])
+    return merge([(spec, None), (page, None)], spec.source)
 
 
 def announce(dev: Any, out: Any = None) -> None:

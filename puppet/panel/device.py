@@ -107,6 +107,9 @@ class PanelDevice(Device):
         self._rates = {"t": time.monotonic(), "frames": 0, "ticks": 0, "fps": 0.0, "tps": 0.0}
         self._count = 0
         self.received = 0
+        self._task: asyncio.Task[None] | None = None
+        self.record: str | None = None
+        self.editor: Any = None  # the `puppet edit` process the editor button started
 
     # --- device hooks ----------------------------------------------------------------------------
     def _open(self) -> None:
@@ -145,6 +148,13 @@ class PanelDevice(Device):
         if self.server is not None and self._stop.is_set():
             self.server.stop()
             self.server = None
+        ed, self.editor = self.editor, None
+        if ed is not None and ed.poll() is None:
+            ed.terminate()
+            try:
+                ed.wait(5)
+            except Exception:
+                ed.kill()
 
     @property
     def url(self) -> str:
@@ -161,9 +171,11 @@ class PanelDevice(Device):
                 pass
 
     # --- the loop's public state ----------------------------------------------------------------
-    def watch(self, core: Any, devs: Sequence[Any]) -> None:
-        """Show pages this live core's state (read from the server thread; nothing runs in the loop)."""
+    def watch(self, core: Any, devs: Sequence[Any], record: str | None = None) -> None:
+        """Show pages this live core's state (read from the server thread; nothing runs in the
+        loop); `record` is the take being recorded, which the page's editor button opens."""
         self.core, self.devs = core, devs
+        self.record = record
 
     def _state(self) -> dict[str, Any]:
         core = self.core
@@ -187,7 +199,7 @@ class PanelDevice(Device):
             lat.sort()
             st["latency"] = [round(lat[len(lat) // 2] * 1e3, 2), round(lat[min(len(lat) - 1, int(len(lat) * 0.99))] * 1e3, 2)]
         status = dict(_copy_items(core.mapper.status))
-        devices = [[d.spec, bool(status.get(d.spec, d.connected))] for d in self.devs]
+        devices = [[self._base() if d is self else d.spec, bool(status.get(d.spec, d.connected))] for d in self.devs]
         devices += [[c.device, True] for c in list(self.clients.values())]
         st["devices"] = devices
         st["markers"] = [[round(k / core.rate, 2), label] for k, label in core.markers[-8:]]
@@ -197,13 +209,27 @@ class PanelDevice(Device):
     def _routes(self, app: Any) -> None:
         from aiohttp import web
 
+        async def layout(request: Any) -> Any:
+            return web.json_response(self.layout)
+
+        app.router.add_post("/api/edit", self._open_editor)
         app.router.add_get("/ws", self._ws)
-        app.router.add_get("/favicon.ico", lambda r: web.Response(status=204))
-        app.router.add_get("/api/layout", lambda r: web.json_response(self.layout))
+        app.router.add_get("/favicon.ico", _no_icon)
+        app.router.add_get("/api/layout", layout)
         app.on_startup.append(self._start_broadcast)
+        app.on_cleanup.append(self._stop_broadcast)
 
     async def _start_broadcast(self, app: Any) -> None:
-        app["broadcast"] = asyncio.get_running_loop().create_task(self._broadcast())
+        self._task = asyncio.get_running_loop().create_task(self._broadcast())
+
+    async def _stop_broadcast(self, app: Any) -> None:
+        task, self._task = self._task, None
+        if task is not None:
+            task.cancel()
+            try:
+                await task
+            except (asyncio.CancelledError, Exception):
+                pass
 
     async def _broadcast(self) -> None:
         while True:
@@ -220,6 +246,29 @@ class PanelDevice(Device):
                         await asyncio.wait_for(c.ws.send_str(text), 0.5)
                     except Exception:  # a stalled page must not stall the others
                         pass
+
+    def _base(self) -> str:
+        """The spec with the port actually served (the OS's or the fallback's choice)."""
+        base = self.spec.split("?", 1)[0].rstrip("/")
+        if self.server is not None and (not self.port or self.server.port != self.port):
+            base = f"panel://{self.host}:{self.server.port}"
+        return base
+
+    async def _open_editor(self, request: Any) -> Any:
+        """Start `puppet edit` on the take being recorded, in its own process (the show's process
+        stays as lean as it was), and answer its URL."""
+        from aiohttp import web
+
+        if not self.record:
+            return web.json_response({"ok": False, "error": "this show is not recorded: start it with --record FILE"})
+        if self.editor is not None and self.editor.poll() is None:
+            return web.json_response({"ok": True, "url": self._editor_url})
+        loop = asyncio.get_running_loop()
+        try:
+            self.editor, self._editor_url = await loop.run_in_executor(None, _start_editor, self.record)
+        except Exception as err:
+            return web.json_response({"ok": False, "error": str(err)})
+        return web.json_response({"ok": True, "url": self._editor_url})
 
     def _client_name(self, want: str | None) -> str:
         base = want if want and NAME_RE.fullmatch(want) else None
@@ -248,10 +297,7 @@ class PanelDevice(Device):
         ws = web.WebSocketResponse(max_msg_size=MAX_MESSAGE, heartbeat=10.0)
         await ws.prepare(request)
         name = self._client_name(request.query.get("name") or role)
-        base = self.spec.split("?", 1)[0].rstrip("/")
-        if self.server is not None and (not self.port or self.server.port != self.port):
-            base = f"panel://{self.host}:{self.server.port}"  # the port the OS or the fallback chose
-        client = Client(name, f"{base}/{name}", ws, allowed, only, role)
+        client = Client(name, f"{self._base()}/{name}", ws, allowed, only, role)
         self.clients[name] = client
         await ws.send_str(json.dumps({"t": "hello", "you": name, "device": client.device, "layout": self.layout,
                                       "allowed": sorted(allowed), "roles": sorted(self.roles)}))
@@ -277,6 +323,33 @@ class PanelDevice(Device):
             self.clients.pop(name, None)
             self.emit(StatusEvent(client.device, "lost", time.monotonic(), "page closed"))
         return ws
+
+
+def _start_editor(take: str) -> tuple[Any, str]:
+    """`python -m puppet edit TAKE` in a child process; its URL, read from its first line."""
+    import os
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "puppet", "edit", os.path.abspath(take)],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    assert proc.stdout is not None
+    end = time.monotonic() + 60
+    while time.monotonic() < end:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        m = re.search(r"(http://\S+)", line)
+        if m:
+            return proc, m.group(1)
+    proc.kill()
+    raise RuntimeError("the editor did not start")
+
+
+async def _no_icon(request: Any) -> Any:
+    from aiohttp import web
+
+    return web.Response(status=204)
 
 
 def _copy(dq: Any) -> list[float]:

@@ -91,7 +91,7 @@ class PanelServer:
         if self._error is not None:
             err = self._error
             raise PuppetError(f"cannot serve the page on {self.host}:{self.port}: {err}; "
-                              "pick another port with --panel PORT") from err
+                              "pick another port") from err
         return self.url
 
     @property

@@ -74,6 +74,13 @@ def test_page_drives_the_face_with_two_pages(show) -> None:
         states = a.find_elements(By.CSS_SELECTOR, "#devices .dev.ok")
         assert len(states) >= 3  # the server and both pages, connected
         a.save_screenshot(str(d / "panel.png"))
+        # the editor button opens the take recorded so far in the force-graph editor (a new tab)
+        a.find_element(By.ID, "edit").click()
+        wait_for(lambda: len(a.window_handles) == 2, 10, "the editor's tab")
+        a.switch_to.window(a.window_handles[1])
+        wait_for(lambda: "/api" not in a.current_url and a.current_url.startswith("http://127.0.0.1")
+                 and a.execute_script("return !!(window.puppetEditor && window.puppetEditor.ready)"), 90, "the editor")
+        assert a.execute_script("return window.puppetEditor.take.take") == "take.jsonl"
     finally:
         quit_browser(a)
         quit_browser(b)
@@ -101,3 +108,21 @@ def test_page_drives_the_face_with_two_pages(show) -> None:
         moved = r.render_frame(rp.state).astype(float)
         rest = r.render_frame(perf.face.model.rest_state()).astype(float)
     assert np.abs(moved - rest).mean() > 0.5
+
+
+def test_window_with_no_box_gives_keyboard_and_page(xvfb_display: str, tmp_path: Path) -> None:
+    import os
+    import subprocess
+    import sys
+
+    from panel_browser import ROOT
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT), DISPLAY=xvfb_display)
+    r = subprocess.run([sys.executable, "-m", "puppet", "live", "--duration", "2", "--record", "w.jsonl"],
+                       cwd=tmp_path, env=env, capture_output=True, text=True, timeout=180)
+    assert r.returncode == 0, r.stderr
+    assert "performer's page at http://127.0.0.1:" in r.stdout
+    header = json.loads((tmp_path / "w.jsonl").read_text().splitlines()[0])
+    assert "keyboard://" in header["devices"] and any(d.startswith("panel://") for d in header["devices"])
+    text = header["mapping"]["text"]
+    assert 'control = "key:Q"' in text and 'control = "slider:jaw"' in text  # the whole key map and the page's

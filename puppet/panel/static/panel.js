@@ -159,6 +159,13 @@
     b.addEventListener("pointerup", () => send(control, 0));
   };
   hold("panic", "button:panic"); hold("marker", "button:marker");
+  $("edit").onclick = () => {
+    const tab = window.open("", "_blank");
+    fetch("/api/edit" + location.search, { method: "POST" }).then((r) => r.json()).then((j) => {
+      if (j.ok) { if (tab) tab.location = j.url; else location.assign(j.url); }
+      else { if (tab) tab.close(); alert(j.error); }
+    });
+  };
   document.addEventListener("keydown", (ev) => { if (ev.key === "Escape") { send("button:panic", 1); send("button:panic", 0); } });
   connect();
 })();
