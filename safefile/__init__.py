@@ -45,6 +45,14 @@ def quote(value: Any, limit: int = QUOTE_CHARS) -> str:
     return f"{text[:limit]}... ({len(text)} chars)"
 
 
+def few(names: list[str] | tuple[str, ...], n: int = 8) -> str:
+    """The first `n` names (each cut short) and how many more: a listing in an error stays short."""
+    if not names:
+        return "none"
+    more = f" and {len(names) - n} more" if len(names) > n else ""
+    return ", ".join(x if len(x) <= QUOTE_CHARS else quote(x) for x in names[:n]) + more
+
+
 # ---------------------------------------------------------------------------------------- reading
 
 def read_bytes(path: str | Path, what: str, limit: int = MAX_BYTES) -> bytes:
