@@ -170,12 +170,9 @@ def number(v: Any, where: str, lo: float = -1e12, hi: float = 1e12, *, integer: 
         raise BadFile(f"{where}: expected {kind}, got {quote(v)}")
     if isinstance(v, float) and not math.isfinite(v):
         raise BadFile(f"{where}: expected a finite number, got {v!r}")
-    if isinstance(v, int) and v.bit_length() > 1000:
-        raise BadFile(f"{where}: expected {kind} in {lo:g}..{hi:g}, got {quote(v)}")
-    if v < lo or v > hi or (lo_open and v == lo):
+    if (isinstance(v, int) and v.bit_length() > 1000) or v < lo or v > hi or (lo_open and v == lo):
         rel = ">" if lo_open else ">="
-        span = f"{rel} {lo:g} and <= {hi:g}"
-        raise BadFile(f"{where}: expected {kind} {span}, got {quote(v)}")
+        raise BadFile(f"{where}: expected {kind} {rel} {lo:g} and <= {hi:g}, got {quote(v)}")
     return int(v) if integer else float(v)
 
 
