@@ -148,7 +148,7 @@ def load_toml(text: str, source: str, what: str, max_depth: int = MAX_DEPTH) -> 
     except tomllib.TOMLDecodeError as err:
         msg = str(err)
         m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
-        where = f"{m.group(1)}:{m.group(2)}" if m else "1"
+        where = f"{m.group(1)}:{m.group(2)}" if m else "1:1"
         what_ = re.sub(r"\s*\(at line \d+, column \d+\)", "", msg) or "invalid TOML"
         raise BadFile(f"{source}:{where}: TOML syntax error: {what_}") from err
     except RecursionError as err:

@@ -90,7 +90,7 @@ def test_a_huge_integer_in_a_mapping_is_one_line_with_its_place(tmp_path: Path) 
         load_mapping(p)
     assert len(str(e.value)) < 200
     p.write_text("version = 1\nx = " + "[" * 3000 + "]" * 3000 + "\n")
-    with pytest.raises(ConfigError, match=r"m\.toml:1:1: .*nested"):
+    with pytest.raises(ConfigError, match=r"m\.toml: .*nested too deep"):
         load_mapping(p)
 
 
