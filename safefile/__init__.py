@@ -62,11 +62,11 @@ def read_bytes(path: str | Path, what: str, limit: int = MAX_BYTES) -> bytes:
         with open(p, "rb") as fh:
             data = fh.read(limit + 1)
     except FileNotFoundError as err:
-        raise BadFile(f"{p}: no such {what}") from err
+        raise BadFile(f"{p}: cannot read {what} (no such file)") from err
     except IsADirectoryError as err:
-        raise BadFile(f"{p}: is a folder, not a {what}") from err
+        raise BadFile(f"{p}: cannot read {what} (it is a folder)") from err
     except OSError as err:
-        raise BadFile(f"{p}: cannot read the {what}: {err.strerror or err}") from err
+        raise BadFile(f"{p}: cannot read {what} ({err.strerror or err})") from err
     if len(data) > limit:
         raise BadFile(f"{p}: the {what} is larger than {limit // (1024 * 1024)} MB; is it the right file?")
     return data
@@ -128,7 +128,7 @@ def load_json(text: str, source: str, what: str, max_depth: int = MAX_DEPTH) -> 
     try:
         value = json.loads(text, parse_constant=_no_constant, parse_float=_finite_float)
     except json.JSONDecodeError as err:
-        raise BadFile(f"{source}:{err.lineno}: the {what} is not valid JSON ({err.msg})") from err
+        raise BadFile(f"{source}:{err.lineno}: not valid JSON ({err.msg})") from err
     except RecursionError as err:
         raise BadFile(f"{source}: the {what} is nested too deep (more than {max_depth} levels)") from err
     except ValueError as err:  # non-finite number, integer with thousands of digits

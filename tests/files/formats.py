@@ -45,6 +45,9 @@ def run_cli(argv: list[str], file: Path, outs: tuple[Path, ...] = (), also: str 
     text = err.getvalue()
     if rc == 0:
         return Outcome("ok", text)
+    for o in outs:
+        if not o.exists() or o.read_bytes() != OLD:
+            return Outcome("traceback", f"failed, and destroyed {o.name}: {text[-300:]}")
     lines = [ln for ln in text.splitlines() if ln.startswith("puppet: error:")]
     if rc != 2 or len(lines) != 1:
         return Outcome("traceback", f"exit {rc}: {text[-2000:]}")
@@ -53,9 +56,6 @@ def run_cli(argv: list[str], file: Path, outs: tuple[Path, ...] = (), also: str 
         return Outcome("traceback", f"error line of {len(line)} chars: {line[:200]}")
     if file.name not in line and not (also and also in line):
         return Outcome("traceback", f"error line does not name {file.name}: {line}")
-    for o in outs:
-        if not o.exists() or o.read_bytes() != OLD:
-            return Outcome("traceback", f"failed, and destroyed {o.name}: {line}")
     return Outcome("error", line)
 
 
