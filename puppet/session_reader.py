@@ -100,10 +100,13 @@ def _values(rec: dict[str, Any], index: dict[str, int]) -> dict[int, float]:
         raise _Damaged("values")
     out = {}
     for name, x in v.items():
-        if isinstance(x, bool) or not isinstance(x, (int, float)) or abs(x) > 1e300 or not math.isfinite(x):
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or (isinstance(x, int) and x.bit_length() > 1000):
+            raise _Damaged(f"value {quote(x)}")
+        x = float(x)
+        if not math.isfinite(x):  # finite but out of range is clamped to the channel's range later
             raise _Damaged(f"value {quote(x)}")
         if name in index:
-            out[index[name]] = float(x)
+            out[index[name]] = x
     return out
 
 

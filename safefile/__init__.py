@@ -45,6 +45,14 @@ def quote(value: Any, limit: int = QUOTE_CHARS) -> str:
     return f"{text[:limit]}... ({len(text)} chars)"
 
 
+def few(names: list[str] | tuple[str, ...], n: int = 8) -> str:
+    """The first `n` names (each cut short) and how many more: a listing in an error stays short."""
+    if not names:
+        return "none"
+    more = f" and {len(names) - n} more" if len(names) > n else ""
+    return ", ".join(x if len(x) <= QUOTE_CHARS else quote(x) for x in names[:n]) + more
+
+
 # ---------------------------------------------------------------------------------------- reading
 
 def read_bytes(path: str | Path, what: str, limit: int = MAX_BYTES) -> bytes:
@@ -54,11 +62,11 @@ def read_bytes(path: str | Path, what: str, limit: int = MAX_BYTES) -> bytes:
         with open(p, "rb") as fh:
             data = fh.read(limit + 1)
     except FileNotFoundError as err:
-        raise BadFile(f"{p}: no such {what}") from err
+        raise BadFile(f"{p}: cannot read {what} (no such file)") from err
     except IsADirectoryError as err:
-        raise BadFile(f"{p}: is a folder, not a {what}") from err
+        raise BadFile(f"{p}: cannot read {what} (it is a folder)") from err
     except OSError as err:
-        raise BadFile(f"{p}: cannot read the {what}: {err.strerror or err}") from err
+        raise BadFile(f"{p}: cannot read {what} ({err.strerror or err})") from err
     if len(data) > limit:
         raise BadFile(f"{p}: the {what} is larger than {limit // (1024 * 1024)} MB; is it the right file?")
     return data
@@ -120,7 +128,7 @@ def load_json(text: str, source: str, what: str, max_depth: int = MAX_DEPTH) -> 
     try:
         value = json.loads(text, parse_constant=_no_constant, parse_float=_finite_float)
     except json.JSONDecodeError as err:
-        raise BadFile(f"{source}:{err.lineno}: the {what} is not valid JSON ({err.msg})") from err
+        raise BadFile(f"{source}:{err.lineno}: not valid JSON ({err.msg})") from err
     except RecursionError as err:
         raise BadFile(f"{source}: the {what} is nested too deep (more than {max_depth} levels)") from err
     except ValueError as err:  # non-finite number, integer with thousands of digits
@@ -140,7 +148,7 @@ def load_toml(text: str, source: str, what: str, max_depth: int = MAX_DEPTH) -> 
     except tomllib.TOMLDecodeError as err:
         msg = str(err)
         m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
-        where = f"{m.group(1)}:{m.group(2)}" if m else "1"
+        where = f"{m.group(1)}:{m.group(2)}" if m else "1:1"
         what_ = re.sub(r"\s*\(at line \d+, column \d+\)", "", msg) or "invalid TOML"
         raise BadFile(f"{source}:{where}: TOML syntax error: {what_}") from err
     except RecursionError as err:
@@ -162,12 +170,9 @@ def number(v: Any, where: str, lo: float = -1e12, hi: float = 1e12, *, integer: 
         raise BadFile(f"{where}: expected {kind}, got {quote(v)}")
     if isinstance(v, float) and not math.isfinite(v):
         raise BadFile(f"{where}: expected a finite number, got {v!r}")
-    if isinstance(v, int) and v.bit_length() > 1000:
-        raise BadFile(f"{where}: expected {kind} in {lo:g}..{hi:g}, got {quote(v)}")
-    if v < lo or v > hi or (lo_open and v == lo):
+    if (isinstance(v, int) and v.bit_length() > 1000) or v < lo or v > hi or (lo_open and v == lo):
         rel = ">" if lo_open else ">="
-        span = f"{rel} {lo:g} and <= {hi:g}"
-        raise BadFile(f"{where}: expected {kind} {span}, got {quote(v)}")
+        raise BadFile(f"{where}: expected {kind} {rel} {lo:g} and <= {hi:g}, got {quote(v)}")
     return int(v) if integer else float(v)
 
 

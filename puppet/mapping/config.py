@@ -4,8 +4,6 @@ Every error is one line: `file:line:col: what was expected`."""
 
 from __future__ import annotations
 
-import re
-import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,7 +13,7 @@ from puppet.errors import ConfigError
 from puppet.mapping.buttons import BUTTON_MODES
 from puppet.mapping.filters import ENCODINGS
 from puppet.mapping.locate import PathItem, locate
-from safefile import MAX_DEPTH, depth, quote
+from safefile import BadFile, load_toml, quote
 
 COMBINE_RULES = ("max", "sum", "last")
 MAX_NUMBER = 1e9  # any parameter beyond this is a typo (and an integer beyond a float's range is one)
@@ -186,17 +184,9 @@ class _Checker:
 def parse_mapping(text: str, source: str = "<mapping>") -> MappingSpec:
     """Parse and check a mapping file's text; raises ConfigError naming file:line:col."""
     try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        msg = str(err)
-        m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
-        where = f"{m.group(1)}:{m.group(2)}" if m else "1:1"
-        what = re.sub(r"\s*\(at line \d+, column \d+\)", "", msg) or "invalid TOML"
-        raise ConfigError(f"{source}:{where}: TOML syntax error: {what}") from err
-    except (RecursionError, ValueError) as err:  # nested thousands deep; an integer of 5000 digits
-        raise ConfigError(f"{source}:1:1: the mapping file is nested too deep or holds an unusable number") from err
-    if depth(data) > MAX_DEPTH:
-        raise ConfigError(f"{source}:1:1: the mapping file is nested deeper than {MAX_DEPTH} levels")
+        data = load_toml(text, source, "mapping file")
+    except BadFile as err:  # syntax (file:line:col), nesting thousands deep, an integer of 5000 digits
+        raise ConfigError(str(err)) from err
     c = _Checker(text, source)
     known_top = {"version", "name", "binding", "combine", "groups", "device"}
     for key in data:

@@ -4,8 +4,6 @@ only changes the target (what MIDI-learn users ask for)."""
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +12,7 @@ from tomlkit.exceptions import TOMLKitError
 
 from puppet.errors import ConfigError
 from puppet.mapping.config import parse_mapping
+from safefile import BadFile, atomic_write, quote, read_text
 
 NEW_FILE_HEADER = """# facepuppet mapping file (see docs/live.md for every key).
 # Written by `puppet learn`; edit freely: comments are kept when learn adds bindings.
@@ -62,10 +61,14 @@ def learn_binding(path: str | Path, control: str, device: str, target: str, kind
     p = Path(path)
     if p.exists():
         try:
-            doc = tomlkit.parse(p.read_text(encoding="utf-8"))
-        except (TOMLKitError, UnicodeDecodeError) as err:
-            parse_mapping(p.read_text(encoding="utf-8", errors="replace"), str(p))  # locates the error
-            raise ConfigError(f"{p}: cannot read the mapping file: {err}") from err
+            text = read_text(p, "mapping file", 16 * 1024 * 1024)
+        except BadFile as err:
+            raise ConfigError(str(err)) from err
+        parse_mapping(text, str(p))  # a file we cannot read is reported, never rewritten
+        try:
+            doc = tomlkit.parse(text)
+        except (TOMLKitError, RecursionError, ValueError) as err:
+            raise ConfigError(f"{p}: cannot read the mapping file: {quote(str(err), 80)}") from err
     else:
         doc = tomlkit.parse(NEW_FILE_HEADER)
         doc["version"] = 1
@@ -96,15 +99,10 @@ def learn_binding(path: str | Path, control: str, device: str, target: str, kind
         bindings.append(t)
     text = tomlkit.dumps(doc)
     parse_mapping(text, str(p))  # never write something we could not read back
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=str(p.parent.resolve()))
-    except OSError as err:
-        raise ConfigError(f"{p}: cannot write the mapping file: {err.strerror}") from err
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+    try:  # beside the file, synced, then renamed: a crash leaves the old file or the new one
+        with atomic_write(p) as fh:
             fh.write(text)
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    except (OSError, BadFile) as err:
+        why = err.strerror if isinstance(err, OSError) else str(err).rsplit(": ", 1)[-1]
+        raise ConfigError(f"{p}: cannot write the mapping file: {why}") from err
     return result

@@ -9,7 +9,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from puppet.errors import ChannelError
-from safefile import quote
+from safefile import few, quote
 
 
 @dataclass(frozen=True)
@@ -69,7 +69,7 @@ class Vocabulary:
         table = self.aus.get(au.upper())
         if table is None:
             known = sorted(self.aus, key=_au_key)
-            raise ChannelError(f"unknown AU {quote(au)}; known: {_few(known)}")
+            raise ChannelError(f"unknown AU {quote(au)}; known: {few(known)}")
         return {self.index[ch]: float(w) for ch, w in table.items() if ch in self.index}
 
     def resolve(self, name: str) -> Target:
@@ -88,7 +88,7 @@ class Vocabulary:
             ex = name[5:].lower()
             table = self.expressions.get(ex)
             if table is None:
-                raise ChannelError(f"unknown expression {quote(ex)}; known: {_few(sorted(self.expressions))}")
+                raise ChannelError(f"unknown expression {quote(ex)}; known: {few(sorted(self.expressions))}")
             acc: dict[int, float] = {}
             for au, intensity in table.items():
                 for i, w in self.au_weights(au).items():
@@ -102,7 +102,7 @@ class Vocabulary:
         names = [c.name for c in self.channels if not c.name.endswith(("_l", "_r"))] + pairs
         close = [n for n in names if name.lower()[:4] in n.lower()][:6]
         hint = f" (did you mean {', '.join(close)}?)" if close else ""
-        return (f"unknown target {quote(name)}{hint}; expected a channel ({_few(names)}; `puppet channels` "
+        return (f"unknown target {quote(name)}{hint}; expected a channel ({few(names)}; `puppet channels` "
                 f"lists them), a pair's _l/_r channel, an AU like AU12, or expr:<name>")
 
     def all_targets(self) -> list[str]:
@@ -113,14 +113,6 @@ class Vocabulary:
         out += sorted(self.aus, key=_au_key)
         out += [f"expr:{e}" for e in sorted(self.expressions)]
         return out
-
-
-def _few(names: Sequence[str], n: int = 8) -> str:
-    """The first `n` names, and how many more (an error line stays short)."""
-    if not names:
-        return "none"
-    more = f" and {len(names) - n} more" if len(names) > n else ""
-    return ", ".join(names[:n]) + more
 
 
 def _au_key(au: str) -> tuple[int, str]:
