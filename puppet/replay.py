@@ -38,6 +38,8 @@ class Performance:
     rate: float
     markers: list[tuple[int, str]]
     checks: dict[int, str]
+    #: ticks where the live program restarted (a crash): the face starts again from rest there
+    restarts: tuple[int, ...] = ()
 
     @property
     def ticks(self) -> int:
@@ -93,7 +95,8 @@ def build_performance(session: Session | None, curves: CurveSet | None, rig_path
             extra = int(np.ceil(curves.duration * rate)) + 1 - values.shape[0]
             values = np.vstack([values, np.tile(values[-1], (extra, 1))])
         values = np.array([layer.apply(values[k], k / rate) for k in range(values.shape[0])])
-    return Performance(face, values, rate, markers, checks)
+    restarts = tuple(session.segments) if session is not None else ()
+    return Performance(face, values, rate, markers, checks, restarts)
 
 
 class Replayer:
@@ -116,6 +119,11 @@ class Replayer:
         k = self.tick
         if k >= self.perf.ticks:
             return
+        if k in self.perf.restarts:  # as the restarted live program did: a fresh simulator at rest
+            import sim
+
+            self.sim = sim.Simulator(self.perf.face.model, 1.0 / self.perf.rate)
+            self.state.assign(self.perf.face.model.rest_state())
         self.control.values[...] = self.perf.values[k]
         self.sim.step(self.state, self.control)
         self.tick = k + 1
