@@ -205,7 +205,7 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     if record and getattr(args, "resume", False):
         from puppet import resume
 
-        point = resume.resume_point(record, face)
+        point = resume.resume_point(record, face, getattr(args, "follower", None))
     if point is not None:
         writer = resume.open_resumed(point, SessionWriter, header)
     else:

@@ -488,7 +488,7 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
     limit = None if duration is None else int(round(duration * core.rate))
     with _ShowRuntime() as runtime:
         start = clock()
-        k0 = 0
+        k0 = core.tick_count  # a resumed take starts at its first new tick
         while True:
             if stop is not None and stop.stopped:
                 break
@@ -627,7 +627,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
             kb.feed_key(name, action, t)  # type: ignore[arg-type]
 
     win.add_key_callback(on_key)
-    sched = {"start": time.monotonic(), "k0": 0}
+    sched = {"start": time.monotonic(), "k0": core.tick_count}
     limit = None if duration is None else int(round(duration * core.rate))
 
     def on_frame(w: Any, now: float) -> None:

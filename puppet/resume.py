@@ -11,6 +11,7 @@ fader picks it up when it meets it) or the performer panics."""
 from __future__ import annotations
 
 import json
+import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -67,14 +68,90 @@ def _cut_offset(path: Path, ticks: int) -> int:
     return start + (ends[0] if first else 0)
 
 
-def resume_point(path: str | Path, face: Any) -> ResumePoint | None:
+class TakeFollower:
+    """Follows a recording while another process writes it (what a standby does while it waits),
+    so that at a crash only the last few records are left to read: the tick count and the last
+    channel values as `read_session` would give them. Any surprise (a damaged line, another face,
+    a file cut back or replaced) makes `point()` return None: the caller then reads the file whole."""
+
+    def __init__(self, path: str | Path, face: Any) -> None:
+        self.path = Path(path)
+        self.names = [c.name for c in face.vocab.channels]
+        self.index = {n: i for i, n in enumerate(self.names)}
+        self.rig_hash = face.rig.get("hash")
+        self.defaults = np.array(face.vocab.defaults(), dtype=np.float64)
+        self._reset()
+
+    def _reset(self) -> None:
+        self.pos, self.buf, self.ok = 0, b"", True
+        self.header: dict[str, Any] | None = None
+        self.values = self.defaults.copy()
+        self.sync, self.last, self.end = 0, -1, None
+
+    def poll(self) -> None:
+        """Read what was written since the last call."""
+        try:
+            with open(self.path, "rb") as fh:
+                if os.fstat(fh.fileno()).st_size < self.pos:
+                    self._reset()  # cut back (a restart) or replaced: start again
+                fh.seek(self.pos)
+                data = fh.read()
+        except OSError:
+            return
+        self.pos += len(data)
+        lines = (self.buf + data).split(b"\n")
+        self.buf = lines.pop()
+        for line in lines:
+            if self.ok and line.strip():
+                self._line(line)
+
+    def _line(self, line: bytes) -> None:
+        try:
+            rec = json.loads(line)
+            kind = rec["t"]
+            if self.header is None:
+                if kind != "header" or rec.get("channels") != self.names or \
+                        (rec.get("rig") or {}).get("hash") != self.rig_hash:
+                    self.ok = False
+                self.header = rec
+            elif kind == "end":
+                self.end = int(rec["ticks"])
+            elif kind == "v":
+                tick = int(rec["tick"])
+                for n, v in rec["v"].items():
+                    i = self.index.get(n)
+                    if i is not None:
+                        x = float(v)
+                        if not np.isfinite(x):
+                            raise ValueError("non-finite value")
+                        self.values[i] = x
+                self.last = max(self.last, tick)
+            elif kind == "sync":
+                self.sync = max(self.sync, int(rec["tick"]))
+        except (ValueError, KeyError, TypeError, AttributeError, RecursionError):
+            self.ok = False
+
+    def point(self) -> ResumePoint | None:
+        self.poll()
+        if not self.ok or self.header is None or self.end is not None:
+            return None
+        ticks = max(self.sync, self.last + 1)
+        return ResumePoint(self.path, ticks, _cut_offset(self.path, ticks), self.values.copy(), self.header)
+
+
+def resume_point(path: str | Path, face: Any, follower: TakeFollower | None = None) -> ResumePoint | None:
     """Where the recording at `path` goes on, or None if there is none yet (start a new one).
-    A file of another face, or not a recording, is a ConfigError (one line)."""
+    A file of another face, or not a recording, is a ConfigError (one line). With a `follower`
+    that kept up with the file, only its last records are read."""
     from puppet.session import read_session
 
     p = Path(path)
     if not p.exists() or p.stat().st_size == 0:
         return None
+    if follower is not None:
+        point = follower.point()
+        if point is not None:
+            return point
     s = read_session(p)
     names = [c.name for c in face.vocab.channels]
     if s.channels != names or (s.header.get("rig") or {}).get("hash") != face.rig.get("hash"):

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 POLL_S = 0.005
+FOLLOW_S = 0.1  # a standby reads the new records of the recording this often
 QUICK_S = 3.0
 MAX_QUICK = 5
 STANDBY_FLAG = "--standby"
@@ -150,14 +151,29 @@ class Supervisor:
 
 
 def stand_by(args: Any, load: Any) -> bool:
-    """In a standby child: get everything ready (face, kernels), then wait for "go" on stdin.
-    False if told to quit instead (stdin closed without "go")."""
-    load()
+    """In a standby child: get everything ready (face, kernels, a full garbage collection), then
+    follow the recording (`args.follower`) until "go" arrives on stdin. False if told to quit
+    instead (stdin closed without "go")."""
+    import gc
+    import select
+
+    from puppet.resume import TakeFollower
+
+    face = load()
     from sim.integrator import warm_up
 
     warm_up(implicit=False)
     if args.rig is None:
         import sim.wrinkles.layer  # noqa: F401  (its import is most of the wrinkle layer's cost)
+    follower = TakeFollower(args.record, face)
+    gc.collect()
+    gc.freeze()  # what exists now is not collected again: the show's first collection is short
+    while True:
+        follower.poll()
+        ready, _, _ = select.select([sys.stdin], [], [], FOLLOW_S)
+        if ready:
+            break
+    args.follower = follower
     return sys.stdin.readline().strip() == "go"
 
 

@@ -111,11 +111,18 @@ def test_resume_point_of_a_file_cut_anywhere(tmp_path: Path, face: live.Face) ->
     start = len(full) - 1500
     for cut in range(start, len(full) + 1, 7):
         p = tmp_path / "cut.jsonl"
+        p.write_bytes(full[:cut // 2])
+        follower = resume.TakeFollower(p, face)  # a standby following the file as it grows
+        follower.poll()
         p.write_bytes(full[:cut])
         s = read_session(p)
         point = resume.resume_point(p, face)
         assert point is not None and point.ticks == s.ticks
         assert np.array_equal(point.values, s.value_array(np.array(face.vocab.defaults()))[-1])
+        followed = follower.point()
+        if cut < len(full):  # (a take that ended cleanly is left to the full reader)
+            assert followed is not None and (followed.ticks, followed.offset) == (point.ticks, point.offset)
+            assert np.array_equal(followed.values, point.values)
         w = resume.open_resumed(point, SessionWriter, {"channels": s.channels})
         w.segment(point.ticks, resume.RESTART_LABEL)
         w.values(point.ticks, point.values + 0.0)
