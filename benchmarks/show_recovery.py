@@ -35,6 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from puppet.session import read_session  # noqa: E402
+from startup import cpu_seconds, stop_process  # noqa: E402  (benchmarks/startup.py)
 
 CHILD = ROOT / "tests" / "puppet" / "show_child.py"
 SCRIPT = ROOT / "examples" / "mock" / "sgi_rehearsal.toml"
@@ -115,18 +116,13 @@ def _writes(pid: int, path: Path) -> bool:
         return False
 
 
-def _cpu_seconds(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
 def _wait_idle(pid: int, timeout: float = 120.0) -> None:
     """Until the process uses (almost) no CPU for half a second: a standby that is ready."""
     deadline = time.monotonic() + timeout
-    last = _cpu_seconds(pid)
+    last = cpu_seconds(pid)
     while time.monotonic() < deadline:
         time.sleep(0.5)
-        now = _cpu_seconds(pid)
+        now = cpu_seconds(pid)
         if now - last < 0.03:
             return
         last = now
@@ -192,12 +188,7 @@ def supervisor_restarts(work: Path, restarts: int, rng: random.Random) -> tuple[
             else:
                 cold = dt
     finally:
-        sup.send_signal(signal.SIGTERM)
-        try:
-            sup.wait(60)
-        except subprocess.TimeoutExpired:
-            sup.kill()
-            sup.wait()
+        stop_process(sup)
     return times, cold
 
 

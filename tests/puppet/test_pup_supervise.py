@@ -264,3 +264,17 @@ def test_supervise_does_not_restart_a_users_mistake(tmp_path: Path) -> None:
     assert [x for x in out.stderr.splitlines() if "error" in x][0].count("nosuch") == 1
     out = puppet("live", "--resume", "--headless", "--device", script(tmp_path))
     assert out.returncode == 2 and "--record" in out.stderr
+
+
+def test_resume_continues_a_crashed_take_as_a_restart_would(tmp_path: Path) -> None:
+    """What the systemd unit does: the crashed command run again with --resume continues the take."""
+    rec = tmp_path / "take.jsonl"
+    args = ["live", "--headless", "--device", script(tmp_path, duration=2.0), "--record", str(rec), "--resume"]
+    out = puppet(*args, env={**ENV, live.CRASH_ENV: "40"})
+    assert out.returncode == 1 and "RuntimeError" in out.stderr
+    assert read_session(rec).ticks == 40
+    out = puppet(*args, env={**ENV, live.CRASH_ENV: "40"})  # the hook does not fire again: tick 40 is done
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "continuing" in out.stderr
+    s = read_session(rec)
+    assert s.complete and s.ticks == 120 and s.segments == [40]
