@@ -35,6 +35,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--panel-role", action="append", default=[], metavar="NAME=PATTERNS",
                    help="a page role limited to some channels, e.g. mouth=jaw,orbicularis_oris,AU26 "
                    "(open the page with ?role=mouth); repeatable. See docs/panel.md")
+    p.add_argument("--supervise", action="store_true",
+                   help="restart the show within a second if it crashes, continuing the same take "
+                   "(a new segment of the recording) with the face's last channel values; see docs/live.md")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the --record FILE if it exists (a new segment) instead of starting it "
+                   "again (what --supervise and the systemd unit in docs/live.md do after a crash)")
+    p.add_argument("--standby", action="store_true", help=argparse.SUPPRESS)  # --supervise's spare
     p.set_defaults(func=run)
 
 
@@ -141,7 +148,21 @@ def run(args: argparse.Namespace) -> int:
         print(f"puppet: {msg}", file=sys.stderr)
 
     live.check_duration(args.duration)
+    if args.supervise or args.resume:
+        if args.demo:
+            raise PuppetError("--demo plays once: leave out --supervise and --resume")
+        if args.resume and not args.record:
+            raise PuppetError("--resume continues the recording given with --record FILE")
+    if args.supervise:
+        from puppet.supervise import run_supervised
+
+        return run_supervised(args, warn)
     live.warm_up_in_background()  # numba's kernels load while the devices open and the face loads
+    if args.standby:
+        from puppet.supervise import stand_by
+
+        if not stand_by(args, lambda: live.load_face(args.rig)):
+            return 0
     windowed = not args.headless and live.display_available()
     if args.demo:
         if args.device:
@@ -220,7 +241,16 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     for d in devs:
         mapper.declare_controls(d.spec, d.controls)
     virtual = bool(devs) and all(getattr(getattr(d, "script", None), "speed", 1.0) == 0 for d in devs)
-    writer = SessionWriter(record, live.session_header(face, spec, live.TICK_RATE, specs)) if record else None
+    header = live.session_header(face, spec, live.TICK_RATE, specs)
+    point = None
+    if record and getattr(args, "resume", False):
+        from puppet import resume
+
+        point = resume.resume_point(record, face, getattr(args, "follower", None))
+    if point is not None:
+        writer = resume.open_resumed(point, SessionWriter, header)
+    else:
+        writer = SessionWriter(record, header) if record else None
     by_spec = {d.spec: d for d in devs}
 
     def lights(dev: str, ctl: str, on: bool) -> None:
@@ -236,6 +266,8 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     t0 = time.monotonic()
     core = live.LiveCore(face, mapper, writer=writer, t0=0.0 if virtual else t0, lights=lights,
                          wrinkles_later=not virtual)
+    if point is not None:
+        resume.start_segment(core, point)
     for page in panel_devices(devs):
         page.watch(core, devs, record)
     stop = live.StopFlag()

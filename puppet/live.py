@@ -191,6 +191,15 @@ def _positions_digest(positions: np.ndarray) -> Callable[[], str]:
     return digest
 
 
+#: a test hook: `PUPPET_CRASH_AT_TICK=N` makes the live loop raise at tick N (testing --supervise)
+CRASH_ENV = "PUPPET_CRASH_AT_TICK"
+
+
+def _crash_tick() -> int:
+    raw = os.environ.get(CRASH_ENV, "")
+    return int(raw) if raw.isdigit() else -1
+
+
 class LiveCore:
     """The fixed-tick core: same Simulator, same start state, same values per tick as replay.
 
@@ -233,6 +242,9 @@ class LiveCore:
         self.before_tick: list[Callable[[LiveCore], None]] = []
         #: set to a Spans to time the parts of each tick (benchmarks/live_latency.py)
         self.spans: Spans | None = None
+        #: restored channel values kept until the performer takes them over (puppet.resume)
+        self.hold: Any = None
+        self._crash_at = _crash_tick()
 
     def _build_wrinkles(self) -> None:
         try:
@@ -266,7 +278,11 @@ class LiveCore:
                 unpresented.append(ev.t)
         if sp is not None:
             t_b = pc()
+        if k == self._crash_at:
+            raise RuntimeError(f"{CRASH_ENV}: the crash asked for at tick {k}")
         values = mapper.step(self.dt)
+        if self.hold is not None:
+            values = self.hold.apply(values)
         for label in mapper.take_markers():
             self.mark(label)
         if writer is not None:
@@ -365,7 +381,10 @@ def run_virtual(core: LiveCore, events: Sequence[Event], duration: float,
     """Run ticks as fast as possible on script time: tick k applies events with t <= k*dt."""
     n_ticks = max(1, int(round(duration * core.rate)))
     i = 0
-    for k in range(n_ticks):
+    if core.tick_count:  # a resumed take: the events of the ticks already performed are gone
+        while i < len(events) and events[i].t <= (core.tick_count - 1) * core.dt + 1e-12:
+            i += 1
+    for k in range(core.tick_count, n_ticks):
         if stop is not None and stop.stopped:
             break
         boundary = k * core.dt + 1e-12
@@ -473,7 +492,7 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
     limit = None if duration is None else int(round(duration * core.rate))
     with _ShowRuntime() as runtime:
         start = clock()
-        k0 = 0
+        k0 = core.tick_count  # a resumed take starts at its first new tick
         while True:
             if stop is not None and stop.stopped:
                 break
@@ -612,7 +631,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
             kb.feed_key(name, action, t)  # type: ignore[arg-type]
 
     win.add_key_callback(on_key)
-    sched = {"start": time.monotonic(), "k0": 0}
+    sched = {"start": time.monotonic(), "k0": core.tick_count}
     limit = None if duration is None else int(round(duration * core.rate))
 
     def on_frame(w: Any, now: float) -> None:

@@ -41,6 +41,8 @@ class Performance:
     rate: float
     markers: list[tuple[int, str]]
     checks: dict[int, str]
+    #: ticks where the live program restarted (a crash): the face starts again from rest there
+    restarts: tuple[int, ...] = ()
 
     @property
     def ticks(self) -> int:
@@ -102,7 +104,8 @@ def build_performance(session: Session | None, curves: CurveSet | None, rig_path
             if len(differs):
                 checks = {k: v for k, v in checks.items() if k <= int(differs[0])}
         values = layered
-    return Performance(face, values, rate, markers, checks)
+    restarts = tuple(session.segments) if session is not None else ()
+    return Performance(face, values, rate, markers, checks, restarts)
 
 
 def _clamp(values: np.ndarray, face: Face, source: str) -> None:
@@ -143,6 +146,11 @@ class Replayer:
         k = self.tick
         if k >= self.perf.ticks:
             return
+        if k in self.perf.restarts:  # as the restarted live program did: a fresh simulator at rest
+            import sim
+
+            self.sim = sim.Simulator(self.perf.face.model, 1.0 / self.perf.rate)
+            self.state.assign(self.perf.face.model.rest_state())
         self.control.values[...] = self.perf.values[k]
         self.sim.step(self.state, self.control)
         self.tick = k + 1
