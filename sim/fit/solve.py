@@ -12,7 +12,8 @@ Method (stated, since the issue leaves the choice to us):
    min |B a - d|^2 + lambda |a - p|^2 + 2 mu sum(a) + eps |a|^2, 0 <= a <= hi. p is the previous
    frame's solution on the first pass (warm start, causal smoothing) and the mean of both
    neighbours on the second (smoothing without lag); mu is an L1 penalty (a >= 0, so it is linear)
-   that keeps noise out of channels the motion does not need. lambda, mu and eps are given relative
+   that keeps noise out of channels the motion does not need; its shrinkage of the active values is
+   then removed by solving again without it on the active set only. lambda, mu and eps are relative
    to the mean column energy of B at the observed points, so they mean the same for 20 points or
    800. Solved exactly as a bounded linear least-squares problem on the Cholesky factor of the
    normal matrix (scipy `lsq_linear`, BVLS).

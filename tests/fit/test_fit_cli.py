@@ -310,3 +310,19 @@ def test_a_damaged_cache_file_is_never_trusted(tmp_path, face0, basis0) -> None:
     import sim
 
     assert cache._key(face0.model) != cache._key(sim.default_model(1))
+
+
+def test_fit_on_a_rig_file_records_it_for_replay(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
+    import sim
+    from puppet.session import read_session
+
+    times, names, pts = performance
+    rig = tmp_path / "face.npz"
+    sim.save_rig(sim.default_rig(0), rig)
+    csv_path = tmp_path / "track.csv"
+    write_landmark_csv(csv_path, times[:12], pts[:12], names)
+    take = tmp_path / "rig.jsonl"
+    assert main(["fit", str(csv_path), "--rig", str(rig), "--out", str(take), "--no-relinearise"]) == 0
+    assert read_session(take).header["rig"]["path"] == str(rig.resolve())
+    capsys.readouterr()
+    assert main(["replay", str(take), "--headless"]) == 0
