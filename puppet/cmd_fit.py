@@ -26,7 +26,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--out", required=True, metavar="TAKE.jsonl|CURVES", help="the take or curves to write")
     p.add_argument("--map", metavar="CORR.json",
                    help="correspondence file: input point/marker name -> rig landmark (MediaPipe, 68-point, "
-                   "C3D labels); puppet/capture/layouts/ has the MediaPipe and 68-point ones")
+                   "C3D labels); 'mediapipe' and 'ibug68' name the shipped ones")
     p.add_argument("--report", metavar="FILE.csv", help="per-frame report: residual mm, active channels, condition")
     p.add_argument("--neutral", default="auto", metavar="FRAME|rig",
                    help="the frame showing the face at rest (default 0), or 'rig' to compare with the rig's own "

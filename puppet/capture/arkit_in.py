@@ -19,20 +19,16 @@ import numpy as np
 
 from puppet.capture.points import ChannelCapture, check_times
 from puppet.errors import ConfigError
-from puppet.export.arkit import ARKIT_SHAPES, ROTATIONS, UNSUPPORTED
+from puppet.export.arkit import ARKIT_SHAPES, ROTATIONS, SIMPLE_SHAPES, UNSUPPORTED
 
 _TC = re.compile(r"(\d+):(\d{2}):(\d{2})[:;](\d+)(?:\.(\d+))?")
 RATES = (24, 25, 30, 50, 60)
 
 
 def _simple(base: str) -> str | None:
-    return {
-        "EyeBlink": "orbicularis_oculi_lid", "EyeSquint": "orbicularis_oculi", "CheekSquint": "orbicularis_oculi",
-        "NoseSneer": "levator_labii_alaeque_nasi", "MouthSmile": "zygomaticus_major",
-        "MouthFrown": "depressor_anguli_oris", "MouthDimple": "buccinator", "MouthStretch": "risorius",
-        "MouthLowerDown": "depressor_labii", "MouthUpperUp": "levator_labii", "BrowOuterUp": "frontalis_outer",
-        "BrowDown": "corrugator",
-    }.get(base)
+    if base == "BrowDown":
+        return "corrugator"
+    return SIMPLE_SHAPES.get(base)
 
 
 def shape_targets(shape: str) -> list[str]:

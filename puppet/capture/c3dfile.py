@@ -20,8 +20,11 @@ def _read(path: Path) -> tuple[list[str], float, np.ndarray, np.ndarray]:
         import c3d
     except ImportError as err:
         raise ConfigError(f"{path}: reading C3D needs the 'c3d' package: pip install c3d") from err
+    import warnings
+
     try:
-        with open(path, "rb") as fh:
+        with open(path, "rb") as fh, warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "No analog data found": markers are all we read
             reader = c3d.Reader(fh)
             labels = [str(s).strip() for s in reader.point_labels]
             rate = float(reader.point_rate)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -67,7 +68,7 @@ def _load(path: Path, model: Any) -> tuple[Any, Any] | None:
         basis = Basis(chans, d["hi"], d["rest"], d["columns"], float(d["amplitude"]), str(d["model_hash"]))
         tpl = Templates(names, tuple(float(w) for w in d["weights"]), d["fields"], chans, d["activations"])
         return basis, tpl
-    except (OSError, ValueError, KeyError, TypeError):
+    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile):
         return None
 
 

@@ -75,8 +75,12 @@ def _unknown(where: str, name: str, mesh: Any) -> ConfigError:
 
 
 def load_correspondence(path: str | Path, mesh: Any) -> dict[str, int]:
-    """input point name -> rig vertex, from a correspondence JSON file."""
+    """input point name -> rig vertex, from a correspondence JSON file, or one shipped in
+    puppet/capture/layouts/ named by its stem (`mediapipe`, `ibug68`)."""
     p = Path(path)
+    shipped = Path(__file__).parent / "layouts" / f"{p.name}.json"
+    if not p.exists() and p.parent == Path(".") and shipped.is_file():
+        p = shipped
     try:
         data = json.loads(p.read_text(encoding="utf-8"))
     except OSError as err:

@@ -27,6 +27,9 @@ def atomic_path(target: Path, what: str) -> Iterator[Path]:
     except OSError as err:
         raise ConfigError(f"{target}: cannot write the {what}: {err.strerror}") from err
     try:
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)  # an ordinary file, not mkstemp's private 0600
         yield Path(tmp)
         os.replace(tmp, target)
     except BaseException:

@@ -29,16 +29,20 @@ def _side(shape: str) -> str:
     return "_l" if shape.endswith("Left") else "_r"
 
 
+#: Sided shapes (base name without Left/Right) that are one channel of the same side.
+SIMPLE_SHAPES = {
+    "EyeBlink": "orbicularis_oculi_lid", "EyeSquint": "orbicularis_oculi", "CheekSquint": "orbicularis_oculi",
+    "NoseSneer": "levator_labii_alaeque_nasi", "MouthSmile": "zygomaticus_major",
+    "MouthFrown": "depressor_anguli_oris", "MouthDimple": "buccinator", "MouthStretch": "risorius",
+    "MouthLowerDown": "depressor_labii", "MouthUpperUp": "levator_labii", "BrowOuterUp": "frontalis_outer",
+}
+
+
 def _rule(shape: str) -> Callable[[Getter], float] | None:
     """How one ARKit shape is computed from channel values (None: we cannot express it)."""
     s = _side(shape)
     base = shape.removesuffix("Left").removesuffix("Right")
-    simple = {
-        "EyeBlink": "orbicularis_oculi_lid", "EyeSquint": "orbicularis_oculi", "CheekSquint": "orbicularis_oculi",
-        "NoseSneer": "levator_labii_alaeque_nasi", "MouthSmile": "zygomaticus_major",
-        "MouthFrown": "depressor_anguli_oris", "MouthDimple": "buccinator", "MouthStretch": "risorius",
-        "MouthLowerDown": "depressor_labii", "MouthUpperUp": "levator_labii", "BrowOuterUp": "frontalis_outer",
-    }
+    simple = SIMPLE_SHAPES
     if base in simple:
         name = simple[base] + s
         return lambda g: g(name)

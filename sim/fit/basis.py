@@ -35,12 +35,12 @@ class Settler:
     """Settled poses of one model: `pose(values)` -> (N, 3) positions at rest under those channel
     values, starting from the nearest pose settled before (fewer steps, same equilibrium)."""
 
-    def __init__(self, model: object, max_seconds: float = SETTLE_SECONDS) -> None:
+    def __init__(self, model: object, max_seconds: float = SETTLE_SECONDS, method: str = "auto") -> None:
         from sim.integrator import Simulator
         from sim.state import FaceControl
 
         self.model = model
-        self.sim = Simulator(model, wrinkles=False)
+        self.sim = Simulator(model, wrinkles=False, method=method)
         self.control = FaceControl(model)
         self.defaults = self.control.values.copy()
         self.max_seconds = max_seconds

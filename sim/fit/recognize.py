@@ -8,8 +8,10 @@
 - **Activations**: the fitted activations against each preset's channel vector, the same two
   numbers.
 
-Neutral scores 1 - w/w0 (clipped to 0..1), w = c_e^2 w_e of the best match and w0 = NEUTRAL_LEVEL:
-no motion that looks like an expression, or too little of it; each preset scores c_e (1 - neutral).
+Neutral scores 1 - c_e w_e / w0 (clipped to 0..1) for the best match e, w0 = NEUTRAL_LEVEL: no
+motion that looks like an expression, or too little of it. The intensity is a projection, so point
+noise leaves it unbiased while it lowers the cosine; weighting by c_e once (not squared) keeps weak
+expressions under noise from reading as neutral. Each preset scores c_e (1 - neutral).
 Scores are smoothed over a short window before the per-frame winner is taken, and runs of one
 winner shorter than `min_span` seconds are merged into the span before them.
 """
@@ -41,7 +43,7 @@ def _scores(match: np.ndarray, intensity: np.ndarray, level: float) -> np.ndarra
     c = np.clip(match, 0.0, 1.0)
     best = np.argmax(c, axis=1)
     rows = np.arange(len(c))
-    w = c[rows, best] ** 2 * np.maximum(intensity[rows, best], 0.0)
+    w = c[rows, best] * np.maximum(intensity[rows, best], 0.0)
     neutral = np.clip(1.0 - w / level, 0.0, 1.0)
     return np.concatenate([c * (1.0 - neutral)[:, None], neutral[:, None]], axis=1)
 

@@ -12,7 +12,8 @@ Method (stated, since the issue leaves the choice to us):
    min |B a - d|^2 + lambda |a - p|^2 + 2 mu sum(a) + eps |a|^2, 0 <= a <= hi. p is the previous
    frame's solution on the first pass (warm start, causal smoothing) and the mean of both
    neighbours on the second (smoothing without lag); mu is an L1 penalty (a >= 0, so it is linear)
-   that keeps noise out of channels the motion does not need. lambda, mu and eps are given relative
+   that keeps noise out of channels the motion does not need; its shrinkage of the active values is
+   then removed by solving again without it on the active set only. lambda, mu and eps are relative
    to the mean column energy of B at the observed points, so they mean the same for 20 points or
    800. Solved exactly as a bounded linear least-squares problem on the Cholesky factor of the
    normal matrix (scipy `lsq_linear`, BVLS).
@@ -113,6 +114,8 @@ class _Problem:
         self.lam = opts.smooth * s
         self.mu = opts.sparsity * s
         g = g0 + (self.lam + opts.ridge * s) * np.eye(k)
+        self.g = g
+        self.active = opts.active
         self.chol = np.linalg.cholesky(g)
         self.lt = self.chol.T.copy()
         self.hi = basis.hi
@@ -120,10 +123,24 @@ class _Problem:
         self._cond: dict[tuple[int, ...], float] = {}
 
     def solve(self, d: np.ndarray, prior: np.ndarray) -> np.ndarray:
-        h = self.A.T @ d + self.lam * prior - self.mu
+        """The bounded solution with the L1 term (which picks the active set), then the same
+        problem without it on that set only (the L1 term's shrinkage of the active values is a
+        bias, not information: a "relaxed lasso")."""
+        atd = self.A.T @ d
+        h = atd + self.lam * prior - self.mu
         rhs = solve_triangular(self.chol, h, lower=True)
-        res = lsq_linear(self.lt, rhs, bounds=(0.0, self.hi), method="bvls")
-        return np.clip(res.x, 0.0, self.hi)
+        a = np.clip(lsq_linear(self.lt, rhs, bounds=(0.0, self.hi), method="bvls").x, 0.0, self.hi)
+        if self.mu == 0.0:
+            return a
+        act = np.flatnonzero(a > self.active)
+        out = np.zeros_like(a)
+        if len(act):
+            g = self.g[np.ix_(act, act)]
+            chol = np.linalg.cholesky(g)
+            r = solve_triangular(chol, atd[act] + self.lam * prior[act], lower=True)
+            sub = lsq_linear(chol.T, r, bounds=(0.0, self.hi[act]), method="bvls").x
+            out[act] = np.clip(sub, 0.0, self.hi[act])
+        return out
 
     def cond(self, active: tuple[int, ...]) -> float:
         if not active:

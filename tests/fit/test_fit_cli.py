@@ -1,0 +1,328 @@
+"""`puppet fit` and `puppet recognize` end to end, in-process: every input format, the take that
+replays exactly, the --json contract, and damaged files (one line, exit 2, nothing written)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import correspond
+from fitdata import damaged_texts, rotation, write_landmark_csv
+
+from puppet.cli import main
+from sim.fit.basis import preset_values
+
+# the performance: 10 frames at rest, happiness 0.8 held for 20, surprise 0.7 held for 20, at 30 fps
+SCRIPT = [(None, 10), (("happiness", 0.8), 20), (("surprise", 0.7), 20)]
+FPS = 30.0
+
+
+@pytest.fixture(scope="module")
+def performance(res1, face0, basis0):  # type: ignore[no-untyped-def]
+    """(times, rig landmark names, (T, P, 3) res-1 positions at the res-0 landmarks)."""
+    mesh0 = face0.model.mesh
+    names = sorted(mesh0.landmarks)
+    near = correspond(face0.model, res1.model, np.array([mesh0.landmarks[n] for n in names]))
+    frames = []
+    for what, n in SCRIPT:
+        pos = res1.rest if what is None else res1.pose(res1.values_for(preset_values(*what)))
+        frames += [pos[near]] * n
+    pts = np.array(frames)
+    return np.arange(len(pts)) / FPS, names, pts
+
+
+def _moved(pts: np.ndarray) -> np.ndarray:
+    """Millimetres, a turning head, somewhere in the room."""
+    k = np.arange(len(pts))[:, None, None]
+    out = np.empty_like(pts)
+    for i in range(len(pts)):
+        out[i] = 10.0 * pts[i] @ rotation(0.01 * i, 0.15, -0.05).T + np.array([100.0, 1500.0, -40.0])
+    return out + 0.0 * k
+
+
+def _one_line_exit_2(capsys: pytest.CaptureFixture[str], argv: list[str], path: Path) -> str:
+    code = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert code == 2, err
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert not path.exists()
+    return err
+
+
+def _take_values(path: Path, face0) -> tuple[list[str], np.ndarray]:  # type: ignore[no-untyped-def]
+    from puppet.session import read_session
+
+    s = read_session(path)
+    names = [c.name for c in face0.vocab.channels]
+    return names, s.value_array(np.array(face0.vocab.defaults()), names)
+
+
+def test_landmark_csv_becomes_a_take_that_replays_exactly(tmp_path, performance, face0, capsys) -> None:  # type: ignore[no-untyped-def]
+    times, names, pts = performance
+    csv_path = tmp_path / "track.csv"
+    write_landmark_csv(csv_path, times, _moved(pts), names)
+    take, report = tmp_path / "take.jsonl", tmp_path / "report.csv"
+    assert main(["fit", str(csv_path), "--out", str(take), "--report", str(report)]) == 0
+    out = capsys.readouterr().out
+    assert "scale 0.1" in out and "residual" in out
+    rows = report.read_text().splitlines()
+    assert rows[0].startswith("time,residual_mm") and len(rows) == len(times) + 1
+    chans, values = _take_values(take, face0)
+    tick = lambda t: int(round(t * 60))  # noqa: E731
+    smile = values[tick(20 / FPS)]
+    assert smile[chans.index("zygomaticus_major_l")] == pytest.approx(0.8, abs=0.15)
+    brow = values[tick(42 / FPS)]
+    assert brow[chans.index("frontalis_inner_l")] == pytest.approx(0.7, abs=0.15)
+    assert brow[chans.index("zygomaticus_major_l")] < 0.1
+    assert main(["replay", str(take), "--headless"]) == 0
+    assert "bit-identical to the live session at 1 checkpoints" in capsys.readouterr().out
+
+
+def test_fit_writes_curves_that_play(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
+    times, names, pts = performance
+    csv_path = tmp_path / "track.csv"
+    write_landmark_csv(csv_path, times, pts, names)
+    curves = tmp_path / "fit.curves"
+    assert main(["fit", str(csv_path), "--out", str(curves), "--no-relinearise"]) == 0
+    text = curves.read_text()
+    assert text.startswith("facepuppet-curves 1") and "zygomaticus_major" in text
+    assert main(["replay", "--curves", str(curves), "--headless"]) == 0
+
+
+def test_recognize_prints_spans_with_every_score(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
+    from sim.facs import EXPRESSIONS
+
+    times, names, pts = performance
+    csv_path = tmp_path / "track.csv"
+    write_landmark_csv(csv_path, times, _moved(pts), names)
+    capsys.readouterr()
+    assert main(["recognize", str(csv_path), "--json"]) == 0
+    spans = json.loads(capsys.readouterr().out)
+    assert [s["expression"] for s in spans] == ["neutral", "happiness", "surprise"]
+    for s in spans:
+        assert {"start", "end", "expression", "scores"} <= set(s)
+        assert set(s["scores"]) == {*EXPRESSIONS, "neutral"}
+        assert s["from_activations"]["expression"] == s["expression"]
+    assert spans[1]["start"] == pytest.approx(10 / FPS, abs=0.1)
+    assert main(["recognize", str(csv_path)]) == 0
+    assert "happiness" in capsys.readouterr().out
+
+
+def test_recognize_a_take(tmp_path, face0, capsys) -> None:  # type: ignore[no-untyped-def]
+    from puppet.capture.take import write_take
+
+    names = [c.name for c in face0.vocab.channels]
+    values = np.tile(np.array(face0.vocab.defaults()), (120, 1))
+    for ch, v in preset_values("sadness", 0.8).items():
+        values[50:, names.index(ch)] = v
+    take = tmp_path / "sad.jsonl"
+    write_take(take, face0, values, 60.0, {"test": True})
+    capsys.readouterr()
+    assert main(["recognize", str(take), "--json"]) == 0
+    spans = json.loads(capsys.readouterr().out)
+    assert [s["expression"] for s in spans] == ["neutral", "sadness"]
+
+
+def test_68_point_layout_through_the_shipped_correspondence(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
+    from puppet.capture.points import load_correspondence
+
+    times, names, pts = performance
+    import sim
+
+    mesh = sim.default_model(0).mesh
+    corr = load_correspondence("ibug68", mesh)
+    by_vertex = {mesh.landmarks[n]: i for i, n in enumerate(names)}
+    ids = list(corr)
+    cols = np.stack([pts[:, by_vertex[corr[k]]] for k in ids], axis=1)
+    extra = pts[:, :3] + 5.0  # points the layout has but the correspondence does not map
+    csv_path = tmp_path / "ibug.csv"
+    write_landmark_csv(csv_path, times, np.concatenate([cols, extra], axis=1), ids + ["60", "61", "63"])
+    take = tmp_path / "t.jsonl"
+    assert main(["fit", str(csv_path), "--map", "ibug68", "--out", str(take)]) == 0
+    assert "3 input points not in the correspondence were ignored" in capsys.readouterr().out
+    err = _one_line_exit_2(capsys, ["fit", str(csv_path), "--out", str(tmp_path / "u.jsonl")], tmp_path / "u.jsonl")
+    assert "not a rig landmark" in err
+
+
+def _write_c3d(path: Path, labels: list[str], pts: np.ndarray, rate: float) -> None:
+    import c3d
+
+    w = c3d.Writer(point_rate=rate)
+    frames = []
+    for f in pts:
+        p = np.zeros((len(labels), 5), np.float32)
+        p[:, :3] = f
+        frames.append((p, np.zeros((0, 0), np.float32)))
+    frames[3][0][2, 3] = -1.0  # one occluded sample
+    w.add_frames(frames)
+    w.set_point_labels(labels)
+    with open(path, "wb") as fh:
+        w.write(fh)
+
+
+@pytest.mark.filterwarnings("ignore:No analog data")
+def test_c3d_markers(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
+    times, names, pts = performance
+    path = tmp_path / "markers.c3d"
+    _write_c3d(path, names, _moved(pts), FPS)
+    take = tmp_path / "c3d.jsonl"
+    assert main(["fit", str(path), "--out", str(take), "--no-relinearise"]) == 0
+    assert "1 occluded marker samples filled" in capsys.readouterr().out
+    bad = tmp_path / "bad.c3d"
+    bad.write_bytes(path.read_bytes()[:700])
+    _one_line_exit_2(capsys, ["fit", str(bad), "--out", str(tmp_path / "x.jsonl")], tmp_path / "x.jsonl")
+    wrong = tmp_path / "wrong.c3d"
+    _write_c3d(wrong, [n + "X" for n in names], pts, FPS)
+    err = _one_line_exit_2(capsys, ["fit", str(wrong), "--out", str(tmp_path / "y.jsonl")], tmp_path / "y.jsonl")
+    assert "not a rig landmark" in err
+
+
+def test_point_cache_from_the_other_integrator(tmp_path, face0, basis0, capsys) -> None:  # type: ignore[no-untyped-def]
+    import sim
+    from puppet.export.pc2 import PC2Writer, write_obj
+
+    settler, basis, _ = basis0
+    model = face0.model
+    s = sim.Simulator(model, 1 / 60.0, wrinkles=False, method="implicit")
+    c = sim.FaceControl(model)
+    state = settler.rest_state.copy()
+    path = tmp_path / "other.pc2"
+    w = PC2Writer(path, model.n_vertices)
+    truth = preset_values("anger", 0.7)
+    for k in range(90):
+        if k == 20:
+            for ch, v in truth.items():
+                c.set(ch, v)
+        s.step(state, c)
+        w.add(state.positions)
+    w.close()
+    write_obj(path.with_suffix(".obj"), model.rest, model.triangles)
+    take = tmp_path / "pc2.jsonl"
+    capsys.readouterr()
+    assert main(["fit", str(path), "--out", str(take), "--no-relinearise"]) == 0
+    chans, values = _take_values(take, face0)
+    for ch, v in truth.items():
+        assert values[85, chans.index(ch)] == pytest.approx(v, abs=0.2), ch
+    path.with_suffix(".obj").write_text("v 0 0 0\n")
+    err = _one_line_exit_2(capsys, ["fit", str(path), "--out", str(tmp_path / "z.jsonl")], tmp_path / "z.jsonl")
+    assert "topology" in err
+    path.with_suffix(".obj").unlink()
+    _one_line_exit_2(capsys, ["fit", str(path), "--out", str(tmp_path / "z.jsonl")], tmp_path / "z.jsonl")
+    write_obj(path.with_suffix(".obj"), model.rest, model.triangles)
+    data = bytearray(path.read_bytes())
+    data[40:44] = np.array([np.nan], "<f4").tobytes()
+    path.write_bytes(bytes(data))
+    err = _one_line_exit_2(capsys, ["fit", str(path), "--out", str(tmp_path / "z.jsonl")], tmp_path / "z.jsonl")
+    assert "NaN" in err
+    path.write_bytes(bytes(data[:1000]))
+    _one_line_exit_2(capsys, ["fit", str(path), "--out", str(tmp_path / "z.jsonl")], tmp_path / "z.jsonl")
+
+
+def test_arkit_csv_becomes_a_take_on_the_physical_face(tmp_path, face0, capsys) -> None:  # type: ignore[no-untyped-def]
+    from puppet.export.arkit import ArkitCsvWriter
+
+    names = [c.name for c in face0.vocab.channels]
+    w = ArkitCsvWriter(tmp_path / "phone.arkit.csv", names, 60.0)
+    values = np.tile(np.array(face0.vocab.defaults()), (90, 1))
+    values[30:, names.index("zygomaticus_major_l")] = 0.7
+    values[30:, names.index("jaw")] = 0.3
+    for k, v in enumerate(values):
+        w.add(k, v)
+    w.close()
+    take = tmp_path / "phone.jsonl"
+    assert main(["fit", str(tmp_path / "phone.arkit.csv"), "--out", str(take), "--age", "70"]) == 0
+    chans, got = _take_values(take, face0)
+    assert got[60, chans.index("zygomaticus_major_l")] == pytest.approx(0.7)
+    assert got[60, chans.index("jaw")] == pytest.approx(0.3)
+    assert got[60, chans.index("age")] == 70.0
+    assert main(["replay", str(take), "--headless"]) == 0
+    text = (tmp_path / "phone.arkit.csv").read_text()
+    for kind, bad in damaged_texts(text).items():
+        p = tmp_path / f"bad_{kind}.csv"
+        p.write_text(bad, encoding="latin-1" if kind == "garbage" else "utf-8")
+        _one_line_exit_2(capsys, ["fit", str(p), "--out", str(tmp_path / "o.jsonl")], tmp_path / "o.jsonl")
+
+
+def test_damaged_landmark_csvs_are_one_line_errors(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
+    times, names, pts = performance
+    good = tmp_path / "good.csv"
+    write_landmark_csv(good, times[:6], pts[:6], names)
+    text = good.read_text()
+    variants = damaged_texts(text)
+    variants["wrong_name"] = text.replace("nose_tip_", "nose_tipp_")
+    variants["times_back"] = text.replace(f"\n{times[3]:.6f},", f"\n{times[1]:.6f},")
+    variants["wrong_axis"] = text.replace("chin_y", "chin_q")
+    variants["two_points"] = "time,chin_x,chin_y,chin_z,nose_tip_x,nose_tip_y,nose_tip_z\n0,1,2,3,4,5,6\n"
+    for kind, bad in variants.items():
+        p = tmp_path / f"bad_{kind}.csv"
+        p.write_text(bad, encoding="latin-1" if kind == "garbage" else "utf-8")
+        out = tmp_path / f"{kind}.jsonl"
+        err = _one_line_exit_2(capsys, ["fit", str(p), "--out", str(out)], out)
+        assert str(p) in err, (kind, err)
+        _one_line_exit_2(capsys, ["recognize", str(p)], out)
+
+
+def test_damaged_correspondence_files(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
+    times, names, pts = performance
+    good = tmp_path / "good.csv"
+    write_landmark_csv(good, times[:4], pts[:4], names)
+    cases = {"not_json": "{", "list": "[1, 2]", "unknown_rig_point": '{"points": {"a": "nose", "b": "chin"}}',
+             "number": '{"points": {"a": 3}}', "twice": '{"points": {"a": "chin", "b": "chin", "c": "nose_tip", '
+             '"d": "glabella"}}', "missing_input": '{"points": {"zz": "chin", "b": "nose_tip", "c": "glabella", '
+             '"d": "subnasale"}}'}
+    for kind, text in cases.items():
+        corr = tmp_path / f"{kind}.json"
+        corr.write_text(text)
+        out = tmp_path / f"{kind}.jsonl"
+        _one_line_exit_2(capsys, ["fit", str(good), "--map", str(corr), "--out", str(out)], out)
+
+
+def test_bad_output_and_options_are_one_line_errors(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
+    times, names, pts = performance
+    good = tmp_path / "good.csv"
+    write_landmark_csv(good, times[:4], pts[:4], names)
+    _one_line_exit_2(capsys, ["fit", str(good), "--out", str(tmp_path / "x.mp4")], tmp_path / "x.mp4")
+    _one_line_exit_2(capsys, ["fit", str(good), "--out", str(tmp_path / "no" / "x.jsonl")], tmp_path / "no")
+    _one_line_exit_2(capsys, ["fit", str(good), "--neutral", "99", "--out", str(tmp_path / "n.jsonl")],
+                     tmp_path / "n.jsonl")
+    _one_line_exit_2(capsys, ["fit", str(tmp_path / "missing.csv"), "--out", str(tmp_path / "m.jsonl")],
+                     tmp_path / "m.jsonl")
+
+
+def test_a_damaged_cache_file_is_never_trusted(tmp_path, face0, basis0) -> None:  # type: ignore[no-untyped-def]
+    from puppet.capture import cache
+
+    settler, basis, tpl = basis0
+    path = tmp_path / "c.npz"
+    cache._save(path, basis, tpl)
+    got = cache._load(path, face0.model)
+    assert got is not None and np.array_equal(got[0].columns, basis.columns)
+    path.write_bytes(path.read_bytes()[:5000])
+    assert cache._load(path, face0.model) is None
+    cols = basis.columns.copy()
+    cols[0, 0, 0] = np.nan
+    from dataclasses import replace
+
+    cache._save(path, replace(basis, columns=cols), tpl)
+    assert cache._load(path, face0.model) is None
+    import sim
+
+    assert cache._key(face0.model) != cache._key(sim.default_model(1))
+
+
+def test_fit_on_a_rig_file_records_it_for_replay(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
+    import sim
+    from puppet.session import read_session
+
+    times, names, pts = performance
+    rig = tmp_path / "face.npz"
+    sim.save_rig(sim.default_rig(0), rig)
+    csv_path = tmp_path / "track.csv"
+    write_landmark_csv(csv_path, times[:12], pts[:12], names)
+    take = tmp_path / "rig.jsonl"
+    assert main(["fit", str(csv_path), "--rig", str(rig), "--out", str(take), "--no-relinearise"]) == 0
+    assert read_session(take).header["rig"]["path"] == str(rig.resolve())
+    capsys.readouterr()
+    assert main(["replay", str(take), "--headless"]) == 0
