@@ -10,9 +10,10 @@
    lacks to the moment fsync i+1 returned (the budget: about 1 s).
 3. Supervisor: `puppet live --supervise` with a mock box in real time; the show process is killed
    (SIGKILL) at random moments; crash-to-first-tick = from the kill until the recording holds a
-   tick of the new segment. Then once more with the standby killed first (a cold restart).
+   tick of the new segment. Then once more with the standby killed first (a cold restart), and
+   once with an exception raised in the loop (the PUPPET_CRASH_AT_TICK hook, 15 s into a show).
 
-Run:  .venv/bin/python benchmarks/show_recovery.py [--kills 8] [--seconds 20] [--restarts 4] [--json]
+Run:  .venv/bin/python benchmarks/show_recovery.py [--kills 8] [--seconds 20] [--restarts 4] [--no-exception] [--json]
 """
 
 from __future__ import annotations
@@ -192,11 +193,40 @@ def supervisor_restarts(work: Path, restarts: int, rng: random.Random) -> tuple[
     return times, cold
 
 
+def exception_restart(work: Path, crash_tick: int = 900) -> float:
+    """--supervise with the test hook raising at `crash_tick` (15 s in: the standby is ready):
+    seconds from the hook's line on stderr (just before the raise) to the new segment's first tick."""
+    import threading
+
+    rec = work / "exception.jsonl"
+    env = {**ENV, "PUPPET_CRASH_AT_TICK": str(crash_tick)}
+    sup = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--supervise", "--headless", "--device",
+                            f"mock://{SCRIPT}?speed=1", "--record", str(rec)], env=env,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    crashed: list[float] = []
+
+    def watch() -> None:
+        assert sup.stderr is not None
+        for line in sup.stderr:
+            if b"crashing at tick" in line and not crashed:
+                crashed.append(time.monotonic())
+
+    threading.Thread(target=watch, daemon=True).start()
+    try:
+        _wait(lambda: rec.exists() and _ticks(rec) > 0, timeout=120)
+        _wait(lambda: bool(crashed), timeout=crash_tick / 60 + 120)
+        back = _first_tick_after(rec, max(0, rec.stat().st_size - 2048))
+        return back - crashed[0]
+    finally:
+        stop_process(sup)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--kills", type=int, default=8)
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--restarts", type=int, default=4)
+    ap.add_argument("--no-exception", action="store_true", help="skip the injected-exception restart")
     ap.add_argument("--seed", type=int, default=14)
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
@@ -208,10 +238,12 @@ def main() -> int:
         lost = sigkill_losses(work, args.kills, rng) if args.kills else []
         power, short = power_cut_losses(work, args.seconds) if args.seconds else ([], 0)
         restarts, cold = supervisor_restarts(work, args.restarts, rng) if args.restarts else ([], float("nan"))
+        exc = float("nan") if args.no_exception else exception_restart(work)
     load = os.getloadavg()[0]
     if args.json:
         print(json.dumps({"sigkill_lost_ticks": lost, "power_cut_loss_s": power, "fsync_short": short,
-                          "crash_to_first_tick_s": restarts, "cold_restart_s": cold, "load1": load}))
+                          "crash_to_first_tick_s": restarts, "cold_restart_s": cold,
+                          "exception_to_first_tick_s": exc, "load1": load}))
         return 0
     print(f"show recovery (load average {load:.2f}, {os.cpu_count()} cores)")
     if lost:
@@ -227,6 +259,9 @@ def main() -> int:
               f"(= {max(restarts):.2f} x the 1 s budget)")
     if restarts:
         print(f"  --supervise without a standby (a cold restart): {cold * 1e3:.0f} ms")
+    if not args.no_exception:
+        print(f"  --supervise, an exception in the loop (PUPPET_CRASH_AT_TICK) -> first tick of the new "
+              f"segment: {exc * 1e3:.0f} ms (the dying process closes the recording and devices first)")
     return 0
 
 

@@ -16,7 +16,8 @@ An entry is never trusted blindly: a missing, corrupt, foreign (another key) or 
 (checksums, shapes, index ranges, finiteness, the rig's own digest) is ignored and rebuilt. Entries
 are written to a temporary file beside the target and renamed into place.
 
-Where: $PUPPET_CACHE_DIR, else $XDG_CACHE_HOME/facepuppet/faces, else ~/.cache/facepuppet/faces.
+Where: $PUPPET_CACHE_DIR, else $XDG_CACHE_HOME/facepuppet/faces, else ~/.cache/facepuppet/faces;
+the KEEP_ENTRIES most recently used entries are kept.
 `PUPPET_CACHE_DIR=off` (or an unwritable place) builds every time, with one warning line."""
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ FORMAT = "facepuppet-face-cache"
 VERSION = 1
 ENV = "PUPPET_CACHE_DIR"
 MAX_ENTRY_BYTES = 1 << 30  # an entry larger than this is not a face of ours
+KEEP_ENTRIES = 8  # after writing an entry, only the most recently used this many are kept
 #: FaceModel fields that are not stored as arrays or scalars (rebuilt from the rig or constant)
 _NOT_STORED = {"rig", "mesh", "channels", "channel_index", "muscle_matrix", "params"}
 
@@ -134,6 +136,28 @@ def save_entry(directory: Path, key: str, model: Any, with_rig: bool) -> None:
             "arrays": _array_digest(arrays), "rig_sha": rig_sha}
     payload = {"meta": np.array(json.dumps(meta)), **arrays}
     _write_atomic(directory / f"{key}.npz", lambda tmp: np.savez(tmp, **payload))
+    _evict(directory)
+
+
+def _evict(directory: Path) -> None:
+    """Remove all but the KEEP_ENTRIES most recently used entries (each edit of the face code
+    makes a new one), and temporary files a killed writer left over an hour ago."""
+    import time
+
+    models = sorted(directory.glob("*[0-9a-f].npz"), key=lambda p: p.stat().st_mtime, reverse=True)
+    old = [p for p in models if len(p.name) == 36][KEEP_ENTRIES:]
+    for p in old:
+        for q in (p, p.with_name(p.name[:-4] + ".rig.npz")):
+            try:
+                q.unlink()
+            except OSError:
+                pass
+    for tmp in directory.glob(".*.tmp.npz"):
+        try:
+            if time.time() - tmp.stat().st_mtime > 3600:
+                tmp.unlink()
+        except OSError:
+            pass
 
 
 def _read_npz(path: Path) -> dict[str, np.ndarray]:
@@ -273,7 +297,12 @@ def cached_model(what: bytes, build: Callable[[], Any], rig: Any | None = None) 
         return build()
     key = entry_key(what)
     try:
-        return load_entry(directory, key, rig)
+        model = load_entry(directory, key, rig)
+        try:
+            os.utime(directory / f"{key}.npz")  # used now: kept by the eviction
+        except OSError:
+            pass
+        return model
     except Exception:  # noqa: BLE001 - missing, damaged or foreign, however it fails: rebuild it
         pass
     model = build()

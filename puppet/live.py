@@ -279,6 +279,9 @@ class LiveCore:
         if sp is not None:
             t_b = pc()
         if k == self._crash_at:
+            import sys
+
+            print(f"puppet: {CRASH_ENV}: crashing at tick {k}", file=sys.stderr, flush=True)
             raise RuntimeError(f"{CRASH_ENV}: the crash asked for at tick {k}")
         values = mapper.step(self.dt)
         if self.hold is not None:

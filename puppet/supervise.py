@@ -65,6 +65,7 @@ class Supervisor:
         self.show: subprocess.Popen[bytes] | None = None
         self.standby: subprocess.Popen[bytes] | None = None
         self.restarts = 0
+        self.standby_deaths = 0  # after MAX_QUICK of them, restarts are cold
         self._size_at_start: int | None = None
 
     def _spawn(self, standby: bool) -> subprocess.Popen[bytes]:
@@ -125,10 +126,12 @@ class Supervisor:
         while True:
             code = self.show.poll()
             if code is None:
-                if self.standby is None and not self.stopping and self._show_is_up(started):
+                if self.standby is None and not self.stopping and self.standby_deaths < MAX_QUICK \
+                        and self._show_is_up(started):
                     self.standby = self._spawn(True)  # after the show's own start, not during it
                 elif self.standby is not None and self.standby.poll() is not None and not self.stopping:
                     self.standby = None  # it died (e.g. the machine is short of memory): try again
+                    self.standby_deaths += 1
                 time.sleep(POLL_S)
                 continue
             if self.stopping or code in (0, 2):

@@ -232,3 +232,27 @@ def test_rig_file_faces_are_cached_by_the_file_bytes(fresh: object, tmp_path: Pa
     sim.save_rig(rig, rig_path)
     live.load_face(str(rig_path))
     assert len(list((tmp_path / "cache").iterdir())) == 2  # another file, another entry
+
+
+def test_only_the_most_recently_used_entries_are_kept(fresh: object, tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each edit of the face code makes a new entry: the folder keeps the last KEEP_ENTRIES used."""
+    import os
+
+    monkeypatch.setenv("PUPPET_CACHE_DIR", str(tmp_path))
+    build = Builds(fresh)
+    n = face_cache.KEEP_ENTRIES + 3
+    for i in range(n):
+        cached_model(f"face {i}".encode(), build)
+        key = face_cache.entry_key(f"face {i}".encode())
+        os.utime(tmp_path / f"{key}.npz", (1000.0 + i, 1000.0 + i))  # distinct use times
+    cached_model(b"face 0", build)  # gone: rebuilt, now the newest
+    assert build.calls == n + 1
+    os.utime(tmp_path / f"{face_cache.entry_key(b'face 0')}.npz", (5000.0, 5000.0))
+    cached_model(b"face 1", build)  # evicted too: rebuilt, and the oldest goes
+    kept = {p.name for p in tmp_path.iterdir()}
+    assert len(kept) == 2 * face_cache.KEEP_ENTRIES
+    for i in (0, 1, n - 1):
+        key = face_cache.entry_key(f"face {i}".encode())
+        assert f"{key}.npz" in kept and f"{key}.rig.npz" in kept
+    assert f"{face_cache.entry_key(b'face 3')}.npz" not in kept

@@ -278,3 +278,63 @@ def test_resume_continues_a_crashed_take_as_a_restart_would(tmp_path: Path) -> N
     assert "continuing" in out.stderr
     s = read_session(rec)
     assert s.complete and s.ticks == 120 and s.segments == [40]
+
+
+class FakeClock:
+    """A clock that only moves when slept on."""
+
+    def __init__(self) -> None:
+        self.t = 100.0
+
+    def __call__(self) -> float:
+        return self.t
+
+    def sleep(self, s: float) -> None:
+        self.t += max(s, 0.0)
+
+
+def test_a_resumed_take_ticks_at_once_on_the_wall_clock(face: live.Face) -> None:
+    """A core that starts at tick 600 (a resumed take) ticks from its own start, on the boundaries
+    from there: it does not wait the 10 s the ticks before it took."""
+    spec = live.build_mapping(face.vocab, None, ["mock://"])
+    from puppet.mapping import Mapper
+
+    core = live.LiveCore(face, Mapper(spec, face.vocab))
+    core.tick_count = 600
+    clk = FakeClock()
+    drained_at: list[float] = []
+
+    def drain() -> list:
+        drained_at.append(clk.t)
+        return []
+
+    live.run_realtime(core, drain, 605 / 60, clock=clk, sleep=clk.sleep)
+    assert core.tick_count == 605
+    assert drained_at == pytest.approx([100.0 + k / 60 for k in range(5)])
+
+
+def test_a_resumed_virtual_take_plays_only_the_rest_of_the_script(tmp_path: Path, face: live.Face) -> None:
+    import devices
+
+    dev = devices.open_device(script(tmp_path, duration=2.0))
+    events = live.scripted_events([dev])
+    spec = live.build_mapping(face.vocab, None, [dev.spec])
+    seen: list[tuple[int, float]] = []
+
+    class Spy(live.LiveCore):
+        def tick(self, evs) -> None:  # type: ignore[no-untyped-def, override]
+            evs = list(evs)
+            seen.extend((self.tick_count, e.t) for e in evs)
+            super().tick(evs)
+
+    from puppet.mapping import Mapper
+
+    full = Spy(face, Mapper(spec, face.vocab))
+    live.run_virtual(full, events, 2.0)
+    first = list(seen)
+    seen.clear()
+    rest = Spy(face, Mapper(spec, face.vocab))
+    rest.tick_count = 50
+    live.run_virtual(rest, events, 2.0)
+    dev.close()
+    assert rest.tick_count == 120 and seen == [x for x in first if x[0] >= 50]
