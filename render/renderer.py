@@ -313,8 +313,10 @@ class FaceRenderer:
         if kind == "HEAT":
             skin["heat_scale"].value = float(self.heat_scale)
         self.skin_vaos[kind].render(moderngl.TRIANGLES)
-        if kind in self.head_vaos:
+        if kind in self.head_vaos:  # closed surfaces seen from outside: their backs never show
+            self.ctx.enable(moderngl.CULL_FACE)
             self.head_vaos[kind].render(moderngl.TRIANGLES)
+            self.ctx.disable(moderngl.CULL_FACE)
         self._draw_cavities(surface, mvp)
         self._draw_eyes(state)
         for prog in (self.line_prog, self.thick_prog, self.trail_prog):

@@ -62,7 +62,7 @@ def _ellipsoid(centre: np.ndarray, axes: np.ndarray, n_lat: int, n_lon: int) -> 
 
 
 def _cranium(mesh: FaceMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    n_lat, n_lon = 40, 64
+    n_lat, n_lon = 22, 36
     pts, _ = _ellipsoid(CRANIUM_CENTRE, CRANIUM_AXES, n_lat, n_lon)
     # pull the shell in behind the mask wherever the mask lies in that direction from the centre
     rel = np.asarray(mesh.vertices) - CRANIUM_CENTRE
