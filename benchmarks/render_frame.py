@@ -12,7 +12,7 @@ and stays meaningful when other programs compete for the cores.
 llvmpipe rasterises on LP_NUM_THREADS threads (default: one per core); the run prints the value
 used. `--lp-threads 1,2` reruns the benchmark once per value in a fresh process (the variable is
 read when the driver loads).
-Run: .venv/bin/python benchmarks/render_frame.py [--lp-threads 1,2]
+Run: .venv/bin/python benchmarks/render_frame.py [--lp-threads 1,2] [--resolutions 0,1] [--mask]
 """
 
 from __future__ import annotations
@@ -99,13 +99,18 @@ def floor_ms(ctx: object, size: tuple[int, int], frames: int) -> tuple[float, fl
     return out
 
 
-def bench(resolution: int, size: tuple[int, int], frames: int, ctx: object) -> list[Row]:
+def bench(resolution: int, size: tuple[int, int], frames: int, ctx: object, head: bool = True) -> list[Row]:
+    import dataclasses
+
     from render.hud import HudInfo
     from render.offscreen import OffscreenRenderer
     from render.renderer import VIEWS
     from sim import default_model
+    from sim.build import compile_model
 
     model = default_model(resolution)
+    if not head:  # the mask alone, as the default face was drawn before it had a head
+        model = compile_model(dataclasses.replace(model.rig, name="mask"))
     states = _states(model, 30)
     hud = HudInfo(channels=[("zygomaticus_major_l", 0.8, 0, 1), ("jaw", 0.3, 0, 1)], age=30,
                   devices=[("sgi:///dev/ttyS0", True), ("keyboard://", True)], fps=60.0,
@@ -149,6 +154,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=40)
     ap.add_argument("--resolutions", default="0,2")
     ap.add_argument("--lp-threads", default="", help="comma-separated LP_NUM_THREADS values to compare")
+    ap.add_argument("--mask", action="store_true", help="also time each resolution as the mask alone (no head)")
     args = ap.parse_args()
     if args.lp_threads:
         for n in args.lp_threads.split(","):
@@ -171,11 +177,12 @@ def main() -> None:
 
     floors = [floor_ms(ctx, size, args.frames)]
     print(f"floor (textured full-screen quad + readback): {floors[0][0]:.2f} ms wall, {floors[0][1]:.2f} ms cpu")
-    for res in (int(r) for r in args.resolutions.split(",")):
+    runs = [(int(r), head) for r in args.resolutions.split(",") for head in ((True, False) if args.mask else (True,))]
+    for res, head in runs:
         n = len(default_model(res).rest)
-        print(f"\nresolution {res} ({n} nodes)")
+        print(f"\nresolution {res} ({n} nodes), {'with the head' if head else 'the mask alone'}")
         print(f"{'view':<14}{'HUD':<5}{'wall ms':>9}{'cpu ms':>9}{'wall % of 60 Hz':>17}{'x floor':>9}{'cpu x floor':>13}")
-        rows = bench(res, size, args.frames, ctx)  # type: ignore[arg-type]
+        rows = bench(res, size, args.frames, ctx, head)  # type: ignore[arg-type]
         floors.append(floor_ms(ctx, size, args.frames))  # again after each face: drift shows
         floor = sum(f[0] for f in floors) / len(floors)
         floor_cpu = sum(f[1] for f in floors) / len(floors)

@@ -1,6 +1,7 @@
-"""Writes the renderer's gallery to docs/images/: the seven basic expressions, the five views
-(seed 000 Fig. 2 and Fig. 8: shaded, wireframe, muscles in red, node trails, displacement heat),
-and the HUD. Each expression is dialled in over 40 frames like a performer would, so the trails
+"""Writes the renderer's gallery to docs/images/: the seven basic expressions, each also side by
+side with the neutral face (pair_<name>.png), a three-quarter and a profile view of the head, the
+five views (seed 000 Fig. 2 and Fig. 8: shaded, wireframe, muscles in red, node trails,
+displacement heat), and the HUD. Each expression is dialled in over 40 frames like a performer would, so the trails
 show the motion. Run: .venv/bin/python docs/make_gallery.py [--size 640x480]
 """
 
@@ -58,7 +59,10 @@ def main(argv: list[str] | None = None) -> int:
     from render.offscreen import OffscreenRenderer
     from render.renderer import VIEWS
     from sim import default_model
+    import numpy as np
+
     from sim.facs import EXPRESSIONS, apply_expression
+    from sim.integrator import Simulator
     from sim.state import FaceControl
 
     OUT.mkdir(parents=True, exist_ok=True)
@@ -67,9 +71,19 @@ def main(argv: list[str] | None = None) -> int:
         tr = off.renderer.trails
         assert tr is not None
         poses = {name: perform(model, name) for name in EXPRESSIONS}
+        off.view = "shaded"
+        neutral = model.rest_state()
+        Simulator(model).step(neutral, FaceControl(model))  # the rest pose (surface filled in)
+        rest_img = off.render_frame(neutral, record=False)
         for name, (state, _) in poses.items():
-            off.view = "shaded"
-            _save(off.render_frame(state, record=False), f"expression_{name}.png")
+            img = off.render_frame(state, record=False)
+            _save(img, f"expression_{name}.png")
+            _save(np.hstack([rest_img, img]), f"pair_{name}.png")
+        cam = off.renderer.camera
+        for yaw, name in ((0.6, "head_three_quarter.png"), (0.5 * np.pi, "head_profile.png")):
+            cam.yaw = yaw
+            _save(off.render_frame(poses["happiness"][0], record=False), name)
+        cam.yaw = 0.0
         state, history = poses["happiness"]
         for view in VIEWS:
             off.view = view

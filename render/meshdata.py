@@ -12,6 +12,7 @@ from sim.model import FaceMesh, FaceRig, LinearMuscle, SheetMuscle, SphincterMus
 # Linear-light albedos: skin, lips.
 SKIN = np.array([0.58, 0.40, 0.31])
 LIPS = np.array([0.50, 0.17, 0.16])
+HAIR = np.array([0.10, 0.065, 0.045])  # dark brown, linear albedo (the default head's scalp)
 
 
 class NormalComputer:

@@ -13,7 +13,7 @@ import numpy as np
 from render import shaders
 from render.camera import OrbitCamera
 from render.hud import HudInfo, HudRenderer
-from render.meshdata import (Cavity, brow_coords, MuscleLines, NormalComputer, eye_rotation, skin_tint,
+from render.meshdata import (HAIR, SKIN, Cavity, brow_coords, MuscleLines, NormalComputer, eye_rotation, skin_tint,
                              spatial_order, unique_edges, uv_sphere)
 from render.trails import TrailHistory
 
@@ -129,6 +129,7 @@ class FaceRenderer:
             self.skin_vaos[kind] = ctx.vertex_array(
                 prog, [a for a in attrs if a[0] is self.pos_vbo or a[2] in prog], tri_ibo)
         self.edge_vao = ctx.vertex_array(self.line_prog, [(self.pos_vbo, "3f 3x4", "in_pos")], edge_ibo)
+        self._populate_head(model)
         sphere, sphere_tris = uv_sphere(12, 20)
         sph_vbo, sph_ibo = ctx.buffer(sphere.tobytes()), ctx.buffer(sphere_tris.tobytes())
         self.eye_vao = ctx.vertex_array(self.eye_prog, [(sph_vbo, "3f", "in_pos")], sph_ibo)
@@ -162,6 +163,35 @@ class FaceRenderer:
         self.muscle_vao = ctx.vertex_array(self.thick_prog, [(self.muscle_vbo, "3f", "in_pos")])
         g += [self.muscle_vbo, self.muscle_vao]
         self._populate_trails(n)
+
+    def _populate_head(self, model: Any) -> None:
+        """The held head around the default face (sim.face_head: cranium, ears, neck), uploaded
+        once: static positions, normals, skin or hair colour; drawn with the skin programs."""
+        from sim.face_head import shell_for
+
+        self.head_vaos: dict[str, moderngl.VertexArray] = {}
+        shell = shell_for(model.rig) if getattr(model, "rig", None) is not None else None
+        if shell is None:
+            return
+        ctx = self.ctx
+        v = shell.vertices.astype(np.float32)
+        rows = NormalComputer(shell.triangles, len(v)).interleaved(v).copy()
+        hair = shell.hair[:, None].astype(np.float32)
+        col = (SKIN * (1.0 - hair) + HAIR * hair).astype(np.float32)
+        bufs = [ctx.buffer(rows.tobytes()), ctx.buffer(col.tobytes()), ctx.buffer(v.tobytes()),
+                ctx.buffer(np.full((len(v), 2), (1e3, -1.0), np.float32).tobytes()),  # no brow
+                ctx.buffer(shell.triangles.astype(np.int32).tobytes())]
+        pos, col_b, rest_b, brow_b, ibo = bufs
+        for kind, prog in self.skin_progs.items():
+            pn = [a for a in ("in_pos", "in_normal") if a in prog]
+            pn_fmt = "3f 3f" if len(pn) == 2 else ("3f 3x4" if pn == ["in_pos"] else "3x4 3f")
+            attrs = [(pos, pn_fmt, *pn)] if pn else []
+            attrs += [(col_b, "3f", "in_color"), (rest_b, "3f", "in_rest"), (brow_b, "2f", "in_brow")]
+            self.head_vaos[kind] = ctx.vertex_array(prog, [a for a in attrs if a[0] is pos or a[2] in prog], ibo)
+        self._gl += [*bufs, *self.head_vaos.values()]
+        lo, hi = self.camera.lo, self.camera.hi
+        seen = v[v[:, 1] > lo[1] - 3.0]  # the head and the top of the neck
+        self.camera.fit(np.minimum(lo, seen.min(axis=0)), np.maximum(hi, seen.max(axis=0)))
 
     def _populate_trails(self, n: int) -> None:
         """GPU ring of trail samples: each new sample overwrites one slot; segments between
@@ -283,6 +313,10 @@ class FaceRenderer:
         if kind == "HEAT":
             skin["heat_scale"].value = float(self.heat_scale)
         self.skin_vaos[kind].render(moderngl.TRIANGLES)
+        if kind in self.head_vaos:  # closed surfaces seen from outside: their backs never show
+            self.ctx.enable(moderngl.CULL_FACE)
+            self.head_vaos[kind].render(moderngl.TRIANGLES)
+            self.ctx.disable(moderngl.CULL_FACE)
         self._draw_cavities(surface, mvp)
         self._draw_eyes(state)
         for prog in (self.line_prog, self.thick_prog, self.trail_prog):

@@ -70,7 +70,7 @@ TARGETS: tuple[Target, ...] = (
     Target("disgust", "upper_lip_center", "up", 2.0, 7.0, "FACS AU9+10 (our target)"),
     Target("disgust", "lower_lip_center", "down", -5.0, 1.0, "FACS: no jaw drop"),
     Target("disgust", "chin", "down", -5.0, 1.0, "FACS: no jaw drop"),
-    Target("fear", "brow_mid_l", "up", 2.5, 7.5, "FACS 1+2+4: raised less than in 1+2"),
+    Target("fear", "brow_mid_l", "up", 2.5, 8.0, "FACS 1+2+4: raised less than in 1+2"),
     Target("fear", "brow_inner_l", "in", 0.5, 5.0, "FACS 1+2+4: drawn together"),
     Target("fear", "mouth_corner_l", "out", 3.0, 9.0, "FACS AU20 stretches the lips sideways"),
     Target("fear", "lower_lip_center", "down", 5.0, 30.0, "FACS AU26 jaw drop"),

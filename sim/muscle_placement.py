@@ -121,6 +121,7 @@ def _sphincter(f: FaceFrame, name: str, center: np.ndarray, a: float, b: float,
 
 
 LID_STRIPS = 9  # sheets across each lid, from the inner to the outer corner
+CORNER_BOOST = 0.6
 LID_MEET = 0.2  # where the lids meet, as a fraction of the opening above the lower margin
 
 
@@ -169,8 +170,11 @@ def _lids(f: FaceFrame, side: str, sg: float) -> tuple[Muscle, ...]:
     for k, (x0, x1) in enumerate(zip(edges[:-1], edges[1:])):
         xc = 0.5 * (x0 + x1)
         t, b = float(np.interp(xc, xs, top)), float(np.interp(xc, xs, bottom))
-        share = max(t - b, 0.0) / h_max
-        if share < 0.05:
+        height = max(t - b, 0.0) / h_max
+        # near the canthi the skin is held by its neighbours at the fixed corner, so the same
+        # force moves it less: the end strips pull harder than their height alone would ask
+        share = height * (1.0 + CORNER_BOOST * (1.0 - height))
+        if height < 0.05:
             continue
         meet = b + LID_MEET * (t - b)
         # the attachment line lies where the lids meet, on the front of the eyeball (lid thickness
@@ -184,7 +188,7 @@ def _lids(f: FaceFrame, side: str, sg: float) -> tuple[Muscle, ...]:
                             width=width, reach=1.7, strength=3.0 * share))
         parts.append(_sheet(f, f"orbicularis_oculi_lid_lower_{side}_{k}", a1, a2,
                             f.skin(np.array([x0, b - 0.3 * s, 0.0])), f.skin(np.array([x1, b - 0.3 * s, 0.0])),
-                            width=width, reach=1.6, strength=1.75 * share))
+                            width=width, reach=1.6, strength=1.575 * share))
     return tuple(parts)
 
 
@@ -225,14 +229,14 @@ def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle,
     out[f"frontalis_inner_{side}"] = (_sheet(
         f, f"frontalis_inner_{side}",
         f.at(bi, sg, -0.6, 4.5, 0.3), f.at(bi, sg, 1.1, 4.6, 0.3),
-        f.at(bi, sg, -0.6, -0.2), f.at(bi, sg, 1.1, 0.0), width=1.9, strength=1.5),)
+        f.at(bi, sg, -0.6, -0.2), f.at(bi, sg, 1.1, 0.0), width=1.9, strength=1.75),)
     out[f"frontalis_outer_{side}"] = (_sheet(
         f, f"frontalis_outer_{side}",
         f.at(bo, sg, -2.0, 4.3, 0.3), f.at(bo, sg, 0.2, 4.0, 0.3),
         f.at(bo, sg, -2.0, 0.2), f.at(bo, sg, 0.2, 0.0), width=2.5, strength=1.5),)
     out[f"corrugator_{side}"] = (_linear(
         f, f"corrugator_{side}", f.at(bi, sg, -0.9, -0.5, 0.5), f.at(bi, sg, 0.7, 0.2),
-        reach=1.8, angle=0.6, strength=2.0), _linear(
+        reach=1.8, angle=0.6, strength=2.3), _linear(
         f, f"depressor_supercilii_{side}", f.at(bi, sg, -0.3, -1.7, 0.4), f.at(bi, sg, 0.4, 0.3),
         reach=1.6, angle=0.7, strength=1.2))
     out[f"orbicularis_oculi_{side}"] = (_sphincter(
