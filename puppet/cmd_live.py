@@ -183,6 +183,10 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
 
     def lights(dev: str, ctl: str, on: bool) -> None:
         d = by_spec.get(dev)
+        if d is None:  # a box adopted mid-show (the watcher appends it to devs)
+            d = next((x for x in devs if x.spec == dev), None)
+            if d is not None:
+                by_spec[dev] = d
         if d is not None:
             try:
                 d.set_light(ctl, on)
