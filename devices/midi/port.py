@@ -262,6 +262,7 @@ class MidiPortDevice(MidiDevice):
             self._check_port()
             self._next_check = now + PORT_CHECK
         wait = min(timeout, max(0.0, self._next_check - now))
+        self._woken = False  # before sending: a light asked for after this point wakes the poll below
         due = self._send_lights(now)
         if due is not None:
             wait = min(wait, max(0.0, due - now))
@@ -297,7 +298,6 @@ class MidiPortDevice(MidiDevice):
             if events or self._woken or time.monotonic() >= deadline:
                 break
             time.sleep(POLL_S)
-        self._woken = False
         return events
 
     def _check_port(self) -> None:
