@@ -368,3 +368,14 @@ def test_the_example_profile_loads_and_decodes() -> None:
                                                 ("wheel", "axis")]
     assert e[0].delta == -1 and e[1].raw == 0x40 << 7 | 0x7F and e[3].value == 0.0
     assert prof.control("encoder1").ring.ring_value(1.0) == (0xB0, 48, 15)
+
+
+def test_rpn_increment_and_the_null_rpn() -> None:
+    text = ('name = "r"\n[[control]]\nname = "bend_range"\nmessage = "rpn"\nnumber = 0\norder = "msb"\n'
+            '[[control]]\nname = "tune"\nmessage = "nrpn"\nnumber = 5\nkind = "dial"\nencoding = "offset64"\n')
+    d = MidiDecoder("r", parse_profile(text, "r.toml"), WarningCounter("r", interval=3600))
+    e = ev(d, (0xB0, 101, 0), (0xB0, 100, 0), (0xB0, 6, 12), (0xB0, 96, 0), (0xB0, 97, 0), (0xB0, 97, 0))
+    assert [x.raw for x in e] == [12, 13, 12, 11]  # data entry, then increment/decrement steps
+    assert ev(d, (0xB0, 101, 127), (0xB0, 100, 127), (0xB0, 6, 50)) == []  # the null RPN selects nothing
+    e = ev(d, (0xB0, 99, 0), (0xB0, 98, 5), (0xB0, 6, 66), (0xB0, 96, 0))
+    assert [(x.control, x.delta) for x in e] == [("tune", 2.0), ("tune", 1.0)]  # a relative NRPN encoder
