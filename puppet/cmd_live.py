@@ -141,6 +141,10 @@ def run(args: argparse.Namespace) -> int:
     snapshot: Path | None = None
     record = args.record
     devs = _open_devices(list(args.device), warn)
+    for d in devs:  # what a box needs from its user (e.g. a MIDI controller's LED mode)
+        note = getattr(getattr(d, "profile", None), "note", "")
+        if note:
+            warn(f"{d.spec}: {note}")
     if not devs and not windowed:
         length = "about 20 s" if args.duration is None else f"at most {args.duration:g} s"
         warn(f"no control box and no display: performing the built-in demo ({length}) headless into a "

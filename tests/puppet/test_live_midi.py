@@ -56,6 +56,7 @@ def test_nanokontrol2_live_show_with_unplug(tmp_path: Path, jack_server: str) ->
     box.close()
     xtouch.close()
     assert proc.returncode == 0, err
+    assert "LED Mode = External" in err  # the one thing the box needs from its user is said
     session = read_session(rec)
     assert session.complete and session.ticks == 840  # the show ran its full length
     assert SPEC in session.header["devices"]
