@@ -171,6 +171,10 @@ def run(args: argparse.Namespace) -> int:
     snapshot: Path | None = None
     record = args.record
     devs = _open_devices(list(args.device), warn)
+    for d in devs:  # what a box needs from its user (e.g. a MIDI controller's LED mode)
+        note = getattr(getattr(d, "profile", None), "note", "")
+        if note:
+            warn(f"{d.spec}: {note}")
     explicit_panel = getattr(args, "panel", None) is not None or getattr(args, "panel_lan", False)
     if not devs and not windowed and not explicit_panel:
         length = "about 20 s" if args.duration is None else f"at most {args.duration:g} s"
@@ -255,6 +259,10 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
 
     def lights(dev: str, ctl: str, on: bool) -> None:
         d = by_spec.get(dev)
+        if d is None:  # a box adopted mid-show (the watcher appends it to devs)
+            d = next((x for x in devs if x.spec == dev), None)
+            if d is not None:
+                by_spec[dev] = d
         if d is not None:
             try:
                 d.set_light(ctl, on)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import sys
 import threading
+import time
 
 import rtmidi
 
@@ -25,12 +26,20 @@ def main() -> int:
     inp.ignore_types(sysex=False, timing=False, active_sense=False)
     lock = threading.Lock()
 
-    def received(item: tuple[list[int], float], data: object = None) -> None:
-        with lock:
-            print("got " + " ".join(f"{b:02x}" for b in item[0]), flush=True)
+    done = threading.Event()
 
-    inp.set_callback(received)
+    def poll() -> None:  # polled, not a callback: a callback would block JACK's cycle on our GIL
+        while not done.is_set():
+            item = inp.get_message()
+            if item is None:
+                time.sleep(0.001)
+                continue
+            with lock:
+                print("got " + " ".join(f"{b:02x}" for b in item[0]), flush=True)
+
     inp.open_virtual_port(f"{port} in")
+    reader = threading.Thread(target=poll, daemon=True)
+    reader.start()
     with lock:
         print("ready", flush=True)
     for line in sys.stdin:
@@ -41,6 +50,8 @@ def main() -> int:
             out.send_message([int(x, 16) for x in words[1:]])
         elif words[0] == "quit":
             break
+    done.set()
+    reader.join(1)
     inp.close_port()
     out.close_port()
     inp.delete()  # python-rtmidi keeps the JACK client until delete()

@@ -5,9 +5,12 @@ are ignored, so the name survives a replug). The API is always named: python-rtm
 back from ALSA to JACK by itself, and neither do we (ALSA is the default on Linux). The input port
 carries controls; the output port of the same name, when there is one, carries lights and rings.
 
-python-rtmidi calls back on its own thread with whole messages; the callback only stamps and queues
-them, and this device's reader thread decodes them, sends lights, and checks the port list every
-``PORT_CHECK`` seconds (python-rtmidi does not report a port that goes away). A vanished port is
+On ALSA, python-rtmidi calls back on its own thread with whole messages; the callback only stamps
+and queues them. On JACK, RtMidi receives in the JACK server's process thread, where a Python
+callback would have to wait for the GIL and could make the whole graph miss its cycle; so the
+reader thread takes RtMidi's queue every millisecond instead. Either way this device's reader
+thread decodes, sends lights, and checks the port list every ``PORT_CHECK`` seconds (python-rtmidi
+does not report a port that goes away). A vanished port is
 ``lost``; the base class reopens it every 0.2 s, and the reopen installs the callback again
 (``close_port`` removes it) and restores the lights.
 """
@@ -30,6 +33,8 @@ from devices.spec import DeviceSpec
 
 #: Seconds between checks that the open port still exists.
 PORT_CHECK = 0.25
+#: Polling interval of a JACK input (JACK itself delivers once per period, 1.3-21 ms).
+POLL_S = 0.001
 #: After the MIDI API itself failed (no JACK server yet), wait this long before trying it again.
 CLIENT_RETRY = 2.0
 #: Our own client name; ports of clients named like this are never opened as a controller.
@@ -146,6 +151,11 @@ class MidiPortDevice(MidiDevice):
         self._next_check = 0.0
         self._retry_clients = 0.0
         self._started_at = float("inf")
+        # JACK runs RtMidi's input in the server's process thread: a Python callback there would
+        # wait for the GIL and make the whole JACK graph miss its cycle (an XRun drops that cycle's
+        # MIDI, and other programs' audio); so on JACK the reader polls RtMidi's queue instead
+        self._polled = self.api == "jack"
+        self._woken = False
 
     # ------------------------------------------------------------------ handle
     def _clients(self) -> tuple[Any, Any]:
@@ -191,7 +201,11 @@ class MidiPortDevice(MidiDevice):
             except queue.Empty:
                 break
         inp.open_port(ports.index(self._port_name), f"{self.name} in")
-        inp.set_callback(self._on_message)  # close_port removed the old one: install it every time
+        if self._polled:
+            while inp.get_message() is not None:  # nothing from before this connection
+                pass
+        else:
+            inp.set_callback(self._on_message)  # close_port removed the old one: install it every time
         self._out_name = ""
         self._open_output()
         self.decoder.reset()
@@ -234,6 +248,7 @@ class MidiPortDevice(MidiDevice):
         super().start()
 
     def _wake(self) -> None:
+        self._woken = True
         self._inbox.put(None)
 
     def _on_message(self, item: tuple[list[int], float], data: object = None) -> None:
@@ -247,9 +262,14 @@ class MidiPortDevice(MidiDevice):
             self._check_port()
             self._next_check = now + PORT_CHECK
         wait = min(timeout, max(0.0, self._next_check - now))
+        self._woken = False  # before sending: a light asked for after this point wakes the poll below
         due = self._send_lights(now)
         if due is not None:
             wait = min(wait, max(0.0, due - now))
+        if self._polled:
+            events = self._poll(wait)
+            self._send_lights(time.monotonic())
+            return events
         events: list[ControlEvent] = []
         try:
             item = self._inbox.get(timeout=wait) if wait > 0 else self._inbox.get_nowait()
@@ -263,6 +283,21 @@ class MidiPortDevice(MidiDevice):
             except queue.Empty:
                 break
         self._send_lights(time.monotonic())
+        return events
+
+    def _poll(self, wait: float) -> list[ControlEvent]:
+        """JACK: take what RtMidi queued (its JACK thread never waits for Python), every POLL_S."""
+        deadline = time.monotonic() + wait
+        events: list[ControlEvent] = []
+        get = self._in.get_message
+        while True:
+            item = get()
+            while item is not None:
+                events += self._decode(tuple(item[0]), max(time.monotonic(), self._started_at))
+                item = get()
+            if events or self._woken or time.monotonic() >= deadline:
+                break
+            time.sleep(POLL_S)
         return events
 
     def _check_port(self) -> None:
@@ -281,33 +316,46 @@ class MidiPortDevice(MidiDevice):
         return nxt
 
 
-_ENUMERATORS: dict[str, Any] = {}
+_ENUMERATORS: dict[str, tuple[object, Any]] = {}
 _ENUM_LOCK = threading.Lock()
+
+
+def _server_identity(api: str) -> object:
+    """What changes when the MIDI server is restarted: the JACK server's socket (a restarted
+    server under the same name makes a new one); the ALSA sequencer lives as long as the kernel."""
+    if api != "jack":
+        return api
+    server = os.environ.get("JACK_DEFAULT_SERVER", "default")
+    uid = os.getuid() if hasattr(os, "getuid") else 0
+    try:
+        st = os.stat(f"/dev/shm/jack_{server}_{uid}_0")
+    except OSError:
+        return (server, None)
+    return (server, st.st_ino, st.st_mtime_ns)
 
 
 def list_ports(api: str) -> list[tuple[str, str]]:
     """(input port name, profile) for every controller port on ``api``; [] when the API is not
-    available here. The ALSA sequencer is asked through one client kept for the process (creating
-    sequencer clients over and over is what makes ALSA run out of memory for some users); a JACK
-    server may be restarted under the same name, so a JACK client is made for each call."""
+    available here. One client per API is kept for the process and asked again at every call:
+    creating clients over and over makes the ALSA sequencer run out of memory for some users, and
+    every new JACK client reorders the server's graph (a loaded server can drop that cycle's MIDI).
+    The JACK client is replaced when the server it talks to was restarted."""
     if not api_available(api):
         return []
     from devices.midi.profile import profile_for_port
 
+    ident = _server_identity(api)
     with _ENUM_LOCK:
-        keep = api == "alsa"
-        client = _ENUMERATORS.get(api) if keep else None
+        kept = _ENUMERATORS.get(api)
+        client = kept[1] if kept is not None and kept[0] == ident else None
+        if kept is not None and client is None:
+            delete_client(_ENUMERATORS.pop(api)[1])
         try:
             if client is None:
                 client = new_client(api)
-                if keep:
-                    _ENUMERATORS[api] = client
+                _ENUMERATORS[api] = (ident, client)
             return [(p, profile_for_port(p)) for p in foreign_ports(client)]
         except Exception:
             _ENUMERATORS.pop(api, None)
             delete_client(client)
-            client = None
             return []
-        finally:
-            if not keep:
-                delete_client(client)

@@ -357,3 +357,25 @@ def test_port_names_match_by_substring_without_alsa_numbers() -> None:
     assert find_port(alsa, "20:0") is None  # the numbers change on replug: never matched
     assert find_port(alsa, "apc mini mk2", prefer="control") == 3  # LEDs answer on the Control port
     assert find_port(alsa, "launch control") is None
+
+
+def test_the_example_profile_loads_and_decodes() -> None:
+    path = Path(__file__).parents[2] / "examples" / "midi" / "my_controller.toml"
+    prof = load_profile(str(path))
+    d = MidiDecoder("x", prof, WarningCounter("x", interval=3600))
+    e = ev(d, (0xB0, 16, 127), (0xB0, 40, 0x7F), (0xB0, 8, 0x40), (0x99, 36, 9), (0xE0, 0, 0x40))
+    assert [(x.control, x.kind) for x in e] == [("encoder1", "dial"), ("fine", "axis"), ("pad1", "button"),
+                                                ("wheel", "axis")]
+    assert e[0].delta == -1 and e[1].raw == 0x40 << 7 | 0x7F and e[3].value == 0.0
+    assert prof.control("encoder1").ring.ring_value(1.0) == (0xB0, 48, 15)
+
+
+def test_rpn_increment_and_the_null_rpn() -> None:
+    text = ('name = "r"\n[[control]]\nname = "bend_range"\nmessage = "rpn"\nnumber = 0\norder = "msb"\n'
+            '[[control]]\nname = "tune"\nmessage = "nrpn"\nnumber = 5\nkind = "dial"\nencoding = "offset64"\n')
+    d = MidiDecoder("r", parse_profile(text, "r.toml"), WarningCounter("r", interval=3600))
+    e = ev(d, (0xB0, 101, 0), (0xB0, 100, 0), (0xB0, 6, 12), (0xB0, 96, 0), (0xB0, 97, 0), (0xB0, 97, 0))
+    assert [x.raw for x in e] == [12, 13, 12, 11]  # data entry, then increment/decrement steps
+    assert ev(d, (0xB0, 101, 127), (0xB0, 100, 127), (0xB0, 6, 50)) == []  # the null RPN selects nothing
+    e = ev(d, (0xB0, 99, 0), (0xB0, 98, 5), (0xB0, 6, 66), (0xB0, 96, 0))
+    assert [(x.control, x.delta) for x in e] == [("tune", 2.0), ("tune", 1.0)]  # a relative NRPN encoder

@@ -109,8 +109,12 @@ def test_a_port_that_is_not_there_yet_connects_when_it_appears(jack_server: str)
         assert got.statuses() == []
         box.plug()
         got.wait(lambda c: c.statuses() == ["connected"])
-        box.send((0xB0, 5, 99))
-        got.wait(lambda c: [e.control for e in c.controls()] == ["fader6"])
+        for _ in range(50):  # an absolute value may be sent again: a cycle the dummy driver dropped
+            box.send((0xB0, 5, 99))  # in an XRun of this loaded machine must not fail the test
+            time.sleep(0.2)
+            if got.controls():
+                break
+        assert [e.control for e in got.controls()] == ["fader6"]
     finally:
         dev.close()
         box.close()

@@ -1,6 +1,6 @@
 """Done when a newcomer plugs in a nanoKONTROL2 and runs `puppet live`: the box is found on its
-own, the faders move the face, the buttons fire expressions with their LEDs lit, and unplugging
-and replugging it mid-show costs nothing. Run for real: `puppet live` in its own process, a
+own, the faders move the face, the buttons fire expressions with their LEDs lit, unplugging and
+replugging it mid-show costs nothing, and a second box plugged in mid-show is adopted. Run for real: `puppet live` in its own process, a
 private JACK server, the box emulated in a third process."""
 
 from __future__ import annotations
@@ -21,10 +21,11 @@ SPEC = "midi://nanoKONTROL2?profile=nanokontrol2&api=jack"
 
 def test_nanokontrol2_live_show_with_unplug(tmp_path: Path, jack_server: str) -> None:  # noqa: F811
     box = MidiBox("nanoKONTROL2").plug()
+    xtouch = MidiBox("X-TOUCH MINI", "X-TOUCH MINI MIDI 1")
     rec = tmp_path / "show.jsonl"
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     env["PYTHONUNBUFFERED"] = "1"
-    proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--headless", "--duration", "10",
+    proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--headless", "--duration", "14",
                              "--record", str(rec)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=env, cwd=tmp_path)
     try:
@@ -40,15 +41,24 @@ def test_nanokontrol2_live_show_with_unplug(tmp_path: Path, jack_server: str) ->
         box.wait_received(lambda r: (0xB0, 32, 127) in r)                 # the LED comes back by itself
         box.send((0xB0, 6, 127), (0xB0, 33, 127), (0xB0, 33, 0))          # fader 7 far away; S2: sadness
         box.wait_received(lambda r: (0xB0, 33, 127) in r and (0xB0, 32, 0) in r)
-        out, err = proc.communicate(timeout=120)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(10)
+        xtouch.plug()                                                      # a second box, mid-show
+        wait_for_host(jack_server, "X-TOUCH MINI:X-TOUCH MINI MIDI 1")      # adopted with its own map
+        xtouch.send((0x9A, 10, 127), (0x8A, 10, 0))                        # its button 3: surprise
+        xtouch.wait_received(lambda r: (0x9A, 2, 1) in r)                  # lit on its LED note
+    except BaseException:
+        proc.kill()
+        out, err = proc.communicate(timeout=30)
+        print(f"puppet live said:\n{out}\n{err}")
         box.close()
+        xtouch.close()
+        raise
+    out, err = proc.communicate(timeout=120)
+    box.close()
+    xtouch.close()
     assert proc.returncode == 0, err
+    assert "LED Mode = External" in err  # the one thing the box needs from its user is said
     session = read_session(rec)
-    assert session.complete and session.ticks == 600  # the show ran its full length
+    assert session.complete and session.ticks == 840  # the show ran its full length
     assert SPEC in session.header["devices"]
     statuses = [e["status"] for e in session.events if "status" in e and e.get("dev") == SPEC]
     assert statuses[:1] == ["connected"] and "lost" in statuses and statuses[-1] == "connected"
@@ -61,6 +71,10 @@ def test_nanokontrol2_live_show_with_unplug(tmp_path: Path, jack_server: str) ->
     assert abs(smile[s2_tick - 1] - smile[lost_tick]) < 0.01  # the unplug and replug moved nothing
     assert abs(smile[-1] - 102 / 127) < 0.01                # after the preset changed, the fader still holds
     jaw = values[:, names.index("jaw")]
-    assert np.all(jaw == 0.0)                         # fader 7 after the replug waits for pickup
+    surprise_tick = next(e["tick"] for e in session.events if e.get("ctl") == "button3")
+    assert np.all(jaw[:surprise_tick] == 0.0)  # fader 7 after the replug waits for pickup
+    assert jaw[-1] > 0.1                       # the second box's preset opens the mouth
     ctls = [e["ctl"] for e in session.events if "ctl" in e]
     assert ctls.count("s1") == 2 and ctls.count("s2") == 2
+    assert any(m[1] == "plugged in: midi://X-TOUCH MINI?profile=xtouch_mini&api=jack" for m in session.markers)
+    assert ctls.count("button3") == 2

@@ -1,0 +1,1 @@
+"""The shipped MIDI controller profiles (data files; see devices.midi.profile)."""
