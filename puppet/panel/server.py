@@ -6,7 +6,9 @@ Security, for every request before any handler runs:
   another site cannot reach us through a DNS name that resolves to 127.0.0.1);
 - bound to anything else (the LAN), every request needs the random token, as `?token=` (the first
   page load; it is then kept in a same-site cookie) or that cookie; without it: 403, nothing served;
-- a WebSocket whose Origin is not this server's own is refused (403);
+- a WebSocket or a POST whose Origin is not this server's own is refused (403), and so is any
+  request a browser marks `Sec-Fetch-Site: cross-site` (another site embedding our images, scripts
+  or API) except a plain navigation to the page;
 - static files come from a fixed list of names shipped in the package (no path is ever joined);
   file parameters of the editor are checked by `safe_child`."""
 
@@ -190,6 +192,10 @@ class PanelServer:
         if not self._has_token(request):
             self.refused += 1
             return web.Response(status=403, text="puppet: token required (use the URL printed by puppet)\n")
+        if (request.headers.get("Sec-Fetch-Site") == "cross-site"
+                and not (request.path == "/" and request.headers.get("Sec-Fetch-Mode") == "navigate")):
+            self.refused += 1  # another site's page using ours as an image, script or API (browsers say so)
+            return web.Response(status=403, text="puppet: cross-site request refused\n")
         origin = request.headers.get("Origin")
         if origin is not None and origin not in (f"http://{host}", f"https://{host}"):
             if request.headers.get("Upgrade", "").lower() == "websocket" or request.method != "GET":

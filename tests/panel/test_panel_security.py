@@ -83,7 +83,10 @@ def test_loopback_server_refuses_foreign_hosts_and_origins(local_page) -> None:
     assert get(port, "/", {"Host": f"attacker.example:{port}"})[0] == 403
     assert ws_status(f"http://127.0.0.1:{port}/ws", origin="http://attacker.example") == 403
     assert ws_status(f"http://127.0.0.1:{port}/ws", origin=f"http://127.0.0.1:{port}") == 101
-    assert local_page.server.refused >= 3
+    cross = {"Sec-Fetch-Site": "cross-site", "Sec-Fetch-Mode": "no-cors"}
+    assert get(port, "/api/layout", cross)[0] == 403 and get(port, "/static/panel.js", cross)[0] == 403
+    assert get(port, "/", {"Sec-Fetch-Site": "cross-site", "Sec-Fetch-Mode": "navigate"})[0] == 200  # a link
+    assert local_page.server.refused >= 5
 
 
 def test_static_files_cannot_be_escaped(local_page) -> None:
