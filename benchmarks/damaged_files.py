@@ -20,14 +20,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "files"))
 import formats  # noqa: E402
 
 
-def _kind(text: str) -> str:
+def _kinds(text: str) -> set[str]:
     """exc: a Python exception escaped the command; lost: it failed and destroyed the --out file;
     line: the error was several lines, thousands of characters or did not name the file."""
-    if text.startswith("failed, and destroyed"):
-        return "lost"
+    out = {"lost"} if "destroyed" in text else set()
     if text.startswith(("error line", "exit 2:")):
-        return "line"
-    return "exc"
+        return out | {"line"}
+    return out if text.startswith("failed, and destroyed") else out | {"exc"}
 
 
 def main() -> int:
@@ -45,12 +44,13 @@ def main() -> int:
             t0 = time.perf_counter()
             seen = formats.run_format(fmt, Path(tmp) / fmt.name)
             n = sum(len(v) for v in seen.values())
-            kinds = [_kind(text) for _, text in seen["traceback"]]
+            kinds = [_kinds(text) for _, text in seen["traceback"]]
+            count = {k: sum(k in ks for ks in kinds) for k in ("exc", "line", "lost")}
             print(f"{fmt.name:<12} {n:>8} {len(seen['ok']):>6} {len(seen['error']):>6} "
-                  f"{len(seen['traceback']):>9} {kinds.count('exc'):>5} {kinds.count('line'):>5} "
-                  f"{kinds.count('lost'):>5} {time.perf_counter() - t0:>6.1f}", flush=True)
+                  f"{len(seen['traceback']):>9} {count['exc']:>5} {count['line']:>5} "
+                  f"{count['lost']:>5} {time.perf_counter() - t0:>6.1f}", flush=True)
             for name, text in seen["traceback"][: args.show]:
-                last = [ln for ln in text.strip().splitlines() if ln.strip()][-1:]
+                last = [ln for ln in text.strip().splitlines() if ln.strip() and "destroyed" not in ln][-1:]
                 print(f"    {name[:40]}: {(last[0] if last else '')[:160]}")
             for k in total:
                 total[k] += len(seen[k])

@@ -41,7 +41,8 @@ def run_cli(argv: list[str], file: Path, outs: tuple[Path, ...] = (), also: str 
     except SystemExit as e:  # argparse
         rc = e.code if isinstance(e.code, int) else 2
     except BaseException:  # noqa: BLE001 - what we count
-        return Outcome("traceback", traceback.format_exc(limit=-3))
+        lost = [o.name for o in outs if not o.exists() or o.read_bytes() != OLD]
+        return Outcome("traceback", traceback.format_exc(limit=-3) + (f"\n(and destroyed {lost[0]})" if lost else ""))
     text = err.getvalue()
     if rc == 0:
         return Outcome("ok", text)
