@@ -171,6 +171,10 @@ def good_ply_bin(d: Path) -> bytes:
     return _trimesh_bytes("ply")
 
 
+def good_glb(d: Path) -> bytes:
+    return _trimesh_bytes("glb")
+
+
 def good_stl(d: Path) -> bytes:
     return _trimesh_bytes("stl")
 
@@ -288,6 +292,7 @@ FORMATS: tuple[Format, ...] = (
     Format("ply-binary", ".ply", good_ply_bin, lambda g: damage.binary_variants(g, n=120, extra=_ply_extra),
            read_mesh),
     Format("stl", ".stl", good_stl, lambda g: damage.binary_variants(g, n=120, extra=_stl_extra), read_mesh),
+    Format("glb", ".glb", good_glb, lambda g: damage.binary_variants(g, n=120), read_mesh),
     Format("landmarks", ".json", good_landmarks, lambda g: damage.json_variants(g, n=150), read_landmarks),
 )
 
