@@ -171,6 +171,11 @@ def good_ply_bin(d: Path) -> bytes:
     return _trimesh_bytes("ply")
 
 
+def good_off(d: Path) -> bytes:
+    data: bytes | str = _trimesh_bytes("off")  # trimesh exports OFF as text
+    return data.encode() if isinstance(data, str) else data
+
+
 def good_glb(d: Path) -> bytes:
     return _trimesh_bytes("glb")
 
@@ -292,6 +297,7 @@ FORMATS: tuple[Format, ...] = (
     Format("ply-binary", ".ply", good_ply_bin, lambda g: damage.binary_variants(g, n=120, extra=_ply_extra),
            read_mesh),
     Format("stl", ".stl", good_stl, lambda g: damage.binary_variants(g, n=120, extra=_stl_extra), read_mesh),
+    Format("off", ".off", good_off, lambda g: damage.text_variants(g, n=120), read_mesh),
     Format("glb", ".glb", good_glb, lambda g: damage.binary_variants(g, n=120), read_mesh),
     Format("landmarks", ".json", good_landmarks, lambda g: damage.json_variants(g, n=150), read_landmarks),
 )
