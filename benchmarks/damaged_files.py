@@ -37,7 +37,7 @@ def main() -> int:
     warnings.simplefilter("ignore")
     chosen = [f for f in formats.FORMATS if not args.formats or f.name in args.formats]
     total = {"ok": 0, "error": 0, "traceback": 0}
-    print(f"{'format':<12} {'variants':>8} {'ok':>6} {'error':>6} {'traceback':>9} {'(exc':>5} {'line':>5} "
+    print(f"{'format':<18} {'variants':>8} {'ok':>6} {'error':>6} {'traceback':>9} {'(exc':>5} {'line':>5} "
           f"{'lost)':>5} {'s':>6}")
     with tempfile.TemporaryDirectory(prefix="damaged-") as tmp:
         for fmt in chosen:
@@ -46,7 +46,7 @@ def main() -> int:
             n = sum(len(v) for v in seen.values())
             kinds = [_kinds(text) for _, text in seen["traceback"]]
             count = {k: sum(k in ks for ks in kinds) for k in ("exc", "line", "lost")}
-            print(f"{fmt.name:<12} {n:>8} {len(seen['ok']):>6} {len(seen['error']):>6} "
+            print(f"{fmt.name:<18} {n:>8} {len(seen['ok']):>6} {len(seen['error']):>6} "
                   f"{len(seen['traceback']):>9} {count['exc']:>5} {count['line']:>5} "
                   f"{count['lost']:>5} {time.perf_counter() - t0:>6.1f}", flush=True)
             for name, text in seen["traceback"][: args.show]:
@@ -54,7 +54,7 @@ def main() -> int:
                 print(f"    {name[:40]}: {(last[0] if last else '')[:160]}")
             for k in total:
                 total[k] += len(seen[k])
-    print(f"{'all':<12} {sum(total.values()):>8} {total['ok']:>6} {total['error']:>6} {total['traceback']:>9}")
+    print(f"{'all':<18} {sum(total.values()):>8} {total['ok']:>6} {total['error']:>6} {total['traceback']:>9}")
     return 0
 
 

@@ -286,6 +286,8 @@ def _stl_extra(rng: object) -> Iterator[damage.Variant]:
 
 FORMATS: tuple[Format, ...] = (
     Format("recording", ".jsonl", good_recording, lambda g: damage.recording_variants(g, n=320), read_recording),
+    Format("recording-headless", ".jsonl", good_recording,
+           lambda g: damage.recording_variants(g, seed=15, n=150), read_recording_headless),
     Format("mapping", ".toml", good_mapping, lambda g: damage.toml_variants(g, n=300), read_mapping),
     Format("curves", ".curves", good_curves, lambda g: damage.text_variants(g, n=240), read_curves),
     Format("rig", ".npz", good_rig, lambda g: damage.rig_variants(g, n=180), read_rig),
