@@ -20,14 +20,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "files"))
 import formats  # noqa: E402
 
 
-def _kind(text: str) -> str:
+def _kinds(text: str) -> set[str]:
     """exc: a Python exception escaped the command; lost: it failed and destroyed the --out file;
     line: the error was several lines, thousands of characters or did not name the file."""
-    if text.startswith("failed, and destroyed"):
-        return "lost"
+    out = {"lost"} if "destroyed" in text else set()
     if text.startswith(("error line", "exit 2:")):
-        return "line"
-    return "exc"
+        return out | {"line"}
+    return out if text.startswith("failed, and destroyed") else out | {"exc"}
 
 
 def main() -> int:
@@ -38,23 +37,24 @@ def main() -> int:
     warnings.simplefilter("ignore")
     chosen = [f for f in formats.FORMATS if not args.formats or f.name in args.formats]
     total = {"ok": 0, "error": 0, "traceback": 0}
-    print(f"{'format':<12} {'variants':>8} {'ok':>6} {'error':>6} {'traceback':>9} {'(exc':>5} {'line':>5} "
+    print(f"{'format':<18} {'variants':>8} {'ok':>6} {'error':>6} {'traceback':>9} {'(exc':>5} {'line':>5} "
           f"{'lost)':>5} {'s':>6}")
     with tempfile.TemporaryDirectory(prefix="damaged-") as tmp:
         for fmt in chosen:
             t0 = time.perf_counter()
             seen = formats.run_format(fmt, Path(tmp) / fmt.name)
             n = sum(len(v) for v in seen.values())
-            kinds = [_kind(text) for _, text in seen["traceback"]]
-            print(f"{fmt.name:<12} {n:>8} {len(seen['ok']):>6} {len(seen['error']):>6} "
-                  f"{len(seen['traceback']):>9} {kinds.count('exc'):>5} {kinds.count('line'):>5} "
-                  f"{kinds.count('lost'):>5} {time.perf_counter() - t0:>6.1f}", flush=True)
+            kinds = [_kinds(text) for _, text in seen["traceback"]]
+            count = {k: sum(k in ks for ks in kinds) for k in ("exc", "line", "lost")}
+            print(f"{fmt.name:<18} {n:>8} {len(seen['ok']):>6} {len(seen['error']):>6} "
+                  f"{len(seen['traceback']):>9} {count['exc']:>5} {count['line']:>5} "
+                  f"{count['lost']:>5} {time.perf_counter() - t0:>6.1f}", flush=True)
             for name, text in seen["traceback"][: args.show]:
-                last = [ln for ln in text.strip().splitlines() if ln.strip()][-1:]
+                last = [ln for ln in text.strip().splitlines() if ln.strip() and "destroyed" not in ln][-1:]
                 print(f"    {name[:40]}: {(last[0] if last else '')[:160]}")
             for k in total:
                 total[k] += len(seen[k])
-    print(f"{'all':<12} {sum(total.values()):>8} {total['ok']:>6} {total['error']:>6} {total['traceback']:>9}")
+    print(f"{'all':<18} {sum(total.values()):>8} {total['ok']:>6} {total['error']:>6} {total['traceback']:>9}")
     return 0
 
 

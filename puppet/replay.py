@@ -176,8 +176,10 @@ class Replayer:
 def frame_ticks(perf: Performance, fps: float, start: float = 0.0, end: float | None = None,
                 speed: float = 1.0) -> list[int]:
     """The tick shown by each exported frame (see the module docstring)."""
-    if not (0 < fps <= MAX_FPS and 0 < speed <= MAX_FPS and np.isfinite(start)):
+    if not (0 < fps <= MAX_FPS and 0 < speed <= MAX_FPS):
         raise PuppetError(f"--fps and --speed must be positive, at most {MAX_FPS:g}")
+    if np.isnan(start) or (end is not None and np.isnan(end)):
+        raise PuppetError("--from and --to must be numbers of seconds, not nan")
     end = perf.duration if end is None else min(end, perf.duration)
     if start < 0 or start > end:
         raise PuppetError(f"--from {start} must lie in 0..{end:.3f} s (the end of the replay)")

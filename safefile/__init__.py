@@ -56,7 +56,8 @@ def few(names: list[str] | tuple[str, ...], n: int = 8) -> str:
 # ---------------------------------------------------------------------------------------- reading
 
 def read_bytes(path: str | Path, what: str, limit: int = MAX_BYTES) -> bytes:
-    """The file's bytes, refusing a file larger than `limit` before reading it."""
+    """The file's bytes; a file larger than `limit` is refused after reading `limit + 1` bytes at
+    most (never more, whatever the file claims or holds)."""
     p = Path(path)
     try:
         with open(p, "rb") as fh:

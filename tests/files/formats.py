@@ -41,7 +41,8 @@ def run_cli(argv: list[str], file: Path, outs: tuple[Path, ...] = (), also: str 
     except SystemExit as e:  # argparse
         rc = e.code if isinstance(e.code, int) else 2
     except BaseException:  # noqa: BLE001 - what we count
-        return Outcome("traceback", traceback.format_exc(limit=-3))
+        lost = [o.name for o in outs if not o.exists() or o.read_bytes() != OLD]
+        return Outcome("traceback", traceback.format_exc(limit=-3) + (f"\n(and destroyed {lost[0]})" if lost else ""))
     text = err.getvalue()
     if rc == 0:
         return Outcome("ok", text)
@@ -170,6 +171,15 @@ def good_ply_bin(d: Path) -> bytes:
     return _trimesh_bytes("ply")
 
 
+def good_off(d: Path) -> bytes:
+    data: bytes | str = _trimesh_bytes("off")  # trimesh exports OFF as text
+    return data.encode() if isinstance(data, str) else data
+
+
+def good_glb(d: Path) -> bytes:
+    return _trimesh_bytes("glb")
+
+
 def good_stl(d: Path) -> bytes:
     return _trimesh_bytes("stl")
 
@@ -276,6 +286,8 @@ def _stl_extra(rng: object) -> Iterator[damage.Variant]:
 
 FORMATS: tuple[Format, ...] = (
     Format("recording", ".jsonl", good_recording, lambda g: damage.recording_variants(g, n=320), read_recording),
+    Format("recording-headless", ".jsonl", good_recording,
+           lambda g: damage.recording_variants(g, seed=15, n=150), read_recording_headless),
     Format("mapping", ".toml", good_mapping, lambda g: damage.toml_variants(g, n=300), read_mapping),
     Format("curves", ".curves", good_curves, lambda g: damage.text_variants(g, n=240), read_curves),
     Format("rig", ".npz", good_rig, lambda g: damage.rig_variants(g, n=180), read_rig),
@@ -287,6 +299,8 @@ FORMATS: tuple[Format, ...] = (
     Format("ply-binary", ".ply", good_ply_bin, lambda g: damage.binary_variants(g, n=120, extra=_ply_extra),
            read_mesh),
     Format("stl", ".stl", good_stl, lambda g: damage.binary_variants(g, n=120, extra=_stl_extra), read_mesh),
+    Format("off", ".off", good_off, lambda g: damage.text_variants(g, n=120), read_mesh),
+    Format("glb", ".glb", good_glb, lambda g: damage.binary_variants(g, n=120), read_mesh),
     Format("landmarks", ".json", good_landmarks, lambda g: damage.json_variants(g, n=150), read_landmarks),
 )
 

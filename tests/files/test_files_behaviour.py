@@ -115,3 +115,31 @@ def test_bounded_toml_names_the_line() -> None:
     with pytest.raises(BadFile, match=r"^f.toml:2:\d+: TOML syntax error"):
         load_toml("a = 1\nb = = 2\n", "f.toml", "test file")
     assert load_toml("a = [[1, 2], [3]]\n", "f.toml", "test file") == {"a": [[1, 2], [3]]}
+
+
+def test_a_rig_array_header_promising_terabytes_is_refused_before_numpy_allocates(tmp_path: Path) -> None:
+    import damage
+    from sim.rig import RigFileError, load_rig
+
+    good = formats.good_rig(tmp_path)
+    with np.load(tmp_path / "good.npz", allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files if k != "vertices"}
+    (tmp_path / "forged.npz").write_bytes(
+        damage.npz_bytes(arrays, {"vertices": damage.npy_forged((10**11, 3))}))
+    assert good
+    with pytest.raises(RigFileError, match=r"forged\.npz: array 'vertices\.npy' promises 2400000000000 bytes"):
+        load_rig(tmp_path / "forged.npz")
+
+
+@pytest.mark.parametrize("suffix,forge", [
+    (".stl", lambda b: b[:80] + (2**32 - 1).to_bytes(4, "little") + b[84:]),
+    (".ply", lambda b: b.replace(b"element vertex 120", b"element vertex 99999999999")),
+])
+def test_a_mesh_count_asking_for_more_than_the_file_holds_is_one_line(tmp_path: Path, suffix: str, forge) -> None:
+    from sim.transfer import TransferError, read_mesh
+
+    good = formats.good_stl(tmp_path) if suffix == ".stl" else formats.good_ply_bin(tmp_path)
+    p = tmp_path / f"head{suffix}"
+    p.write_bytes(forge(good))
+    with pytest.raises(TransferError, match=rf"head\{suffix}: .*(84 \+ 50 x 4294967295|promises 99999999999)"):
+        read_mesh(p)

@@ -44,7 +44,8 @@ def _one_line(r: subprocess.CompletedProcess, name: str) -> str:
 
 def test_a_sample_through_the_command_in_a_process(tmp_path: Path) -> None:
     """A sample of the damage, from outside: the recording killed after its header, a tick rate of
-    0, a landmark file nested thousands deep, a damaged STL, a mesh that collapses to a point."""
+    0, a landmark file nested thousands deep, a damaged STL, a mesh that collapses to a point, a
+    mapping integer of 400 digits, a mock script nested thousands deep."""
     good = formats.good_recording(tmp_path)
     header = good.splitlines()[0]
     (tmp_path / "header-only.jsonl").write_bytes(header + b"\n")
@@ -72,6 +73,14 @@ def test_a_sample_through_the_command_in_a_process(tmp_path: Path) -> None:
                              cwd=tmp_path), "cut.stl")
     assert "module" not in line and "STL" in line
     assert not (tmp_path / "r.npz").exists()
+
+    (tmp_path / "huge.toml").write_text('version = 1\n[[binding]]\ncontrol = "dial0"\ntarget = "jaw"\ngain = '
+                                        + "9" * 400 + "\n")
+    line = _one_line(_puppet("live", "--map", "huge.toml", "--headless", "--duration", "0.1", "--device",
+                             "mock://?sine=dial0", cwd=tmp_path), "huge.toml:5")
+    assert "gain" in line
+    line = _one_line(_puppet("monitor", "mock://deep.json", "--duration", "0", cwd=tmp_path), "deep.json")
+    assert "nested too deep" in line
 
 
 def test_generators_are_deterministic_and_cover_the_damage_kinds() -> None:
