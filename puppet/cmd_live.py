@@ -254,6 +254,12 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     if point is not None:
         writer = resume.open_resumed(point, SessionWriter, header)
     else:
+        if record:
+            from puppet.session import keep_previous
+
+            kept = keep_previous(record)
+            if kept is not None:
+                warn(f"{record} already held a take: kept as {kept}")
         writer = SessionWriter(record, header) if record else None
     by_spec = {d.spec: d for d in devs}
 

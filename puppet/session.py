@@ -84,6 +84,32 @@ class _Syncer:
             self._thread.join(timeout=10)
 
 
+def keep_previous(path: str | Path) -> Path | None:
+    """Before a new take is written to `path`, move a take already there aside (to the first free
+    `NAME.1.jsonl`, `NAME.2.jsonl`, ...) so that starting a show never destroys an earlier one;
+    returns where it went, or None when there was nothing to keep."""
+    p = Path(path)
+    try:
+        if p.stat().st_size == 0:
+            return None
+    except OSError:
+        return None
+    for n in range(1, 10_000):
+        kept = p.with_name(f"{p.stem}.{n}{p.suffix}")
+        if not kept.exists():
+            try:
+                os.link(p, kept)  # never replaces a file that appeared meanwhile
+            except FileExistsError:
+                continue
+            except OSError as err:
+                raise ConfigError(f"{p}: a take is already there and cannot be kept aside "
+                                  f"({err.strerror}); choose another --record name") from err
+            p.unlink()
+            return kept
+    raise ConfigError(f"{p}: a take is already there and {p.stem}.1..9999{p.suffix} are all taken; "
+                      "choose another --record name")
+
+
 class SessionWriter:
     """Writes one recording. Call `event`, `values`, `marker` as ticks happen and `tick(k)` once
     per tick (the tick's records then go to the operating system in one write); `close(n)` writes

@@ -116,6 +116,19 @@ def test_cli_record_then_replay_verifies(tmp_path: Path) -> None:
     assert "bit-identical to the live session at 1 checkpoints" in out.stdout
 
 
+def test_recording_over_an_earlier_take_keeps_it_aside(tmp_path: Path) -> None:
+    rec = tmp_path / "show.jsonl"
+    assert puppet("live", "--device", script(tmp_path), "--headless", "--record", str(rec),
+                  "--duration", "0.2").returncode == 0
+    first = rec.read_bytes()
+    out = puppet("live", "--device", script(tmp_path), "--headless", "--record", str(rec), "--duration", "0.3")
+    assert out.returncode == 0, out.stderr
+    kept = tmp_path / "show.1.jsonl"
+    assert kept.read_bytes() == first  # the earlier take, byte for byte
+    assert "kept as" in out.stderr and str(kept) in out.stderr
+    assert read_session(rec).ticks == 18 and read_session(kept).ticks == 12
+
+
 def test_sigkill_during_recording_leaves_a_replayable_file(tmp_path: Path) -> None:
     rec = tmp_path / "killed.jsonl"
     proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--device", script(tmp_path, speed=1, duration=60),
