@@ -121,7 +121,7 @@ def _sphincter(f: FaceFrame, name: str, center: np.ndarray, a: float, b: float,
 
 
 LID_STRIPS = 9  # sheets across each lid, from the inner to the outer corner
-CORNER_BOOST = 0.6
+CORNER_BOOST = 0.6  # extra pull of the strips near the canthi, where the lid is held by the corner
 LID_MEET = 0.2  # where the lids meet, as a fraction of the opening above the lower margin
 
 
@@ -197,12 +197,14 @@ PRESS_DEPTH = 0.7  # cm of a reference face: how far behind the mouth line they 
 
 
 def _lip_press(f: FaceFrame, strength: float) -> tuple[Muscle, ...]:
-    """The marginal part of orbicularis oris (AU23/24 press and tighten the lips): each lip a fan of
-    LIP_FIBRES linear fibres (eqs 9-13) attached past the other lip and behind the skin, pulling
-    the lip onto the mouth line and back against the teeth. Their cones overlap, so the pull
-    varies smoothly along the lip (narrow sheets side by side made steps, and every vertex on a
-    step was pulled by both), strongest in the middle and fading at the corners, which the ring of
-    eq 14 dragged inwards and so bunched the lips into zig-zags."""
+    """The marginal part of orbicularis oris (AU23/24 press and tighten the lips): LIP_FIBRES
+    linear fibres (eqs 9-13) along the mouth line, each attached PRESS_DEPTH behind the line and
+    inserted on it, so its pull takes both lips back against the teeth and onto the line between
+    them. Their cones overlap, so the pull varies smoothly along the mouth, strongest in the
+    middle and fading towards the corners. The ring of eq 14 alone dragged the corners inwards
+    while the lip centres stayed, and the lips bunched into zig-zags; narrow sheets side by side
+    made steps (a vertex on a step was pulled by both). `strength` is that of 7 fibres: the total
+    does not change with LIP_FIBRES."""
     s = f.s
     xs, top, bottom = _margins(f, f.mesh.mouth_loop)
     mid, half = 0.5 * (xs[-1] + xs[0]), 0.5 * (xs[-1] - xs[0])

@@ -1,6 +1,7 @@
 """Whether closed lids and pressed lips stay clean: the margins keep their order along the lid or
-lip line (no zig-zag crossing), and no triangle next to them folds over (its normal turned more
-than 90 degrees from rest). Pure geometry on a pose; used by tests and benchmarks."""
+lip line, no triangle next to them folds over (its normal turned more than 90 degrees from rest),
+no margin vertex stands out of line (zig-zag), and closed lids meet. Pure geometry on a pose; used
+by tests/sim/test_lids_lips.py."""
 
 from __future__ import annotations
 
@@ -60,29 +61,6 @@ def folded(rest: np.ndarray, pos: np.ndarray, triangles: np.ndarray) -> int:
         return np.cross(b - a, c - a)
 
     return int(np.sum(np.sum(normals(rest) * normals(pos), axis=1) <= 0.0))
-
-
-def creased(rest: np.ndarray, pos: np.ndarray, triangles: np.ndarray, degrees: float = 90.0) -> int:
-    """How many interior edges among the triangles bend sharper than `degrees` between their two
-    triangles' normals at the pose while they bent less than that at rest: a crumple or zig-zag,
-    as opposed to a smooth roll of the skin."""
-    tri = np.asarray(triangles)
-    edges: dict[tuple[int, int], list[int]] = {}
-    for t, (a, b, c) in enumerate(tri):
-        for e in ((a, b), (b, c), (c, a)):
-            edges.setdefault((min(e), max(e)), []).append(t)
-    pairs = np.array([ts for ts in edges.values() if len(ts) == 2], dtype=np.int64).reshape(-1, 2)
-
-    def unit_normals(x: np.ndarray) -> np.ndarray:
-        a, b, c = (x[tri[:, k]] for k in range(3))
-        n = np.cross(b - a, c - a)
-        return n / np.maximum(np.linalg.norm(n, axis=1), 1e-30)[:, None]
-
-    limit = np.cos(np.radians(degrees))
-    n0, n1 = unit_normals(rest), unit_normals(pos)
-    before = np.sum(n0[pairs[:, 0]] * n0[pairs[:, 1]], axis=1)
-    after = np.sum(n1[pairs[:, 0]] * n1[pairs[:, 1]], axis=1)
-    return int(np.sum((after < limit) & (before >= limit)))
 
 
 def zigzag(pos: np.ndarray, row: np.ndarray) -> float:
