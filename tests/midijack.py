@@ -31,12 +31,23 @@ def _server_up(name: str) -> bool:
                           stderr=subprocess.DEVNULL).returncode == 0
 
 
+def _die_with_parent() -> None:
+    """In the child: get SIGTERM when the test process dies, even if it crashes (Linux)."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except Exception:
+        pass
+
+
 def start_jackd(name: str) -> subprocess.Popen[bytes]:
     """Start a dummy JACK server called ``name`` and wait until it answers."""
     if shutil.which("jackd") is None:
         pytest.fail("jackd is not installed: run `bash .ci/setup` (Debian package jackd2)")
     proc = subprocess.Popen(["jackd", "-n", name, "--no-realtime", "-d", "dummy", "-r", "48000", "-p", str(PERIOD)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, preexec_fn=_die_with_parent)
     deadline = time.monotonic() + 15
     while not _server_up(name):
         if proc.poll() is not None or time.monotonic() > deadline:
