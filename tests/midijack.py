@@ -31,20 +31,61 @@ def _server_up(name: str) -> bool:
                           stderr=subprocess.DEVNULL).returncode == 0
 
 
-@pytest.fixture(scope="module")
-def jack_server() -> Iterator[str]:
-    """A private JACK server for this module; JACK_DEFAULT_SERVER names it while it runs."""
+def _die_with_parent() -> None:
+    """In the child: get SIGTERM when the test process dies, even if it crashes (Linux)."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except Exception:
+        pass
+
+
+def start_jackd(name: str) -> subprocess.Popen[bytes]:
+    """Start a dummy JACK server called ``name`` and wait until it answers."""
     if shutil.which("jackd") is None:
         pytest.fail("jackd is not installed: run `bash .ci/setup` (Debian package jackd2)")
-    name = f"fptest{os.getpid()}"
     proc = subprocess.Popen(["jackd", "-n", name, "--no-realtime", "-d", "dummy", "-r", "48000", "-p", str(PERIOD)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, preexec_fn=_die_with_parent)
     deadline = time.monotonic() + 15
     while not _server_up(name):
         if proc.poll() is not None or time.monotonic() > deadline:
             proc.kill()
             pytest.fail(f"jackd did not start (exit {proc.poll()})")
         time.sleep(0.05)
+    return proc
+
+
+def stop_jackd(proc: subprocess.Popen[bytes]) -> None:
+    proc.terminate()
+    try:
+        proc.wait(5)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(5)
+
+
+_SERVERS = 0
+
+
+def _forget_enumerators() -> None:
+    """Close the port-listing clients discovery kept in this process, before their server stops."""
+    from devices.midi import port
+
+    with port._ENUM_LOCK:
+        for _, client in port._ENUMERATORS.values():
+            port.delete_client(client)
+        port._ENUMERATORS.clear()
+
+
+@pytest.fixture(scope="module")
+def jack_server() -> Iterator[str]:
+    """A private JACK server for this module; JACK_DEFAULT_SERVER names it while it runs."""
+    global _SERVERS
+    _SERVERS += 1
+    name = f"fptest{os.getpid()}x{_SERVERS}"  # never the name of a server stopped before in this process
+    proc = start_jackd(name)
     old = {k: os.environ.get(k) for k in ("JACK_DEFAULT_SERVER", "JACK_NO_START_SERVER")}
     os.environ["JACK_DEFAULT_SERVER"] = name
     os.environ["JACK_NO_START_SERVER"] = "1"
@@ -56,12 +97,8 @@ def jack_server() -> Iterator[str]:
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
-        proc.terminate()
-        try:
-            proc.wait(5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(5)
+        _forget_enumerators()
+        stop_jackd(proc)
 
 
 class MidiBox:

@@ -156,6 +156,7 @@ class MidiPortDevice(MidiDevice):
         # MIDI, and other programs' audio); so on JACK the reader polls RtMidi's queue instead
         self._polled = self.api == "jack"
         self._woken = False
+        self._server: object = None
 
     # ------------------------------------------------------------------ handle
     def _clients(self) -> tuple[Any, Any]:
@@ -170,6 +171,7 @@ class MidiPortDevice(MidiDevice):
                                 "start it (or use api=alsa)"}[self.api]
                 raise DeviceError(f"{self.spec}: {hint}")
             try:
+                self._server = _server_identity(self.api)
                 self._in = new_client(self.api)
             except DeviceError as err:
                 self._retry_clients = now + CLIENT_RETRY
@@ -181,6 +183,8 @@ class MidiPortDevice(MidiDevice):
 
     def _open(self) -> None:
         self._close_handle()
+        if self._in is not None and self._server != _server_identity(self.api):
+            self._drop_clients()  # the JACK server was restarted: our clients talk to the old one
         try:
             inp, out = self._clients()
             ports = inp.get_ports()

@@ -360,11 +360,15 @@ class Mapper:
         then is the input itself, and a box whose ring also sets the encoder would fight the hand.
         A device without such a light ignores the call."""
         out: list[tuple[str, str, bool | float]] = []
+        rings: set[tuple[str, str]] = set()
         for b in self.bindings:
             if b.device is None or b.spec.action is not None:
                 continue
             key = (b.device, b.spec.control)
             if b.kind in ("relative", "absolute"):
+                if key in rings:
+                    continue  # a control driving several targets: its first binding's shows on the ring
+                rings.add(key)
                 if b.spec.light is False or b.target is None or self.tick - b.input_tick < RING_HOLD_TICKS:
                     continue
                 level = round(min(1.0, max(0.0, self._current_norm(b))) * 127) / 127

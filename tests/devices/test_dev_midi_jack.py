@@ -209,3 +209,50 @@ def test_puppet_learn_binds_a_fader_and_a_button(jack_server: str, tmp_path) -> 
     assert got == {("fader7", "midi", "jaw", "momentary", None, None),
                    ("s1", "midi", "expr:happiness", "toggle", None, None),
                    ("ch1.cc80", "midi", "age", "momentary", "relative", "twos_complement")}
+
+
+def test_the_device_survives_a_jack_server_restart(jack_server: str, monkeypatch: pytest.MonkeyPatch) -> None:  # noqa: F811
+    """The JACK server itself goes down and comes back under the same name: the device's clients
+    belonged to the old server, so it makes new ones and finds the box again. (`puppet monitor` in
+    its own process: one process does not talk to two JACK servers, and this one has the module's.)"""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    from midijack import start_jackd, stop_jackd, wait_for_host
+
+    name = f"fprestart{os.getpid()}"
+    monkeypatch.setenv("JACK_DEFAULT_SERVER", name)
+    server = start_jackd(name)
+    box = MidiBox("nanoKONTROL2").plug()
+    mon = subprocess.Popen([sys.executable, "-m", "puppet", "monitor", "midi://nanoKONTROL2?api=jack", "--json",
+                            "--duration", "60"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                           env=_puppet_env())
+    lines: list[dict] = []
+
+    def until(pred: object, timeout: float = 30.0) -> None:
+        assert mon.stdout is not None
+        deadline = time.monotonic() + timeout
+        while not pred(lines):  # type: ignore[operator]
+            assert time.monotonic() < deadline, lines
+            line = mon.stdout.readline()
+            assert line, f"monitor ended; got {lines}"
+            lines.append(json.loads(line))
+
+    try:
+        until(lambda ls: any(x.get("status") == "connected" for x in ls))
+        box.unplug()
+        stop_jackd(server)
+        until(lambda ls: ls[-1].get("status") == "lost")
+        server = start_jackd(name)
+        box.plug()
+        wait_for_host(name, "nanoKONTROL2:_MIDI 1")
+        box.send((0xB0, 3, 77))
+        until(lambda ls: any(x.get("control") == "fader4" for x in ls))
+        assert [x.get("status") for x in lines if "status" in x] == ["connected", "lost", "connected"]
+    finally:
+        mon.kill()
+        mon.wait(10)
+        box.close()
+        stop_jackd(server)

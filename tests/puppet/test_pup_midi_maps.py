@@ -87,3 +87,16 @@ def test_a_learned_relative_encoder_under_its_generic_name_turns_its_channel(voc
     for raw in (1, 1, 1, 1, 127):  # four ticks up, one down: 3 counts of 10 a turn
         m.feed(ControlEvent("midi://box?api=jack", "ch1.cc80", "axis", raw / 127, None, raw))
     assert m.step(1 / 60)[jaw] == pytest.approx(0.3)
+
+
+def test_a_control_with_two_targets_shows_one_steady_ring(vocab) -> None:
+    dev = "midi://BCR2000?api=jack"
+    m = Mapper(merge([(load_default_map("bcr2000"), dev)]), vocab)
+    m.feed(ControlEvent(dev, "push_encoder2", "axis", 0.0))  # brow up: frontalis inner and outer
+    m.feed(ControlEvent(dev, "push_encoder2", "axis", 0.5))
+    m.feed(ControlEvent(dev, "button2", "button", 1.0))  # sadness raises the inner brows, not the outer
+    sent = []
+    for _ in range(90):
+        m.step(1 / 60)
+        sent += [lvl for d, c, lvl in m.light_changes() if c == "push_encoder2"]
+    assert sent and len(sent) == len(set(sent))  # updates as the face moves, never flapping between two
