@@ -14,7 +14,6 @@ of one control within a batch are coalesced to the last, so a burst never floods
 from __future__ import annotations
 
 import ipaddress
-import os
 import select
 import socket
 import sys
@@ -26,6 +25,7 @@ from devices.base import Device
 from devices.errors import DeviceSpecError
 from devices.events import ControlEvent
 from devices.spec import DeviceSpec
+from devices.wakepipe import WakePipe
 
 Network = ipaddress.IPv4Network | ipaddress.IPv6Network
 
@@ -160,9 +160,7 @@ class UdpListenerDevice(Device):
         self.datagrams = 0
         self.refused = 0
         self._sock: socket.socket | None = None
-        self._wake_r, self._wake_w = os.pipe()
-        os.set_blocking(self._wake_r, False)
-        os.set_blocking(self._wake_w, False)
+        self._waker = WakePipe()
         self._buf = bytearray(RECV_BUFFER)
         self._window_start = 0.0
         self._window_count = 0
@@ -205,18 +203,10 @@ class UdpListenerDevice(Device):
 
     def close(self) -> None:
         super().close()
-        for fd in (self._wake_r, self._wake_w):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
-        self._wake_r = self._wake_w = -1
+        self._waker.close()
 
     def _wake(self) -> None:
-        try:
-            os.write(self._wake_w, b"x")
-        except OSError:
-            pass
+        self._waker.wake()
 
     def _read(self, timeout: float) -> Iterable[ControlEvent]:
         sock = self._sock
@@ -227,12 +217,9 @@ class UdpListenerDevice(Device):
             # over budget: leave the rest in (and to) the kernel until the window ends
             self._stop.wait(min(timeout, WINDOW - (now - self._window_start)))
             return ()
-        ready, _, _ = select.select([sock, self._wake_r], [], [], timeout)
-        if self._wake_r in ready:
-            try:
-                os.read(self._wake_r, 64)
-            except OSError:
-                pass
+        ready, _, _ = select.select([sock, self._waker], [], [], timeout)
+        if self._waker in ready:
+            self._waker.drain()
         if sock not in ready:
             return self._idle(time.monotonic())
         events: list[ControlEvent] = []

@@ -24,6 +24,7 @@ from devices.midi.common import MidiDevice, check_location
 from devices.midi.profile import profile_for_port
 from devices.midi.tokenizer import MidiTokenizer
 from devices.spec import DeviceSpec
+from devices.wakepipe import WakePipe
 
 #: After this long without data, check that the path still names the node we hold.
 IDLE_CHECK = 0.5
@@ -62,9 +63,7 @@ class RawMidiDevice(MidiDevice):
         self._fd = -1
         self._serial: Any = None
         self._identity: tuple[int, int] | None = None
-        self._wake_r, self._wake_w = os.pipe()
-        os.set_blocking(self._wake_r, False)
-        os.set_blocking(self._wake_w, False)
+        self._waker = WakePipe()
         self._last_data = 0.0
 
     def _stat(self) -> tuple[int, int] | None:
@@ -102,18 +101,10 @@ class RawMidiDevice(MidiDevice):
 
     def close(self) -> None:
         super().close()
-        for fd in (self._wake_r, self._wake_w):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
-        self._wake_r = self._wake_w = -1
+        self._waker.close()
 
     def _wake(self) -> None:
-        try:
-            os.write(self._wake_w, b"x")
-        except OSError:
-            pass
+        self._waker.wake()
 
     def _read(self, timeout: float) -> Iterable[ControlEvent]:
         fd = self._fd
@@ -121,12 +112,9 @@ class RawMidiDevice(MidiDevice):
             raise OSError("not open")
         due = self._send_lights(time.monotonic())
         wait = timeout if due is None else max(0.0, min(timeout, due - time.monotonic()))
-        ready, _, _ = select.select([fd, self._wake_r], [], [], wait)
-        if self._wake_r in ready:
-            try:
-                os.read(self._wake_r, 4096)
-            except OSError:
-                pass
+        ready, _, _ = select.select([fd, self._waker], [], [], wait)
+        if self._waker in ready:
+            self._waker.drain()
         if fd not in ready:
             now = time.monotonic()
             if now - self._last_data > IDLE_CHECK:
