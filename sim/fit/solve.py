@@ -227,11 +227,12 @@ class Fitter:
                          neutral_mm, prob.condition, (self.settler.settles - settles0) if self.settler else 0, scales)
 
     def _second_pass(self, prob: _Problem, disp: np.ndarray, acts: np.ndarray,
-                     offsets: np.ndarray | None = None) -> np.ndarray:
-        """Smoothing without lag: the prior is the mean of each frame's neighbours."""
+                     offsets: np.ndarray | None = None, frames: np.ndarray | None = None) -> np.ndarray:
+        """Smoothing without lag: the prior is the mean of each frame's neighbours (all frames,
+        or only `frames`)."""
         n = len(acts)
         out = acts.copy()
-        for t in range(n):
+        for t in (range(n) if frames is None else frames):
             nb = [acts[j] for j in (t - 1, t + 1) if 0 <= j < n]
             prior = np.mean(nb, axis=0) if nb else acts[t]
             d = disp[t] if offsets is None else disp[t] - offsets[t]
@@ -258,7 +259,7 @@ class Fitter:
             offsets[t] = off[verts]
             relin[t] = True
         if relin.any():
-            new = self._second_pass(prob, disp, acts, offsets)
+            new = self._second_pass(prob, disp, acts, offsets, np.flatnonzero(relin))
             for t in np.flatnonzero(relin):
                 # keep the re-linearised solution only where it explains the data better
                 before = np.linalg.norm(disp[t] - self.basis.predict(acts[t], verts))
