@@ -326,3 +326,28 @@ def test_fit_on_a_rig_file_records_it_for_replay(tmp_path, performance, capsys) 
     assert read_session(take).header["rig"]["path"] == str(rig.resolve())
     capsys.readouterr()
     assert main(["replay", str(take), "--headless"]) == 0
+
+
+def test_the_arkit_reader_inverts_the_export_mapping(tmp_path) -> None:
+    """Every channel the ARKit export writes one-to-one comes back with its value (5 decimals)."""
+    from puppet.capture.arkit_in import read_arkit_csv
+    from puppet.export.arkit import SIMPLE_SHAPES, ArkitCsvWriter
+    from sim.channels import CHANNEL_NAMES, CHANNEL_SPECS
+
+    one_to_one = {b + s for b in set(SIMPLE_SHAPES.values()) - {"orbicularis_oculi"} for s in ("_l", "_r")}
+    one_to_one |= {"jaw", "mentalis", "orbicularis_oris", "eyes_yaw", "eyes_pitch"}
+    rng = np.random.default_rng(15)
+    values = np.tile([s.default for s in CHANNEL_SPECS], (20, 1))
+    for ch in one_to_one:
+        j = CHANNEL_NAMES.index(ch)
+        values[:, j] = rng.uniform(-1.0 if ch.startswith("eyes") else 0.0, 1.0, 20)
+    path = tmp_path / "rt.arkit.csv"
+    w = ArkitCsvWriter(path, list(CHANNEL_NAMES), 60.0)
+    for k, v in enumerate(values):
+        w.add(k, v)
+    w.close()
+    cap = read_arkit_csv(path)
+    assert np.allclose(cap.times, np.arange(20) / 60.0)
+    for ch in sorted(one_to_one):
+        j = CHANNEL_NAMES.index(ch)
+        assert np.allclose(cap.values[:, j], values[:, j], atol=1e-5), ch
