@@ -351,3 +351,31 @@ def test_the_arkit_reader_inverts_the_export_mapping(tmp_path) -> None:
     for ch in sorted(one_to_one):
         j = CHANNEL_NAMES.index(ch)
         assert np.allclose(cap.values[:, j], values[:, j], atol=1e-5), ch
+
+
+def test_the_commands_as_a_user_runs_them(tmp_path, face0, basis0) -> None:  # type: ignore[no-untyped-def]
+    """Separate processes: a bad file is one line and exit 2; recognize --json prints the list."""
+    import os
+    import subprocess
+    import sys
+
+    from puppet.capture.take import write_take
+
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,chin_x,chin_y\n0,1,2\n")
+    out = tmp_path / "o.jsonl"
+    p = subprocess.run([sys.executable, "-m", "puppet", "fit", str(bad), "--out", str(out)], env=env,
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and not out.exists(), p.stderr
+    values = np.tile(np.array(face0.vocab.defaults()), (60, 1))
+    take = tmp_path / "still.jsonl"
+    write_take(take, face0, values, 60.0, {"test": True})
+    p = subprocess.run([sys.executable, "-m", "puppet", "recognize", str(take), "--json"], env=env,
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    spans = json.loads(p.stdout)
+    from sim.facs import EXPRESSIONS
+
+    assert [s["expression"] for s in spans] == ["neutral"]
+    assert set(spans[0]["scores"]) == {*EXPRESSIONS, "neutral"}
