@@ -1,6 +1,8 @@
 """Milliseconds per rendered frame on this machine's OpenGL (Mesa llvmpipe where there is no GPU),
 for the default face at resolutions 0 (~700 nodes) and 2 (~12k nodes), every view, with and
-without the HUD, as a share of a 60 Hz frame (16.7 ms).
+without the HUD, as a share of a 60 Hz frame (16.7 ms), and as a ratio to the rasterizer's floor
+measured in the same run: one full-screen textured quad drawn and read back at the same size
+(absolute GL times differ 1.5-2.5x between machines; the ratios compare across them).
 
 Each frame uploads a new surface (the live loop's work), offers the HUD a new fps reading (shown
 at most every 0.25 s, as live) and ends with ctx.finish(), so the time
@@ -50,6 +52,51 @@ def _timed(fn: object, frames: int) -> tuple[float, float]:
     for i in range(frames):
         fn(i)  # type: ignore[operator]
     return ((time.perf_counter() - w) / frames * 1000.0, (time.process_time() - c) / frames * 1000.0)
+
+
+FLOOR_VS = """
+#version 330
+in vec2 pos;
+out vec2 uv;
+void main() { uv = 0.5 * pos + 0.5; gl_Position = vec4(pos, 0.0, 1.0); }
+"""
+FLOOR_FS = """
+#version 330
+uniform sampler2D tex;
+in vec2 uv;
+out vec4 color;
+void main() { color = texture(tex, uv); }
+"""
+
+
+def floor_ms(ctx: object, size: tuple[int, int], frames: int) -> tuple[float, float]:
+    """(wall ms, cpu ms) of the rasterizer's floor at `size`: a full-screen quad sampling a texture
+    of that size into a colour + depth framebuffer, read back to memory, each frame finished."""
+    import numpy as np
+
+    previous = ctx.fbo  # type: ignore[attr-defined]
+    rng = np.random.default_rng(0)
+    tex = ctx.texture(size, 4, rng.integers(0, 255, (size[1], size[0], 4), dtype=np.uint8).tobytes())  # type: ignore[attr-defined]
+    prog = ctx.program(vertex_shader=FLOOR_VS, fragment_shader=FLOOR_FS)  # type: ignore[attr-defined]
+    quad = ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], dtype="f4").tobytes())  # type: ignore[attr-defined]
+    vao = ctx.vertex_array(prog, [(quad, "2f", "pos")])  # type: ignore[attr-defined]
+    fbo = ctx.framebuffer([ctx.renderbuffer(size, 4)], ctx.depth_renderbuffer(size))  # type: ignore[attr-defined]
+
+    def frame(i: int) -> None:
+        fbo.use()
+        fbo.clear(0.2, 0.2, 0.2, 1.0)
+        tex.use(0)
+        vao.render(mode=5)  # triangle strip
+        fbo.read(components=3)
+        ctx.finish()  # type: ignore[attr-defined]
+
+    for i in range(5):
+        frame(i)
+    out = _timed(frame, frames)
+    (previous if previous is not None else ctx.detect_framebuffer(0)).use()  # type: ignore[attr-defined]
+    for obj in (vao, quad, prog, tex, fbo):
+        obj.release()
+    return out
 
 
 def bench(resolution: int, size: tuple[int, int], frames: int, ctx: object) -> list[Row]:
@@ -122,13 +169,21 @@ def main() -> None:
           f"LP_NUM_THREADS={threads}, load average {os.getloadavg()[0]:.1f}")
     from sim import default_model
 
+    floors = [floor_ms(ctx, size, args.frames)]
+    print(f"floor (textured full-screen quad + readback): {floors[0][0]:.2f} ms wall, {floors[0][1]:.2f} ms cpu")
     for res in (int(r) for r in args.resolutions.split(",")):
         n = len(default_model(res).rest)
         print(f"\nresolution {res} ({n} nodes)")
-        print(f"{'view':<14}{'HUD':<5}{'wall ms':>9}{'cpu ms':>9}{'wall % of 60 Hz':>17}")
-        for view, with_hud, wall, cpu in bench(res, size, args.frames, ctx):  # type: ignore[arg-type]
+        print(f"{'view':<14}{'HUD':<5}{'wall ms':>9}{'cpu ms':>9}{'wall % of 60 Hz':>17}{'x floor':>9}{'cpu x floor':>13}")
+        rows = bench(res, size, args.frames, ctx)  # type: ignore[arg-type]
+        floors.append(floor_ms(ctx, size, args.frames))  # again after each face: drift shows
+        floor = sum(f[0] for f in floors) / len(floors)
+        floor_cpu = sum(f[1] for f in floors) / len(floors)
+        for view, with_hud, wall, cpu in rows:
             print(f"{view:<14}{'yes' if with_hud else 'no':<5}{wall:>9.2f}{cpu:>9.2f}"
-                  f"{wall / FRAME_60HZ_MS * 100:>16.0f}%")
+                  f"{wall / FRAME_60HZ_MS * 100:>16.0f}%{wall / floor:>9.2f}{cpu / floor_cpu:>13.2f}")
+    print(f"\nfloor over the run: {', '.join(f'{f[0]:.2f}/{f[1]:.2f}' for f in floors)} ms wall/cpu "
+          "(ratios use their means)")
 
 
 if __name__ == "__main__":

@@ -26,6 +26,9 @@ from devices.errors import DeviceSpecError
 from devices.events import ControlEvent
 from devices.spec import DeviceSpec
 from devices.warn import WarningCounter
+from safefile import quote
+
+MAX_DBC_BYTES = 16 * 1024 * 1024
 
 ERROR_CLASSES = {
     0x001: "TX timeout", 0x002: "lost arbitration", 0x004: "controller problem", 0x008: "protocol violation",
@@ -189,11 +192,20 @@ def load_dbc(path: str, spec: str) -> Any:
     if not path:
         raise DeviceSpecError(f"{spec}: a DBC file is needed: can://INTERFACE/CHANNEL?dbc=FILE")
     try:
+        if Path(path).is_file() and Path(path).stat().st_size > MAX_DBC_BYTES:
+            raise DeviceSpecError(f"{spec}: DBC file {Path(path).name} is larger than "
+                                  f"{MAX_DBC_BYTES // (1024 * 1024)} MB; is it the right file?")
         return cantools.database.load_file(path)
+    except DeviceSpecError:
+        raise
     except FileNotFoundError as err:
         raise DeviceSpecError(f"{spec}: DBC file {path} not found") from err
-    except Exception as err:
-        raise DeviceSpecError(f"{spec}: cannot load DBC file {Path(path).name}: {err}") from err
+    except Exception as err:  # cantools raises many types for a damaged file: one short line
+        msg = str(err)
+        m = re.search(r"line (\d+), column (\d+)", msg)
+        where = f"{Path(path).name}:{m.group(1)}:{m.group(2)}: syntax error" if m else \
+            f"{Path(path).name}: {quote(msg.splitlines()[0] if msg else type(err).__name__, 100)}"
+        raise DeviceSpecError(f"{spec}: cannot load DBC file {where}") from err
 
 
 class CanDevice(Device):

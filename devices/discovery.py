@@ -27,7 +27,8 @@ class DeviceInfo:
 def discover(probe: bool = False, hid_api_module: Any = None) -> list[DeviceInfo]:
     """Everything found; each family is looked at independently so one failure hides nothing else."""
     found: list[DeviceInfo] = []
-    for family in (lambda: serial_ports(probe), lambda: hid_devices(probe, hid_api_module), can_channels):
+    for family in (lambda: serial_ports(probe), lambda: hid_devices(probe, hid_api_module), can_channels,
+                   midi_ports):
         try:
             found += family()
         except Exception as err:  # a broken driver stack must not hide the other families
@@ -165,3 +166,10 @@ def can_channels() -> list[DeviceInfo]:
             out.append(DeviceInfo(f"can://{key[0]}/{key[1]}?dbc=PANEL.dbc",
                                   f"CAN channel {key[1]} ({key[0]}); name your panel's DBC file", "can", True))
     return out
+
+
+def midi_ports() -> list[DeviceInfo]:
+    """MIDI input ports on the ALSA sequencer and on a running JACK server (devices.midi)."""
+    from devices.midi.discover import midi_ports as _midi_ports
+
+    return _midi_ports()

@@ -21,11 +21,9 @@ Inline form: ``mock://?impersonate=sgi&sine=dial0&buttons=button3&duration=2&rat
 
 from __future__ import annotations
 
-import json
 import math
 import threading
 import time
-import tomllib
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,10 +34,12 @@ from devices.controlsets import DIAL_HI, DIAL_LO, control_set
 from devices.errors import DeviceError, DeviceSpecError
 from devices.events import ControlEvent
 from devices.spec import DeviceSpec
+from safefile import BadFile, load_json, load_toml, quote, read_text
 
 Clock = Callable[[], float]
 #: Samples one generator may produce (a typo in ``rate`` must not eat the memory).
 MAX_SAMPLES = 100_000
+MAX_SCRIPT_BYTES = 16 * 1024 * 1024
 Sleep = Callable[[float], None]
 
 
@@ -86,7 +86,7 @@ class Script:
             info = ControlInfo(str(c["name"]), c.get("kind", "axis"), float(c.get("lo", 0.0)),
                                float(c.get("hi", 1.0)), bool(c.get("light", False)))
             if info.kind not in ("button", "dial", "axis", "key"):
-                raise self._error(f"control {info.name}: unknown kind {info.kind!r}")
+                raise self._error(f"control {quote(info.name)}: unknown kind {quote(info.kind)}")
             self.controls[info.name] = info
         items: list[Item] = []
         for i, e in enumerate(data.get("events", [])):
@@ -115,15 +115,15 @@ class Script:
         info = self.controls.get(name)
         if info is None:
             if self.strict:
-                raise self._error(f"{where}: control {name!r} is not on the impersonated box")
+                raise self._error(f"{where}: control {quote(name)} is not on the impersonated box")
             info = self.controls[name] = _infer(name)
         return info
 
     def _item(self, info: ControlInfo, t: float, value: float, where: str) -> Item:
         if not math.isfinite(value) or not info.lo - 1e-9 <= value <= info.hi + 1e-9:
-            raise self._error(f"{where}: value {value} of {info.name} is outside {info.lo}..{info.hi}")
+            raise self._error(f"{where}: value {value:g} of {quote(info.name)} is outside {info.lo:g}..{info.hi:g}")
         if info.kind in ("button", "key") and value not in (0.0, 1.0):
-            raise self._error(f"{where}: {info.name} takes 0 or 1, not {value}")
+            raise self._error(f"{where}: {quote(info.name)} takes 0 or 1, not {value:g}")
         return Item(t, info.name, value, None, value)
 
     def _dial(self, info: ControlInfo, t: float, counts: int) -> Item:
@@ -133,7 +133,7 @@ class Script:
         try:
             t, name = float(e["t"]), str(e["control"])
         except (KeyError, TypeError, ValueError) as err:
-            raise self._error(f"{where}: needs t and control ({err})") from None
+            raise self._error(f"{where}: needs t and control ({quote(str(err))})") from None
         info = self.info(name, where)
         if info.kind == "dial":
             counts = int(e["delta"]) if "delta" in e else round(float(e.get("value", 0)) * self.counts_per_turn)
@@ -148,7 +148,7 @@ class Script:
             raise self._error("generator needs a finite start, duration >= 0 and rate > 0")
         n = max(1, int(round(duration * rate)))
         if n > MAX_SAMPLES:
-            raise self._error(f"generator of {n} samples; at most {MAX_SAMPLES}")
+            raise self._error(f"generator of {float(n):.3g} samples; at most {MAX_SAMPLES}")
         return start, duration, n
 
     def _curve(self, g: dict[str, Any], where: str, f: Callable[[float], float]) -> list[Item]:
@@ -195,12 +195,15 @@ def load_script(location: str, query: dict[str, str], origin: str) -> Script:
     if location:
         path = Path(location)
         try:
-            text = path.read_text(encoding="utf-8")
-            data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text)
-        except OSError as err:
-            raise DeviceSpecError(f"{origin}: cannot read mock script {path}: {err.strerror}") from err
-        except (ValueError, tomllib.TOMLDecodeError) as err:
-            raise DeviceSpecError(f"{origin}: mock script {path} is not valid: {err}") from err
+            text = read_text(path, "mock script", MAX_SCRIPT_BYTES)
+            if path.suffix.lower() == ".json":
+                data = load_json(text, str(path), "mock script")
+            else:
+                data = load_toml(text, str(path), "mock script")
+        except BadFile as err:
+            raise DeviceSpecError(f"{origin}: the mock script is not valid: {err}") from err
+        if not isinstance(data, dict):
+            raise DeviceSpecError(f"{origin}: a mock script is a table of keys, not {type(data).__name__}")
     else:
         data = {}
         try:
@@ -223,7 +226,7 @@ def load_script(location: str, query: dict[str, str], origin: str) -> Script:
             try:
                 data[key] = convert(query[key])
             except ValueError as err:
-                raise DeviceSpecError(f"{origin}: option {key}={query[key]!r} is not valid") from err
+                raise DeviceSpecError(f"{origin}: option {key}={quote(query[key])} is not valid") from err
     return build_script(data, origin)
 
 
@@ -236,7 +239,7 @@ def build_script(data: Any, origin: str) -> Script:
     except DeviceSpecError:
         raise
     except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as err:
-        raise DeviceSpecError(f"{origin}: bad mock script entry: {err!r}") from err
+        raise DeviceSpecError(f"{origin}: bad mock script entry: {type(err).__name__}: {quote(str(err), 80)}") from err
 
 
 class MockDevice(Device):

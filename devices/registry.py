@@ -26,6 +26,14 @@ BACKENDS: dict[str, tuple[str, str]] = {
     "can": ("devices.candev", "CanDevice"),
     "keyboard": ("devices.keyboard", "KeyboardDevice"),
     "mock": ("devices.mock", "MockDevice"),
+    "midi": ("devices.midi.port", "MidiPortDevice"),
+    "rawmidi": ("devices.midi.raw", "RawMidiDevice"),
+    "osc": ("devices.osc", "OscDevice"),
+    "facecap": ("devices.facestream.facecap", "FaceCapDevice"),
+    "vmc": ("devices.facestream.vmc", "VmcDevice"),
+    "ifacialmocap": ("devices.facestream.ifacialmocap", "IFacialMocapDevice"),
+    "livelink": ("devices.facestream.livelink", "LiveLinkDevice"),
+    "panel": ("puppet.panel.device", "PanelDevice"),  # the browser page; its server lives in puppet/panel
 }
 
 ENTRY_POINT_GROUP = "puppet.devices"

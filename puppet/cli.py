@@ -9,6 +9,7 @@ import sys
 
 from devices.errors import DeviceError
 from puppet.errors import PuppetError
+from safefile import BadFile
 
 # Subcommand modules, in help order. Each defines register(subparsers) -> None and sets
 # `func(args) -> int` on its parser with set_defaults.
@@ -20,6 +21,7 @@ COMMAND_MODULES = (
     "puppet.cmd_devices",
     "puppet.cmd_learn",
     "puppet.cmd_replay",
+    "puppet.cmd_edit",
     "puppet.cmd_import_face",
     "puppet.cmd_fit",
     "puppet.cmd_recognize",
@@ -55,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     try:
         return int(args.func(args) or 0)
-    except (PuppetError, DeviceError) as err:
+    except (PuppetError, DeviceError, BadFile) as err:
         print(f"puppet: error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

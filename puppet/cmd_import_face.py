@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from puppet.errors import ConfigError
+from safefile import atomic_path, atomic_write
 
 
 def register(subparsers: Any) -> None:
@@ -51,7 +52,8 @@ def _render(model: Any, path: Path) -> str | None:
     try:
         from render.offscreen import render_to_file
 
-        render_to_file(model, model.rest_state(), path, size=(960, 960), view="muscles")
+        with atomic_path(path) as tmp:
+            render_to_file(model, model.rest_state(), tmp, size=(960, 960), view="muscles")
     except Exception as err:  # EGL/Mesa missing or broken: the rig itself is still good
         print(f"puppet: warning: could not render {path} ({type(err).__name__}: {err})".splitlines()[0],
               file=sys.stderr)
@@ -82,12 +84,15 @@ def run(args: argparse.Namespace) -> int:
         model = compile_model(result.rig)
     except ValueError as err:  # a reference rig the builder rejects once moved onto this mesh
         raise ConfigError(f"{args.mesh}: the transferred rig does not compile ({err})".splitlines()[0]) from err
-    save_rig(result.rig, out)
+    try:
+        save_rig(result.rig, out)  # beside the target, then renamed: an old rig survives a failure
+    except OSError as err:
+        raise ConfigError(f"{out}: cannot write the rig: {err.strerror or err}") from err
     seconds = time.perf_counter() - start
     image = None if args.no_image else _render(model, out.with_suffix(".png"))
     report = out.with_suffix(".report.md")
-    report.write_text(format_report(result, args.mesh, args.landmarks, seconds,
-                                    Path(image).name if image else None), encoding="utf-8")
+    with atomic_write(report) as fh:
+        fh.write(format_report(result, args.mesh, args.landmarks, seconds, Path(image).name if image else None))
     m = result.rig.mesh
     print(f"wrote {out} ({len(m.vertices)} vertices, {sum(len(p) for p in result.rig.muscles.values())} "
           f"muscle parts, scale x{result.similarity.scale:.4g} to cm) in {seconds:.1f} s")

@@ -7,6 +7,7 @@ Prompts go to stdout and answers come from stdin, one line each, so a session ca
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import time
 from typing import Any, TextIO
@@ -14,6 +15,22 @@ from typing import Any, TextIO
 #: An absolute control must move this much (of its range) to count as "touched": pots jitter.
 AXIS_TOUCH = 0.05
 MODES = ("momentary", "toggle", "trigger")
+ENCODINGS = ("twos_complement", "offset64", "sign_magnitude")
+#: A MIDI control reported under its generic name (no profile names it): maybe a relative encoder.
+GENERIC_CC = re.compile(r"ch\d+\.cc\d+$")
+#: An absolute pot never sends one value three times running; a relative encoder turned one way does.
+REL_RUN = 3
+
+
+def relative_guess(raw: int) -> str | None:
+    """The likely encoding of a relative encoder repeating ``raw``: 1-15 up or 113-127 down in
+    two's complement, 49-63 down or 65-79 up around 64 (offset64; sign-magnitude 65 = -1 looks
+    the same, so the user is asked)."""
+    if 1 <= raw <= 15 or 113 <= raw <= 127:
+        return "twos_complement"
+    if 49 <= raw <= 79 and raw != 64:
+        return "offset64"
+    return None
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -37,13 +54,23 @@ class _Touch:
 
     def __init__(self) -> None:
         self.first: dict[tuple[str, str], float] = {}
+        self.runs: dict[tuple[str, str], list[object]] = {}
+        self.encoding: str | None = None  # set when the touched control looks like a relative encoder
 
     def touched(self, ev: Any) -> bool:
+        self.encoding = None
         if ev.kind == "dial":
             return ev.value != 0
         if ev.kind in ("button", "key"):
             return ev.value > 0.5
         key = (ev.device, ev.control)
+        if GENERIC_CC.match(ev.control) and isinstance(ev.raw, int):
+            run = self.runs.setdefault(key, [])
+            run.append(ev.raw)
+            del run[:-REL_RUN]
+            if len(run) == REL_RUN and len(set(run)) == 1 and relative_guess(ev.raw):
+                self.encoding = relative_guess(ev.raw)
+                return True
         start = self.first.setdefault(key, ev.value)
         return abs(ev.value - start) >= AXIS_TOUCH
 
@@ -83,7 +110,9 @@ def run(args: argparse.Namespace, stdin: TextIO | None = None) -> int:
             if ev is None:
                 print("no control touched: done")
                 break
-            print(f"touched {ev.control} ({ev.kind}) on {ev.device}")
+            encoding = touch.encoding
+            kind = "dial" if encoding else ev.kind
+            print(f"touched {ev.control} ({'relative encoder' if encoding else ev.kind}) on {ev.device}")
             while True:
                 answer = _ask("target (channel, AU12, expr:NAME; ? lists, empty skips, q quits): ", stdin)
                 if answer is None or answer == "q":
@@ -99,11 +128,14 @@ def run(args: argparse.Namespace, stdin: TextIO | None = None) -> int:
                 except ChannelError as err:
                     print(f"  {err}")
                     continue
-                mode = None
+                mode, settings = None, None
                 if ev.kind in ("button", "key"):
                     m = _ask(f"button mode ({'/'.join(MODES)}; empty = momentary): ", stdin)
                     mode = m if m in MODES else None
-                how = learn_binding(args.map, ev.control, ev.device, answer, ev.kind, mode)
+                if encoding:
+                    e = _ask(f"encoding ({'/'.join(ENCODINGS)}; empty = {encoding}): ", stdin)
+                    settings = {"input": "relative", "encoding": e if e in ENCODINGS else encoding}
+                how = learn_binding(args.map, ev.control, ev.device, answer, kind, mode, settings)
                 learned += 1
                 print(f"{how}: {ev.control} -> {answer}")
                 break

@@ -27,6 +27,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--demo", action="store_true",
                    help="perform the built-in demo (about 20 s): in the window when there is a display, "
                    "else headless into a recording, an MP4 and a PNG in the current folder")
+    p.add_argument("--panel", type=int, metavar="PORT",
+                   help="serve the performer's page on this port (default: served on 8765 or the next free port)")
+    p.add_argument("--no-panel", action="store_true", help="do not serve the performer's page")
+    p.add_argument("--panel-lan", action="store_true",
+                   help="serve the page to the LAN (all interfaces), behind a random token in the printed URL")
+    p.add_argument("--panel-role", action="append", default=[], metavar="NAME=PATTERNS",
+                   help="a page role limited to some channels, e.g. mouth=jaw,orbicularis_oris,AU26 "
+                   "(open the page with ?role=mouth); repeatable. See docs/panel.md")
+    p.add_argument("--supervise", action="store_true",
+                   help="restart the show within a second if it crashes, continuing the same take "
+                   "(a new segment of the recording) with the face's last channel values; see docs/live.md")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the --record FILE if it exists (a new segment) instead of starting it "
+                   "again (what --supervise and the systemd unit in docs/live.md do after a crash)")
+    p.add_argument("--standby", action="store_true", help=argparse.SUPPRESS)  # --supervise's spare
     p.set_defaults(func=run)
 
 
@@ -133,6 +148,21 @@ def run(args: argparse.Namespace) -> int:
         print(f"puppet: {msg}", file=sys.stderr)
 
     live.check_duration(args.duration)
+    if args.supervise or args.resume:
+        if args.demo:
+            raise PuppetError("--demo plays once: leave out --supervise and --resume")
+        if args.resume and not args.record:
+            raise PuppetError("--resume continues the recording given with --record FILE")
+    if args.supervise:
+        from puppet.supervise import run_supervised
+
+        return run_supervised(args, warn)
+    live.warm_up_in_background()  # numba's kernels load while the devices open and the face loads
+    if args.standby:
+        from puppet.supervise import stand_by
+
+        if not stand_by(args, lambda: live.load_face(args.rig)):
+            return 0
     windowed = not args.headless and live.display_available()
     if args.demo:
         if args.device:
@@ -141,7 +171,8 @@ def run(args: argparse.Namespace) -> int:
     snapshot: Path | None = None
     record = args.record
     devs = _open_devices(list(args.device), warn)
-    if not devs and not windowed:
+    explicit_panel = getattr(args, "panel", None) is not None or getattr(args, "panel_lan", False)
+    if not devs and not windowed and not explicit_panel:
         length = "about 20 s" if args.duration is None else f"at most {args.duration:g} s"
         warn(f"no control box and no display: performing the built-in demo ({length}) headless into a "
              "recording, an MP4 and a PNG here (`puppet live --demo` does this on purpose)")
@@ -161,9 +192,38 @@ def run(args: argparse.Namespace) -> int:
             mapped.append((kb.spec, kb.description))
         devs.append(kb)
     try:
+        _open_panel(args, face, devs, explicit_panel, warn)
         return _perform(args, live, face, devs, mapped, windowed, record, snapshot, warn, watch=not args.device)
     finally:
         _close_all(devs)
+
+
+def _open_panel(args: argparse.Namespace, face: Any, devs: list[Any], explicit: bool, warn: Any) -> None:
+    """Serve the performer's page (a `panel://` device) unless --no-panel, or the run is on the
+    script clock of mock boxes and no page was asked for."""
+    import devices
+    from puppet.panel import announce
+    from puppet.panel.device import parse_roles
+
+    scripted = bool(devs) and all(getattr(getattr(d, "script", None), "speed", 1.0) == 0 for d in devs)
+    if getattr(args, "no_panel", False) or (scripted and not explicit):
+        return
+    try:
+        roles = parse_roles(getattr(args, "panel_role", []))
+    except ValueError as err:
+        raise devices.DeviceSpecError(str(err)) from err
+    port = "" if args.panel is None else f":{args.panel}"
+    host = "0.0.0.0" if args.panel_lan else "127.0.0.1"
+    spec = f"panel://{host}{port}" + ("?lan=1" if args.panel_lan else "")
+    try:
+        dev = devices.open_device(spec, vocab=face.vocab, roles=roles)
+    except devices.DeviceError as err:
+        if explicit:
+            raise
+        warn(f"no performer's page ({err})")
+        return
+    devs.append(dev)
+    announce(dev)
 
 
 def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], mapped: list[tuple[str, str]],
@@ -174,11 +234,23 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
 
     specs = [d.spec for d in devs]
     spec = live.build_mapping(face.vocab, args.map, mapped, system_keys=windowed)
+    from puppet.panel import panel_devices, with_panel_map
+
+    spec = with_panel_map(spec, face.vocab, devs)
     mapper = Mapper(spec, face.vocab)
     for d in devs:
         mapper.declare_controls(d.spec, d.controls)
     virtual = bool(devs) and all(getattr(getattr(d, "script", None), "speed", 1.0) == 0 for d in devs)
-    writer = SessionWriter(record, live.session_header(face, spec, live.TICK_RATE, specs)) if record else None
+    header = live.session_header(face, spec, live.TICK_RATE, specs)
+    point = None
+    if record and getattr(args, "resume", False):
+        from puppet import resume
+
+        point = resume.resume_point(record, face, getattr(args, "follower", None))
+    if point is not None:
+        writer = resume.open_resumed(point, SessionWriter, header)
+    else:
+        writer = SessionWriter(record, header) if record else None
     by_spec = {d.spec: d for d in devs}
 
     def lights(dev: str, ctl: str, on: bool) -> None:
@@ -192,7 +264,12 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     import time
 
     t0 = time.monotonic()
-    core = live.LiveCore(face, mapper, writer=writer, t0=0.0 if virtual else t0, lights=lights)
+    core = live.LiveCore(face, mapper, writer=writer, t0=0.0 if virtual else t0, lights=lights,
+                         wrinkles_later=not virtual)
+    if point is not None:
+        resume.start_segment(core, point)
+    for page in panel_devices(devs):
+        page.watch(core, devs, record)
     stop = live.StopFlag()
     stop.install()
     watcher = None

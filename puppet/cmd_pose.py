@@ -105,11 +105,11 @@ def build_control(args: argparse.Namespace) -> Any:
 def load_model(args: argparse.Namespace) -> Any:
     """The FaceModel: the rig file if given, else the default face at --resolution."""
     if args.rig:
-        from sim.build import compile_model
-        from sim.rig import RigFileError, load_rig
+        from sim.rig import RigFileError
+        from sim.rig import load_model as load_rig_model
 
         try:
-            return compile_model(load_rig(args.rig))
+            return load_rig_model(args.rig)
         except RigFileError as err:
             raise ConfigError(str(err)) from err
     if args.resolution not in (0, 1, 2):
@@ -169,13 +169,16 @@ def _settled(state: Any) -> bool:
 
 def write_pose(model: Any, state: Any, out: Path, *, size: tuple[int, int] = (1280, 720),
                view: str = "shaded", history: list | None = None) -> None:
-    """Write the state as .npz, .obj or an image (see the module docstring)."""
+    """Write the state as .npz, .obj or an image (see the module docstring), beside `out` and
+    renamed into place, so a failure leaves an old file as it was."""
     import numpy as np
+
+    from safefile import atomic_path, atomic_write
 
     suffix = out.suffix.lower()
     if suffix == ".npz":
         names = sorted(model.mesh.landmarks)
-        with open(out, "wb") as fh:
+        with atomic_write(out, "wb") as fh:
             np.savez(
                 fh,
                 rest=np.asarray(model.rest, np.float64),
@@ -186,7 +189,7 @@ def write_pose(model: Any, state: Any, out: Path, *, size: tuple[int, int] = (12
                 landmark_indices=np.array([model.mesh.landmarks[n] for n in names], dtype=np.int64),
             )
     elif suffix == ".obj":
-        with open(out, "w", encoding="ascii") as fh:
+        with atomic_write(out, "w", encoding="ascii") as fh:
             fh.write(f"# puppet pose, model {model.hash}, t = {state.time:.4f} s, cm\n")
             for x, y, z in state.surface:
                 fh.write(f"v {x:.6f} {y:.6f} {z:.6f}\n")
@@ -197,4 +200,5 @@ def write_pose(model: Any, state: Any, out: Path, *, size: tuple[int, int] = (12
             from render.offscreen import render_to_file
         except ImportError as err:
             raise PuppetError(f"cannot write {out}: the offscreen renderer is not available ({err})") from err
-        render_to_file(model, state, out, size=size, view=view, history=history)
+        with atomic_path(out) as tmp:
+            render_to_file(model, state, tmp, size=size, view=view, history=history)

@@ -59,6 +59,13 @@ def run(args: argparse.Namespace) -> int:
             print(f"puppet: warning: {w}", file=sys.stderr)
     curves = load_curves(args.curves) if args.curves else None
     perf = build_performance(session, curves, args.rig)
+    if perf.ticks == 0 and session is not None:
+        empty = (f"{session.path} holds no performance (its header only: the show stopped before its "
+                 "first tick)")
+        if args.out:
+            raise PuppetError(f"{empty}; nothing to export, {args.out} is left as it was")
+        print(f"puppet: {empty}; replayed an empty take")
+        return 0
     if args.out:
         from puppet.export.runner import ExportOptions, export, kind_of
 

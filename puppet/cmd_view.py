@@ -92,8 +92,10 @@ def run(args: argparse.Namespace) -> int:
                             antialias=None if args.antialias == "auto" else args.antialias)
     except NoDisplayError as err:
         from render.offscreen import render_to_file
+        from safefile import atomic_path
 
-        render_to_file(model, state, out, size=size, view=args.view, history=history, hud=hud)
+        with atomic_path(out) as tmp:  # renamed into place when complete
+            render_to_file(model, state, tmp, size=size, view=args.view, history=history, hud=hud)
         print(f"puppet view: {err}; wrote {out.resolve()} instead", file=sys.stderr)
         return 0
     with window:

@@ -76,13 +76,18 @@ class Face:
 
 
 def load_face(rig_path: str | None = None, resolution: int = 0) -> Face:
-    """The default face, or the rig file at rig_path (a one-line ConfigError if it is wrong)."""
+    """The default face, or the rig file at rig_path (a one-line ConfigError if it is wrong);
+    compiled faces come from the on-disk cache when it holds a trustworthy entry (puppet.face_cache)."""
     import sim
+
+    from puppet import face_cache
 
     if rig_path:
         try:
-            rig = sim.load_rig(rig_path)
-            model = sim.compile_model(rig)
+            from sim.rig import load_model, load_rig
+
+            rig = load_rig(rig_path)
+            model = face_cache.rig_model(rig, Path(rig_path).read_bytes(), lambda: load_model(rig_path))
         except FileNotFoundError as err:
             raise ConfigError(f"{rig_path}: rig file not found") from err
         except (OSError, ValueError, KeyError) as err:
@@ -90,9 +95,25 @@ def load_face(rig_path: str | None = None, resolution: int = 0) -> Face:
             raise ConfigError(msg) from err
         info = {"name": getattr(rig, "name", "rig"), "hash": model.hash, "path": str(Path(rig_path).resolve())}
     else:
-        model = sim.default_model(resolution)
+        model = face_cache.default_model(resolution)
         info = {"name": "default", "hash": model.hash, "resolution": resolution, "path": None}
     return Face(model, Vocabulary.from_model(model), info)
+
+
+def warm_up_in_background() -> None:
+    """Load the RK2 kernels from numba's cache in a thread (~0.3-0.7 s, most of a warm start)
+    while the caller opens devices and loads the face; the first step waits for it if needed."""
+    import threading
+
+    def run() -> None:
+        try:
+            from sim.integrator import warm_up
+
+            warm_up(implicit=False)
+        except Exception:  # the loop's own first step will compile or report it
+            pass
+
+    threading.Thread(target=run, name="kernel-warm-up", daemon=True).start()
 
 
 def build_mapping(vocab: Vocabulary, map_path: str | None, device_specs: Sequence[str | tuple[str, str]],
@@ -170,6 +191,15 @@ def _positions_digest(positions: np.ndarray) -> Callable[[], str]:
     return digest
 
 
+#: a test hook: `PUPPET_CRASH_AT_TICK=N` makes the live loop raise at tick N (testing --supervise)
+CRASH_ENV = "PUPPET_CRASH_AT_TICK"
+
+
+def _crash_tick() -> int:
+    raw = os.environ.get(CRASH_ENV, "")
+    return int(raw) if raw.isdigit() else -1
+
+
 class LiveCore:
     """The fixed-tick core: same Simulator, same start state, same values per tick as replay.
 
@@ -180,14 +210,23 @@ class LiveCore:
 
     def __init__(self, face: Face, mapper: Mapper, *, rate: float = TICK_RATE,
                  writer: SessionWriter | None = None, t0: float = 0.0,
-                 lights: Callable[[str, str, bool], None] | None = None) -> None:
+                 lights: Callable[[str, str, bool], None] | None = None, wrinkles_later: bool = False) -> None:
         import sim
 
         self.face, self.mapper, self.rate, self.dt = face, mapper, rate, 1.0 / rate
-        self.sim = sim.Simulator(face.model, self.dt)
+        # wrinkles_later: the wrinkle layer (~0.5-1 s to build and load) is made in a thread and
+        # switched on at a tick boundary once ready, so the show starts without waiting for it;
+        # wrinkles only displace the drawn surface, never the simulated positions or the recording
+        self._wrinkles_ready = False
+        self.sim = sim.Simulator(face.model, self.dt, wrinkles=not wrinkles_later)
         # the first step pays for JIT compilation: pay it now on a throw-away simulator, not on
         # the first events of the show (the real Simulator starts fresh, as replay's does)
-        sim.Simulator(face.model, self.dt).step(face.model.rest_state(), sim.FaceControl(face.model))
+        sim.Simulator(face.model, self.dt, wrinkles=False).step(face.model.rest_state(), sim.FaceControl(face.model))
+        self._wrinkles_thread = None
+        if wrinkles_later and face.model.rig.wrinkles:  # started after the first frame
+            import threading
+
+            self._wrinkles_thread = threading.Thread(target=self._build_wrinkles, name="wrinkle-layer", daemon=True)
         self.state = face.model.rest_state()
         self.control = sim.FaceControl(face.model)
         self.writer, self.t0, self.lights = writer, t0, lights
@@ -196,12 +235,28 @@ class LiveCore:
         self.tick_count = 0
         self.latency = LatencyMeter()
         self.unpresented: list[float] = []
+        self.frames = 0  # frames presented (the performer's page shows the rate)
         self.values = np.array(mapper.values, copy=True)
         self.markers: list[tuple[int, str]] = []
         #: run in the loop thread at each tick boundary (e.g. adopting a box plugged in mid-show)
         self.before_tick: list[Callable[[LiveCore], None]] = []
         #: set to a Spans to time the parts of each tick (benchmarks/live_latency.py)
         self.spans: Spans | None = None
+        #: restored channel values kept until the performer takes them over (puppet.resume)
+        self.hold: Any = None
+        self._crash_at = _crash_tick()
+
+    def _build_wrinkles(self) -> None:
+        try:
+            from sim.wrinkles.layer import warm_up
+
+            warm_up(self.face.model)
+        except Exception as err:  # the show goes on without wrinkles
+            import sys
+
+            print(f"puppet: warning: no wrinkles this show ({err})", file=sys.stderr)
+            return
+        self._wrinkles_ready = True
 
     def tick(self, events: Iterable[Event]) -> None:
         """Apply `events` at this tick boundary, then advance one tick."""
@@ -209,6 +264,8 @@ class LiveCore:
         if sp is not None:
             pc = time.perf_counter
             t_a = pc()
+        if self._wrinkles_ready and not self.sim.wrinkles:
+            self.sim.wrinkles = True
         for hook in self.before_tick:
             hook(self)
         k = self.tick_count
@@ -221,7 +278,11 @@ class LiveCore:
                 unpresented.append(ev.t)
         if sp is not None:
             t_b = pc()
+        if k == self._crash_at:
+            raise RuntimeError(f"{CRASH_ENV}: the crash asked for at tick {k}")
         values = mapper.step(self.dt)
+        if self.hold is not None:
+            values = self.hold.apply(values)
         for label in mapper.take_markers():
             self.mark(label)
         if writer is not None:
@@ -250,7 +311,10 @@ class LiveCore:
 
     def after_frame(self) -> None:
         """The frame is published: write the recording's records kept since the last call and
-        flush it if the last flush is 100 ms old."""
+        hand it to the OS; after the first frame, start building the wrinkle layer (wrinkles_later)."""
+        if self._wrinkles_thread is not None:
+            self._wrinkles_thread.start()
+            self._wrinkles_thread = None
         if self.writer is not None:
             if self.spans is not None:
                 t = time.perf_counter()
@@ -266,6 +330,7 @@ class LiveCore:
 
     def presented(self, t: float) -> None:
         """A frame showing every tick so far reached the screen (or the encoder) at time t."""
+        self.frames += 1
         for te in self.unpresented:
             self.latency.add(t - te)
         self.unpresented.clear()
@@ -316,7 +381,10 @@ def run_virtual(core: LiveCore, events: Sequence[Event], duration: float,
     """Run ticks as fast as possible on script time: tick k applies events with t <= k*dt."""
     n_ticks = max(1, int(round(duration * core.rate)))
     i = 0
-    for k in range(n_ticks):
+    if core.tick_count:  # a resumed take: the events of the ticks already performed are gone
+        while i < len(events) and events[i].t <= (core.tick_count - 1) * core.dt + 1e-12:
+            i += 1
+    for k in range(core.tick_count, n_ticks):
         if stop is not None and stop.stopped:
             break
         boundary = k * core.dt + 1e-12
@@ -424,7 +492,7 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
     limit = None if duration is None else int(round(duration * core.rate))
     with _ShowRuntime() as runtime:
         start = clock()
-        k0 = 0
+        k0 = core.tick_count  # a resumed take starts at its first new tick
         while True:
             if stop is not None and stop.stopped:
                 break
@@ -548,7 +616,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
     """Ticks on the wall clock (at most 4 per frame, then the schedule re-anchors), frames at the
     window's pace; latency is measured when the frame showing an event has been swapped."""
     kb = next((d for d in devs if d.spec.startswith("keyboard")), None)
-    keymap = kb is not None and len(devs) == 1
+    keymap = kb is not None and len([d for d in devs if getattr(d, "scheme", "") != "panel"]) == 1
     win = _window_or_none(core.face.model, "facepuppet live", [*LIVE_HELP, *([KEYMAP_HELP] if keymap else [])])
     if win is None:
         run_realtime(core, drain, duration, stop=stop)
@@ -563,7 +631,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
             kb.feed_key(name, action, t)  # type: ignore[arg-type]
 
     win.add_key_callback(on_key)
-    sched = {"start": time.monotonic(), "k0": 0}
+    sched = {"start": time.monotonic(), "k0": core.tick_count}
     limit = None if duration is None else int(round(duration * core.rate))
 
     def on_frame(w: Any, now: float) -> None:

@@ -20,8 +20,11 @@ from puppet.curves import CurveLayer, CurveSet
 from puppet.errors import ConfigError, PuppetError
 from puppet.live import Face, load_face
 from puppet.session import Session
+from safefile import quote
 
 CHECKPOINT_TICKS = 60
+MAX_FPS = 10_000.0
+MAX_FRAMES = 10_000_000
 
 
 def state_digest(state: Any) -> str:
@@ -38,6 +41,8 @@ class Performance:
     rate: float
     markers: list[tuple[int, str]]
     checks: dict[int, str]
+    #: ticks where the live program restarted (a crash): the face starts again from rest there
+    restarts: tuple[int, ...] = ()
 
     @property
     def ticks(self) -> int:
@@ -53,10 +58,10 @@ def face_for(session: Session | None, rig_path: str | None) -> Face:
     face at the recorded resolution; a hash mismatch is a warning (the motion will differ)."""
     if session is None:
         return load_face(rig_path)
-    rig = session.header.get("rig") or {}
+    rig = session.header.get("rig") or {}  # checked by the reader: str path, int resolution 0..2
     path = rig_path or rig.get("path")
     if path and not Path(path).exists():
-        raise ConfigError(f"{session.path}: recorded with rig {path}, which is missing; pass --rig PATH")
+        raise ConfigError(f"{session.path}: recorded with rig {quote(path, 120)}, which is missing; pass --rig PATH")
     face = load_face(path, int(rig.get("resolution", 0) or 0))
     want = rig.get("hash")
     if want and face.rig["hash"] != want:
@@ -81,6 +86,7 @@ def build_performance(session: Session | None, curves: CurveSet | None, rig_path
     if session is not None:
         rate = session.tick_rate
         values = session.value_array(defaults, names)
+        _clamp(values, face, str(session.path))
         markers = list(session.markers)
         checks = dict(session.checks)
     else:
@@ -91,9 +97,33 @@ def build_performance(session: Session | None, curves: CurveSet | None, rig_path
         layer = CurveLayer(curves, face.vocab)
         if session is not None and curves.duration * rate > values.shape[0]:
             extra = int(np.ceil(curves.duration * rate)) + 1 - values.shape[0]
-            values = np.vstack([values, np.tile(values[-1], (extra, 1))])
-        values = np.array([layer.apply(values[k], k / rate) for k in range(values.shape[0])])
-    return Performance(face, values, rate, markers, checks)
+            values = np.vstack([values, np.tile(values[-1] if len(values) else defaults, (extra, 1))])
+        layered = np.array([layer.apply(values[k], k / rate) for k in range(values.shape[0])])
+        if checks:  # a recording's digests hold up to the first tick the curves change
+            differs = np.flatnonzero(np.any(layered != values, axis=1))
+            if len(differs):
+                checks = {k: v for k, v in checks.items() if k <= int(differs[0])}
+        values = layered
+    restarts = tuple(session.segments) if session is not None else ()
+    return Performance(face, values, rate, markers, checks, restarts)
+
+
+def _clamp(values: np.ndarray, face: Face, source: str) -> None:
+    """Values read from a file are held to each channel's range (a jaw of 1e308 would throw the
+    face across the room): clamped in place, with one warning naming the first."""
+    lo = np.array([c.lo for c in face.vocab.channels])
+    hi = np.array([c.hi for c in face.vocab.channels])
+    bad = (values < lo) | (values > hi)
+    if not bad.any():
+        return
+    import sys
+
+    k, j = (int(x) for x in np.argwhere(bad)[0])
+    c = face.vocab.channels[j]
+    print(f"puppet: warning: {source}: {int(bad.sum())} channel values lie outside their channel's range "
+          f"(first: {c.name} = {values[k, j]:.6g} at tick {k}, range {c.lo:g}..{c.hi:g}); clamped to it",
+          file=sys.stderr)
+    np.clip(values, lo, hi, out=values)
 
 
 class Replayer:
@@ -116,6 +146,11 @@ class Replayer:
         k = self.tick
         if k >= self.perf.ticks:
             return
+        if k in self.perf.restarts:  # as the restarted live program did: a fresh simulator at rest
+            import sim
+
+            self.sim = sim.Simulator(self.perf.face.model, 1.0 / self.perf.rate)
+            self.state.assign(self.perf.face.model.rest_state())
         self.control.values[...] = self.perf.values[k]
         self.sim.step(self.state, self.control)
         self.tick = k + 1
@@ -141,12 +176,15 @@ class Replayer:
 def frame_ticks(perf: Performance, fps: float, start: float = 0.0, end: float | None = None,
                 speed: float = 1.0) -> list[int]:
     """The tick shown by each exported frame (see the module docstring)."""
-    if fps <= 0 or speed <= 0:
-        raise PuppetError("--fps and --speed must be positive")
+    if not (0 < fps <= MAX_FPS and 0 < speed <= MAX_FPS and np.isfinite(start)):
+        raise PuppetError(f"--fps and --speed must be positive, at most {MAX_FPS:g}")
     end = perf.duration if end is None else min(end, perf.duration)
     if start < 0 or start > end:
         raise PuppetError(f"--from {start} must lie in 0..{end:.3f} s (the end of the replay)")
     n = max(1, int(round((end - start) * fps / speed)))
+    if n > MAX_FRAMES:
+        raise PuppetError(f"{n} frames asked ({end - start:.6g} s at {fps:g} fps, speed {speed:g}); "
+                          f"at most {MAX_FRAMES}: lower --fps or shorten --from/--to")
     return [min(perf.ticks, int(round((start + j * speed / fps) * perf.rate))) for j in range(n)]
 
 

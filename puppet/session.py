@@ -7,17 +7,23 @@ mapping text, start time). Then, in tick order:
   {"t": "v",   "tick": k, "v": {channel: value, ...}}  channel values applied to sim step k, changes only
   {"t": "mark","tick": k, "label"}                                                a marker
   {"t": "chk", "tick": k, "sha"}  digest of the positions after k ticks (replay verifies it)
-  {"t": "sync","tick": k}     ticks < k are complete (written at every flush)
+  {"t": "sync","tick": k}     ticks < k are complete (after a tick that wrote no "v" record)
+  {"t": "seg", "tick": k, "reason"}  the program restarted here (a crash): the face restarts from
+                              rest at tick k, the channel values carry on; the take goes on
   {"t": "end", "ticks": n}    clean end: n ticks were simulated
 Floats are written with repr (what `json` does), the shortest text that reads back to the same
 double, so a replay feeds the simulator bit-identical values. No pickle, nothing executable.
-A writer is a context manager that flushes at least every 100 ms; a reader accepts a file cut by a
-crash and returns everything up to the last complete record, with a warning."""
+A writer is a context manager. Every tick's records reach the operating system when the tick is done
+(one write: a killed process loses at most the tick in progress) and a small thread makes them
+durable about once a second (fsync: a power cut loses at most the last second); neither is on the
+tick's critical path. A reader accepts a file cut by a crash and returns everything up to the last
+complete record, with a warning."""
 
 from __future__ import annotations
 
 import json
 import os
+import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -31,42 +37,101 @@ from puppet.errors import ConfigError
 
 FORMAT = "facepuppet-session"
 VERSION = 1
-FLUSH_SECONDS = 0.1
+#: the recording is made durable (fsync) this often, by a thread of its own: with the fsync itself
+#: and the tick in progress, a power cut then loses less than a second
+FSYNC_SECONDS = 0.9
 
 
 def _json(obj: dict[str, Any]) -> str:
     return json.dumps(obj, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
 
 
+class _Syncer:
+    """Makes a recording durable about every `interval` seconds (os.fsync releases the GIL, so the
+    loop thread never waits for the disk). `log` keeps (time the fsync returned, bytes it covers,
+    ticks those bytes hold) for the last hour, to measure what a power cut would lose."""
+
+    def __init__(self, writer: SessionWriter, interval: float) -> None:
+        from collections import deque
+
+        self.writer, self.interval = writer, interval
+        self.log: deque[tuple[float, int, int]] = deque(maxlen=4000)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="recording-fsync", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.interval):
+            self.sync_now()
+
+    def sync_now(self) -> None:
+        w = self.writer
+        with w._lock:
+            if w._file is None:
+                return
+            ticks = w._on_os_ticks  # read before the size: the bytes hold at least these ticks
+            try:
+                fd = w._file.fileno()
+                size = os.fstat(fd).st_size
+                os.fsync(fd)
+            except (OSError, ValueError):
+                return  # a failing disk is reported by the writes themselves
+        self.log.append((time.monotonic(), size, ticks))
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not threading.current_thread():
+            self._thread.join(timeout=10)
+
+
 class SessionWriter:
     """Writes one recording. Call `event`, `values`, `marker` as ticks happen and `tick(k)` once
-    per tick (it flushes when 100 ms have passed); `close(n)` writes the end record.
+    per tick (the tick's records then go to the operating system in one write); `close(n)` writes
+    the end record.
 
     With `defer = True` (what the live loop sets) those calls only keep what they were given, and
-    the JSON is made, written and flushed by `service()`, which the loop calls after the frame is
-    published: no serialisation on the critical path. The file is the same, record for record;
-    `flush` and `close` write whatever is kept first, so a `sync` still covers every record of the
-    ticks before it."""
+    the JSON is made and written by `service()`, which the loop calls after the frame is published:
+    no serialisation on the critical path. The file is the same, record for record; `flush` and
+    `close` write whatever is kept first, so a `sync` still covers every record of the ticks before
+    it. A `sync` record is written after a tick only when no `v` record already says it is done.
+
+    `fsync_seconds` (None: never, until close) sets how often a thread makes the file durable.
+    `append_to` (a byte offset) continues an existing recording cut at that offset instead of
+    starting a new one: the header is not written again (see `puppet.resume`)."""
 
     def __init__(self, path: str | Path, header: dict[str, Any], *, clock: Callable[[], float] = time.monotonic,
-                 flush_seconds: float = FLUSH_SECONDS) -> None:
+                 fsync_seconds: float | None = FSYNC_SECONDS,
+                 append_to: int | None = None) -> None:
         self.path = Path(path)
         self._clock = clock
-        self._flush_seconds = flush_seconds
         self.channels: list[str] = list(header["channels"])
+        self._lock = threading.Lock()
         try:
-            self._file: IO[str] | None = open(self.path, "w", encoding="utf-8", newline="\n")
+            if append_to is None:
+                self._file: IO[str] | None = open(self.path, "w", encoding="utf-8", newline="\n")
+            else:
+                self._file = open(self.path, "r+", encoding="utf-8", newline="\n")
+                self._file.seek(append_to)
+                self._file.truncate()
         except OSError as err:
             raise ConfigError(f"{self.path}: cannot write the recording: {err.strerror}") from err
         full = {"t": "header", "format": FORMAT, "version": VERSION, **header}
         self._last: np.ndarray | None = None
         self.error: OSError | None = None
-        self._last_flush = self._clock()
         self._done_ticks = 0
+        self._covered = 0  # ticks < this are known done from `v` records already written
+        self._on_os_ticks = 0  # ticks whose records the OS has (written and flushed)
         self.defer = False
         self._kept: list[tuple[Any, ...]] = []
-        self._write(full)
+        if append_to is None:
+            self._write(full)
         self.flush()
+        self.syncer = _Syncer(self, fsync_seconds) if fsync_seconds else None
+
+    def resume_at(self, ticks: int, last_values: np.ndarray) -> None:
+        """Continue after `ticks` complete ticks whose last channel values were `last_values`."""
+        self._done_ticks = self._covered = self._on_os_ticks = ticks
+        self._last = np.array(last_values, dtype=np.float64, copy=True)
 
     def _write(self, rec: dict[str, Any]) -> None:
         if self._file is not None:
@@ -82,12 +147,13 @@ class SessionWriter:
         self.error = err
         print(f"puppet: warning: recording to {self.path} stopped: {err.strerror or err}; "
               f"the part written so far is readable", file=sys.stderr)
-        try:
-            if self._file is not None:
-                self._file.close()
-        except OSError:
-            pass
-        self._file = None
+        with self._lock:
+            try:
+                if self._file is not None:
+                    self._file.close()
+            except OSError:
+                pass
+            self._file = None
 
     def event(self, tick: int, ev: ControlEvent | StatusEvent, t0: float = 0.0) -> None:
         """A raw device event applied at tick boundary `tick`; `time` is relative to t0."""
@@ -118,6 +184,7 @@ class SessionWriter:
             changed = np.flatnonzero(values != self._last).tolist()
         if len(changed):
             self._write({"t": "v", "tick": tick, "v": {self.channels[i]: float(values[i]) for i in changed}})
+            self._covered = max(self._covered, tick + 1)
         self._last = values.copy()
 
     def marker(self, tick: int, label: str) -> None:
@@ -128,6 +195,11 @@ class SessionWriter:
 
     def _marker(self, tick: int, label: str) -> None:
         self._write({"t": "mark", "tick": tick, "label": label})
+
+    def segment(self, tick: int, reason: str) -> None:
+        """A new segment of the same take starts at `tick` (the program restarted after a crash):
+        replay restarts the face from rest here, as the live loop did."""
+        self._write({"t": "seg", "tick": tick, "reason": reason})
 
     def check(self, tick: int, digest: str | Callable[[], str]) -> None:
         """A digest of the simulated positions after `tick` ticks, for replay to verify (or a
@@ -141,18 +213,15 @@ class SessionWriter:
         self._write({"t": "chk", "tick": tick, "sha": digest if isinstance(digest, str) else digest()})
 
     def tick(self, done_ticks: int) -> None:
-        """`done_ticks` ticks are complete; flush if the last flush is 100 ms old (deferred: at
-        the next `service()`)."""
+        """`done_ticks` ticks are complete; their records go to the OS now (deferred: at the next
+        `service()`)."""
         self._done_ticks = done_ticks
         if not self.defer:
             self.service()
 
     def service(self) -> None:
-        """Write what was kept, and flush if the last flush is 100 ms old."""
-        if self._kept:
-            self._write_kept()
-        if self._clock() - self._last_flush >= self._flush_seconds:
-            self.flush()
+        """Write what was kept and hand it to the OS (one write per tick, no fsync)."""
+        self.flush()
 
     def _write_kept(self) -> None:
         kept, self._kept = self._kept, []
@@ -164,17 +233,21 @@ class SessionWriter:
             self._write_kept()
         if self._file is None:
             return
-        if self._done_ticks:
-            self._write({"t": "sync", "tick": self._done_ticks})
+        done = self._done_ticks
+        if done > self._covered:
+            self._write({"t": "sync", "tick": done})
+            self._covered = done
         try:
             if self._file is not None:
                 self._file.flush()
+                self._on_os_ticks = done
         except OSError as err:
             self._fail(err)
-        self._last_flush = self._clock()
 
     def close(self, ticks: int | None = None) -> None:
         """Write the end record, flush and fsync. Idempotent."""
+        if self.syncer is not None:
+            self.syncer.stop()
         if self._kept:
             self._write_kept()
         if self._file is None:
@@ -214,6 +287,7 @@ class Session:
     events: list[dict[str, Any]] = field(default_factory=list)
     markers: list[tuple[int, str]] = field(default_factory=list)
     checks: dict[int, str] = field(default_factory=dict)
+    segments: list[int] = field(default_factory=list)  # ticks where a restart began a segment
     complete: bool = True
     warnings: list[str] = field(default_factory=list)
 
@@ -250,71 +324,9 @@ class Session:
 
 
 def read_session(path: str | Path) -> Session:
-    """Read a recording. A file cut short (crash, SIGKILL) reads up to its last complete record
-    and gets a warning in `session.warnings`; a file that is not a recording is a ConfigError."""
-    p = Path(path)
-    try:
-        fh = open(p, "rb")
-    except OSError as err:
-        raise ConfigError(f"{p}: cannot read the recording: {err.strerror}") from err
-    with fh:
-        data = fh.read()
-    lines = data.split(b"\n")
-    try:
-        header = json.loads(lines[0])
-    except (ValueError, UnicodeDecodeError) as err:
-        raise ConfigError(f"{p}:1: not a facepuppet recording (no readable header)") from err
-    if not isinstance(header, dict) or header.get("format") != FORMAT:
-        raise ConfigError(f"{p}:1: not a facepuppet recording (header format is not {FORMAT!r})")
-    if header.get("version") != VERSION:
-        raise ConfigError(f"{p}:1: recording format version {header.get('version')!r} is not supported (expected {VERSION})")
-    try:
-        channels = [str(c) for c in header["channels"]]
-        rate = float(header["tick_rate"])
-    except (KeyError, TypeError, ValueError) as err:
-        raise ConfigError(f"{p}:1: recording header lacks channels or tick_rate") from err
-    index = {n: i for i, n in enumerate(channels)}
-    s = Session(p, header, channels, rate, 0, complete=False)
-    last_tick = -1
-    sync = 0
-    # the final element is b"" after a trailing newline; anything else there is a cut-off line
-    body = lines[1:]
-    for lineno, raw in enumerate(body, start=2):
-        if not raw.strip():
-            continue
-        try:
-            rec = json.loads(raw)
-            kind = rec["t"]
-            if kind == "end":
-                s.ticks = int(rec["ticks"])
-                s.complete = True
-                break
-            tick = int(rec["tick"])
-            if kind == "v":
-                vals = {index[n]: float(v) for n, v in rec["v"].items() if n in index}
-                if not all(np.isfinite(x) for x in vals.values()):
-                    raise ValueError("non-finite channel value")
-                s.values[tick] = vals
-                last_tick = max(last_tick, tick)
-            elif kind in ("ev", "st"):
-                s.events.append(rec)
-            elif kind == "mark":
-                s.markers.append((tick, str(rec.get("label", ""))))
-            elif kind == "chk":
-                s.checks[tick] = str(rec.get("sha", ""))
-            elif kind == "sync":
-                sync = max(sync, tick)
-        except (ValueError, KeyError, TypeError, AttributeError, UnicodeDecodeError):
-            cut = lineno == len(lines) or all(not x.strip() for x in lines[lineno:])
-            why = "was cut off (crash or kill)" if cut else f"has a damaged record at line {lineno}"
-            s.warnings.append(f"{p}: recording {why}; reading it up to its last complete record")
-            break
-    if not s.complete:
-        s.ticks = max(sync, last_tick + 1)
-        if not s.warnings:
-            s.warnings.append(f"{p}: recording has no end record (the program was stopped); "
-                              f"reading its {s.ticks} complete ticks")
-    for k in [k for k in s.values if k >= s.ticks]:
-        del s.values[k]
-    s.checks = {k: v for k, v in s.checks.items() if k <= s.ticks}
-    return s
+    """Read a recording, checked at the boundary (see puppet.session_reader). A file cut short
+    (crash, SIGKILL) reads up to its last complete record and gets a warning in
+    `session.warnings`; a file that is not a recording is a ConfigError."""
+    from puppet.session_reader import read_session as read
+
+    return read(path)

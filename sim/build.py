@@ -48,7 +48,15 @@ class SkinParams:
                     inertia does not change any static pose (gravity and tethers keep the true mass
                     and area).
     gravity:        whether m_i g acts (true mass); g in cm/s^2 along -Y.
+    gravity_balanced: whether the rest pose is an equilibrium under gravity: each free vertex's
+                    tether target is moved by the offset whose tether and support forces carry the
+                    vertex's weight at its rest position (`gravity_offsets`), the way the tissue under
+                    real skin is pre-stressed by it. Off, the face sags ~1 mm out of its rest shape.
     jaw_max_angle:  rad, jaw rotation at jaw = 1 (AU27).
+    jaw_max_slide:  cm of a reference face (IPD 6.3 cm, scaled by the face's), the condyles' glide
+                    forward and down the articular eminence at jaw = 1 (`jaw_slide_angle` rad below
+                    the horizontal): a wide-open mouth is the hinge rotation plus this translation,
+                    which keeps the chin from swinging back into the throat.
     """
 
     areal_density: float = 0.3
@@ -64,7 +72,10 @@ class SkinParams:
     min_mass_fraction: float = 1.0
     gravity: bool = True
     g: float = 981.0
-    jaw_max_angle: float = 0.35
+    gravity_balanced: bool = True
+    jaw_max_angle: float = 0.55
+    jaw_max_slide: float = 1.4
+    jaw_slide_angle: float = 0.6
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,6 +93,8 @@ class FaceModel:
     eye_contact (K,) int: vertices that may touch an eyeball; eye_contact_eye (K,) int: which one
     (0 left, 1 right); eye_contact_radius (cm): they are kept at least this far from the eye centres
     (the lids slide over the eyeballs instead of passing through them).
+    rest_offset (N,3) cm: added to every tether target (turned with the jaw like the target); the
+    weight-carrying pre-stress of `gravity_offsets` (zero for held vertices, or with gravity off).
     held (N,) bool (pinned); jaw_weight (N,); jaw_pivot (3,); jaw_axis (3,); gravity (3,) cm/s^2.
     muscle_matrix: scipy CSR (3N, C): column c = channel c's nodal force (dyn) at activation 1,
                    flattened xyz per vertex; zero columns for non-muscle channels.
@@ -107,6 +120,7 @@ class FaceModel:
     rest_stiffness: np.ndarray
     rest_normal: np.ndarray
     support_stiffness: np.ndarray
+    rest_offset: np.ndarray
     eye_contact: np.ndarray
     eye_contact_eye: np.ndarray
     eye_contact_radius: float
@@ -230,6 +244,18 @@ def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     return out / np.where(norm > 0, norm, 1.0)[:, None]
 
 
+def gravity_offsets(weight: np.ndarray, tether: np.ndarray, support: np.ndarray, normal: np.ndarray,
+                    held: np.ndarray) -> np.ndarray:
+    """(N,3) cm: per free vertex the offset d of its tether target with (k_r I + k_n n n^T) d = -w,
+    so that at the rest position the tether (seed 003 eq 9) and the normal support carry the vertex's
+    weight w = m g exactly (springs are at rest length there, muscles off): the rest pose is an
+    equilibrium. Closed form: (k_r I + k_n n n^T)^-1 = (I - k_n / (k_r + k_n) n n^T) / k_r."""
+    along = np.sum(weight * normal, axis=1)
+    d = -(weight - (support / (tether + support) * along)[:, None] * normal) / tether[:, None]
+    d[np.asarray(held, dtype=bool)] = 0.0
+    return d
+
+
 def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray) -> sp.csr_matrix:
     n = len(rest)
     cols = []
@@ -290,6 +316,10 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
     omega = omega_exact(stiffness_matrix(rest, springs, k_high, bound), mass, ~held)
     omega_low = omega_exact(stiffness_matrix(rest, springs, k_low, bound), mass, ~held)
     spring_damping = p.viscosity * (2.0 / omega_low) * k_low
+    weight = true_mass[:, None] * gravity[None, :]
+    normal = vertex_normals(rest, tris)
+    offset = (gravity_offsets(weight, tether, support, normal, held) if p.gravity_balanced
+              else np.zeros_like(rest))
     model = FaceModel(
         rig=rig,
         mesh=mesh,
@@ -304,10 +334,11 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
         strain_threshold=p.strain_threshold,
         area=_frozen(area),
         mass=_frozen(mass),
-        weight=_frozen(true_mass[:, None] * gravity[None, :]),
+        weight=_frozen(weight),
         damping=_frozen(p.mass_damping * mass),
         rest_stiffness=_frozen(tether),
-        rest_normal=_frozen(vertex_normals(rest, tris)),
+        rest_normal=_frozen(normal),
+        rest_offset=_frozen(offset),
         **_eye_contact(mesh, rest, held),
         support_stiffness=_frozen(support),
         held=_frozen(held),

@@ -240,6 +240,11 @@ def _triangulate(pts: FloatArray, poly: FloatArray, lay: fc.ChartLayout) -> np.n
 @lru_cache(maxsize=4)
 def _build(resolution: int) -> FaceMesh:
     lay, poly, _ = _layout(resolution)
+    return _mirrored_mesh(lay, poly)
+
+
+def _mirrored_mesh(lay: fc.ChartLayout, poly: FloatArray) -> FaceMesh:
+    """The whole face from a left-half layout: triangulated, mirrored, mapped to 3D, rigged."""
     half = lay.array()
     tri = _triangulate(half, poly, lay)
     # Mirror: midline points once, the rest twice (left = +x first, then the right copies).
@@ -283,6 +288,47 @@ def _build(resolution: int) -> FaceMesh:
         regions=face_regions(verts, uv, jaw),
         uv=uv,
     )
+
+
+def _coarse_layout() -> tuple[fc.ChartLayout, FloatArray]:
+    """A low-polygon sampling of the same surface, as a third-party game or tracker mesh has: 8
+    points per lid, 6 per half lip, one ring round each opening, no wrinkle rows, the fill of resolution 0."""
+    lay = fc.ChartLayout()
+    n_eye = 8
+    lay.eye_loop = lay.add(fc.eye_loop_chart(n_eye))
+    up, low = fc.mouth_half_loop(5)
+    lay.mouth_upper, lay.mouth_lower = lay.add(up), lay.add(low)
+    border, n_held = _border(1.2)
+    lay.border = lay.add(border)
+    lay.held = lay.border[:n_held]
+    lm = _landmark_chart()
+    idx = lay.add(np.array(list(lm.values())), min_dist=0.0)
+    lay.landmarks = dict(zip(lm.keys(), (int(i) for i in idx)))
+    e = lay.eye_loop
+    lay.landmarks.update(
+        eye_inner_l=int(e[0]), upper_lid_l=int(e[n_eye // 2]), eye_outer_l=int(e[n_eye]),
+        lower_lid_l=int(e[n_eye + n_eye // 2]), upper_lip_center=int(lay.mouth_upper[0]),
+        lower_lip_center=int(lay.mouth_lower[0]), mouth_corner_l=int(lay.mouth_upper[-1]),
+    )
+    rings = [fc.eye_loop_chart(n_eye, 0.45), *fc.mouth_half_loop(6, 0.5)]
+    pts = np.vstack(rings)
+    pts[np.abs(pts[:, 0]) < 0.15, 0] = 0.0
+    pts = pts[(pts[:, 0] >= 0.0) & _in_polygon(pts, border) & ~_in_holes(pts, lay)]
+    lay.add(pts, min_dist=0.3)
+    _midline(lay, 1.0)
+    n_fixed = len(lay.array())
+    _fill(lay, 1.0, border)
+    poly = np.vstack([border, [[0.0, fc.V_TOP]]])
+    _relax(lay, n_fixed, poly)
+    return lay, poly
+
+
+@lru_cache(maxsize=1)
+def build_coarse_face_mesh() -> FaceMesh:
+    """The default face's surface sampled coarsely (437 vertices; `_coarse_layout`): a test
+    and benchmark subject for rig transfer onto a low-polygon head. The same object every call."""
+    lay, poly = _coarse_layout()
+    return _mirrored_mesh(lay, poly)
 
 
 def build_face_mesh(resolution: int = 0) -> FaceMesh:

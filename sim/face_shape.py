@@ -67,7 +67,7 @@ LID_SOFTNESS = 0.3
 MOUTH_V = -7.2
 MOUTH_X = 2.75
 MOUTH_HALF_HEIGHT = 0.3
-MOUTH_SQUEEZE = 0.7
+MOUTH_SQUEEZE = 0.93
 """fraction by which the lips close the chart's slit vertically in 3D."""
 
 

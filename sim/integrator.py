@@ -196,12 +196,14 @@ def _rk2_frame(x, v, n_sub, h, si3, sj3, rest_len, k_low, k_high, k_damp, thr, e
         _eye_contact(x, v, eye_idx, eye_of, centres, radius)
 
 
-def warm_up() -> None:
-    """Compile (or load from numba's on-disk cache) the kernels of both integrators on a two-node
-    system, so the first live frame does not stall. Called by compile_model."""
-    from sim.implicit import warm_up as warm_up_implicit
+def warm_up(implicit: bool = True) -> None:
+    """Compile (or load from numba's on-disk cache) the kernels of both integrators (RK2 only with
+    implicit=False) on a two-node system, so the first live frame does not stall. Called by
+    compile_model."""
+    if implicit:
+        from sim.implicit import warm_up as warm_up_implicit
 
-    warm_up_implicit()
+        warm_up_implicit()
     x1 = np.zeros((1, 3))
     _constant_forces(np.zeros(4, dtype=np.int32), np.zeros(0, dtype=np.int32), np.zeros(0), np.zeros(1),
                      np.ones(1, dtype=np.bool_), x1, np.ones(1), x1, np.ones(1), x1, np.zeros((1, 3)))
@@ -261,6 +263,22 @@ def jaw_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     """Rotation matrix about a unit axis (Rodrigues)."""
     k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
     return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+
+
+def jaw_slide(model: FaceModel) -> np.ndarray:
+    """(3,) cm: the mandible's translation at jaw = 1, forward (perpendicular to the hinge axis, in
+    the horizontal plane of the project frame, +Y up) and down by params.jaw_slide_angle, of length
+    params.jaw_max_slide scaled by the face's size."""
+    p = model.params
+    axis = np.asarray(model.jaw_axis, dtype=np.float64)
+    up = np.array([0.0, 1.0, 0.0])
+    forward = np.cross(axis, up)
+    norm = np.linalg.norm(forward)
+    if norm < 1e-9:
+        return np.zeros(3)
+    forward /= norm
+    direction = math.cos(p.jaw_slide_angle) * forward - math.sin(p.jaw_slide_angle) * up
+    return p.jaw_max_slide * _face_scale(model) * direction
 
 
 class Simulator:
@@ -331,7 +349,7 @@ class Simulator:
         self._is_muscle = np.array([s.kind == "muscle" for s in model.channels], dtype=np.bool_)
         self._weight = np.ascontiguousarray(model.weight, dtype=np.float64)
         self._jaw: float | None = None  # the jaw the target and support normals were set for
-        self._target = np.array(model.rest)
+        self._target = model.rest + model.rest_offset
         self._force = np.zeros((n, 3))  # the RK2 kernel's force scratch
         self._xm = np.zeros((n, 3))
         self._vm = np.zeros((n, 3))
@@ -341,13 +359,15 @@ class Simulator:
     # -- the force terms that are constant over a frame
 
     def rest_target(self, jaw: float) -> np.ndarray:
-        """Eq 9's rest positions with the jaw opened by `jaw` (0..1), (N,3) cm."""
+        """Eq 9's rest positions with the jaw opened by `jaw` (0..1), plus the gravity pre-stress
+        offset (`FaceModel.rest_offset`, turned with the jaw the same way), (N,3) cm."""
         m = self.model
+        base = m.rest + m.rest_offset
         if jaw == 0.0:
-            return np.array(m.rest)
+            return np.array(base)
         rot = jaw_rotation(m.jaw_axis, jaw * m.params.jaw_max_angle)
-        rotated = (m.rest - m.jaw_pivot) @ rot.T + m.jaw_pivot
-        return m.rest + m.jaw_weight[:, None] * (rotated - m.rest)
+        rotated = (m.rest - m.jaw_pivot) @ rot.T + m.jaw_pivot + m.rest_offset @ rot.T + jaw * jaw_slide(m)
+        return base + m.jaw_weight[:, None] * (rotated - base)
 
     def _set_jaw(self, jaw: float) -> None:
         """The jaw-dependent frame constants: eq 9's target (`rest_target`) and the support normals

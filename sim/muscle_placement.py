@@ -120,38 +120,98 @@ def _sphincter(f: FaceFrame, name: str, center: np.ndarray, a: float, b: float,
     return SphincterMuscle(name, center, major, minor, a * f.s, b * f.s, BASE_FORCE * strength)
 
 
+LID_STRIPS = 9  # sheets across each lid, from the inner to the outer corner
+LID_MEET = 0.2  # where the lids meet, as a fraction of the opening above the lower margin
+
+
+def _margins(f: FaceFrame, loop: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An opening's upper and lower margin heights (cm) as functions of x, read off the mesh at
+    rest: (xs ascending, upper y, lower y) at the loop's vertices. The loop is split at its
+    leftmost and rightmost vertices (the canthi, or the mouth corners)."""
+    ring = f.mesh.vertices[np.asarray(loop)]
+    tie = 1e-6 * np.abs(ring[:, 1] - ring[:, 1].mean())  # of two equally far vertices, the one
+    a, b = int(np.argmin(ring[:, 0] + tie)), int(np.argmax(ring[:, 0] - tie))  # nearer the middle
+    lo, hi = min(a, b), max(a, b)
+    one, other = ring[lo:hi + 1], np.vstack([ring[hi:], ring[:lo + 1]])
+    up, low = (one, other) if one[:, 1].mean() > other[:, 1].mean() else (other, one)
+    xs = np.unique(ring[:, 0])
+    return xs, np.interp(xs, *_curve(up, np.max)), np.interp(xs, *_curve(low, np.min))
+
+
+def _curve(p: np.ndarray, pick) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[no-untyped-def]
+    """A margin as y(x): ascending unique x, and where vertices share an x the outermost y."""
+    xs = np.unique(p[:, 0])
+    return xs, np.array([pick(p[p[:, 0] == x, 1]) for x in xs])
+
+
 def _lids(f: FaceFrame, side: str, sg: float) -> tuple[Muscle, ...]:
-    """Orbicularis oculi pars palpebralis as two sheets, the upper lid pulled down and the lower lid
-    up towards the line where the lids meet (a third of the opening above the lower margin).
+    """Orbicularis oculi pars palpebralis: each lid a row of LID_STRIPS narrow sheets (eqs 18-22)
+    pulling the upper lid down and the lower lid up towards the line where they meet (LID_MEET of
+    the opening above the lower margin), each strip as strong as the opening is high at its
+    centre, so every part of the margin travels its own share of the opening and the lids meet
+    along the whole lid line while the canthi (tied to the bone by their tendons) stay put.
 
     Why not eq 14's sphincter: its pull towards one centre point drags the lid corners inwards as
-    hard as the margins down, and the closed lids crumpled into a star around that point. The
-    palpebral fibres run along the lids, and a curved band of them shortening flattens the lid onto
-    the eyeball: a uniform pull across each lid, which is what a sheet (eqs 18-22) gives."""
+    hard as the margins down, and the closed lids crumpled into a star around that point. One sheet
+    of uniform strength per lid pulled the corners down as far as the middle, and the triangles at
+    the canthi folded over. The palpebral fibres run along the lids; a curved band of them that
+    shortens flattens the lid onto the eyeball, hardest where the lid is most curved away from
+    the meeting line."""
     s = f.s
-    inner, outer = f.get(f"eye_inner_{side}"), f.get(f"eye_outer_{side}")
-    top, bottom = f.get(f"eye_top_{side}")[1], f.get(f"eye_bottom_{side}")[1]
-    meet = bottom + 0.35 * (top - bottom)
-    x_in, x_out = inner[0] - sg * 0.2 * s, outer[0] + sg * 0.2 * s
-    width = abs(x_out - x_in) / s + 0.2
-
-    def pt(x: float, y: float) -> np.ndarray:
-        return f.skin(np.array([x, y, 0.0]))
-
-    # the attachment line lies where the lids meet, on the front of the eyeball (lid thickness
-    # 1 mm): the pull then has the forward component that keeps a closing lid on the eyeball
-    # instead of driving it through the eyeball along the chord
+    xs, top, bottom = _margins(f, f.mesh.eye_loops[0 if side == "l" else 1])
+    inner, outer = f.get(f"eye_inner_{side}")[0], f.get(f"eye_outer_{side}")[0]
+    x_in, x_out = inner - sg * 0.1 * s, outer + sg * 0.1 * s
+    edges = np.linspace(x_in, x_out, LID_STRIPS + 1)
+    h_max = float(np.max(top - bottom))
     centre = f.mesh.eye_centers[0 if side == "l" else 1]
     radius = f.mesh.eye_radius + 0.1 * s
-    za = float(centre[2] + np.sqrt(max(radius**2 - (meet - centre[1]) ** 2, 0.0)))
-    a1, a2 = np.array([x_in, meet, za]), np.array([x_out, meet, za])
-    upper = _sheet(f, f"orbicularis_oculi_lid_upper_{side}", a1, a2,
-                   pt(x_in, top + 0.3 * s), pt(x_out, top + 0.3 * s), width=width, reach=1.7,
-                   strength=2.25)
-    lower = _sheet(f, f"orbicularis_oculi_lid_lower_{side}", a1, a2,
-                   pt(x_in, bottom - 0.3 * s), pt(x_out, bottom - 0.3 * s), width=width, reach=1.6,
-                   strength=1.35)
-    return (upper, lower)
+    parts: list[Muscle] = []
+    for k, (x0, x1) in enumerate(zip(edges[:-1], edges[1:])):
+        xc = 0.5 * (x0 + x1)
+        t, b = float(np.interp(xc, xs, top)), float(np.interp(xc, xs, bottom))
+        share = max(t - b, 0.0) / h_max
+        if share < 0.05:
+            continue
+        meet = b + LID_MEET * (t - b)
+        # the attachment line lies where the lids meet, on the front of the eyeball (lid thickness
+        # 1 mm): the pull then has the forward component that keeps a closing lid on the eyeball
+        # instead of driving it through the eyeball along the chord
+        za = float(centre[2] + np.sqrt(max(radius**2 - (meet - centre[1]) ** 2 - (xc - centre[0]) ** 2, 0.0)))
+        a1, a2 = np.array([x0, meet, za]), np.array([x1, meet, za])
+        width = abs(x1 - x0) / s
+        parts.append(_sheet(f, f"orbicularis_oculi_lid_upper_{side}_{k}", a1, a2,
+                            f.skin(np.array([x0, t + 0.3 * s, 0.0])), f.skin(np.array([x1, t + 0.3 * s, 0.0])),
+                            width=width, reach=1.7, strength=3.0 * share))
+        parts.append(_sheet(f, f"orbicularis_oculi_lid_lower_{side}_{k}", a1, a2,
+                            f.skin(np.array([x0, b - 0.3 * s, 0.0])), f.skin(np.array([x1, b - 0.3 * s, 0.0])),
+                            width=width, reach=1.6, strength=1.75 * share))
+    return tuple(parts)
+
+
+LIP_FIBRES = 15  # linear fibres along the mouth line, corner to corner
+PRESS_DEPTH = 0.7  # cm of a reference face: how far behind the mouth line they are attached
+
+
+def _lip_press(f: FaceFrame, strength: float) -> tuple[Muscle, ...]:
+    """The marginal part of orbicularis oris (AU23/24 press and tighten the lips): each lip a fan of
+    LIP_FIBRES linear fibres (eqs 9-13) attached past the other lip and behind the skin, pulling
+    the lip onto the mouth line and back against the teeth. Their cones overlap, so the pull
+    varies smoothly along the lip (narrow sheets side by side made steps, and every vertex on a
+    step was pulled by both), strongest in the middle and fading at the corners, which the ring of
+    eq 14 dragged inwards and so bunched the lips into zig-zags."""
+    s = f.s
+    xs, top, bottom = _margins(f, f.mesh.mouth_loop)
+    mid, half = 0.5 * (xs[-1] + xs[0]), 0.5 * (xs[-1] - xs[0])
+    parts: list[Muscle] = []
+    for k, u in enumerate(np.linspace(-0.8, 0.8, LIP_FIBRES)):
+        x = float(mid + u * half)
+        share = float(np.sqrt(1.0 - u * u))
+        line = 0.5 * (float(np.interp(x, xs, top)) + float(np.interp(x, xs, bottom)))
+        insert = f.skin(np.array([x, line, 0.0]))
+        attach = insert - np.array([0.0, 0.0, PRESS_DEPTH * s])
+        parts.append(_linear(f, f"orbicularis_oris_press_{k}", attach, insert, reach=1.5,
+                             angle=0.9, strength=strength * share * 7.0 / LIP_FIBRES))
+    return tuple(parts)
 
 
 def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle, ...]]:
@@ -164,17 +224,19 @@ def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle,
     ec = f"eye_center_{side}"
     out[f"frontalis_inner_{side}"] = (_sheet(
         f, f"frontalis_inner_{side}",
-        f.at(bi, sg, 0.0, 4.5, 0.3), f.at(bi, sg, 1.4, 4.6, 0.3),
-        f.at(bi, sg, 0.0, 0.2), f.at(bi, sg, 1.4, 0.3), width=1.8, strength=1.3),)
+        f.at(bi, sg, -0.6, 4.5, 0.3), f.at(bi, sg, 1.1, 4.6, 0.3),
+        f.at(bi, sg, -0.6, -0.2), f.at(bi, sg, 1.1, 0.0), width=1.9, strength=1.5),)
     out[f"frontalis_outer_{side}"] = (_sheet(
         f, f"frontalis_outer_{side}",
-        f.at(bo, sg, -1.6, 4.3, 0.3), f.at(bo, sg, 0.2, 4.0, 0.3),
-        f.at(bo, sg, -1.6, 0.2), f.at(bo, sg, 0.2, 0.0), width=2.2, strength=1.3),)
+        f.at(bo, sg, -2.0, 4.3, 0.3), f.at(bo, sg, 0.2, 4.0, 0.3),
+        f.at(bo, sg, -2.0, 0.2), f.at(bo, sg, 0.2, 0.0), width=2.5, strength=1.5),)
     out[f"corrugator_{side}"] = (_linear(
         f, f"corrugator_{side}", f.at(bi, sg, -0.9, -0.5, 0.5), f.at(bi, sg, 0.7, 0.2),
-        reach=1.8, angle=0.6, strength=2.0),)
+        reach=1.8, angle=0.6, strength=2.0), _linear(
+        f, f"depressor_supercilii_{side}", f.at(bi, sg, -0.3, -1.7, 0.4), f.at(bi, sg, 0.4, 0.3),
+        reach=1.6, angle=0.7, strength=1.2))
     out[f"orbicularis_oculi_{side}"] = (_sphincter(
-        f, f"orbicularis_oculi_{side}", f.at(ec, sg, 0.1, -0.1), 3.0, 2.4, 1.2),)
+        f, f"orbicularis_oculi_{side}", f.at(ec, sg, 0.1, 0.4), 3.0, 2.4, 1.2),)
     out[f"orbicularis_oculi_lid_{side}"] = _lids(f, side, sg)
     out[f"levator_labii_alaeque_nasi_{side}"] = (_linear(
         f, f"levator_labii_alaeque_nasi_{side}", f.at(f"eye_inner_{side}", sg, -0.3, -0.2, 0.4),
@@ -187,7 +249,7 @@ def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle,
         reach=1.25, angle=0.35, strength=1.0),)
     out[f"zygomaticus_major_{side}"] = (_linear(
         f, f"zygomaticus_major_{side}", f.at(f"eye_outer_{side}", sg, 1.3, -2.9, 0.5),
-        f.at(mc, sg, 0.1, 0.0), reach=1.3, angle=0.45, strength=1.5),)
+        f.at(mc, sg, 0.1, 0.0), reach=1.3, angle=0.45, strength=2.2),)
     out[f"levator_anguli_oris_{side}"] = (_linear(
         f, f"levator_anguli_oris_{side}", f.at(mc, sg, -0.4, 2.8, 0.5), f.at(mc, sg, 0.0, 0.1),
         reach=1.3, angle=0.4, strength=1.2),)
@@ -224,5 +286,6 @@ def place_muscles(mesh: FaceMesh) -> dict[str, tuple[Muscle, ...]]:
         strength=1.2),)
     half_mouth = 0.5 * abs(f.get("mouth_corner_l")[0] - f.get("mouth_corner_r")[0]) / f.s
     out["orbicularis_oris"] = (_sphincter(
-        f, "orbicularis_oris", f.skin(f.mouth_center), half_mouth + 0.7, 1.9, 1.2),)
+        f, "orbicularis_oris", f.skin(f.mouth_center), half_mouth + 0.7, 1.9, 0.3),
+        *_lip_press(f, 1.2))
     return {name: out[name] for name in MUSCLE_CHANNELS}

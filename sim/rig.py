@@ -16,18 +16,24 @@ from __future__ import annotations
 
 import json
 import zipfile
+import zlib
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from safefile import BadFile, atomic_write, load_json, number, quote, sequence, string, table
 from sim.model import FaceMesh, FaceRig, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
 
 FORMAT = "facepuppet-rig"
 VERSION = 1
 _TYPES: dict[str, type] = {"linear": LinearMuscle, "sphincter": SphincterMuscle, "sheet": SheetMuscle}
 _TYPE_NAMES = {cls: name for name, cls in _TYPES.items()}
+MAX_MEMBERS = 256
+MAX_ARRAY_BYTES = 512 * 1024 * 1024
+MAX_VERTICES = 2_000_000
+MAX_ENTRIES = 10_000  # muscles, landmarks, regions, wrinkle lines
 
 
 class RigFileError(ValueError):
@@ -62,7 +68,8 @@ def _muscle_json(channel: str, m: Muscle) -> dict[str, Any]:
 
 
 def save_rig(rig: FaceRig, path: str | Path) -> None:
-    """Write the rig file described in the module docstring."""
+    """Write the rig file described in the module docstring (beside the target, then renamed
+    into place)."""
     mesh = rig.mesh
     header = {
         "format": FORMAT,
@@ -91,7 +98,7 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
         arrays["uv"] = np.asarray(mesh.uv, np.float64)
     for name, mask in mesh.regions.items():
         arrays[f"region_{name}"] = np.asarray(mask, bool)
-    with open(path, "wb") as fh:
+    with atomic_write(path, "wb") as fh:  # a failed save leaves the old rig as it was
         np.savez_compressed(fh, **arrays)
 
 
@@ -110,7 +117,7 @@ def _array(data: Any, key: str, path: str, shape: tuple[int | None, ...], kind: 
 
 def _muscle(entry: Any, path: str) -> tuple[str, Muscle]:
     if not isinstance(entry, dict) or entry.get("type") not in _TYPES:
-        raise RigFileError(f"{path}: muscle entry {entry!r:.80} lacks a type in {sorted(_TYPES)}")
+        raise RigFileError(f"{path}: muscle entry {quote(entry)} lacks a type in {sorted(_TYPES)}")
     cls = _TYPES[entry["type"]]
     kwargs: dict[str, Any] = {}
     for f in fields(cls):
@@ -118,18 +125,18 @@ def _muscle(entry: Any, path: str) -> tuple[str, Muscle]:
             raise RigFileError(f"{path}: {entry['type']} muscle lacks the field {f.name!r}")
         val = entry[f.name]
         if f.name == "name":
-            kwargs[f.name] = str(val)
+            kwargs[f.name] = string(val, f"{path}: muscle name")
             continue
         try:
             arr = np.asarray(val, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise RigFileError(f"{path}: muscle field {f.name!r} is not numeric: {val!r:.60}") from None
-        if not np.all(np.isfinite(arr)) or arr.shape not in ((), (3,)):
+        except (TypeError, ValueError, OverflowError):
+            raise RigFileError(f"{path}: muscle field {f.name!r} is not numeric: {quote(val)}") from None
+        if arr.shape not in ((), (3,)) or not np.all(np.isfinite(arr)) or np.any(np.abs(arr) > 1e6):
             raise RigFileError(f"{path}: muscle field {f.name!r} must be a finite number or [x, y, z]")
         kwargs[f.name] = float(arr) if arr.shape == () else arr
     channel = entry.get("channel")
-    if not isinstance(channel, str):
-        raise RigFileError(f"{path}: muscle {kwargs['name']!r} lacks its channel name")
+    if not isinstance(channel, str) or not 0 < len(channel) <= 200:
+        raise RigFileError(f"{path}: muscle {quote(kwargs['name'])} lacks its channel name")
     return channel, cls(**kwargs)
 
 
@@ -143,28 +150,64 @@ def load_rig(path: str | Path) -> FaceRig:
             raise RigFileError(
                 f"{p}: not a rig file (a rig is an .npz archive written by `puppet import-face`)"
             )
+        _check_members(p)
         with np.load(p, allow_pickle=False) as data:
             return _parse(data, p)
     except RigFileError:
         raise
+    except BadFile as err:
+        raise RigFileError(str(err)) from err
     except FileNotFoundError:
         raise RigFileError(f"{p}: no such rig file") from None
-    except (OSError, ValueError, zipfile.BadZipFile, KeyError, EOFError) as err:
-        raise RigFileError(f"{p}: not a readable rig file ({type(err).__name__}: {err})".splitlines()[0]) from err
+    except (OSError, ValueError, zipfile.BadZipFile, KeyError, EOFError, zlib.error, RecursionError,
+            NotImplementedError, OverflowError) as err:
+        raise RigFileError(f"{p}: not a readable rig file ({type(err).__name__}: {quote(str(err), 80)})") from err
+
+
+def _check_members(p: str) -> None:
+    """Every array's header is read and its promised size checked against the member's size and
+    MAX_ARRAY_BYTES before numpy allocates anything (a forged header could ask for terabytes)."""
+    from numpy.lib import format as npformat
+
+    with zipfile.ZipFile(p) as z:
+        infos = z.infolist()
+        if len(infos) > MAX_MEMBERS:
+            raise RigFileError(f"{p}: rig file holds {len(infos)} arrays; at most {MAX_MEMBERS}")
+        for info in infos:
+            with z.open(info) as fh:
+                version = npformat.read_magic(fh)
+                reader = npformat.read_array_header_1_0 if version == (1, 0) else npformat.read_array_header_2_0
+                shape, _, dtype = reader(fh, max_header_size=10_000)
+            size = int(np.prod(shape, dtype=object)) * max(1, dtype.itemsize)
+            if dtype.hasobject or size > MAX_ARRAY_BYTES or size > info.file_size:
+                raise RigFileError(f"{p}: array {quote(info.filename, 60)} promises {size} bytes of "
+                                   f"{dtype} in a member of {info.file_size}; the rig file is damaged")
+
+
+def load_model(path: str | Path) -> Any:
+    """`load_rig` then `compile_model`; a rig that reads but does not compile (a file that is
+    valid field by field but not as a face) is a RigFileError too, never a traceback."""
+    from sim.build import compile_model
+
+    rig = load_rig(path)
+    try:
+        return compile_model(rig)
+    except Exception as err:  # noqa: BLE001 - the file's content, not a program error, reaches here
+        raise RigFileError(f"{path}: the rig does not compile ({type(err).__name__}: "
+                           f"{quote(str(err), 80)}); is it a rig written by `puppet import-face`?") from err
 
 
 def _parse(data: Any, p: str) -> FaceRig:
     header_arr = _array(data, "header", p, (), "U")
-    try:
-        header = json.loads(str(header_arr))
-    except json.JSONDecodeError as err:
-        raise RigFileError(f"{p}: header is not JSON ({err})") from err
+    header = load_json(str(header_arr), p, "rig header")
     if not isinstance(header, dict) or header.get("format") != FORMAT:
         raise RigFileError(f"{p}: not a {FORMAT} file")
-    if header.get("version") != VERSION:
-        raise RigFileError(f"{p}: rig file version {header.get('version')!r}, this program reads {VERSION}")
+    if header.get("version") != VERSION or isinstance(header.get("version"), bool):
+        raise RigFileError(f"{p}: rig file version {quote(header.get('version'))}, this program reads {VERSION}")
     verts = _array(data, "vertices", p, (None, 3), "f")
     n = len(verts)
+    if not 3 <= n <= MAX_VERTICES:
+        raise RigFileError(f"{p}: rig has {n} vertices; expected 3 to {MAX_VERTICES}")
     tris = _array(data, "triangles", p, (None, 3), "iu")
     if tris.size and (tris.min() < 0 or tris.max() >= n):
         raise RigFileError(f"{p}: triangles refer to vertices outside 0..{n - 1}")
@@ -172,39 +215,41 @@ def _parse(data: Any, p: str) -> FaceRig:
     for loop in loops:
         if loop.size and (loop.min() < 0 or loop.max() >= n):
             raise RigFileError(f"{p}: an eye or mouth loop refers to vertices outside 0..{n - 1}")
-    landmarks = header.get("landmarks", {})
-    if not isinstance(landmarks, dict) or not all(
-        isinstance(v, int) and 0 <= v < n for v in landmarks.values()
-    ):
+    landmarks = table(header.get("landmarks", {}), f"{p}: landmarks", MAX_ENTRIES)
+    if not all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v < n for v in landmarks.values()):
         raise RigFileError(f"{p}: landmarks must map names to vertex indices in 0..{n - 1}")
     regions = {}
-    for name in header.get("regions", []):
-        regions[str(name)] = _array(data, f"region_{name}", p, (n,), "b")
+    for name in sequence(header.get("regions", []), f"{p}: regions", MAX_ENTRIES):
+        name = string(name, f"{p}: region name")
+        regions[name] = _array(data, f"region_{name}", p, (n,), "b")
     uv = _array(data, "uv", p, (n, 2), "f") if "uv" in data.files else None
+    held = _array(data, "held", p, (n,), "b")
+    if held.all():
+        raise RigFileError(f"{p}: every vertex is held; a rig needs free skin to move")
+    if np.abs(verts).max() > 1e6:
+        raise RigFileError(f"{p}: vertex coordinates beyond 1e6 cm; the rig file is damaged")
     mesh = FaceMesh(
         vertices=verts.astype(np.float64),
         triangles=tris.astype(np.int32),
         landmarks={str(k): int(v) for k, v in landmarks.items()},
-        held=_array(data, "held", p, (n,), "b"),
+        held=held,
         jaw_weight=_array(data, "jaw_weight", p, (n,), "f"),
         jaw_pivot=_array(data, "jaw_pivot", p, (3,), "f"),
         jaw_axis=_array(data, "jaw_axis", p, (3,), "f"),
         eye_centers=_array(data, "eye_centers", p, (2, 3), "f"),
-        eye_radius=float(header.get("eye_radius", 1.2)),
+        eye_radius=number(header.get("eye_radius", 1.2), f"{p}: eye_radius", 0.0, 100.0, lo_open=True),
         eye_loops=(loops[0], loops[1]),
         mouth_loop=loops[2],
         regions=regions,
         uv=uv,
     )
     muscles: dict[str, tuple[Muscle, ...]] = {}
-    entries = header.get("muscles", [])
-    if not isinstance(entries, list):
-        raise RigFileError(f"{p}: 'muscles' must be a list")
+    entries = sequence(header.get("muscles", []), f"{p}: muscles", MAX_ENTRIES)
     for entry in entries:
         channel, m = _muscle(entry, p)
         muscles[channel] = muscles.get(channel, ()) + (m,)
     return FaceRig(mesh=mesh, muscles=muscles, wrinkles=_wrinkles(header.get("wrinkles", []), p),
-                   name=str(header.get("name", "rig")))
+                   name=string(header.get("name", "rig"), f"{p}: name"))
 
 
 def _wrinkles(entries: Any, p: str) -> tuple:
@@ -212,12 +257,16 @@ def _wrinkles(entries: Any, p: str) -> tuple:
         return ()
     from sim.wrinkles.mask import WrinkleLine
 
-    if not isinstance(entries, list):
-        raise RigFileError(f"{p}: 'wrinkles' must be a list")
     out = []
-    for entry in entries:
+    for entry in sequence(entries, f"{p}: wrinkles", MAX_ENTRIES):
         try:
-            out.append(WrinkleLine.from_dict(entry))
-        except (KeyError, ValueError, TypeError, AttributeError) as err:
-            raise RigFileError(f"{p}: malformed wrinkle line ({type(err).__name__}: {err})") from err
+            line = WrinkleLine.from_dict(entry)
+            sizes = np.array([line.width_minus, line.width_plus, line.emphasis, line.furrow])
+            if (len(line.points) > MAX_ENTRIES or not np.all(np.isfinite(line.points))
+                    or np.abs(line.points).max() > 1e6 or not np.all(np.isfinite(sizes))
+                    or np.abs(sizes).max() > 1e6):
+                raise ValueError(f"wrinkle line {quote(line.name)} has points or sizes out of range")
+            out.append(line)
+        except (KeyError, ValueError, TypeError, AttributeError, OverflowError) as err:
+            raise RigFileError(f"{p}: malformed wrinkle line ({type(err).__name__}: {quote(str(err), 80)})") from err
     return tuple(out)

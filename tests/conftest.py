@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import select
 import shutil
 import subprocess
 import time
@@ -10,12 +11,14 @@ from collections.abc import Iterator
 
 import pytest
 
+# compiled faces are cached in a private folder for this run, never in the user's cache
+# (subprocesses inherit it); removed at the end of the run
+_FACE_CACHE = os.environ["PUPPET_CACHE_DIR"] = __import__("tempfile").mkdtemp(prefix="puppet-test-cache-")
 
-def _free_display() -> int:
-    for n in range(90, 200):
-        if not os.path.exists(f"/tmp/.X11-unix/X{n}") and not os.path.exists(f"/tmp/.X{n}-lock"):
-            return n
-    raise RuntimeError("no free X display number")
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    if os.path.basename(_FACE_CACHE).startswith("puppet-test-cache-"):
+        shutil.rmtree(_FACE_CACHE, ignore_errors=True)
 
 
 @pytest.fixture(scope="session")
@@ -24,18 +27,28 @@ def xvfb_display() -> Iterator[str]:
     which .ci/setup installs; the test fails (not skips) without it."""
     if shutil.which("Xvfb") is None:
         pytest.fail("Xvfb is not installed: run `bash .ci/setup`")
-    n = _free_display()
+    # -displayfd: the server picks a free display number itself and writes it to the pipe, so
+    # test runs started side by side never race for the same number.
+    rfd, wfd = os.pipe()
     proc = subprocess.Popen(
-        ["Xvfb", f":{n}", "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
+        ["Xvfb", "-displayfd", str(wfd), "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
+        pass_fds=(wfd,),
     )
+    os.close(wfd)
     deadline = time.monotonic() + 10
-    while not os.path.exists(f"/tmp/.X11-unix/X{n}"):
-        if proc.poll() is not None or time.monotonic() > deadline:
+    text = b""
+    while not text.endswith(b"\n"):
+        ready, _, _ = select.select([rfd], [], [], max(0.0, deadline - time.monotonic()))
+        chunk = os.read(rfd, 16) if ready else b""
+        if not chunk:
+            os.close(rfd)
             proc.kill()
             pytest.fail("Xvfb did not start")
-        time.sleep(0.05)
+        text += chunk
+    os.close(rfd)
+    n = int(text.strip())
     try:
         yield f":{n}"
     finally:

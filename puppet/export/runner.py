@@ -21,6 +21,7 @@ from tqdm import tqdm
 
 from puppet.errors import ConfigError, PuppetError
 from puppet.replay import Performance, frame_ticks, iter_frames
+from safefile import atomic_dir, atomic_path, atomic_write
 
 
 @dataclass
@@ -58,7 +59,8 @@ def _bar(total: int, what: str) -> tqdm:
 
 
 def export(perf: Performance, out: str | Path, opts: ExportOptions) -> str:
-    """Write `perf` to `out`; returns a one-line summary for the user."""
+    """Write `perf` to `out`; returns a one-line summary for the user. Every export is written
+    beside `out` and moved into place when complete: a failed export leaves the old file as it was."""
     out = Path(out)
     kind = kind_of(out)
     if kind != "frames" and not out.parent.exists():
@@ -82,7 +84,11 @@ def export(perf: Performance, out: str | Path, opts: ExportOptions) -> str:
         with _bar(1, "curves") as bar:
             text = curves_from_values(perf.values[a:b], names, perf.rate, perf.face.vocab)
             bar.update(1)
-        out.write_text(text, encoding="utf-8")
+        try:
+            with atomic_write(out) as fh:
+                fh.write(text)
+        except OSError as err:
+            raise ConfigError(f"{out}: cannot write the curves: {err.strerror or err}") from err
         return f"wrote keyframe curves for ticks {a}..{b} to {out}"
     if kind in ("csv", "arkit"):
         return _export_csv(perf, out, kind, ticks, names, opts)
@@ -96,16 +102,19 @@ def _export_csv(perf: Performance, out: Path, kind: str, ticks: list[int], names
     from puppet.export.arkit import ArkitCsvWriter
     from puppet.export.channels_csv import ChannelCsvWriter
 
-    w: Any = ArkitCsvWriter(out, names, opts.fps) if kind == "arkit" else ChannelCsvWriter(out, names)
-    with _bar(len(ticks), out.name) as bar:
-        for j, k in enumerate(ticks):
-            vals = perf.values[max(0, k - 1)]
-            if kind == "arkit":
-                w.add(j, vals)
-            else:
-                w.add(j, j / opts.fps, k, vals)
-            bar.update(1)
-    w.close()
+    with atomic_path(out) as tmp:
+        w: Any = ArkitCsvWriter(tmp, names, opts.fps) if kind == "arkit" else ChannelCsvWriter(tmp, names)
+        try:
+            with _bar(len(ticks), out.name) as bar:
+                for j, k in enumerate(ticks):
+                    vals = perf.values[max(0, k - 1)]
+                    if kind == "arkit":
+                        w.add(j, vals)
+                    else:
+                        w.add(j, j / opts.fps, k, vals)
+                    bar.update(1)
+        finally:
+            w.close()
     return f"wrote {len(ticks)} frames at {opts.fps:g} fps to {out}"
 
 
@@ -114,17 +123,18 @@ def _export_pc2(perf: Performance, out: Path, ticks: list[int], opts: ExportOpti
 
     model = perf.face.model
     obj = out.with_suffix(".obj")
-    write_obj(obj, model.rest, model.triangles,
-              f"facepuppet rest pose, {len(model.rest)} vertices in simulation order (cm, +Y up)\n"
-              f"point cache: {out.name}, {opts.fps:g} fps, starts at frame {opts.start_frame:g}")
-    w = PC2Writer(out, len(model.rest), start_frame=opts.start_frame, sampling=1.0)
-    try:
-        with _bar(len(ticks), out.name) as bar:
-            for _, _, state, _ in iter_frames(perf, ticks):
-                w.add(state.surface)
-                bar.update(1)
-    finally:
-        w.close()
+    with atomic_path(obj) as obj_tmp, atomic_path(out) as pc2_tmp:
+        write_obj(obj_tmp, model.rest, model.triangles,
+                  f"facepuppet rest pose, {len(model.rest)} vertices in simulation order (cm, +Y up)\n"
+                  f"point cache: {out.name}, {opts.fps:g} fps, starts at frame {opts.start_frame:g}")
+        w = PC2Writer(pc2_tmp, len(model.rest), start_frame=opts.start_frame, sampling=1.0)
+        try:
+            with _bar(len(ticks), out.name) as bar:
+                for _, _, state, _ in iter_frames(perf, ticks):
+                    w.add(state.surface)
+                    bar.update(1)
+        finally:
+            w.close()
     return (f"wrote {len(ticks)} samples at {opts.fps:g} fps (start frame {opts.start_frame:g}) to {out} "
             f"and the rest mesh to {obj}; in Blender: scene at {opts.fps:g} fps, Mesh Cache modifier "
             "Time Mode Frame, Frame Start 1, Forward -Z, Up +Y (docs/live.md)")
@@ -140,12 +150,13 @@ def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], op
         raise PuppetError(f"--crf must be 0 to 51, got {crf}")
     enc = {"supersample": opts.supersample, "preset": opts.preset or DEFAULT_PRESET, "crf": crf}
     frames = ((j, state) for j, _, state, _ in iter_frames(perf, ticks))
-    with _bar(len(ticks), out.name or str(out)) as bar:
+    place = atomic_dir(out) if kind == "frames" else atomic_path(out)
+    with place as target, _bar(len(ticks), out.name or str(out)) as bar:
         if len(ticks) >= PARALLEL_MIN_FRAMES and opts.parallel:
-            render_parallel(perf.face.model, out, kind, opts.fps, opts.size, opts.view, frames, bar.update,
+            render_parallel(perf.face.model, target, kind, opts.fps, opts.size, opts.view, frames, bar.update,
                             workers=opts.workers, **enc)
         else:
-            render_serial(perf.face.model, out, kind, opts.fps, opts.size, opts.view, frames, bar.update, **enc)
+            render_serial(perf.face.model, target, kind, opts.fps, opts.size, opts.view, frames, bar.update, **enc)
     if kind == "png":
         return f"wrote a {opts.size[0]}x{opts.size[1]} still to {out}"
     return f"wrote {len(ticks)} frames at {opts.fps:g} fps ({opts.size[0]}x{opts.size[1]}, view {opts.view}) to {out}"

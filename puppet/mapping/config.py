@@ -4,8 +4,6 @@ Every error is one line: `file:line:col: what was expected`."""
 
 from __future__ import annotations
 
-import re
-import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,8 +13,10 @@ from puppet.errors import ConfigError
 from puppet.mapping.buttons import BUTTON_MODES
 from puppet.mapping.filters import ENCODINGS
 from puppet.mapping.locate import PathItem, locate
+from safefile import BadFile, load_toml, quote
 
 COMBINE_RULES = ("max", "sum", "last")
+MAX_NUMBER = 1e9  # any parameter beyond this is a typo (and an integer beyond a float's range is one)
 INPUTS = ("absolute", "relative", "button")
 ACTIONS = ("panic", "marker")
 ENCODING_ALIASES = {"binary_offset": "offset64", "offset_64": "offset64", "2s_complement": "twos_complement",
@@ -108,16 +108,18 @@ class _Checker:
 
     def num(self, v: Any, path: Sequence[PathItem], *, positive: bool = False) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise self.fail(path, f"expected a number for {path[-1]!s}, got {v!r}")
+            raise self.fail(path, f"expected a number for {path[-1]!s}, got {quote(v)}")
         if v != v or v in (float("inf"), float("-inf")):
             raise self.fail(path, f"expected a finite number for {path[-1]!s}")
+        if abs(v) > MAX_NUMBER:
+            raise self.fail(path, f"expected a number within +-{MAX_NUMBER:g} for {path[-1]!s}, got {quote(v)}")
         if positive and v < 0:
-            raise self.fail(path, f"expected a number >= 0 for {path[-1]!s}, got {v!r}")
+            raise self.fail(path, f"expected a number >= 0 for {path[-1]!s}, got {quote(v)}")
         return float(v)
 
     def pair(self, v: Any, path: Sequence[PathItem]) -> tuple[float, float]:
         if not isinstance(v, list) or len(v) != 2:
-            raise self.fail(path, f"expected [low, high] for {path[-1]!s}, got {v!r}")
+            raise self.fail(path, f"expected [low, high] for {path[-1]!s}, got {quote(v)}")
         a, b = (self.num(x, path) for x in v)
         if a == b:
             raise self.fail(path, f"expected two different numbers for {path[-1]!s}")
@@ -125,17 +127,17 @@ class _Checker:
 
     def choice(self, v: Any, path: Sequence[PathItem], choices: Sequence[str]) -> str:
         if not isinstance(v, str) or v not in choices:
-            raise self.fail(path, f"expected one of {', '.join(choices)} for {path[-1]!s}, got {v!r}")
+            raise self.fail(path, f"expected one of {', '.join(choices)} for {path[-1]!s}, got {quote(v)}")
         return v
 
     def string(self, v: Any, path: Sequence[PathItem]) -> str:
         if not isinstance(v, str) or not v:
-            raise self.fail(path, f"expected a non-empty string for {path[-1]!s}, got {v!r}")
+            raise self.fail(path, f"expected a non-empty string for {path[-1]!s}, got {quote(v)}")
         return v
 
     def boolean(self, v: Any, path: Sequence[PathItem]) -> bool:
         if not isinstance(v, bool):
-            raise self.fail(path, f"expected true or false for {path[-1]!s}, got {v!r}")
+            raise self.fail(path, f"expected true or false for {path[-1]!s}, got {quote(v)}")
         return v
 
     def filter(self, v: Any, path: tuple[PathItem, ...]) -> FilterSpec:
@@ -152,7 +154,7 @@ class _Checker:
             kp = path + (key,)
             if key not in allowed:
                 names = ", ".join(allowed) or "no parameters"
-                raise self.fail(kp, f"unknown parameter {key!r} for filter {ftype!r}; expected {names}")
+                raise self.fail(kp, f"unknown parameter {quote(key)} for filter {ftype!r}; expected {names}")
             kind = allowed[key][0]
             if kind == "num":
                 params[key] = self.num(val, kp, positive=ftype not in ("deadzone",))
@@ -175,27 +177,23 @@ class _Checker:
 
     def point(self, v: Any, path: Sequence[PathItem]) -> tuple[float, float]:
         if not isinstance(v, list) or len(v) != 2:
-            raise self.fail(path, f"expected each curve point as [x, y], got {v!r}")
+            raise self.fail(path, f"expected each curve point as [x, y], got {quote(v)}")
         return self.num(v[0], path), self.num(v[1], path)
 
 
 def parse_mapping(text: str, source: str = "<mapping>") -> MappingSpec:
     """Parse and check a mapping file's text; raises ConfigError naming file:line:col."""
     try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        msg = str(err)
-        m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
-        where = f"{m.group(1)}:{m.group(2)}" if m else "1:1"
-        what = re.sub(r"\s*\(at line \d+, column \d+\)", "", msg) or "invalid TOML"
-        raise ConfigError(f"{source}:{where}: TOML syntax error: {what}") from err
+        data = load_toml(text, source, "mapping file")
+    except BadFile as err:  # syntax (file:line:col), nesting thousands deep, an integer of 5000 digits
+        raise ConfigError(str(err)) from err
     c = _Checker(text, source)
     known_top = {"version", "name", "binding", "combine", "groups", "device"}
     for key in data:
         if key not in known_top:
-            raise c.fail((key,), f"unknown key {key!r}; expected one of {', '.join(sorted(known_top))}")
+            raise c.fail((key,), f"unknown key {quote(key)}; expected one of {', '.join(sorted(known_top))}")
     if "version" in data and data["version"] != 1:
-        raise c.fail(("version",), f"unsupported mapping version {data['version']!r}; expected 1")
+        raise c.fail(("version",), f"unsupported mapping version {quote(data['version'])}; expected 1")
     name = data.get("name", Path(source).stem)
     if not isinstance(name, str):
         raise c.fail(("name",), "expected a string for name")
@@ -237,7 +235,7 @@ def _binding(c: _Checker, i: int, b: Any, default_device: str | None) -> Binding
         raise c.fail(p, "expected a [[binding]] table")
     for key in b:
         if key not in BINDING_KEYS:
-            raise c.fail(p + (key,), f"unknown binding key {key!r}; expected one of {', '.join(sorted(BINDING_KEYS))}")
+            raise c.fail(p + (key,), f"unknown binding key {quote(key)}; expected one of {', '.join(sorted(BINDING_KEYS))}")
     if "control" not in b:
         raise c.fail(p, "expected control = \"<control name>\" in this binding")
     spec = BindingSpec(index=i, control=c.string(b["control"], p + ("control",)))

@@ -37,15 +37,31 @@ def load_default_map(name: str) -> MappingSpec:
     return parse_mapping(map_text(name), f"puppet/maps/{name}.toml")
 
 
+#: Network listeners: OSC by profile, face-tracking streams by their blendshapes.
+NET_MAPS = {"facecap": "arkit", "vmc": "arkit", "ifacialmocap": "arkit", "livelink": "arkit"}
+
+
+def osc_map_name(scheme: str, spec: str) -> str | None:
+    """`osc_<profile>` for an osc:// spec, `arkit` for a face-tracking stream, else None."""
+    if scheme == "osc":
+        m = re.search(r"[?&]profile=([a-z]+)", spec.lower())
+        return f"osc_{m.group(1) if m else 'generic'}"
+    return NET_MAPS.get(scheme)
+
+
 def default_map_name(spec: str, kind: str = "") -> str | None:
     """The default map for a device spec (and its discovered kind/description), or None."""
     scheme, _, rest = spec.partition("://")
     scheme = scheme.lower()
+    if scheme == "osc" or scheme in NET_MAPS:
+        return osc_map_name(scheme, spec)
     if scheme == "mock":
         m = re.search(r"impersonate=([a-z]+)", spec)
         box = m.group(1) if m else "sgi"
         return {"shuttlepro": "shuttlexpress", "serial": "textbox"}.get(box, box) if box in (
             "sgi", "powermate", "shuttlexpress", "shuttlepro", "serial", "keyboard", "firmata") else "sgi"
+    if scheme in ("midi", "rawmidi"):
+        return _midi_map(rest, kind)
     if scheme == "hid":
         ids = rest.split("?", 1)[0].lower()
         for key, name in HID_MAPS.items():
@@ -56,6 +72,16 @@ def default_map_name(spec: str, kind: str = "") -> str | None:
         if word in text:
             return name
     return SCHEME_MAPS.get(scheme)
+
+
+def _midi_map(rest: str, kind: str) -> str | None:
+    """A MIDI controller's map is named after its profile (the spec's, else the one its port name
+    or description selects); a controller without a profile has none (bind it with learn)."""
+    from devices.midi.profile import profile_for_port
+
+    m = re.search(r"[?&]profile=([A-Za-z0-9_]+)", rest)
+    profile = m.group(1).lower() if m else profile_for_port(f"{rest.split('?', 1)[0]} {kind}")
+    return profile if profile != "generic" and profile in map_names() else None
 
 
 def for_device(spec: MappingSpec, device: str) -> list[BindingSpec]:

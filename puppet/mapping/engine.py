@@ -18,8 +18,11 @@ from puppet.mapping import filters as F
 from puppet.mapping.buttons import ButtonState, RadioGroup
 from puppet.mapping.config import BindingSpec, FilterSpec, MappingSpec
 from puppet.mapping.targets import Target, Vocabulary
+from puppet.mapping.templates import expand_spec
 
 PANIC_SECONDS = 0.6
+#: A ring is not updated while its control moves and for this many ticks after its last input.
+RING_HOLD_TICKS = 15
 
 
 def build_filter(fs: FilterSpec) -> F.Filter:
@@ -69,6 +72,9 @@ class Binding:
     active: bool = False             # contributes this tick
     changed_tick: int = -1
     device: str | None = None        # spec of the device last seen driving it
+    input_tick: int = -(1 << 30)     # tick of its last input event (rings hold still meanwhile)
+    pickup_hit: bool = False         # soft takeover: an input event met or crossed the value
+    stale: bool = False              # re-armed: where the control is is unknown until it moves
     declared: tuple[float, float] | None = None
 
     @property
@@ -121,12 +127,13 @@ class Mapper:
         self.panic_left = 0.0
         self.panic_from = self.values.copy()
         self._pending = MapperOutput()
-        self._lights: dict[tuple[str, str], bool] = {}
+        self._lights: dict[tuple[str, str], bool | float] = {}
         self._n = n
         for b in self.bindings:
             self._reset_binding(b)
 
     def _add(self, spec: MappingSpec) -> list[Binding]:
+        spec = expand_spec(spec, self.vocab)  # `{channel}`, `{au}`, `{expression}` families
         for g, allow in spec.radio_allow_none.items():
             self.groups.setdefault(g, RadioGroup(g, allow))
         added = []
@@ -154,6 +161,7 @@ class Mapper:
         Mapper(spec, self.vocab)  # check first: all or nothing
         for b in self._add(spec):
             self._reset_binding(b)
+        self.rearm_pickup()  # the map changed: every absolute control picks up afresh
 
     # --- input -----------------------------------------------------------------------------------
     def declare_controls(self, device: str, controls: Iterable[object]) -> None:
@@ -169,7 +177,10 @@ class Mapper:
     def feed(self, event: ControlEvent | StatusEvent) -> None:
         """Apply one event (at a tick boundary)."""
         if isinstance(event, StatusEvent):
+            was = self.status.get(event.device)
             self.status[event.device] = event.status == "connected"
+            if event.status == "connected" and was is False:  # back after an unplug: pots may have moved
+                self.rearm_pickup(event.device)
             if event.status == "lost":  # an unplugged box cannot release what it held down
                 for b in self.bindings:
                     if b.device == event.device and b.kind == "button" and b.button.down:
@@ -179,6 +190,7 @@ class Mapper:
         for b in self.by_control.get(event.control, ()):
             if device_matches(b.spec.device, event.device):
                 b.device = event.device
+                b.input_tick = self.tick
                 self._apply(b, event)
 
     def _apply(self, b: Binding, ev: ControlEvent) -> None:
@@ -206,6 +218,18 @@ class Mapper:
         else:
             lo, hi = b.spec.src_range or b.declared or (0.0, 1.0)
             b.src = min(1.0, max(0.0, (ev.value - lo) / (hi - lo)))
+            b.stale = False
+            if b.pickup and not b.engaged and b.target is not None:
+                self._track_pickup(b)
+
+    def _track_pickup(self, b: Binding) -> None:
+        """Crossing detection per input event, not per tick: a fast move that passes the value
+        between two ticks still picks it up."""
+        here = b.chain.static_value(b.src)
+        there = self._current_norm(b)
+        prev, b.last_static = b.last_static, here
+        if abs(here - there) <= b.spec.pickup_window or (prev is not None and (prev - there) * (here - there) <= 0.0):
+            b.pickup_hit = True
 
     def _resync_relative(self, b: Binding) -> None:
         """A relative control nudges the value the face has now: if another binding moved the
@@ -224,8 +248,8 @@ class Mapper:
         self.tick += 1
         contrib: dict[int, list[tuple[int, float, int]]] = {}  # only the channels something drives
         for idx, b in enumerate(self.bindings):
-            if b.target is None:
-                continue
+            if b.target is None or b.kind is None:
+                continue  # never touched: at rest by construction (a template map has a hundred)
             self._step_binding(b, dt)
             if not b.active:
                 continue
@@ -271,13 +295,16 @@ class Mapper:
                     and not (b.kind == "absolute" and b.pickup and not b.engaged)):
                 return  # a control at rest whose filters have settled: this step changes nothing
         if b.kind == "absolute" and b.pickup and not b.engaged:
+            if b.stale:
+                return  # re-armed: wait for the control to move before comparing
             here = b.chain.static_value(x)
             there = self._current_norm(b)
             prev = b.last_static
             b.last_static = here
-            crossed = prev is not None and (prev - there) * (here - there) <= 0.0
+            crossed = b.pickup_hit or (prev is not None and (prev - there) * (here - there) <= 0.0)
             if abs(here - there) <= b.spec.pickup_window or crossed:
                 b.engaged = True
+                b.pickup_hit = False
                 b.chain.reset(there)
             else:
                 return
@@ -307,6 +334,7 @@ class Mapper:
         b.chain.reset(start)
         b.engaged = not (b.kind in (None, "absolute") and b.pickup)
         b.last_static = None
+        b.pickup_hit = False
         b.active = False
 
     def _reset_all(self) -> None:
@@ -324,21 +352,45 @@ class Mapper:
         out, self._pending.markers = self._pending.markers, []
         return out
 
-    def light_changes(self) -> list[tuple[str, str, bool]]:
-        """(device, control, on) for button lights whose state changed since the last call."""
-        out = []
+    def light_changes(self) -> list[tuple[str, str, bool | float]]:
+        """(device, control, state) for lights whose state changed since the last call: a button's
+        light on/off (bool), and an encoder's or fader's ring (a 0..1 level, in 1/127 steps) showing
+        the value of the channel it drives, so it follows other bindings and panic too. A ring is
+        left alone while its control is being moved and for RING_HOLD_TICKS after: what it would show
+        then is the input itself, and a box whose ring also sets the encoder would fight the hand.
+        A device without such a light ignores the call."""
+        out: list[tuple[str, str, bool | float]] = []
         for b in self.bindings:
             if b.device is None or b.spec.action is not None:
+                continue
+            key = (b.device, b.spec.control)
+            if b.kind in ("relative", "absolute"):
+                if b.spec.light is False or b.target is None or self.tick - b.input_tick < RING_HOLD_TICKS:
+                    continue
+                level = round(min(1.0, max(0.0, self._current_norm(b))) * 127) / 127
+                if self._lights.get(key) != level:
+                    self._lights[key] = level
+                    out.append((b.device, b.spec.control, level))
                 continue
             want = b.spec.light if b.spec.light is not None else b.spec.mode in ("toggle", "radio", "trigger")
             if not want:
                 continue
-            key = (b.device, b.spec.control)
             on = b.button.is_on()
             if self._lights.get(key) != on:
                 self._lights[key] = on
                 out.append((b.device, b.spec.control, on))
         return out
+
+    def rearm_pickup(self, device: str | None = None) -> None:
+        """Absolute controls (of `device`, or all) wait for pickup again: after a map change, or a
+        box that was unplugged (its faders may have moved meanwhile). Crossing detection starts
+        afresh, so the first move after this cannot jump over the value either."""
+        for b in self.bindings:
+            if b.kind in (None, "absolute") and b.pickup and (device is None or b.device == device):
+                b.engaged = False
+                b.last_static = None
+                b.pickup_hit = False
+                b.stale = True
 
     def hud_lines(self, limit: int = 24) -> list[str]:
         """One line per binding: control -> target = value, and its device as connected/lost."""

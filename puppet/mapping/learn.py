@@ -4,8 +4,6 @@ only changes the target (what MIDI-learn users ask for)."""
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +12,7 @@ from tomlkit.exceptions import TOMLKitError
 
 from puppet.errors import ConfigError
 from puppet.mapping.config import parse_mapping
+from safefile import BadFile, atomic_write, quote, read_text
 
 NEW_FILE_HEADER = """# facepuppet mapping file (see docs/live.md for every key).
 # Written by `puppet learn`; edit freely: comments are kept when learn adds bindings.
@@ -55,17 +54,21 @@ def _inline(v: Any) -> Any:
 
 
 def learn_binding(path: str | Path, control: str, device: str, target: str, kind: str,
-                  mode: str | None = None) -> str:
+                  mode: str | None = None, settings: dict[str, Any] | None = None) -> str:
     """Add (or retarget) the binding of `control` on `device` to `target` in the file at `path`
     (created if missing). Returns "added" or "updated". The result is parsed again before it
     replaces the file, so a learn never leaves a broken mapping behind."""
     p = Path(path)
     if p.exists():
         try:
-            doc = tomlkit.parse(p.read_text(encoding="utf-8"))
-        except (TOMLKitError, UnicodeDecodeError) as err:
-            parse_mapping(p.read_text(encoding="utf-8", errors="replace"), str(p))  # locates the error
-            raise ConfigError(f"{p}: cannot read the mapping file: {err}") from err
+            text = read_text(p, "mapping file", 16 * 1024 * 1024)
+        except BadFile as err:
+            raise ConfigError(str(err)) from err
+        parse_mapping(text, str(p))  # a file we cannot read is reported, never rewritten
+        try:
+            doc = tomlkit.parse(text)
+        except (TOMLKitError, RecursionError, ValueError) as err:
+            raise ConfigError(f"{p}: cannot read the mapping file: {quote(str(err), 80)}") from err
     else:
         doc = tomlkit.parse(NEW_FILE_HEADER)
         doc["version"] = 1
@@ -81,6 +84,8 @@ def learn_binding(path: str | Path, control: str, device: str, target: str, kind
             b["target"] = target
             if mode is not None and kind in ("button", "key"):
                 b["mode"] = mode
+            for k, v in (settings or {}).items():
+                b[k] = _inline(v)
             result = "updated"
             break
     else:
@@ -88,21 +93,16 @@ def learn_binding(path: str | Path, control: str, device: str, target: str, kind
         t["control"] = control
         t["device"] = dev
         t["target"] = target
-        for k, v in default_settings(kind, mode).items():
+        for k, v in {**default_settings(kind, mode), **(settings or {})}.items():
             t[k] = _inline(v)
         t.add(tomlkit.nl())
         bindings.append(t)
     text = tomlkit.dumps(doc)
     parse_mapping(text, str(p))  # never write something we could not read back
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=str(p.parent.resolve()))
-    except OSError as err:
-        raise ConfigError(f"{p}: cannot write the mapping file: {err.strerror}") from err
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+    try:  # beside the file, synced, then renamed: a crash leaves the old file or the new one
+        with atomic_write(p) as fh:
             fh.write(text)
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    except (OSError, BadFile) as err:
+        why = err.strerror if isinstance(err, OSError) else str(err).rsplit(": ", 1)[-1]
+        raise ConfigError(f"{p}: cannot write the mapping file: {why}") from err
     return result

@@ -9,6 +9,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from puppet.errors import ChannelError
+from safefile import few, quote
 
 
 @dataclass(frozen=True)
@@ -67,7 +68,8 @@ class Vocabulary:
     def au_weights(self, au: str) -> dict[int, float]:
         table = self.aus.get(au.upper())
         if table is None:
-            raise ChannelError(f"unknown AU {au!r}; known: {', '.join(sorted(self.aus, key=_au_key)) or 'none'}")
+            known = sorted(self.aus, key=_au_key)
+            raise ChannelError(f"unknown AU {quote(au)}; known: {few(known)}")
         return {self.index[ch]: float(w) for ch, w in table.items() if ch in self.index}
 
     def resolve(self, name: str) -> Target:
@@ -86,7 +88,7 @@ class Vocabulary:
             ex = name[5:].lower()
             table = self.expressions.get(ex)
             if table is None:
-                raise ChannelError(f"unknown expression {ex!r}; known: {', '.join(sorted(self.expressions)) or 'none'}")
+                raise ChannelError(f"unknown expression {quote(ex)}; known: {few(sorted(self.expressions))}")
             acc: dict[int, float] = {}
             for au, intensity in table.items():
                 for i, w in self.au_weights(au).items():
@@ -100,8 +102,8 @@ class Vocabulary:
         names = [c.name for c in self.channels if not c.name.endswith(("_l", "_r"))] + pairs
         close = [n for n in names if name.lower()[:4] in n.lower()][:6]
         hint = f" (did you mean {', '.join(close)}?)" if close else ""
-        return (f"unknown target {name!r}{hint}; expected a channel ({', '.join(names)}), "
-                f"a pair's _l/_r channel, an AU like AU12, or expr:<name>")
+        return (f"unknown target {quote(name)}{hint}; expected a channel ({few(names)}; `puppet channels` "
+                f"lists them), a pair's _l/_r channel, an AU like AU12, or expr:<name>")
 
     def all_targets(self) -> list[str]:
         """Every target name a user can pick in learn mode, channels first."""

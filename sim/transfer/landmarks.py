@@ -10,11 +10,12 @@ whose holes cannot be found automatically.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from safefile import BadFile, few, load_json, quote, read_text
 
 # `_l` / `_r` are the face's own left and right.
 LANDMARK_NAMES: tuple[str, ...] = (
@@ -39,6 +40,9 @@ EYE_LANDMARKS = {
 }
 MOUTH_LANDMARKS = ("mouth_corner_l", "mouth_corner_r", "upper_lip_center", "lower_lip_center")
 OPENING_NAMES = ("eye_l", "eye_r", "mouth")
+MAX_INDEX = 100_000_000
+MAX_COORD = 1e9
+MAX_LOOP = 100_000
 
 
 class TransferError(ValueError):
@@ -59,14 +63,17 @@ def _entry(path: str, name: str, value: object) -> int | np.ndarray:
     if isinstance(value, bool):
         raise TransferError(f"{path}: landmark {name!r} must be a vertex index or [x, y, z]")
     if isinstance(value, int):
+        if not 0 <= value <= MAX_INDEX:
+            raise TransferError(f"{path}: landmark {quote(name)} is vertex {quote(value)}; indices are 0-based "
+                                "vertex numbers of the mesh file")
         return value
     if isinstance(value, list) and len(value) == 3 and all(
-        isinstance(c, (int, float)) and not isinstance(c, bool) for c in value
+        isinstance(c, (int, float)) and not isinstance(c, bool) and abs(c) <= MAX_COORD for c in value
     ):
         point = np.asarray(value, float)
         if np.isfinite(point).all():
             return point
-    raise TransferError(f"{path}: landmark {name!r} must be a vertex index or [x, y, z], got {value!r}")
+    raise TransferError(f"{path}: landmark {quote(name)} must be a vertex index or [x, y, z], got {quote(value)}")
 
 
 def parse_landmarks(data: object, path: str = "<landmarks>") -> LandmarkFile:
@@ -77,7 +84,7 @@ def parse_landmarks(data: object, path: str = "<landmarks>") -> LandmarkFile:
     if "landmarks" in data:
         unknown_keys = set(data) - {"landmarks", "openings", "comment"}
         if unknown_keys:
-            raise TransferError(f"{path}: unknown key(s) {sorted(unknown_keys)}; expected "
+            raise TransferError(f"{path}: unknown key(s) {few(sorted(map(str, unknown_keys)))}; expected "
                                 "'landmarks' and optionally 'openings'")
         openings_raw = data.get("openings", {}) or {}
         data = data["landmarks"]
@@ -85,7 +92,7 @@ def parse_landmarks(data: object, path: str = "<landmarks>") -> LandmarkFile:
             raise TransferError(f"{path}: 'landmarks' must be an object of name -> index or point")
     unknown = sorted(set(data) - set(LANDMARK_NAMES))
     if unknown:
-        raise TransferError(f"{path}: unknown landmark(s) {', '.join(unknown)}; the vocabulary is "
+        raise TransferError(f"{path}: unknown landmark(s) {few(unknown)}; the vocabulary is "
                             "documented in docs/import-face.md")
     entries = {name: _entry(path, name, value) for name, value in data.items()}
     if not isinstance(openings_raw, dict):
@@ -93,9 +100,9 @@ def parse_landmarks(data: object, path: str = "<landmarks>") -> LandmarkFile:
     openings: dict[str, np.ndarray] = {}
     for name, loop in openings_raw.items():
         if name not in OPENING_NAMES:
-            raise TransferError(f"{path}: unknown opening {name!r}; expected one of {OPENING_NAMES}")
-        if not (isinstance(loop, list) and len(loop) >= 3 and all(
-            isinstance(i, int) and not isinstance(i, bool) for i in loop
+            raise TransferError(f"{path}: unknown opening {quote(name)}; expected one of {OPENING_NAMES}")
+        if not (isinstance(loop, list) and 3 <= len(loop) <= MAX_LOOP and all(
+            isinstance(i, int) and not isinstance(i, bool) and 0 <= i <= MAX_INDEX for i in loop
         )):
             raise TransferError(f"{path}: opening {name!r} must be a list of at least 3 vertex indices")
         openings[name] = np.asarray(loop, dtype=np.int64)
@@ -106,13 +113,9 @@ def read_landmarks(path: str | Path) -> LandmarkFile:
     """Read and validate a landmark JSON file (errors name the file)."""
     path = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as err:
-        raise TransferError(f"{path}: cannot read landmark file ({err.strerror})") from err
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise TransferError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from err
+        data = load_json(read_text(path, "landmark file", 16 * 1024 * 1024), path, "landmark file")
+    except BadFile as err:
+        raise TransferError(str(err)) from err
     return parse_landmarks(data, path)
 
 
@@ -120,4 +123,4 @@ def require(lf: LandmarkFile, names: tuple[str, ...] | list[str]) -> None:
     """Fail naming every required landmark the file lacks."""
     missing = [n for n in names if n not in lf.entries]
     if missing:
-        raise TransferError(f"{lf.path}: missing landmark(s) {', '.join(missing)}")
+        raise TransferError(f"{lf.path}: missing landmark(s) {few(missing)} (docs/import-face.md lists them)")

@@ -6,14 +6,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import re
+
 import numpy as np
 
+from safefile import BadFile, quote, read_bytes
 from sim.transfer.landmarks import TransferError
 
 FloatArray = np.ndarray
 IntArray = np.ndarray
 
 MESH_SUFFIXES = (".obj", ".ply", ".gltf", ".glb", ".off", ".stl")
+MAX_MESH_BYTES = 512 * 1024 * 1024
+MAX_COORD = 1e9  # in the file's own units, whatever they are
 
 
 @dataclass
@@ -58,14 +63,54 @@ def read_mesh(path: str | Path) -> HeadMesh:
         raise TransferError(f"{path}: no such mesh file")
     if Path(path).suffix.lower() not in MESH_SUFFIXES:
         raise TransferError(f"{path}: unsupported mesh format; use one of {', '.join(MESH_SUFFIXES)}")
+    suffix = Path(path).suffix.lower()
+    try:
+        data = read_bytes(path, "mesh file", MAX_MESH_BYTES)
+    except BadFile as err:
+        raise TransferError(str(err)) from err
+    _precheck(path, suffix, data)
     try:
         mesh = trimesh.load(path, force="mesh", process=False)
-    except Exception as err:  # trimesh raises many types for malformed files
-        raise TransferError(f"{path}: cannot read mesh ({err})") from err
+    except Exception as err:  # trimesh raises many types for malformed files: one short line
+        what = f"the field {err} is missing" if isinstance(err, KeyError) else quote(str(err) or type(err).__name__, 80)
+        raise TransferError(f"{path}: not a readable {suffix[1:].upper()} mesh ({what}); is the file complete?") from err
     faces = np.asarray(getattr(mesh, "faces", np.zeros((0, 3))))
-    if faces.ndim != 2 or len(faces) == 0:
+    if faces.ndim != 2 or len(faces) == 0 or faces.shape[1] != 3:
         raise TransferError(f"{path}: the file holds no triangles (a point cloud or empty scene)")
-    verts = np.asarray(mesh.vertices, float)
-    if not np.isfinite(verts).all():
-        raise TransferError(f"{path}: the mesh has non-finite vertex coordinates")
-    return from_arrays(verts, faces, path)
+    verts = np.asarray(getattr(mesh, "vertices", np.zeros((0, 3))), float)
+    if verts.ndim != 2 or verts.shape[1] != 3 or len(verts) < 3:
+        raise TransferError(f"{path}: the file holds fewer than 3 vertices")
+    if not np.isfinite(verts).all() or np.abs(verts).max() > MAX_COORD:
+        raise TransferError(f"{path}: the mesh has non-finite or huge (beyond {MAX_COORD:g}) vertex coordinates")
+    if faces.dtype.kind not in "iu" or faces.min() < 0 or faces.max() >= len(verts):
+        raise TransferError(f"{path}: triangles refer to vertices outside 1..{len(verts)} (a damaged file)")
+    head = from_arrays(verts, faces, path)
+    extent = np.sort(np.ptp(head.vertices, axis=0))
+    if len(head.triangles) == 0 or extent[1] <= 1e-9 * max(extent[2], 1e-300):
+        raise TransferError(f"{path}: the mesh collapses to a point or a line ({len(head.vertices)} distinct "
+                            "vertices, no triangle of non-zero size); is it the right file?")
+    return head
+
+
+def _precheck(path: str, suffix: str, data: bytes) -> None:
+    """What trimesh would otherwise meet with a confusing error or an allocation sized by the file:
+    a binary STL whose size does not match its triangle count and is not ASCII STL either, a PLY
+    whose header promises more elements than its bytes can hold."""
+    if suffix == ".stl":
+        if len(data) >= 84 and len(data) == 84 + 50 * int.from_bytes(data[80:84], "little"):
+            return
+        try:
+            text = data.decode("ascii")
+        except UnicodeDecodeError:
+            text = ""
+        if not text.lstrip().lower().startswith("solid"):
+            n = int.from_bytes(data[80:84], "little") if len(data) >= 84 else 0
+            raise TransferError(f"{path}: not a valid STL file (binary STL of {len(data)} bytes should be "
+                                f"84 + 50 x {n} triangles, and it is not ASCII STL either); is the file complete?")
+    elif suffix == ".ply":
+        head = data[:65536].split(b"end_header", 1)[0]
+        for m in re.finditer(rb"element\s+(\w+)\s+(-?\d+)", head):
+            count = int(m.group(2))
+            if count < 0 or count > len(data):
+                raise TransferError(f"{path}: the PLY header promises {count} {m.group(1).decode(errors='replace')} "
+                                    f"elements, which a file of {len(data)} bytes cannot hold (a damaged file)")

@@ -161,3 +161,20 @@ def synthetic_rig(n_theta: int = 48, n_h: int = 44, full_head: bool = False) -> 
         mouth_loop=loops["mouth"], regions={"forehead": h > 4.8, "lower_lip": (h < -5) & (h > -6.5) & (np.abs(th) < 0.3)},
         uv=np.stack([(th + np.pi) / (2 * np.pi), (h - H_RANGE[0]) / (H_RANGE[1] - H_RANGE[0])], axis=1))
     return FaceRig(mesh=mesh, muscles=synthetic_muscles(), name="synthetic")
+
+
+def coarse_transferred_head() -> FaceRig:
+    """The default face's rig (resolution 0, 864 vertices) carried onto a 437-vertex sampling of
+    the same surface (`sim.face_builder.build_coarse_face_mesh`: 16 vertices per eye opening, 20
+    round the mouth, no wrinkle rows), given to the transfer as a user's mesh and landmark file
+    would be: the low-polygon head of tests and benchmarks for lids, lips and amplitudes."""
+    from sim.face_builder import build_coarse_face_mesh
+    from sim.rig import default_rig
+    from sim.transfer.landmarks import parse_landmarks
+    from sim.transfer.meshfile import from_arrays
+    from sim.transfer.pipeline import transfer_rig
+
+    mesh = build_coarse_face_mesh()
+    lms = parse_landmarks({k: int(i) for k, i in mesh.landmarks.items()}, "coarse.json")
+    head = from_arrays(mesh.vertices, mesh.triangles, "coarse.obj")
+    return transfer_rig(default_rig(0), head, lms, name="coarse").rig

@@ -53,19 +53,42 @@ def test_round_trip_is_bit_exact_and_sparse(tmp_path: Path) -> None:
     assert all(len(rec["v"]) <= 1 for rec in lines[1:])
 
 
-def test_flushes_every_100ms_without_close(tmp_path: Path) -> None:
-    clock = FakeClock()
+def test_every_tick_reaches_the_os_without_close(tmp_path: Path) -> None:
+    """A process killed after tick k leaves ticks 0..k in the file: each tick is written at once
+    (with a sync record when no value changed), no clock, no close."""
     p = tmp_path / "s.jsonl"
-    w = SessionWriter(p, header(), clock=clock)
-    w.values(0, np.array([1.0, 2.0, 3.0]))
-    w.tick(1)
-    assert '"t":"v"' not in p.read_text()   # buffered
-    clock.t = 0.1
-    w.values(1, np.array([1.0, 2.5, 3.0]))
-    w.tick(2)
-    s = read_session(p)                      # readable while still open
-    assert s.ticks == 2 and not s.complete and s.warnings
+    w = SessionWriter(p, header(), fsync_seconds=None)
+    rows = [[1.0, 2.0, 3.0], [1.0, 2.5, 3.0], [1.0, 2.5, 3.0], [1.0, 2.5, 3.0], [0.5, 2.5, 3.0]]
+    for k, row in enumerate(rows):
+        w.values(k, np.array(row))
+        w.tick(k + 1)
+        s = read_session(p)                  # readable while still open, up to this tick
+        assert s.ticks == k + 1 and not s.complete and s.warnings
+        assert np.array_equal(s.value_array(np.zeros(3))[-1], row)
+    text = p.read_text()
+    assert text.count('"t":"sync"') == 2     # the two ticks that changed nothing
     w.close()
+
+
+def test_fsync_thread_makes_the_file_durable_while_recording(tmp_path: Path) -> None:
+    """The writer's thread fsyncs the open file and logs what each fsync covered: the bytes then
+    on disk read back as at least the logged ticks."""
+    p = tmp_path / "s.jsonl"
+    w = SessionWriter(p, header(), fsync_seconds=0.01)
+    assert w.syncer is not None
+    for k in range(40):
+        w.values(k, np.array([k, 0.0, 0.0], dtype=float))
+        w.tick(k + 1)
+        w.syncer.sync_now()
+    log = list(w.syncer.log)
+    w.close()
+    assert len(log) >= 40
+    data = p.read_bytes()
+    for _, size, ticks in log:
+        cut = tmp_path / "cut.jsonl"
+        cut.write_bytes(data[:size])
+        assert read_session(cut).ticks >= ticks
+    assert max(t for _, _, t in log) == 40
 
 
 def test_cut_file_reads_to_last_complete_record(tmp_path: Path) -> None:

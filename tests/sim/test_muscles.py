@@ -104,11 +104,13 @@ def test_field_scales_with_node_area() -> None:
 
 
 def test_placement_types_match_the_channels(synth_rig: FaceRig) -> None:
+    """A channel's first part is of its declared type; further parts may be of another (the
+    mouth's ring is joined by the linear fibres that press the lips, sim.muscle_placement)."""
     kinds = {"linear": LinearMuscle, "sphincter": SphincterMuscle, "sheet": SheetMuscle}
     for spec in CHANNEL_SPECS:
         if spec.kind == "muscle":
             parts = synth_rig.muscles[spec.name]
-            assert parts and all(isinstance(m, kinds[spec.muscle_type]) for m in parts)
+            assert parts and isinstance(parts[0], kinds[spec.muscle_type])
 
 
 def _points(m: object) -> np.ndarray:

@@ -54,12 +54,16 @@ def test_muscle_geometry_recovered(reference, result) -> None:
 
 
 def test_zone_sizes_scale_with_the_face(reference, result) -> None:
-    """Radii and sheet zones grow by the local stretch (this copy is 0.93-1.12 x the reference)."""
+    """Radii and sheet zones grow by the local stretch (this copy is 0.93-1.12 x the reference).
+    A short fibre (the lips' press fibres are 0.7 cm) may instead be off by what its two end
+    points' tolerance allows: a radius is up to 1.5 x the fibre's length, each end within
+    TOLERANCE_CM (test_muscle_geometry_recovered)."""
     for ch, parts in reference.muscles.items():
         for before, after in zip(parts, result.rig.muscles[ch]):
             for f in ("radius", "a", "b", "length", "width"):
                 if hasattr(before, f):
-                    assert 0.85 < getattr(after, f) / getattr(before, f) < 1.2, (ch, f)
+                    b, a = getattr(before, f), getattr(after, f)
+                    assert 0.85 < a / b < 1.2 or abs(a - b) <= 1.5 * 2 * TOLERANCE_CM, (ch, f, a, b)
 
 
 def test_eyes_jaw_and_wrinkles_follow(reference, result) -> None:

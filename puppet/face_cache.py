@@ -1,0 +1,302 @@
+"""Compiled faces cached on disk, so `puppet live` does not rebuild the default face at every start.
+
+An entry is named by a key: the SHA-256 of everything the compiled face is built from — the source
+of every module of the `sim` package (the face builder, the rig, springs, muscles, the compiler:
+editing any of them changes the key), the numpy/scipy versions, this format's version, and what
+was asked for (the default face at a resolution, or the bytes of a rig file). Files, no pickle:
+
+- `<key>.npz`: the FaceModel's arrays (`a_<field>`; the muscle matrix as CSR parts `mm_data`,
+  `mm_indices`, `mm_indptr`) and `meta`, a 0-d unicode array holding JSON: {"format", "version",
+  "key", "scalars": {field: number or text}, "params": SkinParams fields, "mm_shape", "arrays":
+  SHA-256 of every array, "rig_sha": SHA-256 of the rig file below or null}.
+- `<key>.rig.npz`: for the default face, its rig in the rig file format (`sim.rig`), read back
+  through the rig loader.
+
+An entry is never trusted blindly: a missing, corrupt, foreign (another key) or inconsistent entry
+(checksums, shapes, index ranges, finiteness, the rig's own digest) is ignored and rebuilt. Entries
+are written to a temporary file beside the target and renamed into place.
+
+Where: $PUPPET_CACHE_DIR, else $XDG_CACHE_HOME/facepuppet/faces, else ~/.cache/facepuppet/faces.
+`PUPPET_CACHE_DIR=off` (or an unwritable place) builds every time, with one warning line."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import sys
+import tempfile
+import zipfile
+from collections.abc import Callable
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+FORMAT = "facepuppet-face-cache"
+VERSION = 1
+ENV = "PUPPET_CACHE_DIR"
+MAX_ENTRY_BYTES = 1 << 30  # an entry larger than this is not a face of ours
+#: FaceModel fields that are not stored as arrays or scalars (rebuilt from the rig or constant)
+_NOT_STORED = {"rig", "mesh", "channels", "channel_index", "muscle_matrix", "params"}
+
+
+class CacheEntryError(ValueError):
+    """A cache entry that cannot be used (it is then rebuilt)."""
+
+
+def cache_dir() -> Path | None:
+    """Where compiled faces are kept (None: caching is off)."""
+    env = os.environ.get(ENV)
+    if env:
+        return None if env.lower() == "off" else Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "facepuppet" / "faces"
+
+
+@lru_cache(maxsize=4)
+def source_digest(root: Path | None = None) -> str:
+    """SHA-256 of every source file of the `sim` package (or of the package folder `root`), of
+    its layout, and of the library versions."""
+    import scipy
+
+    if root is None:
+        import sim
+
+        root = Path(sim.__file__).resolve().parent
+    h = hashlib.sha256(f"{FORMAT}/{VERSION} numpy {np.__version__} scipy {scipy.__version__}".encode())
+    for path in sorted(root.rglob("*.py")):
+        h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def entry_key(what: bytes) -> str:
+    return hashlib.sha256(source_digest().encode() + b"\0" + what).hexdigest()[:32]
+
+
+def _array_digest(arrays: dict[str, np.ndarray]) -> dict[str, str]:
+    out = {}
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        out[name] = hashlib.sha256(f"{a.dtype.str}{a.shape}".encode() + a.tobytes()).hexdigest()
+    return out
+
+
+def _write_atomic(target: Path, write: Callable[[str], None]) -> None:
+    """`write(path)` fills a temporary file beside `target`, which is then renamed into place."""
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp.npz")
+    os.close(fd)
+    try:
+        write(tmp)
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, target)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def _split(model: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """A FaceModel's arrays and scalars, by field name."""
+    arrays: dict[str, np.ndarray] = {}
+    scalars: dict[str, Any] = {}
+    for f in dataclasses.fields(model):
+        if f.name in _NOT_STORED:
+            continue
+        val = getattr(model, f.name)
+        if isinstance(val, np.ndarray):
+            arrays[f"a_{f.name}"] = val
+        else:
+            scalars[f.name] = val.item() if isinstance(val, np.generic) else val
+    mm = model.muscle_matrix
+    arrays.update(mm_data=mm.data, mm_indices=mm.indices, mm_indptr=mm.indptr)
+    return arrays, scalars
+
+
+def save_entry(directory: Path, key: str, model: Any, with_rig: bool) -> None:
+    """Write the entry for `model` under `key` (rig file first, then the model that names it)."""
+    from sim.rig import save_rig
+
+    directory.mkdir(parents=True, exist_ok=True)
+    rig_sha = None
+    if with_rig:
+        rig_path = directory / f"{key}.rig.npz"
+        _write_atomic(rig_path, lambda tmp: save_rig(model.rig, tmp))
+        rig_sha = hashlib.sha256(rig_path.read_bytes()).hexdigest()
+    arrays, scalars = _split(model)
+    meta = {"format": FORMAT, "version": VERSION, "key": key, "scalars": scalars,
+            "params": dataclasses.asdict(model.params), "mm_shape": list(model.muscle_matrix.shape),
+            "arrays": _array_digest(arrays), "rig_sha": rig_sha}
+    payload = {"meta": np.array(json.dumps(meta)), **arrays}
+    _write_atomic(directory / f"{key}.npz", lambda tmp: np.savez(tmp, **payload))
+
+
+def _read_npz(path: Path) -> dict[str, np.ndarray]:
+    """Every member of an uncompressed npz, each checked against its stored size before reading."""
+    if not path.is_file():
+        raise CacheEntryError("missing")
+    if path.stat().st_size > MAX_ENTRY_BYTES or not zipfile.is_zipfile(path):
+        raise CacheEntryError("not an entry")
+    with zipfile.ZipFile(path) as zf:
+        for info in zf.infolist():
+            with zf.open(info) as fh:
+                fmt = np.lib.format
+                major, _ = fmt.read_magic(fh)
+                read_header = fmt.read_array_header_1_0 if major == 1 else fmt.read_array_header_2_0
+                shape, _, dtype = read_header(fh)
+                if dtype.hasobject or int(np.prod(shape, dtype=np.int64)) * dtype.itemsize > info.file_size:
+                    raise CacheEntryError(f"member {info.filename} claims more than it holds")
+    with np.load(path, allow_pickle=False) as data:
+        return {name: data[name] for name in data.files}
+
+
+def _check_model(arrays: dict[str, np.ndarray], meta: dict[str, Any], rig: Any) -> None:
+    """Shapes, index ranges and finiteness against the rig: what the kernels index must be safe."""
+    n = len(rig.mesh.vertices)
+    a = {k[2:]: v for k, v in arrays.items() if k.startswith("a_")}
+    springs = a["spring_indices"]
+    s = len(springs)
+    shapes = {"rest": (n, 3), "triangles": rig.mesh.triangles.shape, "spring_indices": (s, 2),
+              "rest_normal": (n, 3), "rest_offset": (n, 3), "weight": (n, 3), "jaw_pivot": (3,), "jaw_axis": (3,), "gravity": (3,)}
+    for name in ("spring_rest_length", "spring_k_low", "spring_k_high", "spring_damping"):
+        shapes[name] = (s,)
+    for name in ("area", "mass", "damping", "rest_stiffness", "support_stiffness", "held", "jaw_weight"):
+        shapes[name] = (n,)
+    k = len(a["eye_contact"])
+    shapes.update(eye_contact=(k,), eye_contact_eye=(k,))
+    if set(a) != set(shapes):
+        raise CacheEntryError("unexpected arrays")
+    for name, want in shapes.items():
+        arr = a[name]
+        if arr.shape != tuple(want) or arr.dtype.kind not in "fiub":
+            raise CacheEntryError(f"array {name} has shape {arr.shape}")
+        if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
+            raise CacheEntryError(f"array {name} is not finite")
+    if not np.array_equal(a["triangles"], rig.mesh.triangles) or not np.array_equal(a["rest"], rig.mesh.vertices):
+        raise CacheEntryError("geometry differs from the rig")
+    for name, hi in (("spring_indices", n), ("eye_contact", n), ("eye_contact_eye", 2)):
+        arr = a[name]
+        if arr.dtype.kind not in "iu" or (arr.size and (arr.min() < 0 or arr.max() >= hi)):
+            raise CacheEntryError(f"array {name} indexes out of range")
+    if not np.all(a["mass"] > 0):
+        raise CacheEntryError("non-positive masses")
+    rows, cols = (int(x) for x in meta["mm_shape"])
+    ind, ptr, data = arrays["mm_indices"], arrays["mm_indptr"], arrays["mm_data"]
+    if rows != 3 * n or ptr.shape != (rows + 1,) or ind.shape != data.shape or ptr[0] != 0 \
+            or ptr[-1] != len(ind) or np.any(np.diff(ptr) < 0) or (ind.size and (ind.min() < 0 or ind.max() >= cols)) \
+            or not np.all(np.isfinite(data)):
+        raise CacheEntryError("muscle matrix is inconsistent")
+
+
+_SCALARS = {"n_edge_springs": int, "strain_threshold": float, "eye_contact_radius": float,
+            "omega_max": float, "hash": str}
+
+
+def _check_scalars(scalars: Any, n_springs: int) -> dict[str, Any]:
+    if not isinstance(scalars, dict) or set(scalars) != set(_SCALARS):
+        raise CacheEntryError("unexpected scalars")
+    for name, kind in _SCALARS.items():
+        val = scalars[name]
+        ok = isinstance(val, str) if kind is str else (
+            isinstance(val, (int, float)) and not isinstance(val, bool) and np.isfinite(val)
+            and (kind is float or isinstance(val, int)))
+        if not ok:
+            raise CacheEntryError(f"scalar {name} is {type(val).__name__}")
+    if not 0 <= scalars["n_edge_springs"] <= n_springs or not scalars["omega_max"] > 0:
+        raise CacheEntryError("scalars out of range")
+    return dict(scalars)
+
+
+def load_entry(directory: Path, key: str, rig: Any | None) -> Any:
+    """The FaceModel of the entry `key` (its own rig file when `rig` is None); CacheEntryError if
+    the entry is missing or cannot be trusted."""
+    import scipy.sparse as sp
+
+    from sim.build import FaceModel, SkinParams, _rig_digest
+    from sim.channels import CHANNEL_SPECS
+
+    arrays = _read_npz(directory / f"{key}.npz")
+    meta_arr = arrays.pop("meta", None)
+    if meta_arr is None or meta_arr.dtype.kind != "U" or meta_arr.shape != ():
+        raise CacheEntryError("no meta")
+    try:
+        meta = json.loads(str(meta_arr))
+    except (ValueError, RecursionError) as err:
+        raise CacheEntryError("meta is not JSON") from err
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT or meta.get("version") != VERSION \
+            or meta.get("key") != key:
+        raise CacheEntryError("foreign entry")
+    if meta.get("arrays") != _array_digest(arrays):
+        raise CacheEntryError("checksum mismatch")
+    if rig is None:
+        from sim.rig import load_rig
+
+        rig_path = directory / f"{key}.rig.npz"
+        try:
+            if hashlib.sha256(rig_path.read_bytes()).hexdigest() != meta.get("rig_sha"):
+                raise CacheEntryError("rig checksum mismatch")
+        except OSError as err:
+            raise CacheEntryError("rig missing") from err
+        rig = load_rig(rig_path)
+    try:
+        params = SkinParams(**meta["params"])
+        scalars = _check_scalars(meta["scalars"], len(arrays["a_spring_indices"]))
+        _check_model(arrays, meta, rig)
+        if _rig_digest(rig, params) != scalars.get("hash"):
+            raise CacheEntryError("the entry was compiled from another rig")
+        mm = sp.csr_matrix((arrays["mm_data"], arrays["mm_indices"], arrays["mm_indptr"]),
+                           shape=tuple(int(x) for x in meta["mm_shape"]))
+        if mm.shape[1] != len(CHANNEL_SPECS):
+            raise CacheEntryError("channel count differs")
+        fields = {}
+        for name, arr in arrays.items():
+            if name.startswith("a_"):
+                arr.setflags(write=False)
+                fields[name[2:]] = arr
+        return FaceModel(rig=rig, mesh=rig.mesh, muscle_matrix=mm, params=params, **fields, **scalars)
+    except CacheEntryError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError) as err:
+        raise CacheEntryError(f"malformed entry ({type(err).__name__})") from err
+
+
+def cached_model(what: bytes, build: Callable[[], Any], rig: Any | None = None) -> Any:
+    """The compiled face for `what` from the cache, or `build()` it and store it. `rig` (a rig
+    already loaded from the user's file) is used as is; without it the entry keeps its own rig."""
+    directory = cache_dir()
+    if directory is None:
+        return build()
+    key = entry_key(what)
+    try:
+        return load_entry(directory, key, rig)
+    except Exception:  # noqa: BLE001 - missing, damaged or foreign, however it fails: rebuild it
+        pass
+    model = build()
+    try:
+        save_entry(directory, key, model, with_rig=rig is None)
+    except OSError as err:
+        print(f"puppet: warning: cannot cache the compiled face in {directory} ({err.strerror or err}); "
+              f"set {ENV} to a writable folder for faster starts", file=sys.stderr)
+    return model
+
+
+@lru_cache(maxsize=4)
+def default_model(resolution: int = 0) -> Any:
+    """The default face at a resolution, from the cache when it can be trusted."""
+    import sim
+
+    return cached_model(f"default-face:{resolution}".encode(), lambda: sim.default_model(resolution))
+
+
+def rig_model(rig: Any, rig_bytes: bytes, build: Callable[[], Any] | None = None) -> Any:
+    """The compiled face of a rig loaded from a file whose bytes are `rig_bytes`; `build` compiles
+    it on a cache miss (default: `sim.compile_model(rig)`)."""
+    import sim
+
+    return cached_model(b"rig-file:" + hashlib.sha256(rig_bytes).digest(),
+                        build or (lambda: sim.compile_model(rig)), rig)

@@ -1,0 +1,370 @@
+"""``panel://[HOST][:PORT][?lan=1]`` — the performer's page as a control box.
+
+Opening the device starts the web server (puppet.panel.server); each browser page that connects is
+its own device in the event stream, ``panel://HOST:PORT/NAME``, announced with a ``connected``
+status event and gone with ``lost`` (held pads are released then). A page sends control events
+(``slider:CHANNEL`` axes in 0..1, ``pad:expr:NAME`` / ``pad:AUn`` / ``button:panic`` /
+``button:marker`` buttons); they are stamped with ``time.monotonic()`` when the message arrives and
+handed to the listeners like any box's, so they are mapped, combined, recorded and replayed like
+them and ``puppet learn`` can bind them. The live loop does not know a browser exists: the server
+only reads the loop's public state (`watch`) to show every page the applied values, the devices,
+fps and latency."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+import re
+import time
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from devices.base import ControlInfo, Device
+from devices.errors import DeviceError
+from devices.events import ControlEvent, StatusEvent
+from devices.spec import DeviceSpec
+
+STATE_HZ = 30.0
+MAX_MESSAGE = 4096
+NAME_RE = re.compile(r"[A-Za-z0-9_-]{1,24}")
+
+
+@dataclass
+class Client:
+    name: str
+    device: str
+    ws: Any
+    allowed: set[str]
+    only: list[str]
+    role: str | None
+    own: dict[str, float] = field(default_factory=dict)
+    bad: int = 0
+
+
+def parse_roles(items: Sequence[str]) -> dict[str, list[str]]:
+    """`NAME=PAT,PAT` items (the --panel-role option) -> {name: patterns}; ValueError if malformed."""
+    roles: dict[str, list[str]] = {}
+    for item in items:
+        name, sep, pats = item.partition("=")
+        if not sep or not NAME_RE.fullmatch(name) or not pats.strip():
+            raise ValueError(f"expected --panel-role NAME=PATTERN[,PATTERN...] (e.g. mouth=jaw,orbicularis_oris), got {item!r}")
+        roles[name] = [p.strip() for p in pats.split(",") if p.strip()]
+    return roles
+
+
+def decode_input(text: str, allowed: set[str]) -> tuple[str, float] | None:
+    """One page message `{"t":"in","c":CONTROL,"v":VALUE}` -> (control, value in 0..1), or None
+    when it is malformed, not an input, or names a control this page may not send."""
+    if len(text) > MAX_MESSAGE:
+        return None
+    try:
+        msg = json.loads(text)
+    except ValueError:
+        return None
+    if not isinstance(msg, dict) or msg.get("t") != "in":
+        return None
+    ctl, val = msg.get("c"), msg.get("v")
+    if not isinstance(ctl, str) or ctl not in allowed or isinstance(val, bool) or not isinstance(val, (int, float)):
+        return None
+    v = float(val)
+    if not math.isfinite(v):
+        return None
+    return ctl, min(1.0, max(0.0, v))
+
+
+class PanelDevice(Device):
+    """The page server as a device; see the module docstring."""
+
+    scheme = "panel"
+    OPTIONS = frozenset({"lan"})
+    FORM = "panel://[HOST][:PORT][?lan=1]"
+
+    def __init__(self, spec: DeviceSpec, vocab: Any = None, roles: dict[str, list[str]] | None = None,
+                 **options: Any) -> None:
+        super().__init__(spec, **options)
+        loc = spec.location.strip("/")
+        host, _, port = loc.rpartition(":") if ":" in loc else (loc, "", "")
+        self.explicit_port = bool(port)
+        try:
+            self.port = int(port) if port else None
+        except ValueError as err:
+            raise DeviceError(f"{spec.text}: port {port!r} is not a number; expected {self.FORM}") from err
+        if self.port is not None and not 0 <= self.port <= 65535:
+            raise DeviceError(f"{spec.text}: port {self.port} is outside 0..65535")
+        self.lan = spec.get_bool("lan", False)
+        self.host = host or ("0.0.0.0" if self.lan else "127.0.0.1")
+        self.vocab = vocab
+        self.roles = dict(roles or {})
+        self.description = "browser panel"
+        self.clients: dict[str, Client] = {}
+        self.core: Any = None
+        self.devs: Sequence[Any] = ()
+        self.server: Any = None
+        self.layout: dict[str, Any] = {}
+        self._every: set[str] = set()
+        self._rates = {"t": time.monotonic(), "frames": 0, "ticks": 0, "fps": 0.0, "tps": 0.0}
+        self._count = 0
+        self.received = 0
+        self._task: asyncio.Task[None] | None = None
+        self.record: str | None = None
+        self.editor: Any = None  # the `puppet edit` process the editor button started
+
+    # --- device hooks ----------------------------------------------------------------------------
+    def _open(self) -> None:
+        from puppet.errors import PuppetError
+        from puppet.panel import layout as L
+        from puppet.panel.server import DEFAULT_PORT, PanelServer
+
+        if self.server is not None:
+            return
+        if self.vocab is None:
+            from puppet.live import load_face
+
+            self.vocab = load_face().vocab
+        self.layout = L.build_layout(self.vocab)
+        self._every = L.allowed_controls(self.vocab, None)
+        self.controls = [ControlInfo(c, "axis" if c.startswith("slider:") else "button", 0.0, 1.0)
+                         for c in L.controls_of(self.vocab)]
+        port = DEFAULT_PORT if self.port is None else self.port
+        srv = PanelServer(self.host, port, "panel.html", self._routes, try_ports=0 if self.explicit_port else 20,
+                          lan=self.lan)
+        try:
+            srv.start()
+        except PuppetError as err:
+            raise DeviceError(f"{self.spec}: {err}") from err
+        self.server = srv
+        self.description = f"browser panel at {srv.url}"
+
+    def _read(self, timeout: float) -> Iterable[ControlEvent]:
+        self._stop.wait(timeout)
+        return ()
+
+    def _wake(self) -> None:
+        self._stop.set()
+
+    def _close_handle(self) -> None:
+        if self.server is not None and self._stop.is_set():
+            self.server.stop()
+            self.server = None
+        ed, self.editor = self.editor, None
+        if ed is not None and ed.poll() is None:
+            ed.terminate()
+            try:
+                ed.wait(5)
+            except Exception:
+                ed.kill()
+
+    @property
+    def url(self) -> str:
+        return self.server.url if self.server is not None else ""
+
+    def add_listener(self, fn: Any) -> None:
+        """Also tell a new listener about the pages already open (they may connect before the
+        live loop listens)."""
+        super().add_listener(fn)
+        for c in list(self.clients.values()):
+            try:
+                fn(StatusEvent(c.device, "connected", time.monotonic(), "page open"))
+            except Exception:
+                pass
+
+    # --- the loop's public state ----------------------------------------------------------------
+    def watch(self, core: Any, devs: Sequence[Any], record: str | None = None) -> None:
+        """Show pages this live core's state (read from the server thread; nothing runs in the
+        loop); `record` is the take being recorded, which the page's editor button opens."""
+        self.core, self.devs = core, devs
+        self.record = record
+
+    def _state(self) -> dict[str, Any]:
+        core = self.core
+        st: dict[str, Any] = {"t": "state", "clients": [
+            {"name": c.name, "role": c.role, "only": c.only, "own": c.own} for c in list(self.clients.values())]}
+        if core is None:
+            return st
+        vals = core.values
+        st["tick"] = int(core.tick_count)
+        st["values"] = [round(float(x), 5) for x in vals]
+        now = time.monotonic()
+        r = self._rates
+        if now - r["t"] >= 1.0:
+            frames, ticks = getattr(core, "frames", 0), core.tick_count
+            r["fps"] = (frames - r["frames"]) / (now - r["t"])
+            r["tps"] = (ticks - r["ticks"]) / (now - r["t"])
+            r["t"], r["frames"], r["ticks"] = now, frames, ticks
+        st["fps"], st["tps"] = round(r["fps"], 1), round(r["tps"], 1)
+        lat = _copy(core.latency.samples)
+        if lat:
+            lat.sort()
+            st["latency"] = [round(lat[len(lat) // 2] * 1e3, 2), round(lat[min(len(lat) - 1, int(len(lat) * 0.99))] * 1e3, 2)]
+        status = dict(_copy_items(core.mapper.status))
+        devices = [[self._base() if d is self else d.spec, bool(status.get(d.spec, d.connected))] for d in self.devs]
+        devices += [[c.device, True] for c in list(self.clients.values())]
+        st["devices"] = devices
+        st["markers"] = [[round(k / core.rate, 2), label] for k, label in core.markers[-8:]]
+        return st
+
+    # --- web routes ------------------------------------------------------------------------------
+    def _routes(self, app: Any) -> None:
+        from aiohttp import web
+
+        async def layout(request: Any) -> Any:
+            return web.json_response(self.layout)
+
+        app.router.add_post("/api/edit", self._open_editor)
+        app.router.add_get("/ws", self._ws)
+        app.router.add_get("/favicon.ico", _no_icon)
+        app.router.add_get("/api/layout", layout)
+        app.on_startup.append(self._start_broadcast)
+        app.on_cleanup.append(self._stop_broadcast)
+
+    async def _start_broadcast(self, app: Any) -> None:
+        self._task = asyncio.get_running_loop().create_task(self._broadcast())
+
+    async def _stop_broadcast(self, app: Any) -> None:
+        task, self._task = self._task, None
+        if task is not None:
+            task.cancel()
+            try:
+                await task
+            except (asyncio.CancelledError, Exception):
+                pass
+
+    async def _broadcast(self) -> None:
+        while True:
+            await asyncio.sleep(1.0 / STATE_HZ)
+            if not self.clients:
+                continue
+            try:
+                text = json.dumps(self._state(), separators=(",", ":"))
+            except Exception:  # the loop's state changed under us: next time
+                continue
+            for c in list(self.clients.values()):
+                if not c.ws.closed:
+                    try:
+                        await asyncio.wait_for(c.ws.send_str(text), 0.5)
+                    except Exception:  # a stalled page must not stall the others
+                        pass
+
+    def _base(self) -> str:
+        """The spec with the port actually served (the OS's or the fallback's choice)."""
+        base = self.spec.split("?", 1)[0].rstrip("/")
+        if self.server is not None and (not self.port or self.server.port != self.port):
+            base = f"panel://{self.host}:{self.server.port}"
+        return base
+
+    async def _open_editor(self, request: Any) -> Any:
+        """Start `puppet edit` on the take being recorded, in its own process (the show's process
+        stays as lean as it was), and answer its URL."""
+        from aiohttp import web
+
+        if not self.record:
+            return web.json_response({"ok": False, "error": "this show is not recorded: start it with --record FILE"})
+        if self.editor is not None and self.editor.poll() is None:
+            return web.json_response({"ok": True, "url": self._editor_url})
+        loop = asyncio.get_running_loop()
+        try:
+            self.editor, self._editor_url = await loop.run_in_executor(None, _start_editor, self.record)
+        except Exception as err:
+            return web.json_response({"ok": False, "error": str(err)})
+        return web.json_response({"ok": True, "url": self._editor_url})
+
+    def _client_name(self, want: str | None) -> str:
+        base = want if want and NAME_RE.fullmatch(want) else None
+        if base is None:
+            self._count += 1
+            base = f"page{self._count}"
+        name, n = base, 1
+        while name in self.clients:
+            n += 1
+            name = f"{base}{n}"
+        return name
+
+    async def _ws(self, request: Any) -> Any:
+        from aiohttp import WSMsgType, web
+
+        from puppet.panel import layout as L
+
+        role = request.query.get("role") or None
+        if role is not None and role not in self.roles:
+            raise web.HTTPBadRequest(text=f"unknown role {role!r}; known: {', '.join(sorted(self.roles)) or 'none'}\n")
+        only = self.roles.get(role, []) if role else [p for p in request.query.get("only", "").split(",") if p.strip()]
+        try:
+            allowed = L.allowed_controls(self.vocab, only) if only else set(self._every)
+        except Exception as err:
+            raise web.HTTPBadRequest(text=f"bad channel list: {err}\n") from err
+        ws = web.WebSocketResponse(max_msg_size=MAX_MESSAGE, heartbeat=10.0)
+        await ws.prepare(request)
+        name = self._client_name(request.query.get("name") or role)
+        client = Client(name, f"{self._base()}/{name}", ws, allowed, only, role)
+        self.clients[name] = client
+        await ws.send_str(json.dumps({"t": "hello", "you": name, "device": client.device, "layout": self.layout,
+                                      "allowed": sorted(allowed), "roles": sorted(self.roles)}))
+        self.emit(StatusEvent(client.device, "connected", time.monotonic(), "page opened"))
+        try:
+            async for msg in ws:
+                t = time.monotonic()
+                if msg.type != WSMsgType.TEXT:
+                    continue
+                if msg.data.startswith('{"t":"ping"'):
+                    await ws.send_str(msg.data.replace('"ping"', '"pong"', 1))
+                    continue
+                got = decode_input(msg.data, allowed)
+                if got is None:
+                    client.bad += 1
+                    continue
+                ctl, v = got
+                self.received += 1
+                client.own[ctl] = v
+                kind = "axis" if ctl.startswith("slider:") else "button"
+                self.emit(ControlEvent(client.device, ctl, kind, v if kind == "axis" else float(v > 0.5), None, v, t))
+        finally:
+            self.clients.pop(name, None)
+            self.emit(StatusEvent(client.device, "lost", time.monotonic(), "page closed"))
+        return ws
+
+
+def _start_editor(take: str) -> tuple[Any, str]:
+    """`python -m puppet edit TAKE` in a child process; its URL, read from its first line."""
+    import os
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "puppet", "edit", os.path.abspath(take)],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    assert proc.stdout is not None
+    end = time.monotonic() + 60
+    while time.monotonic() < end:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        m = re.search(r"(http://\S+)", line)
+        if m:
+            return proc, m.group(1)
+    proc.kill()
+    raise RuntimeError("the editor did not start")
+
+
+async def _no_icon(request: Any) -> Any:
+    from aiohttp import web
+
+    return web.Response(status=204)
+
+
+def _copy(dq: Any) -> list[float]:
+    for _ in range(5):
+        try:
+            return list(dq)
+        except RuntimeError:  # appended to while copying
+            continue
+    return []
+
+
+def _copy_items(d: dict[str, Any]) -> list[tuple[str, Any]]:
+    for _ in range(5):
+        try:
+            return list(d.items())
+        except RuntimeError:
+            continue
+    return []

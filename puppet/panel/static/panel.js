@@ -1,0 +1,171 @@
+// facepuppet performer's page: sends control events over one WebSocket, draws what the face does.
+"use strict";
+(function () {
+  const $ = (id) => document.getElementById(id);
+  const params = new URLSearchParams(location.search);
+  const q = new URLSearchParams();
+  for (const k of ["name", "role", "only"]) if (params.get(k)) q.set(k, params.get(k));
+  const state = { layout: null, allowed: new Set(), me: "", index: {}, sliders: {}, own: {}, pads: {}, ws: null,
+                  values: null, ageRow: null, sent: 0 };
+  window.puppetPanel = state;  // for tests and the curious
+
+  function send(control, value) {
+    if (!state.ws || state.ws.readyState !== 1 || !state.allowed.has(control)) return;
+    state.ws.send(JSON.stringify({ t: "in", c: control, v: value }));
+    state.own[control] = value;
+    state.sent++;
+  }
+
+  function el(tag, cls, text) { const e = document.createElement(tag); if (cls) e.className = cls; if (text !== undefined) e.textContent = text; return e; }
+
+  // a slider: pointer drag anywhere on the track sets the value (several fingers, several sliders)
+  function makeSlider(channel, onValue) {
+    const s = el("div", "slider"); s.dataset.channel = channel;
+    const fill = el("div", "fill"), own = el("div", "own"), ap = el("div", "applied"), num = el("div", "num");
+    s.append(fill, ap, own, num);
+    const locked = !state.allowed.has("slider:" + channel);
+    if (locked) s.classList.add("locked");
+    function at(ev) { const r = s.getBoundingClientRect(); return Math.min(1, Math.max(0, (ev.clientX - r.left) / r.width)); }
+    s.addEventListener("pointerdown", (ev) => { if (locked) return; s.setPointerCapture(ev.pointerId); s.dragging = true; onValue(at(ev)); ev.preventDefault(); });
+    s.addEventListener("pointermove", (ev) => { if (s.dragging) onValue(at(ev)); });
+    const end = () => { s.dragging = false; };
+    s.addEventListener("pointerup", end); s.addEventListener("pointercancel", end);
+    state.sliders[channel] = { el: s, fill, own, ap, num, others: {} };
+    return s;
+  }
+
+  function showOwn(channel, u) {
+    const sl = state.sliders[channel]; if (!sl) return;
+    sl.own.style.display = "block"; sl.own.style.left = (u * 100) + "%"; sl.fill.style.width = (u * 100) + "%";
+  }
+
+  function setChannel(channel, u) { send("slider:" + channel, u); showOwn(channel, u); }
+
+  function build(layout) {
+    const regions = $("regions"); regions.textContent = "";
+    layout.channels.forEach((c, i) => { state.index[c.name] = i; });
+    for (const reg of layout.regions) {
+      const sec = el("section"); sec.append(el("h2", "", reg.name));
+      for (const row of reg.rows) {
+        const r = el("div", "row" + (row.channels.length === 1 ? " single" : ""));
+        const lab = el("label", "", row.label); lab.title = row.channels.join(", "); r.append(lab);
+        let linked = row.channels.length === 2;
+        const link = el("div", "link" + (linked ? " on" : ""), row.channels.length === 2 ? "L=R" : "");
+        row.channels.forEach((ch, j) => {
+          r.append(makeSlider(ch, (u) => {
+            if (linked) row.channels.forEach((c2) => setChannel(c2, u)); else setChannel(ch, u);
+          }));
+        });
+        if (row.channels.every((ch) => !state.allowed.has("slider:" + ch))) r.classList.add("locked");
+        link.title = "move left and right together";
+        link.onclick = () => { linked = !linked; link.classList.toggle("on", linked); };
+        r.append(link); sec.append(r);
+      }
+      regions.append(sec);
+    }
+    const pad = (box, control, label, hold) => {
+      const b = el("button", "", label); b.dataset.control = control;
+      if (!state.allowed.has(control)) { b.classList.add("locked"); b.disabled = true; }
+      const down = (ev) => { ev.preventDefault(); b.setPointerCapture && ev.pointerId !== undefined && b.setPointerCapture(ev.pointerId); send(control, 1); if (hold) b.classList.add("on"); };
+      const up = () => { send(control, 0); if (hold) b.classList.remove("on"); };
+      b.addEventListener("pointerdown", down); b.addEventListener("pointerup", up); b.addEventListener("pointercancel", up);
+      state.pads[control] = b; box.append(b);
+    };
+    $("expr").textContent = ""; $("aus").textContent = "";
+    for (const e of layout.expressions) pad($("expr"), "pad:expr:" + e, e, false);
+    for (const a of layout.aus) pad($("aus"), "pad:" + a, a, true);
+    state.ageRow = layout.age;
+    if (layout.age) setupAge(layout.age);
+  }
+
+  function arc(u) {  // a 270-degree arc from the bottom left, u in 0..1
+    const a0 = Math.PI * 0.75, a1 = a0 + u * Math.PI * 1.5, r = 38;
+    const p = (a) => [Math.cos(a) * r, Math.sin(a) * r];
+    const [x0, y0] = p(a0), [x1, y1] = p(a1);
+    return `M ${x0} ${y0} A ${r} ${r} 0 ${u > 2 / 3 ? 1 : 0} 1 ${x1} ${y1}`;
+  }
+  function setupAge(age) {
+    const svg = $("age"); const control = "slider:" + age.name;
+    let u = (age.default - age.lo) / (age.hi - age.lo), startY = 0, startU = 0;
+    const show = () => { $("agearc").setAttribute("d", arc(u)); };
+    show();
+    svg.addEventListener("pointerdown", (ev) => { svg.setPointerCapture(ev.pointerId); svg.dragging = true; startY = ev.clientY; startU = u; ev.preventDefault(); });
+    svg.addEventListener("pointermove", (ev) => { if (!svg.dragging) return; u = Math.min(1, Math.max(0, startU + (startY - ev.clientY) / 200)); show(); send(control, u); });
+    const end = () => { svg.dragging = false; }; svg.addEventListener("pointerup", end); svg.addEventListener("pointercancel", end);
+  }
+
+  function update(st) {
+    if (st.values) {
+      state.values = st.values;
+      for (const [ch, sl] of Object.entries(state.sliders)) {
+        const c = state.layout.channels[state.index[ch]]; const v = st.values[state.index[ch]];
+        const u = (v - c.lo) / ((c.hi - c.lo) || 1);
+        sl.ap.style.left = (u * 100) + "%"; sl.num.textContent = v.toFixed(2);
+      }
+      if (state.ageRow) {
+        const a = state.ageRow, v = st.values[state.index[a.name]], u = (v - a.lo) / (a.hi - a.lo);
+        const ang = Math.PI * 0.75 + u * Math.PI * 1.5;
+        $("ageapplied").setAttribute("x2", Math.cos(ang) * 40); $("ageapplied").setAttribute("y2", Math.sin(ang) * 40);
+        $("agetext").textContent = v.toFixed(0);
+      }
+    }
+    if (st.fps !== undefined) { $("fps").textContent = st.fps; $("tps").textContent = st.tps; }
+    if (st.latency) { $("p50").textContent = st.latency[0].toFixed(1); $("p99").textContent = st.latency[1].toFixed(1); }
+    if (st.devices) {
+      const d = $("devices"); d.textContent = "";
+      for (const [spec, ok] of st.devices) d.append(el("span", "dev " + (ok ? "ok" : "lost"), (ok ? "● " : "○ ") + spec));
+    }
+    // the other pages: what they touch, drawn as dots on our sliders, listed with their roles
+    const cl = $("clients"); cl.textContent = "";
+    for (const sl of Object.values(state.sliders)) for (const o of Object.values(sl.others)) o.remove(), 0;
+    for (const sl of Object.values(state.sliders)) sl.others = {};
+    for (const c of st.clients || []) {
+      const touching = Object.keys(c.own || {}).filter((k) => k.startsWith("slider:")).length;
+      cl.append(el("li", "", `${c.name === state.me ? "▶ " : ""}${c.name}${c.role ? " (" + c.role + ")" : ""}` +
+        `${c.only && c.only.length ? " — only " + c.only.join(", ") : ""} · ${touching} sliders touched`));
+      if (c.name === state.me) continue;
+      for (const [ctl, u] of Object.entries(c.own || {})) {
+        const sl = state.sliders[ctl.slice(7)];
+        if (!ctl.startsWith("slider:") || !sl) continue;
+        const dot = el("div", "other"); dot.style.left = (u * 100) + "%"; dot.title = c.name;
+        sl.el.append(dot); sl.others[c.name] = dot;
+      }
+    }
+    if (st.markers) {
+      const m = $("markers"); m.textContent = "";
+      for (const [t, label] of st.markers.slice().reverse()) m.append(el("li", "", `${t.toFixed(2)} s  ${label}`));
+    }
+  }
+
+  let pingAt = 0;
+  function connect() {
+    const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws?" + q.toString());
+    state.ws = ws;
+    ws.onopen = () => { $("conn").textContent = "connected"; $("conn").className = "up"; };
+    ws.onclose = () => { $("conn").textContent = "disconnected (retrying)"; $("conn").className = "down"; setTimeout(connect, 1000); };
+    ws.onmessage = (ev) => {
+      const msg = JSON.parse(ev.data);
+      if (msg.t === "hello") {
+        state.me = msg.you; state.allowed = new Set(msg.allowed); state.layout = msg.layout;
+        $("me").textContent = msg.you; build(msg.layout);
+      } else if (msg.t === "state") update(msg);
+      else if (msg.t === "pong") $("rtt").textContent = (performance.now() - pingAt).toFixed(1);
+    };
+  }
+  setInterval(() => { if (state.ws && state.ws.readyState === 1) { pingAt = performance.now(); state.ws.send('{"t":"ping"}'); } }, 1000);
+  const hold = (id, control) => {
+    const b = $(id);
+    b.addEventListener("pointerdown", (ev) => { ev.preventDefault(); send(control, 1); });
+    b.addEventListener("pointerup", () => send(control, 0));
+  };
+  hold("panic", "button:panic"); hold("marker", "button:marker");
+  $("edit").onclick = () => {
+    const tab = window.open("", "_blank");
+    fetch("/api/edit" + location.search, { method: "POST" }).then((r) => r.json()).then((j) => {
+      if (j.ok) { if (tab) tab.location = j.url; else location.assign(j.url); }
+      else { if (tab) tab.close(); alert(j.error); }
+    });
+  };
+  document.addEventListener("keydown", (ev) => { if (ev.key === "Escape") { send("button:panic", 1); send("button:panic", 0); } });
+  connect();
+})();

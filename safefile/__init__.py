@@ -1,0 +1,291 @@
+"""Reading and writing user files safely, shared by every format the program has.
+
+Reading: a file is read with a size bound, decoded as UTF-8 with a line number on failure, parsed
+as JSON or TOML with a nesting bound, and its fields checked with small schema helpers (type,
+range, finiteness, length). Every failure is a `BadFile` whose message is one short line naming
+the file (and line), quoting at most a short prefix of the offending value.
+
+Writing: `atomic_write` / `atomic_path` / `atomic_dir` write to a temporary file (or folder) beside
+the target and move it into place only when it is complete, so a failed or killed write leaves the
+old file byte for byte. Knows nothing of faces, devices or OpenGL: any package may use it."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO, Any
+
+#: Bounds a file's content cannot exceed (a typo or a damaged disk must not eat the memory).
+MAX_BYTES = 256 * 1024 * 1024
+MAX_DEPTH = 32
+QUOTE_CHARS = 40
+
+
+class BadFile(ValueError):
+    """A file the user gave cannot be used; the message is one line naming it (and its line)."""
+
+
+def quote(value: Any, limit: int = QUOTE_CHARS) -> str:
+    """`repr(value)` cut to a short prefix (an error line never carries a whole bad value)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 128:
+        return f"an integer of about {int(value.bit_length() * 0.30103) + 1} digits"
+    try:
+        text = repr(value)
+    except Exception:  # a repr that fails (recursive or huge object)
+        text = f"<{type(value).__name__}>"
+    text = text.replace("\n", "\\n").replace("\r", "\\r")
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit]}... ({len(text)} chars)"
+
+
+def few(names: list[str] | tuple[str, ...], n: int = 8) -> str:
+    """The first `n` names (each cut short) and how many more: a listing in an error stays short."""
+    if not names:
+        return "none"
+    more = f" and {len(names) - n} more" if len(names) > n else ""
+    return ", ".join(x if len(x) <= QUOTE_CHARS else quote(x) for x in names[:n]) + more
+
+
+# ---------------------------------------------------------------------------------------- reading
+
+def read_bytes(path: str | Path, what: str, limit: int = MAX_BYTES) -> bytes:
+    """The file's bytes, refusing a file larger than `limit` before reading it."""
+    p = Path(path)
+    try:
+        with open(p, "rb") as fh:
+            data = fh.read(limit + 1)
+    except FileNotFoundError as err:
+        raise BadFile(f"{p}: cannot read {what} (no such file)") from err
+    except IsADirectoryError as err:
+        raise BadFile(f"{p}: cannot read {what} (it is a folder)") from err
+    except OSError as err:
+        raise BadFile(f"{p}: cannot read {what} ({err.strerror or err})") from err
+    if len(data) > limit:
+        raise BadFile(f"{p}: the {what} is larger than {limit // (1024 * 1024)} MB; is it the right file?")
+    return data
+
+
+def decode_text(data: bytes, source: str, what: str) -> str:
+    """UTF-8 text (a leading byte-order mark is dropped); a wrong encoding names the line."""
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line = data.count(b"\n", 0, err.start) + 1
+        hint = " (it looks like UTF-16: save it as UTF-8)" if data[:2] in (b"\xff\xfe", b"\xfe\xff") else ""
+        raise BadFile(f"{source}:{line}: the {what} is not UTF-8 text{hint}") from err
+    if "\x00" in text:
+        line = text.count("\n", 0, text.index("\x00")) + 1
+        raise BadFile(f"{source}:{line}: the {what} holds a NUL byte (a damaged or binary file)")
+    return text
+
+
+def read_text(path: str | Path, what: str, limit: int = MAX_BYTES) -> str:
+    """`read_bytes` then `decode_text`."""
+    return decode_text(read_bytes(path, what, limit), str(path), what)
+
+
+def _no_constant(name: str) -> float:
+    raise ValueError(f"non-finite number {name}")
+
+
+def _finite_float(text: str) -> float:
+    x = float(text)
+    if not math.isfinite(x):
+        raise ValueError(f"number {text[:20]} is too large for a float")
+    return x
+
+
+def depth(value: Any, limit: int = MAX_DEPTH) -> int:
+    """Nesting depth of lists/dicts in `value`, counted without recursion, stopping past `limit`."""
+    deepest = 0
+    stack: list[tuple[Any, int]] = [(value, 1)]
+    while stack:
+        v, d = stack.pop()
+        if isinstance(v, dict):
+            items: Any = v.values()
+        elif isinstance(v, list):
+            items = v
+        else:
+            continue
+        deepest = max(deepest, d)
+        if deepest > limit:
+            return deepest
+        stack.extend((x, d + 1) for x in items)
+    return deepest
+
+
+def load_json(text: str, source: str, what: str, max_depth: int = MAX_DEPTH) -> Any:
+    """JSON with no NaN/Infinity, no float overflow, bounded nesting; errors name file:line."""
+    try:
+        value = json.loads(text, parse_constant=_no_constant, parse_float=_finite_float)
+    except json.JSONDecodeError as err:
+        raise BadFile(f"{source}:{err.lineno}: not valid JSON ({err.msg})") from err
+    except RecursionError as err:
+        raise BadFile(f"{source}: the {what} is nested too deep (more than {max_depth} levels)") from err
+    except ValueError as err:  # non-finite number, integer with thousands of digits
+        raise BadFile(f"{source}: the {what} holds an unusable number ({str(err)[:60]})") from err
+    if depth(value, max_depth) > max_depth:
+        raise BadFile(f"{source}: the {what} is nested too deep (more than {max_depth} levels)")
+    return value
+
+
+def load_toml(text: str, source: str, what: str, max_depth: int = MAX_DEPTH) -> dict[str, Any]:
+    """TOML with bounded nesting; a syntax error names file:line:col."""
+    import re
+    import tomllib
+
+    try:
+        value = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        msg = str(err)
+        m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
+        where = f"{m.group(1)}:{m.group(2)}" if m else "1:1"
+        what_ = re.sub(r"\s*\(at line \d+, column \d+\)", "", msg) or "invalid TOML"
+        raise BadFile(f"{source}:{where}: TOML syntax error: {what_}") from err
+    except RecursionError as err:
+        raise BadFile(f"{source}: the {what} is nested too deep (more than {max_depth} levels)") from err
+    except ValueError as err:  # an integer with thousands of digits
+        raise BadFile(f"{source}: the {what} holds an unusable number ({str(err)[:60]})") from err
+    if depth(value, max_depth) > max_depth:
+        raise BadFile(f"{source}: the {what} is nested too deep (more than {max_depth} levels)")
+    return value
+
+
+# ------------------------------------------------------------------------------ schema-like checks
+
+def number(v: Any, where: str, lo: float = -1e12, hi: float = 1e12, *, integer: bool = False,
+           lo_open: bool = False) -> float:
+    """A finite number (an int if `integer`) within lo..hi (lo excluded if `lo_open`)."""
+    kind = "an integer" if integer else "a number"
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
+        raise BadFile(f"{where}: expected {kind}, got {quote(v)}")
+    if isinstance(v, float) and not math.isfinite(v):
+        raise BadFile(f"{where}: expected a finite number, got {v!r}")
+    if (isinstance(v, int) and v.bit_length() > 1000) or v < lo or v > hi or (lo_open and v == lo):
+        rel = ">" if lo_open else ">="
+        raise BadFile(f"{where}: expected {kind} {rel} {lo:g} and <= {hi:g}, got {quote(v)}")
+    return int(v) if integer else float(v)
+
+
+def string(v: Any, where: str, max_len: int = 200, *, empty: bool = False) -> str:
+    if not isinstance(v, str):
+        raise BadFile(f"{where}: expected a string, got {quote(v)}")
+    if not v and not empty:
+        raise BadFile(f"{where}: expected a non-empty string")
+    if len(v) > max_len:
+        raise BadFile(f"{where}: expected at most {max_len} characters, got {quote(v)}")
+    return v
+
+
+def sequence(v: Any, where: str, max_len: int = 100_000, min_len: int = 0) -> list[Any]:
+    if not isinstance(v, list):
+        raise BadFile(f"{where}: expected a list, got {quote(v)}")
+    if not min_len <= len(v) <= max_len:
+        raise BadFile(f"{where}: expected {min_len} to {max_len} entries, got {len(v)}")
+    return v
+
+
+def table(v: Any, where: str, max_len: int = 100_000) -> dict[str, Any]:
+    if not isinstance(v, dict):
+        raise BadFile(f"{where}: expected an object/table, got {quote(v)}")
+    if len(v) > max_len:
+        raise BadFile(f"{where}: expected at most {max_len} entries, got {len(v)}")
+    return v
+
+
+# ---------------------------------------------------------------------------------------- writing
+
+def _temp_name(target: Path, folder: bool = False) -> Path:
+    """A fresh hidden name beside `target` that keeps its suffix (encoders choose by suffix)."""
+    fd_dir = target.parent if str(target.parent) else Path(".")
+    if folder:
+        return Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".part", dir=fd_dir))
+    fd, name = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=f".part{target.suffix}", dir=fd_dir)
+    os.close(fd)
+    return Path(name)
+
+
+def _mode_for(target: Path) -> int:
+    """The permissions the file gets: the old file's, else what a plain open() would give."""
+    try:
+        return os.stat(target).st_mode & 0o7777
+    except OSError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return 0o666 & ~umask
+
+
+def _commit(tmp: Path, target: Path) -> None:
+    os.chmod(tmp, _mode_for(target))
+    try:
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+    except OSError:
+        pass
+    os.replace(tmp, target)
+    try:  # the rename itself reaches the disk
+        dfd = os.open(target.parent if str(target.parent) else ".", os.O_RDONLY)
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
+    except OSError:
+        pass
+
+
+@contextmanager
+def atomic_path(target: str | Path) -> Iterator[Path]:
+    """A temporary path beside `target` for a writer that wants a file name (an encoder, numpy);
+    renamed onto `target` when the block ends without error, removed otherwise."""
+    target = Path(target)
+    try:
+        tmp = _temp_name(target)
+    except OSError as err:
+        raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
+    try:
+        yield tmp
+        _commit(tmp, target)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+@contextmanager
+def atomic_write(target: str | Path, mode: str = "w", encoding: str | None = "utf-8",
+                 newline: str | None = None) -> Iterator[IO[Any]]:
+    """`open(target, mode)` that writes a temporary file beside it and renames it into place
+    only when the block ends without error; the old file is untouched otherwise."""
+    binary = "b" in mode
+    with atomic_path(target) as tmp:
+        with open(tmp, mode, encoding=None if binary else encoding,
+                  newline=None if binary else newline) as fh:
+            yield fh
+
+
+@contextmanager
+def atomic_dir(target: str | Path) -> Iterator[Path]:
+    """A temporary folder beside `target`; when the block ends without error each file in it is
+    renamed into `target` (created if missing); on error the folder is removed and `target` is
+    left as it was."""
+    target = Path(target)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        tmp = _temp_name(target, folder=True)
+    except OSError as err:
+        raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
+    try:
+        yield tmp
+        target.mkdir(exist_ok=True)
+        for f in sorted(tmp.iterdir()):
+            os.replace(f, target / f.name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)

@@ -1,0 +1,307 @@
+"""Every format the program reads: a good file, its damaged variants, and the real command that
+reads it, run in this process (`puppet.cli.main`) so hundreds of variants stay fast.
+
+`outcome(...)` says what a user would have seen: "ok" (exit 0), "error" (exit 2 and one short line
+naming the file) or "traceback" (anything else: an exception escaping the command, a message of
+several lines or thousands of characters, an --out file that changed)."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import traceback
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import damage
+
+MAX_LINE = 400
+OLD = b"the user's old file\n"
+
+
+@dataclass
+class Outcome:
+    kind: str  # ok | error | traceback
+    text: str
+
+
+def run_cli(argv: list[str], file: Path, outs: tuple[Path, ...] = (), also: str = "") -> Outcome:
+    """Run `puppet ARGV` here; classify what the user sees. `outs` hold OLD before the run and
+    must still hold it after a failed run. The error line must name `file` (or `also`)."""
+    from puppet.cli import main
+
+    for o in outs:
+        o.write_bytes(OLD)
+    err = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            rc = main(argv)
+    except SystemExit as e:  # argparse
+        rc = e.code if isinstance(e.code, int) else 2
+    except BaseException:  # noqa: BLE001 - what we count
+        return Outcome("traceback", traceback.format_exc(limit=-3))
+    text = err.getvalue()
+    if rc == 0:
+        return Outcome("ok", text)
+    for o in outs:
+        if not o.exists() or o.read_bytes() != OLD:
+            return Outcome("traceback", f"failed, and destroyed {o.name}: {text[-300:]}")
+    lines = [ln for ln in text.splitlines() if ln.startswith("puppet: error:")]
+    if rc != 2 or len(lines) != 1:
+        return Outcome("traceback", f"exit {rc}: {text[-2000:]}")
+    line = lines[0]
+    if len(line) > MAX_LINE:
+        return Outcome("traceback", f"error line of {len(line)} chars: {line[:200]}")
+    if file.name not in line and not (also and also in line):
+        return Outcome("traceback", f"error line does not name {file.name}: {line}")
+    return Outcome("error", line)
+
+
+@dataclass
+class Format:
+    """A file format: how to make a good file in a folder, its variants, and how to read one."""
+
+    name: str
+    suffix: str
+    good: Callable[[Path], bytes]
+    variants: Callable[[bytes], Iterator[damage.Variant]]
+    read: Callable[[Path, Path], Outcome]  # (file, work folder) -> outcome
+
+
+# ------------------------------------------------------------------------------ good files
+
+def good_recording(d: Path) -> bytes:
+    import numpy as np
+
+    import sim
+    from puppet.session import SessionWriter
+
+    model = sim.default_model(0)
+    from puppet.live import load_face
+
+    face = load_face(None, 0)
+    names = [c.name for c in face.vocab.channels]
+    header = {"program": "facepuppet test", "rig": face.rig, "channels": names, "tick_rate": 60.0,
+              "mapping": {"source": "test", "text": ""}, "devices": ["mock://"]}
+    p = d / "good.jsonl"
+    vals = np.array(face.vocab.defaults(), dtype=np.float64)
+    jaw = names.index("jaw")
+    with SessionWriter(p, header) as w:
+        for k in range(24):
+            vals[jaw] = 0.02 * k
+            w.values(k, vals)
+            if k == 10:
+                w.marker(k, "half")
+            w.tick(k + 1)
+        w.flush()
+        w.close(24)
+    assert model is not None
+    return p.read_bytes()
+
+
+def good_mapping(d: Path) -> bytes:
+    return (Path(__file__).parents[2] / "puppet" / "maps" / "sgi.toml").read_bytes()
+
+
+def good_curves(d: Path) -> bytes:
+    return (b"facepuppet-curves 1\n# a smile and a jaw\ncurve zygomaticus_major smooth replace\n"
+            b"  0.000  0\n  0.200  0.8\n  0.400  0.1\nend\ncurve jaw linear add\n  0.0 0\n  0.3 0.5\nend\n"
+            b"curve AU12 step max\n 0.1 0.5\n 0.2 1\nend\n")
+
+
+def good_rig(d: Path) -> bytes:
+    from sim.rig import default_rig, save_rig
+
+    p = d / "good.npz"
+    save_rig(default_rig(0), p)
+    return p.read_bytes()
+
+
+def good_mock_toml(d: Path) -> bytes:
+    return (b'counts_per_turn = 200\nspeed = 0\n\n[[controls]]\nname = "fader"\nkind = "axis"\nlo = 0.0\n'
+            b'hi = 1.0\n\n[[events]]\nt = 0.0\ncontrol = "fader"\nvalue = 0.5\n\n[[events]]\nt = 0.01\n'
+            b'control = "dial0"\ndelta = 12\n\n[[ramp]]\ncontrol = "fader"\nstart = 0.02\nduration = 0.02\n'
+            b'from = 0.0\nto = 1.0\nrate = 100\n\n[[sine]]\ncontrol = "knob1"\nduration = 0.02\nfreq = 2.0\n'
+            b'rate = 100\n\n[[pattern]]\ncontrol = "button1"\nperiod = 0.01\nduty = 0.5\ncount = 2\n\n'
+            b'[[status]]\nt = 0.03\nstatus = "lost"\n')
+
+
+def good_mock_json(d: Path) -> bytes:
+    import tomllib
+
+    return json.dumps(tomllib.loads(good_mock_toml(d).decode()), indent=1).encode()
+
+
+def good_dbc(d: Path) -> bytes:
+    return (Path(__file__).parents[2] / "examples" / "can" / "panel.dbc").read_bytes()
+
+
+def _head() -> tuple:
+    from sim.face_builder import build_face_mesh
+
+    mesh = build_face_mesh(0)
+    return mesh.vertices, mesh.triangles, {k: int(v) for k, v in mesh.landmarks.items()}
+
+
+def good_obj(d: Path) -> bytes:
+    v, t, _ = _head()
+    lines = [f"v {x:.5f} {y:.5f} {z:.5f}" for x, y, z in v[:120]]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in t if max(a, b, c) < 120][:150]
+    return ("\n".join(lines) + "\n").encode()
+
+
+def _trimesh_bytes(kind: str, **kw: object) -> bytes:
+    import numpy as np
+    import trimesh
+
+    v, t, _ = _head()
+    keep = np.all(t < 120, axis=1)
+    m = trimesh.Trimesh(v[:120], t[keep][:150], process=False)
+    return m.export(file_type=kind, **kw)  # type: ignore[return-value]
+
+
+def good_ply(d: Path) -> bytes:
+    return _trimesh_bytes("ply", encoding="ascii")
+
+
+def good_ply_bin(d: Path) -> bytes:
+    return _trimesh_bytes("ply")
+
+
+def good_stl(d: Path) -> bytes:
+    return _trimesh_bytes("stl")
+
+
+def good_landmarks(d: Path) -> bytes:
+    verts, _, lms = _head()
+    data = {k: (v if i % 2 else [round(float(c), 6) for c in verts[v]]) for i, (k, v) in enumerate(sorted(lms.items()))}
+    return json.dumps({"landmarks": data}, indent=1).encode()
+
+
+# ------------------------------------------------------------------------------ readers
+
+def read_recording(f: Path, d: Path) -> Outcome:
+    out = d / "take.csv"
+    return run_cli(["replay", str(f), "--out", str(out)], f, (out,))
+
+
+def read_recording_headless(f: Path, d: Path) -> Outcome:
+    return run_cli(["replay", str(f), "--headless"], f)
+
+
+def read_curves(f: Path, d: Path) -> Outcome:
+    out = d / "curves.arkit.csv"
+    return run_cli(["replay", "--curves", str(f), "--out", str(out)], f, (out,))
+
+
+def read_rig(f: Path, d: Path) -> Outcome:
+    out = d / "pose.obj"
+    return run_cli(["pose", "--rig", str(f), "--seconds", "0", "--out", str(out)], f, (out,))
+
+
+def read_mapping(f: Path, d: Path) -> Outcome:
+    """The mapping as `puppet live --map` reads it, and as `puppet learn` rewrites it."""
+    from puppet.errors import PuppetError
+    from puppet.live import build_mapping, load_face
+
+    try:
+        from safefile import BadFile
+    except ImportError:  # measuring the program as it was before safefile
+        BadFile = PuppetError  # noqa: N806
+    face = load_face(None, 0)
+    try:
+        build_mapping(face.vocab, str(f), [])
+    except (PuppetError, BadFile) as err:
+        line = str(err)
+        if "\n" in line or len(line) > MAX_LINE or f.name not in line:
+            return Outcome("traceback", f"bad error line: {line[:300]}")
+        return Outcome("error", line)
+    except BaseException:  # noqa: BLE001
+        return Outcome("traceback", traceback.format_exc(limit=-3))
+    return Outcome("ok", "")
+
+
+def read_mock(f: Path, d: Path) -> Outcome:
+    return run_cli(["monitor", f"mock://{f}?speed=0", "--duration", "0"], f)
+
+
+def read_dbc(f: Path, d: Path) -> Outcome:
+    return run_cli(["monitor", f"can://virtual/fuzz{abs(hash(f)) % 1000}?dbc={f}", "--duration", "0"], f)
+
+
+def read_mesh(f: Path, d: Path) -> Outcome:
+    """import-face with a landmark file that lacks most landmarks: the mesh is read and checked,
+    then the command stops quickly at the landmarks."""
+    lm = d / "few.json"
+    if not lm.exists():
+        lm.write_text(json.dumps({"nose_tip": 3}))
+    out = d / "head.npz"
+    r = run_cli(["import-face", str(f), "--landmarks", str(lm), "--out", str(out), "--no-image"], f, (out,),
+                also="few.json")
+    if r.kind == "error" and "few.json: missing landmark" in r.text:
+        return Outcome("ok", r.text)  # the mesh itself was read
+    return r
+
+
+def read_landmarks(f: Path, d: Path) -> Outcome:
+    mesh = d / "lm-head.obj"
+    if not mesh.exists():
+        v, t, _ = _head()
+        lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in v] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in t]
+        mesh.write_text("\n".join(lines) + "\n")
+    out = d / "lm.npz"
+    return run_cli(["import-face", str(mesh), "--landmarks", str(f), "--out", str(out), "--no-image"], f, (out,))
+
+
+def _ply_extra(rng: object) -> Iterator[damage.Variant]:
+    good = good_ply_bin(Path("."))
+    head, _, body = good.partition(b"end_header\n")
+    yield "count-huge", head.replace(b"element vertex 120", b"element vertex 99999999999") + b"end_header\n" + body
+    yield "count-neg", head.replace(b"element vertex 120", b"element vertex -5") + b"end_header\n" + body
+    yield "face-huge", head.replace(b"element face 150", b"element face 4000000000") + b"end_header\n" + body
+    yield "no-y", head.replace(b"property float y", b"property float q") + b"end_header\n" + body
+
+
+def _stl_extra(rng: object) -> Iterator[damage.Variant]:
+    good = good_stl(Path("."))
+    yield "count-huge", good[:80] + (2**32 - 1).to_bytes(4, "little") + good[84:]
+    yield "count-zero", good[:80] + b"\0\0\0\0" + good[84:]
+    yield "ascii-cut", b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 nan\n"
+    yield "ascii-good", (b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
+                         b"endloop\nendfacet\nendsolid x\n")
+    yield "latin1", b"solid \xff\xfe\n" + good[10:]
+
+
+FORMATS: tuple[Format, ...] = (
+    Format("recording", ".jsonl", good_recording, lambda g: damage.recording_variants(g, n=320), read_recording),
+    Format("mapping", ".toml", good_mapping, lambda g: damage.toml_variants(g, n=300), read_mapping),
+    Format("curves", ".curves", good_curves, lambda g: damage.text_variants(g, n=240), read_curves),
+    Format("rig", ".npz", good_rig, lambda g: damage.rig_variants(g, n=180), read_rig),
+    Format("mock-toml", ".toml", good_mock_toml, lambda g: damage.toml_variants(g, n=240), read_mock),
+    Format("mock-json", ".json", good_mock_json, lambda g: damage.json_variants(g, n=200), read_mock),
+    Format("dbc", ".dbc", good_dbc, lambda g: damage.text_variants(g, n=120), read_dbc),
+    Format("obj", ".obj", good_obj, lambda g: damage.text_variants(g, n=200), read_mesh),
+    Format("ply", ".ply", good_ply, lambda g: damage.text_variants(g, n=150), read_mesh),
+    Format("ply-binary", ".ply", good_ply_bin, lambda g: damage.binary_variants(g, n=120, extra=_ply_extra),
+           read_mesh),
+    Format("stl", ".stl", good_stl, lambda g: damage.binary_variants(g, n=120, extra=_stl_extra), read_mesh),
+    Format("landmarks", ".json", good_landmarks, lambda g: damage.json_variants(g, n=150), read_landmarks),
+)
+
+
+def run_format(fmt: Format, d: Path, limit: int | None = None) -> dict[str, list[tuple[str, str]]]:
+    """Every variant of `fmt` through its reader: {kind: [(variant, text)]}."""
+    d.mkdir(parents=True, exist_ok=True)
+    good = fmt.good(d)
+    seen: dict[str, list[tuple[str, str]]] = {"ok": [], "error": [], "traceback": []}
+    for i, (name, data) in enumerate(fmt.variants(good)):
+        if limit is not None and i >= limit:
+            break
+        f = d / f"v{i:04d}{fmt.suffix}"
+        f.write_bytes(data)
+        r = fmt.read(f, d)
+        seen[r.kind].append((name, r.text))
+        f.unlink()
+    return seen

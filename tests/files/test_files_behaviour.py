@@ -1,0 +1,117 @@
+"""What a user sees for the damage the issue names: header-only takes, tick rates of 0, values
+far outside a channel's range, counts that ask for terabytes, huge integers in a mapping, error
+lines that quote a short prefix of a bad value."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import formats
+from puppet.errors import ConfigError
+from safefile import BadFile, load_json, load_toml, number, quote
+
+
+def _take(tmp_path: Path, body: str, **header_changes: object) -> Path:
+    good = formats.good_recording(tmp_path).decode().splitlines()
+    header = json.loads(good[0])
+    header.update(header_changes)
+    p = tmp_path / "take.jsonl"
+    p.write_text(json.dumps(header) + "\n" + body)
+    return p
+
+
+def test_a_header_only_take_replays_as_an_empty_take(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from puppet.cli import main
+
+    p = _take(tmp_path, "")
+    assert main(["replay", str(p), "--headless"]) == 0
+    assert "holds no performance" in capsys.readouterr().out
+    out = tmp_path / "take.csv"
+    out.write_bytes(formats.OLD)
+    assert main(["replay", str(p), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "take.jsonl holds no performance" in err and "nothing to export" in err
+    assert out.read_bytes() == formats.OLD
+
+
+@pytest.mark.parametrize("rate", [0, -60, 1e308, "sixty", None, [60]])
+def test_a_bad_tick_rate_names_the_recording_not_the_options(tmp_path: Path, rate: object) -> None:
+    from puppet.session import read_session
+
+    p = _take(tmp_path, '{"t":"end","ticks":3}\n', tick_rate=rate)
+    with pytest.raises(ConfigError, match=r"take\.jsonl:1: tick_rate") as e:
+        read_session(p)
+    assert "--fps" not in str(e.value)
+
+
+def test_a_channel_value_far_outside_its_range_is_clamped_with_a_warning(
+        tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from puppet.replay import Replayer, build_performance
+    from puppet.session import read_session
+
+    p = _take(tmp_path, '{"t":"v","tick":0,"v":{"jaw":1e308,"eyes_yaw":-5e9}}\n{"t":"end","ticks":20}\n')
+    perf = build_performance(read_session(p), None)
+    err = capsys.readouterr().err
+    assert "outside their channel's range" in err and "jaw = 1e+308" in err and "clamped" in err
+    names = [c.name for c in perf.face.vocab.channels]
+    jaw = perf.face.vocab.channels[names.index("jaw")]
+    assert perf.values[:, names.index("jaw")].max() == jaw.hi
+    assert perf.values[:, names.index("eyes_yaw")].min() == perf.face.vocab.channels[names.index("eyes_yaw")].lo
+    rp = Replayer(perf)
+    rp.seek(20)
+    moved = np.linalg.norm(rp.state.positions - perf.face.model.rest, axis=1).max()
+    assert np.isfinite(moved) and moved < 5.0  # cm: a wide-open jaw, not a face thrown across the room
+
+
+@pytest.mark.parametrize("record", ['{"t":"end","ticks":10000000000000}', '{"t":"sync","tick":99999999}',
+                                    '{"t":"end","ticks":1e300}', '{"t":"end","ticks":-4}'])
+def test_a_count_asking_for_terabytes_is_refused_or_ends_the_take(tmp_path: Path, record: str) -> None:
+    from puppet.session import read_session
+
+    p = _take(tmp_path, record + "\n")
+    try:
+        s = read_session(p)
+    except ConfigError as err:
+        assert "take.jsonl" in str(err) and len(str(err)) < 300
+        return
+    assert s.ticks * len(s.channels) <= 50_000_000 and s.warnings
+
+
+def test_a_huge_integer_in_a_mapping_is_one_line_with_its_place(tmp_path: Path) -> None:
+    from puppet.mapping import load_mapping
+
+    p = tmp_path / "m.toml"
+    p.write_text('version = 1\n[[binding]]\ncontrol = "dial0"\ntarget = "jaw"\ngain = ' + "9" * 400 + "\n")
+    with pytest.raises(ConfigError, match=r"m\.toml:5:\d+: expected a number within") as e:
+        load_mapping(p)
+    assert len(str(e.value)) < 200
+    p.write_text("version = 1\nx = " + "[" * 3000 + "]" * 3000 + "\n")
+    with pytest.raises(ConfigError, match=r"m\.toml: .*nested too deep"):
+        load_mapping(p)
+
+
+def test_quote_keeps_error_lines_short() -> None:
+    assert quote("x" * 20000).endswith("(20002 chars)") and len(quote("x" * 20000)) < 80
+    assert "digits" in quote(10**5000)
+    assert quote("a\nb") == "'a\\nb'"
+    with pytest.raises(BadFile, match=r"f:1: rate: expected a number >= 1 and <= 10, got an integer of about"):
+        number(10**400, "f:1: rate", 1, 10)
+    with pytest.raises(BadFile, match="expected a finite number"):
+        number(float("nan"), "f: x")
+
+
+@pytest.mark.parametrize("text", ["[" * 100_000 + "]" * 100_000, '{"a": NaN}', '{"a": 1e999}', '{"a": ' + "1" * 5000 + "}",
+                                  "[" * 40 + "]" * 40])
+def test_bounded_json_refuses_what_would_break_a_reader(text: str) -> None:
+    with pytest.raises(BadFile, match="^f.json"):
+        load_json(text, "f.json", "test file")
+
+
+def test_bounded_toml_names_the_line() -> None:
+    with pytest.raises(BadFile, match=r"^f.toml:2:\d+: TOML syntax error"):
+        load_toml("a = 1\nb = = 2\n", "f.toml", "test file")
+    assert load_toml("a = [[1, 2], [3]]\n", "f.toml", "test file") == {"a": [[1, 2], [3]]}

@@ -1,0 +1,150 @@
+"""Real MIDI ports for tests: a private JACK server (Debian's jackd2, dummy driver) started and
+stopped by PID, and a MIDI controller emulated in a separate process, the way a real box is
+another process's port: it opens ports named like the box, plays what the test tells it, reports
+every message the host sends it (the lights), and exits to unplug.
+
+Import the ``jack_server`` fixture into a test module to use it.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import shutil
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+BOX_SCRIPT = Path(__file__).with_name("midi_box.py")
+#: A 1024-frame period at 48 kHz: no XRun on a loaded 2-core machine, so delivery is exact.
+PERIOD = 1024
+
+
+def _server_up(name: str) -> bool:
+    env = {**os.environ, "JACK_NO_START_SERVER": "1"}
+    return subprocess.run(["jack_lsp", "-s", name], env=env, stdout=subprocess.DEVNULL,
+                          stderr=subprocess.DEVNULL).returncode == 0
+
+
+@pytest.fixture(scope="module")
+def jack_server() -> Iterator[str]:
+    """A private JACK server for this module; JACK_DEFAULT_SERVER names it while it runs."""
+    if shutil.which("jackd") is None:
+        pytest.fail("jackd is not installed: run `bash .ci/setup` (Debian package jackd2)")
+    name = f"fptest{os.getpid()}"
+    proc = subprocess.Popen(["jackd", "-n", name, "--no-realtime", "-d", "dummy", "-r", "48000", "-p", str(PERIOD)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 15
+    while not _server_up(name):
+        if proc.poll() is not None or time.monotonic() > deadline:
+            proc.kill()
+            pytest.fail(f"jackd did not start (exit {proc.poll()})")
+        time.sleep(0.05)
+    old = {k: os.environ.get(k) for k in ("JACK_DEFAULT_SERVER", "JACK_NO_START_SERVER")}
+    os.environ["JACK_DEFAULT_SERVER"] = name
+    os.environ["JACK_NO_START_SERVER"] = "1"
+    try:
+        yield name
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+        proc.terminate()
+        try:
+            proc.wait(5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
+
+
+class MidiBox:
+    """An emulated controller in its own process: ``plug()`` starts it (ports appear),
+    ``unplug()`` ends it (ports vanish). ``received`` holds what the host sent it."""
+
+    def __init__(self, client: str, port: str = "_MIDI 1") -> None:
+        self.client, self.port = client, port
+        self.proc: subprocess.Popen[str] | None = None
+        self.received: list[tuple[int, ...]] = []
+        self._cond = threading.Condition()
+        self._lines: queue.Queue[str] = queue.Queue()
+
+    def plug(self) -> MidiBox:
+        self.proc = subprocess.Popen([sys.executable, str(BOX_SCRIPT), self.client, self.port],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                                     text=True, bufsize=1)
+        threading.Thread(target=self._pump, args=(self.proc,), daemon=True).start()
+        line = self._lines.get(timeout=20)
+        assert line == "ready", line
+        return self
+
+    def _pump(self, proc: subprocess.Popen[str]) -> None:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            line = line.strip()
+            if line.startswith("got "):
+                msg = tuple(int(x, 16) for x in line[4:].split())
+                with self._cond:
+                    self.received.append(msg)
+                    self._cond.notify_all()
+            else:
+                self._lines.put(line)
+
+    def send(self, *msgs: tuple[int, ...] | list[int], gap: float = 0.0) -> None:
+        """Messages from the box to the host, ``gap`` seconds apart."""
+        assert self.proc is not None and self.proc.stdin is not None
+        for m in msgs:
+            self.proc.stdin.write("send " + " ".join(f"{b:02x}" for b in m) + "\n")
+            self.proc.stdin.flush()
+            if gap:
+                time.sleep(gap)
+
+    def wait_received(self, pred: object, timeout: float = 10.0) -> list[tuple[int, ...]]:
+        with self._cond:
+            ok = self._cond.wait_for(lambda: pred(self.received), timeout)  # type: ignore[operator]
+            assert ok, f"the box never received what was expected; got {self.received}"
+            return list(self.received)
+
+    def unplug(self) -> None:
+        if self.proc is None:
+            return
+        try:
+            assert self.proc.stdin is not None
+            self.proc.stdin.write("quit\n")
+            self.proc.stdin.flush()
+            self.proc.wait(10)
+        except (BrokenPipeError, subprocess.TimeoutExpired, OSError):
+            self.proc.kill()
+            self.proc.wait(5)
+        self.proc = None
+
+    close = unplug
+
+
+def connected_to(server: str, port: str) -> list[str]:
+    """The ports connected to ``port`` on the JACK server (from ``jack_lsp -c``)."""
+    out = subprocess.run(["jack_lsp", "-s", server, "-c"], capture_output=True, text=True,
+                         env={**os.environ, "JACK_NO_START_SERVER": "1"}).stdout
+    peers: list[str] = []
+    current = None
+    for line in out.splitlines():
+        if line.startswith((" ", "\t")):
+            if current == port:
+                peers.append(line.strip())
+        else:
+            current = line.strip()
+    return peers
+
+
+def wait_for_host(server: str, port: str, timeout: float = 60.0) -> None:
+    """Wait until a facepuppet client has opened ``port``."""
+    deadline = time.monotonic() + timeout
+    while not any(p.startswith("facepuppet") for p in connected_to(server, port)):
+        assert time.monotonic() < deadline, f"nothing opened {port} within {timeout} s"
+        time.sleep(0.05)

@@ -1,0 +1,210 @@
+"""Security of the page's server on real loopback sockets: the LAN mode's token, the loopback
+mode's Host check, WebSocket origins, and file names that try to leave the take folder."""
+
+from __future__ import annotations
+
+import asyncio
+import http.client
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import aiohttp
+import devices
+import pytest
+from panel_browser import ROOT
+
+SCRIPT = ROOT / "examples" / "mock" / "sgi_rehearsal.toml"
+
+
+def get(port: int, path: str, headers: dict[str, str] | None = None) -> tuple[int, dict[str, str], bytes]:
+    c = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+    try:
+        c.request("GET", path, headers=headers or {})
+        r = c.getresponse()
+        return r.status, dict(r.getheaders()), r.read()
+    finally:
+        c.close()
+
+
+def ws_status(url: str, origin: str | None = None, cookies: dict[str, str] | None = None) -> int:
+    async def go() -> int:
+        headers = {"Origin": origin} if origin else {}
+        async with aiohttp.ClientSession(cookies=cookies) as s:
+            try:
+                async with s.ws_connect(url, headers=headers) as ws:
+                    msg = await ws.receive(timeout=5)
+                    assert json.loads(msg.data)["t"] == "hello"
+                    return 101
+            except aiohttp.WSServerHandshakeError as err:
+                return err.status
+
+    return asyncio.run(go())
+
+
+@pytest.fixture
+def lan_page():
+    dev = devices.open_device("panel://127.0.0.1:0?lan=1")  # LAN mode, but on the loopback in tests
+    yield dev
+    dev.close()
+
+
+@pytest.fixture
+def local_page():
+    dev = devices.open_device("panel://127.0.0.1:0")
+    yield dev
+    dev.close()
+
+
+def test_lan_server_serves_nothing_without_the_token(lan_page) -> None:
+    srv = lan_page.server
+    port, token = srv.port, srv.token
+    assert token and len(token) >= 16 and f"token={token}" in lan_page.url
+    for path in ("/", "/static/panel.js", "/api/layout", "/ws", "/nope"):
+        status, _, body = get(port, path)
+        assert status == 403 and b"token" in body
+    assert get(port, "/?token=wrong" + token[5:])[0] == 403
+    status, headers, body = get(port, f"/?token={token}")
+    assert status == 200 and b"performer" in body
+    cookie = headers["Set-Cookie"].split(";")[0]
+    assert "HttpOnly" in headers["Set-Cookie"] and "SameSite=Strict" in headers["Set-Cookie"]
+    assert get(port, "/static/panel.js", {"Cookie": cookie})[0] == 200
+    assert ws_status(f"http://127.0.0.1:{port}/ws") == 403
+    assert ws_status(f"http://127.0.0.1:{port}/ws?token={token}") == 101
+
+
+def test_loopback_server_refuses_foreign_hosts_and_origins(local_page) -> None:
+    port = local_page.server.port
+    assert local_page.url == f"http://127.0.0.1:{port}/"
+    assert get(port, "/")[0] == 200
+    assert get(port, "/", {"Host": "attacker.example"})[0] == 403  # DNS rebinding
+    assert get(port, "/", {"Host": f"attacker.example:{port}"})[0] == 403
+    assert ws_status(f"http://127.0.0.1:{port}/ws", origin="http://attacker.example") == 403
+    assert ws_status(f"http://127.0.0.1:{port}/ws", origin=f"http://127.0.0.1:{port}") == 101
+    assert local_page.server.refused >= 3
+
+
+def test_static_files_cannot_be_escaped(local_page) -> None:
+    port = local_page.server.port
+    for path in ("/static/../server.py", "/static/..%2fserver.py", "/static/%2e%2e%2f%2e%2e%2fcli.py",
+                 "/static/..%5cserver.py", "/static/", "/static/style.css%00.js", "/static//etc/passwd"):
+        status, _, body = get(port, path)
+        assert status in (403, 404), path
+        assert b"import" not in body and b"root:" not in body
+
+
+@pytest.fixture(scope="module")
+def editor(tmp_path_factory: pytest.TempPathFactory):
+    from puppet.panel.editor import Editor
+    from puppet.panel.server import PanelServer
+
+    d = tmp_path_factory.mktemp("sec")
+    subprocess.run([sys.executable, "-m", "puppet", "live", "--device", f"mock://{SCRIPT}?speed=0", "--headless",
+                    "--duration", "1", "--record", "take.jsonl"], cwd=d, check=True, capture_output=True,
+                   env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
+    outside = d.parent / f"{d.name}-outside"
+    outside.mkdir()
+    (d / "link.curves").symlink_to(outside / "stolen.curves")
+    ed = Editor(d / "take.jsonl")
+    srv = PanelServer("127.0.0.1", 0, "editor.html", ed.routes)
+    srv.start()
+    yield srv.port, d, outside
+    srv.stop()
+    ed.close()
+
+
+def post(port: int, path: str, body: object, origin: str | None = None) -> tuple[int, dict]:
+    c = http.client.HTTPConnection("127.0.0.1", port, timeout=60)
+    headers = {"Content-Type": "application/json"}
+    if origin:
+        headers["Origin"] = origin
+    try:
+        c.request("POST", path, body=json.dumps(body), headers=headers)
+        r = c.getresponse()
+        raw = r.read()
+        try:
+            return r.status, json.loads(raw)
+        except ValueError:
+            return r.status, {"text": raw.decode(errors="replace")}
+    finally:
+        c.close()
+
+
+CURVES = [{"target": "jaw", "interp": "linear", "mode": "replace", "keys": [[0.1, 0.2], [0.5, 0.6, "step"]]}]
+
+
+def test_editor_writes_only_inside_the_take_folder(editor) -> None:
+    port, d, outside = editor
+    before = {p.name: p.read_bytes() for p in d.iterdir() if p.is_file()}
+    for name in ("../evil.curves", "/tmp/evil.curves", "..\\evil.curves", "sub/evil.curves", ".hidden.curves",
+                 "take.jsonl", "evil.curves\0.txt", "link.curves", "x" * 300 + ".curves", 7):
+        status, reply = post(port, "/api/curves", {"curves": CURVES, "save": True, "name": name})
+        assert status == 400 and not reply["ok"], name
+    for name in ("../evil.mp4", "/tmp/evil.csv", "take.jsonl", "evil.txt"):
+        status, reply = post(port, "/api/export", {"name": name})
+        assert status == 400 and not reply["ok"], name
+    assert not (outside / "stolen.curves").exists() and not list(outside.iterdir())
+    assert not Path("/tmp/evil.curves").exists()
+    after = {p.name: p.read_bytes() for p in d.iterdir() if p.is_file()}
+    assert after == before  # nothing written, the take untouched
+    status, reply = post(port, "/api/curves", {"curves": CURVES, "save": True, "name": "ok.curves"})
+    assert status == 200 and reply["saved"] == "ok.curves" and (d / "ok.curves").exists()
+    assert post(port, "/api/curves", {"curves": CURVES}, origin="http://attacker.example")[0] == 403
+
+
+def test_editor_rejects_damaged_curves_with_one_reason(editor) -> None:
+    import random
+
+    port, _, _ = editor
+    rng = random.Random(13)
+    bad_values = [None, "x", [], {}, -1, 1e309, float("nan"), True, [[1]], [["a", 1]], "linear", 10**7]
+    for _ in range(60):
+        body = json.loads(json.dumps(CURVES))
+        c = body[0]
+        where = rng.choice(["target", "interp", "mode", "keys", "key", "value", "seg", "order"])
+        v = rng.choice(bad_values)
+        if where in ("target", "interp", "mode", "keys"):
+            c[where] = v
+        elif where == "key":
+            c["keys"][0] = v
+        elif where == "value":
+            c["keys"][0][rng.randrange(2)] = v
+        elif where == "seg":
+            c["keys"][1][2] = "bezier"
+        else:
+            c["keys"].reverse()
+        try:
+            text = json.dumps({"curves": body})
+        except ValueError:
+            continue
+        status, reply = post(port, "/api/curves", json.loads(text) if "NaN" not in text else {"curves": "x"})
+        if status == 200:  # a variant that stayed valid (e.g. a value that is still a number)
+            continue
+        assert status == 400 and reply["ok"] is False and "\n" not in reply["error"]
+    status, reply = post(port, "/api/curves", {"curves": [{"target": "smirk", "keys": [[0, 1]]}]})
+    assert status == 400 and "smirk" in reply["error"]
+
+
+def test_edit_command_errors_are_one_line(tmp_path: Path) -> None:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env.pop("DISPLAY", None)
+    bad = tmp_path / "bad.jsonl"
+    bad.write_bytes(b"\x00\xffnot a take\n")
+    for args in (["edit", str(tmp_path / "missing.jsonl")], ["edit", str(bad)], ["live", "--panel", "70000", "--headless"]):
+        r = subprocess.run([sys.executable, "-m", "puppet", *args], capture_output=True, text=True, env=env, timeout=120)
+        assert r.returncode == 2, (args, r.stderr)
+        assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+
+
+def test_lan_url_is_printed_with_a_qr_code(lan_page) -> None:
+    import io
+
+    from puppet.panel import announce
+
+    out = io.StringIO()
+    announce(lan_page, out)
+    text = out.getvalue()
+    assert f"token={lan_page.server.token}" in text
+    assert sum(text.count(c) for c in "█▀▄") > 100  # the QR code in block characters

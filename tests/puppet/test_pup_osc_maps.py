@@ -1,0 +1,193 @@
+"""The OSC and face-tracking default maps through the mapping engine: generic addresses reach
+channels (in their units), AUs and expressions; TouchOSC's Simple layout moves the face; the ARKit
+map is the inverse of the ARKit export; dials layer on top of tracking by the combine rules."""
+
+from __future__ import annotations
+
+import random
+
+import numpy as np
+import pytest
+
+from devices.events import ControlEvent
+from devices.facestream import ARKIT_NAMES
+from puppet.errors import ConfigError
+from puppet.export.arkit import ARKIT_SHAPES, arkit_row
+from puppet.mapping import Mapper, Vocabulary, parse_mapping
+from puppet.mapping.defaults import default_map_name, load_default_map, map_names, merge
+
+OSC = "osc://127.0.0.1:9000"
+LIVE = "livelink://127.0.0.1:11111"
+DT = 1 / 60
+
+
+@pytest.fixture(scope="module")
+def vocab() -> Vocabulary:
+    from sim.channels import CHANNEL_SPECS
+    from sim.facs import AU_TABLE, EXPRESSIONS
+    from puppet.mapping import ChannelInfo
+
+    return Vocabulary([ChannelInfo(c.name, c.kind, c.lo, c.hi, c.default) for c in CHANNEL_SPECS],
+                      AU_TABLE, EXPRESSIONS)
+
+
+def run(m: Mapper, events: list[ControlEvent], ticks: int = 1) -> dict[str, float]:
+    for e in events:
+        m.feed(e)
+    for _ in range(ticks):
+        v = m.step(DT)
+    return {c.name: float(v[i]) for i, c in enumerate(m.vocab.channels)}
+
+
+def axis(control: str, value: float, device: str = OSC) -> ControlEvent:
+    return ControlEvent(device, control, "axis", value)
+
+
+def button(control: str, down: bool, device: str = OSC) -> ControlEvent:
+    return ControlEvent(device, control, "button", float(down))
+
+
+def osc_mapper(vocab: Vocabulary, spec: str = OSC) -> Mapper:
+    name = default_map_name(spec)
+    assert name in map_names()
+    return Mapper(merge([(load_default_map(name), spec)]), vocab)
+
+
+def test_each_profile_and_stream_has_its_map() -> None:
+    assert default_map_name("osc://127.0.0.1:9000") == "osc_generic"
+    assert default_map_name("osc://127.0.0.1:9000?profile=touchosc") == "osc_touchosc"
+    assert default_map_name("osc://:9000?lan=1&profile=openstage") == "osc_openstage"
+    for scheme in ("facecap", "vmc", "ifacialmocap", "livelink"):
+        assert default_map_name(f"{scheme}://127.0.0.1:1") == "arkit"
+
+
+def test_generic_addresses_reach_channels_aus_and_expressions(vocab: Vocabulary) -> None:
+    m = osc_mapper(vocab)
+    v = run(m, [axis("/face/channel/zygomaticus_major_l", 0.8), axis("/face/channel/age", 70.0),
+                axis("/face/channel/eyes_yaw", -0.4), axis("/face/channel/frontalis_outer", 0.5)])
+    assert v["zygomaticus_major_l"] == pytest.approx(0.8) and v["zygomaticus_major_r"] == 0.0
+    assert v["age"] == pytest.approx(70.0) and v["eyes_yaw"] == pytest.approx(-0.4)  # channel units
+    assert v["frontalis_outer_l"] == v["frontalis_outer_r"] == pytest.approx(0.5)  # a pair by its name
+    m = osc_mapper(vocab)
+    au12 = m.vocab.au_weights("AU12")
+    v = run(m, [axis("/face/au/12", 0.5)])
+    for i, w in au12.items():
+        assert v[vocab.channels[i].name] == pytest.approx(0.5 * w)
+    m = osc_mapper(vocab)
+    v = run(m, [axis("/face/expression/happiness", 1)])
+    want = m.vocab.resolve("expr:happiness")
+    for i, w in want.channels:
+        assert v[vocab.channels[i].name] == pytest.approx(w)
+    v = run(m, [axis("/face/expression/happiness", 0)])
+    assert all(v[vocab.channels[i].name] == 0.0 for i, _ in want.channels)
+
+
+def test_unknown_addresses_change_nothing(vocab: Vocabulary) -> None:
+    m = osc_mapper(vocab)
+    rest = run(m, [])
+    assert run(m, [axis("/face/channel/nosuch", 1.0), axis("/face/au/99", 1.0), axis("/other", 1.0)]) == rest
+
+
+def test_a_template_with_a_bad_target_is_one_located_error(vocab: Vocabulary) -> None:
+    text = 'version = 1\n[[binding]]\ncontrol = "/x/{channel}"\ntarget = "{channel}_bogus"\n'
+    with pytest.raises(ConfigError, match=r"mine.toml:4:1: unknown target"):
+        Mapper(parse_mapping(text, "mine.toml"), vocab)
+
+
+def test_touchosc_simple_layout_moves_the_face(vocab: Vocabulary) -> None:
+    spec = "osc://127.0.0.1:9000?profile=touchosc"
+    m = osc_mapper(vocab, spec)
+    v = run(m, [axis("/1/fader4", 0.7, spec), axis("/1/fader1", 0.9, spec), axis("/3/xy:0", 1.0, spec)], ticks=90)
+    assert v["jaw"] == pytest.approx(0.7, abs=1e-3)  # no pickup needed: the fader jumps
+    assert v["zygomaticus_major_l"] == pytest.approx(0.9, abs=1e-3) == v["zygomaticus_major_r"]
+    assert v["eyes_yaw"] == pytest.approx(1.0, abs=1e-3)
+    v = run(m, [button("/2/push3", True, spec), button("/2/push3", False, spec)], ticks=90)
+    surprise = m.vocab.resolve("expr:surprise")
+    assert all(v[vocab.channels[i].name] >= w - 1e-3 for i, w in surprise.channels)
+    assert ("osc://127.0.0.1:9000?profile=touchosc", "/2/push3", True) in m.light_changes()
+
+
+def test_openstage_widgets_move_the_face(vocab: Vocabulary) -> None:
+    spec = "osc://127.0.0.1:9000?profile=openstage"
+    m = osc_mapper(vocab, spec)
+    v = run(m, [axis("/fader_7", 0.4, spec), axis("/knob_1", 0.6, spec)], ticks=90)
+    assert v["jaw"] == pytest.approx(0.4, abs=1e-3) and v["zygomaticus_major_l"] == pytest.approx(0.6)
+
+
+def _arkit_events(values: np.ndarray, names: list[str]) -> list[ControlEvent]:
+    row = arkit_row(values, {n: i for i, n in enumerate(names)})
+    return [axis(shape[0].lower() + shape[1:], w, LIVE) for shape, w in zip(ARKIT_SHAPES, row)]
+
+
+def test_arkit_map_is_the_inverse_of_the_export(vocab: Vocabulary) -> None:
+    """A pose exported as ARKit weights and streamed back comes back as the same pose, for every
+    channel the export can express (procerus folds into browDown with corrugator: kept below it)."""
+    names = [c.name for c in vocab.channels]
+    assert [s[0].lower() + s[1:] for s in ARKIT_SHAPES] == list(ARKIT_NAMES)
+    covered = {"orbicularis_oculi_lid", "orbicularis_oculi", "levator_labii_alaeque_nasi", "zygomaticus_major",
+               "depressor_anguli_oris", "buccinator", "risorius", "depressor_labii", "levator_labii",
+               "frontalis_outer", "corrugator"}
+    rng = random.Random(5)
+    for _ in range(5):
+        values = np.array([c.default for c in vocab.channels])
+        for base in covered:
+            for side in ("_l", "_r"):
+                values[names.index(base + side)] = rng.uniform(0.2, 1.0)
+        inner = rng.uniform(0, 1)
+        values[names.index("frontalis_inner_l")] = values[names.index("frontalis_inner_r")] = inner
+        values[names.index("procerus")] = 0.1
+        for ch in ("jaw", "mentalis", "orbicularis_oris"):
+            values[names.index(ch)] = rng.uniform(0, 1)
+        values[names.index("eyes_yaw")] = rng.uniform(-1, 1)
+        values[names.index("eyes_pitch")] = rng.uniform(-1, 1)
+        m = Mapper(merge([(load_default_map("arkit"), LIVE)]), vocab)
+        back = run(m, _arkit_events(values, names))
+        for i, n in enumerate(names):
+            if n in ("procerus", "age") or n.startswith(("zygomaticus_minor", "levator_anguli")):
+                continue  # procerus reads max(corrugator, procerus); the others ARKit has no shape for
+            assert back[n] == pytest.approx(values[i], abs=1e-9), n
+
+
+def test_dials_layer_on_top_of_tracking(vocab: Vocabulary) -> None:
+    dial_map = parse_mapping('version = 1\n[[binding]]\ncontrol = "dial1"\ntarget = "zygomaticus_major"\n'
+                             '[[binding]]\ncontrol = "/2/push11"\ntarget = "eyes_yaw"\nto = [0.0, 0.3]\n', "dials.toml")
+    box, osc = "sgi:///dev/ttyS0", "osc://127.0.0.1:9000?profile=touchosc"
+    spec = merge([(load_default_map("arkit"), LIVE), (dial_map, None)])
+    m = Mapper(spec, vocab)
+    v = run(m, [axis("mouthSmileLeft", 0.3, LIVE), axis("mouthSmileRight", 0.3, LIVE),
+                axis("eyeLookOutLeft", 0.4, LIVE), axis("eyeLookInRight", 0.4, LIVE)])
+    assert v["zygomaticus_major_l"] == pytest.approx(0.3) and v["eyes_yaw"] == pytest.approx(0.4)
+    v = run(m, [ControlEvent(box, "dial1", "dial", 0.25), button("/2/push11", True, osc)])
+    assert v["zygomaticus_major_l"] == pytest.approx(0.55)  # the dial continues from the tracked smile
+    assert v["eyes_yaw"] == pytest.approx(0.7)  # gaze sums: tracking + the look button
+    v = run(m, [axis("mouthSmileLeft", 0.9, LIVE)])
+    assert v["zygomaticus_major_l"] == pytest.approx(0.9)  # max: tracking beyond the dial wins
+    assert v["zygomaticus_major_r"] == pytest.approx(0.55)
+
+
+@pytest.mark.parametrize("name", ["osc_generic", "osc_touchosc", "arkit"])
+def test_damaged_maps_give_one_line_or_a_result(name: str, vocab: Vocabulary) -> None:
+    """Generated damaged variants of the shipped maps (fixed seed): each one loads or fails with a
+    single ConfigError line naming the file and line, never anything else."""
+    from puppet.mapping.defaults import map_text
+
+    text = map_text(name)
+    rng = random.Random(1234)
+    junk = ["{channel}", "{au}", "{expression}", "\"", "[", "]]", "=", "\n", "{", "nan", "-1e400", "{au}{au}"]
+    for k in range(40):
+        chars = list(text)
+        for _ in range(rng.randint(1, 4)):
+            i = rng.randrange(len(chars))
+            op = rng.randrange(3)
+            if op == 0:
+                del chars[i:i + rng.randint(1, 12)]
+            elif op == 1:
+                chars.insert(i, rng.choice(junk))
+            else:
+                chars[i] = rng.choice(junk)
+        bad = "".join(chars)
+        try:
+            Mapper(parse_mapping(bad, f"{name}-{k}.toml"), vocab)
+        except ConfigError as err:
+            msg = str(err)
+            assert msg.startswith(f"{name}-{k}.toml:") and "\n" not in msg.strip(), msg
