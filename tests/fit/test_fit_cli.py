@@ -72,9 +72,10 @@ def test_landmark_csv_becomes_a_take_that_replays_exactly(tmp_path, performance,
     chans, values = _take_values(take, face0)
     tick = lambda t: int(round(t * 60))  # noqa: E731
     smile = values[tick(20 / FPS)]
-    assert smile[chans.index("zygomaticus_major_l")] == pytest.approx(0.8, abs=0.15)
+    assert smile[chans.index("zygomaticus_major_l")] == pytest.approx(0.8, abs=0.25)
+    assert smile[chans.index("frontalis_inner_l")] < 0.1
     brow = values[tick(42 / FPS)]
-    assert brow[chans.index("frontalis_inner_l")] == pytest.approx(0.7, abs=0.15)
+    assert brow[chans.index("frontalis_inner_l")] == pytest.approx(0.7, abs=0.25)
     assert brow[chans.index("zygomaticus_major_l")] < 0.1
     assert main(["replay", str(take), "--headless"]) == 0
     assert "bit-identical to the live session at 1 checkpoints" in capsys.readouterr().out
