@@ -4,12 +4,12 @@
     .venv/bin/python benchmarks/fit.py [--takes 30] [--sources res1 implicit head] [--skip-timing]
 
 Sources of data:
-  res1      the default face at resolution 1 (2 695 vertices; `auto` runs it with the implicit
+  res1      the default face at resolution 1 (about 2 700 vertices; `auto` runs it with the implicit
             integrator), observed at the res-1 vertex nearest each chosen res-0 vertex
   implicit  resolution 0 with the implicit integrator (same mesh, other integrator)
   head      the default rig transferred (sim.transfer) onto another head: the res-1 mesh stretched
             by 1.12 / 0.93 / 1.05 in x / y / z, observed at the points matching the res-0 ones
-Points: all 817 free res-0 vertices, 68 (the 32 rig landmarks + 36 random free vertices), 20 (20
+Points: all free res-0 vertices, 68 (the 32 rig landmarks + 36 random free vertices), 20 (20
 landmarks). Noise: Gaussian, sigma 0 / 0.1 / 0.5 mm per coordinate, independent per frame, on
 the neutral frame too. Each sample is a short track: 5 neutral frames then the pose held for 5
 frames; the fit's value is the middle pose frame's.

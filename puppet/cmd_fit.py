@@ -96,6 +96,13 @@ def summary(result: object, cap: object) -> list[str]:
                      + (f" and {len(used) - 10} more" if len(used) > 10 else ""))
     else:
         lines.append("active: none (no motion the channels explain)")
+    seen = len(r.channels) - len(r.invisible)  # type: ignore[attr-defined]
+    if 3 * len(r.vertices) < seen:  # type: ignore[attr-defined]
+        lines.append(f"underdetermined: {seen} channels move these points but only {3 * len(r.vertices)} "  # type: ignore[attr-defined]
+                     "coordinates are observed; add points for a unique fit")
+    if r.invisible:  # type: ignore[attr-defined]
+        lines.append(f"{len(r.invisible)} channels move none of these points and stay at 0: "  # type: ignore[attr-defined]
+                     + ", ".join(r.invisible[:8]) + (" ..." if len(r.invisible) > 8 else ""))  # type: ignore[attr-defined]
     for note in getattr(cap, "notes", []):
         lines.append(note)
     return lines
@@ -154,8 +161,8 @@ def run(args: argparse.Namespace) -> int:
         write_report(Path(args.report), reports)
     for line in lines:
         print(f"puppet: {line}")
-    what = "take" if kind == "take" else "keyframe curves"
-    print(f"puppet: wrote a {what} of {len(ticks)} ticks ({len(ticks) / args.rate:.2f} s at {args.rate:g} Hz) "
+    what = "a take" if kind == "take" else "keyframe curves"
+    print(f"puppet: wrote {what} of {len(ticks)} ticks ({len(ticks) / args.rate:.2f} s at {args.rate:g} Hz) "
           f"to {out}" + (f"; per-frame report in {args.report}" if args.report and reports is not None else ""))
     sys.stdout.flush()
     return 0

@@ -15,14 +15,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         "fields built by the simulator (seed 000 section 6), and the fitted activations against the "
         "presets' channels; prints the spans with scores for each preset and neutral, from both. TAKE: a "
         "recording (.jsonl), re-simulated; INPUT: anything `puppet fit` reads (fitted first). --json prints "
-        'a list of {"start": s, "end": s, "expression": name, "scores": {name: score}} (the templates\' '
-        'verdict) with the activations\' verdict under "from_activations". See docs/fit.md.',
+        'a list of {"start": s, "end": s, "expression": name, "scores": {name: score}}: the templates\' '
+        "verdict, or the activations' with --by activations. See docs/fit.md.",
     )
     p.add_argument("input", metavar="TAKE|INPUT", help="a take (.jsonl) or a capture")
     p.add_argument("--rig", metavar="R", help="rig file (default: the take's rig or the built-in face)")
     p.add_argument("--map", metavar="CORR.json", help="correspondence file for other point layouts")
     p.add_argument("--fps", type=float, metavar="N", help="frame rate of PC2 samples / ARKit timecodes")
     p.add_argument("--json", action="store_true", help="machine-readable spans")
+    p.add_argument("--by", choices=("templates", "activations"), default="templates",
+                   help="whose verdict --json lists: the displacement templates' (default) or the fitted "
+                   "activations' (the text output shows both)")
     p.set_defaults(func=run)
 
 
@@ -89,9 +92,9 @@ def _top(scores: dict[str, float], n: int = 3) -> str:
 def run(args: argparse.Namespace) -> int:
     spans, by_acts = analyse(args)
     if args.json:
-        out = [{"start": round(s.start, 4), "end": round(s.end, 4), "expression": s.expression, "scores": s.scores,
-                "from_activations": {"expression": a.expression, "scores": a.scores}}
-               for s, a in zip(spans, by_acts)]
+        chosen = by_acts if args.by == "activations" else spans
+        out = [{"start": round(s.start, 4), "end": round(s.end, 4), "expression": v.expression, "scores": v.scores}
+               for s, v in zip(spans, chosen)]
         print(json.dumps(out))
         return 0
     print("      start       end  templates                              activations")

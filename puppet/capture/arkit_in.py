@@ -6,8 +6,8 @@ express (EyeWide, CheekPuff, JawForward, tongue, lip roll, funnel, ...) are igno
 the report. Head and eye rotation columns are accepted; gaze comes from the EyeLook shapes.
 
 Column names are matched without regard to case (MediaPipe writes `mouthSmileLeft`).
-Timecode HH:MM:SS:FF(.mmm), FF counted at the recording's frame rate (--fps; by default the
-smallest of 24, 25, 30, 50, 60 above every FF in the file)."""
+Timecode HH:MM:SS:FF(.mmm), FF counted at the recording's frame rate (--fps; by default read
+from where the seconds roll over, or 60, Live Link's default, for a clip shorter than a second)."""
 
 from __future__ import annotations
 
@@ -52,6 +52,15 @@ def _timecode(path: Path, lineno: int, text: str) -> tuple[int, int, float]:
     return hh * 3600 + mm * 60 + ss, ff, frac
 
 
+def _rate(stamps: list[tuple[int, int, float]], max_ff: int) -> float:
+    """The frame rate the FF field counts at: where a second rolls over, the last FF before it
+    plus one (rounded up to a known rate); with no rollover in the file, 60 (Live Link's
+    default) unless the frame numbers need more."""
+    wraps = [a[1] + 1 for a, b in zip(stamps, stamps[1:]) if b[0] == a[0] + 1 and b[1] < a[1]]
+    top = max(wraps) if wraps else max(max_ff + 1, 60)
+    return float(next((r for r in RATES if r >= top), top))
+
+
 def read_arkit_csv(path: Path, fps: float | None = None) -> ChannelCapture:
     from sim.channels import CHANNEL_NAMES
 
@@ -94,7 +103,7 @@ def read_arkit_csv(path: Path, fps: float | None = None) -> ChannelCapture:
         raise ConfigError(f"{path}: no frames after the header")
     arr = np.array(data)
     max_ff = max(s[1] for s in stamps)
-    rate = float(fps) if fps else float(next((r for r in RATES if r > max_ff), max_ff + 1))
+    rate = float(fps) if fps else _rate(stamps, max_ff)
     if max_ff >= rate:
         raise ConfigError(f"{path}: frame field {max_ff} does not fit --fps {rate:g}")
     times = np.array([(s + (ff + frac) / rate) for s, ff, frac in stamps])

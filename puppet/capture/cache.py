@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tempfile
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
@@ -73,19 +72,17 @@ def _load(path: Path, model: Any) -> tuple[Any, Any] | None:
 
 
 def _save(path: Path, basis: Any, tpl: Any) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    """Write the cache entry atomically; a cache that cannot be written is only slower next time."""
+    import safefile
+
     try:
-        with os.fdopen(fd, "wb") as fh:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with safefile.atomic_write(path, "wb") as fh:
             np.savez(fh, channels=np.array(basis.channels), hi=basis.hi, rest=basis.rest, columns=basis.columns,
                      amplitude=basis.amplitude, model_hash=basis.model_hash, names=np.array(tpl.names),
                      weights=np.array(tpl.weights), fields=tpl.fields, activations=tpl.activations)
-        os.replace(tmp, path)
-    except OSError:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
+    except (OSError, ValueError):
+        pass
 
 
 def basis_for(model: Any, progress: Callable[[str, int, int], None] | None = None,

@@ -11,7 +11,8 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw
 
-STILL_CM = 0.02  # below this a vertex counts as motionless
+STILL_CM = 0.02  # below this (or STILL_SHARE of the largest motion) a vertex counts as motionless
+STILL_SHARE = 0.06
 
 
 def _ramp(u: float) -> tuple[int, int, int]:
@@ -55,8 +56,9 @@ def draw_template(model: Any, frames: np.ndarray, title: str, style: str = "trai
     path = xy(moved)
     disp = np.linalg.norm(frames[-1] - frames[0], axis=1)
     top = max(float(disp.max()), 1e-9)
+    still = max(STILL_CM, STILL_SHARE * top)
     for i in np.argsort(disp):
-        if disp[i] < STILL_CM:
+        if disp[i] < still:
             x, y = r2[i]
             d.ellipse([x - 1.2, y - 1.2, x + 1.2, y + 1.2], fill=(60, 90, 230))
             continue

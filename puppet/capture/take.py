@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import csv
 import datetime as _dt
-import os
-import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -20,21 +18,15 @@ from puppet.errors import ConfigError
 
 @contextmanager
 def atomic_path(target: Path, what: str) -> Iterator[Path]:
-    """A temporary path beside `target`; renamed onto it if the block succeeds, removed if not."""
+    """`safefile.atomic_path` (a temporary file beside `target`, renamed onto it if the block
+    succeeds), with a failure to write named as the `what` it was."""
+    import safefile
+
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=str(target.parent.resolve()))
-        os.close(fd)
+        with safefile.atomic_path(target) as tmp:
+            yield tmp
     except OSError as err:
-        raise ConfigError(f"{target}: cannot write the {what}: {err.strerror}") from err
-    try:
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)  # an ordinary file, not mkstemp's private 0600
-        yield Path(tmp)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        raise ConfigError(f"{target}: cannot write the {what}: {err.strerror or err}") from err
 
 
 def resample(times: np.ndarray, values: np.ndarray, rate: float) -> np.ndarray:

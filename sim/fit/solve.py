@@ -41,12 +41,16 @@ from sim.fit.align import Similarity, rms, similarity
 from sim.fit.basis import Basis, Settler
 
 
+INVISIBLE = 1e-3  # a basis column this small relative to the largest: the channel is not seen
+STILL_CM = 1e-6  # a displacement norm below this is no motion (misfit is 0, not 0/0)
+
+
 @dataclass
 class FitOptions:
     """smooth: temporal prior weight; sparsity: L1 weight; ridge: tiny Tikhonov term (all relative
     to the mean column energy); active: the activation above which a channel counts as active;
     relinearise: the relative misfit above which a frame is re-linearised (None: never), only if
-    its residual exceeds min_mm; align: "similarity", "rigid" or "none"."""
+    its residual exceeds min_mm, at most `iterations` times; align: "similarity", "rigid" or "none"."""
 
     smooth: float = 0.02
     sparsity: float = 0.004
@@ -56,6 +60,7 @@ class FitOptions:
     min_mm: float = 0.3
     max_settles: int = 40
     quantum: float = 0.1
+    iterations: int = 3
     align: str = "similarity"
 
 
@@ -101,46 +106,54 @@ class FitResult:
     condition: float
     settles: int = 0
     scales: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    invisible: tuple[str, ...] = ()
 
 
 class _Problem:
-    """The normal equations of one point set, factored once."""
+    """The normal equations of one point set, factored once, over the channels that move at
+    least one of the points (the others cannot be fitted and stay at 0)."""
 
     def __init__(self, basis: Basis, vertices: np.ndarray, opts: FitOptions) -> None:
         self.A = basis.matrix(vertices)
-        k = self.A.shape[1]
-        g0 = self.A.T @ self.A
-        s = float(np.trace(g0)) / k
+        self.k = self.A.shape[1]
+        norms = np.linalg.norm(self.A, axis=0)
+        self.visible = norms > INVISIBLE * max(float(norms.max()), 1e-12)
+        self.vis = np.flatnonzero(self.visible)
+        av = self.A[:, self.vis]
+        g0 = av.T @ av
+        s = float(np.trace(g0)) / max(1, len(self.vis))
         self.lam = opts.smooth * s
         self.mu = opts.sparsity * s
-        g = g0 + (self.lam + opts.ridge * s) * np.eye(k)
-        self.g = g
+        self.g = g0 + (self.lam + opts.ridge * s) * np.eye(len(self.vis))
         self.active = opts.active
-        self.chol = np.linalg.cholesky(g)
+        self.chol = np.linalg.cholesky(self.g) if len(self.vis) else np.zeros((0, 0))
         self.lt = self.chol.T.copy()
-        self.hi = basis.hi
-        self.condition = float(np.linalg.cond(self.A))
+        self.av = av
+        self.hi = basis.hi[self.vis]
+        self.condition = float(np.linalg.cond(av)) if len(self.vis) else float("inf")
         self._cond: dict[tuple[int, ...], float] = {}
 
     def solve(self, d: np.ndarray, prior: np.ndarray) -> np.ndarray:
         """The bounded solution with the L1 term (which picks the active set), then the same
         problem without it on that set only (the L1 term's shrinkage of the active values is a
-        bias, not information: a "relaxed lasso")."""
-        atd = self.A.T @ d
-        h = atd + self.lam * prior - self.mu
-        rhs = solve_triangular(self.chol, h, lower=True)
+        bias, not information: a "relaxed lasso"). Returns all K channels."""
+        full = np.zeros(self.k)
+        if not len(self.vis):
+            return full
+        atd = self.av.T @ d
+        p = prior[self.vis]
+        rhs = solve_triangular(self.chol, atd + self.lam * p - self.mu, lower=True)
         a = np.clip(lsq_linear(self.lt, rhs, bounds=(0.0, self.hi), method="bvls").x, 0.0, self.hi)
-        if self.mu == 0.0:
-            return a
-        act = np.flatnonzero(a > self.active)
-        out = np.zeros_like(a)
-        if len(act):
-            g = self.g[np.ix_(act, act)]
-            chol = np.linalg.cholesky(g)
-            r = solve_triangular(chol, atd[act] + self.lam * prior[act], lower=True)
-            sub = lsq_linear(chol.T, r, bounds=(0.0, self.hi[act]), method="bvls").x
-            out[act] = np.clip(sub, 0.0, self.hi[act])
-        return out
+        if self.mu > 0.0:
+            act = np.flatnonzero(a > self.active)
+            a = np.zeros_like(a)
+            if len(act):
+                chol = np.linalg.cholesky(self.g[np.ix_(act, act)])
+                r = solve_triangular(chol, atd[act] + self.lam * p[act], lower=True)
+                sub = lsq_linear(chol.T, r, bounds=(0.0, self.hi[act]), method="bvls").x
+                a[act] = np.clip(sub, 0.0, self.hi[act])
+        full[self.vis] = a
+        return full
 
     def cond(self, active: tuple[int, ...]) -> float:
         if not active:
@@ -218,20 +231,22 @@ class Fitter:
             res = disp[t] - pred
             res_mm = float(np.sqrt(np.mean(np.sum(res**2, axis=1)))) * 10.0
             norm = float(np.linalg.norm(disp[t]))
-            misfit = float(np.linalg.norm(res) / norm) if norm > 0 else 0.0
+            misfit = float(np.linalg.norm(res) / norm) if norm > STILL_CM else 0.0
             active = tuple(int(i) for i in np.flatnonzero(acts[t] > self.opts.active))
             reports.append(FrameReport(float(track.times[t]), res_mm, misfit,
                                        tuple(self.basis.channels[i] for i in active), prob.cond(active),
                                        bool(relin[t]), float(scales[t]), float(angles[t])))
         return FitResult(self.basis.channels, np.asarray(track.times, float), acts, disp, verts, reports, t0,
-                         neutral_mm, prob.condition, (self.settler.settles - settles0) if self.settler else 0, scales)
+                         neutral_mm, prob.condition, (self.settler.settles - settles0) if self.settler else 0, scales,
+                         tuple(c for c, v in zip(self.basis.channels, prob.visible) if not v))
 
     def _second_pass(self, prob: _Problem, disp: np.ndarray, acts: np.ndarray,
-                     offsets: np.ndarray | None = None) -> np.ndarray:
-        """Smoothing without lag: the prior is the mean of each frame's neighbours."""
+                     offsets: np.ndarray | None = None, frames: np.ndarray | None = None) -> np.ndarray:
+        """Smoothing without lag: the prior is the mean of each frame's neighbours (all frames,
+        or only `frames`)."""
         n = len(acts)
         out = acts.copy()
-        for t in range(n):
+        for t in (range(n) if frames is None else frames):
             nb = [acts[j] for j in (t - 1, t + 1) if 0 <= j < n]
             prior = np.mean(nb, axis=0) if nb else acts[t]
             d = disp[t] if offsets is None else disp[t] - offsets[t]
@@ -240,34 +255,39 @@ class Fitter:
 
     def _relinearise(self, prob: _Problem, disp: np.ndarray, acts: np.ndarray,
                      verts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Up to `iterations` chord steps on the frames whose misfit stays high; a step is kept
+        only where it explains the data better (the data minus the settled correction)."""
         opts = self.opts
         assert self.settler is not None and opts.relinearise is not None
         n = len(acts)
         offsets = np.zeros_like(disp)
         relin = np.zeros(n, bool)
-        for t in range(n):
-            pred = self.basis.predict(acts[t], verts)
-            res = disp[t] - pred
-            norm = float(np.linalg.norm(disp[t]))
-            res_mm = float(np.sqrt(np.mean(np.sum(res**2, axis=1)))) * 10.0
-            if norm == 0 or res_mm < opts.min_mm or np.linalg.norm(res) / norm < opts.relinearise:
-                continue
-            off = self._offset(acts[t])
-            if off is None:
-                continue
-            offsets[t] = off[verts]
-            relin[t] = True
-        if relin.any():
-            new = self._second_pass(prob, disp, acts, offsets)
-            for t in np.flatnonzero(relin):
-                # keep the re-linearised solution only where it explains the data better
-                before = np.linalg.norm(disp[t] - self.basis.predict(acts[t], verts))
-                after = np.linalg.norm(disp[t] - offsets[t] - self.basis.predict(new[t], verts))
+        for _ in range(opts.iterations):
+            cand = offsets.copy()
+            todo = []
+            for t in range(n):
+                res = disp[t] - offsets[t] - self.basis.predict(acts[t], verts)
+                norm = float(np.linalg.norm(disp[t]))
+                res_mm = float(np.sqrt(np.mean(np.sum(res**2, axis=1)))) * 10.0
+                if norm <= STILL_CM or res_mm < opts.min_mm or np.linalg.norm(res) / norm < opts.relinearise:
+                    continue
+                off = self._offset(acts[t])
+                if off is None:
+                    continue
+                cand[t] = off[verts]
+                todo.append(t)
+            if not todo:
+                break
+            new = self._second_pass(prob, disp, acts, cand, np.array(todo))
+            improved = False
+            for t in todo:
+                before = np.linalg.norm(disp[t] - offsets[t] - self.basis.predict(acts[t], verts))
+                after = np.linalg.norm(disp[t] - cand[t] - self.basis.predict(new[t], verts))
                 if after < before:
-                    acts[t] = new[t]
-                else:
-                    offsets[t] = 0.0
-                    relin[t] = False
+                    acts[t], offsets[t], relin[t] = new[t], cand[t], True
+                    improved = True
+            if not improved:
+                break
         return acts, offsets, relin
 
     def _offset(self, a: np.ndarray) -> np.ndarray | None:

@@ -72,9 +72,10 @@ def test_landmark_csv_becomes_a_take_that_replays_exactly(tmp_path, performance,
     chans, values = _take_values(take, face0)
     tick = lambda t: int(round(t * 60))  # noqa: E731
     smile = values[tick(20 / FPS)]
-    assert smile[chans.index("zygomaticus_major_l")] == pytest.approx(0.8, abs=0.15)
+    assert smile[chans.index("zygomaticus_major_l")] == pytest.approx(0.8, abs=0.25)
+    assert smile[chans.index("frontalis_inner_l")] < 0.1
     brow = values[tick(42 / FPS)]
-    assert brow[chans.index("frontalis_inner_l")] == pytest.approx(0.7, abs=0.15)
+    assert brow[chans.index("frontalis_inner_l")] == pytest.approx(0.7, abs=0.25)
     assert brow[chans.index("zygomaticus_major_l")] < 0.1
     assert main(["replay", str(take), "--headless"]) == 0
     assert "bit-identical to the live session at 1 checkpoints" in capsys.readouterr().out
@@ -102,9 +103,12 @@ def test_recognize_prints_spans_with_every_score(tmp_path, performance, capsys) 
     spans = json.loads(capsys.readouterr().out)
     assert [s["expression"] for s in spans] == ["neutral", "happiness", "surprise"]
     for s in spans:
-        assert {"start", "end", "expression", "scores"} <= set(s)
+        assert set(s) == {"start", "end", "expression", "scores"}  # the contract's keys, no more
         assert set(s["scores"]) == {*EXPRESSIONS, "neutral"}
-        assert s["from_activations"]["expression"] == s["expression"]
+    assert main(["recognize", str(csv_path), "--json", "--by", "activations"]) == 0
+    by_acts = json.loads(capsys.readouterr().out)
+    assert [s["expression"] for s in by_acts] == [s["expression"] for s in spans]
+    assert [(s["start"], s["end"]) for s in by_acts] == [(s["start"], s["end"]) for s in spans]
     assert spans[1]["start"] == pytest.approx(10 / FPS, abs=0.1)
     assert main(["recognize", str(csv_path)]) == 0
     assert "happiness" in capsys.readouterr().out
@@ -326,3 +330,56 @@ def test_fit_on_a_rig_file_records_it_for_replay(tmp_path, performance, capsys) 
     assert read_session(take).header["rig"]["path"] == str(rig.resolve())
     capsys.readouterr()
     assert main(["replay", str(take), "--headless"]) == 0
+
+
+def test_the_arkit_reader_inverts_the_export_mapping(tmp_path) -> None:
+    """Every channel the ARKit export writes one-to-one comes back with its value (5 decimals)."""
+    from puppet.capture.arkit_in import read_arkit_csv
+    from puppet.export.arkit import SIMPLE_SHAPES, ArkitCsvWriter
+    from sim.channels import CHANNEL_NAMES, CHANNEL_SPECS
+
+    one_to_one = {b + s for b in set(SIMPLE_SHAPES.values()) - {"orbicularis_oculi"} for s in ("_l", "_r")}
+    one_to_one |= {"jaw", "mentalis", "orbicularis_oris", "eyes_yaw", "eyes_pitch"}
+    rng = np.random.default_rng(15)
+    values = np.tile([s.default for s in CHANNEL_SPECS], (20, 1))
+    for ch in one_to_one:
+        j = CHANNEL_NAMES.index(ch)
+        values[:, j] = rng.uniform(-1.0 if ch.startswith("eyes") else 0.0, 1.0, 20)
+    path = tmp_path / "rt.arkit.csv"
+    w = ArkitCsvWriter(path, list(CHANNEL_NAMES), 60.0)
+    for k, v in enumerate(values):
+        w.add(k, v)
+    w.close()
+    cap = read_arkit_csv(path)
+    assert np.allclose(cap.times, np.arange(20) / 60.0)
+    for ch in sorted(one_to_one):
+        j = CHANNEL_NAMES.index(ch)
+        assert np.allclose(cap.values[:, j], values[:, j], atol=1e-5), ch
+
+
+def test_the_commands_as_a_user_runs_them(tmp_path, face0, basis0) -> None:  # type: ignore[no-untyped-def]
+    """Separate processes: a bad file is one line and exit 2; recognize --json prints the list."""
+    import os
+    import subprocess
+    import sys
+
+    from puppet.capture.take import write_take
+
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,chin_x,chin_y\n0,1,2\n")
+    out = tmp_path / "o.jsonl"
+    p = subprocess.run([sys.executable, "-m", "puppet", "fit", str(bad), "--out", str(out)], env=env,
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and not out.exists(), p.stderr
+    values = np.tile(np.array(face0.vocab.defaults()), (60, 1))
+    take = tmp_path / "still.jsonl"
+    write_take(take, face0, values, 60.0, {"test": True})
+    p = subprocess.run([sys.executable, "-m", "puppet", "recognize", str(take), "--json"], env=env,
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    spans = json.loads(p.stdout)
+    from sim.facs import EXPRESSIONS
+
+    assert [s["expression"] for s in spans] == ["neutral"]
+    assert set(spans[0]["scores"]) == {*EXPRESSIONS, "neutral"}
