@@ -15,6 +15,7 @@ import pytest
 from panel_browser import ROOT, PuppetProcess, browser, quit_browser, wait_for
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
+from selenium.webdriver.common.keys import Keys
 
 SCRIPT = ROOT / "examples" / "mock" / "sgi_rehearsal.toml"
 
@@ -64,9 +65,10 @@ def test_edit_a_key_and_rerecord_one_channel(take: Path) -> None:
             el.send_keys(val)
         slider = drv.find_element(By.CSS_SELECTOR, f'input[data-armed="{armed}"]')
         w = slider.size["width"]
-        # the performer's slider is placed before the pass and moved during it
-        ActionChains(drv).move_to_element_with_offset(slider, -w // 2 + 3, 0).click_and_hold() \
-            .move_by_offset(int(w * 0.8), 0).release().perform()
+        # the performer's slider is placed before the pass (at its top, from the keyboard) and moved
+        # during it (a click at 30 %)
+        slider.send_keys(Keys.END)
+        wait_for(lambda: slider.get_attribute("value") == "1000", 5, "the slider at its top")
         drv.find_element(By.ID, "record").click()
         ActionChains(drv).move_to_element_with_offset(slider, int(w * 0.3) - w // 2, 0).click().perform()
         wait_for(lambda: drv.execute_script("return window.puppetEditor.lastRecord"), 20, "the recorded pass")

@@ -324,6 +324,7 @@
     const k0 = Math.round(pin * rate()), k1 = Math.min(E.take.ticks - 1, Math.round(pout * rate()));
     E.recording = { k0, k1, next: k0, samples: Object.fromEntries([...E.armed].map((t) => [t, []])) };
     E.playhead = k0 / rate(); E.playing = true; last = performance.now();
+    recordUpTo(E.playhead);  // the punch-in tick holds the input as it is when recording starts
     $("record").textContent = "■ recording"; msg("recording " + [...E.armed].join(", "));
   }
   function recordUpTo(t) {  // one sample per tick, each the armed slider's value when that tick came
