@@ -36,6 +36,7 @@ import numpy as np
 
 from sim.build import FaceModel
 from sim.channels import CHANNEL_INDEX
+from sim.margin_contact import margin_contact, margin_pairs
 from sim.state import FaceControl, FaceState
 
 SAFETY = 0.9  # fraction of the linear stability limit used as the step (covers geometric stiffness)
@@ -167,9 +168,9 @@ def _eye_contact(x, v, idx, eye, centres, radius):  # type: ignore[no-untyped-de
 
 @numba.njit(**KERNEL)
 def _rk2_frame(x, v, n_sub, h, si3, sj3, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_mass,
-               force, xm, vm, work, eye_idx, eye_of, centres, radius):  # type: ignore[no-untyped-def]
+               force, xm, vm, work, eye_idx, eye_of, centres, radius, lip_idx, lip_w, lip_sg):  # type: ignore[no-untyped-def]
     """n_sub explicit-midpoint substeps of size h, in place on x, v, each followed by the eyeball
-    contact. inv_mass is 1/m for free nodes and 0 for held ones; force (N,3) and work (9,S) are
+    contact and the lid and lip contact (sim.margin_contact). inv_mass is 1/m for free nodes and 0 for held ones; force (N,3) and work (9,S) are
     scratch."""
     n = x.shape[0]
     half = 0.5 * h
@@ -194,6 +195,7 @@ def _rk2_frame(x, v, n_sub, h, si3, sj3, rest_len, k_low, k_high, k_damp, thr, e
                 x[i, d] += h * vm[i, d]
                 v[i, d] += h * (force[i, d] * w)
         _eye_contact(x, v, eye_idx, eye_of, centres, radius)
+        margin_contact(x, v, lip_idx, lip_w, lip_sg, inv_mass)
 
 
 def warm_up(implicit: bool = True) -> None:
@@ -217,7 +219,9 @@ def warm_up(implicit: bool = True) -> None:
     _rk2_frame(x, v, 1, 1e-3, np.array([0], dtype=np.uint32), np.array([3], dtype=np.uint32), one, one, one,
                one, 0.1, np.zeros_like(x), ones2, ones2, np.zeros_like(x), ones2, ones2, np.zeros_like(x),
                np.zeros_like(x), np.zeros_like(x), np.zeros((9, 1)), np.array([1], dtype=np.int64),
-               np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 5.0]]), 1.0)
+               np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 5.0]]), 1.0,
+               np.array([[0, 1, 1]], dtype=np.int64), np.zeros(1), np.array([[1.0, 0.0, 1.0, 1.0]]))
+    margin_contact(x, v, np.array([[0, 1, 1]], dtype=np.int64), np.zeros(1), np.array([[1.0, 0.0, 1.0, 1.0]]), ones2)
 
 
 def rk2_amplification(z: np.ndarray) -> np.ndarray:
@@ -340,6 +344,7 @@ class Simulator:
         self._eyes = (np.array(model.eye_contact, dtype=np.int64), np.array(model.eye_contact_eye, dtype=np.int64),
                       np.array(model.mesh.eye_centers, dtype=np.float64, order="C"),
                       float(model.eye_contact_radius))
+        self._margins = margin_pairs(model.mesh, model.rest)
         self._normal = np.array(model.rest_normal, order="C")
         self._threshold = float(model.strain_threshold)
         self._skin_age: float | None = None  # the age the springs were last scaled for
@@ -357,6 +362,11 @@ class Simulator:
         self._jaw_i = CHANNEL_INDEX["jaw"]
 
     # -- the force terms that are constant over a frame
+
+    def _contact(self, x: np.ndarray, v: np.ndarray) -> None:
+        """The contacts applied after each implicit substep (eyeballs, then lids and lips)."""
+        _eye_contact(x, v, *self._eyes)
+        margin_contact(x, v, *self._margins, self._inv_m)
 
     def rest_target(self, jaw: float) -> np.ndarray:
         """Eq 9's rest positions with the jaw opened by `jaw` (0..1), plus the gravity pre-stress
@@ -408,11 +418,12 @@ class Simulator:
         if self._implicit is None:
             _rk2_frame(x, v, self.substeps, self.dt, self._si3, self._sj3, self._rest_len, self._k_low,
                        self._k_high, self._k_damp, self._threshold, ext, self._kr, self._c, self._normal,
-                       self._kn, self._inv_m, self._force, self._xm, self._vm, self._work, *self._eyes)
+                       self._kn, self._inv_m, self._force, self._xm, self._vm, self._work, *self._eyes,
+                       *self._margins)
         else:
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
                                                             self._k_high, self._threshold), self._normal,
-                                 lambda xx, vv: _eye_contact(xx, vv, *self._eyes))
+                                 self._contact)
         reason = self._check(x)
         if reason:
             x[...] = self._saved_x

@@ -123,6 +123,7 @@ def _sphincter(f: FaceFrame, name: str, center: np.ndarray, a: float, b: float,
 LID_STRIPS = 9  # sheets across each lid, from the inner to the outer corner
 CORNER_BOOST = 0.6  # extra pull of the strips near the canthi, where the lid is held by the corner
 LID_MEET = 0.2  # where the lids meet, as a fraction of the opening above the lower margin
+INNER_BIAS = 0.4  # the strips pull harder towards the inner canthus and softer towards the outer
 
 
 def _margins(f: FaceFrame, loop: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -174,6 +175,10 @@ def _lids(f: FaceFrame, side: str, sg: float) -> tuple[Muscle, ...]:
         # near the canthi the skin is held by its neighbours at the fixed corner, so the same
         # force moves it less: the end strips pull harder than their height alone would ask
         share = height * (1.0 + CORNER_BOOST * (1.0 - height))
+        # the inner half of the upper lid runs down the steeper side of the eyeball and is held
+        # by the medial canthal tendon: with one strength along the lid it stayed open at the
+        # inner corner while the outer half closed past the lower lid
+        share *= 1.0 + INNER_BIAS * (1.0 - 2.0 * (k + 0.5) / LID_STRIPS)
         if height < 0.05:
             continue
         meet = b + LID_MEET * (t - b)
