@@ -4,7 +4,8 @@ Per node i (free, not held):
     m_i a_i = Q_i (springs, eqs 1-5) + axial spring damping - c_i v_i + k_r,i (target_i - x_i)
               + k_n,i n_i n_i.(target_i - x_i) (normal support, see SkinParams.support)
               + sum_c a_c F_c,i (muscles) + m_i g
-and after every substep the vertices near the eyeballs are kept outside them (`_eye_contact`).
+and after every substep the closed lids and the lips are kept from passing each other
+(`sim.margin_contact`, RK2 only) and the vertices near the eyeballs outside them (`_eye_contact`).
 RK2 reading chosen: the explicit *midpoint* method (Numerical Recipes' "second-order Runge-Kutta",
 the paper's ref [16]): k1 = f(y); k2 = f(y + h/2 k1); y += h k2.
 
@@ -169,8 +170,9 @@ def _eye_contact(x, v, idx, eye, centres, radius):  # type: ignore[no-untyped-de
 @numba.njit(**KERNEL)
 def _rk2_frame(x, v, n_sub, h, si3, sj3, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_mass,
                force, xm, vm, work, eye_idx, eye_of, centres, radius, lip_idx, lip_w, lip_sg):  # type: ignore[no-untyped-def]
-    """n_sub explicit-midpoint substeps of size h, in place on x, v, each followed by the eyeball
-    contact and the lid and lip contact (sim.margin_contact). inv_mass is 1/m for free nodes and 0 for held ones; force (N,3) and work (9,S) are
+    """n_sub explicit-midpoint substeps of size h, in place on x, v, each followed by the lid and
+    lip contact (sim.margin_contact) and the eyeball contact (last, so no vertex is left inside an
+    eyeball). inv_mass is 1/m for free nodes and 0 for held ones; force (N,3) and work (9,S) are
     scratch."""
     n = x.shape[0]
     half = 0.5 * h
@@ -194,8 +196,8 @@ def _rk2_frame(x, v, n_sub, h, si3, sj3, rest_len, k_low, k_high, k_damp, thr, e
             for d in range(3):
                 x[i, d] += h * vm[i, d]
                 v[i, d] += h * (force[i, d] * w)
-        _eye_contact(x, v, eye_idx, eye_of, centres, radius)
         margin_contact(x, v, lip_idx, lip_w, lip_sg, inv_mass)
+        _eye_contact(x, v, eye_idx, eye_of, centres, radius)
 
 
 def warm_up(implicit: bool = True) -> None:
@@ -311,6 +313,7 @@ class Simulator:
             raise ValueError(f"unknown integration method {method!r}; valid: auto, rk2, implicit")
         self.method = method
         self._implicit = None
+        self._margins = margin_pairs(model.mesh, model.rest)
         if method == "rk2":
             self.substeps = self.rk2_substeps
         else:
@@ -344,7 +347,6 @@ class Simulator:
         self._eyes = (np.array(model.eye_contact, dtype=np.int64), np.array(model.eye_contact_eye, dtype=np.int64),
                       np.array(model.mesh.eye_centers, dtype=np.float64, order="C"),
                       float(model.eye_contact_radius))
-        self._margins = margin_pairs(model.mesh, model.rest)
         self._normal = np.array(model.rest_normal, order="C")
         self._threshold = float(model.strain_threshold)
         self._skin_age: float | None = None  # the age the springs were last scaled for
@@ -362,11 +364,6 @@ class Simulator:
         self._jaw_i = CHANNEL_INDEX["jaw"]
 
     # -- the force terms that are constant over a frame
-
-    def _contact(self, x: np.ndarray, v: np.ndarray) -> None:
-        """The contacts applied after each implicit substep (eyeballs, then lids and lips)."""
-        _eye_contact(x, v, *self._eyes)
-        margin_contact(x, v, *self._margins, self._inv_m)
 
     def rest_target(self, jaw: float) -> np.ndarray:
         """Eq 9's rest positions with the jaw opened by `jaw` (0..1), plus the gravity pre-stress
@@ -423,7 +420,7 @@ class Simulator:
         else:
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
                                                             self._k_high, self._threshold), self._normal,
-                                 self._contact)
+                                 lambda xx, vv: _eye_contact(xx, vv, *self._eyes))
         reason = self._check(x)
         if reason:
             x[...] = self._saved_x

@@ -1,5 +1,5 @@
 """Contact between the two lids of each eye and between the two lips: a closing margin stops where
-it meets the other one instead of passing through it.
+it meets the other one instead of passing through it (explicit RK2 only, see below).
 
 Each margin vertex (corners excluded) is paired at rest with the point of the opposite margin at
 the same frontal-plane x (linear between the two vertices that bracket it), both ways (upper
@@ -7,9 +7,16 @@ vertices against the lower margin and lower ones against the upper). After every
 that has crossed is projected back apart along the vertical, the correction shared by inverse
 mass (a position-based constraint, Mueller et al. 2007, one Gauss-Seidel sweep), and the part of
 the pair's relative velocity that drives them further into each other is removed, as the eyeball
-contact does. The constraint is one-sided and never acts at rest: a pair that overlaps at rest
+contact does. A lower lid yields only LOWER_LID_GIVE as much as the upper one (the upper lid does
+the closing). The constraint is one-sided and never acts at rest: a pair that overlaps at rest
 (lips drawn closed on some meshes) may keep that overlap, no more. Cost: a few dozen pairs per
 face, nothing next to the springs.
+
+Why not in the implicit integrator (`sim.implicit`, the 3k and 12k faces): a projection after its
+global solve has a false fixed point (the solve spreads the held vertices' push over their
+neighbours; at 3k vertices closed lids stopped 5 mm down instead of 8); the contact as a
+projective-dynamics term in the matrix made every margin vertex heavier (AU9 reached its lip lift
+seconds later), and as an explicit penalty it left the closed lids 1.5 mm open and folded.
 """
 
 from __future__ import annotations
@@ -54,7 +61,8 @@ def margin_pairs(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarr
         m = margin_rows(mesh)
     except (AttributeError, KeyError, IndexError, ValueError):
         m = {}
-    for up, low, g in (("lip_upper", "lip_lower", 1.0),):
+    for up, low, g in (("eye_l_upper", "eye_l_lower", LOWER_LID_GIVE), ("eye_r_upper", "eye_r_lower", LOWER_LID_GIVE),
+                       ("lip_upper", "lip_lower", 1.0)):
         if up in m and low in m and len(m[up]) > 2 and len(m[low]) > 2:
             rows += _pairs(rest, m[up], m[low], 1.0, (1.0, g)) + _pairs(rest, m[low], m[up], -1.0, (g, 1.0))
     if not rows:

@@ -186,6 +186,10 @@ def _lids(f: FaceFrame, side: str, sg: float) -> tuple[Muscle, ...]:
         # 1 mm): the pull then has the forward component that keeps a closing lid on the eyeball
         # instead of driving it through the eyeball along the chord
         za = float(centre[2] + np.sqrt(max(radius**2 - (meet - centre[1]) ** 2 - (xc - centre[0]) ** 2, 0.0)))
+        # towards the canthi the eyeball falls away behind the skin: an attachment on it there
+        # pulled the corner strips back into the globe's edge, the eyeball contact pushed them out
+        # along its normal, and the upper margin next to the inner canthus slid past the corner
+        za = max(za, float(f.skin(np.array([xc, meet, 0.0]))[2]) - 0.1 * s)
         a1, a2 = np.array([x0, meet, za]), np.array([x1, meet, za])
         width = abs(x1 - x0) / s
         parts.append(_sheet(f, f"orbicularis_oculi_lid_upper_{side}_{k}", a1, a2,
