@@ -1,6 +1,6 @@
 """Full-activation amplitudes of the AUs and presets against real faces and our stated FACS targets
-(`sim.expression_targets.TARGETS`, with their sources), on the default face at resolutions 0 and 1 and (the targets it meets) on the coarse transferred head,
-gravity on. Each value is read in mm of a 90 mm outer-canthal-width adult."""
+(`sim.expression_targets.TARGETS`, with their sources), on the default face at resolutions 0 and 1
+and (the targets it meets) on the coarse transferred head, gravity on. Each value is read in mm of a 90 mm outer-canthal-width adult."""
 
 from __future__ import annotations
 
