@@ -9,7 +9,8 @@ mass (a position-based constraint, Mueller et al. 2007, one Gauss-Seidel sweep),
 the pair's relative velocity that drives them further into each other is removed, as the eyeball
 contact does. A lower lid yields only LOWER_LID_GIVE as much as the upper one (the upper lid does
 the closing). The constraint is one-sided and never acts at rest: a pair that overlaps at rest
-(lips drawn closed on some meshes) may keep that overlap, no more. Cost: a few dozen pairs per
+(lips drawn closed on some meshes) may keep that overlap, no more; closed lids may overlap by
+LID_OVERLAP. Cost: a few dozen pairs per
 face, nothing next to the springs.
 
 Why not in the implicit integrator (`sim.implicit`, the 3k and 12k faces): a projection after its
@@ -29,12 +30,14 @@ from sim.model import FaceMesh
 KERNEL = dict(cache=True, fastmath=False, nogil=True, error_model="numpy")
 
 
+LID_OVERLAP = 0.03  # cm the closed lids may overlap: edge to edge, a hairline of the eyeball showed
+# between them in renders (the lids meet at an angle in depth)
 LOWER_LID_GIVE = 0.1  # how far a lower lid yields to the upper one, relative to an equal mass:
 # the upper lid does the closing; a lower margin pushed down as far folded its first ring of skin
 
 
 def _pairs(rest: np.ndarray, a_row: np.ndarray, b_row: np.ndarray, sign: float,
-           give: tuple[float, float]) -> list[tuple]:  # type: ignore[type-arg]
+           give: tuple[float, float], overlap: float) -> list[tuple]:  # type: ignore[type-arg]
     order = np.argsort(rest[b_row, 0], kind="stable")
     bx, b = rest[b_row[order], 0], b_row[order]
     out = []
@@ -44,7 +47,7 @@ def _pairs(rest: np.ndarray, a_row: np.ndarray, b_row: np.ndarray, sign: float,
         span = bx[k + 1] - bx[k]
         w = float(np.clip((x - bx[k]) / span, 0.0, 1.0)) if span > 0 else 0.0
         y = (1.0 - w) * rest[b[k], 1] + w * rest[b[k + 1], 1]
-        out.append((int(i), int(b[k]), int(b[k + 1]), w, sign, min(0.0, sign * (rest[i, 1] - y)), *give))
+        out.append((int(i), int(b[k]), int(b[k + 1]), w, sign, min(0.0, sign * (rest[i, 1] - y)) - overlap, *give))
     return out
 
 
@@ -64,7 +67,8 @@ def margin_pairs(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarr
     for up, low, g in (("eye_l_upper", "eye_l_lower", LOWER_LID_GIVE), ("eye_r_upper", "eye_r_lower", LOWER_LID_GIVE),
                        ("lip_upper", "lip_lower", 1.0)):
         if up in m and low in m and len(m[up]) > 2 and len(m[low]) > 2:
-            rows += _pairs(rest, m[up], m[low], 1.0, (1.0, g)) + _pairs(rest, m[low], m[up], -1.0, (g, 1.0))
+            ov = LID_OVERLAP if up.startswith("eye") else 0.0
+            rows += _pairs(rest, m[up], m[low], 1.0, (1.0, g), ov) + _pairs(rest, m[low], m[up], -1.0, (g, 1.0), ov)
     if not rows:
         return np.zeros((0, 3), np.int64), np.zeros(0), np.zeros((0, 4))
     idx = np.array([r[:3] for r in rows], dtype=np.int64)
