@@ -4,7 +4,8 @@ Per node i (free, not held):
     m_i a_i = Q_i (springs, eqs 1-5) + axial spring damping - c_i v_i + k_r,i (target_i - x_i)
               + k_n,i n_i n_i.(target_i - x_i) (normal support, see SkinParams.support)
               + sum_c a_c F_c,i (muscles) + m_i g
-and after every substep the vertices near the eyeballs are kept outside them (`_eye_contact`).
+and after every substep the closed lids and the lips are kept from passing each other
+(`sim.margin_contact`, RK2 only) and the vertices near the eyeballs outside them (`_eye_contact`).
 RK2 reading chosen: the explicit *midpoint* method (Numerical Recipes' "second-order Runge-Kutta",
 the paper's ref [16]): k1 = f(y); k2 = f(y + h/2 k1); y += h k2.
 
@@ -36,6 +37,7 @@ import numpy as np
 
 from sim.build import FaceModel
 from sim.channels import CHANNEL_INDEX
+from sim.margin_contact import margin_contact, margin_pairs
 from sim.state import FaceControl, FaceState
 
 SAFETY = 0.9  # fraction of the linear stability limit used as the step (covers geometric stiffness)
@@ -167,9 +169,10 @@ def _eye_contact(x, v, idx, eye, centres, radius):  # type: ignore[no-untyped-de
 
 @numba.njit(**KERNEL)
 def _rk2_frame(x, v, n_sub, h, si3, sj3, rest_len, k_low, k_high, k_damp, thr, ext, kr, c, nrm, kn, inv_mass,
-               force, xm, vm, work, eye_idx, eye_of, centres, radius):  # type: ignore[no-untyped-def]
-    """n_sub explicit-midpoint substeps of size h, in place on x, v, each followed by the eyeball
-    contact. inv_mass is 1/m for free nodes and 0 for held ones; force (N,3) and work (9,S) are
+               force, xm, vm, work, eye_idx, eye_of, centres, radius, lip_idx, lip_w, lip_sg):  # type: ignore[no-untyped-def]
+    """n_sub explicit-midpoint substeps of size h, in place on x, v, each followed by the lid and
+    lip contact (sim.margin_contact) and the eyeball contact (last, so no vertex is left inside an
+    eyeball). inv_mass is 1/m for free nodes and 0 for held ones; force (N,3) and work (9,S) are
     scratch."""
     n = x.shape[0]
     half = 0.5 * h
@@ -193,6 +196,7 @@ def _rk2_frame(x, v, n_sub, h, si3, sj3, rest_len, k_low, k_high, k_damp, thr, e
             for d in range(3):
                 x[i, d] += h * vm[i, d]
                 v[i, d] += h * (force[i, d] * w)
+        margin_contact(x, v, lip_idx, lip_w, lip_sg, inv_mass)
         _eye_contact(x, v, eye_idx, eye_of, centres, radius)
 
 
@@ -217,7 +221,9 @@ def warm_up(implicit: bool = True) -> None:
     _rk2_frame(x, v, 1, 1e-3, np.array([0], dtype=np.uint32), np.array([3], dtype=np.uint32), one, one, one,
                one, 0.1, np.zeros_like(x), ones2, ones2, np.zeros_like(x), ones2, ones2, np.zeros_like(x),
                np.zeros_like(x), np.zeros_like(x), np.zeros((9, 1)), np.array([1], dtype=np.int64),
-               np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 5.0]]), 1.0)
+               np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 5.0]]), 1.0,
+               np.array([[0, 1, 1]], dtype=np.int64), np.zeros(1), np.array([[1.0, 0.0, 1.0, 1.0]]))
+    margin_contact(x, v, np.array([[0, 1, 1]], dtype=np.int64), np.zeros(1), np.array([[1.0, 0.0, 1.0, 1.0]]), ones2)
 
 
 def rk2_amplification(z: np.ndarray) -> np.ndarray:
@@ -307,6 +313,7 @@ class Simulator:
             raise ValueError(f"unknown integration method {method!r}; valid: auto, rk2, implicit")
         self.method = method
         self._implicit = None
+        self._margins = margin_pairs(model.mesh, model.rest)
         if method == "rk2":
             self.substeps = self.rk2_substeps
         else:
@@ -408,7 +415,8 @@ class Simulator:
         if self._implicit is None:
             _rk2_frame(x, v, self.substeps, self.dt, self._si3, self._sj3, self._rest_len, self._k_low,
                        self._k_high, self._k_damp, self._threshold, ext, self._kr, self._c, self._normal,
-                       self._kn, self._inv_m, self._force, self._xm, self._vm, self._work, *self._eyes)
+                       self._kn, self._inv_m, self._force, self._xm, self._vm, self._work, *self._eyes,
+                       *self._margins)
         else:
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
                                                             self._k_high, self._threshold), self._normal,

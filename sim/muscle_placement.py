@@ -123,6 +123,7 @@ def _sphincter(f: FaceFrame, name: str, center: np.ndarray, a: float, b: float,
 LID_STRIPS = 9  # sheets across each lid, from the inner to the outer corner
 CORNER_BOOST = 0.6  # extra pull of the strips near the canthi, where the lid is held by the corner
 LID_MEET = 0.2  # where the lids meet, as a fraction of the opening above the lower margin
+INNER_BIAS = 0.4  # the strips pull harder towards the inner canthus and softer towards the outer
 
 
 def _margins(f: FaceFrame, loop: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -174,6 +175,10 @@ def _lids(f: FaceFrame, side: str, sg: float) -> tuple[Muscle, ...]:
         # near the canthi the skin is held by its neighbours at the fixed corner, so the same
         # force moves it less: the end strips pull harder than their height alone would ask
         share = height * (1.0 + CORNER_BOOST * (1.0 - height))
+        # the inner half of the upper lid runs down the steeper side of the eyeball and is held
+        # by the medial canthal tendon: with one strength along the lid it stayed open at the
+        # inner corner while the outer half closed past the lower lid
+        share *= 1.0 + INNER_BIAS * (1.0 - 2.0 * (k + 0.5) / LID_STRIPS)
         if height < 0.05:
             continue
         meet = b + LID_MEET * (t - b)
@@ -181,6 +186,10 @@ def _lids(f: FaceFrame, side: str, sg: float) -> tuple[Muscle, ...]:
         # 1 mm): the pull then has the forward component that keeps a closing lid on the eyeball
         # instead of driving it through the eyeball along the chord
         za = float(centre[2] + np.sqrt(max(radius**2 - (meet - centre[1]) ** 2 - (xc - centre[0]) ** 2, 0.0)))
+        # towards the canthi the eyeball falls away behind the skin: an attachment on it there
+        # pulled the corner strips back into the globe's edge, the eyeball contact pushed them out
+        # along its normal, and the upper margin next to the inner canthus slid past the corner
+        za = max(za, float(f.skin(np.array([xc, meet, 0.0]))[2]) - 0.1 * s)
         a1, a2 = np.array([x0, meet, za]), np.array([x1, meet, za])
         width = abs(x1 - x0) / s
         parts.append(_sheet(f, f"orbicularis_oculi_lid_upper_{side}_{k}", a1, a2,
