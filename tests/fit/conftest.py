@@ -43,15 +43,3 @@ def res1():  # type: ignore[no-untyped-def]
     from sim.fit.basis import Settler
 
     return Settler(sim.default_model(1))
-
-
-def correspond(model0, model1, vertices0: np.ndarray) -> np.ndarray:  # type: ignore[no-untyped-def]
-    """For each res-0 vertex, the nearest res-1 vertex at rest (landmarks map to landmarks)."""
-    from scipy.spatial import cKDTree
-
-    near = cKDTree(model1.rest).query(model0.rest[vertices0])[1]
-    names0 = {int(v): n for n, v in model0.mesh.landmarks.items()}
-    for i, v in enumerate(vertices0):
-        if int(v) in names0:
-            near[i] = model1.mesh.landmarks[names0[int(v)]]
-    return near

@@ -8,8 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import correspond
-from fitdata import damaged_texts, rotation, write_landmark_csv
+from fitdata import correspond, damaged_texts, rotation, write_landmark_csv
 
 from puppet.cli import main
 from sim.fit.basis import preset_values

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import correspond
-from fitdata import rotation
+from fitdata import correspond, rotation
 
 from sim.fit.align import rms, similarity
 from sim.fit.basis import preset_values
