@@ -220,14 +220,16 @@ def _open_panel(args: argparse.Namespace, face: Any, devs: list[Any], explicit: 
     host = "0.0.0.0" if args.panel_lan else "127.0.0.1"
     spec = f"panel://{host}{port}" + ("?lan=1" if args.panel_lan else "")
     try:
-        dev = devices.open_device(spec, vocab=face.vocab, roles=roles)
+        # the page the user did not ask for is served after the first tick (puppet.panel.device)
+        dev = devices.open_device(spec, vocab=face.vocab, roles=roles, serve_later=not explicit)
     except devices.DeviceError as err:
         if explicit:
             raise
         warn(f"no performer's page ({err})")
         return
     devs.append(dev)
-    announce(dev)
+    if not dev.serve_later:
+        announce(dev)
 
 
 def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], mapped: list[tuple[str, str]],
@@ -284,6 +286,10 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         resume.start_segment(core, point)
     for page in panel_devices(devs):
         page.watch(core, devs, record)
+        if page.server is None and page.serve_later:
+            from puppet.panel import announce
+
+            core.after_first_frame.append(lambda p=page: p.serve_in_background(announce, warn))
     stop = live.StopFlag()
     stop.install()
     watcher = None
