@@ -281,9 +281,8 @@ def load_entry(directory: Path, key: str, rig: Any | None) -> Any:
         if _rig_digest(rig, params) != scalars.get("hash"):
             raise CacheEntryError("the entry was compiled from another rig")
         # plain CSR arrays, read as they are by the kernels (checked in _check_model); scipy's
-        # matrix is made from them only if something asks for more
-        for name in ("mm_data", "mm_indices", "mm_indptr"):
-            arrays[name].setflags(write=False)
+        # matrix is made from them only if something asks for more. Writable like a built
+        # scipy matrix's, so the kernels see the same types (one compiled signature, not two)
         mm = CsrArrays(arrays["mm_data"], arrays["mm_indices"], arrays["mm_indptr"],
                        tuple(int(x) for x in meta["mm_shape"]))
         if mm.shape[1] != len(CHANNEL_SPECS):
