@@ -316,15 +316,8 @@ class LiveCore:
 
     def after_frame(self) -> None:
         """The frame is published: write the recording's records kept since the last call and
-        hand it to the OS; after the first frame, start building the wrinkle layer (wrinkles_later)
-        and run `after_first_frame`."""
-        if self._wrinkles_thread is not None:
-            self._wrinkles_thread.start()
-            self._wrinkles_thread = None
-        if self.after_first_frame:
-            hooks, self.after_first_frame = self.after_first_frame, []
-            for hook in hooks:
-                hook()
+        hand it to the OS; then, after the first frame, start building the wrinkle layer
+        (wrinkles_later) and run `after_first_frame` (their threads start once the tick is written)."""
         if self.writer is not None:
             if self.spans is not None:
                 t = time.perf_counter()
@@ -332,6 +325,13 @@ class LiveCore:
                 self.spans.add("recording (after frame)", time.perf_counter() - t)
             else:
                 self.writer.service()
+        if self._wrinkles_thread is not None:
+            self._wrinkles_thread.start()
+            self._wrinkles_thread = None
+        if self.after_first_frame:
+            hooks, self.after_first_frame = self.after_first_frame, []
+            for hook in hooks:
+                hook()
 
     def mark(self, label: str) -> None:
         self.markers.append((self.tick_count, label))
