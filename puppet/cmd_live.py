@@ -141,6 +141,24 @@ def _close_all(devs: list[Any]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """`puppet live`. The garbage collector is off while the show starts: importing numpy and
+    numba and loading the face make ~120k long-lived objects, and the collections they would
+    trigger cost ~0.05-0.1 s of a 1 s start; the show's runtime collects once and takes over
+    (`puppet.live._ShowRuntime`), and the collector is on again for anything after the show."""
+    import gc
+
+    if args.supervise:  # the supervisor runs for the whole show: it keeps its collector
+        return _run(args)
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        return _run(args)
+    finally:
+        if was_enabled:
+            gc.enable()
+
+
+def _run(args: argparse.Namespace) -> int:
     from puppet import live
     from puppet.errors import PuppetError
 
@@ -220,14 +238,16 @@ def _open_panel(args: argparse.Namespace, face: Any, devs: list[Any], explicit: 
     host = "0.0.0.0" if args.panel_lan else "127.0.0.1"
     spec = f"panel://{host}{port}" + ("?lan=1" if args.panel_lan else "")
     try:
-        dev = devices.open_device(spec, vocab=face.vocab, roles=roles)
+        # the page the user did not ask for is served after the first tick (puppet.panel.device)
+        dev = devices.open_device(spec, vocab=face.vocab, roles=roles, serve_later=not explicit)
     except devices.DeviceError as err:
         if explicit:
             raise
         warn(f"no performer's page ({err})")
         return
     devs.append(dev)
-    announce(dev)
+    if not dev.serve_later:
+        announce(dev)
 
 
 def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], mapped: list[tuple[str, str]],
@@ -284,6 +304,10 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         resume.start_segment(core, point)
     for page in panel_devices(devs):
         page.watch(core, devs, record)
+        if page.server is None and page.serve_later:
+            from puppet.panel import announce
+
+            core.after_first_frame.append(lambda p=page: p.serve_in_background(announce, warn))
     stop = live.StopFlag()
     stop.install()
     watcher = None
@@ -292,6 +316,10 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         watcher = DeviceWatcher(devs, queue)
         core.before_tick.append(watcher.adopt)
         watcher.start()
+    if virtual:  # a scripted take runs start to end on the collector's own schedule
+        import gc
+
+        gc.enable()
     try:
         if not virtual:
             live.prepare_show()
@@ -311,6 +339,9 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
                 d.start()
             live.run_realtime(core, queue.drain, args.duration, stop=stop)
     finally:
+        import gc
+
+        gc.enable()  # the show is over: the collector is on for what follows (snapshot, export)
         stop.restore()
         if watcher is not None:
             watcher.close()

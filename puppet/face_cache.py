@@ -61,14 +61,19 @@ def cache_dir() -> Path | None:
 @lru_cache(maxsize=4)
 def source_digest(root: Path | None = None) -> str:
     """SHA-256 of every source file of the `sim` package (or of the package folder `root`), of
-    its layout, and of the library versions."""
-    import scipy
+    its layout, and of the library versions (scipy's read from its metadata: importing scipy
+    costs ~0.3 s that a start from the cache does not otherwise pay)."""
+    from importlib.metadata import PackageNotFoundError, version
 
+    try:
+        scipy_version = version("scipy")
+    except PackageNotFoundError:
+        scipy_version = "none"
     if root is None:
         import sim
 
         root = Path(sim.__file__).resolve().parent
-    h = hashlib.sha256(f"{FORMAT}/{VERSION} numpy {np.__version__} scipy {scipy.__version__}".encode())
+    h = hashlib.sha256(f"{FORMAT}/{VERSION} numpy {np.__version__} scipy {scipy_version}".encode())
     for path in sorted(root.rglob("*.py")):
         h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
     return h.hexdigest()
@@ -211,6 +216,9 @@ def _check_model(arrays: dict[str, np.ndarray], meta: dict[str, Any], rig: Any) 
         raise CacheEntryError("non-positive masses")
     rows, cols = (int(x) for x in meta["mm_shape"])
     ind, ptr, data = arrays["mm_indices"], arrays["mm_indptr"], arrays["mm_data"]
+    if ind.dtype not in (np.int32, np.int64) or ptr.dtype != ind.dtype or data.dtype != np.float64 \
+            or ind.ndim != 1:
+        raise CacheEntryError("muscle matrix has the wrong types")
     if rows != 3 * n or ptr.shape != (rows + 1,) or ind.shape != data.shape or ptr[0] != 0 \
             or ptr[-1] != len(ind) or np.any(np.diff(ptr) < 0) or (ind.size and (ind.min() < 0 or ind.max() >= cols)) \
             or not np.all(np.isfinite(data)):
@@ -239,10 +247,9 @@ def _check_scalars(scalars: Any, n_springs: int) -> dict[str, Any]:
 def load_entry(directory: Path, key: str, rig: Any | None) -> Any:
     """The FaceModel of the entry `key` (its own rig file when `rig` is None); CacheEntryError if
     the entry is missing or cannot be trusted."""
-    import scipy.sparse as sp
-
     from sim.build import FaceModel, SkinParams, _rig_digest
     from sim.channels import CHANNEL_SPECS
+    from sim.csr import CsrArrays
 
     arrays = _read_npz(directory / f"{key}.npz")
     meta_arr = arrays.pop("meta", None)
@@ -273,8 +280,11 @@ def load_entry(directory: Path, key: str, rig: Any | None) -> Any:
         _check_model(arrays, meta, rig)
         if _rig_digest(rig, params) != scalars.get("hash"):
             raise CacheEntryError("the entry was compiled from another rig")
-        mm = sp.csr_matrix((arrays["mm_data"], arrays["mm_indices"], arrays["mm_indptr"]),
-                           shape=tuple(int(x) for x in meta["mm_shape"]))
+        # plain CSR arrays, read as they are by the kernels (checked in _check_model); scipy's
+        # matrix is made from them only if something asks for more. Writable like a built
+        # scipy matrix's, so the kernels see the same types (one compiled signature, not two)
+        mm = CsrArrays(arrays["mm_data"], arrays["mm_indices"], arrays["mm_indptr"],
+                       tuple(int(x) for x in meta["mm_shape"]))
         if mm.shape[1] != len(CHANNEL_SPECS):
             raise CacheEntryError("channel count differs")
         fields = {}

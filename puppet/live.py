@@ -240,6 +240,8 @@ class LiveCore:
         self.markers: list[tuple[int, str]] = []
         #: run in the loop thread at each tick boundary (e.g. adopting a box plugged in mid-show)
         self.before_tick: list[Callable[[LiveCore], None]] = []
+        #: run once, after the first frame is published (what need not delay the first tick)
+        self.after_first_frame: list[Callable[[], None]] = []
         #: set to a Spans to time the parts of each tick (benchmarks/live_latency.py)
         self.spans: Spans | None = None
         #: restored channel values kept until the performer takes them over (puppet.resume)
@@ -314,10 +316,8 @@ class LiveCore:
 
     def after_frame(self) -> None:
         """The frame is published: write the recording's records kept since the last call and
-        hand it to the OS; after the first frame, start building the wrinkle layer (wrinkles_later)."""
-        if self._wrinkles_thread is not None:
-            self._wrinkles_thread.start()
-            self._wrinkles_thread = None
+        hand it to the OS; then, after the first frame, start building the wrinkle layer
+        (wrinkles_later) and run `after_first_frame` (their threads start once the tick is written)."""
         if self.writer is not None:
             if self.spans is not None:
                 t = time.perf_counter()
@@ -325,6 +325,13 @@ class LiveCore:
                 self.spans.add("recording (after frame)", time.perf_counter() - t)
             else:
                 self.writer.service()
+        if self._wrinkles_thread is not None:
+            self._wrinkles_thread.start()
+            self._wrinkles_thread = None
+        if self.after_first_frame:
+            hooks, self.after_first_frame = self.after_first_frame, []
+            for hook in hooks:
+                hook()
 
     def mark(self, label: str) -> None:
         self.markers.append((self.tick_count, label))

@@ -11,15 +11,20 @@ import hashlib
 import json
 from dataclasses import asdict, dataclass, field
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
 
 from sim.channels import CHANNEL_INDEX, CHANNEL_SPECS, ChannelSpec
 from sim.model import FaceMesh, FaceRig
 from sim.muscles import muscle_field
 from sim.springs import build_springs, vertex_areas
 from sim.state import FaceState, rest_state
+
+if TYPE_CHECKING:  # scipy.sparse is imported where a matrix is built: a cached face never needs it
+    import scipy.sparse as sp
+
+    from sim.csr import CsrArrays
 
 
 @dataclass(frozen=True)
@@ -96,8 +101,9 @@ class FaceModel:
     rest_offset (N,3) cm: added to every tether target (turned with the jaw like the target); the
     weight-carrying pre-stress of `gravity_offsets` (zero for held vertices, or with gravity off).
     held (N,) bool (pinned); jaw_weight (N,); jaw_pivot (3,); jaw_axis (3,); gravity (3,) cm/s^2.
-    muscle_matrix: scipy CSR (3N, C): column c = channel c's nodal force (dyn) at activation 1,
-                   flattened xyz per vertex; zero columns for non-muscle channels.
+    muscle_matrix: CSR (3N, C): column c = channel c's nodal force (dyn) at activation 1,
+                   flattened xyz per vertex; zero columns for non-muscle channels (a scipy
+                   csr_matrix when built, a sim.csr.CsrArrays of the same arrays from the cache).
     channels, channel_index: the channel specs (see sim.channels) and name -> column.
     params: the SkinParams; hash: hex identity of the rig + parameters (for recordings).
     """
@@ -129,7 +135,7 @@ class FaceModel:
     jaw_pivot: np.ndarray
     jaw_axis: np.ndarray
     gravity: np.ndarray
-    muscle_matrix: sp.csr_matrix
+    muscle_matrix: sp.csr_matrix | CsrArrays
     params: SkinParams
     omega_max: float
     channels: tuple[ChannelSpec, ...] = CHANNEL_SPECS
@@ -185,6 +191,8 @@ def omega_bound(
 def stiffness_matrix(rest: np.ndarray, springs: np.ndarray, k: np.ndarray, tether: np.ndarray) -> sp.csr_matrix:
     """The skin's linear stiffness at rest, (3N, 3N) dyn/cm, xyz interleaved per vertex:
     sum over springs of k_s (e_i - e_j)(e_i - e_j)^T (x) u_s u_s^T, plus k_r,i I on the diagonal."""
+    import scipy.sparse as sp
+
     n = len(rest)
     i, j = springs[:, 0].astype(np.int64), springs[:, 1].astype(np.int64)
     d = rest[j] - rest[i]
@@ -205,6 +213,7 @@ def stiffness_matrix(rest: np.ndarray, springs: np.ndarray, k: np.ndarray, tethe
 def omega_exact(stiffness: sp.csr_matrix, mass: np.ndarray, free: np.ndarray) -> float:
     """Highest natural frequency (rad/s) of the free nodes at rest: sqrt of the largest eigenvalue of
     M^-1/2 K M^-1/2 restricted to free degrees of freedom (Lanczos, scipy eigsh)."""
+    import scipy.sparse as sp
     from scipy.sparse.linalg import eigsh
 
     dof = np.repeat(free, 3)
@@ -257,6 +266,8 @@ def gravity_offsets(weight: np.ndarray, tether: np.ndarray, support: np.ndarray,
 
 
 def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray) -> sp.csr_matrix:
+    import scipy.sparse as sp
+
     n = len(rest)
     cols = []
     for spec in CHANNEL_SPECS:

@@ -209,8 +209,10 @@ def warm_up(implicit: bool = True) -> None:
 
         warm_up_implicit()
     x1 = np.zeros((1, 3))
+    frozen = np.zeros((1, 3))  # the model's weight is read-only: numba types it apart from a writable array
+    frozen.setflags(write=False)
     _constant_forces(np.zeros(4, dtype=np.int32), np.zeros(0, dtype=np.int32), np.zeros(0), np.zeros(1),
-                     np.ones(1, dtype=np.bool_), x1, np.ones(1), x1, np.ones(1), x1, np.zeros((1, 3)))
+                     np.ones(1, dtype=np.bool_), frozen, np.ones(1), x1, np.ones(1), x1, np.zeros((1, 3)))
     _max_deviation(x1, x1)
     _eye_contact(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64),
                  np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 1.0]]), 0.5)

@@ -8,23 +8,30 @@ status event and gone with ``lost`` (held pads are released then). A page sends 
 handed to the listeners like any box's, so they are mapped, combined, recorded and replayed like
 them and ``puppet learn`` can bind them. The live loop does not know a browser exists: the server
 only reads the loop's public state (`watch`) to show every page the applied values, the devices,
-fps and latency."""
+fps and latency.
+
+With ``serve_later=True`` opening only prepares the controls; `serve_in_background` starts the
+server (importing aiohttp, ~0.3 s) in a thread, so `puppet live` does not wait for it before its
+first tick when the user did not ask for the page."""
 
 from __future__ import annotations
 
-import asyncio
 import json
 import math
 import re
+import threading
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from devices.base import ControlInfo, Device
 from devices.errors import DeviceError
 from devices.events import ControlEvent, StatusEvent
 from devices.spec import DeviceSpec
+
+if TYPE_CHECKING:  # asyncio is imported where the server thread runs: opening the device stays cheap
+    import asyncio
 
 STATE_HZ = 30.0
 MAX_MESSAGE = 4096
@@ -82,8 +89,10 @@ class PanelDevice(Device):
     FORM = "panel://[HOST][:PORT][?lan=1]"
 
     def __init__(self, spec: DeviceSpec, vocab: Any = None, roles: dict[str, list[str]] | None = None,
-                 **options: Any) -> None:
+                 serve_later: bool = False, **options: Any) -> None:
         super().__init__(spec, **options)
+        self.serve_later = serve_later
+        self._serve_lock = threading.Lock()  # a server started late and close() do not cross
         loc = spec.location.strip("/")
         host, _, port = loc.rpartition(":") if ":" in loc else (loc, "", "")
         self.explicit_port = bool(port)
@@ -113,9 +122,7 @@ class PanelDevice(Device):
 
     # --- device hooks ----------------------------------------------------------------------------
     def _open(self) -> None:
-        from puppet.errors import PuppetError
         from puppet.panel import layout as L
-        from puppet.panel.server import DEFAULT_PORT, PanelServer
 
         if self.server is not None:
             return
@@ -127,6 +134,13 @@ class PanelDevice(Device):
         self._every = L.allowed_controls(self.vocab, None)
         self.controls = [ControlInfo(c, "axis" if c.startswith("slider:") else "button", 0.0, 1.0)
                          for c in L.controls_of(self.vocab)]
+        if not self.serve_later:
+            self._serve()
+
+    def _serve(self) -> None:
+        from puppet.errors import PuppetError
+        from puppet.panel.server import DEFAULT_PORT, PanelServer
+
         port = DEFAULT_PORT if self.port is None else self.port
         srv = PanelServer(self.host, port, "panel.html", self._routes, try_ports=0 if self.explicit_port else 20,
                           lan=self.lan)
@@ -137,6 +151,26 @@ class PanelDevice(Device):
         self.server = srv
         self.description = f"browser panel at {srv.url}"
 
+    def serve_in_background(self, ready: Any, failed: Any) -> threading.Thread:
+        """Start the server of a device opened with serve_later in a thread; then `ready(self)`,
+        or `failed(message)` if it cannot serve (the show goes on without the page)."""
+
+        def run() -> None:
+            with self._serve_lock:
+                if self._closed or self.server is not None:
+                    return
+                try:
+                    self._serve()
+                except Exception as err:  # noqa: BLE001 - a page that cannot start never stops the show
+                    failed(f"no performer's page ({err})")
+                    return
+            if not self._closed:
+                ready(self)
+
+        thread = threading.Thread(target=run, name="panel start", daemon=True)
+        thread.start()
+        return thread
+
     def _read(self, timeout: float) -> Iterable[ControlEvent]:
         self._stop.wait(timeout)
         return ()
@@ -145,9 +179,10 @@ class PanelDevice(Device):
         self._stop.set()
 
     def _close_handle(self) -> None:
-        if self.server is not None and self._stop.is_set():
-            self.server.stop()
-            self.server = None
+        with self._serve_lock:
+            if self.server is not None and self._stop.is_set():
+                self.server.stop()
+                self.server = None
         ed, self.editor = self.editor, None
         if ed is not None and ed.poll() is None:
             ed.terminate()
@@ -220,9 +255,13 @@ class PanelDevice(Device):
         app.on_cleanup.append(self._stop_broadcast)
 
     async def _start_broadcast(self, app: Any) -> None:
+        import asyncio
+
         self._task = asyncio.get_running_loop().create_task(self._broadcast())
 
     async def _stop_broadcast(self, app: Any) -> None:
+        import asyncio
+
         task, self._task = self._task, None
         if task is not None:
             task.cancel()
@@ -232,6 +271,8 @@ class PanelDevice(Device):
                 pass
 
     async def _broadcast(self) -> None:
+        import asyncio
+
         while True:
             await asyncio.sleep(1.0 / STATE_HZ)
             if not self.clients:
@@ -257,6 +298,8 @@ class PanelDevice(Device):
     async def _open_editor(self, request: Any) -> Any:
         """Start `puppet edit` on the take being recorded, in its own process (the show's process
         stays as lean as it was), and answer its URL."""
+        import asyncio
+
         from aiohttp import web
 
         if not self.record:

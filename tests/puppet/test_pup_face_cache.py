@@ -98,6 +98,13 @@ STRUCTURAL = {
     "zero mass": _set("a_mass", lambda a: a.__setitem__(5, 0.0)),
     "infinite damping": _set("a_damping", lambda a: a.__setitem__(5, np.inf)),
     "muscle column past the end": _set("mm_indices", lambda a: a.__setitem__(0, 10**6)),
+    "muscle indices as floats": lambda arrays, meta: arrays.__setitem__("mm_indices",
+                                                                        arrays["mm_indices"].astype(np.float64)),
+    "muscle forces as float32": lambda arrays, meta: arrays.__setitem__("mm_data", arrays["mm_data"].astype(np.float32)),
+    "muscle row pointers of another width": lambda arrays, meta: arrays.__setitem__(
+        "mm_indptr", arrays["mm_indptr"].astype(np.int64 if arrays["mm_indices"].dtype == np.int32 else np.int32)),
+    "muscle row pointer going back": _set("mm_indptr", lambda a: a.__setitem__(len(a) // 2, a[len(a) // 2 - 1] - 1)),
+    "muscle indices in 2-D": lambda arrays, meta: arrays.__setitem__("mm_indices", arrays["mm_indices"][None, :]),
     "short spring array": lambda arrays, meta: arrays.__setitem__("a_spring_k_low", arrays["a_spring_k_low"][:-1]),
     "missing array": lambda arrays, meta: arrays.pop("a_held"),
     "extra array": lambda arrays, meta: arrays.__setitem__("a_bogus", np.zeros(3)),
@@ -256,3 +263,23 @@ def test_only_the_most_recently_used_entries_are_kept(fresh: object, tmp_path: P
         key = face_cache.entry_key(f"face {i}".encode())
         assert f"{key}.npz" in kept and f"{key}.rig.npz" in kept
     assert f"{face_cache.entry_key(b'face 3')}.npz" not in kept
+
+
+def test_the_cached_muscle_matrix_is_the_built_one_without_scipy(fresh: object, tmp_path: Path,
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """A face from the cache carries its muscle matrix as plain CSR arrays (the kernels read
+    nothing else); asked for anything more it answers as the built scipy matrix does."""
+    from sim.csr import CsrArrays
+
+    monkeypatch.setenv("PUPPET_CACHE_DIR", str(tmp_path))
+    cached_model(WHAT, Builds(fresh))
+    warm = cached_model(WHAT, Builds(fresh))
+    mm, built = warm.muscle_matrix, fresh.muscle_matrix  # type: ignore[attr-defined]
+    assert isinstance(mm, CsrArrays) and mm.shape == built.shape and mm.nnz == built.nnz
+    dense = built.toarray()
+    assert np.array_equal(mm.toarray(), dense)
+    rng = np.random.default_rng(3)
+    v = rng.uniform(0, 1, built.shape[1])
+    assert np.array_equal(mm @ v, built @ v)
+    assert np.array_equal((mm.T @ np.ones(built.shape[0])), built.T @ np.ones(built.shape[0]))
+    assert np.array_equal(mm[:, 1].toarray(), built[:, 1].toarray())
