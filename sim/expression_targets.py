@@ -1,7 +1,7 @@
 """How far the face's landmarks move per AU and preset at full activation, against real faces.
 
 `TARGETS` lists, per pose, a landmark motion and the range it must fall in (mm), with where the
-range comes from: measured adults (`../shared/reference/real-face-motion.md`: Jorge 2012, Bae 2003,
+range comes from: measured adults (published 3D measurements: Jorge 2012, Bae 2003,
 Cruz 2004, Feng 2015, the mouth-opening surveys), or, where no millimetres exist (AU4, AU9, AU15,
 AU16, AU17, the preset differences), our own reading of FACS' appearance descriptions, marked
 "FACS". Used by tests/sim/test_amplitudes.py and benchmarks/expressions.py; nothing here knows
