@@ -25,7 +25,7 @@ from devices.base import Device
 from devices.errors import DeviceSpecError
 from devices.events import ControlEvent
 from devices.spec import DeviceSpec
-from devices.wakepipe import WakePipe
+from devices.wakepipe import SelectWaking, WakePipe
 
 Network = ipaddress.IPv4Network | ipaddress.IPv6Network
 
@@ -130,7 +130,7 @@ def exposure_text(spec: str, what: str, host: str, port: int, allow: tuple[Netwo
     return f"{spec}: listening for {what} on UDP port {port} of {where}: {who}"
 
 
-class UdpListenerDevice(Device):
+class UdpListenerDevice(SelectWaking, Device):
     """A device fed by UDP datagrams. Subclasses set ``DEFAULT_PORT``, ``WHAT`` and implement
     ``_datagram(data, t, sender)``; ``_idle(t)`` may emit events when nothing arrives."""
 
@@ -200,13 +200,6 @@ class UdpListenerDevice(Device):
         sock, self._sock = self._sock, None
         if sock is not None:
             sock.close()
-
-    def close(self) -> None:
-        super().close()
-        self._waker.close()
-
-    def _wake(self) -> None:
-        self._waker.wake()
 
     def _read(self, timeout: float) -> Iterable[ControlEvent]:
         sock = self._sock

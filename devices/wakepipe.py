@@ -37,3 +37,17 @@ class WakePipe:
             except OSError:
                 pass
         self._r = self._w = -1
+
+
+class SelectWaking:
+    """Mixin for a device whose ``_read`` waits in ``select`` on ``self._waker`` among its handles:
+    ``_wake`` (close is waiting) writes to the pipe, and closing the device closes the pipe."""
+
+    _waker: WakePipe
+
+    def close(self) -> None:
+        super().close()  # type: ignore[misc]
+        self._waker.close()
+
+    def _wake(self) -> None:
+        self._waker.wake()

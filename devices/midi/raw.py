@@ -24,7 +24,7 @@ from devices.midi.common import MidiDevice, check_location
 from devices.midi.profile import profile_for_port
 from devices.midi.tokenizer import MidiTokenizer
 from devices.spec import DeviceSpec
-from devices.wakepipe import WakePipe
+from devices.wakepipe import SelectWaking, WakePipe
 
 #: After this long without data, check that the path still names the node we hold.
 IDLE_CHECK = 0.5
@@ -42,7 +42,7 @@ def card_name(path: str) -> str:
         return ""
 
 
-class RawMidiDevice(MidiDevice):
+class RawMidiDevice(SelectWaking, MidiDevice):
     """A MIDI byte stream on a rawmidi node, a serial port or anything with a file descriptor."""
 
     scheme = "rawmidi"
@@ -98,13 +98,6 @@ class RawMidiDevice(MidiDevice):
             ser.close()
         elif fd >= 0:
             os.close(fd)
-
-    def close(self) -> None:
-        super().close()
-        self._waker.close()
-
-    def _wake(self) -> None:
-        self._waker.wake()
 
     def _read(self, timeout: float) -> Iterable[ControlEvent]:
         fd = self._fd
