@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 from devices.events import ControlEvent
 from puppet.mapping import ChannelInfo, Mapper, Vocabulary, parse_mapping
 
@@ -41,3 +45,13 @@ def ev(control: str, value: float, kind: str = "axis", device: str = "mock://", 
 
 def idx(name: str) -> int:
     return [c.name for c in CHANNELS].index(name)
+
+
+#: what a `puppet` subprocess of a test runs with: output unbuffered, so a killed show has said its lines
+ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
+
+
+def run_puppet(*args: str, env: dict | None = None, timeout: float = 120) -> subprocess.CompletedProcess:
+    """`python -m puppet ARGS` as a user runs it, its output captured."""
+    return subprocess.run([sys.executable, "-m", "puppet", *args], capture_output=True, text=True,
+                          env=env or ENV, timeout=timeout)

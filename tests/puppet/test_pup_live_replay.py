@@ -4,7 +4,6 @@ safety under SIGKILL; the command line, including the no-display fallback."""
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -20,6 +19,8 @@ from puppet import live
 from puppet.mapping import Mapper
 from puppet.replay import Replayer, build_performance
 from puppet.session import SessionWriter, read_session
+from puppet_helpers import ENV
+from puppet_helpers import run_puppet as puppet
 
 SCRIPT = """
 impersonate = "sgi"
@@ -61,18 +62,12 @@ control = "button30"
 value = 1
 """
 
-ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
 
 
 def script(tmp_path: Path, speed: float = 0, duration: float = 1.0) -> str:
     p = tmp_path / "script.toml"
     p.write_text(SCRIPT.format(speed=speed, duration=duration))
     return f"mock://{p}"
-
-
-def puppet(*args: str, env: dict | None = None, timeout: float = 90) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "puppet", *args], capture_output=True, text=True,
-                          env=env or ENV, timeout=timeout)
 
 
 @pytest.fixture(scope="module")

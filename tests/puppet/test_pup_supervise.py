@@ -20,9 +20,9 @@ import pytest
 from puppet import live, resume
 from puppet.errors import ConfigError
 from puppet.session import SessionWriter, read_session
-from puppet_helpers import ev, mapper
+from puppet_helpers import ENV, ev, mapper
+from puppet_helpers import run_puppet as puppet
 
-ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
 CHILD = Path(__file__).with_name("show_child.py")
 
 SCRIPT = """
@@ -47,11 +47,6 @@ def script(tmp_path: Path, speed: float = 0, duration: float = 3.0) -> str:
     p = tmp_path / "script.toml"
     p.write_text(SCRIPT.format(speed=speed, duration=duration, ramp=duration - 0.5))
     return f"mock://{p}"
-
-
-def puppet(*args: str, env: dict | None = None, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "puppet", *args], capture_output=True, text=True,
-                          env=env or ENV, timeout=timeout)
 
 
 @pytest.fixture(scope="module")
