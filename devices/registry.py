@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import importlib
 import logging
-from importlib.metadata import entry_points
 from typing import Any
 
 from devices.base import Device
@@ -37,6 +36,14 @@ BACKENDS: dict[str, tuple[str, str]] = {
 }
 
 ENTRY_POINT_GROUP = "puppet.devices"
+
+
+def entry_points(group: str) -> Any:
+    """importlib.metadata's entry points of `group`, imported on first use: only a scheme that is
+    not built in needs them, and importing importlib.metadata costs ~15 ms of every start."""
+    from importlib.metadata import entry_points as find
+
+    return find(group=group)
 
 
 def _plugin_backends() -> dict[str, tuple[str, str]]:

@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+from sim.numba_start import prepare_blas_check
+
+prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
 
 @numba.njit(cache=True, nogil=True)

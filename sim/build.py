@@ -18,6 +18,7 @@ import numpy as np
 from sim.channels import CHANNEL_INDEX, CHANNEL_SPECS, ChannelSpec
 from sim.model import FaceMesh, FaceRig
 from sim.muscles import muscle_field
+from sim.rowmath import norm3
 from sim.springs import build_springs, vertex_areas
 from sim.state import FaceState, rest_state
 
@@ -222,7 +223,9 @@ def omega_exact(stiffness: sp.csr_matrix, mass: np.ndarray, free: np.ndarray) ->
     a = sp.diags(scale) @ kf @ sp.diags(scale)
     v0 = np.ones(a.shape[0])  # fixed start vector: the result is reproducible
     lam = eigsh(a, k=1, which="LA", tol=1e-6, v0=v0, return_eigenvectors=False)
-    return float(np.sqrt(lam[0]))
+    # to 7 significant digits (eigsh's tolerance is 1e-6): its last bits follow the BLAS kernel in
+    # use, and the compiled face (its hash, every replay digest) must not
+    return float(f"{np.sqrt(lam[0]):.7g}")
 
 
 def _eye_contact(mesh: FaceMesh, rest: np.ndarray, held: np.ndarray) -> dict:
@@ -355,7 +358,7 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
         held=_frozen(held),
         jaw_weight=_frozen(np.clip(mesh.jaw_weight, 0.0, 1.0), np.float64),
         jaw_pivot=_frozen(mesh.jaw_pivot, np.float64),
-        jaw_axis=_frozen(np.asarray(mesh.jaw_axis) / np.linalg.norm(mesh.jaw_axis), np.float64),
+        jaw_axis=_frozen(np.asarray(mesh.jaw_axis) / norm3(mesh.jaw_axis), np.float64),
         gravity=_frozen(gravity),
         muscle_matrix=_muscle_matrix(rig, rest, area),
         params=p,

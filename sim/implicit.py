@@ -36,6 +36,9 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from sim.build import FaceModel
+from sim.numba_start import prepare_blas_check
+
+prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
 
 def laplacian(n: int, springs: np.ndarray, w: np.ndarray) -> sp.csr_matrix:

@@ -39,6 +39,10 @@ from sim.build import FaceModel
 from sim.channels import CHANNEL_INDEX
 from sim.margin_contact import margin_contact, margin_pairs
 from sim.state import FaceControl, FaceState
+from sim.numba_start import prepare_blas_check
+from sim.rowmath import norm3, times3
+
+prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
 SAFETY = 0.9  # fraction of the linear stability limit used as the step (covers geometric stiffness)
 BLOWUP_DISPLACEMENT = 6.0  # cm (x face scale): farther from its target than this is a blow-up
@@ -270,7 +274,7 @@ class GuardEvent:
 def jaw_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     """Rotation matrix about a unit axis (Rodrigues)."""
     k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * times3(k, k)
 
 
 def jaw_slide(model: FaceModel) -> np.ndarray:
@@ -281,7 +285,7 @@ def jaw_slide(model: FaceModel) -> np.ndarray:
     axis = np.asarray(model.jaw_axis, dtype=np.float64)
     up = np.array([0.0, 1.0, 0.0])
     forward = np.cross(axis, up)
-    norm = np.linalg.norm(forward)
+    norm = norm3(forward)
     if norm < 1e-9:
         return np.zeros(3)
     forward /= norm
@@ -375,7 +379,7 @@ class Simulator:
         if jaw == 0.0:
             return np.array(base)
         rot = jaw_rotation(m.jaw_axis, jaw * m.params.jaw_max_angle)
-        rotated = (m.rest - m.jaw_pivot) @ rot.T + m.jaw_pivot + m.rest_offset @ rot.T + jaw * jaw_slide(m)
+        rotated = times3(m.rest - m.jaw_pivot, rot.T) + m.jaw_pivot + times3(m.rest_offset, rot.T) + jaw * jaw_slide(m)
         return base + m.jaw_weight[:, None] * (rotated - base)
 
     def _set_jaw(self, jaw: float) -> None:
@@ -389,7 +393,7 @@ class Simulator:
             self._normal[...] = m.rest_normal
         else:
             rot = jaw_rotation(m.jaw_axis, jaw * m.params.jaw_max_angle)
-            n = m.rest_normal + m.jaw_weight[:, None] * (m.rest_normal @ rot.T - m.rest_normal)
+            n = m.rest_normal + m.jaw_weight[:, None] * (times3(m.rest_normal, rot.T) - m.rest_normal)
             self._normal[...] = n / np.linalg.norm(n, axis=1)[:, None]
         self._jaw = jaw
 
@@ -486,4 +490,4 @@ class Simulator:
 def _face_scale(model: FaceModel) -> float:
     """Inter-pupillary distance relative to 6.3 cm (1.0 for an average adult)."""
     ec = model.mesh.eye_centers
-    return float(np.linalg.norm(ec[0] - ec[1]) / 6.3)
+    return norm3(ec[0] - ec[1]) / 6.3

@@ -26,6 +26,9 @@ import numba
 import numpy as np
 
 from sim.model import FaceMesh
+from sim.numba_start import prepare_blas_check
+
+prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
 KERNEL = dict(cache=True, fastmath=False, nogil=True, error_model="numpy")
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim.model import FaceMesh, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+from sim.rowmath import norm3
 
 REFERENCE_IPD = 6.3  # cm, inter-pupillary distance of the reference face the offsets are given on
 BASE_FORCE = 3000.0  # dyn/cm^2 of skin, the force density of a muscle of strength 1
@@ -28,7 +29,7 @@ class FaceFrame:
     def __init__(self, mesh: FaceMesh) -> None:
         self.mesh = mesh
         v = mesh.vertices
-        self.s = float(np.linalg.norm(mesh.eye_centers[0] - mesh.eye_centers[1]) / REFERENCE_IPD)
+        self.s = norm3(mesh.eye_centers[0] - mesh.eye_centers[1]) / REFERENCE_IPD
         self.mid_x = float(0.5 * (mesh.eye_centers[0, 0] + mesh.eye_centers[1, 0]))
         self._front_xy = v[:, :2]
         self.points: dict[str, np.ndarray] = {}
@@ -103,13 +104,13 @@ class FaceFrame:
 
 def _linear(f: FaceFrame, name: str, attach: np.ndarray, insert: np.ndarray, *, reach: float = 1.5,
             angle: float = 0.6, eta: float = 1.0, strength: float = 1.0) -> LinearMuscle:
-    length = float(np.linalg.norm(insert - attach))
+    length = norm3(insert - attach)
     return LinearMuscle(name, attach, insert, reach * length, angle, eta, BASE_FORCE * strength)
 
 
 def _sheet(f: FaceFrame, name: str, a1: np.ndarray, a2: np.ndarray, i1: np.ndarray, i2: np.ndarray, *,
            width: float, reach: float = 1.35, eta: float = 1.0, strength: float = 1.0) -> SheetMuscle:
-    span = float(np.linalg.norm(0.5 * (a1 + a2) - 0.5 * (i1 + i2)))
+    span = norm3(0.5 * (a1 + a2) - 0.5 * (i1 + i2))
     return SheetMuscle(name, a1, a2, i1, i2, reach * span, width * f.s, eta, BASE_FORCE * strength)
 
 

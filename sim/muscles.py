@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim.model import LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+from sim.rowmath import dot3
 
 HALF_PI = 0.5 * np.pi
 
@@ -111,8 +112,8 @@ def sphincter_radius(m: SphincterMuscle, x: np.ndarray) -> np.ndarray:
     minor unit axes (the component along their normal, into the face, is ignored), so d_i is 1 on the
     ellipse and 0 at its centre."""
     rel = x - m.center
-    xi = rel @ m.major_axis
-    yi = rel @ m.minor_axis
+    xi = dot3(rel, m.major_axis)
+    yi = dot3(rel, m.minor_axis)
     return np.sqrt(yi**2 * m.a**2 + xi**2 * m.b**2) / (m.a * m.b)
 
 
@@ -152,7 +153,7 @@ def sheet_length_ratio(m: SheetMuscle, x: np.ndarray) -> np.ndarray:
     a1 = m.attach1
     t = (m.attach2 - a1) / _norm(m.attach2 - a1)
     rel = x - a1
-    perp = rel - np.outer(rel @ t, t)
+    perp = rel - np.outer(dot3(rel, t), t)
     span = _norm(0.5 * (m.attach1 + m.attach2) - 0.5 * (m.insert1 + m.insert2))
     return _norm(perp) / span
 
@@ -171,8 +172,8 @@ def sheet_zone(m: SheetMuscle, x: np.ndarray) -> np.ndarray:
     ic = 0.5 * (m.insert1 + m.insert2)
     t = (m.attach2 - m.attach1) / _norm(m.attach2 - m.attach1)
     rel = x - ac
-    lateral = np.abs(rel @ t)
-    forward = rel @ (ic - ac)
+    lateral = np.abs(dot3(rel, t))
+    forward = dot3(rel, ic - ac)
     return ((lateral <= 0.5 * m.width) & (forward >= 0.0)).astype(np.float64)
 
 

@@ -10,6 +10,9 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from sim.numba_start import prepare_blas_check
+
+prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
 FloatArray = np.ndarray
 IntArray = np.ndarray

@@ -75,7 +75,7 @@ def arc_length(
     b2 = 3.0 * u**2
     dx = b0 * x1 + b1 * (x2 - x1) + b2 * (d[..., None] - x2)
     dy = b0 * y1 + b1 * (y2 - y1) - b2 * y2
-    return np.sqrt(dx * dx + dy * dy) @ _W
+    return np.einsum("...k,k->...", np.sqrt(dx * dx + dy * dy), _W)  # not `@`: BLAS's bits vary (sim.rowmath)
 
 
 @dataclass(frozen=True, eq=False)

@@ -13,6 +13,9 @@ import numpy as np
 from numba import njit
 
 from sim.wrinkles.arclength import A_NODES, ALPHA_STEP, D_NODES
+from sim.numba_start import prepare_blas_check
+
+prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
 # the paper's grid (fixed by section 5.1, so safe to freeze into the compiled code)
 _D0 = float(D_NODES[0])

@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from sim.model import FaceMesh
+from sim.rowmath import norm3
 
 FloatArray = np.ndarray
 
@@ -186,7 +187,7 @@ def face_anchors(mesh: FaceMesh) -> tuple[dict[str, FloatArray], float]:
     reference face. Derived from the eye and mouth loops only, so every FaceMesh has them."""
     v = mesh.vertices
     ec = np.asarray(mesh.eye_centers, dtype=np.float64)
-    scale = float(np.linalg.norm(ec[0] - ec[1]) / REFERENCE_IPD)
+    scale = norm3(ec[0] - ec[1]) / REFERENCE_IPD
     mid = 0.5 * (ec[0, :2] + ec[1, :2])
     eye = v[np.asarray(mesh.eye_loops[0])][:, :2]
     mouth = v[np.asarray(mesh.mouth_loop)][:, :2]
