@@ -62,7 +62,7 @@ EXPRESSIONS: dict[str, dict[str, float]] = {
     "happiness": {"AU6": 0.6, "AU12": 1.0},
     "sadness": {"AU1": 1.0, "AU4": 0.15, "AU15": 1.0},
     "surprise": {"AU1": 1.0, "AU2": 1.0, "AU26": 0.8},
-    "fear": {"AU1": 1.0, "AU2": 0.45, "AU4": 0.5, "AU20": 1.0, "AU26": 0.5},
+    "fear": {"AU1": 1.0, "AU2": 0.35, "AU4": 0.5, "AU20": 1.0, "AU26": 0.5},
     "anger": {"AU4": 1.0, "AU7": 1.0, "AU23": 1.0},
     "disgust": {"AU9": 0.85, "AU10": 0.85, "AU4": 0.4, "AU17": 0.4},
     "contempt": {"AU12_R": 0.6, "AU14_R": 0.6},

@@ -241,16 +241,16 @@ def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle,
     out[f"frontalis_inner_{side}"] = (_sheet(
         f, f"frontalis_inner_{side}",
         f.at(bi, sg, -0.6, 4.5, 0.3), f.at(bi, sg, 1.1, 4.6, 0.3),
-        f.at(bi, sg, -0.6, -0.2), f.at(bi, sg, 1.1, 0.0), width=1.9, strength=1.75),)
+        f.at(bi, sg, -0.6, -0.2), f.at(bi, sg, 1.1, 0.0), width=1.9, strength=1.95),)
     out[f"frontalis_outer_{side}"] = (_sheet(
         f, f"frontalis_outer_{side}",
         f.at(bo, sg, -2.0, 4.3, 0.3), f.at(bo, sg, 0.2, 4.0, 0.3),
-        f.at(bo, sg, -2.0, 0.2), f.at(bo, sg, 0.2, 0.0), width=2.5, strength=1.5),)
+        f.at(bo, sg, -2.0, 0.2), f.at(bo, sg, 0.2, 0.0), width=2.5, strength=1.25),)
     out[f"corrugator_{side}"] = (_linear(
-        f, f"corrugator_{side}", f.at(bi, sg, -0.9, -0.5, 0.5), f.at(bi, sg, 0.7, 0.2),
-        reach=1.8, angle=0.6, strength=2.3), _linear(
+        f, f"corrugator_{side}", f.at(bi, sg, -0.9, -0.5, 0.5), f.at(bi, sg, 0.6, 0.2),
+        reach=1.8, angle=0.7, strength=2.2), _linear(
         f, f"depressor_supercilii_{side}", f.at(bi, sg, -0.3, -1.7, 0.4), f.at(bi, sg, 0.4, 0.3),
-        reach=1.6, angle=0.7, strength=1.2))
+        reach=1.6, angle=0.7, strength=1.3))
     out[f"orbicularis_oculi_{side}"] = (_sphincter(
         f, f"orbicularis_oculi_{side}", f.at(ec, sg, 0.1, 0.4), 3.0, 2.4, 1.2),)
     out[f"orbicularis_oculi_lid_{side}"] = _lids(f, side, sg)
