@@ -20,6 +20,9 @@ CHROMIUM, DRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 FLAGS = ("--headless --no-sandbox --disable-gpu --disable-quic --no-first-run --disable-background-networking "
          "--disable-component-update --disable-sync --window-size=1400,1000").split()
 ROOT = Path(__file__).resolve().parents[2]
+# a trimmed environment for `puppet` subprocesses (no DISPLAY, none of the shell's OPENBLAS_* settings),
+# but the run's private face cache (tests/conftest.py), never the user's
+CHILD_ENV = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "PUPPET_CACHE_DIR": os.environ["PUPPET_CACHE_DIR"]}
 
 
 def browser() -> Any:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from panel_browser import ROOT, PuppetProcess, browser, quit_browser, wait_for
+from panel_browser import CHILD_ENV, ROOT, PuppetProcess, browser, quit_browser, wait_for
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
@@ -25,7 +25,7 @@ def take(tmp_path_factory: pytest.TempPathFactory) -> Path:
     d = tmp_path_factory.mktemp("take")
     subprocess.run([sys.executable, "-m", "puppet", "live", "--device", f"mock://{SCRIPT}?speed=0", "--headless",
                     "--duration", "6", "--record", "take.jsonl"], cwd=d, check=True, capture_output=True,
-                   env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
+                   env=CHILD_ENV)
     return d / "take.jsonl"
 
 
@@ -104,7 +104,7 @@ def test_edit_a_key_and_rerecord_one_channel(take: Path) -> None:
     rp.seek(base.ticks)
     assert base.checks and not rp.mismatches
     out = subprocess.run([sys.executable, "-m", "puppet", "replay", str(take), "--curves", str(take.parent / "take.curves"),
-                          "--headless"], capture_output=True, text=True, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
+                          "--headless"], capture_output=True, text=True, env=CHILD_ENV)
     assert out.returncode == 0 and digests[0] in out.stdout
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import aiohttp
 import devices
 import pytest
-from panel_browser import ROOT
+from panel_browser import CHILD_ENV, ROOT
 
 SCRIPT = ROOT / "examples" / "mock" / "sgi_rehearsal.toml"
 
@@ -106,7 +106,7 @@ def editor(tmp_path_factory: pytest.TempPathFactory):
     d = tmp_path_factory.mktemp("sec")
     subprocess.run([sys.executable, "-m", "puppet", "live", "--device", f"mock://{SCRIPT}?speed=0", "--headless",
                     "--duration", "1", "--record", "take.jsonl"], cwd=d, check=True, capture_output=True,
-                   env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
+                   env=CHILD_ENV)
     outside = d.parent / f"{d.name}-outside"
     outside.mkdir()
     (d / "link.curves").symlink_to(outside / "stolen.curves")
