@@ -7,7 +7,10 @@ Three cases, each with its own empty or filled caches in a temporary folder:
 
 - warm:  the face cache (PUPPET_CACHE_DIR) and numba's cache already hold this build;
 - cold face: the face cache is empty (the first start after installing or editing the face code);
-- cold all:  the face cache and numba's cache (NUMBA_CACHE_DIR) are both empty (a first install).
+- cold all:  the face cache and numba's cache (NUMBA_CACHE_DIR) are both empty (a first install);
+- window (with --window): warm, but in a window on a private Xvfb server (started and stopped here
+  by PID): the first tick there is taken in the first frame's callback, so it includes creating the
+  window, the GL context on Mesa's software rasterizer and the renderer.
 
 The CPU time the process had used by its first tick is printed too: on a shared, busy machine the
 wall time is mostly waiting for a core, and CPU time is what the start costs an idle one.
@@ -15,7 +18,7 @@ Reference floors measured in the same run: `python -c pass`, `python -c "import 
 and `import numpy, numba, scipy.linalg` (numba's own start, below which a warm start cannot go).
 The budget is 1 s to the first tick on a warm machine; ratios are printed against it.
 
-Run:  .venv/bin/python benchmarks/startup.py [--runs 5] [--cold-runs 2] [--no-cold-all] [--compare DIR] [--json]
+Run:  .venv/bin/python benchmarks/startup.py [--runs 5] [--cold-runs 2] [--no-cold-all] [--window] [--compare DIR] [--json]
 """
 
 from __future__ import annotations
@@ -49,14 +52,17 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def first_tick_seconds(env: dict[str, str], work: Path, timeout: float = 120.0) -> tuple[float, float]:
+def first_tick_seconds(env: dict[str, str], work: Path, timeout: float = 120.0,
+                       window: bool = False) -> tuple[float, float]:
     """Seconds from spawning `puppet live` until its recording holds tick 0's values, and the CPU
-    seconds the process had used by then (what the start costs on an idle machine)."""
+    seconds the process had used by then (what the start costs on an idle machine). `window`: in a
+    window on env's DISPLAY instead of headless."""
     rec = work / "startup.jsonl"
     if rec.exists():
         rec.unlink()
     t0 = time.monotonic()
-    proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--headless", "--device",
+    mode = [] if window else ["--headless"]
+    proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", *mode, "--device",
                              f"mock://{SCRIPT}?speed=1", "--record", str(rec), "--duration", "30"],
                             env=env, cwd=work, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
@@ -84,6 +90,23 @@ def stop_process(proc: subprocess.Popen, timeout: float = 60.0) -> None:  # type
         proc.wait()
 
 
+def start_xvfb() -> tuple[subprocess.Popen, str]:  # type: ignore[type-arg]
+    """A private Xvfb server (it picks a free display itself, -displayfd); (process, DISPLAY)."""
+    rfd, wfd = os.pipe()
+    proc = subprocess.Popen(["Xvfb", "-displayfd", str(wfd), "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, pass_fds=(wfd,))
+    os.close(wfd)
+    text = b""
+    with os.fdopen(rfd, "rb", buffering=0) as pipe:
+        while not text.endswith(b"\n"):
+            chunk = pipe.read(16)
+            if not chunk:
+                proc.kill()
+                raise RuntimeError("Xvfb did not start")
+            text += chunk
+    return proc, f":{text.decode().strip()}"
+
+
 def _floor(code: str, runs: int) -> float:
     out = []
     for _ in range(runs):
@@ -98,12 +121,13 @@ def main() -> int:
     ap.add_argument("--runs", type=int, default=5, help="warm runs")
     ap.add_argument("--cold-runs", type=int, default=2, help="runs of each cold case")
     ap.add_argument("--no-cold-all", action="store_true", help="skip the empty-numba-cache case (slow)")
+    ap.add_argument("--window", action="store_true", help="also the warm start in a window (on a private Xvfb)")
     ap.add_argument("--compare", metavar="DIR", type=Path,
                     help="also time the warm start of another checkout (e.g. one before a change), "
                     "run for run alternating with this one so both see the same load")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    results: dict[str, list[tuple[float, float]]] = {"warm": [], "cold face": [], "cold all": []}
+    results: dict[str, list[tuple[float, float]]] = {"warm": [], "cold face": [], "cold all": [], "window": []}
     with tempfile.TemporaryDirectory(prefix="puppet-startup-") as tmp:
         base = Path(tmp)
         warm_cache = base / "warm-cache"
@@ -118,6 +142,15 @@ def main() -> int:
                     first_tick_seconds(_env(base / "other-cache", None, args.compare), base))
         for i in range(args.cold_runs):
             results["cold face"].append(first_tick_seconds(_env(base / f"cold-{i}", None), base))
+        if args.window:
+            xvfb, display = start_xvfb()
+            try:
+                wenv = {**_env(warm_cache, None), "DISPLAY": display}
+                for _ in range(args.runs):
+                    results["window"].append(first_tick_seconds(wenv, base, window=True))
+            finally:
+                xvfb.terminate()
+                xvfb.wait()
         if not args.no_cold_all:
             for i in range(args.cold_runs):
                 results["cold all"].append(
