@@ -297,42 +297,48 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
 
     import time
 
-    t0 = time.monotonic()
-    core = live.LiveCore(face, mapper, writer=writer, t0=0.0 if virtual else t0, lights=lights,
-                         wrinkles_later=not virtual)
-    if point is not None:
-        resume.start_segment(core, point)
-    for page in panel_devices(devs):
-        page.watch(core, devs, record)
-        if page.server is None and page.serve_later:
-            from puppet.panel import announce
+    win = live.open_live_window(face.model, devs) if windowed and not virtual else None
+    try:  # the window is closed by run_window; until then, by this if the show fails to start
+        t0 = time.monotonic()
+        core = live.LiveCore(face, mapper, writer=writer, t0=0.0 if virtual else t0, lights=lights,
+                             wrinkles_later=not virtual)
+        if point is not None:
+            resume.start_segment(core, point)
+        for page in panel_devices(devs):
+            page.watch(core, devs, record)
+            if page.server is None and page.serve_later:
+                from puppet.panel import announce
 
-            core.after_first_frame.append(lambda p=page: p.serve_in_background(announce, warn))
-    stop = live.StopFlag()
-    stop.install()
-    watcher = None
-    queue = devices.EventQueue()
-    if watch and not virtual:
-        watcher = DeviceWatcher(devs, queue)
-        core.before_tick.append(watcher.adopt)
-        watcher.start()
-    if virtual:  # a scripted take runs start to end on the collector's own schedule
-        import gc
+                core.after_first_frame.append(lambda p=page: p.serve_in_background(announce, warn))
+        stop = live.StopFlag()
+        stop.install()
+        watcher = None
+        queue = devices.EventQueue()
+        if watch and not virtual:
+            watcher = DeviceWatcher(devs, queue)
+            core.before_tick.append(watcher.adopt)
+            watcher.start()
+        if virtual:  # a scripted take runs start to end on the collector's own schedule
+            import gc
 
-        gc.enable()
+            gc.enable()
+    except BaseException:
+        if win is not None:
+            win.close()
+        raise
     try:
         if not virtual:
             live.prepare_show()
         if virtual:
             duration = args.duration or max(d.script.duration for d in devs) or 1.0
             live.run_virtual(core, live.scripted_events(devs), duration, stop=stop)
-        elif windowed:
+        elif win is not None:  # (a window that could not open has said why: the show runs headless)
             from puppet.live import run_window
 
             for d in devs:
                 d.add_listener(queue)
                 d.start()
-            run_window(core, queue.drain, args.duration, devs, fullscreen=args.fullscreen, stop=stop)
+            run_window(core, queue.drain, args.duration, devs, fullscreen=args.fullscreen, stop=stop, win=win)
         else:
             for d in devs:
                 d.add_listener(queue)

@@ -626,13 +626,28 @@ def live_hud(core: LiveCore, devs: Sequence[Any], keymap: bool, help: bool = Fal
                    devices=status, latency_ms=None if p50 is None else p50 * 1e3, lines=lines[-24:])
 
 
-def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None, devs: Sequence[Any],
-               fullscreen: bool = False, stop: StopFlag | None = None) -> None:
-    """Ticks on the wall clock (at most 4 per frame, then the schedule re-anchors), frames at the
-    window's pace; latency is measured when the frame showing an event has been swapped."""
+def _keyboard_alone(devs: Sequence[Any]) -> tuple[Any, bool]:
+    """The keyboard device (or None), and whether it is the only box (then the whole key map is on)."""
     kb = next((d for d in devs if d.spec.startswith("keyboard")), None)
-    keymap = kb is not None and len([d for d in devs if getattr(d, "scheme", "") != "panel"]) == 1
-    win = _window_or_none(core.face.model, "facepuppet live", [*LIVE_HELP, *([KEYMAP_HELP] if keymap else [])])
+    return kb, kb is not None and len([d for d in devs if getattr(d, "scheme", "") != "panel"]) == 1
+
+
+def open_live_window(model: Any, devs: Sequence[Any]) -> Any:
+    """The live face window, or None (one line says why). Opened before the show's core is made, so
+    that the window, its GL context and the renderer are set up while numba's kernels are still
+    loading in their thread (`warm_up_in_background`) instead of after."""
+    _, keymap = _keyboard_alone(devs)
+    return _window_or_none(model, "facepuppet live", [*LIVE_HELP, *([KEYMAP_HELP] if keymap else [])])
+
+
+def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None, devs: Sequence[Any],
+               fullscreen: bool = False, stop: StopFlag | None = None, win: Any = None) -> None:
+    """Ticks on the wall clock (at most 4 per frame, then the schedule re-anchors), frames at the
+    window's pace; latency is measured when the frame showing an event has been swapped. `win`: a
+    window from `open_live_window` (else one is opened here)."""
+    kb, keymap = _keyboard_alone(devs)
+    if win is None:
+        win = open_live_window(core.face.model, devs)
     if win is None:
         run_realtime(core, drain, duration, stop=stop)
         return
