@@ -370,9 +370,9 @@ def render_parallel(model: Any, out: Path, kind: str, fps: float, size: tuple[in
                 progress(state["done"] - shown)
                 shown = state["done"]
 
-        from render.meshdata import NormalComputer
+        from render.meshdata import surface_rows
 
-        normals = NormalComputer(model.triangles, len(model.rest))  # the renderer's, for its rows
+        normals = surface_rows(model)  # the renderer's, for its rows (the held head's included)
         for j, st in frames:
             pool[j % n].put(_pack(j, st, normals), alive)
             alive()
