@@ -22,6 +22,7 @@ renderer. Only the default face gets one (`shell_for`): an imported head brings 
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,10 +44,11 @@ NECK_HALF = (5.35, 5.75)  # half width, half depth (cm) of the neck at mid-neck
 TRAPEZIUS_Y = -17.5  # below this the neck widens towards the shoulders
 NECK_END_Y = -24.0
 BLEND = 1.6  # cm: smooth-union width
+JAW_RIM = 1.1  # cm: radius of the rounded rim under the mask's jaw border
 # Sweep from the mask's border to the neck base.
 COLUMNS = 96
 ROWS = 26
-ROW_POWER = 1.35  # rows closer together near the mask
+FIRST_ROW = 0.6  # cm from the border to the first row (rows further apart further on)
 MASK_CONTINUE = 3.0  # cm over which a column turns from the mask's tangent into the implicit head
 FOLLOW = 4.0  # cm from the border over which the border's own displacement fades
 JAW_FOLLOW = 5.5  # cm under the chin over which the jaw's rigid motion fades to held
@@ -161,11 +163,24 @@ def _smin(a: FloatArray, b: FloatArray, k: float) -> FloatArray:
     return np.minimum(a, b) - h * h * k / 4.0
 
 
-def head_field(p: FloatArray) -> FloatArray:
-    """< 0 inside the implicit head, > 0 outside, ~ cm from its surface."""
+def _tube(p: FloatArray, rim: tuple[FloatArray, float]) -> FloatArray:
+    """Signed distance to a tube of radius r round a polyline (points (S,3))."""
+    pts, r = rim
+    a, b = pts[:-1], pts[1:]
+    ab = b - a
+    q = p[..., None, :] - a
+    t = np.clip(np.sum(q * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-12), 0.0, 1.0)
+    d = np.linalg.norm(q - t[..., None] * ab, axis=-1)
+    return d.min(axis=-1) - r
+
+
+def head_field(p: FloatArray, rim: tuple[FloatArray, float] | None = None) -> FloatArray:
+    """< 0 inside the implicit head, > 0 outside, ~ cm from its surface. rim: the jaw's rim, a
+    tube laid just inside the mask's free border (so the head meets the mask there tangentially)."""
     f = _smin(_ellipsoid(p, CRANIUM_CENTRE, CRANIUM_AXES), _ellipsoid(p, SKULL_BASE_CENTRE, SKULL_BASE_AXES), BLEND)
     f = _smin(f, _neck(p), BLEND)
-    return _smin(f, _ellipsoid(p, JAW_CENTRE, JAW_AXES), BLEND)
+    f = _smin(f, _ellipsoid(p, JAW_CENTRE, JAW_AXES), BLEND)
+    return f if rim is None else _smin(f, _tube(p, rim), 0.8 * BLEND)
 
 
 def _cast(origin: FloatArray, dirs: FloatArray, far: float = 40.0, step: float = 0.35) -> FloatArray:
@@ -257,17 +272,17 @@ _GUIDES = np.array([
     [(6.2, 8.6, -9.5), (6.6, 6.5, -13.5), (5.6, 1.0, -16.5), (4.6, -5.5, -15.6), (4.0, -9.5, -15.0), (4.0, -13.5, -14.8), (4.2, -19.0, -16.0)],
     [(7.3, 0.6, -9.0), (7.4, -0.5, -11.8), (6.9, -3.0, -13.6), (6.2, -6.5, -13.6), (5.7, -9.5, -13.2), (5.5, -13.5, -13.2), (6.2, -19.0, -14.5)],
     [(6.5, -6.3, -7.7), (6.4, -7.0, -9.0), (6.2, -8.2, -10.1), (5.9, -9.8, -10.9), (5.6, -11.5, -11.4), (5.4, -14.0, -12.0), (6.6, -19.0, -13.0)],
-    [(5.2, -9.3, -7.3), (5.2, -10.0, -8.1), (5.2, -10.9, -8.7), (5.2, -12.0, -9.2), (5.2, -13.5, -9.6), (5.2, -15.5, -10.2), (6.4, -19.0, -11.0)],
+    [(5.3, -10.0, -7.6), (5.3, -11.0, -8.4), (5.3, -12.0, -9.0), (5.3, -13.3, -9.5), (5.3, -14.8, -10.0), (5.4, -16.5, -10.5), (6.4, -19.0, -11.0)],
     [(0.0, -14.0, -3.5), (0.0, -14.4, -4.6), (0.0, -15.4, -5.2), (0.0, -16.8, -5.5), (0.0, -18.2, -5.8), (0.0, -19.6, -6.0), (0.0, -21.0, -6.2)],
 ])
 
 
-def _project(p: FloatArray, iterations: int = 10) -> FloatArray:
+def _project(p: FloatArray, rim: tuple[FloatArray, float] | None = None, iterations: int = 10) -> FloatArray:
     """Points moved onto the implicit head along its gradient (Newton steps)."""
     h = 1e-3
     for _ in range(iterations):
-        f = head_field(p)
-        g = np.stack([(head_field(p + e) - f) / h for e in np.eye(3) * h], axis=-1)
+        f = head_field(p, rim)
+        g = np.stack([(head_field(p + e, rim) - f) / h for e in np.eye(3) * h], axis=-1)
         p = p - (f / np.maximum(np.sum(g * g, axis=-1), 1e-9))[..., None] * g
     return p
 
@@ -284,6 +299,7 @@ def _catmull_rom(pts: FloatArray, samples: int) -> FloatArray:
 
 
 def _column_paths(F: FloatArray, T: FloatArray, sigma: FloatArray, keys: tuple[float, float, float],
+                  rim: tuple[FloatArray, float], sig_border: FloatArray, F_border: FloatArray,
                   samples: int = 120) -> list[FloatArray]:
     """For each column (its border point F, outward tangent T at loop parameter sigma): a polyline
     from F over the head to the neck base, through the guides laid on the implicit head, leaving
@@ -296,10 +312,17 @@ def _column_paths(F: FloatArray, T: FloatArray, sigma: FloatArray, keys: tuple[f
     guides = np.stack([np.stack([np.interp(half, knots, _GUIDES[:, w, d]) for d in range(3)], 1)
                        for w in range(_GUIDES.shape[1])], 1)  # (C, W, 3)
     guides[sigma > 0.5, :, 0] *= -1.0
+    # between key places the border curves away from the straight line the guides interpolate:
+    # shift a column's guides by its border point's offset from that line, fading down the path
+    key_f = _periodic_interp(knots, sig_border, F_border)
+    f_lin = np.stack([np.interp(half, knots, key_f[:, d]) for d in range(3)], 1)
+    f_lin[sigma > 0.5, 0] *= -1.0
+    fade = 1.0 - np.arange(guides.shape[1]) / guides.shape[1]
+    guides += (F - f_lin)[:, None, :] * fade[None, :, None]
     paths = []
     for c in range(len(F)):
         pts = np.vstack([F[c], F[c] + 1.2 * T[c], guides[c], end[c]])
-        g = _project(_catmull_rom(pts, samples))
+        g = _project(_catmull_rom(pts, samples), rim)
         seg = np.linalg.norm(np.diff(g, axis=0), axis=1)
         s = np.r_[0.0, np.cumsum(seg)]
         b = _smoothstep(0.0, MASK_CONTINUE, s)[:, None]
@@ -308,6 +331,19 @@ def _column_paths(F: FloatArray, T: FloatArray, sigma: FloatArray, keys: tuple[f
         p[0] = F[c]
         paths.append(p)
     return paths
+
+
+def _even_out(rows: FloatArray, dist: FloatArray, rim: tuple[FloatArray, float], rounds: int = 6) -> FloatArray:
+    """Smooth the swept grid round its rings (neighbouring columns meet evenly where the border
+    turns a corner), then lay the rows beyond the mask's continuation back on the implicit head."""
+    out = rows.copy()
+    for _ in range(rounds):
+        ring_mean = 0.5 * (np.roll(out, 1, axis=1) + np.roll(out, -1, axis=1))
+        out = out + 0.5 * (ring_mean - out)
+    far = dist > MASK_CONTINUE
+    out[far] = _project(out[far], rim)
+    w = _smoothstep(0.0, 1.5, dist)[..., None]  # the first row stays near the border's own
+    return rows * (1.0 - w) + out * w
 
 
 def _resample(path: FloatArray, fractions: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -347,7 +383,7 @@ def _hair_line(theta: FloatArray) -> FloatArray:
 def _hair(p: FloatArray, from_border: FloatArray) -> FloatArray:
     theta = np.arctan2(p[:, 0], p[:, 2] - neck_axis(0.0))
     h = _smoothstep(-1.3, 1.3, p[:, 1] - _hair_line(theta))
-    return h * _smoothstep(0.4, 2.2, from_border)
+    return h * _smoothstep(0.2, 1.6, from_border)
 
 
 def _sweep(mesh: FaceMesh) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarray, dict]:
@@ -383,12 +419,24 @@ def _sweep(mesh: FaceMesh) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarr
     F = _periodic_interp(sigma, sig0, F0)
     T = _periodic_interp(sigma, sig0, T0)
     T /= np.linalg.norm(T, axis=1, keepdims=True)
-    paths = _column_paths(F, T, sigma, keys)
-    frac = (np.arange(1, ROWS + 1) / ROWS) ** ROW_POWER
+    # the jaw's rim: the free border (ear lobe level, round the jaw, under the chin), moved in
+    # along the mask's normal by the tube's radius, so the tube touches the border tangentially
+    free = np.flatnonzero(~held)
+    free = free[np.argsort(sig0[free])]
+    if len(free) > 40:
+        free = free[np.linspace(0, len(free) - 1, 40).astype(int)]
+    rim = (F0[free] - JAW_RIM * n[free], JAW_RIM)
+    paths = _column_paths(F, T, sigma, keys, rim, sig0, F0)
+    i = np.arange(1, ROWS + 1)
     rows = np.zeros((ROWS, COLUMNS, 3))
     dist = np.zeros((ROWS, COLUMNS))
     for c, path in enumerate(paths):
-        rows[:, c], dist[:, c] = _resample(path, frac)
+        # the first row ~FIRST_ROW from the border (a short column's rows closer), then growing
+        length = float(np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1)))
+        first = min(FIRST_ROW, length / ROWS)
+        s = first * i + (length - first * ROWS) * (i / ROWS) ** 2
+        rows[:, c], dist[:, c] = _resample(path, s / length)
+    rows = _even_out(rows, dist, rim)
     K = len(loop)
     verts = np.vstack([F0, rows.reshape(-1, 3)])
     from_border = np.r_[np.zeros(K), dist.ravel()]
@@ -564,8 +612,21 @@ def head_shell(mesh: FaceMesh) -> HeadShell:
     )
 
 
+_SHELLS: dict[bytes, HeadShell] = {}
+
+
 def shell_for(rig: FaceRig) -> HeadShell | None:
-    """The head around the default face (a rig named default-N), or None for any other rig."""
+    """The head around the default face (a rig named default-N), or None for any other rig. Built
+    once per mask (kept by a digest of its geometry: a renderer and an export's frames share it)."""
     if not str(rig.name).startswith("default-"):
         return None
-    return head_shell(rig.mesh)
+    m = rig.mesh
+    h = hashlib.sha1()
+    for a in (m.vertices, m.triangles, m.jaw_weight, m.held):
+        h.update(np.ascontiguousarray(a).tobytes())
+    key = h.digest()
+    if key not in _SHELLS:
+        if len(_SHELLS) >= 4:
+            _SHELLS.pop(next(iter(_SHELLS)))
+        _SHELLS[key] = head_shell(m)
+    return _SHELLS[key]
