@@ -13,9 +13,9 @@ wide and ~11.5 cm deep widening into the trapezius. Two ears (helix rim, scapha,
 tragus, lobe) from brow to nose-base level just behind the jaw hinge, leaning back 15 degrees.
 
 The shell is held, but its vertices near the join follow the mask (`HeadShell.pose`): each takes its
-column's share of the mask border's displacement, fading with the distance from the border, and
-under the chin and jaw also the jaw's rigid motion (fitted to the chin's vertices), fading towards
-the throat, so an open mouth pulls the submandibular skin with it and the neck further down stays.
+column's share of the mask border's displacement, fading with the distance from the border over a
+few centimetres, and under the chin and jaw down the throat, so an open mouth pulls the
+submandibular skin with the jaw and the neck's base stays.
 Each vertex carries a hair weight (a smooth function of place: 1 on the scalp, 0 on skin) for the
 renderer. Only the default face gets one (`shell_for`): an imported head brings its own.
 """
@@ -51,12 +51,12 @@ ROWS = 26
 FIRST_ROW = 0.6  # cm from the border to the first row (rows further apart further on)
 MASK_CONTINUE = 3.0  # cm over which a column turns from the mask's tangent into the implicit head
 FOLLOW = 4.0  # cm from the border over which the border's own displacement fades
-JAW_FOLLOW = 5.5  # cm under the chin over which the jaw's rigid motion fades to held
+JAW_FOLLOW = 8.5  # cm under the chin and jaw: the chin's motion fades to held down the throat
 # Ears (the left one; the right one mirrors it).
-EAR_TOP_Y, EAR_BOTTOM_Y = 1.9, -4.9  # brow level .. nose-base level
+EAR_TOP_Y, EAR_BOTTOM_Y = 2.25, -4.9  # brow level .. nose-base level
 EAR_FRONT_Z = -8.3  # the tragus, just behind the jaw hinge (z = -7.8)
 EAR_WIDTH = 3.4
-EAR_TILT = np.radians(15.0)  # the long axis leans back
+EAR_TILT = np.radians(17.0)  # the long axis leans back
 EAR_FLARE = np.radians(16.0)  # the rim stands out from the head towards the back
 
 
@@ -67,10 +67,10 @@ class HeadShell:
 
     ring (R,) shell indices of the join's vertices and ring_mask (R,) the mask vertex each one is
     (same place, every frame); `joined_triangles(n)` gives the triangles with those replaced by the
-    mask's indices (for normals shared across the join). Posing: moving (P,) shell indices; their
-    column's two border vertices col_mask (P,2) and weights col_w (P,2) (the border displacement's
-    share, fading from the border); jaw_w (P,) the share of the jaw's rigid motion; jaw_ref (J,) the
-    mask vertices the jaw's motion is fitted to, with their rest places."""
+    mask's indices (for normals shared across the join). Posing: moving (P,) shell indices, the two
+    mask border vertices col_mask (P,2) either side of each one's column, their rest places
+    col_rest (P,2,3) and weights col_w (P,2): the share of their displacement the vertex takes
+    (fading from 1 at the border to 0, further under the jaw than elsewhere)."""
 
     vertices: FloatArray
     triangles: np.ndarray
@@ -79,12 +79,8 @@ class HeadShell:
     ring_mask: np.ndarray
     moving: np.ndarray
     col_mask: np.ndarray
+    col_rest: FloatArray
     col_w: FloatArray
-    col_jaw: FloatArray
-    jaw_w: FloatArray
-    jaw_ref: np.ndarray
-    jaw_ref_rest: FloatArray
-    mask_rest_border: FloatArray
 
     def joined_triangles(self, n_mask: int) -> np.ndarray:
         """The shell's triangles indexing [mask vertices (n_mask), shell vertices]: the join's
@@ -93,37 +89,17 @@ class HeadShell:
         remap[self.ring] = self.ring_mask
         return remap[self.triangles].astype(np.int32)
 
-    def pose(self, surface: FloatArray, out: FloatArray | None = None) -> FloatArray:
+    def pose(self, surface: FloatArray) -> FloatArray:
         """(M,3) shell positions for the mask's current surface (N,3): the join's vertices on the
-        mask's border exactly; the moving ones displaced (border share + jaw share); the rest held."""
-        out = self.vertices.copy() if out is None else out
-        if out is not self.vertices:
-            out[...] = self.vertices
+        mask's border exactly, the moving ones displaced by their share of the border's motion,
+        the rest held."""
+        out = self.vertices.copy()
         surface = np.asarray(surface, np.float64)
         out[self.ring] = surface[self.ring_mask]
-        if len(self.moving) == 0:
-            return out
-        rot, shift = _rigid_fit(self.jaw_ref_rest, np.take(surface, self.jaw_ref, axis=0))
-        p = self.vertices[self.moving]
-        jaw_disp = p @ rot.T + shift - p
-        border = np.take(surface, self.col_mask, axis=0) - self.mask_rest_border  # (P,2,3)
-        border_disp = np.einsum("pk,pkd->pd", self.col_w, border)
-        # the border share is taken less the jaw motion it already contains, so at the border the
-        # two add up to the border's displacement exactly
-        col_rest = np.einsum("pk,pkd->pd", self.col_w, self.mask_rest_border)
-        border_jaw = self.col_jaw[:, None] * (col_rest @ rot.T + shift - col_rest)
-        out[self.moving] = p + border_disp - border_jaw + self.jaw_w[:, None] * jaw_disp
+        if len(self.moving):
+            moved = np.take(surface, self.col_mask, axis=0) - self.col_rest  # (P,2,3)
+            out[self.moving] += np.einsum("pk,pkd->pd", self.col_w, moved)
         return out
-
-
-def _rigid_fit(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Rotation R and shift t with R a + t ~ b in least squares (Kabsch), a, b (J,3)."""
-    ca, cb = a.mean(axis=0), b.mean(axis=0)
-    h = (a - ca).T @ (b - cb)
-    u, _, vt = np.linalg.svd(h)
-    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
-    rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
-    return rot, cb - rot @ ca
 
 
 # -- the implicit head ---------------------------------------------------------------------------
@@ -439,7 +415,11 @@ def _sweep(mesh: FaceMesh) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarr
     rows = _even_out(rows, dist, rim)
     K = len(loop)
     verts = np.vstack([F0, rows.reshape(-1, 3)])
-    from_border = np.r_[np.zeros(K), dist.ravel()]
+    # distance from the border in space (where columns bunch up at a corner, their arc lengths
+    # overstate it): what the hair and the share of the border's motion fade with
+    flat = rows.reshape(-1, 3)
+    near = np.min(np.linalg.norm(flat[:, None, :] - F0[None, :, :], axis=2), axis=1)
+    from_border = np.r_[np.zeros(K), np.minimum(near, dist.ravel())]
     tris = _zipper(sig0, sigma, 0, K)
     for r in range(ROWS - 1):
         a0, b0 = K + r * COLUMNS, K + (r + 1) * COLUMNS
@@ -569,32 +549,21 @@ def head_shell(mesh: FaceMesh) -> HeadShell:
         parts_h.append(np.zeros(len(v)))
         base += len(v)
     all_v = np.vstack(parts_v)
-    # who moves: the sweep's vertices within FOLLOW (or JAW_FOLLOW under the jaw) of the border
+    # who moves: the sweep's vertices near the border, each with its column's share of the two
+    # nearest border vertices' displacement; under the jaw the share fades over a longer way, down
+    # the throat, so the chin's travel when the mouth opens shears the neck's skin, not folds it
     jaw_w_border = np.asarray(mesh.jaw_weight, float)[loop]
-    col_jaw = _periodic_interp(sigma, sig0, jaw_w_border)
+    reach = FOLLOW + (JAW_FOLLOW - FOLLOW) * _periodic_interp(sigma, sig0, jaw_w_border)
     d = from_border[K:].reshape(ROWS, COLUMNS)
-    share = 1.0 - _smoothstep(0.0, FOLLOW, d)
-    jaw_share = col_jaw[None, :] * (1.0 - _smoothstep(0.0, JAW_FOLLOW, d))
-    moving = np.flatnonzero(((share > 1e-4) | (jaw_share > 1e-4)).ravel())
-    # each column's two border neighbours in the loop and the interpolation weight
+    share = 1.0 - _smoothstep(0.0, 1.0, d / reach[None, :])
+    moving = np.flatnonzero(share.ravel() > 1e-6)
     j0 = np.clip(np.searchsorted(sig0, sigma, side="right") - 1, 0, K - 1)
     j1 = (j0 + 1) % K
     nxt = np.where(j1 == 0, 1.0, sig0[j1])
     t = (sigma - sig0[j0]) / (nxt - sig0[j0])
-    cols = moving % COLUMNS
-    rowi = moving // COLUMNS
+    cols, rowi = moving % COLUMNS, moving // COLUMNS
     col_mask = np.stack([loop[j0[cols]], loop[j1[cols]]], 1)
     sh = share[rowi, cols]
-    col_w = np.stack([(1 - t[cols]) * sh, t[cols] * sh], 1)
-    # the jaw's motion is fitted to the mask's vertices that move rigidly with it
-    jw = np.asarray(mesh.jaw_weight, float)
-    ref = np.flatnonzero(jw > 0.999)
-    if len(ref) > 24:
-        ref = ref[np.linspace(0, len(ref) - 1, 24).astype(int)]
-    if len(ref) < 4:
-        ref = np.arange(min(4, len(mesh.vertices)))
-        jaw_share = jaw_share * 0.0
-    rest_border = np.asarray(mesh.vertices, float)[col_mask]
     return HeadShell(
         vertices=all_v.astype(np.float64),
         triangles=np.vstack(parts_t).astype(np.int32),
@@ -603,12 +572,8 @@ def head_shell(mesh: FaceMesh) -> HeadShell:
         ring_mask=loop.astype(np.int64),
         moving=(moving + K).astype(np.int64),
         col_mask=col_mask.astype(np.int64),
-        col_w=col_w,
-        col_jaw=col_jaw[cols] * sh,
-        jaw_w=jaw_share[rowi, cols],
-        jaw_ref=ref.astype(np.int64),
-        jaw_ref_rest=np.asarray(mesh.vertices, float)[ref],
-        mask_rest_border=rest_border,
+        col_rest=np.asarray(mesh.vertices, float)[col_mask],
+        col_w=np.stack([(1.0 - t[cols]) * sh, t[cols] * sh], 1),
     )
 
 
