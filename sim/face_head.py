@@ -505,7 +505,7 @@ def _ear(side: float) -> tuple[FloatArray, np.ndarray]:
     R = _ear_outline(aa) * scale * rr
     u, w = R * np.cos(aa), R * np.sin(aa)  # up, back (cm)
     # the flap stands out from the head towards its back and top edge; the relief on its front
-    stand = np.tan(EAR_FLARE) * np.maximum(w + 1.0, 0.0) + 0.15 + 0.08 * np.maximum(u, 0.0)
+    stand = np.tan(EAR_FLARE) * np.maximum(w + 1.0, 0.0) + 0.1 + 0.06 * np.maximum(u, 0.0)
     h = stand + _ear_relief(rr, aa)
     front = origin + u[..., None] * up + w[..., None] * back + h[..., None] * out
     # the back of the ear: from the rim curling behind and into the head
