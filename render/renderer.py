@@ -63,6 +63,12 @@ class FaceRenderer:
         self.skin_progs = {kind: ctx.program(vertex_shader=shaders.skin_source(kind, vertex=True),
                                              fragment_shader=shaders.skin_source(kind))
                            for kind in ("SKIN", "CLAY", "HEAT")}
+        self.scalp_prog = ctx.program(vertex_shader=shaders.skin_source("SCALP", vertex=True),
+                                      fragment_shader=shaders.skin_source("SCALP"))
+        from sim.face_head import HAIR_EDGE
+
+        self.scalp_prog["hair_albedo"].value = tuple(float(c) for c in HAIR)
+        self.scalp_prog["hair_edge"].value = HAIR_EDGE
         self.eye_prog = ctx.program(vertex_shader=shaders.EYE_VS, fragment_shader=shaders.EYE_FS)
         self.cavity_prog = ctx.program(vertex_shader=shaders.CAVITY_VS,
                                        fragment_shader=shaders.CAVITY_FS)
@@ -176,17 +182,16 @@ class FaceRenderer:
             return
         ctx = self.ctx
         v = shell.vertices.astype(np.float32)
-        hair = shell.hair[:, None].astype(np.float32)
-        col = (SKIN * (1.0 - hair) + HAIR * hair).astype(np.float32)
+        col = np.tile(SKIN, (len(v), 1)).astype(np.float32)  # the hair is the SCALP shader's
         col[shell.ring] = tint[shell.ring_mask]
         rest = v.copy()
         rest[shell.ring] = np.asarray(model.rest, np.float32)[shell.ring_mask]
         self.head_vbo = ctx.buffer(reserve=len(v) * 24, dynamic=True)
         bufs = [self.head_vbo, ctx.buffer(col.tobytes()), ctx.buffer(rest.tobytes()),
-                ctx.buffer(np.full((len(v), 2), (1e3, -1.0), np.float32).tobytes()),  # no brow
+                ctx.buffer(shell.hair_coords.astype(np.float32).tobytes()),  # the SCALP's in_brow
                 ctx.buffer(spatial_order(shell.triangles, v).astype(np.int32).tobytes())]
         pos, col_b, rest_b, brow_b, ibo = bufs
-        for kind, prog in self.skin_progs.items():
+        for kind, prog in {**self.skin_progs, "SKIN": self.scalp_prog}.items():
             pn = [a for a in ("in_pos", "in_normal") if a in prog]
             pn_fmt = "3f 3f" if len(pn) == 2 else ("3f 3x4" if pn == ["in_pos"] else "3x4 3f")
             attrs = [(pos, pn_fmt, *pn)] if pn else []
@@ -321,6 +326,9 @@ class FaceRenderer:
             skin["heat_scale"].value = float(self.heat_scale)
         self.skin_vaos[kind].render(moderngl.TRIANGLES)
         if kind in self.head_vaos:  # closed surfaces seen from outside: their backs never show
+            if kind == "SKIN":
+                self.scalp_prog["mvp"].write(_mat(mvp))
+                self.scalp_prog["view"].write(_mat(view_m))
             self.ctx.enable(moderngl.CULL_FACE)
             self.head_vaos[kind].render(moderngl.TRIANGLES)
             self.ctx.disable(moderngl.CULL_FACE)
@@ -439,7 +447,7 @@ class FaceRenderer:
         for prog, vao in self._post.values():
             vao.release()
             prog.release()
-        for obj in (*self.skin_progs.values(), self.eye_prog, self.cavity_prog, self.line_prog,
+        for obj in (*self.skin_progs.values(), self.scalp_prog, self.eye_prog, self.cavity_prog, self.line_prog,
                     self.thick_prog,
                     self.trail_prog, self.point_prog):
             obj.release()

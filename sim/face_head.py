@@ -46,9 +46,10 @@ NECK_END_Y = -24.0
 BLEND = 1.6  # cm: smooth-union width
 JAW_RIM = 1.1  # cm: radius of the rounded rim under the mask's jaw border
 # Sweep from the mask's border to the neck base.
-COLUMNS = 96
-ROWS = 26
+COLUMNS = 44
+ROWS = 15
 FIRST_ROW = 0.6  # cm from the border to the first row (rows further apart further on)
+ROW_GROWTH = 1.4
 MASK_CONTINUE = 3.0  # cm over which a column turns from the mask's tangent into the implicit head
 FOLLOW = 4.0  # cm from the border over which the border's own displacement fades
 JAW_FOLLOW = 8.5  # cm under the chin and jaw: the chin's motion fades to held down the throat
@@ -63,24 +64,29 @@ EAR_FLARE = np.radians(16.0)  # the rim stands out from the head towards the bac
 @dataclass(frozen=True)
 class HeadShell:
     """The head around a mask. vertices (M,3) cm at rest; triangles (K,3) int32 into vertices,
-    counter-clockwise seen from outside; hair (M,) 0..1.
+    counter-clockwise seen from outside; hair (M,) 0..1 = hair_weight(hair_coords), hair_coords
+    (M,2) cm above the hairline and cm from the join (near linear over a triangle: a renderer
+    interpolates them and takes hair_weight per pixel).
 
     ring (R,) shell indices of the join's vertices and ring_mask (R,) the mask vertex each one is
     (same place, every frame); `joined_triangles(n)` gives the triangles with those replaced by the
     mask's indices (for normals shared across the join). Posing: moving (P,) shell indices, the two
     mask border vertices col_mask (P,2) either side of each one's column, their rest places
     col_rest (P,2,3) and weights col_w (P,2): the share of their displacement the vertex takes
-    (fading from 1 at the border to 0, further under the jaw than elsewhere)."""
+    (fading from 1 at the border to 0, further under the jaw than elsewhere). The first
+    head_triangles triangles are the cranium and neck, the ears' follow."""
 
     vertices: FloatArray
     triangles: np.ndarray
     hair: FloatArray
+    hair_coords: FloatArray
     ring: np.ndarray
     ring_mask: np.ndarray
     moving: np.ndarray
     col_mask: np.ndarray
     col_rest: FloatArray
     col_w: FloatArray
+    head_triangles: int
 
     def joined_triangles(self, n_mask: int) -> np.ndarray:
         """The shell's triangles indexing [mask vertices (n_mask), shell vertices]: the join's
@@ -245,7 +251,7 @@ def _neck_angle(sigma: FloatArray, keys: tuple[float, float]) -> FloatArray:
 # passes near on its way to the neck base, before it is laid on the implicit head.
 _GUIDES = np.array([
     [(0.0, 11.0, -6.0), (0.0, 10.6, -11.5), (0.0, 6.5, -17.5), (0.0, -1.0, -18.6), (0.0, -7.5, -16.2), (0.0, -13.0, -15.6), (0.0, -19.0, -16.6)],
-    [(6.2, 8.6, -9.5), (6.6, 6.5, -13.5), (5.6, 1.0, -16.5), (4.6, -5.5, -15.6), (4.0, -9.5, -15.0), (4.0, -13.5, -14.8), (4.2, -19.0, -16.0)],
+    [(6.9, 6.8, -9.6), (6.7, 5.9, -13.3), (5.6, 1.0, -16.5), (4.6, -5.5, -15.6), (4.0, -9.5, -15.0), (4.0, -13.5, -14.8), (4.2, -19.0, -16.0)],
     [(7.3, 0.6, -9.0), (7.4, -0.5, -11.8), (6.9, -3.0, -13.6), (6.2, -6.5, -13.6), (5.7, -9.5, -13.2), (5.5, -13.5, -13.2), (6.2, -19.0, -14.5)],
     [(6.5, -6.3, -7.7), (6.4, -7.0, -9.0), (6.2, -8.2, -10.1), (5.9, -9.8, -10.9), (5.6, -11.5, -11.4), (5.4, -14.0, -12.0), (6.6, -19.0, -13.0)],
     [(5.3, -10.0, -7.6), (5.3, -11.0, -8.4), (5.3, -12.0, -9.0), (5.3, -13.3, -9.5), (5.3, -14.8, -10.0), (5.4, -16.5, -10.5), (6.4, -19.0, -11.0)],
@@ -318,7 +324,7 @@ def _even_out(rows: FloatArray, dist: FloatArray, rim: tuple[FloatArray, float],
         out = out + 0.5 * (ring_mean - out)
     far = dist > MASK_CONTINUE
     out[far] = _project(out[far], rim)
-    w = _smoothstep(0.0, 1.5, dist)[..., None]  # the first row stays near the border's own
+    w = _smoothstep(0.8, 2.5, dist)[..., None]  # the first rows stay near the border's own
     return rows * (1.0 - w) + out * w
 
 
@@ -329,20 +335,21 @@ def _resample(path: FloatArray, fractions: FloatArray) -> tuple[FloatArray, Floa
     return np.stack([np.interp(target, s, path[:, d]) for d in range(3)], 1), target
 
 
-def _zipper(a_s: FloatArray, b_s: FloatArray, a0: int, b0: int) -> list[tuple[int, int, int]]:
-    """Triangles between two closed rings sampled at increasing loop parameters a_s, b_s in [0,1)
-    (vertex indices a0 + i, b0 + j), advancing along whichever ring's next sample comes first."""
-    na, nb = len(a_s), len(b_s)
+def _zipper(pa: FloatArray, pb: FloatArray, a0: int, b0: int) -> list[tuple[int, int, int]]:
+    """Triangles between two closed rings of points pa (A,3), pb (B,3), both starting at the same
+    place and running the same way (vertex indices a0 + i, b0 + j): each step takes the shorter
+    of the two diagonals it could add (a fan never reaches across a corner of the other ring)."""
+    na, nb = len(pa), len(pb)
     i = j = 0
     tris = []
     while i < na or j < nb:
-        ta = a_s[(i + 1) % na] + (1.0 if i + 1 >= na else 0.0)
-        tb = b_s[(j + 1) % nb] + (1.0 if j + 1 >= nb else 0.0)
-        if j >= nb or (i < na and ta <= tb):
-            tris.append((a0 + i % na, b0 + j % nb, a0 + (i + 1) % na))
+        ia, jb = (i + 1) % na, (j + 1) % nb
+        take_a = j >= nb or (i < na and np.sum((pa[ia] - pb[j % nb]) ** 2) <= np.sum((pa[i % na] - pb[jb]) ** 2))
+        if take_a:
+            tris.append((a0 + i % na, b0 + j % nb, a0 + ia))
             i += 1
         else:
-            tris.append((a0 + i % na, b0 + j % nb, b0 + (j + 1) % nb))
+            tris.append((a0 + i % na, b0 + j % nb, b0 + jb))
             j += 1
     return tris
 
@@ -356,10 +363,21 @@ def _hair_line(theta: FloatArray) -> FloatArray:
                      [6.0, 5.0, 0.8, 2.9, 3.1, 2.2, -2.5, -6.5, -7.4])
 
 
-def _hair(p: FloatArray, from_border: FloatArray) -> FloatArray:
+HAIR_EDGE = (1.0, 0.2, 1.6)
+"""cm: the hairline's soft half width; the distance from the join where hair starts and is full."""
+
+
+def hair_weight(coords: FloatArray) -> FloatArray:
+    """Hair (0 skin .. 1 hair) from hairline coordinates (..., 2): cm above the hairline, cm from
+    the join. The renderer evaluates the same per pixel (its SCALP shader), so the hairline is
+    smooth however coarse the mesh."""
+    soft, start, full = HAIR_EDGE
+    return _smoothstep(-soft, soft, coords[..., 0]) * _smoothstep(start, full, coords[..., 1])
+
+
+def _hair_coords(p: FloatArray, from_border: FloatArray) -> FloatArray:
     theta = np.arctan2(p[:, 0], p[:, 2] - neck_axis(0.0))
-    h = _smoothstep(-1.3, 1.3, p[:, 1] - _hair_line(theta))
-    return h * _smoothstep(0.2, 1.6, from_border)
+    return np.stack([p[:, 1] - _hair_line(theta), from_border], 1)
 
 
 def _sweep(mesh: FaceMesh) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarray, dict]:
@@ -391,9 +409,22 @@ def _sweep(mesh: FaceMesh) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarr
     d_line = np.linalg.norm(np.cross(F0[jaw_pts] - chin, ear_pt - chin), axis=1) if len(jaw_pts) else np.zeros(1)
     angle_key = float(sig0[jaw_pts[np.argmax(d_line)]]) if len(jaw_pts) else 0.4
     keys = (corner_key, ear_key, angle_key)
-    sigma = np.arange(COLUMNS) / COLUMNS
+    # the columns start from the border smoothed over ~1 cm (the mask's border kinks where the
+    # hairline meets the side, and a fine mesh resolves the kink: rows offset from it would cross)
+    arc = sig0 * seg.sum()
+    gap = np.abs(arc[:, None] - arc[None, :])
+    gap = np.minimum(gap, seg.sum() - gap)
+    kern = np.exp(-0.5 * (gap / 0.8) ** 2)
+    kern /= kern.sum(axis=1, keepdims=True)
+    Ts = kern @ T0
+    Ts /= np.linalg.norm(Ts, axis=1, keepdims=True)
+    # columns evenly spaced along the border offset by 1.5 cm: more of them round its corners
+    off = F0 + 1.5 * Ts
+    off_seg = np.linalg.norm(np.diff(np.vstack([off, off[:1]]), axis=0), axis=1)
+    sig_off = np.r_[0.0, np.cumsum(off_seg)] / off_seg.sum()
+    sigma = np.interp(np.arange(COLUMNS) / COLUMNS, sig_off, np.r_[sig0, 1.0])
     F = _periodic_interp(sigma, sig0, F0)
-    T = _periodic_interp(sigma, sig0, T0)
+    T = _periodic_interp(sigma, sig0, Ts)
     T /= np.linalg.norm(T, axis=1, keepdims=True)
     # the jaw's rim: the free border (ear lobe level, round the jaw, under the chin), moved in
     # along the mask's normal by the tube's radius, so the tube touches the border tangentially
@@ -410,32 +441,55 @@ def _sweep(mesh: FaceMesh) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarr
         # the first row ~FIRST_ROW from the border (a short column's rows closer), then growing
         length = float(np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1)))
         first = min(FIRST_ROW, length / ROWS)
-        s = first * i + (length - first * ROWS) * (i / ROWS) ** 2
+        s = first * i + (length - first * ROWS) * (i / ROWS) ** ROW_GROWTH
         rows[:, c], dist[:, c] = _resample(path, s / length)
     rows = _even_out(rows, dist, rim)
     K = len(loop)
-    verts = np.vstack([F0, rows.reshape(-1, 3)])
-    # distance from the border in space (where columns bunch up at a corner, their arc lengths
-    # overstate it): what the hair and the share of the border's motion fade with
-    flat = rows.reshape(-1, 3)
-    near = np.min(np.linalg.norm(flat[:, None, :] - F0[None, :, :], axis=2), axis=1)
-    from_border = np.r_[np.zeros(K), np.minimum(near, dist.ravel())]
-    tris = _zipper(sig0, sigma, 0, K)
+    # which two border vertices each swept vertex follows (and how far between them)
+    j0 = np.clip(np.searchsorted(sig0, sigma, side="right") - 1, 0, K - 1)
+    j1 = (j0 + 1) % K
+    t = (sigma - sig0[j0]) / (np.where(j1 == 0, 1.0, sig0[j1]) - sig0[j0])
+    follow = [np.tile(np.stack([j0, j1], 1), (ROWS, 1))]
+    between = [np.tile(t, ROWS)]
+    reach_of = [np.tile(_periodic_interp(sigma, sig0, np.asarray(mesh.jaw_weight, float)[loop]), ROWS)]
+    first_rows = [rows[0]]
+    pts = [F0]
+    tris: list[tuple[int, int, int]] = []
+    if K > 2.5 * COLUMNS:
+        # a fine border: one ring offset from every border vertex first, so the columns' fewer
+        # vertices are stitched to a ring that has rounded the border's kinks
+        inner = F0 + 0.4 * Ts
+        pts.append(inner)
+        for k in range(K):
+            q = (k + 1) % K
+            tris += [(k, K + k, q), (q, K + k, K + q)]
+        follow.insert(0, np.stack([np.arange(K), np.arange(K)], 1))
+        between.insert(0, np.zeros(K))
+        reach_of.insert(0, np.asarray(mesh.jaw_weight, float)[loop])
+    base = sum(len(p_) for p_ in pts)
+    tris += _zipper(pts[-1], rows[0], base - len(pts[-1]), base)
     for r in range(ROWS - 1):
-        a0, b0 = K + r * COLUMNS, K + (r + 1) * COLUMNS
+        a0, b0 = base + r * COLUMNS, base + (r + 1) * COLUMNS
         for c in range(COLUMNS):
             d = (c + 1) % COLUMNS
             tris += [(a0 + c, b0 + c, a0 + d), (a0 + d, b0 + c, b0 + d)]
+    verts = np.vstack(pts + [rows.reshape(-1, 3)])
+    # distance from the border in space (where columns bunch up at a corner, their arc lengths
+    # overstate it): what the hair and the share of the border's motion fade with
+    swept = verts[K:]
+    near = np.min(np.linalg.norm(swept[:, None, :] - F0[None, :, :], axis=2), axis=1)
+    along = np.r_[np.full(base - K, 0.4), dist.ravel()]
+    from_border = np.r_[np.zeros(K), np.minimum(near, along)]
     tri = np.array(tris, np.int32)
     # counter-clockwise from outside: compare with the direction from the head's inside
     cen = verts[tri].mean(axis=1)
     nrm = np.cross(verts[tri[:, 1]] - verts[tri[:, 0]], verts[tri[:, 2]] - verts[tri[:, 0]])
-    inside = np.stack([np.zeros(len(cen)), np.maximum(cen[:, 1], NECK_END_Y + 2.0),
+    inside = np.stack([np.zeros(len(cen)), np.where(cen[:, 1] > -6.0, 0.0, cen[:, 1]),
                        neck_axis(np.minimum(cen[:, 1], 0.0))], 1)
-    inside[:, 1] = np.where(cen[:, 1] > -6.0, 0.0, cen[:, 1])
     if np.mean(np.sum(nrm * (cen - inside), axis=1) > 0) < 0.5:
         tri = tri[:, [0, 2, 1]]
-    info = dict(loop=loop, sig0=sig0, sigma=sigma, K=K, from_border=from_border)
+    info = dict(loop=loop, K=K, follow=np.vstack(follow), between=np.concatenate(between),
+                jaw=np.concatenate(reach_of))
     return verts, tri, from_border, loop, info
 
 
@@ -497,7 +551,7 @@ def ear_frame(side: float = 1.0) -> tuple[FloatArray, FloatArray, FloatArray, Fl
 
 def _ear(side: float) -> tuple[FloatArray, np.ndarray]:
     origin, up, back, out = ear_frame(side)
-    n_a, n_r, n_back = 44, 11, 4
+    n_a, n_r, n_back = 18, 5, 2
     a = np.linspace(0.0, 2 * np.pi, n_a, endpoint=False)
     r = np.linspace(0.0, 1.0, n_r + 1)[1:]
     scale = (EAR_TOP_Y - EAR_BOTTOM_Y) / (_EAR_RIM[:, 0].max() - _EAR_RIM[:, 0].min())
@@ -538,42 +592,38 @@ def _ear(side: float) -> tuple[FloatArray, np.ndarray]:
 def head_shell(mesh: FaceMesh) -> HeadShell:
     """Cranium, neck and both ears around a default-face mask, joined to its outer border."""
     verts, tri, from_border, loop, info = _sweep(mesh)
-    K, sig0, sigma = info["K"], info["sig0"], info["sigma"]
-    hair = _hair(verts, from_border)
-    parts_v, parts_t, parts_h = [verts], [tri], [hair]
+    K = info["K"]
+    parts_v, parts_t, parts_h = [verts], [tri], [_hair_coords(verts, from_border)]
     base = len(verts)
     for side in (1.0, -1.0):
         v, t = _ear(side)
         parts_v.append(v)
         parts_t.append(t + base)
-        parts_h.append(np.zeros(len(v)))
+        parts_h.append(np.tile([-100.0, 0.0], (len(v), 1)))  # no hair on the ears
         base += len(v)
     all_v = np.vstack(parts_v)
-    # who moves: the sweep's vertices near the border, each with its column's share of the two
-    # nearest border vertices' displacement; under the jaw the share fades over a longer way, down
-    # the throat, so the chin's travel when the mouth opens shears the neck's skin, not folds it
-    jaw_w_border = np.asarray(mesh.jaw_weight, float)[loop]
-    reach = FOLLOW + (JAW_FOLLOW - FOLLOW) * _periodic_interp(sigma, sig0, jaw_w_border)
-    d = from_border[K:].reshape(ROWS, COLUMNS)
-    share = 1.0 - _smoothstep(0.0, 1.0, d / reach[None, :])
-    moving = np.flatnonzero(share.ravel() > 1e-6)
-    j0 = np.clip(np.searchsorted(sig0, sigma, side="right") - 1, 0, K - 1)
-    j1 = (j0 + 1) % K
-    nxt = np.where(j1 == 0, 1.0, sig0[j1])
-    t = (sigma - sig0[j0]) / (nxt - sig0[j0])
-    cols, rowi = moving % COLUMNS, moving // COLUMNS
-    col_mask = np.stack([loop[j0[cols]], loop[j1[cols]]], 1)
-    sh = share[rowi, cols]
+    # who moves: the sweep's vertices near the border, each with its share of the displacement of
+    # the two border vertices its column starts between; under the jaw the share fades over a
+    # longer way, down the throat, so the chin's travel when the mouth opens shears the neck's
+    # skin instead of folding it
+    reach = FOLLOW + (JAW_FOLLOW - FOLLOW) * info["jaw"]
+    share = 1.0 - _smoothstep(0.0, 1.0, from_border[K:] / reach)
+    moving = np.flatnonzero(share > 1e-6)
+    col_mask = loop[info["follow"][moving]]
+    t = info["between"][moving]
+    sh = share[moving]
     return HeadShell(
         vertices=all_v.astype(np.float64),
         triangles=np.vstack(parts_t).astype(np.int32),
-        hair=np.concatenate(parts_h).astype(np.float64),
+        hair=hair_weight(np.vstack(parts_h)),
+        hair_coords=np.vstack(parts_h).astype(np.float64),
         ring=np.arange(K),
         ring_mask=loop.astype(np.int64),
         moving=(moving + K).astype(np.int64),
         col_mask=col_mask.astype(np.int64),
         col_rest=np.asarray(mesh.vertices, float)[col_mask],
-        col_w=np.stack([(1.0 - t[cols]) * sh, t[cols] * sh], 1),
+        col_w=np.stack([(1.0 - t) * sh, t * sh], 1),
+        head_triangles=len(tri),
     )
 
 
