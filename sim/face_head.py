@@ -551,9 +551,9 @@ def ear_frame(side: float = 1.0) -> tuple[FloatArray, FloatArray, FloatArray, Fl
 
 def _ear(side: float) -> tuple[FloatArray, np.ndarray]:
     origin, up, back, out = ear_frame(side)
-    n_a, n_r, n_back = 18, 5, 2
+    n_a, n_r, n_back = 24, 6, 2
     a = np.linspace(0.0, 2 * np.pi, n_a, endpoint=False)
-    r = np.linspace(0.0, 1.0, n_r + 1)[1:]
+    r = np.array([0.22, 0.45, 0.57, 0.74, 0.89, 0.98])[:n_r]  # on the relief: concha, antihelix, scapha, rim
     scale = (EAR_TOP_Y - EAR_BOTTOM_Y) / (_EAR_RIM[:, 0].max() - _EAR_RIM[:, 0].min())
     rr, aa = np.meshgrid(r, a, indexing="ij")
     R = _ear_outline(aa) * scale * rr
