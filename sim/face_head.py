@@ -47,9 +47,9 @@ BLEND = 1.6  # cm: smooth-union width
 JAW_RIM = 1.1  # cm: radius of the rounded rim under the mask's jaw border
 # Sweep from the mask's border to the neck base.
 COLUMNS = 40
-ROWS = 14
+ROWS = 15
 FIRST_ROW = 0.6  # cm from the border to the first row (rows further apart further on)
-ROW_GROWTH = 1.4
+ROW_GROWTH = 1.15
 MASK_CONTINUE = 3.0  # cm over which a column turns from the mask's tangent into the implicit head
 FOLLOW = 4.0  # cm from the border over which the border's own displacement fades
 JAW_FOLLOW = 8.5  # cm under the chin and jaw: the chin's motion fades to held down the throat
@@ -409,8 +409,8 @@ def _sweep(mesh: FaceMesh) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarr
     d_line = np.linalg.norm(np.cross(F0[jaw_pts] - chin, ear_pt - chin), axis=1) if len(jaw_pts) else np.zeros(1)
     angle_key = float(sig0[jaw_pts[np.argmax(d_line)]]) if len(jaw_pts) else 0.4
     keys = (corner_key, ear_key, angle_key)
-    # the columns start from the border smoothed over ~1 cm (the mask's border kinks where the
-    # hairline meets the side, and a fine mesh resolves the kink: rows offset from it would cross)
+    # the columns leave the border along its outward tangent smoothed over ~1 cm (the mask's
+    # border kinks where the hairline meets the side, and a fine mesh resolves the kink)
     arc = sig0 * seg.sum()
     gap = np.abs(arc[:, None] - arc[None, :])
     gap = np.minimum(gap, seg.sum() - gap)
@@ -441,7 +441,7 @@ def _sweep(mesh: FaceMesh) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarr
         # the first row ~FIRST_ROW from the border (a short column's rows closer), then growing
         length = float(np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1)))
         first = min(FIRST_ROW, length / ROWS)
-        s = first * i + (length - first * ROWS) * (i / ROWS) ** ROW_GROWTH
+        s = first * i + (length - first * ROWS) * ((i - 1) / (ROWS - 1)) ** ROW_GROWTH
         rows[:, c], dist[:, c] = _resample(path, s / length)
     rows = _even_out(rows, dist, rim)
     K = len(loop)
@@ -449,37 +449,18 @@ def _sweep(mesh: FaceMesh) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarr
     j0 = np.clip(np.searchsorted(sig0, sigma, side="right") - 1, 0, K - 1)
     j1 = (j0 + 1) % K
     t = (sigma - sig0[j0]) / (np.where(j1 == 0, 1.0, sig0[j1]) - sig0[j0])
-    follow = [np.tile(np.stack([j0, j1], 1), (ROWS, 1))]
-    between = [np.tile(t, ROWS)]
-    reach_of = [np.tile(_periodic_interp(sigma, sig0, np.asarray(mesh.jaw_weight, float)[loop]), ROWS)]
-    first_rows = [rows[0]]
-    pts = [F0]
-    tris: list[tuple[int, int, int]] = []
-    if K > 2.5 * COLUMNS:
-        # a fine border: one ring offset from every border vertex first, so the columns' fewer
-        # vertices are stitched to a ring that has rounded the border's kinks
-        inner = F0 + 0.4 * Ts
-        pts.append(inner)
-        for k in range(K):
-            q = (k + 1) % K
-            tris += [(k, K + k, q), (q, K + k, K + q)]
-        follow.insert(0, np.stack([np.arange(K), np.arange(K)], 1))
-        between.insert(0, np.zeros(K))
-        reach_of.insert(0, np.asarray(mesh.jaw_weight, float)[loop])
-    base = sum(len(p_) for p_ in pts)
-    tris += _zipper(pts[-1], rows[0], base - len(pts[-1]), base)
+    tris = _zipper(F0, rows[0], 0, K)
     for r in range(ROWS - 1):
-        a0, b0 = base + r * COLUMNS, base + (r + 1) * COLUMNS
+        a0, b0 = K + r * COLUMNS, K + (r + 1) * COLUMNS
         for c in range(COLUMNS):
             d = (c + 1) % COLUMNS
             tris += [(a0 + c, b0 + c, a0 + d), (a0 + d, b0 + c, b0 + d)]
-    verts = np.vstack(pts + [rows.reshape(-1, 3)])
+    verts = np.vstack([F0, rows.reshape(-1, 3)])
     # distance from the border in space (where columns bunch up at a corner, their arc lengths
     # overstate it): what the hair and the share of the border's motion fade with
     swept = verts[K:]
     near = np.min(np.linalg.norm(swept[:, None, :] - F0[None, :, :], axis=2), axis=1)
-    along = np.r_[np.full(base - K, 0.4), dist.ravel()]
-    from_border = np.r_[np.zeros(K), np.minimum(near, along)]
+    from_border = np.r_[np.zeros(K), np.minimum(near, dist.ravel())]
     tri = np.array(tris, np.int32)
     # counter-clockwise from outside: compare with the direction from the head's inside
     cen = verts[tri].mean(axis=1)
@@ -488,8 +469,8 @@ def _sweep(mesh: FaceMesh) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarr
                        neck_axis(np.minimum(cen[:, 1], 0.0))], 1)
     if np.mean(np.sum(nrm * (cen - inside), axis=1) > 0) < 0.5:
         tri = tri[:, [0, 2, 1]]
-    info = dict(loop=loop, K=K, follow=np.vstack(follow), between=np.concatenate(between),
-                jaw=np.concatenate(reach_of))
+    info = dict(loop=loop, K=K, follow=np.tile(np.stack([j0, j1], 1), (ROWS, 1)), between=np.tile(t, ROWS),
+                jaw=np.tile(_periodic_interp(sigma, sig0, np.asarray(mesh.jaw_weight, float)[loop]), ROWS))
     return verts, tri, from_border, loop, info
 
 
