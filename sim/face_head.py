@@ -46,7 +46,7 @@ NECK_END_Y = -24.0
 BLEND = 1.6  # cm: smooth-union width
 JAW_RIM = 1.1  # cm: radius of the rounded rim under the mask's jaw border
 # Sweep from the mask's border to the neck base.
-COLUMNS = 40
+COLUMNS = 36
 ROWS = 15
 FIRST_ROW = 0.6  # cm from the border to the first row (rows further apart further on)
 ROW_GROWTH = 1.15
@@ -532,7 +532,7 @@ def ear_frame(side: float = 1.0) -> tuple[FloatArray, FloatArray, FloatArray, Fl
 
 def _ear(side: float) -> tuple[FloatArray, np.ndarray]:
     origin, up, back, out = ear_frame(side)
-    n_a, n_r, n_back = 22, 6, 1
+    n_a, n_r, n_back = 20, 6, 1
     a = np.linspace(0.0, 2 * np.pi, n_a, endpoint=False)
     r = np.array([0.22, 0.45, 0.57, 0.74, 0.89, 0.98])[:n_r]  # on the relief: concha, antihelix, scapha, rim
     scale = (EAR_TOP_Y - EAR_BOTTOM_Y) / (_EAR_RIM[:, 0].max() - _EAR_RIM[:, 0].min())
