@@ -7,17 +7,19 @@ up, +Z forward), as one surface whose first ring of vertices *is* the mask's out
 rows of vertices sweep from that loop back over the cranium and down the neck to a widening base,
 so the join is closed by construction. Each row continues the mask's surface (its outward tangent
 at the border) and blends over a few centimetres into an implicit head (smooth union of a cranium,
-a skull base and a neck sloping forward, a submandibular wedge) of adult proportions: head breadth
-~15 cm, vertex ~23 cm above the chin, back of the head ~19 cm behind the glabella, a neck ~11 cm
-wide and ~11.5 cm deep widening into the trapezius. Two ears (helix rim, scapha, antihelix, concha,
-tragus, lobe) from brow to nose-base level just behind the jaw hinge, leaning back 15 degrees.
+a skull base, a neck leaning forward, a submandibular floor and a rounded rim laid just inside the
+mask's jaw border) of adult proportions: head breadth ~15 cm, vertex ~22-24 cm above the chin, back
+of the head ~19 cm behind the glabella, a neck ~11 cm wide and ~11 cm deep widening into the
+trapezius. Two ears (helix rim, scapha, antihelix, concha, tragus, lobe) from brow to nose-base
+level just behind the jaw hinge, leaning back 15 degrees.
 
 The shell is held, but its vertices near the join follow the mask (`HeadShell.pose`): each takes its
 column's share of the mask border's displacement, fading with the distance from the border over a
 few centimetres, and under the chin and jaw down the throat, so an open mouth pulls the
 submandibular skin with the jaw and the neck's base stays.
-Each vertex carries a hair weight (a smooth function of place: 1 on the scalp, 0 on skin) for the
-renderer. Only the default face gets one (`shell_for`): an imported head brings its own.
+Each vertex carries hairline coordinates (cm above the hairline, cm from the join) and the hair
+weight they give (1 on the scalp, 0 on skin); the renderer takes the weight per pixel. Only the
+default face gets a head (`shell_for`): an imported head brings its own.
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ SKULL_BASE_AXES = np.array([6.5, 5.2, 6.6])  # behind the jaw hinge: mastoids an
 JAW_CENTRE = np.array([0.0, -10.4, -5.6])
 JAW_AXES = np.array([4.4, 3.1, 4.6])  # under the mandible: the submandibular floor
 NECK_TOP = np.array([0.0, -8.0, -9.7])  # neck axis at y = -8 ...
-NECK_SLOPE = 0.21  # ... moving back 0.21 cm per cm down (the neck leans forward ~12 degrees)
+NECK_SLOPE = 0.21  # ... moving back 0.21 cm per cm down (the neck leans forward ~12 degrees going up)
 NECK_HALF = (5.35, 5.75)  # half width, half depth (cm) of the neck at mid-neck
 TRAPEZIUS_Y = -17.5  # below this the neck widens towards the shoulders
 NECK_END_Y = -24.0
@@ -56,7 +58,6 @@ JAW_FOLLOW = 8.5  # cm under the chin and jaw: the chin's motion fades to held d
 # Ears (the left one; the right one mirrors it).
 EAR_TOP_Y, EAR_BOTTOM_Y = 2.25, -4.9  # brow level .. nose-base level
 EAR_FRONT_Z = -8.3  # the tragus, just behind the jaw hinge (z = -7.8)
-EAR_WIDTH = 3.4
 EAR_TILT = np.radians(17.0)  # the long axis leans back
 EAR_FLARE = np.radians(16.0)  # the rim stands out from the head towards the back
 
@@ -159,7 +160,8 @@ def _tube(p: FloatArray, rim: tuple[FloatArray, float]) -> FloatArray:
 def head_field(p: FloatArray, rim: tuple[FloatArray, float] | None = None) -> FloatArray:
     """< 0 inside the implicit head, > 0 outside, ~ cm from its surface. rim: the jaw's rim, a
     tube laid just inside the mask's free border (so the head meets the mask there tangentially)."""
-    f = _smin(_ellipsoid(p, CRANIUM_CENTRE, CRANIUM_AXES), _ellipsoid(p, SKULL_BASE_CENTRE, SKULL_BASE_AXES), BLEND)
+    f = _smin(_ellipsoid(p, CRANIUM_CENTRE, CRANIUM_AXES), _ellipsoid(p, SKULL_BASE_CENTRE, SKULL_BASE_AXES),
+              BLEND)
     f = _smin(f, _neck(p), BLEND)
     f = _smin(f, _ellipsoid(p, JAW_CENTRE, JAW_AXES), BLEND)
     return f if rim is None else _smin(f, _tube(p, rim), 0.8 * BLEND)
@@ -250,12 +252,18 @@ def _neck_angle(sigma: FloatArray, keys: tuple[float, float]) -> FloatArray:
 # level where the jaw border starts, the jaw's angle, under the chin), waypoints (cm) the path
 # passes near on its way to the neck base, before it is laid on the implicit head.
 _GUIDES = np.array([
-    [(0.0, 11.0, -6.0), (0.0, 10.6, -11.5), (0.0, 6.5, -17.5), (0.0, -1.0, -18.6), (0.0, -7.5, -16.2), (0.0, -13.0, -15.6), (0.0, -19.0, -16.6)],
-    [(6.9, 6.8, -9.6), (6.7, 5.9, -13.3), (5.6, 1.0, -16.5), (4.6, -5.5, -15.6), (4.0, -9.5, -15.0), (4.0, -13.5, -14.8), (4.2, -19.0, -16.0)],
-    [(7.3, 0.6, -9.0), (7.4, -0.5, -11.8), (6.9, -3.0, -13.6), (6.2, -6.5, -13.6), (5.7, -9.5, -13.2), (5.5, -13.5, -13.2), (6.2, -19.0, -14.5)],
-    [(6.5, -6.3, -7.7), (6.4, -7.0, -9.0), (6.2, -8.2, -10.1), (5.9, -9.8, -10.9), (5.6, -11.5, -11.4), (5.4, -14.0, -12.0), (6.6, -19.0, -13.0)],
-    [(5.3, -10.0, -7.6), (5.3, -11.0, -8.4), (5.3, -12.0, -9.0), (5.3, -13.3, -9.5), (5.3, -14.8, -10.0), (5.4, -16.5, -10.5), (6.4, -19.0, -11.0)],
-    [(0.0, -14.0, -3.5), (0.0, -14.4, -4.6), (0.0, -15.4, -5.2), (0.0, -16.8, -5.5), (0.0, -18.2, -5.8), (0.0, -19.6, -6.0), (0.0, -21.0, -6.2)],
+    [(0.0, 11.0, -6.0), (0.0, 10.6, -11.5), (0.0, 6.5, -17.5), (0.0, -1.0, -18.6),
+     (0.0, -7.5, -16.2), (0.0, -13.0, -15.6), (0.0, -19.0, -16.6)],
+    [(6.9, 6.8, -9.6), (6.7, 5.9, -13.3), (5.6, 1.0, -16.5), (4.6, -5.5, -15.6),
+     (4.0, -9.5, -15.0), (4.0, -13.5, -14.8), (4.2, -19.0, -16.0)],
+    [(7.3, 0.6, -9.0), (7.4, -0.5, -11.8), (6.9, -3.0, -13.6), (6.2, -6.5, -13.6),
+     (5.7, -9.5, -13.2), (5.5, -13.5, -13.2), (6.2, -19.0, -14.5)],
+    [(6.5, -6.3, -7.7), (6.4, -7.0, -9.0), (6.2, -8.2, -10.1), (5.9, -9.8, -10.9),
+     (5.6, -11.5, -11.4), (5.4, -14.0, -12.0), (6.6, -19.0, -13.0)],
+    [(5.3, -10.0, -7.6), (5.3, -11.0, -8.4), (5.3, -12.0, -9.0), (5.3, -13.3, -9.5),
+     (5.3, -14.8, -10.0), (5.4, -16.5, -10.5), (6.4, -19.0, -11.0)],
+    [(0.0, -14.0, -3.5), (0.0, -14.4, -4.6), (0.0, -15.4, -5.2), (0.0, -16.8, -5.5),
+     (0.0, -18.2, -5.8), (0.0, -19.6, -6.0), (0.0, -21.0, -6.2)],
 ])
 
 
@@ -270,14 +278,15 @@ def _project(p: FloatArray, rim: tuple[FloatArray, float] | None = None, iterati
 
 
 def _catmull_rom(pts: FloatArray, samples: int) -> FloatArray:
-    """A centripetal-free (uniform) Catmull-Rom curve through pts (P,3), ends clamped: (S,3)."""
+    """A uniform Catmull-Rom curve through pts (P,3), its ends extended by reflection: (S,3)."""
     p = np.vstack([2 * pts[0] - pts[1], pts, 2 * pts[-1] - pts[-2]])
     n = len(pts) - 1
     t = np.linspace(0.0, n, samples)
     i = np.minimum(t.astype(int), n - 1)
     u = (t - i)[:, None]
     p0, p1, p2, p3 = p[i], p[i + 1], p[i + 2], p[i + 3]
-    return 0.5 * ((2 * p1) + (-p0 + p2) * u + (2 * p0 - 5 * p1 + 4 * p2 - p3) * u**2 + (-p0 + 3 * p1 - 3 * p2 + p3) * u**3)
+    return 0.5 * ((2 * p1) + (-p0 + p2) * u + (2 * p0 - 5 * p1 + 4 * p2 - p3) * u**2
+                  + (-p0 + 3 * p1 - 3 * p2 + p3) * u**3)
 
 
 def _column_paths(F: FloatArray, T: FloatArray, sigma: FloatArray, keys: tuple[float, float, float],

@@ -120,7 +120,8 @@ class RenderModel:
 
 class RenderFrame:
     """What a render process draws: the surface as the renderer's float32 rows x y z nx ny nz
-    (`interleaved`, made by the simulating process with the renderer's own normal kernel, so the
+    (`interleaved`: the mask's rows, then the held head's if the face has one; made by the
+    simulating process with the renderer's own rows (render.meshdata.SurfaceRows), so the
     frames equal a serial export's bit for bit and the render process never loads numba), plus the
     state's scalars."""
 
