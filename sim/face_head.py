@@ -633,5 +633,9 @@ def shell_for(rig: FaceRig) -> HeadShell | None:
     if key not in _SHELLS:
         if len(_SHELLS) >= 4:
             _SHELLS.pop(next(iter(_SHELLS)))
-        _SHELLS[key] = head_shell(m)
+        shell = head_shell(m)
+        for a in vars(shell).values():
+            if isinstance(a, np.ndarray):
+                a.setflags(write=False)  # shared by every caller
+        _SHELLS[key] = shell
     return _SHELLS[key]
