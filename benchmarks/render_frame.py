@@ -12,7 +12,10 @@ and stays meaningful when other programs compete for the cores.
 llvmpipe rasterises on LP_NUM_THREADS threads (default: one per core); the run prints the value
 used. `--lp-threads 1,2` reruns the benchmark once per value in a fresh process (the variable is
 read when the driver loads).
+`--head-vs-mask N` times the default face with its held head against the mask alone in N
+alternating batches instead (both see the same load: the issue-11 budget, head at most 1.2x).
 Run: .venv/bin/python benchmarks/render_frame.py [--lp-threads 1,2] [--resolutions 0,1] [--mask]
+     .venv/bin/python benchmarks/render_frame.py --head-vs-mask 30 --resolutions 0,2
 """
 
 from __future__ import annotations
@@ -148,6 +151,52 @@ def bench(resolution: int, size: tuple[int, int], frames: int, ctx: object, head
     return rows
 
 
+def head_vs_mask(resolution: int, size: tuple[int, int], batches: int, ctx: object) -> list[str]:
+    """The default face with its held head against the mask alone, shaded with and without the
+    HUD, in alternating 10-frame batches on one context (so both see the same load), with the floor
+    measured between them: median ms per frame and each as a ratio to the floor, and head / mask."""
+    import dataclasses
+
+    import numpy as np
+
+    from render.hud import HudInfo
+    from render.offscreen import OffscreenRenderer
+    from sim import default_model
+    from sim.build import compile_model
+
+    head = default_model(resolution)
+    models = {"head": head, "mask": compile_model(dataclasses.replace(head.rig, name="mask"))}
+    hud = HudInfo(channels=[("zygomaticus_major_l", 0.8, 0, 1), ("jaw", 0.3, 0, 1)], age=30,
+                  devices=[("sgi:///dev/ttyS0", True), ("keyboard://", True)], fps=60.0,
+                  latency_ms=12.0, lines=["? help"])
+    offs = {k: OffscreenRenderer(m, size, ctx=ctx) for k, m in models.items()}  # type: ignore[arg-type]
+    states = {k: _states(m, 30) for k, m in models.items()}
+    out = []
+    try:
+        for with_hud in (False, True):
+            times: dict[str, list[tuple[float, float]]] = {"head": [], "mask": [], "floor": []}
+            for b in range(batches):
+                for k, off in offs.items():
+                    def frame(i: int, off: OffscreenRenderer = off, k: str = k) -> None:
+                        off.fbo.use()
+                        off.renderer.draw(states[k][(b * 10 + i) % 30], hud if with_hud else None)
+                        off.ctx.finish()
+
+                    times[k].append(_timed(frame, 10))
+                if b % 5 == 0:
+                    times["floor"].append(floor_ms(ctx, size, 10))
+            med = {k: np.median(np.array(v), axis=0) for k, v in times.items()}
+            f = med["floor"]
+            h, m = med["head"], med["mask"]
+            out.append(f"{'shaded+HUD' if with_hud else 'shaded':<12}{h[0]:>8.2f}{h[1]:>8.2f}{m[0]:>8.2f}{m[1]:>8.2f}"
+                       f"{f[0]:>8.2f}{f[1]:>8.2f}{h[0] / f[0]:>9.2f}{h[1] / f[1]:>9.2f}{m[0] / f[0]:>9.2f}"
+                       f"{m[1] / f[1]:>9.2f}{h[0] / m[0]:>9.2f}{h[1] / m[1]:>9.2f}")
+    finally:
+        for off in offs.values():
+            off.release()
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", default="1280x720")
@@ -155,6 +204,9 @@ def main() -> None:
     ap.add_argument("--resolutions", default="0,2")
     ap.add_argument("--lp-threads", default="", help="comma-separated LP_NUM_THREADS values to compare")
     ap.add_argument("--mask", action="store_true", help="also time each resolution as the mask alone (no head)")
+    ap.add_argument("--head-vs-mask", type=int, default=0, metavar="BATCHES",
+                    help="instead: the head against the mask alone (shaded, +HUD) in BATCHES alternating "
+                         "10-frame batches each, with the floor between them")
     args = ap.parse_args()
     if args.lp_threads:
         for n in args.lp_threads.split(","):
@@ -175,6 +227,14 @@ def main() -> None:
           f"LP_NUM_THREADS={threads}, load average {os.getloadavg()[0]:.1f}")
     from sim import default_model
 
+    if args.head_vs_mask:
+        for res in (int(r) for r in args.resolutions.split(",")):
+            print(f"\nresolution {res}: median ms per frame over {args.head_vs_mask} alternating batches")
+            print(f"{'view':<12}{'head':>8}{'cpu':>8}{'mask':>8}{'cpu':>8}{'floor':>8}{'cpu':>8}"
+                  f"{'head x':>9}{'cpu x':>9}{'mask x':>9}{'cpu x':>9}{'h/m':>9}{'cpu h/m':>9}")
+            for line in head_vs_mask(res, size, args.head_vs_mask, ctx):  # type: ignore[arg-type]
+                print(line)
+        return
     floors = [floor_ms(ctx, size, args.frames)]
     print(f"floor (textured full-screen quad + readback): {floors[0][0]:.2f} ms wall, {floors[0][1]:.2f} ms cpu")
     runs = [(int(r), head) for r in args.resolutions.split(",") for head in ((True, False) if args.mask else (True,))]

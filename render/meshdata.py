@@ -39,6 +39,45 @@ class NormalComputer:
         return self.interleaved(positions)[:, 3:].copy()
 
 
+class SurfaceRows:
+    """The rows x y z nx ny nz of everything drawn of a face's skin, in one (N + M, 6) float32
+    array: the mask's surface (N) and, when the face has a held head (sim.face_head.HeadShell),
+    the head's vertices (M) posed to that surface, with normals computed over both meshes, so the
+    shading runs on across the join. Without a head it is the mask's NormalComputer."""
+
+    def __init__(self, triangles: np.ndarray, n_vertices: int, shell: object | None = None) -> None:
+        self.n = int(n_vertices)
+        self.shell = shell
+        if shell is None:
+            self.normals = NormalComputer(triangles, self.n)
+            return
+        m = len(shell.vertices)  # type: ignore[attr-defined]
+        joined = np.vstack([np.asarray(triangles, np.int32), shell.joined_triangles(self.n)])  # type: ignore[attr-defined]
+        self.normals = NormalComputer(joined, self.n + m)
+        self.positions = np.zeros((self.n + m, 3), np.float32)
+        self.ring = self.n + np.asarray(shell.ring)  # type: ignore[attr-defined]
+        self.ring_mask = np.asarray(shell.ring_mask)  # type: ignore[attr-defined]
+
+    def interleaved(self, surface: np.ndarray) -> np.ndarray:
+        """(N + M, 6) rows (the same array every call: upload it, don't keep it)."""
+        if self.shell is None:
+            return self.normals.interleaved(surface)
+        self.positions[:self.n] = surface
+        self.positions[self.n:] = self.shell.pose(surface)  # type: ignore[attr-defined]
+        rows = self.normals.interleaved(self.positions)
+        rows[self.ring] = rows[self.ring_mask]  # the join's vertices are the mask's own
+        return rows
+
+
+def surface_rows(model: object) -> SurfaceRows:
+    """The SurfaceRows of a face model (its rig's held head included, if it has one)."""
+    from sim.face_head import shell_for
+
+    rig = getattr(model, "rig", None)
+    shell = shell_for(rig) if rig is not None else None
+    return SurfaceRows(np.asarray(model.triangles, np.int32), len(model.rest), shell)  # type: ignore[attr-defined]
+
+
 def spatial_order(triangles: np.ndarray, positions: np.ndarray, bits: int = 10) -> np.ndarray:
     """The triangles reordered along a Z-order (Morton) curve of their centroids in the front view
     (x, y), so consecutive triangles share vertices and screen tiles: llvmpipe shades the

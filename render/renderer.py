@@ -13,8 +13,8 @@ import numpy as np
 from render import shaders
 from render.camera import OrbitCamera
 from render.hud import HudInfo, HudRenderer
-from render.meshdata import (HAIR, SKIN, Cavity, brow_coords, MuscleLines, NormalComputer, eye_rotation, skin_tint,
-                             spatial_order, unique_edges, uv_sphere)
+from render.meshdata import (HAIR, SKIN, Cavity, brow_coords, MuscleLines, eye_rotation, skin_tint, spatial_order,
+                             surface_rows, unique_edges, uv_sphere)
 from render.trails import TrailHistory
 
 VIEWS = ("shaded", "wireframe", "muscles", "trails", "heat")
@@ -63,6 +63,12 @@ class FaceRenderer:
         self.skin_progs = {kind: ctx.program(vertex_shader=shaders.skin_source(kind, vertex=True),
                                              fragment_shader=shaders.skin_source(kind))
                            for kind in ("SKIN", "CLAY", "HEAT")}
+        self.scalp_prog = ctx.program(vertex_shader=shaders.skin_source("SCALP", vertex=True),
+                                      fragment_shader=shaders.skin_source("SCALP"))
+        from sim.face_head import HAIR_EDGE
+
+        self.scalp_prog["hair_albedo"].value = tuple(float(c) for c in HAIR)
+        self.scalp_prog["hair_edge"].value = HAIR_EDGE
         self.eye_prog = ctx.program(vertex_shader=shaders.EYE_VS, fragment_shader=shaders.EYE_FS)
         self.cavity_prog = ctx.program(vertex_shader=shaders.CAVITY_VS,
                                        fragment_shader=shaders.CAVITY_FS)
@@ -108,12 +114,13 @@ class FaceRenderer:
         n = len(rest)
         tris = np.asarray(model.triangles, np.int32)
         self.model = model
-        self.normals = NormalComputer(tris, n)
+        self.normals = surface_rows(model)  # the mask's rows, and the held head's after them
         self.camera.fit(rest.min(axis=0), rest.max(axis=0))
         g = self._gl
         # positions and normals interleaved in one buffer, one write per frame
         self.pos_vbo = ctx.buffer(reserve=n * 24, dynamic=True)
-        col_vbo = ctx.buffer(skin_tint(mesh).tobytes())
+        tint = skin_tint(mesh)
+        col_vbo = ctx.buffer(tint.tobytes())
         rest_vbo = ctx.buffer(rest.tobytes())
         brow_vbo = ctx.buffer(brow_coords(mesh).tobytes())
         tri_ibo = ctx.buffer(spatial_order(tris, rest).astype(np.int32).tobytes())
@@ -129,7 +136,7 @@ class FaceRenderer:
             self.skin_vaos[kind] = ctx.vertex_array(
                 prog, [a for a in attrs if a[0] is self.pos_vbo or a[2] in prog], tri_ibo)
         self.edge_vao = ctx.vertex_array(self.line_prog, [(self.pos_vbo, "3f 3x4", "in_pos")], edge_ibo)
-        self._populate_head(model)
+        self._populate_head(model, tint)
         sphere, sphere_tris = uv_sphere(12, 20)
         sph_vbo, sph_ibo = ctx.buffer(sphere.tobytes()), ctx.buffer(sphere_tris.tobytes())
         self.eye_vao = ctx.vertex_array(self.eye_prog, [(sph_vbo, "3f", "in_pos")], sph_ibo)
@@ -164,25 +171,27 @@ class FaceRenderer:
         g += [self.muscle_vbo, self.muscle_vao]
         self._populate_trails(n)
 
-    def _populate_head(self, model: Any) -> None:
-        """The held head around the default face (sim.face_head: cranium, ears, neck), uploaded
-        once: static positions, normals, skin or hair colour; drawn with the skin programs."""
-        from sim.face_head import shell_for
-
+    def _populate_head(self, model: Any, tint: np.ndarray) -> None:
+        """The held head around the default face (sim.face_head: cranium, ears, neck), stitched to
+        the mask's border: colours (skin, the mask's own tint on the join, hair on the scalp) and
+        rest places uploaded once, positions and normals each frame after the mask's (the rows
+        of `self.normals`); drawn with the skin programs."""
         self.head_vaos: dict[str, moderngl.VertexArray] = {}
-        shell = shell_for(model.rig) if getattr(model, "rig", None) is not None else None
+        shell = self.normals.shell
         if shell is None:
             return
         ctx = self.ctx
         v = shell.vertices.astype(np.float32)
-        rows = NormalComputer(shell.triangles, len(v)).interleaved(v).copy()
-        hair = shell.hair[:, None].astype(np.float32)
-        col = (SKIN * (1.0 - hair) + HAIR * hair).astype(np.float32)
-        bufs = [ctx.buffer(rows.tobytes()), ctx.buffer(col.tobytes()), ctx.buffer(v.tobytes()),
-                ctx.buffer(np.full((len(v), 2), (1e3, -1.0), np.float32).tobytes()),  # no brow
-                ctx.buffer(shell.triangles.astype(np.int32).tobytes())]
+        col = np.tile(SKIN, (len(v), 1)).astype(np.float32)  # the hair is the SCALP shader's
+        col[shell.ring] = tint[shell.ring_mask]
+        rest = v.copy()
+        rest[shell.ring] = np.asarray(model.rest, np.float32)[shell.ring_mask]
+        self.head_vbo = ctx.buffer(reserve=len(v) * 24, dynamic=True)
+        bufs = [self.head_vbo, ctx.buffer(col.tobytes()), ctx.buffer(rest.tobytes()),
+                ctx.buffer(shell.hair_coords.astype(np.float32).tobytes()),  # the SCALP's in_brow
+                ctx.buffer(spatial_order(shell.triangles, v).astype(np.int32).tobytes())]
         pos, col_b, rest_b, brow_b, ibo = bufs
-        for kind, prog in self.skin_progs.items():
+        for kind, prog in {**self.skin_progs, "SKIN": self.scalp_prog}.items():
             pn = [a for a in ("in_pos", "in_normal") if a in prog]
             pn_fmt = "3f 3f" if len(pn) == 2 else ("3f 3x4" if pn == ["in_pos"] else "3x4 3f")
             attrs = [(pos, pn_fmt, *pn)] if pn else []
@@ -242,12 +251,15 @@ class FaceRenderer:
         vx, vy, w, h = target.viewport
         ss = max(1, int(self.supersample))
         rows = getattr(state, "interleaved", None)  # x y z nx ny nz rows made elsewhere (an export's
-        if rows is None:  # render process is handed them with the frame: see puppet.export.video)
+        n = self.normals.n  # render process is handed them with the frame: see puppet.export.video)
+        if rows is None:
             surface = np.ascontiguousarray(state.surface, dtype=np.float32)
             rows = self.normals.interleaved(surface)
         else:
-            surface = np.ascontiguousarray(rows[:, :3])
-        self.pos_vbo.write(rows)  # positions + normals, one upload
+            surface = np.ascontiguousarray(rows[:n, :3])
+        self.pos_vbo.write(rows[:n])  # positions + normals, one upload (and one for the head)
+        if self.head_vaos:
+            self.head_vbo.write(rows[n:])
         if record or self.trails.count == 0:
             self.trails.push(surface, getattr(state, "time", None))
         view_m, mvp = self._matrices(w / max(h, 1))
@@ -314,6 +326,9 @@ class FaceRenderer:
             skin["heat_scale"].value = float(self.heat_scale)
         self.skin_vaos[kind].render(moderngl.TRIANGLES)
         if kind in self.head_vaos:  # closed surfaces seen from outside: their backs never show
+            if kind == "SKIN":
+                self.scalp_prog["mvp"].write(_mat(mvp))
+                self.scalp_prog["view"].write(_mat(view_m))
             self.ctx.enable(moderngl.CULL_FACE)
             self.head_vaos[kind].render(moderngl.TRIANGLES)
             self.ctx.disable(moderngl.CULL_FACE)
@@ -432,7 +447,7 @@ class FaceRenderer:
         for prog, vao in self._post.values():
             vao.release()
             prog.release()
-        for obj in (*self.skin_progs.values(), self.eye_prog, self.cavity_prog, self.line_prog,
+        for obj in (*self.skin_progs.values(), self.scalp_prog, self.eye_prog, self.cavity_prog, self.line_prog,
                     self.thick_prog,
                     self.trail_prog, self.point_prog):
             obj.release()

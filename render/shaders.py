@@ -71,6 +71,10 @@ out vec3 v_half;
 out vec3 v_lit;
 #if defined(SKIN)
 out vec3 v_brow;       // signed distance across the brow line, half width, strength
+#if defined(SCALP)
+uniform vec3 hair_albedo;
+out vec3 v_hair;       // the lit hair (the scalp's in_brow: cm above the hairline, cm from the join)
+#endif
 #elif defined(HEAT)
 out float v_disp;      // the colour map per pixel: interpolated colours would wash it out
 out vec3 v_diffuse;
@@ -89,6 +93,10 @@ void main() {
     vec3 albedo = vec3(0.0);
     v_disp = length(in_pos - in_rest) / heat_scale;
     v_diffuse = diffuse;
+#elif defined(SCALP)
+    vec3 albedo = in_color;
+    v_brow = vec3(in_brow, 0.0);
+    v_hair = hair_albedo * diffuse + rim_light(n, v);
 #else
     vec3 albedo = in_color;
     // brow: a band across the brow line, thick at the inner end, thin and faded at the outer
@@ -109,6 +117,10 @@ in vec3 v_half;
 in vec3 v_lit;
 #if defined(SKIN)
 in vec3 v_brow;
+#if defined(SCALP)
+in vec3 v_hair;
+uniform vec3 hair_edge;  // the hairline's soft half width; the join's distance where hair starts, is full
+#endif
 #elif defined(HEAT)
 in float v_disp;
 in vec3 v_diffuse;
@@ -116,7 +128,13 @@ in vec3 v_diffuse;
 out vec4 frag;
 void main() {
     vec3 c = v_lit;
-#if defined(SKIN)
+#if defined(SCALP)
+    // the hairline per pixel from two quantities that are near linear over a triangle: smooth and
+    // sharp however coarse the head's mesh
+    c = mix(c, v_hair, smoothstep(-hair_edge.x, hair_edge.x, v_brow.x)
+                       * smoothstep(hair_edge.y, hair_edge.z, v_brow.y));
+    const float spec = 0.12;
+#elif defined(SKIN)
     float brow = (1.0 - smoothstep(0.4 * v_brow.y, v_brow.y + 1e-4, abs(v_brow.x))) * v_brow.z
                  * float(v_brow.y > 1e-3);
     c *= 1.0 - 0.91 * brow;    // brow hair: about a tenth of the skin's albedo in every channel
@@ -391,8 +409,10 @@ void main() {
 
 
 def skin_source(kind: str, vertex: bool = False) -> str:
-    """The skin fragment (or vertex) shader for kind "SKIN", "CLAY" or "HEAT"."""
-    return (SKIN_VS if vertex else SKIN_FS).replace(HEADER, HEADER + f"#define {kind}\n", 1)
+    """The skin fragment (or vertex) shader for kind "SKIN", "CLAY", "HEAT" or "SCALP" (the held
+    head's skin and hair: SKIN with the hair drawn from the hairline coordinates in in_brow)."""
+    defs = "#define SKIN\n#define SCALP\n" if kind == "SCALP" else f"#define {kind}\n"
+    return (SKIN_VS if vertex else SKIN_FS).replace(HEADER, HEADER + defs, 1)
 
 
 def resolve_source(ss: int) -> str:

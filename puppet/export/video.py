@@ -120,7 +120,8 @@ class RenderModel:
 
 class RenderFrame:
     """What a render process draws: the surface as the renderer's float32 rows x y z nx ny nz
-    (`interleaved`, made by the simulating process with the renderer's own normal kernel, so the
+    (`interleaved`: the mask's rows, then the held head's if the face has one; made by the
+    simulating process with the renderer's own rows (render.meshdata.SurfaceRows), so the
     frames equal a serial export's bit for bit and the render process never loads numba), plus the
     state's scalars."""
 
@@ -370,9 +371,9 @@ def render_parallel(model: Any, out: Path, kind: str, fps: float, size: tuple[in
                 progress(state["done"] - shown)
                 shown = state["done"]
 
-        from render.meshdata import NormalComputer
+        from render.meshdata import surface_rows
 
-        normals = NormalComputer(model.triangles, len(model.rest))  # the renderer's, for its rows
+        normals = surface_rows(model)  # the renderer's, for its rows (the held head's included)
         for j, st in frames:
             pool[j % n].put(_pack(j, st, normals), alive)
             alive()

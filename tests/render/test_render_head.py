@@ -27,7 +27,7 @@ def test_head_around_the_face(gl) -> None:
             off.renderer.camera.fit(np.array([-9.0, -24.0, -20.0]), np.array([9.0, 12.0, 3.0]))
             st = model.rest_state()
             img = off.render_frame(st, record=False)
-            top = off.renderer.project(np.array([[0.0, 10.5, -6.0]]), (320, 320))[0]
+            top = off.renderer.project(np.array([[0.0, 10.3, -9.0]]), (320, 320))[0]  # the vertex, over the ears
             neck = off.renderer.project(np.array([[0.0, -18.0, -4.0]]), (320, 320))[0]
             cov = _covered(img)
             hits = [bool(cov[int(p[1]), int(p[0])]) for p in (top, neck)]
