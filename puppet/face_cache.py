@@ -11,6 +11,10 @@ was asked for (the default face at a resolution, or the bytes of a rig file). Fi
   SHA-256 of every array, "rig_sha": SHA-256 of the rig file below or null}.
 - `<key>.rig.npz`: for the default face, its rig in the rig file format (`sim.rig`), read back
   through the rig loader.
+- `head-<key>.npz`: the held head shell around a default-face mask (`sim.face_head.HeadShell`'s
+  arrays and a JSON `meta` with their checksums), keyed by the sim sources and the mask's geometry;
+  built by the first window or export that draws the head (~0.4 s) and read back by the next ones
+  through `sim.face_head.check_shell`.
 
 An entry is never trusted blindly: a missing, corrupt, foreign (another key) or inconsistent entry
 (checksums, shapes, index ranges, finiteness, the rig's own digest) is ignored and rebuilt. Entries
@@ -157,6 +161,12 @@ def _evict(directory: Path) -> None:
                 q.unlink()
             except OSError:
                 pass
+    heads = sorted(directory.glob("head-*[0-9a-f].npz"), key=lambda p: p.stat().st_mtime, reverse=True)
+    for p in heads[KEEP_ENTRIES:]:
+        try:
+            p.unlink()
+        except OSError:
+            pass
     for tmp in directory.glob(".*.tmp.npz"):
         try:
             if time.time() - tmp.stat().st_mtime > 3600:
@@ -326,10 +336,59 @@ def cached_model(what: bytes, build: Callable[[], Any], rig: Any | None = None) 
 
 @lru_cache(maxsize=4)
 def default_model(resolution: int = 0) -> Any:
-    """The default face at a resolution, from the cache when it can be trusted."""
+    """The default face at a resolution, from the cache when it can be trusted (and its head
+    shell, when something draws it, from the same folder: `HeadShellStore`)."""
     import sim
+    from sim import face_head
 
+    directory = cache_dir()
+    if directory is not None:
+        face_head.use_store(HeadShellStore(directory))
     return cached_model(f"default-face:{resolution}".encode(), lambda: sim.default_model(resolution))
+
+
+_SHELL_ARRAYS = ("vertices", "triangles", "hair", "hair_coords", "ring", "ring_mask", "moving", "col_mask",
+                 "col_rest", "col_w")
+
+
+class HeadShellStore:
+    """sim.face_head's ShellStore in the cache folder: `head-<key>.npz`, written atomically, read
+    back with the same bounded reader and checksums as the faces (anything else: None, rebuilt)."""
+
+    def __init__(self, directory: Path) -> None:
+        self.directory = directory
+
+    def path(self, mask_key: bytes) -> Path:
+        return self.directory / f"head-{entry_key(b'head-shell:' + mask_key)}.npz"
+
+    def load(self, mask_key: bytes) -> Any:
+        from sim.face_head import HeadShell
+
+        path = self.path(mask_key)
+        try:
+            arrays = _read_npz(path)
+            meta = json.loads(str(arrays.pop("meta")))
+            if not isinstance(meta, dict) or meta.get("format") != FORMAT or meta.get("version") != VERSION \
+                    or meta.get("arrays") != _array_digest(arrays) or set(arrays) != set(_SHELL_ARRAYS):
+                return None
+            head_triangles = meta.get("head_triangles")
+            if not isinstance(head_triangles, int) or isinstance(head_triangles, bool):
+                return None
+            try:
+                os.utime(path)  # used now: kept by the eviction
+            except OSError:
+                pass
+            return HeadShell(head_triangles=head_triangles, **arrays)
+        except Exception:  # noqa: BLE001 - missing, damaged or foreign: built again
+            return None
+
+    def save(self, mask_key: bytes, shell: Any) -> None:
+        arrays = {name: np.asarray(getattr(shell, name)) for name in _SHELL_ARRAYS}
+        meta = {"format": FORMAT, "version": VERSION, "head_triangles": int(shell.head_triangles),
+                "arrays": _array_digest(arrays)}
+        self.directory.mkdir(parents=True, exist_ok=True)
+        _write_atomic(self.path(mask_key), lambda tmp: np.savez(tmp, meta=np.array(json.dumps(meta)), **arrays))
+        _evict(self.directory)
 
 
 def rig_model(rig: Any, rig_bytes: bytes, build: Callable[[], Any] | None = None) -> Any:

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -620,9 +621,53 @@ def head_shell(mesh: FaceMesh) -> HeadShell:
 _SHELLS: dict[bytes, HeadShell] = {}
 
 
+class ShellStore(Protocol):
+    """Where built shells are kept between processes (`use_store`; puppet.face_cache keeps them on
+    disk beside the compiled faces). `load` returns None for anything it cannot vouch for."""
+
+    def load(self, key: bytes) -> HeadShell | None: ...
+
+    def save(self, key: bytes, shell: HeadShell) -> None: ...
+
+
+_STORE: ShellStore | None = None
+
+
+def use_store(store: ShellStore | None) -> None:
+    """Keep built shells in `store` too (None: in this process only). Building one takes ~0.4 s,
+    which a window's or an export's start would otherwise pay every time."""
+    global _STORE
+    _STORE = store
+
+
+def check_shell(shell: HeadShell, mask: FaceMesh) -> None:
+    """ValueError unless `shell` is consistent in itself and with `mask` (shapes, finiteness,
+    every index in range): what a shell read back from a file must pass before it is drawn."""
+    n, m = len(mask.vertices), len(shell.vertices)
+    v, t = np.asarray(shell.vertices), np.asarray(shell.triangles)
+    p = len(shell.moving)
+    shapes = {"vertices": (m, 3), "hair": (m,), "hair_coords": (m, 2), "ring_mask": (len(shell.ring),),
+              "col_mask": (p, 2), "col_rest": (p, 2, 3), "col_w": (p, 2)}
+    for name, want in shapes.items():
+        if np.asarray(getattr(shell, name)).shape != want:
+            raise ValueError(f"head shell: {name} has the wrong shape")
+    for name in ("vertices", "hair", "hair_coords", "col_rest", "col_w"):
+        a = np.asarray(getattr(shell, name))
+        if a.dtype.kind != "f" or not np.all(np.isfinite(a)):
+            raise ValueError(f"head shell: {name} is not finite")
+    for name, arr, hi in (("triangles", t, m), ("ring", shell.ring, m), ("moving", shell.moving, m),
+                          ("ring_mask", shell.ring_mask, n), ("col_mask", shell.col_mask, n)):
+        a = np.asarray(arr)
+        if a.dtype.kind not in "iu" or (a.size and (a.min() < 0 or a.max() >= hi)):
+            raise ValueError(f"head shell: {name} indexes out of range")
+    if t.ndim != 2 or t.shape[1] != 3 or v.size == 0 or not 0 <= int(shell.head_triangles) <= len(t):
+        raise ValueError("head shell: triangles are malformed")
+
+
 def shell_for(rig: FaceRig) -> HeadShell | None:
     """The head around the default face (a rig named default-N), or None for any other rig. Built
-    once per mask (kept by a digest of its geometry: a renderer and an export's frames share it)."""
+    once per mask (kept by a digest of its geometry: a renderer and an export's frames share it),
+    and read from the store (`use_store`) when one holds it."""
     if not str(rig.name).startswith("default-"):
         return None
     m = rig.mesh
@@ -633,7 +678,19 @@ def shell_for(rig: FaceRig) -> HeadShell | None:
     if key not in _SHELLS:
         if len(_SHELLS) >= 4:
             _SHELLS.pop(next(iter(_SHELLS)))
-        shell = head_shell(m)
+        shell = _STORE.load(key) if _STORE is not None else None
+        if shell is not None:
+            try:
+                check_shell(shell, m)
+            except ValueError:
+                shell = None
+        if shell is None:
+            shell = head_shell(m)
+            if _STORE is not None:
+                try:
+                    _STORE.save(key, shell)
+                except OSError:  # an unwritable store: built again next time
+                    pass
         for a in vars(shell).values():
             if isinstance(a, np.ndarray):
                 a.setflags(write=False)  # shared by every caller

@@ -283,3 +283,67 @@ def test_the_cached_muscle_matrix_is_the_built_one_without_scipy(fresh: object, 
     assert np.array_equal(mm @ v, built @ v)
     assert np.array_equal((mm.T @ np.ones(built.shape[0])), built.T @ np.ones(built.shape[0]))
     assert np.array_equal(mm[:, 1].toarray(), built[:, 1].toarray())
+
+
+def _same_shell(a: object, b: object) -> None:
+    for name in face_cache._SHELL_ARRAYS:
+        x, y = getattr(a, name), getattr(b, name)
+        assert x.dtype == y.dtype and np.array_equal(x, y), name
+    assert a.head_triangles == b.head_triangles  # type: ignore[attr-defined]
+
+
+def test_the_head_shell_is_kept_beside_the_faces_and_damaged_copies_are_rebuilt(
+        fresh: object, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The default face's held head (~0.4 s to build) is built once and read back by the next
+    process (here: a cleared in-process memo); truncated or bit-flipped copies (fixed seed) never
+    raise and give the built shell, a copy that still loads is the same shell."""
+    from sim import face_head
+
+    rig = fresh.rig  # type: ignore[attr-defined]
+    built = face_head.head_shell(rig.mesh)
+    store = face_cache.HeadShellStore(tmp_path)
+    monkeypatch.setattr(face_head, "_STORE", store)
+    monkeypatch.setattr(face_head, "_SHELLS", {})
+    calls = []
+    real = face_head.head_shell
+    monkeypatch.setattr(face_head, "head_shell", lambda mesh: calls.append(1) or real(mesh))
+    first = face_head.shell_for(rig)
+    (path,) = tmp_path.glob("head-*.npz")
+    assert len(calls) == 1 and not list(tmp_path.glob(".*tmp*"))
+    _same_shell(first, built)
+    face_head._SHELLS.clear()
+    again = face_head.shell_for(rig)
+    assert len(calls) == 1 and again is not first  # read from the file, not built
+    _same_shell(again, built)
+    good = path.read_bytes()
+    rng = np.random.default_rng(15)
+    loaded = 0
+    for variant in _variants(good, rng, 120):
+        path.write_bytes(variant)
+        face_head._SHELLS.clear()
+        n = len(calls)
+        got = face_head.shell_for(rig)
+        _same_shell(got, built)
+        loaded += len(calls) == n
+    assert loaded < 25  # nearly every damaged copy was caught and rebuilt
+
+
+def test_a_head_shell_that_does_not_fit_its_mask_is_refused(fresh: object) -> None:
+    from dataclasses import replace
+
+    from sim import face_head
+
+    mesh = fresh.rig.mesh  # type: ignore[attr-defined]
+    shell = face_head.head_shell(mesh)
+    face_head.check_shell(shell, mesh)
+    bad_tri = shell.triangles.copy()
+    bad_tri[0, 0] = len(shell.vertices)
+    bad_mask = shell.ring_mask.copy()
+    bad_mask[0] = len(mesh.vertices)
+    nan = shell.vertices.copy()
+    nan[3, 1] = np.nan
+    for broken in (replace(shell, triangles=bad_tri), replace(shell, ring_mask=bad_mask),
+                   replace(shell, vertices=nan), replace(shell, col_w=shell.col_w[:-1]),
+                   replace(shell, head_triangles=len(shell.triangles) + 1)):
+        with pytest.raises(ValueError):
+            face_head.check_shell(broken, mesh)
