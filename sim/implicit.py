@@ -36,6 +36,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from sim.build import FaceModel
+from sim.margin_contact import SolvedContact
 
 
 def laplacian(n: int, springs: np.ndarray, w: np.ndarray) -> sp.csr_matrix:
@@ -163,7 +164,8 @@ def warm_up() -> None:
 class ImplicitStepper:
     """Runs the substeps of one frame for a Simulator (method "implicit")."""
 
-    def __init__(self, model: FaceModel, h: float) -> None:
+    def __init__(self, model: FaceModel, h: float,
+                 margins: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> None:
         n = model.n_vertices
         springs = np.asarray(model.spring_indices)
         self.h = h
@@ -178,6 +180,9 @@ class ImplicitStepper:
              + sp.diags(self.mass_h2 + self.damp_h + np.asarray(model.rest_stiffness) + self.kn)).tocsr()
         self.a_fh = a[self.free][:, self.held].tocsr()
         self.solver = PrefactoredSolver(a[self.free][:, self.free])
+        self.margins = None  # the lid and lip contact, solved with the step (sim.margin_contact)
+        if margins is not None and len(margins[0]):
+            self.margins = SolvedContact(*margins, self.free, n, self.solver.solve)
         self._rhs = np.zeros((n, 3))
         self._y = np.zeros((n, 3))
         self._xf = np.zeros((len(self.free), 3))
@@ -201,10 +206,14 @@ class ImplicitStepper:
             _pd_springs(self._y, idx, rest_len, k_low, k_high, thr, self._rhs)
             ny = np.einsum("ij,ij->i", normal, self._y)
             self._rhs += self.kn[:, None] * (self._y - ny[:, None] * normal)
+            if self.margins is not None:
+                self.margins.add_force(self._rhs)
             rhs_f = np.take(self._rhs, f, axis=0)
             rhs_f -= held_term
             self.solver.solve(rhs_f, self._xf)
             xf_old = np.take(x, f, axis=0)
-            v[f] = (self._xf - xf_old) * (1.0 / h)
             x[f] = self._xf
+            if self.margins is not None:
+                self.margins.resolve(x)
+            v[f] = (np.take(x, f, axis=0) - xf_old) * (1.0 / h)
             contact(x, v)
