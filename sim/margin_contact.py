@@ -79,6 +79,70 @@ def margin_pairs(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return idx, w, sg
 
 
+ORDER_FRACTION = 0.25  # a margin vertex keeps at least this share of its rest spacing (along x)
+# from the next one along the row (the implicit solve only)
+
+
+def margin_order(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Order constraints along each margin row, as margin_pairs gives its pairs but on x: vertex a
+    = row[k + 1] stays at least ORDER_FRACTION of its rest spacing beyond b0 = b1 = row[k] in the
+    row's direction (sign +-1)."""
+    from sim.smoothness import margin_rows
+
+    try:
+        m = margin_rows(mesh)
+    except (AttributeError, KeyError, IndexError, ValueError):
+        m = {}
+    out = []
+    for row in m.values():
+        s = 1.0 if rest[row[-1], 0] > rest[row[0], 0] else -1.0
+        for a, b in zip(row[1:], row[:-1]):
+            gap = s * (rest[a, 0] - rest[b, 0])
+            if gap > 0.0:
+                out.append((int(a), int(b), int(b), 0.0, s, ORDER_FRACTION * gap, 1.0, 1.0))
+    if not out:
+        return np.zeros((0, 3), np.int64), np.zeros(0), np.zeros((0, 4))
+    return (np.array([r[:3] for r in out], dtype=np.int64), np.array([r[3] for r in out]),
+            np.array([r[4:] for r in out], dtype=np.float64))
+
+
+def margin_rings(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The first ring of skin outside each margin stays on its side of it: a vertex joined by an edge
+    to an upper margin (and on neither margin) keeps at least ORDER_FRACTION of its rest height
+    above that margin at its x, and one by a lower margin as far below it; as margin_pairs gives its
+    pairs, with the vertex's own margin as the opposite one."""
+    from sim.smoothness import margin_rows
+
+    try:
+        m = margin_rows(mesh)
+    except (AttributeError, KeyError, IndexError, ValueError):
+        m = {}
+    if not m:
+        return np.zeros((0, 3), np.int64), np.zeros(0), np.zeros((0, 4))
+    on_margin = np.zeros(len(rest), bool)
+    on_margin[np.concatenate(list(m.values()))] = True
+    tri = np.asarray(mesh.triangles)
+    out = []
+    for name, row in m.items():
+        sign = 1.0 if name.endswith("upper") else -1.0
+        mark = np.zeros(len(rest), bool)
+        mark[row] = True
+        touch = tri[mark[tri].any(axis=1)].ravel()
+        ring = np.unique(touch[~on_margin[touch]])
+        lo, hi = rest[row, 0].min(), rest[row, 0].max()
+        ring = ring[(rest[ring, 0] > lo) & (rest[ring, 0] < hi)]
+        for a, b0, b1, w, _, _, _, _ in _pairs(rest, np.concatenate([[-1], ring, [-1]]), row, sign, (1.0, 1.0), 0.0) \
+                if len(ring) else []:
+            y = (1.0 - w) * rest[b0, 1] + w * rest[b1, 1]
+            gap = sign * (rest[a, 1] - y)
+            if gap > 0.0:
+                out.append((a, b0, b1, w, sign, ORDER_FRACTION * gap, 1.0, 1.0))
+    if not out:
+        return np.zeros((0, 3), np.int64), np.zeros(0), np.zeros((0, 4))
+    return (np.array([r[:3] for r in out], dtype=np.int64), np.array([r[3] for r in out]),
+            np.array([r[4:] for r in out], dtype=np.float64))
+
+
 @numba.njit(**KERNEL)
 def margin_contact(x, v, idx, w, sg, inv_mass):  # type: ignore[no-untyped-def]
     """Projects crossed margin pairs apart along y and removes their closing relative velocity."""
@@ -129,28 +193,31 @@ class SolvedContact:
     is shared between the two margins by the skin's own compliance (the give factors of the
     projection are not used)."""
 
-    def __init__(self, idx: np.ndarray, w: np.ndarray, sg: np.ndarray, free: np.ndarray, n: int,
-                 solve: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> None:
+    def __init__(self, idx: np.ndarray, w: np.ndarray, sg: np.ndarray, dim: np.ndarray, free: np.ndarray,
+                 n: int, solve: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> None:
         p = len(idx)
-        self.idx, self.w, self.sg = idx, w, sg
+        self.idx, self.w, self.sg, self.dim = idx, w, sg, np.asarray(dim, dtype=np.int64)
         self.lam = np.zeros(p)
         pos = np.full(n, -1, dtype=np.int64)
         pos[free] = np.arange(len(free))
         jt = np.zeros((len(free), p))  # J^T on the free vertices (held ones never move)
+        ft = np.zeros((len(free), p))  # the force's direction: J^T with the give factors
         for k in range(p):
-            s = sg[k, 0]
-            for vert, c in ((idx[k, 0], s), (idx[k, 1], -s * (1.0 - w[k])), (idx[k, 2], -s * w[k])):
+            s, ga, gb = sg[k, 0], sg[k, 2], sg[k, 3]
+            for vert, c, g in ((idx[k, 0], s, ga), (idx[k, 1], -s * (1.0 - w[k]), gb), (idx[k, 2], -s * w[k], gb)):
                 if pos[vert] >= 0:
                     jt[pos[vert], k] += c
+                    ft[pos[vert], k] += c * g
         z = np.zeros_like(jt)
         out = np.zeros((len(free), 3))
         for k in range(0, p, 3):  # three columns per solve, as the solver takes them
             cols = min(3, p - k)
             b = np.zeros((len(free), 3))
-            b[:, :cols] = jt[:, k:k + cols]
+            b[:, :cols] = ft[:, k:k + cols]
             solve(b, out)
             z[:, k:k + cols] = out[:, :cols]
-        self.schur = np.ascontiguousarray(jt.T @ z)
+        # x, y and z solve apart: constraints on different coordinates do not see each other
+        self.schur = np.ascontiguousarray(np.where(self.dim[:, None] == self.dim[None, :], jt.T @ z, 0.0))
         ptr, vert, val = [0], [], []
         for k in range(p):
             col = z[:, k]
@@ -166,34 +233,36 @@ class SolvedContact:
 
     def add_force(self, rhs: np.ndarray) -> None:
         """rhs[:, 1] += J^T lam: the contact force of the last substep (step 1)."""
-        _contact_force(rhs, self.idx, self.w, self.sg, self.lam)
+        _contact_force(rhs, self.idx, self.w, self.sg, self.dim, self.lam)
 
     def resolve(self, x: np.ndarray) -> None:
         """Steps 2 and 3 on the solved positions x (all vertices, in place)."""
-        _contact_resolve(x, self.idx, self.w, self.sg, self.lam, self.schur, self.ptr, self.vert, self.val,
+        _contact_resolve(x, self.idx, self.w, self.sg, self.dim, self.lam, self.schur, self.ptr, self.vert, self.val,
                          self._work, self._cand, SWEEPS)
 
 
 @numba.njit(**KERNEL)
-def _contact_force(rhs, idx, w, sg, lam):  # type: ignore[no-untyped-def]
-    """rhs[:, 1] += J^T lam (held vertices get a force too; the solve never reads their rows)."""
+def _contact_force(rhs, idx, w, sg, dim, lam):  # type: ignore[no-untyped-def]
+    """rhs += J^T lam (held vertices get a force too; the solve never reads their rows)."""
     for k in range(idx.shape[0]):
         f = lam[k] * sg[k, 0]
+        d = dim[k]
         if f != 0.0:
-            rhs[idx[k, 0], 1] += f
-            rhs[idx[k, 1], 1] -= f * (1.0 - w[k])
-            rhs[idx[k, 2], 1] -= f * w[k]
+            rhs[idx[k, 0], d] += f * sg[k, 2]
+            rhs[idx[k, 1], d] -= f * (1.0 - w[k]) * sg[k, 3]
+            rhs[idx[k, 2], d] -= f * w[k] * sg[k, 3]
 
 
 @numba.njit(**KERNEL)
-def _contact_resolve(x, idx, w, sg, lam, schur, ptr, vert, val, work, cand, sweeps):  # type: ignore[no-untyped-def]
+def _contact_resolve(x, idx, w, sg, dim, lam, schur, ptr, vert, val, work, cand, sweeps):  # type: ignore[no-untyped-def]
     """The complementarity solve for the change of lam on the pairs in contact (violated or pressed
     last substep), projected Gauss-Seidel on the Schur complement; pairs found violated after the
     sweeps join the set and the sweeps run again (at most three rounds); then x += Z dlam."""
     p = idx.shape[0]
     c, dl, r = work[0], work[1], work[2]
     for k in range(p):
-        c[k] = sg[k, 0] * (x[idx[k, 0], 1] - (1.0 - w[k]) * x[idx[k, 1], 1] - w[k] * x[idx[k, 2], 1]) - sg[k, 1]
+        d = dim[k]
+        c[k] = sg[k, 0] * (x[idx[k, 0], d] - (1.0 - w[k]) * x[idx[k, 1], d] - w[k] * x[idx[k, 2], d]) - sg[k, 1]
         dl[k] = 0.0
     nc = 0
     for k in range(p):
@@ -231,5 +300,6 @@ def _contact_resolve(x, idx, w, sg, lam, schur, ptr, vert, val, work, cand, swee
         d = dl[k]
         if d != 0.0:
             lam[k] += d
+            e = dim[k]
             for q in range(ptr[k], ptr[k + 1]):
-                x[vert[q], 1] += val[q] * d
+                x[vert[q], e] += val[q] * d
