@@ -94,12 +94,19 @@ def margin_order(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarr
     except (AttributeError, KeyError, IndexError, ValueError):
         m = {}
     out = []
+    tri = np.asarray(mesh.triangles)
     for row in m.values():
         s = 1.0 if rest[row[-1], 0] > rest[row[0], 0] else -1.0
         for a, b in zip(row[1:], row[:-1]):
             gap = s * (rest[a, 0] - rest[b, 0])
             if gap > 0.0:
                 out.append((int(a), int(b), int(b), 0.0, s, ORDER_FRACTION * gap, 1.0, 1.0))
+        for end, side in ((row[0], -s), (row[-1], s)):  # the skin beyond each corner stays beyond it
+            touch = np.unique(tri[(tri == end).any(axis=1)].ravel())
+            for v in touch:
+                gap = side * (rest[v, 0] - rest[end, 0])
+                if v != end and gap > 0.0:
+                    out.append((int(v), int(end), int(end), 0.0, side, ORDER_FRACTION * gap, 1.0, 1.0))
     if not out:
         return np.zeros((0, 3), np.int64), np.zeros(0), np.zeros((0, 4))
     return (np.array([r[:3] for r in out], dtype=np.int64), np.array([r[3] for r in out]),
