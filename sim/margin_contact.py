@@ -137,7 +137,9 @@ def margin_rings(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarr
         touch = tri[mark[tri].any(axis=1)].ravel()
         ring = np.unique(touch[~on_margin[touch]])
         lo, hi = rest[row, 0].min(), rest[row, 0].max()
-        ring = ring[(rest[ring, 0] > lo) & (rest[ring, 0] < hi)]
+        beyond = np.maximum(lo - rest[ring, 0], rest[ring, 0] - hi)  # > 0 past a corner
+        y = np.interp(rest[ring, 0], np.sort(rest[row, 0]), rest[row[np.argsort(rest[row, 0])], 1])
+        ring = ring[beyond < np.abs(rest[ring, 1] - y)]  # past a corner only if more above or below it
         for a, b0, b1, w, _, _, _, _ in _pairs(rest, np.concatenate([[-1], ring, [-1]]), row, sign, (1.0, 1.0), 0.0) \
                 if len(ring) else []:
             y = (1.0 - w) * rest[b0, 1] + w * rest[b1, 1]
