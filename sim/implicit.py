@@ -36,7 +36,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from sim.build import FaceModel
-from sim.margin_contact import SolvedContact, margin_order, margin_rings
+from sim.margin_contact import SolvedContact, solved_constraints
 
 
 def laplacian(n: int, springs: np.ndarray, w: np.ndarray) -> sp.csr_matrix:
@@ -182,11 +182,8 @@ class ImplicitStepper:
         self.solver = PrefactoredSolver(a[self.free][:, self.free])
         self.margins = None  # the lid and lip contact, solved with the step (sim.margin_contact)
         if margins is not None and len(margins[0]):
-            order = margin_order(model.mesh, model.rest)
-            rings = margin_rings(model.mesh, model.rest)
-            cons = [np.concatenate([a, b, c]) for a, b, c in zip(margins, rings, order)]
-            dim = np.concatenate([np.ones(len(margins[0]) + len(rings[0]), np.int64), np.zeros(len(order[0]), np.int64)])
-            self.margins = SolvedContact(*cons, dim, self.free, n, self.solver.solve)
+            self.margins = SolvedContact(solved_constraints(model.mesh, model.rest), self.free, n,
+                                         self.solver.solve)
         self._rhs = np.zeros((n, 3))
         self._y = np.zeros((n, 3))
         self._xf = np.zeros((len(self.free), 3))

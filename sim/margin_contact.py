@@ -177,82 +177,117 @@ def margin_contact(x, v, idx, w, sg, inv_mass):  # type: ignore[no-untyped-def]
                 v[b1, 1] -= lam * s * wb * m1
 
 
-CORRECTION_CUTOFF = 0.01  # a pair's position correction keeps the vertices it moves by at least this
-# fraction of its largest entry (the rest is carried by the force in the next solve, see below)
-SWEEPS = 12  # projected Gauss-Seidel sweeps over the pairs in contact per substep (warm-started)
+CORRECTION_CUTOFF = 0.01  # a contact's position correction moves the vertices whose response to it is
+# at least this fraction of the largest (the rest get the change through the next solve, see below)
+ROUNDS = 3  # complementarity solves per substep at most (a correction may close other gaps)
+SWEEPS = 12  # projected Gauss-Seidel sweeps over the constraints in contact per substep (warm-started)
+
+
+def solved_constraints(mesh: FaceMesh, rest: np.ndarray) -> dict[str, np.ndarray]:
+    """Every constraint of the implicit integrator's contact (SolvedContact), as margin_pairs gives
+    its pairs: the margin pairs (on y, re-paired along the opposite margin every substep), the first
+    rings (margin_rings, on y) and the row order (margin_order, on x). Keys: idx, w, sg as in
+    margin_pairs, dim (P,) the coordinate, opp (P,) the opposite row of a margin pair (-1: fixed),
+    row_ptr, row_v the rows (concatenated)."""
+    from sim.smoothness import margin_rows
+
+    parts = [margin_pairs(mesh, rest), margin_rings(mesh, rest), margin_order(mesh, rest)]
+    idx, w, sg = (np.concatenate([q[i] for q in parts]) for i in range(3))
+    dim = np.concatenate([np.ones(len(parts[0][0]) + len(parts[1][0]), np.int64), np.zeros(len(parts[2][0]), np.int64)])
+    try:
+        rows = list(margin_rows(mesh).values())
+    except (AttributeError, KeyError, IndexError, ValueError):
+        rows = []
+    opp = np.full(len(idx), -1, dtype=np.int64)
+    for k in range(len(parts[0][0])):
+        a, b0, b1 = idx[k]
+        opp[k] = next(r for r, row in enumerate(rows) if a not in row and b0 in row and b1 in row)
+    row_ptr = np.cumsum([0] + [len(r) for r in rows]).astype(np.int64)
+    row_v = np.concatenate(rows).astype(np.int64) if rows else np.zeros(0, np.int64)
+    return dict(idx=idx, w=w, sg=sg, dim=dim, opp=opp, row_ptr=row_ptr, row_v=row_v)
 
 
 class SolvedContact:
-    """The lid and lip contact of the implicit integrator: a force in the global solve whose size is
-    solved for on the pairs in contact (a Schur complement), not a projection after it.
+    """The lid and lip contact of the implicit integrator: forces in the global solve whose sizes are
+    solved for on the constraints in contact (a Schur complement), not a projection after it.
 
-    One implicit substep solves A x' = b with A fixed, the same matrix for x, y and z. A pair's gap is
-    linear in the vertical positions, c = J x'_y - g (J: +-1 at vertex a, -+(1 - w), -+w at b0, b1),
-    so with a force J^T lam added to b the gaps become c0 + S lam, S = J A^-1 J^T: P x P, computed
-    once with Z = A^-1 J^T. Each substep
-      1. adds the last substep's contact force J^T lam to the right-hand side and solves;
-      2. finds lam >= 0 with c0 + S dlam >= 0 and lam (c0 + S dlam) = 0 (a linear complementarity
-         problem on the few dozen pairs, projected Gauss-Seidel from the last lam);
-      3. moves the vertices by Z dlam, keeping in each column of Z only the entries of at least
-         CORRECTION_CUTOFF of its largest (the vertices near the pair; the far ones get the change
-         through step 1 of the next substep).
+    One implicit substep solves A x' = b with A fixed, the same matrix for x, y and z. Each
+    constraint is linear in one coordinate of at most three vertices, c = J x' - g >= 0 (a margin
+    pair: +-1 at vertex a, -+(1 - w), -+w at b0, b1 of the opposite margin). A force F^T lam added
+    to b changes the gaps by S lam, S = J A^-1 F^T; A^-1 between the constrained vertices (G) is
+    computed once. Each substep
+      1. adds the last substep's contact forces F^T lam to the right-hand side and solves;
+      2. pairs each margin vertex again with the segment of the opposite margin at its current x
+         (the lids slide along each other as they close) and builds S on the constraints in contact
+         (violated, or pressed in the last substep) from G;
+      3. finds lam >= 0 with c + S dlam >= 0 and lam (c + S dlam) = 0 (a linear complementarity
+         problem, projected Gauss-Seidel from the last lam);
+      4. moves the vertices by A^-1 F^T dlam, keeping of each constrained vertex's column of A^-1
+         only the entries of at least CORRECTION_CUTOFF of its largest (the vertices near it; the far
+         ones get the change through step 1 of the next substep).
     The velocity is then (x' - x) / h, so contact is inelastic. At rest in contact dlam = 0 and the
-    pose is exactly the constrained equilibrium of the global equation: the contact force reaches
-    every vertex through the solve, unlike the projection, whose neighbours never saw it. The force
-    is shared between the two margins by the skin's own compliance (the give factors of the
-    projection are not used)."""
+    pose is the constrained equilibrium of the global equation: the contact force reaches every
+    vertex through the solve, unlike the projection, whose neighbours never saw it. F is J with the
+    give factors (the lower lid takes LOWER_LID_GIVE of the force, as in the projection)."""
 
-    def __init__(self, idx: np.ndarray, w: np.ndarray, sg: np.ndarray, dim: np.ndarray, free: np.ndarray,
-                 n: int, solve: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> None:
-        p = len(idx)
-        self.idx, self.w, self.sg, self.dim = idx, w, sg, np.asarray(dim, dtype=np.int64)
-        self.lam = np.zeros(p)
+    def __init__(self, cons: dict[str, np.ndarray], free: np.ndarray, n: int,
+                 solve: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> None:
+        self.idx = np.array(cons["idx"], dtype=np.int64)
+        self.w = np.array(cons["w"], dtype=np.float64)
+        self.sg = np.ascontiguousarray(cons["sg"], dtype=np.float64)
+        self.dim, self.opp = np.asarray(cons["dim"], np.int64), np.asarray(cons["opp"], np.int64)
+        self.row_ptr, self.row_v = np.asarray(cons["row_ptr"], np.int64), np.asarray(cons["row_v"], np.int64)
+        p = len(self.idx)
+        is_free = np.zeros(n, bool)
+        is_free[free] = True
+        verts = np.unique(self.idx)
+        verts = verts[is_free[verts]]  # held vertices never move
+        self.loc = np.full(n, -1, dtype=np.int64)
+        self.loc[verts] = np.arange(len(verts))
         pos = np.full(n, -1, dtype=np.int64)
         pos[free] = np.arange(len(free))
-        jt = np.zeros((len(free), p))  # J^T on the free vertices (held ones never move)
-        ft = np.zeros((len(free), p))  # the force's direction: J^T with the give factors
-        for k in range(p):
-            s, ga, gb = sg[k, 0], sg[k, 2], sg[k, 3]
-            for vert, c, g in ((idx[k, 0], s, ga), (idx[k, 1], -s * (1.0 - w[k]), gb), (idx[k, 2], -s * w[k], gb)):
-                if pos[vert] >= 0:
-                    jt[pos[vert], k] += c
-                    ft[pos[vert], k] += c * g
-        z = np.zeros_like(jt)
-        out = np.zeros((len(free), 3))
-        for k in range(0, p, 3):  # three columns per solve, as the solver takes them
-            cols = min(3, p - k)
-            b = np.zeros((len(free), 3))
-            b[:, :cols] = ft[:, k:k + cols]
-            solve(b, out)
-            z[:, k:k + cols] = out[:, :cols]
-        # x, y and z solve apart: constraints on different coordinates do not see each other
-        self.schur = np.ascontiguousarray(np.where(self.dim[:, None] == self.dim[None, :], jt.T @ z, 0.0))
+        g = np.zeros((len(verts), len(verts)))
         ptr, vert, val = [0], [], []
-        for k in range(p):
-            col = z[:, k]
-            keep = np.flatnonzero(np.abs(col) >= CORRECTION_CUTOFF * np.abs(col).max()) if p else []
-            vert.append(free[keep])
-            val.append(col[keep])
-            ptr.append(ptr[-1] + len(keep))
-        self.ptr = np.array(ptr, dtype=np.int64)
-        self.vert = np.concatenate(vert).astype(np.int64) if p else np.zeros(0, np.int64)
-        self.val = np.concatenate(val) if p else np.zeros(0)
+        out = np.zeros((len(free), 3))
+        for k in range(0, len(verts), 3):  # three unit loads per solve, as the solver takes them
+            cols = min(3, len(verts) - k)
+            b = np.zeros((len(free), 3))
+            b[pos[verts[k:k + cols]], np.arange(cols)] = 1.0
+            solve(b, out)
+            for c in range(cols):
+                col = out[:, c]
+                g[:, k + c] = col[pos[verts]]
+                keep = np.flatnonzero(np.abs(col) >= CORRECTION_CUTOFF * np.abs(col).max())
+                vert.append(free[keep])
+                val.append(col[keep].copy())
+                ptr.append(ptr[-1] + len(keep))
+        self.green = g
+        self.gptr = np.array(ptr, dtype=np.int64)
+        self.gvert = np.concatenate(vert).astype(np.int64) if vert else np.zeros(0, np.int64)
+        self.gval = np.concatenate(val) if val else np.zeros(0)
+        self.lam = np.zeros(p)
         self._work = np.zeros((3, p))
         self._cand = np.zeros(p, dtype=np.int64)
+        self._schur = np.zeros((p, p))
+        self._df = np.zeros((len(verts), 3))
 
     def add_force(self, rhs: np.ndarray) -> None:
-        """rhs[:, 1] += J^T lam: the contact force of the last substep (step 1)."""
+        """rhs += F^T lam: the contact forces of the last substep (step 1)."""
         _contact_force(rhs, self.idx, self.w, self.sg, self.dim, self.lam)
 
     def resolve(self, x: np.ndarray) -> None:
-        """Steps 2 and 3 on the solved positions x (all vertices, in place)."""
-        _contact_resolve(x, self.idx, self.w, self.sg, self.dim, self.lam, self.schur, self.ptr, self.vert, self.val,
-                         self._work, self._cand, SWEEPS)
+        """Steps 2 to 4 on the solved positions x (all vertices, in place)."""
+        _repair(x, self.idx, self.w, self.opp, self.row_ptr, self.row_v)
+        for _ in range(ROUNDS):  # again while the correction pushed other pairs into contact
+            if not _contact_resolve(x, self.idx, self.w, self.sg, self.dim, self.lam, self.loc, self.green,
+                                    self.gptr, self.gvert, self.gval, self._work, self._cand, self._schur,
+                                    self._df, SWEEPS):
+                break
 
 
 @numba.njit(**KERNEL)
 def _contact_force(rhs, idx, w, sg, dim, lam):  # type: ignore[no-untyped-def]
-    """rhs += J^T lam (held vertices get a force too; the solve never reads their rows)."""
+    """rhs += F^T lam (held vertices get a force too; the solve never reads their rows)."""
     for k in range(idx.shape[0]):
         f = lam[k] * sg[k, 0]
         d = dim[k]
@@ -263,52 +298,106 @@ def _contact_force(rhs, idx, w, sg, dim, lam):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(**KERNEL)
-def _contact_resolve(x, idx, w, sg, dim, lam, schur, ptr, vert, val, work, cand, sweeps):  # type: ignore[no-untyped-def]
-    """The complementarity solve for the change of lam on the pairs in contact (violated or pressed
-    last substep), projected Gauss-Seidel on the Schur complement; pairs found violated after the
-    sweeps join the set and the sweeps run again (at most three rounds); then x += Z dlam."""
+def _repair(x, idx, w, opp, row_ptr, row_v):  # type: ignore[no-untyped-def]
+    """Each margin pair's b0, b1, w: the segment of its opposite row that spans vertex a's x (the
+    nearer end segment when none does)."""
+    for k in range(idx.shape[0]):
+        r = opp[k]
+        if r < 0:
+            continue
+        xa = x[idx[k, 0], 0]
+        s0, s1 = row_ptr[r], row_ptr[r + 1]
+        best, bw = -1, 0.0
+        for j in range(s0, s1 - 1):
+            x0 = x[row_v[j], 0]
+            x1 = x[row_v[j + 1], 0]
+            if (x0 <= xa <= x1) or (x1 <= xa <= x0):
+                best = j
+                bw = (xa - x0) / (x1 - x0) if x1 != x0 else 0.0
+                break
+        if best < 0:
+            if abs(xa - x[row_v[s0], 0]) <= abs(xa - x[row_v[s1 - 1], 0]):
+                best, bw = s0, 0.0
+            else:
+                best, bw = s1 - 2, 1.0
+        idx[k, 1] = row_v[best]
+        idx[k, 2] = row_v[best + 1]
+        w[k] = bw
+
+
+@numba.njit(**KERNEL)
+def _contact_resolve(x, idx, w, sg, dim, lam, loc, green, gptr, gvert, gval, work, cand, schur, df, sweeps):  # type: ignore[no-untyped-def]
+    """Steps 2 to 4 of SolvedContact: the gaps, the Schur complement on the constraints in contact
+    (violated, or pressed last substep) from the Green's function, projected Gauss-Seidel for the
+    change of lam, and x += A^-1 F^T dlam (truncated columns). Returns how many constraints out of
+    contact the correction violated."""
     p = idx.shape[0]
-    c, dl, r = work[0], work[1], work[2]
+    c, dl = work[0], work[1]
     for k in range(p):
         d = dim[k]
         c[k] = sg[k, 0] * (x[idx[k, 0], d] - (1.0 - w[k]) * x[idx[k, 1], d] - w[k] * x[idx[k, 2], d]) - sg[k, 1]
-        dl[k] = 0.0
     nc = 0
     for k in range(p):
         if lam[k] > 0.0 or c[k] < 0.0:
             cand[nc] = k
             nc += 1
-    for _ in range(3):
-        for _ in range(sweeps):
-            for ii in range(nc):
-                k = cand[ii]
-                res = c[k]
-                for jj in range(nc):
-                    res += schur[k, cand[jj]] * dl[cand[jj]]
-                new = lam[k] + dl[k] - res / schur[k, k]
-                dl[k] = (new if new > 0.0 else 0.0) - lam[k]
-        grown = False
-        for k in range(p):
-            r[k] = c[k]
+    if nc == 0:
+        return 0
+    for ii in range(nc):  # S = J G F^T on the candidates
+        k = cand[ii]
+        jk0, jk1, jk2 = sg[k, 0], -sg[k, 0] * (1.0 - w[k]), -sg[k, 0] * w[k]
+        for jj in range(nc):
+            m = cand[jj]
+            acc = 0.0
+            if dim[m] == dim[k]:
+                fm0 = sg[m, 0] * sg[m, 2]
+                fm1 = -sg[m, 0] * (1.0 - w[m]) * sg[m, 3]
+                fm2 = -sg[m, 0] * w[m] * sg[m, 3]
+                for pk in range(3):
+                    u = loc[idx[k, pk]]
+                    if u < 0:
+                        continue
+                    jc = jk0 if pk == 0 else (jk1 if pk == 1 else jk2)
+                    for pm in range(3):
+                        v = loc[idx[m, pm]]
+                        if v >= 0:
+                            acc += jc * green[u, v] * (fm0 if pm == 0 else (fm1 if pm == 1 else fm2))
+            schur[ii, jj] = acc
+        dl[k] = 0.0
+    for _ in range(sweeps):
+        for ii in range(nc):
+            k = cand[ii]
+            if schur[ii, ii] <= 0.0:
+                continue
+            res = c[k]
             for jj in range(nc):
-                r[k] += schur[k, cand[jj]] * dl[cand[jj]]
-        for k in range(p):
-            if r[k] < 0.0 and lam[k] + dl[k] == 0.0:
-                inside = False
-                for jj in range(nc):
-                    if cand[jj] == k:
-                        inside = True
-                if not inside:
-                    cand[nc] = k
-                    nc += 1
-                    grown = True
-        if not grown:
-            break
+                res += schur[ii, jj] * dl[cand[jj]]
+            new = lam[k] + dl[k] - res / schur[ii, ii]
+            dl[k] = (new if new > 0.0 else 0.0) - lam[k]
     for ii in range(nc):
         k = cand[ii]
         d = dl[k]
-        if d != 0.0:
-            lam[k] += d
-            e = dim[k]
-            for q in range(ptr[k], ptr[k + 1]):
-                x[vert[q], e] += val[q] * d
+        if d == 0.0:
+            continue
+        lam[k] += d
+        f = d * sg[k, 0]
+        e = dim[k]
+        for pk in range(3):
+            u = loc[idx[k, pk]]
+            if u >= 0:
+                cf = sg[k, 2] if pk == 0 else (-(1.0 - w[k]) * sg[k, 3] if pk == 1 else -w[k] * sg[k, 3])
+                df[u, e] += f * cf
+    for u in range(df.shape[0]):
+        for e in range(3):
+            g = df[u, e]
+            if g != 0.0:
+                for q in range(gptr[u], gptr[u + 1]):
+                    x[gvert[q], e] += gval[q] * g
+                df[u, e] = 0.0
+    late = 0  # constraints out of contact before that the correction violated
+    for k in range(p):
+        if lam[k] == 0.0:
+            d = dim[k]
+            if sg[k, 0] * (x[idx[k, 0], d] - (1.0 - w[k]) * x[idx[k, 1], d] - w[k] * x[idx[k, 2], d]) < sg[k, 1]:
+                late += 1
+    return late
