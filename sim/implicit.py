@@ -36,7 +36,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from sim.build import FaceModel
-from sim.margin_contact import SolvedContact, solved_constraints
+from sim.margin_contact import SolvedContact, margin_bending, solved_constraints
 
 
 def laplacian(n: int, springs: np.ndarray, w: np.ndarray) -> sp.csr_matrix:
@@ -176,7 +176,8 @@ class ImplicitStepper:
         self.mass_h2 = mass / h**2
         self.damp_h = np.asarray(model.damping) / h
         self.kn = np.asarray(model.support_stiffness)
-        a = (laplacian(n, springs, np.asarray(model.spring_k_high))
+        self.bend = margin_bending(model.mesh, model.rest, springs, np.asarray(model.spring_k_high))
+        a = (laplacian(n, springs, np.asarray(model.spring_k_high)) + self.bend
              + sp.diags(self.mass_h2 + self.damp_h + np.asarray(model.rest_stiffness) + self.kn)).tocsr()
         self.a_fh = a[self.free][:, self.held].tocsr()
         self.solver = PrefactoredSolver(a[self.free][:, self.free])
@@ -189,7 +190,8 @@ class ImplicitStepper:
         self._xf = np.zeros((len(self.free), 3))
 
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
-              normal: np.ndarray, contact: Callable[[np.ndarray, np.ndarray], None]) -> None:
+              normal: np.ndarray, contact: Callable[[np.ndarray, np.ndarray], None],
+              shape: np.ndarray | None = None) -> None:
         """n_sub substeps in place. ext: the frame-constant forces (muscles, gravity, the target terms
         of the tether and of the normal support); springs: (indices, rest lengths, k_low, k_high,
         threshold) as the kernel takes them; normal (N,3): the support's normals this frame. The
@@ -198,6 +200,8 @@ class ImplicitStepper:
         h, f = self.h, self.free
         idx, rest_len, k_low, k_high, thr = springs
         held_term = self.a_fh @ x[self.held]  # held nodes do not move within a frame
+        if shape is not None and self.bend.nnz:  # the margin bending term's rest side
+            ext = ext + self.bend @ shape
         for _ in range(n_sub):
             np.multiply(v, h, out=self._y)
             self._y += x

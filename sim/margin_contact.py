@@ -177,6 +177,42 @@ def margin_contact(x, v, idx, w, sg, inv_mass):  # type: ignore[no-untyped-def]
                 v[b1, 1] -= lam * s * wb * m1
 
 
+MARGIN_BENDING = 1.0  # stiffness of the margin rows' bending term (implicit solve) relative to the
+# row's edge springs
+
+
+def margin_bending(mesh: FaceMesh, rest: np.ndarray, springs: np.ndarray, k: np.ndarray) -> "sp.csr_matrix":
+    """(N, N) the bending term of the margin rows for the implicit integrator's matrix: the energy
+    sum_k k_b |u_{k-1} - 2 u_k + u_{k+1}|^2 / 2 of the displacements u from the (jaw-turned) rest
+    shape along each lid and lip row, k_b = MARGIN_BENDING times the mean stiffness k of the row's
+    edge springs. It is zero for any displacement that is linear along the row (a uniform press, a
+    turn with the jaw) and stiffest against the alternating one: a margin pressed along its length
+    (the lips in AU24, a closing lid) buckled into that zig-zag at 3k vertices, a mode the mesh has
+    and the tissue has not (the lips' and lids' fibres run along the margin)."""
+    import scipy.sparse as sp
+
+    from sim.smoothness import margin_rows
+
+    try:
+        rows = margin_rows(mesh)
+    except (AttributeError, KeyError, IndexError, ValueError):
+        rows = {}
+    n = len(rest)
+    edge_k = {(int(min(a, b)), int(max(a, b))): float(kk) for (a, b), kk in zip(springs, k)}
+    ri, ci, vals = [], [], []
+    for row in rows.values():
+        ks = [edge_k.get((int(min(a, b)), int(max(a, b))), 0.0) for a, b in zip(row[:-1], row[1:])]
+        kb = MARGIN_BENDING * float(np.mean(ks)) if ks else 0.0
+        for j in range(1, len(row) - 1):
+            trip = (row[j - 1], row[j], row[j + 1])
+            for a, ca in zip(trip, (1.0, -2.0, 1.0)):
+                for b, cb in zip(trip, (1.0, -2.0, 1.0)):
+                    ri.append(int(a))
+                    ci.append(int(b))
+                    vals.append(kb * ca * cb)
+    return sp.coo_matrix((vals, (ri, ci)), shape=(n, n)).tocsr()
+
+
 CORRECTION_CUTOFF = 0.01  # a contact's position correction moves the vertices whose response to it is
 # at least this fraction of the largest (the rest get the change through the next solve, see below)
 ROUNDS = 3  # complementarity solves per substep at most (a correction may close other gaps)
