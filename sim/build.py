@@ -62,6 +62,9 @@ class SkinParams:
                     forward and down the articular eminence at jaw = 1 (`jaw_slide_angle` rad below
                     the horizontal): a wide-open mouth is the hinge rotation plus this translation,
                     which keeps the chin from swinging back into the throat.
+    margin_bending: stiffness of the bending term along the lid and lip rows, relative to the row's
+                    edge springs (`sim.margin_contact.margin_bending`; the implicit integrator only,
+                    0 turns it off): on fine meshes a pressed margin otherwise buckles into a zig-zag.
     """
 
     areal_density: float = 0.3
@@ -81,6 +84,7 @@ class SkinParams:
     jaw_max_angle: float = 0.55
     jaw_max_slide: float = 1.4
     jaw_slide_angle: float = 0.6
+    margin_bending: float = 2.0
 
 
 @dataclass(frozen=True, eq=False)

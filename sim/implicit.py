@@ -176,7 +176,8 @@ class ImplicitStepper:
         self.mass_h2 = mass / h**2
         self.damp_h = np.asarray(model.damping) / h
         self.kn = np.asarray(model.support_stiffness)
-        self.bend = margin_bending(model.mesh, model.rest, springs, np.asarray(model.spring_k_high))
+        self.bend = margin_bending(model.mesh, model.rest, springs, np.asarray(model.spring_k_high),
+                                   model.params.margin_bending)
         a = (laplacian(n, springs, np.asarray(model.spring_k_high)) + self.bend
              + sp.diags(self.mass_h2 + self.damp_h + np.asarray(model.rest_stiffness) + self.kn)).tocsr()
         self.a_fh = a[self.free][:, self.held].tocsr()

@@ -26,6 +26,7 @@ from collections.abc import Callable
 
 import numba
 import numpy as np
+import scipy.sparse as sp
 
 from sim.model import FaceMesh
 
@@ -177,20 +178,17 @@ def margin_contact(x, v, idx, w, sg, inv_mass):  # type: ignore[no-untyped-def]
                 v[b1, 1] -= lam * s * wb * m1
 
 
-MARGIN_BENDING = 1.0  # stiffness of the margin rows' bending term (implicit solve) relative to the
-# row's edge springs
-
-
-def margin_bending(mesh: FaceMesh, rest: np.ndarray, springs: np.ndarray, k: np.ndarray) -> "sp.csr_matrix":
+def margin_bending(mesh: FaceMesh, rest: np.ndarray, springs: np.ndarray, k: np.ndarray,
+                   ratio: float) -> sp.csr_matrix:
     """(N, N) the bending term of the margin rows for the implicit integrator's matrix: the energy
     sum_k k_b |u_{k-1} - 2 u_k + u_{k+1}|^2 / 2 of the displacements u from the (jaw-turned) rest
-    shape along each lid and lip row, k_b = MARGIN_BENDING times the mean stiffness k of the row's
-    edge springs. It is zero for any displacement that is linear along the row (a uniform press, a
-    turn with the jaw) and stiffest against the alternating one: a margin pressed along its length
-    (the lips in AU24, a closing lid) buckled into that zig-zag at 3k vertices, a mode the mesh has
-    and the tissue has not (the lips' and lids' fibres run along the margin)."""
-    import scipy.sparse as sp
-
+    shape along each lid and lip row, k_b = ratio (SkinParams.margin_bending) times the mean
+    stiffness k of the row's edge springs. It is zero for any displacement that is linear along the
+    row (a uniform press, a turn with the jaw) and stiffest against the alternating one: a margin
+    pressed along its length (the lips in AU24, a closing lid) buckled into that zig-zag at 3k
+    vertices, a mode the mesh has and the tissue has not (the lips' and lids' fibres run along the
+    margin). RK2 (the coarse default face, whose rows do not buckle) goes without it: at resolution
+    0 it would raise the stable step's omega_max by a third."""
     from sim.smoothness import margin_rows
 
     try:
@@ -202,7 +200,7 @@ def margin_bending(mesh: FaceMesh, rest: np.ndarray, springs: np.ndarray, k: np.
     ri, ci, vals = [], [], []
     for row in rows.values():
         ks = [edge_k.get((int(min(a, b)), int(max(a, b))), 0.0) for a, b in zip(row[:-1], row[1:])]
-        kb = MARGIN_BENDING * float(np.mean(ks)) if ks else 0.0
+        kb = ratio * float(np.mean(ks)) if ks else 0.0
         for j in range(1, len(row) - 1):
             trip = (row[j - 1], row[j], row[j + 1])
             for a, ca in zip(trip, (1.0, -2.0, 1.0)):
