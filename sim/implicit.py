@@ -13,11 +13,16 @@ real-time budget. Here each substep is one local/global iteration of projective 
   + k_r target + f_muscle + f_gravity, with L(k_h) the springs' graph Laplacian. The matrix is
   constant and the same for x, y and z, so it is factored once (sparse LU, scipy SuperLU) and a
   substep costs one spring pass and two triangular solves with 3 right-hand sides.
-- v' = (x' - x) / h.
+- the lid and lip contact is solved with the global step (forces of unknown size on the margin
+  pairs, `sim.margin_contact.SolvedContact`), then v' = (x' - x) / h; the eyeball contact is a
+  projection after it.
 
-At rest (x' = x = y) the global equation is exactly the force balance RK2 settles to, so a settled
-pose is the same equilibrium; only the transient differs (implicit Euler damps fast modes; the axial
-spring damping is left out, implicit Euler's own dissipation replaces it).
+The matrix also carries a bending term along the lid and lip rows (`sim.margin_contact.
+margin_bending`, K_b (x' - rest shape) with the rest shape turned with the jaw): a fine mesh's
+pressed margin buckles into an alternating zig-zag without it. RK2 has no such term, so apart from it
+(and from contact) the global equation at rest (x' = x = y) is exactly the force balance RK2 settles
+to, and a settled pose is the same equilibrium; only the transient differs (implicit Euler damps fast
+modes; the axial spring damping is left out, implicit Euler's own dissipation replaces it).
 
 Substeps: accuracy, not stability, sets h: the slowest physically meaningful motion is the skin
 swinging on its eq 9 tethers, omega_r = sqrt(tether / areal density) (~100 rad/s, and damped at
@@ -176,6 +181,9 @@ class ImplicitStepper:
         self.mass_h2 = mass / h**2
         self.damp_h = np.asarray(model.damping) / h
         self.kn = np.asarray(model.support_stiffness)
+        self.rest = np.asarray(model.rest)
+        self._shape: np.ndarray | None = None
+        self._bend_rhs = np.zeros((n, 3))
         self.bend = margin_bending(model.mesh, model.rest, springs, np.asarray(model.spring_k_high),
                                    model.params.margin_bending)
         a = (laplacian(n, springs, np.asarray(model.spring_k_high)) + self.bend
@@ -197,12 +205,16 @@ class ImplicitStepper:
         of the tether and of the normal support); springs: (indices, rest lengths, k_low, k_high,
         threshold) as the kernel takes them; normal (N,3): the support's normals this frame. The
         support k_n n n^T enters like a spring: k_n I in the matrix, k_n (y - n (n . y)) on the right.
-        contact(x, v) is applied after each substep (the eyeballs)."""
+        contact(x, v) is applied after each substep (the eyeballs); shape (N,3): the rest shape of
+        the margin bending term this frame (turned with the jaw; None: the model's rest)."""
         h, f = self.h, self.free
         idx, rest_len, k_low, k_high, thr = springs
         held_term = self.a_fh @ x[self.held]  # held nodes do not move within a frame
-        if shape is not None and self.bend.nnz:  # the margin bending term's rest side
-            ext = ext + self.bend @ shape
+        if self.bend.nnz:  # the margin bending term's rest side (the shape changes with the jaw)
+            shape = self.rest if shape is None else shape
+            if shape is not self._shape:
+                self._shape, self._bend_rhs = shape, self.bend @ shape
+            ext = ext + self._bend_rhs
         for _ in range(n_sub):
             np.multiply(v, h, out=self._y)
             self._y += x

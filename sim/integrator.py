@@ -5,7 +5,8 @@ Per node i (free, not held):
               + k_n,i n_i n_i.(target_i - x_i) (normal support, see SkinParams.support)
               + sum_c a_c F_c,i (muscles) + m_i g
 and after every substep the closed lids and the lips are kept from passing each other
-(`sim.margin_contact`, RK2 only) and the vertices near the eyeballs outside them (`_eye_contact`).
+(`sim.margin_contact`; the implicit integrator solves that contact within its step) and the
+vertices near the eyeballs outside them (`_eye_contact`).
 RK2 reading chosen: the explicit *midpoint* method (Numerical Recipes' "second-order Runge-Kutta",
 the paper's ref [16]): k1 = f(y); k2 = f(y + h/2 k1); y += h k2.
 

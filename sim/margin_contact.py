@@ -1,23 +1,34 @@
 """Contact between the two lids of each eye and between the two lips: a closing margin stops where
-it meets the other one instead of passing through it (explicit RK2 only, see below).
+it meets the other one instead of passing through it. Two forms, one per integrator.
 
-Each margin vertex (corners excluded) is paired at rest with the point of the opposite margin at
-the same frontal-plane x (linear between the two vertices that bracket it), both ways (upper
-vertices against the lower margin and lower ones against the upper). After every substep a pair
-that has crossed is projected back apart along the vertical, the correction shared by inverse
-mass (a position-based constraint, Mueller et al. 2007, one Gauss-Seidel sweep), and the part of
-the pair's relative velocity that drives them further into each other is removed, as the eyeball
-contact does. A lower lid yields only LOWER_LID_GIVE as much as the upper one (the upper lid does
-the closing). The constraint is one-sided and never acts at rest: a pair that overlaps at rest
-(lips drawn closed on some meshes) may keep that overlap, no more; closed lids may overlap by
-LID_OVERLAP. Cost: a few dozen pairs per
+Explicit RK2 (`margin_contact`, the coarse default face and transferred heads): each margin vertex
+(corners excluded) is paired at rest with the point of the opposite margin at the same frontal-plane
+x (linear between the two vertices that bracket it), both ways (upper vertices against the lower
+margin and lower ones against the upper). After every substep a pair that has crossed is projected
+back apart along the vertical, the correction shared by inverse mass (a position-based constraint,
+Mueller et al. 2007, one Gauss-Seidel sweep), and the part of the pair's relative velocity that
+drives them further into each other is removed, as the eyeball contact does. A lower lid yields
+only LOWER_LID_GIVE as much as the upper one (the upper lid does the closing). The constraint is
+one-sided and never acts at rest: a pair that overlaps at rest (lips drawn closed on some meshes)
+may keep that overlap, no more; closed lids may overlap by LID_OVERLAP. Cost: a few dozen pairs per
 face, nothing next to the springs.
 
-Why not in the implicit integrator (`sim.implicit`, the 3k and 12k faces): a projection after its
-global solve has a false fixed point (the solve spreads the held vertices' push over their
-neighbours; at 3k vertices closed lids stopped 5 mm down instead of 8); the contact as a
-projective-dynamics term in the matrix made every margin vertex heavier (AU9 reached its lip lift
-seconds later), and as an explicit penalty it left the closed lids 1.5 mm open and folded.
+Implicit integrator (`SolvedContact`, `sim.implicit`, the 3k and 12k faces): the same pairs, but
+solved with the step as forces of unknown size (a linear complementarity problem on the Schur
+complement of the step's fixed matrix, warm-started; see the class), re-paired along the opposite
+margin at the current x every substep, plus two kinds of constraint the finer meshes need: each
+margin row keeps its order along x, and the first ring of skin outside a margin (or a corner) stays
+on its side of it (`margin_order`, `margin_rings`). With the margin rows' bending term
+(`margin_bending`) that is what keeps closed lids and pressed lips clean there. What failed before:
+a projection after the global solve has a false fixed point (the solve spreads the projected
+vertices' push over their neighbours, which never see it; at 3k vertices closed lids stopped 5 mm
+down instead of 8); the contact as a projective-dynamics term in the matrix made every margin
+vertex heavier (AU9 reached its lip lift seconds later); as an explicit penalty it left the closed
+lids 1.5 mm open and folded. With the contact alone (pairs fixed at rest) the lids still crossed by
+0.7 mm at 12k vertices (they slide along each other by up to 2 mm as they close), the skin behind
+a stopped margin rolled past it (upper lid, 12k: 34 folded triangles) and the upper margin next to
+the inner canthus stepped past its neighbours; pressed lips buckled into an alternating zig-zag of
+~1 mm at 3k vertices, with RK2 as well, which no contact removes.
 """
 
 from __future__ import annotations
