@@ -41,7 +41,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from sim.build import FaceModel
-from sim.margin_contact import SolvedContact, margin_bending, solved_constraints
+from sim.margin_contact import SolvedContact, margin_bending, solved_constraints, warm_up_solved
 
 
 def laplacian(n: int, springs: np.ndarray, w: np.ndarray) -> sp.csr_matrix:
@@ -164,6 +164,7 @@ def warm_up() -> None:
     y = np.array([[0.0, 0.0, 0.0], [1.1, 0.0, 0.0]])
     one = np.ones(1)
     _pd_springs(y, np.array([[0, 1]], dtype=np.int32), one, one, one, 0.1, np.zeros_like(y))
+    warm_up_solved()
 
 
 class ImplicitStepper:
