@@ -194,8 +194,8 @@ def margin_bending(mesh: FaceMesh, rest: np.ndarray, springs: np.ndarray, k: np.
     """(N, N) the bending term of the margin rows for the implicit integrator's matrix: the energy
     sum_k k_b |u_{k-1} - 2 u_k + u_{k+1}|^2 / 2 of the displacements u from the (jaw-turned) rest
     shape along each lid and lip row, k_b = ratio (SkinParams.margin_bending) times the mean
-    stiffness k of the row's edge springs. It is zero for any displacement that is linear along the
-    row (a uniform press, a turn with the jaw) and stiffest against the alternating one: a margin
+    stiffness k of the row's edge springs. It is zero for a translation and for the turn with the
+    jaw, small for a displacement smooth along the row, and stiffest against the alternating one: a margin
     pressed along its length (the lips in AU24, a closing lid) buckled into that zig-zag at 3k
     vertices, a mode the mesh has and the tissue has not (the lips' and lids' fibres run along the
     margin). RK2 (the coarse default face, whose rows do not buckle) goes without it: at resolution

@@ -83,3 +83,23 @@ def test_auto_keeps_rk2_while_it_is_cheap(synth_model: FaceModel) -> None:
     sim = Simulator(synth_model)
     assert sim.rk2_substeps * len(synth_model.spring_indices) <= RK2_WORK_LIMIT
     assert sim.method == "rk2" and sim.substeps == sim.rk2_substeps
+
+
+def test_margin_bending_resists_the_zigzag_not_the_smooth_motion() -> None:
+    """The lid and lip rows' bending term (sim.margin_contact.margin_bending) has no force for a
+    translation and little for a displacement smooth along the rows (a lip pressed in as a whole),
+    and resists the alternating zig-zag that pressed lips buckled into."""
+    from sim.build import default_model
+    from sim.margin_contact import margin_bending
+    from sim.smoothness import margin_rows
+
+    m = default_model(1)
+    bend = margin_bending(m.mesh, m.rest, np.asarray(m.spring_indices), np.asarray(m.spring_k_high), 2.0)
+    assert bend.nnz and abs(bend - bend.T).max() < 1e-9  # an energy's Hessian
+    assert np.abs(bend @ np.full(m.n_vertices, 0.3)).max() < 1e-9 * np.abs(bend).max()
+    lips = margin_rows(m.mesh)["lip_upper"]
+    half = 0.5 * (m.rest[lips, 0].max() - m.rest[lips, 0].min())
+    smooth, zigzag = np.zeros(m.n_vertices), np.zeros(m.n_vertices)
+    smooth[lips] = 0.1 * np.cos(0.5 * np.pi * m.rest[lips, 0] / half)  # 1 mm in the middle, 0 at the corners
+    zigzag[lips[1:-1]] = 0.1 * (-1.0) ** np.arange(len(lips) - 2)
+    assert smooth @ (bend @ smooth) < 0.02 * (zigzag @ (bend @ zigzag))
