@@ -249,6 +249,18 @@ def solved_constraints(mesh: FaceMesh, rest: np.ndarray) -> dict[str, np.ndarray
         opp[k] = next(r for r, row in enumerate(rows) if a not in row and b0 in row and b1 in row)
     row_ptr = np.cumsum([0] + [len(r) for r in rows]).astype(np.int64)
     row_v = np.concatenate(rows).astype(np.int64) if rows else np.zeros(0, np.int64)
+    # the least gap again for the pairing the substeps use (along the row, not sorted by x), so
+    # that the rest pose satisfies every pair whatever the row's shape
+    pairs = opp >= 0
+
+    def gap(i: np.ndarray, ww: np.ndarray) -> np.ndarray:
+        return sg[pairs, 0] * (rest[i[pairs, 0], 1] - (1.0 - ww[pairs]) * rest[i[pairs, 1], 1]
+                               - ww[pairs] * rest[i[pairs, 2], 1])
+
+    overlap = np.minimum(gap(idx, w), 0.0) - sg[pairs, 1]
+    idx, w, sg = idx.copy(), w.copy(), sg.copy()
+    _repair(np.ascontiguousarray(rest, dtype=np.float64), idx, w, opp, row_ptr, row_v)
+    sg[pairs, 1] = np.minimum(gap(idx, w), 0.0) - overlap
     return dict(idx=idx, w=w, sg=sg, dim=dim, opp=opp, row_ptr=row_ptr, row_v=row_v)
 
 
