@@ -50,12 +50,24 @@ LOWER_LID_GIVE = 0.1  # how far a lower lid yields to the upper one, relative to
 # the upper lid does the closing; a lower margin pushed down as far folded its first ring of skin
 
 
+def _rows(mesh: FaceMesh) -> dict[str, np.ndarray]:
+    """sim.smoothness.margin_rows, or none for a mesh without eye and mouth loops."""
+    from sim.smoothness import margin_rows
+
+    try:
+        return margin_rows(mesh)
+    except (AttributeError, KeyError, IndexError, ValueError):
+        return {}
+
+
 def _pairs(rest: np.ndarray, a_row: np.ndarray, b_row: np.ndarray, sign: float,
-           give: tuple[float, float], overlap: float) -> list[tuple]:  # type: ignore[type-arg]
+           give: tuple[float, float], overlap: float, ends: bool = False) -> list[tuple]:  # type: ignore[type-arg]
+    """Each vertex of a_row (its two ends too only if `ends`) against the point of b_row at its rest
+    x: (a, b0, b1, w, sign, least gap, give of a, give of b)."""
     order = np.argsort(rest[b_row, 0], kind="stable")
     bx, b = rest[b_row[order], 0], b_row[order]
     out = []
-    for i in a_row[1:-1]:
+    for i in (a_row if ends else a_row[1:-1]):
         x = rest[i, 0]
         k = int(np.clip(np.searchsorted(bx, x) - 1, 0, len(b) - 2))
         span = bx[k + 1] - bx[k]
@@ -71,13 +83,8 @@ def margin_pairs(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarr
     upper margin else -1, the least allowed signed gap (cm, <= 0: the overlap at rest), and how much
     a and the opposite margin yield (factors on their inverse masses)).
     Empty arrays for a mesh without eye and mouth loops."""
-    from sim.smoothness import margin_rows
-
     rows: list[tuple] = []  # type: ignore[type-arg]
-    try:
-        m = margin_rows(mesh)
-    except (AttributeError, KeyError, IndexError, ValueError):
-        m = {}
+    m = _rows(mesh)
     for up, low, g in (("eye_l_upper", "eye_l_lower", LOWER_LID_GIVE), ("eye_r_upper", "eye_r_lower", LOWER_LID_GIVE),
                        ("lip_upper", "lip_lower", 1.0)):
         if up in m and low in m and len(m[up]) > 2 and len(m[low]) > 2:
@@ -99,12 +106,7 @@ def margin_order(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarr
     """Order constraints along each margin row, as margin_pairs gives its pairs but on x: vertex a
     = row[k + 1] stays at least ORDER_FRACTION of its rest spacing beyond b0 = b1 = row[k] in the
     row's direction (sign +-1)."""
-    from sim.smoothness import margin_rows
-
-    try:
-        m = margin_rows(mesh)
-    except (AttributeError, KeyError, IndexError, ValueError):
-        m = {}
+    m = _rows(mesh)
     out = []
     tri = np.asarray(mesh.triangles)
     for row in m.values():
@@ -130,12 +132,7 @@ def margin_rings(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarr
     to an upper margin (and on neither margin) keeps at least ORDER_FRACTION of its rest height
     above that margin at its x, and one by a lower margin as far below it; as margin_pairs gives its
     pairs, with the vertex's own margin as the opposite one."""
-    from sim.smoothness import margin_rows
-
-    try:
-        m = margin_rows(mesh)
-    except (AttributeError, KeyError, IndexError, ValueError):
-        m = {}
+    m = _rows(mesh)
     if not m:
         return np.zeros((0, 3), np.int64), np.zeros(0), np.zeros((0, 4))
     on_margin = np.zeros(len(rest), bool)
@@ -152,8 +149,7 @@ def margin_rings(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarr
         beyond = np.maximum(lo - rest[ring, 0], rest[ring, 0] - hi)  # > 0 past a corner
         y = np.interp(rest[ring, 0], np.sort(rest[row, 0]), rest[row[np.argsort(rest[row, 0])], 1])
         ring = ring[beyond < np.abs(rest[ring, 1] - y)]  # past a corner only if more above or below it
-        for a, b0, b1, w, _, _, _, _ in _pairs(rest, np.concatenate([[-1], ring, [-1]]), row, sign, (1.0, 1.0), 0.0) \
-                if len(ring) else []:
+        for a, b0, b1, w, _, _, _, _ in _pairs(rest, ring, row, sign, (1.0, 1.0), 0.0, ends=True):
             y = (1.0 - w) * rest[b0, 1] + w * rest[b1, 1]
             gap = sign * (rest[a, 1] - y)
             if gap > 0.0:
@@ -200,12 +196,7 @@ def margin_bending(mesh: FaceMesh, rest: np.ndarray, springs: np.ndarray, k: np.
     vertices, a mode the mesh has and the tissue has not (the lips' and lids' fibres run along the
     margin). RK2 (the coarse default face, whose rows do not buckle) goes without it: at resolution
     0 it would raise the stable step's omega_max by a third."""
-    from sim.smoothness import margin_rows
-
-    try:
-        rows = margin_rows(mesh)
-    except (AttributeError, KeyError, IndexError, ValueError):
-        rows = {}
+    rows = _rows(mesh)
     n = len(rest)
     edge_k = {(int(min(a, b)), int(max(a, b))): float(kk) for (a, b), kk in zip(springs, k)}
     ri, ci, vals = [], [], []
@@ -234,15 +225,10 @@ def solved_constraints(mesh: FaceMesh, rest: np.ndarray) -> dict[str, np.ndarray
     rings (margin_rings, on y) and the row order (margin_order, on x). Keys: idx, w, sg as in
     margin_pairs, dim (P,) the coordinate, opp (P,) the opposite row of a margin pair (-1: fixed),
     row_ptr, row_v the rows (concatenated)."""
-    from sim.smoothness import margin_rows
-
     parts = [margin_pairs(mesh, rest), margin_rings(mesh, rest), margin_order(mesh, rest)]
     idx, w, sg = (np.concatenate([q[i] for q in parts]) for i in range(3))
     dim = np.concatenate([np.ones(len(parts[0][0]) + len(parts[1][0]), np.int64), np.zeros(len(parts[2][0]), np.int64)])
-    try:
-        rows = list(margin_rows(mesh).values())
-    except (AttributeError, KeyError, IndexError, ValueError):
-        rows = []
+    rows = list(_rows(mesh).values())
     opp = np.full(len(idx), -1, dtype=np.int64)
     for k in range(len(parts[0][0])):
         a, b0, b1 = idx[k]
