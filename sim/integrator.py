@@ -433,6 +433,8 @@ class Simulator:
         if reason:
             x[...] = self._saved_x
             v[...] = 0.0
+            if self._implicit is not None and self._implicit.margins is not None:
+                self._implicit.margins.lam[...] = 0.0  # no contact force carried into the restart
             self.guard_events.append(GuardEvent(state.time + self.frame_dt, reason))
         state.time += self.frame_dt
         values = control.values
