@@ -186,7 +186,7 @@ class ImplicitStepper:
         self._shape: np.ndarray | None = None
         self._bend_rhs = np.zeros((n, 3))
         self.bend = margin_bending(model.mesh, model.rest, springs, np.asarray(model.spring_k_high),
-                                   model.params.margin_bending)
+                                   model.params.lid_bending, model.params.lip_bending)
         a = (laplacian(n, springs, np.asarray(model.spring_k_high)) + self.bend
              + sp.diags(self.mass_h2 + self.damp_h + np.asarray(model.rest_stiffness) + self.kn)).tocsr()
         self.a_fh = a[self.free][:, self.held].tocsr()

@@ -186,11 +186,11 @@ def margin_contact(x, v, idx, w, sg, inv_mass):  # type: ignore[no-untyped-def]
 
 
 def margin_bending(mesh: FaceMesh, rest: np.ndarray, springs: np.ndarray, k: np.ndarray,
-                   ratio: float) -> sp.csr_matrix:
+                   lids: float, lips: float) -> sp.csr_matrix:
     """(N, N) the bending term of the margin rows for the implicit integrator's matrix: the energy
     sum_k k_b |u_{k-1} - 2 u_k + u_{k+1}|^2 / 2 of the displacements u from the (jaw-turned) rest
-    shape along each lid and lip row, k_b = ratio (SkinParams.margin_bending) times the mean
-    stiffness k of the row's edge springs. It is zero for a translation and for the turn with the
+    shape along each lid and lip row, k_b = lids or lips (SkinParams.lid_bending, lip_bending)
+    times the mean stiffness k of the row's edge springs. It is zero for a translation and for the turn with the
     jaw, small for a displacement smooth along the row, and stiffest against the alternating one: a margin
     pressed along its length (the lips in AU24, a closing lid) buckled into that zig-zag at 3k
     vertices, a mode the mesh has and the tissue has not (the lips' and lids' fibres run along the
@@ -200,9 +200,9 @@ def margin_bending(mesh: FaceMesh, rest: np.ndarray, springs: np.ndarray, k: np.
     n = len(rest)
     edge_k = {(int(min(a, b)), int(max(a, b))): float(kk) for (a, b), kk in zip(springs, k)}
     ri, ci, vals = [], [], []
-    for row in rows.values():
+    for name, row in rows.items():
         ks = [edge_k.get((int(min(a, b)), int(max(a, b))), 0.0) for a, b in zip(row[:-1], row[1:])]
-        kb = ratio * float(np.mean(ks)) if ks else 0.0
+        kb = (lips if name.startswith("lip") else lids) * float(np.mean(ks)) if ks else 0.0
         for j in range(1, len(row) - 1):
             trip = (row[j - 1], row[j], row[j + 1])
             for a, ca in zip(trip, (1.0, -2.0, 1.0)):

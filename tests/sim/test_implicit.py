@@ -33,9 +33,9 @@ def test_prefactored_solve_matches_a_direct_solve(synth_model: FaceModel) -> Non
 
 def test_the_rk2_equilibrium_is_a_fixed_point_of_the_implicit_step(synth_rig: FaceRig) -> None:
     """Both integrators balance the same forces, but for the implicit one's margin bending term
-    (SkinParams.margin_bending, which RK2 does not have), turned off here. (From rest they may land
+    (SkinParams.lid_bending, lip_bending, which RK2 does not have), turned off here. (From rest they may land
     in different equilibria where the compressed skin folds; see docs/simulation.md.)"""
-    m = compile_model(synth_rig, SkinParams(gravity=False, margin_bending=0.0))
+    m = compile_model(synth_rig, SkinParams(gravity=False, lid_bending=0.0, lip_bending=0.0))
     c = FaceControl()
     c.set("zygomaticus_major_l", 1.0)
     c.set("frontalis_inner_r", 0.7)
@@ -94,7 +94,7 @@ def test_margin_bending_resists_the_zigzag_not_the_smooth_motion() -> None:
     from sim.smoothness import margin_rows
 
     m = default_model(1)
-    bend = margin_bending(m.mesh, m.rest, np.asarray(m.spring_indices), np.asarray(m.spring_k_high), 2.0)
+    bend = margin_bending(m.mesh, m.rest, np.asarray(m.spring_indices), np.asarray(m.spring_k_high), 2.0, 1.0)
     assert bend.nnz and abs(bend - bend.T).max() < 1e-9  # an energy's Hessian
     assert np.abs(bend @ np.full(m.n_vertices, 0.3)).max() < 1e-9 * np.abs(bend).max()
     lips = margin_rows(m.mesh)["lip_upper"]
