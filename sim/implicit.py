@@ -170,8 +170,7 @@ def warm_up() -> None:
 class ImplicitStepper:
     """Runs the substeps of one frame for a Simulator (method "implicit")."""
 
-    def __init__(self, model: FaceModel, h: float,
-                 margins: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> None:
+    def __init__(self, model: FaceModel, h: float) -> None:
         n = model.n_vertices
         springs = np.asarray(model.spring_indices)
         self.h = h
@@ -191,10 +190,8 @@ class ImplicitStepper:
              + sp.diags(self.mass_h2 + self.damp_h + np.asarray(model.rest_stiffness) + self.kn)).tocsr()
         self.a_fh = a[self.free][:, self.held].tocsr()
         self.solver = PrefactoredSolver(a[self.free][:, self.free])
-        self.margins = None  # the lid and lip contact, solved with the step (sim.margin_contact)
-        if margins is not None and len(margins[0]):
-            self.margins = SolvedContact(solved_constraints(model.mesh, model.rest), self.free, n,
-                                         self.solver.solve)
+        cons = solved_constraints(model.mesh, model.rest)  # the lid and lip contact (sim.margin_contact)
+        self.margins = SolvedContact(cons, self.free, n, self.solver.solve) if len(cons["idx"]) else None
         self._rhs = np.zeros((n, 3))
         self._y = np.zeros((n, 3))
         self._xf = np.zeros((len(self.free), 3))
