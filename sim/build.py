@@ -87,7 +87,7 @@ class SkinParams:
     jaw_max_angle: float = 0.55
     jaw_max_slide: float = 1.4
     jaw_slide_angle: float = 0.6
-    lid_bending: float = 2.0
+    lid_bending: float = 3.0
     lip_bending: float = 1.0
 
 

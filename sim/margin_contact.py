@@ -98,7 +98,7 @@ def margin_pairs(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return idx, w, sg
 
 
-ORDER_FRACTION = 0.25  # a margin vertex keeps at least this share of its rest spacing (along x)
+ORDER_FRACTION = 0.5  # a margin vertex keeps at least this share of its rest spacing (along x)
 # from the next one along the row (the implicit solve only)
 
 
@@ -221,32 +221,35 @@ SWEEPS = 12  # projected Gauss-Seidel sweeps over the constraints in contact per
 
 def solved_constraints(mesh: FaceMesh, rest: np.ndarray) -> dict[str, np.ndarray]:
     """Every constraint of the implicit integrator's contact (SolvedContact), as margin_pairs gives
-    its pairs: the margin pairs (on y, re-paired along the opposite margin every substep), the first
-    rings (margin_rings, on y) and the row order (margin_order, on x). Keys: idx, w, sg as in
-    margin_pairs, dim (P,) the coordinate, opp (P,) the opposite row of a margin pair (-1: fixed),
-    row_ptr, row_v the rows (concatenated)."""
-    parts = [margin_pairs(mesh, rest), margin_rings(mesh, rest), margin_order(mesh, rest)]
-    idx, w, sg = (np.concatenate([q[i] for q in parts]) for i in range(3))
-    dim = np.concatenate([np.ones(len(parts[0][0]) + len(parts[1][0]), np.int64), np.zeros(len(parts[2][0]), np.int64)])
+    its pairs: the margin pairs and the first rings (margin_rings), both on y and re-paired every
+    substep with the segment of their row (the opposite margin, or the ring's own) at their current
+    x, and the row order (margin_order, on x). Keys: idx, w, sg as in margin_pairs, dim (P,) the
+    coordinate, opp (P,) the row a constraint is re-paired along (-1: fixed), row_ptr, row_v the
+    rows (concatenated)."""
+    pairs, rings, order = margin_pairs(mesh, rest), margin_rings(mesh, rest), margin_order(mesh, rest)
+    idx, w, sg = (np.concatenate([pairs[i], rings[i], order[i]]) for i in range(3))
+    n_pairs, n_y = len(pairs[0]), len(pairs[0]) + len(rings[0])
+    dim = np.concatenate([np.ones(n_y, np.int64), np.zeros(len(order[0]), np.int64)])
     rows = list(_rows(mesh).values())
     opp = np.full(len(idx), -1, dtype=np.int64)
-    for k in range(len(parts[0][0])):
+    for k in range(n_y):
         a, b0, b1 = idx[k]
         opp[k] = next(r for r, row in enumerate(rows) if a not in row and b0 in row and b1 in row)
     row_ptr = np.cumsum([0] + [len(r) for r in rows]).astype(np.int64)
     row_v = np.concatenate(rows).astype(np.int64) if rows else np.zeros(0, np.int64)
-    # the least gap again for the pairing the substeps use (along the row, not sorted by x), so
-    # that the rest pose satisfies every pair whatever the row's shape
-    pairs = opp >= 0
 
     def gap(i: np.ndarray, ww: np.ndarray) -> np.ndarray:
-        return sg[pairs, 0] * (rest[i[pairs, 0], 1] - (1.0 - ww[pairs]) * rest[i[pairs, 1], 1]
-                               - ww[pairs] * rest[i[pairs, 2], 1])
+        y = rest[:, 1]
+        return sg[:n_y, 0] * (y[i[:n_y, 0]] - (1.0 - ww[:n_y]) * y[i[:n_y, 1]] - ww[:n_y] * y[i[:n_y, 2]])
 
-    overlap = np.minimum(gap(idx, w), 0.0) - sg[pairs, 1]
+    # the least gaps again for the pairing the substeps use (along the row, not sorted by x), so
+    # that the rest pose satisfies every constraint whatever the row's shape
+    overlap = np.minimum(gap(idx, w), 0.0)[:n_pairs] - sg[:n_pairs, 1]
     idx, w, sg = idx.copy(), w.copy(), sg.copy()
     _repair(np.ascontiguousarray(rest, dtype=np.float64), idx, w, opp, row_ptr, row_v)
-    sg[pairs, 1] = np.minimum(gap(idx, w), 0.0) - overlap
+    g = gap(idx, w)
+    sg[:n_pairs, 1] = np.minimum(g[:n_pairs], 0.0) - overlap
+    sg[n_pairs:n_y, 1] = ORDER_FRACTION * np.maximum(g[n_pairs:], 0.0)
     return dict(idx=idx, w=w, sg=sg, dim=dim, opp=opp, row_ptr=row_ptr, row_v=row_v)
 
 
@@ -261,8 +264,9 @@ class SolvedContact:
     computed once. Each substep
       1. adds the last substep's contact forces F^T lam to the right-hand side and solves;
       2. pairs each margin vertex again with the segment of the opposite margin at its current x
-         (the lids slide along each other as they close) and builds S on the constraints in contact
-         (violated, or pressed in the last substep) from G;
+         (the lids slide along each other as they close), and each first-ring vertex with its own
+         margin, and builds S on the constraints in contact (violated, or pressed in the last
+         substep) from G;
       3. finds lam >= 0 with c + S dlam >= 0 and lam (c + S dlam) = 0 (a linear complementarity
          problem, projected Gauss-Seidel from the last lam);
       4. moves the vertices by A^-1 F^T dlam, keeping of each constrained vertex's column of A^-1
