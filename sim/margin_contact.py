@@ -98,8 +98,9 @@ def margin_pairs(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return idx, w, sg
 
 
-ORDER_FRACTION = 0.5  # a margin vertex keeps at least this share of its rest spacing (along x)
-# from the next one along the row (the implicit solve only)
+ORDER_FRACTION = 0.5  # the implicit solve's row order and first rings: a margin vertex keeps at
+# least this share of its rest spacing (along x) from the next one, a first-ring vertex this share
+# of its rest height off its margin
 
 
 def margin_order(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
