@@ -18,7 +18,8 @@ solved with the step as forces of unknown size (a linear complementarity problem
 complement of the step's fixed matrix, warm-started; see the class), re-paired along the opposite
 margin at the current x every substep, plus two kinds of constraint the finer meshes need: each
 margin row keeps its order along x, and the first ring of skin outside a margin (or a corner) stays
-on its side of it (`margin_order`, `margin_rings`). With the margin rows' bending term
+on its side of it, re-paired along its own margin (`margin_order`, `margin_rings`; both keep
+ORDER_FRACTION of the rest spacing). With the margin rows' bending term
 (`margin_bending`) that is what keeps closed lids and pressed lips clean there. What failed before:
 a projection after the global solve has a false fixed point (the solve spreads the projected
 vertices' push over their neighbours, which never see it; at 3k vertices closed lids stopped 5 mm
@@ -27,8 +28,10 @@ vertex heavier (AU9 reached its lip lift seconds later); as an explicit penalty 
 lids 1.5 mm open and folded. With the contact alone (pairs fixed at rest) the lids still crossed by
 0.7 mm at 12k vertices (they slide along each other by up to 2 mm as they close), the skin behind
 a stopped margin rolled past it (upper lid, 12k: 34 folded triangles) and the upper margin next to
-the inner canthus stepped past its neighbours; pressed lips buckled into an alternating zig-zag of
-~1 mm at 3k vertices, with RK2 as well, which no contact removes.
+the inner canthus stepped past its neighbours; with the first ring paired at rest, a ring vertex
+sliding past its segment folded the outer upper lid when AU45 was dialled in over 10 frames; pressed
+lips buckled into an alternating zig-zag of ~1 mm at 3k vertices, with RK2 as well, which no contact
+removes.
 """
 
 from __future__ import annotations
