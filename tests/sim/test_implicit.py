@@ -8,9 +8,9 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
 from sim.build import FaceModel, SkinParams, compile_model
-from sim.model import FaceRig
 from sim.implicit import PrefactoredSolver, laplacian
 from sim.integrator import RK2_WORK_LIMIT, Simulator
+from sim.model import FaceRig
 from sim.state import FaceControl
 
 
@@ -33,8 +33,8 @@ def test_prefactored_solve_matches_a_direct_solve(synth_model: FaceModel) -> Non
 
 def test_the_rk2_equilibrium_is_a_fixed_point_of_the_implicit_step(synth_rig: FaceRig) -> None:
     """Both integrators balance the same forces, but for the implicit one's margin bending term
-    (SkinParams.lid_bending, lip_bending, which RK2 does not have), turned off here. (From rest they may land
-    in different equilibria where the compressed skin folds; see docs/simulation.md.)"""
+    (SkinParams.lid_bending, lip_bending, which RK2 does not have), turned off here. (From rest
+    they may land in different equilibria where the compressed skin folds; see docs/simulation.md.)"""
     m = compile_model(synth_rig, SkinParams(gravity=False, lid_bending=0.0, lip_bending=0.0))
     c = FaceControl()
     c.set("zygomaticus_major_l", 1.0)
