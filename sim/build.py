@@ -63,6 +63,12 @@ class SkinParams:
                     forward and down the articular eminence at jaw = 1 (`jaw_slide_angle` rad below
                     the horizontal): a wide-open mouth is the hinge rotation plus this translation,
                     which keeps the chin from swinging back into the throat.
+    lid_bending, lip_bending: stiffness of the bending term along the lid and the lip rows,
+                    relative to the row's edge springs (`sim.margin_contact.margin_bending`; the
+                    implicit integrator only, 0 turns it off): on fine meshes a pressed margin
+                    otherwise buckles into a zig-zag. The lids' is the stiffer (their margins are
+                    the tarsal plates); the lips' also resists the lip line's bending as the mouth
+                    opens (AU27 at 3k vertices: 45.5 mm at 0, 45.1 at 1, 44.6 at 2).
     """
 
     areal_density: float = 0.3
@@ -82,6 +88,8 @@ class SkinParams:
     jaw_max_angle: float = 0.55
     jaw_max_slide: float = 1.4
     jaw_slide_angle: float = 0.6
+    lid_bending: float = 3.0
+    lip_bending: float = 1.0
 
 
 @dataclass(frozen=True, eq=False)

@@ -13,11 +13,16 @@ real-time budget. Here each substep is one local/global iteration of projective 
   + k_r target + f_muscle + f_gravity, with L(k_h) the springs' graph Laplacian. The matrix is
   constant and the same for x, y and z, so it is factored once (sparse LU, scipy SuperLU) and a
   substep costs one spring pass and two triangular solves with 3 right-hand sides.
-- v' = (x' - x) / h.
+- the lid and lip contact is solved with the global step (forces of unknown size on the margin
+  pairs, `sim.margin_contact.SolvedContact`), then v' = (x' - x) / h; the eyeball contact is a
+  projection after it.
 
-At rest (x' = x = y) the global equation is exactly the force balance RK2 settles to, so a settled
-pose is the same equilibrium; only the transient differs (implicit Euler damps fast modes; the axial
-spring damping is left out, implicit Euler's own dissipation replaces it).
+The matrix also carries a bending term along the lid and lip rows (`sim.margin_contact.
+margin_bending`, K_b (x' - rest shape) with the rest shape turned with the jaw): a fine mesh's
+pressed margin buckles into an alternating zig-zag without it. RK2 has no such term, so apart from it
+(and from contact) the global equation at rest (x' = x = y) is exactly the force balance RK2 settles
+to, and a settled pose is the same equilibrium; only the transient differs (implicit Euler damps fast
+modes; the axial spring damping is left out, implicit Euler's own dissipation replaces it).
 
 Substeps: accuracy, not stability, sets h: the slowest physically meaningful motion is the skin
 swinging on its eq 9 tethers, omega_r = sqrt(tether / areal density) (~100 rad/s, and damped at
@@ -36,6 +41,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from sim.build import FaceModel
+from sim.margin_contact import SolvedContact, margin_bending, solved_constraints, warm_up_solved
 from sim.numba_start import prepare_blas_check
 
 prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
@@ -161,6 +167,7 @@ def warm_up() -> None:
     y = np.array([[0.0, 0.0, 0.0], [1.1, 0.0, 0.0]])
     one = np.ones(1)
     _pd_springs(y, np.array([[0, 1]], dtype=np.int32), one, one, one, 0.1, np.zeros_like(y))
+    warm_up_solved()
 
 
 class ImplicitStepper:
@@ -177,24 +184,38 @@ class ImplicitStepper:
         self.mass_h2 = mass / h**2
         self.damp_h = np.asarray(model.damping) / h
         self.kn = np.asarray(model.support_stiffness)
-        a = (laplacian(n, springs, np.asarray(model.spring_k_high))
+        self.rest = np.asarray(model.rest)
+        self._shape: np.ndarray | None = None
+        self._bend_rhs = np.zeros((n, 3))
+        self.bend = margin_bending(model.mesh, model.rest, springs, np.asarray(model.spring_k_high),
+                                   model.params.lid_bending, model.params.lip_bending)
+        a = (laplacian(n, springs, np.asarray(model.spring_k_high)) + self.bend
              + sp.diags(self.mass_h2 + self.damp_h + np.asarray(model.rest_stiffness) + self.kn)).tocsr()
         self.a_fh = a[self.free][:, self.held].tocsr()
         self.solver = PrefactoredSolver(a[self.free][:, self.free])
+        cons = solved_constraints(model.mesh, model.rest)  # the lid and lip contact (sim.margin_contact)
+        self.margins = SolvedContact(cons, self.free, n, self.solver.solve) if len(cons["idx"]) else None
         self._rhs = np.zeros((n, 3))
         self._y = np.zeros((n, 3))
         self._xf = np.zeros((len(self.free), 3))
 
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
-              normal: np.ndarray, contact: Callable[[np.ndarray, np.ndarray], None]) -> None:
+              normal: np.ndarray, contact: Callable[[np.ndarray, np.ndarray], None],
+              shape: np.ndarray | None = None) -> None:
         """n_sub substeps in place. ext: the frame-constant forces (muscles, gravity, the target terms
         of the tether and of the normal support); springs: (indices, rest lengths, k_low, k_high,
         threshold) as the kernel takes them; normal (N,3): the support's normals this frame. The
         support k_n n n^T enters like a spring: k_n I in the matrix, k_n (y - n (n . y)) on the right.
-        contact(x, v) is applied after each substep (the eyeballs)."""
+        contact(x, v) is applied after each substep (the eyeballs); shape (N,3): the rest shape of
+        the margin bending term this frame (turned with the jaw; None: the model's rest)."""
         h, f = self.h, self.free
         idx, rest_len, k_low, k_high, thr = springs
         held_term = self.a_fh @ x[self.held]  # held nodes do not move within a frame
+        if self.bend.nnz:  # the margin bending term's rest side (the shape changes with the jaw)
+            shape = self.rest if shape is None else shape
+            if shape is not self._shape:
+                self._shape, self._bend_rhs = shape, self.bend @ shape
+            ext = ext + self._bend_rhs
         for _ in range(n_sub):
             np.multiply(v, h, out=self._y)
             self._y += x
@@ -204,10 +225,14 @@ class ImplicitStepper:
             _pd_springs(self._y, idx, rest_len, k_low, k_high, thr, self._rhs)
             ny = np.einsum("ij,ij->i", normal, self._y)
             self._rhs += self.kn[:, None] * (self._y - ny[:, None] * normal)
+            if self.margins is not None:
+                self.margins.add_force(self._rhs)
             rhs_f = np.take(self._rhs, f, axis=0)
             rhs_f -= held_term
             self.solver.solve(rhs_f, self._xf)
             xf_old = np.take(x, f, axis=0)
-            v[f] = (self._xf - xf_old) * (1.0 / h)
             x[f] = self._xf
+            if self.margins is not None:
+                self.margins.resolve(x)
+            v[f] = (np.take(x, f, axis=0) - xf_old) * (1.0 / h)
             contact(x, v)

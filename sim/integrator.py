@@ -5,7 +5,8 @@ Per node i (free, not held):
               + k_n,i n_i n_i.(target_i - x_i) (normal support, see SkinParams.support)
               + sum_c a_c F_c,i (muscles) + m_i g
 and after every substep the closed lids and the lips are kept from passing each other
-(`sim.margin_contact`, RK2 only) and the vertices near the eyeballs outside them (`_eye_contact`).
+(`sim.margin_contact`; the implicit integrator solves that contact within its step) and the
+vertices near the eyeballs outside them (`_eye_contact`).
 RK2 reading chosen: the explicit *midpoint* method (Numerical Recipes' "second-order Runge-Kutta",
 the paper's ref [16]): k1 = f(y); k2 = f(y + h/2 k1); y += h k2.
 
@@ -363,6 +364,7 @@ class Simulator:
         self._weight = np.ascontiguousarray(model.weight, dtype=np.float64)
         self._jaw: float | None = None  # the jaw the target and support normals were set for
         self._target = model.rest + model.rest_offset
+        self._shape = np.array(model.rest)
         self._force = np.zeros((n, 3))  # the RK2 kernel's force scratch
         self._xm = np.zeros((n, 3))
         self._vm = np.zeros((n, 3))
@@ -371,15 +373,17 @@ class Simulator:
 
     # -- the force terms that are constant over a frame
 
-    def rest_target(self, jaw: float) -> np.ndarray:
+    def rest_target(self, jaw: float, offset: bool = True) -> np.ndarray:
         """Eq 9's rest positions with the jaw opened by `jaw` (0..1), plus the gravity pre-stress
-        offset (`FaceModel.rest_offset`, turned with the jaw the same way), (N,3) cm."""
+        offset (`FaceModel.rest_offset`, turned with the jaw the same way; offset=False: the rest
+        shape turned with the jaw alone), (N,3) cm."""
         m = self.model
-        base = m.rest + m.rest_offset
+        off = m.rest_offset if offset else np.zeros_like(m.rest)
+        base = m.rest + off
         if jaw == 0.0:
             return np.array(base)
         rot = jaw_rotation(m.jaw_axis, jaw * m.params.jaw_max_angle)
-        rotated = times3(m.rest - m.jaw_pivot, rot.T) + m.jaw_pivot + times3(m.rest_offset, rot.T) + jaw * jaw_slide(m)
+        rotated = times3(m.rest - m.jaw_pivot, rot.T) + m.jaw_pivot + times3(off, rot.T) + jaw * jaw_slide(m)
         return base + m.jaw_weight[:, None] * (rotated - base)
 
     def _set_jaw(self, jaw: float) -> None:
@@ -389,6 +393,8 @@ class Simulator:
             return
         m = self.model
         self._target = self.rest_target(jaw)
+        if self._implicit is not None:  # the reference of the margin bending term (sim.implicit)
+            self._shape = self.rest_target(jaw, offset=False)
         if jaw == 0.0:
             self._normal[...] = m.rest_normal
         else:
@@ -426,11 +432,13 @@ class Simulator:
         else:
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
                                                             self._k_high, self._threshold), self._normal,
-                                 lambda xx, vv: _eye_contact(xx, vv, *self._eyes))
+                                 lambda xx, vv: _eye_contact(xx, vv, *self._eyes), self._shape)
         reason = self._check(x)
         if reason:
             x[...] = self._saved_x
             v[...] = 0.0
+            if self._implicit is not None and self._implicit.margins is not None:
+                self._implicit.margins.lam[...] = 0.0  # no contact force carried into the restart
             self.guard_events.append(GuardEvent(state.time + self.frame_dt, reason))
         state.time += self.frame_dt
         values = control.values

@@ -7,9 +7,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
-from sim.build import FaceModel
+from sim.build import FaceModel, SkinParams, compile_model
 from sim.implicit import PrefactoredSolver, laplacian
 from sim.integrator import RK2_WORK_LIMIT, Simulator
+from sim.model import FaceRig
 from sim.state import FaceControl
 
 
@@ -30,10 +31,11 @@ def test_prefactored_solve_matches_a_direct_solve(synth_model: FaceModel) -> Non
     assert np.allclose(out, spsolve(a, b), rtol=1e-10, atol=1e-12)
 
 
-def test_the_rk2_equilibrium_is_a_fixed_point_of_the_implicit_step(synth_model_nograv: FaceModel) -> None:
-    """Both integrators balance the same forces. (From rest they may land in different equilibria
-    where the compressed skin folds; see docs/simulation.md.)"""
-    m = synth_model_nograv
+def test_the_rk2_equilibrium_is_a_fixed_point_of_the_implicit_step(synth_rig: FaceRig) -> None:
+    """Both integrators balance the same forces, but for the implicit one's margin bending term
+    (SkinParams.lid_bending, lip_bending, which RK2 does not have), turned off here. (From rest
+    they may land in different equilibria where the compressed skin folds; see docs/simulation.md.)"""
+    m = compile_model(synth_rig, SkinParams(gravity=False, lid_bending=0.0, lip_bending=0.0))
     c = FaceControl()
     c.set("zygomaticus_major_l", 1.0)
     c.set("frontalis_inner_r", 0.7)
@@ -81,3 +83,23 @@ def test_auto_keeps_rk2_while_it_is_cheap(synth_model: FaceModel) -> None:
     sim = Simulator(synth_model)
     assert sim.rk2_substeps * len(synth_model.spring_indices) <= RK2_WORK_LIMIT
     assert sim.method == "rk2" and sim.substeps == sim.rk2_substeps
+
+
+def test_margin_bending_resists_the_zigzag_not_the_smooth_motion() -> None:
+    """The lid and lip rows' bending term (sim.margin_contact.margin_bending) has no force for a
+    translation and little for a displacement smooth along the rows (a lip pressed in as a whole),
+    and resists the alternating zig-zag that pressed lips buckled into."""
+    from sim.build import default_model
+    from sim.margin_contact import margin_bending
+    from sim.smoothness import margin_rows
+
+    m = default_model(1)
+    bend = margin_bending(m.mesh, m.rest, np.asarray(m.spring_indices), np.asarray(m.spring_k_high), 2.0, 1.0)
+    assert bend.nnz and abs(bend - bend.T).max() < 1e-9  # an energy's Hessian
+    assert np.abs(bend @ np.full(m.n_vertices, 0.3)).max() < 1e-9 * np.abs(bend).max()
+    lips = margin_rows(m.mesh)["lip_upper"]
+    half = 0.5 * (m.rest[lips, 0].max() - m.rest[lips, 0].min())
+    smooth, zigzag = np.zeros(m.n_vertices), np.zeros(m.n_vertices)
+    smooth[lips] = 0.1 * np.cos(0.5 * np.pi * m.rest[lips, 0] / half)  # 1 mm in the middle, 0 at the corners
+    zigzag[lips[1:-1]] = 0.1 * (-1.0) ** np.arange(len(lips) - 2)
+    assert smooth @ (bend @ smooth) < 0.02 * (zigzag @ (bend @ zigzag))

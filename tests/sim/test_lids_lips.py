@@ -4,10 +4,10 @@ along the lid line (inner corner included) without passing each other, no lid tr
 over, and the lips press (AU23, AU24) without zig-zags, folds or passing each other. The lips are
 closed at rest.
 
-Resolutions 1 and 2 run the implicit integrator (as the live code does), which has no lid or lip
-contact yet (see sim.margin_contact): there the upper margin next to the inner canthus still goes
-out of order and pressed lips zig-zag; those cases are marked as expected failures (strict, so
-they report when they start to pass)."""
+Resolutions 1 and 2 run the implicit integrator (as the live code does), with its own lid and lip
+contact solved inside the step, and the margin rows' bending term (sim.margin_contact): without them
+the upper margin next to the inner canthus went out of order and folded, the skin behind a stopped
+margin rolled past it, and pressed lips buckled into a ~1 mm zig-zag there."""
 
 from __future__ import annotations
 
@@ -24,13 +24,6 @@ LID_GAP_CM = 0.1  # closed lids meet within 1 mm (open or overlapping) over the 
 LIP_ZIGZAG_CM = 0.1  # a lip vertex stands at most 1 mm off its neighbours' midpoint
 CROSS_CM = 0.05  # one margin passes the other by at most 0.5 mm
 POSES = ("AU45", "AU23", "AU24")
-IMPLICIT = pytest.mark.xfail(strict=True, reason="no lid/lip contact in the implicit integrator yet")
-KNOWN = {("lids", 1), ("lids", 2), ("AU23", 1), ("AU23", 2), ("AU24", 1), ("AU24", 2)}  # the cases that still fail
-
-
-def _known(request, case: str) -> None:
-    if (case, request.node.callspec.params["face"]) in KNOWN:
-        request.applymarker(IMPLICIT)
 
 
 @pytest.fixture(scope="module", params=["coarse head", 0, 1, 2])
@@ -54,8 +47,7 @@ def _crossing(pos: np.ndarray, upper: np.ndarray, lower: np.ndarray) -> float:
     return float(max(below[1:-1].max(), 0.0))
 
 
-def test_closed_lids_meet_in_order_without_folds(face, request) -> None:
-    _known(request, "lids")
+def test_closed_lids_meet_in_order_without_folds(face) -> None:
     model, poses = face
     pos = poses["AU45"]
     rows = sm.margin_rows(model.mesh)
@@ -70,8 +62,7 @@ def test_closed_lids_meet_in_order_without_folds(face, request) -> None:
 
 
 @pytest.mark.parametrize("pose", ["AU23", "AU24"])
-def test_pressed_lips_stay_smooth(face, pose: str, request) -> None:
-    _known(request, pose)
+def test_pressed_lips_stay_smooth(face, pose: str) -> None:
     model, poses = face
     pos = poses[pose]
     rows = sm.margin_rows(model.mesh)
