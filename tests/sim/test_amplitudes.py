@@ -1,5 +1,5 @@
 """Full-activation amplitudes of the AUs and presets against real faces and our stated FACS targets
-(`sim.expression_targets.TARGETS`, with their sources), on the default face at resolutions 0 and 1
+(`sim.expression_targets.TARGETS`, with their sources), on the default face at resolutions 0, 1 and 2
 and on the coarse transferred head (437 vertices), gravity on. Each value is read in mm of a 90 mm outer-canthal-width adult."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from sim.build import default_model
 from sim.integrator import Simulator
 
 
-@pytest.fixture(scope="module", params=[0, 1])
+@pytest.fixture(scope="module", params=[0, 1, 2])
 def settled(request):
     model = default_model(request.param)
     out = {}
