@@ -37,13 +37,16 @@ removes.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
-import scipy.sparse as sp
 
 from sim.model import FaceMesh
 from sim.numba_start import prepare_blas_check
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
@@ -203,6 +206,8 @@ def margin_bending(mesh: FaceMesh, rest: np.ndarray, springs: np.ndarray, k: np.
     vertices, a mode the mesh has and the tissue has not (the lips' and lids' fibres run along the
     margin). RK2 (the coarse default face, whose rows do not buckle) goes without it: at resolution
     0 it would raise the stable step's omega_max by a third."""
+    import scipy.sparse as sp  # here, not at the top: the RK2 live path must not import it (start-up)
+
     rows = _rows(mesh)
     n = len(rest)
     edge_k = {(int(min(a, b)), int(max(a, b))): float(kk) for (a, b), kk in zip(springs, k)}
