@@ -54,6 +54,12 @@ CHANNEL_SPECS: tuple[ChannelSpec, ...] = (
         "lid tightener / blink, orbicularis oculi pars palpebralis (two sheets, one per lid); 1 closes the lids",
     ),
     *_pair(
+        "levator_palpebrae",
+        "sheet",
+        ("AU5",),
+        "upper lid raiser, levator palpebrae superioris: lifts the upper lid into the orbit (wide eyes)",
+    ),
+    *_pair(
         "levator_labii_alaeque_nasi",
         "linear",
         ("AU9",),

@@ -1,8 +1,10 @@
 """FACS action units and expression presets in terms of the face's channels.
 
 AU -> muscles after the AU/muscle table in peers-facs-formats.md section D.2; expressions after
-section D.1 (EMFACS-style combinations). AU5 (upper lid raiser) is not a skin muscle and has no
-channel, so presets that list it leave it out. A side suffix restricts a bilateral AU to one side of
+section D.1 (EMFACS-style combinations); AU5 (upper lid raiser) is the levator palpebrae, a lid
+muscle rather than a skin one, given its own channel. Fear has it (1+2+4+5+20+26); surprise leaves
+out the slight 5B FACS gives it, because this face's 1+2 already lifts the upper lid margin 8-10 mm
+with the brows. A side suffix restricts a bilateral AU to one side of
 the face: "AU12_L" (the face's own left) or "AU12_R".
 
 Combination rule: applying an AU sets each of its channels to max(current, weight * intensity), so
@@ -23,6 +25,7 @@ _BASE: dict[str, dict[str, float]] = {
     "AU1": _both("frontalis_inner"),
     "AU2": _both("frontalis_outer"),
     "AU4": {**_both("corrugator"), "procerus": 0.8},
+    "AU5": _both("levator_palpebrae"),
     "AU6": _both("orbicularis_oculi"),
     "AU7": _both("orbicularis_oculi_lid", 0.45),
     "AU9": {**_both("levator_labii_alaeque_nasi"), **_both("levator_labii", 0.3)},
@@ -62,7 +65,7 @@ EXPRESSIONS: dict[str, dict[str, float]] = {
     "happiness": {"AU6": 0.6, "AU12": 1.0},
     "sadness": {"AU1": 1.0, "AU4": 0.15, "AU15": 1.0},
     "surprise": {"AU1": 1.0, "AU2": 1.0, "AU26": 0.8},
-    "fear": {"AU1": 1.0, "AU2": 0.35, "AU4": 0.5, "AU20": 1.0, "AU26": 0.5},
+    "fear": {"AU1": 1.0, "AU2": 0.15, "AU4": 0.5, "AU5": 1.0, "AU20": 1.0, "AU26": 0.5},
     "anger": {"AU4": 1.0, "AU7": 1.0, "AU23": 1.0},
     "disgust": {"AU9": 0.85, "AU10": 0.85, "AU4": 0.4, "AU17": 0.4},
     "contempt": {"AU12_R": 0.6, "AU14_R": 0.6},

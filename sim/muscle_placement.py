@@ -202,6 +202,38 @@ def _lids(f: FaceFrame, side: str, sg: float) -> tuple[Muscle, ...]:
     return tuple(parts)
 
 
+RAISER_STRIPS = 5  # sheets across the upper lid's middle, the levator's aponeurosis
+
+
+def _lid_raiser(f: FaceFrame, side: str, sg: float) -> tuple[Muscle, ...]:
+    """Levator palpebrae superioris (AU5): its aponeurosis spreads across the upper lid and pulls
+    it up and back into the orbit, under the brow. A row of narrow sheets over the lid's middle
+    (the canthi stay tied to the bone), each attached deep under the orbital rim above its part
+    of the lid and inserted along the lid just above the margin, as strong as the lid is high
+    there, so the margin rises as a curve and the fold above it deepens."""
+    s = f.s
+    xs, top, bottom = _margins(f, f.mesh.eye_loops[0 if side == "l" else 1])
+    inner, outer = f.get(f"eye_inner_{side}")[0], f.get(f"eye_outer_{side}")[0]
+    edges = np.linspace(inner + 0.15 * (outer - inner), outer - 0.1 * (outer - inner), RAISER_STRIPS + 1)
+    h_max = float(np.max(top - bottom))
+    parts: list[Muscle] = []
+    for k, (x0, x1) in enumerate(zip(edges[:-1], edges[1:])):
+        xc = 0.5 * (x0 + x1)
+        t, b = float(np.interp(xc, xs, top)), float(np.interp(xc, xs, bottom))
+        share = max(t - b, 0.0) / h_max
+        y_att = t + RAISER_RISE * s
+        z_att = float(f.skin(np.array([xc, y_att, 0.0]))[2]) - RAISER_DEPTH * s
+        a1, a2 = np.array([x0, y_att, z_att]), np.array([x1, y_att, z_att])
+        i1, i2 = f.skin(np.array([x0, t + 0.1 * s, 0.0])), f.skin(np.array([x1, t + 0.1 * s, 0.0]))
+        parts.append(_sheet(f, f"levator_palpebrae_{side}_{k}", a1, a2, i1, i2,
+                            width=abs(x1 - x0) / s, reach=1.5, strength=RAISER_STRENGTH * share))
+    return tuple(parts)
+
+
+RAISER_RISE = 0.9  # cm (reference face) above the margin where the aponeurosis runs under the rim
+RAISER_DEPTH = 0.4  # cm behind the skin there (inside the orbit)
+RAISER_STRENGTH = 0.85
+
 LIP_FIBRES = 15  # linear fibres along the mouth line, corner to corner
 PRESS_DEPTH = 0.7  # cm of a reference face: how far behind the mouth line they are attached
 
@@ -254,6 +286,7 @@ def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle,
     out[f"orbicularis_oculi_{side}"] = (_sphincter(
         f, f"orbicularis_oculi_{side}", f.at(ec, sg, 0.1, 0.4), 3.0, 2.4, 1.2),)
     out[f"orbicularis_oculi_lid_{side}"] = _lids(f, side, sg)
+    out[f"levator_palpebrae_{side}"] = _lid_raiser(f, side, sg)
     out[f"levator_labii_alaeque_nasi_{side}"] = (_linear(
         f, f"levator_labii_alaeque_nasi_{side}", f.at(f"eye_inner_{side}", sg, -0.3, -0.2, 0.4),
         f.at(f"nose_wing_{side}", sg, 0.0, -0.2), reach=1.3, angle=0.35, strength=1.3),)

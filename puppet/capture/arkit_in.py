@@ -2,7 +2,7 @@
 mapping `puppet.export.arkit` writes (docs/live.md): each blendshape drives the channel(s) it was
 computed from; where two shapes come from one channel (EyeSquint and CheekSquint) or one shape
 from two channels (BrowDown from corrugator and procerus), the larger wins. Shapes the face cannot
-express (EyeWide, CheekPuff, JawForward, tongue, lip roll, funnel, ...) are ignored and named in
+express (CheekPuff, JawForward, tongue, lip roll, funnel, ...) are ignored and named in
 the report. Head and eye rotation columns are accepted; gaze comes from the EyeLook shapes.
 
 Column names are matched without regard to case (MediaPipe writes `mouthSmileLeft`).

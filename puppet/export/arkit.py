@@ -1,7 +1,7 @@
 """Channel values -> ARKit's 52 blendshapes, written as a Live Link Face-style CSV.
 
 The mapping is a documented approximation (see docs/live.md): ARKit has shapes we cannot drive
-(eyeWide, cheekPuff, jaw sideways/forward, tongue, lip roll, funnel) and we have muscles ARKit cannot
+(cheekPuff, jaw sideways/forward, tongue, lip roll, funnel) and we have muscles ARKit cannot
 express (zygomaticus minor AU11, levator anguli oris AU13, age). "Left" is the face's own left,
 the `_l` side of our channels."""
 
@@ -31,7 +31,7 @@ def _side(shape: str) -> str:
 
 #: Sided shapes (base name without Left/Right) that are one channel of the same side.
 SIMPLE_SHAPES = {
-    "EyeBlink": "orbicularis_oculi_lid", "EyeSquint": "orbicularis_oculi", "CheekSquint": "orbicularis_oculi",
+    "EyeBlink": "orbicularis_oculi_lid", "EyeWide": "levator_palpebrae", "EyeSquint": "orbicularis_oculi", "CheekSquint": "orbicularis_oculi",
     "NoseSneer": "levator_labii_alaeque_nasi", "MouthSmile": "zygomaticus_major",
     "MouthFrown": "depressor_anguli_oris", "MouthDimple": "buccinator", "MouthStretch": "risorius",
     "MouthLowerDown": "depressor_labii", "MouthUpperUp": "levator_labii", "BrowOuterUp": "frontalis_outer",
