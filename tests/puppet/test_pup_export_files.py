@@ -46,7 +46,7 @@ def test_arkit_csv_header_timecode_and_mapping(tmp_path: Path) -> None:
     rows = list(csv.reader(open(tmp_path / "a.csv")))
     head = rows[0]
     assert head[:3] == ["Timecode", "BlendShapeCount", "EyeBlinkLeft"] and len(head) == 2 + 52 + 9
-    assert len(ARKIT_SHAPES) == 52 and "CheekPuff" in UNSUPPORTED
+    assert len(ARKIT_SHAPES) == 52 and "CheekPuff" in UNSUPPORTED and "EyeWideLeft" not in UNSUPPORTED
     r = dict(zip(head, rows[2]))
     assert r["Timecode"] == "00:00:01:01.000" and r["BlendShapeCount"] == "61"
     assert float(r["MouthSmileLeft"]) == pytest.approx(0.7) and float(r["MouthSmileRight"]) == pytest.approx(0.2)

@@ -126,7 +126,7 @@ def test_arkit_map_is_the_inverse_of_the_export(vocab: Vocabulary) -> None:
     assert [s[0].lower() + s[1:] for s in ARKIT_SHAPES] == list(ARKIT_NAMES)
     covered = {"orbicularis_oculi_lid", "orbicularis_oculi", "levator_labii_alaeque_nasi", "zygomaticus_major",
                "depressor_anguli_oris", "buccinator", "risorius", "depressor_labii", "levator_labii",
-               "frontalis_outer", "corrugator"}
+               "frontalis_outer", "corrugator", "levator_palpebrae"}
     rng = random.Random(5)
     for _ in range(5):
         values = np.array([c.default for c in vocab.channels])
