@@ -14,7 +14,7 @@ landmarks). Noise: Gaussian, sigma 0 / 0.1 / 0.5 mm per coordinate, independent 
 the neutral frame too. Each sample is a short track: 5 neutral frames then the pose held for 5
 frames; the fit's value is the middle pose frame's.
 Random takes: 1-4 muscle/jaw channels at U(0.2, 1.0) (seeded). Metrics: activation MAE over all
-32 channels, active-set precision / recall (threshold 0.1), residual (RMS per point, mm).
+the basis's channels (34: the muscles and the jaw), active-set precision / recall (threshold 0.1), residual (RMS per point, mm).
 Recognition: the 7 presets at weights 0.3 / 0.5 / 0.7 / 1.0 plus 4 neutral samples, by
 displacement templates and by fitted activations (scores averaged over the held frames).
 Timing: a 60 s take at 60 fps (res-1 face simulated with the implicit integrator, presets
@@ -172,7 +172,7 @@ def accuracy(sources, basis, settler, tpl, sets, n_takes: int, model0) -> None: 
                     nn = conf[route][0.0]
                     row.append(f"{sum(a == b for a, b in nn)}/{len(nn)}")
                 rec_rows.append(row)
-    print("\n## Activations (linear fit; MAE over 32 channels, mean and worst take)\n")
+    print(f"\n## Activations (linear fit; MAE over {len(chans)} channels, mean and worst take)\n")
     print(_table(["data", "points", "noise mm", "MAE", "worst", "precision", "recall", "residual mm"], fit_rows))
     print("\n## Recognition (correct / samples; 7 presets per weight, 4 neutral samples)\n")
     head = ["data", "points", "noise mm"] + [f"tpl {w:g}" for w in INTENSITIES] + ["tpl neutral"] + \
