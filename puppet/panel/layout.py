@@ -15,7 +15,7 @@ from puppet.mapping import MappingSpec, Vocabulary, parse_mapping
 #: face regions, top to bottom, and the channel name prefixes that belong to each
 REGIONS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("brows", ("frontalis", "corrugator", "procerus")),
-    ("eyes", ("orbicularis_oculi", "eyes_")),
+    ("eyes", ("orbicularis_oculi", "levator_palpebrae", "eyes_")),
     ("nose and cheeks", ("levator_labii", "zygomaticus", "levator_anguli", "buccinator")),
     ("mouth", ("orbicularis_oris", "depressor", "mentalis", "risorius")),
     ("jaw", ("jaw",)),

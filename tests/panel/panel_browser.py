@@ -22,7 +22,8 @@ FLAGS = ("--headless --no-sandbox --disable-gpu --disable-quic --no-first-run --
 ROOT = Path(__file__).resolve().parents[2]
 # a trimmed environment for `puppet` subprocesses (no DISPLAY, none of the shell's OPENBLAS_* settings),
 # but the run's private face cache (tests/conftest.py), never the user's
-CHILD_ENV = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "PUPPET_CACHE_DIR": os.environ["PUPPET_CACHE_DIR"]}
+CHILD_ENV = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin",
+             **{k: v for k, v in os.environ.items() if k == "PUPPET_CACHE_DIR"}}
 
 
 def browser() -> Any:

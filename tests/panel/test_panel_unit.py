@@ -23,7 +23,7 @@ from puppet.errors import ConfigError
 from puppet.live import load_face
 from puppet.mapping import Mapper
 from puppet.panel.device import decode_input, parse_roles
-from puppet.panel.layout import allowed_controls, build_layout, controls_of, panel_map
+from puppet.panel.layout import allowed_controls, build_layout, controls_of, panel_map, region_of
 
 
 @pytest.fixture(scope="module")
@@ -190,3 +190,14 @@ def test_learn_binds_a_page_slider(tmp_path: Path) -> None:
     assert out.get("rc") == 0
     text = mapfile.read_text()
     assert 'control = "slider:jaw"' in text and 'target = "expr:happiness"' in text and 'device = "panel"' in text
+
+
+def test_every_channel_of_the_face_sits_in_its_face_region() -> None:
+    """The page groups sliders by face region: no channel of the default face falls into "other"
+    (a new muscle channel has to be placed), and the lid muscles sit with the eyes."""
+    from sim.channels import CHANNEL_SPECS
+
+    for spec in CHANNEL_SPECS:
+        if spec.kind != "age":
+            assert region_of(spec.name) != "other", spec.name
+    assert region_of("levator_palpebrae_l") == region_of("orbicularis_oculi_lid_r") == "eyes"
