@@ -71,3 +71,18 @@ def test_can_panel_map_uses_the_example_dbc_signals() -> None:
 
 def test_gamepad_found_by_description() -> None:
     assert default_map_name("hid://046d:c21d", "Logitech Gamepad F310 (gamepad, from its descriptor)") == "gamepad"
+
+
+def test_keyboard_y_widens_the_eyes_and_releases(vocab: Vocabulary) -> None:
+    """Holding Y raises both upper lids (AU5, the levator palpebrae) and letting go relaxes them."""
+    m = Mapper(load_default_map("keyboard"), vocab)
+    names = [c.name for c in vocab.channels]
+    lids = [names.index("levator_palpebrae_l"), names.index("levator_palpebrae_r")]
+    m.feed(ControlEvent("keyboard://", "key:Y", "button", 1.0))
+    for _ in range(60):
+        v = m.step(1 / 60)
+    assert all(v[i] > 0.95 for i in lids)
+    m.feed(ControlEvent("keyboard://", "key:Y", "button", 0.0))
+    for _ in range(90):
+        v = m.step(1 / 60)
+    assert all(v[i] < 0.05 for i in lids)
