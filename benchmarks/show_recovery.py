@@ -36,6 +36,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from puppet.session import read_session  # noqa: E402
+from puppet.supervise import QUICK_S  # noqa: E402
 from startup import cpu_seconds, stop_process  # noqa: E402  (benchmarks/startup.py)
 
 CHILD = ROOT / "tests" / "puppet" / "show_child.py"
@@ -110,11 +111,17 @@ def _children(pid: int) -> list[tuple[int, str]]:
 
 
 def _writes(pid: int, path: Path) -> bool:
-    """The process has `path` open (the show; a standby does not, until it is told to go)."""
+    """The process has `path` open for writing: the show. (A standby opens it too, read-only, each
+    time it follows the take, so an open file alone does not tell them apart.)"""
     try:
-        return any(os.readlink(f) == str(path) for f in Path(f"/proc/{pid}/fd").iterdir())
-    except OSError:
+        for f in Path(f"/proc/{pid}/fd").iterdir():
+            if os.readlink(f) == str(path):
+                flags = int(Path(f"/proc/{pid}/fdinfo/{f.name}").read_text().split("flags:")[1].split()[0], 8)
+                if flags & os.O_ACCMODE != os.O_RDONLY:
+                    return True
+    except (OSError, IndexError, ValueError):
         return False
+    return False
 
 
 def _wait_idle(pid: int, timeout: float = 120.0) -> None:
@@ -162,6 +169,7 @@ def supervisor_restarts(work: Path, restarts: int, rng: random.Random) -> tuple[
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     times: list[float] = []
     cold = float("nan")
+    t_start = time.monotonic()
     try:
         for i in range(restarts + 1):
             want_standby = i < restarts
@@ -171,6 +179,9 @@ def supervisor_restarts(work: Path, restarts: int, rng: random.Random) -> tuple[
             for pid in kids:
                 if pid not in shows:
                     _wait_idle(pid)  # the standby is ready (imports, face, kernels), waiting
+            # a show killed within QUICK_S of its start counts as a crash loop, and MAX_QUICK of those
+            # in a row make the supervisor give up (as it should): let each show live past it
+            time.sleep(max(0.0, QUICK_S + 0.2 - (time.monotonic() - t_start)))
             time.sleep(rng.uniform(0.0, 1.0))
             if not want_standby:
                 for pid in kids:
@@ -183,7 +194,8 @@ def supervisor_restarts(work: Path, restarts: int, rng: random.Random) -> tuple[
             offset = rec.stat().st_size
             t_kill = time.monotonic()
             os.kill(show, signal.SIGKILL)
-            dt = _first_tick_after(rec, offset) - t_kill
+            t_start = _first_tick_after(rec, offset)
+            dt = t_start - t_kill
             if want_standby:
                 times.append(dt)
             else:
