@@ -30,7 +30,9 @@ from typing import Protocol
 
 import numpy as np
 
+from sim.build import vertex_normals
 from sim.model import FaceMesh, FaceRig
+from sim.springs import boundary_loops
 
 FloatArray = np.ndarray
 
@@ -190,37 +192,13 @@ def _cast(origin: FloatArray, dirs: FloatArray, far: float = 40.0, step: float =
 def _outer_loop(mesh: FaceMesh) -> np.ndarray:
     """The mask's outer boundary loop (the longest one), starting at its top on the midline and
     going first towards +X (the face's left)."""
-    t = np.asarray(mesh.triangles)
-    half = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
-    key = half[:, 0].astype(np.int64) * (1 << 32) + half[:, 1]
-    rev = half[:, 1].astype(np.int64) * (1 << 32) + half[:, 0]
-    border = half[~np.isin(key, rev)]
-    nxt = dict(zip(border[:, 0].tolist(), border[:, 1].tolist()))
-    loops, seen = [], set()
-    for s in nxt:
-        if s in seen:
-            continue
-        loop = [s]
-        seen.add(s)
-        while nxt[loop[-1]] != s:
-            loop.append(nxt[loop[-1]])
-            seen.add(loop[-1])
-        loops.append(np.array(loop))
-    loop = max(loops, key=len)
+    loop = max(boundary_loops(np.asarray(mesh.triangles)), key=len)
     v = mesh.vertices[loop]
     top = int(np.argmax(v[:, 1] - 10.0 * np.abs(v[:, 0])))
     loop = np.roll(loop, -top)
     if mesh.vertices[loop[1], 0] < mesh.vertices[loop[-1], 0]:
         loop = np.r_[loop[:1], loop[1:][::-1]]
     return loop
-
-
-def _vertex_normals(v: FloatArray, t: np.ndarray) -> FloatArray:
-    c = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
-    n = np.zeros_like(v)
-    for k in range(3):
-        np.add.at(n, t[:, k], c)
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
 
 
 def _smoothstep(e0: float, e1: float, x: FloatArray) -> FloatArray:
@@ -396,7 +374,7 @@ def _sweep(mesh: FaceMesh) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarr
     F0 = v[loop]
     seg = np.linalg.norm(np.diff(np.vstack([F0, F0[:1]]), axis=0), axis=1)
     sig0 = np.r_[0.0, np.cumsum(seg)[:-1]] / seg.sum()
-    n = _vertex_normals(v, np.asarray(mesh.triangles))[loop]
+    n = vertex_normals(v, np.asarray(mesh.triangles))[loop]
     along = np.roll(F0, -1, axis=0) - np.roll(F0, 1, axis=0)
     T0 = np.cross(along, n)
     T0 /= np.linalg.norm(T0, axis=1, keepdims=True)

@@ -174,3 +174,34 @@ def build_springs(
     k_b = bend_ratio * k_e[interior] * (rest_e[interior] / rest_b) ** 2
     indices = np.concatenate([edges, bend]).astype(np.int32)
     return indices, np.concatenate([rest_e, rest_b]), np.concatenate([k_e, k_b]), len(edges)
+
+
+def boundary_loops(triangles: np.ndarray) -> list[np.ndarray]:
+    """Closed loops of boundary edges (edges used by one triangle), each in walking order.
+    Vertices where several loops meet are walked greedily, which is enough to find openings."""
+    directed = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    key = np.sort(directed, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    boundary = directed[counts[inverse.ravel()] == 1]
+    nxt: dict[int, list[int]] = {}
+    for a, b in boundary:
+        nxt.setdefault(int(a), []).append(int(b))
+    loops: list[np.ndarray] = []
+    while nxt:
+        start = next(iter(nxt))
+        loop = [start]
+        cur = start
+        while True:
+            outs = nxt.get(cur)
+            if not outs:
+                break
+            b = outs.pop()
+            if not outs:
+                del nxt[cur]
+            if b == start:
+                break
+            loop.append(b)
+            cur = b
+        if len(loop) >= 3:
+            loops.append(np.asarray(loop, dtype=np.int64))
+    return loops

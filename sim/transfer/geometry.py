@@ -7,6 +7,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sim.springs import boundary_loops  # noqa: F401  (re-exported: the transfer's modules take it from here)
+
 FloatArray = np.ndarray
 IntArray = np.ndarray
 
@@ -38,37 +40,6 @@ def vertex_normals(vertices: FloatArray, triangles: IntArray) -> FloatArray:
         np.add.at(n, triangles[:, k], tn)
     length = np.linalg.norm(n, axis=1, keepdims=True)
     return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
-
-
-def boundary_loops(triangles: IntArray) -> list[IntArray]:
-    """Closed loops of boundary edges (edges used by one triangle), each in walking order.
-    Vertices where several loops meet are walked greedily, which is enough to find openings."""
-    directed = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    key = np.sort(directed, axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    boundary = directed[counts[inverse.ravel()] == 1]
-    nxt: dict[int, list[int]] = {}
-    for a, b in boundary:
-        nxt.setdefault(int(a), []).append(int(b))
-    loops: list[IntArray] = []
-    while nxt:
-        start = next(iter(nxt))
-        loop = [start]
-        cur = start
-        while True:
-            outs = nxt.get(cur)
-            if not outs:
-                break
-            b = outs.pop()
-            if not outs:
-                del nxt[cur]
-            if b == start:
-                break
-            loop.append(b)
-            cur = b
-        if len(loop) >= 3:
-            loops.append(np.asarray(loop, dtype=np.int64))
-    return loops
 
 
 def in_polygon(points: FloatArray, polygon: FloatArray) -> np.ndarray:
