@@ -377,28 +377,36 @@ class Simulator:
         """Eq 9's rest positions with the jaw opened by `jaw` (0..1), plus the gravity pre-stress
         offset (`FaceModel.rest_offset`, turned with the jaw the same way; offset=False: the rest
         shape turned with the jaw alone), (N,3) cm."""
+        target, shape, _ = self._jaw_turned(jaw, shape=not offset)
+        return target if offset else shape  # type: ignore[return-value]
+
+    def _jaw_turned(self, jaw: float, shape: bool) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """(eq 9's target, the rest shape turned with the jaw or None unless `shape`, the jaw's
+        rotation or None at jaw 0), the mandible's turn and slide computed once for all three."""
         m = self.model
-        off = m.rest_offset if offset else np.zeros_like(m.rest)
-        base = m.rest + off
         if jaw == 0.0:
-            return np.array(base)
+            return np.array(m.rest + m.rest_offset), (np.array(m.rest) if shape else None), None
         rot = jaw_rotation(m.jaw_axis, jaw * m.params.jaw_max_angle)
-        rotated = times3(m.rest - m.jaw_pivot, rot.T) + m.jaw_pivot + times3(off, rot.T) + jaw * jaw_slide(m)
-        return base + m.jaw_weight[:, None] * (rotated - base)
+        turned = times3(m.rest - m.jaw_pivot, rot.T) + m.jaw_pivot
+        slide = jaw * jaw_slide(m)
+        w = m.jaw_weight[:, None]
+        base = m.rest + m.rest_offset
+        target = base + w * (turned + times3(m.rest_offset, rot.T) + slide - base)
+        return target, (m.rest + w * (turned + slide - m.rest) if shape else None), rot
 
     def _set_jaw(self, jaw: float) -> None:
         """The jaw-dependent frame constants: eq 9's target (`rest_target`) and the support normals
-        n_i (the rest normals turned with the jaw like the target), recomputed only when jaw moves."""
+        n_i (the rest normals turned with the jaw like the target), recomputed only when jaw moves;
+        for the implicit integrator also the reference of its margin bending term (`sim.implicit`)."""
         if jaw == self._jaw:
             return
         m = self.model
-        self._target = self.rest_target(jaw)
-        if self._implicit is not None:  # the reference of the margin bending term (sim.implicit)
-            self._shape = self.rest_target(jaw, offset=False)
-        if jaw == 0.0:
+        self._target, shape, rot = self._jaw_turned(jaw, shape=self._implicit is not None)
+        if shape is not None:
+            self._shape = shape
+        if rot is None:
             self._normal[...] = m.rest_normal
         else:
-            rot = jaw_rotation(m.jaw_axis, jaw * m.params.jaw_max_angle)
             n = m.rest_normal + m.jaw_weight[:, None] * (times3(m.rest_normal, rot.T) - m.rest_normal)
             self._normal[...] = n / np.linalg.norm(n, axis=1)[:, None]
         self._jaw = jaw
