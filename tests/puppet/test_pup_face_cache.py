@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import sim
+import sim.face
 from puppet import face_cache, live
 from puppet.face_cache import CacheEntryError, cached_model, load_entry
 
@@ -20,7 +20,7 @@ WHAT = b"default-face:0"
 
 @pytest.fixture(scope="module")
 def fresh() -> object:
-    return sim.default_model(0)
+    return sim.face.default_model(0)
 
 
 def _same(a: object, b: object) -> None:
