@@ -105,6 +105,31 @@ def _lid_sphere(points: np.ndarray, skin: np.ndarray, loop: np.ndarray, tri: np.
     return c, r - LID_CLEARANCE
 
 
+def _rigid_fit(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation R and translation t with b ~ R a + t, least squares (Kabsch)."""
+    ca, cb = a.mean(axis=0), b.mean(axis=0)
+    u, _, vt = np.linalg.svd((a - ca).T @ (b - cb))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return rot, cb - rot @ ca
+
+
+def jaw_weights(points: np.ndarray, skin: np.ndarray) -> np.ndarray:
+    """(N,) how much each skin vertex follows the mandible, read off the scan's own `jawOpen`: the
+    share of the lower teeth's rigid motion (fitted) that the vertex makes, clipped to [0, 1]. The
+    transfer's weights cannot tell the upper lip's line from the lower one's (0.8 mm apart)."""
+    from sim.face.scan.dressing import TEETH_SPLIT
+    from sim.face.scan.data import PARTS
+
+    delta = scan_data().expression("jawOpen")
+    lower = np.arange(TEETH_SPLIT, PARTS["teeth"][1])
+    rot, t = _rigid_fit(points[lower], points[lower] + delta[lower])
+    p = points[skin]
+    rigid = p @ rot.T + t - p
+    w = np.einsum("ij,ij->i", delta[skin], rigid) / np.maximum(np.einsum("ij,ij->i", rigid, rigid), 1e-12)
+    return np.clip(w, 0.0, 1.0)
+
+
 def scan_rig(weights: np.ndarray | None = None, name: str = "ict") -> FaceRig:
     """The scanned head's rig for an identity (None: the generic head). Takes a few seconds (the
     transfer); compile it through a cache (`puppet.face_cache.scan_model`)."""
@@ -133,7 +158,7 @@ def scan_rig(weights: np.ndarray | None = None, name: str = "ict") -> FaceRig:
         radii.append(r)
     mesh = FaceMesh(
         vertices=points[skin].copy(), triangles=layout.triangles.copy(), landmarks=dict(m.landmarks),
-        held=np.asarray(m.held, bool).copy(), jaw_weight=_r(m.jaw_weight),
+        held=np.asarray(m.held, bool).copy(), jaw_weight=_r(jaw_weights(points, skin)),
         jaw_pivot=back.point(m.jaw_pivot), jaw_axis=back.direction(m.jaw_axis),
         eye_centers=_r(np.array(centres)), eye_radius=float(_r(min(radii))),
         eye_loops=(np.asarray(m.eye_loops[0]), np.asarray(m.eye_loops[1])), mouth_loop=np.asarray(m.mouth_loop),
