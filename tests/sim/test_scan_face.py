@@ -85,6 +85,24 @@ def test_landmarks_are_found_where_they_are_stored() -> None:
     assert all(v in skin for v in stored.values())
 
 
+def test_the_shipped_rig_is_what_the_transfer_makes() -> None:
+    """ict_rig.npz is remade by `python -m sim.face.scan.make_rig`; the transfer's last bits follow
+    the BLAS kernel, so the comparison allows 1e-4 cm."""
+    from sim.face.scan.make_rig import transferred_rig
+    from sim.face.scan.rig import scan_rig
+
+    shipped, made = scan_rig(), transferred_rig()
+    assert np.array_equal(shipped.mesh.vertices, made.mesh.vertices)
+    assert np.array_equal(shipped.mesh.held, made.mesh.held)
+    assert np.abs(shipped.mesh.jaw_weight - made.mesh.jaw_weight).max() < 1e-4
+    assert shipped.muscles.keys() == made.muscles.keys()
+    for ch, parts in made.muscles.items():
+        for a, b in zip(parts, shipped.muscles[ch]):
+            for key, val in vars(a).items():
+                if key != "name":
+                    assert np.allclose(val, getattr(b, key), atol=1e-4, rtol=1e-6), (ch, key)
+
+
 def test_rig_is_the_scans_own_skin_with_every_channel(model) -> None:  # type: ignore[no-untyped-def]
     layout = skin_layout()
     assert np.array_equal(model.rest, scan_data().neutral[layout.vertices])

@@ -1,27 +1,31 @@
 """The scanned head's rig: the skin of its face area with muscles, lids, lips, jaw hinge, wrinkle
-lines and regions placed from its own landmarks by the rig transfer (`sim.face.transfer`).
+lines and regions placed from its own landmarks by the rig transfer (`sim.face.transfer`, run once
+by `sim.face.scan.make_rig`; its result ships as `ict_rig.npz`).
 
-Simulated: the scan's own vertices of the narrow face area, less the inside of the lips
-(`sim.face.scan.anatomy.skin_layout`: 6188 of the 26719; everything else follows them, see
-`sim.face.scan.dressing`). The rig is in the scan's own frame and units (cm, +Y up, facing +Z):
-the transfer works in the project's reference frame, and its result is carried back by the inverse
-of the similarity it fitted. The eyeballs are the scan's: the lids slide on the sphere through the
-lid skin of the open and the scanned closed eye (`eyeBlink`), which covers the cornea.
+Simulated: the scan's own vertices of the narrow face area, less the inside of the lips and the
+back of the lids (`sim.face.scan.anatomy.skin_layout`: 6020 of the 26719; everything else follows
+them, `sim.face.scan.dressing`). The rig is in the scan's own frame and units (cm, +Y up, facing
++Z). The lids slide on a sphere holding the scanned eyeball's front (sclera and cornea).
 
-An identity (`weights`, the 100 identity modes' weights) changes the positions only; the vertex
-numbering, the landmarks and hence the rig's structure are the same for every identity. Carried
-quantities are rounded to 1e-7 cm so the rig (and its hash) does not depend on the last bits of
-the linear algebra kernels used by the transfer.
+An identity (`weights`, the 100 identity modes' weights) changes positions only: the vertex
+numbering, the landmarks and the rig's structure are the same for every identity, and an identity's
+rig is carried from the shipped one with elementwise arithmetic, so the rig, its hash and every
+replay on it are the same bits whatever BLAS kernel the process runs.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
+from pathlib import Path
+
 import numpy as np
 
-from sim.face.scan.anatomy import load_landmarks, skin_layout
-from sim.face.scan.data import N_IDENTITIES, PARTS, scan_data
-from sim.build import SkinParams, vertex_normals
-from sim.model import FaceMesh, FaceRig, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+from sim.build import SkinParams
+from sim.face.scan.anatomy import skin_layout
+from sim.face.scan.data import N_IDENTITIES, PARTS, SCLERA, scan_data
+from sim.model import FaceRig, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+
+RIG_FILE = Path(__file__).with_name("ict_rig.npz")  # the generic head's rig (sim.face.scan.make_rig)
 
 DIGITS = 7  # carried quantities are rounded to this many decimals (cm)
 # The scan's skin is 3-10x finer than the procedural face's (median edge 2.8 mm, 0.4 mm at the lid
@@ -59,50 +63,6 @@ def _r(a: np.ndarray | float) -> np.ndarray:
     return np.round(np.asarray(a, dtype=np.float64), DIGITS)
 
 
-class _Back:
-    """The inverse of the transfer's similarity: points, directions and lengths back to the scan."""
-
-    def __init__(self, similarity) -> None:  # type: ignore[no-untyped-def]
-        self.s = similarity
-
-    def point(self, p: np.ndarray) -> np.ndarray:
-        return _r(self.s.invert(np.asarray(p, float)))
-
-    def direction(self, d: np.ndarray) -> np.ndarray:
-        v = np.asarray(d, float) @ self.s.rotation
-        return _r(v / np.linalg.norm(v))
-
-    def length(self, x: float) -> float:
-        return float(_r(x / self.s.scale))
-
-    def muscle(self, m: Muscle) -> Muscle:
-        if isinstance(m, LinearMuscle):
-            return LinearMuscle(m.name, self.point(m.attachment), self.point(m.insertion), self.length(m.radius),
-                                float(_r(m.angle)), float(_r(m.eta)), float(_r(m.scale)))
-        if isinstance(m, SphincterMuscle):
-            return SphincterMuscle(m.name, self.point(m.center), self.direction(m.major_axis),
-                                   self.direction(m.minor_axis), self.length(m.a), self.length(m.b), float(_r(m.scale)))
-        assert isinstance(m, SheetMuscle)
-        return SheetMuscle(m.name, self.point(m.attach1), self.point(m.attach2), self.point(m.insert1),
-                           self.point(m.insert2), self.length(m.length), self.length(m.width), float(_r(m.eta)),
-                           float(_r(m.scale)))
-
-    def wrinkle(self, line, skin: np.ndarray, project_skin: np.ndarray):  # type: ignore[no-untyped-def]
-        """A wrinkle line's frontal points: each put on the skin (the nearest skin vertex in the
-        frontal plane of the project frame gives its depth), carried back, frontal again."""
-        from dataclasses import replace
-
-        from scipy.spatial import cKDTree
-
-        pts = np.asarray(line.points, float)
-        _, near = cKDTree(project_skin[:, :2]).query(pts)
-        p3 = np.column_stack([pts, project_skin[near, 2]])
-        back = self.s.invert(p3)
-        scale = 1.0 / self.s.scale
-        return replace(line, points=_r(back[:, :2]), width_minus=float(_r(line.width_minus * scale)),
-                       width_plus=float(_r(line.width_plus * scale)))
-
-
 def _lid_sphere(eyeball: np.ndarray) -> tuple[np.ndarray, float]:
     """Centre and radius of the sphere the lids slide on: the smallest sphere centred on the
     eyeball's axis (+Z through the sclera's centre) that holds the eyeball's front within
@@ -123,88 +83,91 @@ def _lid_sphere(eyeball: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def eyeball_spheres_one(eyeball: np.ndarray) -> np.ndarray:
-    """The centre (3,) of one eyeball's sclera (least-squares sphere through its vertices)."""
-    from sim.face.scan.data import SCLERA
-
+    """The centre (3,) of one eyeball's sclera: the least-squares sphere through its vertices
+    (normal equations summed elementwise and solved by plain elimination, so the same bits whatever
+    BLAS kernel the process runs)."""
     p = eyeball[:SCLERA]
     a = np.column_stack([2.0 * p, np.ones(len(p))])
-    return np.linalg.lstsq(a, np.sum(p * p, axis=1), rcond=None)[0][:3]
+    b = np.sum(p * p, axis=1)
+    m = [[float(np.sum(a[:, i] * a[:, j])) for j in range(4)] + [float(np.sum(a[:, i] * b))] for i in range(4)]
+    for i in range(4):  # Gauss-Jordan with partial pivoting on the 4x5 system
+        piv = max(range(i, 4), key=lambda r: abs(m[r][i]))
+        m[i], m[piv] = m[piv], m[i]
+        for r in range(4):
+            if r != i:
+                f = m[r][i] / m[i][i]
+                m[r] = [x - f * y for x, y in zip(m[r], m[i])]
+    return np.array([m[i][4] / m[i][i] for i in range(3)])
 
 
-def _rigid_fit(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation R and translation t with b ~ R a + t, least squares (Kabsch)."""
-    ca, cb = a.mean(axis=0), b.mean(axis=0)
-    u, _, vt = np.linalg.svd((a - ca).T @ (b - cb))
-    d = np.sign(np.linalg.det(vt.T @ u.T))
-    rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
-    return rot, cb - rot @ ca
+NEAREST = 4  # skin vertices whose identity displacement a carried point takes
 
 
-def jaw_weights(points: np.ndarray, skin: np.ndarray) -> np.ndarray:
-    """(N,) how much each skin vertex follows the mandible, read off the scan's own `jawOpen`: the
-    share of the lower teeth's rigid motion (fitted) that the vertex makes, clipped to [0, 1]. The
-    transfer's weights cannot tell the upper lip's line from the lower one's (0.8 mm apart)."""
-    from sim.face.scan.dressing import TEETH_SPLIT
-    from sim.face.scan.data import PARTS
-
-    delta = scan_data().expression("jawOpen")
-    lower = np.arange(TEETH_SPLIT, PARTS["teeth"][1])
-    rot, t = _rigid_fit(points[lower], points[lower] + delta[lower])
-    p = points[skin]
-    rigid = p @ rot.T + t - p
-    w = np.einsum("ij,ij->i", delta[skin], rigid) / np.maximum(np.einsum("ij,ij->i", rigid, rigid), 1e-12)
-    return np.clip(w, 0.0, 1.0)
+def _carry(points: np.ndarray, tree, disp: np.ndarray) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """Points moved with the skin: the inverse-distance mean of their nearest skin vertices'
+    displacement (elementwise arithmetic only: the same bits on any BLAS kernel)."""
+    p = np.atleast_2d(np.asarray(points, float))
+    d, k = tree.query(p, k=NEAREST)
+    w = 1.0 / np.maximum(d, 1e-9)
+    w = w / w.sum(axis=1, keepdims=True)
+    return _r(p + (w[:, :, None] * disp[k]).sum(axis=1))
 
 
-def _stronger(m: Muscle, channel: str) -> Muscle:
-    from dataclasses import replace
+def _carry_muscle(m: Muscle, tree, disp: np.ndarray, s: float) -> Muscle:  # type: ignore[no-untyped-def]
+    def pt(p: np.ndarray) -> np.ndarray:
+        return _carry(p, tree, disp)[0]
 
-    base = channel[:-2] if channel.endswith(("_l", "_r")) else channel
-    return replace(m, scale=float(_r(m.scale * FORCE_OF.get(base, FORCE))))
+    if isinstance(m, LinearMuscle):
+        return replace(m, attachment=pt(m.attachment), insertion=pt(m.insertion), radius=float(_r(m.radius * s)))
+    if isinstance(m, SphincterMuscle):
+        return replace(m, center=pt(m.center), a=float(_r(m.a * s)), b=float(_r(m.b * s)))
+    assert isinstance(m, SheetMuscle)
+    return replace(m, attach1=pt(m.attach1), attach2=pt(m.attach2), insert1=pt(m.insert1), insert2=pt(m.insert2),
+                   length=float(_r(m.length * s)), width=float(_r(m.width * s)))
+
+
+def _generic_rig() -> FaceRig:
+    from sim.rig import load_rig
+
+    return load_rig(RIG_FILE)
 
 
 def scan_rig(weights: np.ndarray | None = None, name: str = "ict") -> FaceRig:
-    """The scanned head's rig for an identity (None: the generic head). Takes a few seconds (the
-    transfer); compile it through a cache (`puppet.face_cache.scan_model`)."""
-    from sim.face import default_rig
-    from sim.face.transfer.landmarks import LandmarkFile
-    from sim.face.transfer.meshfile import HeadMesh
-    from sim.face.transfer.pipeline import transfer_rig
+    """The scanned head's rig for an identity (None: the generic head; else up to 100 identity
+    weights). The generic rig is shipped (`ict_rig.npz`, made by `sim.face.scan.make_rig`); an
+    identity's is carried from it: its skin is the identity's, muscle points and the jaw hinge move
+    with the skin around them, lengths scale with the eyes' distance, the lids' sphere is fitted to
+    the identity's eyeballs; weights, regions and the held skin are the generic ones. ~0.1 s."""
+    from scipy.spatial import cKDTree
 
+    rig = _generic_rig()
+    m = rig.mesh
+    if weights is None:
+        return replace(rig, name=name)
     points = scan_points(weights)
-    layout = skin_layout()
-    skin = layout.vertices
-    local = {int(s): i for i, s in enumerate(skin)}
-    landmarks = {k: local[v] for k, v in load_landmarks().items()}
-    head = HeadMesh(f"<{name} scan>", points[skin], layout.triangles, np.arange(len(skin)))
-    tr = transfer_rig(default_rig(1), head, LandmarkFile(f"<{name} landmarks>", landmarks), name=name)
-    m = tr.rig.mesh
-    if len(m.vertices) != len(skin):
-        raise RuntimeError("the scan's skin lost vertices in the transfer")
-    back = _Back(tr.similarity)
-    data = scan_data()
+    skin = skin_layout().vertices
+    disp = points[skin] - m.vertices
+    tree = cKDTree(m.vertices)
     centres, radii = [], []
-    for part, loop in zip(("eyeball_l", "eyeball_r"), m.eye_loops):
+    for part in ("eyeball_l", "eyeball_r"):
         lo, hi = PARTS[part]
         c, r = _lid_sphere(points[lo:hi])
         centres.append(c)
         radii.append(r)
-    # under the chin the skin is held and follows the jaw by its weights: between the chin and the
-    # held neck it is squeezed as the jaw opens and buckled (0.6-1.9 cm2 of folds at jaw = 1)
-    rest = points[skin]
-    normal = vertex_normals(rest, layout.triangles)
-    chin = rest[landmarks["chin"]]
-    under = (normal[:, 1] < -0.5) & (rest[:, 1] < chin[1] - 0.3)
-    mesh = FaceMesh(
-        vertices=rest.copy(), triangles=layout.triangles.copy(), landmarks=dict(m.landmarks),
-        held=np.asarray(m.held, bool) | under, jaw_weight=_r(jaw_weights(points, skin)),
-        jaw_pivot=back.point(m.jaw_pivot), jaw_axis=back.direction(m.jaw_axis),
-        eye_centers=_r(np.array(centres)), eye_radius=float(_r(min(radii))),
-        eye_loops=(np.asarray(m.eye_loops[0]), np.asarray(m.eye_loops[1])), mouth_loop=np.asarray(m.mouth_loop),
-        regions={k: np.asarray(v, bool) for k, v in m.regions.items()}, uv=None if m.uv is None else _r(m.uv))
-    muscles = {ch: tuple(_stronger(back.muscle(p), ch) for p in parts) for ch, parts in tr.rig.muscles.items()}
-    wrinkles = tuple(back.wrinkle(w, skin, m.vertices) for w in tr.rig.wrinkles)
-    return FaceRig(mesh=mesh, muscles=muscles, wrinkles=wrinkles, name=name)
+    base = scan_points(None)
+    ipd = [np.linalg.norm(eyeball_spheres_one(p[PARTS["eyeball_l"][0]:PARTS["eyeball_l"][1]])
+                          - eyeball_spheres_one(p[PARTS["eyeball_r"][0]:PARTS["eyeball_r"][1]])) for p in (points, base)]
+    s = float(ipd[0] / ipd[1])
+    mesh = replace(m, vertices=points[skin].copy(), jaw_pivot=_carry(m.jaw_pivot, tree, disp)[0],
+                   eye_centers=_r(np.array(centres)), eye_radius=float(_r(min(radii))))
+    muscles = {ch: tuple(_carry_muscle(p, tree, disp, s) for p in parts) for ch, parts in rig.muscles.items()}
+    front = cKDTree(m.vertices[:, :2])
+    wrinkles = []
+    for line in rig.wrinkles:
+        _, k = front.query(np.asarray(line.points, float))
+        wrinkles.append(replace(line, points=_r(np.asarray(line.points, float) + disp[k, :2]),
+                                width_minus=float(_r(line.width_minus * s)), width_plus=float(_r(line.width_plus * s))))
+    return FaceRig(mesh=mesh, muscles=muscles, wrinkles=tuple(wrinkles), name=name)
 
 
 _MODELS: dict[bytes, object] = {}

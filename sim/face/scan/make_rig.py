@@ -1,0 +1,151 @@
+"""How the scanned head's shipped rig (`ict_rig.npz`) is made: the reference face's rig
+transferred onto the generic head's skin (`sim.face.transfer`), carried back into the scan's frame,
+with the scan's own jaw weights (from its `jawOpen`), eyeballs and held skin under the chin, and the
+muscles made stronger for the scan's stiffer skin (`sim.face.scan.rig`). The transfer runs linear
+algebra whose last bits follow the BLAS kernel, so it is run once and its result shipped; the
+application never runs it. Remake the file with `python -m sim.face.scan.make_rig`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from sim.build import vertex_normals
+from sim.face.scan.anatomy import load_landmarks, skin_layout
+from sim.face.scan.data import PARTS, scan_data
+from sim.face.scan.rig import FORCE, FORCE_OF, RIG_FILE, _lid_sphere, _r, scan_points
+from sim.model import FaceMesh, FaceRig, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+
+
+class _Back:
+    """The inverse of the transfer's similarity: points, directions and lengths back to the scan."""
+
+    def __init__(self, similarity) -> None:  # type: ignore[no-untyped-def]
+        self.s = similarity
+
+    def point(self, p: np.ndarray) -> np.ndarray:
+        return _r(self.s.invert(np.asarray(p, float)))
+
+    def direction(self, d: np.ndarray) -> np.ndarray:
+        v = np.asarray(d, float) @ self.s.rotation
+        return _r(v / np.linalg.norm(v))
+
+    def length(self, x: float) -> float:
+        return float(_r(x / self.s.scale))
+
+    def muscle(self, m: Muscle) -> Muscle:
+        if isinstance(m, LinearMuscle):
+            return LinearMuscle(m.name, self.point(m.attachment), self.point(m.insertion), self.length(m.radius),
+                                float(_r(m.angle)), float(_r(m.eta)), float(_r(m.scale)))
+        if isinstance(m, SphincterMuscle):
+            return SphincterMuscle(m.name, self.point(m.center), self.direction(m.major_axis),
+                                   self.direction(m.minor_axis), self.length(m.a), self.length(m.b), float(_r(m.scale)))
+        assert isinstance(m, SheetMuscle)
+        return SheetMuscle(m.name, self.point(m.attach1), self.point(m.attach2), self.point(m.insert1),
+                           self.point(m.insert2), self.length(m.length), self.length(m.width), float(_r(m.eta)),
+                           float(_r(m.scale)))
+
+    def wrinkle(self, line, skin: np.ndarray, project_skin: np.ndarray):  # type: ignore[no-untyped-def]
+        """A wrinkle line's frontal points: each put on the skin (the nearest skin vertex in the
+        frontal plane of the project frame gives its depth), carried back, frontal again."""
+        from dataclasses import replace
+
+        from scipy.spatial import cKDTree
+
+        pts = np.asarray(line.points, float)
+        _, near = cKDTree(project_skin[:, :2]).query(pts)
+        p3 = np.column_stack([pts, project_skin[near, 2]])
+        back = self.s.invert(p3)
+        scale = 1.0 / self.s.scale
+        return replace(line, points=_r(back[:, :2]), width_minus=float(_r(line.width_minus * scale)),
+                       width_plus=float(_r(line.width_plus * scale)))
+
+
+def _rigid_fit(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation R and translation t with b ~ R a + t, least squares (Kabsch)."""
+    ca, cb = a.mean(axis=0), b.mean(axis=0)
+    u, _, vt = np.linalg.svd((a - ca).T @ (b - cb))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return rot, cb - rot @ ca
+
+
+def jaw_weights(points: np.ndarray, skin: np.ndarray) -> np.ndarray:
+    """(N,) how much each skin vertex follows the mandible, read off the scan's own `jawOpen`: the
+    share of the lower teeth's rigid motion (fitted) that the vertex makes, clipped to [0, 1]. The
+    transfer's weights cannot tell the upper lip's line from the lower one's (0.8 mm apart)."""
+    from sim.face.scan.dressing import TEETH_SPLIT
+    from sim.face.scan.data import PARTS
+
+    delta = scan_data().expression("jawOpen")
+    lower = np.arange(TEETH_SPLIT, PARTS["teeth"][1])
+    rot, t = _rigid_fit(points[lower], points[lower] + delta[lower])
+    p = points[skin]
+    rigid = p @ rot.T + t - p
+    w = np.einsum("ij,ij->i", delta[skin], rigid) / np.maximum(np.einsum("ij,ij->i", rigid, rigid), 1e-12)
+    return np.clip(w, 0.0, 1.0)
+
+
+def _stronger(m: Muscle, channel: str) -> Muscle:
+    from dataclasses import replace
+
+    base = channel[:-2] if channel.endswith(("_l", "_r")) else channel
+    return replace(m, scale=float(_r(m.scale * FORCE_OF.get(base, FORCE))))
+
+
+def transferred_rig(weights: np.ndarray | None = None, name: str = "ict") -> FaceRig:
+    """The scanned head's rig made by the transfer (5-10 s), for an identity (None: generic)."""
+    from sim.face import default_rig
+    from sim.face.transfer.landmarks import LandmarkFile
+    from sim.face.transfer.meshfile import HeadMesh
+    from sim.face.transfer.pipeline import transfer_rig
+
+    points = scan_points(weights)
+    layout = skin_layout()
+    skin = layout.vertices
+    local = {int(s): i for i, s in enumerate(skin)}
+    landmarks = {k: local[v] for k, v in load_landmarks().items()}
+    head = HeadMesh(f"<{name} scan>", points[skin], layout.triangles, np.arange(len(skin)))
+    tr = transfer_rig(default_rig(1), head, LandmarkFile(f"<{name} landmarks>", landmarks), name=name)
+    m = tr.rig.mesh
+    if len(m.vertices) != len(skin):
+        raise RuntimeError("the scan's skin lost vertices in the transfer")
+    back = _Back(tr.similarity)
+    centres, radii = [], []
+    for part, loop in zip(("eyeball_l", "eyeball_r"), m.eye_loops):
+        lo, hi = PARTS[part]
+        c, r = _lid_sphere(points[lo:hi])
+        centres.append(c)
+        radii.append(r)
+    # under the chin the skin is held and follows the jaw by its weights: between the chin and the
+    # held neck it is squeezed as the jaw opens and buckled (0.6-1.9 cm2 of folds at jaw = 1)
+    rest = points[skin]
+    normal = vertex_normals(rest, layout.triangles)
+    chin = rest[landmarks["chin"]]
+    under = (normal[:, 1] < -0.5) & (rest[:, 1] < chin[1] - 0.3)
+    mesh = FaceMesh(
+        vertices=rest.copy(), triangles=layout.triangles.copy(), landmarks=dict(m.landmarks),
+        held=np.asarray(m.held, bool) | under, jaw_weight=_r(jaw_weights(points, skin)),
+        jaw_pivot=back.point(m.jaw_pivot), jaw_axis=back.direction(m.jaw_axis),
+        eye_centers=_r(np.array(centres)), eye_radius=float(_r(min(radii))),
+        eye_loops=(np.asarray(m.eye_loops[0]), np.asarray(m.eye_loops[1])), mouth_loop=np.asarray(m.mouth_loop),
+        regions={k: np.asarray(v, bool) for k, v in m.regions.items()}, uv=None if m.uv is None else _r(m.uv))
+    muscles = {ch: tuple(_stronger(back.muscle(p), ch) for p in parts) for ch, parts in tr.rig.muscles.items()}
+    wrinkles = tuple(back.wrinkle(w, skin, m.vertices) for w in tr.rig.wrinkles)
+    return FaceRig(mesh=mesh, muscles=muscles, wrinkles=wrinkles, name=name)
+
+
+
+
+def pack(path: str | Path = RIG_FILE) -> None:
+    """Write the generic head's rig as the shipped rig file."""
+    from sim.rig import save_rig
+
+    save_rig(transferred_rig(), path)
+
+
+if __name__ == "__main__":
+    pack()
+    print(f"wrote {RIG_FILE}")
