@@ -126,7 +126,7 @@ def _scan(control: object, frames: int, auto_ms: dict[int, float]) -> None:
     ms = _frame_ms(sim, model, control, frames)
     print(f"scan {model.n_vertices:>6} {len(model.spring_indices):>7} {sim.method:>8} {'*':>4} {sim.substeps:>8} "
           f"{1e3 * ms / sim.substeps:>8.1f} {ms:>8.2f} {100 * ms / (1e3 * FRAME):>8.1f}%")
-    print(f"    scan_rig (transfer): {t1 - t0:.2f} s, compile_model: {t2 - t1:.2f} s")
+    print(f"    scan_rig (the shipped rig): {t1 - t0:.2f} s, compile_model: {t2 - t1:.2f} s")
     for res, base in auto_ms.items():
         print(f"    scan / resolution {res} (each with its auto method): {ms / base:.2f}x")
     dressing = build_dressing(model)

@@ -38,6 +38,8 @@ DIGITS = 7  # carried quantities are rounded to this many decimals (cm)
 #   bend 10, support 27000, force 1:     1 pose folds, 11 of 39 targets met
 #   bend 10, support 27000, force 2:     8 poses fold, 21 targets
 #   bend 6, support 27000, force 1.6:    6 poses fold, 24 targets   <- chosen: the expressions read
+# The stiffer skin lags the jaw: at the procedural face's 0.55 rad AU27 parts the lips 36 mm (real
+# maximal opening 44-57); 0.68 rad gave 41 mm but folded 0.46 cm2 at the mouth, so it stays 0.55.
 SCAN_PARAMS = SkinParams(bend_ratio=6.0, support=27000.0)
 FORCE = 1.6
 # the orbital sphincter (AU6) folds the skin round the eye first; the lid strips need twice the
