@@ -122,7 +122,7 @@ def load_model(args: argparse.Namespace) -> Any:
     if choice.kind == "ict":
         from puppet.face_cache import scan_model
 
-        return scan_model(choice.weights)
+        return scan_model(choice.weights if choice.weights.any() else None)
     from sim.face import default_model
 
     return default_model(choice.resolution)

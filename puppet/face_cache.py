@@ -347,35 +347,18 @@ def default_model(resolution: int = 0) -> Any:
     return cached_model(f"default-face:{resolution}".encode(), lambda: sim.face.default_model(resolution))
 
 
-def scan_model(weights: np.ndarray) -> Any:
-    """The scanned head (sim.face.scan) with identity `weights` (100,), from the cache when it can
-    be trusted, else built and stored. PuppetError when this build has no scanned face."""
-    from puppet.errors import PuppetError
+def scan_model(weights: Any = None) -> Any:
+    """The scanned head (`sim.face.scan`) of an identity (None: the generic head; else up to 100
+    identity weights), compiled, from the cache when it can be trusted: a build takes ~8 s (the
+    rig transfer and two eigenvalue solves), a start from the cache well under one."""
+    import numpy as np
 
-    try:
-        from sim.face.scan import scan_rig  # type: ignore[attr-defined]
-    except ImportError as err:
-        raise PuppetError("the scanned face (--face ict) is not available in this build; use --face procedural") from err
-    w = np.asarray(weights, "<f8")
-    generic = not np.any(w)
+    from sim.build import compile_model
+    from sim.face.scan.rig import scan_rig
 
-    def build() -> Any:
-        from sim.build import compile_model
-
-        return compile_model(scan_rig(None if generic else w, name="ict" if generic else "ict-identity"))
-
-    return _scan_models(w.tobytes(), build)
-
-
-_SCAN_MODELS: dict[bytes, Any] = {}
-
-
-def _scan_models(key: bytes, build: Callable[[], Any]) -> Any:
-    if key not in _SCAN_MODELS:
-        if len(_SCAN_MODELS) >= 4:
-            _SCAN_MODELS.pop(next(iter(_SCAN_MODELS)))
-        _SCAN_MODELS[key] = cached_model(b"scan-face:" + key, build)
-    return _SCAN_MODELS[key]
+    w = None if weights is None else np.asarray(weights, dtype=np.float64).ravel()
+    what = b"scan-face:ict:" + (b"generic" if w is None else hashlib.sha256(w.tobytes()).digest())
+    return cached_model(what, lambda: compile_model(scan_rig(w)))
 
 
 _SHELL_ARRAYS = ("vertices", "triangles", "hair", "hair_coords", "ring", "ring_mask", "moving", "col_mask",

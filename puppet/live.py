@@ -102,7 +102,7 @@ def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None
         model = face_cache.default_model(choice.resolution)
         info = {"name": "default", "hash": model.hash, "path": None, **choice.header()}
     else:
-        model = face_cache.scan_model(choice.weights)
+        model = face_cache.scan_model(choice.weights if choice.weights.any() else None)
         info = {"name": str(model.rig.name), "hash": model.hash, "path": None, **choice.header()}
     return Face(model, Vocabulary.from_model(model), info)
 
