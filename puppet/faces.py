@@ -5,6 +5,8 @@
     --face procedural         the procedural face (with --resolution 0, 1 or 2)
     --face NAME               an identity saved with `puppet face save NAME --identity SEED|w1,w2,...`
 
+Without --face (and --rig) a command uses $PUPPET_FACE, else the scanned head's generic identity.
+
 Saved identities are small JSON files in the user's data folder ($PUPPET_DATA_DIR, else
 $XDG_DATA_HOME/facepuppet/identities, else ~/.local/share/facepuppet/identities), written to a
 temporary file and renamed into place. A take records the face it was made with (the spec, the
@@ -27,8 +29,9 @@ from puppet.errors import ConfigError, PuppetError
 FORMAT = "facepuppet-identity"
 VERSION = 1
 N_IDENTITY = 100
-#: The face every command uses when neither --face nor --rig is given.
-DEFAULT_FACE = "procedural"
+#: The face every command uses when neither --face nor --rig is given ($PUPPET_FACE overrides it).
+DEFAULT_FACE = "ict"
+ENV = "PUPPET_FACE"
 KINDS = ("ict", "procedural")
 NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,63}$")
 FORMS = "ict, ict?identity=SEED, procedural or a saved identity's NAME"
@@ -67,6 +70,11 @@ class FaceChoice:
         return out
 
 
+def default_face() -> str:
+    """The --face used when none is given: $PUPPET_FACE, else DEFAULT_FACE (the scanned head)."""
+    return os.environ.get(ENV) or DEFAULT_FACE
+
+
 def seed_identity(seed: int) -> tuple[float, ...]:
     """The identity weights of a seed: 100 draws of N(0, 1) (the toolkit's own prior)."""
     return tuple(float(x) for x in np.random.default_rng(seed).standard_normal(N_IDENTITY))
@@ -91,7 +99,7 @@ def parse_identity(text: str) -> tuple[tuple[float, ...], int | None]:
 
 def parse_face(spec: str | None, resolution: int = 0) -> FaceChoice:
     """The face a --face text names (None: the default face). PuppetError with the expected forms."""
-    text = (spec if spec is not None else DEFAULT_FACE).strip()
+    text = (spec if spec is not None else default_face()).strip()
     base, _, query = text.partition("?")
     if base == "procedural":
         if query:

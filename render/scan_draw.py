@@ -38,10 +38,8 @@ def dressing_of(model: Any) -> Any:
     own = getattr(model, "scan_dressing", None)
     if own is not None:
         return own
-    try:
-        from sim.face.scan import dressing_for  # type: ignore[attr-defined]
-    except ImportError:
-        return None
+    from sim.face.scan.dressing import dressing_for
+
     return dressing_for(model)
 
 
@@ -52,7 +50,7 @@ class ScanDraw:
     def __init__(self, ctx: moderngl.Context, model: Any, dressing: Any) -> None:
         self.ctx = ctx
         self.dressing = dressing
-        rest_scan = getattr(dressing, "rest_positions", None)
+        rest_scan = getattr(dressing, "rest", None)
         if rest_scan is None:  # the scan posed by the face at rest
             rest_state = model.rest_state()
             rest_scan = dressing.pose(np.asarray(rest_state.surface), PoseControl(rest_state))

@@ -16,7 +16,11 @@ from puppet.replay import Replayer, build_performance
 from puppet.session import SessionWriter, read_session
 
 
-def test_face_forms() -> None:
+def test_face_forms(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("PUPPET_FACE", raising=False)
+    assert faces.parse_face(None).kind == "ict"  # the scanned head is the default face
+    monkeypatch.setenv("PUPPET_FACE", "procedural")
+    assert faces.parse_face(None).kind == "procedural"
     generic = faces.parse_face("ict")
     assert generic.kind == "ict" and not generic.weights.any()
     seeded = faces.parse_face("ict?identity=7")

@@ -21,7 +21,7 @@ class ScanShapes:
         p = d.neutral.copy()
         if identity is not None and len(identity):
             p += d.identity_delta(np.asarray(identity, np.float64))
-        self.rest_positions = p.astype(np.float32)  # the head at rest, for what is baked from it
+        self.rest = p.astype(np.float32)  # the head at rest, for what is baked from it
         for name, w in (expressions or {}).items():
             if name not in d.expression_names:
                 raise ValueError(f"unknown scan expression {name!r}; known: {', '.join(d.expression_names)}")
