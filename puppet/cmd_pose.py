@@ -5,7 +5,9 @@ Outside checks rely on this contract:
                 [--expression NAME[=WEIGHT]]... [--age YEARS] [--seconds S] --out FILE
                 [--size WxH] [--view VIEW]
 FILE .npz: arrays rest (N,3), positions (N,3), surface (N,3), triangles (M,3), landmark_names (K,),
-landmark_indices (K,); .obj: the drawn surface; .png/.jpg/.jpeg: rendered by render.offscreen.
+landmark_indices (K,), and for the scanned head scan_rest and scan_positions (26719,3), the whole scan in
+its own vertex order; .obj: the drawn surface (the scanned head: the whole posed scan, its 26719
+vertices and its faces in the scan's order); .png/.jpg/.jpeg: rendered by render.offscreen.
 Values combine in this order: expressions, then AUs (each raises its channels to max(current,
 weight * intensity)), then --set (overrides), then --age.
 """
@@ -184,12 +186,23 @@ def write_pose(model: Any, state: Any, out: Path, *, size: tuple[int, int] = (12
 
     from safefile import atomic_path, atomic_write
 
+    from puppet.export.scan import posed, scan_dressing, write_scan_obj
+
     suffix = out.suffix.lower()
+    dressing = scan_dressing(model) if suffix in (".npz", ".obj") else None
+    if suffix == ".obj" and dressing is not None:  # the scanned head: the scan's vertices and faces
+        with atomic_path(out) as tmp:
+            write_scan_obj(tmp, posed(dressing, state), f"puppet pose, model {model.hash}, t = {state.time:.4f} s, "
+                           "cm; the scanned head's 26719 vertices in the scan's order (ICT FaceKit topology)")
+        return
+    extra = {} if dressing is None else {"scan_rest": np.asarray(dressing.rest, np.float64),
+                                         "scan_positions": np.asarray(posed(dressing, state), np.float64)}
     if suffix == ".npz":
         names = sorted(model.mesh.landmarks)
         with atomic_write(out, "wb") as fh:
             np.savez(
                 fh,
+                **extra,
                 rest=np.asarray(model.rest, np.float64),
                 positions=np.asarray(state.positions, np.float64),
                 surface=np.asarray(state.surface, np.float64),

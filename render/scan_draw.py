@@ -13,22 +13,9 @@ import numpy as np
 
 from render import scan_shaders
 from render.scan_look import IRIS_ANGLE, PUPIL_ANGLE, ScanLook, ScanRows
+from sim.face.scan.blendshapes import StateControl as PoseControl
 
 KINDS = ("SKIN", "CLAY", "HEAT")
-
-
-class PoseControl:
-    """What a dressing reads besides the surface, taken from a drawn state: channel values when
-    the state carries them (`control`), else the eyes' yaw and pitch the state always has."""
-
-    def __init__(self, state: Any) -> None:
-        self.state = state
-
-    def get(self, name: str) -> float:
-        ctrl = getattr(self.state, "control", None)
-        if ctrl is not None:
-            return float(ctrl.get(name))
-        return float(getattr(self.state, {"eyes_yaw": "eye_yaw", "eyes_pitch": "eye_pitch"}.get(name, name), 0.0))
 
 
 def dressing_of(model: Any) -> Any:
@@ -38,6 +25,9 @@ def dressing_of(model: Any) -> Any:
     own = getattr(model, "scan_dressing", None)
     if own is not None:
         return own
+    rig = getattr(model, "rig", None)
+    if rig is None or not str(getattr(rig, "name", "")).startswith("ict"):
+        return None  # only the scanned head's rigs are named so (sim.face.scan.rig.scan_rig)
     from sim.face.scan.dressing import dressing_for
 
     return dressing_for(model)

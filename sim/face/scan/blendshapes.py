@@ -12,6 +12,23 @@ import numpy as np
 from sim.face.scan.data import scan_data
 
 
+class StateControl:
+    """What a dressing reads besides the surface (`get(name)`), taken from a drawn or exported
+    state: its channel values when it carries a control, else the jaw and the eyes' yaw and pitch
+    that every FaceState keeps from its last step."""
+
+    _FIELDS = {"eyes_yaw": "eye_yaw", "eyes_pitch": "eye_pitch"}
+
+    def __init__(self, state: object) -> None:
+        self.state = state
+
+    def get(self, name: str) -> float:
+        ctrl = getattr(self.state, "control", None)
+        if ctrl is not None:
+            return float(ctrl.get(name))
+        return float(getattr(self.state, self._FIELDS.get(name, name), 0.0))
+
+
 class ScanShapes:
     """A scan pose that ignores the simulation: `pose(surface, control)` gives the same (26719, 3)
     float32 positions every call (the renderer's dressing interface)."""
