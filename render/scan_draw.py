@@ -33,6 +33,20 @@ def dressing_of(model: Any) -> Any:
     return dressing_for(model)
 
 
+class ScanPoser:
+    """The per-frame CPU half of drawing a scanned head, without OpenGL: the scan posed to a state
+    and its rows (an export's simulating process makes them for its render processes)."""
+
+    def __init__(self, dressing: Any) -> None:
+        self.dressing = dressing
+        self.look = ScanLook(np.asarray(dressing.rest, np.float64))
+        self.maker = ScanRows(self.look)
+
+    def rows(self, state: Any) -> np.ndarray:
+        posed = self.dressing.pose(np.asarray(state.surface), PoseControl(state))
+        return self.maker.rows(posed)
+
+
 class ScanDraw:
     """GL objects and per-frame work for one scanned head. `rows(state)` poses the scan and makes
     the rows to upload (done in the simulating process of an export too); `draw(rows, ...)` draws."""
