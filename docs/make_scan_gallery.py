@@ -31,14 +31,17 @@ AU_SHAPES = {
 }
 
 
+UNPAIRED = ("jawOpen", "mouthShrugLower")  # shapes the scan has once, not per side
+
+
 def scan_weights(aus: dict[str, float]) -> dict[str, float]:
     """The scan's expression shapes and weights standing for a preset's action units."""
     out: dict[str, float] = {}
     for au, w in aus.items():
         base, _, side = au.partition("_")
         shape = AU_SHAPES[base]
-        if shape == "jawOpen":
-            out[shape] = max(out.get(shape, 0.0), 0.5 * w)
+        if shape in UNPAIRED:
+            out[shape] = max(out.get(shape, 0.0), (0.5 if shape == "jawOpen" else 1.0) * w)
             continue
         for s in ("L", "R") if not side else (side.upper(),):
             out[f"{shape}_{s}"] = max(out.get(f"{shape}_{s}", 0.0), w)

@@ -18,7 +18,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from render.meshdata import spatial_order, unique_edges
+from render.meshdata import spatial_order
 from sim.face.scan.data import N_VERTICES, PARTS, SCLERA, scan_data
 
 # Linear albedos.
@@ -36,8 +36,9 @@ MOUTH_CORNER_X = 2.45  # cm: the generic head's mouth corners, either side of th
 IRIS_ANGLE = 0.50  # rad from the gaze axis: the limbus, where the cornea's bulge starts on the scan
 PUPIL_ANGLE = 0.19
 
+TEETH_DEPTH = 2.5  # cm behind the front teeth: the deepest teeth drawn
+GUMS_DEPTH = 4.0
 SKIN_PARTS = ("face", "head_neck")
-MOUTH_PARTS = ("mouth_socket", "gums_tongue", "teeth")
 LASH_PARTS = ("eyelashes_l", "eyelashes_r")
 SOCKET_PARTS = ("eye_socket_l", "eye_socket_r")
 
@@ -78,15 +79,24 @@ def _eyeball_shell(side: str) -> np.ndarray:
 
 
 def _smooth(values: np.ndarray, edges: np.ndarray, rounds: int) -> np.ndarray:
+    """(N, 3) each round every vertex takes the mean of itself and its mesh neighbours."""
     n = len(values)
-    deg = 1.0 + np.bincount(edges[:, 0], minlength=n) + np.bincount(edges[:, 1], minlength=n)
+    a, b = edges[:, 0], edges[:, 1]
+    deg = 1.0 + np.bincount(a, minlength=n) + np.bincount(b, minlength=n)
     v = values.astype(float)
     for _ in range(rounds):
-        total = v.copy()
-        np.add.at(total, edges[:, 0], v[edges[:, 1]])
-        np.add.at(total, edges[:, 1], v[edges[:, 0]])
-        v = total / deg[:, None] if v.ndim == 2 else total / deg
+        v = np.stack([(v[:, k] + np.bincount(a, v[b, k], n) + np.bincount(b, v[a, k], n)) / deg
+                      for k in range(v.shape[1])], axis=1)
     return v
+
+
+def _edges(triangles: np.ndarray) -> np.ndarray:
+    """(E, 2) int64 undirected edges, each once (by a 1-D key: far faster than unique rows)."""
+    t = np.asarray(triangles, np.int64)
+    e = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    e.sort(axis=1)
+    key = np.unique(e[:, 0] * (int(t.max()) + 1) + e[:, 1])
+    return np.stack([key // (int(t.max()) + 1), key % (int(t.max()) + 1)], axis=1)
 
 
 def _polyline_sdf(points: np.ndarray, line: np.ndarray, half: np.ndarray) -> np.ndarray:
@@ -151,6 +161,19 @@ def lip_sdf(xy: np.ndarray, corner_x: float, stomion_y: float) -> np.ndarray:
     return np.where(np.abs(t) < 1.0, d, np.maximum(d, (np.abs(t) - 1.0) * corner_x))
 
 
+def _mouth_inside(neutral: np.ndarray) -> np.ndarray:
+    """The mouth's inside as drawn: its whole lining (the backdrop that closes the opening), and of
+    the teeth, gums and tongue what lies within TEETH_DEPTH / GUMS_DEPTH cm behind the front teeth
+    (deeper, the occlusion has them black against the lining: the molars alone are 5,000 triangles)."""
+    lo, hi = PARTS["teeth"]
+    z_front = neutral[lo:hi, 2].max()
+    out = [_triangles("mouth_socket")]
+    for part, depth in (("gums_tongue", GUMS_DEPTH), ("teeth", TEETH_DEPTH)):
+        t = _triangles(part)
+        out.append(t[z_front - neutral[t].mean(axis=1)[:, 2] < depth])
+    return np.concatenate(out)
+
+
 def _mouth_loop() -> np.ndarray:
     """The face's boundary around the mouth (where the lips roll into the mouth's lining)."""
     from sim.springs import boundary_loops
@@ -172,7 +195,9 @@ def _static_layout() -> dict[str, np.ndarray]:
     face[lo:hi] = True
     xy = neutral[:, :2]
     stomion_y = float(np.mean(neutral[_mouth_loop(), 1]))
-    brow = np.where(face, brow_sdf(xy, eye_centres(neutral)), 9.0)
+    brow = np.full(n, 9.0)
+    near = face & (neutral[:, 1] > eye_centres(neutral)[:, 1].min())  # the brows lie above the eyes
+    brow[near] = brow_sdf(xy[near], eye_centres(neutral))
     lip = np.where(face & (neutral[:, 2] > 8.0), lip_sdf(xy, MOUTH_CORNER_X, stomion_y), 9.0)
     # redder cheeks, nose and ears: smooth blobs in the face chart, plus the head chart's ears
     cheek = np.zeros(n)
@@ -180,7 +205,7 @@ def _static_layout() -> dict[str, np.ndarray]:
         cheek += np.exp(-((uv[:, 0] - cu) ** 2 + (uv[:, 1] - cv) ** 2) / r**2) * face
     groups = {
         "skin": np.concatenate([_triangles(p) for p in SKIN_PARTS]),
-        "mouth": np.concatenate([_triangles(p) for p in MOUTH_PARTS]),
+        "mouth": _mouth_inside(neutral),
         "eyes": np.concatenate([_eyeball_shell("l"), _eyeball_shell("r")]),
         "sockets": np.concatenate([_triangles(p) for p in SOCKET_PARTS]),
         "lashes": np.concatenate([_triangles(p) for p in LASH_PARTS]),
@@ -249,7 +274,7 @@ class ScanLook:
                        for k in ("skin", "mouth", "eyes", "sockets", "lashes")}
         tri = np.concatenate(list(self.groups.values()))
         self.triangles = tri
-        edges = unique_edges(tri)
+        edges = _edges(tri)
         self.edges = edges
         n = N_VERTICES
         nbr = np.concatenate([edges, edges[:, ::-1]])
@@ -278,7 +303,7 @@ class ScanLook:
 
         skin_tri = self.groups["skin"]
         normals = vertex_normals(rest, skin_tri)
-        skin_edges = unique_edges(skin_tri)
+        skin_edges = _edges(skin_tri)
         smooth = _smooth(rest, skin_edges, 24)
         depth = np.einsum("ij,ij->i", smooth - rest, normals)
         used = np.zeros(n, bool)

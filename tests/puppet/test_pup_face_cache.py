@@ -194,11 +194,10 @@ def test_key_follows_every_source_file_of_the_face_code(tmp_path: Path) -> None:
     shutil.copytree(root, copy, ignore=shutil.ignore_patterns("__pycache__"))
     base = face_cache.source_digest(copy)
     assert base == face_cache.source_digest(root)
-    (copy / "face_shape.py").write_text((copy / "face_shape.py").read_text() + "\n# tweak\n")
+    (copy / "face" / "shape.py").write_text((copy / "face" / "shape.py").read_text() + "\n# tweak\n")
     tweaked = face_cache.source_digest.__wrapped__(copy)
     assert tweaked != base
-    (copy / "face").mkdir()
-    (copy / "face" / "head.py").write_text("X = 1\n")  # a new module (the face reshaped)
+    (copy / "face" / "extra.py").write_text("X = 1\n")  # a new module (the face reshaped)
     assert face_cache.source_digest.__wrapped__(copy) not in (base, tweaked)
 
 
