@@ -241,12 +241,13 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                 t = floor_ms(ctx, size, 10)
                 if b:
                     times["floor"].append(t)
-            med = {k: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v)) for k, v in times.items()}
-            f = med["floor"]
-            out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; floor {f[0]:.2f} ms "
-                       f"(cpu {f[1]:.2f}); whole frame {med['whole'][0]:.2f} ms = {med['whole'][0] / f[0]:.2f}x floor "
-                       f"(cpu {med['whole'][1] / f[1]:.2f}x); drawing alone {med['draw'][0]:.2f} ms = "
-                       f"{med['draw'][0] / f[0]:.2f}x (cpu {med['draw'][1] / f[1]:.2f}x)")
+            med = {k: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v))
+                   for k, v in times.items()}
+            f, whole, draw = med["floor"], med["whole"], med["draw"]
+            out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; "
+                       f"floor {f[0]:.2f} ms (cpu {f[1]:.2f}); whole frame {whole[0]:.2f} ms = "
+                       f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x); drawing alone "
+                       f"{draw[0]:.2f} ms = {draw[0] / f[0]:.2f}x (cpu {draw[1] / f[1]:.2f}x)")
     return out
 
 

@@ -55,7 +55,8 @@ def _list(args: argparse.Namespace) -> int:
     else:
         for name, w, seed, err in rows:
             if not err:
-                what = f"seed {seed}" if seed is not None else f"weights {', '.join(f'{x:.2f}' for x in (w or ())[:3])}, ..."
+                first = ", ".join(f"{x:.2f}" for x in (w or ())[:3])
+                what = f"seed {seed}" if seed is not None else f"weights {first}, ..."
                 print(f"{name:<20} {what}")
     for _, _, _, err in bad:
         print(f"puppet: error: {err}", file=sys.stderr)

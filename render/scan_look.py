@@ -36,6 +36,7 @@ MOUTH_CORNER_X = 2.45  # cm: the generic head's mouth corners, either side of th
 IRIS_ANGLE = 0.50  # rad from the gaze axis: the limbus, where the cornea's bulge starts on the scan
 PUPIL_ANGLE = 0.19
 
+LIP_GAP = 0.05  # cm the lips must part by before the mouth's inside is drawn (a pixel is ~0.035 cm at 720p)
 TEETH_DEPTH = 2.5  # cm behind the front teeth: the deepest teeth drawn
 GUMS_DEPTH = 4.0
 SKIN_PARTS = ("face", "head_neck")
@@ -357,7 +358,7 @@ class ScanLook:
         if not len(self.lip_pairs):
             return True
         gap = np.linalg.norm(posed[self.lip_pairs[:, 0]] - posed[self.lip_pairs[:, 1]], axis=1)
-        return bool(np.any(gap > self.lip_rest + 0.03))
+        return bool(np.any(gap > self.lip_rest + LIP_GAP))
 
 
 class ScanRows:

@@ -76,8 +76,10 @@ void main() {
     float lip = 1.0 - smoothstep(-0.05, 0.05, v_mat.y);
     c *= mix(vec3(1.0), vec3(0.80, 0.45, 0.50), lip);
     // brow hair: strands along the brow (slanted up and out), breaking up the border
+    // two triangle waves (cheaper than sines on a software rasterizer): hairs slanted up and out
     float side = v_uv.x < 0.5 ? -1.0 : 1.0;
-    float s = sin(900.0 * (v_uv.y - 0.55 * side * (v_uv.x - 0.5))) * sin(173.0 * v_uv.x + 40.0 * v_uv.y);
+    float s = (abs(fract(143.0 * (v_uv.y - 0.55 * side * (v_uv.x - 0.5))) - 0.5) * 4.0 - 1.0)
+              * (abs(fract(27.5 * v_uv.x + 6.4 * v_uv.y) - 0.5) * 4.0 - 1.0);
     float brow = (1.0 - smoothstep(-0.12, 0.06, v_mat.x + 0.07 * s)) * (0.9 + 0.1 * s);
     c *= 1.0 - 0.93 * brow;
     spec = spec * (1.0 - brow) + 0.12 * lip * v_mat.w;
@@ -167,7 +169,7 @@ SCAN_LASH_FS = HEADER + """
 in vec2 v_uv;
 out vec4 frag;
 void main() {
-    float strand = 0.55 + 0.45 * sin(v_uv.x * 1300.0);
+    float strand = 0.1 + 1.8 * abs(fract(v_uv.x * 207.0) - 0.5);
     float lower = step(1.5, v_uv.x);
     float a = mix(0.8, 0.3, lower) * strand * (1.0 - smoothstep(mix(0.2, 0.0, lower), mix(1.0, 0.6, lower), v_uv.y));
     frag = vec4(vec3(0.10, 0.085, 0.075), a);

@@ -214,7 +214,8 @@ def worker_main() -> int:
             j, n = FRAME_HEAD.unpack(head)
             if j < 0:
                 break
-            state = _unpack_state(_read_exact(inp, n), 0 if model.scan_dressing is None else len(model.scan_dressing.rest))
+            n_scan = 0 if model.scan_dressing is None else len(model.scan_dressing.rest)
+            state = _unpack_state(_read_exact(inp, n), n_scan)
             if sink.kind == "mp4":
                 send(j, sink.raw(state))
             else:
