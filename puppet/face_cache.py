@@ -354,11 +354,11 @@ def scan_model(weights: Any = None) -> Any:
     import numpy as np
 
     from sim.build import compile_model
-    from sim.face.scan.rig import scan_rig
+    from sim.face.scan.rig import SCAN_PARAMS, scan_rig
 
     w = None if weights is None else np.asarray(weights, dtype=np.float64).ravel()
     what = b"scan-face:ict:" + (b"generic" if w is None else hashlib.sha256(w.tobytes()).digest())
-    return cached_model(what, lambda: compile_model(scan_rig(w)))
+    return cached_model(what, lambda: compile_model(scan_rig(w), SCAN_PARAMS))
 
 
 _SHELL_ARRAYS = ("vertices", "triangles", "hair", "hair_coords", "ring", "ring_mask", "moving", "col_mask",

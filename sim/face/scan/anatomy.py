@@ -30,18 +30,23 @@ LANDMARK_FILE = Path(__file__).with_name("landmarks.json")
 # (measured on the neutral: the upper and lower rows at the middle are 0.8 mm apart at row 7 and
 # cross each other at row 6)
 LIP_INSIDE_ROWS = 7
+# rows of the lids' back between the scan's eye opening (tucked up behind the lid, on the eyeball)
+# and the lid margin's front edge (row 2: the lowest, most forward row of the upper lid)
+EYE_INSIDE_ROWS = 2
 
 
 @dataclass(frozen=True)
 class SkinLayout:
     """The simulated skin's vertices in the scan (`vertices` (N,) increasing scan indices), its
     triangles (M,3) in simulation numbering, the inside of the lips (scan indices) and the scan's
-    mouth opening ring index of each (0 = the opening's edge)."""
+    mouth opening ring index of each (0 = the opening's edge), the back of the lids (scan
+    indices)."""
 
     vertices: np.ndarray
     triangles: np.ndarray
     lip_inside: np.ndarray
     lip_row: np.ndarray
+    lid_inside: np.ndarray
 
 
 def _rings(tri: np.ndarray, n: int, sources: np.ndarray) -> np.ndarray:
@@ -76,17 +81,19 @@ def _layout_cached() -> SkinLayout:
 
     data = scan_data()
     tri = _narrow_triangles(data)
-    mouth = _openings(data.neutral, tri)["mouth"]
-    row = _rings(tri, NARROW_FACE, mouth)
-    keep = row >= LIP_INSIDE_ROWS
-    inside = np.flatnonzero(~keep)
+    holes = _openings(data.neutral, tri)
+    row = _rings(tri, NARROW_FACE, holes["mouth"])
+    eye_row = _rings(tri, NARROW_FACE, np.concatenate([holes["eye_l"], holes["eye_r"]]))
+    keep = (row >= LIP_INSIDE_ROWS) & (eye_row >= EYE_INSIDE_ROWS)
+    inside = np.flatnonzero(row < LIP_INSIDE_ROWS)
+    lids = np.flatnonzero(eye_row < EYE_INSIDE_ROWS)
     verts = np.flatnonzero(keep)
     remap = -np.ones(NARROW_FACE, dtype=np.int64)
     remap[verts] = np.arange(len(verts))
     t = tri[keep[tri].all(axis=1)]
-    for a in (verts, inside):
+    for a in (verts, inside, lids):
         a.setflags(write=False)
-    return SkinLayout(verts, remap[t].astype(np.int32), inside, row[inside].astype(np.int64))
+    return SkinLayout(verts, remap[t].astype(np.int32), inside, row[inside].astype(np.int64), lids)
 
 
 def skin_layout() -> SkinLayout:
@@ -130,9 +137,10 @@ def find_landmarks(data: ScanData) -> dict[str, int]:
     skin = layout.vertices
     tri = _narrow_triangles(data)
     holes = _openings(v, tri)
+    sim_holes = {k: skin[h] for k, h in _openings(v[skin], layout.triangles).items()}
     out: dict[str, int] = {}
     for side, sign in (("l", 1.0), ("r", -1.0)):
-        loop = holes[f"eye_{side}"]
+        loop = sim_holes[f"eye_{side}"]
         x = sign * v[loop, 0]
         out[f"eye_inner_{side}"] = int(loop[np.argmin(x)])
         out[f"eye_outer_{side}"] = int(loop[np.argmax(x)])

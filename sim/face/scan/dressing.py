@@ -2,13 +2,13 @@
 gives all 26719 vertices in the scan's order.
 
 - The simulated skin (`sim.face.scan.anatomy.skin_layout`) is copied.
-- The inside of the lips follows the lip line: each vertex takes the motion of the lip-line vertex
-  nearest to it along the mesh (so it stays with its own lip) and turns with the jaw as that
-  vertex's jaw weight says.
-- Lid things (eyelashes, eye occlusion, lacrimal fluid, eye blend) and the face area's unsimulated
-  skin within `BIND` of the simulated skin are bound to their nearest lid / skin triangle: the
-  barycentric foot point and the offset in the triangle's frame, rebuilt on the moved triangle, so
-  lashes turn with a closing lid.
+- The inside of the lips and the back of the lids follow their opening: each vertex takes the
+  motion of the opening's vertex nearest to it along the mesh (so it stays with its own lip or
+  lid) and turns with the jaw as that vertex's jaw weight says.
+- Lid things (eyelashes, eye occlusion, lacrimal fluid, eye blend) keep their offset in the frame
+  of the lid at the nearest margin vertex (the margin's tangent and the lid's surface above it),
+  so lashes turn with a closing lid; the face area's unsimulated skin within `BIND` of the
+  simulated skin keeps its offset in the frame of its nearest skin triangle.
 - The rest of the face area, head and neck and the eye sockets follow the skin's nearest vertices
   as the procedural face's head does (`sim.face.head`): their displacement, fading over
   `FOLLOW` cm, and over `JAW_FOLLOW` under the chin and down the throat.
@@ -40,7 +40,8 @@ NEAREST = 4  # skin vertices a following vertex takes its displacement from
 LIP_FADE = 1.2  # cm: how far into the mouth socket the lips' motion reaches
 EYE_YAW_MAX = math.radians(30.0)
 EYE_PITCH_MAX = math.radians(20.0)
-LID_ROWS = 6  # rows of skin from an eye opening that lid things bind to
+LID_UP = 3  # rows up the lid from its margin: with the margin's tangent, the lid's surface frame
+LID_THINGS = ("eyelashes", "eye_occlusion", "lacrimal", "eye_blend")
 TEETH_SPLIT = PARTS["teeth"][0] + 2208  # the first lower tooth (the upper 16 teeth have 2208 vertices)
 FloatArray = np.ndarray
 
@@ -185,6 +186,19 @@ def _bind(points: FloatArray, skin_pts: FloatArray, tris: np.ndarray) -> tuple[n
     return tri, bary, local
 
 
+def _margin_frames(skin_pts: FloatArray, tris: np.ndarray, loop: np.ndarray, points: FloatArray) -> np.ndarray:
+    """(P,3) sim vertices (m, m', u) framing each point: m the eye opening's vertex nearest to it,
+    m' the next one along the opening and u the vertex `LID_UP` rows up the lid nearest to m. The
+    frame turns with the lid's surface at its margin (a closing lid takes its lashes along) and
+    does not depend on the small triangles at the margin."""
+    rows = _rings(tris, len(skin_pts), loop)
+    up = np.flatnonzero(rows == LID_UP)
+    _, k = cKDTree(skin_pts[loop]).query(points)
+    m, m_next = loop[k], loop[(k + 1) % len(loop)]
+    _, u = cKDTree(skin_pts[up]).query(skin_pts[m])
+    return np.stack([m, m_next, up[u]], axis=1)
+
+
 def _identity_of(rest_skin: FloatArray) -> np.ndarray | None:
     """The identity weights whose head has these simulated skin positions (None: not the scan)."""
     data = scan_data()
@@ -219,29 +233,34 @@ def build_dressing(model: Any) -> ScanDressing | None:
     tris = layout.triangles.astype(np.int64)
     n_all = len(rest)
 
-    # the inside of the lips: graph-nearest lip-line vertex
+    # the inside of the lips and the back of the lids: the graph-nearest vertex of their opening
     data = scan_data()
     narrow = data.triangles("face")
     narrow = narrow[(narrow < NARROW_FACE).all(axis=1)]
-    loop_scan = skin[np.asarray(mesh.mouth_loop)]
-    inside = layout.lip_inside
-    sub = narrow[np.isin(narrow, np.concatenate([inside, loop_scan])).all(axis=1)]
-    dist = _rings_with_source(sub, NARROW_FACE, loop_scan)
     local_of = -np.ones(n_all, dtype=np.int64)
     local_of[skin] = np.arange(len(skin))
-    lip_anchor = local_of[dist[inside]]
+    inside, anchors = [], []
+    for hidden, loops in ((layout.lip_inside, [mesh.mouth_loop]), (layout.lid_inside, list(mesh.eye_loops))):
+        rim = skin[np.concatenate([np.asarray(lp) for lp in loops])]
+        sub = narrow[np.isin(narrow, np.concatenate([hidden, rim])).all(axis=1)]
+        nearest = _rings_with_source(sub, NARROW_FACE, rim)
+        inside.append(hidden)
+        anchors.append(local_of[nearest[hidden]])
+    lip_anchor = np.concatenate(anchors)
+    if (lip_anchor < 0).any():
+        raise RuntimeError("a vertex inside the lips or lids is not connected to its opening")
+    inside_all = np.concatenate(inside)
+    inside = layout.lip_inside
 
     # lid things and nearby unsimulated face skin: bound to triangles
-    lid_tris = []
-    for loop in mesh.eye_loops:
-        rows = _rings(tris, len(skin), np.asarray(loop))
-        lid_tris.append(tris[(rows[tris] <= LID_ROWS).all(axis=1)])
-    lid_parts = [("eyelashes", "eye_occlusion", "lacrimal", "eye_blend")]
     bound_idx, bound_tri, bound_bary, bound_local = [], [], [], []
-    for s, lt in zip("lr", lid_tris):
-        idx = np.concatenate([_range(f"{p}_{s}") for p in lid_parts[0]])
-        t, b, l = _bind(rest[idx], skin_pts, lt)
-        bound_idx.append(idx); bound_tri.append(t); bound_bary.append(b); bound_local.append(l)
+    for s, loop in zip("lr", mesh.eye_loops):
+        idx = np.concatenate([_range(f"{p}_{s}") for p in LID_THINGS])
+        frame = _margin_frames(skin_pts, tris, np.asarray(loop), rest[idx])
+        local = np.einsum("pij,pj->pi", _frames(skin_pts[frame]), rest[idx] - skin_pts[frame[:, 0]])
+        bary = np.zeros((len(idx), 3))
+        bary[:, 0] = 1.0
+        bound_idx.append(idx); bound_tri.append(frame); bound_bary.append(bary); bound_local.append(local)
     others = np.concatenate([np.arange(NARROW_FACE, PARTS["face"][1]), _range("eye_socket_l"), _range("eye_socket_r")])
     from sim.face.transfer.geometry import closest_points
 
@@ -279,7 +298,7 @@ def build_dressing(model: Any) -> ScanDressing | None:
     pivot = np.asarray(mesh.jaw_pivot, float)
     neck = rest[_range("head_neck")]
     return ScanDressing(
-        rest=rest, skin=skin, lip_idx=inside, lip_anchor=lip_anchor,
+        rest=rest, skin=skin, lip_idx=inside_all, lip_anchor=lip_anchor,
         lip_rot=np.asarray(mesh.jaw_weight, float)[lip_anchor],
         bound_idx=np.concatenate(bound_idx), bound_tri=np.concatenate(bound_tri),
         bound_bary=np.concatenate(bound_bary), bound_local=np.concatenate(bound_local),

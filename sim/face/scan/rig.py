@@ -19,12 +19,28 @@ from __future__ import annotations
 import numpy as np
 
 from sim.face.scan.anatomy import load_landmarks, skin_layout
-from sim.face.scan.data import N_IDENTITIES, scan_data
+from sim.face.scan.data import N_IDENTITIES, PARTS, scan_data
+from sim.build import SkinParams, vertex_normals
 from sim.model import FaceMesh, FaceRig, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
 
 DIGITS = 7  # carried quantities are rounded to this many decimals (cm)
-LID_ROWS = 3  # rows of lid skin from each eye opening that the eye contact sphere is fitted to
-LID_CLEARANCE = 0.05  # cm: the contact sphere lies this far inside the lid skin
+# The scan's skin is 3-10x finer than the procedural face's (median edge 2.8 mm, 0.4 mm at the lid
+# margins). A spring network's bending rigidity falls with the square of its edge length, so at the
+# procedural face's bend_ratio (0.3) compressed skin buckled at the mesh's own scale (happiness
+# folded 2.1 cm2 over). Stiffer bending and support take the folds down and the amplitudes with
+# them; the muscles are then made stronger (`FORCE`, per channel `FORCE_OF`). Measured, one sweep
+# each (presets and channels at full value; amplitude targets of sim.face.targets):
+#   bend 0.3, support 9000, force 1:    13 poses fold > 0.1 cm2
+#   bend 10, support 27000, force 1:     1 pose folds, 11 of 39 targets met
+#   bend 10, support 27000, force 2:     8 poses fold, 21 targets
+#   bend 6, support 27000, force 1.6:    6 poses fold, 24 targets   <- chosen: the expressions read
+SCAN_PARAMS = SkinParams(bend_ratio=6.0, support=27000.0)
+FORCE = 1.6
+# the orbital sphincter (AU6) folds the skin round the eye first; the lid strips need twice the
+# force to close the scan's lids over its cornea (AU45: 7-11.5 mm)
+FORCE_OF = {"orbicularis_oculi": 0.7, "orbicularis_oculi_lid": 2.0}
+LID_CLEARANCE = 0.03  # cm: the lid contact sphere lies this far outside the eyeball
+EYE_REACH = 1.3  # cm off the eyeball's axis: the front the lid contact sphere holds
 
 
 def scan_points(weights: np.ndarray | None = None) -> np.ndarray:
@@ -87,22 +103,32 @@ class _Back:
                        width_plus=float(_r(line.width_plus * scale)))
 
 
-def _lid_sphere(points: np.ndarray, skin: np.ndarray, loop: np.ndarray, tri: np.ndarray,
-                blink: np.ndarray) -> tuple[np.ndarray, float]:
-    """Centre and radius of the sphere the lids slide on: through the first rows of lid skin
-    around the opening, open (neutral) and closed (the scan's eyeBlink), least squares."""
-    from sim.face.scan.anatomy import _rings
+def _lid_sphere(eyeball: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre and radius of the sphere the lids slide on: the smallest sphere centred on the
+    eyeball's axis (+Z through the sclera's centre) that holds the eyeball's front within
+    `EYE_REACH` of the axis (the cornea and the sclera an opening shows), plus `LID_CLEARANCE`.
+    The integrator keeps skin out of one sphere per eye; the scanned eyeball is a sclera with a
+    bulging cornea, and a closing lid must pass over both. Lid skin that lies inside this sphere at
+    rest (the margins resting on the cornea) is left out of the contact by the compiler."""
+    centre = eyeball_spheres_one(eyeball)
+    p = eyeball - centre
+    front = p[(p[:, 2] > 0.0) & (np.hypot(p[:, 0], p[:, 1]) <= EYE_REACH)]
+    best = None
+    for cz in np.linspace(0.0, 1.0, 201):
+        r = float(np.linalg.norm(front - [0.0, 0.0, cz], axis=1).max())
+        if best is None or r < best[1]:
+            best = (cz, r)
+    assert best is not None
+    return centre + np.array([0.0, 0.0, best[0]]), best[1] + LID_CLEARANCE
 
-    rows = _rings(tri, len(skin), loop)
-    near = np.flatnonzero(rows <= LID_ROWS)
-    p = np.concatenate([points[skin[near]], points[skin[near]] + blink[skin[near]]])
+
+def eyeball_spheres_one(eyeball: np.ndarray) -> np.ndarray:
+    """The centre (3,) of one eyeball's sclera (least-squares sphere through its vertices)."""
+    from sim.face.scan.data import SCLERA
+
+    p = eyeball[:SCLERA]
     a = np.column_stack([2.0 * p, np.ones(len(p))])
-    sol = np.linalg.lstsq(a, np.sum(p * p, axis=1), rcond=None)[0]
-    c = sol[:3]
-    r = float(np.sqrt(sol[3] + c @ c))
-    # the lid skin at rest must lie outside: the radius is at most the nearest one's distance
-    r = min(r, float(np.linalg.norm(points[skin] - c, axis=1).min()))
-    return c, r - LID_CLEARANCE
+    return np.linalg.lstsq(a, np.sum(p * p, axis=1), rcond=None)[0][:3]
 
 
 def _rigid_fit(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -130,6 +156,13 @@ def jaw_weights(points: np.ndarray, skin: np.ndarray) -> np.ndarray:
     return np.clip(w, 0.0, 1.0)
 
 
+def _stronger(m: Muscle, channel: str) -> Muscle:
+    from dataclasses import replace
+
+    base = channel[:-2] if channel.endswith(("_l", "_r")) else channel
+    return replace(m, scale=float(_r(m.scale * FORCE_OF.get(base, FORCE))))
+
+
 def scan_rig(weights: np.ndarray | None = None, name: str = "ict") -> FaceRig:
     """The scanned head's rig for an identity (None: the generic head). Takes a few seconds (the
     transfer); compile it through a cache (`puppet.face_cache.scan_model`)."""
@@ -151,18 +184,41 @@ def scan_rig(weights: np.ndarray | None = None, name: str = "ict") -> FaceRig:
     back = _Back(tr.similarity)
     data = scan_data()
     centres, radii = [], []
-    for side, loop in zip("LR", m.eye_loops):
-        c, r = _lid_sphere(points, skin, np.asarray(loop), layout.triangles,
-                           data.expression(f"eyeBlink_{side}"))
+    for part, loop in zip(("eyeball_l", "eyeball_r"), m.eye_loops):
+        lo, hi = PARTS[part]
+        c, r = _lid_sphere(points[lo:hi])
         centres.append(c)
         radii.append(r)
+    # under the chin the skin is held and follows the jaw by its weights: between the chin and the
+    # held neck it is squeezed as the jaw opens and buckled (0.6-1.9 cm2 of folds at jaw = 1)
+    rest = points[skin]
+    normal = vertex_normals(rest, layout.triangles)
+    chin = rest[landmarks["chin"]]
+    under = (normal[:, 1] < -0.5) & (rest[:, 1] < chin[1] - 0.3)
     mesh = FaceMesh(
-        vertices=points[skin].copy(), triangles=layout.triangles.copy(), landmarks=dict(m.landmarks),
-        held=np.asarray(m.held, bool).copy(), jaw_weight=_r(jaw_weights(points, skin)),
+        vertices=rest.copy(), triangles=layout.triangles.copy(), landmarks=dict(m.landmarks),
+        held=np.asarray(m.held, bool) | under, jaw_weight=_r(jaw_weights(points, skin)),
         jaw_pivot=back.point(m.jaw_pivot), jaw_axis=back.direction(m.jaw_axis),
         eye_centers=_r(np.array(centres)), eye_radius=float(_r(min(radii))),
         eye_loops=(np.asarray(m.eye_loops[0]), np.asarray(m.eye_loops[1])), mouth_loop=np.asarray(m.mouth_loop),
         regions={k: np.asarray(v, bool) for k, v in m.regions.items()}, uv=None if m.uv is None else _r(m.uv))
-    muscles = {ch: tuple(back.muscle(p) for p in parts) for ch, parts in tr.rig.muscles.items()}
+    muscles = {ch: tuple(_stronger(back.muscle(p), ch) for p in parts) for ch, parts in tr.rig.muscles.items()}
     wrinkles = tuple(back.wrinkle(w, skin, m.vertices) for w in tr.rig.wrinkles)
     return FaceRig(mesh=mesh, muscles=muscles, wrinkles=wrinkles, name=name)
+
+
+_MODELS: dict[bytes, object] = {}
+
+
+def scan_model(weights: np.ndarray | None = None):  # type: ignore[no-untyped-def]
+    """The scanned head compiled with `SCAN_PARAMS` (kept for the process; the application caches
+    it on disk through `puppet.face_cache.scan_model`)."""
+    from sim.build import compile_model
+
+    w = None if weights is None else np.asarray(weights, dtype=np.float64).ravel()
+    key = b"generic" if w is None else w.tobytes()
+    if key not in _MODELS:
+        if len(_MODELS) >= 4:
+            _MODELS.pop(next(iter(_MODELS)))
+        _MODELS[key] = compile_model(scan_rig(w), SCAN_PARAMS)
+    return _MODELS[key]
