@@ -83,3 +83,28 @@ def test_mouth_inside_drawn_when_open(gl) -> None:
         assert inside.sum(axis=1).max() > 450  # and with light teeth in it
     finally:
         off.release()
+
+
+def test_every_view_draws_the_simulated_scanned_head(gl) -> None:
+    from puppet.face_cache import scan_model
+    from sim.facs import apply_expression
+    from sim.integrator import Simulator
+    from sim.state import FaceControl
+
+    model = scan_model(None)
+    sim, state = Simulator(model), model.rest_state()
+    control = FaceControl(model)
+    apply_expression(control, "surprise", 1.0)
+    for _ in range(6):
+        sim.step(state, control)
+    shots = {}
+    with OffscreenRenderer(model, (160, 120), ctx=gl) as off:
+        assert off.renderer.scan is not None  # the default face is drawn as the whole scan
+        for view in ("shaded", "wireframe", "muscles", "trails", "heat"):
+            off.view = view
+            shots[view] = off.render_frame(state).astype(float)
+            assert gl.error == "GL_NO_ERROR"
+    face = np.abs(shots["shaded"] - shots["shaded"][0, 0]).sum(axis=2) > 20
+    assert face.mean() > 0.15  # the head fills a good part of the picture
+    for view in ("wireframe", "muscles", "trails", "heat"):
+        assert np.abs(shots[view] - shots["shaded"]).sum(axis=2)[face].mean() > 5, view
