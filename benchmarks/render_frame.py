@@ -12,6 +12,8 @@ and stays meaningful when other programs compete for the cores.
 llvmpipe rasterises on LP_NUM_THREADS threads (default: one per core); the run prints the value
 used. `--lp-threads 1,2` reruns the benchmark once per value in a fresh process (the variable is
 read when the driver loads).
+`--scan N` times the scanned head (the default face) shaded + HUD against the floor in N
+alternating batches, whole frames (posing, rows, drawing) and the drawing alone.
 `--head-vs-mask N` times the default face with its held head against the mask alone in N
 alternating batches instead (both see the same load: the issue-11 budget, head at most 1.2x).
 Run: .venv/bin/python benchmarks/render_frame.py [--lp-threads 1,2] [--resolutions 0,1] [--mask]
@@ -29,8 +31,8 @@ import time
 FRAME_60HZ_MS = 1000.0 / 60.0
 
 
-def _states(model: object, n: int) -> list[object]:
-    """A short happiness onset, so surfaces (and trails) change every frame."""
+def _states(model: object, n: int, expression: str = "happiness") -> list[object]:
+    """A short expression onset (happiness), so surfaces (and trails) change every frame."""
     from sim.facs import apply_expression
     from sim.integrator import Simulator
     from sim.state import FaceControl
@@ -40,7 +42,7 @@ def _states(model: object, n: int) -> list[object]:
     out = []
     for k in range(n):
         control = FaceControl(model)
-        apply_expression(control, "happiness", min(1.0, (k + 1) / n))
+        apply_expression(control, expression, min(1.0, (k + 1) / n))
         sim.step(state, control)
         out.append(state.copy())
     return out
@@ -197,6 +199,58 @@ def head_vs_mask(resolution: int, size: tuple[int, int], batches: int, ctx: obje
     return out
 
 
+def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
+    """The scanned head (the default face, sim.face.scan) shaded + HUD, in alternating 10-frame
+    batches with the floor: each frame poses the whole scan from the simulated surface, makes its
+    rows (normals, fold term) and draws; also the drawing alone (rows made beforehand), for a
+    happiness onset (lips closed: the mouth's inside left out) and a surprise onset (jaw open)."""
+    import statistics
+
+    from puppet.face_cache import scan_model
+    from render.hud import HudInfo
+    from render.offscreen import OffscreenRenderer
+
+    model = scan_model(None)
+    hud = HudInfo(channels=[("zygomaticus_major_l", 0.8, 0, 1), ("jaw", 0.3, 0, 1)], age=30,
+                  devices=[("sgi:///dev/ttyS0", True), ("keyboard://", True)], fps=60.0,
+                  latency_ms=12.0, lines=["? help"])
+    out = []
+    with OffscreenRenderer(model, size, ctx=ctx) as off:  # type: ignore[arg-type]
+        r = off.renderer
+        for expression in ("happiness", "surprise"):
+            states = _states(model, 30, expression)
+            rows = [r.scan.rows(s).copy() for s in states]
+            drawn = []
+            for s, rw in zip(states, rows):
+                s.scan_rows = rw  # type: ignore[attr-defined]
+                drawn.append(r.scan.look.mouth_open(rw[:, :3]))
+            times: dict[str, list[tuple[float, float]]] = {"whole": [], "draw": [], "floor": []}
+            for b in range(batches + 1):
+                for key, use_rows in (("whole", False), ("draw", True)):
+                    def frame(i: int, use: bool = use_rows) -> None:
+                        s = states[i % len(states)]
+                        if not use:
+                            del s.scan_rows  # type: ignore[attr-defined]
+                        off.fbo.use()
+                        r.draw(s, hud)
+                        off.ctx.finish()  # type: ignore[attr-defined]
+                        s.scan_rows = rows[i % len(states)]  # type: ignore[attr-defined]
+                    t = _timed(frame, 10)
+                    if b:  # the first batch warms up
+                        times[key].append(t)
+                t = floor_ms(ctx, size, 10)
+                if b:
+                    times["floor"].append(t)
+            med = {k: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v))
+                   for k, v in times.items()}
+            f, whole, draw = med["floor"], med["whole"], med["draw"]
+            out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; "
+                       f"floor {f[0]:.2f} ms (cpu {f[1]:.2f}); whole frame {whole[0]:.2f} ms = "
+                       f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x); drawing alone "
+                       f"{draw[0]:.2f} ms = {draw[0] / f[0]:.2f}x (cpu {draw[1] / f[1]:.2f}x)")
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", default="1280x720")
@@ -207,6 +261,9 @@ def main() -> None:
     ap.add_argument("--head-vs-mask", type=int, default=0, metavar="BATCHES",
                     help="instead: the head against the mask alone (shaded, +HUD) in BATCHES alternating "
                          "10-frame batches each, with the floor between them")
+    ap.add_argument("--scan", type=int, default=0, metavar="BATCHES",
+                    help="instead: the scanned head (the default face) shaded + HUD against the floor in "
+                         "BATCHES alternating 10-frame batches")
     args = ap.parse_args()
     if args.lp_threads:
         for n in args.lp_threads.split(","):
@@ -227,6 +284,11 @@ def main() -> None:
           f"LP_NUM_THREADS={threads}, load average {os.getloadavg()[0]:.1f}")
     from sim.face import default_model
 
+    if args.scan:
+        print(f"\nthe scanned head, shaded + HUD, median ms per 10-frame batch over {args.scan} batches")
+        for line in scan_vs_floor(size, args.scan, ctx):  # type: ignore[arg-type]
+            print(line)
+        return
     if args.head_vs_mask:
         for res in (int(r) for r in args.resolutions.split(",")):
             print(f"\nresolution {res}: median ms per frame over {args.head_vs_mask} alternating batches")

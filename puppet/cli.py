@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "puppet.cmd_replay",
     "puppet.cmd_edit",
     "puppet.cmd_import_face",
+    "puppet.cmd_face",
     "puppet.cmd_fit",
     "puppet.cmd_recognize",
     "puppet.cmd_templates",

@@ -23,6 +23,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     p.add_argument("input", metavar="INPUT", help="the capture")
     p.add_argument("--rig", metavar="R", help="rig file to fit (default: the built-in face)")
+    p.add_argument("--face", metavar="SPEC", default=None,
+                   help="the face: ict, ict?identity=SEED, procedural or a saved identity's NAME")
     p.add_argument("--out", required=True, metavar="TAKE.jsonl|CURVES", help="the take or curves to write")
     p.add_argument("--map", metavar="CORR.json",
                    help="correspondence file: input point/marker name -> rig landmark (MediaPipe, 68-point, "
@@ -121,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
         raise PuppetError("--fps must be positive")
     if not args.rate > 0:
         raise PuppetError("--rate must be positive")
-    face = load_face(args.rig)
+    face = load_face(args.rig, face=args.face)
     extra = {}
     if args.age is not None:
         if not 0 <= args.age <= 120:

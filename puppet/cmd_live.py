@@ -20,6 +20,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                    help="a device spec (sgi:///dev/ttyUSB0, mock://script.toml, ...); repeatable")
     p.add_argument("--map", metavar="FILE", help="mapping file (default: the shipped map of each device)")
     p.add_argument("--rig", metavar="PATH", help="rig file (default: the built-in face)")
+    p.add_argument("--face", metavar="SPEC", default=None,
+                   help="the face: ict (the scanned head), ict?identity=SEED, procedural or a saved identity's NAME")
     p.add_argument("--record", metavar="FILE", help="record the session to FILE (JSON Lines)")
     p.add_argument("--headless", action="store_true", help="no window: for scripted and recorded runs")
     p.add_argument("--duration", type=float, metavar="S", help="stop cleanly after S seconds")
@@ -179,7 +181,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.standby:
         from puppet.supervise import stand_by
 
-        if not stand_by(args, lambda: live.load_face(args.rig)):
+        if not stand_by(args, lambda: live.load_face(args.rig, face=args.face)):
             return 0
     windowed = not args.headless and live.display_available()
     if args.demo:
@@ -204,7 +206,7 @@ def _run(args: argparse.Namespace) -> int:
         snapshot = Path(record).with_suffix(".png")
         warn(f"no display found (DISPLAY is not set): running headless, recording to {record} and "
              f"saving the last frame to {snapshot}; replay with `puppet replay {record} --out video.mp4`")
-    face = live.load_face(args.rig)
+    face = live.load_face(args.rig, face=args.face)
     mapped = [(d.spec, d.description) for d in devs]  # these get their default maps
     if windowed and not any(d.spec.startswith("keyboard") for d in devs):
         import devices
@@ -386,7 +388,7 @@ def _demo(args: argparse.Namespace, live: Any, windowed: bool, warn: Any, quiet:
     if not quiet:
         where = "in the window" if windowed else "headless"
         warn(f"performing the built-in demo ({args.duration:.1f} s) {where}, recording to {record}")
-    face = live.load_face(args.rig)
+    face = live.load_face(args.rig, face=args.face)
     devs = [dev]
     mapped = [(dev.spec, dev.description)]
     if windowed:

@@ -1,11 +1,13 @@
 """``puppet pose``: simulate the face from rest under fixed channel values and write the result.
 
 Outside checks rely on this contract:
-    puppet pose [--rig PATH] [--resolution N] [--set CHANNEL=VALUE]... [--au AU12=0.8]...
+    puppet pose [--rig PATH] [--face SPEC] [--resolution N] [--set CHANNEL=VALUE]... [--au AU12=0.8]...
                 [--expression NAME[=WEIGHT]]... [--age YEARS] [--seconds S] --out FILE
                 [--size WxH] [--view VIEW]
 FILE .npz: arrays rest (N,3), positions (N,3), surface (N,3), triangles (M,3), landmark_names (K,),
-landmark_indices (K,); .obj: the drawn surface; .png/.jpg/.jpeg: rendered by render.offscreen.
+landmark_indices (K,), and for the scanned head scan_rest and scan_positions (26719,3), the whole scan in
+its own vertex order; .obj: the drawn surface (the scanned head: the whole posed scan, its 26719
+vertices and its faces in the scan's order); .png/.jpg/.jpeg: rendered by render.offscreen.
 Values combine in this order: expressions, then AUs (each raises its channels to max(current,
 weight * intensity)), then --set (overrides), then --age.
 """
@@ -31,9 +33,12 @@ def register(subparsers: Any) -> None:
         help="simulate a still pose and write it (.npz, .obj or an image)",
         description="Simulate the face from rest under fixed channel values, AUs or expressions.",
     )
-    p.add_argument("--rig", metavar="PATH", help="rig file (default: the procedural face)")
-    p.add_argument("--resolution", type=int, default=0, metavar="N",
-                   help="default face resolution: 0 ~ 700, 1 ~ 3k, 2 ~ 12k vertices (default 0)")
+    p.add_argument("--rig", metavar="PATH", help="rig file (default: the built-in face, see --face)")
+    p.add_argument("--face", metavar="SPEC", default=None,
+                   help="the face: ict (the scanned head), ict?identity=SEED, procedural or a saved identity's NAME")
+    p.add_argument("--resolution", type=int, default=None, metavar="N",
+                   help="procedural face resolution: 0 ~ 700, 1 ~ 3k, 2 ~ 12k vertices (default 0; alone, it "
+                   "picks the procedural face)")
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="CHANNEL=VALUE",
                    help="set one channel (repeatable); see `puppet channels`")
     p.add_argument("--au", dest="aus", action="append", default=[], metavar="AU=INTENSITY",
@@ -112,11 +117,17 @@ def load_model(args: argparse.Namespace) -> Any:
             return load_rig_model(args.rig)
         except RigFileError as err:
             raise ConfigError(str(err)) from err
-    if args.resolution not in (0, 1, 2):
-        raise PuppetError(f"--resolution {args.resolution}: valid resolutions are 0, 1, 2")
+    from puppet.faces import parse_face
+
+    spec = args.face if args.face is not None else ("procedural" if args.resolution is not None else None)
+    choice = parse_face(spec, 0 if args.resolution is None else args.resolution)
+    if choice.kind == "ict":
+        from puppet.face_cache import scan_model
+
+        return scan_model(choice.weights if choice.weights.any() else None)
     from sim.face import default_model
 
-    return default_model(args.resolution)
+    return default_model(choice.resolution)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -175,12 +186,23 @@ def write_pose(model: Any, state: Any, out: Path, *, size: tuple[int, int] = (12
 
     from safefile import atomic_path, atomic_write
 
+    from puppet.export.scan import posed, scan_dressing, write_scan_obj
+
     suffix = out.suffix.lower()
+    dressing = scan_dressing(model) if suffix in (".npz", ".obj") else None
+    if suffix == ".obj" and dressing is not None:  # the scanned head: the scan's vertices and faces
+        with atomic_path(out) as tmp:
+            write_scan_obj(tmp, posed(dressing, state), f"puppet pose, model {model.hash}, t = {state.time:.4f} s, "
+                           "cm; the scanned head's 26719 vertices in the scan's order (ICT FaceKit topology)")
+        return
+    extra = {} if dressing is None else {"scan_rest": np.asarray(dressing.rest, np.float64),
+                                         "scan_positions": np.asarray(posed(dressing, state), np.float64)}
     if suffix == ".npz":
         names = sorted(model.mesh.landmarks)
         with atomic_write(out, "wb") as fh:
             np.savez(
                 fh,
+                **extra,
                 rest=np.asarray(model.rest, np.float64),
                 positions=np.asarray(state.positions, np.float64),
                 surface=np.asarray(state.surface, np.float64),

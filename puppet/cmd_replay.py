@@ -41,6 +41,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                    help="video: H.264 quality, 0 (lossless) to 51 (worst); default 20")
     p.add_argument("--curves", metavar="FILE", help="keyframe curves, alone or layered over the recording")
     p.add_argument("--rig", metavar="PATH", help="the rig the recording was made with, if not the recorded path")
+    p.add_argument("--face", metavar="SPEC", help="the face, if not the one recorded (ict, ict?identity=SEED, "
+                   "procedural or a saved identity's NAME)")
     p.set_defaults(func=run)
 
 
@@ -58,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
         for w in session.warnings:
             print(f"puppet: warning: {w}", file=sys.stderr)
     curves = load_curves(args.curves) if args.curves else None
-    perf = build_performance(session, curves, args.rig)
+    perf = build_performance(session, curves, args.rig, face=args.face)
     if perf.ticks == 0 and session is not None:
         empty = (f"{session.path} holds no performance (its header only: the show stopped before its "
                  "first tick)")

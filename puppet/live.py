@@ -75,12 +75,14 @@ class Face:
     rig: dict[str, Any]
 
 
-def load_face(rig_path: str | None = None, resolution: int = 0) -> Face:
-    """The default face, or the rig file at rig_path (a one-line ConfigError if it is wrong);
-    compiled faces come from the on-disk cache when it holds a trustworthy entry (puppet.face_cache)."""
+def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None) -> Face:
+    """The face asked for: the rig file at rig_path (a one-line ConfigError if it is wrong), else
+    `face` (a --face text or a puppet.faces.FaceChoice; None: the default face). Compiled faces
+    come from the on-disk cache when it holds a trustworthy entry (puppet.face_cache)."""
     import sim
 
     from puppet import face_cache
+    from puppet.faces import FaceChoice, parse_face
 
     if rig_path:
         try:
@@ -94,9 +96,14 @@ def load_face(rig_path: str | None = None, resolution: int = 0) -> Face:
             msg = str(err) if str(err).startswith(str(rig_path)) else f"{rig_path}: cannot load the rig: {err}"
             raise ConfigError(msg) from err
         info = {"name": getattr(rig, "name", "rig"), "hash": model.hash, "path": str(Path(rig_path).resolve())}
+        return Face(model, Vocabulary.from_model(model), info)
+    choice = face if isinstance(face, FaceChoice) else parse_face(face, resolution)
+    if choice.kind == "procedural":
+        model = face_cache.default_model(choice.resolution)
+        info = {"name": "default", "hash": model.hash, "path": None, **choice.header()}
     else:
-        model = face_cache.default_model(resolution)
-        info = {"name": "default", "hash": model.hash, "resolution": resolution, "path": None}
+        model = face_cache.scan_model(choice.weights if choice.weights.any() else None)
+        info = {"name": str(model.rig.name), "hash": model.hash, "path": None, **choice.header()}
     return Face(model, Vocabulary.from_model(model), info)
 
 

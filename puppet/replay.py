@@ -53,32 +53,40 @@ class Performance:
         return self.ticks / self.rate
 
 
-def face_for(session: Session | None, rig_path: str | None) -> Face:
-    """The face a recording was made with: --rig, else the recorded rig path, else the built-in
-    face at the recorded resolution; a hash mismatch is a warning (the motion will differ)."""
+def face_for(session: Session | None, rig_path: str | None, face: str | None = None) -> Face:
+    """The face a recording was made with: --rig, else the recorded rig path, else the recorded
+    face (its --face spec and identity weights, puppet.faces), else the procedural face at the
+    recorded resolution (a take from before faces were recorded); a hash mismatch is a warning
+    (the motion will differ)."""
+    from puppet.faces import recorded_face
+
     if session is None:
-        return load_face(rig_path)
+        return load_face(rig_path, face=face)
     rig = session.header.get("rig") or {}  # checked by the reader: str path, int resolution 0..2
     path = rig_path or rig.get("path")
     if path and not Path(path).exists():
         raise ConfigError(f"{session.path}: recorded with rig {quote(path, 120)}, which is missing; pass --rig PATH")
-    face = load_face(path, int(rig.get("resolution", 0) or 0))
+    if path:
+        loaded = load_face(path)
+    else:
+        asked: Any = face if face is not None else (recorded_face(rig) or "procedural")
+        loaded = load_face(None, int(rig.get("resolution", 0) or 0), face=asked)
     want = rig.get("hash")
-    if want and face.rig["hash"] != want:
+    if want and loaded.rig["hash"] != want:
         import sys
 
         print(f"puppet: warning: {session.path} was recorded with rig hash {want}, but the face loaded now "
-              f"has {face.rig['hash']} (another rig or program version): the replay will not be "
+              f"has {loaded.rig['hash']} (another rig or program version): the replay will not be "
               f"bit-identical; pass --rig with the recording's rig", file=sys.stderr)
-    return face
+    return loaded
 
 
 def build_performance(session: Session | None, curves: CurveSet | None, rig_path: str | None = None,
-                      rate: float = 60.0) -> Performance:
+                      rate: float = 60.0, face: str | None = None) -> Performance:
     """Channel values per tick from a recording and/or curves (curves layered over the recording)."""
     if session is None and curves is None:
         raise PuppetError("nothing to replay: give a recording FILE and/or --curves FILE")
-    face = face_for(session, rig_path)
+    face = face_for(session, rig_path, face)
     names = [c.name for c in face.vocab.channels]
     defaults = np.array(face.vocab.defaults(), dtype=np.float64)
     markers: list[tuple[int, str]] = []

@@ -84,6 +84,12 @@ def _rig(rig: Any, where: str) -> dict[str, Any]:
             out[key] = string(rig[key], f"{where}: rig {key}", 4096)
     if rig.get("resolution") is not None:
         out["resolution"] = number(rig["resolution"], f"{where}: rig resolution", 0, 2, integer=True)
+    for key in ("face", "identity_hash"):  # the face it was made with (puppet.faces)
+        if rig.get(key) is not None:
+            out[key] = string(rig[key], f"{where}: rig {key}", 200)
+    if rig.get("identity") is not None:
+        vals = sequence(rig["identity"], f"{where}: rig identity", 100, 1)
+        out["identity"] = [number(v, f"{where}: rig identity weight", -10, 10) for v in vals]
     return out
 
 

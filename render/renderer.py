@@ -80,6 +80,7 @@ class FaceRenderer:
         widths = ctx.info.get("GL_ALIASED_LINE_WIDTH_RANGE", (1.0, 1.0))
         self._max_line_width = float(widths[1]) if isinstance(widths, (tuple, list)) else 1.0
         self.hud = HudRenderer(ctx)
+        self.scan: Any = None  # render.scan_draw.ScanDraw when the model is the scanned head
         self._scene: tuple[tuple[int, int], moderngl.Framebuffer, moderngl.Texture,
                            moderngl.Renderbuffer] | None = None
         self._gl: list[Any] = []
@@ -165,11 +166,27 @@ class FaceRenderer:
                 (self.cavity_vbo, "3f", "in_pos"), (bufs[0], "1f", "in_depth"),
                 (bufs[1], "1f", "in_teeth"), (bufs[2], "3f", "in_rim")], ibo)
             g += [self.cavity_vbo, *bufs, ibo, self.cavity_vao]
+        self._populate_scan(model)
         self.muscles = MuscleLines(model.rig, rest)
         self.muscle_vbo = ctx.buffer(reserve=max(len(self.muscles), 1) * 12, dynamic=True)
         self.muscle_vao = ctx.vertex_array(self.thick_prog, [(self.muscle_vbo, "3f", "in_pos")])
         g += [self.muscle_vbo, self.muscle_vao]
         self._populate_trails(n)
+
+    def _populate_scan(self, model: Any) -> None:
+        """The scanned head (render.scan_draw), drawn in place of the model's own skin, eyes and
+        cavities when the model has a scan dressing; the overlays (wireframe, muscles, trails)
+        stay on the simulated surface."""
+        from render.scan_draw import ScanDraw, dressing_of
+
+        dressing = dressing_of(model)
+        if dressing is None:
+            return
+        self.scan = ScanDraw(self.ctx, model, dressing)
+        self._gl.append(self.scan)
+        self.cavity_vao = None
+        self.cavities = []
+        self.camera.fit(*self.scan.bounds())
 
     def _populate_head(self, model: Any, tint: np.ndarray) -> None:
         """The held head around the default face (sim.face.head: cranium, ears, neck), stitched to
@@ -252,13 +269,22 @@ class FaceRenderer:
         ss = max(1, int(self.supersample))
         rows = getattr(state, "interleaved", None)  # x y z nx ny nz rows made elsewhere (an export's
         n = self.normals.n  # render process is handed them with the frame: see puppet.export.video)
-        if rows is None:
+        if self.scan is not None:
+            scan_rows = getattr(state, "scan_rows", None)
+            self._scan_rows = self.scan.rows(state) if scan_rows is None else scan_rows
+            surface = np.ascontiguousarray(state.surface, dtype=np.float32)
+            if self.view in ("wireframe", "muscles", "trails"):  # the overlays' surface, no normals
+                rows = self._overlay_rows(surface)
+            else:
+                rows = None
+        elif rows is None:
             surface = np.ascontiguousarray(state.surface, dtype=np.float32)
             rows = self.normals.interleaved(surface)
         else:
             surface = np.ascontiguousarray(rows[:n, :3])
-        self.pos_vbo.write(rows[:n])  # positions + normals, one upload (and one for the head)
-        if self.head_vaos:
+        if rows is not None:
+            self.pos_vbo.write(rows[:n])  # positions + normals, one upload (and one for the head)
+        if self.head_vaos and rows is not None:
             self.head_vbo.write(rows[n:])
         if record or self.trails.count == 0:
             self.trails.push(surface, getattr(state, "time", None))
@@ -289,6 +315,13 @@ class FaceRenderer:
                 hud = HudInfo(**{**hud.__dict__, "lines": hud.lines + [
                     f"heat: blue = still, red ≥ {self.heat_scale:g} cm from rest"]})
             self.hud.draw(hud, (w, h), view=self.view, age=getattr(state, "age", None))
+
+    def _overlay_rows(self, surface: np.ndarray) -> np.ndarray:
+        buf = getattr(self, "_overlay_buf", None)
+        if buf is None or len(buf) != len(surface):
+            buf = self._overlay_buf = np.zeros((len(surface), 6), np.float32)
+        buf[:, :3] = surface
+        return buf
 
     def _matrices(self, aspect: float) -> tuple[np.ndarray, np.ndarray]:
         """(view, projection @ view), recomputed only when the camera or the aspect changes."""
@@ -322,18 +355,10 @@ class FaceRenderer:
         for prog in (skin, self.eye_prog):
             prog["mvp"].write(_mat(mvp))
             prog["view"].write(_mat(view_m))
-        if kind == "HEAT":
-            skin["heat_scale"].value = float(self.heat_scale)
-        self.skin_vaos[kind].render(moderngl.TRIANGLES)
-        if kind in self.head_vaos:  # closed surfaces seen from outside: their backs never show
-            if kind == "SKIN":
-                self.scalp_prog["mvp"].write(_mat(mvp))
-                self.scalp_prog["view"].write(_mat(view_m))
-            self.ctx.enable(moderngl.CULL_FACE)
-            self.head_vaos[kind].render(moderngl.TRIANGLES)
-            self.ctx.disable(moderngl.CULL_FACE)
-        self._draw_cavities(surface, mvp)
-        self._draw_eyes(state)
+        if self.scan is not None:
+            self.scan.draw(self._scan_rows, kind, _mat(mvp), _mat(view_m), self.heat_scale)
+        else:
+            self._draw_own_skin(state, surface, kind, mvp, view_m)
         for prog in (self.line_prog, self.thick_prog, self.trail_prog):
             prog["mvp"].write(_mat(mvp))
         self.thick_prog["viewport"].value = (float(size[0]), float(size[1]))
@@ -347,6 +372,23 @@ class FaceRenderer:
             self.ctx.enable(moderngl.DEPTH_TEST)
         if view == "trails":
             self._draw_trails(mvp, ss)
+
+    def _draw_own_skin(self, state: Any, surface: np.ndarray, kind: str, mvp: np.ndarray,
+                       view_m: np.ndarray) -> None:
+        """The model's own skin, its held head, cavities and eyeballs (every face but the scan)."""
+        skin = self.skin_progs[kind]
+        if kind == "HEAT":
+            skin["heat_scale"].value = float(self.heat_scale)
+        self.skin_vaos[kind].render(moderngl.TRIANGLES)
+        if kind in self.head_vaos:  # closed surfaces seen from outside: their backs never show
+            if kind == "SKIN":
+                self.scalp_prog["mvp"].write(_mat(mvp))
+                self.scalp_prog["view"].write(_mat(view_m))
+            self.ctx.enable(moderngl.CULL_FACE)
+            self.head_vaos[kind].render(moderngl.TRIANGLES)
+            self.ctx.disable(moderngl.CULL_FACE)
+        self._draw_cavities(surface, mvp)
+        self._draw_eyes(state)
 
     def _draw_cavities(self, surface: np.ndarray, mvp: np.ndarray) -> None:
         """Dark pockets behind the mouth and eye openings, drawn after the skin (which hides most
@@ -436,6 +478,7 @@ class FaceRenderer:
             obj.release()
         self._gl = []
         self.model = None
+        self.scan = None
 
     def release(self) -> None:
         """Free every GL object this renderer made (the context stays the caller's)."""

@@ -452,6 +452,7 @@ class Simulator:
         values = control.values
         state.eye_yaw = float(values[CHANNEL_INDEX["eyes_yaw"]])
         state.eye_pitch = float(values[CHANNEL_INDEX["eyes_pitch"]])
+        state.jaw = float(values[CHANNEL_INDEX["jaw"]])
         state.age = float(values[CHANNEL_INDEX["age"]])
         self._surface(state)
         return state

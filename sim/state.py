@@ -31,6 +31,7 @@ class FaceState:
     eye_yaw: float = 0.0
     eye_pitch: float = 0.0
     age: float = 30.0
+    jaw: float = 0.0  # the jaw channel at the last step: a scanned head's teeth follow it when drawn
 
     def copy(self) -> FaceState:
         """An independent deep copy (arrays copied)."""
@@ -42,6 +43,7 @@ class FaceState:
             self.eye_yaw,
             self.eye_pitch,
             self.age,
+            self.jaw,
         )
 
     def assign(self, other: FaceState) -> None:
@@ -51,6 +53,7 @@ class FaceState:
         self.surface[...] = other.surface
         self.time = other.time
         self.eye_yaw, self.eye_pitch, self.age = other.eye_yaw, other.eye_pitch, other.age
+        self.jaw = other.jaw
 
 
 def rest_state(rest: np.ndarray) -> FaceState:

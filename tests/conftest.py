@@ -13,6 +13,11 @@ import pytest
 _FACE_CACHE = os.environ["PUPPET_CACHE_DIR"] = __import__("tempfile").mkdtemp(prefix="puppet-test-cache-")
 
 
+# the suite's own fixtures and expectations are the procedural face's unless a test asks for another
+# (--face, or PUPPET_FACE in its environment); tests of the scanned head name it
+os.environ.setdefault("PUPPET_FACE", "procedural")
+
+
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     if os.path.basename(_FACE_CACHE).startswith("puppet-test-cache-"):
         shutil.rmtree(_FACE_CACHE, ignore_errors=True)

@@ -120,18 +120,25 @@ def _export_csv(perf: Performance, out: Path, kind: str, ticks: list[int], names
 
 def _export_pc2(perf: Performance, out: Path, ticks: list[int], opts: ExportOptions) -> str:
     from puppet.export.pc2 import PC2Writer, write_obj
+    from puppet.export.scan import posed, scan_dressing, write_scan_obj
 
     model = perf.face.model
     obj = out.with_suffix(".obj")
+    dressing = scan_dressing(model)  # the scanned head: the scan's own vertices and faces
+    rest = model.rest if dressing is None else dressing.rest
     with atomic_path(obj) as obj_tmp, atomic_path(out) as pc2_tmp:
-        write_obj(obj_tmp, model.rest, model.triangles,
-                  f"facepuppet rest pose, {len(model.rest)} vertices in simulation order (cm, +Y up)\n"
-                  f"point cache: {out.name}, {opts.fps:g} fps, starts at frame {opts.start_frame:g}")
-        w = PC2Writer(pc2_tmp, len(model.rest), start_frame=opts.start_frame, sampling=1.0)
+        note = (f"point cache: {out.name}, {opts.fps:g} fps, starts at frame {opts.start_frame:g}")
+        if dressing is None:
+            write_obj(obj_tmp, rest, model.triangles,
+                      f"facepuppet rest pose, {len(rest)} vertices in simulation order (cm, +Y up)\n{note}")
+        else:
+            write_scan_obj(obj_tmp, rest, f"facepuppet rest pose of the scanned head (ICT FaceKit topology), "
+                           f"{len(rest)} vertices in the scan's order (cm, +Y up)\n{note}")
+        w = PC2Writer(pc2_tmp, len(rest), start_frame=opts.start_frame, sampling=1.0)
         try:
             with _bar(len(ticks), out.name) as bar:
                 for _, _, state, _ in iter_frames(perf, ticks):
-                    w.add(state.surface)
+                    w.add(state.surface if dressing is None else posed(dressing, state))
                     bar.update(1)
         finally:
             w.close()

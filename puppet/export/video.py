@@ -111,11 +111,25 @@ class RenderModel:
     """What the renderer reads of a face model (its rig, mesh, rest positions and triangles), rebuilt
     in a render process from the face's rig file (sim.rig: npz + JSON, read without pickle)."""
 
-    def __init__(self, rig: Any) -> None:
+    def __init__(self, rig: Any, scan_rest: str | None = None) -> None:
         self.rig = rig
+        self.scan_dressing: Any = None
+        if scan_rest:  # the scanned head at rest: each frame brings the posed scan (RenderFrame)
+            self.scan_dressing = _ScanRest(np.load(scan_rest, allow_pickle=False))
         self.mesh = rig.mesh
         self.rest = np.asarray(rig.mesh.vertices, np.float64)
         self.triangles = np.asarray(rig.mesh.triangles, np.int32)
+
+
+class _ScanRest:
+    """A render process's stand-in for the scan dressing: the rest scan the look is baked from;
+    the posed scan arrives with every frame (`RenderFrame.scan_rows`)."""
+
+    def __init__(self, rest: np.ndarray) -> None:
+        self.rest = rest
+
+    def pose(self, surface: np.ndarray, control: Any) -> np.ndarray:
+        raise RuntimeError("a render process draws the scan rows it is sent")
 
 
 class RenderFrame:
@@ -126,25 +140,31 @@ class RenderFrame:
     state's scalars."""
 
     def __init__(self, interleaved: np.ndarray, time: float, eye_yaw: float, eye_pitch: float,
-                 age: float) -> None:
+                 age: float, jaw: float = 0.0, scan_rows: np.ndarray | None = None) -> None:
         self.interleaved = interleaved
         self.surface = interleaved[:, :3]
         self.positions = self.surface
         self.time, self.eye_yaw, self.eye_pitch, self.age = time, eye_yaw, eye_pitch, age
+        self.jaw = jaw
+        self.scan_rows = scan_rows  # the scanned head posed, as render.scan_look.ScanRows makes them
 
 
-def _pack(j: int, state: Any, normals: Any) -> bytes:
-    """One frame for a render process: its number, then the interleaved rows and the scalars."""
+def _pack(j: int, state: Any, normals: Any, scan: Any = None) -> bytes:
+    """One frame for a render process: its number, then the interleaved rows (and the scanned
+    head's rows, posed here by `scan`, a render.scan_draw.ScanPoser) and the scalars."""
     rows = normals.interleaved(np.ascontiguousarray(state.surface, dtype=np.float32))
-    body = rows.astype("<f4", copy=False).tobytes() + struct.pack(
-        "<4d", state.time, state.eye_yaw, state.eye_pitch, state.age)
+    extra = b"" if scan is None else scan.rows(state).astype("<f4", copy=False).tobytes()
+    body = rows.astype("<f4", copy=False).tobytes() + extra + struct.pack(
+        "<5d", state.time, state.eye_yaw, state.eye_pitch, state.age, getattr(state, "jaw", 0.0))
     return FRAME_HEAD.pack(j, len(body)) + body
 
 
-def _unpack_state(body: bytes) -> RenderFrame:
-    rows = np.frombuffer(body[:-32], dtype="<f4").reshape(-1, 6)
-    t, yaw, pitch, age = struct.unpack("<4d", body[-32:])
-    return RenderFrame(rows, t, yaw, pitch, age)
+def _unpack_state(body: bytes, n_scan: int = 0) -> RenderFrame:
+    data = np.frombuffer(body[:-40], dtype="<f4")
+    scan = data[len(data) - 7 * n_scan:].reshape(-1, 7) if n_scan else None
+    rows = data[:len(data) - 7 * n_scan].reshape(-1, 6)
+    t, yaw, pitch, age, jaw = struct.unpack("<5d", body[-40:])
+    return RenderFrame(rows, t, yaw, pitch, age, jaw, scan)
 
 
 def _read_exact(f: Any, n: int) -> bytes:
@@ -180,7 +200,7 @@ def worker_main() -> int:
     try:
         from sim.rig import load_rig
 
-        model = RenderModel(load_rig(cfg["rig"]))
+        model = RenderModel(load_rig(cfg["rig"]), cfg.get("scan_rest"))
         sink = FrameSink(model, Path(cfg["out"]), cfg["kind"], cfg["fps"], tuple(cfg["size"]), cfg["view"],
                          supersample=cfg.get("supersample", 1), encode=False)
     except Exception as err:  # reported to the parent as one message
@@ -194,7 +214,8 @@ def worker_main() -> int:
             j, n = FRAME_HEAD.unpack(head)
             if j < 0:
                 break
-            state = _unpack_state(_read_exact(inp, n))
+            n_scan = 0 if model.scan_dressing is None else len(model.scan_dressing.rest)
+            state = _unpack_state(_read_exact(inp, n), n_scan)
             if sink.kind == "mp4":
                 send(j, sink.raw(state))
             else:
@@ -301,13 +322,19 @@ def render_parallel(model: Any, out: Path, kind: str, fps: float, size: tuple[in
         out.mkdir(parents=True, exist_ok=True)
     scratch = tempfile.TemporaryDirectory(prefix="puppet-export-")
     rig_path = Path(scratch.name) / "face.npz"
+    from render.scan_draw import dressing_of
+
+    dressing = dressing_of(model)  # the scanned head: frames carry the posed scan's rows
     try:
         save_rig(model.rig, rig_path)
+        if dressing is not None:
+            np.save(Path(scratch.name) / "scan_rest.npy", np.asarray(dressing.rest, np.float32))
     except OSError as err:
         scratch.cleanup()
         raise PuppetError(f"cannot write the face for the render processes to {rig_path}: {err}") from err
     cfg = json.dumps({"out": str(out), "kind": kind, "fps": fps, "size": list(size), "view": view,
-                      "supersample": supersample, "rig": str(rig_path)})
+                      "supersample": supersample, "rig": str(rig_path),
+                      "scan_rest": str(Path(scratch.name) / "scan_rest.npy") if dressing is not None else None})
     results: _queue.Queue[tuple[int, bytes | None]] = _queue.Queue()
     env = None
     if n > 1 and "LP_NUM_THREADS" not in os.environ:
@@ -374,8 +401,13 @@ def render_parallel(model: Any, out: Path, kind: str, fps: float, size: tuple[in
         from render.meshdata import surface_rows
 
         normals = surface_rows(model)  # the renderer's, for its rows (the held head's included)
+        poser = None
+        if dressing is not None:
+            from render.scan_draw import ScanPoser
+
+            poser = ScanPoser(dressing)
         for j, st in frames:
-            pool[j % n].put(_pack(j, st, normals), alive)
+            pool[j % n].put(_pack(j, st, normals, poser), alive)
             alive()
         for w in pool:
             w.put(None, alive)

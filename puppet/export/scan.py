@@ -1,0 +1,45 @@
+"""Exports of the scanned head keep the scan's own vertices: 26,719 in the scan's order (the ICT
+FaceKit's topology, so a take drops onto ICT-topology assets), its quads and triangles as the scan
+has them, posed each frame by the face's dressing from the simulated surface, jaw and eyes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from puppet.errors import ConfigError
+
+
+def scan_dressing(model: Any) -> Any:
+    """The scan dressing of a face model (sim.face.scan.dressing), or None for any other face."""
+    rig = getattr(model, "rig", None)
+    if rig is None or not str(getattr(rig, "name", "")).startswith("ict"):
+        return None  # only the scanned head's rigs are named so (sim.face.scan.rig.scan_rig)
+    from sim.face.scan.dressing import dressing_for
+
+    return dressing_for(model)
+
+
+def posed(dressing: Any, state: Any) -> np.ndarray:
+    """(26719, 3) float32: the whole scan posed to a state."""
+    from sim.face.scan.blendshapes import StateControl
+
+    return dressing.pose(np.asarray(state.surface), StateControl(state))
+
+
+def write_scan_obj(path: str | Path, vertices: np.ndarray, comment: str = "") -> None:
+    """An OBJ of the scan: `vertices` (26719, 3) in the scan's order, then its faces (quads and
+    triangles, 1-based, in the scan's order); no normals or UVs, so no importer splits vertices."""
+    from sim.face.scan.data import scan_data
+
+    faces = scan_data().faces
+    lines = [f"# {c}" for c in comment.splitlines()] if comment else []
+    lines += [f"v {x:.7g} {y:.7g} {z:.7g}" for x, y, z in np.asarray(vertices, dtype=np.float64)]
+    for f in faces + 1:
+        lines.append("f " + " ".join(str(int(i)) for i in f if i > 0))
+    try:
+        Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot write the mesh: {err.strerror}") from err

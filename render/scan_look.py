@@ -1,0 +1,379 @@
+"""What the renderer knows of the scanned head (sim.face.scan): which of its parts are drawn with
+which material, per-vertex albedos and material weights, and the per-frame rows of the posed scan.
+
+The ICT FaceKit ships no textures, so the look is made here from the scan's own layout. The face's
+texture chart is a frontal projection shared by every identity (the scan is registered: a vertex
+means the same spot on every head), so the brows and the lips' red (vermilion) are shapes drawn in
+that chart, placed from the eye openings and the mouth found in it, and they stay on the right skin
+whatever the identity or the expression. Per vertex the renderer gets a signed distance (cm) to
+each shape's edge and takes the edge per pixel, so both stay sharp. Shadows in folds come from two
+terms: a broad one baked from the rest shape (how far each point lies below a smoothed copy of the
+surface: eye sockets, nostrils, ears, the corners of the mouth) and a fine one recomputed every
+frame from the posed surface (render.scan_kernel: a nasolabial fold or frown lines that deepen
+darken). The mouth's inside is darker the deeper it lies behind the front teeth."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from render.meshdata import spatial_order
+from sim.face.scan.data import N_VERTICES, PARTS, SCLERA, scan_data
+
+# Linear albedos.
+SKIN = np.array([0.60, 0.40, 0.30])
+CHEEK = np.array([0.62, 0.34, 0.27])  # the warmer, redder skin of cheeks, nose and ears
+LIP = np.array([0.46, 0.17, 0.15])
+BROW = np.array([0.035, 0.024, 0.018])
+LASH = np.array([0.02, 0.015, 0.012])
+TEETH = np.array([0.62, 0.58, 0.48])
+GUMS = np.array([0.36, 0.10, 0.09])
+TONGUE = np.array([0.32, 0.09, 0.08])
+SOCKET = np.array([0.16, 0.04, 0.04])  # the mouth's lining, in shadow
+EYE_SOCKET = np.array([0.42, 0.18, 0.16])
+MOUTH_CORNER_X = 2.45  # cm: the generic head's mouth corners, either side of the midline
+IRIS_ANGLE = 0.50  # rad from the gaze axis: the limbus, where the cornea's bulge starts on the scan
+PUPIL_ANGLE = 0.19
+
+LIP_GAP = 0.05  # cm the lips must part by before the mouth's inside is drawn (a pixel is ~0.035 cm at 720p)
+TEETH_DEPTH = 2.5  # cm behind the front teeth: the deepest teeth drawn
+GUMS_DEPTH = 4.0
+SKIN_PARTS = ("face", "head_neck")
+LASH_PARTS = ("eyelashes_l", "eyelashes_r")
+SOCKET_PARTS = ("eye_socket_l", "eye_socket_r")
+
+
+def part_faces(part: str) -> np.ndarray:
+    """(F, 4) the scan's faces of one part (quads and triangles; by their first vertex)."""
+    d = scan_data()
+    lo, hi = PARTS[part]
+    f = d.faces
+    return np.flatnonzero((f[:, 0] >= lo) & (f[:, 0] < hi))
+
+
+def face_chart_uv() -> np.ndarray:
+    """(26719, 2) each vertex's coordinate in the face's texture chart (the unit square; vertices
+    outside the face's skin keep 0): the corners whose coordinates lie in that chart, of every
+    face before the eyeballs (which reuse the unit square for their own chart)."""
+    d = scan_data()
+    out = np.zeros((N_VERTICES, 2))
+    f, fu = d.faces, d.faces_uv
+    for k in range(4):
+        ok = f[:, k] >= 0
+        vi, ti = f[ok, k], fu[ok, k]
+        c = d.uv[ti]
+        keep = (vi < PARTS["eyeball_l"][0]) & (c[:, 0] < 1.0) & (c[:, 1] <= 1.0)
+        out[vi[keep]] = c[keep]
+    return out
+
+
+def _triangles(part: str) -> np.ndarray:
+    return scan_data().triangles(part).astype(np.int32)
+
+
+def _eyeball_shell(side: str) -> np.ndarray:
+    """The eyeball's outer shell (sclera with the cornea's bulge; the inner layer is never seen)."""
+    lo, _ = PARTS[f"eyeball_{side}"]
+    t = _triangles(f"eyeball_{side}")
+    return t[(t < lo + SCLERA).all(axis=1)]
+
+
+def _smooth(values: np.ndarray, edges: np.ndarray, rounds: int) -> np.ndarray:
+    """(N, 3) each round every vertex takes the mean of itself and its mesh neighbours."""
+    n = len(values)
+    a, b = edges[:, 0], edges[:, 1]
+    deg = 1.0 + np.bincount(a, minlength=n) + np.bincount(b, minlength=n)
+    v = values.astype(float)
+    for _ in range(rounds):
+        v = np.stack([(v[:, k] + np.bincount(a, v[b, k], n) + np.bincount(b, v[a, k], n)) / deg
+                      for k in range(v.shape[1])], axis=1)
+    return v
+
+
+def _edges(triangles: np.ndarray) -> np.ndarray:
+    """(E, 2) int64 undirected edges, each once (by a 1-D key: far faster than unique rows)."""
+    t = np.asarray(triangles, np.int64)
+    e = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    e.sort(axis=1)
+    key = np.unique(e[:, 0] * (int(t.max()) + 1) + e[:, 1])
+    return np.stack([key // (int(t.max()) + 1), key % (int(t.max()) + 1)], axis=1)
+
+
+def _polyline_sdf(points: np.ndarray, line: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """Signed distance of 2-D points to a stroke along `line` (K, 2) with half widths `half` (K,)
+    (negative inside), with round ends."""
+    best = np.full(len(points), np.inf)
+    for k in range(len(line) - 1):
+        a, ab = line[k], line[k + 1] - line[k]
+        t = np.clip((points - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
+        d = np.linalg.norm(points - a - t[:, None] * ab, axis=1) - (half[k] + t * (half[k + 1] - half[k]))
+        best = np.minimum(best, d)
+    return best
+
+
+def _bezier(p0: np.ndarray, p1: np.ndarray, p2: np.ndarray, n: int = 24) -> np.ndarray:
+    t = np.linspace(0.0, 1.0, n)[:, None]
+    return (1 - t) ** 2 * p0 + 2 * (1 - t) * t * p1 + t**2 * p2
+
+
+def eye_centres(neutral: np.ndarray) -> np.ndarray:
+    """(2, 3) the eyeballs' centres (left +X first): sphere fits to their outer shells."""
+    out = []
+    for side in ("l", "r"):
+        lo, _ = PARTS[f"eyeball_{side}"]
+        p = neutral[lo:lo + SCLERA]
+        x = np.linalg.lstsq(np.c_[2.0 * p, np.ones(len(p))], (p**2).sum(axis=1), rcond=None)[0]
+        out.append(x[:3])
+    return np.array(out)
+
+
+def brow_sdf(xy: np.ndarray, eyes: np.ndarray) -> np.ndarray:
+    """(N,) cm: signed distance, in the front view of the generic head, to the nearer brow
+    (negative inside), placed from the eyeball's centre: a stroke that starts above the inner
+    corner of the eye, arches highest a little outside the pupil's line and ends past the outer
+    corner, thick at the head and thin at the tail."""
+    out = np.full(len(xy), np.inf)
+    for c in eyes:
+        out_dir = np.sign(c[0]) or 1.0
+
+        def at(a: float, b: float) -> np.ndarray:
+            return np.array([c[0] + out_dir * a, c[1] + b])
+
+        line = np.concatenate([_bezier(at(-1.55, 1.55), at(-0.6, 2.05), at(0.45, 2.05), 12),
+                               _bezier(at(0.45, 2.05), at(1.5, 2.05), at(2.35, 1.25), 12)[1:]])
+        s = np.linspace(0.0, 1.0, len(line))
+        half = 0.36 - 0.26 * s**1.4
+        out = np.minimum(out, _polyline_sdf(xy, line, half))
+    return out
+
+
+def lip_sdf(xy: np.ndarray, corner_x: float, stomion_y: float) -> np.ndarray:
+    """(N,) cm: signed distance (vertical, front view of the generic head) to the vermilion border,
+    negative on the red of the lips: the upper border with its Cupid's bow, the fuller lower lip,
+    both closing at the mouth corners (x = +-corner_x, at the stomion's height)."""
+    t = xy[:, 0] / corner_x
+    inside = np.clip(1.0 - t**2, 0.0, None)
+    bow = 0.16 * np.exp(-(t / 0.10) ** 2)          # the dip at the philtrum
+    peaks = 0.10 * np.exp(-((np.abs(t) - 0.24) / 0.12) ** 2)
+    top = stomion_y + 0.72 * inside**0.6 - bow + peaks
+    bottom = stomion_y - 0.95 * inside**0.55
+    d = np.maximum(xy[:, 1] - top, bottom - xy[:, 1])
+    return np.where(np.abs(t) < 1.0, d, np.maximum(d, (np.abs(t) - 1.0) * corner_x))
+
+
+def _mouth_inside(neutral: np.ndarray) -> np.ndarray:
+    """The mouth's inside as drawn: its whole lining (the backdrop that closes the opening), and of
+    the teeth, gums and tongue what lies within TEETH_DEPTH / GUMS_DEPTH cm behind the front teeth
+    (deeper, the occlusion has them black against the lining: the molars alone are 5,000 triangles)."""
+    lo, hi = PARTS["teeth"]
+    z_front = neutral[lo:hi, 2].max()
+    out = [_triangles("mouth_socket")]
+    for part, depth in (("gums_tongue", GUMS_DEPTH), ("teeth", TEETH_DEPTH)):
+        t = _triangles(part)
+        out.append(t[z_front - neutral[t].mean(axis=1)[:, 2] < depth])
+    return np.concatenate(out)
+
+
+def _mouth_loop() -> np.ndarray:
+    """The face's boundary around the mouth (where the lips roll into the mouth's lining)."""
+    from sim.springs import boundary_loops
+
+    loops = [np.asarray(lp) for lp in boundary_loops(_triangles("face"))]
+    neutral = scan_data().neutral
+    return min(loops, key=lambda lp: float(np.linalg.norm(neutral[lp].mean(axis=0)[:2] - (0.0, -3.4))))
+
+
+@lru_cache(maxsize=1)
+def _static_layout() -> dict[str, np.ndarray]:
+    """Everything that depends only on the scan's topology and charts (shared by every identity)."""
+    d = scan_data()
+    uv = face_chart_uv()
+    neutral = d.neutral
+    n = N_VERTICES
+    face = np.zeros(n, bool)
+    lo, hi = PARTS["face"]
+    face[lo:hi] = True
+    xy = neutral[:, :2]
+    stomion_y = float(np.mean(neutral[_mouth_loop(), 1]))
+    brow = np.full(n, 9.0)
+    near = face & (neutral[:, 1] > eye_centres(neutral)[:, 1].min())  # the brows lie above the eyes
+    brow[near] = brow_sdf(xy[near], eye_centres(neutral))
+    lip = np.where(face & (neutral[:, 2] > 8.0), lip_sdf(xy, MOUTH_CORNER_X, stomion_y), 9.0)
+    # redder cheeks, nose and ears: smooth blobs in the face chart, plus the head chart's ears
+    cheek = np.zeros(n)
+    for cu, cv, r in ((0.30, 0.52, 0.10), (0.70, 0.52, 0.10), (0.5, 0.55, 0.05)):
+        cheek += np.exp(-((uv[:, 0] - cu) ** 2 + (uv[:, 1] - cv) ** 2) / r**2) * face
+    groups = {
+        "skin": np.concatenate([_triangles(p) for p in SKIN_PARTS]),
+        "mouth": _mouth_inside(neutral),
+        "eyes": np.concatenate([_eyeball_shell("l"), _eyeball_shell("r")]),
+        "sockets": np.concatenate([_triangles(p) for p in SOCKET_PARTS]),
+        "lashes": np.concatenate([_triangles(p) for p in LASH_PARTS]),
+    }
+    return {"uv": uv, "brow": brow, "lip": lip, "cheek": np.clip(cheek, 0, 1), **groups,
+            "stomion_y": np.array(stomion_y)}
+
+
+def _extra_coords(face_uv: np.ndarray) -> np.ndarray:
+    """The per-vertex coordinates the shaders read besides the face chart: the eyeballs' own chart
+    (the iris at its centre: the angle around it gives the iris its fibres) and, on the lashes,
+    (position along the lid, 0 at the root .. 1 at the tip). Each lash strip of the scan is six
+    rows of its chart from tip to root."""
+    d = scan_data()
+    out = face_uv.copy()
+    every = d.vertex_uv()
+    for side in ("l", "r"):
+        lo, hi = PARTS[f"eyeball_{side}"]
+        out[lo:hi] = every[lo:hi]
+        lo, hi = PARTS[f"eyelashes_{side}"]
+        uv = every[lo:hi]
+        row = np.rint((uv[:, 1] % 1.0 - 0.014) / 0.0278).astype(int) % 6
+        block = np.floor(uv[:, 1] % 1.0 * 2.0)  # the lower lid's strips are the chart's lower half
+        out[lo:hi, 0] = uv[:, 0] % 1.0 + 2.0 * (block == 0)
+        out[lo:hi, 1] = 1.0 - row / 5.0
+    return out
+
+
+def _lip_pairs(rest: np.ndarray, neutral: np.ndarray, stomion_y: float) -> np.ndarray:
+    """(K, 2) vertex pairs, upper lip and lower lip, closest to each other at rest in each column of
+    the mouth (columns and lips told apart on the generic head): when any pair parts, the mouth's
+    inside can be seen."""
+    lo, hi = PARTS["face"]
+    idx = np.arange(lo, hi)
+    x, y = neutral[idx, 0], neutral[idx, 1]
+    near = (np.abs(x) < 0.92 * MOUTH_CORNER_X) & (np.abs(y - stomion_y) < 0.6) & (neutral[idx, 2] > 8.0)
+    idx, x, y = idx[near], x[near], y[near]
+    edges = np.linspace(-0.92 * MOUTH_CORNER_X, 0.92 * MOUTH_CORNER_X, 17)
+    pairs = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        col = (x >= a) & (x < b)
+        up, dn = idx[col & (y > stomion_y)], idx[col & (y <= stomion_y)]
+        if len(up) == 0 or len(dn) == 0:
+            continue
+        dist = np.linalg.norm(rest[up][:, None] - rest[dn][None], axis=2)
+        i, j = np.unravel_index(np.argmin(dist), dist.shape)
+        pairs.append((up[i], dn[j]))
+    return np.array(pairs, np.int64).reshape(-1, 2)
+
+
+class ScanLook:
+    """The drawing data of the scanned head for one rest pose (its identity): index arrays per
+    material group (skin: face, head and neck; mouth: its lining, gums, tongue and teeth; eyes:
+    the eyeballs' outer shells; sockets; lashes), per-vertex albedo (N, 3), material (N, 4: brow
+    and vermilion signed distances in cm, baked occlusion 0..1, specular strength), the face
+    chart's coordinates (N, 2, for the brows' hair), the eyeballs' angle from their gaze axis (N,),
+    and the lip pairs that tell when the mouth is open."""
+
+    def __init__(self, rest: np.ndarray) -> None:
+        lay = _static_layout()
+        rest = np.asarray(rest, np.float64)
+        if rest.shape != (N_VERTICES, 3):
+            raise ValueError(f"a scanned head has {N_VERTICES} vertices, got {rest.shape}")
+        self.rest = rest
+        self.groups = {k: spatial_order(lay[k], rest).astype(np.int32)
+                       for k in ("skin", "mouth", "eyes", "sockets", "lashes")}
+        tri = np.concatenate(list(self.groups.values()))
+        self.triangles = tri
+        edges = _edges(tri)
+        self.edges = edges
+        n = N_VERTICES
+        nbr = np.concatenate([edges, edges[:, ::-1]])
+        nbr = nbr[np.lexsort((nbr[:, 1], nbr[:, 0]))]
+        self.nbr_ptr = np.searchsorted(nbr[:, 0], np.arange(n + 1)).astype(np.int32)
+        self.nbr = nbr[:, 1].astype(np.int32)
+        length = np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)
+        total = np.bincount(edges[:, 0], length, n) + np.bincount(edges[:, 1], length, n)
+        deg = np.maximum(np.bincount(edges[:, 0], minlength=n) + np.bincount(edges[:, 1], minlength=n), 1)
+        self.inv_len = (deg / np.maximum(total, 1e-6)).astype(np.float32)
+        self.uv = _extra_coords(lay["uv"]).astype(np.float32)
+        self.albedo, self.material = self._materials(lay, rest, edges)
+        self.gaze_angle = self._gaze_angles(rest)
+        self.lip_pairs = _lip_pairs(rest, scan_data().neutral, float(lay["stomion_y"]))
+        self.lip_rest = np.linalg.norm(rest[self.lip_pairs[:, 0]] - rest[self.lip_pairs[:, 1]], axis=1)
+
+    def _materials(self, lay: dict[str, np.ndarray], rest: np.ndarray,
+                   edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n = N_VERTICES
+        alb = np.tile(SKIN, (n, 1))
+        alb += (CHEEK - SKIN) * lay["cheek"][:, None]
+        ao = np.ones(n)
+        spec = np.full(n, 0.10)
+        # broad occlusion: depth below a heavily smoothed copy of the skin, along the normal
+        from sim.build import vertex_normals
+
+        skin_tri = self.groups["skin"]
+        normals = vertex_normals(rest, skin_tri)
+        skin_edges = _edges(skin_tri)
+        smooth = _smooth(rest, skin_edges, 24)
+        depth = np.einsum("ij,ij->i", smooth - rest, normals)
+        used = np.zeros(n, bool)
+        used[skin_tri.ravel()] = True
+        ao[used] = np.exp(-2.2 * np.clip(depth[used], 0.0, None))
+        # the mouth's inside: darker the deeper behind the front teeth
+        lo, hi = PARTS["mouth_socket"][0], PARTS["teeth"][1]
+        z_front = rest[PARTS["teeth"][0]:hi, 2].max()
+        behind = np.clip(z_front - rest[lo:hi, 2], 0.0, None)
+        ao[lo:hi] = np.exp(-behind / 1.0)
+        a, b = PARTS["mouth_socket"]
+        alb[a:b] = SOCKET
+        a, b = PARTS["gums_tongue"]
+        # the tongue is the middle of the floor; the gums are the rest of that part
+        mid = (np.abs(rest[a:b, 0]) < 2.2) & (rest[a:b, 1] < rest[a:b, 1].min() + 2.4)
+        alb[a:b] = np.where(mid[:, None], TONGUE, GUMS)
+        spec[a:b] = 0.25
+        a, b = PARTS["teeth"]
+        alb[a:b] = TEETH
+        spec[a:b] = 0.35
+        for part in SOCKET_PARTS:
+            a, b = PARTS[part]
+            alb[a:b] = EYE_SOCKET
+            spec[a:b] = 0.5
+        for part in LASH_PARTS:
+            a, b = PARTS[part]
+            alb[a:b] = LASH
+            spec[a:b] = 0.0
+        mat = np.stack([lay["brow"], lay["lip"], ao, spec], axis=1).astype(np.float32)
+        return alb.astype(np.float32), mat
+
+    def _gaze_angles(self, rest: np.ndarray) -> np.ndarray:
+        """(N,) float32: each eyeball shell vertex's angle (rad) from its eye's gaze axis at rest (the
+        axis through the sphere's centre and the cornea's apex)."""
+        out = np.full(N_VERTICES, 3.0, np.float32)
+        for side in ("l", "r"):
+            lo, _ = PARTS[f"eyeball_{side}"]
+            p = rest[lo:lo + SCLERA]
+            a = np.c_[2.0 * p, np.ones(len(p))]
+            x = np.linalg.lstsq(a, (p**2).sum(axis=1), rcond=None)[0]
+            c = x[:3]
+            r = np.linalg.norm(p - c, axis=1)
+            g = p[np.argmax(r)] - c
+            g /= np.linalg.norm(g)
+            cosang = (p - c) @ g / np.maximum(r, 1e-9)
+            out[lo:lo + SCLERA] = np.arccos(np.clip(cosang, -1.0, 1.0))
+        return out
+
+    def mouth_open(self, posed: np.ndarray) -> bool:
+        """Whether the lips have parted anywhere along the mouth (the inside can be seen)."""
+        if not len(self.lip_pairs):
+            return True
+        gap = np.linalg.norm(posed[self.lip_pairs[:, 0]] - posed[self.lip_pairs[:, 1]], axis=1)
+        return bool(np.any(gap > self.lip_rest + LIP_GAP))
+
+
+class ScanRows:
+    """The posed scan as the renderer's rows x y z nx ny nz fold (one (N, 7) float32 array,
+    rewritten every call: upload it, don't keep it)."""
+
+    def __init__(self, look: ScanLook) -> None:
+        self.look = look
+        self.buffer = np.zeros((N_VERTICES, 7), np.float32)
+        self.scratch = np.zeros(N_VERTICES, np.float32)
+        self.tri = np.ascontiguousarray(look.triangles, np.int32)
+
+    def rows(self, posed: np.ndarray) -> np.ndarray:
+        from render.scan_kernel import scan_rows
+
+        p = np.ascontiguousarray(posed, dtype=np.float32)
+        scan_rows(p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch, self.buffer)
+        return self.buffer

@@ -1,0 +1,101 @@
+"""Choosing the face: --face forms, saved identities (atomic JSON in the user's data folder, a
+damaged one is one line and exit 2), and a take that records its face and replays bit for bit on it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from puppet import faces, live
+from puppet.cli import main
+from puppet.errors import PuppetError
+from puppet.mapping import Mapper
+from puppet.replay import Replayer, build_performance
+from puppet.session import SessionWriter, read_session
+
+
+def test_face_forms(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("PUPPET_FACE", raising=False)
+    assert faces.parse_face(None).kind == "ict"  # the scanned head is the default face
+    monkeypatch.setenv("PUPPET_FACE", "procedural")
+    assert faces.parse_face(None).kind == "procedural"
+    generic = faces.parse_face("ict")
+    assert generic.kind == "ict" and not generic.weights.any()
+    seeded = faces.parse_face("ict?identity=7")
+    assert np.array_equal(seeded.weights, np.random.default_rng(7).standard_normal(100))
+    assert faces.parse_face("ict?identity=7") == seeded and seeded.spec == "ict?identity=7"
+    assert faces.parse_face("ict?identity=8").identity != seeded.identity
+    proc = faces.parse_face("procedural", 2)
+    assert proc.kind == "procedural" and proc.resolution == 2
+    for bad in ("ict?identity=-1", "ict?seed=3", "procedural?x=1", "no such/name", ""):
+        with pytest.raises(PuppetError):
+            faces.parse_face(bad)
+    with pytest.raises(PuppetError):
+        faces.parse_face("procedural", 3)
+
+
+def test_saved_identity_round_trip(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    monkeypatch.setenv("PUPPET_DATA_DIR", str(tmp_path / "ids"))
+    assert main(["face", "save", "bob", "--identity", "7"]) == 0
+    assert main(["face", "save", "ann", "--identity", "0.5,-1.25,2"]) == 0
+    bob = faces.parse_face("bob")
+    assert bob.kind == "ict" and bob.identity == faces.parse_face("ict?identity=7").identity
+    ann = faces.parse_face("ann")
+    assert ann.identity[:4] == (0.5, -1.25, 2.0, 0.0) and len(ann.identity) == 100
+    capsys.readouterr()
+    assert main(["face", "list"]) == 0
+    out = capsys.readouterr().out
+    assert "bob" in out and "seed 7" in out and "ann" in out
+    assert not list((tmp_path / "ids").glob(".*"))  # no temporary files left behind
+    # a damaged file: one line naming it, exit 2, the others still listed; --face NAME refuses it
+    (tmp_path / "ids" / "bad.json").write_text('{"format": "facepuppet-identity", "version": 1, "identity": [1, "x"]}')
+    assert main(["face", "list"]) == 2
+    got = capsys.readouterr()
+    assert "bob" in got.out and got.err.count("\n") == 1 and "bad.json" in got.err
+    assert main(["pose", "--face", "bad", "--out", str(tmp_path / "p.npz")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "bad.json" in err and not (tmp_path / "p.npz").exists()
+    assert main(["face", "save", "bob", "--identity", "1,2,x"]) == 2  # a bad --identity changes nothing
+    assert faces.parse_face("bob") == bob
+
+
+def _record(tmp_path: Path, face: live.Face, name: str) -> tuple[Path, list[bytes]]:
+    import devices
+
+    script = tmp_path / "s.toml"
+    script.write_text('impersonate = "sgi"\nspeed = 0\nduration = 0.5\n[[ramp]]\ncontrol = "dial1"\n'
+                      'start = 0.0\nduration = 0.4\nfrom = 0.0\nto = 0.9\nrate = 50\n')
+    dev = devices.open_device(f"mock://{script}")
+    spec = live.build_mapping(face.vocab, None, [dev.spec])
+    rec = tmp_path / f"{name}.jsonl"
+    writer = SessionWriter(rec, live.session_header(face, spec, live.TICK_RATE, [dev.spec]))
+    core = live.LiveCore(face, Mapper(spec, face.vocab), writer=writer)
+    seen: list[bytes] = []
+    live.run_virtual(core, live.scripted_events([dev]), 0.5, on_frame=lambda c: seen.append(c.state.positions.tobytes()))
+    writer.close(core.tick_count)
+    dev.close()
+    return rec, seen
+
+
+@pytest.mark.parametrize("spec", ["procedural", "ict?identity=3"])
+def test_take_records_its_face_and_replays_on_it(tmp_path: Path, spec: str) -> None:
+    try:
+        face = live.load_face(face=spec)
+    except PuppetError as err:
+        if "not available in this build" in str(err):
+            pytest.skip(str(err))
+        raise
+    rec, seen = _record(tmp_path, face, "take")
+    header = read_session(rec).header["rig"]
+    assert header["face"] == spec and header["hash"] == face.rig["hash"]
+    if spec.startswith("ict"):
+        assert np.array_equal(header["identity"], faces.parse_face(spec).weights)
+    perf = build_performance(read_session(rec), None)
+    assert perf.face.rig["face"] == spec and perf.face.model.hash == face.model.hash
+    rp = Replayer(perf)
+    for k, want in enumerate(seen):
+        rp.step()
+        assert rp.state.positions.tobytes() == want, f"tick {k} differs"
+    assert seen[-1] != face.model.rest.tobytes()

@@ -1,0 +1,110 @@
+"""The scanned head (sim.face.scan) drawn with materials: skin, dark brows, red lips, eyes with a dark
+iris on a pale sclera, and the mouth's inside (teeth) drawn only while the lips are apart."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from render.offscreen import OffscreenRenderer
+from render.scan_look import eye_centres
+from sim.face import default_model
+from sim.face.scan.blendshapes import ScanShapes
+from sim.face.scan.data import PARTS, scan_data
+
+
+class _StillScan:
+    """A face model whose drawing is a still pose of the scan's own shapes."""
+
+    def __init__(self, shapes: ScanShapes) -> None:
+        self._model = default_model(0)
+        self.scan_dressing = shapes
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._model, name)
+
+
+def _shot(gl, shapes: ScanShapes, size=(400, 400)) -> tuple[np.ndarray, OffscreenRenderer, bool]:
+    model = _StillScan(shapes)
+    off = OffscreenRenderer(model, size, ctx=gl)
+    off.renderer.camera.scale = 0.7  # the face fills the picture
+    img = off.render_frame(model.rest_state(), record=False).astype(float)
+    drawn = off.renderer.scan.mouth_drawn
+    return img, off, drawn
+
+
+def _at(img: np.ndarray, off: OffscreenRenderer, point: np.ndarray, size=(400, 400)) -> np.ndarray:
+    x, y = off.renderer.project(np.asarray(point, float)[None], size)[0]
+    return img[int(y) - 1:int(y) + 2, int(x) - 1:int(x) + 2].reshape(-1, 3).mean(axis=0)
+
+
+def test_materials_of_the_scanned_head(gl) -> None:
+    d = scan_data()
+    img, off, drawn = _shot(gl, ScanShapes())
+    try:
+        assert not drawn  # lips closed: the mouth's inside is left out
+        eye = eye_centres(d.neutral)[0]
+        forehead = _at(img, off, [eye[0], eye[1] + 4.0, d.neutral[:PARTS["face"][1], 2].max() - 2.5])
+        lum = lambda c: float(c.sum())  # noqa: E731
+        # the brow (1.9 cm above the eye's centre, on the skin in front of it) is much darker than the forehead
+        brow_pts = d.neutral[:PARTS["face"][1]]
+        near = brow_pts[(np.abs(brow_pts[:, 0] - eye[0]) < 0.3) & (np.abs(brow_pts[:, 1] - eye[1] - 1.95) < 0.3)]
+        brow = _at(img, off, near[np.argmax(near[:, 2])])
+        assert lum(brow) < 0.6 * lum(forehead)
+        # the cornea's apex: the pupil, dark; the sclera beside the iris, pale
+        lo = PARTS["eyeball_l"][0]
+        shell = d.neutral[lo:lo + 770]
+        apex = shell[np.argmax(np.linalg.norm(shell - eye, axis=1))]
+        pupil = _at(img, off, apex)
+        assert lum(pupil) < 0.35 * lum(forehead)
+        # the lips are redder than the skin of the chin
+        lips = d.neutral[:PARTS["face"][1]]
+        lip = lips[(np.abs(lips[:, 0]) < 0.2) & (lips[:, 1] < -3.6) & (lips[:, 1] > -4.3)]
+        lip_rgb = _at(img, off, lip[np.argmax(lip[:, 2])])
+        chin = lips[(np.abs(lips[:, 0]) < 0.2) & (np.abs(lips[:, 1] + 6.5) < 0.3)]
+        chin_rgb = _at(img, off, chin[np.argmax(chin[:, 2])])
+        assert lip_rgb[0] / lip_rgb[1] > chin_rgb[0] / chin_rgb[1] + 0.15
+    finally:
+        off.release()
+
+
+def test_mouth_inside_drawn_when_open(gl) -> None:
+    img, off, drawn = _shot(gl, ScanShapes(expressions={"jawOpen": 0.6}))
+    try:
+        assert drawn
+        off.renderer.scan.look.mouth_open = lambda posed: False  # the same picture without the inside
+        hollow = off.render_frame(off.renderer.model.rest_state(), record=False).astype(float)
+        background = np.abs(hollow - img[0, 0]).sum(axis=2) < 3
+        through = background & (np.abs(img - img[0, 0]).sum(axis=2) > 30)
+        assert through.sum() > 400  # where the open mouth would show the background, the inside is drawn
+        inside = img[through]
+        assert np.median(inside.sum(axis=1)) < 0.8 * np.median(img[~background].sum(axis=1))  # darker than the skin
+        assert inside.sum(axis=1).max() > 450  # and with light teeth in it
+    finally:
+        off.release()
+
+
+def test_every_view_draws_the_simulated_scanned_head(gl) -> None:
+    from puppet.face_cache import scan_model
+    from sim.facs import apply_expression
+    from sim.integrator import Simulator
+    from sim.state import FaceControl
+
+    model = scan_model(None)
+    sim, state = Simulator(model), model.rest_state()
+    control = FaceControl(model)
+    apply_expression(control, "surprise", 1.0)
+    for _ in range(6):
+        sim.step(state, control)
+    shots = {}
+    with OffscreenRenderer(model, (160, 120), ctx=gl) as off:
+        assert off.renderer.scan is not None  # the default face is drawn as the whole scan
+        for view in ("shaded", "wireframe", "muscles", "trails", "heat"):
+            off.view = view
+            shots[view] = off.render_frame(state).astype(float)
+            assert gl.error == "GL_NO_ERROR"
+    face = np.abs(shots["shaded"] - shots["shaded"][0, 0]).sum(axis=2) > 20
+    assert face.mean() > 0.15  # the head fills a good part of the picture
+    for view in ("wireframe", "muscles", "trails", "heat"):
+        assert np.abs(shots[view] - shots["shaded"]).sum(axis=2)[face].mean() > 5, view
