@@ -4,15 +4,28 @@ iFacialMocap (text), Live Link Face (binary); every one yields the 52 ARKit name
 from __future__ import annotations
 
 import socket
+import struct
 
 import pytest
 from netdev import listening, osc_bundle, osc_message
 
 import devices
-from devices.facestream import ARKIT_NAMES, MIRRORED, arkit_controls, arkit_name
+from devices.facestream import ARKIT_NAMES, MIRRORED, ROTATION_NAMES, arkit_controls, arkit_name
 from devices.facestream.facecap import FACECAP_ORDER
 from devices.facestream.ifacialmocap import START_REQUEST
-from devices.facestream.livelink import encode_frame
+from devices.facestream.livelink import LiveLinkParser, encode_frame
+
+#: Unreal's EARFaceBlendShape enum as published in Epic's API reference (ARTrackable.h), index by
+#: index: the order of a Live Link Face packet's 61 floats. Written out here, not taken from the code.
+UNREAL_ENUM = """EyeBlinkLeft EyeLookDownLeft EyeLookInLeft EyeLookOutLeft EyeLookUpLeft EyeSquintLeft EyeWideLeft
+EyeBlinkRight EyeLookDownRight EyeLookInRight EyeLookOutRight EyeLookUpRight EyeSquintRight EyeWideRight
+JawForward JawLeft JawRight JawOpen MouthClose MouthFunnel MouthPucker MouthLeft MouthRight
+MouthSmileLeft MouthSmileRight MouthFrownLeft MouthFrownRight MouthDimpleLeft MouthDimpleRight
+MouthStretchLeft MouthStretchRight MouthRollLower MouthRollUpper MouthShrugLower MouthShrugUpper
+MouthPressLeft MouthPressRight MouthLowerDownLeft MouthLowerDownRight MouthUpperUpLeft MouthUpperUpRight
+BrowDownLeft BrowDownRight BrowInnerUp BrowOuterUpLeft BrowOuterUpRight CheekPuff CheekSquintLeft
+CheekSquintRight NoseSneerLeft NoseSneerRight TongueOut HeadYaw HeadPitch HeadRoll
+LeftEyeYaw LeftEyePitch LeftEyeRoll RightEyeYaw RightEyePitch RightEyeRoll""".split()
 
 
 def by_control(events: list) -> dict[str, float]:
@@ -22,7 +35,8 @@ def by_control(events: list) -> dict[str, float]:
 def test_the_52_names_and_the_spellings_senders_use() -> None:
     assert len(ARKIT_NAMES) == len(set(ARKIT_NAMES)) == 52
     assert sorted(FACECAP_ORDER) == sorted(ARKIT_NAMES)
-    assert [c.name for c in arkit_controls()] == list(ARKIT_NAMES)
+    assert [c.name for c in arkit_controls()] == [*ARKIT_NAMES, *ROTATION_NAMES]
+    assert {(c.lo, c.hi) for c in arkit_controls()[52:]} == {(-1.0, 1.0)}
     assert arkit_name("EyeBlinkLeft") == arkit_name("eyeBlink_L") == arkit_name("EYEBLINKLEFT") == "eyeBlinkLeft"
     assert arkit_name("mouthSmile_R") == "mouthSmileRight" and arkit_name("jawOpen") == "jawOpen"
     assert arkit_name("Joy") is None and arkit_name("") is None
@@ -87,11 +101,41 @@ def test_ifacialmocap_asks_the_phone_to_start() -> None:
         devices.open_device("ifacialmocap://127.0.0.1:0?phone=my-phone")
 
 
+def handmade_packet(values: dict[str, float], subject: str = "Phone") -> bytes:
+    """A Live Link Face datagram packed by hand from the published enum order."""
+    floats = [values.get(n, 0.0) for n in UNREAL_ENUM]
+    name = subject.encode()
+    return (struct.pack("<I", 6) + b"$" + b"1" * 36 + struct.pack(">i", len(name)) + name
+            + struct.pack(">ifiiB", 7, 0.0, 60, 1, 61) + struct.pack(">61f", *floats))
+
+
+def test_livelink_packet_follows_unreals_enum_order() -> None:
+    """Each sideways shape arrives as itself: JawLeft is float 15, MouthRight float 22; the head
+    and eye rotations come through as the rotation controls."""
+    assert len(UNREAL_ENUM) == 61
+    sent = {"JawLeft": 0.75, "MouthRight": 0.5, "MouthPucker": 0.25, "TongueOut": 0.125,
+            "HeadYaw": -0.25, "HeadRoll": 0.125, "LeftEyePitch": 0.0625}
+    got = by_control(LiveLinkParser("livelink://t").feed(handmade_packet(sent), 1.0))
+    assert got == {k[0].lower() + k[1:]: v for k, v in sent.items()}
+    # the project's own encoder writes what the enum says, too
+    assert encode_frame({k[0].lower() + k[1:]: v for k, v in sent.items()}, name="Phone", frame=7,
+                        device_id="$" + "1" * 36) == handmade_packet(sent)
+
+
+def test_livelink_from_a_third_party_encoder() -> None:
+    """pylivelinkface (a Python Live Link Face sender) packs the same values the same way."""
+    pllf = pytest.importorskip("pylivelinkface")
+    face = pllf.PyLiveLinkFace(name="Py", uuid="$" + "2" * 36)
+    sent = {"JawLeft": 0.5, "JawRight": 0.0, "MouthLeft": 0.25, "MouthFunnel": 0.75, "HeadPitch": 0.25}
+    for k, v in sent.items():
+        face.set_blendshape(pllf.FaceBlendShape[k], v, no_filter=True)
+    got = by_control(LiveLinkParser("livelink://t").feed(face.encode(), 1.0))
+    assert got == {k[0].lower() + k[1:]: v for k, v in sent.items() if v}
+
+
 def test_livelink_binary_frames() -> None:
-    w = [0.0] * 52
-    w[ARKIT_NAMES.index("jawOpen")] = 0.7
-    w[ARKIT_NAMES.index("browDownRight")] = 0.25
-    frame = encode_frame(w + [0.1] * 9, name="Performer")
+    w = {"jawOpen": 0.7, "browDownRight": 0.25}
+    frame = encode_frame(w, name="Performer")
     with listening("livelink://127.0.0.1:0") as lis:
         lis.send(frame[:60],  # hello / cut
                  frame[:-4], frame + b"\x00")
@@ -103,17 +147,16 @@ def test_livelink_binary_frames() -> None:
 
 
 def test_mirror_swaps_sides() -> None:
-    w = [0.0] * 52
-    w[ARKIT_NAMES.index("eyeBlinkLeft")] = 1.0
+    w = {"eyeBlinkLeft": 1.0, "headYaw": 0.25, "headPitch": 0.125, "leftEyeYaw": 0.5}
     with listening("livelink://127.0.0.1:0?mirror=1") as lis:
         lis.send(encode_frame(w))
-        got = lis.events(lambda es: len(es) >= 1)
-    assert by_control(got) == {"eyeBlinkRight": 1.0}
+        got = lis.events(lambda es: len(es) >= 4)
+    # a mirror turns yaw the other way and swaps the eyes; pitch stays
+    assert by_control(got) == {"eyeBlinkRight": 1.0, "headYaw": -0.25, "headPitch": 0.125, "rightEyeYaw": -0.5}
 
 
 def test_a_stream_that_stops_lets_the_face_go() -> None:
-    w = [0.0] * 52
-    w[ARKIT_NAMES.index("mouthSmileLeft")] = 0.8
+    w = {"mouthSmileLeft": 0.8}
     with listening("livelink://127.0.0.1:0?release=0.2") as lis:
         lis.send(encode_frame(w))
         got = lis.events(lambda es: any(e.value == 0.0 for e in es))
