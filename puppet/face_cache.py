@@ -339,7 +339,7 @@ def default_model(resolution: int = 0) -> Any:
     """The default face at a resolution, from the cache when it can be trusted (and its head
     shell, when something draws it, from the same folder: `HeadShellStore`)."""
     import sim.face
-    from sim import face_head
+    from sim.face import head as face_head
 
     directory = cache_dir()
     if directory is not None:

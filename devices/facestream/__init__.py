@@ -81,6 +81,33 @@ def degrees_to_turn(deg: float) -> float:
     return deg / QUARTER_TURN
 
 
+def arkit_euler(prefix: str, x: float, y: float, z: float) -> dict[str, float]:
+    """Rotation controls from Euler angles in degrees about ARKit's face axes (+x the face's left,
+    +y up, +z out of the face, right-handed: +x turns the nose down, +z the crown to the face's
+    right), as Face Cap and iFacialMocap send them; ``prefix`` is ``head``, ``leftEye`` or
+    ``rightEye``."""
+    return {prefix + "Yaw": degrees_to_turn(y), prefix + "Pitch": degrees_to_turn(-x),
+            prefix + "Roll": degrees_to_turn(-z)}
+
+
+def unity_head(qx: float, qy: float, qz: float, qw: float) -> dict[str, float]:
+    """Head rotation controls from a bone quaternion in Unity's left-handed frame (x right, y up,
+    z forward, as VMC sends bones), the avatar facing +z."""
+    n = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+    if not n or not math.isfinite(n):
+        return {}
+    qx, qy, qz, qw = qx / n, qy / n, qz / n, qw / n
+    # mirrored into the right-handed face frame (x to the avatar's left): x kept, y and z negated
+    x, y, z, w = qx, -qy, -qz, qw
+    # yaw (about +Y), then pitch (about +X), then roll (about +Z): intrinsic Y-X-Z angles
+    sin_p = max(-1.0, min(1.0, 2.0 * (w * x - y * z)))
+    yaw = math.atan2(2.0 * (x * z + w * y), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(sin_p)
+    roll = math.atan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z))
+    quarter = 0.5 * math.pi
+    return {"headYaw": yaw / quarter, "headPitch": -pitch / quarter, "headRoll": -roll / quarter}
+
+
 _ROTATIONS = frozenset(ROTATION_NAMES)
 
 

@@ -128,10 +128,13 @@ def _export_pc2(perf: Performance, out: Path, ticks: list[int], opts: ExportOpti
                   f"facepuppet rest pose, {len(model.rest)} vertices in simulation order (cm, +Y up)\n"
                   f"point cache: {out.name}, {opts.fps:g} fps, starts at frame {opts.start_frame:g}")
         w = PC2Writer(pc2_tmp, len(model.rest), start_frame=opts.start_frame, sampling=1.0)
+        from sim.face.turn import state_turn, turn_head, turn_weights
+
+        weights = turn_weights(model.rest)
         try:
             with _bar(len(ticks), out.name) as bar:
                 for _, _, state, _ in iter_frames(perf, ticks):
-                    w.add(state.surface)
+                    w.add(turn_head(state.surface, weights, *state_turn(state)))  # as drawn: turned on the neck
                     bar.update(1)
         finally:
             w.close()

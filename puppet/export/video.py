@@ -126,25 +126,33 @@ class RenderFrame:
     state's scalars."""
 
     def __init__(self, interleaved: np.ndarray, time: float, eye_yaw: float, eye_pitch: float,
-                 age: float) -> None:
+                 age: float, head: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
         self.interleaved = interleaved
         self.surface = interleaved[:, :3]
         self.positions = self.surface
         self.time, self.eye_yaw, self.eye_pitch, self.age = time, eye_yaw, eye_pitch, age
+        self.head_yaw, self.head_pitch, self.head_roll = head
+
+
+_SCALARS = struct.Struct("<7d")
 
 
 def _pack(j: int, state: Any, normals: Any) -> bytes:
-    """One frame for a render process: its number, then the interleaved rows and the scalars."""
-    rows = normals.interleaved(np.ascontiguousarray(state.surface, dtype=np.float32))
-    body = rows.astype("<f4", copy=False).tobytes() + struct.pack(
-        "<4d", state.time, state.eye_yaw, state.eye_pitch, state.age)
+    """One frame for a render process: its number, then the interleaved rows (the head turned on
+    the neck) and the scalars."""
+    from render.meshdata import head_turn
+
+    turn = head_turn(state)
+    rows = normals.interleaved(np.ascontiguousarray(state.surface, dtype=np.float32), turn)
+    body = rows.astype("<f4", copy=False).tobytes() + _SCALARS.pack(
+        state.time, state.eye_yaw, state.eye_pitch, state.age, *turn)
     return FRAME_HEAD.pack(j, len(body)) + body
 
 
 def _unpack_state(body: bytes) -> RenderFrame:
-    rows = np.frombuffer(body[:-32], dtype="<f4").reshape(-1, 6)
-    t, yaw, pitch, age = struct.unpack("<4d", body[-32:])
-    return RenderFrame(rows, t, yaw, pitch, age)
+    rows = np.frombuffer(body[:-_SCALARS.size], dtype="<f4").reshape(-1, 6)
+    t, yaw, pitch, age, *head = _SCALARS.unpack(body[-_SCALARS.size:])
+    return RenderFrame(rows, t, yaw, pitch, age, (head[0], head[1], head[2]))
 
 
 def _read_exact(f: Any, n: int) -> bytes:

@@ -53,9 +53,12 @@ def test_facecap_index_messages() -> None:
         lis.send(frame, osc_message("/W", 99, 0.5), osc_message("/W", "x", 0.5), osc_message("/W", smile_l, 0.9))
         got = lis.events(lambda es: any(e.control == "mouthSmileLeft" and e.value > 0.8 for e in es))
         assert lis.dev.warnings.counts["garbage"] == 2
-    # one read batch: the smile's two values coalesce to the newest
-    assert by_control(got) == {"jawOpen": pytest.approx(0.6), "mouthSmileLeft": pytest.approx(0.9)}
-    assert {e.control for e in got} == {"jawOpen", "mouthSmileLeft"}  # poses are no blendshapes
+    # one read batch: the smile's two values coalesce to the newest; the head's and the left eye's
+    # Euler degrees become rotations (90 degrees = 1; ARKit's +x turns the nose down, +z the crown right)
+    assert by_control(got) == {"jawOpen": pytest.approx(0.6), "mouthSmileLeft": pytest.approx(0.9),
+                               "headPitch": pytest.approx(-1 / 90), "headYaw": pytest.approx(2 / 90),
+                               "headRoll": pytest.approx(-3 / 90), "leftEyePitch": pytest.approx(-1 / 90),
+                               "leftEyeYaw": pytest.approx(2 / 90)}
 
 
 def test_vmc_values_wait_for_apply() -> None:
@@ -69,7 +72,19 @@ def test_vmc_values_wait_for_apply() -> None:
         lis.send(osc_bundle([osc_message("/VMC/Ext/Blend/Apply")]))
         got = lis.events(lambda es: len(es) >= 2)
         assert "Neutral" in lis.dev.frames.unknown
-    assert by_control(got) == {"jawOpen": 0.5, "eyeBlinkLeft": 1.0}
+    assert by_control(got) == {"jawOpen": 0.5, "eyeBlinkLeft": 1.0}  # the head bone at rest: no turn
+
+
+def test_vmc_head_bone_turns_the_head() -> None:
+    """A head bone turned 18 degrees about Unity's up axis (towards the avatar's right, +x) is a
+    head turned to the face's right: headYaw -0.2."""
+    import math
+    half = math.radians(18.0) / 2
+    bone = osc_message("/VMC/Ext/Bone/Pos", "Head", 0.0, 1.5, 0.0, 0.0, math.sin(half), 0.0, math.cos(half))
+    with listening("vmc://127.0.0.1:0") as lis:
+        lis.send(osc_bundle([bone, osc_message("/VMC/Ext/Blend/Apply")]))
+        got = lis.events(lambda es: len(es) >= 1)
+    assert by_control(got) == {"headYaw": pytest.approx(-0.2)}
 
 
 @pytest.mark.parametrize("sep", ["-", "&"])
@@ -78,10 +93,15 @@ def test_ifacialmocap_text_frames(sep: str) -> None:
             "=head#-21.4,-6.0,-6.6,-0.03,-0.1,-0.6|rightEye#6.0,2.4,0.2|leftEye#6.0,-1.6,-0.1|")
     with listening("ifacialmocap://127.0.0.1:0") as lis:
         lis.send(text.encode("ascii"))
-        got = lis.events(lambda es: len(es) >= 3)
+        got = lis.events(lambda es: len(es) >= 12)
         lis.send(b"\xff\xfe not text", b"jawOpen-abc|")
         assert lis.wait_for(lambda: lis.dev.warnings.counts["garbage"] == 2)
-    assert by_control(got) == {"mouthSmileRight": 0.4, "eyeBlinkLeft": 1.0, "jawOpen": 0.12}
+    assert by_control(got) == {"mouthSmileRight": 0.4, "eyeBlinkLeft": 1.0, "jawOpen": 0.12,
+                               "headPitch": pytest.approx(21.4 / 90), "headYaw": pytest.approx(-6.0 / 90),
+                               "headRoll": pytest.approx(6.6 / 90), "rightEyePitch": pytest.approx(-6.0 / 90),
+                               "rightEyeYaw": pytest.approx(2.4 / 90), "rightEyeRoll": pytest.approx(-0.2 / 90),
+                               "leftEyePitch": pytest.approx(-6.0 / 90), "leftEyeYaw": pytest.approx(-1.6 / 90),
+                               "leftEyeRoll": pytest.approx(0.1 / 90)}
     assert got[0].raw == 40.0  # the value as sent, 0..100
 
 
