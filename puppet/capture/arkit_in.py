@@ -20,7 +20,7 @@ import numpy as np
 
 from puppet.capture.points import ChannelCapture, check_times
 from puppet.errors import ConfigError
-from puppet.export.arkit import ARKIT_SHAPES, ONE_CHANNEL, ROTATIONS, SIMPLE_SHAPES, UNSUPPORTED
+from puppet.export.arkit import ARKIT_SHAPES, MOUTH_CLOSE_SPAN, ONE_CHANNEL, ROTATIONS, SIMPLE_SHAPES, UNSUPPORTED
 
 _TC = re.compile(r"(\d+):(\d{2}):(\d{2})[:;](\d+)(?:\.(\d+))?")
 RATES = (24, 25, 30, 50, 60)
@@ -122,6 +122,8 @@ def read_arkit_csv(path: Path, fps: float | None = None) -> ChannelCapture:
     for shape, col in shapes.items():
         if col.min() < -0.01 or col.max() > 1.01:
             raise ConfigError(f"{path}: blendshape {shape} leaves 0..1 (min {col.min():.3g}, max {col.max():.3g})")
+        if shape == "MouthClose":
+            col = col / MOUTH_CLOSE_SPAN
         for ch in shape_targets(shape):
             i = index[ch]
             values[:, i] = np.maximum(values[:, i], np.clip(col, 0.0, 1.0)) if driven[i] else np.clip(col, 0, 1)

@@ -39,6 +39,9 @@ SIMPLE_SHAPES = {
 }
 
 
+#: ARKit's mouthClose counts against the jaw's opening (the lips meet at mouthClose = jawOpen); our
+#: lip_closure at 1 closes a jaw opened 0.25, so MouthClose = 0.25 lip_closure (and back).
+MOUTH_CLOSE_SPAN = 0.25
 #: Shapes that are one channel each (besides the sided ones above).
 ONE_CHANNEL = {
     "JawForward": "jaw_forward", "MouthClose": "lip_closure", "MouthPucker": "incisivus",
@@ -70,6 +73,8 @@ def _rule(shape: str) -> Callable[[Getter], float] | None:
         return lambda g: max(0.0, g("jaw_sideways"))
     if shape == "JawRight":
         return lambda g: max(0.0, -g("jaw_sideways"))
+    if shape == "MouthClose":
+        return lambda g: MOUTH_CLOSE_SPAN * g("lip_closure")
     if shape in ONE_CHANNEL:
         name = ONE_CHANNEL[shape]
         return lambda g: g(name)
