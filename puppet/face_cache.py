@@ -347,6 +347,20 @@ def default_model(resolution: int = 0) -> Any:
     return cached_model(f"default-face:{resolution}".encode(), lambda: sim.face.default_model(resolution))
 
 
+def scan_model(weights: Any = None) -> Any:
+    """The scanned head (`sim.face.scan`) of an identity (None: the generic head; else up to 100
+    identity weights), compiled, from the cache when it can be trusted: a build takes ~8 s (the
+    rig transfer and two eigenvalue solves), a start from the cache well under one."""
+    import numpy as np
+
+    from sim.build import compile_model
+    from sim.face.scan.rig import scan_rig
+
+    w = None if weights is None else np.asarray(weights, dtype=np.float64).ravel()
+    what = b"scan-face:ict:" + (b"generic" if w is None else hashlib.sha256(w.tobytes()).digest())
+    return cached_model(what, lambda: compile_model(scan_rig(w)))
+
+
 _SHELL_ARRAYS = ("vertices", "triangles", "hair", "hair_coords", "ring", "ring_mask", "moving", "col_mask",
                  "col_rest", "col_w")
 

@@ -1,0 +1,324 @@
+"""Posing the whole scanned head from its simulated skin: `ScanDressing.pose(surface, control)`
+gives all 26719 vertices in the scan's order.
+
+- The simulated skin (`sim.face.scan.anatomy.skin_layout`) is copied.
+- The inside of the lips follows the lip line: each vertex takes the motion of the lip-line vertex
+  nearest to it along the mesh (so it stays with its own lip) and turns with the jaw as that
+  vertex's jaw weight says.
+- Lid things (eyelashes, eye occlusion, lacrimal fluid, eye blend) and the face area's unsimulated
+  skin within `BIND` of the simulated skin are bound to their nearest lid / skin triangle: the
+  barycentric foot point and the offset in the triangle's frame, rebuilt on the moved triangle, so
+  lashes turn with a closing lid.
+- The rest of the face area, head and neck and the eye sockets follow the skin's nearest vertices
+  as the procedural face's head does (`sim.face.head`): their displacement, fading over
+  `FOLLOW` cm, and over `JAW_FOLLOW` under the chin and down the throat.
+- Upper teeth stay with the skull; lower teeth turn and slide with the jaw exactly as the skin's
+  jaw targets do (`sim.integrator.jaw_rotation`, `jaw_slide`); gums and tongue by their height
+  between the teeth rows (or the nearer row); the mouth socket as the gums, and near the lips as
+  the lips.
+- The eyeballs (sclera and iris) turn about their centres by `eyes_yaw` / `eyes_pitch` (30 and 20
+  degrees at full value, as the renderer turns the procedural face's eyes).
+`turn_head` applies a rigid head turn about a neck pivot, fading down the neck.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from sim.face.scan.anatomy import _rings, skin_layout
+from sim.face.scan.data import N_IDENTITIES, NARROW_FACE, PARTS, SCLERA, scan_data
+
+BIND = 0.5  # cm: unsimulated face skin this close to the simulated skin is bound to its triangles
+FOLLOW = 4.0  # cm over which the skin's displacement fades into the held head
+JAW_FOLLOW = 8.5  # cm: the same under the chin and jaw, down the throat
+NEAREST = 4  # skin vertices a following vertex takes its displacement from
+LIP_FADE = 1.2  # cm: how far into the mouth socket the lips' motion reaches
+EYE_YAW_MAX = math.radians(30.0)
+EYE_PITCH_MAX = math.radians(20.0)
+LID_ROWS = 6  # rows of skin from an eye opening that lid things bind to
+TEETH_SPLIT = PARTS["teeth"][0] + 2208  # the first lower tooth (the upper 16 teeth have 2208 vertices)
+FloatArray = np.ndarray
+
+
+def _smoothstep(x: FloatArray) -> FloatArray:
+    t = np.clip(x, 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def _frames(p: FloatArray) -> FloatArray:
+    """(P,3,3) rows (t1, t2, n) of triangles (P,3,3): t1 along the first edge, n the normal."""
+    e1 = p[:, 1] - p[:, 0]
+    n = np.cross(e1, p[:, 2] - p[:, 0])
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    t1 = e1 / np.linalg.norm(e1, axis=1)[:, None]
+    return np.stack([t1, np.cross(n, t1), n], axis=1)
+
+
+def _range(part: str) -> np.ndarray:
+    lo, hi = PARTS[part]
+    return np.arange(lo, hi)
+
+
+def rotation(yaw: float, pitch: float, roll: float) -> FloatArray:
+    """(3,3): turn about +Y by yaw (the front towards +X), then about +X by pitch (the front down),
+    then about +Z by roll, all in rad."""
+    cy, sy, cp, sp, cr, sr = math.cos(yaw), math.sin(yaw), math.cos(pitch), math.sin(pitch), math.cos(roll), math.sin(roll)
+    ry = np.array([[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]])
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]])
+    rz = np.array([[cr, -sr, 0.0], [sr, cr, 0.0], [0.0, 0.0, 1.0]])
+    return rz @ rx @ ry
+
+
+@dataclass(frozen=True, eq=False)
+class ScanDressing:
+    """Everything needed to pose the scan from a simulated surface. Arrays are in cm.
+
+    rest (26719,3): the identity's rest head; skin (N,): scan index of each simulated vertex.
+    lip_idx (L,), lip_anchor (L,) sim vertex, lip_rot (L,) jaw weight of the anchor.
+    bound_idx (B,), bound_tri (B,3) sim vertices, bound_bary (B,3), bound_local (B,3).
+    follow_idx (F,), follow_src (F,K) sim vertices, follow_w (F,K) weights (summing to the fade).
+    jaw_idx (J,), jaw_w (J,): rigid followers of the jaw (weight 1: lower teeth).
+    socket_idx (S,), socket_anchor (S,) scan index of the nearest lip-inside rim vertex, socket_fade (S,).
+    eye_idx: two (E,) index arrays; eye_centres (2,3).
+    jaw_pivot, jaw_axis (3,), jaw_max_angle rad, jaw_slide (3,) cm at jaw = 1.
+    neck_pivot (3,), neck_base_y, neck_top_y: the head turn's pivot and its fade down the neck.
+    """
+
+    rest: FloatArray
+    skin: np.ndarray
+    lip_idx: np.ndarray
+    lip_anchor: np.ndarray
+    lip_rot: FloatArray
+    bound_idx: np.ndarray
+    bound_tri: np.ndarray
+    bound_bary: FloatArray
+    bound_local: FloatArray
+    follow_idx: np.ndarray
+    follow_src: np.ndarray
+    follow_w: FloatArray
+    jaw_idx: np.ndarray
+    jaw_w: FloatArray
+    socket_idx: np.ndarray
+    socket_anchor: np.ndarray
+    socket_fade: FloatArray
+    eye_idx: tuple[np.ndarray, np.ndarray]
+    eye_centres: FloatArray
+    jaw_pivot: FloatArray
+    jaw_axis: FloatArray
+    jaw_max_angle: float
+    jaw_slide: FloatArray
+    neck_pivot: FloatArray
+    neck_base_y: float
+    neck_top_y: float
+
+    def jaw_motion(self, jaw: float) -> tuple[FloatArray, FloatArray]:
+        """(rotation (3,3), translation (3,)) of the mandible at `jaw`: p -> R p + t."""
+        from sim.integrator import jaw_rotation
+
+        if jaw == 0.0:
+            return np.eye(3), np.zeros(3)
+        rot = jaw_rotation(self.jaw_axis, jaw * self.jaw_max_angle)
+        return rot, self.jaw_pivot - rot @ self.jaw_pivot + jaw * self.jaw_slide
+
+    def pose(self, surface: FloatArray, control: Any) -> FloatArray:
+        """(26719,3) float32: the scan posed by the simulated `surface` (N,3) and the control's jaw
+        and eyes (a FaceControl, or anything with `get(name)`)."""
+        x = np.asarray(surface, dtype=np.float64)
+        out = self.rest.copy()
+        out[self.skin] = x
+        d = x - self.rest[self.skin]
+        rot, shift = self.jaw_motion(float(control.get("jaw")))
+        turn = rot - np.eye(3)
+        # the inside of the lips: the anchor's motion, turned with the jaw about the anchor
+        p = self.rest[self.lip_idx]
+        a0 = self.rest[self.skin[self.lip_anchor]]
+        out[self.lip_idx] = p + d[self.lip_anchor] + self.lip_rot[:, None] * ((p - a0) @ turn.T)
+        # bound to triangles
+        tri = x[self.bound_tri]
+        foot = np.einsum("pk,pkj->pj", self.bound_bary, tri)
+        out[self.bound_idx] = foot + np.einsum("pk,pkj->pj", self.bound_local, _frames(tri))
+        # following the skin's nearest vertices, fading
+        out[self.follow_idx] += np.einsum("pk,pkj->pj", self.follow_w, d[self.follow_src])
+        # the jaw's rigid followers
+        p = self.rest[self.jaw_idx]
+        out[self.jaw_idx] = p + self.jaw_w[:, None] * (p @ rot.T + shift - p)
+        # the mouth socket: the jaw's share, and near the lips the lips' motion
+        sd = out[self.socket_idx] - self.rest[self.socket_idx]
+        ld = out[self.socket_anchor] - self.rest[self.socket_anchor]
+        f = self.socket_fade[:, None]
+        out[self.socket_idx] = self.rest[self.socket_idx] + f * ld + (1.0 - f) * sd
+        # the eyes
+        yaw = float(np.clip(control.get("eyes_yaw"), -1.0, 1.0)) * EYE_YAW_MAX
+        pitch = float(np.clip(control.get("eyes_pitch"), -1.0, 1.0)) * EYE_PITCH_MAX
+        if yaw or pitch:
+            r = rotation(yaw, 0.0, 0.0) @ rotation(0.0, -pitch, 0.0)  # as the renderer turns eyes
+            for idx, c in zip(self.eye_idx, self.eye_centres):
+                out[idx] = (self.rest[idx] - c) @ r.T + c
+        return out.astype(np.float32)
+
+    def turn_head(self, points: FloatArray, yaw: float = 0.0, pitch: float = 0.0, roll: float = 0.0) -> FloatArray:
+        """`points` (26719,3) turned rigidly about the neck pivot by yaw (about +Y, towards the
+        face's left), pitch (about +X, nodding down) and roll (about +Z), in rad; the neck takes a
+        share fading from 1 at the pivot's height to 0 at its base. Zero angles return the input."""
+        if not (yaw or pitch or roll):
+            return points
+        p = np.asarray(points, dtype=np.float64)
+        r = rotation(yaw, pitch, roll)
+        turned = (p - self.neck_pivot) @ r.T + self.neck_pivot
+        w = _smoothstep((p[:, 1] - self.neck_base_y) / (self.neck_top_y - self.neck_base_y))[:, None]
+        return (p + w * (turned - p)).astype(np.asarray(points).dtype)
+
+
+def _bind(points: FloatArray, skin_pts: FloatArray, tris: np.ndarray) -> tuple[np.ndarray, FloatArray, FloatArray]:
+    """Each point's nearest triangle (rows of `tris`, sim indices), its barycentric foot point and
+    the offset from the foot in the triangle's frame."""
+    from sim.face.transfer.geometry import closest_points
+
+    foot, t, bary, _ = closest_points(points, skin_pts, tris)
+    tri = tris[t]
+    local = np.einsum("pij,pj->pi", _frames(skin_pts[tri]), points - foot)
+    return tri, bary, local
+
+
+def _identity_of(rest_skin: FloatArray) -> np.ndarray | None:
+    """The identity weights whose head has these simulated skin positions (None: not the scan)."""
+    data = scan_data()
+    skin = skin_layout().vertices
+    base = data.neutral[skin]
+    if np.array_equal(rest_skin, base):
+        return np.zeros(0)
+    modes = data.identities[:, skin].reshape(N_IDENTITIES, -1).astype(np.float64) * data.identity_scale[:, None]
+    b = (rest_skin - base).ravel()
+    w = np.linalg.lstsq(modes.T, b, rcond=None)[0]
+    if np.abs(modes.T @ w - b).max() > 1e-4:
+        return None
+    return np.round(w, 9)
+
+
+def build_dressing(model: Any) -> ScanDressing | None:
+    """The dressing of a compiled scanned face (None when `model` is not one)."""
+    from sim.face.scan.rig import scan_points
+    from sim.integrator import jaw_slide
+
+    layout = skin_layout()
+    mesh = model.mesh
+    if len(mesh.vertices) != len(layout.vertices) or not np.array_equal(mesh.triangles, layout.triangles):
+        return None
+    w = _identity_of(np.asarray(mesh.vertices, float))
+    if w is None:
+        return None
+    rest = scan_points(w if len(w) else None)
+    skin = layout.vertices
+    rest[skin] = mesh.vertices  # exactly the simulated rest
+    skin_pts = rest[skin]
+    tris = layout.triangles.astype(np.int64)
+    n_all = len(rest)
+
+    # the inside of the lips: graph-nearest lip-line vertex
+    data = scan_data()
+    narrow = data.triangles("face")
+    narrow = narrow[(narrow < NARROW_FACE).all(axis=1)]
+    loop_scan = skin[np.asarray(mesh.mouth_loop)]
+    inside = layout.lip_inside
+    sub = narrow[np.isin(narrow, np.concatenate([inside, loop_scan])).all(axis=1)]
+    dist = _rings_with_source(sub, NARROW_FACE, loop_scan)
+    local_of = -np.ones(n_all, dtype=np.int64)
+    local_of[skin] = np.arange(len(skin))
+    lip_anchor = local_of[dist[inside]]
+
+    # lid things and nearby unsimulated face skin: bound to triangles
+    lid_tris = []
+    for loop in mesh.eye_loops:
+        rows = _rings(tris, len(skin), np.asarray(loop))
+        lid_tris.append(tris[(rows[tris] <= LID_ROWS).all(axis=1)])
+    lid_parts = [("eyelashes", "eye_occlusion", "lacrimal", "eye_blend")]
+    bound_idx, bound_tri, bound_bary, bound_local = [], [], [], []
+    for s, lt in zip("lr", lid_tris):
+        idx = np.concatenate([_range(f"{p}_{s}") for p in lid_parts[0]])
+        t, b, l = _bind(rest[idx], skin_pts, lt)
+        bound_idx.append(idx); bound_tri.append(t); bound_bary.append(b); bound_local.append(l)
+    others = np.concatenate([np.arange(NARROW_FACE, PARTS["face"][1]), _range("eye_socket_l"), _range("eye_socket_r")])
+    from sim.face.transfer.geometry import closest_points
+
+    _, _, _, gap = closest_points(rest[others], skin_pts, tris)
+    near = others[gap < BIND]
+    t, b, l = _bind(rest[near], skin_pts, tris)
+    bound_idx.append(near); bound_tri.append(t); bound_bary.append(b); bound_local.append(l)
+
+    # the rest of the face area, head and neck, eye sockets: follow with a fade
+    follow = np.concatenate([others[gap >= BIND], _range("head_neck")])
+    dd, src = cKDTree(skin_pts).query(rest[follow], k=NEAREST)
+    inv = 1.0 / np.maximum(dd, 1e-6)
+    wts = inv / inv.sum(axis=1, keepdims=True)
+    jw = np.einsum("pk,pk->p", wts, np.asarray(mesh.jaw_weight)[src])
+    reach = FOLLOW + jw * (JAW_FOLLOW - FOLLOW)
+    fade = _smoothstep(1.0 - dd[:, 0] / reach)
+    follow_w = wts * fade[:, None]
+
+    # teeth, gums, tongue and the mouth socket with the jaw
+    upper = np.arange(PARTS["teeth"][0], TEETH_SPLIT)
+    lower = np.arange(TEETH_SPLIT, PARTS["teeth"][1])
+    occlusal = 0.5 * (rest[upper, 1].min() + rest[lower, 1].max())
+    gums = _range("gums_tongue")
+    du, _ = cKDTree(rest[upper]).query(rest[gums])
+    dl, _ = cKDTree(rest[lower]).query(rest[gums])
+    height = _smoothstep((occlusal + 0.4 - rest[gums, 1]) / 0.8)
+    gum_w = np.where(np.minimum(du, dl) < 0.4, (dl < du).astype(float), height)
+    socket = _range("mouth_socket")
+    sock_w = _smoothstep((occlusal + 0.4 - rest[socket, 1]) / 0.8)
+    rim = np.unique(inside[layout.lip_row == 0])
+    sd, si = cKDTree(rest[rim]).query(rest[socket])
+    socket_fade = _smoothstep(1.0 - sd / LIP_FADE)
+
+    c_l, c_r = _eye_centres(rest)
+    pivot = np.asarray(mesh.jaw_pivot, float)
+    neck = rest[_range("head_neck")]
+    return ScanDressing(
+        rest=rest, skin=skin, lip_idx=inside, lip_anchor=lip_anchor,
+        lip_rot=np.asarray(mesh.jaw_weight, float)[lip_anchor],
+        bound_idx=np.concatenate(bound_idx), bound_tri=np.concatenate(bound_tri),
+        bound_bary=np.concatenate(bound_bary), bound_local=np.concatenate(bound_local),
+        follow_idx=follow, follow_src=src, follow_w=follow_w,
+        jaw_idx=np.concatenate([lower, gums, socket]),
+        jaw_w=np.concatenate([np.ones(len(lower)), gum_w, sock_w]),
+        socket_idx=socket, socket_anchor=rim[si], socket_fade=socket_fade,
+        eye_idx=(_range("eyeball_l"), _range("eyeball_r")), eye_centres=np.stack([c_l, c_r]),
+        jaw_pivot=pivot, jaw_axis=np.asarray(model.jaw_axis, float), jaw_max_angle=float(model.params.jaw_max_angle),
+        jaw_slide=jaw_slide(model), neck_pivot=np.array([0.0, pivot[1] - 0.5, pivot[2] - 3.0]),
+        neck_base_y=float(neck[:, 1].min() + 3.0), neck_top_y=float(pivot[1] - 0.5))
+
+
+def _eye_centres(rest: FloatArray) -> tuple[FloatArray, FloatArray]:
+    from sim.face.scan.anatomy import eyeball_spheres
+
+    c, _ = eyeball_spheres(rest)
+    return c[0], c[1]
+
+
+def _rings_with_source(tri: np.ndarray, n: int, sources: np.ndarray) -> np.ndarray:
+    """For every vertex, the source vertex nearest to it along the triangles' edges (-1: none)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    g = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+    _, _, src = dijkstra(g + g.T, unweighted=True, indices=sources, min_only=True, return_predecessors=True)
+    return src
+
+
+_CACHE: dict[str, ScanDressing | None] = {}
+
+
+def dressing_for(model: Any) -> ScanDressing | None:
+    """The scan dressing of a compiled face, built once per face (None: not the scanned head)."""
+    key = str(getattr(model, "hash", "")) or str(id(model))
+    if key not in _CACHE:
+        if len(_CACHE) >= 4:
+            _CACHE.pop(next(iter(_CACHE)))
+        _CACHE[key] = build_dressing(model)
+    return _CACHE[key]
