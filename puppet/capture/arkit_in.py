@@ -46,6 +46,41 @@ def shape_targets(shape: str) -> list[str]:
             "MouthPressRight": ["orbicularis_oris"]}.get(shape, [])
 
 
+def shape_channels(shapes: dict[str, np.ndarray], n: int,
+                   turns: dict[str, np.ndarray] | None = None) -> np.ndarray:
+    """(n, C) channel values for blendshape columns ``{PascalCase shape: (n,) weights 0..1}`` and
+    rotation columns (``HeadYaw`` ...), through the inverted export mapping; channels no column
+    drives keep their defaults."""
+    from sim.channels import CHANNEL_NAMES, CHANNEL_SPECS
+
+    values = np.zeros((n, len(CHANNEL_NAMES)))
+    values[:] = [s.default for s in CHANNEL_SPECS]
+    index = {name: i for i, name in enumerate(CHANNEL_NAMES)}
+    driven = np.zeros(len(CHANNEL_NAMES), bool)
+    for shape, col in shapes.items():
+        col = np.asarray(col, float)
+        if shape == "MouthClose":
+            col = col / MOUTH_CLOSE_SPAN
+        for ch in shape_targets(shape):
+            i = index[ch]
+            values[:, i] = np.maximum(values[:, i], np.clip(col, 0.0, 1.0)) if driven[i] else np.clip(col, 0, 1)
+            driven[i] = True
+
+    def g(name: str) -> np.ndarray:
+        return np.asarray(shapes.get(name, np.zeros(n)), float)
+
+    yaw = 0.5 * ((g("EyeLookOutLeft") - g("EyeLookInLeft")) + (g("EyeLookInRight") - g("EyeLookOutRight")))
+    pitch = 0.5 * ((g("EyeLookUpLeft") - g("EyeLookDownLeft")) + (g("EyeLookUpRight") - g("EyeLookDownRight")))
+    if "JawLeft" in shapes or "JawRight" in shapes:
+        values[:, index["jaw_sideways"]] = np.clip(g("JawLeft") - g("JawRight"), -1, 1)
+    values[:, index["eyes_yaw"]] = np.clip(yaw, -1, 1)
+    values[:, index["eyes_pitch"]] = np.clip(pitch, -1, 1)
+    for column, channel in (("HeadYaw", "head_yaw"), ("HeadPitch", "head_pitch"), ("HeadRoll", "head_roll")):
+        if turns and column in turns:
+            values[:, index[channel]] = np.clip(turns[column], -1.0, 1.0)
+    return values
+
+
 def _timecode(path: Path, lineno: int, text: str) -> tuple[int, int, float]:
     m = _TC.fullmatch(text.strip())
     if not m:
@@ -112,34 +147,12 @@ def read_arkit_csv(path: Path, fps: float | None = None) -> ChannelCapture:
     times = np.array([(s + (ff + frac) / rate) for s, ff, frac in stamps])
     times -= times[0]
     check_times(str(path), times)
-    values = np.zeros((len(arr), len(CHANNEL_NAMES)))
-    from sim.channels import CHANNEL_SPECS
-
-    values[:] = [s.default for s in CHANNEL_SPECS]
-    index = {n: i for i, n in enumerate(CHANNEL_NAMES)}
-    driven = np.zeros(len(CHANNEL_NAMES), bool)
     shapes = {c: arr[:, j] for j, c in enumerate(cols) if c in ARKIT_SHAPES}
     for shape, col in shapes.items():
         if col.min() < -0.01 or col.max() > 1.01:
             raise ConfigError(f"{path}: blendshape {shape} leaves 0..1 (min {col.min():.3g}, max {col.max():.3g})")
-        if shape == "MouthClose":
-            col = col / MOUTH_CLOSE_SPAN
-        for ch in shape_targets(shape):
-            i = index[ch]
-            values[:, i] = np.maximum(values[:, i], np.clip(col, 0.0, 1.0)) if driven[i] else np.clip(col, 0, 1)
-            driven[i] = True
-    def g(name: str) -> np.ndarray:
-        return shapes.get(name, np.zeros(len(arr)))
-    yaw = 0.5 * ((g("EyeLookOutLeft") - g("EyeLookInLeft")) + (g("EyeLookInRight") - g("EyeLookOutRight")))
-    pitch = 0.5 * ((g("EyeLookUpLeft") - g("EyeLookDownLeft")) + (g("EyeLookUpRight") - g("EyeLookDownRight")))
-    if "JawLeft" in shapes or "JawRight" in shapes:
-        values[:, index["jaw_sideways"]] = np.clip(g("JawLeft") - g("JawRight"), -1, 1)
-    values[:, index["eyes_yaw"]] = np.clip(yaw, -1, 1)
-    values[:, index["eyes_pitch"]] = np.clip(pitch, -1, 1)
     turns = {c: arr[:, j] for j, c in enumerate(cols) if c in ROTATIONS}
-    for column, channel in (("HeadYaw", "head_yaw"), ("HeadPitch", "head_pitch"), ("HeadRoll", "head_roll")):
-        if column in turns:
-            values[:, index[channel]] = np.clip(turns[column], -1.0, 1.0)
+    values = shape_channels(shapes, len(arr), turns)
     ignored = [s for s in shapes if s in UNSUPPORTED and np.any(shapes[s] > 0.05)]
     notes = [f"ARKit timecodes read at {rate:g} fps"]
     if ignored:

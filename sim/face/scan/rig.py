@@ -20,7 +20,7 @@ import numpy as np
 
 from sim.face.scan.anatomy import load_landmarks, skin_layout
 from sim.face.scan.data import N_IDENTITIES, scan_data
-from sim.model import FaceMesh, FaceRig, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+from sim.model import FaceMesh, FaceRig, LinearMuscle, Muscle, PatchMuscle, SheetMuscle, SphincterMuscle
 
 DIGITS = 7  # carried quantities are rounded to this many decimals (cm)
 LID_ROWS = 3  # rows of lid skin from each eye opening that the eye contact sphere is fitted to
@@ -66,6 +66,10 @@ class _Back:
         if isinstance(m, SphincterMuscle):
             return SphincterMuscle(m.name, self.point(m.center), self.direction(m.major_axis),
                                    self.direction(m.minor_axis), self.length(m.a), self.length(m.b), float(_r(m.scale)))
+        if isinstance(m, PatchMuscle):  # a zero direction (a pressure along the normal) stays zero
+            d = self.direction(m.direction) if np.any(m.direction) else np.zeros(3)
+            return PatchMuscle(m.name, self.point(m.center), _r(np.asarray(m.semi_axes, float) / self.s.scale), d,
+                               float(_r(m.scale)))
         assert isinstance(m, SheetMuscle)
         return SheetMuscle(m.name, self.point(m.attach1), self.point(m.attach2), self.point(m.insert1),
                            self.point(m.insert2), self.length(m.length), self.length(m.width), float(_r(m.eta)),
