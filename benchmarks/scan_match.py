@@ -100,6 +100,8 @@ def main() -> int:
     ap.add_argument("--shapes", help="comma-separated scan or ARKit names (default: all)")
     ap.add_argument("--no-fit", action="store_true", help="only measure the shipped map")
     ap.add_argument("--write", type=Path, help="write the fitted bindings as an ARKit map here")
+    ap.add_argument("--relinearise", action="store_true",
+                    help="re-linearise each fit on the simulator (slower: up to 8 more settles a shape)")
     args = ap.parse_args()
 
     from puppet.capture.arkit_in import shape_channels
@@ -117,7 +119,9 @@ def main() -> int:
     if not args.no_fit:
         t1 = time.monotonic()
         basis = build_basis(settler)
-        fitter = Fitter(basis, settler, FitOptions(smooth=0.0, align="none", max_settles=8))
+        opts = FitOptions(smooth=0.0, align="none", max_settles=8,
+                          relinearise=FitOptions.relinearise if args.relinearise else None)
+        fitter = Fitter(basis, settler, opts)
         print(f"displacement basis of {len(basis.channels)} channels in {time.monotonic() - t1:.0f} s", flush=True)
     every = np.arange(len(model.rest))
     rows, fits = [], {}
