@@ -131,13 +131,16 @@ def main() -> int:
         values = shape_channels({shape: np.ones(1)}, 1)[0]
         err = rms(settler.pose(values) - settler.rest - target)
         fit_err, chans = float("nan"), ""
-        if fitter is not None:
-            res = fitter.fit(Track(np.zeros(1), (settler.rest + target)[None], every, neutral=None))
-            acts = {c: float(a) for c, a in zip(res.channels, res.activations[0]) if a >= MIN_WEIGHT}
+        if fitter is not None and np.all(values >= settler.defaults - 1e-12):  # (the fit is bounded below by 0:
+            res = fitter.fit(Track(np.zeros(1), (settler.rest + target)[None], every, neutral=None))  # jawRight
+            acts = {c: float(a) for c, a in zip(res.channels, res.activations[0]) if a >= MIN_WEIGHT}  # stays)
             fitted = settler.values_for(acts)
             fit_err = rms(settler.pose(fitted) - settler.rest - target)
-            fits[shape] = acts
+            if fit_err < err:  # the written map keeps the shipped bindings where the fit is no better
+                fits[shape] = acts
             chans = " ".join(f"{c}={a:.2f}" for c, a in sorted(acts.items(), key=lambda kv: -kv[1]))
+        if not fit_err < err:
+            fit_err = err
         rows.append((label, own, err, fit_err))
         print(f"{label:22s} {own * 10:8.2f} {err * 10:8.2f} {err / own:5.2f} {fit_err * 10:8.2f} "
               f"{fit_err / own:5.2f}  {chans}", flush=True)

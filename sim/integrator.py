@@ -264,15 +264,15 @@ def stable_step(omega_max: float, mass_rate: float, visc: float, high_ratio: flo
 
 
 #: The mandible's thrust (AU29) at jaw_forward = 1, cm of a reference face: the condyles glide
-#: forward down the articular eminences, bringing the lower incisors ~8 mm forward (maximal
-#: protrusion in adults is 7-11 mm).
-JAW_THRUST = 0.8
-#: Its sideways move (AU30) at jaw_sideways = +-1: a turn about the vertical through the hinge's
-#: midpoint (the working-side condyle rotates while the other glides forward) and a small lateral
-#: shift of the whole mandible (the Bennett movement), together ~9 mm at the chin (maximal lateral
-#: excursion in adults is 8-12 mm).
-JAW_YAW = math.radians(4.5)
-JAW_SHIFT = 0.2
+#: forward and down the articular eminences. Read off the ICT FaceKit's scanned jawForward (the lower
+#: teeth's rigid motion: 8.9 mm forward, 1.7 mm down, no turn; adults protrude 7-11 mm).
+JAW_THRUST, JAW_THRUST_DROP = 0.89, 0.17
+#: Its sideways move (AU30) at jaw_sideways = +-1: a small turn about the vertical through the
+#: hinge's midpoint and a lateral shift of the whole mandible (the Bennett movement), read off the
+#: scanned jawLeft / jawRight (the lower teeth: 1.9 degrees, 6.4 mm sideways, 0.6 mm down; adult
+#: lateral excursion 8-12 mm at the incisors).
+JAW_YAW = math.radians(1.9)
+JAW_SHIFT, JAW_SHIFT_DROP = 0.64, 0.06
 
 
 def jaw_motion(model: FaceModel, jaw: float, forward: float = 0.0,
@@ -289,7 +289,9 @@ def jaw_motion(model: FaceModel, jaw: float, forward: float = 0.0,
         ahead /= max(norm3(ahead), 1e-9)
         left = np.cross([0.0, 1.0, 0.0], ahead)  # +X on the default face
         rot = jaw_rotation(np.array([0.0, 1.0, 0.0]), sideways * JAW_YAW) @ rot
-        slide = slide + s * (forward * JAW_THRUST * ahead + sideways * JAW_SHIFT * left)
+        down = np.array([0.0, -1.0, 0.0])
+        slide = slide + s * (forward * (JAW_THRUST * ahead + JAW_THRUST_DROP * down)
+                             + sideways * JAW_SHIFT * left + abs(sideways) * JAW_SHIFT_DROP * down)
     return rot, slide
 
 
