@@ -194,12 +194,18 @@ def test_key_follows_every_source_file_of_the_face_code(tmp_path: Path) -> None:
     shutil.copytree(root, copy, ignore=shutil.ignore_patterns("__pycache__"))
     base = face_cache.source_digest(copy)
     assert base == face_cache.source_digest(root)
-    (copy / "face_shape.py").write_text((copy / "face_shape.py").read_text() + "\n# tweak\n")
+    (copy / "face" / "shape.py").write_text((copy / "face" / "shape.py").read_text() + "\n# tweak\n")
     tweaked = face_cache.source_digest.__wrapped__(copy)
     assert tweaked != base
-    (copy / "face").mkdir()
-    (copy / "face" / "head.py").write_text("X = 1\n")  # a new module (the face reshaped)
-    assert face_cache.source_digest.__wrapped__(copy) not in (base, tweaked)
+    (copy / "face" / "extra").mkdir()
+    (copy / "face" / "extra" / "head.py").write_text("X = 1\n")  # a new module (the face reshaped)
+    added = face_cache.source_digest.__wrapped__(copy)
+    assert added not in (base, tweaked)
+    scan = copy / "face" / "scan" / "ict_head.npz"
+    data = bytearray(scan.read_bytes())
+    data[len(data) // 2] ^= 0xFF  # the scanned head's data changed
+    scan.write_bytes(bytes(data))
+    assert face_cache.source_digest.__wrapped__(copy) not in (base, tweaked, added)
 
 
 def test_cache_location_and_off(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, fresh: object,
@@ -297,7 +303,7 @@ def test_the_head_shell_is_kept_beside_the_faces_and_damaged_copies_are_rebuilt(
     """The default face's held head (~0.4 s to build) is built once and read back by the next
     process (here: a cleared in-process memo); truncated or bit-flipped copies (fixed seed) never
     raise and give the built shell, a copy that still loads is the same shell."""
-    from sim import face_head
+    from sim.face import head as face_head
 
     rig = fresh.rig  # type: ignore[attr-defined]
     built = face_head.head_shell(rig.mesh)
@@ -331,7 +337,7 @@ def test_the_head_shell_is_kept_beside_the_faces_and_damaged_copies_are_rebuilt(
 def test_a_head_shell_that_does_not_fit_its_mask_is_refused(fresh: object) -> None:
     from dataclasses import replace
 
-    from sim import face_head
+    from sim.face import head as face_head
 
     mesh = fresh.rig.mesh  # type: ignore[attr-defined]
     shell = face_head.head_shell(mesh)
