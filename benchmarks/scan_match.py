@@ -139,13 +139,13 @@ def main() -> int:
             if fit_err < err:  # the written map keeps the shipped bindings where the fit is no better
                 fits[shape] = acts
             chans = " ".join(f"{c}={a:.2f}" for c, a in sorted(acts.items(), key=lambda kv: -kv[1]))
-        if not fit_err < err:
+        if fitter is not None and not fit_err < err:
             fit_err = err
         rows.append((label, own, err, fit_err))
         print(f"{label:22s} {own * 10:8.2f} {err * 10:8.2f} {err / own:5.2f} {fit_err * 10:8.2f} "
               f"{fit_err / own:5.2f}  {chans}", flush=True)
     moving = [r for r in rows if r[1] * 10 >= STILL_MM]
-    for what, k in (("shipped map", 2), ("fitted", 3)):
+    for what, k in (("shipped map", 2), ("fitted", 3))[: 1 if fitter is None else 2]:
         rel = np.array([r[k] / r[1] for r in moving])
         if len(rel) and np.all(np.isfinite(rel)):
             print(f"{what}: median relative error {np.median(rel):.2f}, max {rel.max():.2f} "
