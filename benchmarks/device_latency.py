@@ -333,7 +333,7 @@ def _net_payloads() -> dict[str, tuple[str, Callable[[int], bytes]]]:
         return ("|".join(parts) + "|=head#1.0,2.0,3.0,0.1,0.2,0.3|rightEye#1,2,3|leftEye#1,2,3|").encode()
 
     def livelink(i: int) -> bytes:
-        return encode_frame([w(i) if n == "jawOpen" else 0.1 for n in ARKIT_NAMES])
+        return encode_frame({n: w(i) if n == "jawOpen" else 0.1 for n in ARKIT_NAMES})
 
     return {"osc": ("osc://127.0.0.1:0?profile=touchosc", lambda i: msg("/1/fader1", w(i)).dgram),
             "facecap": ("facecap://127.0.0.1:0", facecap), "vmc": ("vmc://127.0.0.1:0", vmc),

@@ -7,6 +7,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from sim.face.turn import is_turned, state_turn, turn_head, turn_weights
 from sim.model import FaceMesh, FaceRig, LinearMuscle, SheetMuscle, SphincterMuscle
 
 # Linear-light albedos: skin, lips.
@@ -45,9 +46,11 @@ class SurfaceRows:
     the head's vertices (M) posed to that surface, with normals computed over both meshes, so the
     shading runs on across the join. Without a head it is the mask's NormalComputer."""
 
-    def __init__(self, triangles: np.ndarray, n_vertices: int, shell: object | None = None) -> None:
+    def __init__(self, triangles: np.ndarray, n_vertices: int, shell: object | None = None,
+                 rest: np.ndarray | None = None) -> None:
         self.n = int(n_vertices)
         self.shell = shell
+        self.mask_turn = np.ones(self.n) if rest is None else turn_weights(rest)
         if shell is None:
             self.normals = NormalComputer(triangles, self.n)
             return
@@ -57,13 +60,19 @@ class SurfaceRows:
         self.positions = np.zeros((self.n + m, 3), np.float32)
         self.ring = self.n + np.asarray(shell.ring)  # type: ignore[attr-defined]
         self.ring_mask = np.asarray(shell.ring_mask)  # type: ignore[attr-defined]
+        self.shell_turn = turn_weights(shell.vertices)  # type: ignore[attr-defined]
 
-    def interleaved(self, surface: np.ndarray) -> np.ndarray:
-        """(N + M, 6) rows (the same array every call: upload it, don't keep it)."""
+    def interleaved(self, surface: np.ndarray, turn: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
+        """(N + M, 6) rows (the same array every call: upload it, don't keep it), the head turned
+        on the neck by `turn` = (yaw, pitch, roll) channel values (sim.face.turn)."""
+        turned = is_turned(*turn)
         if self.shell is None:
-            return self.normals.interleaved(surface)
+            return self.normals.interleaved(turn_head(surface, self.mask_turn, *turn) if turned else surface)
         self.positions[:self.n] = surface
         self.positions[self.n:] = self.shell.pose(surface)  # type: ignore[attr-defined]
+        if turned:
+            self.positions[:self.n] = turn_head(self.positions[:self.n], self.mask_turn, *turn)
+            self.positions[self.n:] = turn_head(self.positions[self.n:], self.shell_turn, *turn)
         rows = self.normals.interleaved(self.positions)
         rows[self.ring] = rows[self.ring_mask]  # the join's vertices are the mask's own
         return rows
@@ -75,7 +84,11 @@ def surface_rows(model: object) -> SurfaceRows:
 
     rig = getattr(model, "rig", None)
     shell = shell_for(rig) if rig is not None else None
-    return SurfaceRows(np.asarray(model.triangles, np.int32), len(model.rest), shell)  # type: ignore[attr-defined]
+    return SurfaceRows(np.asarray(model.triangles, np.int32), len(model.rest), shell,  # type: ignore[attr-defined]
+                       np.asarray(model.rest))  # type: ignore[attr-defined]
+
+
+head_turn = state_turn  # the state's head turn, for the renderer and the export's frames
 
 
 def spatial_order(triangles: np.ndarray, positions: np.ndarray, bits: int = 10) -> np.ndarray:

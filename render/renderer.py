@@ -13,9 +13,10 @@ import numpy as np
 from render import shaders
 from render.camera import OrbitCamera
 from render.hud import HudInfo, HudRenderer
-from render.meshdata import (HAIR, SKIN, Cavity, brow_coords, MuscleLines, eye_rotation, skin_tint, spatial_order,
+from render.meshdata import (HAIR, SKIN, Cavity, brow_coords, MuscleLines, eye_rotation, head_turn, skin_tint, spatial_order,
                              surface_rows, unique_edges, uv_sphere)
 from render.trails import TrailHistory
+from sim.face.turn import is_turned, turn_eye
 
 VIEWS = ("shaded", "wireframe", "muscles", "trails", "heat")
 ANTIALIAS = ("fxaa", "none")
@@ -279,7 +280,8 @@ class FaceRenderer:
                 rows = None
         elif rows is None:
             surface = np.ascontiguousarray(state.surface, dtype=np.float32)
-            rows = self.normals.interleaved(surface)
+            rows = self.normals.interleaved(surface, head_turn(state))
+            surface = np.ascontiguousarray(rows[:n, :3])  # as drawn: the head turned on the neck
         else:
             surface = np.ascontiguousarray(rows[:n, :3])
         if rows is not None:
@@ -407,10 +409,13 @@ class FaceRenderer:
         mesh = self.model.mesh
         yaw = float(np.clip(getattr(state, "eye_yaw", 0.0), -1, 1)) * EYE_YAW_MAX
         pitch = float(np.clip(getattr(state, "eye_pitch", 0.0), -1, 1)) * EYE_PITCH_MAX
-        self.eye_prog["rot"].write(_mat(eye_rotation(yaw, pitch)))
+        gaze = eye_rotation(yaw, pitch)
+        turn = head_turn(state)
         self.eye_prog["radius"].value = float(mesh.eye_radius)
         self.ctx.enable(moderngl.CULL_FACE)  # the back of an eyeball is never seen
         for c in np.asarray(mesh.eye_centers, float):
+            c, rot = turn_eye(c, gaze, *turn) if is_turned(*turn) else (c, gaze)
+            self.eye_prog["rot"].write(_mat(rot))
             self.eye_prog["center"].value = tuple(c)
             self.eye_vao.render(moderngl.TRIANGLES)
         self.ctx.disable(moderngl.CULL_FACE)

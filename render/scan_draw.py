@@ -43,7 +43,7 @@ class ScanPoser:
         self.maker = ScanRows(self.look)
 
     def rows(self, state: Any) -> np.ndarray:
-        posed = self.dressing.pose(np.asarray(state.surface), PoseControl(state))
+        posed = self.dressing.pose_turned(np.asarray(state.surface), PoseControl(state), state)
         return self.maker.rows(posed)
 
 
@@ -109,7 +109,7 @@ class ScanDraw:
     def rows(self, state: Any) -> np.ndarray:
         """(26719, 7) float32 rows x y z nx ny nz fold of the scan posed to `state` (the same array
         every call)."""
-        posed = self.dressing.pose(np.asarray(state.surface), PoseControl(state))
+        posed = self.dressing.pose_turned(np.asarray(state.surface), PoseControl(state), state)
         return self.maker.rows(posed)
 
     def draw(self, rows: np.ndarray, kind: str, mvp: bytes, view_m: bytes, heat_scale: float) -> None:

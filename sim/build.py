@@ -275,15 +275,18 @@ def gravity_offsets(weight: np.ndarray, tether: np.ndarray, support: np.ndarray,
     return d
 
 
-def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray) -> sp.csr_matrix:
+def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray,
+                   normal: np.ndarray | None = None) -> sp.csr_matrix:
     import scipy.sparse as sp
 
     n = len(rest)
+    if normal is None:
+        normal = vertex_normals(rest, np.asarray(rig.mesh.triangles, np.int32))
     cols = []
     for spec in CHANNEL_SPECS:
         parts = rig.muscles.get(spec.name, ())
         if spec.kind == "muscle" and parts:
-            cols.append(sp.csc_matrix(muscle_field(parts, rest, area).reshape(3 * n, 1)))
+            cols.append(sp.csc_matrix(muscle_field(parts, rest, area, normal).reshape(3 * n, 1)))
         else:
             cols.append(sp.csc_matrix((3 * n, 1)))
     m = sp.hstack(cols).tocsr()
@@ -367,7 +370,7 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
         jaw_pivot=_frozen(mesh.jaw_pivot, np.float64),
         jaw_axis=_frozen(np.asarray(mesh.jaw_axis) / norm3(mesh.jaw_axis), np.float64),
         gravity=_frozen(gravity),
-        muscle_matrix=_muscle_matrix(rig, rest, area),
+        muscle_matrix=_muscle_matrix(rig, rest, area, normal),
         params=p,
         omega_max=omega,
         hash=_rig_digest(rig, p),

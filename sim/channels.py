@@ -1,7 +1,8 @@
-"""The face's control channels: one per muscle (activation 0..1), the jaw, the eyes and age.
+"""The face's control channels: one per muscle (activation 0..1), the jaw, the eyes, age and the
+head's turn on the neck.
 
 The list is static so that a channel's index never depends on which rig is loaded: a recording made
-on one rig replays on another. Each muscle channel names the muscle model it uses (seed 000 section 3)
+on one rig replays on another; new channels are added at the end. Each muscle channel names the muscle model it uses (seed 000 section 3)
 and the FACS action units it takes part in (see `sim.facs`).
 """
 
@@ -17,8 +18,10 @@ class ChannelError(ValueError):
 
 @dataclass(frozen=True)
 class ChannelSpec:
-    """One input of the face. kind: "muscle" | "jaw" | "eyes" | "age"; lo..hi is the valid range and
-    default the value at rest; muscle_type: "linear" | "sphincter" | "sheet" for muscles, else None."""
+    """One input of the face. kind: "muscle" | "jaw" | "eyes" | "age" | "head" | "tongue"; lo..hi is the
+    valid range and default the value at rest; muscle_type: "linear" | "sphincter" | "sheet" | "patch"
+    (a force over a region of skin, sim.muscles.patch_force) | "pressure" (a patch pushing along the
+    skin's normal) for muscle channels (activation 0..1), else None."""
 
     name: str
     kind: str
@@ -85,6 +88,40 @@ CHANNEL_SPECS: tuple[ChannelSpec, ...] = (
     ),
     ChannelSpec("eyes_pitch", "eyes", (), -1.0, 1.0, 0.0, None, "gaze up/down, + = up"),
     ChannelSpec("age", "age", (), 0.0, 120.0, 30.0, None, "age in years; drives the wrinkles"),
+    ChannelSpec("head_yaw", "head", ("AU51", "AU52"), -1.0, 1.0, 0.0, None,
+                "head turn left/right on the neck, + = towards the face's left; 1 = a quarter turn (90 degrees)"),
+    ChannelSpec("head_pitch", "head", ("AU53", "AU54"), -1.0, 1.0, 0.0, None,
+                "head tilt up/down on the neck, + = chin up; 1 = a quarter turn"),
+    ChannelSpec("head_roll", "head", ("AU55", "AU56"), -1.0, 1.0, 0.0, None,
+                "head tilt sideways, + = the top of the head towards the face's left shoulder; 1 = a quarter turn"),
+    _muscle("incisivus", "linear", ("AU18",),
+            "lip pucker, incisivus labii superioris and inferioris: draw the mouth corners towards the midline "
+            "so the lips bunch and push forward"),
+    _muscle("orbicularis_oris_peripheralis_upper", "patch", ("AU22",),
+            "upper lip everted and pushed forward, orbicularis oris pars peripheralis (funneler with the lower "
+            "part; alone: the upper lip's shrug)"),
+    _muscle("orbicularis_oris_peripheralis_lower", "patch", ("AU22",),
+            "lower lip everted and pushed forward, orbicularis oris pars peripheralis (funneler with the upper part)"),
+    _muscle("orbicularis_oris_marginalis_upper", "patch", ("AU28",),
+            "upper lip rolled in over the teeth, orbicularis oris pars marginalis (lip suck)"),
+    _muscle("orbicularis_oris_marginalis_lower", "patch", ("AU28",),
+            "lower lip rolled in over the teeth, orbicularis oris pars marginalis (lip suck)"),
+    _muscle("lip_closure", "patch", ("AU24",),
+            "lips meeting over an open jaw: the marginal orbicularis oris draws the upper lip down and the "
+            "lower lip up"),
+    *_pair("mouth_shift", "patch", (),
+           "both lips drawn sideways as one band, the buccinator and risorius of that side pulling the "
+           "orbicularis ring through the modiolus"),
+    _muscle("cheek_puff", "pressure", ("AU33", "AU34"),
+            "cheek puff: air held in the mouth at a pressure, pushing the cheeks out along the skin's normal"),
+    ChannelSpec("jaw_forward", "jaw", ("AU29",), 0.0, 1.0, 0.0, None,
+                "jaw thrust: the mandible slides forward (1 = ~8 mm, the adult maximum)"),
+    ChannelSpec("jaw_sideways", "jaw", ("AU30",), -1.0, 1.0, 0.0, None,
+                "jaw sideways, + = towards the face's left: the mandible turns about one condyle and shifts "
+                "(1 = ~9 mm at the chin)"),
+    ChannelSpec("tongue_out", "tongue", ("AU19",), 0.0, 1.0, 0.0, None,
+                "tongue show: the tongue pushed out between the lips; moves a face's tongue where it has one "
+                "(the scanned head), no skin on the procedural face"),
 )
 
 CHANNEL_NAMES: tuple[str, ...] = tuple(spec.name for spec in CHANNEL_SPECS)

@@ -263,6 +263,38 @@ def stable_step(omega_max: float, mass_rate: float, visc: float, high_ratio: flo
     return lo
 
 
+#: The mandible's thrust (AU29) at jaw_forward = 1, cm of a reference face: the condyles glide
+#: forward and down the articular eminences. Read off the ICT FaceKit's scanned jawForward (the lower
+#: teeth's rigid motion: 8.9 mm forward, 1.7 mm down, no turn; adults protrude 7-11 mm).
+JAW_THRUST, JAW_THRUST_DROP = 0.89, 0.17
+#: Its sideways move (AU30) at jaw_sideways = +-1: a small turn about the vertical through the
+#: hinge's midpoint and a lateral shift of the whole mandible (the Bennett movement), read off the
+#: scanned jawLeft / jawRight (the lower teeth: 1.9 degrees, 6.4 mm sideways, 0.6 mm down; adult
+#: lateral excursion 8-12 mm at the incisors).
+JAW_YAW = math.radians(1.9)
+JAW_SHIFT, JAW_SHIFT_DROP = 0.64, 0.06
+
+
+def jaw_motion(model: FaceModel, jaw: float, forward: float = 0.0,
+               sideways: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(rotation (3,3), translation (3,) cm) of the mandible about `model.jaw_pivot` for a jaw
+    opened by `jaw` (the hinge turn and the condyles' slide, `jaw_slide`), thrust forward by
+    `forward` (0..1, AU29) and moved towards the face's left by `sideways` (-1..1, AU30)."""
+    rot = jaw_rotation(model.jaw_axis, jaw * model.params.jaw_max_angle) if jaw else np.eye(3)
+    slide = jaw * jaw_slide(model)
+    if forward or sideways:
+        s = _face_scale(model)
+        axis = np.asarray(model.jaw_axis, dtype=np.float64)
+        ahead = np.cross(axis, [0.0, 1.0, 0.0])
+        ahead /= max(norm3(ahead), 1e-9)
+        left = np.cross([0.0, 1.0, 0.0], ahead)  # +X on the default face
+        rot = jaw_rotation(np.array([0.0, 1.0, 0.0]), sideways * JAW_YAW) @ rot
+        down = np.array([0.0, -1.0, 0.0])
+        slide = slide + s * (forward * (JAW_THRUST * ahead + JAW_THRUST_DROP * down)
+                             + sideways * JAW_SHIFT * left + abs(sideways) * JAW_SHIFT_DROP * down)
+    return rot, slide
+
+
 @dataclass(frozen=True)
 class GuardEvent:
     """The blow-up guard fired at simulated time `time` (s) for `reason`; the state was restored to
@@ -362,7 +394,7 @@ class Simulator:
         self._held = np.flatnonzero(model.held)
         self._is_muscle = np.array([s.kind == "muscle" for s in model.channels], dtype=np.bool_)
         self._weight = np.ascontiguousarray(model.weight, dtype=np.float64)
-        self._jaw: float | None = None  # the jaw the target and support normals were set for
+        self._jaw: tuple[float, float, float] | None = None  # the jaw pose the target and normals were set for
         self._target = model.rest + model.rest_offset
         self._shape = np.array(model.rest)
         self._force = np.zeros((n, 3))  # the RK2 kernel's force scratch
@@ -370,38 +402,43 @@ class Simulator:
         self._vm = np.zeros((n, 3))
         self._bound = BLOWUP_DISPLACEMENT * _face_scale(model)
         self._jaw_i = CHANNEL_INDEX["jaw"]
+        self._jaw_forward_i = CHANNEL_INDEX["jaw_forward"]
+        self._jaw_side_i = CHANNEL_INDEX["jaw_sideways"]
 
     # -- the force terms that are constant over a frame
 
-    def rest_target(self, jaw: float, offset: bool = True) -> np.ndarray:
-        """Eq 9's rest positions with the jaw opened by `jaw` (0..1), plus the gravity pre-stress
-        offset (`FaceModel.rest_offset`, turned with the jaw the same way; offset=False: the rest
-        shape turned with the jaw alone), (N,3) cm."""
-        target, shape, _ = self._jaw_turned(jaw, shape=not offset)
+    def rest_target(self, jaw: float, offset: bool = True, forward: float = 0.0,
+                    sideways: float = 0.0) -> np.ndarray:
+        """Eq 9's rest positions with the jaw opened by `jaw` (0..1), thrust by `forward` (0..1) and
+        moved sideways by `sideways` (-1..1), plus the gravity pre-stress offset
+        (`FaceModel.rest_offset`, turned with the jaw the same way; offset=False: the rest shape
+        turned with the jaw alone), (N,3) cm."""
+        target, shape, _ = self._jaw_turned((jaw, forward, sideways), shape=not offset)
         return target if offset else shape  # type: ignore[return-value]
 
-    def _jaw_turned(self, jaw: float, shape: bool) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    def _jaw_turned(self, pose: tuple[float, float, float],
+                    shape: bool) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """(eq 9's target, the rest shape turned with the jaw or None unless `shape`, the jaw's
-        rotation or None at jaw 0), the mandible's turn and slide computed once for all three."""
+        rotation or None at rest) for the jaw pose (open, forward, sideways): the mandible's turn
+        and slide computed once for all three (`jaw_motion`)."""
         m = self.model
-        if jaw == 0.0:
+        if pose == (0.0, 0.0, 0.0):
             return np.array(m.rest + m.rest_offset), (np.array(m.rest) if shape else None), None
-        rot = jaw_rotation(m.jaw_axis, jaw * m.params.jaw_max_angle)
+        rot, slide = jaw_motion(m, *pose)
         turned = times3(m.rest - m.jaw_pivot, rot.T) + m.jaw_pivot
-        slide = jaw * jaw_slide(m)
         w = m.jaw_weight[:, None]
         base = m.rest + m.rest_offset
         target = base + w * (turned + times3(m.rest_offset, rot.T) + slide - base)
         return target, (m.rest + w * (turned + slide - m.rest) if shape else None), rot
 
-    def _set_jaw(self, jaw: float) -> None:
+    def _set_jaw(self, pose: tuple[float, float, float]) -> None:
         """The jaw-dependent frame constants: eq 9's target (`rest_target`) and the support normals
-        n_i (the rest normals turned with the jaw like the target), recomputed only when jaw moves;
-        for the implicit integrator also the reference of its margin bending term (`sim.implicit`)."""
-        if jaw == self._jaw:
+        n_i (the rest normals turned with the jaw like the target), recomputed only when the jaw
+        moves; for the implicit integrator also the reference of its margin bending term (`sim.implicit`)."""
+        if pose == self._jaw:
             return
         m = self.model
-        self._target, shape, rot = self._jaw_turned(jaw, shape=self._implicit is not None)
+        self._target, shape, rot = self._jaw_turned(pose, shape=self._implicit is not None)
         if shape is not None:
             self._shape = shape
         if rot is None:
@@ -409,12 +446,13 @@ class Simulator:
         else:
             n = m.rest_normal + m.jaw_weight[:, None] * (times3(m.rest_normal, rot.T) - m.rest_normal)
             self._normal[...] = n / np.linalg.norm(n, axis=1)[:, None]
-        self._jaw = jaw
+        self._jaw = pose
 
     def external_forces(self, control: FaceControl) -> np.ndarray:
         """Every force term that does not depend on x or v within a frame, (N,3) dyn (a buffer the
         simulator reuses): see `_constant_forces`."""
-        self._set_jaw(float(control.values[self._jaw_i]))
+        v = control.values
+        self._set_jaw((float(v[self._jaw_i]), float(v[self._jaw_forward_i]), float(v[self._jaw_side_i])))
         mm = self.model.muscle_matrix
         _constant_forces(mm.indptr, mm.indices, mm.data, control.values, self._is_muscle, self._weight,
                          self._kr, self._target, self._kn, self._normal, self._ext)
@@ -454,6 +492,9 @@ class Simulator:
         state.eye_pitch = float(values[CHANNEL_INDEX["eyes_pitch"]])
         state.jaw = float(values[CHANNEL_INDEX["jaw"]])
         state.age = float(values[CHANNEL_INDEX["age"]])
+        state.head_yaw = float(values[CHANNEL_INDEX["head_yaw"]])
+        state.head_pitch = float(values[CHANNEL_INDEX["head_pitch"]])
+        state.head_roll = float(values[CHANNEL_INDEX["head_roll"]])
         self._surface(state)
         return state
 

@@ -106,7 +106,22 @@ class SheetMuscle:
     scale: float
 
 
-Muscle = Union[LinearMuscle, SphincterMuscle, SheetMuscle]
+@dataclass(frozen=True, eq=False)
+class PatchMuscle:
+    """A force spread over one region of skin, for the actions a line of pull cannot make: lips
+    everted, rolled in, bunched or shifted as a band, cheeks pushed out by the air in the mouth.
+    centre (3,) cm and semi-axes (3,) cm of the ellipsoid it acts in (along the face frame's X, Y,
+    Z); direction (3,) unit, or zeros for "along the skin's outward normal" (a pressure); force
+    density alpha_P (dyn/cm^2) at the centre, fading as cos(d pi/2) to the ellipsoid's surface."""
+
+    name: str
+    center: FloatArray
+    semi_axes: FloatArray
+    direction: FloatArray
+    scale: float
+
+
+Muscle = Union[LinearMuscle, SphincterMuscle, SheetMuscle, PatchMuscle]
 
 
 @dataclass(eq=False)

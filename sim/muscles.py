@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.model import LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+from sim.model import LinearMuscle, Muscle, PatchMuscle, SheetMuscle, SphincterMuscle
 from sim.rowmath import dot3
 
 HALF_PI = 0.5 * np.pi
@@ -191,24 +191,50 @@ def sheet_force(m: SheetMuscle, x: np.ndarray) -> np.ndarray:
     return w[:, None] * sheet_direction(m)[None, :]
 
 
+# ---------------------------------------------------------------- patch (not in seed 000)
+
+
+def patch_falloff(m: PatchMuscle, x: np.ndarray) -> np.ndarray:
+    """cos(d pi/2) inside the patch's ellipsoid, d = |(x - c) / semi_axes| (1 at its centre, 0 on
+    and outside its surface): the same cosine taper as the sphincter's eq 16, here from the centre."""
+    d = np.sqrt(np.sum(((x - m.center) / m.semi_axes) ** 2, axis=-1))
+    return np.where(d < 1.0, np.cos(d * HALF_PI), 0.0)
+
+
+def patch_force(m: PatchMuscle, x: np.ndarray, normal: np.ndarray | None = None) -> np.ndarray:
+    """f_i = alpha_P Theta(d_i) u_i, (N,3): u the patch's fixed direction, or the skin's outward unit
+    normal n_i when the direction is zero (a pressure p = alpha_P on the skin inside, so a node of
+    area A_i feels p A_i n_i: a cheek puffed by the air in the mouth)."""
+    w = m.scale * patch_falloff(m, x)
+    if not np.any(m.direction):
+        if normal is None:
+            raise ValueError(f"{m.name}: a pressure patch needs the skin's normals")
+        return w[:, None] * normal
+    return w[:, None] * np.asarray(m.direction)[None, :]
+
+
 # ---------------------------------------------------------------- fields
 
 
-def muscle_force(m: Muscle, x: np.ndarray) -> np.ndarray:
-    """Force density (dyn/cm^2, (N,3)) of one muscle part at full activation on skin points x."""
+def muscle_force(m: Muscle, x: np.ndarray, normal: np.ndarray | None = None) -> np.ndarray:
+    """Force density (dyn/cm^2, (N,3)) of one muscle part at full activation on skin points x
+    (normal (N,3): the skin's outward unit normals, which pressure patches push along)."""
     if isinstance(m, LinearMuscle):
         return linear_force(m, x)
     if isinstance(m, SphincterMuscle):
         return sphincter_force(m, x)
     if isinstance(m, SheetMuscle):
         return sheet_force(m, x)
+    if isinstance(m, PatchMuscle):
+        return patch_force(m, x, normal)
     raise TypeError(f"not a muscle: {m!r}")
 
 
-def muscle_field(parts: tuple[Muscle, ...], x: np.ndarray, area: np.ndarray) -> np.ndarray:
+def muscle_field(parts: tuple[Muscle, ...], x: np.ndarray, area: np.ndarray,
+                 normal: np.ndarray | None = None) -> np.ndarray:
     """Nodal force (dyn, (N,3)) of one channel at activation 1: the sum of its parts' force densities
     times each node's lumped area (cm^2)."""
     out = np.zeros_like(x)
     for m in parts:
-        out += muscle_force(m, x)
+        out += muscle_force(m, x, normal)
     return out * area[:, None]

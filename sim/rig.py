@@ -24,11 +24,12 @@ from typing import Any
 import numpy as np
 
 from safefile import BadFile, atomic_write, load_json, number, quote, sequence, string, table
-from sim.model import FaceMesh, FaceRig, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+from sim.model import FaceMesh, FaceRig, LinearMuscle, Muscle, PatchMuscle, SheetMuscle, SphincterMuscle
 
 FORMAT = "facepuppet-rig"
 VERSION = 1
-_TYPES: dict[str, type] = {"linear": LinearMuscle, "sphincter": SphincterMuscle, "sheet": SheetMuscle}
+_TYPES: dict[str, type] = {"linear": LinearMuscle, "sphincter": SphincterMuscle, "sheet": SheetMuscle,
+                          "patch": PatchMuscle}
 _TYPE_NAMES = {cls: name for name, cls in _TYPES.items()}
 MAX_MEMBERS = 256
 MAX_ARRAY_BYTES = 512 * 1024 * 1024

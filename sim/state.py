@@ -21,8 +21,9 @@ if TYPE_CHECKING:
 class FaceState:
     """positions, velocities (N,3) cm and cm/s: the dynamics. surface (N,3) cm: what is drawn
     (positions plus wrinkle bulges; equals positions until wrinkles exist). time in s. eye_yaw,
-    eye_pitch (-1..1) and age (years) are copied from the control at the last step so that a renderer
-    needs only the state."""
+    eye_pitch (-1..1), age (years) and the head's turn head_yaw, head_pitch, head_roll (-1..1, see
+    sim.face.turn) are copied from the control at the last step so that a renderer needs only the
+    state."""
 
     positions: np.ndarray
     velocities: np.ndarray
@@ -32,6 +33,9 @@ class FaceState:
     eye_pitch: float = 0.0
     age: float = 30.0
     jaw: float = 0.0  # the jaw channel at the last step: a scanned head's teeth follow it when drawn
+    head_yaw: float = 0.0
+    head_pitch: float = 0.0
+    head_roll: float = 0.0
 
     def copy(self) -> FaceState:
         """An independent deep copy (arrays copied)."""
@@ -44,6 +48,9 @@ class FaceState:
             self.eye_pitch,
             self.age,
             self.jaw,
+            self.head_yaw,
+            self.head_pitch,
+            self.head_roll,
         )
 
     def assign(self, other: FaceState) -> None:
@@ -54,6 +61,7 @@ class FaceState:
         self.time = other.time
         self.eye_yaw, self.eye_pitch, self.age = other.eye_yaw, other.eye_pitch, other.age
         self.jaw = other.jaw
+        self.head_yaw, self.head_pitch, self.head_roll = other.head_yaw, other.head_pitch, other.head_roll
 
 
 def rest_state(rest: np.ndarray) -> FaceState:

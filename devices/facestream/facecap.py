@@ -1,11 +1,12 @@
 """``facecap://127.0.0.1:8080`` — Face Cap (iOS) live mode: OSC over UDP, one ``/W i f`` message per
-blendshape (index in Face Cap's own order, weight 0..1), plus head (``/HT``, ``/HR``) and eye
-(``/ELR``, ``/ERR``) poses that are not blendshapes and are ignored here."""
+blendshape (index in Face Cap's own order, weight 0..1), plus the head's position (``/HT``, not
+used) and rotation (``/HR x y z``) and the eyes' rotations (``/ELR x y``, ``/ERR x y``), Euler
+degrees about ARKit's face axes, which become the rotation controls (``headYaw``, ``leftEyePitch``...)."""
 
 from __future__ import annotations
 
 from devices.events import ControlEvent
-from devices.facestream import FaceStreamDevice, OscStreamParser
+from devices.facestream import FaceStreamDevice, OscStreamParser, arkit_euler
 
 #: Face Cap's blendshape order (``/W`` index -> ARKit name).
 FACECAP_ORDER = (
@@ -20,6 +21,13 @@ FACECAP_ORDER = (
     "mouthPressRight", "mouthStretchLeft", "mouthStretchRight", "tongueOut",
 )
 POSES = frozenset({"/HT", "/HR", "/ELR", "/ERR"})
+ROTATIONS = {"/HR": "head", "/ELR": "leftEye", "/ERR": "rightEye"}
+
+
+def _numbers(args: tuple) -> list[float] | None:
+    if all(isinstance(a, (int, float)) and not isinstance(a, bool) for a in args):
+        return [float(a) for a in args]
+    return None
 
 
 class FaceCapParser(OscStreamParser):
@@ -35,6 +43,12 @@ class FaceCapParser(OscStreamParser):
                         values[FACECAP_ORDER[m.args[0]]] = float(m.args[1])
                         continue
                 self.frames.warnings.warn("garbage", f"/W expects (index 0..51, weight), got {m.args[:3]!r}")
+            elif m.address in ROTATIONS:
+                xyz = _numbers(m.args)
+                if xyz is None or len(xyz) not in (2, 3):
+                    self.frames.warnings.warn("garbage", f"{m.address} expects 2 or 3 angles, got {m.args[:4]!r}")
+                    continue
+                values.update(arkit_euler(ROTATIONS[m.address], *(xyz + [0.0])[:3]))
             elif m.address not in POSES:
                 self.frames.note_unknown(m.address)
         return self.frames.emit(values, t) if values else []

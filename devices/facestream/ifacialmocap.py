@@ -1,6 +1,7 @@
 """``ifacialmocap://127.0.0.1:49983[?phone=IP[:PORT]]`` — iFacialMocap (iOS): plain text over UDP, one
 datagram per frame: ``name-value|name-value|...|=head#rx,ry,rz,px,py,pz|rightEye#...|leftEye#...|``
-with weights 0..100, ``_L``/``_R`` suffixes and keys in any order (version 2 writes ``name&value``).
+with weights 0..100, ``_L``/``_R`` suffixes and keys in any order (version 2 writes ``name&value``);
+the head's and eyes' Euler angles (degrees) after ``#`` become the rotation controls.
 The phone streams after a start request: with ``phone=IP`` the device sends it to that phone
 (port 49983 unless given) when it opens and again while no frame arrives; the phone then needs this listener to
 be reachable, so ``lan=1`` too."""
@@ -14,7 +15,7 @@ from typing import Any
 
 from devices.errors import DeviceSpecError
 from devices.events import ControlEvent
-from devices.facestream import BlendshapeFrames, FaceStreamDevice, arkit_name
+from devices.facestream import BlendshapeFrames, FaceStreamDevice, arkit_euler, arkit_name
 from devices.spec import DeviceSpec
 from devices.udp import is_loopback, split_host_port
 from devices.warn import WarningCounter
@@ -24,6 +25,7 @@ PHONE_PORT = 49983
 MAX_FIELDS = 128
 #: Seconds between start requests while no frame arrives.
 REQUEST_EVERY = 2.0
+POSES = {"head": "head", "lefteye": "leftEye", "righteye": "rightEye"}
 
 
 class IFacialMocapParser:
@@ -46,7 +48,10 @@ class IFacialMocapParser:
         bad = 0
         for f in fields:
             f = f.strip()
-            if not f or "#" in f:  # head / eye poses (after "="), not blendshapes
+            if "#" in f:  # head / eye poses (after "="): rx, ry, rz degrees (then the head's position)
+                self._pose(f, values)
+                continue
+            if not f:
                 continue
             sep = "&" if "&" in f else "-"
             name, _, num = f.rpartition(sep)
@@ -66,6 +71,22 @@ class IFacialMocapParser:
         if bad or not values:
             self.frames.warnings.warn("garbage", f"{bad or 'no'} readable name-value fields: {data[:24]!r}")
         return self.frames.emit(values, t, raw_scale=100.0) if values else []
+
+
+    def _pose(self, field: str, values: dict[str, float]) -> None:
+        name, _, nums = field.lstrip("=").partition("#")
+        prefix = POSES.get(name.strip().lower())
+        if prefix is None:
+            self.frames.note_unknown(name[:64])
+            return
+        try:
+            angles = [float(x) for x in nums.split(",")[:3]]
+        except ValueError:
+            angles = []
+        if len(angles) == 3 and all(math.isfinite(a) for a in angles):
+            values.update(arkit_euler(prefix, *angles))
+        else:
+            self.frames.warnings.warn("garbage", f"{name[:24]} pose is not three angles")
 
 
 class IFacialMocapDevice(FaceStreamDevice):

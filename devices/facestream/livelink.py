@@ -2,27 +2,43 @@
 
 Layout (integers and floats big-endian except the first): uint32 packet version (little-endian),
 37 bytes device id, int32 subject-name length + the name (UTF-8), int32 frame number, float32
-sub-frame, int32 frame rate numerator and denominator, uint8 count (61), then ``count`` float32:
-the 52 blendshapes in ARKit's order and 9 head/eye rotations (not blendshapes; ignored here).
+sub-frame, int32 frame rate numerator and denominator, uint8 count (61), then ``count`` float32
+in the order of Unreal's ``EARFaceBlendShape`` enum (`WIRE_ORDER`): the 52 blendshapes, then head
+yaw, pitch, roll and the left and right eyes' yaw, pitch, roll (-1..1). That order is not the
+CSV's: the enum has JawLeft (15) before JawRight (16) and MouthLeft (21) before MouthRight (22).
 A datagram without the frame part (the app's "hello") carries no values."""
 
 from __future__ import annotations
 
 import struct
+from collections.abc import Mapping, Sequence
 
 from devices.events import ControlEvent
-from devices.facestream import ARKIT_NAMES, BlendshapeFrames, FaceStreamDevice
+from devices.facestream import ARKIT_NAMES, ROTATION_NAMES, BlendshapeFrames, FaceStreamDevice
 from devices.warn import WarningCounter
+
+_SWAP = {"jawLeft": "jawRight", "jawRight": "jawLeft", "mouthLeft": "mouthRight", "mouthRight": "mouthLeft"}
+#: The 61 values of a packet, by index: the CSV's order with the two sideways pairs the enum's way.
+WIRE_ORDER: tuple[str, ...] = (*(_SWAP.get(n, n) for n in ARKIT_NAMES), *ROTATION_NAMES)
 
 HEADER = 45  # version + device id + name length
 FRAME = struct.Struct(">ifiiB")
 MAX_NAME = 256
 
 
-def encode_frame(weights: list[float], name: str = "iPhone", frame: int = 0, fps: int = 60,
-                 device_id: str = "$00000000-0000-0000-0000-000000000000", version: int = 6) -> bytes:
-    """A Live Link Face datagram (for tests, benchmarks and rehearsal senders)."""
-    values = list(weights) + [0.0] * (61 - len(weights))
+def encode_frame(weights: Mapping[str, float] | Sequence[float], name: str = "iPhone", frame: int = 0,
+                 fps: int = 60, device_id: str = "$00000000-0000-0000-0000-000000000000",
+                 version: int = 6) -> bytes:
+    """A Live Link Face datagram (for tests, benchmarks and rehearsal senders). ``weights`` maps
+    ARKit and rotation names (``jawLeft``, ``headYaw``) to values, the rest 0; a plain sequence is
+    taken in `WIRE_ORDER`."""
+    if isinstance(weights, Mapping):
+        unknown = set(weights) - set(WIRE_ORDER)
+        if unknown:
+            raise ValueError(f"not Live Link values: {', '.join(sorted(unknown))}")
+        values = [float(weights.get(n, 0.0)) for n in WIRE_ORDER]
+    else:
+        values = list(weights) + [0.0] * (61 - len(weights))
     body = name.encode("utf-8")
     return (struct.pack("<I", version) + device_id.encode("ascii")[:37].ljust(37, b"0")
             + struct.pack(">i", len(body)) + body + FRAME.pack(frame, 0.0, fps, 1, 61)
@@ -57,8 +73,9 @@ class LiveLinkParser:
             warn("truncated", f"{count} values announced, {(len(data) - body) // 4} present (52 or more expected)")
             return []
         self.subject = data[HEADER:end].decode("utf-8", "replace")
-        weights = struct.unpack_from(f">{len(ARKIT_NAMES)}f", data, body)
-        return self.frames.emit(dict(zip(ARKIT_NAMES, weights)), t)
+        n = min(count, len(WIRE_ORDER))
+        values = struct.unpack_from(f">{n}f", data, body)
+        return self.frames.emit(dict(zip(WIRE_ORDER, values)), t)
 
 
 class LiveLinkDevice(FaceStreamDevice):

@@ -1,12 +1,13 @@
 """``vmc://127.0.0.1:39539`` — the VMC protocol (VSeeFace, Waidayo, VMagicMirror...): OSC over UDP.
 ``/VMC/Ext/Blend/Val name weight`` messages are held until ``/VMC/Ext/Blend/Apply`` commits the
-frame. Names are ARKit's ("Perfect Sync", any case) or the VRM presets below; bones, root pose
-and status messages are ignored."""
+frame. Names are ARKit's ("Perfect Sync", any case) or the VRM presets below. The ``Head`` bone's
+rotation (``/VMC/Ext/Bone/Pos Head px py pz qx qy qz qw``, Unity's frame) becomes the head's
+rotation controls with the next Apply; other bones, the root pose and status messages are ignored."""
 
 from __future__ import annotations
 
 from devices.events import ControlEvent
-from devices.facestream import FaceStreamDevice, OscStreamParser, arkit_name
+from devices.facestream import FaceStreamDevice, OscStreamParser, arkit_name, unity_head
 from devices.warn import WarningCounter
 
 #: VRM expression presets a tracker without Perfect Sync sends, as ARKit blendshapes.
@@ -30,6 +31,10 @@ class VmcParser(OscStreamParser):
         for m in self.messages(data):
             if m.address == "/VMC/Ext/Blend/Val":
                 self._value(m.args)
+            elif m.address == "/VMC/Ext/Bone/Pos" and m.args[:1] == ("Head",):
+                q = m.args[4:8]
+                if len(m.args) == 8 and all(isinstance(a, (int, float)) and not isinstance(a, bool) for a in q):
+                    self._pending.update(unity_head(*(float(a) for a in q)))
             elif m.address == "/VMC/Ext/Blend/Apply":
                 if self._pending:
                     out += self.frames.emit(self._pending, t)

@@ -1,9 +1,10 @@
 """A Live Link Face / ARKit blendshape CSV recording -> channel values, through the inverse of the
 mapping `puppet.export.arkit` writes (docs/live.md): each blendshape drives the channel(s) it was
 computed from; where two shapes come from one channel (EyeSquint and CheekSquint) or one shape
-from two channels (BrowDown from corrugator and procerus), the larger wins. Shapes the face cannot
-express (CheekPuff, JawForward, tongue, lip roll, funnel, ...) are ignored and named in
-the report. Head and eye rotation columns are accepted; gaze comes from the EyeLook shapes.
+from two channels (BrowDown from corrugator and procerus), the larger wins. Every one of the 52
+shapes has a channel (JawLeft and JawRight together give the signed jaw_sideways; MouthFunnel
+everts both lips, MouthShrugUpper the upper one). The head's rotation columns turn the head (head_yaw, head_pitch, head_roll, quarter
+turns); gaze comes from the EyeLook shapes (a tracker writes both, and they agree).
 
 Column names are matched without regard to case (MediaPipe writes `mouthSmileLeft`).
 Timecode HH:MM:SS:FF(.mmm), FF counted at the recording's frame rate (--fps; by default read
@@ -19,7 +20,7 @@ import numpy as np
 
 from puppet.capture.points import ChannelCapture, check_times
 from puppet.errors import ConfigError
-from puppet.export.arkit import ARKIT_SHAPES, ROTATIONS, SIMPLE_SHAPES, UNSUPPORTED
+from puppet.export.arkit import ARKIT_SHAPES, MOUTH_CLOSE_SPAN, ONE_CHANNEL, ROTATIONS, SIMPLE_SHAPES, UNSUPPORTED
 
 _TC = re.compile(r"(\d+):(\d{2}):(\d{2})[:;](\d+)(?:\.(\d+))?")
 RATES = (24, 25, 30, 50, 60)
@@ -38,9 +39,46 @@ def shape_targets(shape: str) -> list[str]:
     ch = _simple(base)
     if ch:
         return [ch + side] + (["procerus"] if base == "BrowDown" else [])
+    if shape in ONE_CHANNEL:
+        return [ONE_CHANNEL[shape]] + (["orbicularis_oris_peripheralis_upper"] if shape == "MouthFunnel" else [])
     return {"BrowInnerUp": ["frontalis_inner_l", "frontalis_inner_r"], "JawOpen": ["jaw"],
             "MouthShrugLower": ["mentalis"], "MouthPressLeft": ["orbicularis_oris"],
             "MouthPressRight": ["orbicularis_oris"]}.get(shape, [])
+
+
+def shape_channels(shapes: dict[str, np.ndarray], n: int,
+                   turns: dict[str, np.ndarray] | None = None) -> np.ndarray:
+    """(n, C) channel values for blendshape columns ``{PascalCase shape: (n,) weights 0..1}`` and
+    rotation columns (``HeadYaw`` ...), through the inverted export mapping; channels no column
+    drives keep their defaults."""
+    from sim.channels import CHANNEL_NAMES, CHANNEL_SPECS
+
+    values = np.zeros((n, len(CHANNEL_NAMES)))
+    values[:] = [s.default for s in CHANNEL_SPECS]
+    index = {name: i for i, name in enumerate(CHANNEL_NAMES)}
+    driven = np.zeros(len(CHANNEL_NAMES), bool)
+    for shape, col in shapes.items():
+        col = np.asarray(col, float)
+        if shape == "MouthClose":
+            col = col / MOUTH_CLOSE_SPAN
+        for ch in shape_targets(shape):
+            i = index[ch]
+            values[:, i] = np.maximum(values[:, i], np.clip(col, 0.0, 1.0)) if driven[i] else np.clip(col, 0, 1)
+            driven[i] = True
+
+    def g(name: str) -> np.ndarray:
+        return np.asarray(shapes.get(name, np.zeros(n)), float)
+
+    yaw = 0.5 * ((g("EyeLookOutLeft") - g("EyeLookInLeft")) + (g("EyeLookInRight") - g("EyeLookOutRight")))
+    pitch = 0.5 * ((g("EyeLookUpLeft") - g("EyeLookDownLeft")) + (g("EyeLookUpRight") - g("EyeLookDownRight")))
+    if "JawLeft" in shapes or "JawRight" in shapes:
+        values[:, index["jaw_sideways"]] = np.clip(g("JawLeft") - g("JawRight"), -1, 1)
+    values[:, index["eyes_yaw"]] = np.clip(yaw, -1, 1)
+    values[:, index["eyes_pitch"]] = np.clip(pitch, -1, 1)
+    for column, channel in (("HeadYaw", "head_yaw"), ("HeadPitch", "head_pitch"), ("HeadRoll", "head_roll")):
+        if turns and column in turns:
+            values[:, index[channel]] = np.clip(turns[column], -1.0, 1.0)
+    return values
 
 
 def _timecode(path: Path, lineno: int, text: str) -> tuple[int, int, float]:
@@ -109,26 +147,12 @@ def read_arkit_csv(path: Path, fps: float | None = None) -> ChannelCapture:
     times = np.array([(s + (ff + frac) / rate) for s, ff, frac in stamps])
     times -= times[0]
     check_times(str(path), times)
-    values = np.zeros((len(arr), len(CHANNEL_NAMES)))
-    from sim.channels import CHANNEL_SPECS
-
-    values[:] = [s.default for s in CHANNEL_SPECS]
-    index = {n: i for i, n in enumerate(CHANNEL_NAMES)}
-    driven = np.zeros(len(CHANNEL_NAMES), bool)
     shapes = {c: arr[:, j] for j, c in enumerate(cols) if c in ARKIT_SHAPES}
     for shape, col in shapes.items():
         if col.min() < -0.01 or col.max() > 1.01:
             raise ConfigError(f"{path}: blendshape {shape} leaves 0..1 (min {col.min():.3g}, max {col.max():.3g})")
-        for ch in shape_targets(shape):
-            i = index[ch]
-            values[:, i] = np.maximum(values[:, i], np.clip(col, 0.0, 1.0)) if driven[i] else np.clip(col, 0, 1)
-            driven[i] = True
-    def g(name: str) -> np.ndarray:
-        return shapes.get(name, np.zeros(len(arr)))
-    yaw = 0.5 * ((g("EyeLookOutLeft") - g("EyeLookInLeft")) + (g("EyeLookInRight") - g("EyeLookOutRight")))
-    pitch = 0.5 * ((g("EyeLookUpLeft") - g("EyeLookDownLeft")) + (g("EyeLookUpRight") - g("EyeLookDownRight")))
-    values[:, index["eyes_yaw"]] = np.clip(yaw, -1, 1)
-    values[:, index["eyes_pitch"]] = np.clip(pitch, -1, 1)
+    turns = {c: arr[:, j] for j, c in enumerate(cols) if c in ROTATIONS}
+    values = shape_channels(shapes, len(arr), turns)
     ignored = [s for s in shapes if s in UNSUPPORTED and np.any(shapes[s] > 0.05)]
     notes = [f"ARKit timecodes read at {rate:g} fps"]
     if ignored:

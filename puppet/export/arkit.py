@@ -1,9 +1,10 @@
 """Channel values -> ARKit's 52 blendshapes, written as a Live Link Face-style CSV.
 
-The mapping is a documented approximation (see docs/live.md): ARKit has shapes we cannot drive
-(cheekPuff, jaw sideways/forward, tongue, lip roll, funnel) and we have muscles ARKit cannot
-express (zygomaticus minor AU11, levator anguli oris AU13, age). "Left" is the face's own left,
-the `_l` side of our channels."""
+The mapping is a documented approximation (see docs/live.md): every one of the 52 shapes has a
+channel, but we have muscles ARKit cannot express (zygomaticus minor AU11, levator anguli oris
+AU13, age). MouthFunnel is written from the lower lip's eversion and MouthShrugUpper from the
+upper's (a funnel everts both), so a pose whose upper lip is everted at least as far as its lower
+one comes back as itself. "Left" is the face's own left, the `_l` side of our channels."""
 
 from __future__ import annotations
 
@@ -38,6 +39,18 @@ SIMPLE_SHAPES = {
 }
 
 
+#: ARKit's mouthClose counts against the jaw's opening (the lips meet at mouthClose = jawOpen); our
+#: lip_closure at 1 closes a jaw opened 0.25, so MouthClose = 0.25 lip_closure (and back).
+MOUTH_CLOSE_SPAN = 0.25
+#: Shapes that are one channel each (besides the sided ones above).
+ONE_CHANNEL = {
+    "JawForward": "jaw_forward", "MouthClose": "lip_closure", "MouthPucker": "incisivus",
+    "MouthFunnel": "orbicularis_oris_peripheralis_lower", "MouthShrugUpper": "orbicularis_oris_peripheralis_upper",
+    "MouthRollUpper": "orbicularis_oris_marginalis_upper", "MouthRollLower": "orbicularis_oris_marginalis_lower",
+    "MouthLeft": "mouth_shift_l", "MouthRight": "mouth_shift_r", "CheekPuff": "cheek_puff", "TongueOut": "tongue_out",
+}
+
+
 def _rule(shape: str) -> Callable[[Getter], float] | None:
     """How one ARKit shape is computed from channel values (None: we cannot express it)."""
     s = _side(shape)
@@ -56,6 +69,15 @@ def _rule(shape: str) -> Callable[[Getter], float] | None:
         return lambda g: g("jaw")
     if shape == "MouthShrugLower":
         return lambda g: g("mentalis")
+    if shape == "JawLeft":
+        return lambda g: max(0.0, g("jaw_sideways"))
+    if shape == "JawRight":
+        return lambda g: max(0.0, -g("jaw_sideways"))
+    if shape == "MouthClose":
+        return lambda g: MOUTH_CLOSE_SPAN * g("lip_closure")
+    if shape in ONE_CHANNEL:
+        name = ONE_CHANNEL[shape]
+        return lambda g: g(name)
     # gaze: +yaw looks towards the face's left: out for the left eye, in for the right one
     gaze = {
         "EyeLookOutLeft": lambda g: max(0.0, g("eyes_yaw")), "EyeLookInLeft": lambda g: max(0.0, -g("eyes_yaw")),
@@ -89,9 +111,24 @@ def timecode(frame: int, fps: float) -> str:
     return f"{hh:02d}:{mm:02d}:{ss:02d}:{ff:02d}.000"
 
 
+#: The gaze's full range (eyes_yaw, eyes_pitch = 1) as rotations in quarter turns: the renderer
+#: turns the eyes 30 degrees sideways and 20 up or down.
+EYE_YAW_TURN, EYE_PITCH_TURN = 30.0 / 90.0, 20.0 / 90.0
+
+
+def rotation_row(values: np.ndarray, index: dict[str, int]) -> list[float]:
+    """The nine rotation columns (quarter turns, as Live Link Face writes them) for one tick: the
+    head's turn on the neck and both eyes' gaze (no eye roll)."""
+    def g(name: str) -> float:
+        i = index.get(name)
+        return float(values[i]) if i is not None else 0.0
+
+    yaw, pitch = g("eyes_yaw") * EYE_YAW_TURN, g("eyes_pitch") * EYE_PITCH_TURN
+    return [g("head_yaw"), g("head_pitch"), g("head_roll"), yaw, pitch, 0.0, yaw, pitch, 0.0]
+
+
 class ArkitCsvWriter:
-    """Writes Timecode, BlendShapeCount (61), the 52 shapes, then head and eye rotations.
-    Head rotations are 0 (the face does not move its head); eye yaw/pitch are our -1..1 gaze."""
+    """Writes Timecode, BlendShapeCount (61), the 52 shapes, then head and eye rotations."""
 
     def __init__(self, path: str | Path, channel_names: list[str], fps: float) -> None:
         self.index = {n: i for i, n in enumerate(channel_names)}
@@ -104,11 +141,9 @@ class ArkitCsvWriter:
         self._csv.writerow(["Timecode", "BlendShapeCount", *ARKIT_SHAPES, *ROTATIONS])
 
     def add(self, frame: int, values: np.ndarray) -> None:
-        yaw = float(values[self.index["eyes_yaw"]]) if "eyes_yaw" in self.index else 0.0
-        pitch = float(values[self.index["eyes_pitch"]]) if "eyes_pitch" in self.index else 0.0
         shapes = arkit_row(values, self.index)
         self._csv.writerow([timecode(frame, self.fps), len(ARKIT_SHAPES) + len(ROTATIONS),
-                            *(f"{v:.6g}" for v in shapes), 0, 0, 0, yaw, pitch, 0, yaw, pitch, 0])
+                            *(f"{v:.6g}" for v in shapes), *(f"{v:.9g}" for v in rotation_row(values, self.index))])
 
     def close(self) -> None:
         if self._fh is not None:

@@ -135,10 +135,16 @@ def _export_pc2(perf: Performance, out: Path, ticks: list[int], opts: ExportOpti
             write_scan_obj(obj_tmp, rest, f"facepuppet rest pose of the scanned head (ICT FaceKit topology), "
                            f"{len(rest)} vertices in the scan's order (cm, +Y up)\n{note}")
         w = PC2Writer(pc2_tmp, len(rest), start_frame=opts.start_frame, sampling=1.0)
+        from sim.face.turn import state_turn, turn_head, turn_weights
+
+        weights = turn_weights(rest)
         try:
             with _bar(len(ticks), out.name) as bar:
                 for _, _, state, _ in iter_frames(perf, ticks):
-                    w.add(state.surface if dressing is None else posed(dressing, state))
+                    if dressing is None:  # as drawn: the head turned on the neck
+                        w.add(turn_head(state.surface, weights, *state_turn(state)))
+                    else:
+                        w.add(posed(dressing, state))
                     bar.update(1)
         finally:
             w.close()

@@ -23,10 +23,10 @@ def scan_dressing(model: Any) -> Any:
 
 
 def posed(dressing: Any, state: Any) -> np.ndarray:
-    """(26719, 3) float32: the whole scan posed to a state."""
+    """(26719, 3) float32: the whole scan posed to a state (the head turned on the neck)."""
     from sim.face.scan.blendshapes import StateControl
 
-    return dressing.pose(np.asarray(state.surface), StateControl(state))
+    return dressing.pose_turned(np.asarray(state.surface), StateControl(state), state)
 
 
 def write_scan_obj(path: str | Path, vertices: np.ndarray, comment: str = "") -> None:

@@ -140,31 +140,40 @@ class RenderFrame:
     state's scalars."""
 
     def __init__(self, interleaved: np.ndarray, time: float, eye_yaw: float, eye_pitch: float,
-                 age: float, jaw: float = 0.0, scan_rows: np.ndarray | None = None) -> None:
+                 age: float, jaw: float = 0.0, scan_rows: np.ndarray | None = None,
+                 head: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
         self.interleaved = interleaved
         self.surface = interleaved[:, :3]
         self.positions = self.surface
         self.time, self.eye_yaw, self.eye_pitch, self.age = time, eye_yaw, eye_pitch, age
         self.jaw = jaw
         self.scan_rows = scan_rows  # the scanned head posed, as render.scan_look.ScanRows makes them
+        self.head_yaw, self.head_pitch, self.head_roll = head
+
+
+_SCALARS = struct.Struct("<8d")  # time, eye yaw, eye pitch, age, jaw, head yaw, pitch, roll
 
 
 def _pack(j: int, state: Any, normals: Any, scan: Any = None) -> bytes:
-    """One frame for a render process: its number, then the interleaved rows (and the scanned
-    head's rows, posed here by `scan`, a render.scan_draw.ScanPoser) and the scalars."""
-    rows = normals.interleaved(np.ascontiguousarray(state.surface, dtype=np.float32))
+    """One frame for a render process: its number, then the interleaved rows (the head turned on
+    the neck; and the scanned head's rows, posed here by `scan`, a render.scan_draw.ScanPoser) and
+    the scalars."""
+    from render.meshdata import head_turn
+
+    turn = head_turn(state)
+    rows = normals.interleaved(np.ascontiguousarray(state.surface, dtype=np.float32), turn)
     extra = b"" if scan is None else scan.rows(state).astype("<f4", copy=False).tobytes()
-    body = rows.astype("<f4", copy=False).tobytes() + extra + struct.pack(
-        "<5d", state.time, state.eye_yaw, state.eye_pitch, state.age, getattr(state, "jaw", 0.0))
+    body = rows.astype("<f4", copy=False).tobytes() + extra + _SCALARS.pack(
+        state.time, state.eye_yaw, state.eye_pitch, state.age, getattr(state, "jaw", 0.0), *turn)
     return FRAME_HEAD.pack(j, len(body)) + body
 
 
 def _unpack_state(body: bytes, n_scan: int = 0) -> RenderFrame:
-    data = np.frombuffer(body[:-40], dtype="<f4")
+    data = np.frombuffer(body[:-_SCALARS.size], dtype="<f4")
     scan = data[len(data) - 7 * n_scan:].reshape(-1, 7) if n_scan else None
     rows = data[:len(data) - 7 * n_scan].reshape(-1, 6)
-    t, yaw, pitch, age, jaw = struct.unpack("<5d", body[-40:])
-    return RenderFrame(rows, t, yaw, pitch, age, jaw, scan)
+    t, yaw, pitch, age, jaw, *head = _SCALARS.unpack(body[-_SCALARS.size:])
+    return RenderFrame(rows, t, yaw, pitch, age, jaw, scan, (head[0], head[1], head[2]))
 
 
 def _read_exact(f: Any, n: int) -> bytes:

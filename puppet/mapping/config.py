@@ -87,7 +87,7 @@ class MappingSpec:
     name: str
     bindings: list[BindingSpec]
     combine: dict[str, str]
-    default_combine: str | None = None  # None: max, except eyes and age where the last one wins
+    default_combine: str | None = None  # None: max, except eyes, age and head where the last one wins
     radio_allow_none: dict[str, bool] = field(default_factory=dict)
     source: str = "<mapping>"
     text: str = ""

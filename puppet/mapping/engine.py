@@ -116,7 +116,7 @@ class Mapper:
             if rule is None and c.name[-2:] in ("_l", "_r"):
                 rule = spec.combine.get(c.name[:-2])
             if rule is None:
-                rule = spec.default_combine or ("last" if c.kind in ("eyes", "age") else "max")
+                rule = spec.default_combine or ("last" if c.kind in ("eyes", "age", "head") else "max")
             self.rules.append(rule)
         self.groups: dict[str, RadioGroup] = {}
         self.bindings: list[Binding] = []

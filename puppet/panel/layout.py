@@ -16,9 +16,11 @@ from puppet.mapping import MappingSpec, Vocabulary, parse_mapping
 REGIONS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("brows", ("frontalis", "corrugator", "procerus")),
     ("eyes", ("orbicularis_oculi", "levator_palpebrae", "eyes_")),
-    ("nose and cheeks", ("levator_labii", "zygomaticus", "levator_anguli", "buccinator")),
-    ("mouth", ("orbicularis_oris", "depressor", "mentalis", "risorius")),
+    ("nose and cheeks", ("levator_labii", "zygomaticus", "levator_anguli", "buccinator", "cheek_")),
+    ("mouth", ("orbicularis_oris", "depressor", "mentalis", "risorius", "incisivus", "lip_", "mouth_",
+               "tongue")),
     ("jaw", ("jaw",)),
+    ("head", ("head_",)),
 )
 PANIC, MARKER = "button:panic", "button:marker"
 EXPR_GROUP = "panel_expression"

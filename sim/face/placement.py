@@ -337,4 +337,7 @@ def place_muscles(mesh: FaceMesh) -> dict[str, tuple[Muscle, ...]]:
     out["orbicularis_oris"] = (_sphincter(
         f, "orbicularis_oris", f.skin(f.mouth_center), half_mouth + 0.7, 1.9, 0.3),
         *_lip_press(f, 1.2))
+    from sim.face.mouth_actions import mouth_actions
+
+    out.update(mouth_actions(f))
     return {name: out[name] for name in MUSCLE_CHANNELS}

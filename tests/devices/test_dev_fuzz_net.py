@@ -13,7 +13,7 @@ from netdev import osc_bundle, osc_message
 from test_dev_fuzz import edits, mutate  # the serial fuzzers' byte edits
 
 from devices.events import ControlEvent
-from devices.facestream import ARKIT_NAMES
+from devices.facestream import ARKIT_NAMES, ROTATION_NAMES
 from devices.facestream.facecap import FaceCapParser
 from devices.facestream.ifacialmocap import IFacialMocapParser
 from devices.facestream.livelink import LiveLinkParser, encode_frame
@@ -22,6 +22,7 @@ from devices.osc import PROFILES, OscDecodeError, OscParser, decode_packet
 
 FUZZ = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 ARKIT = set(ARKIT_NAMES)
+ROTATIONS = set(ROTATION_NAMES)
 
 
 def check_osc(events: list[ControlEvent], profile: str) -> None:
@@ -39,7 +40,8 @@ def check_osc(events: list[ControlEvent], profile: str) -> None:
 
 def check_arkit(events: list[ControlEvent]) -> None:
     for e in events:
-        assert e.control in ARKIT and e.kind == "axis" and 0.0 <= e.value <= 1.0
+        assert e.kind == "axis" and (e.control in ARKIT and 0.0 <= e.value <= 1.0
+                                     or e.control in ROTATIONS and -1.0 <= e.value <= 1.0)
 
 
 SAMPLES = [

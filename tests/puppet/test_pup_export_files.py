@@ -46,13 +46,15 @@ def test_arkit_csv_header_timecode_and_mapping(tmp_path: Path) -> None:
     rows = list(csv.reader(open(tmp_path / "a.csv")))
     head = rows[0]
     assert head[:3] == ["Timecode", "BlendShapeCount", "EyeBlinkLeft"] and len(head) == 2 + 52 + 9
-    assert len(ARKIT_SHAPES) == 52 and "CheekPuff" in UNSUPPORTED and "EyeWideLeft" not in UNSUPPORTED
+    assert len(ARKIT_SHAPES) == 52 and UNSUPPORTED == ()  # every shape has a channel
     r = dict(zip(head, rows[2]))
     assert r["Timecode"] == "00:00:01:01.000" and r["BlendShapeCount"] == "61"
     assert float(r["MouthSmileLeft"]) == pytest.approx(0.7) and float(r["MouthSmileRight"]) == pytest.approx(0.2)
     assert float(r["JawOpen"]) == 0.5
     assert float(r["EyeLookOutLeft"]) == pytest.approx(0.4) and float(r["EyeLookInRight"]) == pytest.approx(0.4)
     assert float(r["EyeLookDownLeft"]) == pytest.approx(0.3) and float(r["EyeLookUpLeft"]) == 0.0
+    # the eyes' rotations in quarter turns (the gaze's full range is 30 degrees sideways, 20 up/down)
+    assert float(r["LeftEyeYaw"]) == pytest.approx(0.4 / 3) and float(r["RightEyePitch"]) == pytest.approx(-0.3 * 2 / 9)
 
 
 def test_timecode_rolls_over() -> None:

@@ -98,3 +98,30 @@ def test_learn_refuses_to_touch_a_broken_file(tmp_path: Path) -> None:
 def test_learn_into_a_missing_folder_is_a_config_error(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="cannot write the mapping file"):
         learn_binding(tmp_path / "nope" / "m.toml", "dial0", "sgi://", "jaw", "dial")
+
+
+@pytest.mark.parametrize("target,event_value,want", [
+    ("head_yaw", 0.25, -0.5),  # an absolute axis 0..1 spans the channel's -1..1
+    ("incisivus", 0.6, 0.6), ("cheek_puff", 1.0, 1.0), ("jaw_sideways", 1.0, 1.0), ("tongue_out", 0.5, 0.5),
+    ("AU18", 1.0, None), ("AU28", 1.0, None)])
+def test_learn_binds_the_new_actions(tmp_path: Path, target: str, event_value: float, want: float | None) -> None:
+    """The turn, the lips' and cheeks' actions, the jaw's sideways move and their AUs can be learnt
+    onto the face's own channels."""
+    from sim.channels import CHANNEL_SPECS
+    from sim.facs import AU_TABLE, EXPRESSIONS
+    from puppet.mapping import ChannelInfo, Vocabulary
+
+    face = Vocabulary([ChannelInfo(c.name, c.kind, c.lo, c.hi, c.default) for c in CHANNEL_SPECS], AU_TABLE,
+                      EXPRESSIONS)
+    names = [c.name for c in CHANNEL_SPECS]
+    mp = tmp_path / "new.toml"
+    assert learn_binding(mp, "slider1", "mock://x", target, "axis") == "added"
+    m = Mapper(load_mapping(mp), face)
+    for x in (0.0, 0.5, 1.0, event_value):  # a learnt slider picks up where it meets the channel: sweep it
+        m.feed(ControlEvent("mock://x", "slider1", "axis", x))
+        for _ in range(240):  # past the learnt binding's smoothing
+            v = m.step(DT)
+    if want is not None:
+        assert v[names.index(target)] == pytest.approx(want, abs=0.04)  # (the learnt dead zone at the ends)
+    else:
+        assert all(v[names.index(ch)] == pytest.approx(w, abs=1e-3) for ch, w in AU_TABLE[target].items())

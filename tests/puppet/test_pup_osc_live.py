@@ -17,7 +17,6 @@ from pathlib import Path
 import pytest
 from pythonosc.osc_message_builder import OscMessageBuilder
 
-from devices.facestream import ARKIT_NAMES
 from devices.facestream.livelink import encode_frame
 from puppet.session import read_session
 
@@ -71,10 +70,7 @@ def test_touchosc_and_live_link_face_drive_the_live_face(tmp_path: Path) -> None
         [sys.executable, "-m", "puppet", "live", "--device", f"osc://127.0.0.1:{osc_port}?profile=touchosc",
          "--device", f"livelink://127.0.0.1:{ll_port}", "--headless", "--record", str(rec)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
-    weights = [0.0] * 52
-    weights[ARKIT_NAMES.index("mouthSmileLeft")] = 0.6
-    weights[ARKIT_NAMES.index("eyeLookOutLeft")] = 0.3
-    weights[ARKIT_NAMES.index("eyeLookInRight")] = 0.3
+    weights = {"mouthSmileLeft": 0.6, "eyeLookOutLeft": 0.3, "eyeLookInRight": 0.3}
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     stop = threading.Event()
 

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from devices.events import ControlEvent
-from devices.facestream import ARKIT_NAMES
+from devices.facestream import ARKIT_NAMES, ROTATION_NAMES
 from puppet.errors import ConfigError
-from puppet.export.arkit import ARKIT_SHAPES, arkit_row
+from puppet.export.arkit import ARKIT_SHAPES, arkit_row, rotation_row
 from puppet.mapping import Mapper, Vocabulary, parse_mapping
 from puppet.mapping.defaults import default_map_name, load_default_map, map_names, merge
 
@@ -115,8 +115,10 @@ def test_openstage_widgets_move_the_face(vocab: Vocabulary) -> None:
 
 
 def _arkit_events(values: np.ndarray, names: list[str]) -> list[ControlEvent]:
-    row = arkit_row(values, {n: i for i, n in enumerate(names)})
-    return [axis(shape[0].lower() + shape[1:], w, LIVE) for shape, w in zip(ARKIT_SHAPES, row)]
+    index = {n: i for i, n in enumerate(names)}
+    row = arkit_row(values, index)
+    turns = [axis(n, v, LIVE) for n, v in zip(ROTATION_NAMES, rotation_row(values, index))]
+    return [axis(shape[0].lower() + shape[1:], w, LIVE) for shape, w in zip(ARKIT_SHAPES, row)] + turns
 
 
 def test_arkit_map_is_the_inverse_of_the_export(vocab: Vocabulary) -> None:
@@ -140,6 +142,14 @@ def test_arkit_map_is_the_inverse_of_the_export(vocab: Vocabulary) -> None:
             values[names.index(ch)] = rng.uniform(0, 1)
         values[names.index("eyes_yaw")] = rng.uniform(-1, 1)
         values[names.index("eyes_pitch")] = rng.uniform(-1, 1)
+        for ch in ("head_yaw", "head_pitch", "head_roll", "jaw_sideways"):
+            values[names.index(ch)] = rng.uniform(-0.8, 0.8)
+        for ch in ("jaw_forward", "lip_closure", "incisivus", "orbicularis_oris_marginalis_upper",
+                   "orbicularis_oris_marginalis_lower", "mouth_shift_l", "mouth_shift_r", "cheek_puff", "tongue_out",
+                   "orbicularis_oris_peripheralis_lower"):
+            values[names.index(ch)] = rng.uniform(0, 0.7)
+        # a funnel everts both lips: a pose comes back whole when the upper lip is everted at least as far
+        values[names.index("orbicularis_oris_peripheralis_upper")] = rng.uniform(0.7, 1.0)
         m = Mapper(merge([(load_default_map("arkit"), LIVE)]), vocab)
         back = run(m, _arkit_events(values, names))
         for i, n in enumerate(names):

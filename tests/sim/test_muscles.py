@@ -13,7 +13,7 @@ from sim.build import FaceModel, compile_model
 from sim.channels import CHANNEL_SPECS
 from sim.integrator import Simulator
 from sim.face.placement import place_muscles
-from sim.model import FaceMesh, FaceRig, LinearMuscle, SheetMuscle, SphincterMuscle
+from sim.model import FaceMesh, FaceRig, LinearMuscle, PatchMuscle, SheetMuscle, SphincterMuscle
 from sim.muscles import (
     angle_falloff,
     length_falloff,
@@ -106,7 +106,8 @@ def test_field_scales_with_node_area() -> None:
 def test_placement_types_match_the_channels(synth_rig: FaceRig) -> None:
     """A channel's first part is of its declared type; further parts may be of another (the
     mouth's ring is joined by the linear fibres that press the lips, sim.face.placement)."""
-    kinds = {"linear": LinearMuscle, "sphincter": SphincterMuscle, "sheet": SheetMuscle}
+    kinds = {"linear": LinearMuscle, "sphincter": SphincterMuscle, "sheet": SheetMuscle, "patch": PatchMuscle,
+             "pressure": PatchMuscle}
     for spec in CHANNEL_SPECS:
         if spec.kind == "muscle":
             parts = synth_rig.muscles[spec.name]
@@ -124,6 +125,9 @@ def test_placement_is_mirror_symmetric(synth_rig: FaceRig) -> None:
             left, right = _points(parts[0]), _points(synth_rig.muscles[name[:-2] + "_r"][0])
             if isinstance(parts[0], SphincterMuscle):
                 left, right = left[:1], right[:1]  # the axes are not mirrored, only the centre
+            if isinstance(parts[0], PatchMuscle):  # centre and direction mirror, the semi-axes are sizes
+                assert np.allclose(parts[0].semi_axes, synth_rig.muscles[name[:-2] + "_r"][0].semi_axes), name
+                left, right = left[[0, 2]], right[[0, 2]]
             assert np.allclose(left * flip, right, atol=1e-9), name
 
 
@@ -133,6 +137,9 @@ def test_placement_follows_the_landmarks_of_a_scaled_head(synth_rig: FaceRig) ->
                               jaw_pivot=mesh.jaw_pivot * 1.2, eye_radius=mesh.eye_radius * 1.2)
     placed = place_muscles(big)
     for name, parts in synth_rig.muscles.items():
+        if isinstance(parts[0], PatchMuscle):  # a direction does not grow with the head
+            assert np.allclose(_points(placed[name][0]), _points(parts[0]) * [[1.2], [1.2], [1.0]], atol=1e-9)
+            continue
         assert np.allclose(_points(placed[name][0]), _points(parts[0]) * np.where(
             np.abs(_points(parts[0])) == 1.0, 1.0, 1.2) if isinstance(parts[0], SphincterMuscle)
             else _points(parts[0]) * 1.2, atol=1e-9), name

@@ -23,6 +23,8 @@ gives all 26719 vertices in the scan's order.
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -162,17 +164,27 @@ class ScanDressing:
                 out[idx] = (self.rest[idx] - c) @ r.T + c
         return out.astype(np.float32)
 
+    @cached_property
+    def turn_weights(self) -> FloatArray:
+        """(26719,) each rest point's share of a head turn: all of it above the neck's top, none
+        at its base (sim.face.turn)."""
+        from sim.face.turn import turn_weights
+
+        return turn_weights(self.rest, self.neck_top_y, self.neck_base_y)
+
     def turn_head(self, points: FloatArray, yaw: float = 0.0, pitch: float = 0.0, roll: float = 0.0) -> FloatArray:
-        """`points` (26719,3) turned rigidly about the neck pivot by yaw (about +Y, towards the
-        face's left), pitch (about +X, nodding down) and roll (about +Z), in rad; the neck takes a
-        share fading from 1 at the pivot's height to 0 at its base. Zero angles return the input."""
-        if not (yaw or pitch or roll):
-            return points
-        p = np.asarray(points, dtype=np.float64)
-        r = rotation(yaw, pitch, roll)
-        turned = (p - self.neck_pivot) @ r.T + self.neck_pivot
-        w = _smoothstep((p[:, 1] - self.neck_base_y) / (self.neck_top_y - self.neck_base_y))[:, None]
-        return (p + w * (turned - p)).astype(np.asarray(points).dtype)
+        """`points` (26719,3) turned with the head by the head_yaw/pitch/roll channel values (1 = a
+        quarter turn; signs as sim.face.turn's) about this head's neck pivot, the neck taking a
+        share fading down to its base. Zero angles return the input."""
+        from sim.face.turn import turn_head
+
+        return turn_head(points, self.turn_weights, yaw, pitch, roll, pivot=self.neck_pivot)
+
+    def pose_turned(self, surface: FloatArray, control: Any, state: Any) -> FloatArray:
+        """`pose`, then the head turned as the state's head channels say (what is drawn and exported)."""
+        from sim.face.turn import state_turn
+
+        return self.turn_head(self.pose(surface, control), *state_turn(state))
 
 
 def _bind(points: FloatArray, skin_pts: FloatArray, tris: np.ndarray) -> tuple[np.ndarray, FloatArray, FloatArray]:

@@ -16,7 +16,7 @@ from sim.build import vertex_normals
 from sim.face.scan.anatomy import load_landmarks, skin_layout
 from sim.face.scan.data import PARTS, scan_data
 from sim.face.scan.rig import FORCE, FORCE_OF, RIG_FILE, _lid_sphere, _r, scan_points
-from sim.model import FaceMesh, FaceRig, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+from sim.model import FaceMesh, FaceRig, LinearMuscle, Muscle, PatchMuscle, SheetMuscle, SphincterMuscle
 
 
 class _Back:
@@ -42,6 +42,10 @@ class _Back:
         if isinstance(m, SphincterMuscle):
             return SphincterMuscle(m.name, self.point(m.center), self.direction(m.major_axis),
                                    self.direction(m.minor_axis), self.length(m.a), self.length(m.b), float(_r(m.scale)))
+        if isinstance(m, PatchMuscle):  # a zero direction (a pressure along the normal) stays zero
+            d = self.direction(m.direction) if np.any(m.direction) else np.zeros(3)
+            return PatchMuscle(m.name, self.point(m.center), _r(np.asarray(m.semi_axes, float) / self.s.scale), d,
+                               float(_r(m.scale)))
         assert isinstance(m, SheetMuscle)
         return SheetMuscle(m.name, self.point(m.attach1), self.point(m.attach2), self.point(m.insert1),
                            self.point(m.insert2), self.length(m.length), self.length(m.width), float(_r(m.eta)),

@@ -23,7 +23,7 @@ import numpy as np
 from sim.build import SkinParams
 from sim.face.scan.anatomy import skin_layout
 from sim.face.scan.data import N_IDENTITIES, PARTS, SCLERA, scan_data
-from sim.model import FaceRig, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+from sim.model import FaceRig, LinearMuscle, Muscle, PatchMuscle, SheetMuscle, SphincterMuscle
 
 RIG_FILE = Path(__file__).with_name("ict_rig.npz")  # the generic head's rig (sim.face.scan.make_rig)
 
@@ -123,6 +123,8 @@ def _carry_muscle(m: Muscle, tree, disp: np.ndarray, s: float) -> Muscle:  # typ
         return replace(m, attachment=pt(m.attachment), insertion=pt(m.insertion), radius=float(_r(m.radius * s)))
     if isinstance(m, SphincterMuscle):
         return replace(m, center=pt(m.center), a=float(_r(m.a * s)), b=float(_r(m.b * s)))
+    if isinstance(m, PatchMuscle):
+        return replace(m, center=pt(m.center), semi_axes=_r(np.asarray(m.semi_axes, float) * s))
     assert isinstance(m, SheetMuscle)
     return replace(m, attach1=pt(m.attach1), attach2=pt(m.attach2), insert1=pt(m.insert1), insert2=pt(m.insert2),
                    length=float(_r(m.length * s)), width=float(_r(m.width * s)))

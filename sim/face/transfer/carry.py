@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.model import LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+from sim.model import LinearMuscle, Muscle, PatchMuscle, SheetMuscle, SphincterMuscle
 from sim.face.transfer.geometry import closest_points, triangle_normals, vertex_normals
 
 FloatArray = np.ndarray
@@ -127,6 +127,15 @@ def carry_muscle(m: SurfaceMap, muscle: Muscle) -> Muscle:
             np.linalg.norm(pts[1] - pts[0]) + np.linalg.norm(pts[3] - pts[2]), 1e-12)
         return SheetMuscle(muscle.name, a1, a2, i1, i2, muscle.length * float(along),
                            muscle.width * float(across), muscle.eta, muscle.scale)
+    if isinstance(muscle, PatchMuscle):
+        c = np.asarray(muscle.center, float)
+        sx, sy = float(muscle.semi_axes[0]), float(muscle.semi_axes[1])
+        pts = np.stack([c, c + [sx, 0.0, 0.0], c - [sx, 0.0, 0.0], c + [0.0, sy, 0.0], c - [0.0, sy, 0.0]])
+        c2, xa, xb, ya, yb = m.points(pts)
+        kx = float(np.linalg.norm(xa - xb)) / (2.0 * sx)
+        ky = float(np.linalg.norm(ya - yb)) / (2.0 * sy)
+        axes = np.asarray(muscle.semi_axes, float) * np.array([kx, ky, 0.5 * (kx + ky)])
+        return PatchMuscle(muscle.name, c2, axes, np.asarray(muscle.direction, float), muscle.scale)
     raise TypeError(f"unknown muscle type {type(muscle).__name__}")
 
 
@@ -134,7 +143,7 @@ def muscle_points(muscle: Muscle) -> FloatArray:
     """The defining points of a muscle, for comparisons and reports."""
     if isinstance(muscle, LinearMuscle):
         return np.stack([muscle.attachment, muscle.insertion])
-    if isinstance(muscle, SphincterMuscle):
+    if isinstance(muscle, (SphincterMuscle, PatchMuscle)):
         return np.asarray(muscle.center, float)[None]
     return np.stack([muscle.attach1, muscle.attach2, muscle.insert1, muscle.insert2])
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.model import LinearMuscle, SheetMuscle, SphincterMuscle
+from sim.model import LinearMuscle, PatchMuscle, SheetMuscle, SphincterMuscle
 from sim.face.transfer.cylinder import Cylinder
 from sim.face.transfer.pipeline import Transfer
 
@@ -20,7 +20,7 @@ def format_report(t: Transfer, mesh_path: str, landmarks_path: str, seconds: flo
     """Markdown: scale and orientation found, cylinder fits, relaxation, landmark distances,
     what was transferred and anything suspicious."""
     rig, m = t.rig, t.rig.mesh
-    kinds = {"linear": LinearMuscle, "sphincter": SphincterMuscle, "sheet": SheetMuscle}
+    kinds = {"linear": LinearMuscle, "sphincter": SphincterMuscle, "sheet": SheetMuscle, "patch": PatchMuscle}
     parts = [p for ps in rig.muscles.values() for p in ps]
     count = {k: sum(isinstance(p, c) for p in parts) for k, c in kinds.items()}
     angle = np.degrees(np.arccos(np.clip((np.trace(t.similarity.rotation) - 1) / 2, -1, 1)))

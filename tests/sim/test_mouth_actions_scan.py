@@ -1,0 +1,34 @@
+"""The lips' and cheeks' actions on the scanned head (rigged by transfer): pucker narrows the mouth
+and brings the lips forward, the sideways shift carries the lips to that side, the puff pushes the
+cheeks out, a pressure patch carried into the scan's frame keeps pushing along the skin's normal."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim.model import PatchMuscle
+
+
+@pytest.fixture(scope="module")
+def scan():  # type: ignore[no-untyped-def]
+    from puppet.face_cache import scan_model
+    from sim.fit.basis import Settler
+
+    model = scan_model()
+    return model, Settler(model, max_seconds=2.0)
+
+
+def test_new_actions_on_the_scanned_head(scan) -> None:  # type: ignore[no-untyped-def]
+    model, settler = scan
+    lm = model.mesh.landmarks
+    puff = model.rig.muscles["cheek_puff"]
+    assert all(isinstance(p, PatchMuscle) and not np.any(p.direction) for p in puff)  # still a pressure
+    pucker = (settler.pose(settler.values_for({"incisivus": 1.0})) - settler.rest) * 10.0
+    assert pucker[lm["mouth_corner_l"], 0] < -2.0 and pucker[lm["mouth_corner_r"], 0] > 2.0
+    assert pucker[lm["upper_lip_center"], 2] > 2.0
+    left = (settler.pose(settler.values_for({"mouth_shift_l": 1.0})) - settler.rest) * 10.0
+    assert left[lm["upper_lip_center"], 0] > 2.0 and left[lm["lower_lip_center"], 0] > 2.0
+    cheeks = (settler.pose(settler.values_for({"cheek_puff": 1.0})) - settler.rest) * 10.0
+    out = np.einsum("ij,ij->i", cheeks, model.rest_normal)
+    assert out.max() > 3.0 and out.min() > -2.0
