@@ -61,4 +61,9 @@ def take_audio(session: Any) -> Path | None:
     if not isinstance(name, str) or "/" in name or "\\" in name or not name.lower().endswith(".wav"):
         return None
     path = Path(session.path).parent / name
-    return path if path.is_file() else None
+    if path.is_file():
+        return path
+    elsewhere = entries[0].get("path")  # `puppet fit speech.wav` names the WAV where it is
+    if isinstance(elsewhere, str) and elsewhere.lower().endswith(".wav") and Path(elsewhere).is_file():
+        return Path(elsewhere)
+    return None

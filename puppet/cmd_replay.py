@@ -73,6 +73,10 @@ def run(args: argparse.Namespace) -> int:
         fps = args.fps if args.fps is not None else (30.0 if kind in ("mp4", "frames", "png") else perf.rate)
         opts = ExportOptions(fps=fps, start=args.start, end=args.end, speed=args.speed, view=args.view,
                              size=args.size, supersample=args.supersample, crf=args.crf)
+        if session is not None:
+            from puppet.audio_take import take_audio
+
+            opts.sound = take_audio(session)
         print(f"puppet: {export(perf, args.out, opts)}")
         return 0
     if not args.headless and live.display_available():

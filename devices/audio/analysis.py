@@ -232,6 +232,22 @@ class VoiceAnalyzer:
         return self._names[int(np.argmax(self._weights(mfcc)))]
 
 
+#: Smallest change of a control that is sent as an event (values are 0..1).
+STEP = 1.0 / 512
+
+
+def changes(sent: list[float], values: tuple[float, ...]) -> list[int]:
+    """Indices of the controls worth an event now (changed by STEP, or reaching exactly 0 or 1);
+    `sent` is updated to what was sent. The live device and `puppet fit` send the same events."""
+    out = []
+    for i, v in enumerate(values):
+        old = sent[i]
+        if v != old and (abs(v - old) >= STEP or v == 0.0 or v == 1.0):
+            sent[i] = v
+            out.append(i)
+    return out
+
+
 def _follow(cur: float, target: float, up: float, down: float) -> float:
     """One attack/release step toward `target`; below 0.005 a release snaps to exactly 0 (a mouth at
     rest sends nothing more)."""

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from devices.audio.analysis import CONTROLS, AnalyzerSettings, VoiceAnalyzer
+from devices.audio.analysis import CONTROLS, AnalyzerSettings, VoiceAnalyzer, changes
 from devices.audio.profile import VoiceProfile, load_profile
 from devices.audio.recorder import AudioRecorder
 from devices.audio.sources import make_source
@@ -42,8 +42,6 @@ APIS = ("alsa", "jack", "pulse")
 PRESENCE_CHECK = 0.25
 #: Do not rebuild PortAudio's device list more often than this while an input is missing.
 RESCAN_S = 1.0
-#: Smallest change of a control that is sent (values are 0..1).
-STEP = 1.0 / 512
 #: How fast the capture-clock estimate may move later (audio and system clocks drift apart).
 DRIFT = 2e-4
 PREFERRED_RATE = 48000
@@ -238,11 +236,8 @@ class AudioDevice(Device):
         sent = self._sent
         for fr in frames:
             t = offset + fr.t
-            for i, v in enumerate(fr.values):
-                old = sent[i]
-                if v != old and (abs(v - old) >= STEP or v == 0.0 or v == 1.0):
-                    sent[i] = v
-                    events.append(ControlEvent(self.spec, CONTROLS[i], "axis", v, None, None, t))
+            for i in changes(sent, fr.values):
+                events.append(ControlEvent(self.spec, CONTROLS[i], "axis", fr.values[i], None, None, t))
             if self.timing is not None:
                 self.timing.append((t, time.monotonic()))
         if frames:
