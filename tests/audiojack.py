@@ -37,7 +37,10 @@ class Voice:
             self.lines.put(line.strip())
 
     def play(self, path: str | Path) -> None:
+        """Queue a file; `wait_done` then waits for the end of the last file queued."""
         assert self.proc is not None and self.proc.stdin is not None
+        while not self.lines.empty():  # what earlier files said
+            self.lines.get_nowait()
         self.proc.stdin.write(f"play {path}\n")
         self.proc.stdin.flush()
 
@@ -65,7 +68,7 @@ class Voice:
 
 
 def speech_wav(path: Path, parts: list[tuple[str, float]], rate: int = 48000, noise_db: float | None = None,
-               seed: int = 1) -> list[tuple[float, float]]:
+               seed: int = 1, voice: str = "en-us") -> list[tuple[float, float]]:
     """Write a WAV of espeak-ng sounds, each followed by the given seconds of silence (and, with
     `noise_db`, one second of white noise at that RMS level at the end). Returns each sound's
     (start, end) in seconds from the file's start."""
@@ -78,7 +81,7 @@ def speech_wav(path: Path, parts: list[tuple[str, float]], rate: int = 48000, no
 
     chunks, spans, t = [np.zeros(int(0.3 * rate))], [], 0.3
     for text, gap in parts:
-        x, r = synthesize(text, speed=80)
+        x, r = synthesize(text, speed=80, voice=voice)
         g = gcd(rate, r)
         x = resample_poly(x, rate // g, r // g)
         spans.append((t, t + len(x) / rate))

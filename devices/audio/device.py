@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
@@ -94,6 +94,8 @@ class AudioDevice(Device):
         self._stamp: tuple[float, int] | None = None
         self._source: Any = None
         self.recorder: AudioRecorder | None = None
+        #: called from the reader thread with every block and its capture time (`puppet learn`)
+        self.tap: Callable[[np.ndarray, float], None] | None = None
         #: the newest frame's values (level first) and level in dBFS, for the page and the HUD
         self.values: tuple[float, ...] = (0.0,) * len(CONTROLS)
         self.db = -200.0
@@ -230,6 +232,9 @@ class AudioDevice(Device):
         rec = self.recorder
         if rec is not None:
             rec.push(block, offset + n0 / rate)
+        tap = self.tap
+        if tap is not None:
+            tap(block, offset + n0 / rate)
         assert self._analyzer is not None
         frames = self._analyzer.feed(block, n0 / rate)
         events: list[ControlEvent] = []

@@ -189,3 +189,56 @@ def _best_lag(rec: np.ndarray, played: np.ndarray) -> int:
 
     c = correlate(rec, played, mode="valid", method="fft")
     return int(np.argmax(c))
+
+
+def test_puppet_learn_records_a_voice_profile_the_device_then_uses(jack_server: str, tmp_path: Path) -> None:  # noqa: F811
+    import re
+
+    from devices.audio.profile import load_profile
+
+    sounds = {"A": "[[A:]]", "I": "[[i:]]", "U": "[[u:]]", "E": "[[E]]", "O": "[[o:]]", "M": "[[mmmm]]"}
+    wavs = {}
+    for name, text in sounds.items():
+        wavs[name] = tmp_path / f"{name}.wav"
+        speech_wav(wavs[name], [(text, 0.1)], voice="en-us+f4")
+    profile = tmp_path / "me.json"
+    voice = Voice().plug()
+    learn = subprocess.Popen([sys.executable, "-m", "puppet", "learn", "--device", "audio://voice?api=jack",
+                              "--profile", str(profile)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, bufsize=1)
+    asked = []
+    try:
+        assert learn.stdout is not None and learn.stdin is not None
+        for line in learn.stdout:
+            m = re.match(r"([AIUEOM]): .*press Enter", line)
+            if m:
+                asked.append(m.group(1))
+                learn.stdin.write("\n")
+                learn.stdin.flush()
+                time.sleep(0.3)
+                voice.play(wavs[m.group(1)])
+        learn.wait(60)
+    finally:
+        if learn.poll() is None:
+            learn.kill()
+            learn.wait(10)
+    assert learn.returncode == 0, learn.stderr.read() if learn.stderr else ""
+    assert asked == ["A", "I", "U", "E", "O", "M"]
+    prof = load_profile(profile)
+    assert set(prof.templates) >= set(sounds) and prof.gate_db is not None
+    # the learnt voice speaks again, through the device with its profile: the mouth follows
+    seq = tmp_path / "seq.wav"
+    speech_wav(seq, PARTS, voice="en-us+f4")
+    dev = open_device(f"audio://voice?api=jack&profile={profile}")
+    got: list[object] = []
+    dev.add_listener(got.append)
+    dev.start()
+    try:
+        wait_connected(jack_server, "voice:out_1")
+        voice.play(seq)
+        voice.wait_done()
+        time.sleep(0.6)
+    finally:
+        dev.close()
+        voice.close()
+    check_mouth(segments([(e.t, e.control, e.value) for e in got if isinstance(e, ControlEvent)]))
