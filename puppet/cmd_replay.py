@@ -82,7 +82,10 @@ def run(args: argparse.Namespace) -> int:
     if not args.headless and live.display_available():
         from puppet.live import run_replay_window
 
-        return run_replay_window(perf, start=args.start, end=args.end, speed=args.speed, view=args.view)
+        from puppet.audio_take import take_audio
+
+        sound = take_audio(session) if session is not None else None
+        return run_replay_window(perf, start=args.start, end=args.end, speed=args.speed, view=args.view, sound=sound)
     rp = Replayer(perf)
     end_tick = perf.ticks if args.end is None else min(perf.ticks, int(round(args.end * perf.rate)))
     rp.seek(end_tick)

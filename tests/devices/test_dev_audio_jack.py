@@ -242,3 +242,38 @@ def test_puppet_learn_records_a_voice_profile_the_device_then_uses(jack_server: 
         dev.close()
         voice.close()
     check_mouth(segments([(e.t, e.control, e.value) for e in got if isinstance(e, ControlEvent)]))
+
+
+def test_replay_plays_the_takes_sound_where_there_is_an_output(jack_server: str, speech) -> None:  # noqa: F811
+    """The window replay's player (puppet.sound_out) on PortAudio's JACK output, heard by a JACK
+    client of the test: the sound plays while the replay plays, and is silent while paused."""
+    import jack
+
+    from puppet.sound_out import TakeSound
+
+    path, spans = speech
+    player = TakeSound(path)
+    assert player.available
+    ear = jack.Client("ear", no_start_server=True)
+    port = ear.inports.register("in")
+    heard: list[np.ndarray] = []
+    ear.set_process_callback(lambda n: heard.append(port.get_array().copy()))
+    ear.activate()
+    try:
+        ear.connect(next(p.name for p in ear.get_ports("PortAudio", is_output=True)), port)
+        for _ in range(30):  # paused at the first vowel
+            player.sync(spans[0][0] + 0.1, 1.0, False)
+            time.sleep(1 / 60)
+        paused = np.concatenate(heard) if heard else np.zeros(1)
+        heard.clear()
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 1.0:  # playing from the first vowel on
+            player.sync(spans[0][0] + time.monotonic() - t0, 1.0, True)
+            time.sleep(1 / 60)
+    finally:
+        player.close()
+        ear.deactivate()
+        ear.close()
+    played = np.concatenate(heard)
+    assert np.max(np.abs(paused)) == 0.0
+    assert np.sqrt(np.mean(played ** 2)) > 0.02
