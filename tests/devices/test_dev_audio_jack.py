@@ -277,3 +277,47 @@ def test_replay_plays_the_takes_sound_where_there_is_an_output(jack_server: str,
     played = np.concatenate(heard)
     assert np.max(np.abs(paused)) == 0.0
     assert np.sqrt(np.mean(played ** 2)) > 0.02
+
+
+def test_the_device_survives_a_jack_server_restart(jack_server: str, speech, monkeypatch: pytest.MonkeyPatch) -> None:  # noqa: F811
+    """The JACK server goes down and comes back under the same name: `puppet monitor` (its own
+    process) reports lost, then connected, and the voice moves the mouth again."""
+    import json
+    import os
+
+    from midijack import start_jackd, stop_jackd
+
+    path, _ = speech
+    name = f"fpaudio{os.getpid()}"
+    monkeypatch.setenv("JACK_DEFAULT_SERVER", name)
+    server = start_jackd(name)
+    voice = Voice().plug()
+    mon = subprocess.Popen([sys.executable, "-m", "puppet", "monitor", "audio://voice?api=jack", "--json",
+                            "--duration", "60"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    lines: list[dict] = []
+
+    def until(pred: object, timeout: float = 30.0) -> None:
+        assert mon.stdout is not None
+        deadline = time.monotonic() + timeout
+        while not pred(lines):  # type: ignore[operator]
+            assert time.monotonic() < deadline, lines[-5:]
+            line = mon.stdout.readline()
+            assert line, f"monitor ended; got {lines[-5:]}"
+            lines.append(json.loads(line))
+
+    try:
+        until(lambda ls: any(x.get("status") == "connected" for x in ls))
+        voice.unplug()
+        stop_jackd(server)
+        until(lambda ls: ls[-1].get("status") == "lost")
+        server = start_jackd(name)
+        voice.plug()
+        wait_connected(name, "voice:out_1")
+        voice.play(path)
+        until(lambda ls: any(x.get("control") == "jaw" and x["value"] > 0.3 for x in ls))
+        assert [x.get("status") for x in lines if "status" in x] == ["connected", "lost", "connected"]
+    finally:
+        mon.kill()
+        mon.wait(10)
+        voice.close()
+        stop_jackd(server)
