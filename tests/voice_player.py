@@ -2,7 +2,8 @@
 output port that plays WAV files on command, the way a microphone is another program's port.
 
 stdin:  ``play PATH`` (queued after what is playing), ``quit`` (the client goes: an unplug).
-stdout: ``ready``, then per file ``start FRAME`` (the JACK frame of its first sample) and ``done``.
+stdout: ``ready``, then per file ``start FRAME MONO OFFSET PERIOD`` (the JACK frame of its first sample,
+the monotonic time its cycle began, its place in that cycle's block, the block's length) and ``done``.
 Samples are resampled to the server's rate; nothing is played between files (digital silence)."""
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import queue
 import sys
 import threading
+import time
 
 import jack
 import numpy as np
@@ -28,6 +30,7 @@ def main() -> int:
 
     @client.set_process_callback
     def process(frames: int) -> None:
+        now = time.monotonic()  # this cycle's block is handed over now
         out = port.get_array()
         out[:] = 0.0
         filled = 0
@@ -37,7 +40,7 @@ def main() -> int:
                 try:
                     cur = state["cur"] = todo.get_nowait()
                     state["pos"] = 0
-                    notes.put(f"start {client.last_frame_time + filled}")
+                    notes.put(f"start {client.last_frame_time + filled} {now:.6f} {filled} {frames}")
                 except queue.Empty:
                     return
             pos = state["pos"]

@@ -93,6 +93,7 @@ class AudioDevice(Device):
         self._w = self._r = 0
         self._stamp: tuple[float, int] | None = None
         self._source: Any = None
+        self._fresh = True
         self.recorder: AudioRecorder | None = None
         #: called from the reader thread with every block and its capture time (`puppet learn`)
         self.tap: Callable[[np.ndarray, float], None] | None = None
@@ -136,6 +137,7 @@ class AudioDevice(Device):
             self._analyzer.reset()
         self._n = 0
         self._offset = None
+        self._fresh = True
         self._next_check = time.monotonic() + PRESENCE_CHECK
         self.description = f"voice on audio input {source.name!r} ({self.api.upper()}, {self._rate:g} Hz)"
 
@@ -204,10 +206,12 @@ class AudioDevice(Device):
         """Samples r..w of the ring (the oldest are skipped if the reader fell a whole ring behind)."""
         ring = self._ring
         size = ring.shape[0]
-        if w - r > size:
-            self.warnings.warn("overrun", f"the analysis fell {(w - r - size) / self._rate:.2f} s behind; skipped")
+        if w - r > size:  # (before the first read after opening, the ring just waited for start())
+            if not self._fresh:
+                self.warnings.warn("overrun", f"the analysis fell {(w - r - size) / self._rate:.2f} s behind; skipped")
             self._n += w - r - size
             r = w - size
+        self._fresh = False
         self._r = w
         i, j = r % size, w % size
         if i < j:
