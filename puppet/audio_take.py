@@ -40,10 +40,13 @@ def clock_hook(recs: list[tuple[Any, Any]]) -> Any:
     return hook
 
 
-def finish(recs: list[tuple[Any, Any]]) -> None:
-    """Close every WAV (moved into place) and say where the sound went."""
+def finish(recs: list[tuple[Any, Any]], seconds: float | None = None) -> None:
+    """Close every WAV (moved into place), each as long as the take (`seconds`), and say where the
+    sound went. The readers get a moment to hand over the blocks captured before the last tick."""
+    if recs:
+        time.sleep(0.1)
     for dev, rec in recs:
-        path = dev.stop_recording()
+        path = dev.stop_recording(seconds)
         if path is None:
             err = rec.writer.error
             print(f"puppet: warning: the sound of {dev.spec} could not be written"

@@ -359,7 +359,7 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
             watcher.close()
         if writer is not None:
             writer.close(core.tick_count)
-        audio_take.finish(sound)
+        audio_take.finish(sound, core.tick_count / core.rate if sound else None)
     p50, p99 = core.latency.percentile(50), core.latency.percentile(99)
     lat = f"; input-to-frame latency p50 {p50 * 1e3:.1f} ms, p99 {p99 * 1e3:.1f} ms" if p50 is not None else ""
     where = f" to {record}" if record else ""

@@ -261,11 +261,12 @@ class AudioDevice(Device):
         self.recorder = AudioRecorder(path, int(rate or round(self._rate)))
         return self.recorder
 
-    def stop_recording(self) -> str | None:
+    def stop_recording(self, until: float | None = None) -> str | None:
+        """Finish the WAV (ending at timeline position `until`, if given); its path, or None."""
         rec, self.recorder = self.recorder, None
         if rec is None:
             return None
-        out = rec.close()
+        out = rec.close(until)
         return None if out is None else str(out)
 
     def close(self) -> None:

@@ -80,7 +80,13 @@ class AudioRecorder:
                 block = block[-gap:]  # already covered (or before position 0)
         w.write(block)
 
-    def close(self) -> Path | None:
-        """Finish the file (renamed into place); its path, or None when writing failed."""
+    def close(self, until: float | None = None) -> Path | None:
+        """Finish the file (renamed into place); its path, or None when writing failed. With
+        `until` (a timeline position, seconds) the file ends exactly there: silence is added for
+        sound that never came (an input lost at the end), and what came after is cut."""
         with self._lock:
+            if until is not None:
+                end = int(round(until * self.rate))
+                self.writer.write_silence(end - self.writer.frames)
+                self.writer.truncate(end)
             return self.writer.close()

@@ -123,6 +123,18 @@ class WavWriter:
         if n > 0:
             self.write(np.zeros(n))
 
+    def truncate(self, frames: int) -> None:
+        """Keep only the first `frames` frames."""
+        if self._f is None or frames >= self.frames:
+            return
+        try:
+            self._f.seek(44 + 2 * max(0, frames))
+            self._f.truncate()
+            self.frames = max(0, frames)
+        except OSError as err:
+            self.error = err
+            self._abandon()
+
     def _patch_header(self) -> None:
         assert self._f is not None
         here = self._f.tell()

@@ -145,8 +145,13 @@ def test_recorder_places_blocks_on_the_callers_clock(tmp_path) -> None:
     rec.push(block * 0.2, 10.0)
     rec.push(block * 0.3, 10.1)
     rec.push(block * 0.4, 10.5)  # a gap (an unplugged input): silence keeps the timeline
-    rec.close()
+    rec.close(until=0.7)  # the take ended at 0.7 s: the file is exactly that long
     y, _ = read_wav(tmp_path / "r.wav")
-    assert len(y) == 4800
+    assert len(y) == 5600
     assert np.allclose(y[:800], 0.2, atol=1e-3) and np.allclose(y[800:1600], 0.3, atol=1e-3)
-    assert np.all(y[1600:4000] == 0) and np.allclose(y[4000:], 0.4, atol=1e-3)
+    assert np.all(y[1600:4000] == 0) and np.allclose(y[4000:4800], 0.4, atol=1e-3) and np.all(y[4800:] == 0)
+    cut = AudioRecorder(tmp_path / "c.wav", rate)
+    cut.clock(0.0, 10.0)
+    cut.push(block, 10.0)
+    cut.close(until=0.05)
+    assert len(read_wav(tmp_path / "c.wav")[0]) == 400
