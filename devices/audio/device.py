@@ -40,9 +40,8 @@ from safefile import BadFile
 APIS = ("alsa", "jack", "pulse")
 #: Seconds between checks that the input is still there.
 PRESENCE_CHECK = 0.25
-#: Do not rebuild PortAudio's device list more often than this while an input is missing.
-RESCAN_S = 1.0
-#: How fast the capture-clock estimate may move later (audio and system clocks drift apart).
+#: How fast the capture-clock estimate (the earliest arrival seen) may move later: audio and
+#: system clocks drift apart by far less than this.
 DRIFT = 2e-4
 PREFERRED_RATE = 48000
 #: Seconds of input the ring between PortAudio's thread and the reader holds.
@@ -87,6 +86,7 @@ class AudioDevice(Device):
         self._n = 0
         self._offset: float | None = None
         self._last_read = 0.0
+        self._frame0: int | None = None
         self._latency = 0.0
         self._sent = [0.0] * len(CONTROLS)
         self._ring = np.zeros(1, dtype=np.float32)
@@ -137,6 +137,7 @@ class AudioDevice(Device):
             self._analyzer.reset()
         self._n = 0
         self._offset = None
+        self._frame0 = None
         self._fresh = True
         self._next_check = time.monotonic() + PRESENCE_CHECK
         self.description = f"voice on audio input {source.name!r} ({self.api.upper()}, {self._rate:g} Hz)"
@@ -163,8 +164,24 @@ class AudioDevice(Device):
     def _wake(self) -> None:
         self._woken = True
 
-    def _deliver(self, block: np.ndarray) -> None:
-        """The audio system's thread: copy the block into the ring and note the time; nothing else."""
+    def _deliver(self, block: np.ndarray, frame: int | None = None) -> None:
+        """The audio system's thread: copy the block into the ring and note the time; nothing else.
+        `frame` (JACK: the cycle's frame counter) reveals cycles that were dropped (an XRun): their
+        place is kept with silence, so the stream position stays on the audio clock."""
+        if frame is not None:
+            if self._frame0 is None:
+                self._frame0 = frame - self._w
+            gap = frame - (self._frame0 + self._w)
+            if 0 < gap < 3600 * 48000:
+                size = self._ring.shape[0]
+                skip = max(0, gap - size)  # a stall longer than the ring: the reader skips it
+                self._w += skip
+                self._write(np.zeros(gap - skip, dtype=np.float32))
+            elif gap != 0:
+                self._frame0 = frame - self._w  # the counter started again: follow it
+        self._write(block)
+
+    def _write(self, block: np.ndarray) -> None:
         frames = block.shape[0]
         ring = self._ring
         size = ring.shape[0]
@@ -233,6 +250,8 @@ class AudioDevice(Device):
                 self._offset = min(self._offset + DRIFT * (now - self._last_read), candidate)
             self._last_read = now
         offset = self._offset
+        if offset is None:
+            offset = time.monotonic() - self._n / rate
         rec = self.recorder
         if rec is not None:
             rec.push(block, offset + n0 / rate)

@@ -8,8 +8,9 @@ an input port and connects it to the named client's output port, and PortAudio i
 PortAudio is loaded only for ALSA/PulseAudio, and is shut down again (when that is safe) once no
 stream of this process uses it.
 
-A source calls ``deliver(samples)`` from the audio system's own thread with one channel's block
-(float32); it must only copy it."""
+A source calls ``deliver(samples, frame)`` from the audio system's own thread with one channel's block
+(float32) and, where the audio system counts them (JACK), the frame of its first sample; it must
+only copy it."""
 
 from __future__ import annotations
 
@@ -30,7 +31,7 @@ HOSTAPI_NAMES = {"alsa": "ALSA", "pulse": "PulseAudio"}
 CLIENT = "facepuppet"
 #: Inputs that are never a voice: our own clients and PortAudio's.
 OWN = ("facepuppet", "portaudio")
-Deliver = Callable[[np.ndarray], None]
+Deliver = Callable[[np.ndarray, "int | None"], None]
 
 _PA_LOCK = threading.RLock()
 _pa_users = 0
@@ -146,7 +147,7 @@ class PortAudioSource:
         ch = self.channel
 
         def callback(indata: Any, frames: int, time_info: Any, status: Any) -> None:
-            deliver(indata[:, ch])
+            deliver(indata[:, ch], None)
 
         try:
             rate = float(sd.query_devices(index)["default_samplerate"] or 48000)
@@ -253,7 +254,7 @@ class JackSource:
 
             @client.set_process_callback
             def process(frames: int) -> None:
-                deliver(inport.get_array())
+                deliver(inport.get_array(), client.last_frame_time)
 
             @client.set_shutdown_callback
             def shutdown(status: Any, reason: str) -> None:
