@@ -1,11 +1,12 @@
 """``audio://NAME[?api=alsa|jack|pulse&channel=N&profile=PATH&gate=DB]`` — a microphone (or any
-audio input) through python-sounddevice over PortAudio (JACK through JACK-Client), analysed into mouth controls.
+audio input) analysed into mouth controls: ALSA and PulseAudio through python-sounddevice over
+PortAudio, JACK through JACK-Client (devices.audio.sources).
 
-NAME is a case-insensitive substring of the input's name as PortAudio lists it (on JACK: the name of
-the client whose output ports carry the voice; PortAudio connects its own ports to them). ``api``
-names the host API (default ALSA on Linux; ``pulse`` uses PortAudio's PulseAudio host API where the
-library has one, else ALSA's ``pulse`` device with NAME as the PulseAudio source). ``channel`` picks
-one channel (1-based; default: the first). ``profile`` is a voice profile file from ``puppet learn``
+NAME is a case-insensitive part of the input's name (on JACK: the name of the client whose output
+port carries the voice; our own client's input port is connected to it). ``api`` names the host
+API (default ALSA on Linux; ``pulse`` uses PortAudio's PulseAudio host API where the library has
+one, else ALSA's ``pulse`` device with NAME as the PulseAudio source). ``channel`` picks one
+channel (1-based; default: the first). ``profile`` is a voice profile file from ``puppet learn``
 (default: the shipped average voice); ``gate`` the noise gate in dBFS (default -45, or the profile's).
 
 Threads: the audio system calls back on its own thread (PortAudio's, or the JACK server's process
@@ -48,6 +49,7 @@ PREFERRED_RATE = 48000
 RING_S = 2.0
 #: Reader thread's polling interval.
 POLL_S = 0.002
+
 
 class AudioDevice(Device):
     """A voice on an audio input drives the mouth (see the module docstring)."""
@@ -100,8 +102,6 @@ class AudioDevice(Device):
         #: the newest frame's values (level first) and level in dBFS, for the page and the HUD
         self.values: tuple[float, ...] = (0.0,) * len(CONTROLS)
         self.db = -200.0
-        #: (capture time, emit time) of every frame, kept when a benchmark sets it to a list
-        self.timing: list[tuple[float, float]] | None = None
 
     @property
     def level(self) -> float:
@@ -266,8 +266,6 @@ class AudioDevice(Device):
             t = offset + fr.t
             for i in changes(sent, fr.values):
                 events.append(ControlEvent(self.spec, CONTROLS[i], "axis", fr.values[i], None, None, t))
-            if self.timing is not None:
-                self.timing.append((t, time.monotonic()))
         if frames:
             self.values = frames[-1].values
             self.db = frames[-1].db
