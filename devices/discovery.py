@@ -28,7 +28,7 @@ def discover(probe: bool = False, hid_api_module: Any = None) -> list[DeviceInfo
     """Everything found; each family is looked at independently so one failure hides nothing else."""
     found: list[DeviceInfo] = []
     for family in (lambda: serial_ports(probe), lambda: hid_devices(probe, hid_api_module), can_channels,
-                   midi_ports):
+                   midi_ports, audio_inputs):
         try:
             found += family()
         except Exception as err:  # a broken driver stack must not hide the other families
@@ -173,3 +173,11 @@ def midi_ports() -> list[DeviceInfo]:
     from devices.midi.discover import midi_ports as _midi_ports
 
     return _midi_ports()
+
+
+def audio_inputs() -> list[DeviceInfo]:
+    """Audio inputs (ALSA, and JACK when a server runs) a voice can drive the mouth from
+    (devices.audio); `puppet live` uses one only when named with --device."""
+    from devices.audio.device import audio_inputs as _audio_inputs
+
+    return [DeviceInfo(spec, desc, "audio", True) for spec, desc in _audio_inputs()]

@@ -28,6 +28,7 @@ BACKENDS: dict[str, tuple[str, str]] = {
     "midi": ("devices.midi.port", "MidiPortDevice"),
     "rawmidi": ("devices.midi.raw", "RawMidiDevice"),
     "osc": ("devices.osc", "OscDevice"),
+    "audio": ("devices.audio.device", "AudioDevice"),
     "facecap": ("devices.facestream.facecap", "FaceCapDevice"),
     "vmc": ("devices.facestream.vmc", "VmcDevice"),
     "ifacialmocap": ("devices.facestream.ifacialmocap", "IFacialMocapDevice"),

@@ -12,12 +12,13 @@ OUT_KINDS = {".jsonl": "take", ".curves": "curves"}
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = subparsers.add_parser(
         "fit",
-        help="fit channel activations to tracked motion (landmark CSV, C3D, PC2, ARKit CSV) -> take or curves",
+        help="fit channel activations to tracked motion (landmark CSV, C3D, PC2, ARKit CSV) or a voice (WAV) -> take",
         description="Analysis by synthesis: per frame, the channel activations (0..max) that best explain "
         "the tracked skin motion, on a displacement basis built by the simulator, warm-started, smoothed "
         "over time and re-linearised where channels interact. INPUT: a landmark CSV (header time, "
         "NAME_x,NAME_y,NAME_z...), a C3D file, a PC2 point cache of the rig (+ .obj beside it), or a Live "
-        "Link Face / ARKit blendshape CSV (converted through the ARKit mapping, then re-simulated). "
+        "Link Face / ARKit blendshape CSV (converted through the ARKit mapping, then re-simulated), or a WAV of a "
+        "voice (the live audio:// analysis, offline, through the voice map). "
         "--out TAKE.jsonl replays with `puppet replay`; --out FILE.curves with `puppet replay --curves`. "
         "See docs/fit.md.",
     )
@@ -39,6 +40,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--smooth", type=float, metavar="X", help="temporal smoothing weight (default 0.02)")
     p.add_argument("--sparsity", type=float, metavar="X", help="L1 weight keeping idle channels at 0 (default 0.004)")
     p.add_argument("--no-relinearise", action="store_true", help="linear fit only (no settles during the fit)")
+    p.add_argument("--voice-profile", metavar="FILE",
+                   help="INPUT.wav: the voice profile from `puppet learn --device audio://NAME --profile FILE`")
     p.set_defaults(func=run)
 
 
@@ -124,6 +127,14 @@ def run(args: argparse.Namespace) -> int:
     if not args.rate > 0:
         raise PuppetError("--rate must be positive")
     face = load_face(args.rig, face=args.face)
+    if Path(args.input).suffix.lower() == ".wav":  # a voice: the live audio analysis, offline
+        if kind != "take":
+            raise PuppetError(f"{out}: a voice is fitted into a take: --out must end in .jsonl")
+        from puppet.capture.voice import voice_take
+
+        for line in voice_take(args.input, face, out, args.rate, getattr(args, "voice_profile", None)):
+            print(f"puppet: {line}")
+        return 0
     extra = {}
     if args.age is not None:
         if not 0 <= args.age <= 120:

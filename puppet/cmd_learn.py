@@ -42,7 +42,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     p.add_argument("--device", action="append", default=[], metavar="SPEC",
                    help="device spec (default: every box found)")
-    p.add_argument("--map", required=True, metavar="FILE", help="mapping file to add bindings to (created if missing)")
+    p.add_argument("--map", metavar="FILE", help="mapping file to add bindings to (created if missing)")
+    p.add_argument("--profile", metavar="FILE",
+                   help="with --device audio://NAME: record your own vowels into this voice profile instead "
+                   "(then use audio://NAME?profile=FILE); see docs/audio.md")
     p.add_argument("--timeout", type=float, default=None, metavar="S",
                    help="give up when no control is touched for S seconds")
     p.set_defaults(func=run)
@@ -91,6 +94,14 @@ def run(args: argparse.Namespace, stdin: TextIO | None = None) -> int:
     from puppet.mapping.learn import learn_binding
 
     stdin = stdin or sys.stdin
+    if getattr(args, "profile", None):
+        if len(args.device) != 1 or not args.device[0].lower().startswith("audio:"):
+            raise PuppetError("--profile learns a voice: give exactly one --device audio://NAME")
+        from puppet.voice_learn import learn_voice
+
+        return learn_voice(args.device[0], args.profile, stdin)
+    if not args.map:
+        raise PuppetError("give --map FILE to learn bindings into (or --profile FILE with an audio:// device)")
     face = load_face()
     devs = _open_devices(list(args.device), lambda m: print(f"puppet: {m}", file=sys.stderr))
     devs = [d for d in devs if not d.spec.startswith("keyboard")]

@@ -62,8 +62,8 @@ def _open_devices(specs: list[str], warn: Any) -> list[Any]:
         warn(f"device discovery failed ({err}); using the keyboard")
         found = []
     for info in found:
-        if not getattr(info, "usable", True) or info.spec.startswith("keyboard"):
-            continue
+        if not getattr(info, "usable", True) or info.spec.startswith("keyboard") or info.kind == "audio":
+            continue  # a microphone is used only when named: a room's sounds must not move the mouth
         try:
             opened.append(devices.open_device(info.spec))
         except devices.DeviceError as err:
@@ -97,7 +97,8 @@ class DeviceWatcher:
             except Exception:  # a flaky bus must not end the show
                 continue
             for info in found:
-                if info.spec in self.known or not getattr(info, "usable", True) or info.spec.startswith("keyboard"):
+                if (info.spec in self.known or not getattr(info, "usable", True) or info.spec.startswith("keyboard")
+                        or info.kind == "audio"):
                     continue
                 self.known.add(info.spec)
                 try:
@@ -273,6 +274,9 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         from puppet import resume
 
         point = resume.resume_point(record, face, getattr(args, "follower", None))
+    from puppet import audio_take
+
+    sound = audio_take.attach(devs, record if point is None else None, header)  # a WAV beside the take
     if point is not None:
         writer = resume.open_resumed(point, SessionWriter, header)
     else:
@@ -306,6 +310,8 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
                              wrinkles_later=not virtual)
         if point is not None:
             resume.start_segment(core, point)
+        if sound:
+            core.before_tick.append(audio_take.clock_hook(sound))
         for page in panel_devices(devs):
             page.watch(core, devs, record)
             if page.server is None and page.serve_later:
@@ -355,6 +361,7 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
             watcher.close()
         if writer is not None:
             writer.close(core.tick_count)
+        audio_take.finish(sound, core.tick_count / core.rate if sound else None)
     p50, p99 = core.latency.percentile(50), core.latency.percentile(99)
     lat = f"; input-to-frame latency p50 {p50 * 1e3:.1f} ms, p99 {p99 * 1e3:.1f} ms" if p50 is not None else ""
     where = f" to {record}" if record else ""

@@ -75,12 +75,19 @@ def run(args: argparse.Namespace) -> int:
         fps = args.fps if args.fps is not None else (30.0 if kind in ("mp4", "frames", "png") else perf.rate)
         opts = ExportOptions(fps=fps, start=args.start, end=args.end, speed=args.speed, view=args.view,
                              size=args.size, supersample=args.supersample, crf=args.crf)
+        if session is not None:
+            from puppet.audio_take import take_audio
+
+            opts.sound = take_audio(session)
         print(f"puppet: {export(perf, args.out, opts)}")
         return 0
     if not args.headless and live.display_available():
         from puppet.live import run_replay_window
 
-        return run_replay_window(perf, start=args.start, end=args.end, speed=args.speed, view=args.view)
+        from puppet.audio_take import take_audio
+
+        sound = take_audio(session) if session is not None else None
+        return run_replay_window(perf, start=args.start, end=args.end, speed=args.speed, view=args.view, sound=sound)
     rp = Replayer(perf)
     end_tick = perf.ticks if args.end is None else min(perf.ticks, int(round(args.end * perf.rate)))
     rp.seek(end_tick)

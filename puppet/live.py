@@ -711,8 +711,9 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
 
 
 def run_replay_window(perf: Any, start: float = 0.0, end: float | None = None, speed: float = 1.0,
-                      view: str = "shaded") -> int:
-    """Play a Performance in the window with transport keys (see REPLAY_KEYS)."""
+                      view: str = "shaded", sound: Path | None = None) -> int:
+    """Play a Performance in the window with transport keys (see REPLAY_KEYS), and the take's
+    sound (a WAV on its clock) where there is an audio output."""
     from render.hud import HudInfo, active_channels
 
     from puppet.replay import Replayer
@@ -762,7 +763,14 @@ def run_replay_window(perf: Any, start: float = 0.0, end: float | None = None, s
         lines += [f"marker: {m}" for m in marks] + [REPLAY_KEYS + "   F1 help"]
         vals = perf.values[max(0, rp.tick - 1)]
         w.hud = HudInfo(channels=active_channels(perf.face.model.channels, vals), lines=lines)
+        if player is not None:
+            player.sync(play["pos"] / perf.rate, play["speed"], status == "playing")
 
+    player = None
+    if sound is not None:
+        from puppet.sound_out import TakeSound
+
+        player = TakeSound(sound)
     win.add_key_callback(on_key)
     win.add_frame_callback(on_frame)
     try:
@@ -770,4 +778,6 @@ def run_replay_window(perf: Any, start: float = 0.0, end: float | None = None, s
             time.sleep(0.001)
     finally:
         win.close()
+        if player is not None:
+            player.close()
     return 0

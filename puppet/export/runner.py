@@ -38,6 +38,7 @@ class ExportOptions:
     supersample: int = 1  # samples per pixel along each axis for video and images (2 = 4 samples)
     crf: int | None = None  # H.264 constant rate factor (default puppet.export.video.DEFAULT_CRF)
     preset: str | None = None  # x264 preset (default ultrafast)
+    sound: Path | None = None  # a WAV on the take's clock (puppet.audio_take): muxed into an MP4 as AAC
 
 
 def kind_of(out: Path) -> str:
@@ -172,4 +173,10 @@ def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], op
             render_serial(perf.face.model, target, kind, opts.fps, opts.size, opts.view, frames, bar.update, **enc)
     if kind == "png":
         return f"wrote a {opts.size[0]}x{opts.size[1]} still to {out}"
+    if kind == "mp4" and opts.sound is not None:
+        from puppet.export.sound import mux_sound
+
+        mux_sound(out, opts.sound, opts.start, opts.speed, len(ticks) / opts.fps)
+        return (f"wrote {len(ticks)} frames at {opts.fps:g} fps ({opts.size[0]}x{opts.size[1]}, view {opts.view}) "
+                f"with the take's sound ({opts.sound.name}, AAC) to {out}")
     return f"wrote {len(ticks)} frames at {opts.fps:g} fps ({opts.size[0]}x{opts.size[1]}, view {opts.view}) to {out}"

@@ -20,6 +20,7 @@ HID_MAPS = {
 SCHEME_MAPS = {
     "sgi": "sgi", "keyboard": "keyboard", "firmata": "firmata", "serial": "textbox", "can": "can_panel",
     "powermate": "powermate", "shuttle": "shuttlexpress", "xkeys": "xkeys", "gamepad": "gamepad",
+    "audio": "voice",
 }
 KIND_WORDS = (("powermate", "powermate"), ("shuttle", "shuttlexpress"), ("x-keys", "xkeys"),
               ("xkeys", "xkeys"), ("gamepad", "gamepad"), ("joystick", "gamepad"), ("sgi", "sgi"))

@@ -235,6 +235,10 @@ class PanelDevice(Device):
             st["latency"] = [round(lat[len(lat) // 2] * 1e3, 2), round(lat[min(len(lat) - 1, int(len(lat) * 0.99))] * 1e3, 2)]
         status = dict(_copy_items(core.mapper.status))
         devices = [[self._base() if d is self else d.spec, bool(status.get(d.spec, d.connected))] for d in self.devs]
+        for row, d in zip(devices, self.devs, strict=False):  # a microphone also shows how loud it hears
+            level = getattr(d, "level", None)
+            if isinstance(level, float):
+                row.append(round(level, 3))
         devices += [[c.device, True] for c in list(self.clients.values())]
         st["devices"] = devices
         st["markers"] = [[round(k / core.rate, 2), label] for k, label in core.markers[-8:]]

@@ -1,0 +1,114 @@
+"""A voice for tests: speech synthesised by espeak-ng, played into a real JACK port by another
+process (tests/voice_player.py), on the private JACK server of tests/midijack.py."""
+
+from __future__ import annotations
+
+import os
+import queue
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+PLAYER = Path(__file__).with_name("voice_player.py")
+
+
+class Voice:
+    """A JACK client playing WAV files: ``plug()`` starts it, ``unplug()`` ends it."""
+
+    def __init__(self, name: str = "voice") -> None:
+        self.name = name
+        self.proc: subprocess.Popen[str] | None = None
+        self.lines: queue.Queue[str] = queue.Queue()
+
+    def plug(self) -> Voice:
+        self.proc = subprocess.Popen([sys.executable, str(PLAYER), self.name], stdin=subprocess.PIPE,
+                                     stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, bufsize=1)
+        threading.Thread(target=self._pump, args=(self.proc,), daemon=True).start()
+        assert self.lines.get(timeout=30) == "ready"
+        return self
+
+    def _pump(self, proc: subprocess.Popen[str]) -> None:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            self.lines.put(line.strip())
+
+    def play(self, path: str | Path) -> None:
+        """Queue a file; `wait_done` then waits for the end of the last file queued."""
+        assert self.proc is not None and self.proc.stdin is not None
+        while not self.lines.empty():  # what earlier files said
+            self.lines.get_nowait()
+        self.proc.stdin.write(f"play {path}\n")
+        self.proc.stdin.flush()
+
+    def wait_done(self, timeout: float = 30.0) -> None:
+        deadline = time.monotonic() + timeout
+        while True:
+            line = self.lines.get(timeout=max(0.1, deadline - time.monotonic()))
+            if line == "done":
+                return
+
+    def unplug(self) -> None:
+        if self.proc is None:
+            return
+        try:
+            assert self.proc.stdin is not None
+            self.proc.stdin.write("quit\n")
+            self.proc.stdin.flush()
+            self.proc.wait(10)
+        except (BrokenPipeError, subprocess.TimeoutExpired, OSError):
+            self.proc.kill()
+            self.proc.wait(5)
+        self.proc = None
+
+    close = unplug
+
+
+def speech_wav(path: Path, parts: list[tuple[str, float]], rate: int = 48000, noise_db: float | None = None,
+               seed: int = 1, voice: str = "en-us") -> list[tuple[float, float]]:
+    """Write a WAV of espeak-ng sounds, each followed by the given seconds of silence (and, with
+    `noise_db`, one second of white noise at that RMS level at the end). Returns each sound's
+    (start, end) in seconds from the file's start."""
+    from math import gcd
+
+    from scipy.signal import resample_poly
+
+    from devices.audio.speech import synthesize
+    from devices.audio.wavfile import WavWriter
+
+    chunks, spans, t = [np.zeros(int(0.3 * rate))], [], 0.3
+    for text, gap in parts:
+        x, r = synthesize(text, speed=80, voice=voice)
+        g = gcd(rate, r)
+        x = resample_poly(x, rate // g, r // g)
+        spans.append((t, t + len(x) / rate))
+        chunks += [x, np.zeros(int(gap * rate))]
+        t += len(x) / rate + gap
+    if noise_db is not None:
+        rng = np.random.default_rng(seed)
+        chunks.append(rng.standard_normal(rate) * 10 ** (noise_db / 20))
+    chunks.append(np.zeros(int(0.3 * rate)))
+    w = WavWriter(path, rate)
+    w.write(np.concatenate(chunks))
+    w.close()
+    return spans
+
+
+def connected(server: str, port: str) -> bool:
+    out = subprocess.run(["jack_lsp", "-s", server, "-c"], capture_output=True, text=True,
+                         env={**os.environ, "JACK_NO_START_SERVER": "1"}).stdout
+    lines = out.splitlines()
+    for i, line in enumerate(lines):
+        if line.strip() == port:
+            return i + 1 < len(lines) and lines[i + 1].startswith((" ", "\t"))
+    return False
+
+
+def wait_connected(server: str, port: str, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not connected(server, port):
+        assert time.monotonic() < deadline, f"nothing listened to {port} within {timeout} s"
+        time.sleep(0.05)
