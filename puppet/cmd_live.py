@@ -52,7 +52,14 @@ def _open_devices(specs: list[str], warn: Any) -> list[Any]:
     opened = []
     if specs:
         for spec in specs:
-            opened.append(devices.open_device(spec))  # a bad spec is the user's error: one line, exit 2
+            # a bad spec or a port that is not there is the user's error (one line, exit 2); a port
+            # that is there but failed to open (a box powering up, a flaky first contact) is retried
+            # by its reader thread, and reported connected only once it is
+            dev = devices.open_device(spec, require="present")
+            if not dev.connected:
+                warn(f"{spec} is there but did not open ({dev.last_error}); the show starts and it "
+                     "connects once it answers")
+            opened.append(dev)
         return opened
     try:
         found = devices.discover()
