@@ -83,6 +83,12 @@ class Device:
         return False
 
     @property
+    def drops(self) -> int | None:
+        """Input lost before this program could read it (a network listener's overflowed receive
+        buffer); None where a device cannot lose input that way."""
+        return None
+
+    @property
     def exhausted(self) -> bool:
         """True when a finite source (a mock script) has delivered everything it ever will."""
         return False

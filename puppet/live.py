@@ -605,7 +605,7 @@ def live_hud(core: LiveCore, devs: Sequence[Any], keymap: bool, help: bool = Fal
     from render.hud import HudInfo, active_channels
 
     mapper = core.mapper
-    status = [(d.spec, bool(mapper.status.get(d.spec, d.connected))) for d in devs]
+    status = [_device_status(d, mapper) for d in devs]
     p50, p99 = core.latency.percentile(50), core.latency.percentile(99)
     lines = []
     if p50 is not None and p99 is not None:
@@ -624,6 +624,13 @@ def live_hud(core: LiveCore, devs: Sequence[Any], keymap: bool, help: bool = Fal
         lines += LIVE_HELP
     return HudInfo(channels=active_channels(core.face.model.channels, core.values),
                    devices=status, latency_ms=None if p50 is None else p50 * 1e3, lines=lines[-24:])
+
+
+def _device_status(dev: Any, mapper: Any) -> tuple[str, bool] | tuple[str, bool, int]:
+    """(spec, connected), with the count of input lost to bursts for a device that can lose some."""
+    ok = bool(mapper.status.get(dev.spec, dev.connected))
+    drops = getattr(dev, "drops", None)
+    return (dev.spec, ok) if drops is None else (dev.spec, ok, int(drops))
 
 
 def _keyboard_alone(devs: Sequence[Any]) -> tuple[Any, bool]:

@@ -234,7 +234,9 @@ class PanelDevice(Device):
             lat.sort()
             st["latency"] = [round(lat[len(lat) // 2] * 1e3, 2), round(lat[min(len(lat) - 1, int(len(lat) * 0.99))] * 1e3, 2)]
         status = dict(_copy_items(core.mapper.status))
-        devices = [[self._base() if d is self else d.spec, bool(status.get(d.spec, d.connected))] for d in self.devs]
+        # [spec, connected, drops]: drops counts input a network listener lost to bursts (else null)
+        devices = [[self._base() if d is self else d.spec, bool(status.get(d.spec, d.connected)),
+                    getattr(d, "drops", None)] for d in self.devs]
         devices += [[c.device, True] for c in list(self.clients.values())]
         st["devices"] = devices
         st["markers"] = [[round(k / core.rate, 2), label] for k, label in core.markers[-8:]]

@@ -113,7 +113,7 @@
     if (st.latency) { $("p50").textContent = st.latency[0].toFixed(1); $("p99").textContent = st.latency[1].toFixed(1); }
     if (st.devices) {
       const d = $("devices"); d.textContent = "";
-      for (const [spec, ok] of st.devices) d.append(el("span", "dev " + (ok ? "ok" : "lost"), (ok ? "● " : "○ ") + spec));
+      for (const [spec, ok, drops] of st.devices) d.append(el("span", "dev " + (ok ? "ok" : "lost"), (ok ? "● " : "○ ") + spec + (drops ? " · " + drops + " dropped" : "")));
     }
     // the other pages: what they touch, drawn as dots on our sliders, listed with their roles
     const cl = $("clients"); cl.textContent = "";
