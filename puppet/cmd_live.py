@@ -305,17 +305,25 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     import time
 
     win = live.open_live_window(face.model, devs) if windowed and not virtual else None
+    from puppet.panel import announce
+
+    # a page nobody asked for is served after the first frame (a fast start); but when the face's
+    # kernels are being compiled (the first show after an install or update) it is served now, in
+    # that time: its start (aiohttp's import loads the CA bundle, ~50 ms holding the interpreter)
+    # must not land on the show's first ticks; so is the wrinkle layer built then (wrinkles_later)
+    early = [p for p in panel_devices(devs) if p.server is None and p.serve_later and live.compiling_kernels()]
+    for page in early:
+        page.serve_in_background(announce, warn)
     try:  # the window is closed by run_window; until then, by this if the show fails to start
         t0 = time.monotonic()
         core = live.LiveCore(face, mapper, writer=writer, t0=0.0 if virtual else t0, lights=lights,
-                             wrinkles_later=not virtual)
+                             wrinkles_later=not virtual and not live.compiling_kernels(),
+                             announce=None if virtual else warn)
         if point is not None:
             resume.start_segment(core, point)
         for page in panel_devices(devs):
             page.watch(core, devs, record)
-            if page.server is None and page.serve_later:
-                from puppet.panel import announce
-
+            if page.server is None and page.serve_later and page not in early:
                 core.after_first_frame.append(lambda p=page: p.serve_in_background(announce, warn))
         stop = live.StopFlag()
         stop.install()

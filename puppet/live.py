@@ -100,19 +100,40 @@ def load_face(rig_path: str | None = None, resolution: int = 0) -> Face:
     return Face(model, Vocabulary.from_model(model), info)
 
 
+_COLD_START: dict[str, bool] = {}
+_COLD_START_KNOWN = __import__("threading").Event()
+
+
+def compiling_kernels(timeout: float = 10.0) -> bool:
+    """True when `warm_up_in_background` found numba's cache without this version's kernels: the
+    face's preparation will compile for seconds (the first show after an install or update), time
+    in which other start-up work (the page's server) can be done instead of during the show."""
+    if "started" not in _COLD_START:  # no warm-up ran in this process: nothing to tell
+        return False
+    return _COLD_START_KNOWN.wait(timeout) and _COLD_START.get("cold", False)
+
+
 def warm_up_in_background() -> None:
-    """Load the RK2 kernels from numba's cache in a thread (~0.3-0.7 s, most of a warm start)
-    while the caller opens devices and loads the face; the first step waits for it if needed."""
+    """Load the RK2 and wrinkle kernels from numba's cache in a thread (~0.3-0.7 s, most of a warm
+    start) while the caller opens devices and loads the face; `prepare_kernels` waits for it."""
     import threading
 
     def run() -> None:
         try:
-            from sim.integrator import warm_up
+            from sim.integrator import kernels_cached, warm_up
 
+            _COLD_START["cold"] = not kernels_cached()
+            _COLD_START_KNOWN.set()
             warm_up(implicit=False)
-        except Exception:  # the loop's own first step will compile or report it
-            pass
+            from sim.wrinkles.kernels import warm_up as warm_up_wrinkles
 
+            warm_up_wrinkles()
+        except Exception:  # prepare_kernels will compile or report it
+            pass
+        finally:
+            _COLD_START_KNOWN.set()
+
+    _COLD_START["started"] = True
     threading.Thread(target=run, name="kernel-warm-up", daemon=True).start()
 
 
@@ -191,6 +212,21 @@ def _positions_digest(positions: np.ndarray) -> Callable[[], str]:
     return digest
 
 
+def prepare_kernels(model: Any, dt: float) -> None:
+    """Every compiled kernel a show's ticks can call, compiled (the first show after an install or
+    update: tens of seconds on a slow machine) or loaded from numba's cache now, before the first
+    tick, so nothing compiles on the live path: the integrator this face and tick use (RK2 or
+    implicit, by one step of a throw-away simulator; the show's own starts fresh, as replay's
+    does) and the wrinkle kernel (its layer may be built later, `wrinkles_later`)."""
+    import sim
+
+    sim.Simulator(model, dt, wrinkles=False).step(model.rest_state(), sim.FaceControl(model))
+    if model.rig.wrinkles:
+        from sim.wrinkles.kernels import warm_up
+
+        warm_up()
+
+
 #: a test hook: `PUPPET_CRASH_AT_TICK=N` makes the live loop raise at tick N (testing --supervise)
 CRASH_ENV = "PUPPET_CRASH_AT_TICK"
 
@@ -210,7 +246,8 @@ class LiveCore:
 
     def __init__(self, face: Face, mapper: Mapper, *, rate: float = TICK_RATE,
                  writer: SessionWriter | None = None, t0: float = 0.0,
-                 lights: Callable[[str, str, bool], None] | None = None, wrinkles_later: bool = False) -> None:
+                 lights: Callable[[str, str, bool], None] | None = None, wrinkles_later: bool = False,
+                 announce: Callable[[str], None] | None = None) -> None:
         import sim
 
         self.face, self.mapper, self.rate, self.dt = face, mapper, rate, 1.0 / rate
@@ -218,10 +255,15 @@ class LiveCore:
         # switched on at a tick boundary once ready, so the show starts without waiting for it;
         # wrinkles only displace the drawn surface, never the simulated positions or the recording
         self._wrinkles_ready = False
+        t_prep = time.perf_counter()
+        if announce is not None:
+            announce("preparing the face")
         self.sim = sim.Simulator(face.model, self.dt, wrinkles=not wrinkles_later)
-        # the first step pays for JIT compilation: pay it now on a throw-away simulator, not on
-        # the first events of the show (the real Simulator starts fresh, as replay's does)
-        sim.Simulator(face.model, self.dt, wrinkles=False).step(face.model.rest_state(), sim.FaceControl(face.model))
+        prepare_kernels(face.model, self.dt)
+        #: seconds the kernels took to compile or load before the first tick
+        self.prepare_seconds = time.perf_counter() - t_prep
+        if announce is not None and self.prepare_seconds > 1.0:
+            announce(f"the face is ready ({self.prepare_seconds:.1f} s; compiled parts are kept for later shows)")
         self._wrinkles_thread = None
         if wrinkles_later and face.model.rig.wrinkles:  # started after the first frame
             import threading
@@ -644,7 +686,13 @@ def open_live_window(model: Any, devs: Sequence[Any]) -> Any:
     that the window, its GL context and the renderer are set up while numba's kernels are still
     loading in their thread (`warm_up_in_background`) instead of after."""
     _, keymap = _keyboard_alone(devs)
-    return _window_or_none(model, "facepuppet live", [*LIVE_HELP, *([KEYMAP_HELP] if keymap else [])])
+    win = _window_or_none(model, "facepuppet live", [*LIVE_HELP, *([KEYMAP_HELP] if keymap else [])])
+    if win is not None:
+        try:  # the normals kernel the frames call: compiled or loaded now, not at the first frame
+            win.renderer.normals.interleaved(np.asarray(model.rest))
+        except Exception:  # the first frame will do it (or report what is wrong)
+            pass
+    return win
 
 
 def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None, devs: Sequence[Any],
