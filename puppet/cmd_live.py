@@ -41,6 +41,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--resume", action="store_true",
                    help="continue the --record FILE if it exists (a new segment) instead of starting it "
                    "again (what --supervise and the systemd unit in docs/live.md do after a crash)")
+    p.add_argument("--tick-rate", type=float, choices=(60.0, 120.0, 240.0), default=None, metavar="HZ",
+                   help="simulation ticks a second: 60, 120 or 240 (default 240; a scripted run on its script's "
+                   "clock: 60); frames are still drawn at the display's rate, a faster tick shortens the "
+                   "wait of an event for the simulation; the take records it (see docs/live.md)")
     p.add_argument("--standby", action="store_true", help=argparse.SUPPRESS)  # --supervise's spare
     p.set_defaults(func=run)
 
@@ -272,13 +276,16 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     for d in devs:
         mapper.declare_controls(d.spec, d.controls)
     virtual = bool(devs) and all(getattr(getattr(d, "script", None), "speed", 1.0) == 0 for d in devs)
-    header = live.session_header(face, spec, live.TICK_RATE, specs)
+    rate = getattr(args, "tick_rate", None) or (live.TICK_RATE if virtual else live.LIVE_TICK_RATE)
+    header = live.session_header(face, spec, rate, specs)
     point = None
     if record and getattr(args, "resume", False):
         from puppet import resume
 
         point = resume.resume_point(record, face, getattr(args, "follower", None))
     if point is not None:
+        rate = float(point.header.get("tick_rate", rate))  # a take goes on at the rate it was made at
+        header["tick_rate"] = rate
         writer = resume.open_resumed(point, SessionWriter, header)
     else:
         if record:
@@ -316,7 +323,7 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         page.serve_in_background(announce, warn)
     try:  # the window is closed by run_window; until then, by this if the show fails to start
         t0 = time.monotonic()
-        core = live.LiveCore(face, mapper, writer=writer, t0=0.0 if virtual else t0, lights=lights,
+        core = live.LiveCore(face, mapper, rate=rate, writer=writer, t0=0.0 if virtual else t0, lights=lights,
                              wrinkles_later=not virtual and not live.compiling_kernels(),
                              announce=None if virtual else warn)
         if point is not None:
@@ -358,7 +365,7 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
             for d in devs:
                 d.add_listener(queue)
                 d.start()
-            live.run_realtime(core, queue.drain, args.duration, stop=stop)
+            live.run_realtime(core, queue.drain, args.duration, stop=stop, wake=queue.wait_arrival)
     finally:
         import gc
 

@@ -1,4 +1,5 @@
-"""The live loop: device events -> mapping -> channel values -> simulator, at a fixed 60 Hz tick.
+"""The live loop: device events -> mapping -> channel values -> simulator, at a fixed tick (240 Hz
+on the wall clock by default, 60 Hz on a script's clock; frames at the display's rate).
 
 `LiveCore` is the deterministic part shared with replay: one `tick(events)` applies the events at
 the tick boundary, steps the mapping's filters with the tick's dt, records, and advances the
@@ -28,6 +29,16 @@ from puppet.mapping.defaults import default_map_name, load_default_map, merge
 from puppet.session import SessionWriter
 
 TICK_RATE = 60.0
+#: tick rates `puppet live --tick-rate` offers: the simulation may tick faster than frames are drawn
+TICK_RATES = (60.0, 120.0, 240.0)
+#: what a show on the wall clock ticks at unless told (scripted runs on the script clock keep
+#: TICK_RATE): measured with benchmarks/live_latency.py (docs/live.md, "Tick rate"), 240 Hz with the
+#: loop woken on events brings event -> simulated state p99 from ~18 ms to 2.4-3.0 ms and event ->
+#: frame p99 under one 60 Hz refresh + 2 ms, for ~10% more CPU than 60 Hz (fewer RK2 substeps a tick)
+LIVE_TICK_RATE = 240.0
+#: the frame rate frames are drawn at when nothing else paces them (headless renders, a window
+#: without vsync)
+DISPLAY_RATE = 60.0
 CHECK_TICKS = 60  # a digest of the positions once a second lets replay prove it matches
 Event = ControlEvent | StatusEvent
 
@@ -276,6 +287,8 @@ class LiveCore:
             writer.defer = True
         self.tick_count = 0
         self.latency = LatencyMeter()
+        #: event -> the simulated state that includes it (the tick's step done), seconds
+        self.state_latency = LatencyMeter()
         self.unpresented: list[float] = []
         self.frames = 0  # frames presented (the performer's page shows the rate)
         self.values = np.array(mapper.values, copy=True)
@@ -314,6 +327,7 @@ class LiveCore:
             hook(self)
         k = self.tick_count
         writer, mapper, unpresented = self.writer, self.mapper, self.unpresented
+        n_before = len(unpresented)
         for ev in events:
             if writer is not None:
                 writer.event(k, ev, self.t0)
@@ -338,7 +352,12 @@ class LiveCore:
         self.control.values[...] = values
         if sp is not None:
             t_c = pc()
+        n_new = len(unpresented) - n_before
         self.sim.step(self.state, self.control)
+        if n_new:
+            done = time.monotonic()
+            for te in unpresented[-n_new:]:
+                self.state_latency.add(done - te)
         if sp is not None:
             t_d = pc()
         self.tick_count = k + 1
@@ -539,33 +558,52 @@ def prepare_show() -> None:
 
 def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None,
                  clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep,
-                 on_frame: Callable[[LiveCore], None] | None = None, stop: StopFlag | None = None) -> None:
+                 on_frame: Callable[[LiveCore], None] | None = None, stop: StopFlag | None = None,
+                 frame_rate: float | None = None, wake: Callable[[float], bool] | None = None) -> None:
     """Headless, on the wall clock: tick k happens at t0 + k*dt and takes every event that has
     arrived; a loop more than 4 ticks late drops wall time (re-anchors) rather than lag behind.
 
     The critical path from a boundary is kept short: wait for it on an absolute deadline (sleep, then
     a short spin), drain the input at that moment, tick, render (`on_frame`, which should finish the
-    frame, e.g. read it back), and only then stamp the frame as presented."""
+    frame, e.g. read it back), and only then stamp the frame as presented.
+
+    `frame_rate` (None: a frame per tick): frames are drawn at this rate (the display's) while the
+    simulation ticks at `core.rate` (e.g. 240 Hz ticks, 60 Hz frames): a frame follows the first tick
+    at or after each frame time. `wake(timeout)` (e.g. EventQueue.wait_arrival): an event that arrives
+    while the loop waits starts the next tick at once instead of at its boundary, never more than one
+    tick ahead of the schedule: simulated time leads the wall clock by less than a tick, the tick
+    rate holds on average, and the recording keeps the tick each event was applied at, as ever."""
     limit = None if duration is None else int(round(duration * core.rate))
+    per_frame = None if frame_rate is None or frame_rate >= core.rate else core.rate / frame_rate
     with _ShowRuntime() as runtime:
         start = clock()
         k0 = core.tick_count  # a resumed take starts at its first new tick
+        next_frame = 0.0  # in ticks since k0
         while True:
             if stop is not None and stop.stopped:
                 break
             if limit is not None and core.tick_count >= limit:
                 break
             boundary = start + (core.tick_count - k0) * core.dt
-            now = wait_until(boundary, clock, sleep, stop)
+            if wake is not None:
+                now = wait_until(boundary - core.dt, clock, sleep, stop)  # at most one tick ahead
+                if not (boundary - now > SPIN_S and wake(boundary - now - SPIN_S)):
+                    now = wait_until(boundary, clock, sleep, stop)
+            else:
+                now = wait_until(boundary, clock, sleep, stop)
             if stop is not None and stop.stopped:
                 break
             if core.spans is not None:
                 core.spans.add("woke late", max(0.0, now - boundary))
             if now - boundary > 4 * core.dt:  # fell behind (machine busy): re-anchor the schedule
-                start, k0 = now, core.tick_count
+                start, k0, next_frame = now, core.tick_count, 0.0
             # everything that arrived by now goes into this tick: waiting for the next boundary would
             # only add latency, and the recording keeps the tick each event was applied at
             core.tick(drain())
+            if per_frame is not None:
+                if core.tick_count - k0 < next_frame:
+                    continue
+                next_frame += per_frame * max(1, int((core.tick_count - k0 - next_frame) // per_frame) + 1)
             if on_frame is not None:
                 on_frame(core)
             core.presented(clock())
@@ -717,6 +755,8 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
 
     win.add_key_callback(on_key)
     sched = {"start": time.monotonic(), "k0": core.tick_count}
+    frame_dt = max(core.dt, 1.0 / DISPLAY_RATE)  # without vsync, frames at most at the display's rate
+    max_ticks = max(4, math.ceil(4 * frame_dt / core.dt))
     limit = None if duration is None else int(round(duration * core.rate))
 
     def on_frame(w: Any, now: float) -> None:
@@ -726,7 +766,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
             w.request_close()
             return
         ran = 0
-        while sched["start"] + (core.tick_count - sched["k0"]) * core.dt <= now and ran < 4:
+        while sched["start"] + (core.tick_count - sched["k0"]) * core.dt <= now and ran < max_ticks:
             core.tick(drain())
             ran += 1
             if limit is not None and core.tick_count >= limit:
@@ -753,7 +793,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
                 # next boundary on an absolute deadline, so the tick runs as soon as it is due
                 if time.monotonic() - t_frame < 0.004:
                     nxt = sched["start"] + (core.tick_count - sched["k0"]) * core.dt
-                    wait_until(min(nxt, time.monotonic() + core.dt), stop=stop)
+                    wait_until(max(min(nxt, time.monotonic() + core.dt), t_frame + frame_dt), stop=stop)
     finally:
         win.close()
 
