@@ -42,8 +42,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                    help="continue the --record FILE if it exists (a new segment) instead of starting it "
                    "again (what --supervise and the systemd unit in docs/live.md do after a crash)")
     p.add_argument("--tick-rate", type=float, choices=(60.0, 120.0, 240.0), default=None, metavar="HZ",
-                   help="simulation ticks a second: 60, 120 or 240 (default 240; a scripted run on its script's "
-                   "clock: 60); frames are still drawn at the display's rate, a faster tick shortens the "
+                   help="simulation ticks a second: 60, 120 or 240 (default 240 headless; 60 in a window and on "
+                   "a script's clock); frames are still drawn at the display's rate, a faster tick shortens the "
                    "wait of an event for the simulation; the take records it (see docs/live.md)")
     p.add_argument("--standby", action="store_true", help=argparse.SUPPRESS)  # --supervise's spare
     p.set_defaults(func=run)
@@ -276,7 +276,9 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     for d in devs:
         mapper.declare_controls(d.spec, d.controls)
     virtual = bool(devs) and all(getattr(getattr(d, "script", None), "speed", 1.0) == 0 for d in devs)
-    rate = getattr(args, "tick_rate", None) or (live.TICK_RATE if virtual else live.LIVE_TICK_RATE)
+    # 240 Hz where the loop wakes on events (headless on the wall clock); a window runs the ticks due
+    # right before each frame, where a faster tick would only cost, and a script's clock keeps 60 Hz
+    rate = getattr(args, "tick_rate", None) or (live.TICK_RATE if virtual or windowed else live.LIVE_TICK_RATE)
     header = live.session_header(face, spec, rate, specs)
     point = None
     if record and getattr(args, "resume", False):

@@ -1,5 +1,6 @@
 """The live loop: device events -> mapping -> channel values -> simulator, at a fixed tick (240 Hz
-on the wall clock by default, 60 Hz on a script's clock; frames at the display's rate).
+headless on the wall clock by default, 60 Hz in a window and on a script's clock; frames at the
+display's rate).
 
 `LiveCore` is the deterministic part shared with replay: one `tick(events)` applies the events at
 the tick boundary, steps the mapping's filters with the tick's dt, records, and advances the
@@ -31,8 +32,8 @@ from puppet.session import SessionWriter
 TICK_RATE = 60.0
 #: tick rates `puppet live --tick-rate` offers: the simulation may tick faster than frames are drawn
 TICK_RATES = (60.0, 120.0, 240.0)
-#: what a show on the wall clock ticks at unless told (scripted runs on the script clock keep
-#: TICK_RATE): measured with benchmarks/live_latency.py (docs/live.md, "Tick rate"), 240 Hz with the
+#: what a headless show on the wall clock ticks at unless told (a window, which runs the ticks due
+#: right before each frame, and scripted runs on the script clock keep TICK_RATE): measured with benchmarks/live_latency.py (docs/live.md, "Tick rate"), 240 Hz with the
 #: loop woken on events brings event -> simulated state p99 from ~18 ms to 2.4-3.0 ms and event ->
 #: frame p99 under one 60 Hz refresh + 2 ms, for ~10% more CPU than 60 Hz (fewer RK2 substeps a tick)
 LIVE_TICK_RATE = 240.0
