@@ -65,12 +65,28 @@ class Device:
         self._thread: threading.Thread | None = None
         self._closed = False
         self._lights: dict[str, float] = {}
+        #: the last status told to listeners (None: none yet); `_status` keeps them alternating
+        self.reported: str | None = None
+        #: why the last open failed ("" after a success), for the show's status lines
+        self.last_error = ""
+        self._status_lock = threading.Lock()
 
     # ----------------------------------------------------------------- public API
     @property
     def connected(self) -> bool:
         """True while the hardware is open and answering."""
         return self._connected
+
+    def address_exists(self) -> bool:
+        """True when the hardware's address exists even though opening it failed just now (a
+        port that is there but does not answer yet): the show may start and retry it."""
+        return False
+
+    @property
+    def drops(self) -> int | None:
+        """Input lost before this program could read it (a network listener's overflowed receive
+        buffer); None where a device cannot lose input that way."""
+        return None
 
     @property
     def exhausted(self) -> bool:
@@ -98,13 +114,16 @@ class Device:
         """Open the hardware now; raises DeviceError naming the spec when it is not there."""
         try:
             self._open()
-        except DeviceError:
+        except DeviceError as err:
             self._safe_close_handle()
+            self.last_error = str(err)
             raise
         except Exception as err:
             self._safe_close_handle()
+            self.last_error = str(err)
             raise DeviceError(f"{self.spec}: cannot open: {err}") from err
         self._connected = True
+        self.last_error = ""
 
     def start(self) -> None:
         """Start the reader thread (once). It reports ``connected`` first when the device is open."""
@@ -195,7 +214,18 @@ class Device:
         return time.monotonic()
 
     def _status(self, status: str, detail: str = "", t: float | None = None) -> None:
-        self.emit(StatusEvent(self.spec, status, self._now() if t is None else t, detail))  # type: ignore[arg-type]
+        """Tell the listeners the device came or went. What they hear strictly alternates
+        (connected, lost, connected...): a repeated ``lost`` is not told again, and a
+        ``connected`` after a ``connected`` (a reopen whose loss went unreported) is preceded by
+        the ``lost`` it implies, so a recording or a HUD never reads two states in a row."""
+        with self._status_lock:
+            t = self._now() if t is None else t
+            if status == self.reported:
+                if status != "connected":
+                    return
+                self.emit(StatusEvent(self.spec, "lost", t, f"lost before: {detail or 'reconnected'}"))
+            self.reported = status
+            self.emit(StatusEvent(self.spec, status, t, detail))  # type: ignore[arg-type]
 
     def _safe_close_handle(self) -> None:
         try:
@@ -215,6 +245,7 @@ class Device:
             self._open()
         except Exception as err:
             self._safe_close_handle()
+            self.last_error = str(err)
             log.debug("%s: reopen failed: %s", self.spec, err)
             return False
         if self._stop.is_set():  # close() came while we were opening: do not leak the handle
@@ -222,7 +253,7 @@ class Device:
             return False
         self._connected = True
         self._restore_lights()
-        self._status("connected", "reopened")
+        self._status("connected", "reopened" if self.reported else "opened")
         return True
 
     def _raise_priority(self) -> None:

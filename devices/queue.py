@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import queue
+import threading
 
 from devices.events import ControlEvent, StatusEvent
 
@@ -21,12 +22,14 @@ class EventQueue:
     def __init__(self, maxsize: int = 100_000) -> None:
         self._q: queue.Queue[Event] = queue.Queue(maxsize=maxsize)
         self.dropped = 0
+        self._arrived = threading.Event()
 
     def put(self, event: Event) -> None:
         """Append one event; never blocks."""
         while True:
             try:
                 self._q.put_nowait(event)
+                self._arrived.set()
                 return
             except queue.Full:
                 try:
@@ -39,12 +42,18 @@ class EventQueue:
 
     def drain(self) -> list[Event]:
         """Everything queued so far, oldest first; an empty list when nothing happened."""
+        self._arrived.clear()  # before taking: an event put meanwhile sets it again
         out: list[Event] = []
         while True:
             try:
                 out.append(self._q.get_nowait())
             except queue.Empty:
                 return out
+
+    def wait_arrival(self, timeout: float) -> bool:
+        """Wait up to `timeout` seconds for an event put since the last `drain`; True when one was
+        (the live loop wakes on it instead of waiting for its next tick boundary)."""
+        return self._arrived.wait(max(0.0, timeout))
 
     def get(self, timeout: float | None = None) -> Event | None:
         """The next event, waiting up to ``timeout`` seconds; None when none arrived."""

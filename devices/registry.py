@@ -86,11 +86,13 @@ def backend_class(scheme: str) -> type[Device]:
     return cls
 
 
-def open_device(spec: str, *, require: bool = True, **options: Any) -> Device:
+def open_device(spec: str, *, require: bool | str = True, **options: Any) -> Device:
     """Parse ``spec``, build its backend and open it (the reader thread is not started).
 
     With ``require=False`` a device that is not plugged in yet is returned unconnected; once
-    started it connects by itself when it appears. ``options`` go to the backend (e.g. a mock's
+    started it connects by itself when it appears. With ``require="present"`` a device whose
+    address exists but which failed to open (a box powering up, a flaky first contact) is returned
+    unconnected too, while one whose address is not there is an error. ``options`` go to the backend (e.g. a mock's
     ``clock``).
     """
     parsed = parse_spec(spec)
@@ -98,7 +100,10 @@ def open_device(spec: str, *, require: bool = True, **options: Any) -> Device:
     device = cls(parsed, **options)
     try:
         device.open()
-    except DeviceError:
+    except DeviceError as err:
+        if require == "present" and device.address_exists():
+            log.info("%s: %s; will connect once it answers", spec, err)
+            return device
         if require:
             device.close()
             raise

@@ -41,6 +41,7 @@ class SerialPortDevice(Device):
         self._outbox: deque[bytes] = deque()
         self._port_id: tuple[int, int] | None = None
         self._last_data = 0.0
+        self._opened_once = False
 
     # ---------------------------------------------------------------- port handling
     def _open(self) -> None:
@@ -54,9 +55,15 @@ class SerialPortDevice(Device):
                 raise OSError(f"{self.path}: permission denied; add your user to the 'dialout' group "
                               "(sudo usermod -aG dialout $USER, then log in again)") from err
             raise
+        self._opened_once = True
         self._port_id = self._identity()
         self._last_data = time.monotonic()
         self._handshake()
+
+    def address_exists(self) -> bool:
+        """The port's path exists or it opened at least once (a box behind it may still be
+        powering up, or its first contact failed half-way)."""
+        return self._opened_once or os.path.exists(self.path)
 
     def _identity(self) -> tuple[int, int] | None:
         try:

@@ -5,6 +5,10 @@ Security first: the socket binds 127.0.0.1 unless the spec names another address
 ``lan=1``; a LAN listener prints what it exposes when it opens, and ``allow=ADDR[,NET/BITS...]``
 drops datagrams from every other sender. Nothing is ever sent back to a sender.
 
+Bursts: the socket asks for a receive buffer of ``rcvbuf`` bytes (4 MiB by default; what the
+kernel granted is ``rcvbuf_granted``) and ``drops`` counts the datagrams lost to overflow, from the
+kernel's own counter (see devices.udpstats), plus any this reader discarded over ``max_rate``.
+
 Robustness: datagrams above ``max_size`` bytes are dropped and counted; at most ``max_rate``
 datagrams a second are decoded (a flood beyond that waits in, and is then dropped by, the kernel's
 socket buffer, which costs this process nothing); a batch of reads is bounded, and absolute values
@@ -25,6 +29,8 @@ from devices.base import Device
 from devices.errors import DeviceSpecError
 from devices.events import ControlEvent
 from devices.spec import DeviceSpec
+from devices.udpstats import (ANC_SIZE, DEFAULT_RCVBUF, ancillary_drops, enable_drop_counter, proc_drops,
+                              size_receive_buffer)
 from devices.wakepipe import SelectWaking, WakePipe
 
 Network = ipaddress.IPv4Network | ipaddress.IPv6Network
@@ -35,6 +41,8 @@ BATCH = 256
 WINDOW = 0.1
 #: Largest datagram the socket can hold (IPv4's UDP payload limit).
 RECV_BUFFER = 65536
+#: /proc/net/udp is read for drops at most this often (seconds), when nothing arrives.
+PROC_EVERY = 0.5
 
 
 def split_host_port(location: str, default_port: int, spec: str) -> tuple[str, int]:
@@ -137,7 +145,7 @@ class UdpListenerDevice(SelectWaking, Device):
     DEFAULT_PORT: ClassVar[int] = 9000
     #: What the datagrams carry, for the LAN notice ("OSC", "Face Cap face tracking", ...).
     WHAT: ClassVar[str] = "datagrams"
-    NET_OPTIONS: ClassVar[frozenset[str]] = frozenset({"lan", "allow", "max_size", "max_rate"})
+    NET_OPTIONS: ClassVar[frozenset[str]] = frozenset({"lan", "allow", "max_size", "max_rate", "rcvbuf"})
     MAX_SIZE: ClassVar[int] = 32768
 
     def __init__(self, spec: DeviceSpec, **options: Any) -> None:
@@ -147,6 +155,13 @@ class UdpListenerDevice(SelectWaking, Device):
         self.allow = parse_allow(spec.query.get("allow"), spec.text)
         self.max_size = spec.get_int("max_size", self.MAX_SIZE, lo=64, hi=65507)
         self.max_rate = spec.get_int("max_rate", 20000, lo=10, hi=10_000_000)
+        self.rcvbuf = spec.get_int("rcvbuf", DEFAULT_RCVBUF, lo=4096, hi=1 << 28)
+        self.rcvbuf_granted = 0
+        self.discarded = 0  # read but thrown away over max_rate
+        self._drops_before = 0  # kernel drops of the sockets of earlier connections
+        self._sock_drops = 0  # the current socket's kernel drop total, as last seen
+        self._ancillary = False
+        self._proc_read = 0.0
         if not self.lan and not is_loopback(self.host):
             raise DeviceSpecError(
                 f"{spec.text}: {self.host} would listen beyond this machine; say so with lan=1 "
@@ -189,6 +204,12 @@ class UdpListenerDevice(SelectWaking, Device):
                               f"pick another port ({self.scheme}://{self.host}:PORT)") from err
             raise OSError(f"cannot listen on {self.host}:{self.port}: {err.strerror or err}") from err
         sock.setblocking(False)
+        self.rcvbuf_granted = size_receive_buffer(sock, self.rcvbuf)
+        if self.rcvbuf_granted < self.rcvbuf:
+            self.warnings.warn("rcvbuf", f"receive buffer {self.rcvbuf_granted} bytes, not the {self.rcvbuf} "
+                               f"asked: bursts may be dropped (raise it: sysctl -w net.core.rmem_max={self.rcvbuf})")
+        self._ancillary = enable_drop_counter(sock)
+        self._sock_drops = 0
         self._sock = sock
         self.bound = sock.getsockname()[:2]
         if self.exposure and not self._announced:
@@ -199,7 +220,24 @@ class UdpListenerDevice(SelectWaking, Device):
     def _close_handle(self) -> None:
         sock, self._sock = self._sock, None
         if sock is not None:
+            self._sock_drops = max(self._sock_drops, proc_drops(sock) or 0)
+            self._drops_before += self._sock_drops
+            self._sock_drops = 0
             sock.close()
+
+    @property
+    def drops(self) -> int:
+        """Datagrams lost to bursts so far: dropped by the kernel when the receive buffer was full
+        (its own counter, on Linux) plus those discarded over ``max_rate``."""
+        return self._drops_before + self._sock_drops + self.discarded
+
+    def _poll_drops(self, sock: socket.socket, now: float) -> None:
+        """Drops after the last datagram are only in /proc: look there now and then."""
+        if now - self._proc_read >= PROC_EVERY:
+            self._proc_read = now
+            seen = proc_drops(sock)
+            if seen is not None and seen > self._sock_drops:
+                self._sock_drops = seen
 
     def _read(self, timeout: float) -> Iterable[ControlEvent]:
         sock = self._sock
@@ -214,15 +252,24 @@ class UdpListenerDevice(SelectWaking, Device):
         if self._waker in ready:
             self._waker.drain()
         if sock not in ready:
-            return self._idle(time.monotonic())
+            now = time.monotonic()
+            self._poll_drops(sock, now)
+            return self._idle(now)
         events: list[ControlEvent] = []
         for _ in range(BATCH):
             try:
-                n, addr = sock.recvfrom_into(self._buf, RECV_BUFFER, socket.MSG_TRUNC)
+                if self._ancillary:
+                    n, anc, _flags, addr = sock.recvmsg_into([self._buf], ANC_SIZE, socket.MSG_TRUNC)
+                    dropped = ancillary_drops(anc)
+                    if dropped is not None and dropped > self._sock_drops:
+                        self._sock_drops = dropped
+                else:
+                    n, addr = sock.recvfrom_into(self._buf, RECV_BUFFER, socket.MSG_TRUNC)
             except (BlockingIOError, InterruptedError):
                 break
             t = time.monotonic()
             if not self._count(t):
+                self.discarded += 1
                 break
             sender = str(addr[0])
             if not sender_allowed(sender, self.allow):

@@ -43,6 +43,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--resume", action="store_true",
                    help="continue the --record FILE if it exists (a new segment) instead of starting it "
                    "again (what --supervise and the systemd unit in docs/live.md do after a crash)")
+    p.add_argument("--tick-rate", type=float, choices=(60.0, 120.0, 240.0), default=None, metavar="HZ",
+                   help="simulation ticks a second: 60, 120 or 240 (default 240 headless; 60 in a window and on "
+                   "a script's clock); frames are still drawn at the display's rate, a faster tick shortens the "
+                   "wait of an event for the simulation; the take records it (see docs/live.md)")
     p.add_argument("--standby", action="store_true", help=argparse.SUPPRESS)  # --supervise's spare
     p.set_defaults(func=run)
 
@@ -54,7 +58,14 @@ def _open_devices(specs: list[str], warn: Any) -> list[Any]:
     opened = []
     if specs:
         for spec in specs:
-            opened.append(devices.open_device(spec))  # a bad spec is the user's error: one line, exit 2
+            # a bad spec or a port that is not there is the user's error (one line, exit 2); a port
+            # that is there but failed to open (a box powering up, a flaky first contact) is retried
+            # by its reader thread, and reported connected only once it is
+            dev = devices.open_device(spec, require="present")
+            if not dev.connected:
+                warn(f"{spec} is there but did not open ({dev.last_error}); the show starts and it "
+                     "connects once it answers")
+            opened.append(dev)
         return opened
     try:
         found = devices.discover()
@@ -268,7 +279,10 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     for d in devs:
         mapper.declare_controls(d.spec, d.controls)
     virtual = bool(devs) and all(getattr(getattr(d, "script", None), "speed", 1.0) == 0 for d in devs)
-    header = live.session_header(face, spec, live.TICK_RATE, specs)
+    # 240 Hz where the loop wakes on events (headless on the wall clock); a window runs the ticks due
+    # right before each frame, where a faster tick would only cost, and a script's clock keeps 60 Hz
+    rate = getattr(args, "tick_rate", None) or (live.TICK_RATE if virtual or windowed else live.LIVE_TICK_RATE)
+    header = live.session_header(face, spec, rate, specs)
     point = None
     if record and getattr(args, "resume", False):
         from puppet import resume
@@ -278,6 +292,8 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
 
     sound = audio_take.attach(devs, record if point is None else None, header)  # a WAV beside the take
     if point is not None:
+        rate = float(point.header.get("tick_rate", rate))  # a take goes on at the rate it was made at
+        header["tick_rate"] = rate
         writer = resume.open_resumed(point, SessionWriter, header)
     else:
         if record:
@@ -304,19 +320,27 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     import time
 
     win = live.open_live_window(face.model, devs) if windowed and not virtual else None
+    from puppet.panel import announce
+
+    # a page nobody asked for is served after the first frame (a fast start); but when the face's
+    # kernels are being compiled (the first show after an install or update) it is served now, in
+    # that time: its start (aiohttp's import loads the CA bundle, ~50 ms holding the interpreter)
+    # must not land on the show's first ticks; so is the wrinkle layer built then (wrinkles_later)
+    early = [p for p in panel_devices(devs) if p.server is None and p.serve_later and live.compiling_kernels()]
+    for page in early:
+        page.serve_in_background(announce, warn)
     try:  # the window is closed by run_window; until then, by this if the show fails to start
         t0 = time.monotonic()
-        core = live.LiveCore(face, mapper, writer=writer, t0=0.0 if virtual else t0, lights=lights,
-                             wrinkles_later=not virtual)
+        core = live.LiveCore(face, mapper, rate=rate, writer=writer, t0=0.0 if virtual else t0, lights=lights,
+                             wrinkles_later=not virtual and not live.compiling_kernels(),
+                             announce=None if virtual else warn)
         if point is not None:
             resume.start_segment(core, point)
         if sound:
             core.before_tick.append(audio_take.clock_hook(sound))
         for page in panel_devices(devs):
             page.watch(core, devs, record)
-            if page.server is None and page.serve_later:
-                from puppet.panel import announce
-
+            if page.server is None and page.serve_later and page not in early:
                 core.after_first_frame.append(lambda p=page: p.serve_in_background(announce, warn))
         stop = live.StopFlag()
         stop.install()
@@ -351,7 +375,7 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
             for d in devs:
                 d.add_listener(queue)
                 d.start()
-            live.run_realtime(core, queue.drain, args.duration, stop=stop)
+            live.run_realtime(core, queue.drain, args.duration, stop=stop, wake=queue.wait_arrival)
     finally:
         import gc
 

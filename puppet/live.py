@@ -1,4 +1,6 @@
-"""The live loop: device events -> mapping -> channel values -> simulator, at a fixed 60 Hz tick.
+"""The live loop: device events -> mapping -> channel values -> simulator, at a fixed tick (240 Hz
+headless on the wall clock by default, 60 Hz in a window and on a script's clock; frames at the
+display's rate).
 
 `LiveCore` is the deterministic part shared with replay: one `tick(events)` applies the events at
 the tick boundary, steps the mapping's filters with the tick's dt, records, and advances the
@@ -28,6 +30,16 @@ from puppet.mapping.defaults import default_map_name, load_default_map, merge
 from puppet.session import SessionWriter
 
 TICK_RATE = 60.0
+#: tick rates `puppet live --tick-rate` offers: the simulation may tick faster than frames are drawn
+TICK_RATES = (60.0, 120.0, 240.0)
+#: what a headless show on the wall clock ticks at unless told (a window, which runs the ticks due
+#: right before each frame, and scripted runs on the script clock keep TICK_RATE): measured with benchmarks/live_latency.py (docs/live.md, "Tick rate"), 240 Hz with the
+#: loop woken on events brings event -> simulated state p99 from ~18 ms to 2.4-3.0 ms and event ->
+#: frame p99 under one 60 Hz refresh + 2 ms, for ~10% more CPU than 60 Hz (fewer RK2 substeps a tick)
+LIVE_TICK_RATE = 240.0
+#: the frame rate frames are drawn at when nothing else paces them (headless renders, a window
+#: without vsync)
+DISPLAY_RATE = 60.0
 CHECK_TICKS = 60  # a digest of the positions once a second lets replay prove it matches
 Event = ControlEvent | StatusEvent
 
@@ -107,19 +119,40 @@ def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None
     return Face(model, Vocabulary.from_model(model), info)
 
 
+_COLD_START: dict[str, bool] = {}
+_COLD_START_KNOWN = __import__("threading").Event()
+
+
+def compiling_kernels(timeout: float = 10.0) -> bool:
+    """True when `warm_up_in_background` found numba's cache without this version's kernels: the
+    face's preparation will compile for seconds (the first show after an install or update), time
+    in which other start-up work (the page's server) can be done instead of during the show."""
+    if "started" not in _COLD_START:  # no warm-up ran in this process: nothing to tell
+        return False
+    return _COLD_START_KNOWN.wait(timeout) and _COLD_START.get("cold", False)
+
+
 def warm_up_in_background() -> None:
-    """Load the RK2 kernels from numba's cache in a thread (~0.3-0.7 s, most of a warm start)
-    while the caller opens devices and loads the face; the first step waits for it if needed."""
+    """Load the RK2 and wrinkle kernels from numba's cache in a thread (~0.3-0.7 s, most of a warm
+    start) while the caller opens devices and loads the face; `prepare_kernels` waits for it."""
     import threading
 
     def run() -> None:
         try:
-            from sim.integrator import warm_up
+            from sim.integrator import kernels_cached, warm_up
 
+            _COLD_START["cold"] = not kernels_cached()
+            _COLD_START_KNOWN.set()
             warm_up(implicit=False)
-        except Exception:  # the loop's own first step will compile or report it
-            pass
+            from sim.wrinkles.kernels import warm_up as warm_up_wrinkles
 
+            warm_up_wrinkles()
+        except Exception:  # prepare_kernels will compile or report it
+            pass
+        finally:
+            _COLD_START_KNOWN.set()
+
+    _COLD_START["started"] = True
     threading.Thread(target=run, name="kernel-warm-up", daemon=True).start()
 
 
@@ -198,6 +231,21 @@ def _positions_digest(positions: np.ndarray) -> Callable[[], str]:
     return digest
 
 
+def prepare_kernels(model: Any, dt: float) -> None:
+    """Every compiled kernel a show's ticks can call, compiled (the first show after an install or
+    update: tens of seconds on a slow machine) or loaded from numba's cache now, before the first
+    tick, so nothing compiles on the live path: the integrator this face and tick use (RK2 or
+    implicit, by one step of a throw-away simulator; the show's own starts fresh, as replay's
+    does) and the wrinkle kernel (its layer may be built later, `wrinkles_later`)."""
+    import sim
+
+    sim.Simulator(model, dt, wrinkles=False).step(model.rest_state(), sim.FaceControl(model))
+    if model.rig.wrinkles:
+        from sim.wrinkles.kernels import warm_up
+
+        warm_up()
+
+
 #: a test hook: `PUPPET_CRASH_AT_TICK=N` makes the live loop raise at tick N (testing --supervise)
 CRASH_ENV = "PUPPET_CRASH_AT_TICK"
 
@@ -217,7 +265,8 @@ class LiveCore:
 
     def __init__(self, face: Face, mapper: Mapper, *, rate: float = TICK_RATE,
                  writer: SessionWriter | None = None, t0: float = 0.0,
-                 lights: Callable[[str, str, bool], None] | None = None, wrinkles_later: bool = False) -> None:
+                 lights: Callable[[str, str, bool], None] | None = None, wrinkles_later: bool = False,
+                 announce: Callable[[str], None] | None = None) -> None:
         import sim
 
         self.face, self.mapper, self.rate, self.dt = face, mapper, rate, 1.0 / rate
@@ -225,10 +274,15 @@ class LiveCore:
         # switched on at a tick boundary once ready, so the show starts without waiting for it;
         # wrinkles only displace the drawn surface, never the simulated positions or the recording
         self._wrinkles_ready = False
+        t_prep = time.perf_counter()
+        if announce is not None:
+            announce("preparing the face")
         self.sim = sim.Simulator(face.model, self.dt, wrinkles=not wrinkles_later)
-        # the first step pays for JIT compilation: pay it now on a throw-away simulator, not on
-        # the first events of the show (the real Simulator starts fresh, as replay's does)
-        sim.Simulator(face.model, self.dt, wrinkles=False).step(face.model.rest_state(), sim.FaceControl(face.model))
+        prepare_kernels(face.model, self.dt)
+        #: seconds the kernels took to compile or load before the first tick
+        self.prepare_seconds = time.perf_counter() - t_prep
+        if announce is not None and self.prepare_seconds > 1.0:
+            announce(f"the face is ready ({self.prepare_seconds:.1f} s; compiled parts are kept for later shows)")
         self._wrinkles_thread = None
         if wrinkles_later and face.model.rig.wrinkles:  # started after the first frame
             import threading
@@ -241,6 +295,8 @@ class LiveCore:
             writer.defer = True
         self.tick_count = 0
         self.latency = LatencyMeter()
+        #: event -> the simulated state that includes it (the tick's step done), seconds
+        self.state_latency = LatencyMeter()
         self.unpresented: list[float] = []
         self.frames = 0  # frames presented (the performer's page shows the rate)
         self.values = np.array(mapper.values, copy=True)
@@ -279,6 +335,7 @@ class LiveCore:
             hook(self)
         k = self.tick_count
         writer, mapper, unpresented = self.writer, self.mapper, self.unpresented
+        n_before = len(unpresented)
         for ev in events:
             if writer is not None:
                 writer.event(k, ev, self.t0)
@@ -303,7 +360,12 @@ class LiveCore:
         self.control.values[...] = values
         if sp is not None:
             t_c = pc()
+        n_new = len(unpresented) - n_before
         self.sim.step(self.state, self.control)
+        if n_new:
+            done = time.monotonic()
+            for te in unpresented[-n_new:]:
+                self.state_latency.add(done - te)
         if sp is not None:
             t_d = pc()
         self.tick_count = k + 1
@@ -504,33 +566,52 @@ def prepare_show() -> None:
 
 def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None,
                  clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep,
-                 on_frame: Callable[[LiveCore], None] | None = None, stop: StopFlag | None = None) -> None:
+                 on_frame: Callable[[LiveCore], None] | None = None, stop: StopFlag | None = None,
+                 frame_rate: float | None = None, wake: Callable[[float], bool] | None = None) -> None:
     """Headless, on the wall clock: tick k happens at t0 + k*dt and takes every event that has
     arrived; a loop more than 4 ticks late drops wall time (re-anchors) rather than lag behind.
 
     The critical path from a boundary is kept short: wait for it on an absolute deadline (sleep, then
     a short spin), drain the input at that moment, tick, render (`on_frame`, which should finish the
-    frame, e.g. read it back), and only then stamp the frame as presented."""
+    frame, e.g. read it back), and only then stamp the frame as presented.
+
+    `frame_rate` (None: a frame per tick): frames are drawn at this rate (the display's) while the
+    simulation ticks at `core.rate` (e.g. 240 Hz ticks, 60 Hz frames): a frame follows the first tick
+    at or after each frame time. `wake(timeout)` (e.g. EventQueue.wait_arrival): an event that arrives
+    while the loop waits starts the next tick at once instead of at its boundary, never more than one
+    tick ahead of the schedule: simulated time leads the wall clock by less than a tick, the tick
+    rate holds on average, and the recording keeps the tick each event was applied at, as ever."""
     limit = None if duration is None else int(round(duration * core.rate))
+    per_frame = None if frame_rate is None or frame_rate >= core.rate else core.rate / frame_rate
     with _ShowRuntime() as runtime:
         start = clock()
         k0 = core.tick_count  # a resumed take starts at its first new tick
+        next_frame = 0.0  # in ticks since k0
         while True:
             if stop is not None and stop.stopped:
                 break
             if limit is not None and core.tick_count >= limit:
                 break
             boundary = start + (core.tick_count - k0) * core.dt
-            now = wait_until(boundary, clock, sleep, stop)
+            if wake is not None:
+                now = wait_until(boundary - core.dt, clock, sleep, stop)  # at most one tick ahead
+                if not (boundary - now > SPIN_S and wake(boundary - now - SPIN_S)):
+                    now = wait_until(boundary, clock, sleep, stop)
+            else:
+                now = wait_until(boundary, clock, sleep, stop)
             if stop is not None and stop.stopped:
                 break
             if core.spans is not None:
                 core.spans.add("woke late", max(0.0, now - boundary))
             if now - boundary > 4 * core.dt:  # fell behind (machine busy): re-anchor the schedule
-                start, k0 = now, core.tick_count
+                start, k0, next_frame = now, core.tick_count, 0.0
             # everything that arrived by now goes into this tick: waiting for the next boundary would
             # only add latency, and the recording keeps the tick each event was applied at
             core.tick(drain())
+            if per_frame is not None:
+                if core.tick_count - k0 < next_frame:
+                    continue
+                next_frame += per_frame * max(1, int((core.tick_count - k0 - next_frame) // per_frame) + 1)
             if on_frame is not None:
                 on_frame(core)
             core.presented(clock())
@@ -612,7 +693,7 @@ def live_hud(core: LiveCore, devs: Sequence[Any], keymap: bool, help: bool = Fal
     from render.hud import HudInfo, active_channels
 
     mapper = core.mapper
-    status = [(d.spec, bool(mapper.status.get(d.spec, d.connected))) for d in devs]
+    status = [_device_status(d, mapper) for d in devs]
     p50, p99 = core.latency.percentile(50), core.latency.percentile(99)
     lines = []
     if p50 is not None and p99 is not None:
@@ -633,6 +714,13 @@ def live_hud(core: LiveCore, devs: Sequence[Any], keymap: bool, help: bool = Fal
                    devices=status, latency_ms=None if p50 is None else p50 * 1e3, lines=lines[-24:])
 
 
+def _device_status(dev: Any, mapper: Any) -> tuple[str, bool] | tuple[str, bool, int]:
+    """(spec, connected), with the count of input lost to bursts for a device that can lose some."""
+    ok = bool(mapper.status.get(dev.spec, dev.connected))
+    drops = getattr(dev, "drops", None)
+    return (dev.spec, ok) if drops is None else (dev.spec, ok, int(drops))
+
+
 def _keyboard_alone(devs: Sequence[Any]) -> tuple[Any, bool]:
     """The keyboard device (or None), and whether it is the only box (then the whole key map is on)."""
     kb = next((d for d in devs if d.spec.startswith("keyboard")), None)
@@ -644,7 +732,13 @@ def open_live_window(model: Any, devs: Sequence[Any]) -> Any:
     that the window, its GL context and the renderer are set up while numba's kernels are still
     loading in their thread (`warm_up_in_background`) instead of after."""
     _, keymap = _keyboard_alone(devs)
-    return _window_or_none(model, "facepuppet live", [*LIVE_HELP, *([KEYMAP_HELP] if keymap else [])])
+    win = _window_or_none(model, "facepuppet live", [*LIVE_HELP, *([KEYMAP_HELP] if keymap else [])])
+    if win is not None:
+        try:  # the normals kernel the frames call: compiled or loaded now, not at the first frame
+            win.renderer.normals.interleaved(np.asarray(model.rest))
+        except Exception:  # the first frame will do it (or report what is wrong)
+            pass
+    return win
 
 
 def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None, devs: Sequence[Any],
@@ -669,6 +763,8 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
 
     win.add_key_callback(on_key)
     sched = {"start": time.monotonic(), "k0": core.tick_count}
+    frame_dt = max(core.dt, 1.0 / DISPLAY_RATE)  # without vsync, frames at most at the display's rate
+    max_ticks = max(4, math.ceil(4 * frame_dt / core.dt))
     limit = None if duration is None else int(round(duration * core.rate))
 
     def on_frame(w: Any, now: float) -> None:
@@ -678,7 +774,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
             w.request_close()
             return
         ran = 0
-        while sched["start"] + (core.tick_count - sched["k0"]) * core.dt <= now and ran < 4:
+        while sched["start"] + (core.tick_count - sched["k0"]) * core.dt <= now and ran < max_ticks:
             core.tick(drain())
             ran += 1
             if limit is not None and core.tick_count >= limit:
@@ -705,7 +801,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
                 # next boundary on an absolute deadline, so the tick runs as soon as it is due
                 if time.monotonic() - t_frame < 0.004:
                     nxt = sched["start"] + (core.tick_count - sched["k0"]) * core.dt
-                    wait_until(min(nxt, time.monotonic() + core.dt), stop=stop)
+                    wait_until(max(min(nxt, time.monotonic() + core.dt), t_frame + frame_dt), stop=stop)
     finally:
         win.close()
 

@@ -59,8 +59,9 @@ def _header(p: Path, line: bytes) -> dict[str, Any]:
         raise ConfigError(f"{where}: recording format version {quote(header.get('version'))} is not supported "
                           f"(expected {VERSION})")
     try:
-        if "channels" not in header or "tick_rate" not in header:
-            raise BadFile(f"{where}: recording header lacks channels or tick_rate")
+        if "channels" not in header:
+            raise BadFile(f"{where}: recording header lacks channels")
+        header.setdefault("tick_rate", 60.0)  # takes from before the tick rate was a choice ticked at 60 Hz
         chans = sequence(header["channels"], f"{where}: channels", MAX_CHANNELS, 1)
         channels = [string(c, f"{where}: channel name", 100) for c in chans]
         if len(set(channels)) != len(channels):

@@ -43,12 +43,12 @@ class HudInfo:
     """What the HUD shows; the live loop fills it each frame.
 
     channels: (name, value, lo, hi) of the channels to show (usually the active ones, see
-    `active_channels`); age: years (None: the state's age); devices: (name, connected);
-    fps, latency_ms: None hides them; lines: free text (key map, messages), drawn bottom-left."""
+    `active_channels`); age: years (None: the state's age); devices: (name, connected) or
+    (name, connected, drops) where drops counts input the device lost to bursts (shown when > 0); fps, latency_ms: None hides them; lines: free text (key map, messages), drawn bottom-left."""
 
     channels: list[tuple[str, float, float, float]] = field(default_factory=list)
     age: float | None = None
-    devices: list[tuple[str, bool]] = field(default_factory=list)
+    devices: list[tuple[str, bool] | tuple[str, bool, int | None]] = field(default_factory=list)
     fps: float | None = None
     latency_ms: float | None = None
     lines: list[str] = field(default_factory=list)
@@ -209,9 +209,10 @@ class HudRenderer:
             status.append((f"{info.fps:5.1f} fps", WHITE))
         if info.latency_ms is not None:
             status.append((f"latency {info.latency_ms:.1f} ms", WHITE))
-        for name, connected in info.devices:
+        for name, connected, *drops in info.devices:
             word, color = ("connected", OK) if connected else ("lost", LOST)
-            status.append((f"• {name} {word}", color))
+            lost_input = f", {drops[0]} dropped" if drops and drops[0] else ""
+            status.append((f"• {name} {word}{lost_input}", color))
         if status:
             pw = max(fa.width(s) for s, _ in status) + 2 * pad
             x0 = w - pw - pad

@@ -233,6 +233,18 @@ def warm_up(implicit: bool = True) -> None:
     margin_contact(x, v, np.array([[0, 1, 1]], dtype=np.int64), np.zeros(1), np.array([[1.0, 0.0, 1.0, 1.0]]), ones2)
 
 
+def kernels_cached() -> bool:
+    """Whether numba's on-disk cache holds this version's RK2 and wrinkle kernels (False on the
+    first start after an install or update, when preparing a face compiles for seconds). Reads
+    numba's cache index (an internal of numba: any surprise answers False)."""
+    try:
+        from sim.wrinkles.kernels import frame_displacement
+
+        return all(bool(k._cache._cache_file._load_index()) for k in (_rk2_frame, frame_displacement))
+    except Exception:  # noqa: BLE001 - a changed numba: assume a cold cache
+        return False
+
+
 def rk2_amplification(z: np.ndarray) -> np.ndarray:
     """|R(z)| of any two-stage second-order explicit Runge-Kutta method on y' = lambda y, z = h lambda."""
     return np.abs(1.0 + z + 0.5 * z * z)

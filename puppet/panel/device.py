@@ -234,8 +234,11 @@ class PanelDevice(Device):
             lat.sort()
             st["latency"] = [round(lat[len(lat) // 2] * 1e3, 2), round(lat[min(len(lat) - 1, int(len(lat) * 0.99))] * 1e3, 2)]
         status = dict(_copy_items(core.mapper.status))
-        devices = [[self._base() if d is self else d.spec, bool(status.get(d.spec, d.connected))] for d in self.devs]
-        for row, d in zip(devices, self.devs, strict=False):  # a microphone also shows how loud it hears
+        # [spec, connected, drops, level]: drops counts input a network listener lost to bursts (else
+        # null); a microphone adds how loud it hears
+        devices = [[self._base() if d is self else d.spec, bool(status.get(d.spec, d.connected)),
+                    getattr(d, "drops", None)] for d in self.devs]
+        for row, d in zip(devices, self.devs, strict=False):
             level = getattr(d, "level", None)
             if isinstance(level, float):
                 row.append(round(level, 3))

@@ -231,3 +231,24 @@ def frame_displacement(
         dq = ((1.0 - lam) * depth[fs0[q]] + lam * depth[fs1[q]]) * fw[q]
         for c in range(3):
             out[fv[q], c] -= dq * ((1.0 - lam) * st_n[fs0[q], c] + lam * st_n[fs1[q], c])
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) `frame_displacement` for the very signature a show
+    calls it with (sim.wrinkles.layer.compiled_displacement: writable C arrays, int64 indices), on
+    an empty layer: no model and no layer build needed, so a show can have it before its first
+    tick even when the layer itself is built later. A test checks a real layer then adds no
+    signature."""
+    def ints(*shape: int) -> np.ndarray:
+        return np.zeros(shape or (0,), dtype=np.int64)
+
+    def floats(*shape: int) -> np.ndarray:
+        return np.zeros(shape or (0,))
+
+    rolls = (ints(), ints(), np.zeros(0, dtype=np.bool_), floats(), floats(), ints(), ints())
+    entries = (ints(), ints(), ints(), floats(), floats(), floats(), floats())
+    furrows = (ints(), ints(), ints(), floats(), floats())
+    scratch = (floats(0, 3), floats(0, 3), floats(0, 3), floats(0, 3), floats(), floats(), floats(), floats(),
+               floats(), floats(0, 3))
+    frame_displacement(floats(1, 3), ints(0, 3), floats(0, 3), rolls, entries, (ints(0, 2), floats()), furrows,
+                       floats(2, 2, 2, 2), floats(7), 8, floats(1, 3), scratch)

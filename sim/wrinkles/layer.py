@@ -519,8 +519,11 @@ def layer_for(model: object) -> WrinkleLayer:
 
 def warm_up(model: object) -> None:
     """Compile the model's wrinkle layer and run its kernel once (numba compiles it, or loads it
-    from its on-disk cache), so the first live frame does not stall."""
-    compiled_displacement(layer_for(model), np.asarray(model.rest), 30.0)  # type: ignore[attr-defined]
+    from its on-disk cache), so the first live frame does not stall. The positions are a writable
+    copy: the simulator's are writable, and numba compiles a read-only array (the model's rest)
+    as another signature, which the first wrinkled frame would then compile on the live path."""
+    compiled_displacement(layer_for(model), np.array(model.rest, dtype=np.float64), 30.0)  # type: ignore[attr-defined]
+
 
 
 def apply_wrinkles(model: object, state: object) -> None:

@@ -84,8 +84,12 @@ class SgiBoxEmulator:
     """The SGI dial-and-button box: answers reset, honours enables, keeps int16 dial counters,
     records LED masks and every command received."""
 
-    def __init__(self, link: Path, acks: int = 1, ack_delay: float = 0.002, keep_counters: bool = False) -> None:
+    def __init__(self, link: Path, acks: int = 1, ack_delay: float = 0.002, keep_counters: bool = False,
+                 hang_up_first: bool = False) -> None:
         self.acks = acks
+        #: a flaky first contact: the first reset hangs up the line (the host's first open fails
+        #: with an I/O error) and the box comes back behind the same path a moment later
+        self.hang_up_first = hang_up_first
         self.ack_delay = ack_delay
         self.keep_counters = keep_counters
         self.counters = [0] * 8
@@ -117,6 +121,10 @@ class SgiBoxEmulator:
 
     def _execute(self, packet: bytes) -> None:
         cmd = packet[0]
+        if cmd == 0x20 and self.hang_up_first:
+            self.hang_up_first = False
+            threading.Thread(target=self._hang_up, daemon=True).start()
+            return
         if cmd == 0x20:
             self.resets += 1
             self.dials_on = self.buttons_on = False
@@ -136,6 +144,11 @@ class SgiBoxEmulator:
             with self.leds_changed:
                 self.leds = packet[1] | packet[2] << 8 | packet[3] << 16 | packet[4] << 24
                 self.leds_changed.notify_all()
+
+    def _hang_up(self) -> None:
+        self.unplug()
+        time.sleep(0.1)
+        self.replug()
 
     def wait_ready(self, timeout: float = 5.0) -> None:
         assert self.ready.wait(timeout), f"host never finished the init; got {self.commands}"

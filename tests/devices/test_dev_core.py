@@ -183,3 +183,40 @@ def test_opt_in_realtime_reader_thread(monkeypatch: pytest.MonkeyPatch) -> None:
     expected = os.SCHED_FIFO if can_go_realtime() else os.SCHED_OTHER
     assert policies and set(policies) == {expected}
     assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the caller's thread is untouched
+
+
+def test_status_events_strictly_alternate(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Whatever order a backend reports in, listeners hear connected, lost, connected...: a second
+    `lost` is not repeated and a reopen whose loss went unreported is told as lost-then-connected."""
+    monkeypatch.setitem(devices.BACKENDS, "flaky", (__name__, "FlakyDevice"))
+    dev = devices.open_device("flaky://x")
+    q = EventQueue()
+    dev.add_listener(q)
+    for status in ("connected", "lost", "lost", "connected", "connected", "lost"):
+        dev._status(status, "test")
+    told = [e.status for e in q.drain()]
+    assert told == ["connected", "lost", "connected", "lost", "connected", "lost"]
+    dev.close()
+
+
+def test_a_first_open_that_fails_on_an_existing_address_is_retried(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(devices.BACKENDS, "flaky", (__name__, "FlakyDevice"))
+    monkeypatch.setattr(FlakyDevice, "address_exists", lambda self: True)
+    tries = []
+
+    def flaky_open(self: FlakyDevice) -> None:
+        tries.append(1)
+        if len(tries) < 3:
+            raise OSError("Could not configure port: (5, 'Input/output error')")
+
+    monkeypatch.setattr(FlakyDevice, "_open", flaky_open)
+    with pytest.raises(DeviceError):
+        devices.open_device("flaky://x")
+    dev = devices.open_device("flaky://x", require="present")
+    assert not dev.connected and "Input/output error" in dev.last_error
+    q = EventQueue()
+    dev.add_listener(q)
+    dev.start()
+    first = _wait_for(q, lambda e: isinstance(e, StatusEvent))
+    assert [(e.status, e.detail) for e in first] == [("connected", "opened")] and dev.connected
+    dev.close()

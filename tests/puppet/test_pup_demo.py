@@ -85,6 +85,7 @@ def test_demo_in_a_window_plays_and_records(xvfb_display: str, tmp_path: Path) -
                  env={**ENV, "DISPLAY": xvfb_display}, cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     s = read_session(rec)
+    assert s.tick_rate == 60.0  # a window runs the ticks due right before each frame: 60 Hz
     assert s.complete and s.ticks == 90 and any(e.get("ctl") == "button0" for e in s.events)
     assert not rec.with_suffix(".mp4").exists() and "puppet replay" in out.stdout
 

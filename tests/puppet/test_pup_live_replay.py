@@ -127,7 +127,7 @@ def test_recording_over_an_earlier_take_keeps_it_aside(tmp_path: Path) -> None:
 def test_sigkill_during_recording_leaves_a_replayable_file(tmp_path: Path) -> None:
     rec = tmp_path / "killed.jsonl"
     proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--device", script(tmp_path, speed=1, duration=60),
-                             "--headless", "--record", str(rec), "--duration", "60"],
+                             "--headless", "--record", str(rec), "--duration", "60", "--tick-rate", "60"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=ENV)
     try:
         deadline = time.monotonic() + 60

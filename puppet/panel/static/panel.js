@@ -113,8 +113,8 @@
     if (st.latency) { $("p50").textContent = st.latency[0].toFixed(1); $("p99").textContent = st.latency[1].toFixed(1); }
     if (st.devices) {
       const d = $("devices"); d.textContent = "";
-      for (const [spec, ok, level] of st.devices) {
-        const s = el("span", "dev " + (ok ? "ok" : "lost"), (ok ? "● " : "○ ") + spec);
+      for (const [spec, ok, drops, level] of st.devices) {
+        const s = el("span", "dev " + (ok ? "ok" : "lost"), (ok ? "● " : "○ ") + spec + (drops ? " · " + drops + " dropped" : ""));
         if (typeof level === "number") {  // an audio input: its level
           const m = document.createElement("meter");
           m.min = 0; m.max = 1; m.value = level; m.className = "level";
