@@ -48,6 +48,7 @@ class Client:
     role: str | None
     own: dict[str, float] = field(default_factory=dict)
     bad: int = 0
+    face: bool = False  # the page watches the face
 
 
 def parse_roles(items: Sequence[str]) -> dict[str, list[str]]:
@@ -119,6 +120,10 @@ class PanelDevice(Device):
         self._task: asyncio.Task[None] | None = None
         self.record: str | None = None
         self.editor: Any = None  # the `puppet edit` process the editor button started
+        from puppet.panel.face import FaceFeed
+
+        self.face_feed = FaceFeed()  # the pages watching the face
+        self._face_task: asyncio.Task[None] | None = None
 
     # --- device hooks ----------------------------------------------------------------------------
     def _open(self) -> None:
@@ -258,17 +263,19 @@ class PanelDevice(Device):
         import asyncio
 
         self._task = asyncio.get_running_loop().create_task(self._broadcast())
+        self._face_task = asyncio.get_running_loop().create_task(self._face_loop())
 
     async def _stop_broadcast(self, app: Any) -> None:
         import asyncio
 
-        task, self._task = self._task, None
-        if task is not None:
-            task.cancel()
-            try:
-                await task
-            except (asyncio.CancelledError, Exception):
-                pass
+        for task in (self._task, self._face_task):
+            if task is not None:
+                task.cancel()
+                try:
+                    await task
+                except (asyncio.CancelledError, Exception):
+                    pass
+        self._task = self._face_task = None
 
     async def _broadcast(self) -> None:
         import asyncio
@@ -287,6 +294,36 @@ class PanelDevice(Device):
                         await asyncio.wait_for(c.ws.send_str(text), 0.5)
                     except Exception:  # a stalled page must not stall the others
                         pass
+
+    async def _face_loop(self) -> None:
+        """The face to the pages watching it: the loop's state read FACE_HZ times a second (on an
+        absolute schedule), encoded once per new tick for every page (puppet.panel.face)."""
+        import asyncio
+
+        from puppet.panel.face import FACE_HZ
+
+        feed, period = self.face_feed, 1.0 / FACE_HZ
+        due = time.monotonic()
+        while True:
+            due += period
+            now = time.monotonic()
+            if due < now - period:  # the machine stalled: re-anchor rather than burst
+                due = now
+            await asyncio.sleep(max(0.0, due - now))
+            core = self.core
+            watching = [c.ws for c in list(self.clients.values()) if c.face and not c.ws.closed]
+            if core is None or not watching:
+                continue
+            try:
+                await feed.use(core.face.model)
+                for ws in watching:
+                    if ws not in feed.pages:
+                        await feed.add(ws, core.face.model)
+                k = int(core.tick_count)
+                if k != feed.last_tick:
+                    feed.publish(core.state, k)
+            except Exception:  # the loop's state changed under us, or a page went: next time
+                continue
 
     def _base(self) -> str:
         """The spec with the port actually served (the OS's or the fallback's choice)."""
@@ -337,7 +374,8 @@ class PanelDevice(Device):
             allowed = L.allowed_controls(self.vocab, only) if only else set(self._every)
         except Exception as err:
             raise web.HTTPBadRequest(text=f"bad channel list: {err}\n") from err
-        ws = web.WebSocketResponse(max_msg_size=MAX_MESSAGE, heartbeat=10.0)
+        # no per-message deflate: the face's frames are deflated once for every page already
+        ws = web.WebSocketResponse(max_msg_size=MAX_MESSAGE, heartbeat=10.0, compress=False)
         await ws.prepare(request)
         name = self._client_name(request.query.get("name") or role)
         client = Client(name, f"{self._base()}/{name}", ws, allowed, only, role)
@@ -350,8 +388,19 @@ class PanelDevice(Device):
                 t = time.monotonic()
                 if msg.type != WSMsgType.TEXT:
                     continue
-                if msg.data.startswith('{"t":"ping"'):
-                    await ws.send_str(msg.data.replace('"ping"', '"pong"', 1))
+                if msg.data.startswith('{"t":"ping"'):  # the server's clock too: the page measures its lag
+                    await ws.send_str('{"t":"pong","s":%.6f}' % time.monotonic())
+                    continue
+                if msg.data.startswith('{"t":"face"'):
+                    from puppet.panel.face import parse_face_message
+
+                    want = parse_face_message(msg.data)
+                    if want is None:
+                        client.bad += 1
+                    else:  # the face loop sends the scene, then frames
+                        client.face = want["on"]
+                        if not client.face:
+                            self.face_feed.remove(ws)
                     continue
                 got = decode_input(msg.data, allowed)
                 if got is None:
@@ -363,6 +412,7 @@ class PanelDevice(Device):
                 kind = "axis" if ctl.startswith("slider:") else "button"
                 self.emit(ControlEvent(client.device, ctl, kind, v if kind == "axis" else float(v > 0.5), None, v, t))
         finally:
+            self.face_feed.remove(ws)
             self.clients.pop(name, None)
             self.emit(StatusEvent(client.device, "lost", time.monotonic(), "page closed"))
         return ws

@@ -70,8 +70,27 @@
     if (save) return go();
     sendTimer = setTimeout(go, 150);
   }
+  // the preview: the face at the playhead drawn here with WebGL 2 from the server's stream (as the
+  // live page's face view), or, where the browser has no WebGL 2, an image rendered by the server
+  const face = E.face = window.PuppetFace($("face"));
+  let faceWs = null, lastAt = null;
+  if (face.ok) {
+    $("preview").hidden = true;
+    const open = () => {
+      faceWs = new WebSocket("ws://" + location.host + "/ws/face" + location.search); faceWs.binaryType = "arraybuffer";
+      faceWs.onmessage = (ev) => { if (typeof ev.data !== "string") face.message(ev.data); };
+      faceWs.onopen = () => { lastAt = null; preview(true); };
+    };
+    open();
+  } else $("face").hidden = true;
   let inflight = false, again = false;
   function preview(force) {
+    if (face.ok) {
+      if (faceWs && faceWs.readyState === 1 && (force || lastAt !== E.playhead)) {
+        lastAt = E.playhead; faceWs.send(JSON.stringify({ t: "at", time: E.playhead }));
+      }
+      return;
+    }
     if (inflight) { again = true; return; }
     inflight = true;
     const img = new Image();

@@ -168,13 +168,19 @@
     b.addEventListener("blur", () => { if (by === "key") { by = null; up(); } });
   }
 
+  // the page is redrawn only where something changed: 30 states a second on a slow phone (or a
+  // software-composited browser) must leave it time for the performer's fingers and the face
+  const last = {};
+  function setText(e, text) { if (e.textContent !== text) e.textContent = text; }
+  function changed(key, value) { const j = JSON.stringify(value); if (last[key] === j) return false; last[key] = j; return true; }
   function update(st) {
     if (st.values) {
       state.values = st.values;
       for (const [ch, sl] of Object.entries(state.sliders)) {
         const c = state.layout.channels[state.index[ch]]; const v = st.values[state.index[ch]];
         const u = (v - c.lo) / ((c.hi - c.lo) || 1);
-        sl.ap.style.left = (u * 100) + "%"; sl.num.textContent = v.toFixed(2);
+        if (sl.u !== u) { sl.u = u; sl.ap.style.left = (u * 100) + "%"; }
+        setText(sl.num, v.toFixed(2));
         if (state.own["slider:" + ch] === undefined && sl.now !== fmt(v)) {  // untouched: it stands where the face is
           sl.now = fmt(v); sl.el.setAttribute("aria-valuenow", sl.now);
           sl.el.setAttribute("aria-valuetext", sl.now + (sl.linked ? ", left and right together" : ""));
@@ -182,14 +188,16 @@
       }
       if (state.ageRow) {
         const a = state.ageRow, v = st.values[state.index[a.name]], u = (v - a.lo) / (a.hi - a.lo);
-        const ang = Math.PI * 0.75 + u * Math.PI * 1.5;
-        $("ageapplied").setAttribute("x2", Math.cos(ang) * 40); $("ageapplied").setAttribute("y2", Math.sin(ang) * 40);
-        $("agetext").textContent = v.toFixed(0);
+        if (changed("age", u)) {
+          const ang = Math.PI * 0.75 + u * Math.PI * 1.5;
+          $("ageapplied").setAttribute("x2", Math.cos(ang) * 40); $("ageapplied").setAttribute("y2", Math.sin(ang) * 40);
+          setText($("agetext"), v.toFixed(0));
+        }
       }
     }
-    if (st.fps !== undefined) { $("fps").textContent = st.fps; $("tps").textContent = st.tps; }
-    if (st.latency) { $("p50").textContent = st.latency[0].toFixed(1); $("p99").textContent = st.latency[1].toFixed(1); }
-    if (st.devices) {
+    if (st.fps !== undefined) { setText($("fps"), String(st.fps)); setText($("tps"), String(st.tps)); }
+    if (st.latency) { setText($("p50"), st.latency[0].toFixed(1)); setText($("p99"), st.latency[1].toFixed(1)); }
+    if (st.devices && changed("devices", st.devices)) {
       const d = $("devices"); d.textContent = "";
       for (const rec of st.devices) {  // [spec, connected] or [spec, connected, drops] or {spec, ok, drops}
         const spec = Array.isArray(rec) ? rec[0] : rec.spec, ok = Array.isArray(rec) ? rec[1] : (rec.ok ?? rec.connected);
@@ -200,10 +208,17 @@
       }
     }
     // the other pages: what they touch, drawn as dots on our sliders, listed with their roles
+    if (changed("clients", st.clients || [])) others(st.clients || []);
+    if (st.markers && changed("markers", st.markers)) {
+      const m = $("markers"); m.textContent = "";
+      for (const [t, label] of st.markers.slice().reverse()) m.append(el("li", "", `${t.toFixed(2)} s  ${label}`));
+    }
+  }
+  function others(clients) {
     const cl = $("clients"); cl.textContent = "";
     for (const sl of Object.values(state.sliders)) for (const o of Object.values(sl.others)) o.remove(), 0;
     for (const sl of Object.values(state.sliders)) sl.others = {};
-    for (const c of st.clients || []) {
+    for (const c of clients) {
       const touching = Object.keys(c.own || {}).filter((k) => k.startsWith("slider:")).length;
       cl.append(el("li", "", `${c.name === state.me ? "▶ " : ""}${c.name}${c.role ? " (" + c.role + ")" : ""}` +
         `${c.only && c.only.length ? " — only " + c.only.join(", ") : ""} · ${touching} sliders touched`));
@@ -215,28 +230,50 @@
         sl.el.append(dot); sl.others[c.name] = dot;
       }
     }
-    if (st.markers) {
-      const m = $("markers"); m.textContent = "";
-      for (const [t, label] of st.markers.slice().reverse()) m.append(el("li", "", `${t.toFixed(2)} s  ${label}`));
-    }
   }
 
-  let pingAt = 0;
+  let pingAt = 0, bestRtt = Infinity;
+  // the face, live (face.js draws it with WebGL 2 from the server's stream); hidden, nothing is sent
+  const face = state.face = window.PuppetFace($("face"));
+  let faceOn = face.ok && params.get("face") !== "0";  // ?face=0: a page that starts without the face
+  if (!face.ok) { $("facetoggle").disabled = true; $("facefps").textContent = "no WebGL 2 here"; }
+  const faceWish = () => { if (state.ws && state.ws.readyState === 1) state.ws.send(JSON.stringify({ t: "face", on: faceOn })); };
+  const showFace = () => { $("facetoggle").setAttribute("aria-pressed", String(faceOn));
+    $("facetoggle").textContent = faceOn ? "face shown" : "face hidden"; $("face").style.visibility = faceOn ? "" : "hidden"; };
+  $("facetoggle").onclick = () => { faceOn = !faceOn && face.ok; showFace(); faceWish(); };
+  showFace();
+  let lastDrawn = 0, lastAt = performance.now();
+  setInterval(() => {
+    const now = performance.now(), fps = (face.drawn - lastDrawn) / ((now - lastAt) / 1000);
+    lastDrawn = face.drawn; lastAt = now;
+    if (!face.ok) return;
+    $("facefps").textContent = faceOn ? fps.toFixed(0) : "–";
+    const l = face.lags.slice(-30).sort((a, b) => a - b);
+    $("facelag").textContent = faceOn && l.length ? l[l.length >> 1].toFixed(0) : "–";
+  }, 1000);
   function connect() {
     const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws?" + q.toString());
+    ws.binaryType = "arraybuffer";
     state.ws = ws;
-    ws.onopen = () => { $("conn").textContent = "connected"; $("conn").className = "up"; };
+    ws.onopen = () => { $("conn").textContent = "connected"; $("conn").className = "up"; bestRtt = Infinity; ping(); faceWish(); };
     ws.onclose = () => { $("conn").textContent = "disconnected (retrying)"; $("conn").className = "down"; setTimeout(connect, 1000); };
     ws.onmessage = (ev) => {
+      if (typeof ev.data !== "string") { face.message(ev.data); return; }
       const msg = JSON.parse(ev.data);
       if (msg.t === "hello") {
         state.me = msg.you; state.allowed = new Set(msg.allowed); state.layout = msg.layout;
         $("me").textContent = msg.you; build(msg.layout);
       } else if (msg.t === "state") update(msg);
-      else if (msg.t === "pong") $("rtt").textContent = (performance.now() - pingAt).toFixed(1);
+      else if (msg.t === "pong") {
+        const now = performance.now(), rtt = now - pingAt;
+        $("rtt").textContent = rtt.toFixed(1);
+        // the server's clock against ours, from the quickest round trip: the face's lag is measured on it
+        if (rtt <= bestRtt) { bestRtt = rtt; face.offset = msg.s * 1000 - (pingAt + now) / 2; }
+      }
     };
   }
-  setInterval(() => { if (state.ws && state.ws.readyState === 1) { pingAt = performance.now(); state.ws.send('{"t":"ping"}'); } }, 1000);
+  function ping() { if (state.ws && state.ws.readyState === 1) { pingAt = performance.now(); state.ws.send('{"t":"ping"}'); } }
+  setInterval(ping, 1000);
   const hold = (id, control) => pressable($(id), () => send(control, 1), () => send(control, 0));
   hold("panic", "button:panic"); hold("marker", "button:marker");
   $("edit").onclick = () => {
