@@ -44,6 +44,29 @@ def thread_cpu(tid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def tree_cpu(root: int) -> float:
+    """CPU seconds of every live process under `root` (a chromedriver: its browser's processes)."""
+    parent, cpu = {}, {}
+    for d in os.listdir("/proc"):
+        if not d.isdigit():
+            continue
+        try:
+            with open(f"/proc/{d}/stat") as fh:
+                fields = fh.read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        parent[int(d)] = int(fields[1])
+        cpu[int(d)] = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    total = 0.0
+    for pid, c in cpu.items():
+        p = pid
+        while p in parent and p != root:
+            p = parent[p]
+        if p == root:
+            total += c
+    return total
+
+
 def wave(k: int, rate: float) -> list[tuple[str, float]]:
     t = k / rate
     return [("slider:jaw", 0.5 + 0.45 * math.sin(2 * math.pi * 0.4 * t)),
@@ -91,10 +114,14 @@ def live_run(face: live.Face, n_pages: int, seconds: float) -> dict[str, Any]:
             drv.execute_script("window.puppetPanel.face.drawLog = []")
         feed = dev.face_feed
         f0, b0, e0, s0, k0 = feed.stats.frames, feed.stats.bytes, feed.stats.encode_s, feed.stats.sent, feed.stats.skipped
+        roots = [drv.service.process.pid for drv in pages]
+        b0 = sum(tree_cpu(r) for r in roots)
         cpu0, t0 = thread_cpu(tid), time.monotonic()
         time.sleep(seconds)
         wall = time.monotonic() - t0
         out["cpu_shown"] = (thread_cpu(tid) - cpu0) / wall
+        out["browser_cpu_per_page_shown"] = (sum(tree_cpu(r) for r in roots) - b0) / wall / n_pages
+        out["show_fps_shown"] = len([t for t in presented.values() if t > t0]) / wall
         st = feed.stats
         frames = st.frames - f0
         out.update(frames_encoded_per_s=frames / wall, bytes_per_frame=(st.bytes - b0) / max(frames, 1),
@@ -112,9 +139,11 @@ def live_run(face: live.Face, n_pages: int, seconds: float) -> dict[str, Any]:
         for drv in pages:
             drv.find_element("id", "facetoggle").click()
         time.sleep(1.0)
+        b0 = sum(tree_cpu(r) for r in roots)
         cpu0, t0 = thread_cpu(tid), time.monotonic()
         time.sleep(min(seconds, 4.0))
         out["cpu_hidden"] = (thread_cpu(tid) - cpu0) / (time.monotonic() - t0)
+        out["browser_cpu_per_page_hidden"] = (sum(tree_cpu(r) for r in roots) - b0) / (time.monotonic() - t0) / n_pages
         out["show_fps"] = len([t for t in presented.values() if t > t0]) / (time.monotonic() - t0)
     finally:
         for drv in pages:
@@ -199,6 +228,9 @@ def main() -> int:
             print(f"{n} page(s): face drawn {min(fps):.1f}-{max(fps):.1f} frames/s per page; behind the show p50 "
                   f"{min(p50):.0f}-{max(p50):.0f} ms, p99 {min(p99):.0f}-{max(p99):.0f} ms (show {r['show_fps']:.0f} frames/s)")
             per = (r["cpu_shown"] - r["cpu_hidden"]) / n
+            print(f"   each browser {r['browser_cpu_per_page_shown'] * 100:.0f} % of a core with the face, "
+                  f"{r['browser_cpu_per_page_hidden'] * 100:.0f} % without; the show {r['show_fps_shown']:.0f} frames/s "
+                  "while the pages watched")
             print(f"   server thread {r['cpu_shown'] * 100:.1f} % of a core shown, {r['cpu_hidden'] * 100:.1f} % hidden: "
                   f"the face {per * 100:.2f} % per page; {r['frames_encoded_per_s']:.1f} frames encoded/s, "
                   f"{r['encode_ms']:.2f} ms each, {r['bytes_per_frame']:.0f} bytes/frame; sends {r['sends']}, "

@@ -123,7 +123,6 @@ class PanelDevice(Device):
         from puppet.panel.face import FaceFeed
 
         self.face_feed = FaceFeed()  # the pages watching the face
-        self._face_task: asyncio.Task[None] | None = None
 
     # --- device hooks ----------------------------------------------------------------------------
     def _open(self) -> None:
@@ -263,25 +262,32 @@ class PanelDevice(Device):
         import asyncio
 
         self._task = asyncio.get_running_loop().create_task(self._broadcast())
-        self._face_task = asyncio.get_running_loop().create_task(self._face_loop())
 
     async def _stop_broadcast(self, app: Any) -> None:
         import asyncio
 
-        for task in (self._task, self._face_task):
-            if task is not None:
-                task.cancel()
-                try:
-                    await task
-                except (asyncio.CancelledError, Exception):
-                    pass
-        self._task = self._face_task = None
+        task, self._task = self._task, None
+        if task is not None:
+            task.cancel()
+            try:
+                await task
+            except (asyncio.CancelledError, Exception):
+                pass
 
     async def _broadcast(self) -> None:
+        """The loop's state to every page, and the face to the pages watching it, STATE_HZ times a
+        second on an absolute schedule. Both go out together, so a browser redraws its page once
+        per state (a software-composited browser pays for every redraw of the whole page)."""
         import asyncio
 
+        period = 1.0 / STATE_HZ
+        due = time.monotonic()
         while True:
-            await asyncio.sleep(1.0 / STATE_HZ)
+            due += period
+            now = time.monotonic()
+            if due < now - period:  # the machine stalled: re-anchor rather than burst
+                due = now
+            await asyncio.sleep(max(0.0, due - now))
             if not self.clients:
                 continue
             try:
@@ -294,36 +300,25 @@ class PanelDevice(Device):
                         await asyncio.wait_for(c.ws.send_str(text), 0.5)
                     except Exception:  # a stalled page must not stall the others
                         pass
+            await self._face_step()
 
-    async def _face_loop(self) -> None:
-        """The face to the pages watching it: the loop's state read FACE_HZ times a second (on an
-        absolute schedule), encoded once per new tick for every page (puppet.panel.face)."""
-        import asyncio
-
-        from puppet.panel.face import FACE_HZ
-
-        feed, period = self.face_feed, 1.0 / FACE_HZ
-        due = time.monotonic()
-        while True:
-            due += period
-            now = time.monotonic()
-            if due < now - period:  # the machine stalled: re-anchor rather than burst
-                due = now
-            await asyncio.sleep(max(0.0, due - now))
-            core = self.core
-            watching = [c.ws for c in list(self.clients.values()) if c.face and not c.ws.closed]
-            if core is None or not watching:
-                continue
-            try:
-                await feed.use(core.face.model)
-                for ws in watching:
-                    if ws not in feed.pages:
-                        await feed.add(ws, core.face.model)
-                k = int(core.tick_count)
-                if k != feed.last_tick:
-                    feed.publish(core.state, k)
-            except Exception:  # the loop's state changed under us, or a page went: next time
-                continue
+    async def _face_step(self) -> None:
+        """The face to the pages watching it: the loop's state encoded once per new tick for every
+        page (puppet.panel.face); a page that just asked for it gets the scene first."""
+        core, feed = self.core, self.face_feed
+        watching = [c.ws for c in list(self.clients.values()) if c.face and not c.ws.closed]
+        if core is None or not watching:
+            return
+        try:
+            await feed.use(core.face.model)
+            for ws in watching:
+                if ws not in feed.pages:
+                    await feed.add(ws, core.face.model)
+            k = int(core.tick_count)
+            if k != feed.last_tick:
+                feed.publish(core.state, k)
+        except Exception:  # the loop's state changed under us, or a page went: next time
+            pass
 
     def _base(self) -> str:
         """The spec with the port actually served (the OS's or the fallback's choice)."""

@@ -5,7 +5,7 @@ face.js draws with WebGL 2).
 every page; a page whose previous frame is still being sent skips this one (a slow phone gets fewer
 frames, never older ones), so the lag behind the show stays the encode plus one send whatever the
 number of pages. On the live page the feed reads the loop's public state from the server's thread
-at FACE_HZ (nothing runs in the live loop); the state is read while the loop may be stepping, so a
+with the state it sends every page (30 times a second; nothing runs in the live loop); the state is read while the loop may be stepping, so a
 frame may mix two consecutive ticks (16 ms apart: nothing a viewer can see)."""
 
 from __future__ import annotations
@@ -14,8 +14,6 @@ import asyncio
 import time
 from dataclasses import dataclass, field
 from typing import Any
-
-FACE_HZ = 30.0
 
 
 @dataclass

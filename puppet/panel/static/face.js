@@ -58,7 +58,7 @@ window.PuppetFace = function (canvas) {
     gl.uniform3fv(gl.getUniformLocation(P.scalp, "hair_albedo"), h.hair.albedo);
     gl.uniform3fv(gl.getUniformLocation(P.scalp, "hair_edge"), h.hair.edge);
     F.scene = h.face; F.tick = -1;
-    normals(); dirty = true;
+    normals(); redraw();
   }
 
   function normals() {  // area-weighted vertex normals of the rows (render.normals_kernel's sums)
@@ -85,7 +85,7 @@ window.PuppetFace = function (canvas) {
     const q = new Int16Array(raw), base = S.A.base, k = S.h.quantum;
     for (let i = 0; i < q.length; i++) pos[i] = base[i] + q[i] * k;
     F.tick = h.tick; F.frameT = h.t; eye = h.eye; F.frames++;
-    normals(); dirty = true;
+    normals(); redraw();
   }
 
   F.message = function (buf) {
@@ -104,8 +104,10 @@ window.PuppetFace = function (canvas) {
     return [m[0][0], m[1][0], m[2][0], m[0][1], m[1][1], m[2][1], m[0][2], m[1][2], m[2][2]];
   }
 
-  function draw(now) {
-    requestAnimationFrame(draw);
+  let asked = false;
+  function redraw() { dirty = true; if (!asked) { asked = true; requestAnimationFrame(draw); } }
+  function draw() {
+    asked = false;
     if (!S || !dirty) return;
     dirty = false;
     const c0 = performance.now();
@@ -141,6 +143,5 @@ window.PuppetFace = function (canvas) {
     }
     F.drawLog.push([F.tick, performance.now()]); if (F.drawLog.length > 4000) F.drawLog.shift();
   }
-  requestAnimationFrame(draw);
   return F;
 };

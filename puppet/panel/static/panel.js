@@ -179,7 +179,8 @@
       for (const [ch, sl] of Object.entries(state.sliders)) {
         const c = state.layout.channels[state.index[ch]]; const v = st.values[state.index[ch]];
         const u = (v - c.lo) / ((c.hi - c.lo) || 1);
-        if (sl.u !== u) { sl.u = u; sl.ap.style.left = (u * 100) + "%"; }
+        // the needle slides on its own layer (a transform: no layout, no repaint of the page)
+        if (sl.u !== u) { sl.u = u; sl.ap.style.transform = `translateX(${(Math.min(1, Math.max(0, u)) * 100).toFixed(2)}%)`; }
         setText(sl.num, v.toFixed(2));
         if (state.own["slider:" + ch] === undefined && sl.now !== fmt(v)) {  // untouched: it stands where the face is
           sl.now = fmt(v); sl.el.setAttribute("aria-valuenow", sl.now);
@@ -195,8 +196,12 @@
         }
       }
     }
-    if (st.fps !== undefined) { setText($("fps"), String(st.fps)); setText($("tps"), String(st.tps)); }
-    if (st.latency) { setText($("p50"), st.latency[0].toFixed(1)); setText($("p99"), st.latency[1].toFixed(1)); }
+    const now = performance.now();
+    if (now - (last.statsAt || 0) > 500) {  // figures a person reads: twice a second is plenty
+      last.statsAt = now;
+      if (st.fps !== undefined) { setText($("fps"), String(st.fps)); setText($("tps"), String(st.tps)); }
+      if (st.latency) { setText($("p50"), st.latency[0].toFixed(1)); setText($("p99"), st.latency[1].toFixed(1)); }
+    }
     if (st.devices && changed("devices", st.devices)) {
       const d = $("devices"); d.textContent = "";
       for (const rec of st.devices) {  // [spec, connected] or [spec, connected, drops] or {spec, ok, drops}
@@ -232,7 +237,7 @@
     }
   }
 
-  let pingAt = 0, bestRtt = Infinity;
+  let pingAt = 0, bestRtt = Infinity, pendingState = null;
   // the face, live (face.js draws it with WebGL 2 from the server's stream); hidden, nothing is sent
   const face = state.face = window.PuppetFace($("face"));
   let faceOn = face.ok && params.get("face") !== "0";  // ?face=0: a page that starts without the face
@@ -263,7 +268,10 @@
       if (msg.t === "hello") {
         state.me = msg.you; state.allowed = new Set(msg.allowed); state.layout = msg.layout;
         $("me").textContent = msg.you; build(msg.layout);
-      } else if (msg.t === "state") update(msg);
+      } else if (msg.t === "state") {  // applied in the next animation frame, with the face's: one redraw
+        if (!pendingState) requestAnimationFrame(() => { const st = pendingState; pendingState = null; update(st); });
+        pendingState = msg;
+      }
       else if (msg.t === "pong") {
         const now = performance.now(), rtt = now - pingAt;
         $("rtt").textContent = rtt.toFixed(1);
