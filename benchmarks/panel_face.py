@@ -12,7 +12,11 @@ cost per page, bytes per frame.
    2 encoded as the server does: bytes per frame, encode time, the largest position error; and the
    other way, a JPEG of the offscreen render (480x360) per frame: its time and bytes.
 
-Run:  .venv/bin/python benchmarks/panel_face.py [--seconds 8] [--pages 1,4] [--json]
+3. The server alone: 1, 4 and 16 WebSocket clients in another process (no browser competing for
+   the CPU) with the face asked for and not: the server thread's CPU, hence the face's cost per
+   page, and how far behind the show each frame arrives.
+
+Run:  .venv/bin/python benchmarks/panel_face.py [--seconds 8] [--pages 1,4] [--clients 1,4,16] [--json]
 """
 
 from __future__ import annotations
@@ -155,6 +159,84 @@ def live_run(face: live.Face, n_pages: int, seconds: float) -> dict[str, Any]:
     return out
 
 
+def clients_process(url: str, n: int, seconds: float, face: bool, conn: Any) -> None:
+    """n WebSocket clients (a separate process, as browsers are) asking for the face or not; each
+    logs the tick and arrival time (time.monotonic, the show's clock: same machine) of its frames."""
+    import asyncio
+    import struct
+
+    import aiohttp
+
+    async def page(i: int) -> list[tuple[int, float, int]]:
+        got: list[tuple[int, float, int]] = []
+        async with aiohttp.ClientSession() as s, s.ws_connect(url + f"ws?name=c{i}") as ws:
+            await ws.send_str(json.dumps({"t": "face", "on": face}))
+            end = time.monotonic() + seconds
+            while time.monotonic() < end:
+                try:
+                    msg = await ws.receive(timeout=1.0)
+                except asyncio.TimeoutError:
+                    continue
+                if msg.type == aiohttp.WSMsgType.BINARY:
+                    kind, hl = struct.unpack_from("<B3xI", msg.data)
+                    if kind == 2:
+                        got.append((json.loads(msg.data[8:8 + hl])["tick"], time.monotonic(), len(msg.data)))
+        return got
+
+    async def main() -> list[list[tuple[int, float, int]]]:
+        return list(await asyncio.gather(*(page(i) for i in range(n))))
+
+    conn.send(asyncio.run(main()))
+
+
+def server_run(face: live.Face, n_pages: int, seconds: float, with_face: bool) -> dict[str, Any]:
+    """The server's cost with n client processes watching (or not): thread CPU, lag at arrival."""
+    import multiprocessing
+    import threading
+
+    dev = devices.open_device("panel://127.0.0.1:0", vocab=face.vocab)
+    core = live.LiveCore(face, Mapper(panel_map(face.vocab), face.vocab))
+    dev.watch(core, [dev])
+    dev.start()
+    presented: dict[int, float] = {}
+    stop = live.StopFlag()
+    spec = dev.spec.rstrip("/") + "/wave"
+
+    def drain() -> list[Any]:
+        k, t = core.tick_count, time.monotonic()
+        return [ControlEvent(spec, c, "axis", v, None, v, t) for c, v in wave(k, core.rate)]
+
+    def on_frame(c: live.LiveCore) -> None:
+        presented[c.tick_count] = time.monotonic()
+
+    show = threading.Thread(target=live.run_realtime, args=(core, drain, None),
+                            kwargs={"on_frame": on_frame, "stop": stop}, daemon=True)
+    show.start()
+    here, there = multiprocessing.Pipe()
+    proc = multiprocessing.get_context("spawn").Process(target=clients_process,
+                                                        args=(dev.url, n_pages, seconds + 1.5, with_face, there))
+    try:
+        proc.start()
+        time.sleep(1.5)  # connected, scenes sent
+        tid = dev.server._thread.native_id
+        cpu0, t0 = thread_cpu(tid), time.monotonic()
+        time.sleep(seconds)
+        cpu = (thread_cpu(tid) - cpu0) / (time.monotonic() - t0)
+        logs = here.recv()
+    finally:
+        proc.join(10)
+        stop.stopped = True
+        show.join(10)
+        dev.close()
+    lags = [(t - presented[k]) * 1000 for log in logs for k, t, _ in log if k in presented and t > t0]
+    frames = [sum(1 for _, t, _ in log if t > t0) / seconds for log in logs]
+    out: dict[str, Any] = {"pages": n_pages, "face": with_face, "server_cpu": cpu}
+    if lags:
+        out.update(lag_p50_ms=float(np.percentile(lags, 50)), lag_p99_ms=float(np.percentile(lags, 99)),
+                   frames_per_s=float(np.mean(frames)))
+    return out
+
+
 def encode_run(resolution: int, seconds: float = 3.0) -> dict[str, Any]:
     """Frames of a moving take encoded as the server does, without a browser."""
     import sim
@@ -206,10 +288,14 @@ def main() -> int:
     ap.add_argument("--seconds", type=float, default=8.0)
     ap.add_argument("--pages", default="1,4")
     ap.add_argument("--resolutions", default="0,2")
+    ap.add_argument("--clients", default="1,4,16", help="page counts for the server-only runs")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     face = live.load_face()
     res: dict[str, Any] = {"load": os.getloadavg()}
+    for n in [int(x) for x in a.clients.split(",") if x]:
+        res[f"server_{n}_face"] = server_run(face, n, a.seconds, True)
+        res[f"server_{n}_noface"] = server_run(face, n, a.seconds, False)
     for n in [int(x) for x in a.pages.split(",") if x]:
         res[f"live_{n}"] = live_run(face, n, a.seconds)
     for r in [int(x) for x in a.resolutions.split(",") if x]:
@@ -235,6 +321,12 @@ def main() -> int:
                   f"the face {per * 100:.2f} % per page; {r['frames_encoded_per_s']:.1f} frames encoded/s, "
                   f"{r['encode_ms']:.2f} ms each, {r['bytes_per_frame']:.0f} bytes/frame; sends {r['sends']}, "
                   f"skipped (page busy) {r['skipped']}")
+        if key.startswith("server_") and key.endswith("_noface"):
+            n, f, nf = r["pages"], res[key.replace("_noface", "_face")], r
+            print(f"server alone, {n} client(s) (no browser): thread {f['server_cpu'] * 100:.1f} % of a core with the face, "
+                  f"{nf['server_cpu'] * 100:.1f} % without: {(f['server_cpu'] - nf['server_cpu']) / n * 100:.2f} % per page; "
+                  f"{f.get('frames_per_s', 0):.1f} frames/s each, at the client p50 {f.get('lag_p50_ms', 0):.0f} ms "
+                  f"p99 {f.get('lag_p99_ms', 0):.0f} ms behind the show")
         if key.startswith("encode_"):
             print(f"encode, resolution {r['resolution']} ({r['vertices']} streamed vertices): {r['bytes_p50']:.0f} bytes/frame "
                   f"p50 (max {r['bytes_max']}; float32 would be {r['raw_float32_bytes']}), {r['encode_ms_p50']:.2f} ms, "

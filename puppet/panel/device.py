@@ -386,20 +386,17 @@ class PanelDevice(Device):
                 if msg.data.startswith('{"t":"ping"'):  # the server's clock too: the page measures its lag
                     await ws.send_str('{"t":"pong","s":%.6f}' % time.monotonic())
                     continue
-                if msg.data.startswith('{"t":"face"'):
-                    from puppet.panel.face import parse_face_message
-
-                    want = parse_face_message(msg.data)
-                    if want is None:
-                        client.bad += 1
-                    else:  # the face loop sends the scene, then frames
-                        client.face = want["on"]
-                        if not client.face:
-                            self.face_feed.remove(ws)
-                    continue
                 got = decode_input(msg.data, allowed)
                 if got is None:
-                    client.bad += 1
+                    from puppet.panel.face import parse_face_message
+
+                    want = parse_face_message(msg.data)  # the face shown or hidden on this page
+                    if want is not None and want["t"] == "face":
+                        client.face = want["on"]  # the broadcast sends the scene, then frames
+                        if not client.face:
+                            self.face_feed.remove(ws)
+                    else:
+                        client.bad += 1
                     continue
                 ctl, v = got
                 self.received += 1
