@@ -99,6 +99,7 @@
         if (pair) {
           // L=R: a toggle button; its state is announced, and so is a linked slider's value
           const link = el("button", "link on", "L=R");
+          if (r.classList.contains("locked")) link.disabled = true;
           link.title = "move left and right together";
           link.setAttribute("aria-label", "L=R " + row.label + ": left and right together");
           link.setAttribute("aria-pressed", "true");
