@@ -10,10 +10,12 @@ frame may mix two consecutive ticks (16 ms apart: nothing a viewer can see)."""
 
 from __future__ import annotations
 
-import asyncio
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # asyncio is imported where the server thread runs: opening the page device stays cheap
+    import asyncio
 
 
 @dataclass
@@ -43,6 +45,8 @@ class FaceFeed:
         a new face, whose scene has then been sent to every page watching."""
         if model is self.model:
             return False
+        import asyncio
+
         from render.stream import FaceStream
 
         loop = asyncio.get_running_loop()
@@ -64,6 +68,8 @@ class FaceFeed:
             task.cancel()
 
     async def _send_now(self, ws: Any, data: bytes) -> None:
+        import asyncio
+
         try:
             await asyncio.wait_for(ws.send_bytes(data), 5.0)
         except Exception:  # a page gone or stalled: its WebSocket handler removes it
@@ -74,6 +80,8 @@ class FaceFeed:
         frame; the number of pages it goes to."""
         if self.stream is None or not self.pages:
             return 0
+        import asyncio
+
         c0 = time.perf_counter()
         msg = self.stream.frame(state, tick, time.monotonic() if t is None else t)
         st = self.stats
