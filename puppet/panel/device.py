@@ -294,12 +294,14 @@ class PanelDevice(Device):
                 text = json.dumps(self._state(), separators=(",", ":"))
             except Exception:  # the loop's state changed under us: next time
                 continue
-            for c in list(self.clients.values()):
-                if not c.ws.closed:
-                    try:
-                        await asyncio.wait_for(c.ws.send_str(text), 0.5)
-                    except Exception:  # a stalled page must not stall the others
-                        pass
+
+            async def send(ws: Any) -> None:
+                try:
+                    await asyncio.wait_for(ws.send_str(text), 0.5)
+                except Exception:  # a stalled page must not stall the others
+                    pass
+
+            await asyncio.gather(*(send(c.ws) for c in list(self.clients.values()) if not c.ws.closed))
             await self._face_step()
 
     async def _face_step(self) -> None:
