@@ -315,10 +315,6 @@ class Editor:
                     if want is not None and want["t"] == "at":
                         wish["time"] = want["time"]
                         wake.set()
-                    elif msg.type == web.WSMsgType.TEXT and msg.data.startswith('{"t":"ping"'):
-                        import time
-
-                        await ws.send_str('{"t":"pong","s":%.6f}' % time.monotonic())
             finally:
                 task.cancel()
             return ws

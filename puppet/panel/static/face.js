@@ -9,7 +9,7 @@ window.PuppetFace = function (canvas) {
   const gl = canvas.getContext("webgl2", { antialias: true });
   if (!gl) { F.error = "this browser has no WebGL 2"; return F; }
   F.ok = true;
-  let S = null, pos = null, nrm = null, pending = null, dirty = false, eye = [0, 0];
+  let S = null, pos = null, nrm = null, dirty = false, eye = [0, 0];
 
   function header(buf) {
     const dv = new DataView(buf), kind = dv.getUint8(0), n = dv.getUint32(4, true);
@@ -93,7 +93,7 @@ window.PuppetFace = function (canvas) {
     const [kind, h, at] = header(buf);
     try {
       if (kind === 1) setScene(buf, h, at);
-      else if (kind === 2 && S) { pending = setFrame(buf, h, at).catch((e) => { F.error = String(e); }); }
+      else if (kind === 2 && S) setFrame(buf, h, at).catch((e) => { F.error = String(e); });
     } catch (e) { F.error = String(e); F.ok = false; }
   };
 
