@@ -4,7 +4,7 @@ For each face (the default face at each resolution, and the default rig transfer
 437-vertex head), gravity on: the rest drift (the largest |x - rest| after 1 s with no activation),
 then for every AU of sim.facs and every preset the settled displacement of every landmark that
 moves at least --min-mm (up / out / forward / total, in mm of a 90 mm outer-canthal-width adult;
-"out" is away from the midline), and the stated targets of sim.expression_targets with the real
+"out" is away from the midline), and the stated targets of sim.face.targets with the real
 range and its source. Ends with one table of the targets per face (the README's face section).
 
 Usage: .venv/bin/python benchmarks/expressions.py [--res 0 1 2] [--no-head] [--min-mm 0.5]
@@ -18,8 +18,9 @@ import time
 
 import numpy as np
 
-from sim import expression_targets as et
-from sim.build import FaceModel, compile_model, default_model
+from sim.face import targets as et
+from sim.build import FaceModel, compile_model
+from sim.face import default_model
 from sim.integrator import Simulator
 from sim.state import FaceControl
 
@@ -75,7 +76,7 @@ def main() -> int:
     args = ap.parse_args()
     faces: list[tuple[str, FaceModel]] = [(f"default face, resolution {r}", default_model(r)) for r in args.res]
     if not args.no_head:
-        from sim.transfer.synthetic import coarse_transferred_head
+        from sim.face.transfer.synthetic import coarse_transferred_head
 
         faces.append(("transferred coarse head", compile_model(coarse_transferred_head())))
     results = [face_report(label, m, args.min_mm, not args.summary_only) for label, m in faces]

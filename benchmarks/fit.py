@@ -7,7 +7,7 @@ Sources of data:
   res1      the default face at resolution 1 (about 2 700 vertices; `auto` runs it with the implicit
             integrator), observed at the res-1 vertex nearest each chosen res-0 vertex
   implicit  resolution 0 with the implicit integrator (same mesh, other integrator)
-  head      the default rig transferred (sim.transfer) onto another head: the res-1 mesh stretched
+  head      the default rig transferred (sim.face.transfer) onto another head: the res-1 mesh stretched
             by 1.12 / 0.93 / 1.05 in x / y / z, observed at the points matching the res-0 ones
 Points: all free res-0 vertices, 68 (the 32 rig landmarks + 36 random free vertices), 20 (20
 landmarks). Noise: Gaussian, sigma 0 / 0.1 / 0.5 mm per coordinate, independent per frame, on
@@ -43,7 +43,7 @@ HOLD = 5
 
 def _source(name: str, model0):  # type: ignore[no-untyped-def]
     """(settler of the data face, function res-0 vertex indices -> data vertex indices)."""
-    import sim
+    import sim.face
     from scipy.spatial import cKDTree
     from sim.fit.align import similarity
     from sim.fit.basis import Settler
@@ -51,11 +51,11 @@ def _source(name: str, model0):  # type: ignore[no-untyped-def]
     if name == "implicit":
         return Settler(model0, method="implicit"), lambda v: np.asarray(v)
     if name == "res1":
-        model = sim.default_model(1)
+        model = sim.face.default_model(1)
     elif name == "head":
-        from sim.face_builder import build_face_mesh
-        from sim.rig import default_rig
-        from sim.transfer import from_arrays, parse_landmarks, transfer_rig
+        from sim.face.builder import build_face_mesh
+        from sim.face import default_rig
+        from sim.face.transfer import from_arrays, parse_landmarks, transfer_rig
 
         target = build_face_mesh(1)
         head = from_arrays(target.vertices * np.array([1.12, 0.93, 1.05]), target.triangles, "head.obj")
@@ -217,7 +217,7 @@ def accuracy(sources, basis, settler, tpl, sets, n_takes: int, model0) -> None: 
 
 
 def timing(basis, settler, sets, model0) -> None:  # type: ignore[no-untyped-def]
-    import sim
+    import sim.face
     from sim.fit.basis import preset_values
     from sim.fit.solve import FitOptions
 
@@ -263,10 +263,10 @@ def main() -> int:
     ap.add_argument("--skip-timing", action="store_true")
     ap.add_argument("--skip-accuracy", action="store_true")
     args = ap.parse_args()
-    import sim
+    import sim.face
     from puppet.capture.cache import basis_for
 
-    model0 = sim.default_model(0)
+    model0 = sim.face.default_model(0)
     settler, basis, tpl = basis_for(model0)
     sets = _point_sets(model0)
     if not args.skip_accuracy:

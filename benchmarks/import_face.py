@@ -1,6 +1,6 @@
 """How long `puppet import-face` takes on a 5k-vertex head (budget: 10 s).
 
-The head is `sim.transfer.synthetic`'s full head (wraps all the way round, open at crown and
+The head is `sim.face.transfer.synthetic`'s full head (wraps all the way round, open at crown and
 neck, eye and mouth holes) at 5,200 vertices, written in millimetres and turned on its side so the
 orientation and scale estimation run as for a user's file. Measured: reading the OBJ and landmark
 JSON, the transfer from the built-in face (resolution 1), compile_model and save_rig — i.e. the
@@ -26,7 +26,7 @@ def write_head(folder: Path) -> tuple[Path, Path, int]:
     import trimesh
     from scipy.spatial.transform import Rotation
 
-    from sim.transfer.synthetic import synthetic_landmarks, synthetic_mesh
+    from sim.face.transfer.synthetic import synthetic_landmarks, synthetic_mesh
 
     v, t, param = synthetic_mesh(100, 52, full_head=True)
     rot = Rotation.from_euler("zx", [90, 20], degrees=True).as_matrix()
@@ -37,8 +37,9 @@ def write_head(folder: Path) -> tuple[Path, Path, int]:
 
 def import_once(mesh: Path, landmarks: Path, out: Path) -> float:
     from sim.build import compile_model
-    from sim.rig import default_rig, save_rig
-    from sim.transfer import read_landmarks, read_mesh, transfer_rig
+    from sim.face import default_rig
+    from sim.rig import save_rig
+    from sim.face.transfer import read_landmarks, read_mesh, transfer_rig
 
     start = time.perf_counter()
     result = transfer_rig(default_rig(1), read_mesh(mesh), read_landmarks(landmarks))

@@ -108,7 +108,7 @@ def bench(resolution: int, size: tuple[int, int], frames: int, ctx: object, head
     from render.hud import HudInfo
     from render.offscreen import OffscreenRenderer
     from render.renderer import VIEWS
-    from sim import default_model
+    from sim.face import default_model
     from sim.build import compile_model
 
     model = default_model(resolution)
@@ -161,7 +161,7 @@ def head_vs_mask(resolution: int, size: tuple[int, int], batches: int, ctx: obje
 
     from render.hud import HudInfo
     from render.offscreen import OffscreenRenderer
-    from sim import default_model
+    from sim.face import default_model
     from sim.build import compile_model
 
     head = default_model(resolution)
@@ -225,7 +225,7 @@ def main() -> None:
     threads = os.environ.get("LP_NUM_THREADS", f"unset (llvmpipe default: {os.cpu_count()} cores)")
     print(f"renderer: {ctx.info['GL_RENDERER']}, {size[0]}x{size[1]}, {args.frames} frames each, "
           f"LP_NUM_THREADS={threads}, load average {os.getloadavg()[0]:.1f}")
-    from sim import default_model
+    from sim.face import default_model
 
     if args.head_vs_mask:
         for res in (int(r) for r in args.resolutions.split(",")):

@@ -62,7 +62,7 @@ def main() -> None:
     from sim import facs
     from sim.build import compile_model
     from sim.integrator import Simulator
-    from sim.rig import default_rig
+    from sim.face import default_rig
     from sim.state import FaceControl
 
     control = FaceControl()

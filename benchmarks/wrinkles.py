@@ -20,7 +20,7 @@ import numpy as np
 from sim.build import compile_model
 from sim.facs import apply_au
 from sim.integrator import Simulator
-from sim.rig import default_rig
+from sim.face import default_rig
 from sim.state import FaceControl
 from sim.wrinkles import layer_for
 

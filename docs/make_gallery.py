@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     from render.hud import HudInfo, active_channels
     from render.offscreen import OffscreenRenderer
     from render.renderer import VIEWS
-    from sim import default_model
+    from sim.face import default_model
     import numpy as np
 
     from sim.facs import EXPRESSIONS, apply_expression

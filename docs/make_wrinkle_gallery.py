@@ -26,7 +26,7 @@ from render.offscreen import render_to_file  # noqa: E402
 from sim.build import compile_model  # noqa: E402
 from sim.facs import EXPRESSIONS, apply_au, apply_expression  # noqa: E402
 from sim.integrator import Simulator  # noqa: E402
-from sim.rig import default_rig  # noqa: E402
+from sim.face import default_rig  # noqa: E402
 from sim.state import FaceControl  # noqa: E402
 
 AGES = (25, 45, 65, 85)

@@ -37,7 +37,8 @@ def register(subparsers: Any) -> None:
 
 
 def _reference(args: argparse.Namespace) -> Any:
-    from sim.rig import RigFileError, default_rig, load_rig
+    from sim.face import default_rig
+    from sim.rig import RigFileError, load_rig
 
     if args.rig is None:
         return default_rig(args.resolution)
@@ -65,8 +66,8 @@ def run(args: argparse.Namespace) -> int:
     """Read, transfer, compile (proves the rig simulates), save, report, render."""
     from sim.build import compile_model
     from sim.rig import save_rig
-    from sim.transfer import TransferError, read_landmarks, read_mesh, transfer_rig
-    from sim.transfer.report import format_report
+    from sim.face.transfer import TransferError, read_landmarks, read_mesh, transfer_rig
+    from sim.face.transfer.report import format_report
 
     out = Path(args.out)
     if out.suffix.lower() != ".npz":

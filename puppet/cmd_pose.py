@@ -114,7 +114,7 @@ def load_model(args: argparse.Namespace) -> Any:
             raise ConfigError(str(err)) from err
     if args.resolution not in (0, 1, 2):
         raise PuppetError(f"--resolution {args.resolution}: valid resolutions are 0, 1, 2")
-    from sim.build import default_model
+    from sim.face import default_model
 
     return default_model(args.resolution)
 

@@ -11,10 +11,10 @@ was asked for (the default face at a resolution, or the bytes of a rig file). Fi
   SHA-256 of every array, "rig_sha": SHA-256 of the rig file below or null}.
 - `<key>.rig.npz`: for the default face, its rig in the rig file format (`sim.rig`), read back
   through the rig loader.
-- `head-<key>.npz`: the held head shell around a default-face mask (`sim.face_head.HeadShell`'s
+- `head-<key>.npz`: the held head shell around a default-face mask (`sim.face.head.HeadShell`'s
   arrays and a JSON `meta` with their checksums), keyed by the sim sources and the mask's geometry;
   built by the first window or export that draws the head (~0.4 s) and read back by the next ones
-  through `sim.face_head.check_shell`.
+  through `sim.face.head.check_shell`.
 
 An entry is never trusted blindly: a missing, corrupt, foreign (another key) or inconsistent entry
 (checksums, shapes, index ranges, finiteness, the rig's own digest) is ignored and rebuilt. Entries
@@ -74,7 +74,7 @@ def source_digest(root: Path | None = None) -> str:
     except PackageNotFoundError:
         scipy_version = "none"
     if root is None:
-        import sim
+        import sim.face
 
         root = Path(sim.__file__).resolve().parent
     h = hashlib.sha256(f"{FORMAT}/{VERSION} numpy {np.__version__} scipy {scipy_version}".encode())
@@ -338,13 +338,13 @@ def cached_model(what: bytes, build: Callable[[], Any], rig: Any | None = None) 
 def default_model(resolution: int = 0) -> Any:
     """The default face at a resolution, from the cache when it can be trusted (and its head
     shell, when something draws it, from the same folder: `HeadShellStore`)."""
-    import sim
-    from sim import face_head
+    import sim.face
+    from sim.face import head as face_head
 
     directory = cache_dir()
     if directory is not None:
         face_head.use_store(HeadShellStore(directory))
-    return cached_model(f"default-face:{resolution}".encode(), lambda: sim.default_model(resolution))
+    return cached_model(f"default-face:{resolution}".encode(), lambda: sim.face.default_model(resolution))
 
 
 _SHELL_ARRAYS = ("vertices", "triangles", "hair", "hair_coords", "ring", "ring_mask", "moving", "col_mask",
@@ -352,7 +352,7 @@ _SHELL_ARRAYS = ("vertices", "triangles", "hair", "hair_coords", "ring", "ring_m
 
 
 class HeadShellStore:
-    """sim.face_head's ShellStore in the cache folder: `head-<key>.npz`, written atomically, read
+    """sim.face.head's ShellStore in the cache folder: `head-<key>.npz`, written atomically, read
     back with the same bounded reader and checksums as the faces (anything else: None, rebuilt)."""
 
     def __init__(self, directory: Path) -> None:
@@ -362,7 +362,7 @@ class HeadShellStore:
         return self.directory / f"head-{entry_key(b'head-shell:' + mask_key)}.npz"
 
     def load(self, mask_key: bytes) -> Any:
-        from sim.face_head import HeadShell
+        from sim.face.head import HeadShell
 
         path = self.path(mask_key)
         try:
@@ -394,7 +394,7 @@ class HeadShellStore:
 def rig_model(rig: Any, rig_bytes: bytes, build: Callable[[], Any] | None = None) -> Any:
     """The compiled face of a rig loaded from a file whose bytes are `rig_bytes`; `build` compiles
     it on a cache miss (default: `sim.compile_model(rig)`)."""
-    import sim
+    import sim.face
 
     return cached_model(b"rig-file:" + hashlib.sha256(rig_bytes).digest(),
                         build or (lambda: sim.compile_model(rig)), rig)

@@ -41,7 +41,7 @@ class NormalComputer:
 
 class SurfaceRows:
     """The rows x y z nx ny nz of everything drawn of a face's skin, in one (N + M, 6) float32
-    array: the mask's surface (N) and, when the face has a held head (sim.face_head.HeadShell),
+    array: the mask's surface (N) and, when the face has a held head (sim.face.head.HeadShell),
     the head's vertices (M) posed to that surface, with normals computed over both meshes, so the
     shading runs on across the join. Without a head it is the mask's NormalComputer."""
 
@@ -71,7 +71,7 @@ class SurfaceRows:
 
 def surface_rows(model: object) -> SurfaceRows:
     """The SurfaceRows of a face model (its rig's held head included, if it has one)."""
-    from sim.face_head import shell_for
+    from sim.face.head import shell_for
 
     rig = getattr(model, "rig", None)
     shell = shell_for(rig) if rig is not None else None

@@ -65,7 +65,7 @@ class FaceRenderer:
                            for kind in ("SKIN", "CLAY", "HEAT")}
         self.scalp_prog = ctx.program(vertex_shader=shaders.skin_source("SCALP", vertex=True),
                                       fragment_shader=shaders.skin_source("SCALP"))
-        from sim.face_head import HAIR_EDGE
+        from sim.face.head import HAIR_EDGE
 
         self.scalp_prog["hair_albedo"].value = tuple(float(c) for c in HAIR)
         self.scalp_prog["hair_edge"].value = HAIR_EDGE
@@ -172,7 +172,7 @@ class FaceRenderer:
         self._populate_trails(n)
 
     def _populate_head(self, model: Any, tint: np.ndarray) -> None:
-        """The held head around the default face (sim.face_head: cranium, ears, neck), stitched to
+        """The held head around the default face (sim.face.head: cranium, ears, neck), stitched to
         the mask's border: colours (skin, the mask's own tint on the join, hair on the scalp) and
         rest places uploaded once, positions and normals each frame after the mask's (the rows
         of `self.normals`); drawn with the skin programs."""

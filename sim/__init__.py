@@ -1,7 +1,8 @@
-"""The face: rig building, skin springs, muscles, wrinkles, integrator. Knows nothing of devices
-or OpenGL.
+"""The face's physics: skin springs, muscles, contact, wrinkles, integrators; faces themselves
+(the procedural face, the head, rig placement and transfer) are built in `sim.face`. Knows nothing
+of devices or OpenGL.
 
-Public API (see docs/sim-api.md): `default_model`, `compile_model`, `FaceModel`, `SkinParams`,
+Public API (see docs/sim-api.md): `sim.face.default_model`, `compile_model`, `FaceModel`, `SkinParams`,
 `FaceState`, `FaceControl`, `Simulator`, `GuardEvent`, `ChannelSpec`, `ChannelError`,
 `CHANNEL_SPECS`. Imports are lazy so `import sim` stays cheap (numba loads on first use).
 """
@@ -11,7 +12,6 @@ from __future__ import annotations
 from typing import Any
 
 _EXPORTS = {
-    "default_model": "sim.build",
     "compile_model": "sim.build",
     "FaceModel": "sim.build",
     "SkinParams": "sim.build",
@@ -22,7 +22,6 @@ _EXPORTS = {
     "ChannelSpec": "sim.channels",
     "ChannelError": "sim.channels",
     "CHANNEL_SPECS": "sim.channels",
-    "default_rig": "sim.rig",
     "load_rig": "sim.rig",
     "save_rig": "sim.rig",
 }

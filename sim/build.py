@@ -10,7 +10,6 @@ from __future__ import annotations
 import hashlib
 import json
 from dataclasses import asdict, dataclass, field
-from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -377,11 +376,3 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
 
     warm_up()
     return model
-
-
-@lru_cache(maxsize=4)
-def default_model(resolution: int = 0) -> FaceModel:
-    """The default face at a mesh resolution (0 ~ 700 vertices, 1 ~ 3k, 2 ~ 12k), cached."""
-    from sim.rig import default_rig
-
-    return compile_model(default_rig(resolution))

@@ -5,9 +5,9 @@ Units everywhere in `sim`: centimetres, grams, seconds (forces in dyn = g*cm/s^2
 +Y up, the face looks along +Z, +X is the face's own left. `_l` / `_r` name the face's own sides.
 
 Who fills what:
-- `sim.face_builder` builds a `FaceMesh` procedurally (no third-party mesh).
+- `sim.face.builder` builds a `FaceMesh` procedurally (no third-party mesh).
 - `sim.muscles` places muscles on a mesh from its landmarks, giving a `FaceRig`.
-- `sim.rigfile` saves and loads a `FaceRig` (no pickle), `sim.transfer` makes one for another head.
+- `sim.rigfile` saves and loads a `FaceRig` (no pickle), `sim.face.transfer` makes one for another head.
 - `sim.build.compile_model(rig)` makes the `FaceModel` the integrator runs: springs, masses, muscle
   influence precomputed from rest geometry.
 """

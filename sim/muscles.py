@@ -13,7 +13,7 @@ point that skin can reach flips; zone edges are discontinuous).
 Force scale reading: the paper's alpha is a per-node force, which would make a finer mesh pull harder.
 We read alpha as a force per unit skin area (dyn/cm^2) and multiply it by each node's lumped area.
 
-Placement (`place_muscles`) is in `sim.muscle_placement`.
+Placement (`place_muscles`) is in `sim.face.placement`.
 """
 
 from __future__ import annotations
@@ -212,10 +212,3 @@ def muscle_field(parts: tuple[Muscle, ...], x: np.ndarray, area: np.ndarray) -> 
     for m in parts:
         out += muscle_force(m, x)
     return out * area[:, None]
-
-
-def place_muscles(mesh):  # type: ignore[no-untyped-def]
-    """Channel name -> muscle parts placed from the mesh's landmarks (see `sim.muscle_placement`)."""
-    from sim.muscle_placement import place_muscles as _place
-
-    return _place(mesh)

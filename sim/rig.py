@@ -1,4 +1,4 @@
-"""The default rig and the rig file.
+"""The rig file.
 
 Rig file (`.npz`, version 1), read with `allow_pickle=False` so loading never executes code:
 - `header`: a 0-d unicode array holding JSON: {"format": "facepuppet-rig", "version": 1, "name",
@@ -38,25 +38,6 @@ MAX_ENTRIES = 10_000  # muscles, landmarks, regions, wrinkle lines
 
 class RigFileError(ValueError):
     """A rig file cannot be read: the message is one line naming the file and what is wrong."""
-
-
-def default_rig(resolution: int = 0) -> FaceRig:
-    """The procedural default face with muscles placed from its landmarks."""
-    from sim.face_builder import build_face_mesh
-    from sim.muscles import place_muscles
-
-    mesh = build_face_mesh(resolution)
-    return FaceRig(mesh=mesh, muscles=place_muscles(mesh), wrinkles=_default_wrinkles(mesh),
-                   name=f"default-{resolution}")
-
-
-def _default_wrinkles(mesh: FaceMesh) -> tuple:
-    """The reference wrinkle mask laid on this mesh (empty if sim.wrinkles is not available)."""
-    try:
-        from sim.wrinkles.mask import default_mask
-    except ImportError:
-        return ()
-    return tuple(default_mask(mesh))
 
 
 def _muscle_json(channel: str, m: Muscle) -> dict[str, Any]:

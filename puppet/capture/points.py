@@ -2,7 +2,7 @@
 
 Landmark CSV (the base form): a header `time` then `NAME_x,NAME_y,NAME_z` per point, one row per
 frame, times in seconds, strictly increasing. NAME is a landmark of the rig vocabulary
-(`sim.transfer.landmarks.LANDMARK_NAMES`, e.g. `nose_tip`) or `v<index>` for a rig vertex; any
+(`sim.face.transfer.landmarks.LANDMARK_NAMES`, e.g. `nose_tip`) or `v<index>` for a rig vertex; any
 subset of at least 4 points; any units and frame (the fit removes scale and rigid motion).
 
 With a correspondence file the names are the input's own (MediaPipe indices, 68-point numbers,

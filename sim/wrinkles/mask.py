@@ -122,7 +122,7 @@ def _ray(name: str, degrees: float, r0: float, minus: float, plus: float) -> _Sp
 
 
 # Lines drawn on the face's left (+X) with dx > 0 away from the midline; paired lines are mirrored.
-# Where the default face's builder lays vertex rows along a wrinkle (sim.face_chart), the line
+# Where the default face's builder lays vertex rows along a wrinkle (sim.face.chart), the line
 # follows that row, so each furrow has vertices on it and rolls have rows to rise on.
 REFERENCE_MASK: tuple[_Spec, ...] = (
     # horizontal forehead lines; the rolls lie between consecutive lines

@@ -76,10 +76,10 @@ class Format:
 def good_recording(d: Path) -> bytes:
     import numpy as np
 
-    import sim
+    import sim.face
     from puppet.session import SessionWriter
 
-    model = sim.default_model(0)
+    model = sim.face.default_model(0)
     from puppet.live import load_face
 
     face = load_face(None, 0)
@@ -113,7 +113,8 @@ def good_curves(d: Path) -> bytes:
 
 
 def good_rig(d: Path) -> bytes:
-    from sim.rig import default_rig, save_rig
+    from sim.face import default_rig
+    from sim.rig import save_rig
 
     p = d / "good.npz"
     save_rig(default_rig(0), p)
@@ -140,7 +141,7 @@ def good_dbc(d: Path) -> bytes:
 
 
 def _head() -> tuple:
-    from sim.face_builder import build_face_mesh
+    from sim.face.builder import build_face_mesh
 
     mesh = build_face_mesh(0)
     return mesh.vertices, mesh.triangles, {k: int(v) for k, v in mesh.landmarks.items()}

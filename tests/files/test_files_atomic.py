@@ -90,7 +90,8 @@ def test_an_export_that_fails_midway_leaves_the_old_file_and_a_good_one_replaces
 
 
 def test_a_rig_save_that_fails_leaves_the_old_rig(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from sim.rig import default_rig, load_rig, save_rig
+    from sim.face import default_rig
+    from sim.rig import load_rig, save_rig
 
     rig = default_rig(0)
     p = tmp_path / "face.npz"

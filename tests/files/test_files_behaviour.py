@@ -136,7 +136,7 @@ def test_a_rig_array_header_promising_terabytes_is_refused_before_numpy_allocate
     (".ply", lambda b: b.replace(b"element vertex 120", b"element vertex 99999999999")),
 ])
 def test_a_mesh_count_asking_for_more_than_the_file_holds_is_one_line(tmp_path: Path, suffix: str, forge) -> None:
-    from sim.transfer import TransferError, read_mesh
+    from sim.face.transfer import TransferError, read_mesh
 
     good = formats.good_stl(tmp_path) if suffix == ".stl" else formats.good_ply_bin(tmp_path)
     p = tmp_path / f"head{suffix}"

@@ -39,7 +39,7 @@ def basis0(face0):  # type: ignore[no-untyped-def]
 @pytest.fixture(scope="session")
 def res1():  # type: ignore[no-untyped-def]
     """A settler of the default face at resolution 1 (another mesh, same landmarks)."""
-    import sim
+    import sim.face
     from sim.fit.basis import Settler
 
-    return Settler(sim.default_model(1))
+    return Settler(sim.face.default_model(1))

@@ -132,9 +132,9 @@ def test_68_point_layout_through_the_shipped_correspondence(tmp_path, performanc
     from puppet.capture.points import load_correspondence
 
     times, names, pts = performance
-    import sim
+    import sim.face
 
-    mesh = sim.default_model(0).mesh
+    mesh = sim.face.default_model(0).mesh
     corr = load_correspondence("ibug68", mesh)
     by_vertex = {mesh.landmarks[n]: i for i, n in enumerate(names)}
     ids = list(corr)
@@ -183,7 +183,7 @@ def test_c3d_markers(tmp_path, performance, capsys) -> None:  # type: ignore[no-
 
 
 def test_point_cache_from_the_other_integrator(tmp_path, face0, basis0, capsys) -> None:  # type: ignore[no-untyped-def]
-    import sim
+    import sim.face
     from puppet.export.pc2 import PC2Writer, write_obj
 
     settler, basis, _ = basis0
@@ -310,18 +310,18 @@ def test_a_damaged_cache_file_is_never_trusted(tmp_path, face0, basis0) -> None:
 
     cache._save(path, replace(basis, columns=cols), tpl)
     assert cache._load(path, face0.model) is None
-    import sim
+    import sim.face
 
-    assert cache._key(face0.model) != cache._key(sim.default_model(1))
+    assert cache._key(face0.model) != cache._key(sim.face.default_model(1))
 
 
 def test_fit_on_a_rig_file_records_it_for_replay(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
-    import sim
+    import sim.face
     from puppet.session import read_session
 
     times, names, pts = performance
     rig = tmp_path / "face.npz"
-    sim.save_rig(sim.default_rig(0), rig)
+    sim.save_rig(sim.face.default_rig(0), rig)
     csv_path = tmp_path / "track.csv"
     write_landmark_csv(csv_path, times[:12], pts[:12], names)
     take = tmp_path / "rig.jsonl"

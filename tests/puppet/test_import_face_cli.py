@@ -23,7 +23,7 @@ def head(tmp_path_factory) -> tuple[Path, dict, np.ndarray]:
     """The default face re-meshed, in millimetres, lying on its side, written as OBJ."""
     import trimesh
 
-    from sim.face_builder import build_face_mesh
+    from sim.face.builder import build_face_mesh
 
     mesh = build_face_mesh(0)
     rot = Rotation.from_euler("zyx", [90, 25, -10], degrees=True).as_matrix()
@@ -92,7 +92,8 @@ def test_transfer_from_a_rig_file_without_picture(head, capsys) -> None:
     """--rig picks the rig to transfer from (here a saved built-in face); --no-image skips the
     picture. Run in-process through the same dispatcher."""
     from puppet.cli import main
-    from sim.rig import default_rig, load_rig, save_rig
+    from sim.face import default_rig
+    from sim.rig import load_rig, save_rig
 
     d, lms, _ = head
     ref = default_rig(0)

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import sim
+import sim.face
 from puppet import face_cache, live
 from puppet.face_cache import CacheEntryError, cached_model, load_entry
 
@@ -20,7 +20,7 @@ WHAT = b"default-face:0"
 
 @pytest.fixture(scope="module")
 def fresh() -> object:
-    return sim.default_model(0)
+    return sim.face.default_model(0)
 
 
 def _same(a: object, b: object) -> None:
@@ -297,7 +297,7 @@ def test_the_head_shell_is_kept_beside_the_faces_and_damaged_copies_are_rebuilt(
     """The default face's held head (~0.4 s to build) is built once and read back by the next
     process (here: a cleared in-process memo); truncated or bit-flipped copies (fixed seed) never
     raise and give the built shell, a copy that still loads is the same shell."""
-    from sim import face_head
+    from sim.face import head as face_head
 
     rig = fresh.rig  # type: ignore[attr-defined]
     built = face_head.head_shell(rig.mesh)
@@ -331,7 +331,7 @@ def test_the_head_shell_is_kept_beside_the_faces_and_damaged_copies_are_rebuilt(
 def test_a_head_shell_that_does_not_fit_its_mask_is_refused(fresh: object) -> None:
     from dataclasses import replace
 
-    from sim import face_head
+    from sim.face import head as face_head
 
     mesh = fresh.rig.mesh  # type: ignore[attr-defined]
     shell = face_head.head_shell(mesh)

@@ -99,7 +99,7 @@ KEY_HELP_PROBE = r"""
 import json, sys
 from render.window import FaceWindow, HELP_LINES
 from puppet import live
-from sim import default_model
+from sim.face import default_model
 
 model = default_model(0)
 out = {}

@@ -22,7 +22,7 @@ class Faces:
 
 def simulate_faces() -> Faces:
     """The default face driven from rest into happiness the way a performer would."""
-    from sim import default_model
+    from sim.face import default_model
     from sim.facs import apply_expression
     from sim.integrator import Simulator
     from sim.state import FaceControl

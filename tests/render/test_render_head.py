@@ -9,7 +9,7 @@ import numpy as np
 
 from render.offscreen import OffscreenRenderer
 from sim.build import compile_model
-from sim.rig import default_rig
+from sim.face import default_rig
 
 
 def _covered(img: np.ndarray) -> np.ndarray:

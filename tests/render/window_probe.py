@@ -16,7 +16,7 @@ import numpy as np
 
 def main(out_dir: str) -> int:
     from render.window import FaceWindow
-    from sim import default_model
+    from sim.face import default_model
 
     out = Path(out_dir)
     model = default_model(0)

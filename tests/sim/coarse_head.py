@@ -1,4 +1,4 @@
-"""A coarse transferred head (`sim.transfer.synthetic.coarse_transferred_head`, 437 vertices),
+"""A coarse transferred head (`sim.face.transfer.synthetic.coarse_transferred_head`, 437 vertices),
 built once per test session."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from sim.model import FaceRig
 
 @lru_cache(maxsize=1)
 def coarse_head_rig() -> FaceRig:
-    from sim.transfer.synthetic import coarse_transferred_head
+    from sim.face.transfer.synthetic import coarse_transferred_head
 
     return coarse_transferred_head()
 

@@ -1,5 +1,5 @@
 """Fixtures for the simulation tests: a small synthetic face (always) and the procedural default face
-(once sim.face_builder exists)."""
+(once sim.face.builder exists)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from synthetic_face import synthetic_face  # noqa: E402
 
 from sim.build import FaceModel, SkinParams, compile_model  # noqa: E402
 from sim.model import FaceRig  # noqa: E402
-from sim.muscles import place_muscles  # noqa: E402
+from sim.face.placement import place_muscles  # noqa: E402
 
 
 @pytest.fixture(scope="session")
@@ -35,7 +35,7 @@ def synth_model_nograv(synth_rig: FaceRig) -> FaceModel:
 
 @pytest.fixture(scope="session")
 def face_model() -> FaceModel:
-    """The default face at resolution 0, gravity off (needs sim.face_builder)."""
-    from sim.rig import default_rig
+    """The default face at resolution 0, gravity off (needs sim.face.builder)."""
+    from sim.face import default_rig
 
     return compile_model(default_rig(0), SkinParams(gravity=False))

@@ -1,13 +1,13 @@
 """Full-activation amplitudes of the AUs and presets against real faces and our stated FACS targets
-(`sim.expression_targets.TARGETS`, with their sources), on the default face at resolutions 0, 1 and 2
+(`sim.face.targets.TARGETS`, with their sources), on the default face at resolutions 0, 1 and 2
 and on the coarse transferred head (437 vertices), gravity on. Each value is read in mm of a 90 mm outer-canthal-width adult."""
 
 from __future__ import annotations
 
 import pytest
 
-from sim import expression_targets as et
-from sim.build import default_model
+from sim.face import targets as et
+from sim.face import default_model
 from sim.integrator import Simulator
 
 

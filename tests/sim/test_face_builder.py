@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.face_builder import build_face_mesh
+from sim.face.builder import build_face_mesh
 from sim.model import FaceMesh
 
 SIDED = [
@@ -266,7 +266,7 @@ def test_wrinkle_lines_have_rows_on_both_sides(mesh0: FaceMesh) -> None:
     """Seed 003 section 2: every expressive wrinkle line has vertices on it and on either side
     within about 3 mm, so a furrow and its rolls can be shaped (only on its lateral side for a
     line whose medial roll is another line's)."""
-    from sim.face_chart import ONE_SIDED, resample, wrinkle_lines
+    from sim.face.chart import ONE_SIDED, resample, wrinkle_lines
 
     uv = mesh0.uv
     assert uv is not None

@@ -1,5 +1,5 @@
 """The default face is a head: a held cranium, ears and neck around the simulated mask
-(sim.face_head), stitched to the mask's border so the join stays closed when the face moves, in
+(sim.face.head), stitched to the mask's border so the join stays closed when the face moves, in
 adult proportions, never in front of the face, and only for the default rig."""
 
 from __future__ import annotations
@@ -9,11 +9,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from sim import default_model
-from sim.face_head import hair_weight, head_shell, shell_for
+from sim.face import default_model
+from sim.face.head import hair_weight, head_shell, shell_for
 from sim.facs import apply_expression
 from sim.integrator import Simulator
-from sim.rig import default_rig
+from sim.face import default_rig
 from sim.state import FaceControl, FaceState
 
 

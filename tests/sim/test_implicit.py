@@ -89,7 +89,7 @@ def test_margin_bending_resists_the_zigzag_not_the_smooth_motion() -> None:
     """The lid and lip rows' bending term (sim.margin_contact.margin_bending) has no force for a
     translation and little for a displacement smooth along the rows (a lip pressed in as a whole),
     and resists the alternating zig-zag that pressed lips buckled into."""
-    from sim.build import default_model
+    from sim.face import default_model
     from sim.margin_contact import margin_bending
     from sim.smoothness import margin_rows
 

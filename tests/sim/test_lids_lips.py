@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 from coarse_head import coarse_head_model
 
-from sim import expression_targets as et
+from sim.face import targets as et
 from sim import smoothness as sm
-from sim.build import FaceModel, default_model
+from sim.build import FaceModel
+from sim.face import default_model
 from sim.integrator import Simulator
 
 LID_GAP_CM = 0.1  # closed lids meet within 1 mm (open or overlapping) over the middle 90 % of the lid line

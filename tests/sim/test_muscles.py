@@ -12,6 +12,7 @@ import scipy.sparse as sp
 from sim.build import FaceModel, compile_model
 from sim.channels import CHANNEL_SPECS
 from sim.integrator import Simulator
+from sim.face.placement import place_muscles
 from sim.model import FaceMesh, FaceRig, LinearMuscle, SheetMuscle, SphincterMuscle
 from sim.muscles import (
     angle_falloff,
@@ -23,7 +24,6 @@ from sim.muscles import (
     linear_length_ratio,
     linear_radius_ratio,
     muscle_field,
-    place_muscles,
     sheet_direction,
     sheet_falloff,
     sheet_force,
@@ -105,7 +105,7 @@ def test_field_scales_with_node_area() -> None:
 
 def test_placement_types_match_the_channels(synth_rig: FaceRig) -> None:
     """A channel's first part is of its declared type; further parts may be of another (the
-    mouth's ring is joined by the linear fibres that press the lips, sim.muscle_placement)."""
+    mouth's ring is joined by the linear fibres that press the lips, sim.face.placement)."""
     kinds = {"linear": LinearMuscle, "sphincter": SphincterMuscle, "sheet": SheetMuscle}
     for spec in CHANNEL_SPECS:
         if spec.kind == "muscle":

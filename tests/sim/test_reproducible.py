@@ -18,8 +18,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 PROBE = """
 import hashlib
-from sim import expression_targets as et
-from sim.build import default_model
+from sim.face import targets as et
+from sim.face import default_model
 from sim.integrator import Simulator
 m = default_model(0)
 sim = Simulator(m, wrinkles=False)

@@ -25,7 +25,7 @@ def _rest_drift(model: FaceModel, seconds: float = 1.0, method: str = "auto") ->
 
 @pytest.fixture(scope="module")
 def default_rig0():
-    from sim.rig import default_rig
+    from sim.face import default_rig
 
     return default_rig(0)
 

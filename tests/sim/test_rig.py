@@ -101,7 +101,7 @@ def test_malformed_rig_raises_one_line_naming_the_file(synth_rig: FaceRig, tmp_p
 
 
 def test_default_rig_with_wrinkles_round_trips(tmp_path: Path) -> None:
-    from sim.rig import default_rig
+    from sim.face import default_rig
 
     rig = default_rig(0)
     assert rig.wrinkles  # the wrinkle mask is part of the default rig

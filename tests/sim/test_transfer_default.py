@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from sim.transfer import from_arrays, parse_landmarks, transfer_rig
-from sim.transfer.carry import frontal_to_surface, muscle_points
+from sim.face.transfer import from_arrays, parse_landmarks, transfer_rig
+from sim.face.transfer.carry import frontal_to_surface, muscle_points
 
 ROT = Rotation.from_euler("xyz", [20, -35, 60], degrees=True).as_matrix()
 AFFINE = 10.0 * ROT @ np.diag([1.12, 0.93, 1.05])  # cm -> mm, turned, 12 % anisotropy
@@ -26,7 +26,7 @@ def known(p: np.ndarray) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def reference():
-    from sim.rig import default_rig
+    from sim.face import default_rig
     from sim.wrinkles.mask import default_mask
 
     rig = default_rig(0)
@@ -35,7 +35,7 @@ def reference():
 
 @pytest.fixture(scope="module")
 def result(reference):
-    from sim.face_builder import build_face_mesh
+    from sim.face.builder import build_face_mesh
 
     target = build_face_mesh(1)
     assert len(target.vertices) != len(reference.mesh.vertices)

@@ -7,21 +7,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim.transfer import LANDMARK_NAMES, TransferError, from_arrays, parse_landmarks, read_landmarks, transfer_rig
-from sim.transfer.synthetic import synthetic_mesh
+from sim.face.transfer import LANDMARK_NAMES, TransferError, from_arrays, parse_landmarks, read_landmarks, transfer_rig
+from sim.face.transfer.synthetic import synthetic_mesh
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 @pytest.fixture(scope="module")
 def reference():
-    from sim.rig import default_rig
+    from sim.face import default_rig
 
     return default_rig(0)
 
 
 def test_default_face_example_points_land_on_the_default_face(reference) -> None:
-    from sim.face_builder import build_face_mesh
+    from sim.face.builder import build_face_mesh
 
     lf = read_landmarks(EXAMPLES / "landmarks_default_face.json")
     assert set(lf.entries) == set(LANDMARK_NAMES)

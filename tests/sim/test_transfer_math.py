@@ -9,10 +9,10 @@ from hypothesis import strategies as st
 from scipy.optimize import approx_fprime
 from scipy.spatial.transform import Rotation
 
-from sim.transfer.cylinder import Cylinder, cylinder_energy, cylinder_gradient, fit_cylinder
-from sim.transfer.flatten import CylinderChart, flat_triangulation, project_back
-from sim.transfer.geometry import boundary_loops, closest_points, locate_2d, unique_edges
-from sim.transfer.relax import area_forces, relax_mask, spring_forces
+from sim.face.transfer.cylinder import Cylinder, cylinder_energy, cylinder_gradient, fit_cylinder
+from sim.face.transfer.flatten import CylinderChart, flat_triangulation, project_back
+from sim.face.transfer.geometry import boundary_loops, closest_points, locate_2d, unique_edges
+from sim.face.transfer.relax import area_forces, relax_mask, spring_forces
 
 
 def cylinder_points(rng: np.random.Generator, axis, origin, r, n=400, arc=2.4, noise=0.0):

@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.transfer import TransferError, read_mesh
-from sim.transfer.meshfile import weld
+from sim.face.transfer import TransferError, read_mesh
+from sim.face.transfer.meshfile import weld
 
 
 @pytest.fixture(scope="module")
 def face():
-    from sim.transfer.synthetic import synthetic_mesh
+    from sim.face.transfer.synthetic import synthetic_mesh
 
     v, t, _ = synthetic_mesh(24, 20)
     return v, t

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from sim.transfer.carry import muscle_points
-from sim.transfer.landmarks import TransferError, parse_landmarks
-from sim.transfer.meshfile import from_arrays
-from sim.transfer.pipeline import transfer_rig
-from sim.transfer.synthetic import synthetic_mesh, synthetic_rig
+from sim.face.transfer.carry import muscle_points
+from sim.face.transfer.landmarks import TransferError, parse_landmarks
+from sim.face.transfer.meshfile import from_arrays
+from sim.face.transfer.pipeline import transfer_rig
+from sim.face.transfer.synthetic import synthetic_mesh, synthetic_rig
 
 ROT = Rotation.from_euler("xyz", [20, -35, 60], degrees=True).as_matrix()
 OFFSET = np.array([3.0, -40.0, 7.0])
@@ -192,7 +192,7 @@ def test_inward_winding_is_flipped(reference) -> None:
 def test_closed_lips_are_cut_open_along_a_declared_lip_line(reference) -> None:
     """A head scanned with the mouth closed: the file names the lip line (corner to corner); the
     importer cuts a slit there, the lower lip takes the copies and the lower-lip landmark."""
-    from sim.transfer.geometry import boundary_loops
+    from sim.face.transfer.geometry import boundary_loops
 
     v, t, param = synthetic_mesh(64, 45, full_head=True, mouth_open=False)
     line = np.nonzero((np.abs(param[:, 1] + 5.0) < 0.01) & (np.abs(param[:, 0]) < 0.3))[0]

@@ -12,7 +12,7 @@ from sim.build import compile_model
 from sim.channels import MUSCLE_CHANNELS
 from sim.facs import apply_au
 from sim.integrator import Simulator
-from sim.rig import default_rig
+from sim.face import default_rig
 from sim.state import FaceControl
 from sim.wrinkles import AGE_0, apply_wrinkles, default_mask, layer_for
 from sim.wrinkles.layer import vertex_normals

@@ -9,7 +9,7 @@ import pytest
 from sim.build import compile_model
 from sim.facs import apply_au
 from sim.integrator import Simulator
-from sim.rig import default_rig
+from sim.face import default_rig
 from sim.state import FaceControl
 
 offscreen = pytest.importorskip("render.offscreen")

@@ -6,7 +6,7 @@ taken from the nearest front-facing vertex) and, for skull attachments, pushed b
 -Z. Nothing refers to vertex numbers, so the same code rigs any head with the landmarks; rig transfer
 relies on that.
 
-Landmarks used, from the project vocabulary (`sim.transfer.landmarks.LANDMARK_NAMES`), each with a
+Landmarks used, from the project vocabulary (`sim.face.transfer.landmarks.LANDMARK_NAMES`), each with a
 fallback derived from the mesh's eye loops, mouth loop, eye centres or other landmarks when the mesh
 lacks it: eye_inner_l/r, eye_outer_l/r, brow_inner_l/r, brow_outer_l/r, nose_bridge, nose_tip,
 nose_wing_l/r, mouth_corner_l/r, upper_lip_center, lower_lip_center, chin.

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sim import face_shape as fs
+from sim.face import shape as fs
 
 FloatArray = np.ndarray
 

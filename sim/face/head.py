@@ -1,7 +1,7 @@
 """The rest of the default face's head: cranium, ears and neck, held (not simulated), stitched to
 the simulated mask.
 
-The simulated mask (sim.face_builder) ends at the hairline, in front of the ears and under the
+The simulated mask (sim.face.builder) ends at the hairline, in front of the ears and under the
 chin and jaw. `head_shell(mesh)` builds the rest of the head around it, in the mask's frame (cm, +Y
 up, +Z forward), as one surface whose first ring of vertices *is* the mask's outer boundary loop:
 rows of vertices sweep from that loop back over the cranium and down the neck to a widening base,

@@ -11,7 +11,7 @@ import re
 import numpy as np
 
 from safefile import BadFile, quote, read_bytes
-from sim.transfer.landmarks import TransferError
+from sim.face.transfer.landmarks import TransferError
 
 FloatArray = np.ndarray
 IntArray = np.ndarray

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from sim.model import LinearMuscle, SheetMuscle, SphincterMuscle
-from sim.transfer.cylinder import Cylinder
-from sim.transfer.pipeline import Transfer
+from sim.face.transfer.cylinder import Cylinder
+from sim.face.transfer.pipeline import Transfer
 
 
 def _cyl(c: Cylinder) -> str:

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from sim.model import LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
-from sim.transfer.geometry import closest_points, triangle_normals, vertex_normals
+from sim.face.transfer.geometry import closest_points, triangle_normals, vertex_normals
 
 FloatArray = np.ndarray
 IntArray = np.ndarray
@@ -144,7 +144,7 @@ def frontal_to_surface(vertices: FloatArray, triangles: IntArray, xy: FloatArray
     `sim.wrinkles` lays its lines; points off the mesh take the nearest triangle's plane."""
     from scipy.spatial import cKDTree
 
-    from sim.transfer.geometry import locate_2d, ray_triangle
+    from sim.face.transfer.geometry import locate_2d, ray_triangle
 
     xy = np.atleast_2d(np.asarray(xy, float))
     tv = vertices[triangles]

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim.model import FaceMesh, FaceRig, LinearMuscle, SheetMuscle, SphincterMuscle
-from sim.transfer.geometry import boundary_loops
+from sim.face.transfer.geometry import boundary_loops
 
 FloatArray = np.ndarray
 
@@ -165,14 +165,14 @@ def synthetic_rig(n_theta: int = 48, n_h: int = 44, full_head: bool = False) -> 
 
 def coarse_transferred_head() -> FaceRig:
     """The default face's rig (resolution 0, 864 vertices) carried onto a 437-vertex sampling of
-    the same surface (`sim.face_builder.build_coarse_face_mesh`: 16 vertices per eye opening, 20
+    the same surface (`sim.face.builder.build_coarse_face_mesh`: 16 vertices per eye opening, 20
     round the mouth, no wrinkle rows), given to the transfer as a user's mesh and landmark file
     would be: the low-polygon head of tests and benchmarks for lids, lips and amplitudes."""
-    from sim.face_builder import build_coarse_face_mesh
-    from sim.rig import default_rig
-    from sim.transfer.landmarks import parse_landmarks
-    from sim.transfer.meshfile import from_arrays
-    from sim.transfer.pipeline import transfer_rig
+    from sim.face.builder import build_coarse_face_mesh
+    from sim.face import default_rig
+    from sim.face.transfer.landmarks import parse_landmarks
+    from sim.face.transfer.meshfile import from_arrays
+    from sim.face.transfer.pipeline import transfer_rig
 
     mesh = build_coarse_face_mesh()
     lms = parse_landmarks({k: int(i) for k, i in mesh.landmarks.items()}, "coarse.json")

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.transfer.geometry import boundary_loops, unique_edges
-from sim.transfer.landmarks import EYE_LANDMARKS, MOUTH_LANDMARKS, TransferError
+from sim.face.transfer.geometry import boundary_loops, unique_edges
+from sim.face.transfer.landmarks import EYE_LANDMARKS, MOUTH_LANDMARKS, TransferError
 
 FloatArray = np.ndarray
 IntArray = np.ndarray
@@ -67,7 +67,7 @@ def find_openings(
 
 
 def _boundary_edges(triangles: IntArray) -> set[tuple[int, int]]:
-    from sim.transfer.geometry import edge_use_counts
+    from sim.face.transfer.geometry import edge_use_counts
 
     edges, counts = edge_use_counts(triangles)
     return {tuple(e) for e in edges[counts == 1].tolist()}

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.transfer.landmarks import SIDE_PAIRS
+from sim.face.transfer.landmarks import SIDE_PAIRS
 
 FloatArray = np.ndarray
 

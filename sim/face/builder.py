@@ -1,8 +1,8 @@
 """The procedural default face mesh (no third-party mesh): `build_face_mesh(resolution)`.
 
-Lays out the left half on the flat chart (sim.face_chart), triangulates it there (Delaunay, with
+Lays out the left half on the flat chart (sim.face.chart), triangulates it there (Delaunay, with
 the triangles in the eye and mouth holes and outside the border removed), maps it to 3D
-(sim.face_shape) and mirrors it, so the mesh is exactly symmetric about x = 0. Then fills in the
+(sim.face.shape) and mirrors it, so the mesh is exactly symmetric about x = 0. Then fills in the
 rig's facts: landmarks, held border, jaw weights and hinge, eyeballs, regions. See docs/face-mesh.md.
 """
 
@@ -14,10 +14,10 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial import Delaunay, cKDTree
 
-from sim import face_chart as fc
-from sim import face_shape as fs
-from sim.face_constrain import recover_edges
-from sim.face_regions import face_regions, jaw_weights
+from sim.face import chart as fc
+from sim.face import shape as fs
+from sim.face.constrain import recover_edges
+from sim.face.regions import face_regions, jaw_weights
 from sim.model import FaceMesh
 
 FloatArray = np.ndarray

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim import face_chart as fc
-from sim import face_shape as fs
+from sim.face import chart as fc
+from sim.face import shape as fs
 
 FloatArray = np.ndarray
 

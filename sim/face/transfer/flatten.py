@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.transfer.cylinder import Cylinder
-from sim.transfer.geometry import locate_2d, ray_triangle
+from sim.face.transfer.cylinder import Cylinder
+from sim.face.transfer.geometry import locate_2d, ray_triangle
 
 FloatArray = np.ndarray
 IntArray = np.ndarray

@@ -11,16 +11,16 @@ from scipy.interpolate import RBFInterpolator
 from scipy.spatial import cKDTree
 
 from sim.model import FaceMesh, FaceRig
-from sim.transfer.carry import SurfaceMap, carry_muscle, carry_wrinkle
-from sim.transfer.cylinder import Cylinder, fit_cylinder
-from sim.transfer.flatten import CylinderChart, flat_triangulation, project_back
-from sim.transfer.frame import Similarity, fit_similarity, landmark_axes, rotation_angle
-from sim.transfer.geometry import (closest_points, edge_use_counts, in_polygon, locate_2d, outer_loop,
+from sim.face.transfer.carry import SurfaceMap, carry_muscle, carry_wrinkle
+from sim.face.transfer.cylinder import Cylinder, fit_cylinder
+from sim.face.transfer.flatten import CylinderChart, flat_triangulation, project_back
+from sim.face.transfer.frame import Similarity, fit_similarity, landmark_axes, rotation_angle
+from sim.face.transfer.geometry import (closest_points, edge_use_counts, in_polygon, locate_2d, outer_loop,
                                    triangle_normals, unique_edges)
-from sim.transfer.landmarks import LANDMARK_NAMES, LandmarkFile, TransferError, require
-from sim.transfer.meshfile import HeadMesh
-from sim.transfer.openings import cut_slit, find_openings, is_closed_path, is_hole_loop, open_loop
-from sim.transfer.relax import Relaxation, relax_mask
+from sim.face.transfer.landmarks import LANDMARK_NAMES, LandmarkFile, TransferError, require
+from sim.face.transfer.meshfile import HeadMesh
+from sim.face.transfer.openings import cut_slit, find_openings, is_closed_path, is_hole_loop, open_loop
+from sim.face.transfer.relax import Relaxation, relax_mask
 
 FloatArray = np.ndarray
 IntArray = np.ndarray
