@@ -10,7 +10,8 @@ cost per page, bytes per frame.
    the face shown and, same pages, hidden: the difference is what the face costs, per page.
 2. Encoding alone (no browser): frames of a moving take of the default face at resolutions 0 and
    2 encoded as the server does: bytes per frame, encode time, the largest position error; and the
-   other way, a JPEG of the offscreen render (480x360) per frame: its time and bytes.
+   other way, a JPEG of the offscreen render (480x360) per frame: its time and bytes; and the
+   scanned head's 26,719 vertices (sim/face/scan) moved by its own expressions.
 
 3. The server alone: 1, 4 and 16 WebSocket clients in another process (no browser competing for
    the CPU) with the face asked for and not: the server thread's CPU, hence the face's cost per
@@ -283,12 +284,40 @@ def encode_run(resolution: int, seconds: float = 3.0) -> dict[str, Any]:
             "max_error_cm": max(errors)}
 
 
+def scan_run(seconds: float = 3.0) -> dict[str, Any]:
+    """The scanned head's 26,719 vertices (sim/face/scan) moved by its own expressions (jaw open,
+    a smile, a blink, in waves), encoded as the face's frames are: bytes and time per frame. The
+    simulated head moves every skin vertex a little; blend shapes move only where they act, so
+    this is the lower end of what a simulated scanned head will cost."""
+    from render.stream import encode_positions
+    from sim.face.scan.data import scan_data
+
+    d = scan_data()
+    base = d.neutral.astype(np.float32)
+    names = [n for n in ("jawOpen", "mouthSmile_L", "mouthSmile_R", "eyeBlink_L", "eyeBlink_R") if n in d.expression_names]
+    shapes = [d.expression(n).astype(np.float32) for n in names]
+    sizes, times = [], []
+    q = np.empty(base.shape, np.int16)
+    for k in range(int(seconds * 30)):
+        t = k / 30
+        pos = base.copy()
+        for i, sh in enumerate(shapes):
+            pos += sh * np.float32(0.5 + 0.45 * math.sin(2 * math.pi * (0.3 + 0.1 * i) * t))
+        c0 = time.perf_counter()
+        sizes.append(len(encode_positions(pos, base, q)))
+        times.append(time.perf_counter() - c0)
+    return {"vertices": len(base), "shapes": names, "bytes_p50": float(np.percentile(sizes, 50)),
+            "bytes_max": int(max(sizes)), "encode_ms_p50": float(np.percentile(times, 50) * 1000),
+            "raw_float32_bytes": len(base) * 12}
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=8.0)
     ap.add_argument("--pages", default="1,4")
     ap.add_argument("--resolutions", default="0,2")
     ap.add_argument("--clients", default="1,4,16", help="page counts for the server-only runs")
+    ap.add_argument("--no-scan", dest="scan", action="store_false", help="skip the scanned head's encoding")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     face = live.load_face()
@@ -300,6 +329,8 @@ def main() -> int:
         res[f"live_{n}"] = live_run(face, n, a.seconds)
     for r in [int(x) for x in a.resolutions.split(",") if x]:
         res[f"encode_{r}"] = encode_run(r)
+    if a.scan:
+        res["scan"] = scan_run()
     res["load_after"] = os.getloadavg()
     if a.json:
         print(json.dumps(res, indent=2))
@@ -327,6 +358,10 @@ def main() -> int:
                   f"{nf['server_cpu'] * 100:.1f} % without: {(f['server_cpu'] - nf['server_cpu']) / n * 100:.2f} % per page; "
                   f"{f.get('frames_per_s', 0):.1f} frames/s each, at the client p50 {f.get('lag_p50_ms', 0):.0f} ms "
                   f"p99 {f.get('lag_p99_ms', 0):.0f} ms behind the show")
+        if key == "scan":
+            print(f"encode, the scanned head ({r['vertices']} vertices, its own {', '.join(r['shapes'])} in waves): "
+                  f"{r['bytes_p50']:.0f} bytes/frame p50 (max {r['bytes_max']}; float32 {r['raw_float32_bytes']}), "
+                  f"{r['encode_ms_p50']:.2f} ms")
         if key.startswith("encode_"):
             print(f"encode, resolution {r['resolution']} ({r['vertices']} streamed vertices): {r['bytes_p50']:.0f} bytes/frame "
                   f"p50 (max {r['bytes_max']}; float32 would be {r['raw_float32_bytes']}), {r['encode_ms_p50']:.2f} ms, "

@@ -54,6 +54,16 @@ def unpack(msg: bytes) -> tuple[int, dict[str, Any], bytes]:
     return kind, json.loads(msg[8:8 + n]), msg[8 + n:]
 
 
+def encode_positions(positions: np.ndarray, base: np.ndarray, out: np.ndarray | None = None,
+                     level: int = 1) -> bytes:
+    """(V, 3) positions as deflated int16 steps of QUANTUM cm from `base` (a frame's payload)."""
+    d = (np.asarray(positions, np.float32) - base) * np.float32(1.0 / QUANTUM)
+    np.clip(np.rint(d, out=d), -32767, 32767, out=d)
+    q = out if out is not None else np.empty(d.shape, np.int16)
+    q[...] = d
+    return zlib.compress(q.tobytes(), level)
+
+
 def _colmajor(m: np.ndarray) -> list[float]:
     return [float(x) for x in np.asarray(m, np.float64).T.ravel()]
 
@@ -131,7 +141,7 @@ class FaceStream:
     def scene(self) -> bytes:
         """The message a page needs before frames: made once, the same bytes for every page."""
         if self._scene is None:
-            from sim.face_head import HAIR_EDGE
+            from sim.face.head import HAIR_EDGE
 
             view, proj = self.camera.matrices(ASPECT)
             blobs, parts, offset = {}, [], 0
@@ -174,10 +184,7 @@ class FaceStream:
     def frame(self, state: Any, tick: int, t: float, level: int = 1) -> bytes:
         """One frame message: the tick it shows, the server's time `t` (time.monotonic) the state
         was read, the gaze, and the deflated int16 positions (steps of QUANTUM from the rest)."""
-        d = (self.positions(state) - self.base) * (1.0 / QUANTUM)
-        np.clip(np.rint(d, out=d), -32767, 32767, out=d)
-        self._q[...] = d
-        payload = zlib.compress(self._q.tobytes(), level)
+        payload = encode_positions(self.positions(state), self.base, self._q, level)
         header = {"face": self.face_id, "tick": int(tick), "t": round(float(t), 6),
                   "eye": [float(getattr(state, "eye_yaw", 0.0)), float(getattr(state, "eye_pitch", 0.0))]}
         return pack(FRAME, header, payload)

@@ -37,9 +37,9 @@ def test_stream_decodes_to_the_drawn_positions(head: bool, monkeypatch: pytest.M
     from render.stream import FRAME, QUANTUM, SCENE, FaceStream, unpack
 
     if not head:  # a face without the held head (an imported mesh): only its own surface is streamed
-        import sim.face_head
+        import sim.face.head
 
-        monkeypatch.setattr(sim.face_head, "shell_for", lambda rig: None)
+        monkeypatch.setattr(sim.face.head, "shell_for", lambda rig: None)
     model = load_face().model
     fs = FaceStream(model)
     kind, h, payload = unpack(fs.scene())
