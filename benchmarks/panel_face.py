@@ -182,6 +182,7 @@ def clients_process(url: str, n: int, seconds: float, face: bool, conn: Any) -> 
                     kind, hl = struct.unpack_from("<B3xI", msg.data)
                     if kind == 2:
                         got.append((json.loads(msg.data[8:8 + hl])["tick"], time.monotonic(), len(msg.data)))
+                        await ws.send_str('{"t":"drawn"}')  # as a page does once it has drawn the frame
         return got
 
     async def main() -> list[list[tuple[int, float, int]]]:

@@ -393,7 +393,9 @@ class PanelDevice(Device):
                     from puppet.panel.face import parse_face_message
 
                     want = parse_face_message(msg.data)  # the face shown or hidden on this page
-                    if want is not None and want["t"] == "face":
+                    if want is not None and want["t"] == "drawn":
+                        self.face_feed.drawn(ws)
+                    elif want is not None and want["t"] == "face":
                         client.face = want["on"]  # the broadcast sends the scene, then frames
                         if not client.face:
                             self.face_feed.remove(ws)

@@ -2,9 +2,10 @@
 face.js draws with WebGL 2).
 
 `FaceFeed` keeps the pages that watch the face. Each frame is encoded once and the same bytes go to
-every page; a page whose previous frame is still being sent skips this one (a slow phone gets fewer
-frames, never older ones), so the lag behind the show stays the encode plus one send whatever the
-number of pages. On the live page the feed reads the loop's public state from the server's thread
+every page. A page says which frames it has drawn (`{"t":"drawn"}`); one with AHEAD frames sent and
+not yet drawn, or whose last send is still under way, skips this frame: a slow phone (or a browser
+starved of CPU) gets fewer frames, never a queue of old ones, so the lag behind the show stays about
+one frame's encode, send and draw whatever the number of pages. On the live page the feed reads the loop's public state from the server's thread
 with the state it sends every page (30 times a second; nothing runs in the live loop); the state is read while the loop may be stepping, so a
 frame may mix two consecutive ticks (16 ms apart: nothing a viewer can see)."""
 
@@ -16,6 +17,9 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # asyncio is imported where the server thread runs: opening the page device stays cheap
     import asyncio
+
+
+AHEAD = 2  # frames a page may have received and not yet drawn
 
 
 @dataclass
@@ -37,6 +41,7 @@ class FaceFeed:
         self.stream: Any = None
         self.model: Any = None
         self.pages: dict[Any, asyncio.Task[None] | None] = {}
+        self.ahead: dict[Any, int] = {}  # per page: frames sent, not yet reported drawn
         self.stats = FeedStats()
         self.last_tick = -1
 
@@ -58,11 +63,19 @@ class FaceFeed:
         return True
 
     async def add(self, ws: Any, model: Any) -> None:
-        if not await self.use(model):
-            await self._send_now(ws, self.stream.scene())
+        """A page starts watching: the scene, then frames."""
+        await self.use(model)
+        await self._send_now(ws, self.stream.scene())
         self.pages[ws] = None
+        self.ahead[ws] = 0
+
+    def drawn(self, ws: Any) -> None:
+        """The page drew a frame: it may be sent another."""
+        if ws in self.ahead:
+            self.ahead[ws] = max(0, self.ahead[ws] - 1)
 
     def remove(self, ws: Any) -> None:
+        self.ahead.pop(ws, None)
         task = self.pages.pop(ws, None)
         if task is not None:
             task.cancel()
@@ -93,9 +106,10 @@ class FaceFeed:
         self.last_tick = tick
         n = 0
         for ws, task in list(self.pages.items()):
-            if task is not None and not task.done():
+            if (task is not None and not task.done()) or self.ahead.get(ws, 0) >= AHEAD:
                 st.skipped += 1
                 continue
+            self.ahead[ws] = self.ahead.get(ws, 0) + 1
             self.pages[ws] = asyncio.get_running_loop().create_task(self._send_now(ws, msg))
             st.sent += 1
             n += 1
@@ -103,8 +117,8 @@ class FaceFeed:
 
 
 def parse_face_message(text: str) -> dict[str, Any] | None:
-    """A page's face request (`{"t":"face","on":bool}` or the editor's `{"t":"at","time":s}`),
-    or None when the text is none of them or malformed."""
+    """A page's face message (`{"t":"face","on":bool}`, `{"t":"drawn"}` or the editor's
+    `{"t":"at","time":s}`), or None when the text is none of them or malformed."""
     import json
     import math
 
@@ -118,6 +132,8 @@ def parse_face_message(text: str) -> dict[str, Any] | None:
         return None
     if msg.get("t") == "face" and isinstance(msg.get("on"), bool):
         return msg
+    if msg.get("t") == "drawn":
+        return {"t": "drawn"}
     if msg.get("t") == "at":
         v = msg.get("time")
         if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):

@@ -109,3 +109,39 @@ def test_page_shows_the_face_the_show_draws() -> None:
         quit_browser(watch)
         quit_browser(hidden)
         dev.close()
+
+
+def test_a_slow_page_gets_fewer_frames_not_old_ones() -> None:
+    """The feed sends a page at most AHEAD frames beyond what it reports drawn; a page that keeps
+    up gets every frame; both get the scene first."""
+    import asyncio
+
+    from puppet.live import load_face
+    from puppet.panel.face import AHEAD, FaceFeed
+    from render.stream import FRAME, SCENE, unpack
+
+    class Page:
+        def __init__(self) -> None:
+            self.got: list[bytes] = []
+
+        async def send_bytes(self, data: bytes) -> None:
+            self.got.append(data)
+
+    async def run() -> tuple[Page, Page]:
+        model = load_face().model
+        feed, slow, quick = FaceFeed(), Page(), Page()
+        await feed.add(slow, model)
+        await feed.add(quick, model)
+        state = model.rest_state()
+        for k in range(1, 8):
+            feed.publish(state, k)
+            for _ in range(20):  # the sends run to their end
+                await asyncio.sleep(0)
+            feed.drawn(quick)
+        return slow, quick
+
+    slow, quick = asyncio.run(run())
+    kinds = lambda page: [unpack(m)[0] for m in page.got]  # noqa: E731
+    assert kinds(quick) == [SCENE] + [FRAME] * 7
+    assert kinds(slow) == [SCENE] + [FRAME] * AHEAD
+    assert [unpack(m)[1]["tick"] for m in slow.got[1:]] == [1, 2]

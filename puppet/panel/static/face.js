@@ -81,10 +81,10 @@ window.PuppetFace = function (canvas) {
   async function setFrame(buf, h, at) {
     const ds = new DecompressionStream("deflate");
     const raw = await new Response(new Blob([new Uint8Array(buf, at)]).stream().pipeThrough(ds)).arrayBuffer();
-    if (!S || h.face !== S.h.face || h.tick <= F.tick) return;  // a newer frame, or another face, came first
+    if (!S || h.face !== S.h.face || h.tick <= F.tick) { if (F.onDrawn) F.onDrawn(); return; }  // a newer frame, or another face, came first
     const q = new Int16Array(raw), base = S.A.base, k = S.h.quantum;
     for (let i = 0; i < q.length; i++) pos[i] = base[i] + q[i] * k;
-    F.tick = h.tick; F.frameT = h.t; eye = h.eye; F.frames++;
+    F.tick = h.tick; F.frameT = h.t; eye = h.eye; F.frames++; received++;
     normals(); redraw();
   }
 
@@ -104,7 +104,7 @@ window.PuppetFace = function (canvas) {
     return [m[0][0], m[1][0], m[2][0], m[0][1], m[1][1], m[2][1], m[0][2], m[1][2], m[2][2]];
   }
 
-  let asked = false;
+  let asked = false, received = 0;
   function redraw() { dirty = true; if (!asked) { asked = true; requestAnimationFrame(draw); } }
   function draw() {
     asked = false;
@@ -142,6 +142,7 @@ window.PuppetFace = function (canvas) {
       F.lags.push(lag); if (F.lags.length > 600) F.lags.shift();
     }
     F.drawLog.push([F.tick, performance.now()]); if (F.drawLog.length > 4000) F.drawLog.shift();
+    for (; received > 0; received--) if (F.onDrawn) F.onDrawn();  // every frame that came is now shown or passed over
   }
   return F;
 };

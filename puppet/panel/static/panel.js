@@ -241,6 +241,8 @@
   let pingAt = 0, bestRtt = Infinity, pendingState = null;
   // the face, live (face.js draws it with WebGL 2 from the server's stream); hidden, nothing is sent
   const face = state.face = window.PuppetFace($("face"));
+  // each frame drawn is reported: the server sends a page at most two frames ahead of its drawing
+  face.onDrawn = () => { if (state.ws && state.ws.readyState === 1) state.ws.send('{"t":"drawn"}'); };
   let faceOn = face.ok && params.get("face") !== "0";  // ?face=0: a page that starts without the face
   if (!face.ok) { $("facetoggle").disabled = true; $("facefps").textContent = "no WebGL 2 here"; }
   const faceWish = () => { if (state.ws && state.ws.readyState === 1) state.ws.send(JSON.stringify({ t: "face", on: faceOn })); };
