@@ -64,8 +64,8 @@ def cache_dir() -> Path | None:
 
 @lru_cache(maxsize=4)
 def source_digest(root: Path | None = None) -> str:
-    """SHA-256 of every source file of the `sim` package (or of the package folder `root`), of
-    its layout, and of the library versions (scipy's read from its metadata: importing scipy
+    """SHA-256 of every source and data file of the `sim` package (or of the package folder
+    `root`: its modules and the scanned head's arrays), of its layout, and of the library versions (scipy's read from its metadata: importing scipy
     costs ~0.3 s that a start from the cache does not otherwise pay)."""
     from importlib.metadata import PackageNotFoundError, version
 
@@ -78,7 +78,7 @@ def source_digest(root: Path | None = None) -> str:
 
         root = Path(sim.__file__).resolve().parent
     h = hashlib.sha256(f"{FORMAT}/{VERSION} numpy {np.__version__} scipy {scipy_version}".encode())
-    for path in sorted(root.rglob("*.py")):
+    for path in sorted([*root.rglob("*.py"), *root.rglob("*.npz")]):
         h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
     return h.hexdigest()
 

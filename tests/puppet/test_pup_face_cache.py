@@ -194,12 +194,18 @@ def test_key_follows_every_source_file_of_the_face_code(tmp_path: Path) -> None:
     shutil.copytree(root, copy, ignore=shutil.ignore_patterns("__pycache__"))
     base = face_cache.source_digest(copy)
     assert base == face_cache.source_digest(root)
-    (copy / "face_shape.py").write_text((copy / "face_shape.py").read_text() + "\n# tweak\n")
+    (copy / "face" / "shape.py").write_text((copy / "face" / "shape.py").read_text() + "\n# tweak\n")
     tweaked = face_cache.source_digest.__wrapped__(copy)
     assert tweaked != base
-    (copy / "face").mkdir()
-    (copy / "face" / "head.py").write_text("X = 1\n")  # a new module (the face reshaped)
-    assert face_cache.source_digest.__wrapped__(copy) not in (base, tweaked)
+    (copy / "face" / "extra").mkdir()
+    (copy / "face" / "extra" / "head.py").write_text("X = 1\n")  # a new module (the face reshaped)
+    added = face_cache.source_digest.__wrapped__(copy)
+    assert added not in (base, tweaked)
+    scan = copy / "face" / "scan" / "ict_head.npz"
+    data = bytearray(scan.read_bytes())
+    data[len(data) // 2] ^= 0xFF  # the scanned head's data changed
+    scan.write_bytes(bytes(data))
+    assert face_cache.source_digest.__wrapped__(copy) not in (base, tweaked, added)
 
 
 def test_cache_location_and_off(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, fresh: object,
