@@ -1,6 +1,7 @@
 """Screenshots of the performer's page and the force-graph editor for docs/images/: a live show
 (`puppet live --headless --panel`), two pages (one limited to the mouth), a few moves; then the
-editor on the take with keys made from the recording and one re-recorded pass.
+editor on the take with keys made from the recording and one re-recorded pass; the face drawn by
+the pages (WebGL 2), the keyboard's focus ring on one slider.
 Run: .venv/bin/python docs/make_panel_images.py   (needs chromium + chromium-driver)
 """
 
@@ -48,6 +49,10 @@ def main() -> int:
             a.find_element(By.ID, "marker").click()
             drag(b, "eyes_yaw", 0.75)
             time.sleep(1.5)
+            for drv in (a, b):
+                wait_for(lambda drv=drv: drv.execute_script("return window.puppetPanel.face.drawn > 0"), 30, "the face")
+            # the keyboard's focus ring on the jaw slider of the mouth page
+            a.execute_script("document.querySelector('.slider[data-channel=\"jaw\"]').focus()")
             b.save_screenshot(str(OUT / "panel-live.png"))
             a.save_screenshot(str(OUT / "panel-live-role.png"))
         finally:
@@ -70,6 +75,7 @@ def main() -> int:
                                "E.sel = new Set(c.keys.filter((k) => Math.abs(k.t - mid.t) < 0.4)); E.api.setPlayhead(mid.t);"
                                "document.getElementById('pin').value = '9'; document.getElementById('pout').value = '11';")
             drv.find_element(By.CSS_SELECTOR, '#targets [data-arm="jaw"]').click()
+            wait_for(lambda: drv.execute_script("return window.puppetEditor.face.drawn > 0"), 30, "the preview")
             time.sleep(2.0)
             drv.save_screenshot(str(OUT / "panel-editor.png"))
         finally:

@@ -48,6 +48,7 @@ class Client:
     role: str | None
     own: dict[str, float] = field(default_factory=dict)
     bad: int = 0
+    face: bool = False  # the page watches the face
 
 
 def parse_roles(items: Sequence[str]) -> dict[str, list[str]]:
@@ -119,6 +120,9 @@ class PanelDevice(Device):
         self._task: asyncio.Task[None] | None = None
         self.record: str | None = None
         self.editor: Any = None  # the `puppet edit` process the editor button started
+        from puppet.panel.face import FaceFeed
+
+        self.face_feed = FaceFeed()  # the pages watching the face
 
     # --- device hooks ----------------------------------------------------------------------------
     def _open(self) -> None:
@@ -278,22 +282,52 @@ class PanelDevice(Device):
                 pass
 
     async def _broadcast(self) -> None:
+        """The loop's state to every page, and the face to the pages watching it, STATE_HZ times a
+        second on an absolute schedule. Both go out together, so a browser redraws its page once
+        per state (a software-composited browser pays for every redraw of the whole page)."""
         import asyncio
 
+        period = 1.0 / STATE_HZ
+        due = time.monotonic()
         while True:
-            await asyncio.sleep(1.0 / STATE_HZ)
+            due += period
+            now = time.monotonic()
+            if due < now - period:  # the machine stalled: re-anchor rather than burst
+                due = now
+            await asyncio.sleep(max(0.0, due - now))
             if not self.clients:
                 continue
             try:
                 text = json.dumps(self._state(), separators=(",", ":"))
             except Exception:  # the loop's state changed under us: next time
                 continue
-            for c in list(self.clients.values()):
-                if not c.ws.closed:
-                    try:
-                        await asyncio.wait_for(c.ws.send_str(text), 0.5)
-                    except Exception:  # a stalled page must not stall the others
-                        pass
+
+            async def send(ws: Any) -> None:
+                try:
+                    await asyncio.wait_for(ws.send_str(text), 0.5)
+                except Exception:  # a stalled page must not stall the others
+                    pass
+
+            await asyncio.gather(*(send(c.ws) for c in list(self.clients.values()) if not c.ws.closed))
+            await self._face_step()
+
+    async def _face_step(self) -> None:
+        """The face to the pages watching it: the loop's state encoded once per new tick for every
+        page (puppet.panel.face); a page that just asked for it gets the scene first."""
+        core, feed = self.core, self.face_feed
+        watching = [c.ws for c in list(self.clients.values()) if c.face and not c.ws.closed]
+        if core is None or not watching:
+            return
+        try:
+            await feed.use(core.face.model)
+            for ws in watching:
+                if ws not in feed.pages:
+                    await feed.add(ws, core.face.model)
+            k = int(core.tick_count)
+            if k != feed.last_tick:
+                feed.publish(core.state, k)
+        except Exception:  # the loop's state changed under us, or a page went: next time
+            pass
 
     def _base(self) -> str:
         """The spec with the port actually served (the OS's or the fallback's choice)."""
@@ -344,7 +378,8 @@ class PanelDevice(Device):
             allowed = L.allowed_controls(self.vocab, only) if only else set(self._every)
         except Exception as err:
             raise web.HTTPBadRequest(text=f"bad channel list: {err}\n") from err
-        ws = web.WebSocketResponse(max_msg_size=MAX_MESSAGE, heartbeat=10.0)
+        # no per-message deflate: the face's frames are deflated once for every page already
+        ws = web.WebSocketResponse(max_msg_size=MAX_MESSAGE, heartbeat=10.0, compress=False)
         await ws.prepare(request)
         name = self._client_name(request.query.get("name") or role)
         client = Client(name, f"{self._base()}/{name}", ws, allowed, only, role)
@@ -357,12 +392,22 @@ class PanelDevice(Device):
                 t = time.monotonic()
                 if msg.type != WSMsgType.TEXT:
                     continue
-                if msg.data.startswith('{"t":"ping"'):
-                    await ws.send_str(msg.data.replace('"ping"', '"pong"', 1))
+                if msg.data.startswith('{"t":"ping"'):  # the server's clock too: the page measures its lag
+                    await ws.send_str('{"t":"pong","s":%.6f}' % time.monotonic())
                     continue
                 got = decode_input(msg.data, allowed)
                 if got is None:
-                    client.bad += 1
+                    from puppet.panel.face import parse_face_message
+
+                    want = parse_face_message(msg.data)  # the face shown or hidden on this page
+                    if want is not None and want["t"] == "drawn":
+                        self.face_feed.drawn(ws)
+                    elif want is not None and want["t"] == "face":
+                        client.face = want["on"]  # the broadcast sends the scene, then frames
+                        if not client.face:
+                            self.face_feed.remove(ws)
+                    else:
+                        client.bad += 1
                     continue
                 ctl, v = got
                 self.received += 1
@@ -370,6 +415,7 @@ class PanelDevice(Device):
                 kind = "axis" if ctl.startswith("slider:") else "button"
                 self.emit(ControlEvent(client.device, ctl, kind, v if kind == "axis" else float(v > 0.5), None, v, t))
         finally:
+            self.face_feed.remove(ws)
             self.clients.pop(name, None)
             self.emit(StatusEvent(client.device, "lost", time.monotonic(), "page closed"))
         return ws

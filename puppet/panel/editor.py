@@ -102,6 +102,7 @@ class Editor:
         self._perf: Any = None
         self._replayer: Any = None
         self._renderer: Any = None
+        self._stream: Any = None  # render.stream.FaceStream of the preview (the page draws it)
         self.render_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="preview")
         self.work_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="export")
 
@@ -190,6 +191,24 @@ class Editor:
         Image.fromarray(img).save(buf, format="PNG", compress_level=1)
         return buf.getvalue()
 
+    def face_scene(self) -> bytes:
+        """The preview's scene for the page's face view (render.stream), made once."""
+        if self._stream is None:
+            from render.stream import FaceStream
+
+            self._stream = FaceStream(self.face.model, "preview")
+        return bytes(self._stream.scene())
+
+    def face_frame(self, t: float) -> bytes:
+        """The edited performance at `t` seconds as a frame of the page's face view."""
+        import time
+
+        perf = self.performance()
+        k = int(round(min(max(t, 0.0), perf.duration) * perf.rate))
+        rp = self._seek(k)
+        self.face_scene()
+        return bytes(self._stream.frame(rp.state, k, time.monotonic()))
+
     def _export(self, name: str, perf: Any) -> str:
         from puppet.export.runner import ExportOptions, export
         from puppet.panel.server import safe_child
@@ -268,7 +287,40 @@ class Editor:
                 pass
             return ws
 
+        async def face_ws(request: web.Request) -> web.WebSocketResponse:
+            """The preview as the live page's face view: the scene once, then a frame for each time
+            the page asks for (`{"t":"at","time":s}`); only the latest wish is served, so scrubbing
+            never queues up behind the re-simulation."""
+            from puppet.panel.face import parse_face_message
+
+            ws = web.WebSocketResponse(max_msg_size=4096, heartbeat=10.0, compress=False)
+            await ws.prepare(request)
+            loop = asyncio.get_running_loop()
+            wish: dict[str, float | None] = {"time": None}
+            wake = asyncio.Event()
+
+            async def serve() -> None:
+                await ws.send_bytes(await loop.run_in_executor(self.render_pool, self.face_scene))
+                while not ws.closed:
+                    await wake.wait()
+                    wake.clear()
+                    t, wish["time"] = wish["time"], None
+                    if t is not None:
+                        await ws.send_bytes(await loop.run_in_executor(self.render_pool, self.face_frame, t))
+
+            task = loop.create_task(serve())
+            try:
+                async for msg in ws:
+                    want = parse_face_message(msg.data) if msg.type == web.WSMsgType.TEXT else None
+                    if want is not None and want["t"] == "at":
+                        wish["time"] = want["time"]
+                        wake.set()
+            finally:
+                task.cancel()
+            return ws
+
         app.router.add_get(prefix + "/ws", box_ws)
+        app.router.add_get(prefix + "/ws/face", face_ws)
         app.router.add_get(prefix + "/api/take", take)
         app.router.add_post(prefix + "/api/curves", post_curves)
         app.router.add_get(prefix + "/api/frame", frame)

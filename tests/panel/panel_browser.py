@@ -20,6 +20,8 @@ CHROMIUM, DRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 FLAGS = ("--headless --no-sandbox --disable-gpu --disable-quic --no-first-run --disable-background-networking "
          "--disable-component-update --disable-sync --window-size=1400,1000").split()
 ROOT = Path(__file__).resolve().parents[2]
+# axe-core from npm, installed by .ci/setup (`npm install --prefix .ci/axe axe-core`), never vendored here
+AXE = ROOT / ".ci" / "axe" / "node_modules" / "axe-core" / "axe.min.js"
 # a trimmed environment for `puppet` subprocesses (no DISPLAY, none of the shell's OPENBLAS_* settings),
 # but the run's private face cache (tests/conftest.py), never the user's
 CHILD_ENV = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin",
@@ -94,3 +96,17 @@ class PuppetProcess:
                 self.proc.wait()
         self._out.close()
         return self.output()
+
+
+def axe_violations(drv: Any, impacts: tuple[str, ...] = ("serious", "critical")) -> list[str]:
+    """axe-core run on the page open in `drv`: its violations of the given impacts, one line each
+    (rule, impact, the first elements)."""
+    if not AXE.exists():
+        pytest.fail(f"axe-core is needed at {AXE}: run `bash .ci/setup`")
+    drv.execute_script(AXE.read_text())
+    drv.set_script_timeout(120)
+    found = drv.execute_async_script(
+        "const done = arguments[arguments.length - 1];"
+        "axe.run(document, { resultTypes: ['violations'] }).then((r) => done(r.violations.map((v) =>"
+        " [v.id, v.impact, v.nodes.slice(0, 3).map((n) => n.target.join(' '))])), (e) => done([['axe failed', String(e), []]]));")
+    return [f"{rule} ({impact}): {', '.join(nodes)}" for rule, impact, nodes in found if impact in impacts or rule == "axe failed"]

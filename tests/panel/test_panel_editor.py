@@ -122,7 +122,7 @@ def test_editor_operations_overdub_and_export(take: Path) -> None:
     try:
         drv.get(ed.url)
         wait_for(lambda: js("return window.puppetEditor && window.puppetEditor.ready"), 30, "the editor")
-        wait_for(lambda: js("return document.getElementById('preview').naturalWidth") == 480, 30, "the preview frame")
+        wait_for(lambda: js("return window.puppetEditor.face.drawn") > 0, 30, "the preview's face drawn")
         drv.find_element(By.CSS_SELECTOR, '#targets [data-target="mentalis"]').click()
         for t, v in ((0.5, 0.2), (1.0, 0.4), (1.5, 0.6), (2.0, 0.8)):
             js(f"window.puppetEditor.api.insertKey({t}, {v})")

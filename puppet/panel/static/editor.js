@@ -70,8 +70,27 @@
     if (save) return go();
     sendTimer = setTimeout(go, 150);
   }
+  // the preview: the face at the playhead drawn here with WebGL 2 from the server's stream (as the
+  // live page's face view), or, where the browser has no WebGL 2, an image rendered by the server
+  const face = E.face = window.PuppetFace($("face"));
+  let faceWs = null, lastAt = null;
+  if (face.ok) {
+    $("preview").hidden = true;
+    const open = () => {
+      faceWs = new WebSocket("ws://" + location.host + "/ws/face" + location.search); faceWs.binaryType = "arraybuffer";
+      faceWs.onmessage = (ev) => { if (typeof ev.data !== "string") face.message(ev.data); };
+      faceWs.onopen = () => { lastAt = null; preview(true); };
+    };
+    open();
+  } else $("face").hidden = true;
   let inflight = false, again = false;
   function preview(force) {
+    if (face.ok) {
+      if (faceWs && faceWs.readyState === 1 && (force || lastAt !== E.playhead)) {
+        lastAt = E.playhead; faceWs.send(JSON.stringify({ t: "at", time: E.playhead }));
+      }
+      return;
+    }
     if (inflight) { again = true; return; }
     inflight = true;
     const img = new Image();
@@ -97,20 +116,27 @@
     return out;
   }
   function refreshList() {
-    const box = $("targets"); box.textContent = "";
+    const box = $("targets"), had = document.activeElement && box.contains(document.activeElement) ? document.activeElement : null;
+    const focus = had && (had.dataset.arm !== undefined ? `[data-arm="${CSS.escape(had.dataset.arm)}"]` : `[data-target="${CSS.escape(had.dataset.target)}"]`);
+    box.textContent = "";
     for (const t of listTargets()) {
-      const d = document.createElement("div"); d.dataset.target = t;
+      const d = document.createElement("div"); d.setAttribute("role", "listitem");
       const moving = targetChannels(t).some(([i]) => E.take.values[E.take.channels[i].name]);
       if (t === E.target) d.classList.add("sel");
       if (E.curves.some((c) => c.target === t)) d.classList.add("edited");
-      const name = document.createElement("span"); name.textContent = t + (moving ? " ~" : ""); d.append(name);
-      const arm = document.createElement("span"); arm.className = "arm" + (E.armed.has(t) ? " on" : ""); arm.textContent = "arm";
-      arm.dataset.arm = t;
+      // a button to show the graph, and a toggle to arm it for re-recording: both keyboard controls
+      const name = document.createElement("button"); name.className = "name"; name.dataset.target = t;
+      name.textContent = t + (moving ? " ~" : "");
+      name.setAttribute("aria-pressed", String(t === E.target));
+      name.setAttribute("aria-label", t + (moving ? ", moved by the take" : "") + (d.classList.contains("edited") ? ", edited" : ""));
+      name.onclick = () => selectTarget(t);
+      const arm = document.createElement("button"); arm.className = "arm" + (E.armed.has(t) ? " on" : ""); arm.textContent = "arm";
+      arm.dataset.arm = t; arm.setAttribute("aria-pressed", String(E.armed.has(t))); arm.setAttribute("aria-label", "arm " + t + " for re-recording");
       arm.onclick = (ev) => { ev.stopPropagation(); E.armed.has(t) ? E.armed.delete(t) : E.armed.add(t); refreshList(); refreshArmed(); };
-      d.append(arm);
-      d.onclick = () => selectTarget(t);
+      d.append(name, arm);
       box.append(d);
     }
+    if (focus) { const again = box.querySelector(focus); if (again) again.focus(); }  // the list is rebuilt: keep the keyboard's place
   }
   function selectTarget(t) {
     E.target = t; E.sel.clear(); $("graphname").textContent = t;
@@ -123,6 +149,7 @@
       const [lo, hi] = range(t), row = document.createElement("div"); row.className = "tools";
       const lab = document.createElement("span"); lab.className = "stat"; lab.textContent = t; lab.style.width = "110px";
       const s = document.createElement("input"); s.type = "range"; s.min = 0; s.max = 1000; s.dataset.armed = t; s.style.flex = "1";
+      s.setAttribute("aria-label", "re-record " + t);
       const k = Math.round(E.playhead * rate()); const v = effective(t, k) ?? lo;
       s.value = Math.round((v - lo) / ((hi - lo) || 1) * 1000);
       const chans = targetChannels(t);
@@ -299,6 +326,34 @@
     if (drag && drag.kind === "move" && drag.pushed) changed();
     drag = null; draw();
   });
+  // the graph from the keyboard: [ and ] select the previous / next key, arrows move the selected
+  // keys (up/down 1 % of the range, Page Up/Down 10 %; left/right one tick), Enter inserts a key at
+  // the playhead; with nothing selected left/right move the playhead a tick
+  cv.addEventListener("keydown", (ev) => {
+    if (!E.target) return;
+    const own = E.curves.filter((c) => c.target === E.target).flatMap((c) => c.keys).sort((a, b) => a.t - b.t);
+    if (ev.key === "[" || ev.key === "]") {
+      ev.preventDefault(); if (!own.length) return;
+      const cur = [...E.sel][0], i = cur ? own.indexOf(cur) : (ev.key === "]" ? -1 : own.length);
+      const k = own[Math.min(own.length - 1, Math.max(0, i + (ev.key === "]" ? 1 : -1)))];
+      E.sel = new Set([k]); setPlayhead(k.t); keyStatus(); return;
+    }
+    if (ev.key === "Enter") { ev.preventDefault(); insertKey(E.playhead, effective(E.target, Math.round(E.playhead * rate())) ?? range(E.target)[0]); keyStatus(); return; }
+    const [lo, hi] = range(E.target), span = hi - lo;
+    const dv = { ArrowUp: 0.01, ArrowDown: -0.01, PageUp: 0.1, PageDown: -0.1 }[ev.key], dt = { ArrowLeft: -1, ArrowRight: 1 }[ev.key];
+    if (dv === undefined && dt === undefined) return;
+    ev.preventDefault();
+    if (!E.sel.size) { if (dt !== undefined) setPlayhead(E.playhead + dt / rate()); return; }
+    push();
+    for (const k of E.sel) {
+      if (dv !== undefined && E.lock !== "value") k.v = Math.min(hi, Math.max(lo, k.v + dv * span));
+      if (dt !== undefined && E.lock !== "time") k.t = Math.min(dur(), Math.max(0, k.t + dt / rate()));
+    }
+    sortCurves(); changed(); keyStatus();
+  });
+  function keyStatus() {  // what the graph's keyboard did, for a screen reader (aria-live)
+    const k = [...E.sel][0]; $("graphstatus").textContent = k ? `${E.target}: key at ${k.t.toFixed(3)} s, value ${k.v.toFixed(3)}` + (E.sel.size > 1 ? ` (${E.sel.size} selected)` : "") : "";
+  }
   cv.addEventListener("dblclick", (ev) => { const [x, y] = pos(ev); if (y > M.t && !keyAt(x, y)) insertKey(T(x), V(y)); });
   cv.addEventListener("wheel", (ev) => { ev.preventDefault(); const [x, y] = pos(ev), f = ev.deltaY > 0 ? 1.2 : 1 / 1.2;
     if (ev.shiftKey) { const v = V(y); E.view.v0 = v + (E.view.v0 - v) * f; E.view.v1 = v + (E.view.v1 - v) * f; }
@@ -381,6 +436,7 @@
   $("kt").onchange = keyEdit; $("kv").onchange = keyEdit;
   document.addEventListener("keydown", (ev) => {
     if (ev.target.tagName === "INPUT" || ev.target.tagName === "SELECT") return;
+    if (ev.target.tagName === "BUTTON" && (ev.key === " " || ev.key === "Enter")) return;  // the button's own press
     const c = ev.ctrlKey || ev.metaKey, k = ev.key.toLowerCase();
     if (c && k === "z") { ev.preventDefault(); ev.shiftKey ? redo() : undo(); }
     else if (c && k === "y") { ev.preventDefault(); redo(); }

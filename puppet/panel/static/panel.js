@@ -18,25 +18,63 @@
 
   function el(tag, cls, text) { const e = document.createElement(tag); if (cls) e.className = cls; if (text !== undefined) e.textContent = text; return e; }
 
-  // a slider: pointer drag anywhere on the track sets the value (several fingers, several sliders)
-  function makeSlider(channel, onValue) {
+  // a slider: role=slider, focusable; a pointer drag anywhere on the track sets the value (several
+  // fingers, several sliders), and the keys of a slider (arrows 1 %, Page Up/Down 10 %, Home/End) too
+  const STEP = 0.01, PAGE = 0.1;
+  function channelOf(name) { return state.layout.channels[state.index[name]]; }
+  function fmt(x) { return (Math.round(x * 100) / 100).toFixed(2); }
+  function makeSlider(channel, label, onValue) {
     const s = el("div", "slider"); s.dataset.channel = channel;
     const fill = el("div", "fill"), own = el("div", "own"), ap = el("div", "applied"), num = el("div", "num");
     s.append(fill, ap, own, num);
+    const c = channelOf(channel);
+    s.setAttribute("role", "slider");
+    s.setAttribute("aria-label", label);
+    s.setAttribute("aria-valuemin", String(c.lo));
+    s.setAttribute("aria-valuemax", String(c.hi));
+    s.setAttribute("aria-valuenow", String(c.default));
+    num.setAttribute("aria-hidden", "true");
     const locked = !state.allowed.has("slider:" + channel);
-    if (locked) s.classList.add("locked");
+    if (locked) { s.classList.add("locked"); s.setAttribute("aria-disabled", "true"); s.tabIndex = -1; }
+    else s.tabIndex = 0;
     function at(ev) { const r = s.getBoundingClientRect(); return Math.min(1, Math.max(0, (ev.clientX - r.left) / r.width)); }
-    s.addEventListener("pointerdown", (ev) => { if (locked) return; s.setPointerCapture(ev.pointerId); s.dragging = true; onValue(at(ev)); ev.preventDefault(); });
+    s.addEventListener("pointerdown", (ev) => { if (locked) return; s.setPointerCapture(ev.pointerId); s.dragging = true; s.focus({ preventScroll: true }); onValue(at(ev)); ev.preventDefault(); });
     s.addEventListener("pointermove", (ev) => { if (s.dragging) onValue(at(ev)); });
     const end = () => { s.dragging = false; };
     s.addEventListener("pointerup", end); s.addEventListener("pointercancel", end);
-    state.sliders[channel] = { el: s, fill, own, ap, num, others: {} };
+    s.addEventListener("keydown", (ev) => {
+      if (locked) return;
+      const u0 = current(channel);
+      const u = keyed(ev.key, u0);
+      if (u === null) return;
+      ev.preventDefault();
+      onValue(u);
+    });
+    state.sliders[channel] = { el: s, fill, own, ap, num, others: {}, label, linked: false };
     return s;
+  }
+  // the next value of a slider at u0 (0..1) for a key, or null when the key is not a slider's
+  function keyed(key, u0) {
+    const step = { ArrowRight: STEP, ArrowUp: STEP, ArrowLeft: -STEP, ArrowDown: -STEP, PageUp: PAGE, PageDown: -PAGE }[key];
+    if (step !== undefined) return Math.min(1, Math.max(0, Math.round((u0 + step) * 1000) / 1000));
+    if (key === "Home") return 0;
+    if (key === "End") return 1;
+    return null;
+  }
+  // where a slider stands (0..1): the page's own value once touched, else what the face gets
+  function current(channel) {
+    const own = state.own["slider:" + channel];
+    if (own !== undefined) return own;
+    const c = channelOf(channel), v = state.values ? state.values[state.index[channel]] : c.default;
+    return (v - c.lo) / ((c.hi - c.lo) || 1);
   }
 
   function showOwn(channel, u) {
     const sl = state.sliders[channel]; if (!sl) return;
     sl.own.style.display = "block"; sl.own.style.left = (u * 100) + "%"; sl.fill.style.width = (u * 100) + "%";
+    const c = channelOf(channel), v = c.lo + u * (c.hi - c.lo);
+    sl.el.setAttribute("aria-valuenow", fmt(v));
+    sl.el.setAttribute("aria-valuetext", fmt(v) + (sl.linked ? ", left and right together" : ""));
   }
 
   function setChannel(channel, u) { send("slider:" + channel, u); showOwn(channel, u); }
@@ -48,27 +86,40 @@
       const sec = el("section"); sec.append(el("h2", "", reg.name));
       for (const row of reg.rows) {
         const r = el("div", "row" + (row.channels.length === 1 ? " single" : ""));
-        const lab = el("label", "", row.label); lab.title = row.channels.join(", "); r.append(lab);
-        let linked = row.channels.length === 2;
-        const link = el("div", "link" + (linked ? " on" : ""), row.channels.length === 2 ? "L=R" : "");
+        const lab = el("span", "label", row.label); lab.title = row.channels.join(", "); r.append(lab);
+        const pair = row.channels.length === 2;
+        let linked = pair;
+        const sides = pair ? [row.label + " left", row.label + " right"] : [row.label];
         row.channels.forEach((ch, j) => {
-          r.append(makeSlider(ch, (u) => {
+          r.append(makeSlider(ch, sides[j], (u) => {
             if (linked) row.channels.forEach((c2) => setChannel(c2, u)); else setChannel(ch, u);
           }));
         });
         if (row.channels.every((ch) => !state.allowed.has("slider:" + ch))) r.classList.add("locked");
-        link.title = "move left and right together";
-        link.onclick = () => { linked = !linked; link.classList.toggle("on", linked); };
-        r.append(link); sec.append(r);
+        if (pair) {
+          // L=R: a toggle button; its state is announced, and so is a linked slider's value
+          const link = el("button", "link on", "L=R");
+          if (r.classList.contains("locked")) link.disabled = true;
+          link.title = "move left and right together";
+          link.setAttribute("aria-label", "L=R " + row.label + ": left and right together");
+          link.setAttribute("aria-pressed", "true");
+          const mark = () => row.channels.forEach((ch) => { state.sliders[ch].linked = linked;
+            state.sliders[ch].el.setAttribute("aria-valuetext", fmt(current(ch) * (channelOf(ch).hi - channelOf(ch).lo) + channelOf(ch).lo) + (linked ? ", left and right together" : "")); });
+          link.onclick = () => { linked = !linked; link.classList.toggle("on", linked); link.setAttribute("aria-pressed", String(linked)); mark(); };
+          mark();
+          r.append(link);
+        } else r.append(el("span"));
+        sec.append(r);
       }
       regions.append(sec);
     }
     const pad = (box, control, label, hold) => {
       const b = el("button", "", label); b.dataset.control = control;
       if (!state.allowed.has(control)) { b.classList.add("locked"); b.disabled = true; }
-      const down = (ev) => { ev.preventDefault(); b.setPointerCapture && ev.pointerId !== undefined && b.setPointerCapture(ev.pointerId); send(control, 1); if (hold) b.classList.add("on"); };
-      const up = () => { send(control, 0); if (hold) b.classList.remove("on"); };
-      b.addEventListener("pointerdown", down); b.addEventListener("pointerup", up); b.addEventListener("pointercancel", up);
+      if (hold) { b.setAttribute("aria-pressed", "false"); b.title = "held while pressed (pointer, Space or Enter)"; }
+      const down = () => { send(control, 1); if (hold) { b.classList.add("on"); b.setAttribute("aria-pressed", "true"); } };
+      const up = () => { send(control, 0); if (hold) { b.classList.remove("on"); b.setAttribute("aria-pressed", "false"); } };
+      pressable(b, down, up);
       state.pads[control] = b; box.append(b);
     };
     $("expr").textContent = ""; $("aus").textContent = "";
@@ -87,48 +138,97 @@
   function setupAge(age) {
     const svg = $("age"); const control = "slider:" + age.name;
     let u = (age.default - age.lo) / (age.hi - age.lo), startY = 0, startU = 0;
-    const show = () => { $("agearc").setAttribute("d", arc(u)); };
+    svg.setAttribute("role", "slider"); svg.setAttribute("aria-label", "age, years");
+    svg.setAttribute("aria-valuemin", String(age.lo)); svg.setAttribute("aria-valuemax", String(age.hi));
+    const locked = !state.allowed.has(control);
+    if (locked) svg.setAttribute("aria-disabled", "true"); else svg.setAttribute("tabindex", "0");
+    const show = () => { $("agearc").setAttribute("d", arc(u)); const v = age.lo + u * (age.hi - age.lo);
+      svg.setAttribute("aria-valuenow", v.toFixed(0)); svg.setAttribute("aria-valuetext", v.toFixed(0) + " years"); };
     show();
-    svg.addEventListener("pointerdown", (ev) => { svg.setPointerCapture(ev.pointerId); svg.dragging = true; startY = ev.clientY; startU = u; ev.preventDefault(); });
-    svg.addEventListener("pointermove", (ev) => { if (!svg.dragging) return; u = Math.min(1, Math.max(0, startU + (startY - ev.clientY) / 200)); show(); send(control, u); });
+    const set = (x) => { u = x; show(); send(control, u); };
+    svg.addEventListener("pointerdown", (ev) => { if (locked) return; svg.setPointerCapture(ev.pointerId); svg.dragging = true; svg.focus({ preventScroll: true }); startY = ev.clientY; startU = u; ev.preventDefault(); });
+    svg.addEventListener("pointermove", (ev) => { if (!svg.dragging) return; set(Math.min(1, Math.max(0, startU + (startY - ev.clientY) / 200))); });
     const end = () => { svg.dragging = false; }; svg.addEventListener("pointerup", end); svg.addEventListener("pointercancel", end);
+    svg.addEventListener("keydown", (ev) => { if (locked) return; const x = keyed(ev.key, u); if (x === null) return; ev.preventDefault(); set(x); });
   }
 
+  // a button pressed by a pointer (held while down) or by the keyboard (Space / Enter held while
+  // down; a key's auto-repeat is not a new press); the browser's own click is not used
+  function pressable(b, down, up) {
+    let by = null;
+    b.addEventListener("pointerdown", (ev) => { ev.preventDefault(); if (b.setPointerCapture && ev.pointerId !== undefined) b.setPointerCapture(ev.pointerId); by = "pointer"; down(); });
+    const release = () => { if (by === "pointer") { by = null; up(); } };
+    b.addEventListener("pointerup", release); b.addEventListener("pointercancel", release);
+    b.addEventListener("keydown", (ev) => {
+      if (ev.key !== " " && ev.key !== "Enter") return;
+      ev.preventDefault();
+      if (ev.repeat || by) return;
+      by = "key"; down();
+    });
+    b.addEventListener("keyup", (ev) => { if ((ev.key === " " || ev.key === "Enter") && by === "key") { ev.preventDefault(); by = null; up(); } });
+    b.addEventListener("blur", () => { if (by === "key") { by = null; up(); } });
+  }
+
+  // the page is redrawn only where something changed: 30 states a second on a slow phone (or a
+  // software-composited browser) must leave it time for the performer's fingers and the face
+  const last = {};
+  function setText(e, text) { if (e.textContent !== text) e.textContent = text; }
+  function changed(key, value) { const j = JSON.stringify(value); if (last[key] === j) return false; last[key] = j; return true; }
   function update(st) {
     if (st.values) {
       state.values = st.values;
       for (const [ch, sl] of Object.entries(state.sliders)) {
         const c = state.layout.channels[state.index[ch]]; const v = st.values[state.index[ch]];
         const u = (v - c.lo) / ((c.hi - c.lo) || 1);
-        sl.ap.style.left = (u * 100) + "%"; sl.num.textContent = v.toFixed(2);
+        // the needle slides on its own layer (a transform: no layout, no repaint of the page)
+        if (sl.u !== u) { sl.u = u; sl.ap.style.transform = `translateX(${(Math.min(1, Math.max(0, u)) * 100).toFixed(2)}%)`; }
+        setText(sl.num, v.toFixed(2));
+        if (state.own["slider:" + ch] === undefined && sl.now !== fmt(v)) {  // untouched: it stands where the face is
+          sl.now = fmt(v); sl.el.setAttribute("aria-valuenow", sl.now);
+          sl.el.setAttribute("aria-valuetext", sl.now + (sl.linked ? ", left and right together" : ""));
+        }
       }
       if (state.ageRow) {
         const a = state.ageRow, v = st.values[state.index[a.name]], u = (v - a.lo) / (a.hi - a.lo);
-        const ang = Math.PI * 0.75 + u * Math.PI * 1.5;
-        $("ageapplied").setAttribute("x2", Math.cos(ang) * 40); $("ageapplied").setAttribute("y2", Math.sin(ang) * 40);
-        $("agetext").textContent = v.toFixed(0);
+        if (changed("age", u)) {
+          const ang = Math.PI * 0.75 + u * Math.PI * 1.5;
+          $("ageapplied").setAttribute("x2", Math.cos(ang) * 40); $("ageapplied").setAttribute("y2", Math.sin(ang) * 40);
+          setText($("agetext"), v.toFixed(0));
+        }
       }
     }
-    if (st.fps !== undefined) { $("fps").textContent = st.fps; $("tps").textContent = st.tps; }
-    if (st.latency) { $("p50").textContent = st.latency[0].toFixed(1); $("p99").textContent = st.latency[1].toFixed(1); }
-    if (st.devices) {
+    const now = performance.now();
+    if (now - (last.statsAt || 0) > 500) {  // figures a person reads: twice a second is plenty
+      last.statsAt = now;
+      if (st.fps !== undefined) { setText($("fps"), String(st.fps)); setText($("tps"), String(st.tps)); }
+      if (st.latency) { setText($("p50"), st.latency[0].toFixed(1)); setText($("p99"), st.latency[1].toFixed(1)); }
+    }
+    if (st.devices && changed("devices", st.devices)) {
       const d = $("devices"); d.textContent = "";
-      for (const [spec, ok, drops, level] of st.devices) {
-        const s = el("span", "dev " + (ok ? "ok" : "lost"), (ok ? "● " : "○ ") + spec + (drops ? " · " + drops + " dropped" : ""));
-        if (typeof level === "number") {  // an audio input: its level
+      for (const [spec, ok, drops, level] of st.devices) {  // [spec, connected, drops (or null), level (a microphone)]
+        const tag = el("span", "dev " + (ok ? "ok" : "lost"), (ok ? "● " : "○ ") + spec + (drops ? ` · ${drops} dropped` : ""));
+        tag.title = (ok ? "connected" : "lost") + (typeof drops === "number" ? `, ${drops} inputs dropped` : "");
+        if (typeof level === "number") {  // an audio input: how loud it hears
           const m = document.createElement("meter");
           m.min = 0; m.max = 1; m.value = level; m.className = "level";
           m.setAttribute("aria-label", "level of " + spec);
-          s.append(" ", m);
+          tag.append(" ", m);
         }
-        d.append(s);
+        d.append(tag);
       }
     }
     // the other pages: what they touch, drawn as dots on our sliders, listed with their roles
+    if (changed("clients", st.clients || [])) others(st.clients || []);
+    if (st.markers && changed("markers", st.markers)) {
+      const m = $("markers"); m.textContent = "";
+      for (const [t, label] of st.markers.slice().reverse()) m.append(el("li", "", `${t.toFixed(2)} s  ${label}`));
+    }
+  }
+  function others(clients) {
     const cl = $("clients"); cl.textContent = "";
     for (const sl of Object.values(state.sliders)) for (const o of Object.values(sl.others)) o.remove(), 0;
     for (const sl of Object.values(state.sliders)) sl.others = {};
-    for (const c of st.clients || []) {
+    for (const c of clients) {
       const touching = Object.keys(c.own || {}).filter((k) => k.startsWith("slider:")).length;
       cl.append(el("li", "", `${c.name === state.me ? "▶ " : ""}${c.name}${c.role ? " (" + c.role + ")" : ""}` +
         `${c.only && c.only.length ? " — only " + c.only.join(", ") : ""} · ${touching} sliders touched`));
@@ -140,33 +240,56 @@
         sl.el.append(dot); sl.others[c.name] = dot;
       }
     }
-    if (st.markers) {
-      const m = $("markers"); m.textContent = "";
-      for (const [t, label] of st.markers.slice().reverse()) m.append(el("li", "", `${t.toFixed(2)} s  ${label}`));
-    }
   }
 
-  let pingAt = 0;
+  let pingAt = 0, bestRtt = Infinity, pendingState = null;
+  // the face, live (face.js draws it with WebGL 2 from the server's stream); hidden, nothing is sent
+  const face = state.face = window.PuppetFace($("face"));
+  // each frame drawn is reported: the server sends a page at most two frames ahead of its drawing
+  face.onDrawn = () => { if (state.ws && state.ws.readyState === 1) state.ws.send('{"t":"drawn"}'); };
+  let faceOn = face.ok && params.get("face") !== "0";  // ?face=0: a page that starts without the face
+  if (!face.ok) { $("facetoggle").disabled = true; $("facefps").textContent = "no WebGL 2 here"; }
+  const faceWish = () => { if (state.ws && state.ws.readyState === 1) state.ws.send(JSON.stringify({ t: "face", on: faceOn })); };
+  const showFace = () => { $("facetoggle").setAttribute("aria-pressed", String(faceOn));
+    $("facetoggle").textContent = faceOn ? "face shown" : "face hidden"; $("face").style.visibility = faceOn ? "" : "hidden"; };
+  $("facetoggle").onclick = () => { faceOn = !faceOn && face.ok; showFace(); faceWish(); };
+  showFace();
+  let lastDrawn = 0, lastAt = performance.now();
+  setInterval(() => {
+    const now = performance.now(), fps = (face.drawn - lastDrawn) / ((now - lastAt) / 1000);
+    lastDrawn = face.drawn; lastAt = now;
+    if (!face.ok) return;
+    $("facefps").textContent = faceOn ? fps.toFixed(0) : "–";
+    const l = face.lags.slice(-30).sort((a, b) => a - b);
+    $("facelag").textContent = faceOn && l.length ? l[l.length >> 1].toFixed(0) : "–";
+  }, 1000);
   function connect() {
     const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws?" + q.toString());
+    ws.binaryType = "arraybuffer";
     state.ws = ws;
-    ws.onopen = () => { $("conn").textContent = "connected"; $("conn").className = "up"; };
+    ws.onopen = () => { $("conn").textContent = "connected"; $("conn").className = "up"; bestRtt = Infinity; ping(); faceWish(); };
     ws.onclose = () => { $("conn").textContent = "disconnected (retrying)"; $("conn").className = "down"; setTimeout(connect, 1000); };
     ws.onmessage = (ev) => {
+      if (typeof ev.data !== "string") { face.message(ev.data); return; }
       const msg = JSON.parse(ev.data);
       if (msg.t === "hello") {
         state.me = msg.you; state.allowed = new Set(msg.allowed); state.layout = msg.layout;
         $("me").textContent = msg.you; build(msg.layout);
-      } else if (msg.t === "state") update(msg);
-      else if (msg.t === "pong") $("rtt").textContent = (performance.now() - pingAt).toFixed(1);
+      } else if (msg.t === "state") {  // applied in the next animation frame, with the face's: one redraw
+        if (!pendingState) requestAnimationFrame(() => { const st = pendingState; pendingState = null; update(st); });
+        pendingState = msg;
+      }
+      else if (msg.t === "pong") {
+        const now = performance.now(), rtt = now - pingAt;
+        $("rtt").textContent = rtt.toFixed(1);
+        // the server's clock against ours, from the quickest round trip: the face's lag is measured on it
+        if (rtt <= bestRtt) { bestRtt = rtt; face.offset = msg.s * 1000 - (pingAt + now) / 2; }
+      }
     };
   }
-  setInterval(() => { if (state.ws && state.ws.readyState === 1) { pingAt = performance.now(); state.ws.send('{"t":"ping"}'); } }, 1000);
-  const hold = (id, control) => {
-    const b = $(id);
-    b.addEventListener("pointerdown", (ev) => { ev.preventDefault(); send(control, 1); });
-    b.addEventListener("pointerup", () => send(control, 0));
-  };
+  function ping() { if (state.ws && state.ws.readyState === 1) { pingAt = performance.now(); state.ws.send('{"t":"ping"}'); } }
+  setInterval(ping, 1000);
+  const hold = (id, control) => pressable($(id), () => send(control, 1), () => send(control, 0));
   hold("panic", "button:panic"); hold("marker", "button:marker");
   $("edit").onclick = () => {
     const tab = window.open("", "_blank");

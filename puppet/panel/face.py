@@ -1,0 +1,141 @@
+"""The face on the page: the server's side of the live view (render.stream encodes, the page's
+face.js draws with WebGL 2).
+
+`FaceFeed` keeps the pages that watch the face. Each frame is encoded once and the same bytes go to
+every page. A page says which frames it has drawn (`{"t":"drawn"}`); one with AHEAD frames sent and
+not yet drawn, or whose last send is still under way, skips this frame: a slow phone (or a browser
+starved of CPU) gets fewer frames, never a queue of old ones, so the lag behind the show stays about
+one frame's encode, send and draw whatever the number of pages. On the live page the feed reads the loop's public state from the server's thread
+with the state it sends every page (30 times a second; nothing runs in the live loop); the state is read while the loop may be stepping, so a
+frame may mix two consecutive ticks (16 ms apart: nothing a viewer can see)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # asyncio is imported where the server thread runs: opening the page device stays cheap
+    import asyncio
+
+
+AHEAD = 2  # frames a page may have received and not yet drawn
+
+
+@dataclass
+class FeedStats:
+    """What the feed cost: frames encoded, their bytes, the encode time; sends done and skipped."""
+
+    frames: int = 0
+    bytes: int = 0
+    encode_s: float = 0.0
+    sent: int = 0
+    skipped: int = 0
+    sizes: list[int] = field(default_factory=list)
+
+
+class FaceFeed:
+    """The pages watching one face: `add(ws)` sends the scene, `publish(state, tick)` one frame."""
+
+    def __init__(self) -> None:
+        self.stream: Any = None
+        self.model: Any = None
+        self.pages: dict[Any, asyncio.Task[None] | None] = {}
+        self.ahead: dict[Any, int] = {}  # per page: frames sent, not yet reported drawn
+        self.stats = FeedStats()
+        self.last_tick = -1
+
+    async def use(self, model: Any) -> bool:
+        """Stream `model` (built in a worker thread: a large mesh takes a while); True when it is
+        a new face, whose scene has then been sent to every page watching."""
+        if model is self.model:
+            return False
+        import asyncio
+
+        from render.stream import FaceStream
+
+        loop = asyncio.get_running_loop()
+        self.stream = await loop.run_in_executor(None, FaceStream, model, f"face{id(model):x}")
+        self.model, self.last_tick = model, -1
+        scene = self.stream.scene()
+        for ws in list(self.pages):
+            await self._send_now(ws, scene)
+        return True
+
+    async def add(self, ws: Any, model: Any) -> None:
+        """A page starts watching: the scene, then frames."""
+        await self.use(model)
+        await self._send_now(ws, self.stream.scene())
+        self.pages[ws] = None
+        self.ahead[ws] = 0
+
+    def drawn(self, ws: Any) -> None:
+        """The page drew a frame: it may be sent another."""
+        if ws in self.ahead:
+            self.ahead[ws] = max(0, self.ahead[ws] - 1)
+
+    def remove(self, ws: Any) -> None:
+        self.ahead.pop(ws, None)
+        task = self.pages.pop(ws, None)
+        if task is not None:
+            task.cancel()
+
+    async def _send_now(self, ws: Any, data: bytes) -> None:
+        import asyncio
+
+        try:
+            await asyncio.wait_for(ws.send_bytes(data), 5.0)
+        except Exception:  # a page gone or stalled: its WebSocket handler removes it
+            pass
+
+    def publish(self, state: Any, tick: int, t: float | None = None) -> int:
+        """Encode `state` once and start sending it to every page not still busy with the last
+        frame; the number of pages it goes to."""
+        if self.stream is None or not self.pages:
+            return 0
+        import asyncio
+
+        c0 = time.perf_counter()
+        msg = self.stream.frame(state, tick, time.monotonic() if t is None else t)
+        st = self.stats
+        st.encode_s += time.perf_counter() - c0
+        st.frames += 1
+        st.bytes += len(msg)
+        if len(st.sizes) < 10000:
+            st.sizes.append(len(msg))
+        self.last_tick = tick
+        n = 0
+        for ws, task in list(self.pages.items()):
+            if (task is not None and not task.done()) or self.ahead.get(ws, 0) >= AHEAD:
+                st.skipped += 1
+                continue
+            self.ahead[ws] = self.ahead.get(ws, 0) + 1
+            self.pages[ws] = asyncio.get_running_loop().create_task(self._send_now(ws, msg))
+            st.sent += 1
+            n += 1
+        return n
+
+
+def parse_face_message(text: str) -> dict[str, Any] | None:
+    """A page's face message (`{"t":"face","on":bool}`, `{"t":"drawn"}` or the editor's
+    `{"t":"at","time":s}`), or None when the text is none of them or malformed."""
+    import json
+    import math
+
+    if len(text) > 256:
+        return None
+    try:
+        msg = json.loads(text)
+    except ValueError:
+        return None
+    if not isinstance(msg, dict):
+        return None
+    if msg.get("t") == "face" and isinstance(msg.get("on"), bool):
+        return msg
+    if msg.get("t") == "drawn":
+        return {"t": "drawn"}
+    if msg.get("t") == "at":
+        v = msg.get("time")
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+            return {"t": "at", "time": float(v)}
+    return None

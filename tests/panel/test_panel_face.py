@@ -1,0 +1,147 @@
+"""The face on the page: the stream of the render mesh (render.stream) decodes to the positions the
+show draws, for a face with a held head and one without; in real headless chromium the page's
+WebGL view of a posed face looks like the show's own offscreen render of it (not like the face at
+rest), and a page that hides the face is sent no frames."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+from panel_browser import browser, quit_browser, wait_for
+
+import devices
+from devices.events import ControlEvent
+
+
+def posed(model, steps: int = 40):
+    """The default face simulated towards an open jaw, a smile and a glance left."""
+    import sim
+
+    from puppet.live import load_face
+
+    state, control = model.rest_state(), sim.FaceControl(model)
+    names = [c.name for c in load_face().vocab.channels]
+    for ch, v in (("jaw", 0.7), ("zygomaticus_major_l", 0.8), ("zygomaticus_major_r", 0.8), ("eyes_yaw", 0.8)):
+        control.values[names.index(ch)] = v
+    s = sim.Simulator(model, 1 / 60, wrinkles=False)
+    for _ in range(steps):
+        s.step(state, control)
+    return state
+
+
+@pytest.mark.parametrize("head", [True, False])
+def test_stream_decodes_to_the_drawn_positions(head: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    from puppet.live import load_face
+    from render.stream import FRAME, QUANTUM, SCENE, FaceStream, unpack
+
+    if not head:  # a face without the held head (an imported mesh): only its own surface is streamed
+        import sim.face.head
+
+        monkeypatch.setattr(sim.face.head, "shell_for", lambda rig: None)
+    model = load_face().model
+    fs = FaceStream(model)
+    kind, h, payload = unpack(fs.scene())
+    assert kind == SCENE and h["vertices"] == fs.n_vertices
+    n = len(model.rest)
+    assert (h["rows"] > n) == head and h["blobs"]["skin_tris"][2] == 3 * len(model.triangles)
+    assert (h["blobs"]["head_tris"][2] > 0) == head
+    tris = np.frombuffer(payload, np.uint32, h["blobs"]["normal_tris"][2], h["blobs"]["normal_tris"][1])
+    assert tris.max() < h["rows"]
+    state = posed(model)
+    msg = fs.frame(state, 40, 1.5)
+    kind, fh, _ = unpack(msg)
+    assert kind == FRAME and fh["tick"] == 40 and fh["eye"][0] == pytest.approx(state.eye_yaw)
+    want = fs.positions(state)
+    assert np.abs(want[:n] - state.surface).max() < 1e-5  # the mask's rows are the drawn surface
+    assert np.abs(fs.decode(msg) - want).max() <= QUANTUM / 2 + 1e-5
+    # the face at rest is (nearly) all zero steps: its frame is a small fraction of the raw positions
+    assert len(fs.frame(model.rest_state(), 0, 0.0)) < fs.n_vertices * 6 / 10
+
+
+def _canvas_image(drv) -> np.ndarray:
+    from PIL import Image
+    from selenium.webdriver.common.by import By
+
+    png = drv.find_element(By.ID, "face").screenshot_as_png
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), float)
+
+
+def test_page_shows_the_face_the_show_draws() -> None:
+    from puppet import live
+    from puppet.mapping import Mapper
+    from puppet.panel.layout import panel_map
+    from render.offscreen import OffscreenRenderer
+
+    face = live.load_face()
+    dev = devices.open_device("panel://127.0.0.1:0", vocab=face.vocab)
+    core = live.LiveCore(face, Mapper(panel_map(face.vocab), face.vocab))
+    spec = dev.spec.rstrip("/") + "/test"
+    moves = [("slider:jaw", 0.7), ("slider:zygomaticus_major_l", 0.8), ("slider:zygomaticus_major_r", 0.8),
+             ("slider:eyes_yaw", 0.9)]
+    for k in range(60):  # the show's ticks, driven as a page would
+        core.tick([ControlEvent(spec, c, "axis", v, None, v, 0.0) for c, v in moves] if k == 0 else [])
+    dev.watch(core, [dev])
+    watch, hidden = browser(), browser()
+    try:
+        watch.get(dev.url + "?name=watch")
+        hidden.get(dev.url + "?name=hidden&face=0")
+        wait_for(lambda: watch.execute_script("const f = window.puppetPanel.face; return f.drawn > 0 && f.tick === 60"),
+                 60, "the face drawn on the page")
+        assert watch.execute_script("return window.puppetPanel.face.error") is None
+        w, h = watch.execute_script("const c = document.getElementById('face'); return [c.width, c.height]")
+        page = _canvas_image(watch)[:h, :w]
+        with OffscreenRenderer(face.model, (w, h)) as off:
+            show = off.render_frame(core.state).astype(float)
+            rest = off.render_frame(face.model.rest_state()).astype(float)
+        hh, ww = min(page.shape[0], h), min(page.shape[1], w)
+        d_show = np.abs(page[:hh, :ww] - show[:hh, :ww]).mean()
+        d_rest = np.abs(page[:hh, :ww] - rest[:hh, :ww]).mean()
+        d_pose = np.abs(show - rest).mean()
+        assert d_pose > 1.0  # the pose shows
+        assert d_show < d_rest / 2, (d_show, d_rest)  # the page shows the posed face, not the rest
+        assert d_show < 6.0, d_show  # and close to the show's pixels (antialiasing and 8-bit colour apart)
+        assert hidden.execute_script("return window.puppetPanel.face.bytes") == 0
+        assert len(dev.face_feed.pages) == 1
+        assert hidden.find_element("id", "facetoggle").get_attribute("aria-pressed") == "false"
+    finally:
+        quit_browser(watch)
+        quit_browser(hidden)
+        dev.close()
+
+
+def test_a_slow_page_gets_fewer_frames_not_old_ones() -> None:
+    """The feed sends a page at most AHEAD frames beyond what it reports drawn; a page that keeps
+    up gets every frame; both get the scene first."""
+    import asyncio
+
+    from puppet.live import load_face
+    from puppet.panel.face import AHEAD, FaceFeed
+    from render.stream import FRAME, SCENE, unpack
+
+    class Page:
+        def __init__(self) -> None:
+            self.got: list[bytes] = []
+
+        async def send_bytes(self, data: bytes) -> None:
+            self.got.append(data)
+
+    async def run() -> tuple[Page, Page]:
+        model = load_face().model
+        feed, slow, quick = FaceFeed(), Page(), Page()
+        await feed.add(slow, model)
+        await feed.add(quick, model)
+        state = model.rest_state()
+        for k in range(1, 8):
+            feed.publish(state, k)
+            for _ in range(20):  # the sends run to their end
+                await asyncio.sleep(0)
+            feed.drawn(quick)
+        return slow, quick
+
+    slow, quick = asyncio.run(run())
+    kinds = lambda page: [unpack(m)[0] for m in page.got]  # noqa: E731
+    assert kinds(quick) == [SCENE] + [FRAME] * 7
+    assert kinds(slow) == [SCENE] + [FRAME] * AHEAD
+    assert [unpack(m)[1]["tick"] for m in slow.got[1:]] == [1, 2]
