@@ -21,6 +21,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--map", metavar="FILE", help="mapping file (default: the shipped map of each device)")
     p.add_argument("--rig", metavar="PATH", help="rig file (default: the built-in face)")
     p.add_argument("--record", metavar="FILE", help="record the session to FILE (JSON Lines)")
+    p.add_argument("--performer", metavar="NAME", help="who performs (kept in the take and the take library)")
+    p.add_argument("--library", metavar="PATH", help="the take library the recording is added to (default: your "
+                   "data folder; PUPPET_LIBRARY=off for none)")
     p.add_argument("--headless", action="store_true", help="no window: for scripted and recorded runs")
     p.add_argument("--duration", type=float, metavar="S", help="stop cleanly after S seconds")
     p.add_argument("--fullscreen", action="store_true", help="fullscreen window")
@@ -266,6 +269,8 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         mapper.declare_controls(d.spec, d.controls)
     virtual = bool(devs) and all(getattr(getattr(d, "script", None), "speed", 1.0) == 0 for d in devs)
     header = live.session_header(face, spec, live.TICK_RATE, specs)
+    if getattr(args, "performer", None):
+        header["performer"] = str(args.performer)[:200]
     point = None
     if record and getattr(args, "resume", False):
         from puppet import resume
@@ -353,6 +358,10 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
             watcher.close()
         if writer is not None:
             writer.close(core.tick_count)
+            if record and writer.error is None:
+                from puppet.library import register_recording
+
+                register_recording(record, getattr(args, "performer", None), getattr(args, "library", None), warn)
     p50, p99 = core.latency.percentile(50), core.latency.percentile(99)
     lat = f"; input-to-frame latency p50 {p50 * 1e3:.1f} ms, p99 {p99 * 1e3:.1f} ms" if p50 is not None else ""
     where = f" to {record}" if record else ""
