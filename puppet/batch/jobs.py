@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import os
 import tempfile
 import zlib
@@ -178,7 +179,9 @@ def fit_capture(files: dict[str, bytes], origin: str, outname: str, opts: dict[s
         text = io.StringIO()
         with contextlib.redirect_stdout(text):
             cmd_fit.run(args)
-        return {outname: out.read_bytes()}
+        # the take names its capture: the user's path, not this worker's copy
+        here, there = (json.dumps(str(p))[1:-1].encode() for p in (capture.resolve(), origin))
+        return {outname: out.read_bytes().replace(here, there)}
 
 
 def recognize_input(files: dict[str, bytes], origin: str, outname: str, opts: dict[str, Any]) -> dict[str, bytes]:
