@@ -311,6 +311,7 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
             resume.start_segment(core, point)
         for page in panel_devices(devs):
             page.watch(core, devs, record)
+            page.library = getattr(args, "library", None)  # the page's take list reads it
             if page.server is None and page.serve_later:
                 from puppet.panel import announce
 

@@ -21,9 +21,9 @@ FLAGS = ("--headless --no-sandbox --disable-gpu --disable-quic --no-first-run --
          "--disable-component-update --disable-sync --window-size=1400,1000").split()
 ROOT = Path(__file__).resolve().parents[2]
 # a trimmed environment for `puppet` subprocesses (no DISPLAY, none of the shell's OPENBLAS_* settings),
-# but the run's private face cache (tests/conftest.py), never the user's
+# but the run's private face cache and take library (tests/conftest.py), never the user's
 CHILD_ENV = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin",
-             **{k: v for k, v in os.environ.items() if k == "PUPPET_CACHE_DIR"}}
+             **{k: v for k, v in os.environ.items() if k in ("PUPPET_CACHE_DIR", "PUPPET_LIBRARY")}}
 
 
 def browser() -> Any:
