@@ -102,7 +102,7 @@ def load(path: Path) -> Input:
 
 def output_names(items: list[Input], suffix: str) -> list[str]:
     """`STEM + suffix` per input; inputs sharing a stem get their content hash's start added."""
-    stems = [i.path.name.split(".")[0] if i.path.suffix.lower() == ".jsonl" else i.path.stem for i in items]
+    stems = [i.path.name.split(".")[0] or i.path.stem for i in items]
     dup = {s for s in stems if stems.count(s) > 1}
     return [f"{s}-{i.digest[:8]}{suffix}" if s in dup else f"{s}{suffix}" for s, i in zip(stems, items)]
 

@@ -139,3 +139,20 @@ def test_long_video_in_chunks_equals_single_export(tmp_path: Path, capsys: pytes
     assert all(np.array_equal(g, w) for g, w in zip(got, want))
     assert np.abs(want[0].astype(int) - want[-1].astype(int)).mean() > 0.05  # the face moved
     assert (out / "clip.mp4").read_bytes() == single
+
+
+def test_batch_fit_equals_fit(farm: Farm, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from puppet.session import read_session
+
+    take = write_take(tmp_path / "s" / "phone.jsonl", ticks=40, seed=11)
+    caps = tmp_path / "caps"
+    caps.mkdir()
+    assert main(["batch", "export", str(take), "--out", str(caps), "--to", "arkit", "--scheduler", farm.address]) == 0
+    out = tmp_path / "fitted"
+    out.mkdir()
+    assert main(["batch", "fit", str(caps), "--out", str(out), "--scheduler", farm.address]) == 0
+    assert main(["fit", str(caps / "phone.arkit.csv"), "--out", str(tmp_path / "single.jsonl")]) == 0
+    capsys.readouterr()
+    got, want = read_session(out / "phone.jsonl"), read_session(tmp_path / "single.jsonl")
+    assert got.ticks == want.ticks > 0 and got.values == want.values
+    assert got.header["source"] == want.header["source"]  # names the user's capture, not a worker's copy
