@@ -106,7 +106,9 @@ def run(action: str, selection: list[str], out_dir: Path, *, kinds: list[str] | 
     opts = opts or {}
     rep = Report()
     if not out_dir.is_dir():
-        raise PuppetError(f"{out_dir}: the output folder does not exist")
+        if not out_dir.parent.is_dir():
+            raise PuppetError(f"{out_dir}: neither it nor its parent folder exists")
+        out_dir.mkdir(exist_ok=True)
     outs = plan(action, selection, kinds or [], opts, library)
     todo = []
     for o in outs:
