@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from puppet.batch import jobs
-from puppet.batch.plan import EXPORT_KINDS, Input, Output, chunks, load, output_key, output_names, select, \
+from puppet.batch.plan import EXPORT_KINDS, Output, chunks, load, output_key, output_names, select, \
     up_to_date, write_outputs
 from puppet.errors import PuppetError
 
@@ -59,7 +59,7 @@ def connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
         return client, None
     n = workers or max(1, os.cpu_count() or 1)
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=None, silence_logs=logging.CRITICAL)
+                           dashboard_address="127.0.0.1:0", silence_logs=logging.CRITICAL)
     return Client(cluster), cluster
 
 

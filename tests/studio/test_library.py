@@ -211,3 +211,16 @@ def test_live_recording_is_registered(tmp_path: Path) -> None:
         rows = library.search('performer:"ana lopez"')
         assert [Path(t["path"]) for t in rows] == [rec.resolve()]
         assert rows[0]["devices"] == [f"mock://{script}"] and rows[0]["duration"] == pytest.approx(0.5)
+
+
+def test_library_option_before_the_action_and_env(folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    lib = tmp_path / "a.db"
+    assert main(["takes", "--library", str(lib), "import", str(folder)]) == 0
+    assert main(["takes", "--library", str(lib), "search", "performer:bob", "--json"]) == 0
+    capsys.readouterr()
+    monkeypatch.setenv("PUPPET_LIBRARY", str(lib))
+    assert main(["takes", "search", "performer:bob", "--json"]) == 0
+    assert [Path(r["path"]).name for r in json.loads(capsys.readouterr().out)] == ["bob_jaw.jsonl"]
+    monkeypatch.setenv("PUPPET_LIBRARY", "off")
+    assert main(["takes", "list"]) == 2 and "PUPPET_LIBRARY=off" in capsys.readouterr().err
