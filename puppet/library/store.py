@@ -96,7 +96,11 @@ class Library:
         """Move the damaged file aside and build a new one from the journal and the takes. A lock
         file makes two processes that find the damage at once rebuild it only once."""
         reason = " ".join(reason.replace("*** in database main ***", "").split())[:100]
-        lock = open(self.path.with_name(self.path.name + ".lock"), "a")
+        try:
+            lock = open(self.path.with_name(self.path.name + ".lock"), "a")
+        except OSError as err:
+            raise ConfigError(f"{self.path}: the take library is damaged ({reason}) and its folder is not "
+                              f"writable ({err.strerror}); pass --library with another file") from err
         try:
             fcntl.flock(lock, fcntl.LOCK_EX)
             try:
@@ -108,13 +112,17 @@ class Library:
                 pass
             stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
             aside = self.path.with_name(f"{self.path.name}.damaged-{stamp}")
-            for suffix in ("", "-wal", "-shm"):
-                src = Path(str(self.path) + suffix)
-                if src.exists():
-                    if keep:
-                        os.replace(src, Path(str(aside) + suffix))
-                    else:
-                        src.unlink()
+            try:
+                for suffix in ("", "-wal", "-shm"):
+                    src = Path(str(self.path) + suffix)
+                    if src.exists():
+                        if keep:
+                            os.replace(src, Path(str(aside) + suffix))
+                        else:
+                            src.unlink()
+            except OSError as err:
+                raise ConfigError(f"{self.path}: the take library is damaged ({reason}) and cannot be moved "
+                                  f"aside ({err.strerror}); move it away and run the command again") from err
             con, _ = schema.connect(self.path)
             con.row_factory = sqlite3.Row
             self.con = con
