@@ -156,3 +156,14 @@ def test_batch_fit_equals_fit(farm: Farm, tmp_path: Path, capsys: pytest.Capture
     got, want = read_session(out / "phone.jsonl"), read_session(tmp_path / "single.jsonl")
     assert got.ticks == want.ticks > 0 and got.values == want.values
     assert got.header["source"] == want.header["source"]  # names the user's capture, not a worker's copy
+
+
+@pytest.mark.parametrize("frames,size", [(1, 10), (10, 10), (11, 10), (35, 10), (1801, 1800), (5, 0)])
+def test_chunks_cover_every_frame_once(frames: int, size: int) -> None:
+    from puppet.batch.plan import chunks
+
+    parts = chunks(frames, size)
+    assert parts[0][0] == 0 and parts[-1][1] == frames
+    assert all(a < b and (size <= 0 or b - a <= size) for a, b in parts)
+    assert all(parts[k][1] == parts[k + 1][0] for k in range(len(parts) - 1))
+    assert len(parts) == (1 if size <= 0 else -(-frames // size))
