@@ -27,6 +27,8 @@ COMMAND_MODULES = (
     "puppet.cmd_fit",
     "puppet.cmd_recognize",
     "puppet.cmd_templates",
+    "puppet.cmd_takes",
+    "puppet.cmd_batch",
 )
 
 

@@ -23,6 +23,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--face", metavar="SPEC", default=None,
                    help="the face: ict (the scanned head), ict?identity=SEED, procedural or a saved identity's NAME")
     p.add_argument("--record", metavar="FILE", help="record the session to FILE (JSON Lines)")
+    p.add_argument("--performer", metavar="NAME", help="who performs (kept in the take and the take library)")
+    p.add_argument("--library", metavar="PATH", help="the take library the recording is added to (default: your "
+                   "data folder; PUPPET_LIBRARY=off for none)")
     p.add_argument("--headless", action="store_true", help="no window: for scripted and recorded runs")
     p.add_argument("--duration", type=float, metavar="S", help="stop cleanly after S seconds")
     p.add_argument("--fullscreen", action="store_true", help="fullscreen window")
@@ -283,6 +286,8 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     # right before each frame, where a faster tick would only cost, and a script's clock keeps 60 Hz
     rate = getattr(args, "tick_rate", None) or (live.TICK_RATE if virtual or windowed else live.LIVE_TICK_RATE)
     header = live.session_header(face, spec, rate, specs)
+    if getattr(args, "performer", None):
+        header["performer"] = str(args.performer)[:200]
     point = None
     if record and getattr(args, "resume", False):
         from puppet import resume
@@ -340,6 +345,7 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
             core.before_tick.append(audio_take.clock_hook(sound))
         for page in panel_devices(devs):
             page.watch(core, devs, record)
+            page.library = getattr(args, "library", None)  # the page's take list reads it
             if page.server is None and page.serve_later and page not in early:
                 core.after_first_frame.append(lambda p=page: p.serve_in_background(announce, warn))
         stop = live.StopFlag()
@@ -386,6 +392,10 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         if writer is not None:
             writer.close(core.tick_count)
         audio_take.finish(sound, core.tick_count / core.rate if sound else None)
+        if writer is not None and record and writer.error is None:
+            from puppet.library import register_recording
+
+            register_recording(record, getattr(args, "performer", None), getattr(args, "library", None), warn)
     p50, p99 = core.latency.percentile(50), core.latency.percentile(99)
     lat = f"; input-to-frame latency p50 {p50 * 1e3:.1f} ms, p99 {p99 * 1e3:.1f} ms" if p50 is not None else ""
     where = f" to {record}" if record else ""

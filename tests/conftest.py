@@ -11,6 +11,8 @@ import pytest
 # compiled faces are cached in a private folder for this run, never in the user's cache
 # (subprocesses inherit it); removed at the end of the run
 _FACE_CACHE = os.environ["PUPPET_CACHE_DIR"] = __import__("tempfile").mkdtemp(prefix="puppet-test-cache-")
+# recordings made by tests are registered in a take library inside that folder, never the user's
+os.environ["PUPPET_LIBRARY"] = os.path.join(_FACE_CACHE, "takes.db")
 
 
 # the suite's own fixtures and expectations are the procedural face's unless a test asks for another

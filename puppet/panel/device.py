@@ -262,8 +262,16 @@ class PanelDevice(Device):
         app.router.add_get("/ws", self._ws)
         app.router.add_get("/favicon.ico", _no_icon)
         app.router.add_get("/api/layout", layout)
+        from puppet.panel.takes import TakeRoutes
+
+        TakeRoutes(self._library_path).add(app)  # the take list (its own panel, takes.js)
         app.on_startup.append(self._start_broadcast)
         app.on_cleanup.append(self._stop_broadcast)
+
+    def _library_path(self) -> Any:
+        from puppet.library import library_path
+
+        return library_path(getattr(self, "library", None))  # `puppet live --library` sets it
 
     async def _start_broadcast(self, app: Any) -> None:
         import asyncio

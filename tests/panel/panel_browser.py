@@ -23,9 +23,9 @@ ROOT = Path(__file__).resolve().parents[2]
 # axe-core from npm, installed by .ci/setup (`npm install --prefix .ci/axe axe-core`), never vendored here
 AXE = ROOT / ".ci" / "axe" / "node_modules" / "axe-core" / "axe.min.js"
 # a trimmed environment for `puppet` subprocesses (no DISPLAY, none of the shell's OPENBLAS_* settings),
-# but the run's private face cache (tests/conftest.py), never the user's
+# but the run's private face cache and take library (tests/conftest.py), never the user's
 CHILD_ENV = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin",
-             **{k: v for k, v in os.environ.items() if k == "PUPPET_CACHE_DIR"}}
+             **{k: v for k, v in os.environ.items() if k in ("PUPPET_CACHE_DIR", "PUPPET_LIBRARY")}}
 
 
 def browser() -> Any:

@@ -1,0 +1,270 @@
+"""Batch exports on Dask: N takes of S seconds (default 16 x 10 s) exported to PC2 and to a 720p
+MP4, one after the other with `puppet replay TAKE --out FILE` (a process per take, as a user would
+script it) and with `puppet batch export` on the local cluster (one worker process per core); then
+PC2 through an external `dask scheduler` with 1 and with 2 `dask worker` processes; then the
+scheduling cost of a task (a no-op task's round trip on that farm). Every batch output is compared
+with the single export's bytes. Figures are wall-clock (best of --repeats, the two sides
+alternating), plus the CPU seconds the local runs used (their processes' user + system time),
+measured in this one run.
+
+On a machine shared with other users' sessions, Linux's autogroup scheduling gives each session
+(terminal) one fair share of the CPUs under contention: a local cluster's workers, in this
+session, then share the time one process would get, and only the start-up saved shows. Farm
+workers started in their own sessions (as on separate machines) each get a share. Read the CPU
+seconds for the work saved and the farm's 1 vs 2 workers for the parallel speed-up.
+
+Run:  nice .venv/bin/python benchmarks/batch.py [--takes 16] [--seconds 10] [--skip-mp4] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import filecmp
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+PUPPET = [sys.executable, "-m", "puppet"]
+
+
+def write_takes(folder: Path, n: int, seconds: float) -> list[Path]:
+    """n takes of `seconds` at 60 Hz: three muscles ramping and one oscillating, different per take."""
+    from puppet import live
+    from puppet.mapping.config import MappingSpec
+    from puppet.session import SessionWriter
+
+    face = live.load_face()
+    muscles = [i for i, c in enumerate(face.vocab.channels) if c.kind == "muscle"]
+    out = []
+    for k in range(n):
+        rng = np.random.default_rng(k)
+        moving = rng.choice(muscles, 4, replace=False)
+        values = np.array(face.vocab.defaults(), dtype=np.float64)
+        header = live.session_header(face, MappingSpec(name="bench", bindings=[], combine={}), 60.0, ["bench://"])
+        p = folder / f"take{k:02d}.jsonl"
+        ticks = int(seconds * 60)
+        with SessionWriter(p, header, fsync_seconds=None) as w:
+            for t in range(ticks):
+                x = t / ticks
+                values[moving[:3]] = [min(1.0, 0.8 * x), min(1.0, 0.5 * x * x), 0.6 * (1 - x)]
+                values[moving[3]] = 0.5 + 0.4 * np.sin(2 * np.pi * t / 90)
+                w.values(t, values)
+                w.tick(t + 1)
+            w.close(ticks)
+        out.append(p)
+    return out
+
+
+CPU = [0.0]  # CPU seconds of the last timed() call's processes (children, reaped)
+
+
+def _children_cpu() -> float:
+    import resource
+
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def timed(cmd: list[str], **kw) -> float:  # type: ignore[no-untyped-def]
+    c = _children_cpu()
+    t = time.perf_counter()
+    r = subprocess.run(cmd, capture_output=True, text=True, **kw)
+    if r.returncode != 0:
+        raise SystemExit(f"failed: {' '.join(cmd)}\n{r.stderr[-2000:]}")
+    CPU[0] = _children_cpu() - c
+    return time.perf_counter() - t
+
+
+def serial(takes: list[Path], out: Path, suffix: str) -> tuple[float, float]:
+    out.mkdir(exist_ok=True)
+    wall = cpu = 0.0
+    for t in takes:
+        wall += timed(PUPPET + ["replay", str(t), "--out", str(out / (t.stem + suffix))])
+        cpu += CPU[0]
+    return wall, cpu
+
+
+def same(a: Path, b: Path, suffix: str, takes: list[Path]) -> int:
+    return sum(filecmp.cmp(a / (t.stem + suffix), b / (t.stem + suffix), shallow=False) for t in takes)
+
+
+class Farm:
+    """`dask scheduler` and `dask worker`s on 127.0.0.1, stopped by PID."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder, self.procs = folder, []
+        self.file = folder / "scheduler.json"
+        self._spawn("scheduler", "--host", "127.0.0.1", "--port", "0", "--dashboard-address", "127.0.0.1:0",
+                    "--scheduler-file", str(self.file))
+        while not self.file.exists() or not self.file.read_text().strip():
+            time.sleep(0.1)
+        time.sleep(0.2)
+        self.address = json.loads(self.file.read_text())["address"]
+
+    def _spawn(self, *args: str) -> None:
+        log = open(self.folder / f"{args[0]}{len(self.procs)}.log", "wb")
+        self.procs.append(subprocess.Popen([sys.executable, "-m", "dask", *args], stdout=log,
+                                           stderr=subprocess.STDOUT, start_new_session=True))
+
+    def drop_worker(self, total: int) -> None:
+        """Stop the newest worker (by its process group) and wait until `total` remain."""
+        p = self.procs.pop()
+        os.killpg(p.pid, signal.SIGTERM)
+        p.wait(30)
+        from dask.distributed import Client
+
+        with Client(self.address, timeout=30) as c:
+            for _ in range(600):
+                if len(c.scheduler_info()["workers"]) <= total:
+                    return
+                time.sleep(0.1)
+
+    def add_worker(self, total: int) -> None:
+        self._spawn("worker", "--scheduler-file", str(self.file), "--host", "127.0.0.1", "--dashboard-address",
+                    "127.0.0.1:0", "--nworkers", "1", "--nthreads", "1")
+        from dask.distributed import Client
+
+        with Client(self.address, timeout=30) as c:
+            c.wait_for_workers(total, timeout=120)
+
+    def stop(self) -> None:
+        for p in reversed(self.procs):
+            try:
+                os.killpg(p.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+        for p in reversed(self.procs):
+            try:
+                p.wait(20)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait()
+
+
+def warm(address: str, take: Path) -> None:
+    """Every worker loads the face and compiles the simulation once (what its first task would pay)."""
+    from dask.distributed import Client
+
+    from puppet.batch import jobs
+
+    with Client(address, timeout=30) as c:
+        c.run(jobs.export_take, {take.name: take.read_bytes()}, str(take), take.stem + ".pc2", {"fps": None})
+
+
+def _noop(x: int) -> int:
+    return x
+
+
+def overhead(address: str, n: int = 400) -> float:
+    """Seconds per task of no-op tasks submitted at once and gathered (scheduling and transport)."""
+    from dask.distributed import Client, wait
+
+    with Client(address, timeout=30) as c:
+        wait(c.map(_noop, range(20), pure=False))  # connections warm
+        t = time.perf_counter()
+        fs = c.map(_noop, range(n), pure=False)
+        wait(fs)
+        return (time.perf_counter() - t) / n
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--takes", type=int, default=16)
+    ap.add_argument("--seconds", type=float, default=10.0)
+    ap.add_argument("--repeats", type=int, default=2, help="PC2 and farm runs per side (best counts)")
+    ap.add_argument("--skip-mp4", action="store_true")
+    ap.add_argument("--farm-only", action="store_true", help="only the external scheduler's figures")
+    ap.add_argument("--json", action="store_true")
+    a = ap.parse_args()
+    res: dict[str, float | int | str] = {"takes": a.takes, "seconds": a.seconds, "cores": os.cpu_count() or 1,
+                                         "load_before": os.getloadavg()[0]}
+    with tempfile.TemporaryDirectory(prefix="puppet-bench-batch-") as tmp:
+        d = Path(tmp)
+        (d / "takes").mkdir()
+        takes = write_takes(d / "takes", a.takes, a.seconds)
+        (d / "local").mkdir()
+        if a.farm_only:
+            serial(takes, d / "single", ".pc2")
+        # PC2: serial single exports vs the local cluster, alternating
+        local = PUPPET + ["batch", "export", str(d / "takes"), "--out", str(d / "local"), "--to", "pc2", "--force"]
+        runs_s, runs_l, cpu_s, cpu_l = [], [], [], []
+        for _ in range(0 if a.farm_only else a.repeats):
+            w, c = serial(takes, d / "single", ".pc2")
+            runs_s.append(w)
+            cpu_s.append(c)
+            runs_l.append(timed(local))
+            cpu_l.append(CPU[0])
+        if not a.farm_only:
+            res["pc2_serial_s"], res["pc2_local_cluster_s"] = min(runs_s), min(runs_l)
+            res["pc2_serial_cpu_s"], res["pc2_local_cluster_cpu_s"] = min(cpu_s), min(cpu_l)
+            res["pc2_local_speedup"] = res["pc2_serial_s"] / res["pc2_local_cluster_s"]
+            res["pc2_identical"] = same(d / "single", d / "local", ".pc2", takes)
+            # a re-run with nothing changed
+            res["pc2_rerun_s"] = timed(local[:-1])
+        if not a.skip_mp4 and not a.farm_only:
+            one = write_takes(d, 1, 1 / 60)[0]  # a one-tick take: its export is nearly all start-up
+            res["mp4_startup_one_export_s"] = timed(PUPPET + ["replay", str(one), "--out", str(d / "one.mp4")])
+            res["mp4_serial_s"], res["mp4_serial_cpu_s"] = serial(takes, d / "single", ".mp4")
+            res["mp4_local_cluster_s"] = timed(PUPPET + ["batch", "export", str(d / "takes"), "--out",
+                                                         str(d / "local"), "--to", "mp4"])
+            res["mp4_local_cluster_cpu_s"] = CPU[0]
+            res["mp4_local_speedup"] = res["mp4_serial_s"] / res["mp4_local_cluster_s"]
+            res["mp4_identical"] = same(d / "single", d / "local", ".mp4", takes)
+        # an external scheduler: 1 worker, then 2, alternating
+        farm = Farm(d)
+        try:
+            (d / "farm").mkdir()
+            cmd = PUPPET + ["batch", "export", str(d / "takes"), "--out", str(d / "farm"), "--to", "pc2",
+                            "--force", "--scheduler", farm.address]
+            tiny = write_takes(d, 1, 0.1)[0]
+            farm.add_worker(1)
+            warm(farm.address, tiny)  # each new worker loads the face once, as a farm's workers do
+            one_w, two_w = [], []
+            for r in range(a.repeats):
+                one_w.append(timed(cmd))
+                farm.add_worker(2)
+                warm(farm.address, tiny)
+                two_w.append(timed(cmd))
+                if r + 1 < a.repeats:
+                    farm.drop_worker(1)
+            res["pc2_farm_1_worker_s"], res["pc2_farm_2_workers_s"] = min(one_w), min(two_w)
+            res["pc2_farm_speedup"] = res["pc2_farm_1_worker_s"] / res["pc2_farm_2_workers_s"]
+            res["pc2_farm_identical"] = same(d / "single", d / "farm", ".pc2", takes)
+            res["task_overhead_ms"] = overhead(farm.address) * 1e3
+        finally:
+            farm.stop()
+        res["load_after"] = os.getloadavg()[0]
+    if a.json:
+        print(json.dumps(res))
+        return 0
+    n = a.takes
+    print(f"{n} takes of {a.seconds:g} s, {res['cores']} cores, load {res['load_before']:.1f} before, "
+          f"{res['load_after']:.1f} after")
+    if not a.farm_only:
+        print(f"PC2  serial `puppet replay --out`: {res['pc2_serial_s']:.1f} s ({res['pc2_serial_cpu_s']:.1f} s CPU); "
+              f"local cluster: {res['pc2_local_cluster_s']:.1f} s ({res['pc2_local_cluster_cpu_s']:.1f} s CPU) -> "
+              f"{res['pc2_local_speedup']:.2f}x wall, {res['pc2_serial_cpu_s'] / res['pc2_local_cluster_cpu_s']:.2f}x "
+              f"CPU ({res['pc2_identical']}/{n} byte-identical); re-run, nothing changed: {res['pc2_rerun_s']:.1f} s")
+    if not a.skip_mp4 and not a.farm_only:
+        print(f"MP4  serial: {res['mp4_serial_s']:.1f} s ({res['mp4_serial_cpu_s']:.1f} s CPU); local cluster: "
+              f"{res['mp4_local_cluster_s']:.1f} s ({res['mp4_local_cluster_cpu_s']:.1f} s CPU) -> "
+              f"{res['mp4_local_speedup']:.2f}x ({res['mp4_identical']}/{n} byte-identical); one export's start-up "
+              f"{res['mp4_startup_one_export_s']:.1f} s, paid {n} times serially")
+    print(f"PC2  external scheduler: 1 worker {res['pc2_farm_1_worker_s']:.1f} s, 2 workers "
+          f"{res['pc2_farm_2_workers_s']:.1f} s -> {res['pc2_farm_speedup']:.2f}x ({res['pc2_farm_identical']}/{n} "
+          f"byte-identical)")
+    print(f"scheduling: {res['task_overhead_ms']:.2f} ms per no-op task")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

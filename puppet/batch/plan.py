@@ -1,0 +1,161 @@
+"""What a batch will do, decided on the client before anything runs: the inputs a SELECTION names,
+each output's file names, the key that says whether an output is up to date, and the chunks of a
+long video. Pure functions and small files; no Dask here."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from puppet.errors import PuppetError
+from safefile import atomic_write
+
+#: bumped when the batch outputs' layout or meaning changes (old manifests then no longer match)
+PLAN_VERSION = 1
+MANIFESTS = ".puppet-batch"
+EXPORT_KINDS = {"mp4": ".mp4", "pc2": ".pc2", "csv": ".csv", "arkit": ".arkit.csv", "curves": ".curves"}
+MAX_INPUT_BYTES = 512 * 1024 * 1024
+
+
+@dataclass
+class Input:
+    path: Path
+    files: dict[str, bytes] = field(default_factory=dict)  # the input and its sidecars, by name
+    digest: str = ""
+    error: str | None = None  # unreadable here: reported, not sent
+
+
+@dataclass
+class Output:
+    """One task's result: the files it writes into the output folder."""
+
+    item: Input
+    action: str  # export | fit | recognize
+    name: str  # the main file's name (export: its suffix picks the kind)
+    key: str  # hash of everything the output is made from
+    opts: dict[str, Any]
+    chunks: list[tuple[int, int]] = field(default_factory=list)  # filled for split videos
+
+
+def select(selection: list[str], library: str | None, suffixes: tuple[str, ...]) -> list[Path]:
+    """Files and folders (every file with one of `suffixes` under it) as given; the remaining
+    words form one take-library query."""
+    paths: list[Path] = []
+    words: list[str] = []
+    for s in selection:
+        p = Path(s)
+        if p.is_dir():
+            paths += sorted(q for q in p.rglob("*") if q.is_file() and q.name.lower().endswith(suffixes)
+                            and not any(part.startswith(".") for part in q.relative_to(p).parts))
+        elif p.is_file():
+            paths.append(p)
+        else:
+            words.append(s)
+    if words:
+        from puppet.library import open_library
+
+        query = " ".join(words)
+        with open_library(library) as lib:
+            found = lib.search(query)
+        if not found:
+            raise PuppetError(f"no file, folder or take in the library matches {query!r:.100}")
+        for t in found:
+            if t["missing"]:
+                raise PuppetError(f"take {t['id']} ({t['path']}) is missing; `puppet takes check` looks for it")
+            paths.append(Path(t["path"]))
+    seen: set[Path] = set()
+    out = []
+    for p in paths:
+        r = p.resolve()
+        if r not in seen:
+            seen.add(r)
+            out.append(r)
+    if not out:
+        raise PuppetError("the selection names no input files")
+    return out
+
+
+def load(path: Path) -> Input:
+    """Read an input and its sidecar (a PC2 capture's rest OBJ) for sending to a worker."""
+    item = Input(path)
+    names = [path] + ([path.with_suffix(".obj")] if path.suffix.lower() == ".pc2" else [])
+    h = hashlib.sha256()
+    try:
+        for p in names:
+            if p != path and not p.exists():
+                continue
+            if p.stat().st_size > MAX_INPUT_BYTES:
+                raise PuppetError(f"{p}: larger than {MAX_INPUT_BYTES >> 20} MB")
+            data = p.read_bytes()
+            item.files[p.name] = data
+            h.update(p.name.encode() + b"\0" + hashlib.sha256(data).digest())
+    except OSError as err:
+        item.error = f"{path}: cannot read: {err.strerror}"
+    except PuppetError as err:
+        item.error = str(err)
+    item.digest = h.hexdigest()
+    return item
+
+
+def output_names(items: list[Input], suffix: str) -> list[str]:
+    """`STEM + suffix` per input; inputs sharing a stem get their content hash's start added."""
+    stems = [i.path.name.split(".")[0] or i.path.stem for i in items]
+    dup = {s for s in stems if stems.count(s) > 1}
+    return [f"{s}-{i.digest[:8]}{suffix}" if s in dup else f"{s}{suffix}" for s, i in zip(stems, items)]
+
+
+def output_key(item: Input, action: str, name: str, opts: dict[str, Any]) -> str:
+    from puppet import __version__
+
+    text = json.dumps({"v": PLAN_VERSION, "program": __version__, "action": action, "name": name,
+                       "input": item.digest, "opts": opts}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def chunks(frames: int, chunk_frames: int) -> list[tuple[int, int]]:
+    """Frame ranges [a, b) of at most chunk_frames frames, the last one not tiny."""
+    if chunk_frames <= 0 or frames <= chunk_frames:
+        return [(0, frames)]
+    n = -(-frames // chunk_frames)
+    bounds = [round(k * frames / n) for k in range(n + 1)]
+    return [(bounds[k], bounds[k + 1]) for k in range(n)]
+
+
+def _manifest(out_dir: Path, name: str) -> Path:
+    return out_dir / MANIFESTS / f"{name}.json"
+
+
+def up_to_date(out_dir: Path, o: Output) -> bool:
+    """The output's files exist with the hashes its manifest recorded for this very key."""
+    try:
+        m = json.loads(_manifest(out_dir, o.name).read_text(encoding="utf-8"))
+        if not isinstance(m, dict) or m.get("key") != o.key or not isinstance(m.get("files"), dict):
+            return False
+        for fname, digest in m["files"].items():
+            with open(out_dir / fname, "rb") as fh:
+                if hashlib.file_digest(fh, "sha256").hexdigest() != digest:
+                    return False
+        return bool(m["files"])
+    except (OSError, ValueError):
+        return False
+
+
+def write_outputs(out_dir: Path, o: Output, files: dict[str, bytes]) -> list[Path]:
+    """Each file written beside its place and renamed into it, then the manifest (last: an
+    interrupted write is redone by the next run)."""
+    written = []
+    for fname, data in files.items():
+        target = out_dir / Path(fname).name
+        with atomic_write(target, "wb") as fh:
+            fh.write(data)
+        written.append(target)
+    m = {"key": o.key, "input": str(o.item.path), "action": o.action,
+         "files": {Path(f).name: hashlib.sha256(d).hexdigest() for f, d in files.items()}}
+    mp = _manifest(out_dir, o.name)
+    mp.parent.mkdir(exist_ok=True)
+    with atomic_write(mp) as fh:
+        fh.write(json.dumps(m, indent=1))
+    return written

@@ -1,0 +1,187 @@
+"""The batch client: connects to a Dask scheduler (or starts a local cluster of one worker process
+per core on 127.0.0.1), submits one task per output (a long video: its chunks and their join),
+writes each result into the output folder as it lands, and reports failures with their reasons
+while the rest finish. A worker that dies mid-task has its task run again elsewhere by the
+scheduler (Dask's `allowed-failures`); the jobs have no side effects, so running twice is harmless."""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from puppet.batch import jobs
+from puppet.batch.plan import EXPORT_KINDS, Output, chunks, load, output_key, output_names, select, \
+    up_to_date, write_outputs
+from puppet.errors import PuppetError
+
+SUFFIXES = {"export": (".jsonl",), "recognize": (".jsonl", ".csv", ".c3d", ".pc2"),
+            "fit": (".csv", ".c3d", ".pc2")}
+CONNECT_TIMEOUT = 20.0
+
+
+@dataclass
+class Report:
+    written: list[Path] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    failed: dict[str, str] = field(default_factory=dict)  # input path -> first reason
+    workers: int = 0
+    tasks: int = 0
+
+
+def plan(action: str, selection: list[str], kinds: list[str], opts: dict[str, Any], library: str | None) -> list[Output]:
+    items = [load(p) for p in select(selection, library, SUFFIXES[action])]
+    outs: list[Output] = []
+    if action == "export":
+        for kind in kinds:
+            names = output_names(items, EXPORT_KINDS[kind])
+            o = dict(opts) if kind == "mp4" else {"fps": opts.get("fps")}
+            outs += [Output(i, action, n, output_key(i, action, n, o), o) for i, n in zip(items, names)]
+    else:
+        suffix = ".jsonl" if action == "fit" else ".expressions.json"
+        for i, n in zip(items, output_names(items, suffix)):
+            outs.append(Output(i, action, n, output_key(i, action, n, opts), opts))
+    return outs
+
+
+def connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
+    """(client, local cluster or None)."""
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT)
+        except (OSError, TimeoutError) as err:
+            raise PuppetError(f"cannot reach the Dask scheduler at {scheduler}: {err}") from err
+        return client, None
+    n = workers or max(1, os.cpu_count() or 1)
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address="127.0.0.1:0", silence_logs=logging.CRITICAL)
+    return Client(cluster), cluster
+
+
+def check_farm(client: Any) -> int:
+    """Every worker must run this very program (version and sources); returns the worker count."""
+    from dask.distributed import TimeoutError as DaskTimeout
+
+    try:
+        client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
+    except (DaskTimeout, TimeoutError, OSError) as err:
+        raise PuppetError(f"no Dask worker joined the scheduler within {CONNECT_TIMEOUT:g} s") from err
+    mine = jobs.identity()
+    theirs = client.run(jobs.identity)
+    for addr, ident in theirs.items():
+        if tuple(ident) != mine:
+            raise PuppetError(f"worker {addr} runs puppet {ident[0]} (sources {ident[1]}), this machine "
+                              f"{mine[0]} (sources {mine[1]}): install the same version on every machine")
+    return len(theirs)
+
+
+def _video_plan(o: Output, chunk_frames: int) -> list[int] | None:
+    """The frames' ticks when the video is long enough to split, else None (one task)."""
+    if chunk_frames <= 0 or o.opts.get("view", "shaded") == "trails":  # trails: one renderer sees all
+        return None
+    try:
+        from puppet.session import read_session
+
+        s = read_session(o.item.path)
+        rate, ticks = s.tick_rate, s.ticks
+    except Exception:  # the worker reports what is wrong with it
+        return None
+    fps = o.opts.get("fps") or 30.0
+    n = max(1, int(round(ticks / rate * fps)))
+    if n <= chunk_frames:
+        return None
+    return [min(ticks, int(round(j / fps * rate))) for j in range(n)]
+
+
+def run(action: str, selection: list[str], out_dir: Path, *, kinds: list[str] | None = None,
+        opts: dict[str, Any] | None = None, scheduler: str | None = None, workers: int | None = None,
+        chunk_frames: int = 0, library: str | None = None, force: bool = False, bar: bool = True) -> Report:
+    from tqdm import tqdm
+
+    opts = opts or {}
+    rep = Report()
+    if not out_dir.is_dir():
+        if not out_dir.parent.is_dir():
+            raise PuppetError(f"{out_dir}: neither it nor its parent folder exists")
+        out_dir.mkdir(exist_ok=True)
+    outs = plan(action, selection, kinds or [], opts, library)
+    todo = []
+    for o in outs:
+        if o.item.error:
+            rep.failed.setdefault(str(o.item.path), o.item.error)
+        elif not force and up_to_date(out_dir, o):
+            rep.skipped.append(o.name)
+        else:
+            todo.append(o)
+    if not todo:
+        return rep
+    client, cluster = connect(scheduler, workers)
+    try:
+        rep.workers = check_farm(client)
+        _submit_and_collect(client, todo, out_dir, chunk_frames, rep, tqdm, bar)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return rep
+
+
+def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_frames: int, rep: Report,
+                        tqdm: Any, show: bool) -> None:
+    from dask.distributed import as_completed
+
+    final: dict[Any, Output] = {}
+    helpers: dict[Any, Output] = {}
+    fn = {"export": jobs.export_take, "fit": jobs.fit_capture, "recognize": jobs.recognize_input}
+    for o in todo:
+        tag = f"{o.name}-{o.key[:12]}"
+        files, origin = o.item.files, str(o.item.path)
+        ticks = _video_plan(o, chunk_frames) if o.action == "export" and o.name.endswith(".mp4") else None
+        if ticks is None:
+            final[client.submit(fn[o.action], files, origin, o.name, o.opts, key=f"{o.action}-{tag}")] = o
+            continue
+        parts = chunks(len(ticks), chunk_frames)
+        o.chunks = parts
+        ckpt = client.submit(jobs.mp4_checkpoints, files, origin, ticks, [a for a, _ in parts],
+                             key=f"mp4-checkpoints-{tag}")
+        pieces = [client.submit(jobs.mp4_chunk, files, origin, o.opts, ticks, a, b, ckpt, k,
+                                key=f"mp4-chunk-{k}-{tag}") for k, (a, b) in enumerate(parts)]
+        for f in (ckpt, *pieces):
+            helpers[f] = o
+        final[client.submit(jobs.mp4_join, o.name, origin, o.opts, *pieces, key=f"mp4-join-{tag}")] = o
+    rep.tasks = len(final) + len(helpers)
+    with tqdm(total=rep.tasks, desc=f"batch on {rep.workers} workers", unit="task", file=sys.stderr,
+              dynamic_ncols=True, disable=not show) as progress:
+        for fut in as_completed(list(final) + list(helpers)):
+            progress.update(1)
+            o = final.get(fut)
+            if o is None:
+                continue  # a chunk: its join collects it
+            origin = str(o.item.path)
+            try:
+                files = fut.result()
+            except Exception as err:  # the job's reason (or the worker's death, past the retries)
+                rep.failed.setdefault(origin, _reason(err, origin))
+                continue
+            finally:
+                for h in [h for h, ho in helpers.items() if ho is o]:
+                    del helpers[h]  # frees the chunks' frames on the workers
+            try:
+                rep.written += write_outputs(out_dir, o, files)
+            except Exception as err:
+                rep.failed.setdefault(origin, f"{out_dir}: cannot write {o.name}: {err}")
+
+
+def _reason(err: BaseException, origin: str) -> str:
+    name = type(err).__name__
+    text = str(err).strip() or name
+    if name == "KilledWorker":
+        return f"{origin}: the workers running it died repeatedly ({text[:200]})"
+    if isinstance(err, jobs.JobFailed) or name in ("JobFailed",):
+        return text if origin in text else f"{origin}: {text}"
+    return f"{origin}: {name}: {text[:300]}"

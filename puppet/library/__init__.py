@@ -1,0 +1,38 @@
+"""The take library: every recording indexed in one SQLite file (the user's data folder, or
+`--library PATH`), searchable by text, performer, date, tag and expression. See docs/studio.md."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from puppet.errors import PuppetError
+from puppet.library.store import Library, default_path
+
+
+def library_path(arg: str | None) -> Path | None:
+    """--library PATH, else the default place (None: the library is off, PUPPET_LIBRARY=off)."""
+    return Path(arg) if arg else default_path()
+
+
+def open_library(arg: str | None) -> Library:
+    """The library for a `puppet takes` / `puppet batch` command."""
+    path = library_path(arg)
+    if path is None:
+        raise PuppetError("the take library is off (PUPPET_LIBRARY=off); pass --library PATH")
+    return Library(path)
+
+
+def register_recording(record: str | Path, performer: str | None, arg: str | None,
+                       warn: Callable[[str], None]) -> int | None:
+    """Register a take just recorded by `puppet live`; never raises (a show's recording is safe on
+    disk whatever the library does). Returns the take's id, or None."""
+    path = library_path(arg)
+    if path is None:
+        return None
+    try:
+        with Library(path, warn=warn) as lib:
+            return lib.register(record, performer=performer)
+    except Exception as err:  # the library must never cost the performer the take
+        warn(f"the take {record} is safe but was not added to the library {path}: {err}")
+        return None

@@ -1,0 +1,166 @@
+"""The take library's SQLite file: its schema, its migrations and how it is opened.
+
+This module alone knows the tables. The file is opened in WAL mode (readers never wait for the
+writer), with a busy timeout, and every write is a `BEGIN IMMEDIATE` transaction (see `write`):
+two shows recording at once, or a show and `puppet takes` in another terminal, queue for the write
+lock instead of failing with "database is locked". `PRAGMA user_version` holds the schema version;
+`MIGRATIONS[n]` takes a file from version n to n + 1 inside one transaction, so an interrupted
+migration leaves the old version intact.
+
+A file that is not a database, fails SQLite's quick check, or raises a "malformed" error is
+damaged: `LibraryDamaged` is raised and the caller (puppet.library.store) rebuilds the file from
+the takes and the journal beside it."""
+
+from __future__ import annotations
+
+import sqlite3
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from puppet.errors import ConfigError
+
+#: seconds a writer waits for another writer's transaction before giving up
+BUSY_TIMEOUT = 60.0
+
+MIGRATIONS: list[str] = [
+    # 0 -> 1: takes, tags, expression spans, full-text index
+    """
+    CREATE TABLE takes (
+        id          INTEGER PRIMARY KEY,
+        path        TEXT NOT NULL,
+        hash        TEXT NOT NULL,
+        size        INTEGER NOT NULL,
+        recorded    TEXT,              -- the recording's start time (ISO 8601, UTC)
+        registered  TEXT NOT NULL,
+        duration    REAL NOT NULL,
+        ticks       INTEGER NOT NULL,
+        tick_rate   REAL NOT NULL,
+        face        TEXT,              -- rig name ('default' for the built-in face)
+        identity    TEXT,              -- rig hash: which face exactly
+        resolution  INTEGER,
+        program     TEXT,
+        devices     TEXT NOT NULL DEFAULT '[]',   -- JSON list of device specs
+        markers     TEXT NOT NULL DEFAULT '[]',   -- JSON list of [seconds, label]
+        performer   TEXT NOT NULL DEFAULT '',
+        notes       TEXT NOT NULL DEFAULT '',
+        thumbnail   BLOB,              -- a small PNG
+        analysed    INTEGER NOT NULL DEFAULT 0,   -- thumbnail and expressions made for this hash
+        missing     INTEGER NOT NULL DEFAULT 0    -- the file was not found by the last check
+    );
+    CREATE UNIQUE INDEX takes_path ON takes(path);
+    CREATE INDEX takes_hash ON takes(hash);
+    CREATE INDEX takes_performer ON takes(performer);
+    CREATE INDEX takes_recorded ON takes(recorded);
+    CREATE TABLE tags (
+        take_id INTEGER NOT NULL REFERENCES takes(id) ON DELETE CASCADE,
+        tag     TEXT NOT NULL,
+        PRIMARY KEY (take_id, tag)
+    );
+    CREATE INDEX tags_tag ON tags(tag);
+    CREATE TABLE spans (
+        take_id    INTEGER NOT NULL REFERENCES takes(id) ON DELETE CASCADE,
+        start      REAL NOT NULL,
+        end        REAL NOT NULL,
+        expression TEXT NOT NULL,
+        score      REAL NOT NULL
+    );
+    CREATE INDEX spans_take ON spans(take_id);
+    CREATE INDEX spans_expression ON spans(expression);
+    CREATE VIRTUAL TABLE takes_text USING fts5(
+        name, performer, notes, tags, markers, expressions, devices, face,
+        tokenize = 'unicode61 remove_diacritics 2'
+    );
+    """,
+]
+SCHEMA_VERSION = len(MIGRATIONS)
+
+
+class LibraryDamaged(Exception):
+    """The library file cannot be trusted; the message says why in a few words."""
+
+
+def _migrate(con: sqlite3.Connection, path: Path) -> int:
+    """Bring the file to SCHEMA_VERSION; returns the version it had (0: a new, empty file)."""
+    version = con.execute("PRAGMA user_version").fetchone()[0]
+    if version > SCHEMA_VERSION:
+        raise ConfigError(f"{path}: the take library was written by a newer puppet (schema {version}, this "
+                          f"one knows {SCHEMA_VERSION}); upgrade, or pass --library with another file")
+    if version == SCHEMA_VERSION:
+        return version
+    con.execute("BEGIN IMMEDIATE")
+    try:
+        version = con.execute("PRAGMA user_version").fetchone()[0]  # another process may have migrated
+        for n in range(version, SCHEMA_VERSION):
+            for stmt in _statements(MIGRATIONS[n]):
+                con.execute(stmt)
+        con.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+        con.execute("COMMIT")
+    except BaseException:
+        con.execute("ROLLBACK")
+        raise
+    return version
+
+
+def _statements(script: str) -> Iterator[str]:
+    """The script's statements one by one (executescript would commit our transaction)."""
+    buf = ""
+    for line in script.splitlines(keepends=True):
+        buf += line.split("--", 1)[0] if "--" in line else line
+        if sqlite3.complete_statement(buf):
+            if buf.strip():
+                yield buf.strip()
+            buf = ""
+
+
+def connect(path: Path) -> tuple[sqlite3.Connection, bool]:
+    """Open (creating) and check the library at `path`, migrated to the current schema; returns
+    the connection and whether the file was new (or empty). Raises LibraryDamaged for a damaged
+    file, ConfigError for one that cannot be opened at all."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot create the take library's folder: {err.strerror}") from err
+    try:
+        con = sqlite3.connect(path, timeout=BUSY_TIMEOUT, isolation_level=None, check_same_thread=False)
+    except sqlite3.Error as err:
+        raise ConfigError(f"{path}: cannot open the take library: {err}") from err
+    try:
+        con.execute("PRAGMA foreign_keys = ON")
+        mode = con.execute("PRAGMA journal_mode = WAL").fetchone()[0]
+        if str(mode).lower() != "wal":
+            raise LibraryDamaged(f"cannot switch to WAL mode (got {mode})")
+        con.execute("PRAGMA synchronous = NORMAL")
+        check = con.execute("PRAGMA quick_check(1)").fetchone()[0]
+        if check != "ok":
+            raise LibraryDamaged(str(check)[:80])
+        was = _migrate(con, path)
+        if SCHEMA_VERSION and not con.execute(
+                "SELECT count(*) FROM sqlite_master WHERE name IN ('takes','tags','spans','takes_text')").fetchone()[0] == 4:
+            raise LibraryDamaged("tables are missing")
+    except LibraryDamaged:
+        con.close()
+        raise
+    except sqlite3.OperationalError as err:
+        con.close()
+        if "locked" in str(err) or "busy" in str(err):
+            raise ConfigError(f"{path}: the take library stayed locked by another program for "
+                              f"{BUSY_TIMEOUT:g} s") from err
+        raise LibraryDamaged(str(err)[:80]) from err
+    except sqlite3.DatabaseError as err:
+        con.close()
+        raise LibraryDamaged(str(err)[:80]) from err
+    return con, was == 0
+
+
+@contextmanager
+def write(con: sqlite3.Connection) -> Iterator[sqlite3.Connection]:
+    """One write transaction that takes the write lock at its start (BEGIN IMMEDIATE): concurrent
+    writers wait their turn (busy timeout) rather than fail half way."""
+    con.execute("BEGIN IMMEDIATE")
+    try:
+        yield con
+    except BaseException:
+        con.execute("ROLLBACK")
+        raise
+    con.execute("COMMIT")

@@ -1,0 +1,77 @@
+"""What the library keeps about a take, read from the take file itself: its content hash and
+the recording's header and records (date, duration, face, devices, markers, performer)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from puppet.errors import ConfigError
+
+
+def file_hash(path: str | Path) -> tuple[str, int]:
+    """(SHA-256 hex of the file's bytes, size in bytes); a ConfigError naming the file if unreadable."""
+    try:
+        with open(path, "rb") as fh:
+            digest = hashlib.file_digest(fh, "sha256")
+            size = fh.tell()
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read the take: {err.strerror}") from err
+    return digest.hexdigest(), size
+
+
+@dataclass
+class TakeInfo:
+    path: str
+    hash: str
+    size: int
+    recorded: str | None
+    duration: float
+    ticks: int
+    tick_rate: float
+    face: str | None
+    identity: str | None
+    resolution: int | None
+    program: str | None
+    devices: list[str] = field(default_factory=list)
+    markers: list[tuple[float, str]] = field(default_factory=list)
+    performer: str = ""
+    warnings: list[str] = field(default_factory=list)
+
+    def devices_json(self) -> str:
+        return json.dumps(self.devices)
+
+    def markers_json(self) -> str:
+        return json.dumps([[round(t, 4), label] for t, label in self.markers])
+
+
+def read_take_info(path: str | Path) -> TakeInfo:
+    """The library's fields of the recording at `path` (checked by the session reader: a file that
+    is not a recording is one ConfigError line)."""
+    from puppet.session import read_session
+
+    p = Path(path).resolve()
+    digest, size = file_hash(p)
+    s = read_session(p)
+    h = s.header
+    rig = h.get("rig") or {}
+    devs = h.get("devices")
+    devices = [str(d)[:200] for d in devs[:64]] if isinstance(devs, list) else []
+    performer = h.get("performer")
+    start = h.get("start_time")
+    program = h.get("program")
+    return TakeInfo(
+        path=str(p), hash=digest, size=size,
+        recorded=str(start)[:40] if isinstance(start, str) else None,
+        duration=float(s.duration), ticks=int(s.ticks), tick_rate=float(s.tick_rate),
+        face=rig.get("name") if isinstance(rig.get("name"), str) else ("file" if rig.get("path") else None),
+        identity=rig.get("hash") if isinstance(rig.get("hash"), str) else None,
+        resolution=rig.get("resolution") if isinstance(rig.get("resolution"), int) else None,
+        program=str(program)[:100] if isinstance(program, str) else None,
+        devices=devices,
+        markers=[(k / s.tick_rate, str(label)[:200]) for k, label in s.markers[:10_000]],
+        performer=str(performer)[:200] if isinstance(performer, str) else "",
+        warnings=list(s.warnings),
+    )

@@ -1,0 +1,141 @@
+"""Keeping the library true to the disk: importing a folder of takes, checking that every take is
+still where the library says (finding moved ones again by content hash), and the slower analysis
+of a take (a thumbnail and the expression spans `puppet recognize` finds), which `puppet takes
+check` makes for every take that lacks it, so recording a show never waits for it."""
+
+from __future__ import annotations
+
+import argparse
+import io
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from puppet.errors import ConfigError, PuppetError
+from puppet.library.store import Library, find_by_hash
+from puppet.library.takeinfo import file_hash
+
+THUMB_SIZE = (256, 144)
+
+
+@dataclass
+class ImportReport:
+    registered: list[int] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)  # "FILE: why"
+
+
+def import_folder(lib: Library, folder: str | Path, performer: str | None = None) -> ImportReport:
+    """Register every recording (`*.jsonl`) under `folder`; other files are skipped with the reason."""
+    root = Path(folder)
+    if not root.is_dir():
+        raise PuppetError(f"{folder}: not a folder")
+    rep = ImportReport()
+    files = sorted(p for p in root.rglob("*.jsonl") if not any(part.startswith(".") for part in p.relative_to(root).parts))
+    for p in files:
+        try:
+            rep.registered.append(lib.register(p, performer=performer))
+        except (ConfigError, PuppetError) as err:
+            rep.skipped.append(str(err))
+    return rep
+
+
+@dataclass
+class CheckReport:
+    ok: int = 0
+    changed: list[int] = field(default_factory=list)
+    found: list[tuple[int, str]] = field(default_factory=list)  # moved: found again at
+    missing: list[int] = field(default_factory=list)
+    analysed: list[int] = field(default_factory=list)
+    failed: list[str] = field(default_factory=list)
+
+
+def check(lib: Library, roots: list[Path] | None = None, analyse: bool = True,
+          progress: Callable[[str], None] | None = None) -> CheckReport:
+    """Every take: present and unchanged, changed (re-read), moved (found again by hash under the
+    folders of the library's takes and `roots`) or missing (marked); then analyse takes lacking it."""
+    rep = CheckReport()
+    rows = [lib.get(i) for i in lib.all_ids()]
+    search = list(roots or []) + sorted({Path(r["path"]).parent for r in rows})
+    # search the nearest existing ancestors too: a take moved to a sibling folder is found
+    extra = {p.parent for p in search if p.parent != p}
+    search += sorted(e for e in extra if e.is_dir() and e != Path("/"))
+    for r in rows:
+        p = Path(r["path"])
+        if p.is_file():
+            try:
+                digest, size = file_hash(p)
+            except ConfigError as err:
+                rep.failed.append(str(err))
+                continue
+            if digest != r["hash"]:
+                try:
+                    lib.register(p)
+                    rep.changed.append(r["id"])
+                except (ConfigError, PuppetError) as err:
+                    rep.failed.append(str(err))
+            else:
+                rep.ok += 1
+                if r["missing"]:
+                    lib.set_place(r["id"], None, False)
+            continue
+        again = find_by_hash(r["hash"], r["size"], [d for d in search if d.is_dir()])
+        if again is not None:
+            lib.set_place(r["id"], again, False)
+            rep.found.append((r["id"], again))
+        else:
+            lib.set_place(r["id"], None, True)
+            rep.missing.append(r["id"])
+    if analyse:
+        for i in lib.all_ids():
+            r = lib.get(i)
+            if r["analysed"] or r["missing"]:
+                continue
+            if progress:
+                progress(f"analysing take {i} ({Path(r['path']).name})")
+            try:
+                thumb, spans = analyse_take(r["path"])
+            except (ConfigError, PuppetError) as err:
+                rep.failed.append(str(err))
+                continue
+            lib.set_analysis(i, r["hash"], thumb, spans)
+            rep.analysed.append(i)
+    return rep
+
+
+def thumbnail(path: str | Path) -> bytes | None:
+    """A small PNG of the take's middle frame (None when no OpenGL is available: the rest of the
+    analysis still counts)."""
+    from puppet.replay import Replayer, build_performance
+    from puppet.session import read_session
+
+    perf = build_performance(read_session(path), None)
+    rp = Replayer(perf)
+    rp.seek(perf.ticks // 2)
+    try:
+        from PIL import Image
+
+        from render.offscreen import OffscreenRenderer
+
+        with OffscreenRenderer(perf.face.model, THUMB_SIZE) as r:
+            img = r.render_frame(rp.state)
+    except Exception:  # no EGL here: a take without a picture
+        return None
+    buf = io.BytesIO()
+    Image.fromarray(img).save(buf, "PNG", optimize=True)
+    return buf.getvalue()
+
+
+def expression_spans(path: str | Path) -> list[tuple[float, float, str, float]]:
+    """(start, end, expression, score) per span: what `puppet recognize TAKE` prints."""
+    from puppet.cmd_recognize import analyse
+
+    spans, _ = analyse(argparse.Namespace(input=str(path), rig=None, map=None, fps=None))
+    return [(float(s.start), float(s.end), str(s.expression), float(s.scores.get(s.expression, 0.0)))
+            for s in spans]
+
+
+def analyse_take(path: str | Path) -> tuple[bytes | None, list[tuple[float, float, str, float]]]:
+    if not os.path.isfile(path):
+        raise ConfigError(f"{path}: the take is missing")
+    return thumbnail(path), expression_spans(path)

@@ -1,0 +1,169 @@
+"""`puppet batch` on a real Dask farm (a `dask scheduler` and two `dask worker` processes on
+127.0.0.1) and on the local cluster: outputs equal the single commands', a bad take is reported
+while the rest finish, a re-run does only what changed, a worker killed mid-task has its task
+run again, a long video split into chunks equals the single export."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from farm import Farm
+from puppet.cli import main
+from puppet.library.store import Library
+from takes import write_take
+
+
+@pytest.fixture(scope="module")
+def farm(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Farm]:
+    f = Farm(tmp_path_factory.mktemp("farm"))
+    try:
+        yield f
+    finally:
+        f.stop()
+
+
+def replay_out(take: Path, out: Path, *extra: str) -> bytes:
+    """What `puppet replay TAKE --out OUT` writes."""
+    assert main(["replay", str(take), "--out", str(out), *extra]) == 0
+    return out.read_bytes()
+
+
+def test_export_through_the_farm_equals_replay(farm: Farm, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    shoot = tmp_path / "shoot"
+    takes = [write_take(shoot / f"take{k}.jsonl", ticks=30 + 15 * k, seed=k, performer="ana") for k in range(3)]
+    (shoot / "broken.jsonl").write_text('{"t": "header", "format": "facepuppet-session", "version": 1}\n')
+    out = tmp_path / "out"
+    out.mkdir()
+    code = main(["batch", "export", str(shoot), "--out", str(out), "--to", "pc2,csv", "--scheduler", farm.address])
+    _, err = capsys.readouterr()
+    assert code == 2
+    failed = [line for line in err.splitlines() if line.startswith("puppet: failed:")]
+    assert len(failed) == 1 and str(shoot / "broken.jsonl") in failed[0], err
+    single = tmp_path / "single"
+    single.mkdir()
+    for t in takes:
+        for suffix in (".pc2", ".csv"):
+            want = replay_out(t, single / (t.stem + suffix))
+            assert (out / (t.stem + suffix)).read_bytes() == want, t.stem + suffix
+        assert (out / (t.stem + ".obj")).read_bytes() == (single / (t.stem + ".obj")).read_bytes()
+    assert not (out / "broken.pc2").exists()
+    capsys.readouterr()
+
+    # a re-run does only what changed: one take re-recorded, the broken one repaired
+    stamps = {p.name: p.stat().st_mtime_ns for p in out.iterdir() if p.is_file()}
+    write_take(takes[1], ticks=50, seed=9)
+    (shoot / "broken.jsonl").unlink()
+    assert main(["batch", "export", str(shoot), "--out", str(out), "--to", "pc2,csv",
+                 "--scheduler", farm.address]) == 0
+    line = capsys.readouterr().out
+    assert "4 outputs up to date" in line and "(2 tasks)" in line, line
+    for p in out.iterdir():
+        if p.is_file():
+            assert (p.stat().st_mtime_ns != stamps[p.name]) == p.name.startswith("take1."), p.name
+    assert (out / "take1.pc2").read_bytes() == replay_out(takes[1], single / "take1.pc2")
+
+
+def test_library_query_selection_and_recognize(farm: Farm, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    lib = tmp_path / "takes.db"
+    a = write_take(tmp_path / "s" / "ana.jsonl", ticks=40, seed=4, performer="ana")
+    b = write_take(tmp_path / "s" / "bob.jsonl", ticks=40, seed=5, performer="bob")
+    with Library(lib) as library:
+        library.register(a)
+        library.register(b)
+    out = tmp_path / "out"
+    out.mkdir()
+    assert main(["batch", "recognize", "performer:bob", "--library", str(lib), "--out", str(out),
+                 "--scheduler", farm.address]) == 0
+    capsys.readouterr()
+    assert sorted(p.name for p in out.iterdir() if p.is_file()) == ["bob.expressions.json"]
+    assert main(["recognize", str(b), "--json"]) == 0
+    assert json.loads((out / "bob.expressions.json").read_text()) == json.loads(capsys.readouterr().out)
+
+
+KILL_TICKS = 420
+
+
+def test_worker_killed_mid_batch(farm: Farm, tmp_path: Path) -> None:
+    shoot = tmp_path / "shoot"
+    takes = [write_take(shoot / f"long{k}.jsonl", ticks=KILL_TICKS, seed=20 + k) for k in range(4)]
+    out = tmp_path / "out"
+    out.mkdir()
+    batch = subprocess.Popen([sys.executable, "-m", "puppet", "batch", "export", str(shoot), "--out", str(out),
+                              "--to", "pc2", "--scheduler", farm.address], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    killed = None
+    with farm.client() as c:
+        deadline = time.monotonic() + 120
+        while killed is None and time.monotonic() < deadline and batch.poll() is None:
+            busy = {w: keys for w, keys in c.processing().items() if any(str(k).startswith("export-") for k in keys)}
+            if busy:
+                time.sleep(0.5)  # well inside the task (each lasts seconds)
+                worker = sorted(busy)[0]
+                pid = c.run(os.getpid, workers=[worker])[worker]
+                os.kill(pid, signal.SIGKILL)
+                killed = worker
+            time.sleep(0.05)
+    stdout, stderr = batch.communicate(timeout=300)
+    assert killed is not None, "no task was seen running"
+    assert batch.returncode == 0, stderr
+    assert "wrote 8 files" in stdout, stdout
+    for t in takes:
+        assert (out / (t.stem + ".pc2")).read_bytes() == replay_out(t, tmp_path / (t.stem + ".pc2")), t.stem
+    farm.wait_for_workers(2)  # the nanny brought the killed worker back
+
+
+def test_long_video_in_chunks_equals_single_export(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    import imageio.v2 as imageio
+
+    take = write_take(tmp_path / "s" / "clip.jsonl", ticks=70, seed=7)
+    out = tmp_path / "out"
+    out.mkdir()
+    # the local cluster (no --scheduler): 35 frames in 4 chunks of at most 10
+    assert main(["batch", "export", str(take), "--out", str(out), "--to", "mp4", "--size", "160x96",
+                 "--chunk-frames", "10", "--workers", "2"]) == 0
+    assert "(6 tasks)" in capsys.readouterr().out  # checkpoints, 4 chunks, the join
+    single = replay_out(take, tmp_path / "single.mp4", "--size", "160x96")
+    got = [f for f in imageio.get_reader(str(out / "clip.mp4"))]
+    want = [f for f in imageio.get_reader(str(tmp_path / "single.mp4"))]
+    assert len(got) == len(want) == 35
+    assert all(np.array_equal(g, w) for g, w in zip(got, want))
+    assert np.abs(want[0].astype(int) - want[-1].astype(int)).mean() > 0.05  # the face moved
+    assert (out / "clip.mp4").read_bytes() == single
+
+
+def test_batch_fit_equals_fit(farm: Farm, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from puppet.session import read_session
+
+    take = write_take(tmp_path / "s" / "phone.jsonl", ticks=40, seed=11)
+    caps = tmp_path / "caps"
+    caps.mkdir()
+    assert main(["batch", "export", str(take), "--out", str(caps), "--to", "arkit", "--scheduler", farm.address]) == 0
+    out = tmp_path / "fitted"
+    out.mkdir()
+    assert main(["batch", "fit", str(caps), "--out", str(out), "--scheduler", farm.address]) == 0
+    assert main(["fit", str(caps / "phone.arkit.csv"), "--out", str(tmp_path / "single.jsonl")]) == 0
+    capsys.readouterr()
+    got, want = read_session(out / "phone.jsonl"), read_session(tmp_path / "single.jsonl")
+    assert got.ticks == want.ticks > 0 and got.values == want.values
+    assert got.header["source"] == want.header["source"]  # names the user's capture, not a worker's copy
+
+
+@pytest.mark.parametrize("frames,size", [(1, 10), (10, 10), (11, 10), (35, 10), (1801, 1800), (5, 0)])
+def test_chunks_cover_every_frame_once(frames: int, size: int) -> None:
+    from puppet.batch.plan import chunks
+
+    parts = chunks(frames, size)
+    assert parts[0][0] == 0 and parts[-1][1] == frames
+    assert all(a < b and (size <= 0 or b - a <= size) for a, b in parts)
+    assert all(parts[k][1] == parts[k + 1][0] for k in range(len(parts) - 1))
+    assert len(parts) == (1 if size <= 0 else -(-frames // size))

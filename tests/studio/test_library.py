@@ -1,0 +1,226 @@
+"""The take library: registration, search, tags, notes, check (moved and deleted takes), two
+writing processes, and damaged library files rebuilt from the takes."""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from puppet.cli import main
+from puppet.library.store import Library
+from takes import write_take
+
+HERE = Path(__file__).resolve().parent
+
+
+def takes_cli(capsys: pytest.CaptureFixture, lib: Path, *args: str) -> tuple[int, str, str]:
+    code = main(["takes", *args, "--library", str(lib)])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture
+def folder(tmp_path: Path) -> Path:
+    d = tmp_path / "shoot"
+    write_take(d / "ana_smile.jsonl", seed=1, performer="ana", markers={10: "good bit"},
+               start_time="2026-12-01T10:00:00.000+00:00")
+    write_take(d / "ana_brow.jsonl", seed=2, performer="ana", start_time="2026-12-02T10:00:00.000+00:00")
+    write_take(d / "day2" / "bob_jaw.jsonl", seed=3, performer="bob", start_time="2026-12-03T10:00:00.000+00:00")
+    (d / "notes.jsonl").write_text("this is not a recording\n")
+    return d
+
+
+def test_import_search_tag_note_show(folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    lib = tmp_path / "lib" / "takes.db"
+    code, out, err = takes_cli(capsys, lib, "import", str(folder))
+    assert code == 0 and "registered 3 takes" in out and "notes.jsonl" in err
+    code, out, _ = takes_cli(capsys, lib, "list", "--json")
+    rows = json.loads(out)
+    assert sorted(Path(r["path"]).name for r in rows) == ["ana_brow.jsonl", "ana_smile.jsonl", "bob_jaw.jsonl"]
+    by_name = {Path(r["path"]).name: r for r in rows}
+    smile = by_name["ana_smile.jsonl"]
+    assert smile["performer"] == "ana" and smile["duration"] == pytest.approx(0.5)
+    assert smile["markers"] == [[pytest.approx(10 / 60, abs=1e-4), "good bit"]]
+    assert smile["devices"] == ["mock://studio"] and smile["face"] == "default" and len(smile["hash"]) == 64
+
+    def ids(query: str) -> list[str]:
+        code, out, _ = takes_cli(capsys, lib, "search", query, "--json")
+        assert code == 0
+        return sorted(Path(r["path"]).name for r in json.loads(out))
+
+    assert ids("performer:ana") == ["ana_brow.jsonl", "ana_smile.jsonl"]
+    assert ids("date:2026-12-03") == ["bob_jaw.jsonl"]
+    assert ids("after:2026-12-02") == ["ana_brow.jsonl", "bob_jaw.jsonl"]
+    assert ids("smil") == ["ana_smile.jsonl"]  # a word's start matches the name
+    assert ids("good") == ["ana_smile.jsonl"]  # marker labels are searched
+    assert takes_cli(capsys, lib, "tag", str(smile["id"]), "Keeper")[0] == 0
+    assert takes_cli(capsys, lib, "note", str(by_name["bob_jaw.jsonl"]["id"]), "jaw pops at the end")[0] == 0
+    assert ids("tag:keeper") == ["ana_smile.jsonl"]
+    assert ids("pops") == ["bob_jaw.jsonl"] and ids("pops performer:ana") == []
+    code, out, _ = takes_cli(capsys, lib, "show", str(smile["id"]))
+    assert "keeper" in out and "good bit" in out and "ana" in out
+    code, _, err = takes_cli(capsys, lib, "show", "999")
+    assert code == 2 and "no take 999" in err
+
+
+def test_expression_search_after_check(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    lib = tmp_path / "takes.db"
+    take = write_take(tmp_path / "s" / "happy.jsonl", ticks=40, seed=5)
+    takes_cli(capsys, lib, "import", str(tmp_path / "s"))
+    code, out, _ = takes_cli(capsys, lib, "check")
+    assert code == 0 and "analysed 1" in out
+    t = json.loads(takes_cli(capsys, lib, "show", "1", "--json")[1])
+    assert t["thumbnail"] and t["expressions"], t
+    from puppet.cli import main as puppet
+
+    assert puppet(["recognize", str(take), "--json"]) == 0
+    spans = json.loads(capsys.readouterr().out)
+    assert [e["expression"] for e in t["expressions"]] == [s["expression"] for s in spans]
+    found = json.loads(takes_cli(capsys, lib, "search", f"expression:{spans[-1]['expression']}", "--json")[1])
+    assert [r["id"] for r in found] == [1]
+    assert takes_cli(capsys, lib, "show", "1", "--thumbnail", str(tmp_path / "t.png"))[0] == 0
+    assert (tmp_path / "t.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_check_finds_moved_takes_and_marks_deleted(folder: Path, tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture) -> None:
+    lib = tmp_path / "takes.db"
+    takes_cli(capsys, lib, "import", str(folder))
+    (folder / "archive").mkdir()
+    os.replace(folder / "ana_smile.jsonl", folder / "archive" / "renamed.jsonl")
+    (folder / "ana_brow.jsonl").unlink()
+    code, out, _ = takes_cli(capsys, lib, "check", "--no-analyse")
+    assert code == 0 and "1 found again" in out and "1 missing" in out
+    rows = {r["id"]: r for r in json.loads(takes_cli(capsys, lib, "list", "--json")[1])}
+    paths = {Path(r["path"]).name: r["missing"] for r in rows.values()}
+    assert paths == {"renamed.jsonl": 0, "ana_brow.jsonl": 1, "bob_jaw.jsonl": 0}
+    assert [Path(r["path"]).name for r in json.loads(takes_cli(capsys, lib, "search", "missing:yes", "--json")[1])] \
+        == ["ana_brow.jsonl"]
+
+
+WRITER = """
+import sys
+sys.path.insert(0, {here!r})
+from pathlib import Path
+from puppet.library.store import Library
+from takes import write_take
+lib = Library(sys.argv[1])
+name = sys.argv[2]
+for k in range(int(sys.argv[3])):
+    p = write_take(Path(sys.argv[4]) / f"{{name}}_{{k}}.jsonl", ticks=5, seed=k, performer=name)
+    i = lib.register(p)
+    lib.tag(i, "batch-" + name)
+    lib.tag(1, name + str(k))
+"""
+
+
+def test_two_writing_processes(tmp_path: Path) -> None:
+    lib_path = tmp_path / "takes.db"
+    first = write_take(tmp_path / "first.jsonl", ticks=5)
+    with Library(lib_path) as lib:
+        assert lib.register(first) == 1
+    n = 25
+    procs = [subprocess.Popen([sys.executable, "-c", WRITER.format(here=str(HERE)), str(lib_path), name, str(n),
+                               str(tmp_path / name)], stderr=subprocess.PIPE, text=True)
+             for name in ("ana", "bob")]
+    for p in procs:
+        _, err = p.communicate(timeout=240)
+        assert p.returncode == 0, err
+    con = sqlite3.connect(lib_path)
+    assert con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+    assert con.execute("SELECT count(*) FROM takes").fetchone()[0] == 2 * n + 1
+    assert con.execute("SELECT count(*) FROM tags WHERE take_id = 1").fetchone()[0] == 2 * n
+    with Library(lib_path) as lib:
+        assert len(lib.search("performer:ana tag:batch-ana")) == n
+        assert len(lib.search("bob")) == n + 1  # bob's takes and take 1, tagged bob0..bob24
+
+
+def _damaged_variants(good: bytes) -> dict[str, bytes]:
+    """Damage as disks and scripts do it, generated from the good file with a fixed seed."""
+    import random
+
+    rng = random.Random(22)
+    page = 4096
+    out: dict[str, bytes] = {"empty": b"", "text": b"takes: none\n" * 40, "utf16": "takes".encode("utf-16") * 50}
+    for cut in (50, 100, page, len(good) // 2, len(good) - 1):
+        out[f"cut-{cut}"] = good[:cut]
+    out["header-garbage"] = bytes(rng.randrange(256) for _ in range(100)) + good[100:]
+    for k in range(1, len(good) // page):
+        b = bytearray(good)
+        b[k * page:(k + 1) * page] = bytes(page)
+        out[f"page-{k}-zeroed"] = bytes(b)
+    for k in range(3):
+        b = bytearray(good)
+        at = rng.randrange(page, len(good)) // page * page  # a page's b-tree header
+        for off in range(0, 8):
+            b[at + off] ^= 0xFF
+        out[f"btree-header-{k}"] = bytes(b)
+    return out
+
+
+def test_damaged_library_is_one_line_and_rebuilt(folder: Path, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture) -> None:
+    lib = tmp_path / "good" / "takes.db"
+    takes_cli(capsys, lib, "import", str(folder))
+    smile = next(r for r in json.loads(takes_cli(capsys, lib, "list", "--json")[1]) if "smile" in r["path"])
+    takes_cli(capsys, lib, "tag", str(smile["id"]), "keeper")
+    takes_cli(capsys, lib, "note", str(smile["id"]), "the one")
+    con = sqlite3.connect(lib)
+    con.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+    con.close()
+    good = lib.read_bytes()
+    want = sorted(r["path"] for r in json.loads(takes_cli(capsys, lib, "list", "--json")[1]))
+    rebuilt = 0
+    for name, data in _damaged_variants(good).items():
+        d = tmp_path / name
+        d.mkdir()
+        (d / "takes.db").write_bytes(data)
+        (d / "takes.db.journal").write_bytes((lib.parent / "takes.db.journal").read_bytes())
+        code, out, err = takes_cli(capsys, d / "takes.db", "list", "--json")
+        lines = err.strip().splitlines()
+        assert code == 0 and len(lines) <= 1, (name, [x[:60] for x in lines])
+        assert sorted(r["path"] for r in json.loads(out)) == want, name
+        if lines:
+            rebuilt += 1
+            assert "damaged" in lines[0] and str(d / "takes.db") in lines[0] and len(lines[0]) < 400, name
+            keeper = json.loads(takes_cli(capsys, d / "takes.db", "search", "tag:keeper", "--json")[1])
+            assert [r["notes"] for r in keeper] == ["the one"], name
+            assert name == "empty" or list(d.glob("takes.db.damaged-*")), name  # the damaged file is kept
+            # the rebuilt file is whole: a second run says nothing
+            assert takes_cli(capsys, d / "takes.db", "list")[2] == "", name
+    assert rebuilt >= 8
+
+
+def test_live_recording_is_registered(tmp_path: Path) -> None:
+    script = tmp_path / "s.toml"
+    script.write_text('impersonate = "sgi"\nspeed = 0\nduration = 0.5\n[[ramp]]\ncontrol = "dial1"\n'
+                      'start = 0.0\nduration = 0.4\nfrom = 0.0\nto = 1.0\nrate = 50\n')
+    lib = tmp_path / "takes.db"
+    rec = tmp_path / "show.jsonl"
+    r = subprocess.run([sys.executable, "-m", "puppet", "live", "--headless", "--no-panel", "--device",
+                        f"mock://{script}", "--record", str(rec), "--performer", "Ana Lopez", "--library", str(lib)],
+                       capture_output=True, text=True, timeout=180)
+    assert r.returncode == 0, r.stderr
+    with Library(lib) as library:
+        rows = library.search('performer:"ana lopez"')
+        assert [Path(t["path"]) for t in rows] == [rec.resolve()]
+        assert rows[0]["devices"] == [f"mock://{script}"] and rows[0]["duration"] == pytest.approx(0.5)
+
+
+def test_library_option_before_the_action_and_env(folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    lib = tmp_path / "a.db"
+    assert main(["takes", "--library", str(lib), "import", str(folder)]) == 0
+    assert main(["takes", "--library", str(lib), "search", "performer:bob", "--json"]) == 0
+    capsys.readouterr()
+    monkeypatch.setenv("PUPPET_LIBRARY", str(lib))
+    assert main(["takes", "search", "performer:bob", "--json"]) == 0
+    assert [Path(r["path"]).name for r in json.loads(capsys.readouterr().out)] == ["bob_jaw.jsonl"]
+    monkeypatch.setenv("PUPPET_LIBRARY", "off")
+    assert main(["takes", "list"]) == 2 and "PUPPET_LIBRARY=off" in capsys.readouterr().err
