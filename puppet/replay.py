@@ -69,8 +69,14 @@ def face_for(session: Session | None, rig_path: str | None, face: str | None = N
     if path:
         loaded = load_face(path)
     else:
-        asked: Any = face if face is not None else (recorded_face(rig) or "procedural")
-        loaded = load_face(None, int(rig.get("resolution", 0) or 0), face=asked)
+        try:
+            asked: Any = face if face is not None else (recorded_face(rig) or "procedural")
+            loaded = load_face(None, int(rig.get("resolution", 0) or 0), face=asked)
+        except PuppetError as err:
+            if face is not None:
+                raise
+            raise ConfigError(f"{session.path}: the face it records cannot be loaded: {err}; "
+                              f"pass --face SPEC") from err
     want = rig.get("hash")
     if want and loaded.rig["hash"] != want:
         import sys

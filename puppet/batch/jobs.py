@@ -166,16 +166,12 @@ def mp4_join(outname: str, origin: str, opts: dict[str, Any], *chunks: list[byte
 
 def fit_capture(files: dict[str, bytes], origin: str, outname: str, opts: dict[str, Any]) -> dict[str, bytes]:
     """`puppet fit INPUT --out OUTNAME` (the command's own function), its summary in `.fit.txt`."""
-    import argparse
-
     from puppet import cmd_fit
 
     with _staged(files, origin) as capture:
         out = capture.parent / "out" / outname
         out.parent.mkdir()
-        args = argparse.Namespace(input=str(capture), rig=opts.get("rig"), out=str(out), map=opts.get("map"),
-                                  report=None, neutral="auto", fps=opts.get("fps"), rate=60.0, age=None,
-                                  smooth=None, sparsity=None, no_relinearise=False)
+        args = _command_args(cmd_fit, "fit", [str(capture), "--out", str(out)], opts)
         text = io.StringIO()
         with contextlib.redirect_stdout(text):
             cmd_fit.run(args)
@@ -184,15 +180,27 @@ def fit_capture(files: dict[str, bytes], origin: str, outname: str, opts: dict[s
         return {outname: out.read_bytes().replace(here, there)}
 
 
-def recognize_input(files: dict[str, bytes], origin: str, outname: str, opts: dict[str, Any]) -> dict[str, bytes]:
-    """`puppet recognize INPUT --json`'s output, as a file."""
+def _command_args(module: Any, name: str, argv: list[str], opts: dict[str, Any]) -> Any:
+    """The arguments the single command would get from `puppet NAME ARGV` with the batch's options
+    (--rig, --map, --fps, --face where given): its own parser, so its defaults are the same."""
     import argparse
 
+    parser = argparse.ArgumentParser(prog="puppet")
+    sub = parser.add_subparsers(dest="command")
+    module.register(sub)
+    known = {a.dest for a in sub.choices[name]._actions}
+    for key in ("rig", "map", "fps", "face"):
+        if opts.get(key) is not None and key in known:
+            argv += [f"--{key}", str(opts[key])]
+    return parser.parse_args([name, *argv])
+
+
+def recognize_input(files: dict[str, bytes], origin: str, outname: str, opts: dict[str, Any]) -> dict[str, bytes]:
+    """`puppet recognize INPUT --json`'s output, as a file."""
     from puppet import cmd_recognize
 
     with _staged(files, origin) as src:
-        args = argparse.Namespace(input=str(src), rig=opts.get("rig"), map=opts.get("map"), fps=opts.get("fps"),
-                                  json=True, by="templates")
+        args = _command_args(cmd_recognize, "recognize", [str(src), "--json"], opts)
         text = io.StringIO()
         with contextlib.redirect_stdout(text):
             cmd_recognize.run(args)

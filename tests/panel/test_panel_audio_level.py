@@ -21,5 +21,5 @@ def test_the_state_carries_the_level_of_an_audio_input_only() -> None:
                            mapper=SimpleNamespace(status={mic.spec: True}))
     page.watch(core, [mic, page])
     rows = page._state()["devices"]
-    assert rows[0] == ["audio://voice?api=jack", True, 0.42]
-    assert len(rows[1]) == 2  # the page itself has no level
+    assert rows[0] == ["audio://voice?api=jack", True, None, 0.42]  # [spec, connected, drops, level]
+    assert len(rows[1]) == 3  # the page itself has no level

@@ -45,7 +45,7 @@
     li.appendChild(text);
     const edit = document.createElement("button");
     edit.textContent = "edit";
-    edit.setAttribute("aria-label", `open take ${t.id} in the editor`);
+    edit.setAttribute("aria-label", `edit take ${t.id} in the editor`);
     edit.onclick = () => {
       const tab = window.open("", "_blank");
       api(`/api/takes/${t.id}/edit`, { method: "POST" }).then((j) => {

@@ -47,3 +47,7 @@ class ScanShapes:
 
     def pose(self, surface: np.ndarray, control: object) -> np.ndarray:
         return self.positions
+
+    def pose_turned(self, surface: np.ndarray, control: object, state: object) -> np.ndarray:
+        """The same pose: the scan's own shapes do not turn the head."""
+        return self.positions
