@@ -488,6 +488,8 @@ class Simulator:
                        self._kn, self._inv_m, self._force, self._xm, self._vm, self._work, *self._eyes,
                        *self._margins)
         else:
+            if self._implicit.margins is not None:  # the contact's memory is part of the state (a checkpoint's too)
+                self._implicit.margins.recall(state.contact)
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
                                                             self._k_high, self._threshold), self._normal,
                                  lambda xx, vv: _eye_contact(xx, vv, *self._eyes), self._shape)
@@ -498,6 +500,8 @@ class Simulator:
             if self._implicit is not None and self._implicit.margins is not None:
                 self._implicit.margins.lam[...] = 0.0  # no contact force carried into the restart
             self.guard_events.append(GuardEvent(state.time + self.frame_dt, reason))
+        if self._implicit is not None and self._implicit.margins is not None:
+            state.contact = self._implicit.margins.memory()
         state.time += self.frame_dt
         values = control.values
         state.eye_yaw = float(values[CHANNEL_INDEX["eyes_yaw"]])

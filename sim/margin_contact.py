@@ -330,6 +330,23 @@ class SolvedContact:
         self._schur = np.zeros((p, p))
         self._df = np.zeros((len(verts), 3))
 
+    def memory(self) -> np.ndarray:
+        """What the next substep starts from besides x and v, as one float array: the impulses
+        (warm start) and each pair's segment on the opposite row (its force is applied before the
+        pairs are found again). A state carries it so a restored checkpoint steps on the same bits."""
+        return np.concatenate([self.lam, self.w, self.idx[:, 1], self.idx[:, 2]]).astype(np.float64)
+
+    def recall(self, mem: np.ndarray | None) -> None:
+        """Restore `memory()`'s values; None (a state at rest, before any step): no contact force."""
+        p = len(self.lam)
+        if mem is None or mem.shape != (4 * p,):
+            self.lam[...] = 0.0
+            return
+        self.lam[...] = mem[:p]
+        self.w[...] = mem[p:2 * p]
+        self.idx[:, 1] = mem[2 * p:3 * p].astype(np.int64)
+        self.idx[:, 2] = mem[3 * p:].astype(np.int64)
+
     def add_force(self, rhs: np.ndarray) -> None:
         """rhs += F^T lam: the contact forces of the last substep (step 1)."""
         _contact_force(rhs, self.idx, self.w, self.sg, self.dim, self.lam)

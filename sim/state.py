@@ -36,6 +36,10 @@ class FaceState:
     head_yaw: float = 0.0
     head_pitch: float = 0.0
     head_roll: float = 0.0
+    # the implicit integrator's contact memory after the last step (impulses and pairs its next step
+    # starts from; sim.margin_contact.SolvedContact.memory), None before the first: a state copied
+    # or restored carries it, so stepping on from a checkpoint gives the same bits as the original
+    contact: np.ndarray | None = None
 
     def copy(self) -> FaceState:
         """An independent deep copy (arrays copied)."""
@@ -51,6 +55,7 @@ class FaceState:
             self.head_yaw,
             self.head_pitch,
             self.head_roll,
+            None if self.contact is None else self.contact.copy(),
         )
 
     def assign(self, other: FaceState) -> None:
@@ -62,6 +67,7 @@ class FaceState:
         self.eye_yaw, self.eye_pitch, self.age = other.eye_yaw, other.eye_pitch, other.age
         self.jaw = other.jaw
         self.head_yaw, self.head_pitch, self.head_roll = other.head_yaw, other.head_pitch, other.head_roll
+        self.contact = None if other.contact is None else other.contact.copy()
 
 
 def rest_state(rest: np.ndarray) -> FaceState:

@@ -43,7 +43,7 @@ def test_page_searches_exports_and_edits_takes(tmp_path: Path, capsys: pytest.Ca
         assert main(["replay", str(bob), "--out", str(tmp_path / "single.csv")]) == 0
         assert out.read_bytes() == (tmp_path / "single.csv").read_bytes()
         before = set(drv.window_handles)
-        items()[0].find_element(By.CSS_SELECTOR, "button[aria-label^='open take']").click()
+        items()[0].find_element(By.CSS_SELECTOR, "button[aria-label^='edit take']").click()
         wait_for(lambda: len(set(drv.window_handles) - before) == 1, 30, "the editor's tab")
         drv.switch_to.window((set(drv.window_handles) - before).pop())
         wait_for(lambda: "bob_jaw" in drv.page_source or drv.current_url.startswith("http://127.0.0.1"), 60,
