@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+from render.normals_kernel import interleave_normals
 from sim.numba_start import prepare_blas_check
 
 prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
@@ -19,32 +20,8 @@ def scan_rows(pos: np.ndarray, tri: np.ndarray, nbr_ptr: np.ndarray, nbr: np.nda
     (`inv_len`: 1 / the rest's mean edge length there), averaged once more over the neighbours:
     positive in a crease (a fold, the nasolabial groove, the frown lines), negative on a ridge.
     It is recomputed from the posed surface every frame, so a fold that deepens darkens."""
+    interleave_normals(pos, tri, out)  # columns 0-5: the positions and unit vertex normals
     n = pos.shape[0]
-    for i in range(n):
-        out[i, 0] = pos[i, 0]
-        out[i, 1] = pos[i, 1]
-        out[i, 2] = pos[i, 2]
-        out[i, 3] = 0.0
-        out[i, 4] = 0.0
-        out[i, 5] = 0.0
-    for t in range(tri.shape[0]):
-        a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
-        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
-        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
-        cx = e1y * e2z - e1z * e2y
-        cy = e1z * e2x - e1x * e2z
-        cz = e1x * e2y - e1y * e2x
-        for v in (a, b, c):
-            out[v, 3] += cx
-            out[v, 4] += cy
-            out[v, 5] += cz
-    for i in range(n):
-        x, y, z = out[i, 3], out[i, 4], out[i, 5]
-        length = np.sqrt(x * x + y * y + z * z)
-        inv = np.float32(1.0) / max(length, np.float32(1e-12))
-        out[i, 3] = x * inv
-        out[i, 4] = y * inv
-        out[i, 5] = z * inv
     for i in range(n):
         lo, hi = nbr_ptr[i], nbr_ptr[i + 1]
         if hi == lo:
