@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from midijack import stop_child
 
 PLAYER = Path(__file__).with_name("voice_player.py")
 
@@ -52,16 +53,7 @@ class Voice:
                 return
 
     def unplug(self) -> None:
-        if self.proc is None:
-            return
-        try:
-            assert self.proc.stdin is not None
-            self.proc.stdin.write("quit\n")
-            self.proc.stdin.flush()
-            self.proc.wait(10)
-        except (BrokenPipeError, subprocess.TimeoutExpired, OSError):
-            self.proc.kill()
-            self.proc.wait(5)
+        stop_child(self.proc)
         self.proc = None
 
     close = unplug

@@ -149,16 +149,7 @@ class MidiBox:
             return list(self.received)
 
     def unplug(self) -> None:
-        if self.proc is None:
-            return
-        try:
-            assert self.proc.stdin is not None
-            self.proc.stdin.write("quit\n")
-            self.proc.stdin.flush()
-            self.proc.wait(10)
-        except (BrokenPipeError, subprocess.TimeoutExpired, OSError):
-            self.proc.kill()
-            self.proc.wait(5)
+        stop_child(self.proc)
         self.proc = None
 
     close = unplug
@@ -185,3 +176,17 @@ def wait_for_host(server: str, port: str, timeout: float = 60.0) -> None:
     while not any(p.startswith("facepuppet") for p in connected_to(server, port)):
         assert time.monotonic() < deadline, f"nothing opened {port} within {timeout} s"
         time.sleep(0.05)
+
+
+def stop_child(proc: subprocess.Popen | None) -> None:  # type: ignore[type-arg]
+    """Ask a port-playing child process to quit (a line "quit" on its stdin); kill it if it will not."""
+    if proc is None:
+        return
+    try:
+        assert proc.stdin is not None
+        proc.stdin.write("quit\n")
+        proc.stdin.flush()
+        proc.wait(10)
+    except (BrokenPipeError, subprocess.TimeoutExpired, OSError):
+        proc.kill()
+        proc.wait(5)
