@@ -33,7 +33,6 @@ frame. The price is a slower rise (benchmarks/sim_step.py measures it against RK
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numba
 import numpy as np
@@ -41,7 +40,9 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from sim.build import FaceModel
-from sim.margin_contact import SolvedContact, margin_bending, solved_constraints, warm_up_solved
+from sim.integrator import _eye_contact
+from sim.margin_contact import (SolvedContact, _contact_force, _contact_resolve, _repair, margin_bending,
+                                 solved_constraints, warm_up_solved)
 from sim.numba_start import prepare_blas_check
 
 prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
@@ -69,26 +70,22 @@ def implicit_substeps(model: FaceModel, frame_dt: float) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def _lu_solve(b, perm_r, perm_c, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_diag, y, out):  # type: ignore[no-untyped-def]
-    """x = Pc U^-1 L^-1 Pr b for 3 right-hand sides; L unit lower, U upper, both CSC."""
-    n = b.shape[0]
-    for i in range(n):
-        r = perm_r[i]
-        for k in range(3):
-            y[r, k] = b[i, k]
+def _lu_sweeps(y, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_diag):  # type: ignore[no-untyped-def]
+    """y = U^-1 L^-1 y in place for 3 right-hand sides; L unit lower, U upper, both CSC with only
+    their off-diagonal entries (u_diag: U's diagonal)."""
+    n = y.shape[0]
     for j in range(n):  # forward: L has a unit diagonal
         y0 = y[j, 0]
         y1 = y[j, 1]
         y2 = y[j, 2]
         for p in range(l_ptr[j], l_ptr[j + 1]):
             r = l_idx[p]
-            if r > j:
-                a = l_val[p]
-                y[r, 0] -= a * y0
-                y[r, 1] -= a * y1
-                y[r, 2] -= a * y2
+            a = l_val[p]
+            y[r, 0] -= a * y0
+            y[r, 1] -= a * y1
+            y[r, 2] -= a * y2
     for j in range(n - 1, -1, -1):  # backward
-        d = u_val[u_diag[j]]
+        d = u_diag[j]
         y0 = y[j, 0] / d
         y1 = y[j, 1] / d
         y2 = y[j, 2] / d
@@ -97,41 +94,69 @@ def _lu_solve(b, perm_r, perm_c, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_dia
         y[j, 2] = y2
         for p in range(u_ptr[j], u_ptr[j + 1]):
             r = u_idx[p]
-            if r < j:
-                a = u_val[p]
-                y[r, 0] -= a * y0
-                y[r, 1] -= a * y1
-                y[r, 2] -= a * y2
+            a = u_val[p]
+            y[r, 0] -= a * y0
+            y[r, 1] -= a * y1
+            y[r, 2] -= a * y2
+
+
+@numba.njit(cache=True, nogil=True)
+def _lu_solve(b, perm_r, perm_c, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_diag, y, out):  # type: ignore[no-untyped-def]
+    """x = Pc U^-1 L^-1 Pr b for 3 right-hand sides (see _lu_sweeps)."""
+    n = b.shape[0]
+    for i in range(n):
+        r = perm_r[i]
+        for k in range(3):
+            y[r, k] = b[i, k]
+    _lu_sweeps(y, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_diag)
     for i in range(n):
         c = perm_c[i]
         for k in range(3):
             out[i, k] = y[c, k]
 
 
-class PrefactoredSolver:
-    """A sparse LU of a fixed matrix with a compiled solve for (n, 3) right-hand sides."""
+def _off_diagonal(m: sp.csc_matrix, lower: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(indptr int64, indices int32, values, diagonal) of a triangular CSC factor, its strictly lower
+    (or upper) entries kept in their stored order, the diagonal apart."""
+    m = sp.csc_matrix(m)
+    cols = np.repeat(np.arange(m.shape[1]), np.diff(m.indptr))
+    keep = m.indices > cols if lower else m.indices < cols
+    diag = np.zeros(m.shape[0])
+    on = m.indices == cols
+    diag[cols[on]] = m.data[on]
+    counts = np.bincount(cols[keep], minlength=m.shape[1])
+    ptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    # int32 indices: the solve streams the factors from memory, so their size is its cost
+    return ptr, m.indices[keep].astype(np.int32), m.data[keep].copy(), diag
 
-    def __init__(self, a: sp.spmatrix) -> None:
-        lu = splu(sp.csc_matrix(a), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                  options={"SymmetricMode": True})
-        lower, upper = sp.csc_matrix(lu.L), sp.csc_matrix(lu.U)
-        self.n = a.shape[0]
-        self.perm_r = np.ascontiguousarray(lu.perm_r, dtype=np.int64)
-        self.perm_c = np.ascontiguousarray(lu.perm_c, dtype=np.int64)
-        # int32 indices: the solve streams the factors from memory, so their size is its cost
-        self.l = (lower.indptr.astype(np.int64), lower.indices.astype(np.int32), lower.data.copy())
-        self.u = (upper.indptr.astype(np.int64), upper.indices.astype(np.int32), upper.data.copy())
-        u_diag = np.empty(self.n, dtype=np.int64)
-        for j in range(self.n):
-            rows = upper.indices[upper.indptr[j]:upper.indptr[j + 1]]
-            u_diag[j] = upper.indptr[j] + int(np.flatnonzero(rows == j)[0])
-        self.u_diag = u_diag
-        self.fill = int(lower.nnz + upper.nnz)
+
+class PrefactoredSolver:
+    """A sparse LU of a fixed matrix with a compiled solve for (n, 3) right-hand sides. `arrays`
+    holds everything the solve reads (stored in the face cache, `sim.implicit_cache`); a solver
+    made from them gives the same bits as the one they came from."""
+
+    KEYS = ("perm_r", "perm_c", "l_ptr", "l_idx", "l_val", "u_ptr", "u_idx", "u_val", "u_diag")
+
+    def __init__(self, a: sp.spmatrix | None = None, arrays: dict[str, np.ndarray] | None = None) -> None:
+        if arrays is None:
+            lu = splu(sp.csc_matrix(a), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                      options={"SymmetricMode": True})
+            l_ptr, l_idx, l_val, _ = _off_diagonal(lu.L, lower=True)
+            u_ptr, u_idx, u_val, u_diag = _off_diagonal(lu.U, lower=False)
+            arrays = dict(perm_r=np.ascontiguousarray(lu.perm_r, dtype=np.int64),
+                          perm_c=np.ascontiguousarray(lu.perm_c, dtype=np.int64),
+                          l_ptr=l_ptr, l_idx=l_idx, l_val=l_val, u_ptr=u_ptr, u_idx=u_idx, u_val=u_val,
+                          u_diag=u_diag)
+        self.arrays = arrays
+        self.n = len(arrays["perm_r"])
+        self.perm_r, self.perm_c = arrays["perm_r"], arrays["perm_c"]
+        self.factors = tuple(arrays[k] for k in self.KEYS[2:])
+        self.fill = int(len(arrays["l_val"]) + len(arrays["u_val"]) + 2 * self.n)
         self._y = np.zeros((self.n, 3))
 
     def solve(self, b: np.ndarray, out: np.ndarray) -> np.ndarray:
         """out = A^-1 b for b (n, 3)."""
-        _lu_solve(b, self.perm_r, self.perm_c, *self.l, *self.u, self.u_diag, self._y, out)
+        _lu_solve(b, self.perm_r, self.perm_c, *self.factors, self._y, out)
         return out
 
 
@@ -160,79 +185,200 @@ def _pd_springs(y, springs, rest_len, k_low, k_high, thr, out):  # type: ignore[
         out[i, 2] -= scale * dz
 
 
+@numba.njit(cache=True, nogil=True)
+def _csr_times(ptr, idx, val, x, out):  # type: ignore[no-untyped-def]
+    """out = A x for a CSR A and x (m, 3), each row summed in stored order from 0 (as scipy does)."""
+    for i in range(out.shape[0]):
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        for p in range(ptr[i], ptr[i + 1]):
+            a = val[p]
+            j = idx[p]
+            a0 += a * x[j, 0]
+            a1 += a * x[j, 1]
+            a2 += a * x[j, 2]
+        out[i, 0] = a0
+        out[i, 1] = a1
+        out[i, 2] = a2
+
+
+@numba.njit(cache=True, nogil=True)
+def _frame(x, v, n_sub, h, ext, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,  # type: ignore[no-untyped-def]
+           free, held, fh_ptr, fh_idx, fh_val, perm_r, perm_c, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_diag,
+           c_idx, c_w, c_sg, c_dim, c_opp, c_row_ptr, c_row_v, c_lam, c_loc, c_green, c_gptr, c_gvert, c_gval,
+           c_work, c_cand, c_schur, c_df, rounds, sweeps, eye_idx, eye_of, centres, radius,
+           y, rhs, xh, held_term, ys, xf_old):
+    """The n_sub substeps of one frame in place on x, v (ImplicitStepper.frame; the module
+    docstring): per substep the predicted positions y, the right-hand side (inertia, the frame's
+    constant forces, damping, the springs' local step, the normal support, the last contact forces),
+    the prefactored solve, the lid and lip contact (sim.margin_contact.SolvedContact), v = (x' - x)
+    / h and the eyeball contact. The arithmetic is the same, operation for operation, as the numpy
+    expressions it replaces, so the bits are too."""
+    n = x.shape[0]
+    nf = free.shape[0]
+    for k in range(held.shape[0]):  # held nodes do not move within a frame
+        i = held[k]
+        for d in range(3):
+            xh[k, d] = x[i, d]
+    _csr_times(fh_ptr, fh_idx, fh_val, xh, held_term)
+    inv_h = 1.0 / h
+    for _ in range(n_sub):
+        for i in range(n):
+            for d in range(3):
+                y[i, d] = v[i, d] * h + x[i, d]
+        for i in range(n):
+            m = mass_h2[i]
+            c = damp_h[i]
+            for d in range(3):
+                rhs[i, d] = m * y[i, d] + ext[i, d] + c * x[i, d]
+        _pd_springs(y, springs, rest_len, k_low, k_high, thr, rhs)
+        for i in range(n):  # the support k_n n n^T: k_n (y - n (n . y)) on the right
+            # n . y summed in the order numpy's einsum took (SSE2 pairs: the x and z terms first),
+            # so the steps keep the bits of takes recorded before this kernel
+            ny = (normal[i, 0] * y[i, 0] + normal[i, 2] * y[i, 2]) + normal[i, 1] * y[i, 1]
+            k = kn[i]
+            for d in range(3):
+                rhs[i, d] += k * (y[i, d] - ny * normal[i, d])
+        _contact_force(rhs, c_idx, c_w, c_sg, c_dim, c_lam)
+        for q in range(nf):
+            i = free[q]
+            r = perm_r[q]
+            for d in range(3):
+                ys[r, d] = rhs[i, d] - held_term[q, d]
+        _lu_sweeps(ys, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_diag)
+        for q in range(nf):
+            i = free[q]
+            c = perm_c[q]
+            for d in range(3):
+                xf_old[q, d] = x[i, d]
+                x[i, d] = ys[c, d]
+        if c_idx.shape[0]:
+            _repair(x, c_idx, c_w, c_opp, c_row_ptr, c_row_v)
+            for _ in range(rounds):  # again while the correction pushed other pairs into contact
+                if not _contact_resolve(x, c_idx, c_w, c_sg, c_dim, c_lam, c_loc, c_green, c_gptr, c_gvert,
+                                        c_gval, c_work, c_cand, c_schur, c_df, sweeps):
+                    break
+        for q in range(nf):
+            i = free[q]
+            for d in range(3):
+                v[i, d] = (x[i, d] - xf_old[q, d]) * inv_h
+        _eye_contact(x, v, eye_idx, eye_of, centres, radius)
+
+
 def warm_up() -> None:
     """Compile (or load from numba's cache) this module's kernels on a tiny system."""
     a = sp.csc_matrix(np.array([[2.0, -1.0], [-1.0, 2.0]]))
     PrefactoredSolver(a).solve(np.ones((2, 3)), np.zeros((2, 3)))
-    y = np.array([[0.0, 0.0, 0.0], [1.1, 0.0, 0.0]])
-    one = np.ones(1)
-    _pd_springs(y, np.array([[0, 1]], dtype=np.int32), one, one, one, 0.1, np.zeros_like(y))
     warm_up_solved()
+    x = np.array([[0.0, 0.0, 0.0], [1.1, 0.0, 0.0], [0.5, 1.0, 0.0]])
+    stepper = ImplicitStepper.__new__(ImplicitStepper)
+    one = np.ones(3)
+    springs = np.array([[0, 1], [1, 2]], dtype=np.int32)
+    prep = dict(free=np.array([1, 2], dtype=np.int64), held=np.array([0], dtype=np.int64), mass_h2=one.copy(),
+                damp_h=one.copy(), kn=one.copy(), h=np.array(0.01))
+    prep.update(_sparse("fh", sp.csr_matrix(np.ones((2, 1)))))
+    prep.update(_sparse("bend", sp.csr_matrix((3, 3))))
+    prep.update({"lu_" + k: val for k, val in PrefactoredSolver(sp.csc_matrix(np.array([[3.0, -1.0], [-1.0, 3.0]]))).arrays.items()})
+    cons = dict(idx=np.array([[1, 0, 2]]), w=np.array([0.5]), sg=np.array([[1.0, 0.0, 1.0, 1.0]]),
+                dim=np.array([1]), opp=np.array([0]), row_ptr=np.array([0, 2]), row_v=np.array([0, 2]))
+    contact = SolvedContact(cons, np.arange(3), 3, lambda b, out: np.copyto(out, b))
+    prep.update({"c_" + k: val for k, val in contact.arrays().items()})
+    stepper._setup(x, prep)
+    eyes = (np.array([1], dtype=np.int64), np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 5.0]]), 1.0)
+    stepper.frame(x, np.zeros_like(x), 1, np.zeros_like(x), (springs, np.ones(2), np.ones(2), np.ones(2), 0.1),
+                  np.zeros_like(x), eyes)
+
+
+def _sparse(name: str, m: sp.spmatrix) -> dict[str, np.ndarray]:
+    """A CSR matrix as three arrays (name_ptr int64, name_idx int64, name_val)."""
+    m = sp.csr_matrix(m)
+    return {name + "_ptr": m.indptr.astype(np.int64), name + "_idx": m.indices.astype(np.int64),
+            name + "_val": np.asarray(m.data, dtype=np.float64)}
+
+
+def prepare(model: FaceModel, h: float) -> dict[str, np.ndarray]:
+    """Everything an ImplicitStepper for `model` at substep h is made of, as arrays (the slow part
+    of making one: building and factoring the matrix, the contact's Green's function). The face
+    cache keeps them (`sim.prepared_store`): a stepper made from them steps to the same bits."""
+    n = model.n_vertices
+    springs = np.asarray(model.spring_indices)
+    held = np.asarray(model.held)
+    free, held_i = np.flatnonzero(~held), np.flatnonzero(held)
+    mass_h2 = np.asarray(model.mass) / h**2
+    damp_h = np.asarray(model.damping) / h
+    kn = np.asarray(model.support_stiffness)
+    bend = margin_bending(model.mesh, model.rest, springs, np.asarray(model.spring_k_high),
+                          model.params.lid_bending, model.params.lip_bending)
+    a = (laplacian(n, springs, np.asarray(model.spring_k_high)) + bend
+         + sp.diags(mass_h2 + damp_h + np.asarray(model.rest_stiffness) + kn)).tocsr()
+    solver = PrefactoredSolver(a[free][:, free])
+    prep = dict(free=free.astype(np.int64), held=held_i.astype(np.int64), mass_h2=mass_h2, damp_h=damp_h,
+                kn=np.array(kn, dtype=np.float64), h=np.array(float(h)))
+    prep.update(_sparse("fh", a[free][:, held_i]))
+    prep.update(_sparse("bend", bend))
+    prep.update({"lu_" + k: val for k, val in solver.arrays.items()})
+    cons = solved_constraints(model.mesh, model.rest)  # the lid and lip contact (sim.margin_contact)
+    if len(cons["idx"]):
+        contact = SolvedContact(cons, free, n, solver.solve)
+        prep.update({"c_" + k: val for k, val in contact.arrays().items()})
+    return prep
 
 
 class ImplicitStepper:
-    """Runs the substeps of one frame for a Simulator (method "implicit")."""
+    """Runs the substeps of one frame for a Simulator (method "implicit"). `prepared`: the arrays
+    of `prepare(model, h)` made before (the face cache's), else they are made here."""
 
-    def __init__(self, model: FaceModel, h: float) -> None:
-        n = model.n_vertices
-        springs = np.asarray(model.spring_indices)
-        self.h = h
-        held = np.asarray(model.held)
-        self.free = np.flatnonzero(~held)
-        self.held = np.flatnonzero(held)
-        mass = np.asarray(model.mass)
-        self.mass_h2 = mass / h**2
-        self.damp_h = np.asarray(model.damping) / h
-        self.kn = np.asarray(model.support_stiffness)
-        self.rest = np.asarray(model.rest)
+    def __init__(self, model: FaceModel, h: float, prepared: dict[str, np.ndarray] | None = None) -> None:
+        self._setup(np.asarray(model.rest), prepare(model, h) if prepared is None else prepared)
+
+    def _setup(self, rest: np.ndarray, prep: dict[str, np.ndarray]) -> None:
+        self.prepared = prep
+        n = len(rest)
+        self.h = float(prep["h"])
+        self.free, self.held = prep["free"], prep["held"]
+        self.mass_h2, self.damp_h, self.kn = prep["mass_h2"], prep["damp_h"], prep["kn"]
+        self.rest = rest
+        self._fh = (prep["fh_ptr"], prep["fh_idx"], prep["fh_val"])
+        self._bend = (prep["bend_ptr"], prep["bend_idx"], prep["bend_val"])
+        self.solver = PrefactoredSolver(arrays={k: prep["lu_" + k] for k in PrefactoredSolver.KEYS})
+        if "c_idx" in prep:
+            self.margins: SolvedContact | None = SolvedContact.from_arrays(
+                {k: prep["c_" + k] for k in SolvedContact.KEYS})
+        else:
+            self.margins = None
+        none = SolvedContact.from_arrays(dict(idx=np.zeros((0, 3)), w=np.zeros(0), sg=np.zeros((0, 4)), dim=np.zeros(0),
+                                              opp=np.zeros(0), row_ptr=np.zeros(1), row_v=np.zeros(0), loc=np.zeros(n),
+                                              green=np.zeros((0, 0)), gptr=np.zeros(1), gvert=np.zeros(0), gval=np.zeros(0)))
+        self._contact = self.margins if self.margins is not None else none
         self._shape: np.ndarray | None = None
         self._bend_rhs = np.zeros((n, 3))
-        self.bend = margin_bending(model.mesh, model.rest, springs, np.asarray(model.spring_k_high),
-                                   model.params.lid_bending, model.params.lip_bending)
-        a = (laplacian(n, springs, np.asarray(model.spring_k_high)) + self.bend
-             + sp.diags(self.mass_h2 + self.damp_h + np.asarray(model.rest_stiffness) + self.kn)).tocsr()
-        self.a_fh = a[self.free][:, self.held].tocsr()
-        self.solver = PrefactoredSolver(a[self.free][:, self.free])
-        cons = solved_constraints(model.mesh, model.rest)  # the lid and lip contact (sim.margin_contact)
-        self.margins = SolvedContact(cons, self.free, n, self.solver.solve) if len(cons["idx"]) else None
-        self._rhs = np.zeros((n, 3))
-        self._y = np.zeros((n, 3))
-        self._xf = np.zeros((len(self.free), 3))
+        self._ext = np.zeros((n, 3))
+        nf, nh = len(self.free), len(self.held)
+        self._buf = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((nh, 3)), np.zeros((nf, 3)),
+                     np.zeros((nf, 3)), np.zeros((nf, 3)))
 
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
-              normal: np.ndarray, contact: Callable[[np.ndarray, np.ndarray], None],
-              shape: np.ndarray | None = None) -> None:
+              normal: np.ndarray, eyes: tuple, shape: np.ndarray | None = None) -> None:  # type: ignore[type-arg]
         """n_sub substeps in place. ext: the frame-constant forces (muscles, gravity, the target terms
         of the tether and of the normal support); springs: (indices, rest lengths, k_low, k_high,
         threshold) as the kernel takes them; normal (N,3): the support's normals this frame. The
         support k_n n n^T enters like a spring: k_n I in the matrix, k_n (y - n (n . y)) on the right.
-        contact(x, v) is applied after each substep (the eyeballs); shape (N,3): the rest shape of
-        the margin bending term this frame (turned with the jaw; None: the model's rest)."""
-        h, f = self.h, self.free
-        idx, rest_len, k_low, k_high, thr = springs
-        held_term = self.a_fh @ x[self.held]  # held nodes do not move within a frame
-        if self.bend.nnz:  # the margin bending term's rest side (the shape changes with the jaw)
+        eyes: (vertices, their eye, eye centres, radius) of the eyeball contact applied after each
+        substep; shape (N,3): the rest shape of the margin bending term this frame (turned with the
+        jaw; None: the model's rest)."""
+        if len(self._bend[2]):  # the margin bending term's rest side (the shape changes with the jaw)
             shape = self.rest if shape is None else shape
             if shape is not self._shape:
-                self._shape, self._bend_rhs = shape, self.bend @ shape
-            ext = ext + self._bend_rhs
-        for _ in range(n_sub):
-            np.multiply(v, h, out=self._y)
-            self._y += x
-            np.multiply(self.mass_h2[:, None], self._y, out=self._rhs)
-            self._rhs += ext
-            self._rhs += self.damp_h[:, None] * x
-            _pd_springs(self._y, idx, rest_len, k_low, k_high, thr, self._rhs)
-            ny = np.einsum("ij,ij->i", normal, self._y)
-            self._rhs += self.kn[:, None] * (self._y - ny[:, None] * normal)
-            if self.margins is not None:
-                self.margins.add_force(self._rhs)
-            rhs_f = np.take(self._rhs, f, axis=0)
-            rhs_f -= held_term
-            self.solver.solve(rhs_f, self._xf)
-            xf_old = np.take(x, f, axis=0)
-            x[f] = self._xf
-            if self.margins is not None:
-                self.margins.resolve(x)
-            v[f] = (np.take(x, f, axis=0) - xf_old) * (1.0 / h)
-            contact(x, v)
+                self._shape = shape
+                _csr_times(*self._bend, np.ascontiguousarray(shape, dtype=np.float64), self._bend_rhs)
+            np.add(ext, self._bend_rhs, out=self._ext)
+            ext = self._ext
+        idx, rest_len, k_low, k_high, thr = springs
+        c = self._contact
+        from sim.margin_contact import ROUNDS, SWEEPS
+
+        _frame(x, v, n_sub, self.h, ext, idx, rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2,
+               self.damp_h, self.free, self.held, *self._fh, self.solver.perm_r, self.solver.perm_c,
+               *self.solver.factors, c.idx, c.w, c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam, c.loc, c.green,
+               c.gptr, c.gvert, c.gval, c._work, c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes, *self._buf)

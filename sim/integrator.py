@@ -492,7 +492,7 @@ class Simulator:
                 self._implicit.margins.recall(state.contact)
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
                                                             self._k_high, self._threshold), self._normal,
-                                 lambda xx, vv: _eye_contact(xx, vv, *self._eyes), self._shape)
+                                 self._eyes, self._shape)
         reason = self._check(x)
         if reason:
             x[...] = self._saved_x

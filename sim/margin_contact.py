@@ -289,8 +289,14 @@ class SolvedContact:
     vertex through the solve, unlike the projection, whose neighbours never saw it. F is J with the
     give factors (the lower lid takes LOWER_LID_GIVE of the force, as in the projection)."""
 
+    #: the arrays a SolvedContact is made of (`arrays`, `from_arrays`: the face cache keeps them)
+    KEYS = ("idx", "w", "sg", "dim", "opp", "row_ptr", "row_v", "loc", "green", "gptr", "gvert", "gval")
+
     def __init__(self, cons: dict[str, np.ndarray], free: np.ndarray, n: int,
-                 solve: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> None:
+                 solve: Callable[[np.ndarray, np.ndarray], np.ndarray] | None) -> None:
+        if solve is None:  # from_arrays: cons holds every array of KEYS
+            self._restore(cons)
+            return
         self.idx = np.array(cons["idx"], dtype=np.int64)
         self.w = np.array(cons["w"], dtype=np.float64)
         self.sg = np.ascontiguousarray(cons["sg"], dtype=np.float64)
@@ -324,11 +330,31 @@ class SolvedContact:
         self.gptr = np.array(ptr, dtype=np.int64)
         self.gvert = np.concatenate(vert).astype(np.int64) if vert else np.zeros(0, np.int64)
         self.gval = np.concatenate(val) if val else np.zeros(0)
+        self._buffers()
+
+    def _buffers(self) -> None:
+        p = len(self.idx)
+        self._rest_idx, self._rest_w = self.idx.copy(), self.w.copy()  # the steps re-pair idx and w
         self.lam = np.zeros(p)
         self._work = np.zeros((3, p))
         self._cand = np.zeros(p, dtype=np.int64)
         self._schur = np.zeros((p, p))
-        self._df = np.zeros((len(verts), 3))
+        self._df = np.zeros((self.green.shape[0], 3))
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The constant arrays this contact is made of, as at construction (the pairing at rest)."""
+        return {k: np.array(getattr(self, "_rest_" + k, getattr(self, k))) for k in self.KEYS}
+
+    def _restore(self, arrays: dict[str, np.ndarray]) -> None:
+        types = dict(w=np.float64, sg=np.float64, green=np.float64, gval=np.float64)
+        for k in self.KEYS:
+            setattr(self, k, np.array(arrays[k], dtype=types.get(k, np.int64), order="C"))
+        self._buffers()
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> "SolvedContact":
+        """A contact made from `arrays()` of another: the same bits from the first substep on."""
+        return cls(arrays, np.zeros(0, np.int64), 0, None)
 
     def memory(self) -> np.ndarray:
         """What the next substep starts from besides x and v, as one float array: the impulses
