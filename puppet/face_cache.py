@@ -15,6 +15,10 @@ was asked for (the default face at a resolution, or the bytes of a rig file). Fi
   arrays and a JSON `meta` with their checksums), keyed by the sim sources and the mask's geometry;
   built by the first window or export that draws the head (~0.4 s) and read back by the next ones
   through `sim.face.head.check_shell`.
+- `implicit-<key>.npz`: the implicit integrator's prepared arrays for a face and a substep size
+  (`sim.implicit.prepare`: the factored matrix, the lid and lip contact's Green's function; 0.2-1 s
+  to make for the scanned head), keyed by the sim sources and a digest of what they are made from
+  (`sim.prepared.inputs_digest`), with a JSON `meta` of checksums; read back through `sim.prepared.check`.
 
 An entry is never trusted blindly: a missing, corrupt, foreign (another key) or inconsistent entry
 (checksums, shapes, index ranges, finiteness, the rig's own digest) is ignored and rebuilt. Entries
@@ -162,7 +166,8 @@ def _evict(directory: Path) -> None:
             except OSError:
                 pass
     heads = sorted(directory.glob("head-*[0-9a-f].npz"), key=lambda p: p.stat().st_mtime, reverse=True)
-    for p in heads[KEEP_ENTRIES:]:
+    steppers = sorted(directory.glob("implicit-*[0-9a-f].npz"), key=lambda p: p.stat().st_mtime, reverse=True)
+    for p in heads[KEEP_ENTRIES:] + steppers[KEEP_ENTRIES:]:
         try:
             p.unlink()
         except OSError:
@@ -344,6 +349,7 @@ def default_model(resolution: int = 0) -> Any:
     directory = cache_dir()
     if directory is not None:
         face_head.use_store(HeadShellStore(directory))
+    use_stepper_store()
     return cached_model(f"default-face:{resolution}".encode(), lambda: sim.face.default_model(resolution))
 
 
@@ -356,6 +362,7 @@ def scan_model(weights: Any = None) -> Any:
     from sim.build import compile_model
     from sim.face.scan.rig import SCAN_PARAMS, scan_rig
 
+    use_stepper_store()
     w = None if weights is None else np.asarray(weights, dtype=np.float64).ravel()
     what = b"scan-face:ict:" + (b"generic" if w is None else hashlib.sha256(w.tobytes()).digest())
     return cached_model(what, lambda: compile_model(scan_rig(w), SCAN_PARAMS))
@@ -405,10 +412,52 @@ class HeadShellStore:
         _evict(self.directory)
 
 
+class StepperStore:
+    """sim.prepared's store in the cache folder: `implicit-<key>.npz`, written atomically, read back
+    with the bounded reader and checksums (anything else: None, made again)."""
+
+    def __init__(self, directory: Path) -> None:
+        self.directory = directory
+
+    def path(self, key: str) -> Path:
+        return self.directory / f"implicit-{entry_key(b'implicit:' + key.encode())}.npz"
+
+    def load(self, key: str) -> dict[str, np.ndarray] | None:
+        path = self.path(key)
+        try:
+            arrays = _read_npz(path)
+            meta = json.loads(str(arrays.pop("meta")))
+            if not isinstance(meta, dict) or meta.get("format") != FORMAT or meta.get("version") != VERSION \
+                    or meta.get("inputs") != key or meta.get("arrays") != _array_digest(arrays):
+                return None
+            try:
+                os.utime(path)  # used now: kept by the eviction
+            except OSError:
+                pass
+            return arrays
+        except Exception:  # noqa: BLE001 - missing, damaged or foreign: made again
+            return None
+
+    def save(self, key: str, arrays: dict[str, np.ndarray]) -> None:
+        meta = {"format": FORMAT, "version": VERSION, "inputs": key, "arrays": _array_digest(arrays)}
+        self.directory.mkdir(parents=True, exist_ok=True)
+        _write_atomic(self.path(key), lambda tmp: np.savez(tmp, meta=np.array(json.dumps(meta)), **arrays))
+        _evict(self.directory)
+
+
+def use_stepper_store() -> None:
+    """Keep the implicit integrator's prepared arrays in the cache folder (`StepperStore`)."""
+    from sim import prepared
+
+    directory = cache_dir()
+    prepared.use_store(StepperStore(directory) if directory is not None else None)
+
+
 def rig_model(rig: Any, rig_bytes: bytes, build: Callable[[], Any] | None = None) -> Any:
     """The compiled face of a rig loaded from a file whose bytes are `rig_bytes`; `build` compiles
     it on a cache miss (default: `sim.compile_model(rig)`)."""
     import sim.face
 
+    use_stepper_store()
     return cached_model(b"rig-file:" + hashlib.sha256(rig_bytes).digest(),
                         build or (lambda: sim.compile_model(rig)), rig)

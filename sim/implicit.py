@@ -34,10 +34,10 @@ from __future__ import annotations
 
 import math
 
+from typing import TYPE_CHECKING
+
 import numba
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.linalg import splu
 
 from sim.build import FaceModel
 from sim.integrator import _eye_contact
@@ -45,11 +45,16 @@ from sim.margin_contact import (SolvedContact, _contact_force, _contact_resolve,
                                  solved_constraints, warm_up_solved)
 from sim.numba_start import prepare_blas_check
 
+if TYPE_CHECKING:  # scipy is imported where a matrix is built: a stepper made from the face cache needs none
+    import scipy.sparse as sp
+
 prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
 
 def laplacian(n: int, springs: np.ndarray, w: np.ndarray) -> sp.csr_matrix:
     """Graph Laplacian (n, n) of the springs weighted by w: sum_s w_s (e_i - e_j)(e_i - e_j)^T."""
+    import scipy.sparse as sp
+
     i, j = springs[:, 0].astype(np.int64), springs[:, 1].astype(np.int64)
     off = sp.coo_matrix((np.concatenate([-w, -w]), (np.concatenate([i, j]), np.concatenate([j, i]))),
                         shape=(n, n)).tocsr()
@@ -118,6 +123,8 @@ def _lu_solve(b, perm_r, perm_c, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_dia
 def _off_diagonal(m: sp.csc_matrix, lower: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(indptr int64, indices int32, values, diagonal) of a triangular CSC factor, its strictly lower
     (or upper) entries kept in their stored order, the diagonal apart."""
+    import scipy.sparse as sp
+
     m = sp.csc_matrix(m)
     cols = np.repeat(np.arange(m.shape[1]), np.diff(m.indptr))
     keep = m.indices > cols if lower else m.indices < cols
@@ -139,6 +146,9 @@ class PrefactoredSolver:
 
     def __init__(self, a: sp.spmatrix | None = None, arrays: dict[str, np.ndarray] | None = None) -> None:
         if arrays is None:
+            import scipy.sparse as sp
+            from scipy.sparse.linalg import splu
+
             lu = splu(sp.csc_matrix(a), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                       options={"SymmetricMode": True})
             l_ptr, l_idx, l_val, _ = _off_diagonal(lu.L, lower=True)
@@ -268,6 +278,8 @@ def _frame(x, v, n_sub, h, ext, springs, rest_len, k_low, k_high, thr, normal, k
 
 def warm_up() -> None:
     """Compile (or load from numba's cache) this module's kernels on a tiny system."""
+    import scipy.sparse as sp
+
     a = sp.csc_matrix(np.array([[2.0, -1.0], [-1.0, 2.0]]))
     PrefactoredSolver(a).solve(np.ones((2, 3)), np.zeros((2, 3)))
     warm_up_solved()
@@ -292,6 +304,8 @@ def warm_up() -> None:
 
 def _sparse(name: str, m: sp.spmatrix) -> dict[str, np.ndarray]:
     """A CSR matrix as three arrays (name_ptr int64, name_idx int64, name_val)."""
+    import scipy.sparse as sp
+
     m = sp.csr_matrix(m)
     return {name + "_ptr": m.indptr.astype(np.int64), name + "_idx": m.indices.astype(np.int64),
             name + "_val": np.asarray(m.data, dtype=np.float64)}
@@ -300,7 +314,9 @@ def _sparse(name: str, m: sp.spmatrix) -> dict[str, np.ndarray]:
 def prepare(model: FaceModel, h: float) -> dict[str, np.ndarray]:
     """Everything an ImplicitStepper for `model` at substep h is made of, as arrays (the slow part
     of making one: building and factoring the matrix, the contact's Green's function). The face
-    cache keeps them (`sim.prepared_store`): a stepper made from them steps to the same bits."""
+    cache keeps them (`sim.prepared`): a stepper made from them steps to the same bits."""
+    import scipy.sparse as sp
+
     n = model.n_vertices
     springs = np.asarray(model.spring_indices)
     held = np.asarray(model.held)
@@ -327,7 +343,8 @@ def prepare(model: FaceModel, h: float) -> dict[str, np.ndarray]:
 
 class ImplicitStepper:
     """Runs the substeps of one frame for a Simulator (method "implicit"). `prepared`: the arrays
-    of `prepare(model, h)` made before (the face cache's), else they are made here."""
+    of `prepare(model, h)` made before (`sim.prepared`: this process's or the face cache's), else
+    they are made here. The stepper never writes to them."""
 
     def __init__(self, model: FaceModel, h: float, prepared: dict[str, np.ndarray] | None = None) -> None:
         self._setup(np.asarray(model.rest), prepare(model, h) if prepared is None else prepared)

@@ -373,7 +373,9 @@ class Simulator:
             self.substeps = implicit_substeps(model, self.frame_dt)
         self.dt = self.frame_dt / self.substeps
         if method == "implicit":
-            self._implicit = ImplicitStepper(model, self.dt)
+            from sim.prepared import prepared
+
+            self._implicit = ImplicitStepper(model, self.dt, prepared(model, self.dt))
         self.guard_events: list[GuardEvent] = []
         n = model.n_vertices
         self._free = np.ascontiguousarray(~model.held)

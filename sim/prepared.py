@@ -1,0 +1,145 @@
+"""Where the implicit integrator's prepared arrays (`sim.implicit.prepare`: the factored matrix, the
+contact's Green's function) are kept, so a second simulator of the same face in a process, and the
+next start of the program, do not factor the matrix again (0.2-1 s for the scanned head).
+
+`sim` knows no files: the application installs a store (`use_store`; `puppet.face_cache` keeps
+them beside the compiled faces). A store has `load(key) -> dict | None` and `save(key,
+arrays)`, the key a digest of everything the arrays are made from (`inputs_digest`); what it gives back is checked here before a stepper uses it
+(`check`), so a damaged or foreign entry is made again, never stepped on. This module imports
+nothing heavy: a start from the cache needs neither scipy nor the matrix."""
+
+from __future__ import annotations
+
+import hashlib
+from typing import Any, Protocol
+
+import numpy as np
+
+
+class Store(Protocol):
+    def load(self, key: str) -> dict[str, np.ndarray] | None: ...
+
+    def save(self, key: str, arrays: dict[str, np.ndarray]) -> None: ...
+
+
+_STORE: Store | None = None
+_MEMO: dict[str, dict[str, np.ndarray]] = {}
+MEMO_ENTRIES = 2  # faces x substep sizes kept in the process (a show and its kernel warm-up share one)
+
+
+def use_store(store: Store | None) -> None:
+    """Keep prepared arrays in `store` from now on (None: in this process only)."""
+    global _STORE
+    _STORE = store
+
+
+def inputs_digest(model: Any, h: float) -> str:
+    """SHA-256 of everything `sim.implicit.prepare(model, h)` reads: the substep, the springs and
+    their stiffness, the per-vertex masses, damping and stiffnesses, the held vertices, the rest
+    shape, the margin bending parameters and the lid and lip rows (a face's hash alone leaves out
+    the mesh's annotations the rows come from)."""
+    from sim.margin_contact import _rows
+
+    d = hashlib.sha256(f"implicit h={float(h).hex()} lid={model.params.lid_bending!r} "
+                       f"lip={model.params.lip_bending!r}".encode())
+    for arr in (model.spring_indices, model.spring_k_high, model.mass, model.damping, model.support_stiffness,
+                model.rest_stiffness, model.held, model.rest):
+        a = np.ascontiguousarray(arr)
+        d.update(f"{a.dtype.str}{a.shape}".encode() + a.tobytes())
+    for name, row in sorted(_rows(model.mesh).items()):
+        d.update(name.encode() + np.ascontiguousarray(row, dtype=np.int64).tobytes())
+    return d.hexdigest()
+
+
+def prepared(model: Any, h: float) -> dict[str, np.ndarray]:
+    """`sim.implicit.prepare(model, h)`, from this process's memory, else the store, else made
+    (and given to the store). The arrays are shared: a stepper must not write to them."""
+    key = inputs_digest(model, h)
+    if key in _MEMO:
+        return _MEMO[key]
+    arrays = None
+    if _STORE is not None:
+        try:
+            arrays = _STORE.load(key)
+            if arrays is not None:
+                check(arrays, model.n_vertices, float(h))
+        except (ValueError, KeyError, TypeError, OSError):
+            arrays = None
+    if arrays is None:
+        from sim.implicit import prepare
+
+        arrays = prepare(model, h)
+        if _STORE is not None:
+            try:
+                _STORE.save(key, arrays)
+            except OSError:
+                pass  # a read-only cache: the next start factors again
+    while len(_MEMO) >= MEMO_ENTRIES:
+        _MEMO.pop(next(iter(_MEMO)))
+    _MEMO[key] = arrays
+    return arrays
+
+
+_INT = ("free", "held", "fh_ptr", "fh_idx", "bend_ptr", "bend_idx", "lu_perm_r", "lu_perm_c", "lu_l_ptr",
+        "lu_u_ptr")
+_FLOAT = ("mass_h2", "damp_h", "kn", "fh_val", "bend_val", "lu_l_val", "lu_u_val", "lu_u_diag")
+_CONTACT_INT = ("c_idx", "c_dim", "c_opp", "c_row_ptr", "c_row_v", "c_loc", "c_gptr", "c_gvert")
+_CONTACT_FLOAT = ("c_w", "c_sg", "c_green", "c_gval")
+
+
+def _ptr(ptr: np.ndarray, rows: int, idx: np.ndarray, cols: int) -> None:
+    if ptr.shape != (rows + 1,) or ptr[0] != 0 or ptr[-1] != len(idx) or np.any(np.diff(ptr) < 0):
+        raise ValueError("bad sparse structure")
+    if len(idx) and (idx.min() < 0 or idx.max() >= cols):
+        raise ValueError("index out of range")
+
+
+def check(a: dict[str, np.ndarray], n: int, h: float) -> None:
+    """Raises ValueError unless `a` is a complete, consistent set of prepared arrays for a face of
+    n vertices at substep h: every index the kernels follow in range, permutations that are
+    permutations, finite values (the checksums are the store's)."""
+    contact = "c_idx" in a
+    names = _INT + _FLOAT + ("h", "lu_l_idx", "lu_u_idx") + ((_CONTACT_INT + _CONTACT_FLOAT) if contact else ())
+    if set(a) != set(names):
+        raise ValueError("not a prepared stepper")
+    if a["h"].shape != () or float(a["h"]) != h:
+        raise ValueError("another substep")
+    for k in _INT + (_CONTACT_INT if contact else ()):
+        if a[k].dtype != np.int64:
+            raise ValueError(f"{k}: not int64")
+    for k in _FLOAT + (_CONTACT_FLOAT if contact else ()):
+        if a[k].dtype != np.float64 or not np.all(np.isfinite(a[k])):
+            raise ValueError(f"{k}: not finite float64")
+    if a["lu_l_idx"].dtype != np.int32 or a["lu_u_idx"].dtype != np.int32:
+        raise ValueError("factor indices: not int32")
+    free, held = a["free"], a["held"]
+    if np.any(np.bincount(np.concatenate([free, held]), minlength=n) != 1) or len(free) + len(held) != n:
+        raise ValueError("free and held vertices do not cover the face")
+    nf = len(free)
+    for k in ("mass_h2", "damp_h", "kn"):
+        if a[k].shape != (n,):
+            raise ValueError(f"{k}: wrong shape")
+    for k in ("lu_perm_r", "lu_perm_c"):
+        if a[k].shape != (nf,) or np.any(np.bincount(a[k], minlength=nf) != 1):
+            raise ValueError(f"{k}: not a permutation")
+    _ptr(a["fh_ptr"], nf, a["fh_idx"], len(held))
+    _ptr(a["bend_ptr"], n, a["bend_idx"], n)
+    _ptr(a["lu_l_ptr"], nf, a["lu_l_idx"], nf)
+    _ptr(a["lu_u_ptr"], nf, a["lu_u_idx"], nf)
+    if a["lu_u_diag"].shape != (nf,) or np.any(a["lu_u_diag"] == 0.0):
+        raise ValueError("a singular factor")
+    if contact:
+        p = len(a["c_idx"])
+        if a["c_idx"].shape != (p, 3) or a["c_sg"].shape != (p, 4) or a["c_loc"].shape != (n,):
+            raise ValueError("contact: wrong shapes")
+        if a["c_idx"].min() < 0 or a["c_idx"].max() >= n or a["c_row_v"].min() < 0 or a["c_row_v"].max() >= n:
+            raise ValueError("contact: vertex out of range")
+        g = a["c_green"].shape[0]
+        if a["c_green"].shape != (g, g) or a["c_loc"].max() >= g or a["c_loc"].min() < -1:
+            raise ValueError("contact: wrong Green's function")
+        _ptr(a["c_gptr"], g, a["c_gvert"], n)
+        rows = len(a["c_row_ptr"]) - 1
+        if np.any(a["c_dim"] < 0) or np.any(a["c_dim"] > 2) or np.any(a["c_opp"] >= rows) or \
+                np.any(a["c_opp"] < -1):
+            raise ValueError("contact: bad rows")
+        _ptr(a["c_row_ptr"], rows, a["c_row_v"], n)

@@ -1,0 +1,144 @@
+"""The implicit integrator's prepared arrays (the factored matrix, the contact's Green's function)
+kept in the face cache: a start from them steps to the same bits as a fresh build; an entry that is
+damaged, foreign (another face's, another substep's) or inconsistent with its face is made again."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import sim.face
+from puppet import face_cache
+from sim import prepared
+from sim.face import targets as et
+from sim.integrator import Simulator
+
+RATE = 120.0
+
+
+@pytest.fixture(scope="module")
+def face() -> object:
+    return sim.face.default_model(0)
+
+
+@pytest.fixture()
+def store(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):  # type: ignore[no-untyped-def]
+    """The face cache's stepper store in tmp_path, this process's memory emptied before and after."""
+    monkeypatch.setenv("PUPPET_CACHE_DIR", str(tmp_path))
+    prepared._MEMO.clear()
+    face_cache.use_stepper_store()
+    yield face_cache.StepperStore(tmp_path)
+    prepared.use_store(None)
+    prepared._MEMO.clear()
+
+
+class Counted:
+    """sim.implicit.prepare, counting its calls (a call: the arrays were made, not loaded)."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        import sim.implicit
+
+        self.calls, self._real = 0, sim.implicit.prepare
+        monkeypatch.setattr(sim.implicit, "prepare", self)
+
+    def __call__(self, model, h):  # type: ignore[no-untyped-def]
+        self.calls += 1
+        return self._real(model, h)
+
+
+def _run(model: object) -> bytes:
+    """A fresh process's view: nothing in memory, a simulator stepped through a blink and a smile
+    with the jaw open (lid and lip contact, jaw-turned bending), its final state's bytes."""
+    prepared._MEMO.clear()
+    s = Simulator(model, 1.0 / RATE, wrinkles=False, method="implicit")  # type: ignore[arg-type]
+    st = model.rest_state()  # type: ignore[attr-defined]
+    for pose in ("AU45", "AU27+12"):
+        ctl = et.pose_control(pose)
+        for _ in range(12):
+            s.step(st, ctl)
+    return st.positions.tobytes() + st.velocities.tobytes() + np.asarray(st.contact).tobytes()
+
+
+def test_a_start_from_the_cache_steps_to_the_same_bits(face: object, store: object, tmp_path: Path,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    made = Counted(monkeypatch)
+    fresh = _run(face)
+    assert made.calls == 1 and len(list(tmp_path.glob("implicit-*.npz"))) == 1
+    assert not list(tmp_path.glob(".*tmp*"))
+    cached = _run(face)
+    assert made.calls == 1  # loaded, not made
+    assert cached == fresh
+    prepared.use_store(None)
+    assert _run(face) == fresh  # and a build with no cache at all
+
+
+def test_damaged_entries_are_made_again(face: object, store: object, tmp_path: Path,
+                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    made = Counted(monkeypatch)
+    fresh = _run(face)
+    (path,) = tmp_path.glob("implicit-*.npz")
+    good = path.read_bytes()
+    rng = np.random.default_rng(5)
+    for _ in range(12):
+        data = bytearray(good)
+        if rng.random() < 0.3:
+            data = data[: int(rng.integers(0, len(data)))]
+        else:
+            for at in rng.integers(0, len(data), 3):
+                data[at] ^= 0xFF
+        path.write_bytes(bytes(data))
+        calls = made.calls
+        assert _run(face) == fresh
+        if path.read_bytes() != good:  # a variant that still loaded was one the checksums accept
+            assert made.calls == calls
+    assert made.calls > 5
+
+
+def _rewrite(path: Path, edit) -> None:  # type: ignore[no-untyped-def]
+    """Rewrite an entry with edit(arrays) applied and its checksums made consistent again, so only
+    the checks against the face can catch it."""
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    meta = json.loads(str(arrays.pop("meta")))
+    edit(arrays)
+    meta["arrays"] = face_cache._array_digest(arrays)
+    np.savez(path, meta=np.array(json.dumps(meta)), **arrays)
+
+
+@pytest.mark.parametrize("edit", [
+    lambda a: a.update(h=np.array(1.0 / 60.0)),  # another substep's factor
+    lambda a: a.update(lu_perm_c=a["lu_perm_c"][::-1].copy() * 0),  # not a permutation
+    lambda a: a.update(lu_l_idx=a["lu_l_idx"] + 10**6),  # an index past the matrix
+    lambda a: a.update(c_loc=np.full(3, -1, np.int64)),  # another face's contact
+    lambda a: a.update(lu_u_diag=a["lu_u_diag"] * np.nan),
+    lambda a: a.pop("c_green"),
+], ids=["substep", "permutation", "index", "contact", "nan", "missing"])
+def test_an_entry_that_does_not_match_its_face_is_made_again(edit, face: object, store: object,  # type: ignore[no-untyped-def]
+                                                              tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    made = Counted(monkeypatch)
+    fresh = _run(face)
+    (path,) = tmp_path.glob("implicit-*.npz")
+    _rewrite(path, edit)
+    assert _run(face) == fresh and made.calls == 2
+
+
+def test_another_faces_entry_is_not_used(face: object, store: object, tmp_path: Path,
+                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """The key follows what the arrays are made from: another substep, or the same face with its
+    lid bending changed (its hash changes too), is another entry; a valid entry of one copied under
+    the other's name is refused by its recorded inputs."""
+    import dataclasses
+
+    made = Counted(monkeypatch)
+    fresh = _run(face)
+    stiffer = dataclasses.replace(face, params=dataclasses.replace(face.params, lid_bending=2 * face.params.lid_bending))  # type: ignore[attr-defined]
+    assert prepared.inputs_digest(stiffer, 1 / RATE) != prepared.inputs_digest(face, 1 / RATE)
+    assert prepared.inputs_digest(face, 1 / 60) != prepared.inputs_digest(face, 1 / RATE)
+    _run(stiffer)
+    assert made.calls == 2
+    a, b = (store.path(prepared.inputs_digest(m, 1 / RATE)) for m in (face, stiffer))  # type: ignore[attr-defined]
+    a.write_bytes(b.read_bytes())
+    assert _run(face) == fresh and made.calls == 3
