@@ -128,9 +128,41 @@ class ScanDressing:
         rot = jaw_rotation(self.jaw_axis, jaw * self.jaw_max_angle)
         return rot, self.jaw_pivot - rot @ self.jaw_pivot + jaw * self.jaw_slide
 
+    @cached_property
+    def _rest64(self) -> FloatArray:
+        return np.ascontiguousarray(self.rest, np.float64)
+
+    @cached_property
+    def _kernel_args(self) -> tuple:  # type: ignore[type-arg]
+        c = np.ascontiguousarray
+        return (c(self.skin, np.int64), c(self.lip_idx, np.int64),
+                c(self.lip_anchor, np.int64), c(self.lip_rot, np.float64), c(self.bound_idx, np.int64),
+                c(self.bound_tri, np.int64), c(self.bound_bary, np.float64), c(self.bound_local, np.float64),
+                c(self.follow_idx, np.int64), c(self.follow_src, np.int64), c(self.follow_w, np.float64),
+                c(self.jaw_idx, np.int64), c(self.jaw_w, np.float64), c(self.socket_idx, np.int64),
+                c(self.socket_anchor, np.int64), c(self.socket_fade, np.float64))
+
     def pose(self, surface: FloatArray, control: Any) -> FloatArray:
         """(26719,3) float32: the scan posed by the simulated `surface` (N,3) and the control's jaw
-        and eyes (a FaceControl, or anything with `get(name)`)."""
+        and eyes (a FaceControl, or anything with `get(name)`); one compiled pass
+        (`sim.face.scan.pose_kernel`), the steps of `pose_steps`."""
+        from sim.face.scan.pose_kernel import pose_scan
+
+        x = np.ascontiguousarray(surface, dtype=np.float64)
+        rot, shift = self.jaw_motion(float(control.get("jaw")))
+        yaw = float(np.clip(control.get("eyes_yaw"), -1.0, 1.0)) * EYE_YAW_MAX
+        pitch = float(np.clip(control.get("eyes_pitch"), -1.0, 1.0)) * EYE_PITCH_MAX
+        eye_rot = rotation(yaw, 0.0, 0.0) @ rotation(0.0, -pitch, 0.0) if (yaw or pitch) else np.eye(3)
+        n = len(self.rest)
+        out = np.empty((n, 3), np.float32)
+        pose_scan(self._rest64, x, *self._kernel_args, np.ascontiguousarray(rot, np.float64), np.ascontiguousarray(shift, np.float64),
+                  np.ascontiguousarray(self.eye_idx[0], np.int64), np.ascontiguousarray(self.eye_idx[1], np.int64),
+                  np.ascontiguousarray(self.eye_centres, np.float64), np.ascontiguousarray(eye_rot, np.float64),
+                  bool(yaw or pitch), np.empty((len(x), 3)), np.empty((n, 3)), out)
+        return out
+
+    def pose_steps(self, surface: FloatArray, control: Any) -> FloatArray:
+        """`pose` step by step in numpy (the reference its kernel is checked against)."""
         x = np.asarray(surface, dtype=np.float64)
         out = self.rest.copy()
         out[self.skin] = x
