@@ -262,3 +262,18 @@ def test_a_replay_gives_the_same_bits(model) -> None:  # type: ignore[no-untyped
         return state.positions.copy()
 
     assert run().tobytes() == run().tobytes()
+
+
+def test_the_compiled_posing_is_the_step_by_step_one(model, presets) -> None:  # type: ignore[no-untyped-def]
+    """ScanDressing.pose (one compiled pass) against its numpy steps (pose_steps), for settled
+    expressions with the jaw open and the eyes turned: the same float32 vertices."""
+    dressing = dressing_for(model)
+    for name in ("happiness", "surprise"):
+        c = _preset(name)
+        c.set("jaw", 0.6)
+        c.set("eyes_yaw", -0.5)
+        c.set("eyes_pitch", 0.3)
+        posed = dressing.pose(presets[name], c)
+        assert posed.dtype == np.float32 and posed.shape == (N_VERTICES, 3)
+        assert np.allclose(posed, dressing.pose_steps(presets[name], c), rtol=0, atol=1e-5)
+        assert not np.allclose(posed, dressing.pose(model.rest, FaceControl()), atol=1e-2)
