@@ -11,7 +11,8 @@ runs of --frames frames. A
 prefactored solve). The scanned head (sim.face.scan, the default face of the application) is
 timed the same way after the procedural resolutions, with its build time (rig transfer, compile), the
 posing of all its 26,719 vertices (`ScanDressing.pose`, the renderer's side of a frame) and its cost
-as a ratio to resolution 0's in the same run. The last block compares the two integrators' transients on the default face:
+as a ratio to resolution 0's in the same run, and at the live loop's faster ticks (120 and 240 Hz:
+one substep a tick, so 2 and 4 solves per 60 Hz frame; `puppet live` headless ticks at 240 Hz). The last block compares the two integrators' transients on the default face:
 time for the left mouth corner to reach 90 % of its settled AU12 displacement.
 """
 
@@ -129,6 +130,21 @@ def _scan(control: object, frames: int, auto_ms: dict[int, float]) -> None:
     print(f"    scan_rig (the shipped rig): {t1 - t0:.2f} s, compile_model: {t2 - t1:.2f} s")
     for res, base in auto_ms.items():
         print(f"    scan / resolution {res} (each with its auto method): {ms / base:.2f}x")
+    # `puppet live` headless ticks at 240 Hz (puppet.live.LIVE_TICK_RATE; a window at 60 Hz): one
+    # implicit substep a tick, four ticks per 60 Hz frame
+    for rate in (120.0, 240.0):
+        fast = Simulator(model, 1.0 / rate, wrinkles=False)
+        ticks = int(rate / 60.0)
+        tick_ms = _frame_ms(fast, model, control, frames * ticks)
+        print(f"    at {rate:.0f} Hz ticks: {tick_ms:.2f} ms a tick, {ticks * tick_ms:.2f} ms per 60 Hz frame "
+              f"({100 * ticks * tick_ms / (1e3 * FRAME):.1f}% of a 60 Hz frame)")
+    t0 = time.thread_time()
+    Simulator(model, 1.0 / 50.0, wrinkles=False)  # a substep no other simulator here used
+    print(f"    a simulator's set-up (its matrix factored, nothing kept): {time.thread_time() - t0:.2f} s; "
+          f"the same face and substep again: ", end="")
+    t0 = time.thread_time()
+    Simulator(model, 1.0 / 50.0, wrinkles=False)
+    print(f"{time.thread_time() - t0:.3f} s")
     dressing = build_dressing(model)
     state = model.rest_state()
     sim.settle(state, control, max_seconds=1.0)  # type: ignore[arg-type]
