@@ -49,6 +49,7 @@ VERSION = 1
 ENV = "PUPPET_CACHE_DIR"
 MAX_ENTRY_BYTES = 1 << 30  # an entry larger than this is not a face of ours
 KEEP_ENTRIES = 8  # after writing an entry, only the most recently used this many are kept
+KEEP_STEPPERS = 4  # the same for the implicit integrator's entries (~9 MB each for the scanned head)
 #: FaceModel fields that are not stored as arrays or scalars (rebuilt from the rig or constant)
 _NOT_STORED = {"rig", "mesh", "channels", "channel_index", "muscle_matrix", "params"}
 
@@ -167,7 +168,7 @@ def _evict(directory: Path) -> None:
                 pass
     heads = sorted(directory.glob("head-*[0-9a-f].npz"), key=lambda p: p.stat().st_mtime, reverse=True)
     steppers = sorted(directory.glob("implicit-*[0-9a-f].npz"), key=lambda p: p.stat().st_mtime, reverse=True)
-    for p in heads[KEEP_ENTRIES:] + steppers[KEEP_ENTRIES:]:
+    for p in heads[KEEP_ENTRIES:] + steppers[KEEP_STEPPERS:]:
         try:
             p.unlink()
         except OSError:

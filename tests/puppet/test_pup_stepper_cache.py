@@ -142,3 +142,19 @@ def test_another_faces_entry_is_not_used(face: object, store: object, tmp_path: 
     a, b = (store.path(prepared.inputs_digest(m, 1 / RATE)) for m in (face, stiffer))  # type: ignore[attr-defined]
     a.write_bytes(b.read_bytes())
     assert _run(face) == fresh and made.calls == 3
+
+
+def test_only_the_most_recently_used_steppers_are_kept(face: object, store: object, tmp_path: Path) -> None:
+    """Each tick rate (substep) of a face is an entry; the folder keeps KEEP_STEPPERS of them, the
+    ones used last, beside the faces' own entries."""
+    import os
+
+    rates = [60.0, 90.0, 120.0, 150.0, 180.0, 240.0]
+    for k, rate in enumerate(rates):
+        prepared._MEMO.clear()
+        Simulator(face, 1.0 / rate, wrinkles=False, method="implicit")  # type: ignore[arg-type]
+        path = store.path(prepared.inputs_digest(face, 1.0 / rate))  # type: ignore[attr-defined]
+        os.utime(path, (1000.0 + k, 1000.0 + k))  # distinct ages, whatever the clock's resolution
+    kept = sorted(tmp_path.glob("implicit-*.npz"))
+    newest = {store.path(prepared.inputs_digest(face, 1.0 / r)) for r in rates[-face_cache.KEEP_STEPPERS:]}  # type: ignore[attr-defined]
+    assert len(kept) == face_cache.KEEP_STEPPERS and set(kept) == newest
