@@ -32,7 +32,7 @@ from puppet.session import SessionWriter
 TICK_RATE = 60.0
 #: tick rates `puppet live --tick-rate` offers: the simulation may tick faster than frames are drawn
 TICK_RATES = (60.0, 120.0, 240.0)
-#: what a headless show on the wall clock ticks at unless told (a window, which runs the ticks due
+#: what a headless show on the wall clock ticks at unless told or measured (`live_tick_rate`) (a window, which runs the ticks due
 #: right before each frame, and scripted runs on the script clock keep TICK_RATE): measured with benchmarks/live_latency.py (docs/live.md, "Tick rate"), 240 Hz with the
 #: loop woken on events brings event -> simulated state p99 from ~18 ms to 2.4-3.0 ms and event ->
 #: frame p99 under one 60 Hz refresh + 2 ms, for ~10% more CPU than 60 Hz (fewer RK2 substeps a tick)
@@ -244,6 +244,74 @@ def prepare_kernels(model: Any, dt: float) -> None:
         from sim.wrinkles.kernels import warm_up
 
         warm_up()
+
+
+#: the share of one core the simulation may take when the tick rate is chosen from the face's cost
+TICK_BUDGET = 0.5
+
+
+def choose_tick_rate(model: Any, rates: Sequence[float] = TICK_RATES, budget: float = TICK_BUDGET,
+                     steps: int = 5) -> tuple[float, dict[float, float]]:
+    """The highest of `rates` whose simulation step, timed here on this face (CPU time of this
+    thread, the median of `steps` steps of a throw-away simulator after one warm step), keeps the
+    simulation under `budget` of a core; the lowest rate when none does. Returns the rate and the
+    seconds per step measured at each rate tried. The scanned head's implicit step costs about the
+    same at any dt, so 240 Hz would take most of a core where 60-120 Hz leaves room for drawing;
+    the procedural face's RK2 step shrinks with dt and affords 240 Hz."""
+    import sim
+
+    cost: dict[float, float] = {}
+    for rate in sorted(rates, reverse=True):
+        s = sim.Simulator(model, 1.0 / rate, wrinkles=False)
+        state, control = model.rest_state(), sim.FaceControl(model)
+        s.step(state, control)
+        times = []
+        for _ in range(steps):
+            c0 = time.thread_time()
+            s.step(state, control)
+            times.append(time.thread_time() - c0)
+        cost[rate] = float(np.median(times))
+        if cost[rate] * rate <= budget:
+            return rate, cost
+    return min(rates), cost
+
+
+def live_tick_rate(face: Face, announce: Callable[[str], None] | None = None) -> float:
+    """The tick rate of a show on the wall clock for this face: `choose_tick_rate`, measured once
+    per face, program version and machine and kept in the face cache (a small JSON file), so later
+    shows start without the measurement; LIVE_TICK_RATE when the face cache is off and the
+    measurement fails."""
+    import json
+
+    from puppet import face_cache
+
+    directory = face_cache.cache_dir()
+    path = None
+    if directory is not None:
+        what = json.dumps({"rig": face.rig, "budget": TICK_BUDGET, "rates": TICK_RATES}, sort_keys=True, default=str)
+        path = directory / f"tick-rate-{face_cache.entry_key(what.encode())}.json"
+        try:
+            rate = float(json.loads(path.read_text())["rate"])
+            if rate in TICK_RATES:
+                return rate
+        except (OSError, ValueError, KeyError, TypeError):
+            pass
+    if announce is not None:
+        announce("measuring the face's tick cost (once for this face)")
+    try:
+        rate, cost = choose_tick_rate(face.model)
+    except Exception:
+        return LIVE_TICK_RATE
+    if path is not None:
+        try:
+            from safefile import atomic_write
+
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with atomic_write(path) as fh:
+                json.dump({"rate": rate, "step_ms": {f"{r:g}": c * 1000 for r, c in cost.items()}}, fh)
+        except OSError:
+            pass
+    return rate
 
 
 #: a test hook: `PUPPET_CRASH_AT_TICK=N` makes the live loop raise at tick N (testing --supervise)
@@ -577,7 +645,8 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
 
     `frame_rate` (None: a frame per tick): frames are drawn at this rate (the display's) while the
     simulation ticks at `core.rate` (e.g. 240 Hz ticks, 60 Hz frames): a frame follows the first tick
-    at or after each frame time. `wake(timeout)` (e.g. EventQueue.wait_arrival): an event that arrives
+    at or after each frame time, and a tick that took events is drawn at once when the last frame
+    is at least half a frame period old (an event's frame does not wait for the schedule). `wake(timeout)` (e.g. EventQueue.wait_arrival): an event that arrives
     while the loop waits starts the next tick at once instead of at its boundary, never more than one
     tick ahead of the schedule: simulated time leads the wall clock by less than a tick, the tick
     rate holds on average, and the recording keeps the tick each event was applied at, as ever."""
@@ -587,6 +656,7 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
         start = clock()
         k0 = core.tick_count  # a resumed take starts at its first new tick
         next_frame = 0.0  # in ticks since k0
+        last_frame = -math.inf  # the tick (since k0) last drawn
         while True:
             if stop is not None and stop.stopped:
                 break
@@ -604,14 +674,23 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
             if core.spans is not None:
                 core.spans.add("woke late", max(0.0, now - boundary))
             if now - boundary > 4 * core.dt:  # fell behind (machine busy): re-anchor the schedule
-                start, k0, next_frame = now, core.tick_count, 0.0
+                start, k0, next_frame, last_frame = now, core.tick_count, 0.0, -math.inf
             # everything that arrived by now goes into this tick: waiting for the next boundary would
             # only add latency, and the recording keeps the tick each event was applied at
-            core.tick(drain())
+            events = drain()
+            core.tick(events)
             if per_frame is not None:
-                if core.tick_count - k0 < next_frame:
+                done = core.tick_count - k0
+                # a tick that took events is drawn at once when the last frame is at least half a
+                # frame old (the event's frame need not wait for the frame schedule; frames stay
+                # under twice the display's rate); the schedule restarts from that frame
+                if events and done - last_frame >= per_frame / 2:
+                    next_frame = done + per_frame
+                elif done < next_frame:
                     continue
-                next_frame += per_frame * max(1, int((core.tick_count - k0 - next_frame) // per_frame) + 1)
+                else:
+                    next_frame += per_frame * max(1, int((done - next_frame) // per_frame) + 1)
+                last_frame = done
             if on_frame is not None:
                 on_frame(core)
             core.presented(clock())
