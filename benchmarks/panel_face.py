@@ -131,12 +131,12 @@ def live_run(face: live.Face, n_pages: int, seconds: float, mode: str = "picture
         feed = dev.face_feed
         f0, b0, e0, s0, k0 = feed.stats.frames, feed.stats.bytes, feed.stats.encode_s, feed.stats.sent, feed.stats.skipped
         roots = [drv.service.process.pid for drv in pages]
-        b0 = sum(tree_cpu(r) for r in roots)
+        br0 = sum(tree_cpu(r) for r in roots)
         cpu0, t0 = server_cpu(), time.monotonic()
         time.sleep(seconds)
         wall = time.monotonic() - t0
         out["cpu_shown"] = (server_cpu() - cpu0) / wall
-        out["browser_cpu_per_page_shown"] = (sum(tree_cpu(r) for r in roots) - b0) / wall / n_pages
+        out["browser_cpu_per_page_shown"] = (sum(tree_cpu(r) for r in roots) - br0) / wall / n_pages
         out["show_fps_shown"] = len([t for t in presented.values() if t > t0]) / wall
         st = feed.stats
         frames = st.frames - f0
