@@ -92,7 +92,7 @@ def live_run(face: live.Face, n_pages: int, seconds: float, mode: str = "picture
     core = live.LiveCore(face, Mapper(panel_map(face.vocab), face.vocab))
     dev.watch(core, [dev])
     dev.start()
-    renderer = OffscreenRenderer(face.model, (640, 360))
+    rend: list[Any] = []  # made in the show's thread: a GL context is current in the thread that made it
     presented: dict[int, float] = {}
     stop = live.StopFlag()
     spec = dev.spec.rstrip("/") + "/wave"
@@ -102,13 +102,21 @@ def live_run(face: live.Face, n_pages: int, seconds: float, mode: str = "picture
         return [ControlEvent(spec, c, "axis", v, None, v, t) for c, v in wave(k, core.rate)]
 
     def on_frame(c: live.LiveCore) -> None:
-        img = renderer.render_frame(c.state)
+        if not rend:
+            rend.append(OffscreenRenderer(face.model, (640, 360)))
+        img = rend[0].render_frame(c.state)
         presented[c.tick_count] = now = time.monotonic()
         if offer and dev.face_feed.wanted:
             dev.face_feed.offer(img, c.tick_count, now)
 
-    show = threading.Thread(target=live.run_realtime, args=(core, drain, None),
-                            kwargs={"on_frame": on_frame, "stop": stop}, daemon=True)
+    def run_show() -> None:
+        try:
+            live.run_realtime(core, drain, None, on_frame=on_frame, stop=stop)
+        finally:
+            for r in rend:
+                r.release()
+
+    show = threading.Thread(target=run_show, daemon=True)
     show.start()
     pages = [browser() for _ in range(n_pages)]
 
@@ -169,7 +177,6 @@ def live_run(face: live.Face, n_pages: int, seconds: float, mode: str = "picture
         stop.stopped = True
         show.join(10)
         dev.close()
-        renderer.release()
     return out
 
 
@@ -193,7 +200,7 @@ def clients_process(url: str, n: int, seconds: float, face: bool, conn: Any) -> 
                     continue
                 if msg.type == aiohttp.WSMsgType.BINARY:
                     kind, hl = struct.unpack_from("<B3xI", msg.data)
-                    if kind == 2:
+                    if kind in (2, 3):  # a frame of the mesh, or a picture
                         got.append((json.loads(msg.data[8:8 + hl])["tick"], time.monotonic(), len(msg.data)))
                         await ws.send_str('{"t":"drawn"}')  # as a page does once it has drawn the frame
         return got

@@ -377,7 +377,9 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
             for d in devs:
                 d.add_listener(queue)
                 d.start()
-            run_window(core, queue.drain, args.duration, devs, fullscreen=args.fullscreen, stop=stop, win=win)
+            pictures = [p.face_feed for p in panel_devices(devs) if p.face_feed.mode == "picture"]
+            run_window(core, queue.drain, args.duration, devs, fullscreen=args.fullscreen, stop=stop, win=win,
+                       pictures=pictures)
         else:
             for d in devs:
                 d.add_listener(queue)

@@ -40,6 +40,8 @@ LIVE_TICK_RATE = 240.0
 #: the frame rate frames are drawn at when nothing else paces them (headless renders, a window
 #: without vsync)
 DISPLAY_RATE = 60.0
+#: how often a window hands its frame to the performer's pages (their face view)
+PICTURE_HZ = 30.0
 CHECK_TICKS = 60  # a digest of the positions once a second lets replay prove it matches
 Event = ControlEvent | StatusEvent
 
@@ -821,10 +823,14 @@ def open_live_window(model: Any, devs: Sequence[Any]) -> Any:
 
 
 def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None, devs: Sequence[Any],
-               fullscreen: bool = False, stop: StopFlag | None = None, win: Any = None) -> None:
+               fullscreen: bool = False, stop: StopFlag | None = None, win: Any = None,
+               pictures: Sequence[Any] = ()) -> None:
     """Ticks on the wall clock (at most 4 per frame, then the schedule re-anchors), frames at the
     window's pace; latency is measured when the frame showing an event has been swapped. `win`: a
-    window from `open_live_window` (else one is opened here)."""
+    window from `open_live_window` (else one is opened here). `pictures`: the performer's pages'
+    face feeds (puppet.panel.face.FaceFeed); while a page watches, the window's own frame is read
+    back and offered to them PICTURE_HZ times a second, so the pages show the audience's pixels and
+    the server draws nothing of its own."""
     kb, keymap = _keyboard_alone(devs)
     if win is None:
         win = open_live_window(core.face.model, devs)
@@ -863,6 +869,19 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
         w.state = core.state
 
     win.add_frame_callback(on_frame)
+    offered = {"t": -math.inf}
+
+    def offer(w: Any) -> None:  # drawn, not yet swapped: the pixels are the frame about to be shown
+        now = time.monotonic()
+        wanting = [f for f in pictures if f.wanted]
+        if wanting and now - offered["t"] >= 1.0 / PICTURE_HZ:
+            offered["t"] = now
+            pixels = w.read_pixels()
+            for f in wanting:
+                f.offer(pixels, core.tick_count, now)
+
+    if pictures:
+        win.after_draw.append(offer)
     win.hud = live_hud(core, devs, keymap)
     try:
         with _ShowRuntime() as runtime:
