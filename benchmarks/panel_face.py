@@ -49,6 +49,21 @@ def thread_cpu(tid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def feed_cpu(dev: Any, tid: int) -> float:
+    """CPU seconds of the page server's thread, the face feed's thread and its picture process."""
+    feed = dev.face_feed
+    total = thread_cpu(tid) + (thread_cpu(feed.thread_id) if feed.thread_id else 0.0)
+    proc = getattr(feed, "_process", None)
+    if proc is not None and proc.pid:
+        try:
+            with open(f"/proc/{proc.pid}/stat") as fh:
+                fields = fh.read().rsplit(")", 1)[1].split()
+            total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        except OSError:
+            pass
+    return total
+
+
 def tree_cpu(root: int) -> float:
     """CPU seconds of every live process under `root` (a chromedriver: its browser's processes)."""
     parent, cpu = {}, {}
@@ -120,9 +135,8 @@ def live_run(face: live.Face, n_pages: int, seconds: float, mode: str = "picture
     show.start()
     pages = [browser() for _ in range(n_pages)]
 
-    def server_cpu() -> float:  # the server's thread and the feed's picture thread
-        feed_tid = dev.face_feed.thread_id
-        return thread_cpu(tid) + (thread_cpu(feed_tid) if feed_tid else 0.0)
+    def server_cpu() -> float:  # the server's thread, the feed's thread and picture process
+        return feed_cpu(dev, tid)
 
     js = "const f = window.puppetPanel && window.puppetPanel.face; return f ? [f.drawn, f.offset, f.error] : null"
     out: dict[str, Any] = {"pages": n_pages, "mode": mode, "offer": offer}
@@ -242,9 +256,8 @@ def server_run(face: live.Face, n_pages: int, seconds: float, with_face: bool) -
         time.sleep(1.5)  # connected, scenes sent
         tid = dev.server._thread.native_id
 
-        def server_cpu() -> float:  # the server's thread and the feed's picture thread
-            feed_tid = dev.face_feed.thread_id
-            return thread_cpu(tid) + (thread_cpu(feed_tid) if feed_tid else 0.0)
+        def server_cpu() -> float:  # the server's thread, the feed's thread and picture process
+            return feed_cpu(dev, tid)
 
         cpu0, t0 = server_cpu(), time.monotonic()
         time.sleep(seconds)

@@ -2,8 +2,9 @@
 face.js shows it).
 
 Two ways (`FaceFeed.mode`): "picture" (the default) sends a JPEG of the face as the show renders it:
-the frame the show itself drew when the show hands it over (`offer`), else one rendered here at
-render.stream.PICTURE_SIZE in the feed's own thread; a page only decodes a small image. "mesh"
+the frame the show itself drew when the show hands it over (`offer`), else one rendered at
+render.stream.PICTURE_SIZE in a process of its own (puppet.panel.pictures: the renderer would
+stall the live loop's thread); a page only decodes a small image. "mesh"
 streams the vertex positions and the page draws them with WebGL 2. Measured with four pages on two
 cores (benchmarks/panel_face.py, docs/panel.md): a page drawing the scanned head's 26,719 vertices
 costs its browser ~22 ms of CPU a frame in software WebGL, a picture ~1-2 ms; so pictures are the
@@ -64,6 +65,8 @@ class FaceFeed:
         self._pool: Any = None  # one thread: the pictures' renderer (its GL context) and the encoding
         self._renderer: Any = None
         self._renderer_model: Any = None
+        self._process: Any = None  # the picture process (a headless show's pictures)
+        self._in_process = False  # that process could not run: pictures are drawn here
         self.thread_id: int | None = None  # that thread (the benchmark reads its CPU time)
 
     def offer(self, pixels: Any, tick: int, t: float | None = None) -> None:
@@ -71,16 +74,35 @@ class FaceFeed:
         from the thread that drew it, after it is shown; costs nothing but keeping the reference."""
         self.offered = (int(tick), time.monotonic() if t is None else t, pixels)
 
-    def _render(self, model: Any, state: Any) -> Any:
-        from render.offscreen import OffscreenRenderer
-        from render.stream import PICTURE_SIZE
+    def _render(self, model: Any, state: Any, tick: int, t: float) -> bytes:
+        """A picture of `state` drawn in the picture process (puppet.panel.pictures); drawn here
+        only if that process cannot run."""
+        from render.stream import PICTURE_SIZE, picture
 
-        self.thread_id = threading.get_native_id()
+        face_id = f"face{id(model):x}"
+        if not self._in_process:
+            try:
+                if self._process is None or self._process.model is not model:
+                    self._close_process()
+                    from puppet.panel.pictures import PictureProcess
+
+                    self._process = PictureProcess(model, PICTURE_SIZE)
+                return self._process.picture(state, face_id, tick, t)
+            except Exception:
+                self._close_process()
+                self._in_process = True
+        from render.offscreen import OffscreenRenderer
+
         if self._renderer is None or self._renderer_model is not model:
             if self._renderer is not None:
                 self._renderer.release()
             self._renderer, self._renderer_model = OffscreenRenderer(model, PICTURE_SIZE), model
-        return self._renderer.render_frame(state)
+        return picture(self._renderer.render_frame(state), face_id, tick, t)
+
+    def _close_process(self) -> None:
+        proc, self._process = self._process, None
+        if proc is not None:
+            proc.close()
 
     def _picture(self, model: Any, state: Any, offered: Any, tick: int, t: float) -> bytes:
         from render.stream import picture
@@ -88,10 +110,10 @@ class FaceFeed:
         self.thread_id = threading.get_native_id()
         c0 = time.perf_counter()
         if offered is None:
-            pixels = self._render(model, state)
+            msg = self._render(model, state, tick, t)
         else:
             tick, t, pixels = offered
-        msg = picture(pixels, f"face{id(model):x}", tick, t)
+            msg = picture(pixels, f"face{id(model):x}", tick, t)
         self.stats.encode_s += time.perf_counter() - c0
         return msg
 
@@ -124,6 +146,7 @@ class FaceFeed:
             return
 
         def release() -> None:
+            self._close_process()
             if self._renderer is not None:
                 self._renderer.release()
                 self._renderer = None
