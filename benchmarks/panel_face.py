@@ -2,7 +2,7 @@
 cost per page, bytes per frame.
 
 1. Live. A live core on the wall clock (the show: tick, offscreen render 640x360 and readback, as
-   a window would), the jaw and a smile driven by a slow wave, the page server watching it. N
+   a window would, handed to the pictures; or headless, drawing nothing), the jaw and a smile driven by a slow wave, the page server watching it. N
    headless chromium pages (separate browsers, the machine's software WebGL) open the page and
    show the face. Every page logs each face frame it draws (the tick, its own clock); its clock
    is put on the server's by the quickest ping. Lag = the page's draw time minus the time the show
@@ -94,10 +94,10 @@ def wave(k: int, rate: float) -> list[tuple[str, float]]:
 
 
 def live_run(face: live.Face, n_pages: int, seconds: float, mode: str = "picture",
-             offer: bool = True) -> dict[str, Any]:
+             draws: bool = True) -> dict[str, Any]:
     """One show with n pages watching: per page fps and lag; server CPU shown vs hidden. `mode`:
-    the feed's way (pictures or the mesh); `offer`: the show hands its own frames to the pictures
-    (else the feed renders them itself, as for a headless show)."""
+    the feed's way (pictures or the mesh); `draws`: the show renders each frame (as a window
+    does) and hands it to the pictures, else it is headless (the feed's process renders them)."""
     import threading
 
     from panel_browser import browser, quit_browser, wait_for
@@ -117,11 +117,14 @@ def live_run(face: live.Face, n_pages: int, seconds: float, mode: str = "picture
         return [ControlEvent(spec, c, "axis", v, None, v, t) for c, v in wave(k, core.rate)]
 
     def on_frame(c: live.LiveCore) -> None:
+        if not draws:
+            presented[c.tick_count] = time.monotonic()
+            return
         if not rend:
             rend.append(OffscreenRenderer(face.model, (640, 360)))
         img = rend[0].render_frame(c.state)
         presented[c.tick_count] = now = time.monotonic()
-        if offer and dev.face_feed.wanted:
+        if dev.face_feed.wanted:
             dev.face_feed.offer(img, c.tick_count, now)
 
     def run_show() -> None:
@@ -139,7 +142,7 @@ def live_run(face: live.Face, n_pages: int, seconds: float, mode: str = "picture
         return feed_cpu(dev, tid)
 
     js = "const f = window.puppetPanel && window.puppetPanel.face; return f ? [f.drawn, f.offset, f.error] : null"
-    out: dict[str, Any] = {"pages": n_pages, "mode": mode, "offer": offer}
+    out: dict[str, Any] = {"pages": n_pages, "mode": mode, "draws": draws}
     try:
         for i, drv in enumerate(pages):
             drv.get(dev.url + f"?name=watch{i}")
@@ -354,9 +357,10 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=8.0)
     ap.add_argument("--pages", default="1,4")
-    ap.add_argument("--modes", default="picture,picture-render,mesh",
-                    help="the face's ways with real pages: picture (the show's frames), picture-render "
-                         "(the feed renders: a headless show), mesh (WebGL in the page)")
+    ap.add_argument("--modes", default="picture,mesh,picture-headless,mesh-headless",
+                    help="the face's ways with real pages: picture (pictures of the show's frames), mesh "
+                         "(WebGL in the page); -headless: the show draws no frames (the pictures are rendered "
+                         "by the feed's process)")
     ap.add_argument("--resolutions", default="0,2")
     ap.add_argument("--clients", default="1,4,16", help="page counts for the server-only runs")
     ap.add_argument("--no-scan", dest="scan", action="store_false", help="skip the scanned head's encoding")
@@ -369,7 +373,7 @@ def main() -> int:
         res[f"server_{n}_noface"] = server_run(face, n, a.seconds, False)
     for n in [int(x) for x in a.pages.split(",") if x]:
         for m in [x for x in a.modes.split(",") if x]:  # interleaved: the ratios share the machine's load
-            res[f"live_{n}_{m}"] = live_run(face, n, a.seconds, m.split("-")[0], m != "picture-render")
+            res[f"live_{n}_{m}"] = live_run(face, n, a.seconds, m.split("-")[0], not m.endswith("-headless"))
     for r in [int(x) for x in a.resolutions.split(",") if x]:
         res[f"encode_{r}"] = encode_run(r)
     if a.scan:
@@ -383,7 +387,8 @@ def main() -> int:
         if key.startswith("live_"):
             n = r["pages"]
             how = {"mesh": "mesh (WebGL in the page)"}.get(r["mode"], "pictures " + (
-                "of the show's own frames" if r["offer"] else "rendered by the feed"))
+                "of the show's own frames" if r["draws"] else "rendered by the feed's process"))
+            how += ", the show drawing 640x360 frames" if r["draws"] else ", a headless show"
             fps = [p["fps"] for p in r["per_page"]]
             p50 = [p["lag_p50_ms"] for p in r["per_page"]]
             p99 = [p["lag_p99_ms"] for p in r["per_page"]]
