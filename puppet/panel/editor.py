@@ -103,9 +103,10 @@ class Editor:
         self._replayer: Any = None
         self._renderer: Any = None
         self._stream: Any = None  # render.stream.FaceStream of the preview (the page draws it)
-        from puppet.panel.face import DEFAULT_MODE
-
-        self.face_mode = DEFAULT_MODE  # the preview as pictures rendered here, or the mesh (puppet.panel.face)
+        # the preview as the mesh (the page draws it) unless set to "picture" (rendered here): the
+        # preview's thread also owns the performance and the saves, and a render there (the first one
+        # seconds, with its context) would hold a save or a scrub behind it; one page, frames on demand
+        self.face_mode = "mesh"
         self.render_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="preview")
         self.work_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="export")
 
