@@ -42,6 +42,7 @@ import numpy as np  # noqa: E402
 import devices  # noqa: E402
 from puppet import live  # noqa: E402
 from puppet.mapping import Mapper  # noqa: E402
+from puppet.tick_rate import TICK_BUDGET, choose_tick_rate  # noqa: E402
 
 MOCK = """
 impersonate = "sgi"
@@ -181,9 +182,9 @@ def main() -> int:
     render = tuple(int(x) for x in a.render.split("x")) if a.render else None
     wakes = [w == "on" for w in a.wake.split(",")]
     face = live.load_face()
-    chosen, cost = live.choose_tick_rate(face.model)  # what `puppet live` picks for this face (auto)
+    chosen, cost = choose_tick_rate(face.model)  # what `puppet live` picks for this face (auto)
     print(f"the face's step: {', '.join(f'{r:g} Hz {c * 1000:.2f} ms' for r, c in cost.items())} (CPU); "
-          f"auto picks {chosen:g} Hz (budget {live.TICK_BUDGET:.0%} of a core); load {os.getloadavg()[0]:.2f}")
+          f"auto picks {chosen:g} Hz (budget {TICK_BUDGET:.0%} of a core); load {os.getloadavg()[0]:.2f}")
     rates = list(dict.fromkeys(chosen if x == "auto" else float(x) for x in a.rates.split(",")))
     res: dict[str, dict[str, Any]] = {}
     with tempfile.TemporaryDirectory() as d:

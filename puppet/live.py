@@ -32,7 +32,7 @@ from puppet.session import SessionWriter
 TICK_RATE = 60.0
 #: tick rates `puppet live --tick-rate` offers: the simulation may tick faster than frames are drawn
 TICK_RATES = (60.0, 120.0, 240.0)
-#: what a headless show on the wall clock ticks at unless told or measured (`live_tick_rate`) (a window, which runs the ticks due
+#: what a headless show on the wall clock ticks at unless told or measured (puppet.tick_rate) (a window, which runs the ticks due
 #: right before each frame, and scripted runs on the script clock keep TICK_RATE): measured with benchmarks/live_latency.py (docs/live.md, "Tick rate"), 240 Hz with the
 #: loop woken on events brings event -> simulated state p99 from ~18 ms to 2.4-3.0 ms and event ->
 #: frame p99 under one 60 Hz refresh + 2 ms, for ~10% more CPU than 60 Hz (fewer RK2 substeps a tick)
@@ -246,74 +246,6 @@ def prepare_kernels(model: Any, dt: float) -> None:
         from sim.wrinkles.kernels import warm_up
 
         warm_up()
-
-
-#: the share of one core the simulation may take when the tick rate is chosen from the face's cost
-TICK_BUDGET = 0.5
-
-
-def choose_tick_rate(model: Any, rates: Sequence[float] = TICK_RATES, budget: float = TICK_BUDGET,
-                     steps: int = 5) -> tuple[float, dict[float, float]]:
-    """The highest of `rates` whose simulation step, timed here on this face (CPU time of this
-    thread, the median of `steps` steps of a throw-away simulator after one warm step), keeps the
-    simulation under `budget` of a core; the lowest rate when none does. Returns the rate and the
-    seconds per step measured at each rate tried. The scanned head's implicit step costs about the
-    same at any dt, so 240 Hz would take most of a core where 60-120 Hz leaves room for drawing;
-    the procedural face's RK2 step shrinks with dt and affords 240 Hz."""
-    import sim
-
-    cost: dict[float, float] = {}
-    for rate in sorted(rates, reverse=True):
-        s = sim.Simulator(model, 1.0 / rate, wrinkles=False)
-        state, control = model.rest_state(), sim.FaceControl(model)
-        s.step(state, control)
-        times = []
-        for _ in range(steps):
-            c0 = time.thread_time()
-            s.step(state, control)
-            times.append(time.thread_time() - c0)
-        cost[rate] = float(np.median(times))
-        if cost[rate] * rate <= budget:
-            return rate, cost
-    return min(rates), cost
-
-
-def live_tick_rate(face: Face, announce: Callable[[str], None] | None = None) -> float:
-    """The tick rate of a show on the wall clock for this face: `choose_tick_rate`, measured once
-    per face, program version and machine and kept in the face cache (a small JSON file), so later
-    shows start without the measurement; LIVE_TICK_RATE when the face cache is off and the
-    measurement fails."""
-    import json
-
-    from puppet import face_cache
-
-    directory = face_cache.cache_dir()
-    path = None
-    if directory is not None:
-        what = json.dumps({"rig": face.rig, "budget": TICK_BUDGET, "rates": TICK_RATES}, sort_keys=True, default=str)
-        path = directory / f"tick-rate-{face_cache.entry_key(what.encode())}.json"
-        try:
-            rate = float(json.loads(path.read_text())["rate"])
-            if rate in TICK_RATES:
-                return rate
-        except (OSError, ValueError, KeyError, TypeError):
-            pass
-    if announce is not None:
-        announce("measuring the face's tick cost (once for this face)")
-    try:
-        rate, cost = choose_tick_rate(face.model)
-    except Exception:
-        return LIVE_TICK_RATE
-    if path is not None:
-        try:
-            from safefile import atomic_write
-
-            path.parent.mkdir(parents=True, exist_ok=True)
-            with atomic_write(path) as fh:
-                json.dump({"rate": rate, "step_ms": {f"{r:g}": c * 1000 for r, c in cost.items()}}, fh)
-        except OSError:
-            pass
-    return rate
 
 
 #: a test hook: `PUPPET_CRASH_AT_TICK=N` makes the live loop raise at tick N (testing --supervise)

@@ -9,6 +9,7 @@ import pytest
 from devices.events import ControlEvent
 from puppet import live
 from puppet.mapping import Mapper
+from puppet.tick_rate import choose_tick_rate
 
 
 class FakeClock:
@@ -55,8 +56,8 @@ def test_a_tick_that_takes_an_event_is_drawn_at_once(face: live.Face) -> None:
 
 
 def test_the_tick_rate_follows_the_faces_step_cost(face: live.Face) -> None:
-    rate, cost = live.choose_tick_rate(face.model, budget=1e-9)  # nothing fits: the lowest rate
+    rate, cost = choose_tick_rate(face.model, budget=1e-9)  # nothing fits: the lowest rate
     assert rate == min(live.TICK_RATES) and set(cost) == set(live.TICK_RATES)
     assert all(c > 0 for c in cost.values())
-    rate, cost = live.choose_tick_rate(face.model, budget=10.0)  # anything fits: the highest, tried alone
+    rate, cost = choose_tick_rate(face.model, budget=10.0)  # anything fits: the highest, tried alone
     assert rate == max(live.TICK_RATES) and list(cost) == [max(live.TICK_RATES)]
