@@ -2,7 +2,7 @@
 cost per page, bytes per frame.
 
 1. Live. A live core on the wall clock (the show: tick, offscreen render 640x360 and readback, as
-   a window would), the jaw and a smile driven by a slow wave, the page server watching it. N
+   a window would, handed to the pictures; or headless, drawing nothing), the jaw and a smile driven by a slow wave, the page server watching it. N
    headless chromium pages (separate browsers, the machine's software WebGL) open the page and
    show the face. Every page logs each face frame it draws (the tick, its own clock); its clock
    is put on the server's by the quickest ping. Lag = the page's draw time minus the time the show
@@ -49,6 +49,21 @@ def thread_cpu(tid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def feed_cpu(dev: Any, tid: int) -> float:
+    """CPU seconds of the page server's thread, the face feed's thread and its picture process."""
+    feed = dev.face_feed
+    total = thread_cpu(tid) + (thread_cpu(feed.thread_id) if feed.thread_id else 0.0)
+    proc = getattr(feed, "_process", None)
+    if proc is not None and proc.pid:
+        try:
+            with open(f"/proc/{proc.pid}/stat") as fh:
+                fields = fh.read().rsplit(")", 1)[1].split()
+            total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        except OSError:
+            pass
+    return total
+
+
 def tree_cpu(root: int) -> float:
     """CPU seconds of every live process under `root` (a chromedriver: its browser's processes)."""
     parent, cpu = {}, {}
@@ -78,18 +93,21 @@ def wave(k: int, rate: float) -> list[tuple[str, float]]:
             ("slider:zygomaticus_major_l", 0.5 + 0.4 * math.sin(2 * math.pi * 0.25 * t))]
 
 
-def live_run(face: live.Face, n_pages: int, seconds: float) -> dict[str, Any]:
-    """One show with n pages watching: per page fps and lag; server CPU shown vs hidden."""
+def live_run(face: live.Face, n_pages: int, seconds: float, mode: str = "picture",
+             draws: bool = True) -> dict[str, Any]:
+    """One show with n pages watching: per page fps and lag; server CPU shown vs hidden. `mode`:
+    the feed's way (pictures or the mesh); `draws`: the show renders each frame (as a window
+    does) and hands it to the pictures, else it is headless (the feed's process renders them)."""
     import threading
 
     from panel_browser import browser, quit_browser, wait_for
     from render.offscreen import OffscreenRenderer
 
-    dev = devices.open_device("panel://127.0.0.1:0", vocab=face.vocab)
+    dev = devices.open_device(f"panel://127.0.0.1:0?face={mode}", vocab=face.vocab)
     core = live.LiveCore(face, Mapper(panel_map(face.vocab), face.vocab))
     dev.watch(core, [dev])
     dev.start()
-    renderer = OffscreenRenderer(face.model, (640, 360))
+    rend: list[Any] = []  # made in the show's thread: a GL context is current in the thread that made it
     presented: dict[int, float] = {}
     stop = live.StopFlag()
     spec = dev.spec.rstrip("/") + "/wave"
@@ -99,15 +117,32 @@ def live_run(face: live.Face, n_pages: int, seconds: float) -> dict[str, Any]:
         return [ControlEvent(spec, c, "axis", v, None, v, t) for c, v in wave(k, core.rate)]
 
     def on_frame(c: live.LiveCore) -> None:
-        renderer.render_frame(c.state)
-        presented[c.tick_count] = time.monotonic()
+        if not draws:
+            presented[c.tick_count] = time.monotonic()
+            return
+        if not rend:
+            rend.append(OffscreenRenderer(face.model, (640, 360)))
+        img = rend[0].render_frame(c.state)
+        presented[c.tick_count] = now = time.monotonic()
+        if dev.face_feed.wanted:
+            dev.face_feed.offer(img, c.tick_count, now)
 
-    show = threading.Thread(target=live.run_realtime, args=(core, drain, None),
-                            kwargs={"on_frame": on_frame, "stop": stop}, daemon=True)
+    def run_show() -> None:
+        try:
+            live.run_realtime(core, drain, None, on_frame=on_frame, stop=stop)
+        finally:
+            for r in rend:
+                r.release()
+
+    show = threading.Thread(target=run_show, daemon=True)
     show.start()
     pages = [browser() for _ in range(n_pages)]
+
+    def server_cpu() -> float:  # the server's thread, the feed's thread and picture process
+        return feed_cpu(dev, tid)
+
     js = "const f = window.puppetPanel && window.puppetPanel.face; return f ? [f.drawn, f.offset, f.error] : null"
-    out: dict[str, Any] = {"pages": n_pages}
+    out: dict[str, Any] = {"pages": n_pages, "mode": mode, "draws": draws}
     try:
         for i, drv in enumerate(pages):
             drv.get(dev.url + f"?name=watch{i}")
@@ -116,16 +151,17 @@ def live_run(face: live.Face, n_pages: int, seconds: float) -> dict[str, Any]:
         tid = dev.server._thread.native_id
         time.sleep(1.5)  # pings settle the clock offsets
         for drv in pages:
-            drv.execute_script("window.puppetPanel.face.drawLog = []")
+            drv.execute_script("const f = window.puppetPanel.face; f.drawLog = []; f.frames = 0; "
+                               "for (const k in f.cost) f.cost[k] = 0")
         feed = dev.face_feed
         f0, b0, e0, s0, k0 = feed.stats.frames, feed.stats.bytes, feed.stats.encode_s, feed.stats.sent, feed.stats.skipped
         roots = [drv.service.process.pid for drv in pages]
-        b0 = sum(tree_cpu(r) for r in roots)
-        cpu0, t0 = thread_cpu(tid), time.monotonic()
+        br0 = sum(tree_cpu(r) for r in roots)
+        cpu0, t0 = server_cpu(), time.monotonic()
         time.sleep(seconds)
         wall = time.monotonic() - t0
-        out["cpu_shown"] = (thread_cpu(tid) - cpu0) / wall
-        out["browser_cpu_per_page_shown"] = (sum(tree_cpu(r) for r in roots) - b0) / wall / n_pages
+        out["cpu_shown"] = (server_cpu() - cpu0) / wall
+        out["browser_cpu_per_page_shown"] = (sum(tree_cpu(r) for r in roots) - br0) / wall / n_pages
         out["show_fps_shown"] = len([t for t in presented.values() if t > t0]) / wall
         st = feed.stats
         frames = st.frames - f0
@@ -133,21 +169,23 @@ def live_run(face: live.Face, n_pages: int, seconds: float) -> dict[str, Any]:
                    encode_ms=(st.encode_s - e0) / max(frames, 1) * 1000, sends=st.sent - s0, skipped=st.skipped - k0)
         per_page = []
         for drv in pages:
-            log, offset, err = drv.execute_script("const f = window.puppetPanel.face; return [f.drawLog, f.offset, f.error]")
+            log, offset, err, cost, got = drv.execute_script(
+                "const f = window.puppetPanel.face; return [f.drawLog, f.offset, f.error, f.cost, f.frames]")
             lags = [t_page + offset - presented[k] * 1000 for k, t_page in log if k in presented]
             span = (log[-1][1] - log[0][1]) / 1000 if len(log) > 1 else 1.0
             per_page.append({"fps": (len(log) - 1) / span, "lag_p50_ms": float(np.percentile(lags, 50)),
                              "lag_p99_ms": float(np.percentile(lags, 99)), "lag_max_ms": float(np.max(lags)),
-                             "draws": len(log), "error": err})
+                             "draws": len(log), "error": err,
+                             "cost_ms": {k: v / max(got, 1) for k, v in cost.items()}})
         out["per_page"] = per_page
         # the same pages with the face hidden: what the rest of the page costs the server
         for drv in pages:
             drv.find_element("id", "facetoggle").click()
         time.sleep(1.0)
         b0 = sum(tree_cpu(r) for r in roots)
-        cpu0, t0 = thread_cpu(tid), time.monotonic()
+        cpu0, t0 = server_cpu(), time.monotonic()
         time.sleep(min(seconds, 4.0))
-        out["cpu_hidden"] = (thread_cpu(tid) - cpu0) / (time.monotonic() - t0)
+        out["cpu_hidden"] = (server_cpu() - cpu0) / (time.monotonic() - t0)
         out["browser_cpu_per_page_hidden"] = (sum(tree_cpu(r) for r in roots) - b0) / (time.monotonic() - t0) / n_pages
         out["show_fps"] = len([t for t in presented.values() if t > t0]) / (time.monotonic() - t0)
     finally:
@@ -156,7 +194,6 @@ def live_run(face: live.Face, n_pages: int, seconds: float) -> dict[str, Any]:
         stop.stopped = True
         show.join(10)
         dev.close()
-        renderer.release()
     return out
 
 
@@ -180,7 +217,7 @@ def clients_process(url: str, n: int, seconds: float, face: bool, conn: Any) -> 
                     continue
                 if msg.type == aiohttp.WSMsgType.BINARY:
                     kind, hl = struct.unpack_from("<B3xI", msg.data)
-                    if kind == 2:
+                    if kind in (2, 3):  # a frame of the mesh, or a picture
                         got.append((json.loads(msg.data[8:8 + hl])["tick"], time.monotonic(), len(msg.data)))
                         await ws.send_str('{"t":"drawn"}')  # as a page does once it has drawn the frame
         return got
@@ -221,9 +258,13 @@ def server_run(face: live.Face, n_pages: int, seconds: float, with_face: bool) -
         proc.start()
         time.sleep(1.5)  # connected, scenes sent
         tid = dev.server._thread.native_id
-        cpu0, t0 = thread_cpu(tid), time.monotonic()
+
+        def server_cpu() -> float:  # the server's thread, the feed's thread and picture process
+            return feed_cpu(dev, tid)
+
+        cpu0, t0 = server_cpu(), time.monotonic()
         time.sleep(seconds)
-        cpu = (thread_cpu(tid) - cpu0) / (time.monotonic() - t0)
+        cpu = (server_cpu() - cpu0) / (time.monotonic() - t0)
         logs = here.recv()
     finally:
         proc.join(10)
@@ -316,6 +357,10 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=8.0)
     ap.add_argument("--pages", default="1,4")
+    ap.add_argument("--modes", default="picture,mesh,picture-headless,mesh-headless",
+                    help="the face's ways with real pages: picture (pictures of the show's frames), mesh "
+                         "(WebGL in the page); -headless: the show draws no frames (the pictures are rendered "
+                         "by the feed's process)")
     ap.add_argument("--resolutions", default="0,2")
     ap.add_argument("--clients", default="1,4,16", help="page counts for the server-only runs")
     ap.add_argument("--no-scan", dest="scan", action="store_false", help="skip the scanned head's encoding")
@@ -327,7 +372,8 @@ def main() -> int:
         res[f"server_{n}_face"] = server_run(face, n, a.seconds, True)
         res[f"server_{n}_noface"] = server_run(face, n, a.seconds, False)
     for n in [int(x) for x in a.pages.split(",") if x]:
-        res[f"live_{n}"] = live_run(face, n, a.seconds)
+        for m in [x for x in a.modes.split(",") if x]:  # interleaved: the ratios share the machine's load
+            res[f"live_{n}_{m}"] = live_run(face, n, a.seconds, m.split("-")[0], not m.endswith("-headless"))
     for r in [int(x) for x in a.resolutions.split(",") if x]:
         res[f"encode_{r}"] = encode_run(r)
     if a.scan:
@@ -340,15 +386,19 @@ def main() -> int:
     for key, r in res.items():
         if key.startswith("live_"):
             n = r["pages"]
+            how = {"mesh": "mesh (WebGL in the page)"}.get(r["mode"], "pictures " + (
+                "of the show's own frames" if r["draws"] else "rendered by the feed's process"))
+            how += ", the show drawing 640x360 frames" if r["draws"] else ", a headless show"
             fps = [p["fps"] for p in r["per_page"]]
             p50 = [p["lag_p50_ms"] for p in r["per_page"]]
             p99 = [p["lag_p99_ms"] for p in r["per_page"]]
-            print(f"{n} page(s): face drawn {min(fps):.1f}-{max(fps):.1f} frames/s per page; behind the show p50 "
+            cost = {k: float(np.mean([p["cost_ms"][k] for p in r["per_page"]])) for k in r["per_page"][0]["cost_ms"]}
+            print(f"{n} page(s), {how}: face drawn {min(fps):.1f}-{max(fps):.1f} frames/s per page; behind the show p50 "
                   f"{min(p50):.0f}-{max(p50):.0f} ms, p99 {min(p99):.0f}-{max(p99):.0f} ms (show {r['show_fps']:.0f} frames/s)")
             per = (r["cpu_shown"] - r["cpu_hidden"]) / n
             print(f"   each browser {r['browser_cpu_per_page_shown'] * 100:.0f} % of a core with the face, "
                   f"{r['browser_cpu_per_page_hidden'] * 100:.0f} % without; the show {r['show_fps_shown']:.0f} frames/s "
-                  "while the pages watched")
+                  "while the pages watched; in the page per frame " + ", ".join(f"{k} {v:.1f} ms" for k, v in cost.items()))
             print(f"   server thread {r['cpu_shown'] * 100:.1f} % of a core shown, {r['cpu_hidden'] * 100:.1f} % hidden: "
                   f"the face {per * 100:.2f} % per page; {r['frames_encoded_per_s']:.1f} frames encoded/s, "
                   f"{r['encode_ms']:.2f} ms each, {r['bytes_per_frame']:.0f} bytes/frame; sends {r['sends']}, "

@@ -282,9 +282,12 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     for d in devs:
         mapper.declare_controls(d.spec, d.controls)
     virtual = bool(devs) and all(getattr(getattr(d, "script", None), "speed", 1.0) == 0 for d in devs)
-    # 240 Hz where the loop wakes on events (headless on the wall clock); a window runs the ticks due
-    # right before each frame, where a faster tick would only cost, and a script's clock keeps 60 Hz
-    rate = getattr(args, "tick_rate", None) or (live.TICK_RATE if virtual or windowed else live.LIVE_TICK_RATE)
+    from puppet.tick_rate import live_tick_rate
+
+    # headless on the wall clock (the loop wakes on events) the fastest tick the face's measured step
+    # affords (240 Hz for the procedural face, 120 Hz for the scanned head here); a window runs the
+    # ticks due right before each frame, where a faster tick would only cost; a script's clock keeps 60 Hz
+    rate = getattr(args, "tick_rate", None) or (live.TICK_RATE if virtual or windowed else live_tick_rate(face, warn))
     header = live.session_header(face, spec, rate, specs)
     if getattr(args, "performer", None):
         header["performer"] = str(args.performer)[:200]
@@ -376,7 +379,9 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
             for d in devs:
                 d.add_listener(queue)
                 d.start()
-            run_window(core, queue.drain, args.duration, devs, fullscreen=args.fullscreen, stop=stop, win=win)
+            pictures = [p.face_feed for p in panel_devices(devs) if p.face_feed.mode == "picture"]
+            run_window(core, queue.drain, args.duration, devs, fullscreen=args.fullscreen, stop=stop, win=win,
+                       pictures=pictures)
         else:
             for d in devs:
                 d.add_listener(queue)

@@ -32,7 +32,7 @@ from puppet.session import SessionWriter
 TICK_RATE = 60.0
 #: tick rates `puppet live --tick-rate` offers: the simulation may tick faster than frames are drawn
 TICK_RATES = (60.0, 120.0, 240.0)
-#: what a headless show on the wall clock ticks at unless told (a window, which runs the ticks due
+#: what a headless show on the wall clock ticks at unless told or measured (puppet.tick_rate) (a window, which runs the ticks due
 #: right before each frame, and scripted runs on the script clock keep TICK_RATE): measured with benchmarks/live_latency.py (docs/live.md, "Tick rate"), 240 Hz with the
 #: loop woken on events brings event -> simulated state p99 from ~18 ms to 2.4-3.0 ms and event ->
 #: frame p99 under one 60 Hz refresh + 2 ms, for ~10% more CPU than 60 Hz (fewer RK2 substeps a tick)
@@ -40,6 +40,8 @@ LIVE_TICK_RATE = 240.0
 #: the frame rate frames are drawn at when nothing else paces them (headless renders, a window
 #: without vsync)
 DISPLAY_RATE = 60.0
+#: how often a window hands its frame to the performer's pages (their face view)
+PICTURE_HZ = 30.0
 CHECK_TICKS = 60  # a digest of the positions once a second lets replay prove it matches
 Event = ControlEvent | StatusEvent
 
@@ -577,7 +579,8 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
 
     `frame_rate` (None: a frame per tick): frames are drawn at this rate (the display's) while the
     simulation ticks at `core.rate` (e.g. 240 Hz ticks, 60 Hz frames): a frame follows the first tick
-    at or after each frame time. `wake(timeout)` (e.g. EventQueue.wait_arrival): an event that arrives
+    at or after each frame time, and a tick that took events is drawn at once when the last frame
+    is at least half a frame period old (an event's frame does not wait for the schedule). `wake(timeout)` (e.g. EventQueue.wait_arrival): an event that arrives
     while the loop waits starts the next tick at once instead of at its boundary, never more than one
     tick ahead of the schedule: simulated time leads the wall clock by less than a tick, the tick
     rate holds on average, and the recording keeps the tick each event was applied at, as ever."""
@@ -587,6 +590,7 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
         start = clock()
         k0 = core.tick_count  # a resumed take starts at its first new tick
         next_frame = 0.0  # in ticks since k0
+        last_frame = -math.inf  # the tick (since k0) last drawn
         while True:
             if stop is not None and stop.stopped:
                 break
@@ -604,14 +608,23 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
             if core.spans is not None:
                 core.spans.add("woke late", max(0.0, now - boundary))
             if now - boundary > 4 * core.dt:  # fell behind (machine busy): re-anchor the schedule
-                start, k0, next_frame = now, core.tick_count, 0.0
+                start, k0, next_frame, last_frame = now, core.tick_count, 0.0, -math.inf
             # everything that arrived by now goes into this tick: waiting for the next boundary would
             # only add latency, and the recording keeps the tick each event was applied at
-            core.tick(drain())
+            events = drain()
+            core.tick(events)
             if per_frame is not None:
-                if core.tick_count - k0 < next_frame:
+                done = core.tick_count - k0
+                # a tick that took events is drawn at once when the last frame is at least half a
+                # frame old (the event's frame need not wait for the frame schedule; frames stay
+                # under twice the display's rate); the schedule restarts from that frame
+                if events and done - last_frame >= per_frame / 2:
+                    next_frame = done + per_frame
+                elif done < next_frame:
                     continue
-                next_frame += per_frame * max(1, int((core.tick_count - k0 - next_frame) // per_frame) + 1)
+                else:
+                    next_frame += per_frame * max(1, int((done - next_frame) // per_frame) + 1)
+                last_frame = done
             if on_frame is not None:
                 on_frame(core)
             core.presented(clock())
@@ -742,10 +755,14 @@ def open_live_window(model: Any, devs: Sequence[Any]) -> Any:
 
 
 def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None, devs: Sequence[Any],
-               fullscreen: bool = False, stop: StopFlag | None = None, win: Any = None) -> None:
+               fullscreen: bool = False, stop: StopFlag | None = None, win: Any = None,
+               pictures: Sequence[Any] = ()) -> None:
     """Ticks on the wall clock (at most 4 per frame, then the schedule re-anchors), frames at the
     window's pace; latency is measured when the frame showing an event has been swapped. `win`: a
-    window from `open_live_window` (else one is opened here)."""
+    window from `open_live_window` (else one is opened here). `pictures`: the performer's pages'
+    face feeds (puppet.panel.face.FaceFeed); while a page watches, the window's own frame is read
+    back and offered to them PICTURE_HZ times a second, so the pages show the audience's pixels and
+    the server draws nothing of its own."""
     kb, keymap = _keyboard_alone(devs)
     if win is None:
         win = open_live_window(core.face.model, devs)
@@ -784,6 +801,19 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
         w.state = core.state
 
     win.add_frame_callback(on_frame)
+    offered = {"t": -math.inf}
+
+    def offer(w: Any) -> None:  # drawn, not yet swapped: the pixels are the frame about to be shown
+        now = time.monotonic()
+        wanting = [f for f in pictures if f.wanted]
+        if wanting and now - offered["t"] >= 1.0 / PICTURE_HZ:
+            offered["t"] = now
+            pixels = w.read_pixels()
+            for f in wanting:
+                f.offer(pixels, core.tick_count, now)
+
+    if pictures:
+        win.after_draw.append(offer)
     win.hud = live_hud(core, devs, keymap)
     try:
         with _ShowRuntime() as runtime:

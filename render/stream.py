@@ -12,7 +12,11 @@ page: a face at rest, or a head that does not move, is nearly all zeros. The sha
 renderer's own GLSL (render.shaders) with the header of GLSL ES 3.00, so the page lights the face
 as the show does.
 
-Binary messages: byte 0 the kind (1 scene, 2 frame), bytes 4..7 the JSON header's length (uint32,
+The other way (`picture`): a picture of the face as the show renders it, JPEG-encoded once per
+frame for every page (kind 3). A page then only decodes a small image: its cost does not grow with
+the mesh, and the server's does not grow with the number of pages (benchmarks/panel_face.py).
+
+Binary messages: byte 0 the kind (1 scene, 2 frame, 3 picture), bytes 4..7 the JSON header's length (uint32,
 little-endian), the header (UTF-8, padded with spaces to a multiple of 8), then the payload: the
 scene's arrays at the offsets its header lists; the frame's deflated int16 (V, 3) array."""
 
@@ -30,9 +34,11 @@ from render.camera import OrbitCamera
 from render.meshdata import HAIR, SKIN, Cavity, brow_coords, skin_tint, surface_rows, uv_sphere
 from render.renderer import BACKGROUND, EYE_PITCH_MAX, EYE_YAW_MAX, MOUTH_RIM, SOCKET_RIM
 
-SCENE, FRAME = 1, 2
+SCENE, FRAME, PICTURE = 1, 2, 3
 QUANTUM = 0.002  # cm per int16 step: 20 um, a 50th of a pixel on a page's face; range +-65 cm
 ASPECT = 4.0 / 3.0  # the page's face view
+PICTURE_SIZE = (400, 300)  # the page's face view when it is sent as pictures (ASPECT)
+PICTURE_QUALITY = 80  # JPEG quality: 8-12 KB a frame for the scanned head at PICTURE_SIZE
 ES_HEADER = "#version 300 es\nprecision highp float;\nprecision highp int;\n"
 
 
@@ -62,6 +68,29 @@ def encode_positions(positions: np.ndarray, base: np.ndarray, out: np.ndarray | 
     q = out if out is not None else np.empty(d.shape, np.int16)
     q[...] = d
     return zlib.compress(q.tobytes(), level)
+
+
+def picture(pixels: np.ndarray, face_id: str, tick: int, t: float, size: tuple[int, int] = PICTURE_SIZE,
+            quality: int = PICTURE_QUALITY) -> bytes:
+    """One picture message: (H, W, 3) uint8 `pixels` of the face (top row first) cropped about
+    the centre to the page's aspect, scaled to `size` and JPEG-encoded; the header carries the tick
+    shown, the server's time `t` (time.monotonic) it was drawn, and the image's size and type."""
+    import io
+
+    from PIL import Image
+
+    h, w = pixels.shape[:2]
+    aspect = size[0] / size[1]
+    cw, ch = (min(w, int(round(h * aspect))), min(h, int(round(w / aspect))))
+    x0, y0 = (w - cw) // 2, (h - ch) // 2
+    img = Image.fromarray(np.ascontiguousarray(pixels[y0:y0 + ch, x0:x0 + cw, :3]))
+    if img.size != tuple(size):
+        img = img.resize(tuple(size), Image.Resampling.BILINEAR, reducing_gap=2.0)
+    buf = io.BytesIO()
+    img.save(buf, "JPEG", quality=int(quality))
+    header = {"face": face_id, "tick": int(tick), "t": round(float(t), 6), "w": int(size[0]), "h": int(size[1]),
+              "type": "image/jpeg"}
+    return pack(PICTURE, header, buf.getvalue())
 
 
 def _colmajor(m: np.ndarray) -> list[float]:

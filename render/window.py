@@ -111,6 +111,8 @@ class FaceWindow:
         self._windowed: tuple[int, int, int, int] | None = None
         self._key_callbacks: list[KeyCallback] = []
         self._frame_callbacks: list[FrameCallback] = []
+        #: called with the window after each frame is drawn and before it is shown (read_pixels works)
+        self.after_draw: list[Callable[[FaceWindow], None]] = []
         glfw.set_key_callback(self.win, self._on_key)
         glfw.set_char_callback(self.win, self._on_char)
         glfw.set_mouse_button_callback(self.win, self._on_mouse_button)
@@ -164,6 +166,8 @@ class FaceWindow:
         if self.should_close:
             return False
         self.draw()
+        for fn in self.after_draw:
+            fn(self)
         glfw.swap_buffers(self.win)
         return not self.should_close
 

@@ -86,8 +86,8 @@ class PanelDevice(Device):
     """The page server as a device; see the module docstring."""
 
     scheme = "panel"
-    OPTIONS = frozenset({"lan"})
-    FORM = "panel://[HOST][:PORT][?lan=1]"
+    OPTIONS = frozenset({"lan", "face"})
+    FORM = "panel://[HOST][:PORT][?lan=1][&face=picture|mesh]"
 
     def __init__(self, spec: DeviceSpec, vocab: Any = None, roles: dict[str, list[str]] | None = None,
                  serve_later: bool = False, **options: Any) -> None:
@@ -120,9 +120,12 @@ class PanelDevice(Device):
         self._task: asyncio.Task[None] | None = None
         self.record: str | None = None
         self.editor: Any = None  # the `puppet edit` process the editor button started
-        from puppet.panel.face import FaceFeed
+        from puppet.panel.face import DEFAULT_MODE, MODES, FaceFeed
 
-        self.face_feed = FaceFeed()  # the pages watching the face
+        mode = spec.query.get("face", DEFAULT_MODE)
+        if mode not in MODES:
+            raise DeviceError(f"{spec.text}: face={mode!r} is not one of {', '.join(MODES)}; expected {self.FORM}")
+        self.face_feed = FaceFeed(mode)  # the pages watching the face
 
     # --- device hooks ----------------------------------------------------------------------------
     def _open(self) -> None:
@@ -187,6 +190,7 @@ class PanelDevice(Device):
             if self.server is not None and self._stop.is_set():
                 self.server.stop()
                 self.server = None
+        self.face_feed.close()
         ed, self.editor = self.editor, None
         if ed is not None and ed.poll() is None:
             ed.terminate()
@@ -297,6 +301,7 @@ class PanelDevice(Device):
 
         period = 1.0 / STATE_HZ
         due = time.monotonic()
+        face_task: asyncio.Task[None] | None = None
         while True:
             due += period
             now = time.monotonic()
@@ -317,22 +322,30 @@ class PanelDevice(Device):
                     pass
 
             await asyncio.gather(*(send(c.ws) for c in list(self.clients.values()) if not c.ws.closed))
-            await self._face_step()
+            # the face in its own task: a picture being rendered never holds up the next state
+            if face_task is None or face_task.done():
+                face_task = asyncio.get_running_loop().create_task(self._face_step())
 
     async def _face_step(self) -> None:
         """The face to the pages watching it: the loop's state encoded once per new tick for every
-        page (puppet.panel.face); a page that just asked for it gets the scene first."""
+        page (puppet.panel.face); in mesh mode a page that just asked for it gets the scene first."""
         core, feed = self.core, self.face_feed
         watching = [c.ws for c in list(self.clients.values()) if c.face and not c.ws.closed]
+        feed.wanted = bool(watching)
         if core is None or not watching:
             return
         try:
-            await feed.use(core.face.model)
+            model = core.face.model
+            await feed.use(model)
             for ws in watching:
                 if ws not in feed.pages:
-                    await feed.add(ws, core.face.model)
+                    await feed.add(ws, model)
             k = int(core.tick_count)
-            if k != feed.last_tick:
+            if feed.mode == "picture":
+                msg = await feed.make_picture(model, core.state, k)
+                if msg is not None:
+                    feed.send(msg, feed.last_tick)
+            elif k != feed.last_tick:
                 feed.publish(core.state, k)
         except Exception:  # the loop's state changed under us, or a page went: next time
             pass

@@ -103,6 +103,10 @@ class Editor:
         self._replayer: Any = None
         self._renderer: Any = None
         self._stream: Any = None  # render.stream.FaceStream of the preview (the page draws it)
+        # the preview as the mesh (the page draws it) unless set to "picture" (rendered here): the
+        # preview's thread also owns the performance and the saves, and a render there (the first one
+        # seconds, with its context) would hold a save or a scrub behind it; one page, frames on demand
+        self.face_mode = "mesh"
         self.render_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="preview")
         self.work_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="export")
 
@@ -192,7 +196,10 @@ class Editor:
         return buf.getvalue()
 
     def face_scene(self) -> bytes:
-        """The preview's scene for the page's face view (render.stream), made once."""
+        """The preview's scene for the page's face view (render.stream), made once; none (b"") when
+        the preview goes as pictures."""
+        if self.face_mode == "picture":
+            return b""
         if self._stream is None:
             from render.stream import FaceStream
 
@@ -205,6 +212,16 @@ class Editor:
 
         perf = self.performance()
         k = int(round(min(max(t, 0.0), perf.duration) * perf.rate))
+        if self.face_mode == "picture":
+            from render.stream import picture
+
+            if self._renderer is None:
+                from render.offscreen import OffscreenRenderer
+
+                self._renderer = OffscreenRenderer(self.face.model, PREVIEW_SIZE)
+            self._renderer.view = "shaded"
+            state = self._seek(k).state
+            return picture(self._renderer.render_frame(state), "preview", k, time.monotonic(), PREVIEW_SIZE)
         rp = self._seek(k)
         self.face_scene()
         return bytes(self._stream.frame(rp.state, k, time.monotonic()))
@@ -300,7 +317,9 @@ class Editor:
             wake = asyncio.Event()
 
             async def serve() -> None:
-                await ws.send_bytes(await loop.run_in_executor(self.render_pool, self.face_scene))
+                scene = await loop.run_in_executor(self.render_pool, self.face_scene)
+                if scene:
+                    await ws.send_bytes(scene)
                 while not ws.closed:
                     await wake.wait()
                     wake.clear()

@@ -1,7 +1,9 @@
 """The face on the page: the stream of the render mesh (render.stream) decodes to the positions the
-show draws, for a face with a held head and one without; in real headless chromium the page's
-WebGL view of a posed face looks like the show's own offscreen render of it (not like the face at
-rest), and a page that hides the face is sent no frames."""
+show draws, for a face with a held head and one without; a picture is the show's frame at the
+page's aspect; in real headless chromium the page's view of a posed face, as pictures and as the
+mesh drawn with WebGL, looks like the show's own offscreen render of it (not like the face at
+rest), and a page that hides the face is sent no frames; the pictures use the show's own frame
+when it offers one."""
 
 from __future__ import annotations
 
@@ -68,14 +70,15 @@ def _canvas_image(drv) -> np.ndarray:
     return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), float)
 
 
-def test_page_shows_the_face_the_show_draws() -> None:
+@pytest.mark.parametrize("mode", ["picture", "mesh"])
+def test_page_shows_the_face_the_show_draws(mode: str) -> None:
     from puppet import live
     from puppet.mapping import Mapper
     from puppet.panel.layout import panel_map
     from render.offscreen import OffscreenRenderer
 
     face = live.load_face()
-    dev = devices.open_device("panel://127.0.0.1:0", vocab=face.vocab)
+    dev = devices.open_device(f"panel://127.0.0.1:0?face={mode}", vocab=face.vocab)
     core = live.LiveCore(face, Mapper(panel_map(face.vocab), face.vocab))
     spec = dev.spec.rstrip("/") + "/test"
     moves = [("slider:jaw", 0.7), ("slider:zygomaticus_major_l", 0.8), ("slider:zygomaticus_major_r", 0.8),
@@ -90,8 +93,9 @@ def test_page_shows_the_face_the_show_draws() -> None:
         wait_for(lambda: watch.execute_script("const f = window.puppetPanel.face; return f.drawn > 0 && f.tick === 60"),
                  60, "the face drawn on the page")
         assert watch.execute_script("return window.puppetPanel.face.error") is None
-        w, h = watch.execute_script("const c = document.getElementById('face'); return [c.width, c.height]")
-        page = _canvas_image(watch)[:h, :w]
+        assert watch.execute_script("return window.puppetPanel.face.mode") == mode
+        page = _canvas_image(watch)  # as shown: a picture is scaled to the canvas's place on the page
+        h, w = page.shape[:2]
         with OffscreenRenderer(face.model, (w, h)) as off:
             show = off.render_frame(core.state).astype(float)
             rest = off.render_frame(face.model.rest_state()).astype(float)
@@ -129,7 +133,7 @@ def test_a_slow_page_gets_fewer_frames_not_old_ones() -> None:
 
     async def run() -> tuple[Page, Page]:
         model = load_face().model
-        feed, slow, quick = FaceFeed(), Page(), Page()
+        feed, slow, quick = FaceFeed("mesh"), Page(), Page()
         await feed.add(slow, model)
         await feed.add(quick, model)
         state = model.rest_state()
@@ -145,3 +149,52 @@ def test_a_slow_page_gets_fewer_frames_not_old_ones() -> None:
     assert kinds(quick) == [SCENE] + [FRAME] * 7
     assert kinds(slow) == [SCENE] + [FRAME] * AHEAD
     assert [unpack(m)[1]["tick"] for m in slow.got[1:]] == [1, 2]
+
+
+def test_a_picture_is_the_frame_at_the_pages_aspect() -> None:
+    from PIL import Image
+
+    from render.stream import PICTURE, PICTURE_SIZE, picture, unpack
+
+    frame = np.zeros((360, 640, 3), np.uint8)  # a 16:9 frame: the middle 4:3 red, the sides blue
+    frame[:, :, 2] = 255
+    frame[:, 80:560] = (255, 0, 0)
+    kind, h, payload = unpack(picture(frame, "f", 7, 1.25))
+    assert kind == PICTURE and h["tick"] == 7 and h["t"] == 1.25 and (h["w"], h["h"]) == PICTURE_SIZE
+    img = np.asarray(Image.open(io.BytesIO(payload)).convert("RGB"), float)
+    assert img.shape == (PICTURE_SIZE[1], PICTURE_SIZE[0], 3)
+    assert np.abs(img[5:-5, 5:-5] - (255, 0, 0)).mean() < 8  # the sides are cropped off
+
+
+def test_pictures_use_the_shows_own_frame_and_render_without_one() -> None:
+    import asyncio
+
+    from PIL import Image
+
+    from puppet.live import load_face
+    from puppet.panel.face import FaceFeed
+    from render.stream import unpack
+
+    model = load_face().model
+    feed = FaceFeed("picture")
+
+    async def run() -> tuple[bytes | None, bytes | None, bytes | None]:
+        shown = np.full((300, 400, 3), (0, 200, 0), np.uint8)  # what the show drew for tick 9
+        feed.offer(shown, 9)
+        a = await feed.make_picture(model, model.rest_state(), 12)
+        again = await feed.make_picture(model, model.rest_state(), 13)  # no newer frame offered
+        feed.offered = None  # the show stopped offering: the feed renders the state itself
+        b = await feed.make_picture(model, model.rest_state(), 14)
+        return a, again, b
+
+    try:
+        a, again, b = asyncio.run(run())
+    finally:
+        feed.close()
+    assert a is not None and unpack(a)[1]["tick"] == 9
+    img = np.asarray(Image.open(io.BytesIO(unpack(a)[2])).convert("RGB"), float)
+    assert np.abs(img - (0, 200, 0)).mean() < 8
+    assert again is None
+    assert b is not None and unpack(b)[1]["tick"] == 14
+    rendered = np.asarray(Image.open(io.BytesIO(unpack(b)[2])).convert("RGB"), float)
+    assert rendered.std() > 10  # a face, not a flat colour

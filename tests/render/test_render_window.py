@@ -29,6 +29,8 @@ def test_window_renders_like_offscreen_and_answers_keys(xvfb_display: str, gl, f
     events = json.loads((tmp_path / "events.json").read_text())
     shot = np.load(tmp_path / "screenshot.npy")
     assert tuple(events["size"]) == (320, 240) and shot.shape == (240, 320, 3)
+    # read back between drawing and showing (the performer's pages get this): the frame drawn
+    assert np.abs(np.load(tmp_path / "after_draw.npy").astype(int) - shot.astype(int)).mean() < 1.0
 
     with OffscreenRenderer(faces.model, (320, 240), ctx=gl, antialias=events["antialias"]) as off:
         ref = off.render_frame(faces.rest).astype(int)

@@ -26,7 +26,10 @@ def main(out_dir: str) -> int:
         win.show_hud = False
         win.add_key_callback(lambda name, action, t: keys.append((name, action)))
         win.add_frame_callback(lambda w, t: frames.append(t))
+        drawn: list[np.ndarray] = []
+        win.after_draw.append(lambda w: drawn.append(w.read_pixels()) if not drawn else None)
         win.step()
+        np.save(out / "after_draw.npy", drawn[0])  # what a page's picture is made of
         win.draw()
         np.save(out / "screenshot.npy", win.read_pixels())
         wid = str(glfw.get_x11_window(win.win))

@@ -70,8 +70,8 @@
     if (save) return go();
     sendTimer = setTimeout(go, 150);
   }
-  // the preview: the face at the playhead drawn here with WebGL 2 from the server's stream (as the
-  // live page's face view), or, where the browser has no WebGL 2, an image rendered by the server
+  // the preview: the face at the playhead from the server's stream, as the live page's face view (a
+  // picture rendered by the server, or the mesh drawn here with WebGL 2); failing that, an image
   const face = E.face = window.PuppetFace($("face"));
   let faceWs = null, lastAt = null;
   if (face.ok) {

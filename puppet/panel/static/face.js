@@ -1,15 +1,24 @@
-// facepuppet: the face as the audience sees it, drawn in the page with WebGL 2 from the server's
-// stream (render/stream.py): the scene once (triangles, colours, rest places, cavities, eyes,
-// camera, the renderer's own shaders), then per frame the quantised positions; normals are computed
-// here, area-weighted over the same triangles as the show's renderer.
+// facepuppet: the face as the audience sees it, from the server's stream (render/stream.py), one
+// of two ways. Pictures (the default): a JPEG of the show's frame, decoded off the page's thread and
+// drawn on a 2D canvas. The mesh: drawn here with WebGL 2, the scene once (triangles, colours, rest
+// places, cavities, eyes, camera, the renderer's own shaders), then per frame the quantised
+// positions; normals are computed here, area-weighted over the same triangles as the show's renderer.
 "use strict";
 window.PuppetFace = function (canvas) {
-  const F = { ok: false, scene: null, frames: 0, drawn: 0, tick: -1, lags: [], drawLog: [], offset: null,
-              bytes: 0, error: null };
-  const gl = canvas.getContext("webgl2", { antialias: true });
-  if (!gl) { F.error = "this browser has no WebGL 2"; return F; }
-  F.ok = true;
+  const F = { ok: true, scene: null, frames: 0, drawn: 0, tick: -1, lags: [], drawLog: [], offset: null,
+              bytes: 0, error: null, mode: null, cost: { decode: 0, normals: 0, draw: 0 } };
+  let gl = null, ctx2d = null, picture = null;
   let S = null, pos = null, nrm = null, dirty = false, eye = [0, 0];
+  // a canvas keeps the first kind of context it is asked for: the other kind gets a fresh canvas
+  function fresh() { const c = canvas.cloneNode(false); canvas.replaceWith(c); canvas = c; gl = ctx2d = null; }
+  function webgl() {
+    if (gl) return gl;
+    if (ctx2d) fresh();
+    gl = canvas.getContext("webgl2", { antialias: false });  // MSAA triples a software rasteriser's time
+    if (!gl) throw new Error("this browser has no WebGL 2");
+    F.mode = "mesh"; return gl;
+  }
+  function context2d() { if (ctx2d) return ctx2d; if (gl) { fresh(); S = null; } ctx2d = canvas.getContext("2d"); F.mode = "picture"; return ctx2d; }
 
   function header(buf) {
     const dv = new DataView(buf), kind = dv.getUint8(0), n = dv.getUint32(4, true);
@@ -35,6 +44,7 @@ window.PuppetFace = function (canvas) {
   }
 
   function setScene(buf, h, at) {
+    webgl();
     const A = {};
     const types = { float32: Float32Array, uint32: Uint32Array };
     for (const [name, [dtype, off, count]] of Object.entries(h.blobs)) A[name] = new types[dtype](buf, at + off, count);
@@ -79,13 +89,27 @@ window.PuppetFace = function (canvas) {
   }
 
   async function setFrame(buf, h, at) {
+    const t0 = performance.now();
     const ds = new DecompressionStream("deflate");
     const raw = await new Response(new Blob([new Uint8Array(buf, at)]).stream().pipeThrough(ds)).arrayBuffer();
     if (!S || h.face !== S.h.face || h.tick <= F.tick) { if (F.onDrawn) F.onDrawn(); return; }  // a newer frame, or another face, came first
     const q = new Int16Array(raw), base = S.A.base, k = S.h.quantum;
     for (let i = 0; i < q.length; i++) pos[i] = base[i] + q[i] * k;
     F.tick = h.tick; F.frameT = h.t; eye = h.eye; F.frames++; received++;
-    normals(); redraw();
+    const t1 = performance.now();
+    normals();
+    F.cost.decode += t1 - t0; F.cost.normals += performance.now() - t1;
+    redraw();
+  }
+
+  async function setPicture(buf, h, at) {  // decoded off this thread; shown at the next animation frame
+    const t0 = performance.now();
+    const bmp = await createImageBitmap(new Blob([new Uint8Array(buf, at)], { type: h.type }));
+    if (h.tick <= F.tick) { bmp.close(); if (F.onDrawn) F.onDrawn(); return; }  // a newer picture came first
+    if (picture) { picture.close(); received--; if (F.onDrawn) F.onDrawn(); }  // passed over, never shown
+    picture = bmp; F.scene = h.face; F.tick = h.tick; F.frameT = h.t; F.frames++; received++;
+    F.cost.decode += performance.now() - t0;
+    redraw();
   }
 
   F.message = function (buf) {
@@ -94,6 +118,7 @@ window.PuppetFace = function (canvas) {
     try {
       if (kind === 1) setScene(buf, h, at);
       else if (kind === 2 && S) setFrame(buf, h, at).catch((e) => { F.error = String(e); });
+      else if (kind === 3) setPicture(buf, h, at).catch((e) => { F.error = String(e); });
     } catch (e) { F.error = String(e); F.ok = false; }
   };
 
@@ -106,12 +131,28 @@ window.PuppetFace = function (canvas) {
 
   let asked = false, received = 0;
   function redraw() { dirty = true; if (!asked) { asked = true; requestAnimationFrame(draw); } }
+  function drawPicture() {
+    const c = context2d(), p = picture; picture = null;
+    if (canvas.width !== p.width || canvas.height !== p.height) { canvas.width = p.width; canvas.height = p.height; }
+    c.drawImage(p, 0, 0); p.close();
+  }
+  function shown(c0) {
+    F.drawn++; F.cost.draw += performance.now() - c0;
+    if (F.frameT !== undefined && F.offset !== null) {  // how far behind the server's read of the state
+      const lag = performance.now() + F.offset - F.frameT * 1000;
+      F.lags.push(lag); if (F.lags.length > 600) F.lags.shift();
+    }
+    F.drawLog.push([F.tick, performance.now()]); if (F.drawLog.length > 4000) F.drawLog.shift();
+    for (; received > 0; received--) if (F.onDrawn) F.onDrawn();  // every frame that came is now shown or passed over
+  }
   function draw() {
     asked = false;
-    if (!S || !dirty) return;
+    if (!dirty) return;
     dirty = false;
     const c0 = performance.now();
-    const w = Math.round(canvas.clientWidth * (window.devicePixelRatio || 1)), h = Math.round(w / S.h.aspect);
+    if (picture) { drawPicture(); shown(c0); return; }
+    if (!S) return;
+    const w = Math.round(canvas.clientWidth * Math.min(window.devicePixelRatio || 1, 1.5)), h = Math.round(w / S.h.aspect);
     if (canvas.width !== w || canvas.height !== h) { canvas.width = w; canvas.height = h; }
     gl.viewport(0, 0, w, h);
     const bg = S.h.background; gl.clearColor(bg[0], bg[1], bg[2], 1); gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
@@ -136,13 +177,8 @@ window.PuppetFace = function (canvas) {
     for (const c of E.centers) { gl.uniform3fv(gl.getUniformLocation(S.P.eye, "center"), c);
       gl.drawElements(gl.TRIANGLES, S.eye.count, gl.UNSIGNED_INT, 0); }
     gl.disable(gl.CULL_FACE); gl.bindVertexArray(null);
-    F.drawn++; F.drawMs = (F.drawMs || 0) + performance.now() - c0;
-    if (F.frameT !== undefined && F.offset !== null) {  // how far behind the server's read of the state
-      const lag = performance.now() + F.offset - F.frameT * 1000;
-      F.lags.push(lag); if (F.lags.length > 600) F.lags.shift();
-    }
-    F.drawLog.push([F.tick, performance.now()]); if (F.drawLog.length > 4000) F.drawLog.shift();
-    for (; received > 0; received--) if (F.onDrawn) F.onDrawn();  // every frame that came is now shown or passed over
+    if (F.finish) gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4));  // timing: wait for the raster
+    shown(c0);
   }
   return F;
 };

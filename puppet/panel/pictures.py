@@ -1,0 +1,73 @@
+"""Pictures of the face rendered in a child process, for the performer's pages of a show that draws
+no frames of its own (headless).
+
+The renderer (moderngl on Mesa's llvmpipe) holds Python's global lock for the whole of a draw and a
+read-back: 10-20 ms for the scanned head. In the show's own process that stalls the live loop's
+ticks (measured: event -> state p50 4.4-4.8 -> 6.9 ms, p99 9.8 -> 30-118 ms at 120 Hz with a
+picture 30 times a second), so the pictures are drawn in a process of their own, fed the model once
+and then a state per picture, answering with the finished picture message (render.stream.picture).
+The child ends when its pipe closes, so it never outlives the show."""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+def _serve(conn: Any, size: tuple[int, int]) -> None:
+    """The child: the model, then (state, face id, tick, time) per picture until None or EOF."""
+    from render.offscreen import OffscreenRenderer
+    from render.stream import picture
+
+    try:
+        model = conn.recv()
+        with OffscreenRenderer(model, size) as off:
+            while True:
+                job = conn.recv()
+                if job is None:
+                    break
+                state, face_id, tick, t = job
+                conn.send_bytes(picture(off.render_frame(state), face_id, tick, t, size))
+    except (EOFError, OSError, KeyboardInterrupt):
+        pass
+
+
+class PictureProcess:
+    """A child process drawing pictures of one model; `picture(state, ...)` blocks until it is done
+    (call it from a worker thread: waiting on the pipe does not hold the global lock)."""
+
+    def __init__(self, model: Any, size: tuple[int, int]) -> None:
+        import multiprocessing
+
+        ctx = multiprocessing.get_context("spawn")  # no fork of a process with GL and threads in it
+        self.model = model
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_serve, args=(child, tuple(size)), name="face-pictures", daemon=True)
+        self.proc.start()
+        child.close()
+        self.conn.send(model)
+
+    @property
+    def pid(self) -> int | None:
+        return self.proc.pid
+
+    def picture(self, state: Any, face_id: str, tick: int, t: float, timeout: float = 60.0) -> bytes:
+        """The picture message of `state` (render.stream.picture); RuntimeError if the child is gone
+        or does not answer within `timeout` seconds (the first picture waits for its start)."""
+        try:
+            self.conn.send((state, face_id, int(tick), float(t)))
+            if not self.conn.poll(timeout):
+                raise RuntimeError("the picture process did not answer")
+            return self.conn.recv_bytes()
+        except (EOFError, OSError, BrokenPipeError) as err:
+            raise RuntimeError(f"the picture process is gone ({err})") from err
+
+    def close(self) -> None:
+        try:
+            self.conn.send(None)
+        except (OSError, BrokenPipeError):
+            pass
+        self.conn.close()
+        self.proc.join(5)
+        if self.proc.is_alive():
+            self.proc.kill()
+            self.proc.join(5)

@@ -1,0 +1,63 @@
+"""Scheduling of the live loop: a tick that takes events is drawn at once (its frame does not wait
+for the display's schedule) without frames ever coming closer than half a frame period, and the
+tick rate a show on the wall clock uses is chosen from the face's measured step cost."""
+
+from __future__ import annotations
+
+import pytest
+
+from devices.events import ControlEvent
+from puppet import live
+from puppet.mapping import Mapper
+from puppet.tick_rate import choose_tick_rate
+
+
+class FakeClock:
+    """A clock that only moves when slept on."""
+
+    def __init__(self) -> None:
+        self.t = 100.0
+
+    def __call__(self) -> float:
+        return self.t
+
+    def sleep(self, s: float) -> None:
+        self.t += max(s, 0.0)
+
+
+@pytest.fixture(scope="module")
+def face() -> live.Face:
+    return live.load_face()
+
+
+def test_a_tick_that_takes_an_event_is_drawn_at_once(face: live.Face) -> None:
+    clk = FakeClock()
+    spec = live.build_mapping(face.vocab, None, ["mock://"])
+    core = live.LiveCore(face, Mapper(spec, face.vocab), rate=240.0)
+    ev = ControlEvent("mock://", "dial7", "dial", 0.25, 50.0, 50, 100.0)
+    # tick 0 is drawn by the schedule; events in ticks 1 (too soon after it), 6 and 13 (half a frame
+    # and more after the last frame) and 14 (right after 13's frame)
+    arrivals = {1: [ev], 6: [ev], 13: [ev], 14: [ev]}
+    ticks: list[int] = []
+    drawn: list[int] = []
+
+    def drain() -> list:
+        ticks.append(len(ticks))
+        return arrivals.get(ticks[-1], [])
+
+    live.run_realtime(core, drain, 30 / 240, clock=clk, sleep=clk.sleep, frame_rate=60.0,
+                      on_frame=lambda c: drawn.append(c.tick_count - 1))
+    assert core.tick_count == 30
+    assert 6 in drawn and 13 in drawn  # drawn right after the tick that took the event
+    assert 1 not in drawn and 14 not in drawn  # too soon after the last frame: on the schedule
+    assert all(b - a >= 2 for a, b in zip(drawn, drawn[1:]))  # never closer than half a frame (4 ticks)
+    assert all(b - a <= 4 for a, b in zip(drawn, drawn[1:]))  # and never further apart than a frame
+    assert len(drawn) >= 30 // 4  # at least the display's rate
+
+
+def test_the_tick_rate_follows_the_faces_step_cost(face: live.Face) -> None:
+    rate, cost = choose_tick_rate(face.model, budget=1e-9)  # nothing fits: the lowest rate
+    assert rate == min(live.TICK_RATES) and set(cost) == set(live.TICK_RATES)
+    assert all(c > 0 for c in cost.values())
+    rate, cost = choose_tick_rate(face.model, budget=10.0)  # anything fits: the highest, tried alone
+    assert rate == max(live.TICK_RATES) and list(cost) == [max(live.TICK_RATES)]
