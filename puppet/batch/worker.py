@@ -136,3 +136,8 @@ def _plugin_class() -> Any:
 def plugin() -> Any:
     """A new BatchSetup worker plugin (dask imported only when a batch runs)."""
     return _plugin_class()()
+
+
+def counters() -> dict[str, int]:
+    """This process's cache counters (a farm's client reads them with `Client.run`)."""
+    return dict(stats)

@@ -73,6 +73,38 @@ def test_export_through_the_farm_equals_replay(farm: Farm, tmp_path: Path, capsy
     assert (out / "take1.pc2").read_bytes() == replay_out(takes[1], single / "take1.pc2")
 
 
+def _farm_counters(farm: Farm) -> dict[str, int]:
+    from puppet.batch.worker import counters
+
+    with farm.client() as c:
+        per_worker = c.run(counters)
+    return {k: sum(w[k] for w in per_worker.values()) for k in next(iter(per_worker.values()))}
+
+
+def test_one_simulation_for_pc2_and_mp4_equal_single_exports(farm: Farm, tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture) -> None:
+    import imageio.v2 as imageio
+
+    takes = [write_take(tmp_path / "s" / f"both{k}.jsonl", ticks=40, seed=30 + k) for k in range(3)]
+    out = tmp_path / "out"
+    out.mkdir()
+    before = _farm_counters(farm)
+    assert main(["batch", "export", str(tmp_path / "s"), "--out", str(out), "--to", "pc2,mp4", "--size", "160x96",
+                 "--scheduler", farm.address]) == 0
+    assert "(3 tasks)" in capsys.readouterr().out  # one task per take, for both formats
+    after = _farm_counters(farm)
+    assert after["simulator_copies"] - before["simulator_copies"] == 3  # one simulation per take
+    assert after["face_loads"] + after["face_hits"] - before["face_loads"] - before["face_hits"] == 3
+    assert after["simulators_built"] - before["simulators_built"] <= 2  # at most once per worker
+    for t in takes:
+        assert (out / (t.stem + ".pc2")).read_bytes() == replay_out(t, tmp_path / (t.stem + ".pc2"))
+        single = replay_out(t, tmp_path / (t.stem + ".mp4"), "--size", "160x96")
+        got = [f for f in imageio.get_reader(str(out / (t.stem + ".mp4")))]
+        want = [f for f in imageio.get_reader(str(tmp_path / (t.stem + ".mp4")))]
+        assert len(got) == len(want) == 20 and all(np.array_equal(g, w) for g, w in zip(got, want))
+        assert (out / (t.stem + ".mp4")).read_bytes() == single
+
+
 def test_library_query_selection_and_recognize(farm: Farm, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     lib = tmp_path / "takes.db"
     a = write_take(tmp_path / "s" / "ana.jsonl", ticks=40, seed=4, performer="ana")
@@ -87,7 +119,18 @@ def test_library_query_selection_and_recognize(farm: Farm, tmp_path: Path, capsy
     capsys.readouterr()
     assert sorted(p.name for p in out.iterdir() if p.is_file()) == ["bob.expressions.json"]
     assert main(["recognize", str(b), "--json"]) == 0
-    assert json.loads((out / "bob.expressions.json").read_text()) == json.loads(capsys.readouterr().out)
+    single = json.loads(capsys.readouterr().out)
+    assert single  # something was recognised
+    assert json.loads((out / "bob.expressions.json").read_text()) == single
+    # the library's takes get the spans, as `puppet takes check` would store them; ana's is untouched
+    with Library(lib) as library:
+        ids = {t["performer"]: t["id"] for t in library.search("")}
+        stored = library.get(ids["bob"])["expressions"]
+        assert library.get(ids["ana"])["expressions"] == []
+        assert [t["id"] for t in library.search(f"expression:{single[0]['expression']}")] == [ids["bob"]]
+    assert [(s["start"], s["end"], s["expression"]) for s in stored] == \
+        [(s["start"], s["end"], s["expression"]) for s in single]
+    assert all(s["score"] == w["scores"][w["expression"]] for s, w in zip(stored, single))
 
 
 KILL_TICKS = 420
