@@ -90,26 +90,41 @@ def export_take(files: dict[str, bytes], origin: str, outname: str, opts: dict[s
     return export_outputs(files, origin, [(outname, opts)])[outname]
 
 
-def export_outputs(files: dict[str, bytes], origin: str, outputs: list[tuple[str, dict[str, Any]]]
-                   ) -> dict[str, dict[str, bytes]]:
+def export_outputs(files: dict[str, bytes], origin: str, outputs: list[tuple[str, dict[str, Any]]],
+                   dest: dict[str, str] | None = None) -> dict[str, dict[str, bytes | str]]:
     """Several exports of one take ({output name: {file name: bytes}}), each as `puppet replay TAKE
-    --out NAME` writes it, the take simulated once for all of them (`export_together`)."""
+    --out NAME` writes it, the take simulated once for all of them (`export_together`). When this
+    process sees the client's output folder (`plan.reachable(dest)`), the files are written in place
+    (as `puppet replay --out` writes them) and only their SHA-256 digests travel back."""
+    import hashlib
+
+    from puppet.batch.plan import reachable
     from puppet.export.runner import export_together, kind_of
 
+    direct = reachable(dest)
     with _staged(files, origin) as take:
         perf = _performance(take)
-        result: dict[str, dict[str, bytes]] = {}
         todo = []
         for outname, opts in outputs:
-            folder = take.parent / "out" / str(len(todo))
-            folder.mkdir(parents=True)
-            out = folder / outname
+            if direct is not None:
+                out = direct / outname
+            else:
+                folder = take.parent / "out" / str(len(todo))
+                folder.mkdir(parents=True)
+                out = folder / outname
             todo.append((out, _options(perf, kind_of(out), opts)))
         with contextlib.redirect_stdout(io.StringIO()):
             export_together(perf, todo)
+        result: dict[str, dict[str, bytes | str]] = {}
         for out, _ in todo:
-            result[out.name] = {p.name: p.read_bytes() for p in sorted(out.parent.iterdir())
-                                if not p.name.startswith(".")}
+            made = [out] + ([out.with_suffix(".obj")] if kind_of(out) == "pc2" else [])
+            if direct is None:
+                result[out.name] = {p.name: p.read_bytes() for p in made}
+            else:
+                result[out.name] = {}
+                for p in made:
+                    with open(p, "rb") as fh:
+                        result[out.name][p.name] = hashlib.file_digest(fh, "sha256").hexdigest()
         return result
 
 

@@ -6,6 +6,7 @@ scheduler (Dask's `allowed-failures`); the jobs have no side effects, so running
 
 from __future__ import annotations
 
+import glob
 import hashlib
 import json
 import logging
@@ -16,8 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from puppet.batch import jobs, worker
-from puppet.batch.plan import EXPORT_KINDS, Output, chunks, load, output_key, output_names, select, \
-    up_to_date, write_outputs
+from puppet.batch.plan import EXPORT_KINDS, Output, chunks, drop_token, load, output_key, output_names, \
+    reach_token, select, up_to_date, write_outputs
 from puppet.errors import PuppetError
 
 SUFFIXES = {"export": (".jsonl",), "recognize": (".jsonl", ".csv", ".c3d", ".pc2"),
@@ -137,7 +138,12 @@ def run(action: str, selection: list[str], out_dir: Path, *, kinds: list[str] | 
     try:
         rep.workers = check_farm(client)
         client.register_plugin(worker.plugin())  # per-process caches, malloc and profiler settings
-        _submit_and_collect(client, todo, out_dir, chunk_frames, rep, tqdm, bar)
+        dest = reach_token(out_dir)
+        try:
+            _submit_and_collect(client, todo, out_dir, chunk_frames, rep, tqdm, bar, dest)
+        finally:
+            drop_token(out_dir, dest)
+            _remove_parts(out_dir, todo)
     finally:
         client.close()
         if cluster is not None:
@@ -155,7 +161,7 @@ def _store_spans_or_warn(rep: Report, library: str | None) -> None:
 
 
 def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_frames: int, rep: Report,
-                        tqdm: Any, show: bool) -> None:
+                        tqdm: Any, show: bool, dest: dict[str, str] | None = None) -> None:
     from dask.distributed import as_completed
 
     final: dict[Any, list[Output]] = {}
@@ -185,7 +191,7 @@ def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_fr
     for origin, group in together.items():
         key = "export-" + hashlib.sha256("".join(o.key for o in group).encode()).hexdigest()[:24]
         final[client.submit(jobs.export_outputs, group[0].item.files, origin,
-                            [(o.name, o.opts) for o in group], key=key)] = group
+                            [(o.name, o.opts) for o in group], dest, key=key)] = group
     rep.tasks = len(final) + len(helpers)
     with tqdm(total=rep.tasks, desc=f"batch on {rep.workers} workers", unit="task", file=sys.stderr,
               dynamic_ncols=True, disable=not show) as progress:
@@ -236,6 +242,17 @@ def store_spans(rep: Report, library: str | None) -> None:
     with Library(path) as lib:
         for digest, spans in rep.spans.items():
             rep.library_takes += lib.set_spans(digest, spans)
+
+
+def _remove_parts(out_dir: Path, todo: list[Output]) -> None:
+    """Half-written files a worker killed mid-write left beside the outputs (safefile's hidden
+    `.STEM.*.part*` names); the task ran again elsewhere and wrote the whole file."""
+    for o in todo:
+        for p in out_dir.glob(f".{glob.escape(Path(o.name).stem)}.*.part*"):
+            try:
+                p.unlink()
+            except OSError:
+                pass
 
 
 def _reason(err: BaseException, origin: str) -> str:

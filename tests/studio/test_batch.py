@@ -162,7 +162,46 @@ def test_worker_killed_mid_batch(farm: Farm, tmp_path: Path) -> None:
     assert "wrote 8 files" in stdout, stdout
     for t in takes:
         assert (out / (t.stem + ".pc2")).read_bytes() == replay_out(t, tmp_path / (t.stem + ".pc2")), t.stem
+    assert not [p.name for p in out.iterdir() if p.name.startswith(".") and ".part" in p.name]  # no half files
     farm.wait_for_workers(2)  # the nanny brought the killed worker back
+
+
+@pytest.fixture
+def in_this_process() -> Iterator[None]:
+    """Jobs run here (as on a worker) install the worker's caches: undone afterwards."""
+    from puppet import replay
+    from puppet.batch import worker
+
+    try:
+        yield
+    finally:
+        replay.use_loaders()
+        worker.clear()
+
+
+def test_a_worker_that_cannot_see_the_output_folder_sends_the_bytes(tmp_path: Path, in_this_process: None) -> None:
+    from puppet.batch import jobs
+    from puppet.batch.plan import reach_token, reachable
+
+    take = write_take(tmp_path / "s" / "far.jsonl", ticks=45, seed=12)
+    out = tmp_path / "out"
+    out.mkdir()
+    dest = reach_token(out)
+    assert reachable(dest) == out.resolve()
+    elsewhere = dict(dest, token="0" * 32)  # another machine's folder of the same name
+    assert reachable(elsewhere) is None
+    got = jobs.export_outputs({take.name: take.read_bytes()}, str(take),
+                              [("far.pc2", {"fps": None}), ("far.csv", {"fps": None})], elsewhere)
+    assert not (out / "far.pc2").exists()
+    for name in ("far.pc2", "far.csv"):
+        want = replay_out(take, tmp_path / name)
+        assert got[name][name] == want
+    assert got["far.pc2"]["far.obj"] == (tmp_path / "far.obj").read_bytes()
+    here = jobs.export_outputs({take.name: take.read_bytes()}, str(take), [("far.pc2", {"fps": None})], dest)
+    assert (out / "far.pc2").read_bytes() == got["far.pc2"]["far.pc2"]  # written in place
+    import hashlib
+
+    assert here["far.pc2"]["far.pc2"] == hashlib.sha256(got["far.pc2"]["far.pc2"]).hexdigest()
 
 
 def test_long_video_in_chunks_equals_single_export(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

@@ -18,9 +18,12 @@ from puppet.batch import worker
 
 @pytest.fixture(autouse=True)
 def empty_cache() -> Iterator[None]:
+    from puppet import replay
+
     worker.clear()
     yield
     worker.clear()
+    replay.use_loaders()
 
 
 class Loads:
