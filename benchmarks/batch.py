@@ -13,7 +13,7 @@ session, then share the time one process would get, and only the start-up saved 
 workers started in their own sessions (as on separate machines) each get a share. Read the CPU
 seconds for the work saved and the farm's 1 vs 2 workers for the parallel speed-up.
 
-Run:  nice .venv/bin/python benchmarks/batch.py [--takes 16] [--seconds 10] [--skip-mp4] [--json]
+Run:  nice .venv/bin/python benchmarks/batch.py [--face procedural] [--takes 16] [--seconds 10] [--skip-mp4] [--json]
 """
 
 from __future__ import annotations
