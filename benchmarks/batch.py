@@ -13,7 +13,7 @@ session, then share the time one process would get, and only the start-up saved 
 workers started in their own sessions (as on separate machines) each get a share. Read the CPU
 seconds for the work saved and the farm's 1 vs 2 workers for the parallel speed-up.
 
-Run:  nice .venv/bin/python benchmarks/batch.py [--takes 16] [--seconds 10] [--skip-mp4] [--json]
+Run:  nice .venv/bin/python benchmarks/batch.py [--face procedural] [--takes 16] [--seconds 10] [--skip-mp4] [--json]
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -183,9 +184,12 @@ def main() -> int:
     ap.add_argument("--repeats", type=int, default=2, help="PC2 and farm runs per side (best counts)")
     ap.add_argument("--skip-mp4", action="store_true")
     ap.add_argument("--farm-only", action="store_true", help="only the external scheduler's figures")
+    ap.add_argument("--face", default=None, help="the takes' face (--face spec; default: the default face, the scan)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
-    res: dict[str, float | int | str] = {"takes": a.takes, "seconds": a.seconds, "cores": os.cpu_count() or 1,
+    if a.face:
+        os.environ["PUPPET_FACE"] = a.face  # the takes record it; every export and worker replays it
+    res: dict[str, Any] = {"face": os.environ.get("PUPPET_FACE", "ict"), "takes": a.takes, "seconds": a.seconds, "cores": os.cpu_count() or 1,
                                          "load_before": os.getloadavg()[0]}
     with tempfile.TemporaryDirectory(prefix="puppet-bench-batch-") as tmp:
         d = Path(tmp)
@@ -207,6 +211,8 @@ def main() -> int:
             res["pc2_serial_s"], res["pc2_local_cluster_s"] = min(runs_s), min(runs_l)
             res["pc2_serial_cpu_s"], res["pc2_local_cluster_cpu_s"] = min(cpu_s), min(cpu_l)
             res["pc2_local_speedup"] = res["pc2_serial_s"] / res["pc2_local_cluster_s"]
+            res["pc2_runs"] = [[round(x, 1), round(y, 1)] for x, y in zip(runs_s, runs_l)]
+            res["pc2_runs_cpu"] = [[round(x, 1), round(y, 1)] for x, y in zip(cpu_s, cpu_l)]
             res["pc2_identical"] = same(d / "single", d / "local", ".pc2", takes)
             # a re-run with nothing changed
             res["pc2_rerun_s"] = timed(local[:-1])
@@ -238,6 +244,7 @@ def main() -> int:
                     farm.drop_worker(1)
             res["pc2_farm_1_worker_s"], res["pc2_farm_2_workers_s"] = min(one_w), min(two_w)
             res["pc2_farm_speedup"] = res["pc2_farm_1_worker_s"] / res["pc2_farm_2_workers_s"]
+            res["pc2_farm_runs"] = [[round(x, 1), round(y, 1)] for x, y in zip(one_w, two_w)]
             res["pc2_farm_identical"] = same(d / "single", d / "farm", ".pc2", takes)
             res["task_overhead_ms"] = overhead(farm.address) * 1e3
         finally:
@@ -247,13 +254,14 @@ def main() -> int:
         print(json.dumps(res))
         return 0
     n = a.takes
-    print(f"{n} takes of {a.seconds:g} s, {res['cores']} cores, load {res['load_before']:.1f} before, "
+    print(f"face {res['face']}: {n} takes of {a.seconds:g} s, {res['cores']} cores, load {res['load_before']:.1f} before, "
           f"{res['load_after']:.1f} after")
     if not a.farm_only:
         print(f"PC2  serial `puppet replay --out`: {res['pc2_serial_s']:.1f} s ({res['pc2_serial_cpu_s']:.1f} s CPU); "
               f"local cluster: {res['pc2_local_cluster_s']:.1f} s ({res['pc2_local_cluster_cpu_s']:.1f} s CPU) -> "
               f"{res['pc2_local_speedup']:.2f}x wall, {res['pc2_serial_cpu_s'] / res['pc2_local_cluster_cpu_s']:.2f}x "
               f"CPU ({res['pc2_identical']}/{n} byte-identical); re-run, nothing changed: {res['pc2_rerun_s']:.1f} s")
+        print(f"     each run, serial vs cluster: wall {res['pc2_runs']}, CPU {res['pc2_runs_cpu']}")
     if not a.skip_mp4 and not a.farm_only:
         print(f"MP4  serial: {res['mp4_serial_s']:.1f} s ({res['mp4_serial_cpu_s']:.1f} s CPU); local cluster: "
               f"{res['mp4_local_cluster_s']:.1f} s ({res['mp4_local_cluster_cpu_s']:.1f} s CPU) -> "
@@ -261,7 +269,7 @@ def main() -> int:
               f"{res['mp4_startup_one_export_s']:.1f} s, paid {n} times serially")
     print(f"PC2  external scheduler: 1 worker {res['pc2_farm_1_worker_s']:.1f} s, 2 workers "
           f"{res['pc2_farm_2_workers_s']:.1f} s -> {res['pc2_farm_speedup']:.2f}x ({res['pc2_farm_identical']}/{n} "
-          f"byte-identical)")
+          f"byte-identical); each run, 1 vs 2 workers: {res['pc2_farm_runs']}")
     print(f"scheduling: {res['task_overhead_ms']:.2f} ms per no-op task")
     return 0
 

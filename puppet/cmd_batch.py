@@ -81,7 +81,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"puppet: failed: {why}", file=sys.stderr)
     done = len({p.name for p in rep.written})
     print(f"puppet: batch {action}: wrote {done} files to {out}"
-          + (f" on {rep.workers} workers ({rep.tasks} tasks)" if rep.tasks else "")
+          + (f" on {rep.workers} workers ({rep.tasks} task{'' if rep.tasks == 1 else 's'})" if rep.tasks else "")
           + (f"; {len(rep.skipped)} outputs up to date, skipped" if rep.skipped else "")
+          + (f"; expressions stored for {rep.library_takes} library takes" if rep.library_takes else "")
           + (f"; {len(rep.failed)} inputs failed" if rep.failed else ""))
     return 2 if rep.failed else 0

@@ -53,6 +53,28 @@ class Performance:
         return self.ticks / self.rate
 
 
+_LOADERS: dict[str, Any] = {"load_face": load_face, "new_simulator": None}
+
+
+def use_loaders(load_face: Any = None, new_simulator: Any = None) -> None:
+    """How this process loads faces and makes a replay's simulator: `puppet.live.load_face` and
+    `sim.Simulator(model, frame_dt)` unless replaced (a batch worker keeps both between takes,
+    `puppet.batch.worker`); None restores the default."""
+    from puppet import live
+
+    _LOADERS["load_face"] = load_face or live.load_face
+    _LOADERS["new_simulator"] = new_simulator
+
+
+def _new_simulator(model: Any, frame_dt: float) -> Any:
+    make = _LOADERS["new_simulator"]
+    if make is not None:
+        return make(model, frame_dt)
+    import sim
+
+    return sim.Simulator(model, frame_dt)
+
+
 def face_for(session: Session | None, rig_path: str | None, face: str | None = None) -> Face:
     """The face a recording was made with: --rig, else the recorded rig path, else the recorded
     face (its --face spec and identity weights, puppet.faces), else the procedural face at the
@@ -60,6 +82,7 @@ def face_for(session: Session | None, rig_path: str | None, face: str | None = N
     (the motion will differ)."""
     from puppet.faces import recorded_face
 
+    load_face = _LOADERS["load_face"]
     if session is None:
         return load_face(rig_path, face=face)
     rig = session.header.get("rig") or {}  # checked by the reader: str path, int resolution 0..2
@@ -148,7 +171,7 @@ class Replayer:
         import sim
 
         self.perf = perf
-        self.sim = sim.Simulator(perf.face.model, 1.0 / perf.rate)
+        self.sim = _new_simulator(perf.face.model, 1.0 / perf.rate)
         self.control = sim.FaceControl(perf.face.model)
         self.state = perf.face.model.rest_state()
         self.tick = 0
@@ -161,9 +184,7 @@ class Replayer:
         if k >= self.perf.ticks:
             return
         if k in self.perf.restarts:  # as the restarted live program did: a fresh simulator at rest
-            import sim
-
-            self.sim = sim.Simulator(self.perf.face.model, 1.0 / self.perf.rate)
+            self.sim = _new_simulator(self.perf.face.model, 1.0 / self.perf.rate)
             self.state.assign(self.perf.face.model.rest_state())
         self.control.values[...] = self.perf.values[k]
         self.sim.step(self.state, self.control)

@@ -34,6 +34,9 @@ class JobFailed(Exception):
 @contextlib.contextmanager
 def _staged(files: dict[str, bytes], origin: str) -> Iterator[Path]:
     """The input files in a private folder; errors inside name `origin` instead of the copy."""
+    from puppet.batch import worker
+
+    worker.install()  # faces and simulators kept between this process's tasks (idempotent)
     quiet = io.StringIO()  # one progress bar, the client's: the single commands' bars and lines go here
     with tempfile.TemporaryDirectory(prefix="puppet-batch-") as tmp, contextlib.redirect_stderr(quiet):
         first = None
@@ -84,16 +87,45 @@ def _options(perf: Any, kind: str, opts: dict[str, Any]) -> Any:
 def export_take(files: dict[str, bytes], origin: str, outname: str, opts: dict[str, Any]) -> dict[str, bytes]:
     """One export of one take, as `puppet replay TAKE --out OUTNAME` writes it (render in this
     process: the cluster already keeps every core busy)."""
-    from puppet.export.runner import export, kind_of
+    return export_outputs(files, origin, [(outname, opts)])[outname]
 
+
+def export_outputs(files: dict[str, bytes], origin: str, outputs: list[tuple[str, dict[str, Any]]],
+                   dest: dict[str, str] | None = None) -> dict[str, dict[str, bytes | str]]:
+    """Several exports of one take ({output name: {file name: bytes}}), each as `puppet replay TAKE
+    --out NAME` writes it, the take simulated once for all of them (`export_together`). When this
+    process sees the client's output folder (`plan.reachable(dest)`), the files are written in place
+    (as `puppet replay --out` writes them) and only their SHA-256 digests travel back."""
+    import hashlib
+
+    from puppet.batch.plan import reachable
+    from puppet.export.runner import export_together, kind_of
+
+    direct = reachable(dest)
     with _staged(files, origin) as take:
-        out = take.parent / "out" / outname
-        out.parent.mkdir()
-        kind = kind_of(out)
         perf = _performance(take)
+        todo = []
+        for outname, opts in outputs:
+            if direct is not None:
+                out = direct / outname
+            else:
+                folder = take.parent / "out" / str(len(todo))
+                folder.mkdir(parents=True)
+                out = folder / outname
+            todo.append((out, _options(perf, kind_of(out), opts)))
         with contextlib.redirect_stdout(io.StringIO()):
-            export(perf, out, _options(perf, kind, opts))
-        return {p.name: p.read_bytes() for p in sorted(out.parent.iterdir()) if not p.name.startswith(".")}
+            export_together(perf, todo)
+        result: dict[str, dict[str, bytes | str]] = {}
+        for out, _ in todo:
+            made = [out] + ([out.with_suffix(".obj")] if kind_of(out) == "pc2" else [])
+            if direct is None:
+                result[out.name] = {p.name: p.read_bytes() for p in made}
+            else:
+                result[out.name] = {}
+                for p in made:
+                    with open(p, "rb") as fh:
+                        result[out.name][p.name] = hashlib.file_digest(fh, "sha256").hexdigest()
+        return result
 
 
 def mp4_frames(files: dict[str, bytes], origin: str, opts: dict[str, Any]) -> list[int]:

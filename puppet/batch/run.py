@@ -6,6 +6,9 @@ scheduler (Dask's `allowed-failures`); the jobs have no side effects, so running
 
 from __future__ import annotations
 
+import glob
+import hashlib
+import json
 import logging
 import os
 import sys
@@ -13,9 +16,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from puppet.batch import jobs
-from puppet.batch.plan import EXPORT_KINDS, Output, chunks, load, output_key, output_names, select, \
-    up_to_date, write_outputs
+from puppet.batch import jobs, worker
+from puppet.batch.plan import EXPORT_KINDS, Output, chunks, drop_token, load, output_key, output_names, \
+    reach_token, select, up_to_date, write_outputs
 from puppet.errors import PuppetError
 
 SUFFIXES = {"export": (".jsonl",), "recognize": (".jsonl", ".csv", ".c3d", ".pc2"),
@@ -30,6 +33,8 @@ class Report:
     failed: dict[str, str] = field(default_factory=dict)  # input path -> first reason
     workers: int = 0
     tasks: int = 0
+    spans: dict[str, list[tuple[float, float, str, float]]] = field(default_factory=dict)  # take hash -> spans
+    library_takes: int = 0  # library takes whose expression spans this batch stored
 
 
 def plan(action: str, selection: list[str], kinds: list[str], opts: dict[str, Any], library: str | None) -> list[Output]:
@@ -57,9 +62,12 @@ def connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
         except (OSError, TimeoutError) as err:
             raise PuppetError(f"cannot reach the Dask scheduler at {scheduler}: {err}") from err
         return client, None
+    import dask
+
     n = workers or max(1, os.cpu_count() or 1)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address="127.0.0.1:0", silence_logs=logging.CRITICAL)
+    with dask.config.set({"distributed.worker.profile.enabled": False}):  # no stack sampling in the tasks' way
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                               dashboard_address="127.0.0.1:0", silence_logs=logging.CRITICAL)
     return Client(cluster), cluster
 
 
@@ -116,34 +124,59 @@ def run(action: str, selection: list[str], out_dir: Path, *, kinds: list[str] | 
             rep.failed.setdefault(str(o.item.path), o.item.error)
         elif not force and up_to_date(out_dir, o):
             rep.skipped.append(o.name)
+            if o.action == "recognize" and o.item.path.suffix.lower() == ".jsonl":
+                try:
+                    _keep_spans(rep, o, (out_dir / o.name).read_bytes())
+                except OSError:
+                    pass
         else:
             todo.append(o)
     if not todo:
+        _store_spans_or_warn(rep, library)
         return rep
     client, cluster = connect(scheduler, workers)
     try:
         rep.workers = check_farm(client)
-        _submit_and_collect(client, todo, out_dir, chunk_frames, rep, tqdm, bar)
+        client.register_plugin(worker.plugin())  # per-process caches, malloc and profiler settings
+        dest = reach_token(out_dir)
+        try:
+            _submit_and_collect(client, todo, out_dir, chunk_frames, rep, tqdm, bar, dest)
+        finally:
+            drop_token(out_dir, dest)
+            _remove_parts(out_dir, todo)
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+    _store_spans_or_warn(rep, library)
     return rep
 
 
+def _store_spans_or_warn(rep: Report, library: str | None) -> None:
+    try:
+        store_spans(rep, library)
+    except Exception as err:  # the outputs are written; the library is an index of them
+        print(f"puppet: warning: the expressions were written but not stored in the take library: {err}",
+              file=sys.stderr)
+
+
 def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_frames: int, rep: Report,
-                        tqdm: Any, show: bool) -> None:
+                        tqdm: Any, show: bool, dest: dict[str, str] | None = None) -> None:
     from dask.distributed import as_completed
 
-    final: dict[Any, Output] = {}
+    final: dict[Any, list[Output]] = {}
     helpers: dict[Any, Output] = {}
-    fn = {"export": jobs.export_take, "fit": jobs.fit_capture, "recognize": jobs.recognize_input}
+    fn = {"fit": jobs.fit_capture, "recognize": jobs.recognize_input}
+    together: dict[str, list[Output]] = {}  # an input's exports: one task, one simulation
     for o in todo:
         tag = f"{o.name}-{o.key[:12]}"
         files, origin = o.item.files, str(o.item.path)
         ticks = _video_plan(o, chunk_frames) if o.action == "export" and o.name.endswith(".mp4") else None
         if ticks is None:
-            final[client.submit(fn[o.action], files, origin, o.name, o.opts, key=f"{o.action}-{tag}")] = o
+            if o.action == "export":
+                together.setdefault(origin, []).append(o)
+            else:
+                final[client.submit(fn[o.action], files, origin, o.name, o.opts, key=f"{o.action}-{tag}")] = [o]
             continue
         parts = chunks(len(ticks), chunk_frames)
         o.chunks = parts
@@ -153,28 +186,73 @@ def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_fr
                                 key=f"mp4-chunk-{k}-{tag}") for k, (a, b) in enumerate(parts)]
         for f in (ckpt, *pieces):
             helpers[f] = o
-        final[client.submit(jobs.mp4_join, o.name, origin, o.opts, *pieces, key=f"mp4-join-{tag}")] = o
+        fut = client.submit(jobs.mp4_join, o.name, origin, o.opts, *pieces, key=f"mp4-join-{tag}")
+        final[fut] = [o]
+    for origin, group in together.items():
+        key = "export-" + hashlib.sha256("".join(o.key for o in group).encode()).hexdigest()[:24]
+        final[client.submit(jobs.export_outputs, group[0].item.files, origin,
+                            [(o.name, o.opts) for o in group], dest, key=key)] = group
     rep.tasks = len(final) + len(helpers)
     with tqdm(total=rep.tasks, desc=f"batch on {rep.workers} workers", unit="task", file=sys.stderr,
               dynamic_ncols=True, disable=not show) as progress:
         for fut in as_completed(list(final) + list(helpers)):
             progress.update(1)
-            o = final.get(fut)
-            if o is None:
+            group = final.get(fut)
+            if group is None:
                 continue  # a chunk: its join collects it
-            origin = str(o.item.path)
+            origin = str(group[0].item.path)
             try:
-                files = fut.result()
+                result = fut.result()
             except Exception as err:  # the job's reason (or the worker's death, past the retries)
                 rep.failed.setdefault(origin, _reason(err, origin))
                 continue
             finally:
-                for h in [h for h, ho in helpers.items() if ho is o]:
+                for h in [h for h, ho in helpers.items() if any(ho is o for o in group)]:
                     del helpers[h]  # frees the chunks' frames on the workers
+            if fut.key.startswith("mp4-join-") or group[0].action != "export":
+                result = {group[0].name: result}
+            for o in group:
+                try:
+                    rep.written += write_outputs(out_dir, o, result[o.name])
+                except Exception as err:
+                    rep.failed.setdefault(origin, f"{out_dir}: cannot write {o.name}: {err}")
+                if o.action == "recognize" and o.item.path.suffix.lower() == ".jsonl":
+                    _keep_spans(rep, o, result[o.name][o.name])
+
+
+def _keep_spans(rep: Report, o: Output, text: bytes) -> None:
+    """The spans `puppet recognize --json` printed, as the library keeps them, by the take's hash."""
+    try:
+        spans = [(float(s["start"]), float(s["end"]), str(s["expression"]),
+                  float(s["scores"].get(s["expression"], 0.0))) for s in json.loads(text)]
+    except (ValueError, KeyError, TypeError, AttributeError):
+        return
+    rep.spans[hashlib.sha256(o.item.files[o.item.path.name]).hexdigest()] = spans
+
+
+def store_spans(rep: Report, library: str | None) -> None:
+    """Recognized expressions of takes the library knows (by content hash) go into it, as `puppet
+    takes check` would put them; no library (or none yet) is no error: the files are written."""
+    from puppet.library import library_path
+    from puppet.library.store import Library
+
+    path = library_path(library)
+    if not rep.spans or path is None or not path.exists():
+        return
+    with Library(path) as lib:
+        for digest, spans in rep.spans.items():
+            rep.library_takes += lib.set_spans(digest, spans)
+
+
+def _remove_parts(out_dir: Path, todo: list[Output]) -> None:
+    """Half-written files a worker killed mid-write left beside the outputs (safefile's hidden
+    `.STEM.*.part*` names); the task ran again elsewhere and wrote the whole file."""
+    for o in todo:
+        for p in out_dir.glob(f".{glob.escape(Path(o.name).stem)}.*.part*"):
             try:
-                rep.written += write_outputs(out_dir, o, files)
-            except Exception as err:
-                rep.failed.setdefault(origin, f"{out_dir}: cannot write {o.name}: {err}")
+                p.unlink()
+            except OSError:
+                pass
 
 
 def _reason(err: BaseException, origin: str) -> str:

@@ -13,6 +13,8 @@ Every export shows a tqdm progress bar and writes its frame rate explicitly."""
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,7 +22,7 @@ from typing import Any
 from tqdm import tqdm
 
 from puppet.errors import ConfigError, PuppetError
-from puppet.replay import Performance, frame_ticks, iter_frames
+from puppet.replay import Performance, Replayer, frame_ticks, iter_frames
 from safefile import atomic_dir, atomic_path, atomic_write
 
 
@@ -119,39 +121,102 @@ def _export_csv(perf: Performance, out: Path, kind: str, ticks: list[int], names
     return f"wrote {len(ticks)} frames at {opts.fps:g} fps to {out}"
 
 
-def _export_pc2(perf: Performance, out: Path, ticks: list[int], opts: ExportOptions) -> str:
+def _pc2_sink(perf: Performance, out: Path, opts: ExportOptions, stack: ExitStack) -> Callable[[Any], None]:
+    """Opens `out` (and its rest .obj beside it) for writing on `stack`; returns the per-frame add."""
     from puppet.export.pc2 import PC2Writer, write_obj
     from puppet.export.scan import posed, scan_dressing, write_scan_obj
+    from sim.face.turn import state_turn, turn_head, turn_weights
 
     model = perf.face.model
     obj = out.with_suffix(".obj")
     dressing = scan_dressing(model)  # the scanned head: the scan's own vertices and faces
     rest = model.rest if dressing is None else dressing.rest
-    with atomic_path(obj) as obj_tmp, atomic_path(out) as pc2_tmp:
-        note = (f"point cache: {out.name}, {opts.fps:g} fps, starts at frame {opts.start_frame:g}")
-        if dressing is None:
-            write_obj(obj_tmp, rest, model.triangles,
-                      f"facepuppet rest pose, {len(rest)} vertices in simulation order (cm, +Y up)\n{note}")
-        else:
-            write_scan_obj(obj_tmp, rest, f"facepuppet rest pose of the scanned head (ICT FaceKit topology), "
-                           f"{len(rest)} vertices in the scan's order (cm, +Y up)\n{note}")
-        w = PC2Writer(pc2_tmp, len(rest), start_frame=opts.start_frame, sampling=1.0)
-        from sim.face.turn import state_turn, turn_head, turn_weights
+    obj_tmp = stack.enter_context(atomic_path(obj))
+    pc2_tmp = stack.enter_context(atomic_path(out))
+    note = (f"point cache: {out.name}, {opts.fps:g} fps, starts at frame {opts.start_frame:g}")
+    if dressing is None:
+        write_obj(obj_tmp, rest, model.triangles,
+                  f"facepuppet rest pose, {len(rest)} vertices in simulation order (cm, +Y up)\n{note}")
+    else:
+        write_scan_obj(obj_tmp, rest, f"facepuppet rest pose of the scanned head (ICT FaceKit topology), "
+                       f"{len(rest)} vertices in the scan's order (cm, +Y up)\n{note}")
+    w = PC2Writer(pc2_tmp, len(rest), start_frame=opts.start_frame, sampling=1.0)
+    stack.callback(w.close)
+    weights = turn_weights(rest)
 
-        weights = turn_weights(rest)
-        try:
-            with _bar(len(ticks), out.name) as bar:
-                for _, _, state, _ in iter_frames(perf, ticks):
-                    if dressing is None:  # as drawn: the head turned on the neck
-                        w.add(turn_head(state.surface, weights, *state_turn(state)))
-                    else:
-                        w.add(posed(dressing, state))
-                    bar.update(1)
-        finally:
-            w.close()
-    return (f"wrote {len(ticks)} samples at {opts.fps:g} fps (start frame {opts.start_frame:g}) to {out} "
-            f"and the rest mesh to {obj}; in Blender: scene at {opts.fps:g} fps, Mesh Cache modifier "
-            "Time Mode Frame, Frame Start 1, Forward -Z, Up +Y (docs/live.md)")
+    def add(state: Any) -> None:
+        if dressing is None:  # as drawn: the head turned on the neck
+            w.add(turn_head(state.surface, weights, *state_turn(state)))
+        else:
+            w.add(posed(dressing, state))
+
+    return add
+
+
+def _pc2_summary(out: Path, n: int, opts: ExportOptions) -> str:
+    return (f"wrote {n} samples at {opts.fps:g} fps (start frame {opts.start_frame:g}) to {out} "
+            f"and the rest mesh to {out.with_suffix('.obj')}; in Blender: scene at {opts.fps:g} fps, Mesh Cache "
+            "modifier Time Mode Frame, Frame Start 1, Forward -Z, Up +Y (docs/live.md)")
+
+
+def _export_pc2(perf: Performance, out: Path, ticks: list[int], opts: ExportOptions) -> str:
+    with ExitStack() as stack:
+        add = _pc2_sink(perf, out, opts, stack)
+        with _bar(len(ticks), out.name) as bar:
+            for _, _, state, _ in iter_frames(perf, ticks):
+                add(state)
+                bar.update(1)
+    return _pc2_summary(out, len(ticks), opts)
+
+
+def export_together(perf: Performance, outputs: list[tuple[Path, ExportOptions]]) -> list[str]:
+    """Several exports of one performance, simulated once: each PC2 and MP4 output gets the state
+    of every frame it samples from one pass of the simulation (each at its own frame rate), written
+    exactly as `export` writes it alone (MP4 rendered in this process, `parallel` ignored); the other
+    kinds need no simulation and go through `export`. Returns the summaries in the given order."""
+    from puppet.export.video import DEFAULT_CRF, DEFAULT_PRESET, FrameSink
+
+    done: dict[int, str] = {}
+    shared: list[tuple[int, Path, str, ExportOptions]] = []
+    for i, (out, opts) in enumerate(outputs):
+        kind = kind_of(Path(out))
+        if kind in ("pc2", "mp4") and opts.sound is None:
+            shared.append((i, Path(out), kind, opts))
+        else:
+            done[i] = export(perf, out, opts)
+    if len(shared) == 1:
+        i, out, _, opts = shared[0]
+        done[i] = export(perf, out, opts)
+    elif shared:
+        with ExitStack() as stack:
+            plan: list[tuple[int, int, Callable[[Any], None]]] = []  # (tick, output, frame's add)
+            for i, out, kind, opts in shared:
+                if not out.parent.exists():
+                    raise ConfigError(f"{out}: folder {out.parent} does not exist")
+                ticks = frame_ticks(perf, opts.fps, opts.start, opts.end, opts.speed)
+                if kind == "pc2":
+                    add = _pc2_sink(perf, out, opts, stack)
+                    done[i] = _pc2_summary(out, len(ticks), opts)
+                    plan += [(k, i, add) for k in ticks]
+                    continue
+                crf = DEFAULT_CRF if opts.crf is None else opts.crf
+                if not (1 <= opts.supersample <= 4 and 0 <= crf <= 51):
+                    raise PuppetError(f"--supersample must be 1 to 4 and --crf 0 to 51 (got {opts.supersample}, "
+                                      f"{crf})")
+                target = stack.enter_context(atomic_path(out))
+                sink = FrameSink(perf.face.model, target, "mp4", opts.fps, opts.size, opts.view, opts.supersample,
+                                 opts.preset or DEFAULT_PRESET, crf)
+                stack.callback(sink.close)
+                frames = iter(range(len(ticks)))
+                plan += [(k, i, lambda st, s=sink, f=frames: s.add(next(f), st)) for k in ticks]
+                done[i] = (f"wrote {len(ticks)} frames at {opts.fps:g} fps ({opts.size[0]}x{opts.size[1]}, "
+                           f"view {opts.view}) to {out}")
+            plan.sort(key=lambda p: (p[0], p[1]))  # stable: each output's frames stay in order
+            rp = Replayer(perf)
+            for k, _, add in plan:
+                rp.seek(k)
+                add(rp.state)
+    return [done[i] for i in range(len(outputs))]
 
 
 def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], opts: ExportOptions) -> str:

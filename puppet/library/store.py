@@ -295,6 +295,18 @@ class Library:
             con.execute("UPDATE takes SET thumbnail = ?, analysed = 1 WHERE id = ?", (thumbnail, take_id))
             self._reindex(con, take_id)
 
+    def set_spans(self, digest: str, spans: list[tuple[float, float, str, float]]) -> int:
+        """Store the expression spans found in the take whose content hash is `digest` (every
+        registered copy of it; its thumbnail is left as it is); returns how many takes got them."""
+        with schema.write(self.con) as con:
+            ids = [r[0] for r in con.execute("SELECT id FROM takes WHERE hash = ?", (digest,))]
+            for take_id in ids:
+                con.execute("DELETE FROM spans WHERE take_id = ?", (take_id,))
+                con.executemany("INSERT INTO spans (take_id, start, end, expression, score) VALUES (?, ?, ?, ?, ?)",
+                                [(take_id, *s) for s in spans])
+                self._reindex(con, take_id)
+        return len(ids)
+
     def set_place(self, take_id: int, path: str | None, missing: bool) -> None:
         with schema.write(self.con) as con:
             if path is not None:

@@ -66,11 +66,43 @@ def test_export_through_the_farm_equals_replay(farm: Farm, tmp_path: Path, capsy
     assert main(["batch", "export", str(shoot), "--out", str(out), "--to", "pc2,csv",
                  "--scheduler", farm.address]) == 0
     line = capsys.readouterr().out
-    assert "4 outputs up to date" in line and "(2 tasks)" in line, line
+    assert "4 outputs up to date" in line and "(1 task)" in line, line
     for p in out.iterdir():
         if p.is_file():
             assert (p.stat().st_mtime_ns != stamps[p.name]) == p.name.startswith("take1."), p.name
     assert (out / "take1.pc2").read_bytes() == replay_out(takes[1], single / "take1.pc2")
+
+
+def _farm_counters(farm: Farm) -> dict[str, int]:
+    from puppet.batch.worker import counters
+
+    with farm.client() as c:
+        per_worker = c.run(counters)
+    return {k: sum(w[k] for w in per_worker.values()) for k in next(iter(per_worker.values()))}
+
+
+def test_one_simulation_for_pc2_and_mp4_equal_single_exports(farm: Farm, tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture) -> None:
+    import imageio.v2 as imageio
+
+    takes = [write_take(tmp_path / "s" / f"both{k}.jsonl", ticks=40, seed=30 + k) for k in range(3)]
+    out = tmp_path / "out"
+    out.mkdir()
+    before = _farm_counters(farm)
+    assert main(["batch", "export", str(tmp_path / "s"), "--out", str(out), "--to", "pc2,mp4", "--size", "160x96",
+                 "--scheduler", farm.address]) == 0
+    assert "(3 tasks)" in capsys.readouterr().out  # one task per take, for both formats
+    after = _farm_counters(farm)
+    assert after["simulator_copies"] - before["simulator_copies"] == 3  # one simulation per take
+    assert after["face_loads"] + after["face_hits"] - before["face_loads"] - before["face_hits"] == 3
+    assert after["simulators_built"] - before["simulators_built"] <= 2  # at most once per worker
+    for t in takes:
+        assert (out / (t.stem + ".pc2")).read_bytes() == replay_out(t, tmp_path / (t.stem + ".pc2"))
+        single = replay_out(t, tmp_path / (t.stem + ".mp4"), "--size", "160x96")
+        got = [f for f in imageio.get_reader(str(out / (t.stem + ".mp4")))]
+        want = [f for f in imageio.get_reader(str(tmp_path / (t.stem + ".mp4")))]
+        assert len(got) == len(want) == 20 and all(np.array_equal(g, w) for g, w in zip(got, want))
+        assert (out / (t.stem + ".mp4")).read_bytes() == single
 
 
 def test_library_query_selection_and_recognize(farm: Farm, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
@@ -87,7 +119,18 @@ def test_library_query_selection_and_recognize(farm: Farm, tmp_path: Path, capsy
     capsys.readouterr()
     assert sorted(p.name for p in out.iterdir() if p.is_file()) == ["bob.expressions.json"]
     assert main(["recognize", str(b), "--json"]) == 0
-    assert json.loads((out / "bob.expressions.json").read_text()) == json.loads(capsys.readouterr().out)
+    single = json.loads(capsys.readouterr().out)
+    assert single  # something was recognised
+    assert json.loads((out / "bob.expressions.json").read_text()) == single
+    # the library's takes get the spans, as `puppet takes check` would store them; ana's is untouched
+    with Library(lib) as library:
+        ids = {t["performer"]: t["id"] for t in library.search("")}
+        stored = library.get(ids["bob"])["expressions"]
+        assert library.get(ids["ana"])["expressions"] == []
+        assert [t["id"] for t in library.search(f"expression:{single[0]['expression']}")] == [ids["bob"]]
+    assert [(s["start"], s["end"], s["expression"]) for s in stored] == \
+        [(s["start"], s["end"], s["expression"]) for s in single]
+    assert all(s["score"] == w["scores"][w["expression"]] for s, w in zip(stored, single))
 
 
 KILL_TICKS = 420
@@ -119,7 +162,46 @@ def test_worker_killed_mid_batch(farm: Farm, tmp_path: Path) -> None:
     assert "wrote 8 files" in stdout, stdout
     for t in takes:
         assert (out / (t.stem + ".pc2")).read_bytes() == replay_out(t, tmp_path / (t.stem + ".pc2")), t.stem
+    assert not [p.name for p in out.iterdir() if p.name.startswith(".") and ".part" in p.name]  # no half files
     farm.wait_for_workers(2)  # the nanny brought the killed worker back
+
+
+@pytest.fixture
+def in_this_process() -> Iterator[None]:
+    """Jobs run here (as on a worker) install the worker's caches: undone afterwards."""
+    from puppet import replay
+    from puppet.batch import worker
+
+    try:
+        yield
+    finally:
+        replay.use_loaders()
+        worker.clear()
+
+
+def test_a_worker_that_cannot_see_the_output_folder_sends_the_bytes(tmp_path: Path, in_this_process: None) -> None:
+    from puppet.batch import jobs
+    from puppet.batch.plan import reach_token, reachable
+
+    take = write_take(tmp_path / "s" / "far.jsonl", ticks=45, seed=12)
+    out = tmp_path / "out"
+    out.mkdir()
+    dest = reach_token(out)
+    assert reachable(dest) == out.resolve()
+    elsewhere = dict(dest, token="0" * 32)  # another machine's folder of the same name
+    assert reachable(elsewhere) is None
+    got = jobs.export_outputs({take.name: take.read_bytes()}, str(take),
+                              [("far.pc2", {"fps": None}), ("far.csv", {"fps": None})], elsewhere)
+    assert not (out / "far.pc2").exists()
+    for name in ("far.pc2", "far.csv"):
+        want = replay_out(take, tmp_path / name)
+        assert got[name][name] == want
+    assert got["far.pc2"]["far.obj"] == (tmp_path / "far.obj").read_bytes()
+    here = jobs.export_outputs({take.name: take.read_bytes()}, str(take), [("far.pc2", {"fps": None})], dest)
+    assert (out / "far.pc2").read_bytes() == got["far.pc2"]["far.pc2"]  # written in place
+    import hashlib
+
+    assert here["far.pc2"]["far.pc2"] == hashlib.sha256(got["far.pc2"]["far.pc2"]).hexdigest()
 
 
 def test_long_video_in_chunks_equals_single_export(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

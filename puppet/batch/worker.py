@@ -1,0 +1,143 @@
+"""What a batch worker process keeps between tasks, and how it is set up.
+
+A worker runs many takes of the same few faces. Loading a face and preparing its simulator (the
+scanned head's implicit integrator factorises a 6,020-vertex system and finds its lid and lip
+contact pairs: about a second) would otherwise be paid by every task. Here each process keeps:
+
+- the faces it loaded, keyed by what names them exactly: a rig file by its resolved path *and* the
+  SHA-256 of its bytes, a built-in face by its kind, spec text, resolution and identity weights'
+  bytes. Another identity or an edited rig file is another key, so it is never served a wrong model;
+- one freshly built simulator per (face model, frame step), never stepped: each replay gets a deep
+  copy of it (milliseconds), so it starts from exactly the state a new simulator has.
+
+`BatchSetup` is the Dask worker plugin the batch client registers on every worker (local or on a
+farm): it undoes the Nanny's `MALLOC_TRIM_THRESHOLD_` (which makes glibc return and re-map the
+simulation's ~150 KB scratch arrays on every step, about 40 % more CPU per take in system time)
+and installs the caches above in `puppet.replay`. Tasks run one at a time per process
+(`--nthreads 1`), so the caches need no locks."""
+
+from __future__ import annotations
+
+import copy
+import ctypes
+import ctypes.util
+import hashlib
+from collections import OrderedDict
+from pathlib import Path
+from typing import Any
+
+#: faces kept per process (a scanned head's model is ~100 MB; a batch rarely mixes more faces)
+MAX_FACES = 3
+#: glibc mallopt parameters and the values set: large scratch arrays stay in the heap
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
+TRIM_BYTES, MMAP_BYTES = 64 << 20, 32 << 20
+
+_faces: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
+_simulators: dict[tuple[Any, ...], tuple[Any, Any]] = {}  # key -> (model kept alive, pristine simulator)
+stats = {"face_loads": 0, "face_hits": 0, "simulators_built": 0, "simulator_copies": 0}
+
+
+def face_key(rig_path: str | None, resolution: int, face: Any) -> tuple[Any, ...]:
+    """What exactly names the face `puppet.live.load_face(rig_path, resolution, face)` returns."""
+    if rig_path:
+        p = Path(rig_path)
+        try:
+            digest = hashlib.sha256(p.read_bytes()).hexdigest()
+        except OSError:
+            digest = None  # load_face reports it; never cached (below)
+        return ("rig", str(p.resolve()), digest)
+    from puppet.faces import FaceChoice, parse_face
+
+    choice = face if isinstance(face, FaceChoice) else parse_face(face, resolution)
+    return ("face", choice.kind, choice.spec, choice.resolution, choice.weights.astype("<f8").tobytes())
+
+
+def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None) -> Any:
+    """`puppet.live.load_face`, remembered per process under `face_key`."""
+    from puppet import live
+
+    key = face_key(rig_path, resolution, face)
+    if key[0] == "rig" and key[2] is None:
+        return live.load_face(rig_path, resolution, face)
+    hit = _faces.get(key)
+    if hit is not None:
+        _faces.move_to_end(key)
+        stats["face_hits"] += 1
+        return hit
+    loaded = live.load_face(rig_path, resolution, face)
+    stats["face_loads"] += 1
+    _faces[key] = loaded
+    while len(_faces) > MAX_FACES:
+        _, old = _faces.popitem(last=False)
+        for k in [k for k, (m, _) in _simulators.items() if m is old.model]:
+            del _simulators[k]
+    return loaded
+
+
+def new_simulator(model: Any, frame_dt: float) -> Any:
+    """A simulator for `model` as `sim.Simulator(model, frame_dt)` builds it: a copy of one built
+    once per process (the model itself shared, read-only)."""
+    import sim
+
+    key = (id(model), getattr(model, "hash", None), float(frame_dt))
+    entry = _simulators.get(key)
+    if entry is None or entry[0] is not model:
+        entry = (model, sim.Simulator(model, frame_dt))
+        _simulators[key] = entry
+        stats["simulators_built"] += 1
+    stats["simulator_copies"] += 1
+    return copy.deepcopy(entry[1], {id(model): model})
+
+
+def tune_malloc() -> bool:
+    """Fixed, generous glibc trim and mmap thresholds (True when set; False off glibc)."""
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):
+        return False
+    return bool(mallopt(M_MMAP_THRESHOLD, MMAP_BYTES)) and bool(mallopt(M_TRIM_THRESHOLD, TRIM_BYTES))
+
+
+def install() -> None:
+    """This process replays through the caches above (idempotent)."""
+    from puppet import replay
+
+    tune_malloc()
+    replay.use_loaders(load_face=load_face, new_simulator=new_simulator)
+
+
+def clear() -> None:
+    _faces.clear()
+    _simulators.clear()
+
+
+def _plugin_class() -> Any:
+    from dask.distributed import WorkerPlugin
+
+    class BatchSetup(WorkerPlugin):
+        """Registered by the batch client on every worker: `install()` in the worker's process."""
+
+        idempotent = True
+        name = "puppet-batch-setup"
+
+        def setup(self, worker: Any) -> None:
+            install()
+            # the statistical profiler samples the task thread's stack every 10 ms (for the
+            # dashboard's profile page): GIL hand-offs in the middle of the simulation's steps
+            for name in ("profile", "profile-cycle"):
+                pc = getattr(worker, "periodic_callbacks", {}).get(name)
+                if pc is not None:
+                    pc.stop()
+
+    return BatchSetup
+
+
+def plugin() -> Any:
+    """A new BatchSetup worker plugin (dask imported only when a batch runs)."""
+    return _plugin_class()()
+
+
+def counters() -> dict[str, int]:
+    """This process's cache counters (a farm's client reads them with `Client.run`)."""
+    return dict(stats)
