@@ -40,6 +40,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from sim.antifold import FoldGuard
+from sim.antifold import warm_up as warm_up_folds
 from sim.build import FaceModel
 from sim.margin_contact import SolvedContact, margin_bending, solved_constraints, warm_up_solved
 from sim.numba_start import prepare_blas_check
@@ -168,6 +170,7 @@ def warm_up() -> None:
     one = np.ones(1)
     _pd_springs(y, np.array([[0, 1]], dtype=np.int32), one, one, one, 0.1, np.zeros_like(y))
     warm_up_solved()
+    warm_up_folds()
 
 
 class ImplicitStepper:
@@ -195,6 +198,8 @@ class ImplicitStepper:
         self.solver = PrefactoredSolver(a[self.free][:, self.free])
         cons = solved_constraints(model.mesh, model.rest)  # the lid and lip contact (sim.margin_contact)
         self.margins = SolvedContact(cons, self.free, n, self.solver.solve) if len(cons["idx"]) else None
+        # the skin's thickness against folding over (sim.antifold), on its predicted positions
+        self.folds = FoldGuard(self.rest, model.triangles, springs, np.asarray(model.spring_k_high))
         self._rhs = np.zeros((n, 3))
         self._y = np.zeros((n, 3))
         self._xf = np.zeros((len(self.free), 3))
@@ -223,6 +228,7 @@ class ImplicitStepper:
             self._rhs += ext
             self._rhs += self.damp_h[:, None] * x
             _pd_springs(self._y, idx, rest_len, k_low, k_high, thr, self._rhs)
+            self.folds.add_forces(self._y, self._rhs)
             ny = np.einsum("ij,ij->i", normal, self._y)
             self._rhs += self.kn[:, None] * (self._y - ny[:, None] * normal)
             if self.margins is not None:
