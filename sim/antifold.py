@@ -1,4 +1,4 @@
-"""Skin that does not turn over: a force that resists a triangle folding flat onto its neighbours.
+"""Skin with a thickness: it neither turns over nor buckles into ripples at the mesh's own scale.
 
 Real skin is a layer a millimetre or two thick over fat: pressed together it bunches into rounded
 furrows, it does not fold over itself at the scale of its own thickness. A spring network has no
@@ -21,14 +21,25 @@ The force is evaluated at the implicit integrator's predicted positions and adde
 side (not to its constant matrix), as a one-sided, stiffening contact is: `stiffness` per triangle
 is a fraction of its own edge springs' high-strain stiffness, which the matrix carries, so the
 explicit part stays well inside what the implicit springs damp.
+
+The second part, `skin_bending`, is what thickness does before anything folds: compressed skin a few
+millimetres thick bunches into broad rolls, while a spring net as fine as the scan's (2.8 mm edges)
+buckles into mesh-scale ripples (a smile crumpled the cheeks and the skin round the eyes). It is a
+constant, linear bending of the displacement from the rest shape, carried in the implicit
+integrator's matrix (so it is unconditionally stable), that costs next to nothing for the smooth
+fields every muscle makes and as much as an edge's stretch for a ripple one edge long.
 """
 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 FLOOR = 0.3  # projected area / rest area below which the term acts
 STRENGTH = 1.0  # stiffness per triangle, in its edge springs' mean high-strain stiffness
@@ -59,6 +70,7 @@ class FoldGuard:
         self.k = strength * _edge_stiffness(tri, springs, k_high)
         self.floor = float(floor)
 
+
     def add_forces(self, y: np.ndarray, out: np.ndarray) -> int:
         """Adds the term's forces at positions y (N,3) to out (N,3); the number of triangles acting."""
         return int(_fold_forces(y, self.tri, self.frame, self.dm_inv, self.area, self.k, self.floor, out))
@@ -75,6 +87,15 @@ def _edge_stiffness(tri: np.ndarray, springs: np.ndarray, k_high: np.ndarray) ->
     for t, (p, q, r) in enumerate(tri):
         ks = [lookup.get(min(u, v) * n + max(u, v), med) for u, v in ((p, q), (q, r), (r, p))]
         out[t] = sum(ks) / 3.0
+    return out
+
+
+def thin_skin(regions: dict[str, np.ndarray], n: int) -> np.ndarray:
+    """(n,) bool: the vertices of the regions named as lids or lips (thin skin that creases)."""
+    out = np.zeros(n, bool)
+    for name, mask in regions.items():
+        if "lid" in name or "lip" in name:
+            out |= np.asarray(mask, bool)
     return out
 
 
@@ -152,3 +173,33 @@ def warm_up() -> None:
     y = rest.copy()
     y[2, 1] = -0.5
     guard.add_forces(y, np.zeros_like(y))
+
+
+THIN_SMOOTHING = 0.2  # its share on thin skin (the lids, the lips: 0.5 mm against ~2 mm)
+
+
+def skin_bending(n: int, triangles: np.ndarray, k_high: np.ndarray, strength: float,
+                 thin: np.ndarray | None = None, thin_share: float = THIN_SMOOTHING) -> "sp.csr_matrix":
+    """(n, n) the skin's own bending for the implicit integrator's matrix: the energy
+    k_b/2 sum_i |u_i - mean_j u_j|^2 of the displacements u from the (jaw-turned) rest shape, the
+    mean over vertex i's neighbours along the triangles' edges (the umbrella operator; u - mean u is
+    the discrete Laplacian of the displacement, ~ its curvature times the edge length squared), k_b =
+    strength (SkinParams.skin_bending) times the median high-strain edge stiffness. A displacement
+    smooth over a few edges (every muscle's pull, a translation) costs next to nothing; one
+    alternating from vertex to vertex (the buckled ripples a fine spring net makes of compressed skin, which skin a few millimetres
+    thick does not) costs as much as stretching an edge. At `thin` (n,) bool vertices (the lids and
+    lips, whose thin skin creases) the term is `thin_share` as stiff."""
+    import scipy.sparse as sp
+
+    tri = np.asarray(triangles, np.int64)
+    i = np.concatenate([tri[:, 0], tri[:, 1], tri[:, 2], tri[:, 1], tri[:, 2], tri[:, 0]])
+    j = np.concatenate([tri[:, 1], tri[:, 2], tri[:, 0], tri[:, 0], tri[:, 1], tri[:, 2]])
+    adj = sp.coo_matrix((np.ones(len(i)), (i, j)), shape=(n, n)).tocsr()
+    adj.data[:] = 1.0
+    deg = np.asarray(adj.sum(axis=1)).ravel()
+    w = np.where(deg > 0, 1.0, 0.0)
+    if thin is not None:
+        w[np.asarray(thin, bool)] *= thin_share
+    lap = sp.eye(n, format="csr") - sp.diags(1.0 / np.maximum(deg, 1.0)) @ adj
+    kb = float(strength) * float(np.median(k_high))
+    return (kb * (lap.T @ sp.diags(w) @ lap)).tocsr()

@@ -19,7 +19,9 @@ real-time budget. Here each substep is one local/global iteration of projective 
 
 The matrix also carries a bending term along the lid and lip rows (`sim.margin_contact.
 margin_bending`, K_b (x' - rest shape) with the rest shape turned with the jaw): a fine mesh's
-pressed margin buckles into an alternating zig-zag without it. RK2 has no such term, so apart from it
+pressed margin buckles into an alternating zig-zag without it; and the skin's own bending and its
+guard against turning over (`sim.antifold`: the first in the matrix, the second on the right-hand
+side, zero unless a triangle nears folding flat). RK2 has no such terms, so apart from them
 (and from contact) the global equation at rest (x' = x = y) is exactly the force balance RK2 settles
 to, and a settled pose is the same equilibrium; only the transient differs (implicit Euler damps fast
 modes; the axial spring damping is left out, implicit Euler's own dissipation replaces it).
@@ -40,7 +42,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from sim.antifold import FoldGuard
+from sim.antifold import FoldGuard, skin_bending, thin_skin
 from sim.antifold import warm_up as warm_up_folds
 from sim.build import FaceModel
 from sim.margin_contact import SolvedContact, margin_bending, solved_constraints, warm_up_solved
@@ -192,6 +194,9 @@ class ImplicitStepper:
         self._bend_rhs = np.zeros((n, 3))
         self.bend = margin_bending(model.mesh, model.rest, springs, np.asarray(model.spring_k_high),
                                    model.params.lid_bending, model.params.lip_bending)
+        if model.params.skin_bending:
+            self.bend = self.bend + skin_bending(n, model.triangles, np.asarray(model.spring_k_high),
+                                                 model.params.skin_bending, thin_skin(model.mesh.regions, n))
         a = (laplacian(n, springs, np.asarray(model.spring_k_high)) + self.bend
              + sp.diags(self.mass_h2 + self.damp_h + np.asarray(model.rest_stiffness) + self.kn)).tocsr()
         self.a_fh = a[self.free][:, self.held].tocsr()
