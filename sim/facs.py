@@ -2,7 +2,8 @@
 
 AU -> muscles after the AU/muscle table in peers-facs-formats.md section D.2 (AU18 incisivus; AU22
 both lips everted by the pars peripheralis, just parted; AU28 both lips rolled in; AU29 jaw thrust;
-AU33 cheek blow, AU34 puff with the lips sealed; AU19 tongue show; AU30, the jaw sideways, is the
+AU33 cheek blow, AU34 puff with the lips sealed; AU19 tongue show, with the lips parted and the
+jaw dropped a little, as it cannot show otherwise; AU30, the jaw sideways, is the
 signed channel jaw_sideways, set directly, since a side's AU cannot lower a value); expressions after
 section D.1 (EMFACS-style combinations); AU5 (upper lid raiser) is the levator palpebrae, a lid
 muscle rather than a skin one, given its own channel. Fear has it (1+2+4+5+20+26); surprise leaves
@@ -47,7 +48,7 @@ _BASE: dict[str, dict[str, float]] = {
     "AU26": {"jaw": 0.5},
     "AU27": {"jaw": 1.0},
     "AU18": {"incisivus": 1.0},
-    "AU19": {"tongue_out": 1.0},
+    "AU19": {"tongue_out": 1.0, "jaw": 0.35, **_both("depressor_labii", 0.4)},
     "AU22": {"orbicularis_oris_peripheralis_upper": 1.0, "orbicularis_oris_peripheralis_lower": 1.0,
              "jaw": 0.05},
     "AU28": {"orbicularis_oris_marginalis_upper": 1.0, "orbicularis_oris_marginalis_lower": 1.0},

@@ -254,3 +254,29 @@ def test_a_replay_gives_the_same_bits(model) -> None:  # type: ignore[no-untyped
         return state.positions.copy()
 
     assert run().tobytes() == run().tobytes()
+
+
+def test_tongue_out_shows_the_tongue_between_the_lips(model) -> None:  # type: ignore[no-untyped-def]
+    """AU19: the tongue's tip comes out past the lips, between the upper and the lower lip (not
+    through either), and its root stays; with the channel at 0 the tongue rests with the jaw."""
+    dressing = dressing_for(model)
+    c = FaceControl()
+    apply_au(c, "AU19", 1.0)
+    pos = _settle(model, c)
+    posed = dressing.pose(pos, c).astype(np.float64)
+    lm = model.mesh.landmarks
+    upper, lower = pos[lm["upper_lip_center"]], pos[lm["lower_lip_center"]]
+    tongue = posed[dressing.tongue_idx]
+    assert tongue[:, 2].max() > max(upper[2], lower[2]) + 0.5  # 5 mm and more past the lips
+    out = tongue[(tongue[:, 2] > max(upper[2], lower[2])) & (np.abs(tongue[:, 0]) < 0.5)]  # mid-mouth
+    assert len(out) and (out[:, 1] < upper[1]).all() and (out[:, 1] > lower[1]).all()
+    still = dressing.pose(pos, _jaw_only(c)).astype(np.float64)[dressing.tongue_idx]
+    root = dressing.tongue_w == 0.0
+    assert root.any() and np.abs(tongue[root] - still[root]).max() < 1e-6
+    assert still[:, 2].max() < min(upper[2], lower[2]) - 0.5  # without the channel it stays inside
+
+
+def _jaw_only(c: FaceControl) -> FaceControl:
+    out = FaceControl()
+    out.set("jaw", c.get("jaw"))
+    return out
