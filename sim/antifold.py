@@ -180,15 +180,15 @@ THIN_SMOOTHING = 0.2  # its share on thin skin (the lids, the lips: 0.5 mm again
 
 def skin_bending(n: int, triangles: np.ndarray, k_high: np.ndarray, strength: float,
                  thin: np.ndarray | None = None, thin_share: float = THIN_SMOOTHING) -> "sp.csr_matrix":
-    """(n, n) the skin's own bending for the implicit integrator's matrix: the energy
-    k_b/2 sum_i |u_i - mean_j u_j|^2 of the displacements u from the (jaw-turned) rest shape, the
-    mean over vertex i's neighbours along the triangles' edges (the umbrella operator; u - mean u is
-    the discrete Laplacian of the displacement, ~ its curvature times the edge length squared), k_b =
-    strength (SkinParams.skin_bending) times the median high-strain edge stiffness. A displacement
-    smooth over a few edges (every muscle's pull, a translation) costs next to nothing; one
-    alternating from vertex to vertex (the buckled ripples a fine spring net makes of compressed skin, which skin a few millimetres
-    thick does not) costs as much as stretching an edge. At `thin` (n,) bool vertices (the lids and
-    lips, whose thin skin creases) the term is `thin_share` as stiff."""
+    """(n, n) the skin's own bending for the implicit integrator's matrix: the energy k_b/2 sum_i |u_i -
+    mean_j u_j|^2 of the displacements u from the (jaw-turned) rest shape, the mean over vertex i's
+    neighbours along the triangles' edges (the umbrella operator; u - mean u is the discrete
+    Laplacian of the displacement, ~ its curvature times the edge length squared), k_b = strength
+    (SkinParams.skin_bending) times the median high-strain edge stiffness. A displacement smooth
+    over a few edges (every muscle's pull, a translation) costs next to nothing; one alternating
+    from vertex to vertex (the buckled ripples a fine spring net makes of compressed skin, which
+    skin a few millimetres thick does not) costs as much as stretching an edge. At `thin` (n,) bool
+    vertices (the lids and lips, whose thin skin creases) the term is `thin_share` as stiff."""
     import scipy.sparse as sp
 
     tri = np.asarray(triangles, np.int64)

@@ -319,7 +319,8 @@ def build_dressing(model: Any) -> ScanDressing | None:
     height = _smoothstep((occlusal + 0.4 - rest[gums, 1]) / 0.8)
     gum_w = np.where(np.minimum(du, dl) < 0.4, (dl < du).astype(float), height)
     arch = np.abs(rest[gums, 0]) < 0.8 * np.abs(rest[lower, 0]).max()
-    is_tongue = (np.minimum(du, dl) > 0.3) & (rest[gums, 1] < occlusal) & (rest[gums, 1] > occlusal - TONGUE_FLOOR) & arch
+    below = (rest[gums, 1] < occlusal) & (rest[gums, 1] > occlusal - TONGUE_FLOOR)
+    is_tongue = (np.minimum(du, dl) > 0.3) & below & arch
     tongue_idx = gums[is_tongue]
     tongue_w = _smoothstep((rest[tongue_idx, 2] - TONGUE_ROOT) / (TONGUE_TIP - TONGUE_ROOT))
     gum_w[is_tongue] = 1.0  # the tongue rides on the floor of the mouth: wholly with the jaw
