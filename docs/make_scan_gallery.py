@@ -5,7 +5,7 @@ camera, same light, same renderer), the neutral pair, and three identities.
 The scan's shapes stand for the presets' action units at the presets' own intensities (sim.facs):
 AU1 browInnerUp, AU2 browOuterUp, AU4 browDown, AU5 eyeWide, AU6 cheekRaiser, AU7 eyeSquint,
 AU9 noseSneer, AU10 mouthUpperUp, AU12 mouthSmile, AU14 mouthDimple, AU15 mouthFrown,
-AU17 mouthShrugLower, AU20 mouthStretch, AU23 mouthPress, AU26 jawOpen at half the AU's intensity
+AU17 mouthShrugLower, AU20 mouthStretch, AU23 mouthPress, AU43 eyeBlink, AU26 jawOpen at half the AU's intensity
 (the shape is the jaw wide open, AU27); both sides unless the AU names one (AU12_R: the _R shape).
 Run: .venv/bin/python docs/make_scan_gallery.py [--size 480x480]
 """
@@ -27,7 +27,7 @@ AU_SHAPES = {
     "AU1": "browInnerUp", "AU2": "browOuterUp", "AU4": "browDown", "AU5": "eyeWide", "AU6": "cheekRaiser",
     "AU7": "eyeSquint", "AU9": "noseSneer", "AU10": "mouthUpperUp", "AU12": "mouthSmile", "AU14": "mouthDimple",
     "AU15": "mouthFrown", "AU16": "mouthLowerDown", "AU17": "mouthShrugLower", "AU20": "mouthStretch",
-    "AU23": "mouthPress", "AU24": "mouthPress", "AU26": "jawOpen",
+    "AU23": "mouthPress", "AU24": "mouthPress", "AU26": "jawOpen", "AU43": "eyeBlink",
 }
 
 

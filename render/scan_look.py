@@ -321,6 +321,9 @@ class ScanLook:
         # the tongue is the middle of the floor; the gums are the rest of that part
         mid = (np.abs(rest[a:b, 0]) < 2.2) & (rest[a:b, 1] < rest[a:b, 1].min() + 2.4)
         alb[a:b] = np.where(mid[:, None], TONGUE, GUMS)
+        # the tongue's front comes out between the lips (tongue_out): less of the mouth's shade on it
+        tip = mid & (rest[a:b, 2] > z_front - 3.0)
+        ao[a:b][tip] = np.exp(-np.clip(z_front - rest[a:b, 2][tip], 0.0, None) / 2.5)
         spec[a:b] = 0.25
         a, b = PARTS["teeth"]
         alb[a:b] = TEETH

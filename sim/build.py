@@ -68,6 +68,9 @@ class SkinParams:
                     otherwise buckles into a zig-zag. The lids' is the stiffer (their margins are
                     the tarsal plates); the lips' also resists the lip line's bending as the mouth
                     opens (AU27 at 3k vertices: 45.5 mm at 0, 45.1 at 1, 44.6 at 2).
+    skin_bending:   the skin's own bending about its rest shape, relative to the median edge spring
+                    (`sim.antifold.skin_bending`; the implicit integrator only, 0 turns it off): a
+                    fine mesh's compressed skin otherwise buckles into mesh-scale ripples.
     """
 
     areal_density: float = 0.3
@@ -89,6 +92,7 @@ class SkinParams:
     jaw_slide_angle: float = 0.6
     lid_bending: float = 3.0
     lip_bending: float = 1.0
+    skin_bending: float = 0.5
 
 
 @dataclass(frozen=True, eq=False)

@@ -2,13 +2,16 @@
 
 AU -> muscles after the AU/muscle table in peers-facs-formats.md section D.2 (AU18 incisivus; AU22
 both lips everted by the pars peripheralis, just parted; AU28 both lips rolled in; AU29 jaw thrust;
-AU33 cheek blow, AU34 puff with the lips sealed; AU19 tongue show; AU30, the jaw sideways, is the
-signed channel jaw_sideways, set directly, since a side's AU cannot lower a value); expressions after
-section D.1 (EMFACS-style combinations); AU5 (upper lid raiser) is the levator palpebrae, a lid
-muscle rather than a skin one, given its own channel. Fear has it (1+2+4+5+20+26); surprise leaves
-out the slight 5B FACS gives it, because this face's 1+2 already lifts the upper lid margin 8-10 mm
-with the brows. A side suffix restricts a bilateral AU to one side of
-the face: "AU12_L" (the face's own left) or "AU12_R".
+AU33 cheek blow, AU34 puff with the lips sealed; AU19 tongue show, with the lips parted and the jaw
+dropped a little, as it cannot show otherwise; AU30, the jaw sideways, is the signed channel
+jaw_sideways, set directly, since a side's AU cannot lower a value); expressions after section D.1
+(EMFACS-style combinations; sadness as 1+4+15+17 with the lids drooping (AU41, here a light AU43):
+the scanned head's frontalis lifts the upper lids with the brows, which read as surprise without it;
+anger as the glare 4+5+7+23, the lids tightened, not shut); AU5 (upper lid raiser) is the levator
+palpebrae, a lid muscle rather than a skin one, given its own channel. Fear has it (1+2+4+5+20+26);
+surprise leaves out the slight 5B FACS gives it, because this face's 1+2 already lifts the upper lid
+margin 8-10 mm with the brows. A side suffix restricts a bilateral AU to one side of the face:
+"AU12_L" (the face's own left) or "AU12_R".
 
 Combination rule: applying an AU sets each of its channels to max(current, weight * intensity), so
 presets and AUs that share a muscle do not add up beyond what either asks for.
@@ -47,7 +50,7 @@ _BASE: dict[str, dict[str, float]] = {
     "AU26": {"jaw": 0.5},
     "AU27": {"jaw": 1.0},
     "AU18": {"incisivus": 1.0},
-    "AU19": {"tongue_out": 1.0},
+    "AU19": {"tongue_out": 1.0, "jaw": 0.35, **_both("depressor_labii", 0.4)},
     "AU22": {"orbicularis_oris_peripheralis_upper": 1.0, "orbicularis_oris_peripheralis_lower": 1.0,
              "jaw": 0.05},
     "AU28": {"orbicularis_oris_marginalis_upper": 1.0, "orbicularis_oris_marginalis_lower": 1.0},
@@ -74,10 +77,10 @@ AU_TABLE: dict[str, dict[str, float]] = _sided(_BASE)
 
 EXPRESSIONS: dict[str, dict[str, float]] = {
     "happiness": {"AU6": 0.6, "AU12": 1.0},
-    "sadness": {"AU1": 1.0, "AU4": 0.15, "AU15": 1.0},
+    "sadness": {"AU1": 1.0, "AU4": 0.1, "AU15": 1.0, "AU17": 0.5, "AU43": 0.3},
     "surprise": {"AU1": 1.0, "AU2": 1.0, "AU26": 0.8},
-    "fear": {"AU1": 1.0, "AU2": 0.15, "AU4": 0.5, "AU5": 1.0, "AU20": 1.0, "AU26": 0.5},
-    "anger": {"AU4": 1.0, "AU7": 1.0, "AU23": 1.0},
+    "fear": {"AU1": 1.0, "AU2": 0.15, "AU4": 0.6, "AU5": 0.8, "AU20": 1.0, "AU26": 0.5},
+    "anger": {"AU4": 1.0, "AU5": 0.3, "AU7": 0.6, "AU23": 1.0},
     "disgust": {"AU9": 0.85, "AU10": 0.85, "AU4": 0.4, "AU17": 0.4},
     "contempt": {"AU12_R": 0.6, "AU14_R": 0.6},
 }

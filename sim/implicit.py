@@ -19,7 +19,9 @@ real-time budget. Here each substep is one local/global iteration of projective 
 
 The matrix also carries a bending term along the lid and lip rows (`sim.margin_contact.
 margin_bending`, K_b (x' - rest shape) with the rest shape turned with the jaw): a fine mesh's
-pressed margin buckles into an alternating zig-zag without it. RK2 has no such term, so apart from it
+pressed margin buckles into an alternating zig-zag without it; and the skin's own bending and its
+guard against turning over (`sim.antifold`: the first in the matrix, the second on the right-hand
+side, zero unless a triangle nears folding flat). RK2 has no such terms, so apart from them
 (and from contact) the global equation at rest (x' = x = y) is exactly the force balance RK2 settles
 to, and a settled pose is the same equilibrium; only the transient differs (implicit Euler damps fast
 modes; the axial spring damping is left out, implicit Euler's own dissipation replaces it).
@@ -39,6 +41,8 @@ from typing import TYPE_CHECKING
 import numba
 import numpy as np
 
+from sim.antifold import FoldGuard, _fold_forces, skin_bending, thin_skin
+from sim.antifold import warm_up as warm_up_folds
 from sim.build import FaceModel
 from sim.integrator import _eye_contact
 from sim.margin_contact import (SolvedContact, _contact_force, _contact_resolve, _repair, margin_bending,
@@ -218,11 +222,11 @@ def _frame(x, v, n_sub, h, ext, springs, rest_len, k_low, k_high, thr, normal, k
            free, held, fh_ptr, fh_idx, fh_val, perm_r, perm_c, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_diag,
            c_idx, c_w, c_sg, c_dim, c_opp, c_row_ptr, c_row_v, c_lam, c_loc, c_green, c_gptr, c_gvert, c_gval,
            c_work, c_cand, c_schur, c_df, rounds, sweeps, eye_idx, eye_of, centres, radius,
-           y, rhs, xh, held_term, ys, xf_old):
+           f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, rhs, xh, held_term, ys, xf_old):
     """The n_sub substeps of one frame in place on x, v (ImplicitStepper.frame; the module
     docstring): per substep the predicted positions y, the right-hand side (inertia, the frame's
     constant forces, damping, the springs' local step, the normal support, the last contact forces),
-    the prefactored solve, the lid and lip contact (sim.margin_contact.SolvedContact), v = (x' - x)
+    the skin's guard against turning over (sim.antifold), the prefactored solve, the lid and lip contact (sim.margin_contact.SolvedContact), v = (x' - x)
     / h and the eyeball contact. The arithmetic is the same, operation for operation, as the numpy
     expressions it replaces, so the bits are too."""
     n = x.shape[0]
@@ -243,6 +247,7 @@ def _frame(x, v, n_sub, h, ext, springs, rest_len, k_low, k_high, thr, normal, k
             for d in range(3):
                 rhs[i, d] = m * y[i, d] + ext[i, d] + c * x[i, d]
         _pd_springs(y, springs, rest_len, k_low, k_high, thr, rhs)
+        _fold_forces(y, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, rhs)
         for i in range(n):  # the support k_n n n^T: k_n (y - n (n . y)) on the right
             # n . y summed in the order numpy's einsum took (SSE2 pairs: the x and z terms first),
             # so the steps keep the bits of takes recorded before this kernel
@@ -283,6 +288,7 @@ def warm_up() -> None:
     a = sp.csc_matrix(np.array([[2.0, -1.0], [-1.0, 2.0]]))
     PrefactoredSolver(a).solve(np.ones((2, 3)), np.zeros((2, 3)))
     warm_up_solved()
+    warm_up_folds()
     x = np.array([[0.0, 0.0, 0.0], [1.1, 0.0, 0.0], [0.5, 1.0, 0.0]])
     stepper = ImplicitStepper.__new__(ImplicitStepper)
     one = np.ones(3)
@@ -291,6 +297,7 @@ def warm_up() -> None:
                 damp_h=one.copy(), kn=one.copy(), h=np.array(0.01))
     prep.update(_sparse("fh", sp.csr_matrix(np.ones((2, 1)))))
     prep.update(_sparse("bend", sp.csr_matrix((3, 3))))
+    prep.update(_fold_arrays(FoldGuard(x, np.array([[0, 1, 2]]), springs, one[:2])))
     prep.update({"lu_" + k: val for k, val in PrefactoredSolver(sp.csc_matrix(np.array([[3.0, -1.0], [-1.0, 3.0]]))).arrays.items()})
     cons = dict(idx=np.array([[1, 0, 2]]), w=np.array([0.5]), sg=np.array([[1.0, 0.0, 1.0, 1.0]]),
                 dim=np.array([1]), opp=np.array([0]), row_ptr=np.array([0, 2]), row_v=np.array([0, 2]))
@@ -311,6 +318,13 @@ def _sparse(name: str, m: sp.spmatrix) -> dict[str, np.ndarray]:
             name + "_val": np.asarray(m.data, dtype=np.float64)}
 
 
+def _fold_arrays(guard: FoldGuard) -> dict[str, np.ndarray]:
+    """A FoldGuard's per-triangle data as prepared arrays (fold_*)."""
+    return dict(fold_tri=np.ascontiguousarray(guard.tri, dtype=np.int64), fold_frame=guard.frame,
+                fold_dm_inv=guard.dm_inv, fold_area=np.asarray(guard.area, dtype=np.float64),
+                fold_k=np.asarray(guard.k, dtype=np.float64), fold_floor=np.array(float(guard.floor)))
+
+
 def prepare(model: FaceModel, h: float) -> dict[str, np.ndarray]:
     """Everything an ImplicitStepper for `model` at substep h is made of, as arrays (the slow part
     of making one: building and factoring the matrix, the contact's Green's function). The face
@@ -326,6 +340,9 @@ def prepare(model: FaceModel, h: float) -> dict[str, np.ndarray]:
     kn = np.asarray(model.support_stiffness)
     bend = margin_bending(model.mesh, model.rest, springs, np.asarray(model.spring_k_high),
                           model.params.lid_bending, model.params.lip_bending)
+    if model.params.skin_bending:  # the skin's own bending (sim.antifold), in the matrix
+        bend = bend + skin_bending(n, model.triangles, np.asarray(model.spring_k_high),
+                                   model.params.skin_bending, thin_skin(model.mesh.regions, n))
     a = (laplacian(n, springs, np.asarray(model.spring_k_high)) + bend
          + sp.diags(mass_h2 + damp_h + np.asarray(model.rest_stiffness) + kn)).tocsr()
     solver = PrefactoredSolver(a[free][:, free])
@@ -333,6 +350,8 @@ def prepare(model: FaceModel, h: float) -> dict[str, np.ndarray]:
                 kn=np.array(kn, dtype=np.float64), h=np.array(float(h)))
     prep.update(_sparse("fh", a[free][:, held_i]))
     prep.update(_sparse("bend", bend))
+    # the skin's thickness against folding over (sim.antifold), on the predicted positions
+    prep.update(_fold_arrays(FoldGuard(model.rest, model.triangles, springs, np.asarray(model.spring_k_high))))
     prep.update({"lu_" + k: val for k, val in solver.arrays.items()})
     cons = solved_constraints(model.mesh, model.rest)  # the lid and lip contact (sim.margin_contact)
     if len(cons["idx"]):
@@ -358,6 +377,8 @@ class ImplicitStepper:
         self.rest = rest
         self._fh = (prep["fh_ptr"], prep["fh_idx"], prep["fh_val"])
         self._bend = (prep["bend_ptr"], prep["bend_idx"], prep["bend_val"])
+        self._folds = (prep["fold_tri"], prep["fold_frame"], prep["fold_dm_inv"], prep["fold_area"], prep["fold_k"],
+                       float(prep["fold_floor"]))
         self.solver = PrefactoredSolver(arrays={k: prep["lu_" + k] for k in PrefactoredSolver.KEYS})
         if "c_idx" in prep:
             self.margins: SolvedContact | None = SolvedContact.from_arrays(
@@ -398,4 +419,4 @@ class ImplicitStepper:
         _frame(x, v, n_sub, self.h, ext, idx, rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2,
                self.damp_h, self.free, self.held, *self._fh, self.solver.perm_r, self.solver.perm_c,
                *self.solver.factors, c.idx, c.w, c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam, c.loc, c.green,
-               c.gptr, c.gvert, c.gval, c._work, c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes, *self._buf)
+               c.gptr, c.gvert, c.gval, c._work, c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes, *self._folds, *self._buf)

@@ -513,6 +513,7 @@ class Simulator:
         state.eye_yaw = float(values[CHANNEL_INDEX["eyes_yaw"]])
         state.eye_pitch = float(values[CHANNEL_INDEX["eyes_pitch"]])
         state.jaw = float(values[CHANNEL_INDEX["jaw"]])
+        state.tongue_out = float(values[CHANNEL_INDEX["tongue_out"]])
         state.age = float(values[CHANNEL_INDEX["age"]])
         state.head_yaw = float(values[CHANNEL_INDEX["head_yaw"]])
         state.head_pitch = float(values[CHANNEL_INDEX["head_pitch"]])

@@ -36,14 +36,18 @@ def use_store(store: Store | None) -> None:
 def inputs_digest(model: Any, h: float) -> str:
     """SHA-256 of everything `sim.implicit.prepare(model, h)` reads: the substep, the springs and
     their stiffness, the per-vertex masses, damping and stiffnesses, the held vertices, the rest
-    shape, the margin bending parameters and the lid and lip rows (a face's hash alone leaves out
-    the mesh's annotations the rows come from)."""
+    shape, the margin and skin bending parameters, the triangles, the lid and lip rows and regions
+    and the fold guard's constants (a face's hash alone leaves out the mesh's annotations the rows
+    and the thin skin come from)."""
+    from sim.antifold import FLOOR, STRENGTH, thin_skin
     from sim.margin_contact import _rows
 
     d = hashlib.sha256(f"implicit h={float(h).hex()} lid={model.params.lid_bending!r} "
-                       f"lip={model.params.lip_bending!r}".encode())
+                       f"lip={model.params.lip_bending!r} skin={model.params.skin_bending!r} "
+                       f"fold={FLOOR!r},{STRENGTH!r}".encode())
     for arr in (model.spring_indices, model.spring_k_high, model.mass, model.damping, model.support_stiffness,
-                model.rest_stiffness, model.held, model.rest):
+                model.rest_stiffness, model.held, model.rest, model.triangles,
+                thin_skin(model.mesh.regions, model.n_vertices)):
         a = np.ascontiguousarray(arr)
         d.update(f"{a.dtype.str}{a.shape}".encode() + a.tobytes())
     for name, row in sorted(_rows(model.mesh).items()):
@@ -81,8 +85,9 @@ def prepared(model: Any, h: float) -> dict[str, np.ndarray]:
 
 
 _INT = ("free", "held", "fh_ptr", "fh_idx", "bend_ptr", "bend_idx", "lu_perm_r", "lu_perm_c", "lu_l_ptr",
-        "lu_u_ptr")
-_FLOAT = ("mass_h2", "damp_h", "kn", "fh_val", "bend_val", "lu_l_val", "lu_u_val", "lu_u_diag")
+        "lu_u_ptr", "fold_tri")
+_FLOAT = ("mass_h2", "damp_h", "kn", "fh_val", "bend_val", "lu_l_val", "lu_u_val", "lu_u_diag", "fold_frame",
+          "fold_dm_inv", "fold_area", "fold_k", "fold_floor")
 _CONTACT_INT = ("c_idx", "c_dim", "c_opp", "c_row_ptr", "c_row_v", "c_loc", "c_gptr", "c_gvert")
 _CONTACT_FLOAT = ("c_w", "c_sg", "c_green", "c_gval")
 
@@ -124,6 +129,12 @@ def check(a: dict[str, np.ndarray], n: int, h: float) -> None:
             raise ValueError(f"{k}: not a permutation")
     _ptr(a["fh_ptr"], nf, a["fh_idx"], len(held))
     _ptr(a["bend_ptr"], n, a["bend_idx"], n)
+    m = len(a["fold_tri"])
+    if a["fold_tri"].shape != (m, 3) or a["fold_frame"].shape != (m, 2, 3) or a["fold_dm_inv"].shape != (m, 2, 2) \
+            or a["fold_area"].shape != (m,) or a["fold_k"].shape != (m,) or a["fold_floor"].shape != ():
+        raise ValueError("fold guard: wrong shapes")
+    if m and (a["fold_tri"].min() < 0 or a["fold_tri"].max() >= n):
+        raise ValueError("fold guard: vertex out of range")
     _ptr(a["lu_l_ptr"], nf, a["lu_l_idx"], nf)
     _ptr(a["lu_u_ptr"], nf, a["lu_u_idx"], nf)
     if a["lu_u_diag"].shape != (nf,) or np.any(a["lu_u_diag"] == 0.0):

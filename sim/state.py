@@ -36,6 +36,7 @@ class FaceState:
     head_yaw: float = 0.0
     head_pitch: float = 0.0
     head_roll: float = 0.0
+    tongue_out: float = 0.0  # the tongue channel at the last step: a scanned head's tongue follows it
     # the implicit integrator's contact memory after the last step (impulses and pairs its next step
     # starts from; sim.margin_contact.SolvedContact.memory), None before the first: a state copied
     # or restored carries it, so stepping on from a checkpoint gives the same bits as the original
@@ -55,6 +56,7 @@ class FaceState:
             self.head_yaw,
             self.head_pitch,
             self.head_roll,
+            self.tongue_out,
             None if self.contact is None else self.contact.copy(),
         )
 
@@ -65,7 +67,7 @@ class FaceState:
         self.surface[...] = other.surface
         self.time = other.time
         self.eye_yaw, self.eye_pitch, self.age = other.eye_yaw, other.eye_pitch, other.age
-        self.jaw = other.jaw
+        self.jaw, self.tongue_out = other.jaw, other.tongue_out
         self.head_yaw, self.head_pitch, self.head_roll = other.head_yaw, other.head_pitch, other.head_roll
         self.contact = None if other.contact is None else other.contact.copy()
 

@@ -32,10 +32,10 @@ def test_prefactored_solve_matches_a_direct_solve(synth_model: FaceModel) -> Non
 
 
 def test_the_rk2_equilibrium_is_a_fixed_point_of_the_implicit_step(synth_rig: FaceRig) -> None:
-    """Both integrators balance the same forces, but for the implicit one's margin bending term
-    (SkinParams.lid_bending, lip_bending, which RK2 does not have), turned off here. (From rest
+    """Both integrators balance the same forces, but for the implicit one's margin and skin bending
+    terms (SkinParams.lid_bending, lip_bending, skin_bending: RK2 has none), turned off here. (From rest
     they may land in different equilibria where the compressed skin folds; see docs/simulation.md.)"""
-    m = compile_model(synth_rig, SkinParams(gravity=False, lid_bending=0.0, lip_bending=0.0))
+    m = compile_model(synth_rig, SkinParams(gravity=False, lid_bending=0.0, lip_bending=0.0, skin_bending=0.0))
     c = FaceControl()
     c.set("zygomaticus_major_l", 1.0)
     c.set("frontalis_inner_r", 0.7)

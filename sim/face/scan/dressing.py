@@ -16,6 +16,10 @@ gives all 26719 vertices in the scan's order.
   jaw targets do (`sim.integrator.jaw_rotation`, `jaw_slide`); gums and tongue by their height
   between the teeth rows (or the nearer row); the mouth socket as the gums, and near the lips as
   the lips.
+- The tongue (the gums-and-tongue part away from the teeth, inside the lower arch) slides out with
+  `tongue_out` (AU19): forward along the mouth and a little down, its tip most and its root not at
+  all, narrowing as it stretches, over the jaw's share it follows; AU19 parts the lips and drops the jaw a
+  little (`sim.facs`), so it shows between them.
 - The eyeballs (sclera and iris) turn about their centres by `eyes_yaw` / `eyes_pitch` (30 and 20
   degrees at full value, as the renderer turns the procedural face's eyes).
 `turn_head` applies a rigid head turn about a neck pivot, fading down the neck.
@@ -44,6 +48,11 @@ EYE_YAW_MAX = math.radians(30.0)
 EYE_PITCH_MAX = math.radians(20.0)
 LID_UP = 3  # rows up the lid from its margin: with the margin's tangent, the lid's surface frame
 LID_THINGS = ("eyelashes", "eye_occlusion", "lacrimal", "eye_blend")
+TONGUE_REACH = np.array([0.0, 0.95, 2.6])  # cm the tongue's tip moves at tongue_out = 1 (head frame),
+# on top of the jaw's share it follows: up over the lower teeth and out between the parted lips
+TONGUE_NARROW = 0.25  # its tip's width shrinks by this share as it stretches out
+TONGUE_ROOT, TONGUE_TIP = 6.0, 9.6  # cm (z): where its motion starts, where it is whole
+TONGUE_FLOOR = 1.3  # cm below the teeth's occlusal plane: the floor of the mouth, which stays
 TEETH_SPLIT = PARTS["teeth"][0] + 2208  # the first lower tooth (the upper 16 teeth have 2208 vertices)
 FloatArray = np.ndarray
 
@@ -86,6 +95,7 @@ class ScanDressing:
     bound_idx (B,), bound_tri (B,3) sim vertices, bound_bary (B,3), bound_local (B,3).
     follow_idx (F,), follow_src (F,K) sim vertices, follow_w (F,K) weights (summing to the fade).
     jaw_idx (J,), jaw_w (J,): rigid followers of the jaw (weight 1: lower teeth).
+    tongue_idx (T,), tongue_w (T,): the tongue's vertices and their share of `tongue_out`'s motion.
     socket_idx (S,), socket_anchor (S,) scan index of the nearest lip-inside rim vertex, socket_fade (S,).
     eye_idx: two (E,) index arrays; eye_centres (2,3).
     jaw_pivot, jaw_axis (3,), jaw_max_angle rad, jaw_slide (3,) cm at jaw = 1.
@@ -106,6 +116,8 @@ class ScanDressing:
     follow_w: FloatArray
     jaw_idx: np.ndarray
     jaw_w: FloatArray
+    tongue_idx: np.ndarray
+    tongue_w: FloatArray
     socket_idx: np.ndarray
     socket_anchor: np.ndarray
     socket_fade: FloatArray
@@ -155,7 +167,10 @@ class ScanDressing:
         eye_rot = rotation(yaw, 0.0, 0.0) @ rotation(0.0, -pitch, 0.0) if (yaw or pitch) else np.eye(3)
         n = len(self.rest)
         out = np.empty((n, 3), np.float32)
+        tongue = float(np.clip(control.get("tongue_out"), 0.0, 1.0))
         pose_scan(self._rest64, x, *self._kernel_args, np.ascontiguousarray(rot, np.float64), np.ascontiguousarray(shift, np.float64),
+                  np.ascontiguousarray(self.tongue_idx, np.int64), np.ascontiguousarray(self.tongue_w, np.float64),
+                  tongue, np.ascontiguousarray(TONGUE_REACH, np.float64), float(TONGUE_NARROW),
                   np.ascontiguousarray(self.eye_idx[0], np.int64), np.ascontiguousarray(self.eye_idx[1], np.int64),
                   np.ascontiguousarray(self.eye_centres, np.float64), np.ascontiguousarray(eye_rot, np.float64),
                   bool(yaw or pitch), np.empty((len(x), 3)), np.empty((n, 3)), out)
@@ -182,6 +197,12 @@ class ScanDressing:
         # the jaw's rigid followers
         p = self.rest[self.jaw_idx]
         out[self.jaw_idx] = p + self.jaw_w[:, None] * (p @ rot.T + shift - p)
+        tongue = float(np.clip(control.get("tongue_out"), 0.0, 1.0))
+        if tongue:  # out between the lips, narrowing
+            w = tongue * self.tongue_w
+            p = self.rest[self.tongue_idx]
+            out[self.tongue_idx] += w[:, None] * TONGUE_REACH
+            out[self.tongue_idx, 0] -= w * TONGUE_NARROW * p[:, 0]
         # the mouth socket: the jaw's share, and near the lips the lips' motion
         sd = out[self.socket_idx] - self.rest[self.socket_idx]
         ld = out[self.socket_anchor] - self.rest[self.socket_anchor]
@@ -332,6 +353,12 @@ def build_dressing(model: Any) -> ScanDressing | None:
     dl, _ = cKDTree(rest[lower]).query(rest[gums])
     height = _smoothstep((occlusal + 0.4 - rest[gums, 1]) / 0.8)
     gum_w = np.where(np.minimum(du, dl) < 0.4, (dl < du).astype(float), height)
+    arch = np.abs(rest[gums, 0]) < 0.8 * np.abs(rest[lower, 0]).max()
+    below = (rest[gums, 1] < occlusal) & (rest[gums, 1] > occlusal - TONGUE_FLOOR)
+    is_tongue = (np.minimum(du, dl) > 0.3) & below & arch
+    tongue_idx = gums[is_tongue]
+    tongue_w = _smoothstep((rest[tongue_idx, 2] - TONGUE_ROOT) / (TONGUE_TIP - TONGUE_ROOT))
+    gum_w[is_tongue] = 1.0  # the tongue rides on the floor of the mouth: wholly with the jaw
     socket = _range("mouth_socket")
     sock_w = _smoothstep((occlusal + 0.4 - rest[socket, 1]) / 0.8)
     rim = np.unique(inside[layout.lip_row == 0])
@@ -349,6 +376,7 @@ def build_dressing(model: Any) -> ScanDressing | None:
         follow_idx=follow, follow_src=src, follow_w=follow_w,
         jaw_idx=np.concatenate([lower, gums, socket]),
         jaw_w=np.concatenate([np.ones(len(lower)), gum_w, sock_w]),
+        tongue_idx=tongue_idx, tongue_w=tongue_w,
         socket_idx=socket, socket_anchor=rim[si], socket_fade=socket_fade,
         eye_idx=(_range("eyeball_l"), _range("eyeball_r")), eye_centres=np.stack([c_l, c_r]),
         jaw_pivot=pivot, jaw_axis=np.asarray(model.jaw_axis, float), jaw_max_angle=float(model.params.jaw_max_angle),

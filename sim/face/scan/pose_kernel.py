@@ -19,9 +19,11 @@ prepare_blas_check()  # before this module's first kernel runs: see sim.numba_st
 @numba.njit(cache=True, nogil=True)
 def pose_scan(rest, x, skin, lip_idx, lip_anchor, lip_rot, bound_idx, bound_tri, bound_bary, bound_local,  # type: ignore[no-untyped-def]
               follow_idx, follow_src, follow_w, jaw_idx, jaw_w, socket_idx, socket_anchor, socket_fade,
-              rot, shift, eye_l, eye_r, centres, eye_rot, turn_eyes, d, buf, out):
+              rot, shift, tongue_idx, tongue_w, tongue, reach, narrow, eye_l, eye_r, centres, eye_rot, turn_eyes,
+              d, buf, out):
     """out (26719,3) float32: the scan posed by the simulated surface x (N,3) with the jaw's motion
-    p -> rot p + shift and, if turn_eyes, the eyeballs turned by eye_rot about their centres.
+    p -> rot p + shift, the tongue out by `tongue` (0..1: its vertices move by their share of
+    `reach` and narrow by `narrow` of their sideways offset) and, if turn_eyes, the eyeballs turned by eye_rot about their centres.
     d (N,3) and buf (26719,3) are float64 scratch."""
     n = rest.shape[0]
     for i in range(n):
@@ -73,6 +75,13 @@ def pose_scan(rest, x, skin, lip_idx, lip_anchor, lip_rot, bound_idx, bound_tri,
         for c in range(3):
             moved = rot[c, 0] * p0 + rot[c, 1] * p1 + rot[c, 2] * p2 + shift[c]
             buf[i, c] = rest[i, c] + w * (moved - rest[i, c])
+    if tongue:  # out between the lips, narrowing
+        for k in range(tongue_idx.shape[0]):
+            i = tongue_idx[k]
+            w = tongue * tongue_w[k]
+            for c in range(3):
+                buf[i, c] += w * reach[c]
+            buf[i, 0] -= w * narrow * rest[i, 0]
     for k in range(socket_idx.shape[0]):  # the mouth socket: the jaw's share, near the lips the lips'
         i = socket_idx[k]
         a = socket_anchor[k]

@@ -1,0 +1,68 @@
+"""How much skin turns over on the scanned head under each preset and each channel at full value
+(cm2 of triangles whose normal points against their rest normal), the figure tests/sim/
+test_scan_face.py holds to 0.1 cm2 (run by hand):
+
+    nice .venv/bin/python benchmarks/folds.py [--only anger,corrugator_l,...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+
+def turned_over_area(model, x: np.ndarray) -> float:  # type: ignore[no-untyped-def]
+    """cm2 of skin triangles whose normal points against their rest normal."""
+    t, r = model.triangles, model.rest
+    n0 = np.cross(r[t[:, 1]] - r[t[:, 0]], r[t[:, 2]] - r[t[:, 0]])
+    n1 = np.cross(x[t[:, 1]] - x[t[:, 0]], x[t[:, 2]] - x[t[:, 0]])
+    bad = np.einsum("ij,ij->i", n0, n1) < 0
+    return float(0.5 * np.linalg.norm(n1[bad], axis=1).sum())
+
+
+def main(argv: list[str] | None = None) -> int:
+    from puppet.face_cache import scan_model
+    from sim.facs import EXPRESSIONS, apply_expression
+    from sim.integrator import Simulator
+    from sim.state import FaceControl
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", default="")
+    args = ap.parse_args(argv)
+    only = {n for n in args.only.split(",") if n}
+    model = scan_model(None)
+    sim = Simulator(model, wrinkles=False)
+    poses: dict[str, FaceControl] = {}
+    for name in EXPRESSIONS:
+        c = FaceControl()
+        apply_expression(c, name)
+        poses[name] = c
+    for spec in model.channels:
+        if spec.name in ("eyes_yaw", "eyes_pitch", "age") or spec.name.endswith("_r"):
+            continue
+        c = FaceControl()
+        c.set(spec.name, spec.hi)
+        poses[spec.name] = c
+    total = 0.0
+    for name, c in poses.items():
+        if only and name not in only:
+            continue
+        state = model.rest_state()
+        t0 = time.perf_counter()
+        sim.settle(state, c, max_seconds=2.0 if name in EXPRESSIONS else 1.5)
+        a = turned_over_area(model, state.positions)
+        total += a
+        flag = "  over" if a > 0.1 else ""
+        print(f"{name:40s} {a:6.3f} cm2  ({time.perf_counter() - t0:.1f} s){flag}", flush=True)
+    print(f"total {total:.2f} cm2")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
