@@ -55,7 +55,7 @@ ONE_CHANNEL = {
 #: its upper lid (levator palpebrae) and EyeLookDown lowers it (the lid strip), by these shares of
 #: the channel, fitted to the scanned eyeLook shapes (`sim.face.scan.calibrate`). The map binds the
 #: same shares; the channel takes the larger of the lid's own shape and the gaze's share.
-GAZE_LIDS = {"EyeLookUp": ("levator_palpebrae", 0.0), "EyeLookDown": ("orbicularis_oculi_lid", 0.0)}
+GAZE_LIDS = {"EyeLookUp": ("levator_palpebrae", 1.000), "EyeLookDown": ("orbicularis_oculi_lid", 0.725)}
 
 
 def _rule(shape: str) -> Callable[[Getter], float] | None:

@@ -32,8 +32,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 BUMPS = 12
-PULL = 0.02  # weight of the pull towards gain 1, relative to one shape's own size
-MAX_GAIN = 6.0
+PULL = 1e-3  # weight of the pull towards gain 1 (per gain), relative to one shape's own size
+MAX_GAIN = 8.0
 STILL_CM = 0.03  # a scan shape moving the skin less than this (RMS) is not fitted
 
 
