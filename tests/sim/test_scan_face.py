@@ -20,14 +20,16 @@ FOLD_LIMIT_CM2 = 0.1
 # Poses that still fold more than the limit on the scan (measured, cm2; see sim/face/scan/rig.py):
 # compressed skin at the glabella (AU4: anger, disgust), the cheek under a smile, the lids'
 # corners. Guarded so they get no worse; every other pose must keep within FOLD_LIMIT_CM2.
-KNOWN_FOLDS = {"anger": 1.4, "disgust": 1.0, "happiness": 0.2, "sadness": 0.18, "fear": 0.16, "surprise": 0.14,
-               "corrugator_l": 0.85, "zygomaticus_major_l": 0.65, "orbicularis_oculi_lid_l": 0.48,
-               "orbicularis_oculi_l": 0.22,
+KNOWN_FOLDS = {"anger": 0.65, "disgust": 0.78,
+               # the zygomaticus and frontalis fitted to the scans (sim/face/scan/calibrate.py) pull
+               # further and bunch the cheek and forehead more (0.2 and 0.14 before the fit)
+               "happiness": 0.24, "surprise": 0.3,
+               "corrugator_l": 0.37, "zygomaticus_major_l": 0.2, "orbicularis_oculi_lid_l": 0.48,
                # the lip actions (sim.face.mouth_actions) carried onto the scan: pucker, funnel,
                # closure and shift bunch the scan's fine lip skin
-               "incisivus": 1.4, "orbicularis_oris_peripheralis_upper": 0.65,
-               "orbicularis_oris_peripheralis_lower": 0.38, "lip_closure": 0.55, "mouth_shift_l": 0.46,
-               "jaw_forward": 0.16}
+               "incisivus": 1.3, "orbicularis_oris_peripheralis_upper": 0.6,
+               "orbicularis_oris_peripheralis_lower": 0.36, "lip_closure": 0.5, "mouth_shift_l": 0.44,
+               "jaw_forward": 0.15}
 DRIFT_CM = 0.005  # 0.05 mm
 
 
