@@ -11,7 +11,13 @@ displacement basis, the bounded sparse solve, re-linearised on the simulator), s
 values and measure again. `--write PATH` writes those fitted bindings as an ARKit map (the shipped
 map's eyes, gaze and head kept) for use with `--map`.
 
-    nice .venv/bin/python benchmarks/scan_match.py [--write fitted_arkit.toml] [--shapes mouthPucker,...]
+    nice .venv/bin/python benchmarks/scan_match.py [--no-fit] [--write fitted_arkit.toml] [--shapes mouthPucker,...]
+    nice .venv/bin/python benchmarks/scan_match.py --judge DIR [--shapes ...]
+
+`--judge DIR` measures from outside instead: per shape a Live Link CSV ramping it to 1 goes through
+`puppet fit` and `puppet replay --out X.pc2`, and the PC2's last frame is compared with the scan.
+The muscles themselves are fitted to the scans by `python -m sim.face.scan.calibrate` (which prints
+the fitted and, with --holdout, the held-out errors).
 
 cheekPuff and browInnerUp are compared as both sides together (one ARKit shape each); cheekRaiser (not an
 ARKit shape) and PupilDilate (no skin) are left out. Shapes that move the skin less than 0.3 mm RMS
