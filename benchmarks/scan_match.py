@@ -16,7 +16,7 @@ map's eyes, gaze and head kept) for use with `--map`.
 
 `--judge DIR` measures from outside instead: per shape a Live Link CSV ramping it to 1 goes through
 `puppet fit` and `puppet replay --out X.pc2`, and the PC2's last frame is compared with the scan.
-The muscles themselves are fitted to the scans by `python -m sim.face.scan.calibrate` (which prints
+The muscles themselves are fitted to the scans by `benchmarks/calibrate_scan.py` (which prints
 the fitted and, with --holdout, the held-out errors).
 
 cheekPuff and browInnerUp are compared as both sides together (one ARKit shape each); cheekRaiser (not an

@@ -18,15 +18,16 @@ Then the real simulator re-linearises: each shape is settled with the fitted gai
 linear model missed (the jaw, contact with the eyes, the skin's stiffening) is kept as an offset,
 and the gains are fitted again.
 
-    python -m sim.face.scan.calibrate [--rounds 3] [--holdout] [--no-write]
+    nice .venv/bin/python benchmarks/calibrate_scan.py [--rounds 2] [--holdout] [--no-write]
 
-writes `ict_rig.npz` (the insertion gains, `shipped`: not for the muscles under which skin folded) and
-prints the gaze shares for `puppet/maps/arkit.toml` and `puppet/export/arkit.py`.
+(the driver: it reads the scan's shapes and the channels the ARKit import gives each, which this
+module, like all of `sim`, knows nothing of) writes `ict_rig.npz` (the insertion gains, `shipped`:
+not for the muscles under which skin folded) and prints the gaze shares for
+`puppet/maps/arkit.toml` and `puppet/export/arkit.py`.
 """
 
 from __future__ import annotations
 
-import argparse
 import time
 from dataclasses import dataclass, replace
 
@@ -70,36 +71,6 @@ class Shape:
     target: np.ndarray
     values: np.ndarray
     coupling: tuple[str, str] | None
-
-
-def mirror_name(ch: str) -> str:
-    return ch[:-2] + "_r" if ch.endswith("_l") else ch
-
-
-def shapes(data_names: list[str] | None = None) -> list[Shape]:
-    """The scanned ARKit shapes with the channel values the ARKit import gives each at 1."""
-    import importlib.util
-    import sys
-    from pathlib import Path
-
-    from puppet.capture.arkit_in import shape_channels
-
-    path = Path(__file__).resolve().parents[3] / "benchmarks" / "scan_match.py"
-    spec = importlib.util.spec_from_file_location("scan_match", path)
-    mod = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
-    sys.modules["scan_match"] = mod
-    spec.loader.exec_module(mod)  # type: ignore[union-attr]
-    out = []
-    for label, (arkit, target) in mod.scan_targets(data_names).items():
-        values = shape_channels({arkit: np.ones(1)}, 1, couple=False)[0]
-        coupling = None
-        side = "_l" if arkit.endswith("Left") else "_r"
-        if arkit.startswith("EyeLookUp"):
-            coupling = ("levator_palpebrae" + side, "EyeLookUp")
-        elif arkit.startswith("EyeLookDown"):
-            coupling = ("orbicularis_oculi_lid" + side, "EyeLookDown")
-        out.append(Shape(label, arkit, target, values, coupling))
-    return out
 
 
 def _stiffness(model) -> tuple[object, np.ndarray]:  # type: ignore[no-untyped-def]
@@ -306,30 +277,3 @@ def run(rounds: int, train: list[Shape], test: list[Shape], log=print):  # type:
                     f"({len(rel)} shapes)")
         log(f"  gains {cal.gains.min():.2f}..{cal.gains.max():.2f}, shares {cal.shares}")
     return cal, model, real
-
-
-def main() -> int:
-    ap = argparse.ArgumentParser(description="Fit the scanned head's muscle insertions to its scans.")
-    ap.add_argument("--rounds", type=int, default=3)
-    ap.add_argument("--holdout", action="store_true", help="fit on the left and unsided shapes only")
-    ap.add_argument("--no-write", action="store_true")
-    args = ap.parse_args()
-    items = [s for s in shapes() if rms(s.target) >= STILL_CM]
-    if args.holdout:
-        train = [s for s in items if not s.label.endswith("_R")]
-        test = [s for s in items if s.label.endswith("_R")]
-    else:
-        train, test = items, []
-    cal, model, _ = run(args.rounds, train, test)
-    if not args.no_write:
-        from sim.face.scan.rig import RIG_FILE
-        from sim.rig import save_rig
-
-        save_rig(replace(model.rig, insertion=shipped(model.rig.insertion)), RIG_FILE)
-        print(f"wrote {RIG_FILE}")
-    print("gaze shares: " + ", ".join(f"{k} {v:.3f}" for k, v in cal.shares.items()))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

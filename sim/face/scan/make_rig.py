@@ -145,7 +145,8 @@ def transferred_rig(weights: np.ndarray | None = None, name: str = "ict") -> Fac
 
 def pack(path: str | Path = RIG_FILE) -> None:
     """Write the generic head's rig as the shipped rig file, keeping the insertion gains fitted to
-    the scans (`sim.face.scan.calibrate`, which rewrites them) that the file already holds."""
+    the scans (`sim.face.scan.calibrate`, run by `benchmarks/calibrate_scan.py`, which rewrites them)
+    that the file already holds."""
     from dataclasses import replace
 
     from sim.rig import load_rig, save_rig
