@@ -11,9 +11,15 @@ displacement basis, the bounded sparse solve, re-linearised on the simulator), s
 values and measure again. `--write PATH` writes those fitted bindings as an ARKit map (the shipped
 map's eyes, gaze and head kept) for use with `--map`.
 
-    nice .venv/bin/python benchmarks/scan_match.py [--write fitted_arkit.toml] [--shapes mouthPucker,...]
+    nice .venv/bin/python benchmarks/scan_match.py [--no-fit] [--write fitted_arkit.toml] [--shapes mouthPucker,...]
+    nice .venv/bin/python benchmarks/scan_match.py --judge DIR [--shapes ...]
 
-cheekPuff is compared as both sides together (the face has one puff channel); cheekRaiser (not an
+`--judge DIR` measures from outside instead: per shape a Live Link CSV ramping it to 1 goes through
+`puppet fit` and `puppet replay --out X.pc2`, and the PC2's last frame is compared with the scan.
+The muscles themselves are fitted to the scans by `benchmarks/calibrate_scan.py` (which prints
+the fitted and, with --holdout, the held-out errors).
+
+cheekPuff and browInnerUp are compared as both sides together (one ARKit shape each); cheekRaiser (not an
 ARKit shape) and PupilDilate (no skin) are left out. Shapes that move the skin less than 0.3 mm RMS
 are listed but left out of the summary.
 """
@@ -39,8 +45,8 @@ def arkit_shape(scan_name: str) -> str | None:
     if scan_name.startswith(("PupilDilate", "cheekRaiser")):
         return None
     base = re.sub(r"_L$", "Left", re.sub(r"_R$", "Right", scan_name))
-    if base.startswith("cheekPuff"):
-        base = "cheekPuff"
+    if base.startswith(("cheekPuff", "browInnerUp")):  # one ARKit shape, scanned as two halves
+        base = base.removesuffix("Left").removesuffix("Right")
     return base[0].upper() + base[1:]
 
 
@@ -56,10 +62,11 @@ def scan_targets(names: list[str] | None) -> dict[str, tuple[str, np.ndarray]]:
         shape = arkit_shape(name)
         if shape is None or (names and name not in names and shape not in names):
             continue
-        if name.startswith("cheekPuff"):
+        if name.startswith(("cheekPuff", "browInnerUp")):
             if name.endswith("_R"):
                 continue
-            out["cheekPuff (L+R)"] = (shape, (data.expression("cheekPuff_L") + data.expression("cheekPuff_R"))[skin])
+            half = name[:-2]
+            out[f"{half} (L+R)"] = (shape, (data.expression(half + "_L") + data.expression(half + "_R"))[skin])
             continue
         out[name] = (shape, data.expression(name)[skin])
     return out
@@ -95,14 +102,58 @@ def fitted_map_text(fits: dict[str, dict[str, float]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def judge_route(shape: str, target: np.ndarray, work: Path) -> tuple[float, float]:
+    """The outside measure for one ARKit shape: a Live Link CSV ramping that shape to 1 (1 s) and
+    holding it (2 s) goes through `puppet fit` and `puppet replay --out X.pc2` on the scanned face;
+    the last frame's skin is compared with the scan. (RMS error cm, relative)."""
+    import subprocess
+
+    from puppet.export.arkit import ARKIT_SHAPES, timecode
+    from puppet.export.pc2 import read_pc2
+    from sim.face.scan.anatomy import skin_layout
+
+    csv = work / f"{shape}.csv"
+    rows = ["Timecode,BlendShapeCount," + ",".join(ARKIT_SHAPES)]
+    for f in range(90):
+        w = min(1.0, f / 30.0)
+        rows.append(f"{timecode(f, 30)},{len(ARKIT_SHAPES)}," + ",".join(
+            f"{w:.4f}" if s == shape else "0" for s in ARKIT_SHAPES))
+    csv.write_text("\n".join(rows) + "\n")
+    take, pc2 = work / f"{shape}.jsonl", work / f"{shape}.pc2"
+    exe = [sys.executable, "-m", "puppet.cli"]
+    for cmd in ([*exe, "fit", "--face", "ict", "--out", str(take), str(csv)],
+                [*exe, "replay", "--face", "ict", "--headless", "--out", str(pc2), str(take)]):
+        subprocess.run(cmd, check=True, capture_output=True)
+    _, frames = read_pc2(pc2)
+    rest = np.array([[float(v) for v in ln.split()[1:4]] for ln in pc2.with_suffix(".obj").read_text().splitlines()
+                     if ln.startswith("v ")])
+    skin = skin_layout().vertices
+    err = rms(frames[-1][skin] - rest[skin] - target)
+    return err, err / rms(target)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--shapes", help="comma-separated scan or ARKit names (default: all)")
     ap.add_argument("--no-fit", action="store_true", help="only measure the shipped map")
     ap.add_argument("--write", type=Path, help="write the fitted bindings as an ARKit map here")
+    ap.add_argument("--judge", type=Path, metavar="DIR",
+                    help="instead: run each shape through `puppet fit` and `puppet replay --out X.pc2` "
+                         "(files in DIR) and compare the settled face with the scan")
     ap.add_argument("--relinearise", action="store_true",
                     help="re-linearise each fit on the simulator (slower: up to 8 more settles a shape)")
     args = ap.parse_args()
+
+    if args.judge:
+        args.judge.mkdir(parents=True, exist_ok=True)
+        rels = []
+        print(f"{'shape':22s} {'scan mm':>8s} {'err mm':>8s} {'rel':>5s}   (puppet fit + puppet replay --out X.pc2)")
+        for label, (shape, target) in scan_targets(args.shapes.split(",") if args.shapes else None).items():
+            err, rel = judge_route(shape, target, args.judge)
+            rels.append(rel)
+            print(f"{label:22s} {rms(target) * 10:8.2f} {err * 10:8.2f} {rel:5.2f}", flush=True)
+        print(f"outside route: median relative error {np.median(rels):.2f}, max {max(rels):.2f}")
+        return 0
 
     from puppet.capture.arkit_in import shape_channels
     from puppet.face_cache import scan_model

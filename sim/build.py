@@ -290,7 +290,11 @@ def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray,
     for spec in CHANNEL_SPECS:
         parts = rig.muscles.get(spec.name, ())
         if spec.kind == "muscle" and parts:
-            cols.append(sp.csc_matrix(muscle_field(parts, rest, area, normal).reshape(3 * n, 1)))
+            f = muscle_field(parts, rest, area, normal)
+            gain = rig.insertion.get(spec.name)
+            if gain is not None:  # the fitted insertion density (sim.model.FaceRig.insertion)
+                f = f * np.asarray(gain, np.float64)[:, None]
+            cols.append(sp.csc_matrix(f.reshape(3 * n, 1)))
         else:
             cols.append(sp.csc_matrix((3 * n, 1)))
     m = sp.hstack(cols).tocsr()
@@ -310,6 +314,8 @@ def _rig_digest(rig: FaceRig, params: SkinParams) -> str:
             for key, val in sorted(vars(m).items()):
                 raw = val.encode() if isinstance(val, str) else np.asarray(val, np.float64).tobytes()
                 h.update(key.encode() + raw)
+    for name in sorted(rig.insertion):  # none on a face without fitted insertions: its hash is unchanged
+        h.update(b"insertion" + name.encode() + np.ascontiguousarray(rig.insertion[name], np.float64).tobytes())
     for line in rig.wrinkles:  # WrinkleLine.to_dict() is plain JSON
         h.update(json.dumps(line.to_dict(), sort_keys=True).encode())
     h.update(json.dumps(asdict(params), sort_keys=True).encode())

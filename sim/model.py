@@ -127,9 +127,15 @@ Muscle = Union[LinearMuscle, SphincterMuscle, SheetMuscle, PatchMuscle]
 @dataclass(eq=False)
 class FaceRig:
     """Everything needed to simulate one face: its mesh, its muscles (channel name -> one or more
-    muscle parts), and its wrinkle lines (filled by `sim.wrinkles`; may be empty)."""
+    muscle parts), and its wrinkle lines (filled by `sim.wrinkles`; may be empty).
+
+    insertion: channel name -> (N,) non-negative gain per skin vertex on that channel's force field
+    (how densely the muscle inserts into the skin there; its direction of pull is its parts'). A
+    channel not named has gain 1 everywhere. Fitted to scanned expressions for the scanned head
+    (`sim.face.scan.calibrate`); the procedural face has none."""
 
     mesh: FaceMesh
     muscles: dict[str, tuple[Muscle, ...]]
     wrinkles: tuple = ()
     name: str = "default"
+    insertion: dict[str, np.ndarray] = field(default_factory=dict)

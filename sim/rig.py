@@ -10,6 +10,8 @@ Rig file (`.npz`, version 1), read with `allow_pickle=False` so loading never ex
   `jaw_pivot` (3,), `jaw_axis` (3,), `eye_centers` (2,3), `eye_loop_l`, `eye_loop_r`, `mouth_loop`
   (int), `uv` (N,2) optional, `region_<name>` (N,) bool per region.
 Wrinkle lines (`sim.wrinkles.mask.WrinkleLine`) are stored as their plain `to_dict` form.
+Fitted insertion gains (`FaceRig.insertion`, optional): header "insertion": [channel names], and an
+array `insertion_<channel>` (N,) f8 >= 0 each.
 """
 
 from __future__ import annotations
@@ -62,6 +64,7 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
         "regions": sorted(mesh.regions),
         "muscles": [_muscle_json(ch, m) for ch, parts in rig.muscles.items() for m in parts],
         "wrinkles": [w.to_dict() for w in rig.wrinkles],
+        "insertion": sorted(rig.insertion),
     }
     arrays: dict[str, np.ndarray] = {
         "header": np.array(json.dumps(header)),
@@ -80,6 +83,8 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
         arrays["uv"] = np.asarray(mesh.uv, np.float64)
     for name, mask in mesh.regions.items():
         arrays[f"region_{name}"] = np.asarray(mask, bool)
+    for name, gain in rig.insertion.items():
+        arrays[f"insertion_{name}"] = np.asarray(gain, np.float64)
     with atomic_write(path, "wb") as fh:  # a failed save leaves the old rig as it was
         np.savez_compressed(fh, **arrays)
 
@@ -230,8 +235,15 @@ def _parse(data: Any, p: str) -> FaceRig:
     for entry in entries:
         channel, m = _muscle(entry, p)
         muscles[channel] = muscles.get(channel, ()) + (m,)
+    insertion = {}
+    for name in sequence(header.get("insertion", []), f"{p}: insertion", MAX_ENTRIES):
+        name = string(name, f"{p}: insertion channel")
+        gain = _array(data, f"insertion_{name}", p, (n,), "f")
+        if np.any(gain < 0.0) or np.any(gain > 1e6):
+            raise RigFileError(f"{p}: insertion gains of {quote(name)} must lie in 0..1e6")
+        insertion[name] = gain.astype(np.float64)
     return FaceRig(mesh=mesh, muscles=muscles, wrinkles=_wrinkles(header.get("wrinkles", []), p),
-                   name=string(header.get("name", "rig"), f"{p}: name"))
+                   name=string(header.get("name", "rig"), f"{p}: name"), insertion=insertion)
 
 
 def _wrinkles(entries: Any, p: str) -> tuple:

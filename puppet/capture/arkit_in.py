@@ -20,7 +20,7 @@ import numpy as np
 
 from puppet.capture.points import ChannelCapture, check_times
 from puppet.errors import ConfigError
-from puppet.export.arkit import ARKIT_SHAPES, MOUTH_CLOSE_SPAN, ONE_CHANNEL, ROTATIONS, SIMPLE_SHAPES, UNSUPPORTED
+from puppet.export.arkit import ARKIT_SHAPES, GAZE_LIDS, MOUTH_CLOSE_SPAN, ONE_CHANNEL, ROTATIONS, SIMPLE_SHAPES, UNSUPPORTED
 
 _TC = re.compile(r"(\d+):(\d{2}):(\d{2})[:;](\d+)(?:\.(\d+))?")
 RATES = (24, 25, 30, 50, 60)
@@ -47,10 +47,10 @@ def shape_targets(shape: str) -> list[str]:
 
 
 def shape_channels(shapes: dict[str, np.ndarray], n: int,
-                   turns: dict[str, np.ndarray] | None = None) -> np.ndarray:
+                   turns: dict[str, np.ndarray] | None = None, couple: bool = True) -> np.ndarray:
     """(n, C) channel values for blendshape columns ``{PascalCase shape: (n,) weights 0..1}`` and
     rotation columns (``HeadYaw`` ...), through the inverted export mapping; channels no column
-    drives keep their defaults."""
+    drives keep their defaults. `couple`: the gaze carries the lids (`GAZE_LIDS`)."""
     from sim.channels import CHANNEL_NAMES, CHANNEL_SPECS
 
     values = np.zeros((n, len(CHANNEL_NAMES)))
@@ -68,6 +68,12 @@ def shape_channels(shapes: dict[str, np.ndarray], n: int,
 
     def g(name: str) -> np.ndarray:
         return np.asarray(shapes.get(name, np.zeros(n)), float)
+
+    for look, (lid, share) in GAZE_LIDS.items() if couple else ():
+        for side, suffix in (("Left", "_l"), ("Right", "_r")):
+            if look + side in shapes and share > 0.0:
+                i = index[lid + suffix]
+                values[:, i] = np.maximum(values[:, i], share * np.clip(g(look + side), 0.0, 1.0))
 
     yaw = 0.5 * ((g("EyeLookOutLeft") - g("EyeLookInLeft")) + (g("EyeLookInRight") - g("EyeLookOutRight")))
     pitch = 0.5 * ((g("EyeLookUpLeft") - g("EyeLookDownLeft")) + (g("EyeLookUpRight") - g("EyeLookDownRight")))

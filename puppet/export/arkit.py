@@ -51,6 +51,14 @@ ONE_CHANNEL = {
 }
 
 
+#: The lids follow the gaze (the levator's tone is coupled to it): each eye's EyeLookUp also lifts
+#: its upper lid (levator palpebrae) and EyeLookDown lowers it (the lid strip), by these shares of
+#: the channel, fitted to the scanned eyeLook shapes (`sim.face.scan.calibrate`; docs/scan-face.md
+#: says how the look-down share was settled on the shipped lid strip). The map binds the
+#: same shares; the channel takes the larger of the lid's own shape and the gaze's share.
+GAZE_LIDS = {"EyeLookUp": ("levator_palpebrae", 1.000), "EyeLookDown": ("orbicularis_oculi_lid", 0.350)}
+
+
 def _rule(shape: str) -> Callable[[Getter], float] | None:
     """How one ARKit shape is computed from channel values (None: we cannot express it)."""
     s = _side(shape)

@@ -334,7 +334,7 @@ def test_fit_on_a_rig_file_records_it_for_replay(tmp_path, performance, capsys) 
 def test_the_arkit_reader_inverts_the_export_mapping(tmp_path) -> None:
     """Every channel the ARKit export writes one-to-one comes back with its value (5 decimals)."""
     from puppet.capture.arkit_in import read_arkit_csv
-    from puppet.export.arkit import SIMPLE_SHAPES, ArkitCsvWriter
+    from puppet.export.arkit import GAZE_LIDS, SIMPLE_SHAPES, ArkitCsvWriter
     from sim.channels import CHANNEL_NAMES, CHANNEL_SPECS
 
     one_to_one = {b + s for b in set(SIMPLE_SHAPES.values()) - {"orbicularis_oculi"} for s in ("_l", "_r")}
@@ -344,6 +344,13 @@ def test_the_arkit_reader_inverts_the_export_mapping(tmp_path) -> None:
     for ch in one_to_one:
         j = CHANNEL_NAMES.index(ch)
         values[:, j] = rng.uniform(-1.0 if ch.startswith("eyes") else 0.0, 1.0, 20)
+    # the lids follow the gaze (GAZE_LIDS): a pose comes back whole when its lids are at least the gaze's share
+    pitch = values[:, CHANNEL_NAMES.index("eyes_pitch")]
+    for look, (lid, share) in GAZE_LIDS.items():
+        gaze = np.maximum(pitch if look == "EyeLookUp" else -pitch, 0.0)
+        for s in ("_l", "_r"):
+            j = CHANNEL_NAMES.index(lid + s)
+            values[:, j] = np.maximum(values[:, j], share * gaze)
     path = tmp_path / "rt.arkit.csv"
     w = ArkitCsvWriter(path, list(CHANNEL_NAMES), 60.0)
     for k, v in enumerate(values):

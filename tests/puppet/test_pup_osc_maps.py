@@ -12,7 +12,7 @@ import pytest
 from devices.events import ControlEvent
 from devices.facestream import ARKIT_NAMES, ROTATION_NAMES
 from puppet.errors import ConfigError
-from puppet.export.arkit import ARKIT_SHAPES, arkit_row, rotation_row
+from puppet.export.arkit import ARKIT_SHAPES, GAZE_LIDS, arkit_row, rotation_row
 from puppet.mapping import Mapper, Vocabulary, parse_mapping
 from puppet.mapping.defaults import default_map_name, load_default_map, map_names, merge
 
@@ -148,6 +148,12 @@ def test_arkit_map_is_the_inverse_of_the_export(vocab: Vocabulary) -> None:
                    "orbicularis_oris_marginalis_lower", "mouth_shift_l", "mouth_shift_r", "cheek_puff", "tongue_out",
                    "orbicularis_oris_peripheralis_lower"):
             values[names.index(ch)] = rng.uniform(0, 0.7)
+        # the lids follow the gaze: a pose comes back whole when its lids are at least the gaze's share
+        up, down = max(values[names.index("eyes_pitch")], 0.0), max(-values[names.index("eyes_pitch")], 0.0)
+        for side in ("_l", "_r"):
+            for lid, look in (("levator_palpebrae", up), ("orbicularis_oculi_lid", down)):
+                share = GAZE_LIDS["EyeLookUp" if lid == "levator_palpebrae" else "EyeLookDown"][1]
+                values[names.index(lid + side)] = max(values[names.index(lid + side)], share * look)
         # a funnel everts both lips: a pose comes back whole when the upper lip is everted at least as far
         values[names.index("orbicularis_oris_peripheralis_upper")] = rng.uniform(0.7, 1.0)
         m = Mapper(merge([(load_default_map("arkit"), LIVE)]), vocab)

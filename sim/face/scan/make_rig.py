@@ -144,10 +144,15 @@ def transferred_rig(weights: np.ndarray | None = None, name: str = "ict") -> Fac
 
 
 def pack(path: str | Path = RIG_FILE) -> None:
-    """Write the generic head's rig as the shipped rig file."""
-    from sim.rig import save_rig
+    """Write the generic head's rig as the shipped rig file, keeping the insertion gains fitted to
+    the scans (`sim.face.scan.calibrate`, run by `benchmarks/calibrate_scan.py`, which rewrites them)
+    that the file already holds."""
+    from dataclasses import replace
 
-    save_rig(transferred_rig(), path)
+    from sim.rig import load_rig, save_rig
+
+    kept = load_rig(path).insertion if Path(path).is_file() else {}
+    save_rig(replace(transferred_rig(), insertion=kept), path)
 
 
 if __name__ == "__main__":
