@@ -18,12 +18,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 def turned_over_area(model, x: np.ndarray) -> float:  # type: ignore[no-untyped-def]
-    """cm2 of skin triangles whose normal points against their rest normal."""
-    t, r = model.triangles, model.rest
-    n0 = np.cross(r[t[:, 1]] - r[t[:, 0]], r[t[:, 2]] - r[t[:, 0]])
-    n1 = np.cross(x[t[:, 1]] - x[t[:, 0]], x[t[:, 2]] - x[t[:, 0]])
-    bad = np.einsum("ij,ij->i", n0, n1) < 0
-    return float(0.5 * np.linalg.norm(n1[bad], axis=1).sum())
+    """cm2 of skin triangles whose normal points against their rest normal (sim.antifold)."""
+    from sim.antifold import turned_over_area as area
+
+    return area(model.triangles, model.rest, x)
 
 
 def main(argv: list[str] | None = None) -> int:

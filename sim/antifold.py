@@ -45,6 +45,16 @@ FLOOR = 0.3  # projected area / rest area below which the term acts
 STRENGTH = 1.0  # stiffness per triangle, in its edge springs' mean high-strain stiffness
 
 
+def turned_over_area(triangles: np.ndarray, rest: np.ndarray, x: np.ndarray) -> float:
+    """cm2 of skin triangles at positions x whose normal points against their rest normal: the
+    measure this term keeps near zero (the scans themselves fold at most ~0.25 cm2)."""
+    t = np.asarray(triangles)
+    n0 = np.cross(rest[t[:, 1]] - rest[t[:, 0]], rest[t[:, 2]] - rest[t[:, 0]])
+    n1 = np.cross(x[t[:, 1]] - x[t[:, 0]], x[t[:, 2]] - x[t[:, 0]])
+    bad = np.einsum("ij,ij->i", n0, n1) < 0
+    return float(0.5 * np.linalg.norm(n1[bad], axis=1).sum())
+
+
 class FoldGuard:
     """Per-triangle rest data of the anti-fold term. tri (M,3) int32; frame (M,2,3) the rest plane's
     axes; dm_inv (M,2,2); area (M,) cm2; k (M,) dyn/cm."""

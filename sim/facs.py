@@ -77,7 +77,7 @@ AU_TABLE: dict[str, dict[str, float]] = _sided(_BASE)
 
 EXPRESSIONS: dict[str, dict[str, float]] = {
     "happiness": {"AU6": 0.6, "AU12": 1.0},
-    "sadness": {"AU1": 1.0, "AU4": 0.1, "AU15": 1.0, "AU17": 0.5, "AU43": 0.3},
+    "sadness": {"AU1": 1.0, "AU4": 0.1, "AU15": 1.0, "AU17": 0.5, "AU43": 0.2},
     "surprise": {"AU1": 1.0, "AU2": 1.0, "AU26": 0.8},
     "fear": {"AU1": 1.0, "AU2": 0.15, "AU4": 0.6, "AU5": 0.8, "AU20": 1.0, "AU26": 0.5},
     "anger": {"AU4": 1.0, "AU5": 0.3, "AU7": 0.6, "AU23": 1.0},

@@ -10,19 +10,7 @@ from devices.events import ControlEvent
 from puppet import live
 from puppet.mapping import Mapper
 from puppet.tick_rate import choose_tick_rate
-
-
-class FakeClock:
-    """A clock that only moves when slept on."""
-
-    def __init__(self) -> None:
-        self.t = 100.0
-
-    def __call__(self) -> float:
-        return self.t
-
-    def sleep(self, s: float) -> None:
-        self.t += max(s, 0.0)
+from fakeclock import FakeClock
 
 
 @pytest.fixture(scope="module")

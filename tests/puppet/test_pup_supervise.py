@@ -22,6 +22,7 @@ from puppet.errors import ConfigError
 from puppet.session import SessionWriter, read_session
 from puppet_helpers import ENV, ev, mapper
 from puppet_helpers import run_puppet as puppet
+from fakeclock import FakeClock
 
 CHILD = Path(__file__).with_name("show_child.py")
 
@@ -273,19 +274,6 @@ def test_resume_continues_a_crashed_take_as_a_restart_would(tmp_path: Path) -> N
     assert "continuing" in out.stderr
     s = read_session(rec)
     assert s.complete and s.ticks == 120 and s.segments == [40]
-
-
-class FakeClock:
-    """A clock that only moves when slept on."""
-
-    def __init__(self) -> None:
-        self.t = 100.0
-
-    def __call__(self) -> float:
-        return self.t
-
-    def sleep(self, s: float) -> None:
-        self.t += max(s, 0.0)
 
 
 def test_a_resumed_take_ticks_at_once_on_the_wall_clock(face: live.Face) -> None:
