@@ -93,6 +93,22 @@ def wave(k: int, rate: float) -> list[tuple[str, float]]:
             ("slider:zygomaticus_major_l", 0.5 + 0.4 * math.sin(2 * math.pi * 0.25 * t))]
 
 
+def open_show(face: live.Face, query: str = "") -> tuple[Any, live.LiveCore, live.StopFlag, Any]:
+    """A page device on 127.0.0.1 driving a live core, and the drain that feeds it the wave's events:
+    (device, core, stop flag, drain)."""
+    dev = devices.open_device(f"panel://127.0.0.1:0{query}", vocab=face.vocab)
+    core = live.LiveCore(face, Mapper(panel_map(face.vocab), face.vocab))
+    dev.watch(core, [dev])
+    dev.start()
+    spec = dev.spec.rstrip("/") + "/wave"
+
+    def drain() -> list[Any]:
+        k, t = core.tick_count, time.monotonic()
+        return [ControlEvent(spec, c, "axis", v, None, v, t) for c, v in wave(k, core.rate)]
+
+    return dev, core, live.StopFlag(), drain
+
+
 def live_run(face: live.Face, n_pages: int, seconds: float, mode: str = "picture",
              draws: bool = True) -> dict[str, Any]:
     """One show with n pages watching: per page fps and lag; server CPU shown vs hidden. `mode`:
@@ -103,18 +119,9 @@ def live_run(face: live.Face, n_pages: int, seconds: float, mode: str = "picture
     from panel_browser import browser, quit_browser, wait_for
     from render.offscreen import OffscreenRenderer
 
-    dev = devices.open_device(f"panel://127.0.0.1:0?face={mode}", vocab=face.vocab)
-    core = live.LiveCore(face, Mapper(panel_map(face.vocab), face.vocab))
-    dev.watch(core, [dev])
-    dev.start()
+    dev, core, stop, drain = open_show(face, f"?face={mode}")
     rend: list[Any] = []  # made in the show's thread: a GL context is current in the thread that made it
     presented: dict[int, float] = {}
-    stop = live.StopFlag()
-    spec = dev.spec.rstrip("/") + "/wave"
-
-    def drain() -> list[Any]:
-        k, t = core.tick_count, time.monotonic()
-        return [ControlEvent(spec, c, "axis", v, None, v, t) for c, v in wave(k, core.rate)]
 
     def on_frame(c: live.LiveCore) -> None:
         if not draws:
@@ -233,17 +240,8 @@ def server_run(face: live.Face, n_pages: int, seconds: float, with_face: bool) -
     import multiprocessing
     import threading
 
-    dev = devices.open_device("panel://127.0.0.1:0", vocab=face.vocab)
-    core = live.LiveCore(face, Mapper(panel_map(face.vocab), face.vocab))
-    dev.watch(core, [dev])
-    dev.start()
+    dev, core, stop, drain = open_show(face)
     presented: dict[int, float] = {}
-    stop = live.StopFlag()
-    spec = dev.spec.rstrip("/") + "/wave"
-
-    def drain() -> list[Any]:
-        k, t = core.tick_count, time.monotonic()
-        return [ControlEvent(spec, c, "axis", v, None, v, t) for c, v in wave(k, core.rate)]
 
     def on_frame(c: live.LiveCore) -> None:
         presented[c.tick_count] = time.monotonic()
