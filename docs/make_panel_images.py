@@ -1,7 +1,7 @@
 """Screenshots of the performer's page and the force-graph editor for docs/images/: a live show
 (`puppet live --headless --panel`), two pages (one limited to the mouth), a few moves; then the
-editor on the take with keys made from the recording and one re-recorded pass; the face drawn by
-the pages (WebGL 2), the keyboard's focus ring on one slider.
+editor on the take with keys made from the recording and one re-recorded pass; the face shown on
+the pages (pictures of the show), the keyboard's focus ring on one slider.
 Run: .venv/bin/python docs/make_panel_images.py   (needs chromium + chromium-driver)
 """
 
