@@ -29,6 +29,27 @@ MOUTH_RIM = (0.20, 0.035, 0.03)
 SOCKET_RIM = (0.05, 0.03, 0.03)
 
 
+def face_cavities(mesh: Any, rest: np.ndarray, base: int = 0) -> tuple[list[Cavity], list[np.ndarray],
+                                                                       list[np.ndarray], list[np.ndarray],
+                                                                       list[np.ndarray], int]:
+    """The dark pockets behind the mouth and the eye openings of a face mesh (those whose loop has
+    three nodes or more), as drawn in one buffer: (cavities, their triangles numbered from `base`,
+    depth, teeth share (the mouth's only), rim colour per vertex, the next free vertex number)."""
+    cavities: list[Cavity] = []
+    tris, depth, teeth, rims = [], [], [], []
+    for loop, rim in [(mesh.mouth_loop, MOUTH_RIM)] + [(lp, SOCKET_RIM) for lp in mesh.eye_loops]:
+        if len(loop) < 3:
+            continue
+        cav = Cavity(loop, rest)
+        cavities.append(cav)
+        tris.append(cav.triangles + base)
+        depth.append(cav.depth)
+        teeth.append(cav.teeth * (1.0 if rim == MOUTH_RIM else 0.0))
+        rims.append(np.tile(np.asarray(rim, np.float32), (cav.n_vertices, 1)))
+        base += cav.n_vertices
+    return cavities, tris, depth, teeth, rims, base
+
+
 def affordable_antialias(ctx: moderngl.Context) -> str:
     """"fxaa" on a GPU; "none" on a software rasterizer, where the full-screen FXAA pass alone
     costs several frames' budget at 720p (measured in benchmarks/render_frame.py)."""
@@ -144,19 +165,7 @@ class FaceRenderer:
         self.eye_vao = ctx.vertex_array(self.eye_prog, [(sph_vbo, "3f", "in_pos")], sph_ibo)
         g += [sph_vbo, sph_ibo, *self.skin_vaos.values(), self.edge_vao, self.eye_vao]
         # every cavity in one buffer and one draw call: rim colour and teeth per vertex
-        self.cavities = []
-        loops = [(mesh.mouth_loop, MOUTH_RIM)] + [(lp, SOCKET_RIM) for lp in mesh.eye_loops]
-        tris, depth, teeth, rims, base = [], [], [], [], 0
-        for loop, rim in loops:
-            if len(loop) < 3:
-                continue
-            cav = Cavity(loop, rest)
-            self.cavities.append(cav)
-            tris.append(cav.triangles + base)
-            depth.append(cav.depth)
-            teeth.append(cav.teeth * (1.0 if rim == MOUTH_RIM else 0.0))
-            rims.append(np.tile(np.asarray(rim, np.float32), (cav.n_vertices, 1)))
-            base += cav.n_vertices
+        self.cavities, tris, depth, teeth, rims, base = face_cavities(mesh, rest)
         self.cavity_vao = None
         if self.cavities:
             self.cavity_vbo = ctx.buffer(reserve=base * 12, dynamic=True)

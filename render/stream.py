@@ -31,8 +31,8 @@ import numpy as np
 
 from render import shaders
 from render.camera import OrbitCamera
-from render.meshdata import HAIR, SKIN, Cavity, brow_coords, skin_tint, surface_rows, uv_sphere
-from render.renderer import BACKGROUND, EYE_PITCH_MAX, EYE_YAW_MAX, MOUTH_RIM, SOCKET_RIM
+from render.meshdata import HAIR, SKIN, brow_coords, skin_tint, surface_rows, uv_sphere
+from render.renderer import BACKGROUND, EYE_PITCH_MAX, EYE_YAW_MAX, face_cavities
 
 SCENE, FRAME, PICTURE = 1, 2, 3
 QUANTUM = 0.002  # cm per int16 step: 20 um, a 50th of a pixel on a page's face; range +-65 cm
@@ -129,18 +129,7 @@ class FaceStream:
             lo, hi = np.minimum(lo, seen.min(axis=0)), np.maximum(hi, seen.max(axis=0))
         self.camera.fit(lo, hi)
         # the cavities behind the mouth and the eye openings, streamed after the rows
-        self.cavities: list[Cavity] = []
-        cav_tris, depth, teeth, rims, base = [], [], [], [], self.n_rows
-        for loop, rim in [(mesh.mouth_loop, MOUTH_RIM)] + [(lp, SOCKET_RIM) for lp in mesh.eye_loops]:
-            if len(loop) < 3:
-                continue
-            cav = Cavity(loop, rest)
-            self.cavities.append(cav)
-            cav_tris.append(cav.triangles + base)
-            depth.append(cav.depth)
-            teeth.append(cav.teeth * (1.0 if rim == MOUTH_RIM else 0.0))
-            rims.append(np.tile(np.asarray(rim, np.float32), (cav.n_vertices, 1)))
-            base += cav.n_vertices
+        self.cavities, cav_tris, depth, teeth, rims, _ = face_cavities(mesh, rest, self.n_rows)
         self.base = np.vstack([rows_rest, *self._cavity_positions(rest)]).astype(np.float32)
         self.n_vertices = len(self.base)
         if self.rows.shell is not None:
