@@ -195,6 +195,12 @@ def _parse_system_keys() -> MappingSpec:
 
 
 def session_header(face: Face, spec: MappingSpec, rate: float, devices: Sequence[str]) -> dict[str, Any]:
+    return take_header(face, rate, {"source": spec.source, "text": spec.text}, devices)
+
+
+def take_header(face: Face, rate: float, mapping: dict[str, str], devices: Sequence[str]) -> dict[str, Any]:
+    """The header every take starts with (the live show's, a fit's, a voice's): program, start
+    time, rig, channels, tick rate, the mapping (source and text) and the devices."""
     from puppet import __version__
 
     return {
@@ -203,7 +209,7 @@ def session_header(face: Face, spec: MappingSpec, rate: float, devices: Sequence
         "rig": face.rig,
         "channels": [c.name for c in face.vocab.channels],
         "tick_rate": rate,
-        "mapping": {"source": spec.source, "text": spec.text},
+        "mapping": dict(mapping),
         "devices": list(devices),
     }
 

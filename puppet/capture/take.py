@@ -5,7 +5,6 @@ into place, so a failure leaves no partial file."""
 from __future__ import annotations
 
 import csv
-import datetime as _dt
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -58,21 +57,11 @@ def write_take(path: Path, face: Any, values: np.ndarray, rate: float, source: d
     """A recording of `values` (ticks, C) at `rate`, with the position digests a live session
     writes (every 60 ticks), computed by simulating it, so `puppet replay` verifies it."""
     import sim
-    from puppet import __version__
-    from puppet.live import CHECK_TICKS
+    from puppet.live import CHECK_TICKS, take_header
     from puppet.replay import state_digest
     from puppet.session import SessionWriter
 
-    header = {
-        "program": f"facepuppet {__version__}",
-        "start_time": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds"),
-        "rig": face.rig,
-        "channels": [c.name for c in face.vocab.channels],
-        "tick_rate": rate,
-        "mapping": {"source": "puppet fit", "text": ""},
-        "devices": [],
-        "source": source,
-    }
+    header = {**take_header(face, rate, {"source": "puppet fit", "text": ""}, []), "source": source}
     simulator = sim.Simulator(face.model, 1.0 / rate)
     control = sim.FaceControl(face.model)
     state = face.model.rest_state()

@@ -20,7 +20,6 @@ TAIL_S = 0.5
 
 def voice_take(wav: str | Path, face: Any, out: Path, rate: float = 60.0, profile: str | None = None) -> list[str]:
     """Analyse `wav` and write the take `out`; returns lines for the terminal."""
-    import datetime as _dt
 
     import sim
     from devices.audio.analysis import CONTROLS, VoiceAnalyzer, changes
@@ -28,10 +27,9 @@ def voice_take(wav: str | Path, face: Any, out: Path, rate: float = 60.0, profil
     from devices.audio.wavfile import read_wav
     from devices.base import ControlInfo
     from devices.events import ControlEvent
-    from puppet import __version__
     from puppet.capture.take import atomic_path
     from puppet.errors import ConfigError
-    from puppet.live import CHECK_TICKS
+    from puppet.live import CHECK_TICKS, session_header
     from puppet.mapping import Mapper
     from puppet.mapping.defaults import load_default_map, merge
     from puppet.replay import state_digest
@@ -56,13 +54,7 @@ def voice_take(wav: str | Path, face: Any, out: Path, rate: float = 60.0, profil
         voiced += fr.gate
     n = max(1, math.ceil((len(x) / sr + TAIL_S) * rate))
     header = {
-        "program": f"facepuppet {__version__}",
-        "start_time": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds"),
-        "rig": face.rig,
-        "channels": [c.name for c in face.vocab.channels],
-        "tick_rate": rate,
-        "mapping": {"source": spec.source, "text": spec.text},
-        "devices": [dev],
+        **session_header(face, spec, rate, [dev]),
         "source": {"input": str(wav.resolve()), "kind": "voice"},
         "audio": [{"device": dev, "file": wav.name, "path": str(wav.resolve()), "rate": sr}],
     }
