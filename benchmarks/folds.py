@@ -39,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     poses: dict[str, FaceControl] = {}
     for name in EXPRESSIONS:
         c = FaceControl()
-        apply_expression(c, name)
+        apply_expression(c, name, face=model.rig.name)
         poses[name] = c
     for spec in model.channels:
         if spec.name in ("eyes_yaw", "eyes_pitch", "age") or spec.name.endswith("_r"):

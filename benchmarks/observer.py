@@ -205,7 +205,7 @@ def perform(model: Any, expression: str | None) -> tuple[Any, Any]:
     for k in range(60):
         control = FaceControl(model)
         if expression:
-            apply_expression(control, expression, min(1.0, (k + 1) / 40))
+            apply_expression(control, expression, min(1.0, (k + 1) / 40), model.rig.name)
         sim.step(state, control)
     sim.settle(state, control)
     return state, control

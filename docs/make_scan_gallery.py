@@ -71,7 +71,7 @@ def perform(model: Any, expression: str | None) -> Any:
     for k in range(RAMP_FRAMES + HOLD_FRAMES):
         control = FaceControl(model)
         if expression:
-            apply_expression(control, expression, min(1.0, (k + 1) / RAMP_FRAMES))
+            apply_expression(control, expression, min(1.0, (k + 1) / RAMP_FRAMES), model.rig.name)
         sim.step(state, control)
     sim.settle(state, control)
     return state

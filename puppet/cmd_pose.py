@@ -79,8 +79,9 @@ def _size(text: str) -> tuple[int, int]:
     return size
 
 
-def build_control(args: argparse.Namespace) -> Any:
-    """The FaceControl the options ask for; puppet ChannelError (exit 2) for bad names or values."""
+def build_control(args: argparse.Namespace, face: str | None = None) -> Any:
+    """The FaceControl the options ask for (presets at the intensities of `face`, its rig's name);
+    puppet ChannelError (exit 2) for bad names or values."""
     from sim import channels as ch
     from sim import facs
     from sim.state import FaceControl
@@ -89,7 +90,8 @@ def build_control(args: argparse.Namespace) -> Any:
     try:
         for text in args.expressions:
             name, value = _pair(text, "--expression")
-            facs.apply_expression(control, name, 1.0 if value is None else _number(value, f"--expression {name}"))
+            facs.apply_expression(control, name, 1.0 if value is None else _number(value, f"--expression {name}"),
+                                  face)
         for text in args.aus:
             name, value = _pair(text, "--au")
             if value is None:
@@ -139,8 +141,9 @@ def run(args: argparse.Namespace) -> int:
     size = _size(args.size)
     if args.seconds is not None and not (0.0 <= args.seconds <= 600.0):
         raise PuppetError(f"--seconds {args.seconds:g}: expected 0..600")
-    control = build_control(args)
+    build_control(args)  # bad names and values fail before the face is built
     model = load_model(args)
+    control = build_control(args, getattr(model.rig, "name", None))
 
     from sim.integrator import Simulator
 

@@ -120,3 +120,27 @@ def test_facs_names_and_ranges() -> None:
             bad()
     for expr in facs.EXPRESSIONS.values():
         assert all(au in facs.AU_TABLE for au in expr)
+
+
+def test_the_scanned_head_has_its_own_preset_intensities() -> None:
+    """The scanned head's presets push harder where its actions are weaker (fear draws its brows
+    down fully); other faces take the shared table; a map's expr: target sets what the preset does."""
+    from types import SimpleNamespace
+
+    from puppet.mapping.targets import Vocabulary
+    from sim.channels import CHANNEL_SPECS
+
+    scan, shared = FaceControl(), FaceControl()
+    facs.apply_expression(scan, "fear", face="ict")
+    facs.apply_expression(shared, "fear", face="procedural")
+    assert scan.get("corrugator_l") == 1.0 and shared.get("corrugator_l") == pytest.approx(0.6)
+    assert set(facs.expressions_for("ict")) == set(facs.EXPRESSIONS)
+    vocab = Vocabulary.from_model(SimpleNamespace(channels=CHANNEL_SPECS, rig=SimpleNamespace(name="ict")))
+    for name in facs.EXPRESSIONS:
+        want = FaceControl()
+        facs.apply_expression(want, name, face="ict")
+        got = dict(vocab.resolve(f"expr:{name}").channels)
+        moved = {i for i in range(len(want.values)) if want.values[i] != CHANNEL_SPECS[i].default}
+        assert set(got) == moved, name
+        for i in moved:
+            assert got[i] == pytest.approx(want.values[i]), (name, CHANNEL_SPECS[i].name)

@@ -63,7 +63,7 @@ def _settle(model, control: FaceControl, seconds: float = 2.0) -> np.ndarray:  #
 
 def _preset(name: str) -> FaceControl:
     c = FaceControl()
-    apply_expression(c, name)
+    apply_expression(c, name, face="ict")
     return c
 
 
