@@ -2,7 +2,8 @@
 scanned head (the default face) beside the scan's own expression shapes combined by FACS (same
 camera, same light, same renderer), the neutral pair, and three identities.
 
-The scan's shapes stand for the presets' action units at the presets' own intensities (sim.facs):
+The scan's shapes stand for the presets' action units at the shared intensities (sim.facs.EXPRESSIONS;
+the simulated head plays some presets at its own, `sim.facs.FACE_EXPRESSIONS`):
 AU1 browInnerUp, AU2 browOuterUp, AU4 browDown, AU5 eyeWide, AU6 cheekRaiser, AU7 eyeSquint,
 AU9 noseSneer, AU10 mouthUpperUp, AU12 mouthSmile, AU14 mouthDimple, AU15 mouthFrown,
 AU17 mouthShrugLower, AU20 mouthStretch, AU23 mouthPress, AU43 eyeBlink, AU26 jawOpen at half the AU's intensity
