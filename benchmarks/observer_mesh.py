@@ -9,7 +9,8 @@ missing, downloads it by hand from its public address (the product itself never 
   of https://github.com/makehumancommunity/makehuman (commit a8bc2d54; released CC0 1.0 by Data
   Collection AB, Joel Palmius and Jonas Hauquier, 2020). A modelled full body: the skin group
   ("body") above the shoulders is kept. Its eyes are open (the lids roll into the socket) and its
-  lips meet: the eye rims are declared as closed loops, the lip line as a slit.
+  lips are apart at the front, the mouth's lining closing behind them: the eye and lip rims are
+  declared as closed loops (the lining and the sockets inside them are removed).
 - `leeperrysmith` (held out: measured once, nothing tuned on it): "Infinite, 3D Head Scan by Lee
   Perry-Smith" (Infinite-Realities, based on a work at www.triplegangers.com), CC BY 3.0 Unported,
   as distributed with the three.js examples: `examples/obj/leeperrysmith/LeePerrySmith.js` of
@@ -173,10 +174,15 @@ def edge_path(v: np.ndarray, t: np.ndarray, points: list[np.ndarray], closed: bo
 
 
 def openings(v: np.ndarray, t: np.ndarray, pts: dict[str, list[float]], eyes_open: bool) -> dict[str, list[int]]:
-    """Declared openings: the lip line as a slit; each eye as a rim loop (open eyes) or a lid slit."""
+    """Declared openings: rim loops round the lips and eyes of a modelled head with open eyes and a
+    mouth lining (what they enclose is removed), the lip and lid lines as slits on a closed scan."""
     p = {k: np.asarray(x) for k, x in pts.items()}
-    out = {"mouth": edge_path(v, t, [p["mouth_corner_r"], 0.5 * (p["upper_lip_center"] + p["lower_lip_center"]),
-                                     p["mouth_corner_l"]])}
+    if eyes_open:  # a modelled head: the lips part at the front, the mouth's lining closes behind them
+        out = {"mouth": edge_path(v, t, [p["mouth_corner_r"], p["upper_lip_center"], p["mouth_corner_l"],
+                                         p["lower_lip_center"]], closed=True)}
+    else:
+        out = {"mouth": edge_path(v, t, [p["mouth_corner_r"], 0.5 * (p["upper_lip_center"] + p["lower_lip_center"]),
+                                         p["mouth_corner_l"]])}
     for s in "lr":
         inner, outer, up, low = (p[f"{n}_{s}"] for n in ("eye_inner", "eye_outer", "upper_lid", "lower_lid"))
         if eyes_open:
