@@ -28,39 +28,56 @@ def slit_sides(loop: IntArray) -> tuple[IntArray, IntArray]:
     return path, lower
 
 
-def open_lids(vertices: FloatArray, loop: IntArray, ratio: float, up: FloatArray) -> FloatArray:
-    """The vertices with the lids of one cut eye parted by `ratio` x the eye's width at the
-    middle, tapering to nothing at the corners (a sine along the lid line). Only the skin within
-    REACH_UP / REACH_DOWN of the line, between the corners and near the line in depth, moves."""
+def set_gap(vertices: FloatArray, upper: IntArray, lower: IntArray, gap: float, up: FloatArray,
+            upper_share: float = UPPER_SHARE) -> FloatArray:
+    """The vertices with the opening between two chains (corner to corner, both from the same
+    corner) made `gap` wide at the middle: a shut line opens along a sine that is nothing at the
+    corners; an open one keeps its shape, scaled. The upper chain takes `upper_share` of the
+    change, the lower the rest, and the skin within REACH_UP / REACH_DOWN of the eye's (mouth's)
+    width above (below) follows smoothly; nothing beyond the corners or far in depth moves."""
     v = np.asarray(vertices, float).copy()
-    path, lower = slit_sides(loop)
-    a, b = v[path[0]], v[path[-1]]
+    upper, lower = np.asarray(upper, dtype=np.int64), np.asarray(lower, dtype=np.int64)
+    a, b = v[upper[0]], v[upper[-1]]
     axis = b - a
     width = float(np.linalg.norm(axis))
-    if width <= 0 or ratio <= 0:
+    if width <= 0 or gap < 0:
         return v
     up = np.asarray(up, float) - (np.asarray(up, float) @ axis) * axis / width ** 2
     up /= np.linalg.norm(up)
     forward = np.cross(axis / width, up)
-    opening = ratio * width
-    t_path = (v[path] - a) @ axis / width ** 2
-    order = np.argsort(t_path)
-    height_path = (v[path] - a) @ up
-    depth_path = (v[path] - a) @ forward
-    t = (v - a) @ axis / width ** 2
-    inside = (t > 0.0) & (t < 1.0)
-    line_h = np.interp(t, t_path[order], height_path[order])
-    line_d = np.interp(t, t_path[order], depth_path[order])
-    h = (v - a) @ up - line_h
-    near = inside & (np.abs((v - a) @ forward - line_d) < DEPTH * width)
-    taper = np.sin(np.pi * np.clip(t, 0.0, 1.0))
-    lift = np.zeros(len(v))
-    above = near & (h >= 0) & (h < REACH_UP * width)
-    below = near & (h < 0) & (-h < REACH_DOWN * width)
-    lift[above] = UPPER_SHARE * opening * (1.0 - h[above] / (REACH_UP * width)) ** 2
-    lift[below] = -(1.0 - UPPER_SHARE) * opening * (1.0 + h[below] / (REACH_DOWN * width)) ** 2
-    # the lid line itself: both copies sit on it, the path takes the upper lid, the copies the lower
-    lift[path] = UPPER_SHARE * opening
-    lift[lower[1:-1]] = -(1.0 - UPPER_SHARE) * opening
-    lift[[path[0], path[-1]]] = 0.0
-    return v + (lift * taper)[:, None] * up
+
+    def line(chain: IntArray, t: FloatArray, direction: FloatArray) -> FloatArray:
+        tc = (v[chain] - a) @ axis / width ** 2
+        order = np.argsort(tc)
+        return np.interp(t, tc[order], ((v[chain] - a) @ direction)[order])
+
+    t = np.clip((v - a) @ axis / width ** 2, 0.0, 1.0)
+    inside = (((v - a) @ axis / width ** 2) > 0.0) & (((v - a) @ axis / width ** 2) < 1.0)
+    top, bottom = line(upper, t, up), line(lower, t, up)
+    now = top - bottom
+    mid = float(line(upper, np.array([0.5]), up)[0] - line(lower, np.array([0.5]), up)[0])
+    shape = now / mid if mid > 1e-3 * width else np.sin(np.pi * t)
+    change = gap * shape - now
+    h = (v - a) @ up
+    depth = (v - a) @ forward - 0.5 * (line(upper, t, forward) + line(lower, t, forward))
+    near = inside & (np.abs(depth) < DEPTH * width)
+    centre = 0.5 * (top + bottom)
+    move = np.zeros(len(v))
+    above = near & (h >= centre)
+    below = near & (h < centre)
+    over = np.clip(h - top, 0.0, None) / (REACH_UP * width)
+    under = np.clip(bottom - h, 0.0, None) / (REACH_DOWN * width)
+    move[above] = upper_share * np.clip(1.0 - over[above], 0.0, 1.0) ** 2
+    move[below] = -(1.0 - upper_share) * np.clip(1.0 - under[below], 0.0, 1.0) ** 2
+    move[upper[1:-1]] = upper_share
+    move[lower[1:-1]] = -(1.0 - upper_share)
+    move[[upper[0], upper[-1]]] = 0.0
+    return v + (move * change)[:, None] * up
+
+
+def open_lids(vertices: FloatArray, loop: IntArray, ratio: float, up: FloatArray) -> FloatArray:
+    """The vertices with the lids of one cut eye (`openings.cut_slit`'s loop) parted by `ratio` x
+    the eye's width at the middle, tapering to nothing at the corners."""
+    path, lower = slit_sides(loop)
+    width = float(np.linalg.norm(vertices[path[-1]] - vertices[path[0]]))
+    return set_gap(vertices, path, lower, ratio * width, up)

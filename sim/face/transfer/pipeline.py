@@ -236,7 +236,7 @@ def transfer_rig(
     sim, shape = _orient(pts, ref_pts, names, landmarks, opt)
     radius = opt.region * float(np.linalg.norm(ref_pts["eye_outer_l"] - ref_pts["eye_outer_r"]))
     new = _bring_in(head, landmarks, names, pts, vids, sim, radius)
-    opened = _open_cut_eyes(new, ref)
+    opened = _rest_openings(new, ref)
     lm_arr = np.stack([new.landmarks[n] for n in names])
 
     # seed 003 section 3.1: one cylinder per face, fitted near the landmarks, unrolled
@@ -271,9 +271,8 @@ def transfer_rig(
     rig = FaceRig(mesh=mesh, muscles=muscles, wrinkles=_carry_wrinkles(reference, smap), name=name,
                   integrator=opt.integrator)
     notes = []
-    if opened:
-        notes.append(f"the lids of {' and '.join(opened)} were closed and cut along the lid line; "
-                     "they were parted at rest by the reference's opening")
+    for what in opened:
+        notes.append(what)
     if not relax.converged:
         notes.append(f"the relaxation stopped before coming to rest (residual {relax.residual:.2g})")
     if folded:
@@ -285,24 +284,30 @@ def transfer_rig(
                     int((~inside).sum()), new.flipped, new.dropped, notes)
 
 
-def _open_cut_eyes(new: _Head, ref: FaceMesh) -> list[str]:
-    """Part the lids of eyes declared as a lid line (closed in the file) by the reference's
-    opening (sim.face.transfer.lids); the lid landmarks follow. Returns the eyes opened."""
-    opened = []
+def _gap_ratio(mesh: FaceMesh, upper: str, lower: str, a: str, b: str) -> float:
+    """An opening's width at rest (between two landmarks) over its corner-to-corner length."""
+    p = mesh.landmark
+    return float(np.linalg.norm(p(upper) - p(lower)) / np.linalg.norm(p(a) - p(b)))
+
+
+def _rest_openings(new: _Head, ref: FaceMesh) -> list[str]:
+    """Lids shut in the file (declared as a lid line) are parted at rest by the reference's eye
+    opening (sim.face.transfer.lids); landmarks follow. Returns notes for the report. (Lips are
+    left as modelled: brought to the reference's gap, a modelled head's mouth read worse.)"""
+    notes = []
     before = new.vertices
     for side in "lr":
         loop = new.openings.get(f"eye_{side}")
         if loop is None or not any(loop is c for c in new.cut):
             continue
-        width = np.linalg.norm(ref.landmark(f"eye_outer_{side}") - ref.landmark(f"eye_inner_{side}"))
-        gap = np.linalg.norm(ref.landmark(f"upper_lid_{side}") - ref.landmark(f"lower_lid_{side}"))
-        new.vertices = open_lids(new.vertices, loop, float(gap / width), UP)
-        opened.append(f"eye_{side}")
-    if opened:  # landmarks given as points keep their place on the skin: they move as their vertex
+        ratio = _gap_ratio(ref, f"upper_lid_{side}", f"lower_lid_{side}", f"eye_outer_{side}", f"eye_inner_{side}")
+        new.vertices = open_lids(new.vertices, loop, ratio, UP)
+        notes.append(f"the lids of eye_{side} were shut; they were parted at rest by the reference's opening")
+    if notes:  # landmarks given as points keep their place on the skin: they move as their vertex
         for n in new.landmarks:
             vid = new.landmark_vertex[n]
             new.landmarks[n] = new.landmarks[n] + new.vertices[vid] - before[vid]
-    return opened
+    return notes
 
 
 def _relax(uv_ref: FloatArray, triangles: IntArray, ref_ids: IntArray, targets: FloatArray,
