@@ -26,8 +26,7 @@ user runs it); then each pose is simulated and drawn by the product's renderer e
 observer.py does for the default face (same camera framing by the face's own landmarks, same crop
 and classifier).
 
-    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,leeperrysmith]
-                                                      [--reference procedural|scan] [--save DIR]
+    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,leeperrysmith] [--save DIR]
 """
 
 from __future__ import annotations
@@ -200,7 +199,7 @@ HEADS: dict[str, dict[str, Any]] = {
 }
 
 
-def import_head(name: str, folder: Path, work: Path, reference: str) -> Path:
+def import_head(name: str, folder: Path, work: Path) -> Path:
     """Write the head and its landmark file, run `puppet import-face` on them; the rig's path."""
     import trimesh
 
@@ -213,8 +212,6 @@ def import_head(name: str, folder: Path, work: Path, reference: str) -> Path:
     rig = work / f"{name}.npz"
     cmd = [sys.executable, "-m", "puppet", "import-face", str(work / f"{name}.obj"), "--landmarks",
            str(work / f"{name}.json"), "--out", str(rig)]
-    if reference != "procedural":
-        cmd += ["--from", reference]
     run = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     if run.returncode:
         raise SystemExit(f"import-face failed on {name}: {run.stderr.strip()}")
@@ -275,7 +272,6 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--heads", default="makehuman", help="comma-separated: " + ", ".join(HEADS))
     ap.add_argument("--meshes", default=None, help="folder of the source files (downloaded when missing)")
-    ap.add_argument("--reference", default="procedural", help="rig to transfer from (import-face --from)")
     ap.add_argument("--only", default="", help="comma-separated poses (default: neutral and the seven presets)")
     ap.add_argument("--save", default="", help="folder for each frame as PNG")
     args = ap.parse_args(argv)
@@ -283,7 +279,7 @@ def main(argv: list[str] | None = None) -> int:
     obs = Observer()
     with tempfile.TemporaryDirectory() as tmp:
         for head in [h for h in args.heads.split(",") if h]:
-            rig = import_head(head, meshes_folder(args.meshes), Path(tmp), args.reference)
+            rig = import_head(head, meshes_folder(args.meshes), Path(tmp))
             score(obs, head_frames(rig, names), f"{head} ({HEADS[head]['role']})", args.save)
     return 0
 
