@@ -12,6 +12,8 @@ Rig file (`.npz`, version 1), read with `allow_pickle=False` so loading never ex
 Wrinkle lines (`sim.wrinkles.mask.WrinkleLine`) are stored as their plain `to_dict` form.
 Fitted insertion gains (`FaceRig.insertion`, optional): header "insertion": [channel names], and an
 array `insertion_<channel>` (N,) f8 >= 0 each.
+The integrator the face asks for (`FaceRig.integrator`, optional): header "integrator": "rk2" or
+"implicit" (absent: "auto"; imported heads ask for "implicit").
 """
 
 from __future__ import annotations

@@ -144,3 +144,24 @@ def test_a_winding_lid_line_is_cut_with_one_lower_side() -> None:
     verts, tris, loop, lower = cut_slit(v, t, np.array(path), np.array([0.0, 1.0, 0.0]), "eye_l", "lm.json")
     assert any(set(b.tolist()) == set(loop.tolist()) for b in boundary_loops(tris))
     assert sorted(lower) == sorted(int(p) for p in path[1:-1])
+
+
+def test_a_layer_under_the_skin_is_found_as_cavity() -> None:
+    """Two coaxial sheets seen from a cylinder chart: the inner one (a mouth's lining behind the
+    lips) lies under the outer and is hidden; the outer, and a lone sheet, are not."""
+    from sim.face.transfer.cylinder import Cylinder
+    from sim.face.transfer.flatten import CylinderChart, flat_triangulation, hidden_under
+
+    th, h = np.meshgrid(np.linspace(-0.6, 0.6, 13), np.linspace(-2.0, 2.0, 9))
+    grid = np.arange(th.size).reshape(th.shape)
+    a, b, c, d = grid[:-1, :-1], grid[:-1, 1:], grid[1:, :-1], grid[1:, 1:]
+    tris = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([b, d, c], -1).reshape(-1, 3)])
+    sheet = lambda r: np.stack([r * np.sin(th.ravel()), h.ravel(), r * np.cos(th.ravel())], 1)  # noqa: E731
+    verts = np.vstack([sheet(8.0), sheet(7.5)])
+    both = np.vstack([tris, tris + th.size])
+    chart = CylinderChart.facing(Cylinder(np.zeros(3), np.array([0.0, 1.0, 0.0]), 8.0), np.array([0.0, 0.0, 1.0]))
+    uv, _, keep = flat_triangulation(chart, verts, both)
+    hidden = hidden_under(chart, verts, both, uv, keep, 0.1)
+    assert not hidden[:th.size].any() and hidden[th.size:].all()
+    uv1, _, keep1 = flat_triangulation(chart, verts[th.size:], tris)
+    assert not hidden_under(chart, verts[th.size:], tris, uv1, keep1, 0.1).any()
