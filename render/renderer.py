@@ -13,7 +13,8 @@ import numpy as np
 from render import shaders
 from render.camera import OrbitCamera
 from render.hud import HudInfo, HudRenderer
-from render.meshdata import (HAIR, SKIN, Cavity, brow_coords, face_frame, MuscleLines, eye_rotation, head_turn, skin_tint, spatial_order,
+from render.meshdata import (HAIR, SKIN, Cavity, brow_coords, MuscleLines, eye_rotation, face_frame, head_turn,
+                             skin_tint, spatial_order,
                              surface_rows, unique_edges, uv_sphere)
 from render.trails import TrailHistory
 from sim.face.turn import is_turned, turn_eye

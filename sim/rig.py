@@ -249,7 +249,8 @@ def _parse(data: Any, p: str) -> FaceRig:
         insertion[name] = gain.astype(np.float64)
     integrator = header.get("integrator", "auto")
     if integrator not in INTEGRATORS:
-        raise RigFileError(f"{p}: integrator must be one of {', '.join(INTEGRATORS)}, not {quote(str(integrator)[:40])}")
+        raise RigFileError(f"{p}: integrator must be one of {', '.join(INTEGRATORS)}, "
+                           f"not {quote(str(integrator)[:40])}")
     return FaceRig(mesh=mesh, muscles=muscles, wrinkles=_wrinkles(header.get("wrinkles", []), p),
                    name=string(header.get("name", "rig"), f"{p}: name"), insertion=insertion,
                    integrator=integrator)

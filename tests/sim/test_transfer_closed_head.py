@@ -57,7 +57,8 @@ def synthetic_import():
 def _aperture(mesh, side: str) -> float:
     lm = mesh.landmarks
     width = np.linalg.norm(mesh.vertices[lm[f"eye_outer_{side}"]] - mesh.vertices[lm[f"eye_inner_{side}"]])
-    return float(np.linalg.norm(mesh.vertices[lm[f"upper_lid_{side}"]] - mesh.vertices[lm[f"lower_lid_{side}"]]) / width)
+    gap = mesh.vertices[lm[f"upper_lid_{side}"]] - mesh.vertices[lm[f"lower_lid_{side}"]]
+    return float(np.linalg.norm(gap) / width)
 
 
 def test_shut_eyes_are_opened_by_the_references_aperture(synthetic_import) -> None:
