@@ -14,6 +14,7 @@ from sim.model import FaceMesh, FaceRig, LinearMuscle, SheetMuscle, SphincterMus
 SKIN = np.array([0.58, 0.40, 0.31])
 LIPS = np.array([0.50, 0.17, 0.16])
 HAIR = np.array([0.10, 0.065, 0.045])  # dark brown, linear albedo (the default head's scalp)
+CAVITY = np.array([0.05, 0.015, 0.012])  # the inside of the mouth, in shadow (linear albedo)
 
 
 class NormalComputer:
@@ -161,7 +162,7 @@ def skin_tint(mesh: FaceMesh) -> np.ndarray:
     v = mesh.vertices
     col = np.tile(SKIN, (len(v), 1))
     if len(mesh.mouth_loop) < 3:
-        return col.astype(np.float32)
+        return _cavity_dark(mesh, col).astype(np.float32)
     loop = v[mesh.mouth_loop][:, :2]
     width = float(np.ptp(loop[:, 0])) or 1.0
     d = _distance_to_loop(v[:, :2], loop)
@@ -171,7 +172,37 @@ def skin_tint(mesh: FaceMesh) -> np.ndarray:
     w = 1.0 - t * t * (3.0 - 2.0 * t)                         # smoothstep fade
     w *= v[:, 2] > loop_depth(v, mesh.mouth_loop, width)      # only the front, not inside the mouth
     w = w[:, None]
-    return (SKIN * (1 - w) + LIPS * w).astype(np.float32)
+    return _cavity_dark(mesh, SKIN * (1 - w) + LIPS * w).astype(np.float32)
+
+
+def _cavity_dark(mesh: FaceMesh, col: np.ndarray) -> np.ndarray:
+    """An imported head's own lining of the mouth, sockets and nostrils (the region "cavity" the
+    rig transfer marks) in the dark of a cavity, fading over one ring of neighbours, so a mouth
+    that opens shows a dark inside instead of lit skin."""
+    mask = mesh.regions.get("cavity")
+    if mask is None or not np.any(mask):
+        return col
+    w = np.maximum(_smooth(np.asarray(mask, bool), mesh.triangles, 1), np.asarray(mask, float))[:, None]
+    return col * (1 - w) + CAVITY * w
+
+
+def face_frame(mesh: FaceMesh, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The box (cm) the camera frames: the mesh's bounds, held to the head around the face when the
+    mesh carries more (an imported head with its neck and shoulders would leave the face small in
+    the picture): at most 0.15 of the chin-forehead span below the chin, 0.5 above the forehead
+    and 0.6 either side of the midline. The built-in faces lie inside that box."""
+    lo, hi = rest.min(axis=0).astype(float), rest.max(axis=0).astype(float)
+    lm = mesh.landmarks
+    if "chin" not in lm or "forehead_center" not in lm:
+        return lo, hi
+    chin, top = rest[lm["chin"]], rest[lm["forehead_center"]]
+    span = float(top[1] - chin[1])
+    if span <= 0:
+        return lo, hi
+    mid = 0.5 * float(chin[0] + top[0])
+    lo[:2] = np.maximum(lo[:2], [mid - 0.6 * span, chin[1] - 0.15 * span])
+    hi[:2] = np.minimum(hi[:2], [mid + 0.6 * span, top[1] + 0.5 * span])
+    return lo, np.maximum(hi, lo + 1e-3)
 
 
 def loop_depth(v: np.ndarray, loop: np.ndarray, width: float) -> float:

@@ -13,7 +13,8 @@ import numpy as np
 from render import shaders
 from render.camera import OrbitCamera
 from render.hud import HudInfo, HudRenderer
-from render.meshdata import (HAIR, SKIN, Cavity, brow_coords, MuscleLines, eye_rotation, head_turn, skin_tint, spatial_order,
+from render.meshdata import (HAIR, SKIN, Cavity, brow_coords, MuscleLines, eye_rotation, face_frame, head_turn,
+                             skin_tint, spatial_order,
                              surface_rows, unique_edges, uv_sphere)
 from render.trails import TrailHistory
 from sim.face.turn import is_turned, turn_eye
@@ -138,7 +139,7 @@ class FaceRenderer:
         tris = np.asarray(model.triangles, np.int32)
         self.model = model
         self.normals = surface_rows(model)  # the mask's rows, and the held head's after them
-        self.camera.fit(rest.min(axis=0), rest.max(axis=0))
+        self.camera.fit(*face_frame(mesh, rest))
         g = self._gl
         # positions and normals interleaved in one buffer, one write per frame
         self.pos_vbo = ctx.buffer(reserve=n * 24, dynamic=True)

@@ -316,6 +316,8 @@ def _rig_digest(rig: FaceRig, params: SkinParams) -> str:
                 h.update(key.encode() + raw)
     for name in sorted(rig.insertion):  # none on a face without fitted insertions: its hash is unchanged
         h.update(b"insertion" + name.encode() + np.ascontiguousarray(rig.insertion[name], np.float64).tobytes())
+    if rig.integrator != "auto":  # a face that asks for its integrator replays on it
+        h.update(b"integrator" + rig.integrator.encode())
     for line in rig.wrinkles:  # WrinkleLine.to_dict() is plain JSON
         h.update(json.dumps(line.to_dict(), sort_keys=True).encode())
     h.update(json.dumps(asdict(params), sort_keys=True).encode())

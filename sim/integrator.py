@@ -357,6 +357,8 @@ class Simulator:
         visc = float(np.max(model.spring_damping / np.maximum(model.spring_k_low, 1e-30)))
         self.stable_dt = stable_step(model.omega_max, p.mass_damping, visc, p.high_ratio)
         self.rk2_substeps = max(1, math.ceil(self.frame_dt / (SAFETY * self.stable_dt)))
+        if method == "auto" and getattr(model.rig, "integrator", "auto") != "auto":
+            method = model.rig.integrator  # the face asks for one (sim.model.FaceRig.integrator)
         if method == "auto":
             work = self.rk2_substeps * len(model.spring_indices)
             method = "rk2" if work <= RK2_WORK_LIMIT else "implicit"

@@ -132,10 +132,15 @@ class FaceRig:
     insertion: channel name -> (N,) non-negative gain per skin vertex on that channel's force field
     (how densely the muscle inserts into the skin there; its direction of pull is its parts'). A
     channel not named has gain 1 everywhere. Fitted to scanned expressions for the scanned head
-    (`sim.face.scan.calibrate`); the procedural face has none."""
+    (`sim.face.scan.calibrate`); the procedural face has none.
+
+    integrator: what `sim.integrator.Simulator(method="auto")` runs this face on: "auto" (by the
+    work per frame), "rk2" or "implicit". An imported head asks for "implicit", whose fold guard
+    keeps a foreign mesh's skin from turning over (`sim.antifold`)."""
 
     mesh: FaceMesh
     muscles: dict[str, tuple[Muscle, ...]]
     wrinkles: tuple = ()
     name: str = "default"
     insertion: dict[str, np.ndarray] = field(default_factory=dict)
+    integrator: str = "auto"

@@ -12,6 +12,8 @@ Rig file (`.npz`, version 1), read with `allow_pickle=False` so loading never ex
 Wrinkle lines (`sim.wrinkles.mask.WrinkleLine`) are stored as their plain `to_dict` form.
 Fitted insertion gains (`FaceRig.insertion`, optional): header "insertion": [channel names], and an
 array `insertion_<channel>` (N,) f8 >= 0 each.
+The integrator the face asks for (`FaceRig.integrator`, optional): header "integrator": "rk2" or
+"implicit" (absent: "auto"; imported heads ask for "implicit").
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ _TYPE_NAMES = {cls: name for name, cls in _TYPES.items()}
 MAX_MEMBERS = 256
 MAX_ARRAY_BYTES = 512 * 1024 * 1024
 MAX_VERTICES = 2_000_000
+INTEGRATORS = ("auto", "rk2", "implicit")  # FaceRig.integrator
 MAX_ENTRIES = 10_000  # muscles, landmarks, regions, wrinkle lines
 
 
@@ -66,6 +69,8 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
         "wrinkles": [w.to_dict() for w in rig.wrinkles],
         "insertion": sorted(rig.insertion),
     }
+    if rig.integrator != "auto":  # rig files of faces that leave the choice to the simulator are unchanged
+        header["integrator"] = rig.integrator
     arrays: dict[str, np.ndarray] = {
         "header": np.array(json.dumps(header)),
         "vertices": np.asarray(mesh.vertices, np.float64),
@@ -242,8 +247,13 @@ def _parse(data: Any, p: str) -> FaceRig:
         if np.any(gain < 0.0) or np.any(gain > 1e6):
             raise RigFileError(f"{p}: insertion gains of {quote(name)} must lie in 0..1e6")
         insertion[name] = gain.astype(np.float64)
+    integrator = header.get("integrator", "auto")
+    if integrator not in INTEGRATORS:
+        raise RigFileError(f"{p}: integrator must be one of {', '.join(INTEGRATORS)}, "
+                           f"not {quote(str(integrator)[:40])}")
     return FaceRig(mesh=mesh, muscles=muscles, wrinkles=_wrinkles(header.get("wrinkles", []), p),
-                   name=string(header.get("name", "rig"), f"{p}: name"), insertion=insertion)
+                   name=string(header.get("name", "rig"), f"{p}: name"), insertion=insertion,
+                   integrator=integrator)
 
 
 def _wrinkles(entries: Any, p: str) -> tuple:

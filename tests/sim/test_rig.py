@@ -144,3 +144,28 @@ def test_insertion_gains_round_trip_and_shape_the_field(synth_rig: FaceRig, tmp_
     assert np.abs(f0).max() > 0
     assert np.allclose(f1[::2], 2 * f0[::2]) and not np.any(f1[1::2])
 
+
+
+def test_the_integrator_a_face_asks_for_round_trips_and_runs(synth_rig: FaceRig, tmp_path: Path) -> None:
+    """An imported head asks for the implicit integrator (its fold guard); the rig file keeps the
+    request, the simulator honours it, and a rig that names an unknown one is one clear line."""
+    from dataclasses import replace
+
+    from sim.integrator import Simulator
+
+    path = tmp_path / "r.npz"
+    save_rig(replace(synth_rig, integrator="implicit"), path)
+    back = load_rig(path)
+    assert back.integrator == "implicit"
+    assert Simulator(compile_model(back), wrinkles=False).method == "implicit"
+    assert compile_model(back).hash != compile_model(synth_rig).hash  # a replay knows which it ran on
+    save_rig(synth_rig, path)
+    assert load_rig(path).integrator == "auto"
+    data = dict(np.load(path))
+    header = json.loads(str(data["header"]))
+    header["integrator"] = "euler"
+    data["header"] = np.array(json.dumps(header))
+    np.savez(tmp_path / "bad.npz", **data)
+    with pytest.raises(RigFileError, match=r"bad\.npz: integrator must be one of auto, rk2, implicit") as err:
+        load_rig(tmp_path / "bad.npz")
+    assert "\n" not in str(err.value)

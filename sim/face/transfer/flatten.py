@@ -104,3 +104,17 @@ def project_back(
         tri, bary, _ = locate_2d(uv[miss], mesh_uv, tris)
         points[miss] = np.einsum("pk,pkj->pj", bary, vertices[tris[tri]])
     return points, hit
+
+
+def hidden_under(
+    chart: CylinderChart, vertices: FloatArray, triangles: IntArray, uv: FloatArray, keep: IntArray,
+    depth: float,
+) -> np.ndarray:
+    """(N,) bool: vertices lying more than `depth` under another layer of the surface, seen along
+    the cylinder's radius (the inside of the mouth behind the lips, an eye socket's lining behind
+    the lids, the inside of the nostrils). A user's head often models those; the rig must know
+    them, since nothing outside the face should be drawn where the mouth parts."""
+    outer, hit = project_back(chart, uv, vertices, triangles, uv, keep)
+    _, rho_outer = chart.flatten(outer)
+    _, rho = chart.flatten(vertices)
+    return hit & (rho_outer - rho > depth)

@@ -103,10 +103,13 @@ def cut_slit(
             raise TransferError(f"{path_file}: opening {name!r}: the path does not split the surface "
                                 f"at vertex {v}; list the lip (or lid) line's vertices in order")
         first, second = side
-        cur = np.vstack(verts)
-        c1 = (cur[tris[first]].mean(axis=(0, 1)) - vertices[v]) @ up
-        c2 = (cur[tris[second]].mean(axis=(0, 1)) - vertices[v]) @ up
-        lower = first if c1 < c2 else second
+        if copies:  # the side that already holds the previous vertex's copy: a path that winds
+            lower = first if (tris[first] == copies[-1]).any() else second  # keeps one lower lip
+        else:
+            cur = np.vstack(verts)
+            c1 = (cur[tris[first]].mean(axis=(0, 1)) - vertices[v]) @ up
+            c2 = (cur[tris[second]].mean(axis=(0, 1)) - vertices[v]) @ up
+            lower = first if c1 < c2 else second
         new = n + len(copies)
         block = tris[lower]
         block[block == v] = new

@@ -13,10 +13,11 @@ from scipy.spatial import cKDTree
 from sim.model import FaceMesh, FaceRig
 from sim.face.transfer.carry import SurfaceMap, carry_muscle, carry_wrinkle
 from sim.face.transfer.cylinder import Cylinder, fit_cylinder
-from sim.face.transfer.flatten import CylinderChart, flat_triangulation, project_back
+from sim.face.transfer.flatten import CylinderChart, flat_triangulation, hidden_under, project_back
 from sim.face.transfer.frame import Similarity, fit_similarity, landmark_axes, rotation_angle
 from sim.face.transfer.geometry import (closest_points, edge_use_counts, in_polygon, locate_2d, outer_loop,
                                    triangle_normals, unique_edges)
+from sim.face.transfer.lids import open_lids
 from sim.face.transfer.landmarks import LANDMARK_NAMES, LandmarkFile, TransferError, require
 from sim.face.transfer.meshfile import HeadMesh
 from sim.face.transfer.openings import cut_slit, find_openings, is_closed_path, is_hole_loop, open_loop
@@ -26,6 +27,8 @@ FloatArray = np.ndarray
 IntArray = np.ndarray
 FORWARD = np.array([0.0, 0.0, 1.0])
 UP = np.array([0.0, 1.0, 0.0])
+CAVITY_DEPTH = 0.015  # of the landmark region's radius (~1 mm on an adult): a layer this far under
+# the outermost skin seen along the cylinder's radius is the inside of the mouth, a socket or a nostril
 
 
 @dataclass(frozen=True)
@@ -35,13 +38,15 @@ class TransferOptions:
     landmark point may lie off the surface; shape: RMS landmark misfit after the best similarity
     above which the layout is not a face's; frame_angle: degrees the fitted rotation may differ
     from the one read off chin/forehead, sides and nose; area_stiffness: weight of the anti-fold
-    area term added to eq 8's springs (0 = the paper's springs alone)."""
+    area term added to eq 8's springs (0 = the paper's springs alone); integrator: the rig's
+    `FaceRig.integrator` (implicit: its fold guard keeps a foreign mesh's skin from turning over)."""
 
     region: float = 0.6
     landmark_offset: float = 0.1
     shape: float = 0.2
     frame_angle: float = 35.0
     area_stiffness: float = 10.0
+    integrator: str = "implicit"
 
 
 @dataclass
@@ -231,6 +236,7 @@ def transfer_rig(
     sim, shape = _orient(pts, ref_pts, names, landmarks, opt)
     radius = opt.region * float(np.linalg.norm(ref_pts["eye_outer_l"] - ref_pts["eye_outer_r"]))
     new = _bring_in(head, landmarks, names, pts, vids, sim, radius)
+    opened = _rest_openings(new, ref)
     lm_arr = np.stack([new.landmarks[n] for n in names])
 
     # seed 003 section 3.1: one cylinder per face, fitted near the landmarks, unrolled
@@ -258,9 +264,15 @@ def transfer_rig(
     # borders never match exactly; the reference decides there what is held)
     inside = in_polygon(uv_new, flat[outer_loop(flat, ref.triangles)]) | (bary.min(axis=1) > -0.75)
     mesh = _new_mesh(reference, smap, new, tri, bary, inside, landmarks.path, head.path)
+    cavity = inside & hidden_under(chart_new, new.vertices, new.triangles, uv_new, keep, CAVITY_DEPTH * radius)
+    if cavity.any():  # the head's own lining of the mouth, sockets, nostrils: drawn dark
+        mesh.regions["cavity"] = cavity
     muscles = {ch: tuple(carry_muscle(smap, m) for m in parts) for ch, parts in reference.muscles.items()}
-    rig = FaceRig(mesh=mesh, muscles=muscles, wrinkles=_carry_wrinkles(reference, smap), name=name)
+    rig = FaceRig(mesh=mesh, muscles=muscles, wrinkles=_carry_wrinkles(reference, smap), name=name,
+                  integrator=opt.integrator)
     notes = []
+    for what in opened:
+        notes.append(what)
     if not relax.converged:
         notes.append(f"the relaxation stopped before coming to rest (residual {relax.residual:.2g})")
     if folded:
@@ -270,6 +282,32 @@ def transfer_rig(
         notes.append(f"{worst} is {shape[worst]:.1f} cm from where the reference face has it: check it")
     return Transfer(rig, sim, cyl_ref, cyl_new, relax, shape, errors, int((~hit).sum()), folded,
                     int((~inside).sum()), new.flipped, new.dropped, notes)
+
+
+def _gap_ratio(mesh: FaceMesh, upper: str, lower: str, a: str, b: str) -> float:
+    """An opening's width at rest (between two landmarks) over its corner-to-corner length."""
+    p = mesh.landmark
+    return float(np.linalg.norm(p(upper) - p(lower)) / np.linalg.norm(p(a) - p(b)))
+
+
+def _rest_openings(new: _Head, ref: FaceMesh) -> list[str]:
+    """Lids shut in the file (declared as a lid line) are parted at rest by the reference's eye
+    opening (sim.face.transfer.lids); landmarks follow. Returns notes for the report. (Lips are
+    left as modelled: brought to the reference's gap, a modelled head's mouth read worse.)"""
+    notes = []
+    before = new.vertices
+    for side in "lr":
+        loop = new.openings.get(f"eye_{side}")
+        if loop is None or not any(loop is c for c in new.cut):
+            continue
+        ratio = _gap_ratio(ref, f"upper_lid_{side}", f"lower_lid_{side}", f"eye_outer_{side}", f"eye_inner_{side}")
+        new.vertices = open_lids(new.vertices, loop, ratio, UP)
+        notes.append(f"the lids of eye_{side} were shut; they were parted at rest by the reference's opening")
+    if notes:  # landmarks given as points keep their place on the skin: they move as their vertex
+        for n in new.landmarks:
+            vid = new.landmark_vertex[n]
+            new.landmarks[n] = new.landmarks[n] + new.vertices[vid] - before[vid]
+    return notes
 
 
 def _relax(uv_ref: FloatArray, triangles: IntArray, ref_ids: IntArray, targets: FloatArray,

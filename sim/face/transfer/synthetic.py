@@ -66,20 +66,21 @@ def surface_point(theta: FloatArray, h: FloatArray, depth: float = 0.0) -> Float
     return np.stack([r * np.sin(theta), h + 0 * r, r * np.cos(theta)], axis=-1)
 
 
-def _in_openings(theta: FloatArray, h: FloatArray, mouth: bool = True) -> np.ndarray:
+def _in_openings(theta: FloatArray, h: FloatArray, mouth: bool = True, eyes: bool = True) -> np.ndarray:
     hole = np.zeros(theta.shape, bool)
-    for (t, e) in EYES:
+    for (t, e) in EYES if eyes else ():
         hole |= ((theta - t) / EYE_AXES[0]) ** 2 + ((h - e) / EYE_AXES[1]) ** 2 < 1.0
     (t, e), (a, b) = MOUTH
     return hole | (mouth & (((theta - t) / a) ** 2 + ((h - e) / b) ** 2 < 1.0))
 
 
 def synthetic_mesh(
-    n_theta: int = 48, n_h: int = 44, full_head: bool = False, mouth_open: bool = True
+    n_theta: int = 48, n_h: int = 44, full_head: bool = False, mouth_open: bool = True, eyes_open: bool = True
 ) -> tuple[FloatArray, np.ndarray, FloatArray]:
     """(vertices, triangles, (theta, h) per vertex) of the synthetic skin with its openings; a
     full head wraps all the way round (open at crown and neck), otherwise a face mask; with
-    mouth_open False the lips are closed (no mouth hole), like many scans."""
+    mouth_open False the lips are closed (no mouth hole), like many scans; with eyes_open False
+    the lids are shut (no eye holes), like a scan taken with the eyes closed."""
     t_lo, t_hi = (-np.pi, np.pi) if full_head else (-1.45, 1.45)
     thetas = np.linspace(t_lo, t_hi, n_theta, endpoint=not full_head)
     hs = np.linspace(*H_RANGE, n_h)
@@ -93,7 +94,7 @@ def synthetic_mesh(
     tris = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([b, d, c], -1).reshape(-1, 3)])
     th, h = tt.ravel(), hh.ravel()
     cen_t = np.angle(np.exp(1j * th[tris]).mean(axis=1))
-    tris = tris[~_in_openings(cen_t, h[tris].mean(axis=1), mouth_open)]
+    tris = tris[~_in_openings(cen_t, h[tris].mean(axis=1), mouth_open, eyes_open)]
     used = np.unique(tris)
     remap = -np.ones(th.size, dtype=np.int64)
     remap[used] = np.arange(len(used))
@@ -172,9 +173,10 @@ def coarse_transferred_head() -> FaceRig:
     from sim.face import default_rig
     from sim.face.transfer.landmarks import parse_landmarks
     from sim.face.transfer.meshfile import from_arrays
-    from sim.face.transfer.pipeline import transfer_rig
+    from sim.face.transfer.pipeline import TransferOptions, transfer_rig
 
     mesh = build_coarse_face_mesh()
     lms = parse_landmarks({k: int(i) for k, i in mesh.landmarks.items()}, "coarse.json")
     head = from_arrays(mesh.vertices, mesh.triangles, "coarse.obj")
-    return transfer_rig(default_rig(0), head, lms, name="coarse").rig
+    # on the integrator its work picks (RK2), as the amplitudes it was measured with
+    return transfer_rig(default_rig(0), head, lms, name="coarse", options=TransferOptions(integrator="auto")).rig

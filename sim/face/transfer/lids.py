@@ -1,0 +1,83 @@
+"""Open the closed eyes of a head whose lids were cut along the lid line (a scan taken with the
+eyes shut). The rig's rest shape is the relaxed face with the eyes open: the reference's lids
+part there, its lid channels close them (AU43/45) and its expressions widen or narrow them. A head
+whose lids meet at rest would look asleep in every expression, so after the cut its upper lid is
+raised and its lower lid lowered until the lids part by the reference's opening, measured against
+the eye's width (about a third on an adult), with the skin around them following smoothly."""
+
+from __future__ import annotations
+
+import numpy as np
+
+FloatArray = np.ndarray
+IntArray = np.ndarray
+
+UPPER_SHARE = 0.75  # of the opening made by the upper lid (it moves most in a real blink)
+REACH_UP = 0.55  # how far above the lid line (of the eye's width) the skin follows the upper lid
+REACH_DOWN = 0.3  # and below it, the lower lid
+DEPTH = 0.5  # skin further than this (of the eye's width) in front of or behind the lid line stays
+
+
+def slit_sides(loop: IntArray) -> tuple[IntArray, IntArray]:
+    """(upper path corner to corner, its lower copies in the same order) of a loop made by
+    `openings.cut_slit` (the path, then the copies of its inner vertices in reverse)."""
+    loop = np.asarray(loop, dtype=np.int64)
+    n = (len(loop) + 2) // 2
+    path = loop[:n]
+    lower = np.r_[path[0], loop[n:][::-1], path[-1]]
+    return path, lower
+
+
+def set_gap(vertices: FloatArray, upper: IntArray, lower: IntArray, gap: float, up: FloatArray,
+            upper_share: float = UPPER_SHARE) -> FloatArray:
+    """The vertices with the opening between two chains (corner to corner, both from the same
+    corner) made `gap` wide at the middle: a shut line opens along a sine that is nothing at the
+    corners; an open one keeps its shape, scaled. The upper chain takes `upper_share` of the
+    change, the lower the rest, and the skin within REACH_UP / REACH_DOWN of the eye's (mouth's)
+    width above (below) follows smoothly; nothing beyond the corners or far in depth moves."""
+    v = np.asarray(vertices, float).copy()
+    upper, lower = np.asarray(upper, dtype=np.int64), np.asarray(lower, dtype=np.int64)
+    a, b = v[upper[0]], v[upper[-1]]
+    axis = b - a
+    width = float(np.linalg.norm(axis))
+    if width <= 0 or gap < 0:
+        return v
+    up = np.asarray(up, float) - (np.asarray(up, float) @ axis) * axis / width ** 2
+    up /= np.linalg.norm(up)
+    forward = np.cross(axis / width, up)
+
+    def line(chain: IntArray, t: FloatArray, direction: FloatArray) -> FloatArray:
+        tc = (v[chain] - a) @ axis / width ** 2
+        order = np.argsort(tc)
+        return np.interp(t, tc[order], ((v[chain] - a) @ direction)[order])
+
+    t = np.clip((v - a) @ axis / width ** 2, 0.0, 1.0)
+    inside = (((v - a) @ axis / width ** 2) > 0.0) & (((v - a) @ axis / width ** 2) < 1.0)
+    top, bottom = line(upper, t, up), line(lower, t, up)
+    now = top - bottom
+    mid = float(line(upper, np.array([0.5]), up)[0] - line(lower, np.array([0.5]), up)[0])
+    shape = now / mid if mid > 1e-3 * width else np.sin(np.pi * t)
+    change = gap * shape - now
+    h = (v - a) @ up
+    depth = (v - a) @ forward - 0.5 * (line(upper, t, forward) + line(lower, t, forward))
+    near = inside & (np.abs(depth) < DEPTH * width)
+    centre = 0.5 * (top + bottom)
+    move = np.zeros(len(v))
+    above = near & (h >= centre)
+    below = near & (h < centre)
+    over = np.clip(h - top, 0.0, None) / (REACH_UP * width)
+    under = np.clip(bottom - h, 0.0, None) / (REACH_DOWN * width)
+    move[above] = upper_share * np.clip(1.0 - over[above], 0.0, 1.0) ** 2
+    move[below] = -(1.0 - upper_share) * np.clip(1.0 - under[below], 0.0, 1.0) ** 2
+    move[upper[1:-1]] = upper_share
+    move[lower[1:-1]] = -(1.0 - upper_share)
+    move[[upper[0], upper[-1]]] = 0.0
+    return v + (move * change)[:, None] * up
+
+
+def open_lids(vertices: FloatArray, loop: IntArray, ratio: float, up: FloatArray) -> FloatArray:
+    """The vertices with the lids of one cut eye (`openings.cut_slit`'s loop) parted by `ratio` x
+    the eye's width at the middle, tapering to nothing at the corners."""
+    path, lower = slit_sides(loop)
+    width = float(np.linalg.norm(vertices[path[-1]] - vertices[path[0]]))
+    return set_gap(vertices, path, lower, ratio * width, up)
