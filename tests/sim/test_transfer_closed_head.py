@@ -131,22 +131,6 @@ def test_presets_move_the_landmarks_the_right_way_without_folds(default_import) 
     assert {e: round(turned_over_area(m.triangles, rest, p), 3) for e, p in folds.items()} == dict.fromkeys(folds, 0.0)
 
 
-def test_a_winding_lid_line_is_cut_with_one_lower_side() -> None:
-    """A lid line traced along a scan's edges wanders up and down a row; the cut still parts the
-    surface into one upper and one lower lid, and the opening is a hole of the mesh."""
-    from sim.face.transfer.geometry import boundary_loops
-    from sim.face.transfer.openings import cut_slit
-
-    v, t, param = synthetic_mesh(64, 45, full_head=True, mouth_open=False, eyes_open=False)
-    theta, h = EYES[0]
-    row = _row(param, h, theta - 0.3, theta + 0.3)
-    above = _row(param, h + 0.5, theta - 0.3, theta + 0.3)
-    path = [row[0], row[1], above[1], above[2], row[2], row[3], row[4]]  # up a row and back down
-    verts, tris, loop, lower = cut_slit(v, t, np.array(path), np.array([0.0, 1.0, 0.0]), "eye_l", "lm.json")
-    assert any(set(b.tolist()) == set(loop.tolist()) for b in boundary_loops(tris))
-    assert sorted(lower) == sorted(int(p) for p in path[1:-1])
-
-
 def test_a_layer_under_the_skin_is_found_as_cavity() -> None:
     """Two coaxial sheets seen from a cylinder chart: the inner one (a mouth's lining behind the
     lips) lies under the outer and is hidden; the outer, and a lone sheet, are not."""
