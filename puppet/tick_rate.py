@@ -18,11 +18,9 @@ TICK_BUDGET = 0.5
 
 
 def choose_tick_rate(model: Any, rates: Sequence[float] = TICK_RATES, budget: float = TICK_BUDGET,
-                     steps: int = 7) -> tuple[float, dict[float, float]]:
+                     steps: int = 5) -> tuple[float, dict[float, float]]:
     """The highest of `rates` whose simulation step, timed here on this face (CPU time of this
-    thread, the least of `steps` steps of a throw-away simulator after one warm step: on a shared
-    machine the median moved with the other programs' load, 2.9-4.3 ms for the scanned head, and
-    the choice flipped between 120 and 60 Hz from one show to the next), keeps the
+    thread, the median of `steps` steps of a throw-away simulator after one warm step), keeps the
     simulation under `budget` of a core; the lowest rate when none does. Returns the rate and the
     seconds per step measured at each rate tried. The scanned head's implicit step costs about the
     same at any dt, so 240 Hz would take most of a core where 60-120 Hz leaves room for drawing;
@@ -39,7 +37,7 @@ def choose_tick_rate(model: Any, rates: Sequence[float] = TICK_RATES, budget: fl
             c0 = time.thread_time()
             s.step(state, control)
             times.append(time.thread_time() - c0)
-        cost[rate] = float(np.min(times))
+        cost[rate] = float(np.median(times))
         if cost[rate] * rate <= budget:
             return rate, cost
     return min(rates), cost
