@@ -308,39 +308,43 @@ class PanelDevice(Device):
         period = 1.0 / STATE_HZ
         due = time.monotonic()
         face_task: asyncio.Task[tuple[bytes, int] | None] | None = None
-        while True:
-            due += period
-            now = time.monotonic()
-            if due < now - period:  # the machine stalled: re-anchor rather than burst
-                due = now
-            await asyncio.sleep(max(0.0, due - now))
-            if not self.clients:
-                continue
-            if face_task is not None and not face_task.done():
+        try:
+            while True:
+                due += period
+                now = time.monotonic()
+                if due < now - period:  # the machine stalled: re-anchor rather than burst
+                    due = now
+                await asyncio.sleep(max(0.0, due - now))
+                if not self.clients:
+                    continue
+                if face_task is not None and not face_task.done():
+                    try:
+                        await asyncio.wait_for(asyncio.shield(face_task), FACE_WAIT_S)
+                    except Exception:  # slower than that: the state goes out alone this time
+                        pass
                 try:
-                    await asyncio.wait_for(asyncio.shield(face_task), FACE_WAIT_S)
-                except Exception:  # slower than that: the state goes out alone this time
-                    pass
-            try:
-                text = json.dumps(self._state(), separators=(",", ":"))
-            except Exception:  # the loop's state changed under us: next time
-                continue
+                    text = json.dumps(self._state(), separators=(",", ":"))
+                except Exception:  # the loop's state changed under us: next time
+                    continue
 
-            async def send(ws: Any) -> None:
-                try:
-                    await asyncio.wait_for(ws.send_str(text), 0.5)
-                except Exception:  # a stalled page must not stall the others
-                    pass
+                async def send(ws: Any) -> None:
+                    try:
+                        await asyncio.wait_for(ws.send_str(text), 0.5)
+                    except Exception:  # a stalled page must not stall the others
+                        pass
 
-            await asyncio.gather(*(send(c.ws) for c in list(self.clients.values()) if not c.ws.closed))
-            if face_task is not None and face_task.done():
-                got = None if face_task.cancelled() or face_task.exception() else face_task.result()
-                if got is not None:
-                    self.face_feed.send(*got)
-                face_task = None
-            # the face in its own task: a picture being rendered never holds up this state
-            if face_task is None:
-                face_task = asyncio.get_running_loop().create_task(self._face_step())
+                await asyncio.gather(*(send(c.ws) for c in list(self.clients.values()) if not c.ws.closed))
+                if face_task is not None and face_task.done():
+                    got = None if face_task.cancelled() or face_task.exception() else face_task.result()
+                    if got is not None:
+                        self.face_feed.send(*got)
+                    face_task = None
+                # the face in its own task: a picture being rendered never holds up this state
+                if face_task is None:
+                    face_task = asyncio.get_running_loop().create_task(self._face_step())
+        finally:  # the server is closing: the picture under way is not waited for
+            if face_task is not None:
+                face_task.cancel()
 
     async def _face_step(self) -> tuple[bytes, int] | None:
         """The face to the pages watching it: the loop's state encoded once per new tick for every
