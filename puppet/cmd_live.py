@@ -49,8 +49,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                    "again (what --supervise and the systemd unit in docs/live.md do after a crash)")
     p.add_argument("--tick-rate", type=float, choices=(60.0, 120.0, 240.0), default=None, metavar="HZ",
                    help="simulation ticks a second: 60, 120 or 240 (default headless: the fastest the face's "
-                   "measured step affords, 120 for the scanned head; 60 in a window and on a script's clock); frames are still drawn at the display's rate, a faster tick shortens the "
-                   "wait of an event for the simulation; the take records it (see docs/live.md)")
+                   "measured step affords, 120 for the scanned head; 60 in a window and on a script's clock); "
+                   "frames are still drawn at the display's rate, a faster tick shortens the wait of an event "
+                   "for the simulation; the take records it (see docs/live.md)")
     p.add_argument("--realtime", action="store_true",
                    help="headless: run the live loop and the devices' reader threads under real-time scheduling "
                    "(SCHED_FIFO) so a busy machine delays no tick; needs CAP_SYS_NICE or an rtprio limit "
