@@ -4,8 +4,8 @@ done; with --render WxH, also drawn offscreen and read back, as a window would b
 
 Two sources:
 1. `mock://` playing a dense dial script in real time (the device thread stamps each event);
-2. the SGI dial-and-button box emulator on a pseudo-terminal (tests/devices/emulators.py), turned
-   at random moments, read by the real `sgi://` backend.
+2. the SGI dial-and-button box emulator on a pseudo-terminal (tests/devices/emulators.py), in a
+   process of its own (as a box is), turned at random moments, read by the real `sgi://` backend.
 The loop records to a temporary file, as `puppet live` does (--no-record: it does not).
 The fixed tick bounds the wait for the next tick boundary by one tick (16.7 ms); the target is
 p99 <= one frame + 2 ms = 18.7 ms. The floor printed is that of frames on a fixed 60 Hz schedule (a
@@ -18,7 +18,8 @@ the mapping (filters, combine, values into the FaceControl), the simulator step 
 wrinkle surface), the tick's tail (digest copy, lights), the render; "recording (after frame)" is
 the JSON and flush, done after the frame is ready and so not part of the latency.
 
-Run:  .venv/bin/python benchmarks/live_latency.py [--seconds 10] [--render 640x360] [--no-record] [--json]
+Run:  .venv/bin/python benchmarks/live_latency.py [--seconds 10] [--render 640x360] [--no-record]
+      [--rates 60,auto,240] [--wake off,on] [--realtime off,on] [--json]
 """
 
 from __future__ import annotations
@@ -60,7 +61,8 @@ rate = 97
 
 
 def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int, int] | None,
-             drive: Any = None, record: Path | None = None, rate: float = 60.0, wake: bool = False) -> dict[str, Any]:
+             drive: Any = None, record: Path | None = None, rate: float = 60.0, wake: bool = False,
+             realtime: bool = False) -> dict[str, Any]:
     spec = live.build_mapping(face.vocab, None, [d.spec for d in devs])
     mapper = Mapper(spec, face.vocab)
     writer = None
@@ -83,13 +85,20 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
     # itself is the rest of the latency
     starts: list[float] = []
     work: list[float] = []
+    # per event: where its event -> state time went (busy: a tick in progress when it arrived;
+    # schedule: the loop waiting for the schedule or waking up; tick: its own tick's work)
+    where: dict[str, list[float]] = {"busy": [], "schedule": [], "tick": []}
+    ends: list[float] = []  # each tick's simulation step done (time.monotonic)
+    batches: list[list[float]] = []
 
     def drain() -> list[Any]:
-        starts.append(time.monotonic())
+        now = time.monotonic()
+        starts.append(now)
         t = time.perf_counter()
         out = queue.drain()
         if spans is not None:
             spans.add("drain", time.perf_counter() - t)
+        batches.append([e.t for e in out if hasattr(e, "control")])
         return out
 
     def on_frame(c: live.LiveCore) -> None:
@@ -99,7 +108,15 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
             if spans is not None:
                 spans.add("render + readback", time.perf_counter() - t)
         work.append(time.monotonic() - starts[-1])
+    tick = core.tick
+
+    def timed_tick(events: Any) -> None:
+        tick(events)
+        ends.append(time.monotonic())
+
+    core.tick = timed_tick  # type: ignore[method-assign]
     live.prepare_show()  # as `puppet live` does before it starts the devices
+    os.environ["PUPPET_REALTIME_DEVICES"] = "1" if realtime else "0"  # as `puppet live --realtime`
     for d in devs:
         d.add_listener(queue)
         d.start()
@@ -108,10 +125,13 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
     if drive is not None:
         th = threading.Thread(target=drive, args=(stop,), daemon=True)
         th.start()
+    if realtime and live.realtime_priority() is not None:
+        print("--realtime: SCHED_FIFO not permitted here: the row runs at the ordinary priority", file=sys.stderr)
     try:
         live.run_realtime(core, drain, seconds, on_frame=on_frame, frame_rate=live.DISPLAY_RATE,
                           wake=queue.wait_arrival if wake else None)
     finally:
+        live.ordinary_priority()
         if writer is not None:
             writer.close(core.tick_count)
         stop.set()
@@ -121,6 +141,12 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
             d.close()
         if renderer is not None:
             renderer.release()
+    for k in range(1, min(len(ends), len(starts))):
+        for te in batches[k]:
+            busy = max(0.0, ends[k - 1] - max(te, starts[k - 1]))
+            where["busy"].append(busy)
+            where["schedule"].append(max(0.0, starts[k] - max(te, ends[k - 1])))
+            where["tick"].append(ends[k] - starts[k])
     lat = np.array(core.latency.all) * 1000
     st = np.array(core.state_latency.all) * 1000
     wk = np.array(work) * 1000
@@ -132,38 +158,60 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
             # the floor: a uniform wait for the next boundary (events arrive at random phase) plus
             # this run's measured work after a boundary, combined as independent
             "floor_p99_ms": float(np.percentile(np.add.outer(np.linspace(0, 1000 / 60, 400), wk), 99)),
+            "where_ms": {k: [float(np.percentile(np.array(v) * 1000, 50)), float(np.percentile(np.array(v) * 1000, 99))]
+                         for k, v in where.items() if v},
             "spans_ms": {} if spans is None else {
                 k: [float(np.percentile(np.array(v) * 1000, 50)), float(np.percentile(np.array(v) * 1000, 99))]
                 for k, v in spans.data.items()}}
 
 
 def mock_source(face: live.Face, seconds: float, render: tuple[int, int] | None, tmp: Path,
-                record: bool = True, rate: float = 60.0, wake: bool = False) -> dict[str, Any]:
+                record: bool = True, rate: float = 60.0, wake: bool = False, realtime: bool = False) -> dict[str, Any]:
     script = tmp / "dense.toml"
     script.write_text(MOCK.format(seconds=seconds + 1))
     dev = devices.open_device(f"mock://{script}")
-    return run_loop(face, [dev], seconds, render, record=tmp / "mock.jsonl" if record else None, rate=rate, wake=wake)
+    return run_loop(face, [dev], seconds, render, record=tmp / "mock.jsonl" if record else None, rate=rate, wake=wake,
+                    realtime=realtime)
+
+
+def _box_process(link: str, conn: Any) -> None:
+    """The SGI box emulator in a process of its own, as a real box is outside the show's process (in
+    the show's, its thread would hold the interpreter's lock against the loop): turned at random
+    moments until told to stop."""
+    sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "devices")]
+    from emulators import SgiBoxEmulator
+
+    box = SgiBoxEmulator(Path(link))
+    try:
+        conn.send("ready")
+        box.wait_ready(20)
+        rng = random.Random(7)
+        while not conn.poll(rng.uniform(0.005, 0.025)):  # random phase against the tick
+            box.turn(rng.randrange(8), rng.choice((-2, -1, 1, 2)))
+    finally:
+        box.port.close()
 
 
 def sgi_source(face: live.Face, seconds: float, render: tuple[int, int] | None, tmp: Path,
-               record: bool = True, rate: float = 60.0, wake: bool = False) -> dict[str, Any]:
-    from emulators import SgiBoxEmulator
+               record: bool = True, rate: float = 60.0, wake: bool = False, realtime: bool = False) -> dict[str, Any]:
+    import multiprocessing
 
-    box = SgiBoxEmulator(tmp / "sgi")
+    link = tmp / f"sgi-{time.monotonic_ns()}"
+    here, there = multiprocessing.Pipe()
+    proc = multiprocessing.get_context("spawn").Process(target=_box_process, args=(str(link), there), daemon=True)
+    proc.start()
     try:
-        dev = devices.open_device(f"sgi://{box.port.link}")
-
-        def drive(stop: threading.Event) -> None:
-            box.wait_ready(10)
-            rng = random.Random(7)
-            while not stop.is_set():
-                box.turn(rng.randrange(8), rng.choice((-2, -1, 1, 2)))
-                time.sleep(rng.uniform(0.005, 0.025))  # random phase against the 60 Hz tick
-
-        return run_loop(face, [dev], seconds, render, drive, record=tmp / "sgi.jsonl" if record else None,
-                        rate=rate, wake=wake)
+        if not here.poll(30):
+            raise RuntimeError("the SGI box emulator did not start")
+        here.recv()
+        dev = devices.open_device(f"sgi://{link}")
+        return run_loop(face, [dev], seconds, render, record=tmp / "sgi.jsonl" if record else None,
+                        rate=rate, wake=wake, realtime=realtime)
     finally:
-        box.port.close()
+        here.send("stop")
+        proc.join(5)
+        if proc.is_alive():
+            proc.kill()
 
 
 def main() -> int:
@@ -174,13 +222,13 @@ def main() -> int:
     ap.add_argument("--rates", default="60,auto,240",
                     help="tick rates to compare, e.g. 60,120,240 (frames at 60 Hz); auto: the face's chosen rate")
     ap.add_argument("--wake", default="off,on", help="waking the loop on an event: off, on, or both (off,on)")
-    ap.add_argument("--fifo", action="store_true", help="run under SCHED_FIFO (less noise from other programs)")
+    ap.add_argument("--realtime", default="off", help="as `puppet live --realtime` (the loop's thread and the devices' "
+                    "readers under SCHED_FIFO): off, on, or both (off,on: interleaved in one run)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
-    if a.fifo:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(10))
     render = tuple(int(x) for x in a.render.split("x")) if a.render else None
     wakes = [w == "on" for w in a.wake.split(",")]
+    realtimes = [w == "on" for w in a.realtime.split(",")]
     face = live.load_face()
     chosen, cost = choose_tick_rate(face.model)  # what `puppet live` picks for this face (auto)
     print(f"the face's step: {', '.join(f'{r:g} Hz {c * 1000:.2f} ms' for r, c in cost.items())} (CPU); "
@@ -191,8 +239,9 @@ def main() -> int:
         for name, source in (("mock", mock_source), ("sgi_pty", sgi_source)):
             for rate in rates:  # interleaved in one run, so the ratios share the machine's load
                 for wake in wakes:
-                    res[f"{name} {rate:g} Hz wake {'on' if wake else 'off'}"] = source(
-                        face, a.seconds, render, Path(d), not a.no_record, rate, wake)
+                    for rt in realtimes:
+                        res[f"{name} {rate:g} Hz wake {'on' if wake else 'off'}{' rt' if rt else ''}"] = source(
+                            face, a.seconds, render, Path(d), not a.no_record, rate, wake, rt)
     if a.json:
         print(json.dumps(res, indent=2))
         return 0
@@ -207,6 +256,11 @@ def main() -> int:
         late = r["spans_ms"].get("woke late", [0.0, 0.0])
         print(f"{'':26s} work after the boundary (drain + tick) p50 {r['work_p50_ms']:.1f} p99 {r['work_p99_ms']:.1f} ms, "
               f"woke late p99 {late[1]:.1f} ms, {r['ticks']} ticks")
+        wh = r.get("where_ms", {})
+        print(f"{'':26s} an event's wait: for a tick in progress p50/p99 {wh['busy'][0]:.1f}/{wh['busy'][1]:.1f} ms, "
+              f"for the schedule or the wake-up {wh['schedule'][0]:.1f}/{wh['schedule'][1]:.1f} ms; its tick "
+              f"{wh['tick'][0]:.1f}/{wh['tick'][1]:.1f} ms; sim step {r['spans_ms']['sim step'][0]:.1f}/"
+              f"{r['spans_ms']['sim step'][1]:.1f} ms")
     print("ratios are against the first row of the same source in this run; goals: event->state p99 <= 6 ms, "
           f"event->frame p99 <= 18.7 ms; load average at the end {os.getloadavg()[0]:.2f}")
     return 0

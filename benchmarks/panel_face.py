@@ -217,7 +217,7 @@ def clients_process(url: str, n: int, seconds: float, face: bool, conn: Any) -> 
         async with aiohttp.ClientSession() as s, s.ws_connect(url + f"ws?name=c{i}") as ws:
             await ws.send_str(json.dumps({"t": "face", "on": face}))
             end = time.monotonic() + seconds
-            while time.monotonic() < end:
+            while time.monotonic() < end and not conn.poll():  # until told to stop (or `seconds`)
                 try:
                     msg = await ws.receive(timeout=1.0)
                 except asyncio.TimeoutError:
@@ -251,10 +251,13 @@ def server_run(face: live.Face, n_pages: int, seconds: float, with_face: bool) -
     show.start()
     here, there = multiprocessing.Pipe()
     proc = multiprocessing.get_context("spawn").Process(target=clients_process,
-                                                        args=(dev.url, n_pages, seconds + 1.5, with_face, there))
+                                                        args=(dev.url, n_pages, seconds + 90, with_face, there))
     try:
         proc.start()
         time.sleep(1.5)  # connected, scenes sent
+        end = time.monotonic() + 60  # the picture process's start (seconds on a loaded machine)
+        while with_face and dev.face_feed.stats.frames < 3 and time.monotonic() < end:
+            time.sleep(0.1)
         tid = dev.server._thread.native_id
 
         def server_cpu() -> float:  # the server's thread, the feed's thread and picture process
@@ -263,6 +266,7 @@ def server_run(face: live.Face, n_pages: int, seconds: float, with_face: bool) -
         cpu0, t0 = server_cpu(), time.monotonic()
         time.sleep(seconds)
         cpu = (server_cpu() - cpu0) / (time.monotonic() - t0)
+        here.send("stop")
         logs = here.recv()
     finally:
         proc.join(10)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -47,9 +48,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                    help="continue the --record FILE if it exists (a new segment) instead of starting it "
                    "again (what --supervise and the systemd unit in docs/live.md do after a crash)")
     p.add_argument("--tick-rate", type=float, choices=(60.0, 120.0, 240.0), default=None, metavar="HZ",
-                   help="simulation ticks a second: 60, 120 or 240 (default 240 headless; 60 in a window and on "
-                   "a script's clock); frames are still drawn at the display's rate, a faster tick shortens the "
-                   "wait of an event for the simulation; the take records it (see docs/live.md)")
+                   help="simulation ticks a second: 60, 120 or 240 (default headless: the fastest the face's "
+                   "measured step affords, 120 for the scanned head; 60 in a window and on a script's clock); "
+                   "frames are still drawn at the display's rate, a faster tick shortens the wait of an event "
+                   "for the simulation; the take records it (see docs/live.md)")
+    p.add_argument("--realtime", action="store_true",
+                   help="headless: run the live loop and the devices' reader threads under real-time scheduling "
+                   "(SCHED_FIFO) so a busy machine delays no tick; needs CAP_SYS_NICE or an rtprio limit "
+                   "(see docs/live.md, Latency)")
     p.add_argument("--standby", action="store_true", help=argparse.SUPPRESS)  # --supervise's spare
     p.set_defaults(func=run)
 
@@ -383,10 +389,20 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
             run_window(core, queue.drain, args.duration, devs, fullscreen=args.fullscreen, stop=stop, win=win,
                        pictures=pictures)
         else:
+            if getattr(args, "realtime", False):
+                os.environ["PUPPET_REALTIME_DEVICES"] = "1"  # the readers: SCHED_FIFO a step below the loop
             for d in devs:
                 d.add_listener(queue)
                 d.start()
-            live.run_realtime(core, queue.drain, args.duration, stop=stop, wake=queue.wait_arrival)
+            why = live.realtime_priority() if getattr(args, "realtime", False) else None
+            if why is not None:
+                warn(f"--realtime: real-time scheduling not permitted here ({why}); the show runs at the "
+                     "ordinary priority")
+            try:
+                live.run_realtime(core, queue.drain, args.duration, stop=stop, wake=queue.wait_arrival)
+            finally:
+                if getattr(args, "realtime", False):
+                    live.ordinary_priority()
     finally:
         import gc
 

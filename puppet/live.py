@@ -403,12 +403,14 @@ class LiveCore:
             else:
                 self.writer.service()
         if self._wrinkles_thread is not None:
-            self._wrinkles_thread.start()
+            with _OrdinaryThreads():
+                self._wrinkles_thread.start()
             self._wrinkles_thread = None
         if self.after_first_frame:
             hooks, self.after_first_frame = self.after_first_frame, []
-            for hook in hooks:
-                hook()
+            with _OrdinaryThreads():
+                for hook in hooks:
+                    hook()
 
     def mark(self, label: str) -> None:
         self.markers.append((self.tick_count, label))
@@ -557,6 +559,51 @@ class _ShowRuntime:
         if self.gc_was_enabled:
             gc.enable()
         sys.setswitchinterval(self.old)
+
+
+#: `puppet live --realtime`: the loop's thread runs under SCHED_FIFO at this priority, a step above the
+#: devices' reader threads (PUPPET_REALTIME_DEVICES: 10), since FIFO does not share a core between equals
+LOOP_RT_PRIORITY = 11
+
+
+def realtime_priority() -> str | None:
+    """Run the calling thread (the live loop's) under SCHED_FIFO at LOOP_RT_PRIORITY, so other
+    programs on a busy machine cannot delay a tick or its wake-up; None when it is, else why not
+    (it needs CAP_SYS_NICE or an rtprio limit, e.g. the `audio` group of a music machine)."""
+    if not hasattr(os, "sched_setscheduler"):
+        return "not on this system"
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(LOOP_RT_PRIORITY))  # 0: this thread
+    except OSError as err:
+        return str(err)
+    return None
+
+
+def ordinary_priority() -> None:
+    """Back to the ordinary scheduling (after a show run with `realtime_priority`)."""
+    if hasattr(os, "sched_setscheduler"):
+        try:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        except OSError:
+            pass
+
+
+class _OrdinaryThreads:
+    """While threads are started from the loop's thread: they must not inherit a real-time priority
+    (the wrinkle layer's build, the page's server would then hold a core against the loop)."""
+
+    def __enter__(self) -> None:
+        self.policy = os.sched_getscheduler(0) if hasattr(os, "sched_getscheduler") else None
+        if self.policy is not None and self.policy != os.SCHED_OTHER:
+            self.param = os.sched_getparam(0)
+            ordinary_priority()
+
+    def __exit__(self, *exc: object) -> None:
+        if self.policy is not None and self.policy != os.SCHED_OTHER:
+            try:
+                os.sched_setscheduler(0, self.policy, self.param)
+            except OSError:
+                pass
 
 
 def prepare_show() -> None:

@@ -34,6 +34,8 @@ if TYPE_CHECKING:  # asyncio is imported where the server thread runs: opening t
     import asyncio
 
 STATE_HZ = 30.0
+#: the longest a state waits for the picture made since the last one (then it goes out alone)
+FACE_WAIT_S = 0.1
 MAX_MESSAGE = 4096
 NAME_RE = re.compile(r"[A-Za-z0-9_-]{1,24}")
 
@@ -296,44 +298,64 @@ class PanelDevice(Device):
     async def _broadcast(self) -> None:
         """The loop's state to every page, and the face to the pages watching it, STATE_HZ times a
         second on an absolute schedule. Both go out together, so a browser redraws its page once
-        per state (a software-composited browser pays for every redraw of the whole page)."""
+        per state (a software-composited browser pays for every redraw of the whole page): the
+        picture made since the last state goes out right after this state, and the next is started;
+        a picture that takes longer than a period (a loaded machine) holds the state back until it
+        is done (at most FACE_WAIT_S), so the pages get max(period, picture time) cycles, each one
+        redraw, instead of waiting for the next period after every late picture."""
         import asyncio
 
         period = 1.0 / STATE_HZ
         due = time.monotonic()
-        face_task: asyncio.Task[None] | None = None
-        while True:
-            due += period
-            now = time.monotonic()
-            if due < now - period:  # the machine stalled: re-anchor rather than burst
-                due = now
-            await asyncio.sleep(max(0.0, due - now))
-            if not self.clients:
-                continue
-            try:
-                text = json.dumps(self._state(), separators=(",", ":"))
-            except Exception:  # the loop's state changed under us: next time
-                continue
-
-            async def send(ws: Any) -> None:
+        face_task: asyncio.Task[tuple[bytes, int] | None] | None = None
+        try:
+            while True:
+                due += period
+                now = time.monotonic()
+                if due < now - period:  # the machine stalled: re-anchor rather than burst
+                    due = now
+                await asyncio.sleep(max(0.0, due - now))
+                if not self.clients:
+                    continue
+                if face_task is not None and not face_task.done():
+                    try:
+                        await asyncio.wait_for(asyncio.shield(face_task), FACE_WAIT_S)
+                    except Exception:  # slower than that: the state goes out alone this time
+                        pass
                 try:
-                    await asyncio.wait_for(ws.send_str(text), 0.5)
-                except Exception:  # a stalled page must not stall the others
-                    pass
+                    text = json.dumps(self._state(), separators=(",", ":"))
+                except Exception:  # the loop's state changed under us: next time
+                    continue
 
-            await asyncio.gather(*(send(c.ws) for c in list(self.clients.values()) if not c.ws.closed))
-            # the face in its own task: a picture being rendered never holds up the next state
-            if face_task is None or face_task.done():
-                face_task = asyncio.get_running_loop().create_task(self._face_step())
+                async def send(ws: Any) -> None:
+                    try:
+                        await asyncio.wait_for(ws.send_str(text), 0.5)
+                    except Exception:  # a stalled page must not stall the others
+                        pass
 
-    async def _face_step(self) -> None:
+                await asyncio.gather(*(send(c.ws) for c in list(self.clients.values()) if not c.ws.closed))
+                if face_task is not None and face_task.done():
+                    got = None if face_task.cancelled() or face_task.exception() else face_task.result()
+                    if got is not None:
+                        self.face_feed.send(*got)
+                    face_task = None
+                # the face in its own task: a picture being rendered never holds up this state
+                if face_task is None:
+                    face_task = asyncio.get_running_loop().create_task(self._face_step())
+        finally:  # the server is closing: the picture under way is not waited for
+            if face_task is not None:
+                face_task.cancel()
+
+    async def _face_step(self) -> tuple[bytes, int] | None:
         """The face to the pages watching it: the loop's state encoded once per new tick for every
-        page (puppet.panel.face); in mesh mode a page that just asked for it gets the scene first."""
+        page (puppet.panel.face); in mesh mode a page that just asked for it gets the scene first and
+        the frame is sent at once; in picture mode the picture and its tick are returned, for
+        `_broadcast` to send with the next state."""
         core, feed = self.core, self.face_feed
         watching = [c.ws for c in list(self.clients.values()) if c.face and not c.ws.closed]
         feed.wanted = bool(watching)
         if core is None or not watching:
-            return
+            return None
         try:
             model = core.face.model
             await feed.use(model)
@@ -343,12 +365,12 @@ class PanelDevice(Device):
             k = int(core.tick_count)
             if feed.mode == "picture":
                 msg = await feed.make_picture(model, core.state, k)
-                if msg is not None:
-                    feed.send(msg, feed.last_tick)
-            elif k != feed.last_tick:
+                return None if msg is None else (msg, feed.last_tick)
+            if k != feed.last_tick:
                 feed.publish(core.state, k)
         except Exception:  # the loop's state changed under us, or a page went: next time
             pass
+        return None
 
     def _base(self) -> str:
         """The spec with the port actually served (the OS's or the fallback's choice)."""

@@ -172,9 +172,11 @@
   // the page is redrawn only where something changed: 30 states a second on a slow phone (or a
   // software-composited browser) must leave it time for the performer's fingers and the face
   const last = {};
+  const TEXT_MS = 200;
   function setText(e, text) { if (e.textContent !== text) e.textContent = text; }
   function changed(key, value) { const j = JSON.stringify(value); if (last[key] === j) return false; last[key] = j; return true; }
   function update(st) {
+    const now = performance.now();
     if (st.values) {
       state.values = st.values;
       for (const [ch, sl] of Object.entries(state.sliders)) {
@@ -182,11 +184,18 @@
         const u = (v - c.lo) / ((c.hi - c.lo) || 1);
         // the needle slides on its own layer (a transform: no layout, no repaint of the page)
         if (sl.u !== u) { sl.u = u; sl.ap.style.transform = `translateX(${(Math.min(1, Math.max(0, u)) * 100).toFixed(2)}%)`; }
-        setText(sl.num, v.toFixed(2));
+        // the figures (text: a layout and a raster of the glyphs each time, most of what a moving
+        // slider costs a software-composited browser) change at most TEXT_MS apart: nobody reads
+        // 30 figures a second; a change after a still moment shows at once, the last value always
+        if (now - (sl.textAt || 0) < TEXT_MS) continue;
+        let wrote = false;
+        if (sl.num.textContent !== v.toFixed(2)) { sl.num.textContent = v.toFixed(2); wrote = true; }
         if (state.own["slider:" + ch] === undefined && sl.now !== fmt(v)) {  // untouched: it stands where the face is
           sl.now = fmt(v); sl.el.setAttribute("aria-valuenow", sl.now);
           sl.el.setAttribute("aria-valuetext", sl.now + (sl.linked ? ", left and right together" : ""));
+          wrote = true;
         }
+        if (wrote) sl.textAt = now;
       }
       if (state.ageRow) {
         const a = state.ageRow, v = st.values[state.index[a.name]], u = (v - a.lo) / (a.hi - a.lo);
@@ -197,7 +206,6 @@
         }
       }
     }
-    const now = performance.now();
     if (now - (last.statsAt || 0) > 500) {  // figures a person reads: twice a second is plenty
       last.statsAt = now;
       if (st.fps !== undefined) { setText($("fps"), String(st.fps)); setText($("tps"), String(st.tps)); }
