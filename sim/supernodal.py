@@ -178,18 +178,25 @@ def supernodes(lower: sp.csc_matrix, upper: sp.csc_matrix) -> dict[str, np.ndarr
     up = sp.csr_matrix(upper, dtype=np.float64)  # U by rows: row j of U pairs with column j of L
     lo.sort_indices()
     up.sort_indices()
-    cols = [lo.indices[lo.indptr[j]:lo.indptr[j + 1]] for j in range(n)]
-    cols = [c[c > j] for j, c in enumerate(cols)]
-    urow = [up.indices[up.indptr[j]:up.indptr[j + 1]] for j in range(n)]
-    if any(not np.array_equal(cols[j], urow[j][urow[j] > j]) for j in range(n)):
+    def below_diagonal(m: sp.spmatrix, j: int) -> tuple[np.ndarray, np.ndarray]:
+        idx, val = m.indices[m.indptr[j]:m.indptr[j + 1]], m.data[m.indptr[j]:m.indptr[j + 1]]
+        return idx[idx > j], val[idx > j]
+
+    low = [below_diagonal(lo, j) for j in range(n)]  # column j of L below the diagonal
+    upr = [below_diagonal(up, j) for j in range(n)]  # row j of U right of the diagonal
+    cols = [c for c, _ in low]
+    if any(not np.array_equal(cols[j], upr[j][0]) for j in range(n)):
         raise ValueError("the factors' patterns are not each other's transpose")
+    u_diag = np.zeros(n)
+    for j in range(n):
+        on = up.indices[up.indptr[j]:up.indptr[j + 1]] == j
+        u_diag[j] = up.data[up.indptr[j]:up.indptr[j + 1]][on].sum()
     starts = [0]
     for j in range(1, n):  # column j continues the run when column j-1 is {j} + column j's pattern
         prev, cur = cols[j - 1], cols[j]
         if not (len(prev) == len(cur) + 1 and prev[0] == j and np.array_equal(prev[1:], cur)):
             starts.append(j)
     starts.append(n)
-    u_diag = np.zeros(n)
     r_ptr, v_ptr, t_ptr = [0], [0], [0]
     r_idx: list[np.ndarray] = []
     lv: list[np.ndarray] = []
@@ -197,18 +204,25 @@ def supernodes(lower: sp.csc_matrix, upper: sp.csc_matrix) -> dict[str, np.ndarr
     tv: list[np.ndarray] = []
     for k in range(len(starts) - 1):
         s, e = starts[k], starts[k + 1]
+        w = e - s
         below = cols[e - 1]
-        block_l = lo[:, s:e].toarray()  # (n, w)
-        block_u = up[s:e, :].toarray()  # (w, n)
-        tri = np.tril(block_l[s:e], -1) + np.triu(block_u[:, s:e], 1)
-        u_diag[s:e] = np.diag(block_u[:, s:e])
+        m = len(below)
+        tri = np.zeros((w, w))  # [column, row] in the run: L's below the diagonal, U's above
+        low_block = np.zeros((w, m))  # [column in run, row below]
+        up_block = np.zeros((m, w))  # [column below, row in run]
+        for jj in range(w):  # a column's (a row's) first w - 1 - jj entries lie in the run, the rest below
+            lvals, uvals = low[s + jj][1], upr[s + jj][1]
+            tri[jj, jj + 1:] = lvals[:w - 1 - jj]
+            tri[jj + 1:, jj] = uvals[:w - 1 - jj]
+            low_block[jj] = lvals[w - 1 - jj:]
+            up_block[:, jj] = uvals[w - 1 - jj:]
         r_idx.append(below)
-        lv.append(block_l[below].T.ravel())  # column by column
-        uv.append(block_u[:, below].T.ravel())  # below-row by below-row
-        tv.append(tri.T.ravel())  # column by column
-        r_ptr.append(r_ptr[-1] + len(below))
-        v_ptr.append(v_ptr[-1] + len(below) * (e - s))
-        t_ptr.append(t_ptr[-1] + (e - s) ** 2)
+        lv.append(low_block.ravel())
+        uv.append(up_block.ravel())
+        tv.append(tri.ravel())
+        r_ptr.append(r_ptr[-1] + m)
+        v_ptr.append(v_ptr[-1] + m * w)
+        t_ptr.append(t_ptr[-1] + w * w)
 
     def cat(parts: list[np.ndarray], dtype: type) -> np.ndarray:
         return np.ascontiguousarray(np.concatenate(parts) if parts else np.zeros(0), dtype=dtype)
