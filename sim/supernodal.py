@@ -13,8 +13,8 @@ works a run at a time on a small buffer of its rows: the forward sweep subtracts
 of R, then column s + 1, ...; the backward sweep subtracts the last column of R from all of the
 run's rows, then the one before, .... Those innermost loops run over contiguous values of
 independent rows, which the compiler turns into vector instructions, and the index lists shrink
-to a seventh. (Runs of one column scatter directly; narrow runs take each backward row in
-registers.)
+to a fourteenth (one list of rows per run instead of a row index per entry of each factor).
+(Runs of one column scatter directly; narrow runs take each backward row in registers.)
 
 The arithmetic is the column sweeps', operation for operation: every value of the right-hand side
 receives its subtractions in the same order (the forward sweep's in increasing column, the
