@@ -12,7 +12,10 @@ prefactored solve). The scanned head (sim.face.scan, the default face of the app
 timed the same way after the procedural resolutions, with its build time (rig transfer, compile), the
 posing of all its 26,719 vertices (`ScanDressing.pose`, the renderer's side of a frame) and its cost
 as a ratio to resolution 0's in the same run, and at the live loop's faster ticks (120 and 240 Hz:
-one substep a tick, so 2 and 4 solves per 60 Hz frame; `puppet live` headless ticks at 240 Hz). The last block compares the two integrators' transients on the default face:
+one substep a tick, so 2 and 4 solves per 60 Hz frame; `puppet live` headless ticks at 240 Hz), and
+the prefactored solve alone, by supernodes (`sim.supernodal`, what the step runs) against the plain
+column-by-column sweeps over the same factors (what it ran before; the same bits), in alternating
+batches. The last block compares the two integrators' transients on the default face:
 time for the left mouth corner to reach 90 % of its settled AU12 displacement.
 """
 
@@ -37,6 +40,82 @@ def _frame_ms(sim: object, model: object, control: object, frames: int) -> float
             sim.step(state, control)  # type: ignore[attr-defined]
         best = min(best, (time.thread_time() - t0) / frames)
     return best * 1e3
+
+
+def _column_form(arrays: dict) -> tuple:  # type: ignore[type-arg]
+    """The supernodal factors (sim.supernodal) back in plain column form: L's strictly lower and U's
+    strictly upper entries by columns (int64 pointers, int32 rows, values) and U's diagonal."""
+    sn, rp, ri, vp, lv, uv, tp, tv = (arrays[k] for k in ("sn_ptr", "r_ptr", "r_idx", "v_ptr", "lv", "uv", "t_ptr",
+                                                           "tv"))
+    n = int(sn[-1])
+    lcols: list[list[tuple[int, float]]] = [[] for _ in range(n)]
+    ucols: list[list[tuple[int, float]]] = [[] for _ in range(n)]
+    for k in range(len(sn) - 1):
+        s, w = int(sn[k]), int(sn[k + 1] - sn[k])
+        rows = ri[rp[k]:rp[k + 1]]
+        m = len(rows)
+        tri = tv[tp[k]:tp[k + 1]].reshape(w, w).T  # [row, column] in the run
+        low = lv[vp[k]:vp[k + 1]].reshape(w, m)  # [column in run, row below]
+        up = uv[vp[k]:vp[k + 1]].reshape(m, w)  # [column below, row in run]
+        for jj in range(w):
+            lcols[s + jj] += [(s + ii, tri[ii, jj]) for ii in range(jj + 1, w)]
+            lcols[s + jj] += [(int(r), low[jj, i]) for i, r in enumerate(rows)]
+            ucols[s + jj] += [(s + ii, tri[ii, jj]) for ii in range(jj)]
+        for i, c in enumerate(rows):
+            ucols[int(c)] += [(s + ii, up[i, ii]) for ii in range(w)]
+    out = []
+    for cols in (lcols, ucols):
+        ptr = np.concatenate([[0], np.cumsum([len(c) for c in cols])]).astype(np.int64)
+        out += [ptr, np.array([r for c in cols for r, _ in sorted(c)], dtype=np.int32),
+                np.array([v for c in cols for _, v in sorted(c)], dtype=np.float64)]
+    return (*out, arrays["u_diag"])
+
+
+def _column_sweeps_kernel():  # type: ignore[no-untyped-def]
+    import numba
+
+    @numba.njit(nogil=True)
+    def sweeps(y, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_diag):  # type: ignore[no-untyped-def]
+        for j in range(y.shape[0]):
+            for p in range(l_ptr[j], l_ptr[j + 1]):
+                r = l_idx[p]
+                for d in range(3):
+                    y[r, d] -= l_val[p] * y[j, d]
+        for j in range(y.shape[0] - 1, -1, -1):
+            for d in range(3):
+                y[j, d] = y[j, d] / u_diag[j]
+            for p in range(u_ptr[j], u_ptr[j + 1]):
+                r = u_idx[p]
+                for d in range(3):
+                    y[r, d] -= u_val[p] * y[j, d]
+
+    return sweeps
+
+
+def _solve_vs_columns(solver: object, batches: int = 15) -> str:
+    """The prefactored solve by supernodes against the plain column sweeps, alternating batches of
+    20 solves; checks that both give the same bits."""
+    from sim.supernodal import _sn_sweeps
+
+    plain = _column_form(solver.arrays)  # type: ignore[attr-defined]
+    sweeps = _column_sweeps_kernel()
+    b = np.random.default_rng(2).normal(size=(solver.n, 3))  # type: ignore[attr-defined]
+    y1, y2 = b.copy(), b.copy()
+    sweeps(y1, *plain)
+    _sn_sweeps(y2, *solver.factors, solver.work)  # type: ignore[attr-defined]
+    same = y1.tobytes() == y2.tobytes()
+    best = {"supernodes": float("inf"), "columns": float("inf")}
+    for _ in range(batches):
+        for key in best:
+            t0 = time.thread_time()
+            for _ in range(20):
+                if key == "columns":
+                    sweeps(y1, *plain)
+                else:
+                    _sn_sweeps(y2, *solver.factors, solver.work)  # type: ignore[attr-defined]
+            best[key] = min(best[key], (time.thread_time() - t0) / 20 * 1e3)
+    return (f"    the solve alone: by supernodes {best['supernodes']:.2f} ms, by columns {best['columns']:.2f} ms "
+            f"({best['columns'] / best['supernodes']:.2f}x; same bits: {same})")
 
 
 def _rise_time(model: object, method: str) -> float:
@@ -138,6 +217,7 @@ def _scan(control: object, frames: int, auto_ms: dict[int, float]) -> None:
         tick_ms = _frame_ms(fast, model, control, frames * ticks)
         print(f"    at {rate:.0f} Hz ticks: {tick_ms:.2f} ms a tick, {ticks * tick_ms:.2f} ms per 60 Hz frame "
               f"({100 * ticks * tick_ms / (1e3 * FRAME):.1f}% of a 60 Hz frame)")
+    print(_solve_vs_columns(sim._implicit.solver))  # type: ignore[attr-defined]
     t0 = time.thread_time()
     Simulator(model, 1.0 / 50.0, wrinkles=False)  # a substep no other simulator here used
     print(f"    a simulator's set-up (its matrix factored, nothing kept): {time.thread_time() - t0:.2f} s; "

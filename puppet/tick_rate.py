@@ -13,8 +13,12 @@ import numpy as np
 
 from puppet.live import LIVE_TICK_RATE, TICK_RATES, Face
 
-#: the share of one core the simulation may take when the tick rate is chosen from the face's cost
-TICK_BUDGET = 0.5
+#: the share of one core the simulation may take when the tick rate is chosen from the face's cost.
+#: The rest of a tick (events, mapping, recording) and the drawing need the remainder: with the
+#: scanned head's step at 1.4-1.9 ms, 240 Hz (a third to half a core) fell behind on the shared
+#: development machine (event->state p99 133-155 ms at load 6, `benchmarks/live_latency.py`) where
+#: 120 Hz held 33-35 ms; the procedural face's RK2 step still affords 240 Hz.
+TICK_BUDGET = 0.3
 
 
 def choose_tick_rate(model: Any, rates: Sequence[float] = TICK_RATES, budget: float = TICK_BUDGET,
@@ -23,8 +27,9 @@ def choose_tick_rate(model: Any, rates: Sequence[float] = TICK_RATES, budget: fl
     thread, the median of `steps` steps of a throw-away simulator after one warm step), keeps the
     simulation under `budget` of a core; the lowest rate when none does. Returns the rate and the
     seconds per step measured at each rate tried. The scanned head's implicit step costs about the
-    same at any dt, so 240 Hz would take most of a core where 60-120 Hz leaves room for drawing;
-    the procedural face's RK2 step shrinks with dt and affords 240 Hz."""
+    same at any dt, so 240 Hz would take a third to half a core where 120 Hz leaves room for
+    the rest of the tick and for drawing; the procedural face's RK2 step shrinks with dt and
+    affords 240 Hz."""
     import sim
 
     cost: dict[float, float] = {}

@@ -12,7 +12,8 @@ real-time budget. Here each substep is one local/global iteration of projective 
 - global: (M / h^2 + C / h + L(k_h) + diag(k_r)) x' = M / h^2 y + C / h x + sum_s k_h (e_j - e_i) d_s
   + k_r target + f_muscle + f_gravity, with L(k_h) the springs' graph Laplacian. The matrix is
   constant and the same for x, y and z, so it is factored once (sparse LU, scipy SuperLU) and a
-  substep costs one spring pass and two triangular solves with 3 right-hand sides.
+  substep costs one spring pass and two triangular solves with 3 right-hand sides (laid out and
+  swept by supernodes, `sim.supernodal`).
 - the lid and lip contact is solved with the global step (forces of unknown size on the margin
   pairs, `sim.margin_contact.SolvedContact`), then v' = (x' - x) / h; the eyeball contact is a
   projection after it.
@@ -48,6 +49,7 @@ from sim.integrator import _eye_contact
 from sim.margin_contact import (SolvedContact, _contact_force, _contact_resolve, _repair, margin_bending,
                                  solved_constraints, warm_up_solved)
 from sim.numba_start import prepare_blas_check
+from sim.supernodal import PrefactoredSolver, _sn_sweeps
 
 if TYPE_CHECKING:  # scipy is imported where a matrix is built: a stepper made from the face cache needs none
     import scipy.sparse as sp
@@ -76,102 +78,6 @@ def implicit_substeps(model: FaceModel, frame_dt: float) -> int:
     p = model.params
     omega_r = math.sqrt(p.tether / p.areal_density)
     return max(1, math.ceil(frame_dt * omega_r / OMEGA_H))
-
-
-@numba.njit(cache=True, nogil=True)
-def _lu_sweeps(y, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_diag):  # type: ignore[no-untyped-def]
-    """y = U^-1 L^-1 y in place for 3 right-hand sides; L unit lower, U upper, both CSC with only
-    their off-diagonal entries (u_diag: U's diagonal)."""
-    n = y.shape[0]
-    for j in range(n):  # forward: L has a unit diagonal
-        y0 = y[j, 0]
-        y1 = y[j, 1]
-        y2 = y[j, 2]
-        for p in range(l_ptr[j], l_ptr[j + 1]):
-            r = l_idx[p]
-            a = l_val[p]
-            y[r, 0] -= a * y0
-            y[r, 1] -= a * y1
-            y[r, 2] -= a * y2
-    for j in range(n - 1, -1, -1):  # backward
-        d = u_diag[j]
-        y0 = y[j, 0] / d
-        y1 = y[j, 1] / d
-        y2 = y[j, 2] / d
-        y[j, 0] = y0
-        y[j, 1] = y1
-        y[j, 2] = y2
-        for p in range(u_ptr[j], u_ptr[j + 1]):
-            r = u_idx[p]
-            a = u_val[p]
-            y[r, 0] -= a * y0
-            y[r, 1] -= a * y1
-            y[r, 2] -= a * y2
-
-
-@numba.njit(cache=True, nogil=True)
-def _lu_solve(b, perm_r, perm_c, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_diag, y, out):  # type: ignore[no-untyped-def]
-    """x = Pc U^-1 L^-1 Pr b for 3 right-hand sides (see _lu_sweeps)."""
-    n = b.shape[0]
-    for i in range(n):
-        r = perm_r[i]
-        for k in range(3):
-            y[r, k] = b[i, k]
-    _lu_sweeps(y, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_diag)
-    for i in range(n):
-        c = perm_c[i]
-        for k in range(3):
-            out[i, k] = y[c, k]
-
-
-def _off_diagonal(m: sp.csc_matrix, lower: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(indptr int64, indices int32, values, diagonal) of a triangular CSC factor, its strictly lower
-    (or upper) entries kept in their stored order, the diagonal apart."""
-    import scipy.sparse as sp
-
-    m = sp.csc_matrix(m)
-    cols = np.repeat(np.arange(m.shape[1]), np.diff(m.indptr))
-    keep = m.indices > cols if lower else m.indices < cols
-    diag = np.zeros(m.shape[0])
-    on = m.indices == cols
-    diag[cols[on]] = m.data[on]
-    counts = np.bincount(cols[keep], minlength=m.shape[1])
-    ptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    # int32 indices: the solve streams the factors from memory, so their size is its cost
-    return ptr, m.indices[keep].astype(np.int32), m.data[keep].copy(), diag
-
-
-class PrefactoredSolver:
-    """A sparse LU of a fixed matrix with a compiled solve for (n, 3) right-hand sides. `arrays`
-    holds everything the solve reads (stored in the face cache, `sim.implicit_cache`); a solver
-    made from them gives the same bits as the one they came from."""
-
-    KEYS = ("perm_r", "perm_c", "l_ptr", "l_idx", "l_val", "u_ptr", "u_idx", "u_val", "u_diag")
-
-    def __init__(self, a: sp.spmatrix | None = None, arrays: dict[str, np.ndarray] | None = None) -> None:
-        if arrays is None:
-            import scipy.sparse as sp
-            from scipy.sparse.linalg import splu
-
-            lu = splu(sp.csc_matrix(a), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                      options={"SymmetricMode": True})
-            l_ptr, l_idx, l_val, _ = _off_diagonal(lu.L, lower=True)
-            u_ptr, u_idx, u_val, u_diag = _off_diagonal(lu.U, lower=False)
-            arrays = dict(perm_r=np.ascontiguousarray(lu.perm_r, dtype=np.int64),
-                          perm_c=np.ascontiguousarray(lu.perm_c, dtype=np.int64),
-                          l_ptr=l_ptr, l_idx=l_idx, l_val=l_val, u_ptr=u_ptr, u_idx=u_idx, u_val=u_val,
-                          u_diag=u_diag)
-        self.arrays = arrays
-        self.n = len(arrays["perm_r"])
-        self.perm_r, self.perm_c = arrays["perm_r"], arrays["perm_c"]
-        self.factors = tuple(arrays[k] for k in self.KEYS[2:])
-        self.fill = int(len(arrays["l_val"]) + len(arrays["u_val"]) + 2 * self.n)
-        self._y = np.zeros((self.n, 3))
-
-    def solve(self, b: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """out = A^-1 b for b (n, 3)."""
-        _lu_solve(b, self.perm_r, self.perm_c, *self.factors, self._y, out)
-        return out
 
 
 @numba.njit(cache=True, nogil=True)
@@ -219,10 +125,10 @@ def _csr_times(ptr, idx, val, x, out):  # type: ignore[no-untyped-def]
 
 @numba.njit(cache=True, nogil=True)
 def _frame(x, v, n_sub, h, ext, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,  # type: ignore[no-untyped-def]
-           free, held, fh_ptr, fh_idx, fh_val, perm_r, perm_c, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_diag,
+           free, held, fh_ptr, fh_idx, fh_val, perm_r, perm_c, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag,
            c_idx, c_w, c_sg, c_dim, c_opp, c_row_ptr, c_row_v, c_lam, c_loc, c_green, c_gptr, c_gvert, c_gval,
            c_work, c_cand, c_schur, c_df, rounds, sweeps, eye_idx, eye_of, centres, radius,
-           f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, rhs, xh, held_term, ys, xf_old):
+           f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, sn_work, y, rhs, xh, held_term, ys, xf_old):
     """The n_sub substeps of one frame in place on x, v (ImplicitStepper.frame; the module
     docstring): per substep the predicted positions y, the right-hand side (inertia, the frame's
     constant forces, damping, the springs' local step, the normal support, the last contact forces),
@@ -261,7 +167,7 @@ def _frame(x, v, n_sub, h, ext, springs, rest_len, k_low, k_high, thr, normal, k
             r = perm_r[q]
             for d in range(3):
                 ys[r, d] = rhs[i, d] - held_term[q, d]
-        _lu_sweeps(ys, l_ptr, l_idx, l_val, u_ptr, u_idx, u_val, u_diag)
+        _sn_sweeps(ys, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, sn_work)
         for q in range(nf):
             i = free[q]
             c = perm_c[q]
@@ -419,4 +325,4 @@ class ImplicitStepper:
         _frame(x, v, n_sub, self.h, ext, idx, rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2,
                self.damp_h, self.free, self.held, *self._fh, self.solver.perm_r, self.solver.perm_c,
                *self.solver.factors, c.idx, c.w, c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam, c.loc, c.green,
-               c.gptr, c.gvert, c.gval, c._work, c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes, *self._folds, *self._buf)
+               c.gptr, c.gvert, c.gval, c._work, c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes, *self._folds, self.solver.work, *self._buf)

@@ -84,9 +84,9 @@ def prepared(model: Any, h: float) -> dict[str, np.ndarray]:
     return arrays
 
 
-_INT = ("free", "held", "fh_ptr", "fh_idx", "bend_ptr", "bend_idx", "lu_perm_r", "lu_perm_c", "lu_l_ptr",
-        "lu_u_ptr", "fold_tri")
-_FLOAT = ("mass_h2", "damp_h", "kn", "fh_val", "bend_val", "lu_l_val", "lu_u_val", "lu_u_diag", "fold_frame",
+_INT = ("free", "held", "fh_ptr", "fh_idx", "bend_ptr", "bend_idx", "lu_perm_r", "lu_perm_c", "lu_sn_ptr",
+        "lu_r_ptr", "lu_v_ptr", "lu_t_ptr", "fold_tri")
+_FLOAT = ("mass_h2", "damp_h", "kn", "fh_val", "bend_val", "lu_lv", "lu_uv", "lu_tv", "lu_u_diag", "fold_frame",
           "fold_dm_inv", "fold_area", "fold_k", "fold_floor")
 _CONTACT_INT = ("c_idx", "c_dim", "c_opp", "c_row_ptr", "c_row_v", "c_loc", "c_gptr", "c_gvert")
 _CONTACT_FLOAT = ("c_w", "c_sg", "c_green", "c_gval")
@@ -104,7 +104,7 @@ def check(a: dict[str, np.ndarray], n: int, h: float) -> None:
     n vertices at substep h: every index the kernels follow in range, permutations that are
     permutations, finite values (the checksums are the store's)."""
     contact = "c_idx" in a
-    names = _INT + _FLOAT + ("h", "lu_l_idx", "lu_u_idx") + ((_CONTACT_INT + _CONTACT_FLOAT) if contact else ())
+    names = _INT + _FLOAT + ("h", "lu_r_idx") + ((_CONTACT_INT + _CONTACT_FLOAT) if contact else ())
     if set(a) != set(names):
         raise ValueError("not a prepared stepper")
     if a["h"].shape != () or float(a["h"]) != h:
@@ -115,8 +115,6 @@ def check(a: dict[str, np.ndarray], n: int, h: float) -> None:
     for k in _FLOAT + (_CONTACT_FLOAT if contact else ()):
         if a[k].dtype != np.float64 or not np.all(np.isfinite(a[k])):
             raise ValueError(f"{k}: not finite float64")
-    if a["lu_l_idx"].dtype != np.int32 or a["lu_u_idx"].dtype != np.int32:
-        raise ValueError("factor indices: not int32")
     free, held = a["free"], a["held"]
     if np.any(np.bincount(np.concatenate([free, held]), minlength=n) != 1) or len(free) + len(held) != n:
         raise ValueError("free and held vertices do not cover the face")
@@ -135,10 +133,9 @@ def check(a: dict[str, np.ndarray], n: int, h: float) -> None:
         raise ValueError("fold guard: wrong shapes")
     if m and (a["fold_tri"].min() < 0 or a["fold_tri"].max() >= n):
         raise ValueError("fold guard: vertex out of range")
-    _ptr(a["lu_l_ptr"], nf, a["lu_l_idx"], nf)
-    _ptr(a["lu_u_ptr"], nf, a["lu_u_idx"], nf)
-    if a["lu_u_diag"].shape != (nf,) or np.any(a["lu_u_diag"] == 0.0):
-        raise ValueError("a singular factor")
+    from sim.supernodal import check_layout
+
+    check_layout(a, nf)
     if contact:
         p = len(a["c_idx"])
         if a["c_idx"].shape != (p, 3) or a["c_sg"].shape != (p, 4) or a["c_loc"].shape != (n,):

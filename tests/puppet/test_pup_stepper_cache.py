@@ -111,7 +111,7 @@ def _rewrite(path: Path, edit) -> None:  # type: ignore[no-untyped-def]
 @pytest.mark.parametrize("edit", [
     lambda a: a.update(h=np.array(1.0 / 60.0)),  # another substep's factor
     lambda a: a.update(lu_perm_c=a["lu_perm_c"][::-1].copy() * 0),  # not a permutation
-    lambda a: a.update(lu_l_idx=a["lu_l_idx"] + 10**6),  # an index past the matrix
+    lambda a: a.update(lu_r_idx=a["lu_r_idx"] + 10**6),  # an index past the matrix
     lambda a: a.update(c_loc=np.full(3, -1, np.int64)),  # another face's contact
     lambda a: a.update(lu_u_diag=a["lu_u_diag"] * np.nan),
     lambda a: a.pop("c_green"),

@@ -1,0 +1,292 @@
+"""The implicit integrator's prefactored solve (`sim.implicit`), laid out by supernodes.
+
+The matrix is factored once (scipy's SuperLU, a symmetric fill-reducing ordering): A = Pr^T L U Pc^T
+with L unit lower and U upper, of the same sparsity pattern transposed. A substep then does a forward
+sweep with L and a backward sweep with U for three right-hand sides (x, y, z); at ~350k entries a
+factor, those sweeps are most of the step.
+
+A run of consecutive columns of L with one pattern below them (a supernode: the columns s..e-1, a
+dense triangle inside the run and the same rows R below it) is stored as dense blocks: one list of
+rows R for L and U together, L's |R| x w values column by column, U's w x |R| values by the columns
+of R, and the w x w triangles (L's below the diagonal, U's above, by columns). Each sweep then
+works a run at a time on a small buffer of its rows: the forward sweep subtracts column s from all
+of R, then column s + 1, ...; the backward sweep subtracts the last column of R from all of the
+run's rows, then the one before, .... Those innermost loops run over contiguous values of
+independent rows, which the compiler turns into vector instructions, and the index lists shrink
+to a fourteenth (one list of rows per run instead of a row index per entry of each factor).
+(Runs of one column scatter directly; narrow runs take each backward row in registers.)
+
+The arithmetic is the column sweeps', operation for operation: every value of the right-hand side
+receives its subtractions in the same order (the forward sweep's in increasing column, the
+backward's in decreasing column) and each is a separate multiply and subtract, so a solve gives the
+same bits as the plain column-by-column sweeps over the same factors.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numba
+import numpy as np
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+
+NARROW = 4  # runs narrower than this: the backward sweep takes each row in registers
+
+
+@numba.njit(cache=True, nogil=True)
+def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc):  # type: ignore[no-untyped-def]
+    """y = U^-1 L^-1 y in place for 3 right-hand sides, supernode by supernode (module docstring);
+    acc: a (3, longest run or row list) work buffer. The innermost loops index slices (never a
+    computed offset, whose possible negative value would keep the compiler from vectorizing)."""
+    a0 = acc[0]
+    a1 = acc[1]
+    a2 = acc[2]
+    nodes = sn_ptr.shape[0] - 1
+    for k in range(nodes):  # forward: L has a unit diagonal
+        s = sn_ptr[k]
+        w = sn_ptr[k + 1] - s
+        t = t_ptr[k]
+        base = v_ptr[k]
+        r0 = r_ptr[k]
+        m = r_ptr[k + 1] - r0
+        if w == 1:  # a lone column: scatter it
+            x0 = y[s, 0]
+            x1 = y[s, 1]
+            x2 = y[s, 2]
+            for i in range(m):
+                r = r_idx[r0 + i]
+                a = lv[base + i]
+                y[r, 0] -= a * x0
+                y[r, 1] -= a * x1
+                y[r, 2] -= a * x2
+            continue
+        for ii in range(w):
+            a0[ii] = y[s + ii, 0]
+            a1[ii] = y[s + ii, 1]
+            a2[ii] = y[s + ii, 2]
+        for jj in range(w):  # inside the run: column by column
+            x0 = a0[jj]
+            x1 = a1[jj]
+            x2 = a2[jj]
+            col = tv[t + jj * w:t + (jj + 1) * w]
+            for ii in range(jj + 1, w):
+                a0[ii] -= col[ii] * x0
+                a1[ii] -= col[ii] * x1
+                a2[ii] -= col[ii] * x2
+        for ii in range(w):
+            y[s + ii, 0] = a0[ii]
+            y[s + ii, 1] = a1[ii]
+            y[s + ii, 2] = a2[ii]
+        for i in range(m):  # the rows below: all of them take column s, then s + 1, ...
+            r = r_idx[r0 + i]
+            a0[i] = y[r, 0]
+            a1[i] = y[r, 1]
+            a2[i] = y[r, 2]
+        for jj in range(w):
+            x0 = y[s + jj, 0]
+            x1 = y[s + jj, 1]
+            x2 = y[s + jj, 2]
+            col = lv[base + jj * m:base + (jj + 1) * m]
+            for i in range(m):
+                a0[i] -= col[i] * x0
+                a1[i] -= col[i] * x1
+                a2[i] -= col[i] * x2
+        for i in range(m):
+            r = r_idx[r0 + i]
+            y[r, 0] = a0[i]
+            y[r, 1] = a1[i]
+            y[r, 2] = a2[i]
+    for k in range(nodes - 1, -1, -1):  # backward: the columns after the run first, from the last
+        s = sn_ptr[k]
+        w = sn_ptr[k + 1] - s
+        t = t_ptr[k]
+        base = v_ptr[k]
+        r0 = r_ptr[k]
+        m = r_ptr[k + 1] - r0
+        for ii in range(w):
+            a0[ii] = y[s + ii, 0]
+            a1[ii] = y[s + ii, 1]
+            a2[ii] = y[s + ii, 2]
+        if w < NARROW:  # few rows: each one's terms in registers
+            for ii in range(w):
+                b0 = a0[ii]
+                b1 = a1[ii]
+                b2 = a2[ii]
+                for i in range(m - 1, -1, -1):
+                    c = r_idx[r0 + i]
+                    a = uv[base + i * w + ii]
+                    b0 -= a * y[c, 0]
+                    b1 -= a * y[c, 1]
+                    b2 -= a * y[c, 2]
+                a0[ii] = b0
+                a1[ii] = b1
+                a2[ii] = b2
+        else:  # many rows: all of them take the last column, then the one before, ...
+            for i in range(m - 1, -1, -1):
+                c = r_idx[r0 + i]
+                x0 = y[c, 0]
+                x1 = y[c, 1]
+                x2 = y[c, 2]
+                row = uv[base + i * w:base + (i + 1) * w]
+                for ii in range(w):
+                    a0[ii] -= row[ii] * x0
+                    a1[ii] -= row[ii] * x1
+                    a2[ii] -= row[ii] * x2
+        for jj in range(w - 1, -1, -1):  # then the run's own columns from the last, each once final
+            d = u_diag[s + jj]
+            x0 = a0[jj] / d
+            x1 = a1[jj] / d
+            x2 = a2[jj] / d
+            y[s + jj, 0] = x0
+            y[s + jj, 1] = x1
+            y[s + jj, 2] = x2
+            col = tv[t + jj * w:t + (jj + 1) * w]
+            for ii in range(jj):
+                a0[ii] -= col[ii] * x0
+                a1[ii] -= col[ii] * x1
+                a2[ii] -= col[ii] * x2
+
+
+@numba.njit(cache=True, nogil=True)
+def _sn_solve(b, perm_r, perm_c, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc, y, out):  # type: ignore[no-untyped-def]
+    """x = Pc U^-1 L^-1 Pr b for 3 right-hand sides (see _sn_sweeps)."""
+    n = b.shape[0]
+    for i in range(n):
+        r = perm_r[i]
+        for k in range(3):
+            y[r, k] = b[i, k]
+    _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc)
+    for i in range(n):
+        c = perm_c[i]
+        for k in range(3):
+            out[i, k] = y[c, k]
+
+
+def supernodes(lower: sp.csc_matrix, upper: sp.csc_matrix) -> dict[str, np.ndarray]:
+    """The supernodal layout (module docstring) of the factors L (unit lower) and U (upper) of one
+    n x n matrix whose patterns are each other's transpose: sn_ptr (the runs' first columns),
+    r_ptr/r_idx (each run's rows below it, ascending, int32), v_ptr/lv/uv (L's |R| x w values by
+    columns, U's w x |R| values by the columns of R), t_ptr/tv (the w x w triangles by columns: L's
+    below the diagonal, U's above) and u_diag."""
+    import scipy.sparse as sp
+
+    n = lower.shape[0]
+    lo = sp.csc_matrix(lower, dtype=np.float64)
+    up = sp.csr_matrix(upper, dtype=np.float64)  # U by rows: row j of U pairs with column j of L
+    lo.sort_indices()
+    up.sort_indices()
+    def below_diagonal(m: sp.spmatrix, j: int) -> tuple[np.ndarray, np.ndarray]:
+        idx, val = m.indices[m.indptr[j]:m.indptr[j + 1]], m.data[m.indptr[j]:m.indptr[j + 1]]
+        return idx[idx > j], val[idx > j]
+
+    low = [below_diagonal(lo, j) for j in range(n)]  # column j of L below the diagonal
+    upr = [below_diagonal(up, j) for j in range(n)]  # row j of U right of the diagonal
+    cols = [c for c, _ in low]
+    if any(not np.array_equal(cols[j], upr[j][0]) for j in range(n)):
+        raise ValueError("the factors' patterns are not each other's transpose")
+    u_diag = np.zeros(n)
+    for j in range(n):
+        on = up.indices[up.indptr[j]:up.indptr[j + 1]] == j
+        u_diag[j] = up.data[up.indptr[j]:up.indptr[j + 1]][on].sum()
+    starts = [0]
+    for j in range(1, n):  # column j continues the run when column j-1 is {j} + column j's pattern
+        prev, cur = cols[j - 1], cols[j]
+        if not (len(prev) == len(cur) + 1 and prev[0] == j and np.array_equal(prev[1:], cur)):
+            starts.append(j)
+    starts.append(n)
+    r_ptr, v_ptr, t_ptr = [0], [0], [0]
+    r_idx: list[np.ndarray] = []
+    lv: list[np.ndarray] = []
+    uv: list[np.ndarray] = []
+    tv: list[np.ndarray] = []
+    for k in range(len(starts) - 1):
+        s, e = starts[k], starts[k + 1]
+        w = e - s
+        below = cols[e - 1]
+        m = len(below)
+        tri = np.zeros((w, w))  # [column, row] in the run: L's below the diagonal, U's above
+        low_block = np.zeros((w, m))  # [column in run, row below]
+        up_block = np.zeros((m, w))  # [column below, row in run]
+        for jj in range(w):  # a column's (a row's) first w - 1 - jj entries lie in the run, the rest below
+            lvals, uvals = low[s + jj][1], upr[s + jj][1]
+            tri[jj, jj + 1:] = lvals[:w - 1 - jj]
+            tri[jj + 1:, jj] = uvals[:w - 1 - jj]
+            low_block[jj] = lvals[w - 1 - jj:]
+            up_block[:, jj] = uvals[w - 1 - jj:]
+        r_idx.append(below)
+        lv.append(low_block.ravel())
+        uv.append(up_block.ravel())
+        tv.append(tri.ravel())
+        r_ptr.append(r_ptr[-1] + m)
+        v_ptr.append(v_ptr[-1] + m * w)
+        t_ptr.append(t_ptr[-1] + w * w)
+
+    def cat(parts: list[np.ndarray], dtype: type) -> np.ndarray:
+        return np.ascontiguousarray(np.concatenate(parts) if parts else np.zeros(0), dtype=dtype)
+
+    return dict(sn_ptr=np.asarray(starts, dtype=np.int64), r_ptr=np.asarray(r_ptr, dtype=np.int64),
+                r_idx=cat(r_idx, np.int32), v_ptr=np.asarray(v_ptr, dtype=np.int64), lv=cat(lv, np.float64),
+                uv=cat(uv, np.float64), t_ptr=np.asarray(t_ptr, dtype=np.int64), tv=cat(tv, np.float64),
+                u_diag=u_diag)
+
+
+def check_layout(a: dict[str, np.ndarray], n: int, prefix: str = "lu_") -> None:
+    """Raises ValueError unless the arrays (`prefix` + the keys of `supernodes`) are a layout the
+    kernel can follow for n unknowns without reading outside them."""
+    sn, rp, vp, tp = (a[prefix + k] for k in ("sn_ptr", "r_ptr", "v_ptr", "t_ptr"))
+    ri = a[prefix + "r_idx"]
+    if ri.dtype != np.int32:
+        raise ValueError("factor indices: not int32")
+    nodes = len(sn) - 1
+    if nodes < 0 or sn[0] != 0 or sn[-1] != n or np.any(np.diff(sn) <= 0):
+        raise ValueError("bad supernodes")
+    for ptr in (rp, vp, tp):
+        if ptr.shape != (nodes + 1,) or ptr[0] != 0 or np.any(np.diff(ptr) < 0):
+            raise ValueError("bad supernode offsets")
+    w, m = np.diff(sn), np.diff(rp)
+    if rp[-1] != len(ri) or np.any(np.diff(vp) != w * m) or np.any(np.diff(tp) != w * w):
+        raise ValueError("supernode offsets do not match")
+    if len(ri) and (ri.min() < 0 or ri.max() >= n):
+        raise ValueError("index out of range")
+    if len(a[prefix + "lv"]) != vp[-1] or len(a[prefix + "uv"]) != vp[-1] or len(a[prefix + "tv"]) != tp[-1]:
+        raise ValueError("supernode values of the wrong length")
+    if a[prefix + "u_diag"].shape != (n,) or np.any(a[prefix + "u_diag"] == 0.0):
+        raise ValueError("a singular factor")
+
+
+def work_size(arrays: dict[str, np.ndarray], prefix: str = "") -> int:
+    """The length of the kernel's work buffer: the widest run or longest list of rows below one."""
+    return int(max(np.diff(arrays[prefix + "sn_ptr"]).max(initial=1), np.diff(arrays[prefix + "r_ptr"]).max(initial=1)))
+
+
+class PrefactoredSolver:
+    """A sparse LU of a fixed matrix with a compiled supernodal solve for (n, 3) right-hand sides.
+    `arrays` holds everything the solve reads (kept in the face cache, `sim.prepared`); a solver
+    made from them gives the same bits as the one they came from."""
+
+    KEYS = ("perm_r", "perm_c", "sn_ptr", "r_ptr", "r_idx", "v_ptr", "lv", "uv", "t_ptr", "tv", "u_diag")
+
+    def __init__(self, a: sp.spmatrix | None = None, arrays: dict[str, np.ndarray] | None = None) -> None:
+        if arrays is None:
+            import scipy.sparse as sp
+            from scipy.sparse.linalg import splu
+
+            lu = splu(sp.csc_matrix(a), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                      options={"SymmetricMode": True})
+            arrays = dict(perm_r=np.ascontiguousarray(lu.perm_r, dtype=np.int64),
+                          perm_c=np.ascontiguousarray(lu.perm_c, dtype=np.int64), **supernodes(lu.L, lu.U))
+        self.arrays = arrays
+        self.n = len(arrays["perm_r"])
+        self.perm_r, self.perm_c = arrays["perm_r"], arrays["perm_c"]
+        self.factors = tuple(arrays[k] for k in self.KEYS[2:])
+        self.fill = int(2 * len(arrays["lv"]) + len(arrays["tv"]) + self.n)
+        self.work = np.zeros((3, work_size(arrays)))
+        self._y = np.zeros((self.n, 3))
+
+    def solve(self, b: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """out = A^-1 b for b (n, 3)."""
+        _sn_solve(b, self.perm_r, self.perm_c, *self.factors, self.work, self._y, out)
+        return out
