@@ -64,8 +64,10 @@ def run(args: argparse.Namespace) -> int:
         bad = [k for k in kinds if k not in EXPORT_KINDS]
         if bad or not kinds:
             raise PuppetError(f"--to takes {', '.join(EXPORT_KINDS)}; got {args.to!r}")
-        from render.renderer import VIEWS
-
+        if "mp4" in kinds:  # the renderer's import (~1 s) only where a view is drawn
+            from render.renderer import VIEWS
+        else:
+            VIEWS = (args.view,)
         if args.view not in VIEWS:
             raise PuppetError(f"unknown view {args.view!r}; choose one of {', '.join(VIEWS)}")
         if not 1 <= args.supersample <= 4 or (args.crf is not None and not 0 <= args.crf <= 51):

@@ -137,7 +137,11 @@ def run(action: str, selection: list[str], out_dir: Path, *, kinds: list[str] | 
     client, cluster = connect(scheduler, workers)
     try:
         rep.workers = check_farm(client)
-        client.register_plugin(worker.plugin())  # per-process caches, malloc and profiler settings
+        client.register_plugin(worker.plugin())  # per-process caches, malloc and quiet timers
+        try:
+            client.register_plugin(worker.nanny_plugin())
+        except Exception:  # workers started without a nanny (`--no-nanny`)
+            pass
         dest = reach_token(out_dir)
         try:
             _submit_and_collect(client, todo, out_dir, chunk_frames, rep, tqdm, bar, dest)
