@@ -138,10 +138,12 @@ def run(action: str, selection: list[str], out_dir: Path, *, kinds: list[str] | 
     try:
         rep.workers = check_farm(client)
         client.register_plugin(worker.plugin())  # per-process caches, malloc and quiet timers
-        try:
-            client.register_plugin(worker.nanny_plugin())
-        except Exception:  # workers started without a nanny (`--no-nanny`)
-            pass
+        for quiet in (lambda: client.register_plugin(worker.nanny_plugin()),
+                      lambda: client.run_on_scheduler(worker.quieten_scheduler)):
+            try:
+                quiet()
+            except Exception:  # no nanny (`dask worker --no-nanny`), a scheduler refusing `run`
+                pass
         dest = reach_token(out_dir)
         try:
             _submit_and_collect(client, todo, out_dir, chunk_frames, rep, tqdm, bar, dest)

@@ -13,9 +13,9 @@ contact pairs: about a second) would otherwise be paid by every task. Here each 
 `BatchSetup` is the Dask worker plugin the batch client registers on every worker (local or on a
 farm): it undoes the Nanny's `MALLOC_TRIM_THRESHOLD_` (which makes glibc return and re-map the
 simulation's ~150 KB scratch arrays on every step, about 40 % more CPU per take in system time)
-and installs the caches above in `puppet.replay`; it and `NannySetup` stop the worker's and its
-nanny's diagnostic timers (`quieten`: each wakes the process 10 to 50 times a second, a few per
-cent of a core per worker that the takes' frames could use). Tasks run one at a time per process
+and installs the caches above in `puppet.replay`; it, `NannySetup` and `quieten_scheduler` stop the
+worker's, its nanny's and the scheduler's diagnostic timers and slow the memory checks
+(`quieten`: together 2 to 3 % of a core per worker with nothing running, taken from the frames). Tasks run one at a time per process
 (`--nthreads 1`), so the caches need no locks."""
 
 from __future__ import annotations
@@ -114,16 +114,18 @@ def install() -> None:
     replay.use_loaders(load_face=load_face, new_simulator=new_simulator)
 
 
-#: a worker's (and its nanny's) diagnostics that wake its event loop while a task computes: the
-#: 20 ms "event loop blocked" tick, the dashboard's system monitor, the statistical profiler
-QUIET = ("tick", "monitor", "profile", "profile-cycle")
+#: a Dask server's diagnostics that wake its event loop while a task computes: the 20 ms "event
+#: loop blocked" tick (about 1 % of a core per process) and the worker's statistical profiler (a
+#: stack sample of the task thread every 10 ms, for the dashboard's profile page)
+QUIET = ("tick", "profile", "profile-cycle")
 #: how often the worker and its nanny check the worker's memory (Dask's default 100 ms: ~1 % of a
 #: core per process with nothing running); limits still hold, checked each second
 MEMORY_CHECK_MS = 1000.0
 
 
 def quieten(server: Any) -> None:
-    """Stop a Dask worker's or nanny's diagnostic periodic callbacks and slow its memory check."""
+    """Stop a Dask server's (worker, nanny, scheduler) diagnostic periodic callbacks and slow its
+    memory check."""
     pcs = getattr(server, "periodic_callbacks", {})
     for name in QUIET:
         pc = pcs.get(name)
@@ -139,6 +141,11 @@ def quieten(server: Any) -> None:
 def clear() -> None:
     _faces.clear()
     _simulators.clear()
+
+
+def quieten_scheduler(dask_scheduler: Any) -> None:
+    """`quieten` on the scheduler (`Client.run_on_scheduler` passes it by this argument's name)."""
+    quieten(dask_scheduler)
 
 
 def _plugin_classes() -> tuple[Any, Any]:

@@ -71,6 +71,16 @@ def test_export_through_the_farm_equals_replay(farm: Farm, tmp_path: Path, capsy
         if p.is_file():
             assert (p.stat().st_mtime_ns != stamps[p.name]) == p.name.startswith("take1."), p.name
     assert (out / "take1.pc2").read_bytes() == replay_out(takes[1], single / "take1.pc2")
+    # the batch quietened the farm's diagnostic timers (each wakes a process 50 times a second)
+    def _timers(dask_worker=None, dask_scheduler=None):  # type: ignore[no-untyped-def]  # sent by value
+        pcs = (dask_worker or dask_scheduler).periodic_callbacks
+        return {"tick": pcs["tick"].is_running(),
+                **({"memory_monitor": pcs["memory_monitor"].callback_time} if "memory_monitor" in pcs else {})}
+
+    with farm.client() as c:
+        for timers in [*c.run(_timers).values(), *c.run(_timers, nanny=True).values(), c.run_on_scheduler(_timers)]:
+            assert timers["tick"] is False, timers
+            assert timers.get("memory_monitor", 1000.0) >= 1000.0, timers
 
 
 def _farm_counters(farm: Farm) -> dict[str, int]:
