@@ -83,8 +83,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"puppet: failed: {why}", file=sys.stderr)
     done = len({p.name for p in rep.written})
     print(f"puppet: batch {action}: wrote {done} files to {out}"
-          + (f" on {rep.workers} workers ({rep.tasks} task{'' if rep.tasks == 1 else 's'})" if rep.tasks else "")
+          + (f" on {_count(rep.workers, 'worker')} ({_count(rep.tasks, 'task')})" if rep.tasks else "")
           + (f"; {len(rep.skipped)} outputs up to date, skipped" if rep.skipped else "")
           + (f"; expressions stored for {rep.library_takes} library takes" if rep.library_takes else "")
-          + (f"; {len(rep.failed)} inputs failed" if rep.failed else ""))
+          + (f"; {_count(len(rep.failed), 'input')} failed" if rep.failed else ""))
     return 2 if rep.failed else 0
+
+
+def _count(n: int, thing: str) -> str:
+    return f"{n} {thing}{'' if n == 1 else 's'}"

@@ -147,6 +147,10 @@ def run(action: str, selection: list[str], out_dir: Path, *, kinds: list[str] | 
         dest = reach_token(out_dir)
         try:
             _submit_and_collect(client, todo, out_dir, chunk_frames, rep, tqdm, bar, dest)
+            try:  # workers that joined (or left) while it ran
+                rep.workers = max(1, len(client.scheduler_info()["workers"]))
+            except Exception:
+                pass
         finally:
             drop_token(out_dir, dest)
             _remove_parts(out_dir, todo)
@@ -199,8 +203,9 @@ def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_fr
         final[client.submit(jobs.export_outputs, group[0].item.files, origin,
                             [(o.name, o.opts) for o in group], dest, key=key)] = group
     rep.tasks = len(final) + len(helpers)
-    with tqdm(total=rep.tasks, desc=f"batch on {rep.workers} workers", unit="task", file=sys.stderr,
-              dynamic_ncols=True, disable=not show) as progress:
+    desc = f"batch on {rep.workers} worker{'' if rep.workers == 1 else 's'}"
+    with tqdm(total=rep.tasks, desc=desc, unit="task", file=sys.stderr, dynamic_ncols=True,
+              disable=not show) as progress:
         for fut in as_completed(list(final) + list(helpers)):
             progress.update(1)
             group = final.get(fut)
