@@ -79,6 +79,8 @@ def run(args: argparse.Namespace) -> int:
     rep = run_batch(action, args.selection, out, kinds=kinds, opts=opts, scheduler=args.scheduler,
                     workers=args.workers, chunk_frames=getattr(args, "chunk_frames", 0), library=args.library,
                     force=args.force)
+    for text in rep.warnings:
+        print(text, file=sys.stderr)
     for origin, why in rep.failed.items():
         print(f"puppet: failed: {why}", file=sys.stderr)
     done = len({p.name for p in rep.written})

@@ -35,6 +35,7 @@ class Report:
     tasks: int = 0
     spans: dict[str, list[tuple[float, float, str, float]]] = field(default_factory=dict)  # take hash -> spans
     library_takes: int = 0  # library takes whose expression spans this batch stored
+    warnings: list[str] = field(default_factory=list)  # what the single commands would have warned
 
 
 def plan(action: str, selection: list[str], kinds: list[str], opts: dict[str, Any], library: str | None) -> list[Output]:
@@ -222,6 +223,7 @@ def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_fr
                     del helpers[h]  # frees the chunks' frames on the workers
             if fut.key.startswith("mp4-join-") or group[0].action != "export":
                 result = {group[0].name: result}
+            rep.warnings += [w for w in result.get(jobs.WARNINGS, ()) if w not in rep.warnings]
             for o in group:
                 try:
                     rep.written += write_outputs(out_dir, o, result[o.name])

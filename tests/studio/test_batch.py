@@ -257,3 +257,50 @@ def test_chunks_cover_every_frame_once(frames: int, size: int) -> None:
     assert all(a < b and (size <= 0 or b - a <= size) for a, b in parts)
     assert all(parts[k][1] == parts[k + 1][0] for k in range(len(parts) - 1))
     assert len(parts) == (1 if size <= 0 else -(-frames // size))
+
+
+def _puppet(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    """The `puppet` command in a process of its own, as a user runs it."""
+    return subprocess.run([sys.executable, "-m", "puppet", *args], cwd=cwd, capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_recorded_takes_imported_searched_and_exported_through_the_farm(farm: Farm, tmp_path: Path) -> None:
+    """The whole flow from outside: takes recorded by `puppet live --record`, a folder imported into
+    the library, a search, and `puppet batch export QUERY` through the farm, a damaged and a cut-off
+    take among them; each output equals `puppet replay --out`'s."""
+    script = Path(__file__).resolve().parents[2] / "examples" / "mock" / "sgi_rehearsal.toml"
+    lib = str(tmp_path / "takes.db")
+    shoot = tmp_path / "shoot"
+    shoot.mkdir()
+    for name, who in (("day1", "ana"), ("day2", "bob")):
+        r = _puppet("live", "--headless", "--no-panel", "--device", f"mock://{script}", "--duration", "1",
+                    "--tick-rate", "60", "--record", f"shoot/{name}.jsonl", "--performer", who,
+                    "--library", str(tmp_path / "other.db"), cwd=tmp_path)
+        assert r.returncode == 0, r.stderr[-800:]
+    lines = (shoot / "day1.jsonl").read_text().splitlines(keepends=True)
+    (shoot / "cut.jsonl").write_text("".join(lines[: len(lines) // 2]) + lines[len(lines) // 2][:15])
+    (shoot / "bad.jsonl").write_text("this is not a take\n")
+    r = _puppet("takes", "import", "shoot", "--library", lib, cwd=tmp_path)
+    assert r.returncode == 0 and "registered 3 takes" in r.stdout, r.stdout + r.stderr
+    assert "bad.jsonl" in r.stdout + r.stderr
+    r = _puppet("takes", "search", "performer:ana", "--library", lib, "--json", cwd=tmp_path)
+    assert sorted(Path(t["path"]).name for t in json.loads(r.stdout)) == ["cut.jsonl", "day1.jsonl"]
+
+    r = _puppet("batch", "export", "performer:ana", "shoot/bad.jsonl", "--library", lib, "--out", "out",
+                "--to", "pc2,csv", "--scheduler", farm.address, cwd=tmp_path)
+    assert r.returncode == 2, r.stderr[-800:]
+    failed = [line for line in r.stderr.splitlines() if line.startswith("puppet: failed:")]
+    assert len(failed) == 1 and str(shoot / "bad.jsonl") in failed[0], r.stderr[-800:]
+    assert any("cut off" in line and str(shoot / "cut.jsonl") in line for line in r.stderr.splitlines()
+               if line.startswith("puppet: warning:")), r.stderr[-800:]  # as `puppet replay` warns
+    assert "wrote 6 files" in r.stdout and "1 input failed" in r.stdout, r.stdout
+    (tmp_path / "single").mkdir()
+    for stem in ("day1", "cut"):
+        for suffix in (".pc2", ".obj", ".csv"):
+            if suffix != ".obj":
+                assert _puppet("replay", f"shoot/{stem}.jsonl", "--out", f"single/{stem}{suffix}",
+                               cwd=tmp_path).returncode == 0
+            assert (tmp_path / "out" / (stem + suffix)).read_bytes() == \
+                (tmp_path / "single" / (stem + suffix)).read_bytes(), stem + suffix
+    assert not (tmp_path / "out" / "day2.pc2").exists()
