@@ -304,3 +304,21 @@ def test_recorded_takes_imported_searched_and_exported_through_the_farm(farm: Fa
             assert (tmp_path / "out" / (stem + suffix)).read_bytes() == \
                 (tmp_path / "single" / (stem + suffix)).read_bytes(), stem + suffix
     assert not (tmp_path / "out" / "day2.pc2").exists()
+
+
+def test_an_unreachable_scheduler_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    import socket
+
+    from puppet.batch import run
+
+    monkeypatch.setattr(run, "CONNECT_TIMEOUT", 1.0)
+    with socket.socket() as s:  # a port nothing listens on any more
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    take = write_take(tmp_path / "t.jsonl", ticks=10)
+    assert main(["batch", "export", str(take), "--out", str(tmp_path), "--to", "csv",
+                 "--scheduler", f"tcp://127.0.0.1:{port}"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"127.0.0.1:{port}" in err[0] and "dask scheduler" in err[0], err
+    assert not (tmp_path / "t.csv").exists()
