@@ -61,8 +61,8 @@ def connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError) as err:
-            raise PuppetError(f"cannot reach the Dask scheduler at {scheduler} ({err}); start `dask scheduler` there "
-                              "or check the address it printed") from err
+            raise PuppetError(f"cannot reach the Dask scheduler at {scheduler} ({err}); start `dask "
+                              "scheduler` there or check the address it printed") from err
         return client, None
     import dask
 

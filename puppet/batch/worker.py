@@ -15,8 +15,8 @@ farm): it undoes the Nanny's `MALLOC_TRIM_THRESHOLD_` (which makes glibc return 
 simulation's ~150 KB scratch arrays on every step, about 40 % more CPU per take in system time)
 and installs the caches above in `puppet.replay`; it, `NannySetup` and `quieten_scheduler` stop the
 worker's, its nanny's and the scheduler's diagnostic timers and slow the memory checks
-(`quieten`: together 2 to 3 % of a core per worker with nothing running, taken from the frames). Tasks run one at a time per process
-(`--nthreads 1`), so the caches need no locks."""
+(`quieten`: together 2 to 3 % of a core per worker with nothing running, taken from the frames).
+Tasks run one at a time per process (`--nthreads 1`), so the caches need no locks."""
 
 from __future__ import annotations
 
