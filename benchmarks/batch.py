@@ -184,6 +184,7 @@ def main() -> int:
     ap.add_argument("--repeats", type=int, default=2, help="PC2 and farm runs per side (best counts)")
     ap.add_argument("--skip-mp4", action="store_true")
     ap.add_argument("--farm-only", action="store_true", help="only the external scheduler's figures")
+    ap.add_argument("--mp4-only", action="store_true", help="only MP4: serial against the local cluster")
     ap.add_argument("--face", default=None, help="the takes' face (--face spec; default: the default face, the scan)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
@@ -201,13 +202,13 @@ def main() -> int:
         # PC2: serial single exports vs the local cluster, alternating
         local = PUPPET + ["batch", "export", str(d / "takes"), "--out", str(d / "local"), "--to", "pc2", "--force"]
         runs_s, runs_l, cpu_s, cpu_l = [], [], [], []
-        for _ in range(0 if a.farm_only else a.repeats):
+        for _ in range(0 if a.farm_only or a.mp4_only else a.repeats):
             w, c = serial(takes, d / "single", ".pc2")
             runs_s.append(w)
             cpu_s.append(c)
             runs_l.append(timed(local))
             cpu_l.append(CPU[0])
-        if not a.farm_only:
+        if not a.farm_only and not a.mp4_only:
             res["pc2_serial_s"], res["pc2_local_cluster_s"] = min(runs_s), min(runs_l)
             res["pc2_serial_cpu_s"], res["pc2_local_cluster_cpu_s"] = min(cpu_s), min(cpu_l)
             res["pc2_local_speedup"] = res["pc2_serial_s"] / res["pc2_local_cluster_s"]
@@ -225,30 +226,34 @@ def main() -> int:
             res["mp4_local_cluster_cpu_s"] = CPU[0]
             res["mp4_local_speedup"] = res["mp4_serial_s"] / res["mp4_local_cluster_s"]
             res["mp4_identical"] = same(d / "single", d / "local", ".mp4", takes)
-        # an external scheduler: 1 worker, then 2, alternating
-        farm = Farm(d)
-        try:
-            (d / "farm").mkdir()
-            cmd = PUPPET + ["batch", "export", str(d / "takes"), "--out", str(d / "farm"), "--to", "pc2",
-                            "--force", "--scheduler", farm.address]
-            tiny = write_takes(d, 1, 0.1)[0]
-            farm.add_worker(1)
-            warm(farm.address, tiny)  # each new worker loads the face once, as a farm's workers do
-            one_w, two_w = [], []
-            for r in range(a.repeats):
-                one_w.append(timed(cmd))
-                farm.add_worker(2)
-                warm(farm.address, tiny)
-                two_w.append(timed(cmd))
-                if r + 1 < a.repeats:
-                    farm.drop_worker(1)
-            res["pc2_farm_1_worker_s"], res["pc2_farm_2_workers_s"] = min(one_w), min(two_w)
-            res["pc2_farm_speedup"] = res["pc2_farm_1_worker_s"] / res["pc2_farm_2_workers_s"]
-            res["pc2_farm_runs"] = [[round(x, 1), round(y, 1)] for x, y in zip(one_w, two_w)]
-            res["pc2_farm_identical"] = same(d / "single", d / "farm", ".pc2", takes)
-            res["task_overhead_ms"] = overhead(farm.address) * 1e3
-        finally:
-            farm.stop()
+        if not a.mp4_only:
+            # an external scheduler: 1 worker, then 2, alternating
+            farm = Farm(d)
+            try:
+                (d / "farm").mkdir()
+                cmd = PUPPET + ["batch", "export", str(d / "takes"), "--out", str(d / "farm"), "--to", "pc2",
+                                "--force", "--scheduler", farm.address]
+                tiny = write_takes(d, 1, 0.1)[0]
+                farm.add_worker(1)
+                warm(farm.address, tiny)  # each new worker loads the face once, as a farm's workers do
+                one_w, two_w, loads = [], [], []
+                for r in range(a.repeats):
+                    loads.append(round(os.getloadavg()[0], 1))
+                    one_w.append(timed(cmd))
+                    farm.add_worker(2)
+                    warm(farm.address, tiny)
+                    loads.append(round(os.getloadavg()[0], 1))
+                    two_w.append(timed(cmd))
+                    if r + 1 < a.repeats:
+                        farm.drop_worker(1)
+                res["pc2_farm_1_worker_s"], res["pc2_farm_2_workers_s"] = min(one_w), min(two_w)
+                res["pc2_farm_speedup"] = res["pc2_farm_1_worker_s"] / res["pc2_farm_2_workers_s"]
+                res["pc2_farm_runs"] = [[round(x, 1), round(y, 1)] for x, y in zip(one_w, two_w)]
+                res["pc2_farm_loads"] = loads
+                res["pc2_farm_identical"] = same(d / "single", d / "farm", ".pc2", takes)
+                res["task_overhead_ms"] = overhead(farm.address) * 1e3
+            finally:
+                farm.stop()
         res["load_after"] = os.getloadavg()[0]
     if a.json:
         print(json.dumps(res))
@@ -256,7 +261,7 @@ def main() -> int:
     n = a.takes
     print(f"face {res['face']}: {n} takes of {a.seconds:g} s, {res['cores']} cores, load {res['load_before']:.1f} before, "
           f"{res['load_after']:.1f} after")
-    if not a.farm_only:
+    if "pc2_serial_s" in res:
         print(f"PC2  serial `puppet replay --out`: {res['pc2_serial_s']:.1f} s ({res['pc2_serial_cpu_s']:.1f} s CPU); "
               f"local cluster: {res['pc2_local_cluster_s']:.1f} s ({res['pc2_local_cluster_cpu_s']:.1f} s CPU) -> "
               f"{res['pc2_local_speedup']:.2f}x wall, {res['pc2_serial_cpu_s'] / res['pc2_local_cluster_cpu_s']:.2f}x "
@@ -267,9 +272,11 @@ def main() -> int:
               f"{res['mp4_local_cluster_s']:.1f} s ({res['mp4_local_cluster_cpu_s']:.1f} s CPU) -> "
               f"{res['mp4_local_speedup']:.2f}x ({res['mp4_identical']}/{n} byte-identical); one export's start-up "
               f"{res['mp4_startup_one_export_s']:.1f} s, paid {n} times serially")
+    if a.mp4_only:
+        return 0
     print(f"PC2  external scheduler: 1 worker {res['pc2_farm_1_worker_s']:.1f} s, 2 workers "
           f"{res['pc2_farm_2_workers_s']:.1f} s -> {res['pc2_farm_speedup']:.2f}x ({res['pc2_farm_identical']}/{n} "
-          f"byte-identical); each run, 1 vs 2 workers: {res['pc2_farm_runs']}")
+          f"byte-identical); each run, 1 vs 2 workers: {res['pc2_farm_runs']} (load at each start {res['pc2_farm_loads']})")
     print(f"scheduling: {res['task_overhead_ms']:.2f} ms per no-op task")
     return 0
 

@@ -64,8 +64,10 @@ def run(args: argparse.Namespace) -> int:
         bad = [k for k in kinds if k not in EXPORT_KINDS]
         if bad or not kinds:
             raise PuppetError(f"--to takes {', '.join(EXPORT_KINDS)}; got {args.to!r}")
-        from render.renderer import VIEWS
-
+        if "mp4" in kinds:  # the renderer's import (~1 s) only where a view is drawn
+            from render.renderer import VIEWS
+        else:
+            VIEWS = (args.view,)
         if args.view not in VIEWS:
             raise PuppetError(f"unknown view {args.view!r}; choose one of {', '.join(VIEWS)}")
         if not 1 <= args.supersample <= 4 or (args.crf is not None and not 0 <= args.crf <= 51):
@@ -77,12 +79,18 @@ def run(args: argparse.Namespace) -> int:
     rep = run_batch(action, args.selection, out, kinds=kinds, opts=opts, scheduler=args.scheduler,
                     workers=args.workers, chunk_frames=getattr(args, "chunk_frames", 0), library=args.library,
                     force=args.force)
+    for text in rep.warnings:
+        print(text, file=sys.stderr)
     for origin, why in rep.failed.items():
         print(f"puppet: failed: {why}", file=sys.stderr)
     done = len({p.name for p in rep.written})
     print(f"puppet: batch {action}: wrote {done} files to {out}"
-          + (f" on {rep.workers} workers ({rep.tasks} task{'' if rep.tasks == 1 else 's'})" if rep.tasks else "")
+          + (f" on {_count(rep.workers, 'worker')} ({_count(rep.tasks, 'task')})" if rep.tasks else "")
           + (f"; {len(rep.skipped)} outputs up to date, skipped" if rep.skipped else "")
           + (f"; expressions stored for {rep.library_takes} library takes" if rep.library_takes else "")
-          + (f"; {len(rep.failed)} inputs failed" if rep.failed else ""))
+          + (f"; {_count(len(rep.failed), 'input')} failed" if rep.failed else ""))
     return 2 if rep.failed else 0
+
+
+def _count(n: int, thing: str) -> str:
+    return f"{n} {thing}{'' if n == 1 else 's'}"

@@ -25,15 +25,22 @@ from typing import Any
 #: compression of raw frames travelling from a chunk to the join (fast; the face's flat background
 #: packs well)
 ZLIB_LEVEL = 1
+#: what a task returns for an output file it wrote in the client's own folder (not its bytes)
+IN_PLACE = "in place"
 
 
 class JobFailed(Exception):
     """A task's input could not be processed; the message names the user's file."""
 
 
+#: the key of a task's result that holds the warnings the single command would have printed
+WARNINGS = "warnings"
+
+
 @contextlib.contextmanager
-def _staged(files: dict[str, bytes], origin: str) -> Iterator[Path]:
-    """The input files in a private folder; errors inside name `origin` instead of the copy."""
+def _staged(files: dict[str, bytes], origin: str, notes: list[str] | None = None) -> Iterator[Path]:
+    """The input files in a private folder; errors inside name `origin` instead of the copy, and
+    the warnings printed inside go into `notes` (naming `origin` too)."""
     from puppet.batch import worker
 
     worker.install()  # faces and simulators kept between this process's tasks (idempotent)
@@ -47,6 +54,9 @@ def _staged(files: dict[str, bytes], origin: str) -> Iterator[Path]:
         assert first is not None
         try:
             yield first
+            if notes is not None:
+                notes += [line.replace(str(first), origin) for line in quiet.getvalue().splitlines()
+                          if line.startswith("puppet: warning: ")]
         except JobFailed:
             raise
         except Exception as err:
@@ -93,16 +103,16 @@ def export_take(files: dict[str, bytes], origin: str, outname: str, opts: dict[s
 def export_outputs(files: dict[str, bytes], origin: str, outputs: list[tuple[str, dict[str, Any]]],
                    dest: dict[str, str] | None = None) -> dict[str, dict[str, bytes | str]]:
     """Several exports of one take ({output name: {file name: bytes}}), each as `puppet replay TAKE
-    --out NAME` writes it, the take simulated once for all of them (`export_together`). When this
+    --out NAME` writes it, the take simulated once for all of them (`export_together`), and under
+    `WARNINGS` the warnings it would print (a take cut off by a crash). When this
     process sees the client's output folder (`plan.reachable(dest)`), the files are written in place
-    (as `puppet replay --out` writes them) and only their SHA-256 digests travel back."""
-    import hashlib
-
+    (as `puppet replay --out` writes them) and only their names travel back (`IN_PLACE`)."""
     from puppet.batch.plan import reachable
     from puppet.export.runner import export_together, kind_of
 
     direct = reachable(dest)
-    with _staged(files, origin) as take:
+    notes: list[str] = []
+    with _staged(files, origin, notes) as take:
         perf = _performance(take)
         todo = []
         for outname, opts in outputs:
@@ -120,12 +130,11 @@ def export_outputs(files: dict[str, bytes], origin: str, outputs: list[tuple[str
             made = [out] + ([out.with_suffix(".obj")] if kind_of(out) == "pc2" else [])
             if direct is None:
                 result[out.name] = {p.name: p.read_bytes() for p in made}
-            else:
-                result[out.name] = {}
-                for p in made:
-                    with open(p, "rb") as fh:
-                        result[out.name][p.name] = hashlib.file_digest(fh, "sha256").hexdigest()
-        return result
+            else:  # the client sees the same files
+                result[out.name] = {p.name: IN_PLACE for p in made}
+    if notes:
+        result[WARNINGS] = notes  # type: ignore[assignment]  # no output's name (those have suffixes)
+    return result
 
 
 def mp4_frames(files: dict[str, bytes], origin: str, opts: dict[str, Any]) -> list[int]:

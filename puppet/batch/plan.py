@@ -14,7 +14,7 @@ from puppet.errors import PuppetError
 from safefile import atomic_write
 
 #: bumped when the batch outputs' layout or meaning changes (old manifests then no longer match)
-PLAN_VERSION = 1
+PLAN_VERSION = 2
 MANIFESTS = ".puppet-batch"
 EXPORT_KINDS = {"mp4": ".mp4", "pc2": ".pc2", "csv": ".csv", "arkit": ".arkit.csv", "curves": ".curves"}
 MAX_INPUT_BYTES = 512 * 1024 * 1024
@@ -128,16 +128,21 @@ def _manifest(out_dir: Path, name: str) -> Path:
     return out_dir / MANIFESTS / f"{name}.json"
 
 
+def _stamp(path: Path) -> list[int]:
+    st = path.stat()
+    return [st.st_size, st.st_mtime_ns]
+
+
 def up_to_date(out_dir: Path, o: Output) -> bool:
-    """The output's files exist with the hashes its manifest recorded for this very key."""
+    """The output's files exist as its manifest recorded them (size and modification time, as
+    `make` judges a target) for this very key: the key holds the inputs' content hashes."""
     try:
         m = json.loads(_manifest(out_dir, o.name).read_text(encoding="utf-8"))
         if not isinstance(m, dict) or m.get("key") != o.key or not isinstance(m.get("files"), dict):
             return False
-        for fname, digest in m["files"].items():
-            with open(out_dir / fname, "rb") as fh:
-                if hashlib.file_digest(fh, "sha256").hexdigest() != digest:
-                    return False
+        for fname, stamp in m["files"].items():
+            if _stamp(out_dir / fname) != stamp:
+                return False
         return bool(m["files"])
     except (OSError, ValueError):
         return False
@@ -145,20 +150,18 @@ def up_to_date(out_dir: Path, o: Output) -> bool:
 
 def write_outputs(out_dir: Path, o: Output, files: dict[str, bytes | str]) -> list[Path]:
     """Each file written beside its place and renamed into it, then the manifest (last: an
-    interrupted write is redone by the next run). A file given as a text (its SHA-256) was
-    already put in place by the worker (`reach_token`)."""
+    interrupted write is redone by the next run). A file given as a text (not bytes) was already
+    put in place by the worker (`reach_token`)."""
     written = []
-    digests = {}
+    stamps = {}
     for fname, data in files.items():
         target = out_dir / Path(fname).name
-        if isinstance(data, str):
-            digests[target.name] = data
-        else:
+        if not isinstance(data, str):
             with atomic_write(target, "wb") as fh:
                 fh.write(data)
-            digests[target.name] = hashlib.sha256(data).hexdigest()
+        stamps[target.name] = _stamp(target)
         written.append(target)
-    m = {"key": o.key, "input": str(o.item.path), "action": o.action, "files": digests}
+    m = {"key": o.key, "input": str(o.item.path), "action": o.action, "files": stamps}
     mp = _manifest(out_dir, o.name)
     mp.parent.mkdir(exist_ok=True)
     with atomic_write(mp) as fh:

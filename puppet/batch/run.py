@@ -35,6 +35,7 @@ class Report:
     tasks: int = 0
     spans: dict[str, list[tuple[float, float, str, float]]] = field(default_factory=dict)  # take hash -> spans
     library_takes: int = 0  # library takes whose expression spans this batch stored
+    warnings: list[str] = field(default_factory=list)  # what the single commands would have warned
 
 
 def plan(action: str, selection: list[str], kinds: list[str], opts: dict[str, Any], library: str | None) -> list[Output]:
@@ -60,7 +61,8 @@ def connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError) as err:
-            raise PuppetError(f"cannot reach the Dask scheduler at {scheduler}: {err}") from err
+            raise PuppetError(f"cannot reach the Dask scheduler at {scheduler} ({err}); start `dask "
+                              "scheduler` there or check the address it printed") from err
         return client, None
     import dask
 
@@ -137,10 +139,20 @@ def run(action: str, selection: list[str], out_dir: Path, *, kinds: list[str] | 
     client, cluster = connect(scheduler, workers)
     try:
         rep.workers = check_farm(client)
-        client.register_plugin(worker.plugin())  # per-process caches, malloc and profiler settings
+        client.register_plugin(worker.plugin())  # per-process caches, malloc and quiet timers
+        for quiet in (lambda: client.register_plugin(worker.nanny_plugin()),
+                      lambda: client.run_on_scheduler(worker.quieten_scheduler)):
+            try:
+                quiet()
+            except Exception:  # no nanny (`dask worker --no-nanny`), a scheduler refusing `run`
+                pass
         dest = reach_token(out_dir)
         try:
             _submit_and_collect(client, todo, out_dir, chunk_frames, rep, tqdm, bar, dest)
+            try:  # workers that joined (or left) while it ran
+                rep.workers = max(1, len(client.scheduler_info()["workers"]))
+            except Exception:
+                pass
         finally:
             drop_token(out_dir, dest)
             _remove_parts(out_dir, todo)
@@ -193,8 +205,9 @@ def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_fr
         final[client.submit(jobs.export_outputs, group[0].item.files, origin,
                             [(o.name, o.opts) for o in group], dest, key=key)] = group
     rep.tasks = len(final) + len(helpers)
-    with tqdm(total=rep.tasks, desc=f"batch on {rep.workers} workers", unit="task", file=sys.stderr,
-              dynamic_ncols=True, disable=not show) as progress:
+    desc = f"batch on {rep.workers} worker{'' if rep.workers == 1 else 's'}"
+    with tqdm(total=rep.tasks, desc=desc, unit="task", file=sys.stderr, dynamic_ncols=True,
+              disable=not show) as progress:
         for fut in as_completed(list(final) + list(helpers)):
             progress.update(1)
             group = final.get(fut)
@@ -211,6 +224,7 @@ def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_fr
                     del helpers[h]  # frees the chunks' frames on the workers
             if fut.key.startswith("mp4-join-") or group[0].action != "export":
                 result = {group[0].name: result}
+            rep.warnings += [w for w in result.get(jobs.WARNINGS, ()) if w not in rep.warnings]
             for o in group:
                 try:
                     rep.written += write_outputs(out_dir, o, result[o.name])

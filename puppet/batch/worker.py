@@ -13,8 +13,10 @@ contact pairs: about a second) would otherwise be paid by every task. Here each 
 `BatchSetup` is the Dask worker plugin the batch client registers on every worker (local or on a
 farm): it undoes the Nanny's `MALLOC_TRIM_THRESHOLD_` (which makes glibc return and re-map the
 simulation's ~150 KB scratch arrays on every step, about 40 % more CPU per take in system time)
-and installs the caches above in `puppet.replay`. Tasks run one at a time per process
-(`--nthreads 1`), so the caches need no locks."""
+and installs the caches above in `puppet.replay`; it, `NannySetup` and `quieten_scheduler` stop the
+worker's, its nanny's and the scheduler's diagnostic timers and slow the memory checks
+(`quieten`: together 2 to 3 % of a core per worker with nothing running, taken from the frames).
+Tasks run one at a time per process (`--nthreads 1`), so the caches need no locks."""
 
 from __future__ import annotations
 
@@ -99,12 +101,41 @@ def tune_malloc() -> bool:
     return bool(mallopt(M_MMAP_THRESHOLD, MMAP_BYTES)) and bool(mallopt(M_TRIM_THRESHOLD, TRIM_BYTES))
 
 
+_installed = [False]
+
+
 def install() -> None:
-    """This process replays through the caches above (idempotent)."""
+    """This process replays through the caches above (idempotent: once per process)."""
     from puppet import replay
 
-    tune_malloc()
+    if not _installed[0]:
+        tune_malloc()
+        _installed[0] = True
     replay.use_loaders(load_face=load_face, new_simulator=new_simulator)
+
+
+#: a Dask server's diagnostics that wake its event loop while a task computes: the 20 ms "event
+#: loop blocked" tick (about 1 % of a core per process) and the worker's statistical profiler (a
+#: stack sample of the task thread every 10 ms, for the dashboard's profile page)
+QUIET = ("tick", "profile", "profile-cycle")
+#: how often the worker and its nanny check the worker's memory (Dask's default 100 ms: ~1 % of a
+#: core per process with nothing running); limits still hold, checked each second
+MEMORY_CHECK_MS = 1000.0
+
+
+def quieten(server: Any) -> None:
+    """Stop a Dask server's (worker, nanny, scheduler) diagnostic periodic callbacks and slow its
+    memory check."""
+    pcs = getattr(server, "periodic_callbacks", {})
+    for name in QUIET:
+        pc = pcs.get(name)
+        if pc is not None:
+            pc.stop()
+    pc = pcs.get("memory_monitor")
+    if pc is not None and pc.callback_time < MEMORY_CHECK_MS:
+        pc.stop()
+        pc.callback_time = MEMORY_CHECK_MS
+        pc.start()
 
 
 def clear() -> None:
@@ -112,30 +143,45 @@ def clear() -> None:
     _simulators.clear()
 
 
-def _plugin_class() -> Any:
-    from dask.distributed import WorkerPlugin
+def quieten_scheduler(dask_scheduler: Any) -> None:
+    """`quieten` on the scheduler (`Client.run_on_scheduler` passes it by this argument's name)."""
+    quieten(dask_scheduler)
+
+
+def _plugin_classes() -> tuple[Any, Any]:
+    from dask.distributed import NannyPlugin, WorkerPlugin
 
     class BatchSetup(WorkerPlugin):
-        """Registered by the batch client on every worker: `install()` in the worker's process."""
+        """Registered by the batch client on every worker: `install()` and `quieten()` there."""
 
         idempotent = True
         name = "puppet-batch-setup"
 
         def setup(self, worker: Any) -> None:
             install()
-            # the statistical profiler samples the task thread's stack every 10 ms (for the
-            # dashboard's profile page): GIL hand-offs in the middle of the simulation's steps
-            for name in ("profile", "profile-cycle"):
-                pc = getattr(worker, "periodic_callbacks", {}).get(name)
-                if pc is not None:
-                    pc.stop()
+            quieten(worker)
 
-    return BatchSetup
+    class NannySetup(NannyPlugin):
+        """`quieten()` in every worker's nanny (without restarting its worker)."""
+
+        idempotent = True
+        restart = False
+        name = "puppet-batch-nanny"
+
+        def setup(self, nanny: Any) -> None:
+            quieten(nanny)
+
+    return BatchSetup, NannySetup
 
 
 def plugin() -> Any:
     """A new BatchSetup worker plugin (dask imported only when a batch runs)."""
-    return _plugin_class()()
+    return _plugin_classes()[0]()
+
+
+def nanny_plugin() -> Any:
+    """A new NannySetup nanny plugin."""
+    return _plugin_classes()[1]()
 
 
 def counters() -> dict[str, int]:

@@ -32,14 +32,31 @@ def posed(dressing: Any, state: Any) -> np.ndarray:
 def write_scan_obj(path: str | Path, vertices: np.ndarray, comment: str = "") -> None:
     """An OBJ of the scan: `vertices` (26719, 3) in the scan's order, then its faces (quads and
     triangles, 1-based, in the scan's order); no normals or UVs, so no importer splits vertices."""
-    from sim.face.scan.data import scan_data
-
-    faces = scan_data().faces
     lines = [f"# {c}" for c in comment.splitlines()] if comment else []
-    lines += [f"v {x:.7g} {y:.7g} {z:.7g}" for x, y, z in np.asarray(vertices, dtype=np.float64)]
-    for f in faces + 1:
-        lines.append("f " + " ".join(str(int(i)) for i in f if i > 0))
     try:
-        Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+        Path(path).write_text("".join(line + "\n" for line in lines) + _scan_obj_body(vertices), encoding="utf-8")
     except OSError as err:
         raise ConfigError(f"{path}: cannot write the mesh: {err.strerror}") from err
+
+
+_bodies: dict[bytes, str] = {}  # the OBJ's vertex and face lines by the vertices' digest (a batch
+# worker writes the same rest mesh beside every take's point cache: formatting it takes ~0.25 s)
+
+
+def _scan_obj_body(vertices: np.ndarray) -> str:
+    import hashlib
+
+    from sim.face.scan.data import scan_data
+
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    key = hashlib.sha256(v.tobytes()).digest()
+    body = _bodies.get(key)
+    if body is None:
+        lines = [f"v {x:.7g} {y:.7g} {z:.7g}" for x, y, z in v]
+        for f in scan_data().faces + 1:
+            lines.append("f " + " ".join(str(int(i)) for i in f if i > 0))
+        body = "\n".join(lines) + "\n"
+        if len(_bodies) >= 2:
+            _bodies.clear()
+        _bodies[key] = body
+    return body
