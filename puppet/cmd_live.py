@@ -194,6 +194,9 @@ def _run(args: argparse.Namespace) -> int:
             raise PuppetError("--demo plays once: leave out --supervise and --resume")
         if args.resume and not args.record:
             raise PuppetError("--resume continues the recording given with --record FILE")
+    if args.record and not Path(args.record).parent.is_dir():
+        raise PuppetError(f"--record {args.record}: the folder {Path(args.record).parent} does not exist; "
+                          "create it or record elsewhere")
     if args.supervise:
         from puppet.supervise import run_supervised
 

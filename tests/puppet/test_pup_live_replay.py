@@ -111,6 +111,15 @@ def test_cli_record_then_replay_verifies(tmp_path: Path) -> None:
     assert "bit-identical to the live session at 1 checkpoints" in out.stdout
 
 
+def test_recording_into_a_missing_folder_is_one_line_before_the_show(tmp_path: Path) -> None:
+    rec = tmp_path / "no-such-folder" / "s.jsonl"
+    out = puppet("live", "--device", script(tmp_path), "--headless", "--record", str(rec), "--duration", "0.2")
+    assert out.returncode == 2
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "does not exist" in lines[0] and "create it" in lines[0]
+    assert not rec.parent.exists()
+
+
 def test_recording_over_an_earlier_take_keeps_it_aside(tmp_path: Path) -> None:
     rec = tmp_path / "show.jsonl"
     assert puppet("live", "--device", script(tmp_path), "--headless", "--record", str(rec),
