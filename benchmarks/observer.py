@@ -289,6 +289,44 @@ def frames(face: str, names: list[str]) -> dict[str, np.ndarray]:
     return out
 
 
+def score(obs: Observer, shots: dict[str, np.ndarray], label: str, save: str = "",
+          whole: bool = True) -> tuple[int, float]:
+    """Print each pose's reading (and save each frame and crop as PNG in `save`); (hits of 7, mean
+    p of the intended class over the six emotions). `whole`: all eight poses were read, so the
+    summary line is printed."""
+    print(f"\n{label}: pose -> read (p of the intended class)")
+    hits, probs = 0, []
+    obs.fallback = obs.face_box(shots["neutral"]) if "neutral" in shots else None
+    for name, img in shots.items():
+        p = obs.read(img)
+        if save:
+            from PIL import Image
+
+            Path(save).mkdir(parents=True, exist_ok=True)
+            Image.fromarray(img).save(Path(save) / f"{label}_{name}.png")
+            if obs.last_crop is not None and p is not None:
+                Image.fromarray(obs.last_crop).save(Path(save) / f"{label}_{name}_crop.png")
+        want = INTENDED[name]
+        if p is None:
+            print(f"  {name:10s} no face found")
+            probs += [0.0] if want not in (None, "neutral") else []
+            continue
+        top = CLASSES[int(np.argmax(p))]
+        line = "  ".join(f"{c[:4]} {v:.2f}" for c, v in zip(CLASSES, p))
+        if want is None:
+            print(f"  {name:10s} {top:8s}          [{line}]  (not a class of the model)")
+            continue
+        pw = float(p[CLASSES.index(want)])
+        hits += top == want
+        if want != "neutral":
+            probs.append(pw)
+        print(f"  {name:10s} {top:8s} {'hit ' if top == want else 'miss'} {pw:.2f}  [{line}]")
+    mean = float(np.mean(probs)) if probs else 0.0
+    if whole:
+        print(f"  {label}: {hits} of 7 read as intended; mean p(intended) over the six emotions {mean:.2f}")
+    return hits, mean
+
+
 def main(argv: list[str] | None = None) -> int:
     from sim.facs import EXPRESSIONS
 
@@ -303,36 +341,7 @@ def main(argv: list[str] | None = None) -> int:
     obs = Observer()
     for face in [f for f in args.faces.split(",") if f]:
         shots = (frames if args.renderer == "plain" else product_frames)(face, names)
-        print(f"\n{face}: pose -> read (p of the intended class)")
-        hits, probs = 0, []
-        obs.fallback = obs.face_box(shots["neutral"]) if "neutral" in shots else None
-        for name, img in shots.items():
-            p = obs.read(img)
-            if args.save:
-                from PIL import Image
-
-                Path(args.save).mkdir(parents=True, exist_ok=True)
-                Image.fromarray(img).save(Path(args.save) / f"{face}_{name}.png")  # noqa: E501
-                if obs.last_crop is not None and p is not None:
-                    Image.fromarray(obs.last_crop).save(Path(args.save) / f"{face}_{name}_crop.png")
-            want = INTENDED[name]
-            if p is None:
-                print(f"  {name:10s} no face found")
-                probs += [0.0] if want not in (None, "neutral") else []
-                continue
-            top = CLASSES[int(np.argmax(p))]
-            line = "  ".join(f"{c[:4]} {v:.2f}" for c, v in zip(CLASSES, p))
-            if want is None:
-                print(f"  {name:10s} {top:8s}          [{line}]  (not a class of the model)")
-                continue
-            pw = float(p[CLASSES.index(want)])
-            hits += top == want
-            if want != "neutral":
-                probs.append(pw)
-            print(f"  {name:10s} {top:8s} {'hit ' if top == want else 'miss'} {pw:.2f}  [{line}]")
-        if len(names) == 8:
-            print(f"  {face}: {hits} of 7 read as intended; mean p(intended) over the six emotions "
-                  f"{np.mean(probs):.2f}")
+        score(obs, shots, face, args.save, whole=len(names) == 8)
     return 0
 
 

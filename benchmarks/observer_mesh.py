@@ -47,7 +47,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from observer import CLASSES, INTENDED, SIZE, Observer, perform  # noqa: E402
+from observer import SIZE, Observer, perform, score  # noqa: E402
 
 MH_URL = ("https://raw.githubusercontent.com/makehumancommunity/makehuman/"
           "a8bc2d54/makehuman/data/3dobjs/base.obj")
@@ -233,37 +233,6 @@ def head_frames(rig_path: Path, names: list[str]) -> dict[str, np.ndarray]:
             rgb = off.render_frame(state, record=False).astype(np.float64)
         out[name] = np.clip(rgb @ np.array([0.299, 0.587, 0.114]), 0, 255).astype(np.uint8)
     return out
-
-
-def score(obs: Observer, shots: dict[str, np.ndarray], label: str, save: str) -> tuple[int, float]:
-    """Print each pose's reading; (hits of 7, mean p of the intended class over the six emotions)."""
-    hits, probs = 0, []
-    obs.fallback = obs.face_box(shots["neutral"]) if "neutral" in shots else None
-    print(f"\n{label}: pose -> read (p of the intended class)")
-    for name, img in shots.items():
-        p = obs.read(img)
-        if save:
-            from PIL import Image
-
-            Path(save).mkdir(parents=True, exist_ok=True)
-            Image.fromarray(img).save(Path(save) / f"{label}_{name}.png")
-        want = INTENDED[name]
-        if p is None:
-            print(f"  {name:10s} no face found")
-            probs += [0.0] if want not in (None, "neutral") else []
-            continue
-        top = CLASSES[int(np.argmax(p))]
-        line = "  ".join(f"{c[:4]} {x:.2f}" for c, x in zip(CLASSES, p))
-        if want is None:
-            print(f"  {name:10s} {top:8s}          [{line}]  (not a class of the model)")
-            continue
-        pw = float(p[CLASSES.index(want)])
-        hits += top == want
-        probs += [pw] if want != "neutral" else []
-        print(f"  {name:10s} {top:8s} {'hit ' if top == want else 'miss'} {pw:.2f}  [{line}]")
-    mean = float(np.mean(probs)) if probs else 0.0
-    print(f"  {label}: {hits} of 7 read as intended; mean p(intended) over the six emotions {mean:.2f}")
-    return hits, mean
 
 
 def main(argv: list[str] | None = None) -> int:
