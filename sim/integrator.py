@@ -307,6 +307,44 @@ def jaw_motion(model: FaceModel, jaw: float, forward: float = 0.0,
     return rot, slide
 
 
+@numba.njit(cache=True, nogil=True)
+def _turn_with_jaw(rest, offset, pivot, weight, rot, slide, target, shape):  # type: ignore[no-untyped-def]
+    """Eq 9's target (and, when `shape` has rows, the rest shape) turned with the jaw, row by row,
+    with the operations in the order of the numpy expressions they replace (the same bits):
+    turned = (rest - pivot) @ rot.T + pivot; base = rest + offset;
+    target = base + w ((turned + offset @ rot.T) + slide - base); shape = rest + w ((turned + slide) - rest).
+    A moving jaw recomputes this every tick over the vertices it carries."""
+    with_shape = shape.shape[0] > 0
+    for i in range(rest.shape[0]):
+        w = weight[i]
+        d0 = rest[i, 0] - pivot[0]
+        d1 = rest[i, 1] - pivot[1]
+        d2 = rest[i, 2] - pivot[2]
+        o0 = offset[i, 0]
+        o1 = offset[i, 1]
+        o2 = offset[i, 2]
+        for j in range(3):
+            turned = d0 * rot[j, 0] + d1 * rot[j, 1] + d2 * rot[j, 2] + pivot[j]
+            turned_offset = o0 * rot[j, 0] + o1 * rot[j, 1] + o2 * rot[j, 2]
+            r = rest[i, j]
+            base = r + offset[i, j]
+            target[i, j] = base + w * (turned + turned_offset + slide[j] - base)
+            if with_shape:
+                shape[i, j] = r + w * (turned + slide[j] - r)
+
+
+@numba.njit(cache=True, nogil=True)
+def _turn_normals(normal, weight, rot, out):  # type: ignore[no-untyped-def]
+    """out = normal + w (normal @ rot.T - normal), row by row in the numpy expression's order."""
+    for i in range(normal.shape[0]):
+        w = weight[i]
+        n0 = normal[i, 0]
+        n1 = normal[i, 1]
+        n2 = normal[i, 2]
+        for j in range(3):
+            out[i, j] = normal[i, j] + w * (n0 * rot[j, 0] + n1 * rot[j, 1] + n2 * rot[j, 2] - normal[i, j])
+
+
 @dataclass(frozen=True)
 class GuardEvent:
     """The blow-up guard fired at simulated time `time` (s) for `reason`; the state was restored to
@@ -442,11 +480,12 @@ class Simulator:
         if pose == (0.0, 0.0, 0.0):
             return np.array(m.rest + m.rest_offset), (np.array(m.rest) if shape else None), None
         rot, slide = jaw_motion(m, *pose)
-        turned = times3(m.rest - m.jaw_pivot, rot.T) + m.jaw_pivot
-        w = m.jaw_weight[:, None]
-        base = m.rest + m.rest_offset
-        target = base + w * (turned + times3(m.rest_offset, rot.T) + slide - base)
-        return target, (m.rest + w * (turned + slide - m.rest) if shape else None), rot
+        target = np.empty_like(m.rest)
+        turned_shape = np.empty_like(m.rest) if shape else np.empty((0, 3))
+        _turn_with_jaw(m.rest, m.rest_offset, np.asarray(m.jaw_pivot, dtype=np.float64), m.jaw_weight,
+                       np.ascontiguousarray(rot, dtype=np.float64), np.asarray(slide, dtype=np.float64),
+                       target, turned_shape)
+        return target, (turned_shape if shape else None), rot
 
     def _set_jaw(self, pose: tuple[float, float, float]) -> None:
         """The jaw-dependent frame constants: eq 9's target (`rest_target`) and the support normals
@@ -461,7 +500,8 @@ class Simulator:
         if rot is None:
             self._normal[...] = m.rest_normal
         else:
-            n = m.rest_normal + m.jaw_weight[:, None] * (times3(m.rest_normal, rot.T) - m.rest_normal)
+            n = np.empty_like(self._normal)
+            _turn_normals(m.rest_normal, m.jaw_weight, np.ascontiguousarray(rot, dtype=np.float64), n)
             self._normal[...] = n / np.linalg.norm(n, axis=1)[:, None]
         self._jaw = pose
 
