@@ -218,3 +218,33 @@ def test_default_face_survives_every_channel_slammed_between_its_ends(face_model
         speed = max(speed, float(np.sqrt((state.velocities**2).sum(axis=1)).max()))
     assert not sim.guard_events and np.all(np.isfinite(state.positions))
     assert speed < 500.0  # cm/s: the jaw snapping open is ~180; a blow-up is thousands
+
+
+def test_a_moving_jaws_compiled_turn_gives_the_bits_of_its_numpy_expression() -> None:
+    """The jaw's frame constants (eq 9's target, the turned rest shape, the support normals) are
+    computed by a compiled pass every tick the jaw moves; a take replays only if they carry the
+    exact bits of the row-by-row numpy expression they stand for, at every jaw pose."""
+    from sim.face import default_rig
+    from sim.integrator import jaw_motion
+    from sim.rowmath import times3
+
+    m = compile_model(default_rig(0))
+    s = Simulator(m, 1.0 / 120.0, wrinkles=False)
+    rng = np.random.default_rng(7)
+    for k in range(12):
+        pose = (float(rng.uniform(0.0, 1.0)), float(rng.uniform(0.0, 1.0)) * (k % 2),
+                float(rng.uniform(-1.0, 1.0)) * (k % 3 == 0))
+        rot, slide = jaw_motion(m, *pose)
+        w = m.jaw_weight[:, None]
+        turned = times3(m.rest - m.jaw_pivot, rot.T) + m.jaw_pivot
+        base = m.rest + m.rest_offset
+        target = base + w * (turned + times3(m.rest_offset, rot.T) + slide - base)
+        shape = m.rest + w * (turned + slide - m.rest)
+        n = m.rest_normal + w * (times3(m.rest_normal, rot.T) - m.rest_normal)
+        got_target, got_shape, _ = s._jaw_turned(pose, shape=True)
+        s._jaw = None
+        s._set_jaw(pose)
+        assert got_target.tobytes() == target.tobytes()
+        assert got_shape is not None and got_shape.tobytes() == shape.tobytes()
+        assert s._normal.tobytes() == (n / np.linalg.norm(n, axis=1)[:, None]).tobytes()
+        assert not np.array_equal(got_target, base)  # the jaw did move the skin it carries
