@@ -3,7 +3,6 @@ process (tests/voice_player.py), on the private JACK server of tests/midijack.py
 
 from __future__ import annotations
 
-import os
 import queue
 import subprocess
 import sys
@@ -12,7 +11,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from midijack import stop_child
+from midijack import jack_lsp, stop_child
 
 PLAYER = Path(__file__).with_name("voice_player.py")
 
@@ -90,8 +89,8 @@ def speech_wav(path: Path, parts: list[tuple[str, float]], rate: int = 48000, no
 
 
 def connected(server: str, port: str) -> bool:
-    out = subprocess.run(["jack_lsp", "-s", server, "-c"], capture_output=True, text=True,
-                         env={**os.environ, "JACK_NO_START_SERVER": "1"}).stdout
+    run = jack_lsp(server, "-c")
+    out = run.stdout if run is not None else ""
     lines = out.splitlines()
     for i, line in enumerate(lines):
         if line.strip() == port:

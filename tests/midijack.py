@@ -25,10 +25,23 @@ BOX_SCRIPT = Path(__file__).with_name("midi_box.py")
 PERIOD = 1024
 
 
+#: how long one `jack_lsp` may take: a client connecting while its server is still starting can
+#: block for good; such a call is abandoned (killed) and counts as no answer
+LSP_TIMEOUT_S = 5.0
+
+
+def jack_lsp(server: str, *flags: str) -> subprocess.CompletedProcess[str] | None:
+    """`jack_lsp -s server FLAGS` (never starting a server); None when it did not answer in time."""
+    try:
+        return subprocess.run(["jack_lsp", "-s", server, *flags], capture_output=True, text=True,
+                              env={**os.environ, "JACK_NO_START_SERVER": "1"}, timeout=LSP_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        return None
+
+
 def _server_up(name: str) -> bool:
-    env = {**os.environ, "JACK_NO_START_SERVER": "1"}
-    return subprocess.run(["jack_lsp", "-s", name], env=env, stdout=subprocess.DEVNULL,
-                          stderr=subprocess.DEVNULL).returncode == 0
+    run = jack_lsp(name)
+    return run is not None and run.returncode == 0
 
 
 def _die_with_parent() -> None:
@@ -157,8 +170,8 @@ class MidiBox:
 
 def connected_to(server: str, port: str) -> list[str]:
     """The ports connected to ``port`` on the JACK server (from ``jack_lsp -c``)."""
-    out = subprocess.run(["jack_lsp", "-s", server, "-c"], capture_output=True, text=True,
-                         env={**os.environ, "JACK_NO_START_SERVER": "1"}).stdout
+    run = jack_lsp(server, "-c")
+    out = run.stdout if run is not None else ""
     peers: list[str] = []
     current = None
     for line in out.splitlines():
