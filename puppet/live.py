@@ -244,10 +244,17 @@ def prepare_kernels(model: Any, dt: float) -> None:
     update: tens of seconds on a slow machine) or loaded from numba's cache now, before the first
     tick, so nothing compiles on the live path: the integrator this face and tick use (RK2 or
     implicit, by one step of a throw-away simulator; the show's own starts fresh, as replay's
-    does) and the wrinkle kernel (its layer may be built later, `wrinkles_later`)."""
+    does) and the wrinkle kernel (its layer may be built later, `wrinkles_later`). The throw-away
+    simulator steps at rest and then with every channel moved a third of its range, so kernels that
+    run only once a channel moves (the jaw's turn, which a voice or a dial starts mid-show) are
+    compiled too."""
     import sim
+    from sim.channels import CHANNEL_SPECS
 
-    sim.Simulator(model, dt, wrinkles=False).step(model.rest_state(), sim.FaceControl(model))
+    s, state, control = sim.Simulator(model, dt, wrinkles=False), model.rest_state(), sim.FaceControl(model)
+    s.step(state, control)
+    control.values[:] = [c.default + (c.hi - c.default) / 3 for c in CHANNEL_SPECS]
+    s.step(state, control)
     if model.rig.wrinkles:
         from sim.wrinkles.kernels import warm_up
 

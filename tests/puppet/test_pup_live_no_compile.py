@@ -19,7 +19,11 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-SCRIPT = ROOT / "examples" / "mock" / "sgi_rehearsal.toml"
+#: the SGI box's eight dials turned one after another in the show's first 4 s: every channel they drive
+#: moves, the jaw (dial 7) included, whose turn runs a kernel of its own only once the jaw moves
+SCRIPT = "\n".join(['impersonate = "sgi"', "counts_per_turn = 200", "speed = 1.0", "duration = 5.0", *(
+    f'[[ramp]]\ncontrol = "dial{i}"\nstart = {0.3 + 0.45 * i:.2f}\nduration = 1.0\nfrom = 0.0\nto = 0.4\nrate = 60'
+    for i in range(8))])
 
 PROBE = """
 import atexit, json, os, sys, time
@@ -54,8 +58,10 @@ sys.exit(main(sys.argv[1:]))
 def test_a_show_with_an_empty_numba_cache_never_stops_ticking(tmp_path: Path) -> None:
     cache = tmp_path / "numba-cache"
     cache.mkdir()
+    script = tmp_path / "dials.toml"
+    script.write_text(SCRIPT)
     env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(cache), "PROBE_OUT": str(tmp_path / "p.json")}
-    r = subprocess.run([sys.executable, "-c", PROBE, "live", "--headless", "--device", f"mock://{SCRIPT}?speed=1",
+    r = subprocess.run([sys.executable, "-c", PROBE, "live", "--headless", "--device", f"mock://{script}?speed=1",
                         "--duration", "5", "--record", "take.jsonl"],
                        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
