@@ -178,39 +178,49 @@ def test_puppet_live_records_the_take_and_its_sound(jack_server: str, speech, tm
     played, prate = read_wav(path)
     assert rate == prate == 48000
     assert len(rec) == round(session.ticks / session.tick_rate * rate)  # as long as the take
-    assert _heard_in_place(rec, played) > 0.75
+    heard = _parts_heard(rec, played, speech[1], rate)
+    for (onset, _), (first, _) in zip(heard, spans):
+        # each sound lies in the WAV where the take has it: the tick its voice's first event came in
+        # follows its start in the WAV by the analysis' window and the event's way to the loop
+        # (10-30 ms on a quiet machine; at a load of 8-15 on 2 cores, 150 ms after and once 150 ms
+        # before it: a wrong clock puts sounds seconds away)
+        assert -0.2 <= first / session.tick_rate - onset <= 0.5, (onset, first / session.tick_rate)
+    assert np.mean([share for _, share in heard]) > 0.6, heard
 
 
-def _heard_in_place(rec: np.ndarray, played: np.ndarray, block: int = 256, slack: int = 24000) -> float:
-    """The share of the played file's sounding 256-sample blocks found sample for sample (16-bit)
-    in the recording within 0.5 s of where the whole file lies (another recording finds ~0 %). Not
-    all of them, and not all at one lag, on a loaded machine: the dummy JACK driver, without real-time
-    priority, drops cycles (an XRun loses that period for the player or for us: a load average of 13
-    on 2 cores lost up to a fifth of them), and when the live loop drops time the WAV drops it too."""
+def _parts_heard(rec: np.ndarray, played: np.ndarray, parts: list[tuple[float, float]], rate: int,
+                 block: int = 256) -> list[tuple[float, float]]:
+    """Each played sound (`parts`: start, end in seconds of the played file) found in the recording:
+    (where it begins there, seconds; the share of its sounding 256-sample blocks found sample for
+    sample (16-bit) within 0.5 s of that place; another recording finds ~0 %). A block is looked
+    for from 2.5 s before its place in the played file to 0.5 s after it: when the show's loop
+    drops wall time (a machine too busy for a while), the take's clock skips it and the WAV, kept on
+    that clock, drops it too, so what follows lies earlier. Not every block survives a loaded
+    machine either: the dummy JACK driver, without real-time priority, drops cycles (an XRun loses
+    that period for the player or for us)."""
     from scipy.signal import correlate
 
-    lag = _best_lag(rec, played)
-    found = total = 0
-    for start in range(0, len(played) - block, block):
-        piece = played[start:start + block]
-        if np.max(np.abs(piece)) < 0.01:
-            continue
-        total += 1
-        lo = max(0, lag + start - slack)
-        near = rec[lo:lag + start + block + slack]
-        if len(near) >= block:  # the least sum of squared differences over every placement, by FFT
-            c = np.concatenate([[0.0], np.cumsum(near * near)])
-            energy = c[block:] - c[:-block]
-            ssd = energy - 2 * correlate(near, piece, mode="valid", method="fft") + np.dot(piece, piece)
-            found += bool(np.min(ssd) < block * (1.0 / 32768) ** 2)
-    return found / max(1, total)
-
-
-def _best_lag(rec: np.ndarray, played: np.ndarray) -> int:
-    from scipy.signal import correlate
-
-    c = correlate(rec, played, mode="valid", method="fft")
-    return int(np.argmax(c))
+    c = np.concatenate([[0.0], np.cumsum(rec * rec)])
+    out = []
+    for a, b in parts:
+        lags = []
+        for start in range(int(a * rate), int(b * rate) - block, block):
+            piece = played[start:start + block]
+            if np.max(np.abs(piece)) < 0.01:
+                continue
+            lo, hi = max(0, start - int(2.5 * rate)), min(len(rec), start + block + rate // 2)
+            if hi - lo < block:
+                lags.append(None)
+                continue
+            energy = c[lo + block:hi + 1] - c[lo:hi + 1 - block]  # least squared difference, by FFT
+            ssd = energy - 2 * correlate(rec[lo:hi], piece, mode="valid", method="fft") + np.dot(piece, piece)
+            k = int(np.argmin(ssd))
+            lags.append(lo + k - start if ssd[k] < block * (1.0 / 32768) ** 2 else None)
+        found = [x for x in lags if x is not None]
+        lag = float(np.median(found)) if found else 0.0
+        near = sum(abs(x - lag) <= rate // 2 for x in found)
+        out.append((a + lag / rate, near / max(1, len(lags))))
+    return out
 
 
 def test_puppet_learn_records_a_voice_profile_the_device_then_uses(jack_server: str, tmp_path: Path) -> None:  # noqa: F811
