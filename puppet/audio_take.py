@@ -30,8 +30,15 @@ def attach(devs: list[Any], record: str | None, header: dict[str, Any]) -> list[
 
 
 def clock_hook(recs: list[tuple[Any, Any]]) -> Any:
-    """A LiveCore.before_tick hook telling each recorder where the take's clock is."""
+    """A LiveCore.before_tick hook telling each recorder where the take's clock is: the show's
+    schedule (`LiveCore.clock_origin`) when the loop keeps one, so wall time the loop drops is
+    dropped from the sound at that very tick; else when each tick ran."""
     def hook(core: Any) -> None:
+        origin = core.clock_origin
+        if origin is not None:
+            for _, rec in recs:
+                rec.anchor(origin)
+            return
         t = time.monotonic()
         pos = core.tick_count / core.rate
         for _, rec in recs:

@@ -318,6 +318,10 @@ class LiveCore:
         self.markers: list[tuple[int, str]] = []
         #: run in the loop thread at each tick boundary (e.g. adopting a box plugged in mid-show)
         self.before_tick: list[Callable[[LiveCore], None]] = []
+        #: the time of position 0 on the show's schedule (tick k is due at clock_origin + k * dt), on
+        #: the loop's clock (monotonic in a show), set by the wall-clock loops and moved on when they
+        #: drop wall time; None on script time. The sound of a take is placed by it (puppet.audio_take).
+        self.clock_origin: float | None = None
         #: run once, after the first frame is published (what need not delay the first tick)
         self.after_first_frame: list[Callable[[], None]] = []
         #: set to a Spans to time the parts of each tick (benchmarks/live_latency.py)
@@ -649,6 +653,7 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
     with _ShowRuntime() as runtime:
         start = clock()
         k0 = core.tick_count  # a resumed take starts at its first new tick
+        core.clock_origin = start - k0 * core.dt
         next_frame = 0.0  # in ticks since k0
         last_frame = -math.inf  # the tick (since k0) last drawn
         while True:
@@ -669,6 +674,7 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
                 core.spans.add("woke late", max(0.0, now - boundary))
             if now - boundary > 4 * core.dt:  # fell behind (machine busy): re-anchor the schedule
                 start, k0, next_frame, last_frame = now, core.tick_count, 0.0, -math.inf
+                core.clock_origin = start - k0 * core.dt
             # everything that arrived by now goes into this tick: waiting for the next boundary would
             # only add latency, and the recording keeps the tick each event was applied at
             events = drain()
@@ -840,6 +846,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
 
     win.add_key_callback(on_key)
     sched = {"start": time.monotonic(), "k0": core.tick_count}
+    core.clock_origin = sched["start"] - sched["k0"] * core.dt
     frame_dt = max(core.dt, 1.0 / DISPLAY_RATE)  # without vsync, frames at most at the display's rate
     max_ticks = max(4, math.ceil(4 * frame_dt / core.dt))
     limit = None if duration is None else int(round(duration * core.rate))
@@ -858,6 +865,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
                 break
         if sched["start"] + (core.tick_count - sched["k0"]) * core.dt < now - 4 * core.dt:
             sched["start"], sched["k0"] = now, core.tick_count  # too far behind: drop wall time
+            core.clock_origin = now - core.tick_count * core.dt
         w.state = core.state
 
     win.add_frame_callback(on_frame)

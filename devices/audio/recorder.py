@@ -2,8 +2,10 @@
 in a WAV by their capture time, so WAV sample i is the sound at position i / rate of the caller's
 timeline (the take's tick clock: tick k at k / tick rate seconds).
 
-The timeline is given as (position, monotonic time) pairs, e.g. once per tick from the live loop;
-the earliest-looking pair of the last few wins (a tick that woke late only looks later). Blocks
+The timeline is given either as its origin (`anchor`: the monotonic time of position 0, e.g. a
+show's schedule, which moves when the show drops wall time) or as (position, monotonic time) pairs,
+e.g. once per tick; of the pairs, the earliest-looking of the last few wins (a tick that woke late
+only looks later), so a timeline that jumps ahead is followed only once they have rolled over. Blocks
 that arrive before the first pair wait in a short buffer. When the placement and what was written
 disagree by more than ``TOLERANCE_S`` (a device unplugged and plugged back, a loop that dropped
 time), silence is inserted or samples are dropped, so the sound stays in step with the ticks."""
@@ -33,6 +35,7 @@ class AudioRecorder:
         self._pairs: deque[tuple[float, float]] = deque(maxlen=CLOCK_PAIRS)
         self._early: deque[tuple[np.ndarray, float]] = deque()
         self._early_n = 0
+        self._anchor: float | None = None
         self._lock = threading.Lock()
         self.adjustments = 0  # times silence was inserted or samples dropped
 
@@ -44,8 +47,14 @@ class AudioRecorder:
         """Timeline position `position` (seconds) happened at monotonic time `t`. Any thread."""
         self._pairs.append((position, t))
 
+    def anchor(self, origin: float) -> None:
+        """Timeline position 0 is at monotonic time `origin` (from now on, until anchored again). Any thread."""
+        self._anchor = origin
+
     def _origin(self) -> float | None:
         """Monotonic time of timeline position 0."""
+        if self._anchor is not None:
+            return self._anchor
         pairs = list(self._pairs)
         if not pairs:
             return None

@@ -155,3 +155,22 @@ def test_recorder_places_blocks_on_the_callers_clock(tmp_path) -> None:
     cut.push(block, 10.0)
     cut.close(until=0.05)
     assert len(read_wav(tmp_path / "c.wav")[0]) == 400
+
+
+def test_recorder_follows_a_schedule_that_drops_wall_time_at_once(tmp_path) -> None:
+    """A show that fell behind drops wall time: its clock's origin moves on by what it dropped.
+    Sound captured right after is placed on the new clock at once (the sound of the dropped time
+    is what is cut), not a fraction of a second late until per-tick pairs catch up."""
+    rate = 8000
+    rec = AudioRecorder(tmp_path / "r.wav", rate)
+    rec.anchor(10.0)
+    for k in range(10):  # 0.0-1.0 s of sound
+        rec.push(np.full(800, 0.1), 10.0 + 0.1 * k)
+    for k in range(30):  # ticks that had run on time, then the drop
+        rec.clock(0.95 + k / 240, 10.95 + k / 240)
+    rec.anchor(10.3)  # 0.3 s dropped: position 1.0 is now at monotonic 11.3
+    rec.push(np.full(800, 0.5), 11.3)
+    rec.close(until=1.1)
+    y, _ = read_wav(tmp_path / "r.wav")
+    assert len(y) == 8800
+    assert np.allclose(y[:8000], 0.1, atol=1e-3) and np.allclose(y[8000:], 0.5, atol=1e-3)

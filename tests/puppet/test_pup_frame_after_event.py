@@ -43,6 +43,29 @@ def test_a_tick_that_takes_an_event_is_drawn_at_once(face: live.Face) -> None:
     assert len(drawn) >= 30 // 4  # at least the display's rate
 
 
+def test_a_loop_that_falls_behind_drops_wall_time_and_says_where_its_clock_went(face: live.Face) -> None:
+    """The schedule's origin (where a take's sound is placed) moves on by exactly the wall time
+    dropped when a tick comes more than 4 ticks late, and not when a tick is a little late."""
+    clk = FakeClock()
+    core = live.LiveCore(face, Mapper(live.build_mapping(face.vocab, None, ["mock://"]), face.vocab), rate=240.0)
+    origins: list[float | None] = []
+
+    def drain() -> list:
+        origins.append(core.clock_origin)
+        if len(origins) == 5:
+            clk.t += 3 / 240  # late, not behind: the schedule holds
+        if len(origins) == 10:
+            clk.t += 0.25  # a stall: the next tick is 0.25 s late
+        return []
+
+    live.run_realtime(core, drain, 20 / 240, clock=clk, sleep=clk.sleep)
+    assert core.tick_count == 20
+    assert origins[0] == 100.0 and len(set(origins[:10])) == 1
+    # tick 10, due 1/240 s after tick 9 began, came 0.25 s after it: the clock moved by its lateness
+    assert abs(origins[10] - origins[9] - (0.25 - 1 / 240)) < 1e-9
+    assert len(set(origins[10:])) == 1
+
+
 def test_the_tick_rate_follows_the_faces_step_cost(face: live.Face) -> None:
     rate, cost = choose_tick_rate(face.model, budget=1e-9)  # nothing fits: the lowest rate
     assert rate == min(live.TICK_RATES) and set(cost) == set(live.TICK_RATES)
