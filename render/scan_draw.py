@@ -61,7 +61,7 @@ class ScanDraw:
         self.look = ScanLook(np.asarray(rest_scan, np.float64))
         self.maker = ScanRows(self.look)
         self.progs = {k: ctx.program(vertex_shader=scan_shaders.scan_skin_source(k, vertex=True),
-                                     fragment_shader=scan_shaders.scan_skin_source(k)) for k in KINDS}
+                                     fragment_shader=scan_shaders.scan_skin_source(k)) for k in (*KINDS, "PLAIN")}
         self.eye_prog = ctx.program(vertex_shader=scan_shaders.SCAN_EYE_VS, fragment_shader=scan_shaders.SCAN_EYE_FS)
         self.lash_prog = ctx.program(vertex_shader=scan_shaders.SCAN_LASH_VS,
                                      fragment_shader=scan_shaders.SCAN_LASH_FS)
@@ -74,12 +74,17 @@ class ScanDraw:
                    "in_rest": (look.rest.astype(np.float32), "3f"), "in_angle": (look.gaze_angle, "1f")}
         bufs = {name: (ctx.buffer(np.ascontiguousarray(a, np.float32).tobytes()), fmt)
                 for name, (a, fmt) in statics.items()}
-        ibos = {g: ctx.buffer(t.tobytes()) for g, t in look.groups.items()}
+        groups = {**look.groups, **look.skin_split()}
+        ibos = {g: ctx.buffer(np.ascontiguousarray(t).tobytes()) for g, t in groups.items()}
         self._gl: list[Any] = [self.vbo, *(b for b, _ in bufs.values()), *ibos.values()]
         self.vaos: dict[tuple[str, str], moderngl.VertexArray] = {}
-        for kind, prog in self.progs.items():
+        for kind in KINDS:
             for group in ("skin", "mouth", "sockets"):
-                self.vaos[kind, group] = self._vao(prog, bufs, ibos[group])
+                self.vaos[kind, group] = self._vao(self.progs[kind], bufs, ibos[group])
+        # the shaded look draws its skin in two parts: the brows and lips with every term, the rest
+        # (most pixels) with the plain shader, the same colours with less work per pixel
+        self.vaos["SKIN", "features"] = self._vao(self.progs["SKIN"], bufs, ibos["features"])
+        self.vaos["PLAIN", "plain"] = self._vao(self.progs["PLAIN"], bufs, ibos["plain"])
         self.eye_vao = self._vao(self.eye_prog, bufs, ibos["eyes"])
         self.lash_vao = self._vao(self.lash_prog, bufs, ibos["lashes"])
         self._gl += [*self.vaos.values(), self.eye_vao, self.lash_vao, *self.progs.values(), self.eye_prog,
@@ -115,7 +120,7 @@ class ScanDraw:
     def draw(self, rows: np.ndarray, kind: str, mvp: bytes, view_m: bytes, heat_scale: float) -> None:
         self.vbo.write(rows)
         prog = self.progs[kind]
-        for p in (prog, self.eye_prog):
+        for p in (prog, self.eye_prog, *((self.progs["PLAIN"],) if kind == "SKIN" else ())):
             p["mvp"].write(mvp)
             p["view"].write(view_m)
         self.lash_prog["mvp"].write(mvp)
@@ -123,7 +128,11 @@ class ScanDraw:
             prog["heat_scale"].value = float(heat_scale)
         ctx = self.ctx
         ctx.enable(moderngl.CULL_FACE)
-        self.vaos[kind, "skin"].render(moderngl.TRIANGLES)
+        if kind == "SKIN":
+            self.vaos["PLAIN", "plain"].render(moderngl.TRIANGLES)
+            self.vaos["SKIN", "features"].render(moderngl.TRIANGLES)
+        else:
+            self.vaos[kind, "skin"].render(moderngl.TRIANGLES)
         self.eye_vao.render(moderngl.TRIANGLES)
         self.vaos[kind, "sockets"].render(moderngl.TRIANGLES)
         self.mouth_drawn = self.look.mouth_open(rows[:, :3])

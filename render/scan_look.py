@@ -36,6 +36,11 @@ MOUTH_CORNER_X = 2.45  # cm: the generic head's mouth corners, either side of th
 IRIS_ANGLE = 0.50  # rad from the gaze axis: the limbus, where the cornea's bulge starts on the scan
 PUPIL_ANGLE = 0.19
 
+# cm of signed distance beyond which the skin shader's brow / vermilion terms are exactly nothing:
+# the brow's edge smoothstep(-0.12, 0.06, d + 0.07 s) with its hair pattern s in -1..1, the lip's
+# smoothstep(-0.05, 0.05, d); a triangle whose corners all lie beyond is drawn without them
+BROW_CLEAR = 0.06 + 0.07
+LIP_CLEAR = 0.05
 LIP_GAP = 0.05  # cm the lips must part by before the mouth's inside is drawn (a pixel is ~0.035 cm at 720p)
 TEETH_DEPTH = 2.5  # cm behind the front teeth: the deepest teeth drawn
 GUMS_DEPTH = 4.0
@@ -355,6 +360,15 @@ class ScanLook:
             cosang = (p - c) @ g / np.maximum(r, 1e-9)
             out[lo:lo + SCLERA] = np.arccos(np.clip(cosang, -1.0, 1.0))
         return out
+
+    def skin_split(self) -> dict[str, np.ndarray]:
+        """The skin's triangles in two groups: "features", those a brow or the vermilion reaches
+        (a corner within the brow's or the lip's shading edge, render.scan_shaders.SCAN_SKIN_FS),
+        and "plain", the rest, where those terms are exactly nothing."""
+        t = self.groups["skin"]
+        m = self.material
+        plain = (m[t, 0] >= BROW_CLEAR).all(axis=1) & (m[t, 1] >= LIP_CLEAR).all(axis=1)
+        return {"features": t[~plain], "plain": t[plain]}
 
     def mouth_open(self, posed: np.ndarray) -> bool:
         """Whether the lips have parted anywhere along the mouth (the inside can be seen)."""
