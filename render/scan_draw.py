@@ -90,6 +90,7 @@ class ScanDraw:
         self._gl += [*self.vaos.values(), self.eye_vao, self.lash_vao, *self.progs.values(), self.eye_prog,
                      self.lash_prog]
         self.mouth_drawn = False
+        self.split_skin = True  # False: the whole skin with every term (the same pixels, slower)
 
     def _vao(self, prog: moderngl.Program, bufs: dict[str, tuple[moderngl.Buffer, str]],
              ibo: moderngl.Buffer) -> moderngl.VertexArray:
@@ -128,7 +129,7 @@ class ScanDraw:
             prog["heat_scale"].value = float(heat_scale)
         ctx = self.ctx
         ctx.enable(moderngl.CULL_FACE)
-        if kind == "SKIN":
+        if kind == "SKIN" and self.split_skin:
             self.vaos["PLAIN", "plain"].render(moderngl.TRIANGLES)
             self.vaos["SKIN", "features"].render(moderngl.TRIANGLES)
         else:

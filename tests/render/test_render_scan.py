@@ -108,3 +108,21 @@ def test_every_view_draws_the_simulated_scanned_head(gl) -> None:
     assert face.mean() > 0.15  # the head fills a good part of the picture
     for view in ("wireframe", "muscles", "trails", "heat"):
         assert np.abs(shots[view] - shots["shaded"]).sum(axis=2)[face].mean() > 5, view
+
+
+def test_plain_skin_shader_draws_the_same_skin(gl) -> None:
+    """Most of the skin is drawn with the plain shader, without the brow and vermilion terms: the
+    picture must be the one the full skin shader makes, brows, lips and highlights included."""
+    shapes = ScanShapes(expressions={"jawOpen": 0.3, "mouthSmile_L": 0.8, "browInnerUp_R": 0.7})
+    img, off, _ = _shot(gl, shapes)
+    try:
+        scan = off.renderer.scan
+        plain = len(scan.look.skin_split()["plain"])
+        assert 0.5 * len(scan.look.groups["skin"]) < plain < len(scan.look.groups["skin"])
+        scan.split_skin = False
+        whole = off.render_frame(off.renderer.model.rest_state(), record=False).astype(float)
+        assert gl.error == "GL_NO_ERROR"
+        assert np.abs(whole - img[0, 0]).sum(axis=2).astype(bool).mean() > 0.2  # the face is in the picture
+        assert np.abs(whole - img).max() <= 1.0
+    finally:
+        off.release()
