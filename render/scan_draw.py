@@ -16,6 +16,11 @@ from render.scan_look import IRIS_ANGLE, PUPIL_ANGLE, ScanLook, ScanRows
 from sim.face.scan.blendshapes import StateControl as PoseControl
 
 KINDS = ("SKIN", "CLAY", "HEAT")
+# the groups drawn with back faces culled, in drawing order: the skin first (so that the depth test
+# rejects the hidden pixels of what follows; the shaded look draws its brows and lips with every
+# term and the rest, most pixels, with the plain shader: the same colours, less work per pixel),
+# the eyeballs, the eye sockets, the mouth's inside
+CULLED = ("plain", "features", "eyes", "sockets", "mouth")
 
 
 def dressing_of(model: Any) -> Any:
@@ -75,22 +80,28 @@ class ScanDraw:
         bufs = {name: (ctx.buffer(np.ascontiguousarray(a, np.float32).tobytes()), fmt)
                 for name, (a, fmt) in statics.items()}
         groups = {**look.groups, **look.skin_split()}
-        ibos = {g: ctx.buffer(np.ascontiguousarray(t).tobytes()) for g, t in groups.items()}
-        self._gl: list[Any] = [self.vbo, *(b for b, _ in bufs.values()), *ibos.values()]
-        self.vaos: dict[tuple[str, str], moderngl.VertexArray] = {}
-        for kind in KINDS:
-            for group in ("skin", "mouth", "sockets"):
-                self.vaos[kind, group] = self._vao(self.progs[kind], bufs, ibos[group])
-        # the shaded look draws its skin in two parts: the brows and lips with every term, the rest
-        # (most pixels) with the plain shader, the same colours with less work per pixel
-        self.vaos["SKIN", "features"] = self._vao(self.progs["SKIN"], bufs, ibos["features"])
-        self.vaos["PLAIN", "plain"] = self._vao(self.progs["PLAIN"], bufs, ibos["plain"])
-        self.eye_vao = self._vao(self.eye_prog, bufs, ibos["eyes"])
-        self.lash_vao = self._vao(self.lash_prog, bufs, ibos["lashes"])
+        # the culled groups share one index buffer, a slice each in drawing order (CULLED); a frame
+        # whose rows were made here with the camera's position draws only the triangles of each
+        # slice that may face the camera (see rows)
+        self.cull_tri = np.ascontiguousarray(np.concatenate([groups[g] for g in CULLED]), np.int32)
+        self.starts = np.cumsum([0, *(len(groups[g]) for g in CULLED)]).astype(np.int64)
+        self.full = np.diff(self.starts).astype(np.int64)
+        self.group = look.group_of_triangles(CULLED)
+        self.kept = self.cull_tri.copy()
+        self.counts = self.full.copy()
+        self._facing_rows: np.ndarray | None = None  # the rows `kept` was made with
+        self._ibo_whole = True
+        self.ibo = ctx.buffer(self.cull_tri.tobytes(), dynamic=True)
+        lashes = ctx.buffer(np.ascontiguousarray(groups["lashes"]).tobytes())
+        self._gl: list[Any] = [self.vbo, *(b for b, _ in bufs.values()), self.ibo, lashes]
+        self.vaos = {kind: self._vao(prog, bufs, self.ibo) for kind, prog in self.progs.items()}
+        self.eye_vao = self._vao(self.eye_prog, bufs, self.ibo)
+        self.lash_vao = self._vao(self.lash_prog, bufs, lashes)
         self._gl += [*self.vaos.values(), self.eye_vao, self.lash_vao, *self.progs.values(), self.eye_prog,
                      self.lash_prog]
         self.mouth_drawn = False
         self.split_skin = True  # False: the whole skin with every term (the same pixels, slower)
+        self.cull_on_cpu = True  # False: every triangle to OpenGL, which culls them (the same pixels)
 
     def _vao(self, prog: moderngl.Program, bufs: dict[str, tuple[moderngl.Buffer, str]],
              ibo: moderngl.Buffer) -> moderngl.VertexArray:
@@ -112,14 +123,44 @@ class ScanDraw:
         seen = v[v[:, 1] > front[:, 1].min() - 2.0]  # down to a little below the chin
         return seen.min(axis=0), seen.max(axis=0)
 
-    def rows(self, state: Any) -> np.ndarray:
+    def rows(self, state: Any, eye: np.ndarray | None = None) -> np.ndarray:
         """(26719, 7) float32 rows x y z nx ny nz fold of the scan posed to `state` (the same array
-        every call)."""
+        every call); given `eye`, the camera's position in model space, also which triangles may
+        face it, for the next `draw` of these rows."""
         posed = self.dressing.pose_turned(np.asarray(state.surface), PoseControl(state), state)
-        return self.maker.rows(posed)
+        if eye is None or not self.cull_on_cpu:
+            self._facing_rows = None
+            return self.maker.rows(posed)
+        rows = self.maker.rows_facing(posed, eye, self.group, self.starts, self.kept, self.counts)
+        self._facing_rows = rows
+        return rows
+
+    def _indices(self, rows: np.ndarray, groups: int) -> None:
+        """The index buffer's first `groups` slices for these rows: the triangles that may face the
+        camera when `rows` made them, else every triangle."""
+        if rows is self._facing_rows:
+            for g in range(groups):
+                lo = int(self.starts[g])
+                self.ibo.write(self.kept[lo:lo + int(self.counts[g])], offset=lo * 12)
+            self._ibo_whole = False
+            return
+        if not self._ibo_whole:
+            self.ibo.write(self.cull_tri.tobytes())
+            self._ibo_whole = True
+        self.counts[:] = self.full
+
+    def _render(self, vao: moderngl.VertexArray, group: str) -> None:
+        g = CULLED.index(group)
+        n = int(self.counts[g])
+        if n:
+            vao.render(moderngl.TRIANGLES, vertices=3 * n, first=3 * int(self.starts[g]))
 
     def draw(self, rows: np.ndarray, kind: str, mvp: bytes, view_m: bytes, heat_scale: float) -> None:
+        """Draw the posed scan (its rows) in look `kind`."""
         self.vbo.write(rows)
+        self.mouth_drawn = self.look.mouth_open(rows[:, :3])
+        self._indices(rows, len(CULLED) if self.mouth_drawn else len(CULLED) - 1)
+        self._facing_rows = None
         prog = self.progs[kind]
         for p in (prog, self.eye_prog, *((self.progs["PLAIN"],) if kind == "SKIN" else ())):
             p["mvp"].write(mvp)
@@ -129,16 +170,12 @@ class ScanDraw:
             prog["heat_scale"].value = float(heat_scale)
         ctx = self.ctx
         ctx.enable(moderngl.CULL_FACE)
-        if kind == "SKIN" and self.split_skin:
-            self.vaos["PLAIN", "plain"].render(moderngl.TRIANGLES)
-            self.vaos["SKIN", "features"].render(moderngl.TRIANGLES)
-        else:
-            self.vaos[kind, "skin"].render(moderngl.TRIANGLES)
-        self.eye_vao.render(moderngl.TRIANGLES)
-        self.vaos[kind, "sockets"].render(moderngl.TRIANGLES)
-        self.mouth_drawn = self.look.mouth_open(rows[:, :3])
+        self._render(self.vaos["PLAIN" if kind == "SKIN" and self.split_skin else kind], "plain")
+        self._render(self.vaos[kind], "features")
+        self._render(self.eye_vao, "eyes")
+        self._render(self.vaos[kind], "sockets")
         if self.mouth_drawn:
-            self.vaos[kind, "mouth"].render(moderngl.TRIANGLES)
+            self._render(self.vaos[kind], "mouth")
         ctx.disable(moderngl.CULL_FACE)
         if kind == "SKIN":  # hair over the skin: blended, without depth writes
             fbo = ctx.fbo

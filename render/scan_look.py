@@ -362,13 +362,30 @@ class ScanLook:
         return out
 
     def skin_split(self) -> dict[str, np.ndarray]:
+        return {k: self.groups["skin"][m] for k, m in self._skin_masks().items()}
+
+    def _skin_masks(self) -> dict[str, np.ndarray]:
         """The skin's triangles in two groups: "features", those a brow or the vermilion reaches
         (a corner within the brow's or the lip's shading edge, render.scan_shaders.SCAN_SKIN_FS),
         and "plain", the rest, where those terms are exactly nothing."""
         t = self.groups["skin"]
         m = self.material
         plain = (m[t, 0] >= BROW_CLEAR).all(axis=1) & (m[t, 1] >= LIP_CLEAR).all(axis=1)
-        return {"features": t[~plain], "plain": t[plain]}
+        return {"features": ~plain, "plain": plain}
+
+    def group_of_triangles(self, order: tuple[str, ...]) -> np.ndarray:
+        """(T,) int8: for each triangle of `triangles`, its group's place in `order` (group names,
+        the skin's as "plain" / "features" of skin_split), -1 for a group not in it."""
+        out = []
+        for name, t in self.groups.items():
+            if name == "skin":
+                masks = self._skin_masks()
+                g = np.where(masks["plain"], order.index("plain") if "plain" in order else -1,
+                             order.index("features") if "features" in order else -1)
+            else:
+                g = np.full(len(t), order.index(name) if name in order else -1)
+            out.append(g)
+        return np.concatenate(out).astype(np.int8)
 
     def mouth_open(self, posed: np.ndarray) -> bool:
         """Whether the lips have parted anywhere along the mouth (the inside can be seen)."""
@@ -393,4 +410,16 @@ class ScanRows:
 
         p = np.ascontiguousarray(posed, dtype=np.float32)
         scan_rows(p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch, self.buffer)
+        return self.buffer
+
+    def rows_facing(self, posed: np.ndarray, eye: np.ndarray, group: np.ndarray, starts: np.ndarray,
+                    kept: np.ndarray, counts: np.ndarray) -> np.ndarray:
+        """`rows`, and the triangles of each drawn group (group[t] >= 0 for the t-th of
+        `look.triangles`) that may face `eye`, at kept[starts[g]:][:counts[g]]
+        (render.scan_kernel.scan_rows_facing)."""
+        from render.scan_kernel import scan_rows_facing
+
+        p = np.ascontiguousarray(posed, dtype=np.float32)
+        scan_rows_facing(p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch,
+                         self.buffer, group, starts, np.asarray(eye, np.float32), kept, counts)
         return self.buffer

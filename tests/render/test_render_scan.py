@@ -126,3 +126,35 @@ def test_plain_skin_shader_draws_the_same_skin(gl) -> None:
         assert np.abs(whole - img).max() <= 1.0
     finally:
         off.release()
+
+
+def test_back_faces_left_out_on_the_cpu_change_no_pixel(gl) -> None:
+    """The triangles turned away from the camera are left out before OpenGL sees them: from the
+    front, the side and behind, with the mouth open, the picture is the one OpenGL's own culling
+    makes, and a good share of the triangles is left out."""
+    from puppet.face_cache import scan_model
+    from sim.facs import apply_au
+    from sim.integrator import Simulator
+    from sim.state import FaceControl
+
+    model = scan_model(None)
+    sim, state = Simulator(model), model.rest_state()
+    control = FaceControl(model)
+    apply_au(control, "AU27", 1.0)
+    for _ in range(6):
+        sim.step(state, control)
+    with OffscreenRenderer(model, (240, 180), ctx=gl) as off:
+        scan = off.renderer.scan
+        for yaw, pitch in ((0.0, 0.0), (1.3, 0.4), (3.1, -0.3)):
+            off.renderer.camera.yaw, off.renderer.camera.pitch = yaw, pitch
+            scan.cull_on_cpu = True
+            culled = off.render_frame(state, record=False).astype(int)
+            assert scan.mouth_drawn
+            kept, whole = int(scan.counts.sum()), int(scan.full.sum())
+            scan.cull_on_cpu = False
+            every = off.render_frame(state, record=False).astype(int)
+            assert gl.error == "GL_NO_ERROR"
+            assert int(scan.counts.sum()) == whole
+            assert kept < 0.8 * whole, (yaw, kept, whole)
+            assert np.abs(every - every[0, 0]).sum(axis=2).astype(bool).mean() > 0.1  # the head is in view
+            assert np.abs(culled - every).max() <= 1, (yaw, pitch)
