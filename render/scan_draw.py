@@ -131,7 +131,7 @@ class ScanDraw:
         if eye is None or not self.cull_on_cpu:
             self._facing_rows = None
             return self.maker.rows(posed)
-        rows = self.maker.rows_facing(posed, eye, self.group, self.starts, self.kept, self.counts)
+        rows = self.maker.rows(posed, eye, self.group, self.starts, self.kept, self.counts)
         self._facing_rows = rows
         return rows
 

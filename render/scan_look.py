@@ -397,29 +397,55 @@ class ScanLook:
 
 class ScanRows:
     """The posed scan as the renderer's rows x y z nx ny nz fold (one (N, 7) float32 array,
-    rewritten every call: upload it, don't keep it)."""
+    rewritten every call: upload it, don't keep it). While the lips are shut the mouth's inside is
+    not drawn, and the rows of its deep part (what no drawn vertex's normal or fold reads) are left
+    as they were: its triangles are a quarter of the scan's."""
 
     def __init__(self, look: ScanLook) -> None:
         self.look = look
         self.buffer = np.zeros((N_VERTICES, 7), np.float32)
         self.scratch = np.zeros(N_VERTICES, np.float32)
         self.tri = np.ascontiguousarray(look.triangles, np.int32)
+        self.skip_tri, self.skip_v = self._deep_mouth()
+        self._no_group = np.full(len(self.tri), -1, np.int8)
+        self._none = (np.zeros(1, np.int64), np.zeros(3, np.float32), np.zeros((1, 3), np.int32),
+                      np.zeros(0, np.int64))
 
-    def rows(self, posed: np.ndarray) -> np.ndarray:
+    def _deep_mouth(self) -> tuple[np.ndarray, np.ndarray]:
+        """(T,) uint8 the mouth's triangles and (N,) uint8 the vertices that only the mouth's inside
+        uses and that lie over one edge away from any vertex drawn with the lips shut (the normals
+        of those next to a drawn vertex feed its fold term, so they are kept exact)."""
+        look = self.look
+        n = N_VERTICES
+        drawn = np.zeros(n, bool)
+        for name, t in look.groups.items():
+            if name != "mouth":
+                drawn[t.ravel()] = True
+        near = drawn.copy()
+        for i in np.flatnonzero(drawn):
+            near[look.nbr[look.nbr_ptr[i]:look.nbr_ptr[i + 1]]] = True
+        mouth = np.zeros(n, bool)
+        mouth[look.groups["mouth"].ravel()] = True
+        in_mouth = np.zeros(len(self.tri), bool)
+        lo = len(look.groups["skin"])
+        in_mouth[lo:lo + len(look.groups["mouth"])] = True  # `triangles` are the groups in order
+        skip_tri = in_mouth & ~near[self.tri].any(axis=1)
+        skip_v = mouth & ~near
+        return skip_tri.astype(np.uint8), skip_v.astype(np.uint8)
+
+    def rows(self, posed: np.ndarray, eye: np.ndarray | None = None, group: np.ndarray | None = None,
+             starts: np.ndarray | None = None, kept: np.ndarray | None = None,
+             counts: np.ndarray | None = None) -> np.ndarray:
+        """The rows of the scan posed so; given `eye` (the camera's position) and a group per
+        triangle of `look.triangles` (-1: none), also the triangles of each group g that may face
+        the eye, at kept[starts[g]:][:counts[g]] (render.scan_kernel.scan_rows)."""
         from render.scan_kernel import scan_rows
 
         p = np.ascontiguousarray(posed, dtype=np.float32)
-        scan_rows(p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch, self.buffer)
-        return self.buffer
-
-    def rows_facing(self, posed: np.ndarray, eye: np.ndarray, group: np.ndarray, starts: np.ndarray,
-                    kept: np.ndarray, counts: np.ndarray) -> np.ndarray:
-        """`rows`, and the triangles of each drawn group (group[t] >= 0 for the t-th of
-        `look.triangles`) that may face `eye`, at kept[starts[g]:][:counts[g]]
-        (render.scan_kernel.scan_rows_facing)."""
-        from render.scan_kernel import scan_rows_facing
-
-        p = np.ascontiguousarray(posed, dtype=np.float32)
-        scan_rows_facing(p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch,
-                         self.buffer, group, starts, np.asarray(eye, np.float32), kept, counts)
+        closed = not self.look.mouth_open(p)
+        if eye is None or group is None or starts is None or kept is None or counts is None:
+            starts, eye, kept, counts = self._none
+            group = self._no_group
+        scan_rows(p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch, self.buffer,
+                  self.skip_tri, self.skip_v, closed, group, starts, np.asarray(eye, np.float32), kept, counts)
         return self.buffer
