@@ -13,7 +13,9 @@ llvmpipe rasterises on LP_NUM_THREADS threads (default: one per core); the run p
 used. `--lp-threads 1,2` reruns the benchmark once per value in a fresh process (the variable is
 read when the driver loads).
 `--scan N` times the scanned head (the default face) shaded + HUD against the floor in N
-alternating batches, whole frames (posing, rows, drawing) and the drawing alone.
+alternating batches, whole frames (posing, rows, drawing; also with every triangle handed to
+OpenGL, render.scan_draw's cull_on_cpu off) and the drawing alone (rows made beforehand: every
+triangle; also with the whole skin in its full shader, split_skin off), for comparison.
 `--head-vs-mask N` times the default face with its held head against the mask alone in N
 alternating batches instead (both see the same load: the issue-11 budget, head at most 1.2x).
 Run: .venv/bin/python benchmarks/render_frame.py [--lp-threads 1,2] [--resolutions 0,1] [--mask]
@@ -32,8 +34,9 @@ FRAME_60HZ_MS = 1000.0 / 60.0
 
 
 def _states(model: object, n: int, expression: str = "happiness") -> list[object]:
-    """A short expression onset (happiness), so surfaces (and trails) change every frame."""
-    from sim.facs import apply_expression
+    """A short expression onset (happiness), so surfaces (and trails) change every frame; "jaw_open"
+    is the jaw dropped fully (AU27), "neutral" the face held at rest."""
+    from sim.facs import apply_au, apply_expression
     from sim.integrator import Simulator
     from sim.state import FaceControl
 
@@ -42,7 +45,11 @@ def _states(model: object, n: int, expression: str = "happiness") -> list[object
     out = []
     for k in range(n):
         control = FaceControl(model)
-        apply_expression(control, expression, min(1.0, (k + 1) / n))
+        w = min(1.0, (k + 1) / n)
+        if expression == "jaw_open":
+            apply_au(control, "AU27", w)
+        elif expression != "neutral":
+            apply_expression(control, expression, w)
         sim.step(state, control)
         out.append(state.copy())
     return out
@@ -203,7 +210,8 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
     """The scanned head (the default face, sim.face.scan) shaded + HUD, in alternating 10-frame
     batches with the floor: each frame poses the whole scan from the simulated surface, makes its
     rows (normals, fold term) and draws; also the drawing alone (rows made beforehand), for a
-    happiness onset (lips closed: the mouth's inside left out) and a surprise onset (jaw open)."""
+    happiness onset, a surprise onset, the jaw dropped (AU27) and the face at rest (lips closed:
+    the mouth's inside left out)."""
     import statistics
 
     from puppet.face_cache import scan_model
@@ -217,20 +225,24 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
     out = []
     with OffscreenRenderer(model, size, ctx=ctx) as off:  # type: ignore[arg-type]
         r = off.renderer
-        for expression in ("happiness", "surprise"):
+        for expression in ("happiness", "surprise", "jaw_open", "neutral"):
             states = _states(model, 30, expression)
             rows = [r.scan.rows(s).copy() for s in states]
             drawn = []
             for s, rw in zip(states, rows):
                 s.scan_rows = rw  # type: ignore[attr-defined]
                 drawn.append(r.scan.look.mouth_open(rw[:, :3]))
-            times: dict[str, list[tuple[float, float]]] = {"whole": [], "draw": [], "floor": []}
+            times: dict[str, list[tuple[float, float]]] = {"whole": [], "all_tris": [], "draw": [], "unsplit": [],
+                                                           "floor": []}
             for b in range(batches + 1):
-                for key, use_rows in (("whole", False), ("draw", True)):
-                    def frame(i: int, use: bool = use_rows) -> None:
+                for key, use_rows in (("whole", False), ("all_tris", False), ("draw", True), ("unsplit", True)):
+                    def frame(i: int, use: bool = use_rows, split: bool = key != "unsplit",
+                              cull: bool = key != "all_tris") -> None:
                         s = states[i % len(states)]
                         if not use:
                             del s.scan_rows  # type: ignore[attr-defined]
+                        r.scan.split_skin = split
+                        r.scan.cull_on_cpu = cull
                         off.fbo.use()
                         r.draw(s, hud)
                         off.ctx.finish()  # type: ignore[attr-defined]
@@ -243,11 +255,14 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                     times["floor"].append(t)
             med = {k: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v))
                    for k, v in times.items()}
-            f, whole, draw = med["floor"], med["whole"], med["draw"]
+            f, whole, draw, unsplit = med["floor"], med["whole"], med["draw"], med["unsplit"]
+            every = med["all_tris"]
             out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; "
                        f"floor {f[0]:.2f} ms (cpu {f[1]:.2f}); whole frame {whole[0]:.2f} ms = "
-                       f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x); drawing alone "
-                       f"{draw[0]:.2f} ms = {draw[0] / f[0]:.2f}x (cpu {draw[1] / f[1]:.2f}x)")
+                       f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x), with every triangle handed to "
+                       f"OpenGL {every[0] / f[0]:.2f}x (cpu {every[1] / f[1]:.2f}x); drawing alone "
+                       f"{draw[0]:.2f} ms = {draw[0] / f[0]:.2f}x (cpu {draw[1] / f[1]:.2f}x); the same with "
+                       f"the skin in one shader {unsplit[0] / f[0]:.2f}x (cpu {unsplit[1] / f[1]:.2f}x)")
     return out
 
 

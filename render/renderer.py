@@ -282,7 +282,10 @@ class FaceRenderer:
         n = self.normals.n  # render process is handed them with the frame: see puppet.export.video)
         if self.scan is not None:
             scan_rows = getattr(state, "scan_rows", None)
-            self._scan_rows = self.scan.rows(state) if scan_rows is None else scan_rows
+            if scan_rows is None:  # posed here: the camera's position lets it leave back faces out
+                eye = np.linalg.inv(self._matrices(w / max(h, 1))[0])[:3, 3]
+                scan_rows = self.scan.rows(state, eye)
+            self._scan_rows = scan_rows
             surface = np.ascontiguousarray(state.surface, dtype=np.float32)
             if self.view in ("wireframe", "muscles", "trails"):  # the overlays' surface, no normals
                 rows = self._overlay_rows(surface)

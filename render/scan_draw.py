@@ -16,6 +16,11 @@ from render.scan_look import IRIS_ANGLE, PUPIL_ANGLE, ScanLook, ScanRows
 from sim.face.scan.blendshapes import StateControl as PoseControl
 
 KINDS = ("SKIN", "CLAY", "HEAT")
+# the groups drawn with back faces culled, in drawing order: the skin first (so that the depth test
+# rejects the hidden pixels of what follows; the shaded look draws its brows and lips with every
+# term and the rest, most pixels, with the plain shader: the same colours, less work per pixel),
+# the eyeballs, the eye sockets, the mouth's inside
+CULLED = ("plain", "features", "eyes", "sockets", "mouth")
 
 
 def dressing_of(model: Any) -> Any:
@@ -61,7 +66,7 @@ class ScanDraw:
         self.look = ScanLook(np.asarray(rest_scan, np.float64))
         self.maker = ScanRows(self.look)
         self.progs = {k: ctx.program(vertex_shader=scan_shaders.scan_skin_source(k, vertex=True),
-                                     fragment_shader=scan_shaders.scan_skin_source(k)) for k in KINDS}
+                                     fragment_shader=scan_shaders.scan_skin_source(k)) for k in (*KINDS, "PLAIN")}
         self.eye_prog = ctx.program(vertex_shader=scan_shaders.SCAN_EYE_VS, fragment_shader=scan_shaders.SCAN_EYE_FS)
         self.lash_prog = ctx.program(vertex_shader=scan_shaders.SCAN_LASH_VS,
                                      fragment_shader=scan_shaders.SCAN_LASH_FS)
@@ -74,17 +79,29 @@ class ScanDraw:
                    "in_rest": (look.rest.astype(np.float32), "3f"), "in_angle": (look.gaze_angle, "1f")}
         bufs = {name: (ctx.buffer(np.ascontiguousarray(a, np.float32).tobytes()), fmt)
                 for name, (a, fmt) in statics.items()}
-        ibos = {g: ctx.buffer(t.tobytes()) for g, t in look.groups.items()}
-        self._gl: list[Any] = [self.vbo, *(b for b, _ in bufs.values()), *ibos.values()]
-        self.vaos: dict[tuple[str, str], moderngl.VertexArray] = {}
-        for kind, prog in self.progs.items():
-            for group in ("skin", "mouth", "sockets"):
-                self.vaos[kind, group] = self._vao(prog, bufs, ibos[group])
-        self.eye_vao = self._vao(self.eye_prog, bufs, ibos["eyes"])
-        self.lash_vao = self._vao(self.lash_prog, bufs, ibos["lashes"])
+        groups = {**look.groups, **look.skin_split()}
+        # the culled groups share one index buffer, a slice each in drawing order (CULLED); a frame
+        # whose rows were made here with the camera's position draws only the triangles of each
+        # slice that may face the camera (see rows)
+        self.cull_tri = np.ascontiguousarray(np.concatenate([groups[g] for g in CULLED]), np.int32)
+        self.starts = np.cumsum([0, *(len(groups[g]) for g in CULLED)]).astype(np.int64)
+        self.full = np.diff(self.starts).astype(np.int64)
+        self.group = look.group_of_triangles(CULLED)
+        self.kept = self.cull_tri.copy()
+        self.counts = self.full.copy()
+        self._facing_rows: np.ndarray | None = None  # the rows `kept` was made with
+        self._ibo_whole = True
+        self.ibo = ctx.buffer(self.cull_tri.tobytes(), dynamic=True)
+        lashes = ctx.buffer(np.ascontiguousarray(groups["lashes"]).tobytes())
+        self._gl: list[Any] = [self.vbo, *(b for b, _ in bufs.values()), self.ibo, lashes]
+        self.vaos = {kind: self._vao(prog, bufs, self.ibo) for kind, prog in self.progs.items()}
+        self.eye_vao = self._vao(self.eye_prog, bufs, self.ibo)
+        self.lash_vao = self._vao(self.lash_prog, bufs, lashes)
         self._gl += [*self.vaos.values(), self.eye_vao, self.lash_vao, *self.progs.values(), self.eye_prog,
                      self.lash_prog]
         self.mouth_drawn = False
+        self.split_skin = True  # False: the whole skin with every term (the same pixels, slower)
+        self.cull_on_cpu = True  # False: every triangle to OpenGL, which culls them (the same pixels)
 
     def _vao(self, prog: moderngl.Program, bufs: dict[str, tuple[moderngl.Buffer, str]],
              ibo: moderngl.Buffer) -> moderngl.VertexArray:
@@ -106,16 +123,46 @@ class ScanDraw:
         seen = v[v[:, 1] > front[:, 1].min() - 2.0]  # down to a little below the chin
         return seen.min(axis=0), seen.max(axis=0)
 
-    def rows(self, state: Any) -> np.ndarray:
+    def rows(self, state: Any, eye: np.ndarray | None = None) -> np.ndarray:
         """(26719, 7) float32 rows x y z nx ny nz fold of the scan posed to `state` (the same array
-        every call)."""
+        every call); given `eye`, the camera's position in model space, also which triangles may
+        face it, for the next `draw` of these rows."""
         posed = self.dressing.pose_turned(np.asarray(state.surface), PoseControl(state), state)
-        return self.maker.rows(posed)
+        if eye is None or not self.cull_on_cpu:
+            self._facing_rows = None
+            return self.maker.rows(posed)
+        rows = self.maker.rows(posed, eye, self.group, self.starts, self.kept, self.counts)
+        self._facing_rows = rows
+        return rows
+
+    def _indices(self, rows: np.ndarray, groups: int) -> None:
+        """The index buffer's first `groups` slices for these rows: the triangles that may face the
+        camera when `rows` made them, else every triangle."""
+        if rows is self._facing_rows:
+            for g in range(groups):
+                lo = int(self.starts[g])
+                self.ibo.write(self.kept[lo:lo + int(self.counts[g])], offset=lo * 12)
+            self._ibo_whole = False
+            return
+        if not self._ibo_whole:
+            self.ibo.write(self.cull_tri.tobytes())
+            self._ibo_whole = True
+        self.counts[:] = self.full
+
+    def _render(self, vao: moderngl.VertexArray, group: str) -> None:
+        g = CULLED.index(group)
+        n = int(self.counts[g])
+        if n:
+            vao.render(moderngl.TRIANGLES, vertices=3 * n, first=3 * int(self.starts[g]))
 
     def draw(self, rows: np.ndarray, kind: str, mvp: bytes, view_m: bytes, heat_scale: float) -> None:
+        """Draw the posed scan (its rows) in look `kind`."""
         self.vbo.write(rows)
+        self.mouth_drawn = self.look.mouth_open(rows[:, :3])
+        self._indices(rows, len(CULLED) if self.mouth_drawn else len(CULLED) - 1)
+        self._facing_rows = None
         prog = self.progs[kind]
-        for p in (prog, self.eye_prog):
+        for p in (prog, self.eye_prog, *((self.progs["PLAIN"],) if kind == "SKIN" else ())):
             p["mvp"].write(mvp)
             p["view"].write(view_m)
         self.lash_prog["mvp"].write(mvp)
@@ -123,12 +170,12 @@ class ScanDraw:
             prog["heat_scale"].value = float(heat_scale)
         ctx = self.ctx
         ctx.enable(moderngl.CULL_FACE)
-        self.vaos[kind, "skin"].render(moderngl.TRIANGLES)
-        self.eye_vao.render(moderngl.TRIANGLES)
-        self.vaos[kind, "sockets"].render(moderngl.TRIANGLES)
-        self.mouth_drawn = self.look.mouth_open(rows[:, :3])
+        self._render(self.vaos["PLAIN" if kind == "SKIN" and self.split_skin else kind], "plain")
+        self._render(self.vaos[kind], "features")
+        self._render(self.eye_vao, "eyes")
+        self._render(self.vaos[kind], "sockets")
         if self.mouth_drawn:
-            self.vaos[kind, "mouth"].render(moderngl.TRIANGLES)
+            self._render(self.vaos[kind], "mouth")
         ctx.disable(moderngl.CULL_FACE)
         if kind == "SKIN":  # hair over the skin: blended, without depth writes
             fbo = ctx.fbo

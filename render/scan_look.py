@@ -36,6 +36,11 @@ MOUTH_CORNER_X = 2.45  # cm: the generic head's mouth corners, either side of th
 IRIS_ANGLE = 0.50  # rad from the gaze axis: the limbus, where the cornea's bulge starts on the scan
 PUPIL_ANGLE = 0.19
 
+# cm of signed distance beyond which the skin shader's brow / vermilion terms are exactly nothing:
+# the brow's edge smoothstep(-0.12, 0.06, d + 0.07 s) with its hair pattern s in -1..1, the lip's
+# smoothstep(-0.05, 0.05, d); a triangle whose corners all lie beyond is drawn without them
+BROW_CLEAR = 0.06 + 0.07
+LIP_CLEAR = 0.05
 LIP_GAP = 0.05  # cm the lips must part by before the mouth's inside is drawn (a pixel is ~0.035 cm at 720p)
 TEETH_DEPTH = 2.5  # cm behind the front teeth: the deepest teeth drawn
 GUMS_DEPTH = 4.0
@@ -356,6 +361,32 @@ class ScanLook:
             out[lo:lo + SCLERA] = np.arccos(np.clip(cosang, -1.0, 1.0))
         return out
 
+    def skin_split(self) -> dict[str, np.ndarray]:
+        return {k: self.groups["skin"][m] for k, m in self._skin_masks().items()}
+
+    def _skin_masks(self) -> dict[str, np.ndarray]:
+        """The skin's triangles in two groups: "features", those a brow or the vermilion reaches
+        (a corner within the brow's or the lip's shading edge, render.scan_shaders.SCAN_SKIN_FS),
+        and "plain", the rest, where those terms are exactly nothing."""
+        t = self.groups["skin"]
+        m = self.material
+        plain = (m[t, 0] >= BROW_CLEAR).all(axis=1) & (m[t, 1] >= LIP_CLEAR).all(axis=1)
+        return {"features": ~plain, "plain": plain}
+
+    def group_of_triangles(self, order: tuple[str, ...]) -> np.ndarray:
+        """(T,) int8: for each triangle of `triangles`, its group's place in `order` (group names,
+        the skin's as "plain" / "features" of skin_split), -1 for a group not in it."""
+        out = []
+        for name, t in self.groups.items():
+            if name == "skin":
+                masks = self._skin_masks()
+                g = np.where(masks["plain"], order.index("plain") if "plain" in order else -1,
+                             order.index("features") if "features" in order else -1)
+            else:
+                g = np.full(len(t), order.index(name) if name in order else -1)
+            out.append(g)
+        return np.concatenate(out).astype(np.int8)
+
     def mouth_open(self, posed: np.ndarray) -> bool:
         """Whether the lips have parted anywhere along the mouth (the inside can be seen)."""
         if not len(self.lip_pairs):
@@ -366,17 +397,55 @@ class ScanLook:
 
 class ScanRows:
     """The posed scan as the renderer's rows x y z nx ny nz fold (one (N, 7) float32 array,
-    rewritten every call: upload it, don't keep it)."""
+    rewritten every call: upload it, don't keep it). While the lips are shut the mouth's inside is
+    not drawn, and the rows of its deep part (what no drawn vertex's normal or fold reads) are left
+    as they were: its triangles are a quarter of the scan's."""
 
     def __init__(self, look: ScanLook) -> None:
         self.look = look
         self.buffer = np.zeros((N_VERTICES, 7), np.float32)
         self.scratch = np.zeros(N_VERTICES, np.float32)
         self.tri = np.ascontiguousarray(look.triangles, np.int32)
+        self.skip_tri, self.skip_v = self._deep_mouth()
+        self._no_group = np.full(len(self.tri), -1, np.int8)
+        self._none = (np.zeros(1, np.int64), np.zeros(3, np.float32), np.zeros((1, 3), np.int32),
+                      np.zeros(0, np.int64))
 
-    def rows(self, posed: np.ndarray) -> np.ndarray:
+    def _deep_mouth(self) -> tuple[np.ndarray, np.ndarray]:
+        """(T,) uint8 the mouth's triangles and (N,) uint8 the vertices that only the mouth's inside
+        uses and that lie over one edge away from any vertex drawn with the lips shut (the normals
+        of those next to a drawn vertex feed its fold term, so they are kept exact)."""
+        look = self.look
+        n = N_VERTICES
+        drawn = np.zeros(n, bool)
+        for name, t in look.groups.items():
+            if name != "mouth":
+                drawn[t.ravel()] = True
+        near = drawn.copy()
+        for i in np.flatnonzero(drawn):
+            near[look.nbr[look.nbr_ptr[i]:look.nbr_ptr[i + 1]]] = True
+        mouth = np.zeros(n, bool)
+        mouth[look.groups["mouth"].ravel()] = True
+        in_mouth = np.zeros(len(self.tri), bool)
+        lo = len(look.groups["skin"])
+        in_mouth[lo:lo + len(look.groups["mouth"])] = True  # `triangles` are the groups in order
+        skip_tri = in_mouth & ~near[self.tri].any(axis=1)
+        skip_v = mouth & ~near
+        return skip_tri.astype(np.uint8), skip_v.astype(np.uint8)
+
+    def rows(self, posed: np.ndarray, eye: np.ndarray | None = None, group: np.ndarray | None = None,
+             starts: np.ndarray | None = None, kept: np.ndarray | None = None,
+             counts: np.ndarray | None = None) -> np.ndarray:
+        """The rows of the scan posed so; given `eye` (the camera's position) and a group per
+        triangle of `look.triangles` (-1: none), also the triangles of each group g that may face
+        the eye, at kept[starts[g]:][:counts[g]] (render.scan_kernel.scan_rows)."""
         from render.scan_kernel import scan_rows
 
         p = np.ascontiguousarray(posed, dtype=np.float32)
-        scan_rows(p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch, self.buffer)
+        closed = not self.look.mouth_open(p)
+        if eye is None or group is None or starts is None or kept is None or counts is None:
+            starts, eye, kept, counts = self._none
+            group = self._no_group
+        scan_rows(p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch, self.buffer,
+                  self.skip_tri, self.skip_v, closed, group, starts, np.asarray(eye, np.float32), kept, counts)
         return self.buffer

@@ -108,3 +108,53 @@ def test_every_view_draws_the_simulated_scanned_head(gl) -> None:
     assert face.mean() > 0.15  # the head fills a good part of the picture
     for view in ("wireframe", "muscles", "trails", "heat"):
         assert np.abs(shots[view] - shots["shaded"]).sum(axis=2)[face].mean() > 5, view
+
+
+def test_plain_skin_shader_draws_the_same_skin(gl) -> None:
+    """Most of the skin is drawn with the plain shader, without the brow and vermilion terms: the
+    picture must be the one the full skin shader makes, brows, lips and highlights included."""
+    shapes = ScanShapes(expressions={"jawOpen": 0.3, "mouthSmile_L": 0.8, "browInnerUp_R": 0.7})
+    img, off, _ = _shot(gl, shapes)
+    try:
+        scan = off.renderer.scan
+        plain = len(scan.look.skin_split()["plain"])
+        assert 0.5 * len(scan.look.groups["skin"]) < plain < len(scan.look.groups["skin"])
+        scan.split_skin = False
+        whole = off.render_frame(off.renderer.model.rest_state(), record=False).astype(float)
+        assert gl.error == "GL_NO_ERROR"
+        assert np.abs(whole - img[0, 0]).sum(axis=2).astype(bool).mean() > 0.2  # the face is in the picture
+        assert np.abs(whole - img).max() <= 1.0
+    finally:
+        off.release()
+
+
+def test_back_faces_left_out_on_the_cpu_change_no_pixel(gl) -> None:
+    """The triangles turned away from the camera are left out before OpenGL sees them: from the
+    front, the side and behind, with the mouth open, the picture is the one OpenGL's own culling
+    makes, and a good share of the triangles is left out."""
+    from puppet.face_cache import scan_model
+    from sim.facs import apply_au
+    from sim.integrator import Simulator
+    from sim.state import FaceControl
+
+    model = scan_model(None)
+    sim, state = Simulator(model), model.rest_state()
+    control = FaceControl(model)
+    apply_au(control, "AU27", 1.0)
+    for _ in range(6):
+        sim.step(state, control)
+    with OffscreenRenderer(model, (240, 180), ctx=gl) as off:
+        scan = off.renderer.scan
+        for yaw, pitch in ((0.0, 0.0), (1.3, 0.4), (3.1, -0.3)):
+            off.renderer.camera.yaw, off.renderer.camera.pitch = yaw, pitch
+            scan.cull_on_cpu = True
+            culled = off.render_frame(state, record=False).astype(int)
+            assert scan.mouth_drawn
+            kept, whole = int(scan.counts.sum()), int(scan.full.sum())
+            scan.cull_on_cpu = False
+            every = off.render_frame(state, record=False).astype(int)
+            assert gl.error == "GL_NO_ERROR"
+            assert int(scan.counts.sum()) == whole
+            assert kept < 0.8 * whole, (yaw, kept, whole)
+            assert np.abs(every - every[0, 0]).sum(axis=2).astype(bool).mean() > 0.1  # the head is in view
+            assert np.abs(culled - every).max() <= 1, (yaw, pitch)
