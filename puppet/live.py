@@ -642,6 +642,9 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
     rate holds on average, and the recording keeps the tick each event was applied at, as ever."""
     limit = None if duration is None else int(round(duration * core.rate))
     per_frame = None if frame_rate is None or frame_rate >= core.rate else core.rate / frame_rate
+    if core.writer is not None:  # the loop's thread never writes the file itself (a write can wait on the disk)
+        with _OrdinaryThreads():
+            core.writer.write_behind()
     with _ShowRuntime() as runtime:
         start = clock()
         k0 = core.tick_count  # a resumed take starts at its first new tick
@@ -873,6 +876,9 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
     if pictures:
         win.after_draw.append(offer)
     win.hud = live_hud(core, devs, keymap)
+    if core.writer is not None:  # as run_realtime
+        with _OrdinaryThreads():
+            core.writer.write_behind()
     try:
         with _ShowRuntime() as runtime:
             sched["start"] = time.monotonic()
