@@ -276,6 +276,10 @@ def _open_panel(args: argparse.Namespace, face: Any, devs: list[Any], explicit: 
         announce(dev)
 
 
+#: on a cold start, how long the first tick waits at most for the page's server to have started
+PAGE_START_WAIT = 5.0
+
+
 def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], mapped: list[tuple[str, str]],
              windowed: bool, record: str | None, snapshot: Path | None, warn: Any, watch: bool = False) -> int:
     import devices
@@ -292,6 +296,16 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         mapper.declare_controls(d.spec, d.controls)
     virtual = bool(devs) and all(getattr(getattr(d, "script", None), "speed", 1.0) == 0 for d in devs)
     from puppet.tick_rate import live_tick_rate
+
+    # a page nobody asked for is served after the first frame (a fast start); but when the face's
+    # kernels are being compiled (the first show after an install or update) it is served now, while
+    # they compile and the tick cost is measured, and it has started before the first tick: its start
+    # (aiohttp's import, the CA bundle: ~50 ms holding the interpreter) must not land on the show's
+    # first ticks; so is the wrinkle layer built then (wrinkles_later)
+    from puppet.panel import announce
+
+    early = [p for p in panel_devices(devs) if p.server is None and p.serve_later and live.compiling_kernels()]
+    starting = [page.serve_in_background(announce, warn) for page in early]
 
     # headless on the wall clock (the loop wakes on events) the fastest tick the face's measured step
     # affords (240 Hz for the procedural face, 120 Hz for the scanned head here); a window runs the
@@ -337,15 +351,6 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
     import time
 
     win = live.open_live_window(face.model, devs) if windowed and not virtual else None
-    from puppet.panel import announce
-
-    # a page nobody asked for is served after the first frame (a fast start); but when the face's
-    # kernels are being compiled (the first show after an install or update) it is served now, in
-    # that time: its start (aiohttp's import loads the CA bundle, ~50 ms holding the interpreter)
-    # must not land on the show's first ticks; so is the wrinkle layer built then (wrinkles_later)
-    early = [p for p in panel_devices(devs) if p.server is None and p.serve_later and live.compiling_kernels()]
-    for page in early:
-        page.serve_in_background(announce, warn)
     try:  # the window is closed by run_window; until then, by this if the show fails to start
         t0 = time.monotonic()
         core = live.LiveCore(face, mapper, rate=rate, writer=writer, t0=0.0 if virtual else t0, lights=lights,
@@ -376,6 +381,8 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         if win is not None:
             win.close()
         raise
+    for th in starting:  # a cold start has waited seconds already: the page's start is done first
+        th.join(PAGE_START_WAIT)
     try:
         if not virtual:
             live.prepare_show()

@@ -513,15 +513,18 @@ GC_FULL_FRAMES = 3600
 
 def wait_until(deadline: float, clock: Callable[[], float] = time.monotonic,
                sleep: Callable[[float], None] = time.sleep, stop: StopFlag | None = None,
-               spin: float = SPIN_S) -> float:
+               spin: float = SPIN_S, ready: Callable[[], bool] | None = None) -> float:
     """Wait for an absolute deadline (no drift from relative sleeps): sleep to within `spin` of it,
-    then spin, yielding the GIL to the device threads. Returns the clock when it returned. With an
-    injected sleep (tests' fake clocks) it only sleeps: a fake clock does not move while spinning."""
+    then spin, yielding the GIL to the device threads. Returns the clock when it returned. `ready`
+    (e.g. whether input arrived) is asked while spinning: the wait ends as soon as it says yes. With
+    an injected sleep (tests' fake clocks) it only sleeps: a fake clock does not move while spinning."""
     real = sleep is time.sleep
     while True:
         now = clock()
         rem = deadline - now
         if rem <= 0 or (stop is not None and stop.stopped):
+            return now
+        if rem <= spin and ready is not None and ready():
             return now
         if rem > spin or not real:
             sleep(min(rem - spin, 0.05) if real else min(rem, 0.05))
@@ -650,6 +653,9 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
     rate holds on average, and the recording keeps the tick each event was applied at, as ever."""
     limit = None if duration is None else int(round(duration * core.rate))
     per_frame = None if frame_rate is None or frame_rate >= core.rate else core.rate / frame_rate
+    if core.writer is not None:  # the loop's thread never writes the file itself (a write can wait on the disk)
+        with _OrdinaryThreads():
+            core.writer.write_behind()
     with _ShowRuntime() as runtime:
         start = clock()
         k0 = core.tick_count  # a resumed take starts at its first new tick
@@ -665,7 +671,9 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
             if wake is not None:
                 now = wait_until(boundary - core.dt, clock, sleep, stop)  # at most one tick ahead
                 if not (boundary - now > SPIN_S and wake(boundary - now - SPIN_S)):
-                    now = wait_until(boundary, clock, sleep, stop)
+                    # the last SPIN_S before the boundary is spun: input arriving then starts the
+                    # tick at once too (it waited up to SPIN_S for the boundary: 18 % of events at 120 Hz)
+                    now = wait_until(boundary, clock, sleep, stop, ready=lambda: wake(0.0))
             else:
                 now = wait_until(boundary, clock, sleep, stop)
             if stop is not None and stop.stopped:
@@ -883,6 +891,9 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
     if pictures:
         win.after_draw.append(offer)
     win.hud = live_hud(core, devs, keymap)
+    if core.writer is not None:  # as run_realtime
+        with _OrdinaryThreads():
+            core.writer.write_behind()
     try:
         with _ShowRuntime() as runtime:
             sched["start"] = time.monotonic()

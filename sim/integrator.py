@@ -335,14 +335,22 @@ def _turn_with_jaw(rest, offset, pivot, weight, rot, slide, target, shape):  # t
 
 @numba.njit(cache=True, nogil=True)
 def _turn_normals(normal, weight, rot, out):  # type: ignore[no-untyped-def]
-    """out = normal + w (normal @ rot.T - normal), row by row in the numpy expression's order."""
+    """out = the unit rows of normal + w (normal @ rot.T - normal), in the order of the numpy
+    expressions `n / np.linalg.norm(n, axis=1)[:, None]` they replace (the squares summed left to
+    right, as numpy's reduction over a row of three does), so the same bits; a moving jaw turns the
+    support normals every tick (the normalisation alone took 0.13 ms in numpy on the scanned head)."""
     for i in range(normal.shape[0]):
         w = weight[i]
         n0 = normal[i, 0]
         n1 = normal[i, 1]
         n2 = normal[i, 2]
-        for j in range(3):
-            out[i, j] = normal[i, j] + w * (n0 * rot[j, 0] + n1 * rot[j, 1] + n2 * rot[j, 2] - normal[i, j])
+        t0 = n0 + w * (n0 * rot[0, 0] + n1 * rot[0, 1] + n2 * rot[0, 2] - n0)
+        t1 = n1 + w * (n0 * rot[1, 0] + n1 * rot[1, 1] + n2 * rot[1, 2] - n1)
+        t2 = n2 + w * (n0 * rot[2, 0] + n1 * rot[2, 1] + n2 * rot[2, 2] - n2)
+        length = math.sqrt((t0 * t0 + t1 * t1) + t2 * t2)
+        out[i, 0] = t0 / length
+        out[i, 1] = t1 / length
+        out[i, 2] = t2 / length
 
 
 @dataclass(frozen=True)
@@ -500,9 +508,7 @@ class Simulator:
         if rot is None:
             self._normal[...] = m.rest_normal
         else:
-            n = np.empty_like(self._normal)
-            _turn_normals(m.rest_normal, m.jaw_weight, np.ascontiguousarray(rot, dtype=np.float64), n)
-            self._normal[...] = n / np.linalg.norm(n, axis=1)[:, None]
+            _turn_normals(m.rest_normal, m.jaw_weight, np.ascontiguousarray(rot, dtype=np.float64), self._normal)
         self._jaw = pose
 
     def external_forces(self, control: FaceControl) -> np.ndarray:

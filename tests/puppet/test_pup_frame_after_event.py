@@ -72,3 +72,40 @@ def test_the_tick_rate_follows_the_faces_step_cost(face: live.Face) -> None:
     assert all(c > 0 for c in cost.values())
     rate, cost = choose_tick_rate(face.model, budget=10.0)  # anything fits: the highest, tried alone
     assert rate == max(live.TICK_RATES) and list(cost) == [max(live.TICK_RATES)]
+
+
+def test_input_arriving_just_before_a_boundary_starts_its_tick_at_once(face: live.Face) -> None:
+    """The loop spins the last moment before a tick boundary (live.SPIN_S); an event arriving then
+    is taken at once, not at the boundary, and no tick ever starts more than a tick early."""
+    clk = FakeClock()
+    core = live.LiveCore(face, Mapper(live.build_mapping(face.vocab, None, ["mock://"]), face.vocab), rate=120.0)
+    dt = core.dt
+    arrival = clk.t + 5 * dt - live.SPIN_S / 2  # inside the spin before tick 5's boundary
+    pending = [arrival]
+    drains: list[tuple[float, int, bool]] = []  # (clock, tick, took the event)
+
+    def sleep(s: float) -> None:  # time moves in 0.1 ms steps, as a spin would see it
+        clk.t += min(max(s, 0.0), 1e-4)
+
+    def wake(timeout: float) -> bool:  # EventQueue.wait_arrival on the fake clock
+        if pending and pending[0] <= clk.t + max(timeout, 0.0):
+            clk.t = max(clk.t, pending[0])
+            return True
+        clk.t += max(timeout, 0.0)
+        return False
+
+    def drain() -> list:
+        took = bool(pending) and pending[0] <= clk.t
+        drains.append((clk.t, core.tick_count, took))
+        if took:
+            pending.pop()
+            return [ControlEvent("mock://", "dial7", "dial", 0.25, 50.0, 50, arrival)]
+        return []
+
+    start = clk.t
+    live.run_realtime(core, drain, 8 * dt, clock=clk, sleep=sleep, wake=wake)
+    [(t, k, _)] = [d for d in drains if d[2]]
+    assert k == 5
+    assert t - arrival < 2e-4  # taken as it arrived, not SPIN_S / 2 later at the boundary
+    assert all(t >= start + (k - 1) * dt - 1e-9 for t, k, _ in drains)  # never more than a tick early
+    assert core.state_latency.percentile(100) is not None

@@ -161,3 +161,63 @@ def test_disk_full_stops_recording_but_not_the_show(tmp_path: Path, capsys: pyte
     w.close(2)
     assert w.error is not None and "No space left" in capsys.readouterr().err
     assert read_session(p).ticks == 1
+
+
+class _Watched:
+    """A file that notes which thread writes to it and hands each write on."""
+
+    def __init__(self, f) -> None:  # type: ignore[no-untyped-def]
+        self.f, self.writers = f, set()
+
+    def write(self, text: str) -> int:
+        import threading
+
+        self.writers.add(threading.get_ident())
+        return self.f.write(text)
+
+    def flush(self) -> None:
+        import threading
+
+        self.writers.add(threading.get_ident())
+        self.f.flush()
+
+    def __getattr__(self, name: str):  # type: ignore[no-untyped-def]
+        return getattr(self.f, name)
+
+
+def _deferred_take(path: Path, behind: bool) -> set:
+    w = SessionWriter(path, header(), fsync_seconds=None)
+    w.defer = True
+    w._file = watched = _Watched(w._file)  # type: ignore[assignment]
+    if behind:
+        w.write_behind()
+    rows = [[1.0, 2.0, 3.0], [1.0, 2.5, 3.0], [1.0, 2.5, 3.0], [0.5, 2.5, 3.0]] * 10
+    for k, row in enumerate(rows):
+        w.event(k, ControlEvent("mock://", "dial0", "dial", 0.005, 1.0, 1, 12.5 + k))
+        w.values(k, np.array(row))
+        if k % 7 == 3:
+            w.marker(k, f"m{k}")
+            w.check(k + 1, lambda k=k: f"digest{k}")
+        w.tick(k + 1)
+        w.service()
+        if k == 20:
+            w.flush()  # waits for the writer's thread: the file then holds 21 ticks
+            assert read_session(path).ticks == 21
+    during = set(watched.writers)  # who wrote while the take ran (close writes the end record itself)
+    w.close(len(rows))
+    return during
+
+
+def test_a_writer_writing_behind_makes_the_same_file_from_its_own_thread(tmp_path: Path) -> None:
+    """The live loop hands its records to the writer's thread (`write_behind`), so it never waits
+    on the file system (an append waits for the journal an fsync holds): the file is the same, byte
+    for byte, and the loop's thread made no write of its own."""
+    import threading
+
+    mine = _deferred_take(tmp_path / "a.jsonl", behind=False)
+    others = _deferred_take(tmp_path / "b.jsonl", behind=True)
+    strip = [x for x in (tmp_path / "a.jsonl").read_text().splitlines() if '"t":"header"' not in x]
+    assert strip == [x for x in (tmp_path / "b.jsonl").read_text().splitlines() if '"t":"header"' not in x]
+    assert mine == {threading.get_ident()}
+    assert others and threading.get_ident() not in others  # only the writer's thread wrote
+    assert read_session(tmp_path / "b.jsonl").complete
