@@ -151,6 +151,8 @@ class SessionWriter:
         self._kept: list[tuple[Any, ...]] = []
         self._behind: Any = None  # write_behind's queue, once started
         self._behind_thread: threading.Thread | None = None
+        self._handed = self._written = 0  # hand-overs to the writer's thread, and those it has written
+        self._written_cv = threading.Condition()
         if append_to is None:
             self._write(full)
         self.flush()
@@ -251,15 +253,25 @@ class SessionWriter:
         """Write what was kept and hand it to the OS (one write per tick, no fsync); after
         `write_behind`, hand it to the writer's thread, which does that."""
         if self._behind is not None:
-            kept, self._kept = self._kept, []
-            self._behind.put((kept, self._done_ticks, None))
+            self._hand_over(None)
             return
         self.flush()
 
+    def _hand_over(self, written: threading.Event | None) -> None:
+        """What was kept, to the writer's thread, once it has written the last hand-over: the
+        records it has not written are at most one tick's (a crash loses at most a tick), and the
+        loop waits only while the file holds the writer back for longer than a tick."""
+        if threading.current_thread() is not self._behind_thread:
+            with self._written_cv:
+                self._written_cv.wait_for(lambda: self._written >= self._handed)
+        kept, self._kept = self._kept, []
+        self._handed += 1
+        self._behind.put((kept, self._done_ticks, written))
+
     def write_behind(self) -> None:
         """From now on (defer mode) `service()` hands what was kept to a thread of the writer's own,
-        which makes the JSON and writes it, so the calling thread (the live loop) never waits on the
-        file: an append to a file waits for the file system's journal, which an fsync of the same
+        which makes the JSON and writes it, so the calling thread (the live loop) waits on the file
+        only when the previous tick's records are not written yet (`_hand_over`): an append to a file waits for the file system's journal, which an fsync of the same
         file (the durability thread) holds for as long as the disk takes (measured: a 51 ms gap
         between ticks, the loop in the write, under other programs' disk load). `flush` and `close`
         wait for the thread. Records, their order and the file are the same."""
@@ -286,14 +298,16 @@ class SessionWriter:
 
                 print(f"puppet: warning: {self.path}: a record could not be written ({err})", file=sys.stderr)
             finally:
+                with self._written_cv:
+                    self._written += 1
+                    self._written_cv.notify_all()
                 if written is not None:
                     written.set()
 
     def _stop_behind(self) -> None:
         if self._behind is None:
             return
-        kept, self._kept = self._kept, []
-        self._behind.put((kept, self._done_ticks, None))
+        self._hand_over(None)
         self._behind.put(None)
         if self._behind_thread is not None and self._behind_thread is not threading.current_thread():
             self._behind_thread.join()
@@ -307,8 +321,7 @@ class SessionWriter:
     def flush(self) -> None:
         if self._behind is not None:  # the writer's thread writes, in order; wait for it
             written = threading.Event()
-            kept, self._kept = self._kept, []
-            self._behind.put((kept, self._done_ticks, written))
+            self._hand_over(written)
             written.wait()
             return
         if self._kept:

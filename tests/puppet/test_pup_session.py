@@ -209,7 +209,7 @@ def _deferred_take(path: Path, behind: bool) -> set:
 
 
 def test_a_writer_writing_behind_makes_the_same_file_from_its_own_thread(tmp_path: Path) -> None:
-    """The live loop hands its records to the writer's thread (`write_behind`), so it never waits
+    """The live loop hands its records to the writer's thread (`write_behind`), so it does not wait
     on the file system (an append waits for the journal an fsync holds): the file is the same, byte
     for byte, and the loop's thread made no write of its own."""
     import threading
@@ -221,3 +221,26 @@ def test_a_writer_writing_behind_makes_the_same_file_from_its_own_thread(tmp_pat
     assert mine == {threading.get_ident()}
     assert others and threading.get_ident() not in others  # only the writer's thread wrote
     assert read_session(tmp_path / "b.jsonl").complete
+
+
+def test_a_writer_writing_behind_holds_at_most_one_tick_unwritten(tmp_path: Path) -> None:
+    """A file that holds the writer's thread back (a disk busy with an fsync) makes the loop wait at
+    its next hand-over instead of piling ticks up in memory: a crash then loses at most a tick."""
+    import time
+
+    w = SessionWriter(tmp_path / "t.jsonl", header(), fsync_seconds=None)
+    w.defer = True
+    slow = _Watched(w._file)
+    w._file = slow  # type: ignore[assignment]
+    write = slow.write
+    slow.write = lambda text: (time.sleep(0.02), write(text))[1]  # type: ignore[method-assign]
+    w.write_behind()
+    unwritten = []
+    for k in range(8):
+        w.values(k, np.array([1.0, 2.0, float(k)]))
+        w.tick(k + 1)
+        w.service()
+        unwritten.append(w._handed - w._written)
+    w.close(8)
+    assert max(unwritten) <= 1, unwritten
+    assert read_session(tmp_path / "t.jsonl").ticks == 8
