@@ -7,7 +7,7 @@ shares over all of them at once, re-linearised on the simulator, and prints the 
 errors. `--holdout` fits on the left and unsided shapes and also reports the right ones, held out.
 Without --no-write it rewrites `sim/face/scan/ict_rig.npz` (the shipped part of the fit).
 
-    nice .venv/bin/python benchmarks/calibrate_scan.py [--rounds 2] [--holdout] [--no-write]
+    nice .venv/bin/python benchmarks/calibrate_scan.py [--rounds 2] [--holdout] [--per-vertex] [--no-write]
 """
 
 from __future__ import annotations
@@ -48,6 +48,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=2, help="re-linearisations on the simulator (default 2)")
     ap.add_argument("--holdout", action="store_true", help="fit on the left and unsided shapes only")
+    ap.add_argument("--per-vertex", action="store_true",
+                    help="fit a gain per skin vertex of each muscle's zone (smooth), not a dozen bumps")
     ap.add_argument("--no-write", action="store_true", help="do not rewrite the shipped rig")
     args = ap.parse_args()
     items = [s for s in shapes() if rms(s.target) >= STILL_CM]
@@ -56,7 +58,7 @@ def main() -> int:
         test = [s for s in items if s.label.endswith("_R")]
     else:
         train, test = items, []
-    cal, model, _ = run(args.rounds, train, test)
+    cal, model, _ = run(args.rounds, train, test, per_vertex=args.per_vertex)
     if not args.no_write:
         from sim.face.scan.rig import RIG_FILE
         from sim.rig import save_rig

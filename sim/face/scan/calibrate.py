@@ -250,8 +250,9 @@ def calibrated_model(base_model, cal: Calibration):  # type: ignore[no-untyped-d
     return compile_model(rig, base_model.params)
 
 
-def run(rounds: int, train: list[Shape], test: list[Shape], log=print):  # type: ignore[no-untyped-def]
-    """Fit on `train` over `rounds` re-linearisations; report the settled relative errors of both."""
+def run(rounds: int, train: list[Shape], test: list[Shape], log=print, per_vertex: bool = False):  # type: ignore[no-untyped-def]
+    """Fit on `train` over `rounds` re-linearisations; report the settled relative errors of both.
+    per_vertex: a gain per zone vertex (`sim.face.scan.insertion_fit`) instead of the bumps."""
     from sim.face.scan.rig import scan_model
 
     base = scan_model()
@@ -260,11 +261,18 @@ def run(rounds: int, train: list[Shape], test: list[Shape], log=print):  # type:
 
         base = compile_model(replace(base.rig, insertion={}), base.params)
     t0 = time.monotonic()
-    cal = Calibration(base)
+    if per_vertex:
+        from sim.face.scan.insertion_fit import VertexCalibration
+
+        cal = VertexCalibration(base)
+    else:
+        cal = Calibration(base)
     log(f"linear model: {cal.n_params} gains over {len(cal.groups)} muscles in {time.monotonic() - t0:.0f} s")
     every = {s.label: s for s in train + test}
     model = base
     real = settle_all(model, cal, list(every.values()))
+    log(f"placed muscles settled in {time.monotonic() - t0:.0f} s: median relative error "
+        f"{np.median([rms(real[s.label] - s.target) / rms(s.target) for s in train]):.2f} (fitted set)")
     for r in range(rounds):
         offsets = {k: real[k] - cal.predict(s) for k, s in every.items()}
         cal.fit(train, offsets)
