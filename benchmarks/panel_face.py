@@ -176,13 +176,13 @@ def live_run(face: live.Face, n_pages: int, seconds: float, mode: str = "picture
                    encode_ms=(st.encode_s - e0) / max(frames, 1) * 1000, sends=st.sent - s0, skipped=st.skipped - k0)
         per_page = []
         for drv in pages:
-            log, offset, err, cost, got = drv.execute_script(
-                "const f = window.puppetPanel.face; return [f.drawLog, f.offset, f.error, f.cost, f.frames]")
+            log, offset, err, cost, got, size = drv.execute_script(
+                "const f = window.puppetPanel.face; return [f.drawLog, f.offset, f.error, f.cost, f.frames, f.size]")
             lags = [t_page + offset - presented[k] * 1000 for k, t_page in log if k in presented]
             span = (log[-1][1] - log[0][1]) / 1000 if len(log) > 1 else 1.0
             per_page.append({"fps": (len(log) - 1) / span, "lag_p50_ms": float(np.percentile(lags, 50)),
                              "lag_p99_ms": float(np.percentile(lags, 99)), "lag_max_ms": float(np.max(lags)),
-                             "draws": len(log), "error": err,
+                             "draws": len(log), "error": err, "size": size,
                              "cost_ms": {k: v / max(got, 1) for k, v in cost.items()}})
         out["per_page"] = per_page
         # the same pages with the face hidden: what the rest of the page costs the server
@@ -395,6 +395,8 @@ def main() -> int:
             p50 = [p["lag_p50_ms"] for p in r["per_page"]]
             p99 = [p["lag_p99_ms"] for p in r["per_page"]]
             cost = {k: float(np.mean([p["cost_ms"][k] for p in r["per_page"]])) for k in r["per_page"][0]["cost_ms"]}
+            sizes = sorted({"x".join(map(str, p["size"])) for p in r["per_page"] if p.get("size")})
+            how += f" (pictures {', '.join(sizes)})" if sizes else ""
             print(f"{n} page(s), {how}: face drawn {min(fps):.1f}-{max(fps):.1f} frames/s per page; behind the show p50 "
                   f"{min(p50):.0f}-{max(p50):.0f} ms, p99 {min(p99):.0f}-{max(p99):.0f} ms (show {r['show_fps']:.0f} frames/s)")
             per = (r["cpu_shown"] - r["cpu_hidden"]) / n
