@@ -349,7 +349,8 @@ class PanelDevice(Device):
                 # then as fresh as it can be when it goes out), from how long the last ones took
                 if face_task is None:
                     lead = self._face_s + FACE_MARGIN_S if self.face_feed.mode == "picture" else period
-                    face_task = asyncio.get_running_loop().create_task(self._face_step(max(0.0, period - lead)))
+                    wait = due + period - time.monotonic() - lead  # the next state's due time, less the lead
+                    face_task = asyncio.get_running_loop().create_task(self._face_step(max(0.0, wait)))
         finally:  # the server is closing: the picture under way is not waited for
             if face_task is not None:
                 face_task.cancel()
