@@ -36,7 +36,6 @@ if TYPE_CHECKING:  # asyncio is imported where the server thread runs: opening t
 STATE_HZ = 30.0
 #: the longest a state waits for the picture made since the last one (then it goes out alone)
 FACE_WAIT_S = 0.1
-FACE_MARGIN_S = 0.006  # a picture starts this much earlier than the last ones took, before the next state
 MAX_MESSAGE = 4096
 NAME_RE = re.compile(r"[A-Za-z0-9_-]{1,24}")
 
@@ -129,7 +128,6 @@ class PanelDevice(Device):
         if mode not in MODES:
             raise DeviceError(f"{spec.text}: face={mode!r} is not one of {', '.join(MODES)}; expected {self.FORM}")
         self.face_feed = FaceFeed(mode)  # the pages watching the face
-        self._face_s = 0.0  # how long the pictures take (puppet.panel.face), for when to start the next
 
     # --- device hooks ----------------------------------------------------------------------------
     def _open(self) -> None:
@@ -301,8 +299,7 @@ class PanelDevice(Device):
         """The loop's state to every page, and the face to the pages watching it, STATE_HZ times a
         second on an absolute schedule. Both go out together, so a browser redraws its page once
         per state (a software-composited browser pays for every redraw of the whole page): the
-        picture made since the last state goes out right after this state, and the next is started
-        as late as lets it be done before the next state (the last pictures' time ahead of it);
+        picture made since the last state goes out right after this state, and the next is started;
         a picture that takes longer than a period (a loaded machine) holds the state back until it
         is done (at most FACE_WAIT_S), so the pages get max(period, picture time) cycles, each one
         redraw, instead of waiting for the next period after every late picture."""
@@ -344,26 +341,18 @@ class PanelDevice(Device):
                     elif self.face_feed.mode == "picture":  # nothing new: pages that missed the last get it
                         self.face_feed.catch_up()
                     face_task = None
-                # the face in its own task: a picture being rendered never holds up this state; it
-                # starts late enough to be done just before the next state (the state it shows is
-                # then as fresh as it can be when it goes out), from how long the last ones took
+                # the face in its own task: a picture being rendered never holds up this state
                 if face_task is None:
-                    lead = self._face_s + FACE_MARGIN_S if self.face_feed.mode == "picture" else period
-                    wait = due + period - time.monotonic() - lead  # the next state's due time, less the lead
-                    face_task = asyncio.get_running_loop().create_task(self._face_step(max(0.0, wait)))
+                    face_task = asyncio.get_running_loop().create_task(self._face_step())
         finally:  # the server is closing: the picture under way is not waited for
             if face_task is not None:
                 face_task.cancel()
 
-    async def _face_step(self, delay: float = 0.0) -> tuple[dict[tuple[int, int], bytes], int] | None:
+    async def _face_step(self) -> tuple[dict[tuple[int, int], bytes], int] | None:
         """The face to the pages watching it: the loop's state encoded once per new tick for every
         page (puppet.panel.face); in mesh mode a page that just asked for it gets the scene first and
         the frame is sent at once; in picture mode the picture and its tick are returned, for
         `_broadcast` to send with the next state."""
-        import asyncio
-
-        if delay > 0:
-            await asyncio.sleep(delay)
         core, feed = self.core, self.face_feed
         watching = [c.ws for c in list(self.clients.values()) if c.face and not c.ws.closed]
         feed.wanted = bool(watching)
@@ -377,13 +366,8 @@ class PanelDevice(Device):
                     await feed.add(ws, model)
             k = int(core.tick_count)
             if feed.mode == "picture":
-                c0 = time.monotonic()
                 msg = await feed.make_picture(model, core.state, k)
-                if msg is None:
-                    return None
-                took = time.monotonic() - c0  # quick to rise to a slow picture, slow to forget it
-                self._face_s = took if took > self._face_s else 0.9 * self._face_s + 0.1 * took
-                return msg, feed.last_tick
+                return None if msg is None else (msg, feed.last_tick)
             if k != feed.last_tick:
                 feed.publish(core.state, k)
         except Exception:  # the loop's state changed under us, or a page went: next time
