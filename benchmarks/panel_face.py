@@ -15,9 +15,10 @@ cost per page, bytes per frame.
 
 3. The server alone: 1, 4 and 16 WebSocket clients in another process (no browser competing for
    the CPU) with the face asked for and not: the server thread's CPU, hence the face's cost per
-   page, and how far behind the show each frame arrives.
+   page, and how far behind the show each frame arrives; with `--still`, the same with the face at
+   rest (no input): a still face is sent nothing after its first picture.
 
-Run:  .venv/bin/python benchmarks/panel_face.py [--seconds 8] [--pages 1,4] [--clients 1,4,16] [--json]
+Run:  .venv/bin/python benchmarks/panel_face.py [--seconds 8] [--pages 1,4] [--clients 1,4,16] [--still] [--json]
 """
 
 from __future__ import annotations
@@ -93,9 +94,9 @@ def wave(k: int, rate: float) -> list[tuple[str, float]]:
             ("slider:zygomaticus_major_l", 0.5 + 0.4 * math.sin(2 * math.pi * 0.25 * t))]
 
 
-def open_show(face: live.Face, query: str = "") -> tuple[Any, live.LiveCore, live.StopFlag, Any]:
-    """A page device on 127.0.0.1 driving a live core, and the drain that feeds it the wave's events:
-    (device, core, stop flag, drain)."""
+def open_show(face: live.Face, query: str = "", still: bool = False) -> tuple[Any, live.LiveCore, live.StopFlag, Any]:
+    """A page device on 127.0.0.1 driving a live core, and the drain that feeds it the wave's events
+    (none when `still`: the face at rest): (device, core, stop flag, drain)."""
     dev = devices.open_device(f"panel://127.0.0.1:0{query}", vocab=face.vocab)
     core = live.LiveCore(face, Mapper(panel_map(face.vocab), face.vocab))
     dev.watch(core, [dev])
@@ -103,6 +104,8 @@ def open_show(face: live.Face, query: str = "") -> tuple[Any, live.LiveCore, liv
     spec = dev.spec.rstrip("/") + "/wave"
 
     def drain() -> list[Any]:
+        if still:
+            return []
         k, t = core.tick_count, time.monotonic()
         return [ControlEvent(spec, c, "axis", v, None, v, t) for c, v in wave(k, core.rate)]
 
@@ -176,13 +179,13 @@ def live_run(face: live.Face, n_pages: int, seconds: float, mode: str = "picture
                    encode_ms=(st.encode_s - e0) / max(frames, 1) * 1000, sends=st.sent - s0, skipped=st.skipped - k0)
         per_page = []
         for drv in pages:
-            log, offset, err, cost, got = drv.execute_script(
-                "const f = window.puppetPanel.face; return [f.drawLog, f.offset, f.error, f.cost, f.frames]")
+            log, offset, err, cost, got, size = drv.execute_script(
+                "const f = window.puppetPanel.face; return [f.drawLog, f.offset, f.error, f.cost, f.frames, f.size]")
             lags = [t_page + offset - presented[k] * 1000 for k, t_page in log if k in presented]
             span = (log[-1][1] - log[0][1]) / 1000 if len(log) > 1 else 1.0
             per_page.append({"fps": (len(log) - 1) / span, "lag_p50_ms": float(np.percentile(lags, 50)),
                              "lag_p99_ms": float(np.percentile(lags, 99)), "lag_max_ms": float(np.max(lags)),
-                             "draws": len(log), "error": err,
+                             "draws": len(log), "error": err, "size": size,
                              "cost_ms": {k: v / max(got, 1) for k, v in cost.items()}})
         out["per_page"] = per_page
         # the same pages with the face hidden: what the rest of the page costs the server
@@ -235,12 +238,13 @@ def clients_process(url: str, n: int, seconds: float, face: bool, conn: Any) -> 
     conn.send(asyncio.run(main()))
 
 
-def server_run(face: live.Face, n_pages: int, seconds: float, with_face: bool) -> dict[str, Any]:
-    """The server's cost with n client processes watching (or not): thread CPU, lag at arrival."""
+def server_run(face: live.Face, n_pages: int, seconds: float, with_face: bool, still: bool = False) -> dict[str, Any]:
+    """The server's cost with n client processes watching (or not): thread CPU, lag at arrival;
+    `still`: the face at rest (no input), which should cost no more than not watching."""
     import multiprocessing
     import threading
 
-    dev, core, stop, drain = open_show(face)
+    dev, core, stop, drain = open_show(face, still=still)
     presented: dict[int, float] = {}
 
     def on_frame(c: live.LiveCore) -> None:
@@ -256,7 +260,7 @@ def server_run(face: live.Face, n_pages: int, seconds: float, with_face: bool) -
         proc.start()
         time.sleep(1.5)  # connected, scenes sent
         end = time.monotonic() + 60  # the picture process's start (seconds on a loaded machine)
-        while with_face and dev.face_feed.stats.frames < 3 and time.monotonic() < end:
+        while with_face and dev.face_feed.stats.frames < (1 if still else 3) and time.monotonic() < end:
             time.sleep(0.1)
         tid = dev.server._thread.native_id
 
@@ -275,7 +279,8 @@ def server_run(face: live.Face, n_pages: int, seconds: float, with_face: bool) -
         dev.close()
     lags = [(t - presented[k]) * 1000 for log in logs for k, t, _ in log if k in presented and t > t0]
     frames = [sum(1 for _, t, _ in log if t > t0) / seconds for log in logs]
-    out: dict[str, Any] = {"pages": n_pages, "face": with_face, "server_cpu": cpu}
+    out: dict[str, Any] = {"pages": n_pages, "face": with_face, "server_cpu": cpu,
+                           "pictures_per_s": float(np.mean([sum(1 for _, t, _ in log if t > t0) / seconds for log in logs]))}
     if lags:
         out.update(lag_p50_ms=float(np.percentile(lags, 50)), lag_p99_ms=float(np.percentile(lags, 99)),
                    frames_per_s=float(np.mean(frames)))
@@ -366,6 +371,7 @@ def main() -> int:
     ap.add_argument("--resolutions", default="0,2")
     ap.add_argument("--clients", default="1,4,16", help="page counts for the server-only runs")
     ap.add_argument("--no-scan", dest="scan", action="store_false", help="skip the scanned head's encoding")
+    ap.add_argument("--still", action="store_true", help="also the server-only runs with the face at rest")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     face = live.load_face()
@@ -373,6 +379,8 @@ def main() -> int:
     for n in [int(x) for x in a.clients.split(",") if x]:
         res[f"server_{n}_face"] = server_run(face, n, a.seconds, True)
         res[f"server_{n}_noface"] = server_run(face, n, a.seconds, False)
+        if a.still:
+            res[f"server_{n}_still"] = server_run(face, n, a.seconds, True, still=True)
     for n in [int(x) for x in a.pages.split(",") if x]:
         for m in [x for x in a.modes.split(",") if x]:  # interleaved: the ratios share the machine's load
             res[f"live_{n}_{m}"] = live_run(face, n, a.seconds, m.split("-")[0], not m.endswith("-headless"))
@@ -395,6 +403,8 @@ def main() -> int:
             p50 = [p["lag_p50_ms"] for p in r["per_page"]]
             p99 = [p["lag_p99_ms"] for p in r["per_page"]]
             cost = {k: float(np.mean([p["cost_ms"][k] for p in r["per_page"]])) for k in r["per_page"][0]["cost_ms"]}
+            sizes = sorted({"x".join(map(str, p["size"])) for p in r["per_page"] if p.get("size")})
+            how += f" (pictures {', '.join(sizes)})" if sizes else ""
             print(f"{n} page(s), {how}: face drawn {min(fps):.1f}-{max(fps):.1f} frames/s per page; behind the show p50 "
                   f"{min(p50):.0f}-{max(p50):.0f} ms, p99 {min(p99):.0f}-{max(p99):.0f} ms (show {r['show_fps']:.0f} frames/s)")
             per = (r["cpu_shown"] - r["cpu_hidden"]) / n
@@ -411,6 +421,10 @@ def main() -> int:
                   f"{nf['server_cpu'] * 100:.1f} % without: {(f['server_cpu'] - nf['server_cpu']) / n * 100:.2f} % per page; "
                   f"{f.get('frames_per_s', 0):.1f} frames/s each, at the client p50 {f.get('lag_p50_ms', 0):.0f} ms "
                   f"p99 {f.get('lag_p99_ms', 0):.0f} ms behind the show")
+            still = res.get(key.replace("_noface", "_still"))
+            if still is not None:
+                print(f"   the face at rest (no input): thread {still['server_cpu'] * 100:.1f} % of a core, "
+                      f"{still['pictures_per_s']:.2f} pictures/s to each client")
         if key == "scan":
             print(f"encode, the scanned head ({r['vertices']} vertices, its own {', '.join(r['shapes'])} in waves): "
                   f"{r['bytes_p50']:.0f} bytes/frame p50 (max {r['bytes_max']}; float32 {r['raw_float32_bytes']}), "

@@ -37,7 +37,10 @@ from render.renderer import BACKGROUND, EYE_PITCH_MAX, EYE_YAW_MAX, face_cavitie
 SCENE, FRAME, PICTURE = 1, 2, 3
 QUANTUM = 0.002  # cm per int16 step: 20 um, a 50th of a pixel on a page's face; range +-65 cm
 ASPECT = 4.0 / 3.0  # the page's face view
-PICTURE_SIZE = (400, 300)  # the page's face view when it is sent as pictures (ASPECT)
+PICTURE_SIZE = (400, 300)  # the page's face view when it is sent as pictures (ASPECT), unless it asks
+# the sizes a page may ask for (ASPECT): the smallest one at least as wide as the page shows the face;
+# every page of one size shares its picture, so the server makes at most this many a frame
+PICTURE_SIZES = ((160, 120), (240, 180), (320, 240), (400, 300), (480, 360), (640, 480))
 PICTURE_QUALITY = 80  # JPEG quality: 8-12 KB a frame for the scanned head at PICTURE_SIZE
 ES_HEADER = "#version 300 es\nprecision highp float;\nprecision highp int;\n"
 
@@ -70,27 +73,50 @@ def encode_positions(positions: np.ndarray, base: np.ndarray, out: np.ndarray | 
     return zlib.compress(q.tobytes(), level)
 
 
-def picture(pixels: np.ndarray, face_id: str, tick: int, t: float, size: tuple[int, int] = PICTURE_SIZE,
-            quality: int = PICTURE_QUALITY) -> bytes:
-    """One picture message: (H, W, 3) uint8 `pixels` of the face (top row first) cropped about
-    the centre to the page's aspect, scaled to `size` and JPEG-encoded; the header carries the tick
-    shown, the server's time `t` (time.monotonic) it was drawn, and the image's size and type."""
+def picture_size(width: float) -> tuple[int, int]:
+    """The picture size for a page that shows the face `width` device pixels wide: the smallest of
+    PICTURE_SIZES at least that wide (the largest for a wider view); PICTURE_SIZE when it does not say."""
+    if not isinstance(width, (int, float)) or not width > 0:
+        return PICTURE_SIZE
+    for size in PICTURE_SIZES:
+        if size[0] >= width:
+            return size
+    return PICTURE_SIZES[-1]
+
+
+def pictures(pixels: np.ndarray, face_id: str, tick: int, t: float, sizes: Any = (PICTURE_SIZE,),
+             quality: int = PICTURE_QUALITY) -> dict[tuple[int, int], bytes]:
+    """The picture message (`picture`) of `pixels` at each of `sizes`: cropped once, each size
+    scaled from the crop and encoded once (every page of that size gets the same bytes)."""
     import io
 
     from PIL import Image
 
     h, w = pixels.shape[:2]
-    aspect = size[0] / size[1]
-    cw, ch = (min(w, int(round(h * aspect))), min(h, int(round(w / aspect))))
-    x0, y0 = (w - cw) // 2, (h - ch) // 2
-    img = Image.fromarray(np.ascontiguousarray(pixels[y0:y0 + ch, x0:x0 + cw, :3]))
-    if img.size != tuple(size):
-        img = img.resize(tuple(size), Image.Resampling.BILINEAR, reducing_gap=2.0)
-    buf = io.BytesIO()
-    img.save(buf, "JPEG", quality=int(quality))
-    header = {"face": face_id, "tick": int(tick), "t": round(float(t), 6), "w": int(size[0]), "h": int(size[1]),
-              "type": "image/jpeg"}
-    return pack(PICTURE, header, buf.getvalue())
+    out: dict[tuple[int, int], bytes] = {}
+    crop: Any = None
+    for size in sorted({(int(a), int(b)) for a, b in sizes}, reverse=True):
+        if crop is None:
+            aspect = size[0] / size[1]
+            cw, ch = (min(w, int(round(h * aspect))), min(h, int(round(w / aspect))))
+            x0, y0 = (w - cw) // 2, (h - ch) // 2
+            crop = Image.fromarray(np.ascontiguousarray(pixels[y0:y0 + ch, x0:x0 + cw, :3]))
+        img = crop if crop.size == size else crop.resize(size, Image.Resampling.BILINEAR, reducing_gap=2.0)
+        buf = io.BytesIO()
+        img.save(buf, "JPEG", quality=int(quality))
+        header = {"face": face_id, "tick": int(tick), "t": round(float(t), 6), "w": size[0], "h": size[1],
+                  "type": "image/jpeg"}
+        out[size] = pack(PICTURE, header, buf.getvalue())
+    return out
+
+
+def picture(pixels: np.ndarray, face_id: str, tick: int, t: float, size: tuple[int, int] = PICTURE_SIZE,
+            quality: int = PICTURE_QUALITY) -> bytes:
+    """One picture message: (H, W, 3) uint8 `pixels` of the face (top row first) cropped about
+    the centre to the page's aspect, scaled to `size` and JPEG-encoded; the header carries the tick
+    shown, the server's time `t` (time.monotonic) it was drawn, and the image's size and type."""
+    size = (int(size[0]), int(size[1]))
+    return pictures(pixels, face_id, tick, t, (size,), quality)[size]
 
 
 def _colmajor(m: np.ndarray) -> list[float]:

@@ -307,7 +307,7 @@ class PanelDevice(Device):
 
         period = 1.0 / STATE_HZ
         due = time.monotonic()
-        face_task: asyncio.Task[tuple[bytes, int] | None] | None = None
+        face_task: asyncio.Task[tuple[dict[tuple[int, int], bytes], int] | None] | None = None
         try:
             while True:
                 due += period
@@ -338,6 +338,8 @@ class PanelDevice(Device):
                     got = None if face_task.cancelled() or face_task.exception() else face_task.result()
                     if got is not None:
                         self.face_feed.send(*got)
+                    elif self.face_feed.mode == "picture":  # nothing new: pages that missed the last get it
+                        self.face_feed.catch_up()
                     face_task = None
                 # the face in its own task: a picture being rendered never holds up this state
                 if face_task is None:
@@ -346,7 +348,7 @@ class PanelDevice(Device):
             if face_task is not None:
                 face_task.cancel()
 
-    async def _face_step(self) -> tuple[bytes, int] | None:
+    async def _face_step(self) -> tuple[dict[tuple[int, int], bytes], int] | None:
         """The face to the pages watching it: the loop's state encoded once per new tick for every
         page (puppet.panel.face); in mesh mode a page that just asked for it gets the scene first and
         the frame is sent at once; in picture mode the picture and its tick are returned, for
@@ -447,6 +449,8 @@ class PanelDevice(Device):
                         self.face_feed.drawn(ws)
                     elif want is not None and want["t"] == "face":
                         client.face = want["on"]  # the broadcast sends the scene, then frames
+                        if want["w"] is not None:  # the width the page shows the face at
+                            self.face_feed.ask(ws, want["w"])
                         if not client.face:
                             self.face_feed.remove(ws)
                     else:

@@ -102,6 +102,7 @@ class Editor:
         self._perf: Any = None
         self._replayer: Any = None
         self._renderer: Any = None
+        self._pic_renderer: Any = None  # the preview's pictures, at the size the page shows them
         self._stream: Any = None  # render.stream.FaceStream of the preview (the page draws it)
         # the preview as the mesh (the page draws it) unless set to "picture" (rendered here): the
         # preview's thread also owns the performance and the saves, and a render there (the first one
@@ -206,22 +207,25 @@ class Editor:
             self._stream = FaceStream(self.face.model, "preview")
         return bytes(self._stream.scene())
 
-    def face_frame(self, t: float) -> bytes:
-        """The edited performance at `t` seconds as a frame of the page's face view."""
+    def face_frame(self, t: float, width: float | None = None) -> bytes:
+        """The edited performance at `t` seconds as a frame of the page's face view (as a picture:
+        of the size for a view `width` device pixels wide, render.stream.picture_size)."""
         import time
 
         perf = self.performance()
         k = int(round(min(max(t, 0.0), perf.duration) * perf.rate))
         if self.face_mode == "picture":
-            from render.stream import picture
+            from render.stream import picture, picture_size
 
-            if self._renderer is None:
+            size = PREVIEW_SIZE if width is None else picture_size(width)
+            if self._pic_renderer is None or self._pic_renderer.size != size:
                 from render.offscreen import OffscreenRenderer
 
-                self._renderer = OffscreenRenderer(self.face.model, PREVIEW_SIZE)
-            self._renderer.view = "shaded"
+                if self._pic_renderer is not None:
+                    self._pic_renderer.release()
+                self._pic_renderer = OffscreenRenderer(self.face.model, size)
             state = self._seek(k).state
-            return picture(self._renderer.render_frame(state), "preview", k, time.monotonic(), PREVIEW_SIZE)
+            return picture(self._pic_renderer.render_frame(state), "preview", k, time.monotonic(), size)
         rp = self._seek(k)
         self.face_scene()
         return bytes(self._stream.frame(rp.state, k, time.monotonic()))
@@ -238,9 +242,11 @@ class Editor:
 
     def close(self) -> None:
         def release() -> None:
-            if self._renderer is not None:
-                self._renderer.release()
-                self._renderer = None
+            for name in ("_renderer", "_pic_renderer"):
+                r = getattr(self, name)
+                if r is not None:
+                    r.release()
+                    setattr(self, name, None)
 
         try:
             self.render_pool.submit(release).result(10)
@@ -313,7 +319,7 @@ class Editor:
             ws = web.WebSocketResponse(max_msg_size=4096, heartbeat=10.0, compress=False)
             await ws.prepare(request)
             loop = asyncio.get_running_loop()
-            wish: dict[str, float | None] = {"time": None}
+            wish: dict[str, float | None] = {"time": None, "w": None}
             wake = asyncio.Event()
 
             async def serve() -> None:
@@ -325,14 +331,14 @@ class Editor:
                     wake.clear()
                     t, wish["time"] = wish["time"], None
                     if t is not None:
-                        await ws.send_bytes(await loop.run_in_executor(self.render_pool, self.face_frame, t))
+                        await ws.send_bytes(await loop.run_in_executor(self.render_pool, self.face_frame, t, wish["w"]))
 
             task = loop.create_task(serve())
             try:
                 async for msg in ws:
                     want = parse_face_message(msg.data) if msg.type == web.WSMsgType.TEXT else None
                     if want is not None and want["t"] == "at":
-                        wish["time"] = want["time"]
+                        wish["time"], wish["w"] = want["time"], want["w"]
                         wake.set()
             finally:
                 task.cancel()

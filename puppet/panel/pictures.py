@@ -5,7 +5,8 @@ The renderer (moderngl on Mesa's llvmpipe) holds Python's global lock for the wh
 read-back: 10-20 ms for the scanned head. In the show's own process that stalls the live loop's
 ticks (measured: event -> state p50 4.4-4.8 -> 6.9 ms, p99 9.8 -> 30-118 ms at 120 Hz with a
 picture 30 times a second), so the pictures are drawn in a process of their own, fed the model once
-and then a state per picture, answering with the finished picture message (render.stream.picture).
+and then a state and the sizes the pages ask for per picture, answering with the finished picture
+messages (render.stream.pictures): drawn once at the largest size, scaled down for the others.
 The child ends when its pipe closes, so it never outlives the show."""
 
 from __future__ import annotations
@@ -14,21 +15,30 @@ from typing import Any
 
 
 def _serve(conn: Any, size: tuple[int, int]) -> None:
-    """The child: the model, then (state, face id, tick, time) per picture until None or EOF."""
+    """The child: the model, then (state, face id, tick, time, sizes) per picture until None or EOF;
+    the renderer is made again only when the largest size asked for changes."""
     from render.offscreen import OffscreenRenderer
-    from render.stream import picture
+    from render.stream import pictures
 
+    off: Any = None
     try:
         model = conn.recv()
-        with OffscreenRenderer(model, size) as off:
-            while True:
-                job = conn.recv()
-                if job is None:
-                    break
-                state, face_id, tick, t = job
-                conn.send_bytes(picture(off.render_frame(state), face_id, tick, t, size))
+        while True:
+            job = conn.recv()
+            if job is None:
+                break
+            state, face_id, tick, t, sizes = job
+            big = max(sizes) if sizes else tuple(size)
+            if off is None or off.size != big:
+                if off is not None:
+                    off.release()
+                off = OffscreenRenderer(model, big)
+            conn.send(pictures(off.render_frame(state), face_id, tick, t, sizes or (big,)))
     except (EOFError, OSError, KeyboardInterrupt):
         pass
+    finally:
+        if off is not None:
+            off.release()
 
 
 class PictureProcess:
@@ -50,14 +60,15 @@ class PictureProcess:
     def pid(self) -> int | None:
         return self.proc.pid
 
-    def picture(self, state: Any, face_id: str, tick: int, t: float, timeout: float = 60.0) -> bytes:
-        """The picture message of `state` (render.stream.picture); RuntimeError if the child is gone
-        or does not answer within `timeout` seconds (the first picture waits for its start)."""
+    def pictures(self, state: Any, face_id: str, tick: int, t: float, sizes: Any,
+                 timeout: float = 60.0) -> dict[tuple[int, int], bytes]:
+        """The picture messages of `state` at `sizes` (render.stream.pictures); RuntimeError if the
+        child is gone or does not answer within `timeout` seconds (the first waits for its start)."""
         try:
-            self.conn.send((state, face_id, int(tick), float(t)))
+            self.conn.send((state, face_id, int(tick), float(t), tuple(sizes)))
             if not self.conn.poll(timeout):
                 raise RuntimeError("the picture process did not answer")
-            return self.conn.recv_bytes()
+            return dict(self.conn.recv())
         except (EOFError, OSError, BrokenPipeError) as err:
             raise RuntimeError(f"the picture process is gone ({err})") from err
 

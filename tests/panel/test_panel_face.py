@@ -2,8 +2,9 @@
 show draws, for a face with a held head and one without; a picture is the show's frame at the
 page's aspect; in real headless chromium the page's view of a posed face, as pictures and as the
 mesh drawn with WebGL, looks like the show's own offscreen render of it (not like the face at
-rest), and a page that hides the face is sent no frames; the pictures use the show's own frame
-when it offers one."""
+rest), and a page that hides the face is sent no frames; a page is sent pictures of the size it
+shows the face at (smaller when its view shrinks); the pictures use the show's own frame when it
+offers one, and a still face makes none."""
 
 from __future__ import annotations
 
@@ -108,6 +109,15 @@ def test_page_shows_the_face_the_show_draws(mode: str) -> None:
         assert d_show < 6.0, d_show  # and close to the show's pixels (antialiasing and 8-bit colour apart)
         assert hidden.execute_script("return window.puppetPanel.face.bytes") == 0
         assert len(dev.face_feed.pages) == 1
+        if mode == "picture":  # pictures of the size the page shows the face at; a smaller view, smaller ones
+            from render.stream import picture_size
+
+            shown = watch.execute_script("return window.puppetPanel.face.width()")
+            assert watch.execute_script("return window.puppetPanel.face.size") == list(picture_size(shown))
+            watch.execute_script("document.getElementById('face').style.width = '150px'")
+            wait_for(lambda: watch.execute_script("return window.puppetPanel.face.size") == [160, 120], 30,
+                     "a smaller picture for a smaller view")
+            assert set(dev.face_feed.sizes.values()) == {(160, 120)}
         assert hidden.find_element("id", "facetoggle").get_attribute("aria-pressed") == "false"
     finally:
         quit_browser(watch)
@@ -117,7 +127,7 @@ def test_page_shows_the_face_the_show_draws(mode: str) -> None:
 
 def test_a_slow_page_gets_fewer_frames_not_old_ones() -> None:
     """The feed sends a page at most AHEAD frames beyond what it reports drawn; a page that keeps
-    up gets every frame; both get the scene first."""
+    up gets every frame of a moving face; both get the scene first."""
     import asyncio
 
     from puppet.live import load_face
@@ -138,6 +148,7 @@ def test_a_slow_page_gets_fewer_frames_not_old_ones() -> None:
         await feed.add(quick, model)
         state = model.rest_state()
         for k in range(1, 8):
+            state.surface = state.surface + 0.01  # the face moves (a still one is sent nothing new)
             feed.publish(state, k)
             for _ in range(20):  # the sends run to their end
                 await asyncio.sleep(0)
@@ -167,6 +178,8 @@ def test_a_picture_is_the_frame_at_the_pages_aspect() -> None:
 
 
 def test_pictures_use_the_shows_own_frame_and_render_without_one() -> None:
+    """The show's offered frame is used while fresh, else the state is rendered; a frame or a state
+    that shows nothing new (a still face) makes no picture, a moved face does."""
     import asyncio
 
     from PIL import Image
@@ -178,23 +191,76 @@ def test_pictures_use_the_shows_own_frame_and_render_without_one() -> None:
     model = load_face().model
     feed = FaceFeed("picture")
 
-    async def run() -> tuple[bytes | None, bytes | None, bytes | None]:
+    async def run() -> list[dict | None]:
         shown = np.full((300, 400, 3), (0, 200, 0), np.uint8)  # what the show drew for tick 9
         feed.offer(shown, 9)
         a = await feed.make_picture(model, model.rest_state(), 12)
         again = await feed.make_picture(model, model.rest_state(), 13)  # no newer frame offered
+        feed.offer(shown.copy(), 10)  # a newer frame, the same pixels: the face is still
+        same = await feed.make_picture(model, model.rest_state(), 14)
         feed.offered = None  # the show stopped offering: the feed renders the state itself
         b = await feed.make_picture(model, model.rest_state(), 14)
-        return a, again, b
+        still = await feed.make_picture(model, model.rest_state(), 15)  # later ticks, the same face
+        moved = await feed.make_picture(model, posed(model, 10), 16)
+        return [a, again, same, b, still, moved]
 
     try:
-        a, again, b = asyncio.run(run())
+        a, again, same, b, still, moved = asyncio.run(run())
     finally:
         feed.close()
-    assert a is not None and unpack(a)[1]["tick"] == 9
+    assert a is not None and len(a) == 1
+    (a,) = a.values()
+    assert unpack(a)[1]["tick"] == 9
     img = np.asarray(Image.open(io.BytesIO(unpack(a)[2])).convert("RGB"), float)
     assert np.abs(img - (0, 200, 0)).mean() < 8
-    assert again is None
-    assert b is not None and unpack(b)[1]["tick"] == 14
+    assert again is None and same is None and still is None
+    assert b is not None
+    (b,) = b.values()
+    assert unpack(b)[1]["tick"] == 14
     rendered = np.asarray(Image.open(io.BytesIO(unpack(b)[2])).convert("RGB"), float)
     assert rendered.std() > 10  # a face, not a flat colour
+    assert moved is not None and unpack(next(iter(moved.values())))[1]["tick"] == 16
+
+
+def test_each_page_gets_the_picture_size_it_asks_for_made_once() -> None:
+    """Pages that show the face smaller are sent smaller pictures: each size made once for all its
+    pages; a page that was busy when a picture went out gets it once the face is still; a page
+    that asks for nothing gets the default size."""
+    import asyncio
+
+    from puppet.panel.face import FaceFeed
+    from render.stream import PICTURE_SIZE, pictures, unpack
+
+    class Page:
+        def __init__(self) -> None:
+            self.got: list[bytes] = []
+
+        async def send_bytes(self, data: bytes) -> None:
+            self.got.append(data)
+
+    phone, phone2, tablet, quiet = Page(), Page(), Page(), Page()
+    feed = FaceFeed("picture")
+    frame = np.random.default_rng(1).integers(0, 255, (360, 640, 3), np.uint8)
+
+    async def run() -> None:
+        for p in (phone, phone2, tablet, quiet):
+            feed.pages[p], feed.ahead[p] = None, 0
+        feed.ask(phone, 150)
+        feed.ask(phone2, 160)
+        feed.ask(tablet, 470)
+        assert feed.wanted_sizes() == {(160, 120), (480, 360), PICTURE_SIZE}
+        msgs = pictures(frame, "f", 1, 0.0, sorted(feed.wanted_sizes()))
+        feed.ahead[quiet] = 2  # two pictures not yet drawn: this one passes it over
+        assert feed.send(msgs, 1) == 3
+        for _ in range(5):
+            await asyncio.sleep(0)
+        feed.drawn(quiet)
+        assert feed.catch_up() == 1  # nothing new (a still face): the page that missed it gets it
+        for _ in range(5):
+            await asyncio.sleep(0)
+        assert feed.catch_up() == 0  # and nothing more
+
+    asyncio.run(run())
+    size = lambda page: [(unpack(m)[1]["w"], unpack(m)[1]["h"]) for m in page.got]  # noqa: E731
+    assert size(phone) == size(phone2) == [(160, 120)] and phone.got[0] is phone2.got[0]
+    assert size(tablet) == [(480, 360)] and size(quiet) == [PICTURE_SIZE]

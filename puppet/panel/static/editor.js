@@ -87,7 +87,7 @@
   function preview(force) {
     if (face.ok) {
       if (faceWs && faceWs.readyState === 1 && (force || lastAt !== E.playhead)) {
-        lastAt = E.playhead; faceWs.send(JSON.stringify({ t: "at", time: E.playhead }));
+        lastAt = E.playhead; faceWs.send(JSON.stringify({ t: "at", time: E.playhead, w: face.width() }));
       }
       return;
     }

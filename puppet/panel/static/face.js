@@ -9,8 +9,19 @@ window.PuppetFace = function (canvas) {
               bytes: 0, error: null, mode: null, cost: { decode: 0, normals: 0, draw: 0 } };
   let gl = null, ctx2d = null, picture = null;
   let S = null, pos = null, nrm = null, dirty = false, eye = [0, 0];
+  // the width the face is shown at, in device pixels (at most 1.5 per CSS pixel): the server sends
+  // pictures of about that size, never bigger than shown; F.onResize hears when it changes
+  F.width = () => Math.round(canvas.clientWidth * Math.min(window.devicePixelRatio || 1, 1.5));
+  let watcher = null, lastWidth = -1;
+  function watch() {
+    if (!window.ResizeObserver) return;
+    if (watcher) watcher.disconnect();
+    watcher = new ResizeObserver(() => { const w = F.width(); if (w !== lastWidth) { lastWidth = w; if (F.onResize) F.onResize(w); } });
+    watcher.observe(canvas);
+  }
+  watch();
   // a canvas keeps the first kind of context it is asked for: the other kind gets a fresh canvas
-  function fresh() { const c = canvas.cloneNode(false); canvas.replaceWith(c); canvas = c; gl = ctx2d = null; }
+  function fresh() { const c = canvas.cloneNode(false); canvas.replaceWith(c); canvas = c; gl = ctx2d = null; watch(); }
   function webgl() {
     if (gl) return gl;
     if (ctx2d) fresh();
@@ -105,9 +116,10 @@ window.PuppetFace = function (canvas) {
   async function setPicture(buf, h, at) {  // decoded off this thread; shown at the next animation frame
     const t0 = performance.now();
     const bmp = await createImageBitmap(new Blob([new Uint8Array(buf, at)], { type: h.type }));
-    if (h.tick <= F.tick) { bmp.close(); if (F.onDrawn) F.onDrawn(); return; }  // a newer picture came first
+    const resized = F.size && (h.w !== F.size[0] || h.h !== F.size[1]);  // the same moment at the size now asked for
+    if (h.tick < F.tick || (h.tick === F.tick && !resized)) { bmp.close(); if (F.onDrawn) F.onDrawn(); return; }  // a newer picture came first
     if (picture) { picture.close(); received--; if (F.onDrawn) F.onDrawn(); }  // passed over, never shown
-    picture = bmp; F.scene = h.face; F.tick = h.tick; F.frameT = h.t; F.frames++; received++;
+    picture = bmp; F.scene = h.face; F.tick = h.tick; F.size = [h.w, h.h]; F.frameT = h.t; F.frames++; received++;
     F.cost.decode += performance.now() - t0;
     redraw();
   }

@@ -257,7 +257,8 @@
   face.onDrawn = () => { if (state.ws && state.ws.readyState === 1) state.ws.send('{"t":"drawn"}'); };
   let faceOn = face.ok && params.get("face") !== "0";  // ?face=0: a page that starts without the face
   if (!face.ok) { $("facetoggle").disabled = true; $("facefps").textContent = "no WebGL 2 here"; }
-  const faceWish = () => { if (state.ws && state.ws.readyState === 1) state.ws.send(JSON.stringify({ t: "face", on: faceOn })); };
+  const faceWish = () => { if (state.ws && state.ws.readyState === 1) state.ws.send(JSON.stringify({ t: "face", on: faceOn, w: face.width() })); };
+  face.onResize = () => { if (faceOn) faceWish(); };  // a smaller view asks for smaller pictures
   const showFace = () => { $("facetoggle").setAttribute("aria-pressed", String(faceOn));
     $("facetoggle").textContent = faceOn ? "face shown" : "face hidden"; $("face").style.visibility = faceOn ? "" : "hidden"; };
   $("facetoggle").onclick = () => { faceOn = !faceOn && face.ok; showFace(); faceWish(); };
