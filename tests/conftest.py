@@ -19,6 +19,16 @@ os.environ["PUPPET_LIBRARY"] = os.path.join(_FACE_CACHE, "takes.db")
 # (--face, or PUPPET_FACE in its environment); tests of the scanned head name it
 os.environ.setdefault("PUPPET_FACE", "procedural")
 
+# property tests judge results, never speed: on a shared machine a draw can stall for seconds while
+# other programs run, which is no fault of the code under test
+try:
+    from hypothesis import HealthCheck, settings
+
+    settings.register_profile("suite", deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    settings.load_profile("suite")
+except ImportError:  # pragma: no cover - hypothesis is a test dependency
+    pass
+
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     if os.path.basename(_FACE_CACHE).startswith("puppet-test-cache-"):
