@@ -21,8 +21,9 @@ from typing import Any
 
 #: bytes per staging buffer and disk write (a multiple of any disk block size in use)
 CHUNK = 4 << 20
-#: staging buffers a writer may have in flight (one filling, the others being written)
-BUFFERS = 3
+#: staging buffers a writer may have in flight (one filling, the others queued for the disk: a
+#: short stall of a shared disk does not stop the frames)
+BUFFERS = 8
 #: direct writes start and end on multiples of this (the largest logical block size in use)
 ALIGN = 4096
 
