@@ -131,7 +131,9 @@ class BulkWriter:
             self._budget -= 1
             return _take()
         buf = self._free.get()  # back-pressure: wait for a written buffer
-        self._check()
+        if self._error is not None:
+            self._free.put(buf)  # returned to the pool by abort()
+            self._check()
         return buf
 
     def _submit(self, offset: int, buf: mmap.mmap, n: int) -> None:
