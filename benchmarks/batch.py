@@ -161,6 +161,54 @@ def warm(address: str, take: Path) -> None:
         c.run(jobs.export_take, {take.name: take.read_bytes()}, str(take), take.stem + ".pc2", {"fps": None})
 
 
+def machine_cpu() -> tuple[float, float]:
+    """(busy, idle) CPU seconds of the whole machine since boot, all cores (/proc/stat; idle
+    includes I/O wait)."""
+    v = [int(x) for x in open("/proc/stat").readline().split()[1:9]]
+    tick = os.sysconf("SC_CLK_TCK")
+    return (sum(v) - v[3] - v[4]) / tick, (v[3] + v[4]) / tick
+
+
+def farm_cpu(farm: Farm) -> float:
+    """CPU seconds used so far by the farm's processes (scheduler, nannies, workers)."""
+    import psutil
+
+    total = 0.0
+    for p in farm.procs:
+        try:
+            top = psutil.Process(p.pid)
+            for q in [top, *top.children(recursive=True)]:
+                t = q.cpu_times()
+                total += t.user + t.system
+        except psutil.Error:
+            pass
+    return total
+
+
+def farm_run(farm: Farm, cmd: list[str], client: Any) -> dict[str, Any]:
+    """One timed batch on the farm: wall, the CPU it used (client, farm), what other users' processes
+    used meanwhile, and per-task figures from the scheduler's task stream (compute time of each task
+    on its worker, and how long the first worker to run out of tasks waited for the last)."""
+    b0, i0 = machine_cpu()
+    f0 = farm_cpu(farm)
+    t0 = time.time()
+    wall = timed(cmd)
+    b1, i1 = machine_cpu()
+    ours = CPU[0] + farm_cpu(farm) - f0
+    stream = [t for t in client.get_task_stream(start=t0) if str(t["key"]).startswith("export-")]
+    comp: dict[str, list[tuple[float, float]]] = {}
+    for t in stream:
+        for ss in t["startstops"]:
+            if ss["action"] == "compute":
+                comp.setdefault(t["worker"], []).append((ss["start"] - t0, ss["stop"] - t0))
+    spans = [x for v in comp.values() for x in v]
+    ends = [max(b for _, b in v) for v in comp.values()]
+    return {"wall": wall, "cpu_ours": ours, "cpu_others": max(0.0, b1 - b0 - ours), "idle": i1 - i0,
+            "tasks": len(spans), "task_s": sum(b - a for a, b in spans) / max(1, len(spans)),
+            "first_start": min((a for a, _ in spans), default=0.0), "tail": max(ends) - min(ends) if ends else 0.0,
+            "per_worker": sorted(len(v) for v in comp.values())}
+
+
 def _noop(x: int) -> int:
     return x
 
@@ -236,20 +284,30 @@ def main() -> int:
                 tiny = write_takes(d, 1, 0.1)[0]
                 farm.add_worker(1)
                 warm(farm.address, tiny)  # each new worker loads the face once, as a farm's workers do
-                one_w, two_w, loads = [], [], []
+                from dask.distributed import Client
+
+                watch = Client(farm.address, timeout=30)  # reads the scheduler's task stream
+                watch.get_task_stream(start=time.time())  # the scheduler starts recording it
+                runs: dict[int, list[dict[str, Any]]] = {1: [], 2: []}
+                loads = []
                 for r in range(a.repeats):
-                    loads.append(round(os.getloadavg()[0], 1))
-                    one_w.append(timed(cmd))
-                    farm.add_worker(2)
-                    warm(farm.address, tiny)
-                    loads.append(round(os.getloadavg()[0], 1))
-                    two_w.append(timed(cmd))
+                    for n in (1, 2):
+                        if n == 2:
+                            farm.add_worker(2)
+                            warm(farm.address, tiny)
+                        loads.append(round(os.getloadavg()[0], 1))
+                        runs[n].append(farm_run(farm, cmd, watch))
                     if r + 1 < a.repeats:
                         farm.drop_worker(1)
+                watch.close()
+                one_w, two_w = [x["wall"] for x in runs[1]], [x["wall"] for x in runs[2]]
                 res["pc2_farm_1_worker_s"], res["pc2_farm_2_workers_s"] = min(one_w), min(two_w)
                 res["pc2_farm_speedup"] = res["pc2_farm_1_worker_s"] / res["pc2_farm_2_workers_s"]
                 res["pc2_farm_runs"] = [[round(x, 1), round(y, 1)] for x, y in zip(one_w, two_w)]
+                res["pc2_farm_pair_ratios"] = [round(x / y, 2) for x, y in zip(one_w, two_w)]
                 res["pc2_farm_loads"] = loads
+                res["pc2_farm_detail"] = {n: [{k: (round(v, 2) if isinstance(v, float) else v) for k, v in x.items()}
+                                              for x in rs] for n, rs in runs.items()}
                 res["pc2_farm_identical"] = same(d / "single", d / "farm", ".pc2", takes)
                 res["task_overhead_ms"] = overhead(farm.address) * 1e3
             finally:
@@ -277,6 +335,13 @@ def main() -> int:
     print(f"PC2  external scheduler: 1 worker {res['pc2_farm_1_worker_s']:.1f} s, 2 workers "
           f"{res['pc2_farm_2_workers_s']:.1f} s -> {res['pc2_farm_speedup']:.2f}x ({res['pc2_farm_identical']}/{n} "
           f"byte-identical); each run, 1 vs 2 workers: {res['pc2_farm_runs']} (load at each start {res['pc2_farm_loads']})")
+    print(f"     1 vs 2 workers per pair: {res['pc2_farm_pair_ratios']}")
+    for n, rs in res["pc2_farm_detail"].items():
+        for x in rs:
+            print(f"     {n} worker{'s' if n > 1 else ''}: {x['wall']:.1f} s; {x['tasks']} tasks {x['per_worker']}, "
+                  f"{x['task_s']:.2f} s each on its worker, first starts at {x['first_start']:.1f} s, "
+                  f"tail {x['tail']:.1f} s; CPU: ours {x['cpu_ours']:.1f} s, other users' {x['cpu_others']:.1f} s, "
+                  f"idle {x['idle']:.1f} s")
     print(f"scheduling: {res['task_overhead_ms']:.2f} ms per no-op task")
     return 0
 
