@@ -33,8 +33,11 @@ _pool_lock = threading.Lock()
 
 def _take() -> mmap.mmap:
     with _pool_lock:
-        if _pool:
-            return _pool.pop()
+        while _pool:
+            buf = _pool.pop()
+            if len(buf) == CHUNK:
+                return buf
+            buf.close()  # kept from when buffers had another size
     return mmap.mmap(-1, CHUNK)  # anonymous, page-aligned
 
 
