@@ -37,7 +37,7 @@ def _take() -> mmap.mmap:
             buf = _pool.pop()
             if len(buf) == CHUNK:
                 return buf
-            buf.close()  # kept from when buffers had another size
+            # one kept from when buffers had another size: dropped (unmapped once nothing views it)
     return mmap.mmap(-1, CHUNK)  # anonymous, page-aligned
 
 
@@ -45,8 +45,7 @@ def _give(buf: mmap.mmap) -> None:
     with _pool_lock:
         if len(_pool) < BUFFERS:
             _pool.append(buf)
-            return
-    buf.close()
+    # else dropped: unmapped once nothing views it (closing it now fails while a view is alive)
 
 
 class BulkWriter:
