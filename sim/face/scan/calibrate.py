@@ -28,6 +28,8 @@ not for the muscles under which skin folded) and prints the gaze shares for
 
 from __future__ import annotations
 
+from typing import Any
+
 import time
 from dataclasses import dataclass, replace
 
@@ -114,6 +116,16 @@ def _bumps(points: np.ndarray, zone: np.ndarray, n: int, centres: np.ndarray | N
     return out, centres
 
 
+
+def coupled_values(model: Any, shares: dict[str, float], s: Shape) -> np.ndarray:
+    """The channel values a shape is driven with: its map's, with a coupled channel (the lids
+    following a gaze) raised to the fitted share of that gaze."""
+    v = s.values.copy()
+    if s.coupling:
+        i = model.channel_index[s.coupling[0]]
+        v[i] = max(v[i], shares[s.coupling[1]])
+    return v
+
 class Calibration:
     """The linear model of one compiled face: per fitted channel its bumps and their settled
     displacement columns; the gains (shared by the two sides) and the gaze shares."""
@@ -177,11 +189,7 @@ class Calibration:
         return a
 
     def shape_values(self, s: Shape) -> np.ndarray:
-        v = s.values.copy()
-        if s.coupling:
-            i = self.model.channel_index[s.coupling[0]]
-            v[i] = max(v[i], self.shares[s.coupling[1]])
-        return v
+        return coupled_values(self.model, self.shares, s)
 
     def predict(self, s: Shape) -> np.ndarray:
         return (self._design(s, self.shape_values(s)) @ self.gains).reshape(-1, 3)

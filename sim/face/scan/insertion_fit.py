@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.face.scan.calibrate import MAX_GAIN, Shape, _stiffness
+from sim.face.scan.calibrate import MAX_GAIN, Shape, _stiffness, coupled_values
 
 SMOOTH = 1e-3  # weight of the Laplacian penalty, per edge, relative to one shape's own size
 PULL = 1e-4  # weight of the pull towards gain 1 (per vertex)
@@ -98,11 +98,7 @@ class VertexCalibration:
         self.shares = {"EyeLookUp": 0.0, "EyeLookDown": 0.0}
 
     def shape_values(self, s: Shape) -> np.ndarray:
-        v = s.values.copy()
-        if s.coupling:
-            i = self.model.channel_index[s.coupling[0]]
-            v[i] = max(v[i], self.shares[s.coupling[1]])
-        return v
+        return coupled_values(self.model, self.shares, s)
 
     def _forces(self, gains: np.ndarray, values: np.ndarray) -> np.ndarray:
         """(3N, S) nodal force of each shape at those gains."""
