@@ -10,6 +10,23 @@ from sim.numba_start import prepare_blas_check
 prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def add_face_normal(pos: np.ndarray, tri: np.ndarray, t: int, out: np.ndarray) -> tuple[float, float, float]:
+    """Triangle t's cross product (twice its area times its normal) added to out[:, 3:6] of its
+    three corners; returned too."""
+    a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+    e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
+    e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
+    cx = e1y * e2z - e1z * e2y
+    cy = e1z * e2x - e1x * e2z
+    cz = e1x * e2y - e1y * e2x
+    for v in (a, b, c):
+        out[v, 3] += cx
+        out[v, 4] += cy
+        out[v, 5] += cz
+    return cx, cy, cz
+
+
 @numba.njit(cache=True, nogil=True)
 def interleave_normals(pos: np.ndarray, tri: np.ndarray, out: np.ndarray) -> None:
     """out[:, 0:3] = pos; out[:, 3:6] = unit area-weighted vertex normals, in one pass over the
@@ -24,16 +41,7 @@ def interleave_normals(pos: np.ndarray, tri: np.ndarray, out: np.ndarray) -> Non
         out[i, 4] = 0.0
         out[i, 5] = 0.0
     for t in range(tri.shape[0]):
-        a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
-        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
-        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
-        cx = e1y * e2z - e1z * e2y
-        cy = e1z * e2x - e1x * e2z
-        cz = e1x * e2y - e1y * e2x
-        for v in (a, b, c):
-            out[v, 3] += cx
-            out[v, 4] += cy
-            out[v, 5] += cz
+        add_face_normal(pos, tri, t, out)
     for i in range(n):
         x, y, z = out[i, 3], out[i, 4], out[i, 5]
         length = np.sqrt(x * x + y * y + z * z)

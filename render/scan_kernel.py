@@ -8,6 +8,8 @@ import numba
 import numpy as np
 from sim.numba_start import prepare_blas_check
 
+from render.normals_kernel import add_face_normal
+
 prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
 
@@ -77,19 +79,11 @@ def scan_rows(pos: np.ndarray, tri: np.ndarray, nbr_ptr: np.ndarray, nbr: np.nda
     for t in range(tri.shape[0]):
         if closed and skip_tri[t]:
             continue
-        a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
-        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
-        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
-        cx = e1y * e2z - e1z * e2y
-        cy = e1z * e2x - e1x * e2z
-        cz = e1x * e2y - e1y * e2x
-        for v in (a, b, c):
-            out[v, 3] += cx
-            out[v, 4] += cy
-            out[v, 5] += cz
+        cx, cy, cz = add_face_normal(pos, tri, t, out)
         g = group[t]
         if g < 0:
             continue
+        a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
         wx, wy, wz = ex - pos[a, 0], ey - pos[a, 1], ez - pos[a, 2]
         d = cx * wx + cy * wy + cz * wz
         if d < 0 and d * d > hair * (cx * cx + cy * cy + cz * cz) * (wx * wx + wy * wy + wz * wz):
