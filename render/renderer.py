@@ -283,8 +283,9 @@ class FaceRenderer:
         if self.scan is not None:
             scan_rows = getattr(state, "scan_rows", None)
             if scan_rows is None:  # posed here: the camera's position lets it leave back faces out
-                eye = np.linalg.inv(self._matrices(w / max(h, 1))[0])[:3, 3]
-                scan_rows = self.scan.rows(state, eye)
+                view_m, mvp = self._matrices(w / max(h, 1))
+                eye = np.linalg.inv(view_m)[:3, 3]
+                scan_rows = self.scan.rows(state, eye, mvp, (w * ss, h * ss))
             self._scan_rows = scan_rows
             surface = np.ascontiguousarray(state.surface, dtype=np.float32)
             if self.view in ("wireframe", "muscles", "trails"):  # the overlays' surface, no normals

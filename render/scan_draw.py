@@ -12,7 +12,8 @@ import moderngl
 import numpy as np
 
 from render import scan_shaders
-from render.scan_look import IRIS_ANGLE, PUPIL_ANGLE, ScanLook, ScanRows
+from render.scan_look import IRIS_ANGLE, PUPIL_ANGLE, ScanLook
+from render.scan_rows import ScanRows
 from sim.face.scan.blendshapes import StateControl as PoseControl
 
 KINDS = ("SKIN", "CLAY", "HEAT")
@@ -102,6 +103,7 @@ class ScanDraw:
         self.mouth_drawn = False
         self.split_skin = True  # False: the whole skin with every term (the same pixels, slower)
         self.cull_on_cpu = True  # False: every triangle to OpenGL, which culls them (the same pixels)
+        self.cull_unseen = True  # False: keep the triangles that cover no pixel or lie hidden inside the head (the same pixels)
 
     def _vao(self, prog: moderngl.Program, bufs: dict[str, tuple[moderngl.Buffer, str]],
              ibo: moderngl.Buffer) -> moderngl.VertexArray:
@@ -123,15 +125,21 @@ class ScanDraw:
         seen = v[v[:, 1] > front[:, 1].min() - 2.0]  # down to a little below the chin
         return seen.min(axis=0), seen.max(axis=0)
 
-    def rows(self, state: Any, eye: np.ndarray | None = None) -> np.ndarray:
+    def rows(self, state: Any, eye: np.ndarray | None = None, mvp: np.ndarray | None = None,
+             size: tuple[int, int] | None = None) -> np.ndarray:
         """(26719, 7) float32 rows x y z nx ny nz fold of the scan posed to `state` (the same array
         every call); given `eye`, the camera's position in model space, also which triangles may
-        face it, for the next `draw` of these rows."""
+        face it, for the next `draw` of these rows, and given the camera's `mvp` (projection @ view,
+        row-major) and the picture's `size` too, without the triangles that cover no pixel or that
+        the skin hides (the eyes' and the mouth's, seen only through their openings), unless
+        `cull_unseen` is False (the same pixels)."""
         posed = self.dressing.pose_turned(np.asarray(state.surface), PoseControl(state), state)
         if eye is None or not self.cull_on_cpu:
             self._facing_rows = None
             return self.maker.rows(posed)
-        rows = self.maker.rows(posed, eye, self.group, self.starts, self.kept, self.counts)
+        if not self.cull_unseen:
+            mvp = None
+        rows = self.maker.rows(posed, eye, self.group, self.starts, self.kept, self.counts, mvp, size)
         self._facing_rows = rows
         return rows
 

@@ -12,14 +12,16 @@ from render.normals_kernel import add_face_normal
 
 prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
+SNAP = 1.0 / 64.0  # pixels: slack for the rasterizer's rounding of a corner (it snaps to 1/256 px)
+
 
 @numba.njit(cache=True, nogil=True)
 def _fold(pos: np.ndarray, nbr_ptr: np.ndarray, nbr: np.ndarray, inv_len: np.ndarray, scratch: np.ndarray,
-          out: np.ndarray, skip_v: np.ndarray, closed: bool) -> None:
-    """out[:, 6]: the fold term of scan_rows, from the positions and the unit normals in out
-    (left as it was at the vertices skip_v marks when `closed`)."""
-    n = pos.shape[0]
-    for i in range(n):
+          out: np.ndarray, skip_v: np.ndarray, closed: bool, v0: int, v1: int) -> None:
+    """out[v0:v1, 6]: the fold term of scan_rows, from the positions and the unit normals in out
+    (left as it was at the vertices skip_v marks when `closed`); every neighbour of a vertex in
+    v0..v1 lies in that range."""
+    for i in range(v0, v1):
         lo, hi = nbr_ptr[i], nbr_ptr[i + 1]
         if hi == lo or (closed and skip_v[i]):
             scratch[i] = 0.0
@@ -35,7 +37,7 @@ def _fold(pos: np.ndarray, nbr_ptr: np.ndarray, nbr: np.ndarray, inv_len: np.nda
         m = np.float32(1.0) / np.float32(hi - lo)
         dx, dy, dz = sx * m - pos[i, 0], sy * m - pos[i, 1], sz * m - pos[i, 2]
         scratch[i] = (dx * out[i, 3] + dy * out[i, 4] + dz * out[i, 5]) * inv_len[i]
-    for i in range(n):
+    for i in range(v0, v1):
         if closed and skip_v[i]:
             continue
         lo, hi = nbr_ptr[i], nbr_ptr[i + 1]
@@ -46,11 +48,105 @@ def _fold(pos: np.ndarray, nbr_ptr: np.ndarray, nbr: np.ndarray, inv_len: np.nda
 
 
 @numba.njit(cache=True, nogil=True)
+def openings(pos: np.ndarray, loop_ptr: np.ndarray, loops: np.ndarray, clip: np.ndarray, margin_x: float,
+             margin_y: float, planes: np.ndarray, boxes: np.ndarray) -> None:
+    """For each opening h of the skin (the posed vertices loops[loop_ptr[h]:loop_ptr[h + 1]] around it,
+    ordered so that their area vector points out of the head): planes[h] = (n, d), n the unit area
+    vector and d the least n . x over the loop (a point with n . p < d lies behind every point of
+    any surface spanning the loop's corners); boxes[h] = the loop's box on screen (normalised device
+    x0, x1, y0, y1, widened by the margins), or every point of the screen when a loop vertex is not
+    in front of the camera (`clip`: projection @ view, row-major)."""
+    for h in range(loop_ptr.shape[0] - 1):
+        lo, hi = loop_ptr[h], loop_ptr[h + 1]
+        cx = cy = cz = 0.0
+        for k in range(lo, hi):
+            cx += pos[loops[k], 0]
+            cy += pos[loops[k], 1]
+            cz += pos[loops[k], 2]
+        m = 1.0 / (hi - lo)
+        cx, cy, cz = cx * m, cy * m, cz * m
+        ax = ay = az = 0.0
+        x0, x1, y0, y1 = np.inf, -np.inf, np.inf, -np.inf
+        everywhere = False
+        for k in range(lo, hi):
+            a, b = loops[k], loops[lo + (k - lo + 1) % (hi - lo)]
+            ux, uy, uz = pos[a, 0] - cx, pos[a, 1] - cy, pos[a, 2] - cz
+            vx, vy, vz = pos[b, 0] - cx, pos[b, 1] - cy, pos[b, 2] - cz
+            ax += uy * vz - uz * vy
+            ay += uz * vx - ux * vz
+            az += ux * vy - uy * vx
+            px, py, pz = pos[a, 0], pos[a, 1], pos[a, 2]
+            w = clip[3, 0] * px + clip[3, 1] * py + clip[3, 2] * pz + clip[3, 3]
+            if w <= 1e-6:
+                everywhere = True
+            else:
+                x = (clip[0, 0] * px + clip[0, 1] * py + clip[0, 2] * pz + clip[0, 3]) / w
+                y = (clip[1, 0] * px + clip[1, 1] * py + clip[1, 2] * pz + clip[1, 3]) / w
+                x0, x1, y0, y1 = min(x0, x), max(x1, x), min(y0, y), max(y1, y)
+        inv = 1.0 / max(np.sqrt(ax * ax + ay * ay + az * az), 1e-12)
+        ax, ay, az = ax * inv, ay * inv, az * inv
+        d = np.inf
+        for k in range(lo, hi):
+            a = loops[k]
+            d = min(d, ax * pos[a, 0] + ay * pos[a, 1] + az * pos[a, 2])
+        planes[h, 0], planes[h, 1], planes[h, 2], planes[h, 3] = ax, ay, az, d
+        if everywhere:
+            x0, x1, y0, y1 = -np.inf, np.inf, -np.inf, np.inf
+        boxes[h, 0], boxes[h, 1] = x0 - margin_x, x1 + margin_x
+        boxes[h, 2], boxes[h, 3] = y0 - margin_y, y1 + margin_y
+
+
+@numba.njit(cache=True, nogil=True)
+def _screen(pos: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndarray, boxes: np.ndarray,
+            xy: np.ndarray, code: np.ndarray, v0: int, v1: int) -> None:
+    """xy[v0:v1]: each vertex in pixels (x right, y up, the picture `size` wide and high; NaN for a
+    vertex not in front of the camera); code[v0:v1]: per opening h, four bits (left of, right of,
+    below, above its box on screen) at bits 4h..4h+3, set only where the vertex lies behind h's
+    plane and in front of the camera."""
+    for i in range(v0, v1):
+        px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
+        w = clip[3, 0] * px + clip[3, 1] * py + clip[3, 2] * pz + clip[3, 3]
+        c = 0
+        if w > 1e-6:
+            x = (clip[0, 0] * px + clip[0, 1] * py + clip[0, 2] * pz + clip[0, 3]) / w
+            y = (clip[1, 0] * px + clip[1, 1] * py + clip[1, 2] * pz + clip[1, 3]) / w
+            xy[i, 0] = (x + 1.0) * 0.5 * size[0]
+            xy[i, 1] = (y + 1.0) * 0.5 * size[1]
+            for h in range(planes.shape[0]):
+                if planes[h, 0] * px + planes[h, 1] * py + planes[h, 2] * pz < planes[h, 3]:
+                    bits = ((x < boxes[h, 0]) * 1 + (x > boxes[h, 1]) * 2 + (y < boxes[h, 2]) * 4
+                            + (y > boxes[h, 3]) * 8)
+                    c |= bits << (4 * h)
+        else:
+            xy[i, 0] = np.nan
+            xy[i, 1] = np.nan
+        code[i] = c
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _no_pixel(xy: np.ndarray, a: int, b: int, c: int, size: np.ndarray) -> bool:
+    """Whether the triangle a b c (corners in pixels, xy) lies wholly off the picture or its box
+    holds no pixel centre (k + 0.5), so it can cover no pixel; False when a corner is not in
+    front of the camera. SNAP pixels of slack cover the rasterizer's rounding of the corners."""
+    ax, bx, cx = xy[a, 0], xy[b, 0], xy[c, 0]
+    ay, by, cy = xy[a, 1], xy[b, 1], xy[c, 1]
+    if np.isnan(ax) or np.isnan(bx) or np.isnan(cx):
+        return False
+    x0, x1 = min(ax, bx, cx) - SNAP, max(ax, bx, cx) + SNAP
+    y0, y1 = min(ay, by, cy) - SNAP, max(ay, by, cy) + SNAP
+    if x1 < 0.0 or y1 < 0.0 or x0 > size[0] or y0 > size[1]:
+        return True
+    return np.floor(x1 - 0.5) < np.ceil(x0 - 0.5) or np.floor(y1 - 0.5) < np.ceil(y0 - 0.5)
+
+
+@numba.njit(cache=True, nogil=True)
 def scan_rows(pos: np.ndarray, tri: np.ndarray, nbr_ptr: np.ndarray, nbr: np.ndarray, inv_len: np.ndarray,
               scratch: np.ndarray, out: np.ndarray, skip_tri: np.ndarray, skip_v: np.ndarray, closed: bool,
               group: np.ndarray, starts: np.ndarray, eye: np.ndarray, kept: np.ndarray,
-              counts: np.ndarray) -> None:
-    """out[:, 0:3] = pos; out[:, 3:6] = unit area-weighted vertex normals; out[:, 6] = how far the
+              counts: np.ndarray, behind: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndarray,
+              boxes: np.ndarray, xy: np.ndarray, code: np.ndarray, v0: int, v1: int, t0: int, t1: int) -> None:
+    """For the vertices v0..v1 and the triangles t0..t1 (which use only those vertices):
+    out[:, 0:3] = pos; out[:, 3:6] = unit area-weighted vertex normals; out[:, 6] = how far the
     vertex lies below the mean of its mesh neighbours, along its normal, per neighbour distance
     (`inv_len`: 1 / the rest's mean edge length there), averaged once more over the neighbours:
     positive in a crease (a fold, the nasolabial groove, the frown lines), negative on a ridge.
@@ -59,24 +155,31 @@ def scan_rows(pos: np.ndarray, tri: np.ndarray, nbr_ptr: np.ndarray, nbr: np.nda
     When `closed` (the mouth's inside is not drawn), the triangles skip_tri marks and the vertices
     skip_v marks (deep in the mouth: their normals and folds feed no drawn vertex) are passed over.
 
-    In the same pass over the triangles, those of each drawn group g (group[t] = g >= 0) not
-    clearly turned away from `eye` (the camera's position, model space) are listed, in order, at
-    kept[starts[g]:starts[g] + counts[g]]. A triangle is left out only when the eye lies behind its
-    plane by more than 1e-3 rad: OpenGL's back-face culling would drop it anyway, so the picture is
-    the same and the rasterizer fetches and sets up only the rest."""
-    n = pos.shape[0]
-    for i in range(n):
+    In the same pass over the triangles, those of each drawn group g (group[t] = g >= 0) that may
+    be seen from `eye` (the camera's position, model space) are listed, in order, at
+    kept[starts[g] + counts[g]], counting up counts[g] (set to 0 by the caller). A triangle is left
+    out when the eye lies behind its plane by more than 1e-3 rad (OpenGL's back-face culling would
+    drop it anyway). Given the camera's `clip` matrix (projection @ view, row-major; size[0] > 0,
+    the picture's size in pixels), also those that cover no pixel (`_no_pixel`: off the picture,
+    or too thin to hold a pixel centre), and a triangle inside the head (behind[t]: a bit per
+    opening of the skin it can be seen through, render.scan_look) when, for each of those openings
+    (`planes`, `boxes`: see `openings`), it lies behind the opening and its three corners beyond
+    one side of the opening's box on screen: the line of sight to any of its points then passes
+    through the skin, which is drawn. The picture is the same, and the rasterizer fetches and sets
+    up only the rest. `xy` and `code` are scratch for the corners' pixels and sides."""
+    for i in range(v0, v1):
         out[i, 0] = pos[i, 0]
         out[i, 1] = pos[i, 1]
         out[i, 2] = pos[i, 2]
         out[i, 3] = 0.0
         out[i, 4] = 0.0
         out[i, 5] = 0.0
-    for g in range(counts.shape[0]):
-        counts[g] = 0
+    view = size[0] > 0
+    if view:
+        _screen(pos, clip, size, planes, boxes, xy, code, v0, v1)
     ex, ey, ez = np.float32(eye[0]), np.float32(eye[1]), np.float32(eye[2])
     hair = np.float32(1e-6)  # (1e-3)^2: compared with squares, no square root per triangle
-    for t in range(tri.shape[0]):
+    for t in range(t0, t1):
         if closed and skip_tri[t]:
             continue
         cx, cy, cz = add_face_normal(pos, tri, t, out)
@@ -88,16 +191,27 @@ def scan_rows(pos: np.ndarray, tri: np.ndarray, nbr_ptr: np.ndarray, nbr: np.nda
         d = cx * wx + cy * wy + cz * wz
         if d < 0 and d * d > hair * (cx * cx + cy * cy + cz * cz) * (wx * wx + wy * wy + wz * wz):
             continue
+        if view:
+            if _no_pixel(xy, a, b, c, size):
+                continue
+            if behind[t] and planes.shape[0]:
+                side = code[a] & code[b] & code[c]
+                hidden = True
+                for h in range(planes.shape[0]):
+                    if (behind[t] >> h) & 1 and (side >> (4 * h)) & 15 == 0:
+                        hidden = False
+                if hidden:
+                    continue
         k = starts[g] + counts[g]
         kept[k, 0] = a
         kept[k, 1] = b
         kept[k, 2] = c
         counts[g] += 1
-    for i in range(n):
+    for i in range(v0, v1):
         x, y, z = out[i, 3], out[i, 4], out[i, 5]
         length = np.sqrt(x * x + y * y + z * z)
         inv = np.float32(1.0) / max(length, np.float32(1e-12))
         out[i, 3] = x * inv
         out[i, 4] = y * inv
         out[i, 5] = z * inv
-    _fold(pos, nbr_ptr, nbr, inv_len, scratch, out, skip_v, closed)
+    _fold(pos, nbr_ptr, nbr, inv_len, scratch, out, skip_v, closed, v0, v1)

@@ -296,6 +296,42 @@ class ScanLook:
         self.gaze_angle = self._gaze_angles(rest)
         self.lip_pairs = _lip_pairs(rest, scan_data().neutral, float(lay["stomion_y"]))
         self.lip_rest = np.linalg.norm(rest[self.lip_pairs[:, 0]] - rest[self.lip_pairs[:, 1]], axis=1)
+        self.openings, self.behind = self._openings(rest)
+
+    def _openings(self, rest: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+        """The skin's openings (its boundary loops: the mouth, the eyes, the neck's cut), each
+        ordered so that its area vector points out of the head, and per triangle of `triangles` a
+        bit per opening it can be seen through (0: not inside the head): the mouth's inside through
+        the mouth or the neck, an eyeball or eye socket through its own eye or the neck."""
+        from sim.springs import boundary_loops
+
+        skin = self.groups["skin"]
+        centre = rest[np.unique(skin)].mean(axis=0)
+        loops = []
+        for lp in boundary_loops(skin):
+            lp = np.asarray(lp, np.int32)
+            c = rest[lp].mean(axis=0)
+            area = np.cross(rest[lp] - c, rest[np.roll(lp, -1)] - c).sum(axis=0)
+            loops.append(lp if area @ (c - centre) > 0 else lp[::-1].copy())
+        mids = np.array([rest[lp].mean(axis=0) for lp in loops])
+        neck = int(np.argmin(mids[:, 1]))
+        lips = rest[self.lip_pairs.ravel()] if len(self.lip_pairs) else rest[self.groups["mouth"].ravel()]
+        mouth = int(np.argmin(np.linalg.norm(mids - lips.mean(axis=0), axis=1)))
+        eyes = [k for k in range(len(loops)) if k not in (neck, mouth)]
+        if len(loops) > 7 or neck == mouth or not eyes:
+            return loops, np.zeros(len(self.triangles), np.uint8)  # not the layout expected: hide nothing
+        behind = [np.zeros(len(self.groups["skin"]), np.uint8),
+                  np.full(len(self.groups["mouth"]), (1 << mouth) | (1 << neck), np.uint8)]
+        for name in ("eyes", "sockets"):
+            first = self.groups[name][:, 0]
+            bits = np.zeros(len(first), np.uint8)
+            for part in (f"eyeball_{side}" if name == "eyes" else f"eye_socket_{side}" for side in "lr"):
+                lo, hi = PARTS[part]
+                own = eyes[int(np.argmin(np.linalg.norm(mids[eyes] - rest[lo:hi].mean(axis=0), axis=1)))]
+                bits[(first >= lo) & (first < hi)] = (1 << own) | (1 << neck)
+            behind.append(bits)
+        behind.append(np.zeros(len(self.groups["lashes"]), np.uint8))
+        return loops, np.concatenate(behind)
 
     def _materials(self, lay: dict[str, np.ndarray], rest: np.ndarray,
                    edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -393,59 +429,3 @@ class ScanLook:
             return True
         gap = np.linalg.norm(posed[self.lip_pairs[:, 0]] - posed[self.lip_pairs[:, 1]], axis=1)
         return bool(np.any(gap > self.lip_rest + LIP_GAP))
-
-
-class ScanRows:
-    """The posed scan as the renderer's rows x y z nx ny nz fold (one (N, 7) float32 array,
-    rewritten every call: upload it, don't keep it). While the lips are shut the mouth's inside is
-    not drawn, and the rows of its deep part (what no drawn vertex's normal or fold reads) are left
-    as they were: its triangles are a quarter of the scan's."""
-
-    def __init__(self, look: ScanLook) -> None:
-        self.look = look
-        self.buffer = np.zeros((N_VERTICES, 7), np.float32)
-        self.scratch = np.zeros(N_VERTICES, np.float32)
-        self.tri = np.ascontiguousarray(look.triangles, np.int32)
-        self.skip_tri, self.skip_v = self._deep_mouth()
-        self._no_group = np.full(len(self.tri), -1, np.int8)
-        self._none = (np.zeros(1, np.int64), np.zeros(3, np.float32), np.zeros((1, 3), np.int32),
-                      np.zeros(0, np.int64))
-
-    def _deep_mouth(self) -> tuple[np.ndarray, np.ndarray]:
-        """(T,) uint8 the mouth's triangles and (N,) uint8 the vertices that only the mouth's inside
-        uses and that lie over one edge away from any vertex drawn with the lips shut (the normals
-        of those next to a drawn vertex feed its fold term, so they are kept exact)."""
-        look = self.look
-        n = N_VERTICES
-        drawn = np.zeros(n, bool)
-        for name, t in look.groups.items():
-            if name != "mouth":
-                drawn[t.ravel()] = True
-        near = drawn.copy()
-        for i in np.flatnonzero(drawn):
-            near[look.nbr[look.nbr_ptr[i]:look.nbr_ptr[i + 1]]] = True
-        mouth = np.zeros(n, bool)
-        mouth[look.groups["mouth"].ravel()] = True
-        in_mouth = np.zeros(len(self.tri), bool)
-        lo = len(look.groups["skin"])
-        in_mouth[lo:lo + len(look.groups["mouth"])] = True  # `triangles` are the groups in order
-        skip_tri = in_mouth & ~near[self.tri].any(axis=1)
-        skip_v = mouth & ~near
-        return skip_tri.astype(np.uint8), skip_v.astype(np.uint8)
-
-    def rows(self, posed: np.ndarray, eye: np.ndarray | None = None, group: np.ndarray | None = None,
-             starts: np.ndarray | None = None, kept: np.ndarray | None = None,
-             counts: np.ndarray | None = None) -> np.ndarray:
-        """The rows of the scan posed so; given `eye` (the camera's position) and a group per
-        triangle of `look.triangles` (-1: none), also the triangles of each group g that may face
-        the eye, at kept[starts[g]:][:counts[g]] (render.scan_kernel.scan_rows)."""
-        from render.scan_kernel import scan_rows
-
-        p = np.ascontiguousarray(posed, dtype=np.float32)
-        closed = not self.look.mouth_open(p)
-        if eye is None or group is None or starts is None or kept is None or counts is None:
-            starts, eye, kept, counts = self._none
-            group = self._no_group
-        scan_rows(p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch, self.buffer,
-                  self.skip_tri, self.skip_v, closed, group, starts, np.asarray(eye, np.float32), kept, counts)
-        return self.buffer

@@ -1,0 +1,111 @@
+"""The per-frame rows of the scanned head (x y z nx ny nz fold per vertex) and, for a given camera,
+which of its triangles may be seen: made by render.scan_kernel in two halves at once (the skin on
+the calling thread, the eyes and the mouth's inside on a helper thread; the kernel holds no
+interpreter lock), so the frame's CPU pass takes about as long as its larger half."""
+
+from __future__ import annotations
+
+from concurrent.futures import Future, ThreadPoolExecutor
+
+import numpy as np
+
+from render.scan_look import ScanLook
+from sim.face.scan.data import N_VERTICES
+
+OPENING_MARGIN_PX = 3.0  # pixels an opening's box on screen is widened by (rounding, the pixel grid)
+
+
+class ScanRows:
+    """The posed scan as the renderer's rows x y z nx ny nz fold (one (N, 7) float32 array,
+    rewritten every call: upload it, don't keep it). While the lips are shut the mouth's inside is
+    not drawn, and the rows of its deep part (what no drawn vertex's normal or fold reads) are left
+    as they were: its triangles are a quarter of the scan's. `split` False makes the rows in one
+    pass on the calling thread (the same rows)."""
+
+    def __init__(self, look: ScanLook) -> None:
+        self.look = look
+        self.buffer = np.zeros((N_VERTICES, 7), np.float32)
+        self.scratch = np.zeros(N_VERTICES, np.float32)
+        self.code = np.zeros(N_VERTICES, np.int32)
+        self.xy = np.zeros((N_VERTICES, 2), np.float32)
+        self.size = np.zeros(2)
+        self.tri = np.ascontiguousarray(look.triangles, np.int32)
+        self.skip_tri, self.skip_v = self._deep_mouth()
+        self._no_group = np.full(len(self.tri), -1, np.int8)
+        self._none = (np.zeros(1, np.int64), np.zeros(3, np.float32), np.zeros((1, 3), np.int32),
+                      np.zeros(0, np.int64))
+        self.loops = [np.asarray(lp, np.int32) for lp in look.openings]
+        self.loop_ptr = np.cumsum([0, *(len(lp) for lp in self.loops)]).astype(np.int64)
+        self.loop_all = np.ascontiguousarray(np.concatenate(self.loops) if self.loops else np.zeros(0, np.int32))
+        self.planes = np.zeros((len(self.loops), 4))
+        self.boxes = np.zeros((len(self.loops), 4))
+        self._no_view = (np.zeros((0, 4)), np.zeros((0, 4)), np.eye(4), np.zeros(2))
+        # the skin's triangles come first and use only the vertices below the first non-skin part
+        skin_t = len(look.groups["skin"])
+        skin_v = int(self.tri[:skin_t].max()) + 1
+        self.halves = ((0, skin_v, 0, skin_t), (skin_v, N_VERTICES, skin_t, len(self.tri)))
+        self.split = bool(self.tri[skin_t:].min() >= skin_v) and int(look.nbr[:look.nbr_ptr[skin_v]].max()) < skin_v
+        self._pool: ThreadPoolExecutor | None = None
+
+    def _deep_mouth(self) -> tuple[np.ndarray, np.ndarray]:
+        """(T,) uint8 the mouth's triangles and (N,) uint8 the vertices that only the mouth's inside
+        uses and that lie over one edge away from any vertex drawn with the lips shut (the normals
+        of those next to a drawn vertex feed its fold term, so they are kept exact)."""
+        look = self.look
+        n = N_VERTICES
+        drawn = np.zeros(n, bool)
+        for name, t in look.groups.items():
+            if name != "mouth":
+                drawn[t.ravel()] = True
+        near = drawn.copy()
+        for i in np.flatnonzero(drawn):
+            near[look.nbr[look.nbr_ptr[i]:look.nbr_ptr[i + 1]]] = True
+        mouth = np.zeros(n, bool)
+        mouth[look.groups["mouth"].ravel()] = True
+        in_mouth = np.zeros(len(self.tri), bool)
+        lo = len(look.groups["skin"])
+        in_mouth[lo:lo + len(look.groups["mouth"])] = True  # `triangles` are the groups in order
+        skip_tri = in_mouth & ~near[self.tri].any(axis=1)
+        skip_v = mouth & ~near
+        return skip_tri.astype(np.uint8), skip_v.astype(np.uint8)
+
+    def rows(self, posed: np.ndarray, eye: np.ndarray | None = None, group: np.ndarray | None = None,
+             starts: np.ndarray | None = None, kept: np.ndarray | None = None,
+             counts: np.ndarray | None = None, mvp: np.ndarray | None = None,
+             size: tuple[int, int] | None = None) -> np.ndarray:
+        """The rows of the scan posed so; given `eye` (the camera's position) and a group per
+        triangle of `look.triangles` (-1: none), also the triangles of each group g that may face
+        the eye, at kept[starts[g]:][:counts[g]]; given also the camera's `mvp` (projection @ view)
+        and the picture's `size`, without the triangles inside the head that the skin hides from it
+        (render.scan_kernel.scan_rows)."""
+        from render.scan_kernel import openings, scan_rows
+
+        p = np.ascontiguousarray(posed, dtype=np.float32)
+        closed = not self.look.mouth_open(p)
+        viewed = not (eye is None or group is None or starts is None or kept is None or counts is None)
+        if not viewed:
+            starts, eye, kept, counts = self._none
+            group = self._no_group
+        planes, boxes, clip, px = self._no_view
+        if viewed and mvp is not None and size is not None and min(size) > 0:
+            clip, px = np.ascontiguousarray(mvp, np.float64), self.size
+            px[:] = size
+            planes, boxes = self.planes, self.boxes
+            openings(p, self.loop_ptr, self.loop_all, clip, 2.0 * OPENING_MARGIN_PX / size[0],
+                     2.0 * OPENING_MARGIN_PX / size[1], planes, boxes)
+        counts[:] = 0
+        eye32 = np.asarray(eye, np.float32)
+        args = (p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch, self.buffer,
+                self.skip_tri, self.skip_v, closed, group, starts, eye32, kept, counts, self.look.behind, clip,
+                px, planes, boxes, self.xy, self.code)
+        if not self.split:
+            scan_rows(*args, 0, N_VERTICES, 0, len(self.tri))
+            return self.buffer
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="scan-rows")
+        other: Future[None] = self._pool.submit(scan_rows, *args, *self.halves[1])
+        try:
+            scan_rows(*args, *self.halves[0])
+        finally:
+            other.result()
+        return self.buffer
