@@ -17,11 +17,11 @@ SNAP = 1.0 / 64.0  # pixels: slack for the rasterizer's rounding of a corner (it
 
 @numba.njit(cache=True, nogil=True)
 def _fold(pos: np.ndarray, nbr_ptr: np.ndarray, nbr: np.ndarray, inv_len: np.ndarray, scratch: np.ndarray,
-          out: np.ndarray, skip_v: np.ndarray, closed: bool, v0: int, v1: int) -> None:
-    """out[v0:v1, 6]: the fold term of scan_rows, from the positions and the unit normals in out
-    (left as it was at the vertices skip_v marks when `closed`); every neighbour of a vertex in
-    v0..v1 lies in that range."""
-    for i in range(v0, v1):
+          out: np.ndarray, skip_v: np.ndarray, closed: bool) -> None:
+    """out[:, 6]: the fold term of scan_rows, from the positions and the unit normals in out
+    (left as it was at the vertices skip_v marks when `closed`)."""
+    n = pos.shape[0]
+    for i in range(n):
         lo, hi = nbr_ptr[i], nbr_ptr[i + 1]
         if hi == lo or (closed and skip_v[i]):
             scratch[i] = 0.0
@@ -37,7 +37,7 @@ def _fold(pos: np.ndarray, nbr_ptr: np.ndarray, nbr: np.ndarray, inv_len: np.nda
         m = np.float32(1.0) / np.float32(hi - lo)
         dx, dy, dz = sx * m - pos[i, 0], sy * m - pos[i, 1], sz * m - pos[i, 2]
         scratch[i] = (dx * out[i, 3] + dy * out[i, 4] + dz * out[i, 5]) * inv_len[i]
-    for i in range(v0, v1):
+    for i in range(n):
         if closed and skip_v[i]:
             continue
         lo, hi = nbr_ptr[i], nbr_ptr[i + 1]
@@ -98,20 +98,25 @@ def openings(pos: np.ndarray, loop_ptr: np.ndarray, loops: np.ndarray, clip: np.
 
 @numba.njit(cache=True, nogil=True)
 def _screen(pos: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndarray, boxes: np.ndarray,
-            xy: np.ndarray, code: np.ndarray, v0: int, v1: int) -> None:
-    """xy[v0:v1]: each vertex in pixels (x right, y up, the picture `size` wide and high; NaN for a
-    vertex not in front of the camera); code[v0:v1]: per opening h, four bits (left of, right of,
-    below, above its box on screen) at bits 4h..4h+3, set only where the vertex lies behind h's
-    plane and in front of the camera."""
-    for i in range(v0, v1):
+            inside: np.ndarray, xy: np.ndarray, code: np.ndarray) -> None:
+    """xy: each vertex in pixels (x right, y up, the picture `size` wide and high; NaN for a vertex
+    not in front of the camera); code, at the vertices `inside` marks: per opening h, four bits
+    (left of, right of, below, above its box on screen) at bits 4h..4h+3, set only where the
+    vertex lies behind h's plane and in front of the camera."""
+    hx, hy = 0.5 * size[0], 0.5 * size[1]
+    for i in range(pos.shape[0]):
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         w = clip[3, 0] * px + clip[3, 1] * py + clip[3, 2] * pz + clip[3, 3]
         c = 0
         if w > 1e-6:
-            x = (clip[0, 0] * px + clip[0, 1] * py + clip[0, 2] * pz + clip[0, 3]) / w
-            y = (clip[1, 0] * px + clip[1, 1] * py + clip[1, 2] * pz + clip[1, 3]) / w
-            xy[i, 0] = (x + 1.0) * 0.5 * size[0]
-            xy[i, 1] = (y + 1.0) * 0.5 * size[1]
+            iw = 1.0 / w
+            x = (clip[0, 0] * px + clip[0, 1] * py + clip[0, 2] * pz + clip[0, 3]) * iw
+            y = (clip[1, 0] * px + clip[1, 1] * py + clip[1, 2] * pz + clip[1, 3]) * iw
+            xy[i, 0] = (x + 1.0) * hx
+            xy[i, 1] = (y + 1.0) * hy
+            if not inside[i]:
+                code[i] = 0
+                continue
             for h in range(planes.shape[0]):
                 if planes[h, 0] * px + planes[h, 1] * py + planes[h, 2] * pz < planes[h, 3]:
                     bits = ((x < boxes[h, 0]) * 1 + (x > boxes[h, 1]) * 2 + (y < boxes[h, 2]) * 4
@@ -141,52 +146,72 @@ def _no_pixel(xy: np.ndarray, a: int, b: int, c: int, size: np.ndarray) -> bool:
 
 @numba.njit(cache=True, nogil=True)
 def scan_rows(pos: np.ndarray, tri: np.ndarray, nbr_ptr: np.ndarray, nbr: np.ndarray, inv_len: np.ndarray,
-              scratch: np.ndarray, out: np.ndarray, skip_tri: np.ndarray, skip_v: np.ndarray, closed: bool,
-              group: np.ndarray, starts: np.ndarray, eye: np.ndarray, kept: np.ndarray,
-              counts: np.ndarray, behind: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndarray,
-              boxes: np.ndarray, xy: np.ndarray, code: np.ndarray, v0: int, v1: int, t0: int, t1: int) -> None:
-    """For the vertices v0..v1 and the triangles t0..t1 (which use only those vertices):
-    out[:, 0:3] = pos; out[:, 3:6] = unit area-weighted vertex normals; out[:, 6] = how far the
+              scratch: np.ndarray, out: np.ndarray, skip_tri: np.ndarray, skip_v: np.ndarray, closed: bool) -> None:
+    """out[:, 0:3] = pos; out[:, 3:6] = unit area-weighted vertex normals; out[:, 6] = how far the
     vertex lies below the mean of its mesh neighbours, along its normal, per neighbour distance
     (`inv_len`: 1 / the rest's mean edge length there), averaged once more over the neighbours:
     positive in a crease (a fold, the nasolabial groove, the frown lines), negative on a ridge.
     It is recomputed from the posed surface every frame, so a fold that deepens darkens.
 
     When `closed` (the mouth's inside is not drawn), the triangles skip_tri marks and the vertices
-    skip_v marks (deep in the mouth: their normals and folds feed no drawn vertex) are passed over.
-
-    In the same pass over the triangles, those of each drawn group g (group[t] = g >= 0) that may
-    be seen from `eye` (the camera's position, model space) are listed, in order, at
-    kept[starts[g] + counts[g]], counting up counts[g] (set to 0 by the caller). A triangle is left
-    out when the eye lies behind its plane by more than 1e-3 rad (OpenGL's back-face culling would
-    drop it anyway). Given the camera's `clip` matrix (projection @ view, row-major; size[0] > 0,
-    the picture's size in pixels), also those that cover no pixel (`_no_pixel`: off the picture,
-    or too thin to hold a pixel centre), and a triangle inside the head (behind[t]: a bit per
-    opening of the skin it can be seen through, render.scan_look) when, for each of those openings
-    (`planes`, `boxes`: see `openings`), it lies behind the opening and its three corners beyond
-    one side of the opening's box on screen: the line of sight to any of its points then passes
-    through the skin, which is drawn. The picture is the same, and the rasterizer fetches and sets
-    up only the rest. `xy` and `code` are scratch for the corners' pixels and sides."""
-    for i in range(v0, v1):
+    skip_v marks (deep in the mouth: their normals and folds feed no drawn vertex) are passed over."""
+    n = pos.shape[0]
+    for i in range(n):
         out[i, 0] = pos[i, 0]
         out[i, 1] = pos[i, 1]
         out[i, 2] = pos[i, 2]
         out[i, 3] = 0.0
         out[i, 4] = 0.0
         out[i, 5] = 0.0
-    view = size[0] > 0
-    if view:
-        _screen(pos, clip, size, planes, boxes, xy, code, v0, v1)
-    ex, ey, ez = np.float32(eye[0]), np.float32(eye[1]), np.float32(eye[2])
-    hair = np.float32(1e-6)  # (1e-3)^2: compared with squares, no square root per triangle
-    for t in range(t0, t1):
+    for t in range(tri.shape[0]):
         if closed and skip_tri[t]:
             continue
-        cx, cy, cz = add_face_normal(pos, tri, t, out)
+        add_face_normal(pos, tri, t, out)
+    for i in range(n):
+        x, y, z = out[i, 3], out[i, 4], out[i, 5]
+        length = np.sqrt(x * x + y * y + z * z)
+        inv = np.float32(1.0) / max(length, np.float32(1e-12))
+        out[i, 3] = x * inv
+        out[i, 4] = y * inv
+        out[i, 5] = z * inv
+    _fold(pos, nbr_ptr, nbr, inv_len, scratch, out, skip_v, closed)
+
+
+@numba.njit(cache=True, nogil=True)
+def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, closed: bool, group: np.ndarray,
+                   starts: np.ndarray, eye: np.ndarray, kept: np.ndarray, counts: np.ndarray,
+                   behind: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndarray,
+                   boxes: np.ndarray, inside: np.ndarray, xy: np.ndarray, code: np.ndarray) -> None:
+    """The triangles of each drawn group g (group[t] = g >= 0) that may be seen from `eye` (the
+    camera's position, model space), listed in order at kept[starts[g]:starts[g] + counts[g]]
+    (independent of scan_rows, so the two can run at once). A triangle is left out when the eye
+    lies behind its plane by more than 1e-3 rad (OpenGL's back-face culling would drop it
+    anyway). Given the camera's `clip` matrix (projection @ view, row-major; size[0] > 0, the
+    picture's size in pixels), also when it covers no pixel (`_no_pixel`: off the picture, or too
+    thin to hold a pixel centre), and a triangle inside the head (behind[t]: a bit per opening of
+    the skin it can be seen through, render.scan_look; its corners marked in `inside`) when, for
+    each of those openings (`planes`, `boxes`: see `openings`), it lies behind the opening and
+    its three corners beyond one side of the opening's box on screen: the line of sight to any of
+    its points then passes through the skin, which is drawn. The picture is the same, and the
+    rasterizer fetches and sets up only the rest. `xy` and `code` are scratch for the corners'
+    pixels and sides. The deep mouth's triangles (skip_tri) are passed over when `closed`."""
+    for g in range(counts.shape[0]):
+        counts[g] = 0
+    view = size[0] > 0
+    if view:
+        _screen(pos, clip, size, planes, boxes, inside, xy, code)
+    ex, ey, ez = np.float32(eye[0]), np.float32(eye[1]), np.float32(eye[2])
+    hair = np.float32(1e-6)  # (1e-3)^2: compared with squares, no square root per triangle
+    for t in range(tri.shape[0]):
         g = group[t]
-        if g < 0:
+        if g < 0 or (closed and skip_tri[t]):
             continue
         a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
+        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
+        cx = e1y * e2z - e1z * e2y
+        cy = e1z * e2x - e1x * e2z
+        cz = e1x * e2y - e1y * e2x
         wx, wy, wz = ex - pos[a, 0], ey - pos[a, 1], ez - pos[a, 2]
         d = cx * wx + cy * wy + cz * wz
         if d < 0 and d * d > hair * (cx * cx + cy * cy + cz * cz) * (wx * wx + wy * wy + wz * wz):
@@ -207,11 +232,3 @@ def scan_rows(pos: np.ndarray, tri: np.ndarray, nbr_ptr: np.ndarray, nbr: np.nda
         kept[k, 1] = b
         kept[k, 2] = c
         counts[g] += 1
-    for i in range(v0, v1):
-        x, y, z = out[i, 3], out[i, 4], out[i, 5]
-        length = np.sqrt(x * x + y * y + z * z)
-        inv = np.float32(1.0) / max(length, np.float32(1e-12))
-        out[i, 3] = x * inv
-        out[i, 4] = y * inv
-        out[i, 5] = z * inv
-    _fold(pos, nbr_ptr, nbr, inv_len, scratch, out, skip_v, closed, v0, v1)

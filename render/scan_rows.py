@@ -1,7 +1,8 @@
 """The per-frame rows of the scanned head (x y z nx ny nz fold per vertex) and, for a given camera,
-which of its triangles may be seen: made by render.scan_kernel in two halves at once (the skin on
-the calling thread, the eyes and the mouth's inside on a helper thread; the kernel holds no
-interpreter lock), so the frame's CPU pass takes about as long as its larger half."""
+which of its triangles may be seen: the two are independent and made at once by render.scan_kernel
+(the rows on the calling thread, the listing on a helper thread; neither kernel holds the
+interpreter lock), so the frame's CPU pass takes about as long as the rows alone, on a second core
+that sits idle while the rasterizer's threads wait for this frame's triangles."""
 
 from __future__ import annotations
 
@@ -19,8 +20,7 @@ class ScanRows:
     """The posed scan as the renderer's rows x y z nx ny nz fold (one (N, 7) float32 array,
     rewritten every call: upload it, don't keep it). While the lips are shut the mouth's inside is
     not drawn, and the rows of its deep part (what no drawn vertex's normal or fold reads) are left
-    as they were: its triangles are a quarter of the scan's. `split` False makes the rows in one
-    pass on the calling thread (the same rows)."""
+    as they were: its triangles are a quarter of the scan's."""
 
     def __init__(self, look: ScanLook) -> None:
         self.look = look
@@ -31,20 +31,15 @@ class ScanRows:
         self.size = np.zeros(2)
         self.tri = np.ascontiguousarray(look.triangles, np.int32)
         self.skip_tri, self.skip_v = self._deep_mouth()
-        self._no_group = np.full(len(self.tri), -1, np.int8)
-        self._none = (np.zeros(1, np.int64), np.zeros(3, np.float32), np.zeros((1, 3), np.int32),
-                      np.zeros(0, np.int64))
+        self.inside = np.zeros(N_VERTICES, np.uint8)  # the corners of triangles inside the head
+        self.inside[self.tri[look.behind != 0].ravel()] = 1
         self.loops = [np.asarray(lp, np.int32) for lp in look.openings]
         self.loop_ptr = np.cumsum([0, *(len(lp) for lp in self.loops)]).astype(np.int64)
         self.loop_all = np.ascontiguousarray(np.concatenate(self.loops) if self.loops else np.zeros(0, np.int32))
         self.planes = np.zeros((len(self.loops), 4))
         self.boxes = np.zeros((len(self.loops), 4))
         self._no_view = (np.zeros((0, 4)), np.zeros((0, 4)), np.eye(4), np.zeros(2))
-        # the skin's triangles come first and use only the vertices below the first non-skin part
-        skin_t = len(look.groups["skin"])
-        skin_v = int(self.tri[:skin_t].max()) + 1
-        self.halves = ((0, skin_v, 0, skin_t), (skin_v, N_VERTICES, skin_t, len(self.tri)))
-        self.split = bool(self.tri[skin_t:].min() >= skin_v) and int(look.nbr[:look.nbr_ptr[skin_v]].max()) < skin_v
+        self.threaded = True  # False: the listing of the triangles seen on the calling thread too
         self._pool: ThreadPoolExecutor | None = None
 
     def _deep_mouth(self) -> tuple[np.ndarray, np.ndarray]:
@@ -76,36 +71,33 @@ class ScanRows:
         """The rows of the scan posed so; given `eye` (the camera's position) and a group per
         triangle of `look.triangles` (-1: none), also the triangles of each group g that may face
         the eye, at kept[starts[g]:][:counts[g]]; given also the camera's `mvp` (projection @ view)
-        and the picture's `size`, without the triangles inside the head that the skin hides from it
-        (render.scan_kernel.scan_rows)."""
-        from render.scan_kernel import openings, scan_rows
+        and the picture's `size`, without those that cover no pixel or that the skin hides
+        (render.scan_kernel.seen_triangles, on a helper thread while this one makes the rows)."""
+        from render.scan_kernel import openings, scan_rows, seen_triangles
 
         p = np.ascontiguousarray(posed, dtype=np.float32)
         closed = not self.look.mouth_open(p)
-        viewed = not (eye is None or group is None or starts is None or kept is None or counts is None)
-        if not viewed:
-            starts, eye, kept, counts = self._none
-            group = self._no_group
-        planes, boxes, clip, px = self._no_view
-        if viewed and mvp is not None and size is not None and min(size) > 0:
-            clip, px = np.ascontiguousarray(mvp, np.float64), self.size
-            px[:] = size
-            planes, boxes = self.planes, self.boxes
-            openings(p, self.loop_ptr, self.loop_all, clip, 2.0 * OPENING_MARGIN_PX / size[0],
-                     2.0 * OPENING_MARGIN_PX / size[1], planes, boxes)
-        counts[:] = 0
-        eye32 = np.asarray(eye, np.float32)
-        args = (p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch, self.buffer,
-                self.skip_tri, self.skip_v, closed, group, starts, eye32, kept, counts, self.look.behind, clip,
-                px, planes, boxes, self.xy, self.code)
-        if not self.split:
-            scan_rows(*args, 0, N_VERTICES, 0, len(self.tri))
-            return self.buffer
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="scan-rows")
-        other: Future[None] = self._pool.submit(scan_rows, *args, *self.halves[1])
+        listing: Future[None] | None = None
+        if not (eye is None or group is None or starts is None or kept is None or counts is None):
+            planes, boxes, clip, px = self._no_view
+            if mvp is not None and size is not None and min(size) > 0:
+                clip, px = np.ascontiguousarray(mvp, np.float64), self.size
+                px[:] = size
+                planes, boxes = self.planes, self.boxes
+                openings(p, self.loop_ptr, self.loop_all, clip, 2.0 * OPENING_MARGIN_PX / size[0],
+                         2.0 * OPENING_MARGIN_PX / size[1], planes, boxes)
+            args = (p, self.tri, self.skip_tri, closed, group, starts, np.asarray(eye, np.float32), kept, counts,
+                    self.look.behind, clip, px, planes, boxes, self.inside, self.xy, self.code)
+            if not self.threaded:
+                seen_triangles(*args)
+            else:
+                if self._pool is None:
+                    self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="scan-rows")
+                listing = self._pool.submit(seen_triangles, *args)
         try:
-            scan_rows(*args, *self.halves[0])
+            scan_rows(p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch, self.buffer,
+                      self.skip_tri, self.skip_v, closed)
         finally:
-            other.result()
+            if listing is not None:
+                listing.result()
         return self.buffer
