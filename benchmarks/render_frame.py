@@ -14,7 +14,8 @@ used. `--lp-threads 1,2` reruns the benchmark once per value in a fresh process 
 read when the driver loads).
 `--scan N` times the scanned head (the default face) shaded + HUD against the floor in N
 alternating batches, whole frames (posing, rows, drawing; also with every triangle handed to
-OpenGL, render.scan_draw's cull_on_cpu off) and the drawing alone (rows made beforehand: every
+OpenGL, render.scan_draw's cull_on_cpu off, and with the triangles that cover no pixel or lie
+hidden inside the head kept, cull_unseen off) and the drawing alone (rows made beforehand: every
 triangle; also with the whole skin in its full shader, split_skin off), for comparison.
 `--head-vs-mask N` times the default face with its held head against the mask alone in N
 alternating batches instead (both see the same load: the issue-11 budget, head at most 1.2x).
@@ -232,17 +233,19 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
             for s, rw in zip(states, rows):
                 s.scan_rows = rw  # type: ignore[attr-defined]
                 drawn.append(r.scan.look.mouth_open(rw[:, :3]))
-            times: dict[str, list[tuple[float, float]]] = {"whole": [], "all_tris": [], "draw": [], "unsplit": [],
-                                                           "floor": []}
+            times: dict[str, list[tuple[float, float]]] = {"whole": [], "all_tris": [], "unseen": [], "draw": [],
+                                                           "unsplit": [], "floor": []}
             for b in range(batches + 1):
-                for key, use_rows in (("whole", False), ("all_tris", False), ("draw", True), ("unsplit", True)):
+                for key, use_rows in (("whole", False), ("all_tris", False), ("unseen", False), ("draw", True),
+                                      ("unsplit", True)):
                     def frame(i: int, use: bool = use_rows, split: bool = key != "unsplit",
-                              cull: bool = key != "all_tris") -> None:
+                              cull: bool = key != "all_tris", unseen: bool = key != "unseen") -> None:
                         s = states[i % len(states)]
                         if not use:
                             del s.scan_rows  # type: ignore[attr-defined]
                         r.scan.split_skin = split
                         r.scan.cull_on_cpu = cull
+                        r.scan.cull_unseen = unseen
                         off.fbo.use()
                         r.draw(s, hud)
                         off.ctx.finish()  # type: ignore[attr-defined]
@@ -256,11 +259,12 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
             med = {k: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v))
                    for k, v in times.items()}
             f, whole, draw, unsplit = med["floor"], med["whole"], med["draw"], med["unsplit"]
-            every = med["all_tris"]
+            every, unseen = med["all_tris"], med["unseen"]
             out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; "
                        f"floor {f[0]:.2f} ms (cpu {f[1]:.2f}); whole frame {whole[0]:.2f} ms = "
                        f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x), with every triangle handed to "
-                       f"OpenGL {every[0] / f[0]:.2f}x (cpu {every[1] / f[1]:.2f}x); drawing alone "
+                       f"OpenGL {every[0] / f[0]:.2f}x (cpu {every[1] / f[1]:.2f}x), with the triangles that cover "
+                       f"no pixel or lie hidden kept {unseen[0] / f[0]:.2f}x (cpu {unseen[1] / f[1]:.2f}x); drawing alone "
                        f"{draw[0]:.2f} ms = {draw[0] / f[0]:.2f}x (cpu {draw[1] / f[1]:.2f}x); the same with "
                        f"the skin in one shader {unsplit[0] / f[0]:.2f}x (cpu {unsplit[1] / f[1]:.2f}x)")
     return out

@@ -158,3 +158,44 @@ def test_back_faces_left_out_on_the_cpu_change_no_pixel(gl) -> None:
             assert kept < 0.8 * whole, (yaw, kept, whole)
             assert np.abs(every - every[0, 0]).sum(axis=2).astype(bool).mean() > 0.1  # the head is in view
             assert np.abs(culled - every).max() <= 1, (yaw, pitch)
+
+
+def test_unseen_triangles_left_out_change_no_pixel(gl) -> None:
+    """The triangles that cover no pixel (off the picture, too thin to hold a pixel centre) and the
+    eyes' and the mouth's that the skin hides are left out too: from the front, the side, above
+    and below, with the mouth open, the picture is the one with them kept, fewer of the eyes' and
+    mouth's triangles are drawn from the front, and the listing made on the helper thread is the
+    one made on the calling thread."""
+    from puppet.face_cache import scan_model
+    from render.scan_draw import CULLED
+    from sim.facs import apply_au
+    from sim.integrator import Simulator
+    from sim.state import FaceControl
+
+    model = scan_model(None)
+    sim, state = Simulator(model), model.rest_state()
+    control = FaceControl(model)
+    apply_au(control, "AU27", 1.0)
+    for _ in range(6):
+        sim.step(state, control)
+    inner = [CULLED.index(g) for g in ("eyes", "mouth")]
+    with OffscreenRenderer(model, (320, 180), ctx=gl) as off:
+        scan = off.renderer.scan
+        for yaw, pitch in ((0.0, 0.0), (-0.9, -0.4), (0.2, -1.2), (0.0, 1.2)):
+            off.renderer.camera.yaw, off.renderer.camera.pitch = yaw, pitch
+            scan.cull_unseen = True
+            left_out = off.render_frame(state, record=False).astype(int)
+            counts, kept = scan.counts.copy(), scan.kept.copy()
+            scan.maker.threaded = False
+            off.render_frame(state, record=False)
+            scan.maker.threaded = True
+            assert np.array_equal(counts, scan.counts) and np.array_equal(kept, scan.kept)
+            scan.cull_unseen = False
+            every = off.render_frame(state, record=False).astype(int)
+            assert scan.mouth_drawn and gl.error == "GL_NO_ERROR"
+            assert np.abs(every - every[0, 0]).sum(axis=2).astype(bool).mean() > 0.1  # the head is in view
+            assert np.abs(left_out - every).max() == 0, (yaw, pitch)
+            if yaw == 0.0 and pitch == 0.0:
+                assert counts.sum() < 0.85 * scan.counts.sum()
+                assert counts[inner].sum() < 0.8 * scan.counts[inner].sum(), (counts, scan.counts)
+        scan.cull_unseen = True
