@@ -195,6 +195,7 @@ class ScanDraw:
             ctx.disable(moderngl.BLEND)
 
     def release(self) -> None:
+        self.maker.close()
         for obj in reversed(self._gl):
             obj.release()
         self._gl = []

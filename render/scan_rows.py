@@ -101,3 +101,9 @@ class ScanRows:
             if listing is not None:
                 listing.result()
         return self.buffer
+
+    def close(self) -> None:
+        """Stop the helper thread (made again if rows are asked for later)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
