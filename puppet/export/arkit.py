@@ -51,8 +51,9 @@ MOUTH_CLOSE_SPAN = 0.25
 SHAPE_SPAN = {"BrowInnerUp": 0.4, "BrowDown": 0.8, "EyeSquint": 0.4, "MouthPress": 0.6}
 #: Shapes that also drive another channel by a share of the shape (the channel takes the larger of
 #: its own shape and the share, as the lids do with the gaze): pressed lips push the chin's soft
-#: tissue up (mentalis), as the scanned mouthPress does.
-SHAPE_SHARES = {"MouthPress": ("mentalis", 0.7)}
+#: tissue up (mentalis), as the scanned mouthPress does; puffed cheeks hold the air behind pursed
+#: lips (incisivus), which the scanned cheekPuff carries 13 mm forward.
+SHAPE_SHARES = {"MouthPress": ("mentalis", 0.7), "CheekPuff": ("incisivus", 1.0)}
 #: Shapes that are one channel each (besides the sided ones above).
 ONE_CHANNEL = {
     "JawForward": "jaw_forward", "MouthClose": "lip_closure", "MouthPucker": "incisivus",

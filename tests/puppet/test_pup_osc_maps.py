@@ -161,6 +161,9 @@ def test_arkit_map_is_the_inverse_of_the_export(vocab: Vocabulary) -> None:
             for lid, look in (("levator_palpebrae", up), ("orbicularis_oculi_lid", down)):
                 share = GAZE_LIDS["EyeLookUp" if lid == "levator_palpebrae" else "EyeLookDown"][1]
                 values[names.index(lid + side)] = max(values[names.index(lid + side)], share * look)
+        # puffed cheeks purse the lips: a pose comes back whole when its pucker is at least the puff's share
+        lips, share = SHAPE_SHARES["CheekPuff"]
+        values[names.index(lips)] = max(values[names.index(lips)], share * values[names.index("cheek_puff")])
         # a funnel everts both lips: a pose comes back whole when the upper lip is everted at least as far
         values[names.index("orbicularis_oris_peripheralis_upper")] = rng.uniform(0.7, 1.0)
         m = Mapper(merge([(load_default_map("arkit"), LIVE)]), vocab)
