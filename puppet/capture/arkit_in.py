@@ -1,7 +1,8 @@
 """A Live Link Face / ARKit blendshape CSV recording -> channel values, through the inverse of the
 mapping `puppet.export.arkit` writes (docs/live.md): each blendshape drives the channel(s) it was
-computed from; where two shapes come from one channel (EyeSquint and CheekSquint) or one shape
-from two channels (BrowDown from corrugator and procerus), the larger wins. Every one of the 52
+computed from, scaled by the shape's calibrated span (`SHAPE_SPAN`; MouthPress also drives the
+mentalis by a share, `SHAPE_SHARES`); where two shapes drive one channel (EyeSquint and CheekSquint)
+the larger wins (BrowDown, exported from corrugator and procerus, comes back as the corrugator). Every one of the 52
 shapes has a channel (JawLeft and JawRight together give the signed jaw_sideways; MouthFunnel
 everts both lips, MouthShrugUpper the upper one). The head's rotation columns turn the head (head_yaw, head_pitch, head_roll, quarter
 turns); gaze comes from the EyeLook shapes (a tracker writes both, and they agree).
@@ -20,7 +21,8 @@ import numpy as np
 
 from puppet.capture.points import ChannelCapture, check_times
 from puppet.errors import ConfigError
-from puppet.export.arkit import ARKIT_SHAPES, GAZE_LIDS, MOUTH_CLOSE_SPAN, ONE_CHANNEL, ROTATIONS, SIMPLE_SHAPES, UNSUPPORTED
+from puppet.export.arkit import (ARKIT_SHAPES, GAZE_LIDS, MOUTH_CLOSE_SPAN, ONE_CHANNEL, ROTATIONS, SHAPE_SHARES, SHAPE_SPAN,
+                                 SIMPLE_SHAPES, UNSUPPORTED)
 
 _TC = re.compile(r"(\d+):(\d{2}):(\d{2})[:;](\d+)(?:\.(\d+))?")
 RATES = (24, 25, 30, 50, 60)
@@ -38,7 +40,7 @@ def shape_targets(shape: str) -> list[str]:
     base = shape.removesuffix("Left").removesuffix("Right")
     ch = _simple(base)
     if ch:
-        return [ch + side] + (["procerus"] if base == "BrowDown" else [])
+        return [ch + side]
     if shape in ONE_CHANNEL:
         return [ONE_CHANNEL[shape]] + (["orbicularis_oris_peripheralis_upper"] if shape == "MouthFunnel" else [])
     return {"BrowInnerUp": ["frontalis_inner_l", "frontalis_inner_r"], "JawOpen": ["jaw"],
@@ -61,9 +63,18 @@ def shape_channels(shapes: dict[str, np.ndarray], n: int,
         col = np.asarray(col, float)
         if shape == "MouthClose":
             col = col / MOUTH_CLOSE_SPAN
+        base = shape.removesuffix("Left").removesuffix("Right")
+        span = SHAPE_SPAN.get(base, 1.0)
         for ch in shape_targets(shape):
             i = index[ch]
-            values[:, i] = np.maximum(values[:, i], np.clip(col, 0.0, 1.0)) if driven[i] else np.clip(col, 0, 1)
+            own = span * np.clip(col, 0.0, 1.0)
+            values[:, i] = np.maximum(values[:, i], own) if driven[i] else own
+            driven[i] = True
+        if base in SHAPE_SHARES:
+            ch, share = SHAPE_SHARES[base]
+            i = index[ch]
+            own = share * np.clip(col, 0.0, 1.0)
+            values[:, i] = np.maximum(values[:, i], own) if driven[i] else own
             driven[i] = True
 
     def g(name: str) -> np.ndarray:

@@ -42,6 +42,18 @@ SIMPLE_SHAPES = {
 #: ARKit's mouthClose counts against the jaw's opening (the lips meet at mouthClose = jawOpen); our
 #: lip_closure at 1 closes a jaw opened 0.25, so MouthClose = 0.25 lip_closure (and back).
 MOUTH_CLOSE_SPAN = 0.25
+#: Calibrated against the ICT FaceKit's scanned shapes on the scanned face (benchmarks/scan_match.py):
+#: the value of a shape's channel that the shape at 1 stands for. Driven at 1, these channels moved
+#: the skin further than the scans (the inner brows 1.8 times as far, over more of the forehead; the
+#: squint's orbital sphincter pulled the skin round the whole eye in); at these values each is
+#: closest to its scan (docs/scan-face.md). The export divides by it (a larger channel value writes
+#: 1), the import and the map multiply.
+SHAPE_SPAN = {"BrowInnerUp": 0.4, "BrowDown": 0.8, "EyeSquint": 0.4, "MouthPress": 0.6}
+#: Shapes that also drive another channel by a share of the shape (the channel takes the larger of
+#: its own shape and the share, as the lids do with the gaze): pressed lips push the chin's soft
+#: tissue up (mentalis), as the scanned mouthPress does; puffed cheeks hold the air behind pursed
+#: lips (incisivus), which the scanned cheekPuff carries 13 mm forward.
+SHAPE_SHARES = {"MouthPress": ("mentalis", 0.7), "CheekPuff": ("incisivus", 1.0)}
 #: Shapes that are one channel each (besides the sided ones above).
 ONE_CHANNEL = {
     "JawForward": "jaw_forward", "MouthClose": "lip_closure", "MouthPucker": "incisivus",
@@ -64,15 +76,16 @@ def _rule(shape: str) -> Callable[[Getter], float] | None:
     s = _side(shape)
     base = shape.removesuffix("Left").removesuffix("Right")
     simple = SIMPLE_SHAPES
+    span = SHAPE_SPAN.get(base, 1.0)
     if base in simple:
         name = simple[base] + s
-        return lambda g: g(name)
+        return lambda g: g(name) / span
     if base == "BrowDown":
-        return lambda g: max(g("corrugator" + s), g("procerus"))
+        return lambda g: max(g("corrugator" + s), g("procerus")) / span
     if base == "MouthPress":
-        return lambda g: g("orbicularis_oris")
+        return lambda g: g("orbicularis_oris") / span
     if shape == "BrowInnerUp":
-        return lambda g: 0.5 * (g("frontalis_inner_l") + g("frontalis_inner_r"))
+        return lambda g: 0.5 * (g("frontalis_inner_l") + g("frontalis_inner_r")) / span
     if shape == "JawOpen":
         return lambda g: g("jaw")
     if shape == "MouthShrugLower":

@@ -338,7 +338,7 @@ def test_fit_on_a_rig_file_records_it_for_replay(tmp_path, performance, capsys) 
 def test_the_arkit_reader_inverts_the_export_mapping(tmp_path) -> None:
     """Every channel the ARKit export writes one-to-one comes back with its value (5 decimals)."""
     from puppet.capture.arkit_in import read_arkit_csv
-    from puppet.export.arkit import GAZE_LIDS, SIMPLE_SHAPES, ArkitCsvWriter
+    from puppet.export.arkit import GAZE_LIDS, SHAPE_SHARES, SHAPE_SPAN, SIMPLE_SHAPES, ArkitCsvWriter
     from sim.channels import CHANNEL_NAMES, CHANNEL_SPECS
 
     one_to_one = {b + s for b in set(SIMPLE_SHAPES.values()) - {"orbicularis_oculi"} for s in ("_l", "_r")}
@@ -355,6 +355,12 @@ def test_the_arkit_reader_inverts_the_export_mapping(tmp_path) -> None:
         for s in ("_l", "_r"):
             j = CHANNEL_NAMES.index(lid + s)
             values[:, j] = np.maximum(values[:, j], share * gaze)
+    # a shape calibrated to the scans writes its channel up to its span; pressed lips lift the chin
+    press = CHANNEL_NAMES.index("orbicularis_oris")
+    values[:, press] *= SHAPE_SPAN["MouthPress"]
+    chin, share = SHAPE_SHARES["MouthPress"]
+    j = CHANNEL_NAMES.index(chin)
+    values[:, j] = np.maximum(values[:, j], share * values[:, press] / SHAPE_SPAN["MouthPress"])
     path = tmp_path / "rt.arkit.csv"
     w = ArkitCsvWriter(path, list(CHANNEL_NAMES), 60.0)
     for k, v in enumerate(values):
