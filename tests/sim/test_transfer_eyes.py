@@ -76,3 +76,26 @@ def test_without_seating_the_eyes_do_not_rest_like_a_face(reference) -> None:
     mesh = transfer_rig(reference, head, lms, options=TransferOptions(seat_eyes=False)).rig.mesh
     bad = [f for f in _seated(mesh).values() if not (0.1 < f["top"] < 0.4 and f["rim"] > 0.0)]
     assert bad
+
+
+def test_a_socket_behind_the_opening_does_not_push_the_eyeball_back() -> None:
+    """A head modelled with its socket (or its own eye surface) behind the lid opening: the
+    eyeball still rests on the lid margins; only what is in front of them is a lid."""
+    from sim.face.transfer.eyes import seat_eye
+
+    x, y = np.meshgrid(np.linspace(-3.0, 3.0, 61), np.linspace(-2.0, 2.0, 41))
+    sheet = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
+    sheet[:, 2] = -0.05 * (sheet[:, 0] ** 2 + sheet[:, 1] ** 2)  # the face curving away
+    t = np.linspace(0.0, 2.0 * np.pi, 32, endpoint=False)
+    rim = np.stack([1.5 * np.cos(t), 0.5 * np.sin(t), np.zeros_like(t)], axis=1)
+    rim[:, 2] = -0.05 * (rim[:, 0] ** 2 + rim[:, 1] ** 2)
+    inside = (sheet[:, 0] / 1.5) ** 2 + (sheet[:, 1] / 0.5) ** 2 < 1.05
+    socket = sheet[inside] * [1.0, 1.0, 0.0] + [0.0, 0.0, -1.2]  # 12 mm behind the opening
+    v = np.vstack([rim, sheet[~inside], socket])
+    loop = np.arange(len(rim))
+    radius = 1.2
+    out, centre, _ = seat_eye(v, loop, rim[16], rim[0], radius)
+    gap = np.linalg.norm(out[loop] - centre, axis=1) - radius
+    assert 0.0 < gap.min() < 0.1  # the lid margins rest on the eyeball
+    without_socket, centre2, _ = seat_eye(v[:len(rim) + int((~inside).sum())], loop, rim[16], rim[0], radius)
+    assert np.allclose(centre, centre2)

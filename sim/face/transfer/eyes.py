@@ -81,7 +81,8 @@ def seat_eye(vertices: FloatArray, loop: IntArray, inner: FloatArray, outer: Flo
     The lids are moved by `lids.set_gap` (the upper lid most, the skin around following). The
     centre lies under the middle of the opening, at the height that puts the iris' bottom on the
     lower lid, and as far forward as it can with every lid vertex in front of the ball (at least
-    CLEARANCE x radius outside it): the lids rest on the eyeball."""
+    CLEARANCE x radius outside it): the lids rest on the eyeball. Vertices deeper than the lid
+    margins (a socket, or an eye surface modelled behind the opening) do not push it back."""
     upper, lower = lid_chains(vertices, loop, inner, outer)
     a, b = vertices[upper[0]], vertices[upper[-1]]
     axis = b - a
@@ -96,13 +97,15 @@ def seat_eye(vertices: FloatArray, loop: IntArray, inner: FloatArray, outer: Flo
     base = mid + up * (float((bottom - mid) @ up) + r_iris - COVER_BOTTOM * eye_radius)
     forward = FORWARD - (FORWARD @ up) * up
     forward /= np.linalg.norm(forward)
-    # every vertex of the lids (within the eyeball's reach across the gaze, not behind the ball)
-    # must lie outside the ball: the farthest forward the centre may go
+    # every vertex of the lids (within the eyeball's reach across the gaze, and no deeper than the
+    # lid margins: a socket or an eye's own surface modelled behind the opening is not a lid) must
+    # lie outside the ball: the farthest forward the centre may go
     q = v - base
     along = q @ forward
     across2 = np.einsum("ij,ij->i", q, q) - along ** 2
     reach = (eye_radius * (1.0 + CLEARANCE)) ** 2 - across2
-    lids = (reach > 0) & (along > -eye_radius)
+    margin = float(along[np.r_[upper, lower]].min())
+    lids = (reach > 0) & (along >= margin - 1e-9)
     depth = float(np.min(along[lids] - np.sqrt(reach[lids]))) if lids.any() else -eye_radius
     centre = base + depth * forward
     return v, centre, EyeSeat(before, after)
