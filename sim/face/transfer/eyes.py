@@ -65,8 +65,7 @@ def lid_chains(vertices: FloatArray, loop: IntArray, inner: FloatArray, outer: F
     return other, one
 
 
-def _heights(vertices: FloatArray, chain: IntArray, a: FloatArray, axis: FloatArray, up: FloatArray,
-             t: float) -> FloatArray:
+def _point(vertices: FloatArray, chain: IntArray, a: FloatArray, axis: FloatArray, t: float) -> FloatArray:
     """The chain's point (3,) at fraction `t` between the corners (interpolated along the axis)."""
     p = vertices[chain]
     tc = (p - a) @ axis / (axis @ axis)
@@ -88,9 +87,9 @@ def seat_eye(vertices: FloatArray, loop: IntArray, inner: FloatArray, outer: Flo
     axis = b - a
     up = UP - (UP @ axis) * axis / (axis @ axis)
     up /= np.linalg.norm(up)
-    before = float((_heights(vertices, upper, a, axis, up, 0.5) - _heights(vertices, lower, a, axis, up, 0.5)) @ up)
+    before = float((_point(vertices, upper, a, axis, 0.5) - _point(vertices, lower, a, axis, 0.5)) @ up)
     v = set_gap(vertices, upper, lower, rest_gap(eye_radius), UP)
-    top, bottom = _heights(v, upper, a, axis, up, 0.5), _heights(v, lower, a, axis, up, 0.5)
+    top, bottom = _point(v, upper, a, axis, 0.5), _point(v, lower, a, axis, 0.5)
     after = float((top - bottom) @ up)
     r_iris = iris_radius(eye_radius)
     mid = a + 0.5 * axis
