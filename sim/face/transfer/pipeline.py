@@ -17,6 +17,7 @@ from sim.face.transfer.flatten import CylinderChart, flat_triangulation, hidden_
 from sim.face.transfer.frame import Similarity, fit_similarity, landmark_axes, rotation_angle
 from sim.face.transfer.geometry import (closest_points, edge_use_counts, in_polygon, locate_2d, outer_loop,
                                    triangle_normals, unique_edges)
+from sim.face.transfer.eyes import seat_eyes
 from sim.face.transfer.lids import open_lids
 from sim.face.transfer.landmarks import LANDMARK_NAMES, LandmarkFile, TransferError, require
 from sim.face.transfer.meshfile import HeadMesh
@@ -39,7 +40,9 @@ class TransferOptions:
     above which the layout is not a face's; frame_angle: degrees the fitted rotation may differ
     from the one read off chin/forehead, sides and nose; area_stiffness: weight of the anti-fold
     area term added to eq 8's springs (0 = the paper's springs alone); integrator: the rig's
-    `FaceRig.integrator` (implicit: its fold guard keeps a foreign mesh's skin from turning over)."""
+    `FaceRig.integrator` (implicit: its fold guard keeps a foreign mesh's skin from turning over);
+    seat_eyes: bring each eye's opening to a resting eye's and seat the eyeball behind it
+    (sim.face.transfer.eyes) rather than where the skin correspondence carries it."""
 
     region: float = 0.6
     landmark_offset: float = 0.1
@@ -47,6 +50,7 @@ class TransferOptions:
     frame_angle: float = 35.0
     area_stiffness: float = 10.0
     integrator: str = "implicit"
+    seat_eyes: bool = True
 
 
 @dataclass
@@ -264,6 +268,9 @@ def transfer_rig(
     # borders never match exactly; the reference decides there what is held)
     inside = in_polygon(uv_new, flat[outer_loop(flat, ref.triangles)]) | (bary.min(axis=1) > -0.75)
     mesh = _new_mesh(reference, smap, new, tri, bary, inside, landmarks.path, head.path)
+    if opt.seat_eyes:
+        mesh, seated = seat_eyes(mesh)
+        opened += seated
     cavity = inside & hidden_under(chart_new, new.vertices, new.triangles, uv_new, keep, CAVITY_DEPTH * radius)
     if cavity.any():  # the head's own lining of the mouth, sockets, nostrils: drawn dark
         mesh.regions["cavity"] = cavity
