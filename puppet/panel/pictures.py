@@ -7,7 +7,14 @@ ticks (measured: event -> state p50 4.4-4.8 -> 6.9 ms, p99 9.8 -> 30-118 ms at 1
 picture 30 times a second), so the pictures are drawn in a process of their own, fed the model once
 and then a state and the sizes the pages ask for per picture, answering with the finished picture
 messages (render.stream.pictures): drawn once at the largest size, scaled down for the others.
-The child ends when its pipe closes, so it never outlives the show."""
+The child ends when its pipe closes, so it never outlives the show.
+
+Its rasterizer works in the child's one thread (LP_NUM_THREADS=0, unless the user set it): a
+picture's cost is mostly the scanned head's vertices, the same at every size (the pixels of a
+640x480 picture are a third of it), and llvmpipe's raster threads only add hand-overs: measured
+(quiet machine, benchmarks/panel_face.py --pictures) 1-2 ms less CPU a picture up to 400x300,
+and a picture is one runnable thread, not three, on a machine whose cores the show and the
+pages' browsers share."""
 
 from __future__ import annotations
 
@@ -17,6 +24,9 @@ from typing import Any
 def _serve(conn: Any, size: tuple[int, int]) -> None:
     """The child: the model, then (state, face id, tick, time, sizes) per picture until None or EOF;
     the renderer is made again only when the largest size asked for changes."""
+    import os
+
+    os.environ.setdefault("LP_NUM_THREADS", "0")  # before the first GL context: see the module's note
     from render.offscreen import OffscreenRenderer
     from render.stream import pictures
 

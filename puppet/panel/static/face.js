@@ -149,7 +149,7 @@ window.PuppetFace = function (canvas) {
     c.drawImage(p, 0, 0); p.close();
   }
   function shown(c0) {
-    F.drawn++; F.cost.draw += performance.now() - c0;
+    F.drawn++; F.drawnAt = performance.now(); F.cost.draw += F.drawnAt - c0;
     if (F.frameT !== undefined && F.offset !== null) {  // how far behind the server's read of the state
       const lag = performance.now() + F.offset - F.frameT * 1000;
       F.lags.push(lag); if (F.lags.length > 600) F.lags.shift();
