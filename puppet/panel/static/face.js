@@ -6,7 +6,7 @@
 "use strict";
 window.PuppetFace = function (canvas) {
   const F = { ok: true, scene: null, frames: 0, drawn: 0, tick: -1, lags: [], drawLog: [], offset: null,
-              bytes: 0, error: null, mode: null, cost: { decode: 0, normals: 0, draw: 0 } };
+              bytes: 0, error: null, mode: null, decoding: 0, cost: { decode: 0, normals: 0, draw: 0 } };
   let gl = null, ctx2d = null, picture = null;
   let S = null, pos = null, nrm = null, dirty = false, eye = [0, 0];
   // the width the face is shown at, in device pixels (at most 1.5 per CSS pixel): the server sends
@@ -115,7 +115,9 @@ window.PuppetFace = function (canvas) {
 
   async function setPicture(buf, h, at) {  // decoded off this thread; shown at the next animation frame
     const t0 = performance.now();
-    const bmp = await createImageBitmap(new Blob([new Uint8Array(buf, at)], { type: h.type }));
+    let bmp;
+    F.decoding++;  // the page holds its state's redraw for this picture (one redraw for both)
+    try { bmp = await createImageBitmap(new Blob([new Uint8Array(buf, at)], { type: h.type })); } finally { F.decoding--; }
     const resized = F.size && (h.w !== F.size[0] || h.h !== F.size[1]);  // the same moment at the size now asked for
     if (h.tick < F.tick || (h.tick === F.tick && !resized)) { bmp.close(); if (F.onDrawn) F.onDrawn(); return; }  // a newer picture came first
     if (picture) { picture.close(); received--; if (F.onDrawn) F.onDrawn(); }  // passed over, never shown

@@ -295,7 +295,7 @@
         $("me").textContent = msg.you; build(msg.layout);
       } else if (msg.t === "state") {  // applied in the next animation frame, with the face's: one redraw
         stateAt = performance.now();
-        if (!pendingState) requestAnimationFrame(() => { const st = pendingState; pendingState = null; update(st); });
+        if (!pendingState) { pendingAt = stateAt; requestAnimationFrame(applyState); }
         pendingState = msg;
       }
       else if (msg.t === "pong") {
@@ -305,6 +305,14 @@
         if (rtt <= bestRtt) { bestRtt = rtt; face.offset = msg.s * 1000 - (pingAt + now) / 2; }
       }
     };
+  }
+  // the server sends a cycle's picture just before its state: the state waits (HOLD_MS at most) for
+  // the picture being decoded, so both are shown in one redraw, not two
+  const HOLD_MS = 50;
+  let pendingAt = 0;
+  function applyState() {
+    if (face.decoding > 0 && performance.now() - pendingAt < HOLD_MS) { requestAnimationFrame(applyState); return; }
+    const st = pendingState; pendingState = null; update(st);
   }
   function ping() { if (state.ws && state.ws.readyState === 1) { pingAt = performance.now(); state.ws.send('{"t":"ping"}'); } }
   setInterval(ping, 1000);
