@@ -143,6 +143,7 @@ window.PuppetFace = function (canvas) {
     return [m[0][0], m[1][0], m[2][0], m[0][1], m[1][1], m[2][1], m[0][2], m[1][2], m[2][2]];
   }
 
+  const STALE_MS = 1000;  // a moving face's picture is never this old when drawn (the server skips, never queues)
   let asked = false, received = 0;
   function redraw() { dirty = true; if (!asked) { asked = true; requestAnimationFrame(draw); } }
   function drawPicture() {
@@ -152,9 +153,13 @@ window.PuppetFace = function (canvas) {
   }
   function shown(c0) {
     F.drawn++; F.drawnAt = performance.now(); F.cost.draw += F.drawnAt - c0;
+    F.stale = false;
     if (F.frameT !== undefined && F.offset !== null) {  // how far behind the server's read of the state
       const lag = performance.now() + F.offset - F.frameT * 1000;
-      F.lags.push(lag); if (F.lags.length > 600) F.lags.shift();
+      // a picture made over STALE_MS ago is a still face's last one, sent to a page that missed it
+      // or has just opened: the face is not that far behind, it has not moved since
+      F.stale = lag > STALE_MS;
+      if (!F.stale) { F.lags.push(lag); if (F.lags.length > 600) F.lags.shift(); }
     }
     F.drawLog.push([F.tick, performance.now()]); if (F.drawLog.length > 4000) F.drawLog.shift();
     for (; received > 0; received--) if (F.onDrawn) F.onDrawn();  // every frame that came is now shown or passed over

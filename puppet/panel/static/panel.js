@@ -253,7 +253,10 @@
   // the face, live (face.js draws it with WebGL 2 from the server's stream); hidden, nothing is sent
   const face = state.face = window.PuppetFace($("face"));
   // each frame drawn is reported: the server sends a page at most two frames ahead of its drawing
-  face.onDrawn = () => { if (state.ws && state.ws.readyState === 1) state.ws.send('{"t":"drawn"}'); };
+  face.onDrawn = () => {
+    if (state.ws && state.ws.readyState === 1) state.ws.send('{"t":"drawn"}');
+    if (face.drawn === 1 && faceOn) faceReadout(true);  // not "waiting" for up to a second more
+  };
   let faceOn = face.ok && params.get("face") !== "0";  // ?face=0: a page that starts without the face
   if (!face.ok) { $("facetoggle").disabled = true; $("faceinfo").textContent = "no WebGL 2 here"; }
   const faceWish = () => { if (state.ws && state.ws.readyState === 1) state.ws.send(JSON.stringify({ t: "face", on: faceOn, w: face.width() })); };
@@ -262,25 +265,30 @@
     $("facetoggle").textContent = faceOn ? "face shown" : "face hidden"; $("face").style.visibility = faceOn ? "" : "hidden"; };
   $("facetoggle").onclick = () => { faceOn = !faceOn && face.ok; showFace(); faceWish(); };
   showFace();
-  // the face's readout, once a second: how many pictures a second and how far behind the show, or,
-  // with the face still (the server sends nothing while it does not move), how long it has been still
+  // the face's readout, once a second (and at the first picture): how many pictures a second and how
+  // far behind the show, or, with the face still (the server sends nothing while it does not move),
+  // how long it has not moved
   let lastDrawn = 0, lastAt = performance.now(), stateAt = 0;
   const ago = (s) => (s < 90 ? `${s.toFixed(0)} s` : s < 5400 ? `${(s / 60).toFixed(0)} min` : `${(s / 3600).toFixed(1)} h`);
-  setInterval(() => {
-    const now = performance.now(), fps = (face.drawn - lastDrawn) / ((now - lastAt) / 1000);
-    lastDrawn = face.drawn; lastAt = now;
+  function faceReadout(first) {
+    const now = performance.now(), n = face.drawn - lastDrawn, fps = n / ((now - lastAt) / 1000);
+    if (!first) { lastDrawn = face.drawn; lastAt = now; }
     if (!face.ok) return;
     let text;
     if (!faceOn) text = "not sent to this page";
     else if (!face.drawn) text = "waiting for the first picture";
     else {
       const age = (now - face.drawnAt) / 1000, l = face.lags.slice(-30).sort((a, b) => a - b);
-      if (age < 1.5) text = `${fps.toFixed(0)} frames/s · ${l.length ? l[l.length >> 1].toFixed(0) : "–"} ms behind the show`;
-      else if (now - stateAt < 1500) text = `still · unchanged for ${ago(age)}`;
+      const lag = l.length ? ` · ${l[l.length >> 1].toFixed(0)} ms behind the show` : "";
+      // since the face last moved: the server's clock now minus when the last picture was made
+      const still = face.offset !== null && face.frameT !== undefined ? (now + face.offset) / 1000 - face.frameT : age;
+      if ((first || n > 0) && !face.stale) text = (first ? "first picture" : `${fps.toFixed(0)} frames/s`) + lag;
+      else if (now - stateAt < 1500) text = `still · unchanged for ${ago(Math.max(0, still))}`;
       else text = `no picture for ${ago(age)}`;  // nor states: the connection says why
     }
     setText($("faceinfo"), text);
-  }, 1000);
+  }
+  setInterval(() => faceReadout(false), 1000);
   function connect() {
     const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws?" + q.toString());
     ws.binaryType = "arraybuffer";
