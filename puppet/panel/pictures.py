@@ -12,9 +12,9 @@ The child ends when its pipe closes, so it never outlives the show.
 Its rasterizer works in the child's one thread (LP_NUM_THREADS=0, unless the user set it): a
 picture's cost is mostly the scanned head's vertices, the same at every size (the pixels of a
 640x480 picture are a third of it), and llvmpipe's raster threads only add hand-overs: measured
-(quiet machine, benchmarks/panel_face.py --pictures) 1-2 ms less CPU a picture up to 400x300,
-and a picture is one runnable thread, not three, on a machine whose cores the show and the
-pages' browsers share."""
+(benchmarks/panel_face.py --pictures, a shared machine at load 6-9, two runs) 0.7-2.8 ms less CPU
+a picture up to 400x300, the same at 640x480; and a picture is one runnable thread, not three, on
+cores the show and the pages' browsers share."""
 
 from __future__ import annotations
 
