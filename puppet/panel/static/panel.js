@@ -174,7 +174,7 @@
   const last = {};
   // every figure on the page (the sliders', the age's, the header's) is written in one animation
   // frame at most TEXT_MS apart: a text change costs the browser a layout of the whole page (the
-  // regions' columns are laid out together), so five a second in one frame, never one per frame
+  // regions' columns are laid out together), so four a second, all in one frame, never one per frame
   const TEXT_MS = 250;
   function setText(e, text) { if (e.textContent !== text) e.textContent = text; }
   function changed(key, value) { const j = JSON.stringify(value); if (last[key] === j) return false; last[key] = j; return true; }
