@@ -18,6 +18,11 @@ cost per page, bytes per frame.
    page, and how far behind the show each frame arrives; with `--still`, the same with the face at
    rest (no input): a still face is sent nothing after its first picture.
 
+4. With `--pictures`: what one picture costs the picture process, part by part (posing the scanned
+   head on the CPU, the draw calls, the raster, the read-back, the JPEG), at three sizes, with
+   llvmpipe's raster threads (Mesa's default) and without (LP_NUM_THREADS=0, the picture process's
+   setting); each way in a process of its own (Mesa reads the setting once).
+
 Run:  .venv/bin/python benchmarks/panel_face.py [--seconds 8] [--pages 1,4] [--clients 1,4,16] [--still] [--json]
 """
 
@@ -360,6 +365,68 @@ def scan_run(seconds: float = 3.0) -> dict[str, Any]:
             "raw_float32_bytes": len(base) * 12}
 
 
+def _picture_parts(conn: Any, threads: str | None) -> None:
+    """A child: the parts of one picture at each size, medians of 40 (ms, wall and CPU)."""
+    if threads is not None:
+        os.environ["LP_NUM_THREADS"] = threads
+    from render.offscreen import OffscreenRenderer
+    from render.stream import pictures
+
+    face = live.load_face()
+    state = face.model.rest_state()
+    out = {}
+    for size in ((160, 120), (400, 300), (640, 480)):
+        off = OffscreenRenderer(face.model, size)
+        rend, parts = off.renderer, {k: [] for k in ("pose", "draw", "raster", "read", "jpeg", "cpu", "wall")}
+        pose = rend.scan.rows if rend.scan is not None else None
+
+        def timed(*a: Any, **k: Any) -> Any:
+            c = time.perf_counter()
+            got = pose(*a, **k)
+            parts["pose"].append(time.perf_counter() - c)
+            return got
+
+        if pose is not None:
+            rend.scan.rows = timed
+        for i in range(45):
+            c0, p0 = time.perf_counter(), time.process_time()
+            off.fbo.use()
+            off.fbo.viewport = (0, 0, *size)
+            rend.draw(state)
+            c1 = time.perf_counter()
+            off.ctx.finish()
+            c2 = time.perf_counter()
+            img = np.frombuffer(off.fbo.read(components=3, alignment=1), np.uint8).reshape(size[1], size[0], 3)[::-1]
+            c3 = time.perf_counter()
+            pictures(img, "f", 0, 0.0, (size,))
+            c4, p4 = time.perf_counter(), time.process_time()
+            if i < 5:  # warm-up
+                for v in parts.values():
+                    v.clear()
+                continue
+            parts["draw"].append(c1 - c0 - (parts["pose"][-1] if parts["pose"] else 0.0))
+            for k, v in (("raster", c2 - c1), ("read", c3 - c2), ("jpeg", c4 - c3), ("cpu", p4 - p0), ("wall", c4 - c0)):
+                parts[k].append(v)
+        off.release()
+        out["x".join(map(str, size))] = {k: float(np.median(v) * 1000) if v else 0.0 for k, v in parts.items()}
+    conn.send(out)
+
+
+def picture_run() -> dict[str, Any]:
+    """The parts of a picture (_picture_parts) with llvmpipe's threads and without, each in a child."""
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("spawn")
+    res = {}
+    for name, threads in (("threads", None), ("one thread", "0")):
+        here, there = ctx.Pipe()
+        proc = ctx.Process(target=_picture_parts, args=(there, threads))
+        proc.start()
+        res[name] = here.recv()
+        proc.join(30)
+    return res
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=8.0)
@@ -372,6 +439,7 @@ def main() -> int:
     ap.add_argument("--clients", default="1,4,16", help="page counts for the server-only runs")
     ap.add_argument("--no-scan", dest="scan", action="store_false", help="skip the scanned head's encoding")
     ap.add_argument("--still", action="store_true", help="also the server-only runs with the face at rest")
+    ap.add_argument("--pictures", action="store_true", help="also a picture's cost, part by part")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     face = live.load_face()
@@ -388,6 +456,8 @@ def main() -> int:
         res[f"encode_{r}"] = encode_run(r)
     if a.scan:
         res["scan"] = scan_run()
+    if a.pictures:
+        res["pictures"] = picture_run()
     res["load_after"] = os.getloadavg()
     if a.json:
         print(json.dumps(res, indent=2))
@@ -425,6 +495,10 @@ def main() -> int:
             if still is not None:
                 print(f"   the face at rest (no input): thread {still['server_cpu'] * 100:.1f} % of a core, "
                       f"{still['pictures_per_s']:.2f} pictures/s to each client")
+        if key == "pictures":
+            for how, sizes in r.items():
+                print(f"a picture, llvmpipe with {how} (ms; medians): " + "; ".join(
+                    f"{sz}: " + ", ".join(f"{k} {v:.2f}" for k, v in p.items()) for sz, p in sizes.items()))
         if key == "scan":
             print(f"encode, the scanned head ({r['vertices']} vertices, its own {', '.join(r['shapes'])} in waves): "
                   f"{r['bytes_p50']:.0f} bytes/frame p50 (max {r['bytes_max']}; float32 {r['raw_float32_bytes']}), "

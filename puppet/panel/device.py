@@ -34,7 +34,7 @@ if TYPE_CHECKING:  # asyncio is imported where the server thread runs: opening t
     import asyncio
 
 STATE_HZ = 30.0
-#: the longest a state waits for the picture made since the last one (then it goes out alone)
+#: the longest a state waits for its cycle's picture (then it goes out alone)
 FACE_WAIT_S = 0.1
 MAX_MESSAGE = 4096
 NAME_RE = re.compile(r"[A-Za-z0-9_-]{1,24}")
@@ -297,12 +297,13 @@ class PanelDevice(Device):
 
     async def _broadcast(self) -> None:
         """The loop's state to every page, and the face to the pages watching it, STATE_HZ times a
-        second on an absolute schedule. Both go out together, so a browser redraws its page once
-        per state (a software-composited browser pays for every redraw of the whole page): the
-        picture made since the last state goes out right after this state, and the next is started;
-        a picture that takes longer than a period (a loaded machine) holds the state back until it
-        is done (at most FACE_WAIT_S), so the pages get max(period, picture time) cycles, each one
-        redraw, instead of waiting for the next period after every late picture."""
+        second on an absolute schedule. Each cycle starts the picture of the loop's state at once
+        and sends it as soon as it is made, then the state (read then): a page gets both together
+        and redraws once per cycle (a software-composited browser pays for every redraw of the
+        whole page), and the picture is only its own making old when it leaves. A picture slower
+        than FACE_WAIT_S (a loaded machine) lets the state go out alone; it goes with a later state
+        when done, and no other picture is started meanwhile, so the pages get max(period, picture
+        time) cycles."""
         import asyncio
 
         period = 1.0 / STATE_HZ
@@ -317,11 +318,21 @@ class PanelDevice(Device):
                 await asyncio.sleep(max(0.0, due - now))
                 if not self.clients:
                     continue
-                if face_task is not None and not face_task.done():
+                # the face in its own task: a picture being rendered holds up the state FACE_WAIT_S at most
+                if face_task is None:
+                    face_task = asyncio.get_running_loop().create_task(self._face_step())
+                if not face_task.done():
                     try:
                         await asyncio.wait_for(asyncio.shield(face_task), FACE_WAIT_S)
                     except Exception:  # slower than that: the state goes out alone this time
                         pass
+                if face_task.done():
+                    got = None if face_task.cancelled() or face_task.exception() else face_task.result()
+                    face_task = None
+                    if got is not None:  # the pictures first: a page decodes one while it reads the state
+                        self.face_feed.send(*got)
+                    elif self.face_feed.mode == "picture":  # nothing new: pages that missed the last get it
+                        self.face_feed.catch_up()
                 try:
                     text = json.dumps(self._state(), separators=(",", ":"))
                 except Exception:  # the loop's state changed under us: next time
@@ -334,16 +345,6 @@ class PanelDevice(Device):
                         pass
 
                 await asyncio.gather(*(send(c.ws) for c in list(self.clients.values()) if not c.ws.closed))
-                if face_task is not None and face_task.done():
-                    got = None if face_task.cancelled() or face_task.exception() else face_task.result()
-                    if got is not None:
-                        self.face_feed.send(*got)
-                    elif self.face_feed.mode == "picture":  # nothing new: pages that missed the last get it
-                        self.face_feed.catch_up()
-                    face_task = None
-                # the face in its own task: a picture being rendered never holds up this state
-                if face_task is None:
-                    face_task = asyncio.get_running_loop().create_task(self._face_step())
         finally:  # the server is closing: the picture under way is not waited for
             if face_task is not None:
                 face_task.cancel()
@@ -352,7 +353,7 @@ class PanelDevice(Device):
         """The face to the pages watching it: the loop's state encoded once per new tick for every
         page (puppet.panel.face); in mesh mode a page that just asked for it gets the scene first and
         the frame is sent at once; in picture mode the picture and its tick are returned, for
-        `_broadcast` to send with the next state."""
+        `_broadcast` to send with this cycle's state."""
         core, feed = self.core, self.face_feed
         watching = [c.ws for c in list(self.clients.values()) if c.face and not c.ws.closed]
         feed.wanted = bool(watching)

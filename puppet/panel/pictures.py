@@ -7,7 +7,14 @@ ticks (measured: event -> state p50 4.4-4.8 -> 6.9 ms, p99 9.8 -> 30-118 ms at 1
 picture 30 times a second), so the pictures are drawn in a process of their own, fed the model once
 and then a state and the sizes the pages ask for per picture, answering with the finished picture
 messages (render.stream.pictures): drawn once at the largest size, scaled down for the others.
-The child ends when its pipe closes, so it never outlives the show."""
+The child ends when its pipe closes, so it never outlives the show.
+
+Its rasterizer works in the child's one thread (LP_NUM_THREADS=0, unless the user set it): a
+picture's cost is mostly the scanned head's vertices, the same at every size (the pixels of a
+640x480 picture are a third of it), and llvmpipe's raster threads only add hand-overs: measured
+(benchmarks/panel_face.py --pictures, a shared machine at load 6-9, two runs) 0.7-2.8 ms less CPU
+a picture up to 400x300, the same at 640x480; and a picture is one runnable thread, not three, on
+cores the show and the pages' browsers share."""
 
 from __future__ import annotations
 
@@ -17,6 +24,9 @@ from typing import Any
 def _serve(conn: Any, size: tuple[int, int]) -> None:
     """The child: the model, then (state, face id, tick, time, sizes) per picture until None or EOF;
     the renderer is made again only when the largest size asked for changes."""
+    import os
+
+    os.environ.setdefault("LP_NUM_THREADS", "0")  # before the first GL context: see the module's note
     from render.offscreen import OffscreenRenderer
     from render.stream import pictures
 
@@ -39,6 +49,22 @@ def _serve(conn: Any, size: tuple[int, int]) -> None:
     finally:
         if off is not None:
             off.release()
+
+
+def drawn_part(state: Any) -> Any:
+    """What the renderer reads of a face state: its surface and its scalars (eyes, jaw, head, age,
+    ...), without the simulation's positions and velocities: a third of the bytes pickled through
+    the pipe per picture. A state without attributes of its own goes whole."""
+    import types
+
+    import numpy as np
+
+    try:
+        fields = vars(state)
+    except TypeError:
+        return state
+    return types.SimpleNamespace(**{k: v for k, v in fields.items()
+                                    if k == "surface" or not isinstance(v, np.ndarray)})
 
 
 class PictureProcess:
@@ -65,7 +91,7 @@ class PictureProcess:
         """The picture messages of `state` at `sizes` (render.stream.pictures); RuntimeError if the
         child is gone or does not answer within `timeout` seconds (the first waits for its start)."""
         try:
-            self.conn.send((state, face_id, int(tick), float(t), tuple(sizes)))
+            self.conn.send((drawn_part(state), face_id, int(tick), float(t), tuple(sizes)))
             if not self.conn.poll(timeout):
                 raise RuntimeError("the picture process did not answer")
             return dict(self.conn.recv())

@@ -119,6 +119,11 @@ def test_page_shows_the_face_the_show_draws(mode: str) -> None:
                      "a smaller picture for a smaller view")
             assert set(dev.face_feed.sizes.values()) == {(160, 120)}
         assert hidden.find_element("id", "facetoggle").get_attribute("aria-pressed") == "false"
+        # the show does not move: no picture comes, and the readout says the face is still (not "0 frames/s")
+        info = lambda drv: drv.find_element("id", "faceinfo").text  # noqa: E731
+        wait_for(lambda: info(watch).startswith("still"), 30, "the readout saying the face is still")
+        assert "frames/s" not in info(watch)
+        assert info(hidden) == "not sent to this page"
     finally:
         quit_browser(watch)
         quit_browser(hidden)
@@ -264,3 +269,22 @@ def test_each_page_gets_the_picture_size_it_asks_for_made_once() -> None:
     size = lambda page: [(unpack(m)[1]["w"], unpack(m)[1]["h"]) for m in page.got]  # noqa: E731
     assert size(phone) == size(phone2) == [(160, 120)] and phone.got[0] is phone2.got[0]
     assert size(tablet) == [(480, 360)] and size(quiet) == [PICTURE_SIZE]
+
+
+def test_the_picture_process_gets_all_the_renderer_reads() -> None:
+    """The picture process is sent a state's surface and scalars, not its positions and velocities:
+    the picture drawn from that is the picture of the whole state, pixel for pixel."""
+    from puppet.live import load_face
+    from puppet.panel.pictures import drawn_part
+    from render.offscreen import OffscreenRenderer
+
+    model = load_face().model
+    state = posed(model, 10)
+    state.eye_yaw, state.jaw = 0.6, 0.3
+    part = drawn_part(state)
+    assert not hasattr(part, "velocities") and part.eye_yaw == 0.6
+    with OffscreenRenderer(model, (160, 120)) as off:
+        whole = off.render_frame(state)
+        assert np.array_equal(off.render_frame(part), whole)
+        state.eye_yaw = -0.6  # and what it carries shows: another gaze, another picture
+        assert not np.array_equal(off.render_frame(drawn_part(state)), whole)

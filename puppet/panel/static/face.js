@@ -6,7 +6,7 @@
 "use strict";
 window.PuppetFace = function (canvas) {
   const F = { ok: true, scene: null, frames: 0, drawn: 0, tick: -1, lags: [], drawLog: [], offset: null,
-              bytes: 0, error: null, mode: null, cost: { decode: 0, normals: 0, draw: 0 } };
+              bytes: 0, error: null, mode: null, decoding: 0, cost: { decode: 0, normals: 0, draw: 0 } };
   let gl = null, ctx2d = null, picture = null;
   let S = null, pos = null, nrm = null, dirty = false, eye = [0, 0];
   // the width the face is shown at, in device pixels (at most 1.5 per CSS pixel): the server sends
@@ -115,7 +115,9 @@ window.PuppetFace = function (canvas) {
 
   async function setPicture(buf, h, at) {  // decoded off this thread; shown at the next animation frame
     const t0 = performance.now();
-    const bmp = await createImageBitmap(new Blob([new Uint8Array(buf, at)], { type: h.type }));
+    let bmp;
+    F.decoding++;  // the page holds its state's redraw for this picture (one redraw for both)
+    try { bmp = await createImageBitmap(new Blob([new Uint8Array(buf, at)], { type: h.type })); } finally { F.decoding--; }
     const resized = F.size && (h.w !== F.size[0] || h.h !== F.size[1]);  // the same moment at the size now asked for
     if (h.tick < F.tick || (h.tick === F.tick && !resized)) { bmp.close(); if (F.onDrawn) F.onDrawn(); return; }  // a newer picture came first
     if (picture) { picture.close(); received--; if (F.onDrawn) F.onDrawn(); }  // passed over, never shown
@@ -141,6 +143,7 @@ window.PuppetFace = function (canvas) {
     return [m[0][0], m[1][0], m[2][0], m[0][1], m[1][1], m[2][1], m[0][2], m[1][2], m[2][2]];
   }
 
+  const STALE_MS = 1000;  // a moving face's picture is never this old when drawn (the server skips, never queues)
   let asked = false, received = 0;
   function redraw() { dirty = true; if (!asked) { asked = true; requestAnimationFrame(draw); } }
   function drawPicture() {
@@ -149,10 +152,14 @@ window.PuppetFace = function (canvas) {
     c.drawImage(p, 0, 0); p.close();
   }
   function shown(c0) {
-    F.drawn++; F.cost.draw += performance.now() - c0;
+    F.drawn++; F.drawnAt = performance.now(); F.cost.draw += F.drawnAt - c0;
+    F.stale = false;
     if (F.frameT !== undefined && F.offset !== null) {  // how far behind the server's read of the state
       const lag = performance.now() + F.offset - F.frameT * 1000;
-      F.lags.push(lag); if (F.lags.length > 600) F.lags.shift();
+      // a picture made over STALE_MS ago is a still face's last one, sent to a page that missed it
+      // or has just opened: the face is not that far behind, it has not moved since
+      F.stale = lag > STALE_MS;
+      if (!F.stale) { F.lags.push(lag); if (F.lags.length > 600) F.lags.shift(); }
     }
     F.drawLog.push([F.tick, performance.now()]); if (F.drawLog.length > 4000) F.drawLog.shift();
     for (; received > 0; received--) if (F.onDrawn) F.onDrawn();  // every frame that came is now shown or passed over

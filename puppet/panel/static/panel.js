@@ -172,11 +172,16 @@
   // the page is redrawn only where something changed: 30 states a second on a slow phone (or a
   // software-composited browser) must leave it time for the performer's fingers and the face
   const last = {};
-  const TEXT_MS = 200;
+  // every figure on the page (the sliders', the age's, the header's) is written in one animation
+  // frame at most TEXT_MS apart: a text change costs the browser a layout of the whole page (the
+  // regions' columns are laid out together), so four a second, all in one frame, never one per frame
+  const TEXT_MS = 250;
   function setText(e, text) { if (e.textContent !== text) e.textContent = text; }
   function changed(key, value) { const j = JSON.stringify(value); if (last[key] === j) return false; last[key] = j; return true; }
   function update(st) {
     const now = performance.now();
+    const texts = now - (last.textAt || 0) >= TEXT_MS;  // this frame writes the figures
+    if (texts) last.textAt = now;
     if (st.values) {
       state.values = st.values;
       for (const [ch, sl] of Object.entries(state.sliders)) {
@@ -184,29 +189,23 @@
         const u = (v - c.lo) / ((c.hi - c.lo) || 1);
         // the needle slides on its own layer (a transform: no layout, no repaint of the page)
         if (sl.u !== u) { sl.u = u; sl.ap.style.transform = `translateX(${(Math.min(1, Math.max(0, u)) * 100).toFixed(2)}%)`; }
-        // the figures (text: a layout and a raster of the glyphs each time, most of what a moving
-        // slider costs a software-composited browser) change at most TEXT_MS apart: nobody reads
-        // 30 figures a second; a change after a still moment shows at once, the last value always
-        if (now - (sl.textAt || 0) < TEXT_MS) continue;
-        let wrote = false;
-        if (sl.num.textContent !== v.toFixed(2)) { sl.num.textContent = v.toFixed(2); wrote = true; }
+        if (!texts) continue;  // nobody reads 30 figures a second; the last value always shows
+        setText(sl.num, v.toFixed(2));
         if (state.own["slider:" + ch] === undefined && sl.now !== fmt(v)) {  // untouched: it stands where the face is
           sl.now = fmt(v); sl.el.setAttribute("aria-valuenow", sl.now);
           sl.el.setAttribute("aria-valuetext", sl.now + (sl.linked ? ", left and right together" : ""));
-          wrote = true;
         }
-        if (wrote) sl.textAt = now;
       }
       if (state.ageRow) {
         const a = state.ageRow, v = st.values[state.index[a.name]], u = (v - a.lo) / (a.hi - a.lo);
         if (changed("age", u)) {
           const ang = Math.PI * 0.75 + u * Math.PI * 1.5;
           $("ageapplied").setAttribute("x2", Math.cos(ang) * 40); $("ageapplied").setAttribute("y2", Math.sin(ang) * 40);
-          setText($("agetext"), v.toFixed(0));
         }
+        if (texts) setText($("agetext"), v.toFixed(0));
       }
     }
-    if (now - (last.statsAt || 0) > 500) {  // figures a person reads: twice a second is plenty
+    if (texts && now - (last.statsAt || 0) > 500) {  // figures a person reads: twice a second is plenty
       last.statsAt = now;
       if (st.fps !== undefined) { setText($("fps"), String(st.fps)); setText($("tps"), String(st.tps)); }
       if (st.latency) { setText($("p50"), st.latency[0].toFixed(1)); setText($("p99"), st.latency[1].toFixed(1)); }
@@ -254,24 +253,42 @@
   // the face, live (face.js draws it with WebGL 2 from the server's stream); hidden, nothing is sent
   const face = state.face = window.PuppetFace($("face"));
   // each frame drawn is reported: the server sends a page at most two frames ahead of its drawing
-  face.onDrawn = () => { if (state.ws && state.ws.readyState === 1) state.ws.send('{"t":"drawn"}'); };
+  face.onDrawn = () => {
+    if (state.ws && state.ws.readyState === 1) state.ws.send('{"t":"drawn"}');
+    if (face.drawn === 1 && faceOn) faceReadout(true);  // not "waiting" for up to a second more
+  };
   let faceOn = face.ok && params.get("face") !== "0";  // ?face=0: a page that starts without the face
-  if (!face.ok) { $("facetoggle").disabled = true; $("facefps").textContent = "no WebGL 2 here"; }
+  if (!face.ok) { $("facetoggle").disabled = true; $("faceinfo").textContent = "no WebGL 2 here"; }
   const faceWish = () => { if (state.ws && state.ws.readyState === 1) state.ws.send(JSON.stringify({ t: "face", on: faceOn, w: face.width() })); };
   face.onResize = () => { if (faceOn) faceWish(); };  // a smaller view asks for smaller pictures
   const showFace = () => { $("facetoggle").setAttribute("aria-pressed", String(faceOn));
     $("facetoggle").textContent = faceOn ? "face shown" : "face hidden"; $("face").style.visibility = faceOn ? "" : "hidden"; };
   $("facetoggle").onclick = () => { faceOn = !faceOn && face.ok; showFace(); faceWish(); };
   showFace();
-  let lastDrawn = 0, lastAt = performance.now();
-  setInterval(() => {
-    const now = performance.now(), fps = (face.drawn - lastDrawn) / ((now - lastAt) / 1000);
-    lastDrawn = face.drawn; lastAt = now;
+  // the face's readout, once a second (and at the first picture): how many pictures a second and how
+  // far behind the show, or, with the face still (the server sends nothing while it does not move),
+  // how long it has not moved
+  let lastDrawn = 0, lastAt = performance.now(), stateAt = 0;
+  const ago = (s) => (s < 90 ? `${s.toFixed(0)} s` : s < 5400 ? `${(s / 60).toFixed(0)} min` : `${(s / 3600).toFixed(1)} h`);
+  function faceReadout(first) {
+    const now = performance.now(), n = face.drawn - lastDrawn, fps = n / ((now - lastAt) / 1000);
+    if (!first) { lastDrawn = face.drawn; lastAt = now; }
     if (!face.ok) return;
-    $("facefps").textContent = faceOn ? fps.toFixed(0) : "–";
-    const l = face.lags.slice(-30).sort((a, b) => a - b);
-    $("facelag").textContent = faceOn && l.length ? l[l.length >> 1].toFixed(0) : "–";
-  }, 1000);
+    let text;
+    if (!faceOn) text = "not sent to this page";
+    else if (!face.drawn) text = "waiting for the first picture";
+    else {
+      const age = (now - face.drawnAt) / 1000, l = face.lags.slice(-30).sort((a, b) => a - b);
+      const lag = l.length ? ` · ${l[l.length >> 1].toFixed(0)} ms behind the show` : "";
+      // since the face last moved: the server's clock now minus when the last picture was made
+      const still = face.offset !== null && face.frameT !== undefined ? (now + face.offset) / 1000 - face.frameT : age;
+      if ((first || n > 0) && !face.stale) text = (first ? "first picture" : `${fps.toFixed(0)} frames/s`) + lag;
+      else if (now - stateAt < 1500) text = `still · unchanged for ${ago(Math.max(0, still))}`;
+      else text = `no picture for ${ago(age)}`;  // nor states: the connection says why
+    }
+    setText($("faceinfo"), text);
+  }
+  setInterval(() => faceReadout(false), 1000);
   function connect() {
     const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws?" + q.toString());
     ws.binaryType = "arraybuffer";
@@ -285,7 +302,8 @@
         state.me = msg.you; state.allowed = new Set(msg.allowed); state.layout = msg.layout;
         $("me").textContent = msg.you; build(msg.layout);
       } else if (msg.t === "state") {  // applied in the next animation frame, with the face's: one redraw
-        if (!pendingState) requestAnimationFrame(() => { const st = pendingState; pendingState = null; update(st); });
+        stateAt = performance.now();
+        if (!pendingState) { pendingAt = stateAt; requestAnimationFrame(applyState); }
         pendingState = msg;
       }
       else if (msg.t === "pong") {
@@ -295,6 +313,14 @@
         if (rtt <= bestRtt) { bestRtt = rtt; face.offset = msg.s * 1000 - (pingAt + now) / 2; }
       }
     };
+  }
+  // the server sends a cycle's picture just before its state: the state waits (HOLD_MS at most) for
+  // the picture being decoded, so both are shown in one redraw, not two
+  const HOLD_MS = 50;
+  let pendingAt = 0;
+  function applyState() {
+    if (face.decoding > 0 && performance.now() - pendingAt < HOLD_MS) { requestAnimationFrame(applyState); return; }
+    const st = pendingState; pendingState = null; update(st);
   }
   function ping() { if (state.ws && state.ws.readyState === 1) { pingAt = performance.now(); state.ws.send('{"t":"ping"}'); } }
   setInterval(ping, 1000);
