@@ -169,20 +169,41 @@ def machine_cpu() -> tuple[float, float]:
     return (sum(v) - v[3] - v[4]) / tick, (v[3] + v[4]) / tick
 
 
-def farm_cpu(farm: Farm) -> float:
-    """CPU seconds used so far by the farm's processes (scheduler, nannies, workers)."""
+def steal() -> float:
+    """CPU seconds the hypervisor gave to other machines while this one's CPUs wanted to run, since
+    boot (/proc/stat's steal column)."""
+    return int(open("/proc/stat").readline().split()[8]) / os.sysconf("SC_CLK_TCK")
+
+
+def farm_roles(farm: Farm) -> dict[str, float]:
+    """CPU seconds used so far by the farm's processes by role (scheduler, nannies, workers; a
+    worker's time split into user and system), and the workers' involuntary context switches (how
+    often a worker was made to wait for a CPU)."""
     import psutil
 
-    total = 0.0
-    for p in farm.procs:
+    out = {"scheduler": 0.0, "nanny": 0.0, "worker_user": 0.0, "worker_system": 0.0, "worker_preempted": 0.0}
+    for i, p in enumerate(farm.procs):
         try:
             top = psutil.Process(p.pid)
             for q in [top, *top.children(recursive=True)]:
                 t = q.cpu_times()
-                total += t.user + t.system
+                if i == 0:
+                    out["scheduler"] += t.user + t.system
+                elif q.pid == top.pid and top.children():
+                    out["nanny"] += t.user + t.system
+                else:  # a worker (under its nanny, or `--no-nanny` alone)
+                    out["worker_user"] += t.user
+                    out["worker_system"] += t.system
+                    out["worker_preempted"] += q.num_ctx_switches().involuntary
         except psutil.Error:
             pass
-    return total
+    return out
+
+
+def farm_cpu(farm: Farm) -> float:
+    """CPU seconds used so far by the farm's processes (scheduler, nannies, workers)."""
+    r = farm_roles(farm)
+    return r["scheduler"] + r["nanny"] + r["worker_user"] + r["worker_system"]
 
 
 def farm_run(farm: Farm, cmd: list[str], client: Any) -> dict[str, Any]:
@@ -190,11 +211,14 @@ def farm_run(farm: Farm, cmd: list[str], client: Any) -> dict[str, Any]:
     used meanwhile, and per-task figures from the scheduler's task stream (compute time of each task
     on its worker, and how long the first worker to run out of tasks waited for the last)."""
     b0, i0 = machine_cpu()
-    f0 = farm_cpu(farm)
+    r0 = farm_roles(farm)
+    s0 = steal()
     t0 = time.time()
     wall = timed(cmd)
     b1, i1 = machine_cpu()
-    ours = CPU[0] + farm_cpu(farm) - f0
+    r1 = farm_roles(farm)
+    roles = {k: r1[k] - r0[k] for k in r0}
+    ours = CPU[0] + sum(v for k, v in roles.items() if k != "worker_preempted")
     stream = [t for t in client.get_task_stream(start=t0) if str(t["key"]).startswith("export-")]
     comp: dict[str, list[tuple[float, float]]] = {}
     for t in stream:
@@ -206,7 +230,8 @@ def farm_run(farm: Farm, cmd: list[str], client: Any) -> dict[str, Any]:
     return {"wall": wall, "cpu_ours": ours, "cpu_others": max(0.0, b1 - b0 - ours), "idle": i1 - i0,
             "tasks": len(spans), "task_s": sum(b - a for a, b in spans) / max(1, len(spans)),
             "first_start": min((a for a, _ in spans), default=0.0), "tail": max(ends) - min(ends) if ends else 0.0,
-            "per_worker": sorted(len(v) for v in comp.values())}
+            "per_worker": sorted(len(v) for v in comp.values()), "client_cpu": CPU[0], **roles,
+            "steal": steal() - s0}
 
 
 def _noop(x: int) -> int:
@@ -341,7 +366,10 @@ def main() -> int:
             print(f"     {n} worker{'s' if n > 1 else ''}: {x['wall']:.1f} s; {x['tasks']} tasks {x['per_worker']}, "
                   f"{x['task_s']:.2f} s each on its worker, first starts at {x['first_start']:.1f} s, "
                   f"tail {x['tail']:.1f} s; CPU: ours {x['cpu_ours']:.1f} s, other users' {x['cpu_others']:.1f} s, "
-                  f"idle {x['idle']:.1f} s")
+                  f"idle {x['idle']:.1f} s, stolen by the host {x['steal']:.1f} s")
+            print(f"       where ours went: workers {x['worker_user']:.1f} s user + {x['worker_system']:.1f} s system "
+                  f"(preempted {x['worker_preempted']:.0f} times), nannies {x['nanny']:.2f} s, scheduler "
+                  f"{x['scheduler']:.2f} s, client {x['client_cpu']:.2f} s")
     print(f"scheduling: {res['task_overhead_ms']:.2f} ms per no-op task")
     return 0
 
