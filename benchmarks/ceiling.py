@@ -10,6 +10,8 @@ gives less, and no batch can beat that ceiling. Kernels, lightest to heaviest in
 - `stream`: copying 64 MB arrays (memory bandwidth, shared by the cores);
 - `sim`: the scanned head's simulation of a 10 s take, 600 ticks, no posing and no output;
 - `pose`: the same plus posing all 26,719 scan vertices a frame as float32 (what a PC2 holds);
+- `sim-private`, `export-private`: the same, each process with its own copy of the integrator's
+  prepared arrays (what the batch's workers did before `puppet.batch.shared`);
 - `export`: the batch's whole task (`puppet.batch.jobs.export_outputs`) writing the PC2 + OBJ to
   the disk (`--out-dir`, default a temporary folder beside the benchmark) or to tmpfs
   (`/dev/shm`), without Dask.
@@ -38,7 +40,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-KERNELS = ("l1", "l2", "stream", "sim", "pose", "export", "export-tmpfs")
+KERNELS = ("l1", "l2", "stream", "sim", "sim-private", "pose", "export", "export-private", "export-tmpfs")
 
 
 def _fma_kernel() -> Callable[[np.ndarray, int], float]:
@@ -111,6 +113,9 @@ def _setup(kernel: str, take: str, out_dir: str) -> Callable[[], None]:
 
 def child(kernel: str, take: str, out_dir: str) -> None:
     """Set up, say `ready`, wait for `go` on stdin, run once, print {wall, cpu} as JSON."""
+    if kernel.endswith("-private"):  # each process its own copy of the prepared arrays
+        os.environ["PUPPET_BATCH_SHARED"] = "0"
+        kernel = kernel[:-len("-private")]
     work = _setup(kernel, take, out_dir)
     print("ready", flush=True)
     sys.stdin.readline()
@@ -143,18 +148,25 @@ def together(kernel: str, n: int, take: str, out_dir: str) -> list[dict[str, flo
     return out
 
 
-def measure(kernel: str, repeats: int, take: str, out_dir: str) -> dict[str, Any]:
-    """1 vs 2 processes, alternating; the ratio of work per second (2.0 = two whole cores)."""
-    ones: list[dict[str, float]] = []
-    twos: list[list[dict[str, float]]] = []
+def measure(kernels: list[str], repeats: int, take: str, out_dir: str) -> list[dict[str, Any]]:
+    """1 vs 2 processes for each kernel, the kernels taking turns in every repeat (so an A/B pair
+    sees the same load); per kernel the ratio of work per second (2.0 = two whole cores)."""
+    ones: dict[str, list[dict[str, float]]] = {k: [] for k in kernels}
+    twos: dict[str, list[list[dict[str, float]]]] = {k: [] for k in kernels}
     for _ in range(repeats):
-        ones.append(together(kernel, 1, take, out_dir)[0])
-        twos.append(together(kernel, 2, take, out_dir))
-    one = min(x["wall"] for x in ones)
-    two = min(max(x["wall"] for x in pair) for pair in twos)
-    return {"kernel": kernel, "one_s": one, "two_s": two, "ratio": 2 * one / two,
-            "pairs": [round(2 * a["wall"] / max(x["wall"] for x in b), 2) for a, b in zip(ones, twos)],
-            "cpu_one": min(x["cpu"] for x in ones), "cpu_two": min(max(x["cpu"] for x in p) for p in twos)}
+        for k in kernels:
+            ones[k].append(together(k, 1, take, out_dir)[0])
+            twos[k].append(together(k, 2, take, out_dir))
+    res = []
+    for k in kernels:
+        one = min(x["wall"] for x in ones[k])
+        two = min(max(x["wall"] for x in pair) for pair in twos[k])
+        res.append({"kernel": k, "one_s": one, "two_s": two, "ratio": 2 * one / two,
+                    "pairs": [round(2 * a["wall"] / max(x["wall"] for x in b), 2) for a, b in zip(ones[k], twos[k])],
+                    "cpu_one": min(x["cpu"] for x in ones[k]),
+                    "cpu_two": min(max(x["cpu"] for x in p) for p in twos[k]),
+                    "cpu_pairs": [round(max(x["cpu"] for x in b) / a["cpu"], 2) for a, b in zip(ones[k], twos[k])]})
+    return res
 
 
 def reference_take(folder: Path) -> Path:
@@ -179,7 +191,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory(prefix="puppet-bench-ceiling-") as tmp:
         take = str(reference_take(Path(tmp)))
         with tempfile.TemporaryDirectory(prefix="ceiling-out-", dir=a.out_dir) as out:
-            res = [measure(k, a.repeats, take, out) for k in a.kernels]
+            res = measure(a.kernels, a.repeats, take, out)
     if a.json:
         print(json.dumps({"load_before": load, "load_after": os.getloadavg()[0], "kernels": res}))
         return 0
@@ -187,7 +199,7 @@ def main() -> int:
     for r in res:
         print(f"  {r['kernel']:>12}: one {r['one_s']:.2f} s, two {r['two_s']:.2f} s -> {r['ratio']:.2f}x "
               f"(pairs {r['pairs']}); CPU one {r['cpu_one']:.2f} s, each of two {r['cpu_two']:.2f} s "
-              f"({r['cpu_two'] / r['cpu_one']:.2f}x)")
+              f"({r['cpu_two'] / r['cpu_one']:.2f}x; pairs {r['cpu_pairs']})")
     return 0
 
 

@@ -29,8 +29,6 @@ from collections import OrderedDict
 from pathlib import Path
 from typing import Any
 
-from puppet.batch import shared
-
 #: faces kept per process (a scanned head's model is ~100 MB; a batch rarely mixes more faces)
 MAX_FACES = 3
 #: glibc mallopt parameters and the values set: large scratch arrays stay in the heap
@@ -128,6 +126,8 @@ def install() -> None:
     if not _installed[0]:
         tune_malloc()
         if SHARE_PREPARED:
+            from puppet.batch import shared
+
             shared.install()
         _installed[0] = True
     replay.use_loaders(load_face=load_face, new_simulator=new_simulator)
