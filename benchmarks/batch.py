@@ -13,7 +13,13 @@ session, then share the time one process would get, and only the start-up saved 
 workers started in their own sessions (as on separate machines) each get a share. Read the CPU
 seconds for the work saved and the farm's 1 vs 2 workers for the parallel speed-up.
 
-Run:  nice .venv/bin/python benchmarks/batch.py [--face procedural] [--takes 16] [--seconds 10] [--skip-mp4] [--json]
+Each farm run also prints where its CPU went (workers' user and system time and how often they
+were preempted, nannies, scheduler, client), what other users' processes took and what the host
+stole; `--ceiling` adds the machine's own 1 vs 2 process ratio for the same task without Dask and
+for a compute kernel (`benchmarks/ceiling.py`), and the farm's ratio as a share of it.
+
+Run:  nice .venv/bin/python benchmarks/batch.py [--face procedural] [--takes 16] [--seconds 10] [--skip-mp4]
+      [--farm-only] [--ceiling] [--json]
 """
 
 from __future__ import annotations
@@ -259,6 +265,8 @@ def main() -> int:
     ap.add_argument("--farm-only", action="store_true", help="only the external scheduler's figures")
     ap.add_argument("--mp4-only", action="store_true", help="only MP4: serial against the local cluster")
     ap.add_argument("--face", default=None, help="the takes' face (--face spec; default: the default face, the scan)")
+    ap.add_argument("--ceiling", action="store_true", help="also run the same task without Dask and a compute "
+                    "kernel as 1 vs 2 processes (benchmarks/ceiling.py) and print the farm's ratio against them")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     if a.face:
@@ -337,6 +345,11 @@ def main() -> int:
                 res["task_overhead_ms"] = overhead(farm.address) * 1e3
             finally:
                 farm.stop()
+            if a.ceiling:
+                sys.path.insert(0, str(ROOT / "benchmarks"))
+                import ceiling  # type: ignore[import-not-found]
+
+                res["ceiling"] = ceiling.measure(["l2", "export"], a.repeats, str(takes[0]), str(d / "farm"))
         res["load_after"] = os.getloadavg()[0]
     if a.json:
         print(json.dumps(res))
@@ -371,6 +384,10 @@ def main() -> int:
                   f"(preempted {x['worker_preempted']:.0f} times), nannies {x['nanny']:.2f} s, scheduler "
                   f"{x['scheduler']:.2f} s, client {x['client_cpu']:.2f} s")
     print(f"scheduling: {res['task_overhead_ms']:.2f} ms per no-op task")
+    for c in res.get("ceiling", []):
+        print(f"ceiling: {c['kernel']} as 1 vs 2 processes {c['ratio']:.2f}x (pairs {c['pairs']}; CPU each of two "
+              f"{c['cpu_two'] / c['cpu_one']:.2f}x one's); the farm's {res['pc2_farm_speedup']:.2f}x is "
+              f"{res['pc2_farm_speedup'] / c['ratio']:.0%} of it")
     return 0
 
 
