@@ -67,8 +67,10 @@ def _layout(arrays: dict[str, np.ndarray]) -> tuple[bytes, list[tuple[str, np.nd
     return header + b"\0" * (start - head), [(n, a, start + p) for n, a, p in places], start + pos
 
 
-def write(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    """The arrays in one file at `path`, written beside it and renamed into place."""
+def write(path: Path, arrays: dict[str, np.ndarray], replace: bool = True) -> bool:
+    """The arrays in one file at `path`, written beside it and moved into place; with `replace`
+    False a file already there (another process's, written at the same time) is kept instead, so
+    every process maps the same one. True when this call's file is in place."""
     header, places, size = _layout(arrays)
     fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".part", dir=path.parent)
     try:
@@ -78,7 +80,16 @@ def write(path: Path, arrays: dict[str, np.ndarray]) -> None:
                 fh.seek(offset)
                 fh.write(a.tobytes())
             fh.truncate(size)
-        os.replace(tmp, path)
+        if replace:
+            os.replace(tmp, path)
+            return True
+        try:
+            os.link(tmp, path)  # only where none is: the first writer's file stays
+            return True
+        except FileExistsError:
+            return False
+        finally:
+            os.unlink(tmp)
     except BaseException:
         try:
             os.unlink(tmp)
@@ -150,9 +161,14 @@ class SharedStore:
     def _share(self, key: str, arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
-            write(self.path(key), arrays)
+            path = self.path(key)
+            if not write(path, arrays, replace=False):
+                try:
+                    return read(path)  # another worker's, made at the same time: the same pages
+                except (OSError, ValueError):
+                    write(path, arrays)  # a damaged one: replaced
             _evict(self.directory)
-            return read(self.path(key))
+            return read(path)
         except (OSError, ValueError):
             return arrays  # no shared memory here: this process's own copy
 

@@ -111,3 +111,15 @@ def test_another_process_maps_the_same_file(store: shared.SharedStore, tmp_path:
                          env={**__import__("os").environ, "PUPPET_CACHE_DIR": str(tmp_path)})
     assert out.stdout.strip() == "0"  # mapped, not loaded into its own memory
     assert path.stat().st_mtime_ns == stamp  # read, not written again
+
+
+def test_workers_writing_at_once_keep_the_first_file(tmp_path: Path) -> None:
+    """Two workers that miss at the same time both write; both then map the first one's file (one
+    copy in memory), never two files in turn."""
+    path = tmp_path / "x.shared"
+    first, second = {"v": np.arange(4.0)}, {"v": np.arange(4.0) + 1}
+    assert shared.write(path, first, replace=False)
+    inode = path.stat().st_ino
+    assert not shared.write(path, second, replace=False)
+    assert path.stat().st_ino == inode and shared.read(path)["v"].tolist() == [0.0, 1.0, 2.0, 3.0]
+    assert [p.name for p in tmp_path.iterdir()] == ["x.shared"]  # no temporary file left
