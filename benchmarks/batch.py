@@ -13,7 +13,13 @@ session, then share the time one process would get, and only the start-up saved 
 workers started in their own sessions (as on separate machines) each get a share. Read the CPU
 seconds for the work saved and the farm's 1 vs 2 workers for the parallel speed-up.
 
-Run:  nice .venv/bin/python benchmarks/batch.py [--face procedural] [--takes 16] [--seconds 10] [--skip-mp4] [--json]
+Each farm run also prints where its CPU went (workers' user and system time and how often they
+were preempted, nannies, scheduler, client), what other users' processes took and what the host
+stole; `--ceiling` adds the machine's own 1 vs 2 process ratio for the same task without Dask and
+for a compute kernel (`benchmarks/ceiling.py`), and the farm's ratio as a share of it.
+
+Run:  nice .venv/bin/python benchmarks/batch.py [--face procedural] [--takes 16] [--seconds 10] [--skip-mp4]
+      [--farm-only] [--ceiling] [--json]
 """
 
 from __future__ import annotations
@@ -169,20 +175,41 @@ def machine_cpu() -> tuple[float, float]:
     return (sum(v) - v[3] - v[4]) / tick, (v[3] + v[4]) / tick
 
 
-def farm_cpu(farm: Farm) -> float:
-    """CPU seconds used so far by the farm's processes (scheduler, nannies, workers)."""
+def steal() -> float:
+    """CPU seconds the hypervisor gave to other machines while this one's CPUs wanted to run, since
+    boot (/proc/stat's steal column)."""
+    return int(open("/proc/stat").readline().split()[8]) / os.sysconf("SC_CLK_TCK")
+
+
+def farm_roles(farm: Farm) -> dict[str, float]:
+    """CPU seconds used so far by the farm's processes by role (scheduler, nannies, workers; a
+    worker's time split into user and system), and the workers' involuntary context switches (how
+    often a worker was made to wait for a CPU)."""
     import psutil
 
-    total = 0.0
-    for p in farm.procs:
+    out = {"scheduler": 0.0, "nanny": 0.0, "worker_user": 0.0, "worker_system": 0.0, "worker_preempted": 0.0}
+    for i, p in enumerate(farm.procs):
         try:
             top = psutil.Process(p.pid)
             for q in [top, *top.children(recursive=True)]:
                 t = q.cpu_times()
-                total += t.user + t.system
+                if i == 0:
+                    out["scheduler"] += t.user + t.system
+                elif q.pid == top.pid and top.children():
+                    out["nanny"] += t.user + t.system
+                else:  # a worker (under its nanny, or `--no-nanny` alone)
+                    out["worker_user"] += t.user
+                    out["worker_system"] += t.system
+                    out["worker_preempted"] += q.num_ctx_switches().involuntary
         except psutil.Error:
             pass
-    return total
+    return out
+
+
+def farm_cpu(farm: Farm) -> float:
+    """CPU seconds used so far by the farm's processes (scheduler, nannies, workers)."""
+    r = farm_roles(farm)
+    return r["scheduler"] + r["nanny"] + r["worker_user"] + r["worker_system"]
 
 
 def farm_run(farm: Farm, cmd: list[str], client: Any) -> dict[str, Any]:
@@ -190,11 +217,14 @@ def farm_run(farm: Farm, cmd: list[str], client: Any) -> dict[str, Any]:
     used meanwhile, and per-task figures from the scheduler's task stream (compute time of each task
     on its worker, and how long the first worker to run out of tasks waited for the last)."""
     b0, i0 = machine_cpu()
-    f0 = farm_cpu(farm)
+    r0 = farm_roles(farm)
+    s0 = steal()
     t0 = time.time()
     wall = timed(cmd)
     b1, i1 = machine_cpu()
-    ours = CPU[0] + farm_cpu(farm) - f0
+    r1 = farm_roles(farm)
+    roles = {k: r1[k] - r0[k] for k in r0}
+    ours = CPU[0] + sum(v for k, v in roles.items() if k != "worker_preempted")
     stream = [t for t in client.get_task_stream(start=t0) if str(t["key"]).startswith("export-")]
     comp: dict[str, list[tuple[float, float]]] = {}
     for t in stream:
@@ -206,7 +236,8 @@ def farm_run(farm: Farm, cmd: list[str], client: Any) -> dict[str, Any]:
     return {"wall": wall, "cpu_ours": ours, "cpu_others": max(0.0, b1 - b0 - ours), "idle": i1 - i0,
             "tasks": len(spans), "task_s": sum(b - a for a, b in spans) / max(1, len(spans)),
             "first_start": min((a for a, _ in spans), default=0.0), "tail": max(ends) - min(ends) if ends else 0.0,
-            "per_worker": sorted(len(v) for v in comp.values())}
+            "per_worker": sorted(len(v) for v in comp.values()), "client_cpu": CPU[0], **roles,
+            "steal": steal() - s0}
 
 
 def _noop(x: int) -> int:
@@ -234,6 +265,8 @@ def main() -> int:
     ap.add_argument("--farm-only", action="store_true", help="only the external scheduler's figures")
     ap.add_argument("--mp4-only", action="store_true", help="only MP4: serial against the local cluster")
     ap.add_argument("--face", default=None, help="the takes' face (--face spec; default: the default face, the scan)")
+    ap.add_argument("--ceiling", action="store_true", help="also run the same task without Dask and a compute "
+                    "kernel as 1 vs 2 processes (benchmarks/ceiling.py) and print the farm's ratio against them")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     if a.face:
@@ -312,6 +345,11 @@ def main() -> int:
                 res["task_overhead_ms"] = overhead(farm.address) * 1e3
             finally:
                 farm.stop()
+            if a.ceiling:
+                sys.path.insert(0, str(ROOT / "benchmarks"))
+                import ceiling  # type: ignore[import-not-found]
+
+                res["ceiling"] = ceiling.measure(["l2", "export"], a.repeats, str(takes[0]), str(d / "farm"))
         res["load_after"] = os.getloadavg()[0]
     if a.json:
         print(json.dumps(res))
@@ -341,8 +379,15 @@ def main() -> int:
             print(f"     {n} worker{'s' if n > 1 else ''}: {x['wall']:.1f} s; {x['tasks']} tasks {x['per_worker']}, "
                   f"{x['task_s']:.2f} s each on its worker, first starts at {x['first_start']:.1f} s, "
                   f"tail {x['tail']:.1f} s; CPU: ours {x['cpu_ours']:.1f} s, other users' {x['cpu_others']:.1f} s, "
-                  f"idle {x['idle']:.1f} s")
+                  f"idle {x['idle']:.1f} s, stolen by the host {x['steal']:.1f} s")
+            print(f"       where ours went: workers {x['worker_user']:.1f} s user + {x['worker_system']:.1f} s system "
+                  f"(preempted {x['worker_preempted']:.0f} times), nannies {x['nanny']:.2f} s, scheduler "
+                  f"{x['scheduler']:.2f} s, client {x['client_cpu']:.2f} s")
     print(f"scheduling: {res['task_overhead_ms']:.2f} ms per no-op task")
+    for c in res.get("ceiling", []):
+        print(f"ceiling: {c['kernel']} as 1 vs 2 processes {c['ratio']:.2f}x (pairs {c['pairs']}; CPU each of two "
+              f"{c['cpu_two'] / c['cpu_one']:.2f}x one's); the farm's {res['pc2_farm_speedup']:.2f}x is "
+              f"{res['pc2_farm_speedup'] / c['ratio']:.0%} of it")
     return 0
 
 

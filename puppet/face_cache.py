@@ -451,7 +451,12 @@ def use_stepper_store() -> None:
     from sim import prepared
 
     directory = cache_dir()
-    prepared.use_store(StepperStore(directory) if directory is not None else None)
+    store = StepperStore(directory) if directory is not None else None
+    wrapper = prepared._STORE
+    if hasattr(wrapper, "inner"):  # a store over the cache (`puppet.batch.shared`): it stays in front
+        wrapper.inner = store  # type: ignore[union-attr]
+    else:
+        prepared.use_store(store)
 
 
 def rig_model(rig: Any, rig_bytes: bytes, build: Callable[[], Any] | None = None) -> Any:

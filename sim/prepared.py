@@ -19,7 +19,7 @@ import numpy as np
 class Store(Protocol):
     def load(self, key: str) -> dict[str, np.ndarray] | None: ...
 
-    def save(self, key: str, arrays: dict[str, np.ndarray]) -> None: ...
+    def save(self, key: str, arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray] | None: ...
 
 
 _STORE: Store | None = None
@@ -75,7 +75,9 @@ def prepared(model: Any, h: float) -> dict[str, np.ndarray]:
         arrays = prepare(model, h)
         if _STORE is not None:
             try:
-                _STORE.save(key, arrays)
+                kept = _STORE.save(key, arrays)
+                if isinstance(kept, dict):  # the store's own copy of them (a mapped file) serves from now on
+                    arrays = kept
             except OSError:
                 pass  # a read-only cache: the next start factors again
     while len(_MEMO) >= MEMO_ENTRIES:

@@ -13,6 +13,7 @@ to a single export (independently encoded segments would start new groups of pic
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import json
 import os
@@ -248,8 +249,10 @@ def recognize_input(files: dict[str, bytes], origin: str, outname: str, opts: di
         return {outname: text.getvalue().encode()}
 
 
+@functools.lru_cache(maxsize=1)
 def identity() -> tuple[str, str]:
-    """(package version, digest of its sources): a farm must run the same program everywhere."""
+    """(package version, digest of its sources): a farm must run the same program everywhere.
+    Computed once per process: the program a process runs is the one it loaded."""
     import hashlib
 
     import puppet

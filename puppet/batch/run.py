@@ -183,27 +183,29 @@ def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_fr
     for o in todo:
         tag = f"{o.name}-{o.key[:12]}"
         files, origin = o.item.files, str(o.item.path)
+        size = _size(o)
         ticks = _video_plan(o, chunk_frames) if o.action == "export" and o.name.endswith(".mp4") else None
         if ticks is None:
             if o.action == "export":
                 together.setdefault(origin, []).append(o)
             else:
-                final[client.submit(fn[o.action], files, origin, o.name, o.opts, key=f"{o.action}-{tag}")] = [o]
+                final[client.submit(fn[o.action], files, origin, o.name, o.opts, key=f"{o.action}-{tag}",
+                                    priority=size)] = [o]
             continue
         parts = chunks(len(ticks), chunk_frames)
         o.chunks = parts
         ckpt = client.submit(jobs.mp4_checkpoints, files, origin, ticks, [a for a, _ in parts],
-                             key=f"mp4-checkpoints-{tag}")
+                             key=f"mp4-checkpoints-{tag}", priority=size)
         pieces = [client.submit(jobs.mp4_chunk, files, origin, o.opts, ticks, a, b, ckpt, k,
-                                key=f"mp4-chunk-{k}-{tag}") for k, (a, b) in enumerate(parts)]
+                                key=f"mp4-chunk-{k}-{tag}", priority=size) for k, (a, b) in enumerate(parts)]
         for f in (ckpt, *pieces):
             helpers[f] = o
-        fut = client.submit(jobs.mp4_join, o.name, origin, o.opts, *pieces, key=f"mp4-join-{tag}")
+        fut = client.submit(jobs.mp4_join, o.name, origin, o.opts, *pieces, key=f"mp4-join-{tag}", priority=size)
         final[fut] = [o]
     for origin, group in together.items():
         key = "export-" + hashlib.sha256("".join(o.key for o in group).encode()).hexdigest()[:24]
         final[client.submit(jobs.export_outputs, group[0].item.files, origin,
-                            [(o.name, o.opts) for o in group], dest, key=key)] = group
+                            [(o.name, o.opts) for o in group], dest, key=key, priority=_size(group[0]))] = group
     rep.tasks = len(final) + len(helpers)
     desc = f"batch on {rep.workers} worker{'' if rep.workers == 1 else 's'}"
     with tqdm(total=rep.tasks, desc=desc, unit="task", file=sys.stderr, dynamic_ncols=True,
@@ -232,6 +234,12 @@ def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_fr
                     rep.failed.setdefault(origin, f"{out_dir}: cannot write {o.name}: {err}")
                 if o.action == "recognize" and o.item.path.suffix.lower() == ".jsonl":
                     _keep_spans(rep, o, result[o.name][o.name])
+
+
+def _size(o: Output) -> int:
+    """A task's priority: its input's size in bytes (a take's length), so the longest start first
+    and the short ones fill the end (a shorter tail when the last task runs alone)."""
+    return len(o.item.files.get(o.item.path.name, b""))
 
 
 def _keep_spans(rep: Report, o: Output, text: bytes) -> None:

@@ -24,6 +24,7 @@ import copy
 import ctypes
 import ctypes.util
 import hashlib
+import os
 from collections import OrderedDict
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,9 @@ MAX_FACES = 3
 #: glibc mallopt parameters and the values set: large scratch arrays stay in the heap
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
 TRIM_BYTES, MMAP_BYTES = 64 << 20, 32 << 20
+
+#: the integrator's prepared arrays mapped from one shared file per machine (`puppet.batch.shared`)
+SHARE_PREPARED = os.environ.get("PUPPET_BATCH_SHARED", "1") != "0"
 
 _faces: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
 _simulators: dict[tuple[Any, ...], tuple[Any, Any]] = {}  # key -> (model kept alive, pristine simulator)
@@ -88,7 +92,18 @@ def new_simulator(model: Any, frame_dt: float) -> Any:
         _simulators[key] = entry
         stats["simulators_built"] += 1
     stats["simulator_copies"] += 1
-    return copy.deepcopy(entry[1], {id(model): model})
+    return copy.deepcopy(entry[1], _kept(model, entry[1]))
+
+
+def _kept(model: Any, simulator: Any) -> dict[int, Any]:
+    """What a simulator's copy shares with the original (deepcopy's memo): the model, and the
+    implicit integrator's prepared arrays (read-only; mapped once per machine, `puppet.batch.shared`)."""
+    memo: dict[int, Any] = {id(model): model}
+    prep = getattr(getattr(simulator, "_implicit", None), "prepared", None)
+    if isinstance(prep, dict):
+        memo[id(prep)] = prep
+        memo.update((id(a), a) for a in prep.values())
+    return memo
 
 
 def tune_malloc() -> bool:
@@ -110,6 +125,10 @@ def install() -> None:
 
     if not _installed[0]:
         tune_malloc()
+        if SHARE_PREPARED:
+            from puppet.batch import shared
+
+            shared.install()
         _installed[0] = True
     replay.use_loaders(load_face=load_face, new_simulator=new_simulator)
 

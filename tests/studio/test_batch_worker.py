@@ -97,3 +97,44 @@ def test_copied_simulators_step_as_new_ones() -> None:
 
 def test_malloc_thresholds_are_set() -> None:
     assert worker.tune_malloc()
+
+
+def test_longer_takes_are_submitted_with_higher_priority(tmp_path: Path) -> None:
+    """Longest first: a task's priority is its take's size, so the long ones start first and the
+    short ones fill the end of the batch."""
+    from puppet.batch import run as batch_run
+    from puppet.batch.plan import Output, load
+
+    asked: list[tuple[str, int]] = []
+
+    class Client:
+        def submit(self, fn: Any, *args: Any, key: str, priority: int = 0) -> str:
+            asked.append((key, priority))
+            return key
+
+    lengths = {"short": 10, "long": 400, "middle": 90}
+    outs = []
+    for name, lines in lengths.items():
+        p = tmp_path / f"{name}.jsonl"
+        p.write_text("".join(f'{{"t": {k}}}\n' for k in range(lines)))
+        item = load(p)
+        outs.append(Output(item, "export", f"{name}.pc2", name, {}))
+
+    class NoFutures(Exception):
+        pass
+
+    def as_completed(_: Any) -> Any:
+        raise NoFutures
+
+    import dask.distributed
+
+    real = dask.distributed.as_completed
+    dask.distributed.as_completed = as_completed
+    try:
+        with pytest.raises(NoFutures):
+            batch_run._submit_and_collect(Client(), outs, tmp_path, 0, batch_run.Report(), __import__("tqdm").tqdm,
+                                          False)
+    finally:
+        dask.distributed.as_completed = real
+    priority = {n: dict(asked)[k] for n, k in zip(lengths, [k for k, _ in asked])}
+    assert priority["long"] > priority["middle"] > priority["short"] > 0

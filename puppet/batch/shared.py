@@ -1,0 +1,196 @@
+"""One copy in memory of the integrator's prepared arrays for every worker process on a machine.
+
+The scanned head's implicit integrator reads ~12 MB of prepared arrays every step (the factored
+matrix 5.7 MB, the skin's bending 1.8 MB, the lid and lip contact 1.8 MB, the fold guard 1.2 MB).
+Each worker process loading its own copy puts two copies in the cores' shared last-level cache
+with two workers, and they evict each other: a take then simulates about a fifth slower on each
+of two workers than on one. Here the first worker to need them writes them once to a file (in the
+face cache's folder), and every worker maps that file: the same physical pages of the kernel's
+page cache, so one copy in memory and in the CPU caches. The mapping is private (copy-on-write), so the arrays are ordinary writable numpy
+arrays to the compiled kernels (which never write them), and the values, so the results, are the
+very same bits.
+
+`SharedStore` wraps the store `sim.prepared` uses (`puppet.face_cache.StepperStore`): a file here
+is named by the same key (a digest of everything the arrays are made from) and checked by the
+SHA-256 of its arrays' bytes; anything wrong with it is made again (and `sim.prepared.check`
+checks the arrays' structure either way)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import mmap
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: shared files kept (one per face and substep size); older ones are removed (a process that
+#: mapped one keeps its pages)
+KEEP = 4
+#: each array starts on a multiple of this many bytes (a cache line; numpy's own alignment)
+ALIGN = 64
+PREFIX = "puppet-prepared-"
+MAGIC = b"PUPPETSHARED1\n"
+
+
+def shared_dir() -> Path:
+    """Where the shared files live: the face cache's folder (`puppet.face_cache.cache_dir`), else
+    shared memory (/dev/shm) or the temporary folder. Any file mapped by several processes is one
+    copy in memory (the kernel's page cache); a file in the cache also serves the next batch."""
+    from puppet.face_cache import cache_dir
+
+    d = cache_dir()
+    if d is not None:
+        return d
+    shm = Path("/dev/shm")
+    return shm if shm.is_dir() and os.access(shm, os.W_OK) else Path(tempfile.gettempdir())
+
+
+def _layout(arrays: dict[str, np.ndarray]) -> tuple[bytes, list[tuple[str, np.ndarray, int]], int]:
+    """The file's header (magic, length, JSON index), each array with its offset, the file's size."""
+    index, places, pos = [], [], 0
+    for name, a in arrays.items():
+        a = np.asarray(a) if np.asarray(a).flags.c_contiguous else np.array(a, order="C")  # 0-d stays 0-d
+        index.append({"name": name, "dtype": a.dtype.str, "shape": list(a.shape), "offset": pos})
+        places.append((name, a, pos))
+        pos += -(-a.nbytes // ALIGN) * ALIGN
+    h = hashlib.sha256()
+    for _, a, _ in places:
+        h.update(a.tobytes())
+    text = json.dumps({"arrays": index, "sha256": h.hexdigest()}).encode()
+    head = len(MAGIC) + 8 + len(text)
+    start = -(-head // ALIGN) * ALIGN
+    header = MAGIC + start.to_bytes(8, "little") + text
+    return header + b"\0" * (start - head), [(n, a, start + p) for n, a, p in places], start + pos
+
+
+def write(path: Path, arrays: dict[str, np.ndarray], replace: bool = True) -> bool:
+    """The arrays in one file at `path`, written beside it and moved into place; with `replace`
+    False a file already there (another process's, written at the same time) is kept instead, so
+    every process maps the same one. True when this call's file is in place."""
+    header, places, size = _layout(arrays)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".part", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(header)
+            for _, a, offset in places:
+                fh.seek(offset)
+                fh.write(a.tobytes())
+            fh.truncate(size)
+        if replace:
+            os.replace(tmp, path)
+            return True
+        try:
+            os.link(tmp, path)  # only where none is: the first writer's file stays
+            return True
+        except FileExistsError:
+            return False
+        finally:
+            os.unlink(tmp)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def read(path: Path) -> dict[str, np.ndarray]:
+    """The arrays of a file `write` made, as views of one private mapping of it (ValueError or
+    OSError when it is not such a file)."""
+    with open(path, "rb") as fh:
+        size = os.fstat(fh.fileno()).st_size
+        if size < len(MAGIC) + 8:
+            raise ValueError("too short")
+        m = mmap.mmap(fh.fileno(), size, access=mmap.ACCESS_COPY)
+    if m[:len(MAGIC)] != MAGIC:
+        raise ValueError("not a shared arrays file")
+    start = int.from_bytes(m[len(MAGIC):len(MAGIC) + 8], "little")
+    if not len(MAGIC) + 8 <= start <= size:
+        raise ValueError("bad header")
+    head = json.loads(bytes(m[len(MAGIC) + 8:start]).rstrip(b"\0"))
+    out, h = {}, hashlib.sha256()
+    for e in head["arrays"]:
+        dtype = np.dtype(e["dtype"])
+        if dtype.hasobject:
+            raise ValueError("object arrays")
+        count = int(np.prod(e["shape"], dtype=np.int64))
+        offset = start + int(e["offset"])  # from the first array's start
+        if offset < start or offset % ALIGN or offset + count * dtype.itemsize > size:
+            raise ValueError(f"member {e['name']} out of the file")
+        out[str(e["name"])] = np.frombuffer(m, dtype, count, offset).reshape(tuple(e["shape"]))
+        h.update(memoryview(m)[offset:offset + count * dtype.itemsize])
+    if h.hexdigest() != head["sha256"]:
+        raise ValueError("damaged (checksum)")
+    return out
+
+
+class SharedStore:
+    """A `sim.prepared` store that serves every process on this machine one mapped copy of the
+    arrays `inner` (the on-disk cache, or None) keeps or the integrator makes."""
+
+    def __init__(self, inner: Any, directory: Path | None = None) -> None:
+        self.inner = inner
+        self.directory = directory or shared_dir()
+
+    def path(self, key: str) -> Path:
+        return self.directory / f"{PREFIX}{key[:40]}.shared"
+
+    def load(self, key: str) -> dict[str, np.ndarray] | None:
+        try:
+            return read(self.path(key))
+        except (OSError, ValueError, KeyError, TypeError):
+            pass
+        arrays = self.inner.load(key) if self.inner is not None else None
+        if arrays is None:
+            return None  # made by the integrator, then handed to save()
+        return self._share(key, arrays)
+
+    def save(self, key: str, arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Kept by `inner` and shared; returns the shared (mapped) arrays to step on."""
+        if self.inner is not None:
+            try:
+                self.inner.save(key, arrays)
+            except OSError:
+                pass
+        return self._share(key, arrays)
+
+    def _share(self, key: str, arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        try:
+            self.directory.mkdir(parents=True, exist_ok=True)
+            path = self.path(key)
+            if not write(path, arrays, replace=False):
+                try:
+                    return read(path)  # another worker's, made at the same time: the same pages
+                except (OSError, ValueError):
+                    write(path, arrays)  # a damaged one: replaced
+            _evict(self.directory)
+            return read(path)
+        except (OSError, ValueError):
+            return arrays  # no shared memory here: this process's own copy
+
+
+def _evict(directory: Path) -> None:
+    files = sorted((p for p in directory.glob(PREFIX + "*") if not p.name.endswith(".part")), key=lambda p: p.stat().st_mtime if p.exists() else 0.0)
+    for p in files[:-KEEP] if len(files) > KEEP else []:
+        try:
+            p.unlink()
+        except OSError:
+            pass
+
+
+def install() -> None:
+    """This process's integrator takes its prepared arrays through a `SharedStore` (idempotent)."""
+    from sim import prepared
+
+    if not isinstance(prepared._STORE, SharedStore):
+        from puppet.face_cache import StepperStore, cache_dir
+
+        inner = prepared._STORE
+        if inner is None:
+            directory = cache_dir()
+            inner = StepperStore(directory) if directory is not None else None
+        prepared.use_store(SharedStore(inner))
