@@ -119,11 +119,11 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
     core.tick = timed_tick  # type: ignore[method-assign]
     step = core.sim.step
 
-    def cpu_timed_step(state: Any, control: Any) -> Any:
+    def cpu_timed_step(state: Any, control: Any, **kw: Any) -> Any:
         # the step's CPU time (this thread's): equal to its wall time when nothing took the core or
         # the interpreter from it, so a step slower here than in benchmarks/sim_step.py is slower work
         c0 = time.thread_time()
-        out = step(state, control)
+        out = step(state, control, **kw)
         if spans is not None:
             spans.add("sim step CPU", time.thread_time() - c0)
         return out

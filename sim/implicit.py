@@ -14,6 +14,10 @@ real-time budget. Here each substep is one local/global iteration of projective 
   constant and the same for x, y and z, so it is factored once (sparse LU, scipy SuperLU) and a
   substep costs one spring pass and two triangular solves with 3 right-hand sides (laid out and
   swept by supernodes, `sim.supernodal`).
+- the right-hand side's part that no input changes (y, inertia, damping, the springs' local step,
+  the fold guard, the support, the last contact forces: `_predict`) can be computed before the
+  frame's inputs are known (`ImplicitStepper.predict`): the live loop does it between ticks, so a
+  tick that takes an input starts from the solve; a frame checks it was made from its very bits.
 - the lid and lip contact is solved with the global step (forces of unknown size on the margin
   pairs, `sim.margin_contact.SolvedContact`), then v' = (x' - x) / h; the eyeball contact is a
   projection after it.
@@ -124,18 +128,42 @@ def _csr_times(ptr, idx, val, x, out):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True, nogil=True)
-def _frame(x, v, n_sub, h, ext, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,  # type: ignore[no-untyped-def]
+def _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,  # type: ignore[no-untyped-def]
+             c_idx, c_w, c_sg, c_dim, c_lam, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, base):
+    """The part of a substep's right-hand side that no input changes (ImplicitStepper.predict): the
+    predicted positions y = x + h v, then base = M/h^2 y + C/h x + the springs' local step + the
+    skin's guard against turning over (sim.antifold) + the normal support + the last contact
+    forces. A substep's right-hand side is base + the frame's constant forces."""
+    n = x.shape[0]
+    for i in range(n):
+        for d in range(3):
+            y[i, d] = v[i, d] * h + x[i, d]
+    for i in range(n):
+        m = mass_h2[i]
+        c = damp_h[i]
+        for d in range(3):
+            base[i, d] = m * y[i, d] + c * x[i, d]
+    _pd_springs(y, springs, rest_len, k_low, k_high, thr, base)
+    _fold_forces(y, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, base)
+    for i in range(n):  # the support k_n n n^T: k_n (y - n (n . y)) on the right
+        ny = (normal[i, 0] * y[i, 0] + normal[i, 2] * y[i, 2]) + normal[i, 1] * y[i, 1]
+        k = kn[i]
+        for d in range(3):
+            base[i, d] += k * (y[i, d] - ny * normal[i, d])
+    _contact_force(base, c_idx, c_w, c_sg, c_dim, c_lam)
+
+
+@numba.njit(cache=True, nogil=True)
+def _frame(x, v, n_sub, predicted, h, ext, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,  # type: ignore[no-untyped-def]
            free, held, fh_ptr, fh_idx, fh_val, perm_r, perm_c, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag,
            c_idx, c_w, c_sg, c_dim, c_opp, c_row_ptr, c_row_v, c_lam, c_loc, c_green, c_gptr, c_gvert, c_gval,
            c_work, c_cand, c_schur, c_df, rounds, sweeps, eye_idx, eye_of, centres, radius,
-           f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, sn_work, y, rhs, xh, held_term, ys, xf_old):
+           f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, sn_work, y, base, xh, held_term, ys, xf_old):
     """The n_sub substeps of one frame in place on x, v (ImplicitStepper.frame; the module
-    docstring): per substep the predicted positions y, the right-hand side (inertia, the frame's
-    constant forces, damping, the springs' local step, the normal support, the last contact forces),
-    the skin's guard against turning over (sim.antifold), the prefactored solve, the lid and lip contact (sim.margin_contact.SolvedContact), v = (x' - x)
-    / h and the eyeball contact. The arithmetic is the same, operation for operation, as the numpy
-    expressions it replaces, so the bits are too."""
-    n = x.shape[0]
+    docstring): per substep the input-free part of the right-hand side (`_predict`; for the first
+    substep already in `base` when `predicted`), plus the frame's constant forces, the prefactored
+    solve, the lid and lip contact (sim.margin_contact.SolvedContact), v = (x' - x) / h and the
+    eyeball contact."""
     nf = free.shape[0]
     for k in range(held.shape[0]):  # held nodes do not move within a frame
         i = held[k]
@@ -143,30 +171,15 @@ def _frame(x, v, n_sub, h, ext, springs, rest_len, k_low, k_high, thr, normal, k
             xh[k, d] = x[i, d]
     _csr_times(fh_ptr, fh_idx, fh_val, xh, held_term)
     inv_h = 1.0 / h
-    for _ in range(n_sub):
-        for i in range(n):
-            for d in range(3):
-                y[i, d] = v[i, d] * h + x[i, d]
-        for i in range(n):
-            m = mass_h2[i]
-            c = damp_h[i]
-            for d in range(3):
-                rhs[i, d] = m * y[i, d] + ext[i, d] + c * x[i, d]
-        _pd_springs(y, springs, rest_len, k_low, k_high, thr, rhs)
-        _fold_forces(y, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, rhs)
-        for i in range(n):  # the support k_n n n^T: k_n (y - n (n . y)) on the right
-            # n . y summed in the order numpy's einsum took (SSE2 pairs: the x and z terms first),
-            # so the steps keep the bits of takes recorded before this kernel
-            ny = (normal[i, 0] * y[i, 0] + normal[i, 2] * y[i, 2]) + normal[i, 1] * y[i, 1]
-            k = kn[i]
-            for d in range(3):
-                rhs[i, d] += k * (y[i, d] - ny * normal[i, d])
-        _contact_force(rhs, c_idx, c_w, c_sg, c_dim, c_lam)
+    for sub in range(n_sub):
+        if sub > 0 or not predicted:
+            _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,
+                     c_idx, c_w, c_sg, c_dim, c_lam, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, base)
         for q in range(nf):
             i = free[q]
             r = perm_r[q]
             for d in range(3):
-                ys[r, d] = rhs[i, d] - held_term[q, d]
+                ys[r, d] = (base[i, d] + ext[i, d]) - held_term[q, d]
         _sn_sweeps(ys, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, sn_work)
         for q in range(nf):
             i = free[q]
@@ -211,8 +224,10 @@ def warm_up() -> None:
     prep.update({"c_" + k: val for k, val in contact.arrays().items()})
     stepper._setup(x, prep)
     eyes = (np.array([1], dtype=np.int64), np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 5.0]]), 1.0)
-    stepper.frame(x, np.zeros_like(x), 1, np.zeros_like(x), (springs, np.ones(2), np.ones(2), np.ones(2), 0.1),
-                  np.zeros_like(x), eyes)
+    v, spring_arrays = np.zeros_like(x), (springs, np.ones(2), np.ones(2), np.ones(2), 0.1)
+    stepper.predict(x, v, spring_arrays, np.zeros_like(x), "warm-up")  # the live loop's between ticks
+    stepper.frame(x, v, 1, np.zeros_like(x), spring_arrays, np.zeros_like(x), eyes, key="warm-up")
+    stepper.frame(x, v, 1, np.zeros_like(x), spring_arrays, np.zeros_like(x), eyes)
 
 
 def _sparse(name: str, m: sp.spmatrix) -> dict[str, np.ndarray]:
@@ -301,16 +316,53 @@ class ImplicitStepper:
         nf, nh = len(self.free), len(self.held)
         self._buf = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((nh, 3)), np.zeros((nf, 3)),
                      np.zeros((nf, 3)), np.zeros((nf, 3)))
+        # what the last `predict` was made from: its key, x, v and the contact's memory
+        self._predicted: object = None
+        self._px, self._pv = np.zeros((n, 3)), np.zeros((n, 3))
+        self._pc = np.zeros(0)
+
+    def predict(self, x: np.ndarray, v: np.ndarray, springs: tuple, normal: np.ndarray,  # type: ignore[type-arg]
+                key: object) -> None:
+        """Compute now the first substep's right-hand side without the frame's constant forces
+        (`_predict`: what no input changes), for a `frame` that follows with the same x, v, contact
+        memory and `key` (the caller's name for the springs' constants and the normals: the skin's
+        age and the jaw's pose). The live loop runs it between ticks, so a tick that takes an input
+        starts from the solve. A frame given anything else computes it again: the same bits
+        either way."""
+        idx, rest_len, k_low, k_high, thr = springs
+        c = self._contact
+        y, base = self._buf[0], self._buf[1]
+        _predict(x, v, self.h, idx, rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2, self.damp_h,
+                 c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base)
+        np.copyto(self._px, x)
+        np.copyto(self._pv, v)
+        self._pc = self._contact_memory()
+        self._predicted = key
+
+    def _contact_memory(self) -> np.ndarray:
+        c = self._contact
+        return np.concatenate([c.lam, c.w, c.idx.ravel().astype(np.float64)])
+
+    def _is_predicted(self, x: np.ndarray, v: np.ndarray, key: object) -> bool:
+        """True when the last `predict` was made from these very bits and key."""
+        if self._predicted is None or key != self._predicted:
+            return False
+        same = (np.array_equal(self._px.view(np.int64), x.view(np.int64))
+                and np.array_equal(self._pv.view(np.int64), v.view(np.int64)))
+        return same and np.array_equal(self._pc.view(np.int64), self._contact_memory().view(np.int64))
 
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
-              normal: np.ndarray, eyes: tuple, shape: np.ndarray | None = None) -> None:  # type: ignore[type-arg]
+              normal: np.ndarray, eyes: tuple, shape: np.ndarray | None = None,  # type: ignore[type-arg]
+              key: object = None) -> None:
         """n_sub substeps in place. ext: the frame-constant forces (muscles, gravity, the target terms
         of the tether and of the normal support); springs: (indices, rest lengths, k_low, k_high,
         threshold) as the kernel takes them; normal (N,3): the support's normals this frame. The
         support k_n n n^T enters like a spring: k_n I in the matrix, k_n (y - n (n . y)) on the right.
         eyes: (vertices, their eye, eye centres, radius) of the eyeball contact applied after each
         substep; shape (N,3): the rest shape of the margin bending term this frame (turned with the
-        jaw; None: the model's rest)."""
+        jaw; None: the model's rest); key: as `predict`'s (None: never use a prediction)."""
+        predicted = key is not None and self._is_predicted(x, v, key)
+        self._predicted = None  # a prediction serves one frame
         if len(self._bend[2]):  # the margin bending term's rest side (the shape changes with the jaw)
             shape = self.rest if shape is None else shape
             if shape is not self._shape:
@@ -322,7 +374,7 @@ class ImplicitStepper:
         c = self._contact
         from sim.margin_contact import ROUNDS, SWEEPS
 
-        _frame(x, v, n_sub, self.h, ext, idx, rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2,
+        _frame(x, v, n_sub, predicted, self.h, ext, idx, rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2,
                self.damp_h, self.free, self.held, *self._fh, self.solver.perm_r, self.solver.perm_c,
                *self.solver.factors, c.idx, c.w, c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam, c.loc, c.green,
                c.gptr, c.gvert, c.gval, c._work, c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes, *self._folds, self.solver.work, *self._buf)

@@ -526,9 +526,11 @@ class Simulator:
 
     # -- stepping
 
-    def step(self, state: FaceState, control: FaceControl) -> FaceState:
+    def step(self, state: FaceState, control: FaceControl, surface: bool = True) -> FaceState:
         """Advance `state` by one frame in place (and return it). On NaN or blow-up, restore the state
-        at the start of the frame with zero velocity and append a GuardEvent."""
+        at the start of the frame with zero velocity and append a GuardEvent. surface=False leaves
+        state.surface (the wrinkles, drawn only) to a later `surface(state)`: the live loop marks the
+        simulated state ready before it, so an input's latency does not wait for the drawing's layer."""
         x, v = state.positions, state.velocities
         np.copyto(self._saved_x, x)
         ext = self.external_forces(control)
@@ -546,7 +548,7 @@ class Simulator:
                 self._implicit.margins.recall(state.contact)
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
                                                             self._k_high, self._threshold), self._normal,
-                                 self._eyes, self._shape)
+                                 self._eyes, self._shape, key=(self._jaw, self._skin_age))
         reason = self._check(x)
         if reason:
             x[...] = self._saved_x
@@ -566,8 +568,26 @@ class Simulator:
         state.head_yaw = float(values[CHANNEL_INDEX["head_yaw"]])
         state.head_pitch = float(values[CHANNEL_INDEX["head_pitch"]])
         state.head_roll = float(values[CHANNEL_INDEX["head_roll"]])
-        self._surface(state)
+        if surface:
+            self._surface(state)
         return state
+
+    def prepare(self, state: FaceState) -> None:
+        """Compute ahead the part of the next step that no input changes (the implicit integrator's
+        `predict`), for a `step` of this very state with the skin's age and the jaw as in the last
+        step; the live loop calls it between ticks. A step given anything else does it itself:
+        the same bits either way. Nothing for RK2."""
+        if self._implicit is None or self._jaw is None:
+            return
+        if self._implicit.margins is not None:
+            self._implicit.margins.recall(state.contact)
+        self._implicit.predict(state.positions, state.velocities, (self._springs, self._rest_len, self._k_low,
+                                                                   self._k_high, self._threshold),
+                               self._normal, (self._jaw, self._skin_age))
+
+    def surface(self, state: FaceState) -> None:
+        """Fill state.surface for the positions of the last step (see `step`'s surface=False)."""
+        self._surface(state)
 
     def _age_skin(self, age: float) -> None:
         """Aged skin is softer at low strain and stiffens later (seed 003 section 2; the law is
