@@ -154,39 +154,62 @@ def _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2
 
 
 @numba.njit(cache=True, nogil=True)
-def _frame(x, v, n_sub, predicted, h, ext, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,  # type: ignore[no-untyped-def]
-           free, held, fh_ptr, fh_idx, fh_val, perm_r, perm_c, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag,
-           c_idx, c_w, c_sg, c_dim, c_opp, c_row_ptr, c_row_v, c_lam, c_loc, c_green, c_gptr, c_gvert, c_gval,
-           c_work, c_cand, c_schur, c_df, rounds, sweeps, eye_idx, eye_of, centres, radius,
-           f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, sn_work, y, base, xh, held_term, ys, xf_old):
-    """The n_sub substeps of one frame in place on x, v (ImplicitStepper.frame; the module
-    docstring): per substep the input-free part of the right-hand side (`_predict`; for the first
-    substep already in `base` when `predicted`), plus the frame's constant forces, the prefactored
-    solve, the lid and lip contact (sim.margin_contact.SolvedContact), v = (x' - x) / h and the
-    eyeball contact."""
-    nf = free.shape[0]
-    for k in range(held.shape[0]):  # held nodes do not move within a frame
+def _held_and_solve(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, sn_ptr, r_ptr, r_idx,  # type: ignore[no-untyped-def]
+                    v_ptr, lv, uv, t_ptr, tv, u_diag, sn_work, xh, held_term, ys):
+    """The held nodes' coupling (they do not move within a frame), then ys = the prefactored
+    solve of base + ext minus it, in the factors' order (perm_c reads it back)."""
+    for k in range(held.shape[0]):
         i = held[k]
         for d in range(3):
             xh[k, d] = x[i, d]
     _csr_times(fh_ptr, fh_idx, fh_val, xh, held_term)
+    for q in range(free.shape[0]):
+        i = free[q]
+        r = perm_r[q]
+        for d in range(3):
+            ys[r, d] = (base[i, d] + ext[i, d]) - held_term[q, d]
+    _sn_sweeps(ys, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, sn_work)
+
+
+@numba.njit(cache=True, nogil=True)
+def _responses(resp, act, val, out):  # type: ignore[no-untyped-def]
+    """out = sum over the active channels (in order) of each one's response times its activation."""
+    for q in range(out.shape[0]):
+        for d in range(3):
+            acc = 0.0
+            for k in range(act.shape[0]):
+                acc += resp[act[k], q, d] * val[k]
+            out[q, d] = acc
+
+
+@numba.njit(cache=True, nogil=True)
+def _frame(x, v, n_sub, predicted, h, ext, resp, act, act_val, springs, rest_len, k_low, k_high, thr, normal,  # type: ignore[no-untyped-def]
+           kn, mass_h2, damp_h, free, held, fh_ptr, fh_idx, fh_val, perm_r, perm_c, sn_ptr, r_ptr, r_idx, v_ptr, lv,
+           uv, t_ptr, tv, u_diag, c_idx, c_w, c_sg, c_dim, c_opp, c_row_ptr, c_row_v, c_lam, c_loc, c_green, c_gptr,
+           c_gvert, c_gval, c_work, c_cand, c_schur, c_df, rounds, sweeps, eye_idx, eye_of, centres, radius,
+           f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, sn_work, y, base, xh, held_term, ys, xf_old, du):
+    """The n_sub substeps of one frame in place on x, v (ImplicitStepper.frame; the module
+    docstring): per substep the solve of the input-free right-hand side (`_predict`, the frame's
+    constant forces without the muscles, the held nodes; for the first substep already in ys when
+    `predicted`), plus the muscles' responses, the lid and lip contact
+    (sim.margin_contact.SolvedContact), v = (x' - x) / h and the eyeball contact."""
+    nf = free.shape[0]
+    muscles = act.shape[0] > 0
+    if muscles:
+        _responses(resp, act, act_val, du)
     inv_h = 1.0 / h
     for sub in range(n_sub):
         if sub > 0 or not predicted:
             _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,
                      c_idx, c_w, c_sg, c_dim, c_lam, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, base)
-        for q in range(nf):
-            i = free[q]
-            r = perm_r[q]
-            for d in range(3):
-                ys[r, d] = (base[i, d] + ext[i, d]) - held_term[q, d]
-        _sn_sweeps(ys, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, sn_work)
+            _held_and_solve(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, sn_ptr, r_ptr, r_idx, v_ptr,
+                            lv, uv, t_ptr, tv, u_diag, sn_work, xh, held_term, ys)
         for q in range(nf):
             i = free[q]
             c = perm_c[q]
             for d in range(3):
                 xf_old[q, d] = x[i, d]
-                x[i, d] = ys[c, d]
+                x[i, d] = ys[c, d] + du[q, d] if muscles else ys[c, d]
         if c_idx.shape[0]:
             _repair(x, c_idx, c_w, c_opp, c_row_ptr, c_row_v)
             for _ in range(rounds):  # again while the correction pushed other pairs into contact
@@ -222,11 +245,13 @@ def warm_up() -> None:
                 dim=np.array([1]), opp=np.array([0]), row_ptr=np.array([0, 2]), row_v=np.array([0, 2]))
     contact = SolvedContact(cons, np.arange(3), 3, lambda b, out: np.copyto(out, b))
     prep.update({"c_" + k: val for k, val in contact.arrays().items()})
+    prep["resp"] = np.zeros((1, 2, 3))
     stepper._setup(x, prep)
     eyes = (np.array([1], dtype=np.int64), np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 5.0]]), 1.0)
     v, spring_arrays = np.zeros_like(x), (springs, np.ones(2), np.ones(2), np.ones(2), 0.1)
-    stepper.predict(x, v, spring_arrays, np.zeros_like(x), "warm-up")  # the live loop's between ticks
-    stepper.frame(x, v, 1, np.zeros_like(x), spring_arrays, np.zeros_like(x), eyes, key="warm-up")
+    stepper.predict(x, v, np.zeros_like(x), spring_arrays, np.zeros_like(x), None, "warm-up")  # between ticks
+    active = (np.array([0], dtype=np.int64), np.array([0.5]))
+    stepper.frame(x, v, 1, np.zeros_like(x), spring_arrays, np.zeros_like(x), eyes, key="warm-up", active=active)
     stepper.frame(x, v, 1, np.zeros_like(x), spring_arrays, np.zeros_like(x), eyes)
 
 
@@ -244,6 +269,29 @@ def _fold_arrays(guard: FoldGuard) -> dict[str, np.ndarray]:
     return dict(fold_tri=np.ascontiguousarray(guard.tri, dtype=np.int64), fold_frame=guard.frame,
                 fold_dm_inv=guard.dm_inv, fold_area=np.asarray(guard.area, dtype=np.float64),
                 fold_k=np.asarray(guard.k, dtype=np.float64), fold_floor=np.array(float(guard.floor)))
+
+
+def muscle_responses(solver: PrefactoredSolver, free: np.ndarray, n: int, fields: object,
+                     channels: np.ndarray) -> np.ndarray:
+    """(C, free nodes, 3): the step's response to each of `channels` (columns of the (3N, C) CSR
+    `fields`, with indptr, indices and data: a muscle's force at full activation), A^-1 of its
+    force on the free nodes; zero for the other columns. The step is linear in the muscles'
+    forces, so a frame adds the active channels' responses times their activations to the solve
+    of everything else (which the live loop computes before the inputs are known,
+    `ImplicitStepper.predict`) instead of solving the muscles' forces again each frame."""
+    indptr = np.asarray(fields.indptr)  # type: ignore[attr-defined]
+    indices = np.asarray(fields.indices)  # type: ignore[attr-defined]
+    data = np.asarray(fields.data, dtype=np.float64)  # type: ignore[attr-defined]
+    rows = np.repeat(np.arange(len(indptr) - 1), np.diff(indptr))
+    resp = np.zeros((int(fields.shape[1]), len(free), 3))  # type: ignore[attr-defined]
+    for c in channels:
+        f = np.zeros(3 * n)
+        on = indices == c
+        np.add.at(f, rows[on], data[on])
+        f3 = np.ascontiguousarray(f.reshape(n, 3)[free])
+        if f3.any():
+            solver.solve(f3, resp[int(c)])
+    return resp
 
 
 def prepare(model: FaceModel, h: float) -> dict[str, np.ndarray]:
@@ -274,6 +322,8 @@ def prepare(model: FaceModel, h: float) -> dict[str, np.ndarray]:
     # the skin's thickness against folding over (sim.antifold), on the predicted positions
     prep.update(_fold_arrays(FoldGuard(model.rest, model.triangles, springs, np.asarray(model.spring_k_high))))
     prep.update({"lu_" + k: val for k, val in solver.arrays.items()})
+    muscles = np.flatnonzero([c.kind == "muscle" for c in model.channels])
+    prep["resp"] = muscle_responses(solver, free, n, model.muscle_matrix, muscles)
     cons = solved_constraints(model.mesh, model.rest)  # the lid and lip contact (sim.margin_contact)
     if len(cons["idx"]):
         contact = SolvedContact(cons, free, n, solver.solve)
@@ -315,25 +365,41 @@ class ImplicitStepper:
         self._ext = np.zeros((n, 3))
         nf, nh = len(self.free), len(self.held)
         self._buf = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((nh, 3)), np.zeros((nf, 3)),
-                     np.zeros((nf, 3)), np.zeros((nf, 3)))
+                     np.zeros((nf, 3)), np.zeros((nf, 3)), np.zeros((nf, 3)))
+        self._resp = prep["resp"]  # each muscle channel's response (`muscle_responses`)
+        self._no_act = (np.zeros(0, dtype=np.int64), np.zeros(0))
         # what the last `predict` was made from: its key, x, v and the contact's memory
         self._predicted: object = None
         self._px, self._pv = np.zeros((n, 3)), np.zeros((n, 3))
         self._pc = np.zeros(0)
 
-    def predict(self, x: np.ndarray, v: np.ndarray, springs: tuple, normal: np.ndarray,  # type: ignore[type-arg]
-                key: object) -> None:
-        """Compute now the first substep's right-hand side without the frame's constant forces
-        (`_predict`: what no input changes), for a `frame` that follows with the same x, v, contact
-        memory and `key` (the caller's name for the springs' constants and the normals: the skin's
-        age and the jaw's pose). The live loop runs it between ticks, so a tick that takes an input
-        starts from the solve. A frame given anything else computes it again: the same bits
-        either way."""
+    def _with_bending(self, ext: np.ndarray, shape: np.ndarray | None) -> np.ndarray:
+        """ext plus the margin bending term's rest side (its shape changes with the jaw)."""
+        if not len(self._bend[2]):
+            return ext
+        shape = self.rest if shape is None else shape
+        if shape is not self._shape:
+            self._shape = shape
+            _csr_times(*self._bend, np.ascontiguousarray(shape, dtype=np.float64), self._bend_rhs)
+        np.add(ext, self._bend_rhs, out=self._ext)
+        return self._ext
+
+    def predict(self, x: np.ndarray, v: np.ndarray, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
+                normal: np.ndarray, shape: np.ndarray | None, key: object) -> None:
+        """Solve now the first substep for everything but the muscles (`_predict`, ext: the frame's
+        constant forces without them, the held nodes), for a `frame` that follows with the same x,
+        v, contact memory and `key` (the caller's name for ext, shape, the springs' constants and
+        the normals: the jaw's pose and the skin's age). The live loop runs it between ticks, so a
+        tick that takes an input only adds the muscles' responses and solves the contact. A frame
+        given anything else computes it again: the same bits either way."""
         idx, rest_len, k_low, k_high, thr = springs
         c = self._contact
-        y, base = self._buf[0], self._buf[1]
+        y, base, xh, held_term, ys = self._buf[:5]
+        ext = self._with_bending(ext, shape)
         _predict(x, v, self.h, idx, rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2, self.damp_h,
                  c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base)
+        _held_and_solve(x, self.held, *self._fh, base, ext, self.free, self.solver.perm_r, *self.solver.factors,
+                        self.solver.work, xh, held_term, ys)
         np.copyto(self._px, x)
         np.copyto(self._pv, v)
         self._pc = self._contact_memory()
@@ -353,28 +419,26 @@ class ImplicitStepper:
 
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
               normal: np.ndarray, eyes: tuple, shape: np.ndarray | None = None,  # type: ignore[type-arg]
-              key: object = None) -> None:
-        """n_sub substeps in place. ext: the frame-constant forces (muscles, gravity, the target terms
-        of the tether and of the normal support); springs: (indices, rest lengths, k_low, k_high,
-        threshold) as the kernel takes them; normal (N,3): the support's normals this frame. The
-        support k_n n n^T enters like a spring: k_n I in the matrix, k_n (y - n (n . y)) on the right.
-        eyes: (vertices, their eye, eye centres, radius) of the eyeball contact applied after each
-        substep; shape (N,3): the rest shape of the margin bending term this frame (turned with the
-        jaw; None: the model's rest); key: as `predict`'s (None: never use a prediction)."""
+              key: object = None, active: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """n_sub substeps in place. ext: the frame-constant forces (gravity, the target terms of the
+        tether and of the normal support, and muscles not given by `active`); springs: (indices,
+        rest lengths, k_low, k_high, threshold) as the kernel takes them; normal (N,3): the
+        support's normals this frame. The support k_n n n^T enters like a spring: k_n I in the
+        matrix, k_n (y - n (n . y)) on the right. eyes: (vertices, their eye, eye centres, radius)
+        of the eyeball contact applied after each substep; shape (N,3): the rest shape of the margin
+        bending term this frame (turned with the jaw; None: the model's rest); key: as `predict`'s
+        (None: never use a prediction); active: (channels, activations) whose responses
+        (`muscle_responses`) are added."""
         predicted = key is not None and self._is_predicted(x, v, key)
         self._predicted = None  # a prediction serves one frame
-        if len(self._bend[2]):  # the margin bending term's rest side (the shape changes with the jaw)
-            shape = self.rest if shape is None else shape
-            if shape is not self._shape:
-                self._shape = shape
-                _csr_times(*self._bend, np.ascontiguousarray(shape, dtype=np.float64), self._bend_rhs)
-            np.add(ext, self._bend_rhs, out=self._ext)
-            ext = self._ext
+        ext = self._with_bending(ext, shape)
+        act, act_val = self._no_act if active is None else active
         idx, rest_len, k_low, k_high, thr = springs
         c = self._contact
         from sim.margin_contact import ROUNDS, SWEEPS
 
-        _frame(x, v, n_sub, predicted, self.h, ext, idx, rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2,
-               self.damp_h, self.free, self.held, *self._fh, self.solver.perm_r, self.solver.perm_c,
-               *self.solver.factors, c.idx, c.w, c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam, c.loc, c.green,
-               c.gptr, c.gvert, c.gval, c._work, c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes, *self._folds, self.solver.work, *self._buf)
+        _frame(x, v, n_sub, predicted, self.h, ext, self._resp, act, act_val, idx, rest_len, k_low, k_high, thr,
+               normal, self.kn, self.mass_h2, self.damp_h, self.free, self.held, *self._fh, self.solver.perm_r,
+               self.solver.perm_c, *self.solver.factors, c.idx, c.w, c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam,
+               c.loc, c.green, c.gptr, c.gvert, c.gval, c._work, c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes,
+               *self._folds, self.solver.work, *self._buf)
