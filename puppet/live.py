@@ -409,7 +409,12 @@ class LiveCore:
         """Between ticks: the next step's part that no input changes (`sim.Simulator.prepare`), so a
         tick that takes an event starts from what the event changes. The state and the recording
         are the same bits with or without it."""
+        if self.spans is None:
+            self.sim.prepare(self.state)
+            return
+        t = time.perf_counter()
         self.sim.prepare(self.state)
+        self.spans.add("prepared between ticks", time.perf_counter() - t)
 
     def after_frame(self) -> None:
         """The frame is published: write the recording's records kept since the last call and
