@@ -461,6 +461,8 @@ class Simulator:
             raise ValueError("the implicit step's muscle responses do not cover the face's channels")
         self._ext_const = np.zeros((n, 3))  # the implicit step's constant forces without the muscles
         self._const_jaw: tuple[float, float, float] | None = None  # the jaw pose they were made for
+        self._last_key: tuple[object, object] | None = None  # the last step's jaw pose and skin age
+        self._moving = True  # they changed in the last step
         self._jaw: tuple[float, float, float] | None = None  # the jaw pose the target and normals were set for
         self._target = model.rest + model.rest_offset
         self._shape = np.array(model.rest)
@@ -571,6 +573,9 @@ class Simulator:
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
                                                             self._k_high, self._threshold), self._normal,
                                  self._eyes, self._shape, key=(self._jaw, self._skin_age), active=active)
+            # a jaw or an age still moving will likely move again: `prepare` would be wasted then
+            self._moving = (self._jaw, self._skin_age) != self._last_key
+            self._last_key = (self._jaw, self._skin_age)
         reason = self._check(x)
         if reason:
             x[...] = self._saved_x
@@ -598,8 +603,9 @@ class Simulator:
         """Compute ahead the part of the next step that no input changes (the implicit integrator's
         `predict`), for a `step` of this very state with the skin's age and the jaw as in the last
         step; the live loop calls it between ticks. A step given anything else does it itself:
-        the same bits either way. Nothing for RK2."""
-        if self._implicit is None or self._jaw is None or self._const_jaw != self._jaw:
+        the same bits either way. Nothing for RK2, nor while the jaw or the age is moving (the
+        last step moved them: the next one likely will too, and the work would be wasted)."""
+        if self._implicit is None or self._jaw is None or self._const_jaw != self._jaw or self._moving:
             return
         if self._implicit.margins is not None:
             self._implicit.margins.recall(state.contact)
