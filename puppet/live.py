@@ -255,6 +255,7 @@ def prepare_kernels(model: Any, dt: float) -> None:
     s.step(state, control)
     control.values[:] = [c.default + (c.hi - c.default) / 3 for c in CHANNEL_SPECS]
     s.step(state, control)
+    s.step(state, control)  # the jaw held: the next step can be prepared
     s.prepare(state)  # what the loop computes between ticks (`LiveCore.prepare_next`)
     s.step(state, control)
     if model.rig.wrinkles:
