@@ -14,10 +14,13 @@ real-time budget. Here each substep is one local/global iteration of projective 
   constant and the same for x, y and z, so it is factored once (sparse LU, scipy SuperLU) and a
   substep costs one spring pass and two triangular solves with 3 right-hand sides (laid out and
   swept by supernodes, `sim.supernodal`).
-- the right-hand side's part that no input changes (y, inertia, damping, the springs' local step,
-  the fold guard, the support, the last contact forces: `_predict`) can be computed before the
-  frame's inputs are known (`ImplicitStepper.predict`): the live loop does it between ticks, so a
-  tick that takes an input starts from the solve; a frame checks it was made from its very bits.
+- the muscles enter as responses: the step is linear in their forces, so each muscle channel's
+  A^-1 of its force (`muscle_responses`, made with the factors) times its activation is added to
+  the solve of everything else (y, inertia, damping, the springs' local step, the fold guard, the
+  support, the last contact forces: `_predict`; the jaw pose's constant forces, the held nodes).
+  That solve depends on no muscle channel, so it can be made before the frame's inputs are known
+  (`ImplicitStepper.predict`): the live loop does it between ticks, and a frame uses it only when it
+  was made from the frame's very bits.
 - the lid and lip contact is solved with the global step (forces of unknown size on the margin
   pairs, `sim.margin_contact.SolvedContact`), then v' = (x' - x) / h; the eyeball contact is a
   projection after it.
