@@ -255,6 +255,9 @@ def prepare_kernels(model: Any, dt: float) -> None:
     s.step(state, control)
     control.values[:] = [c.default + (c.hi - c.default) / 3 for c in CHANNEL_SPECS]
     s.step(state, control)
+    s.step(state, control)  # the jaw held: the next step can be prepared
+    s.prepare(state)  # what the loop computes between ticks (`LiveCore.prepare_next`)
+    s.step(state, control)
     if model.rig.wrinkles:
         from sim.wrinkles.kernels import warm_up
 
@@ -380,13 +383,14 @@ class LiveCore:
         if sp is not None:
             t_c = pc()
         n_new = len(unpresented) - n_before
-        self.sim.step(self.state, self.control)
+        self.sim.step(self.state, self.control, surface=False)
         if n_new:
             done = time.monotonic()
             for te in unpresented[-n_new:]:
                 self.state_latency.add(done - te)
         if sp is not None:
             t_d = pc()
+        self.sim.surface(self.state)  # the wrinkles only displace what is drawn: after the state is ready
         self.tick_count = k + 1
         if writer is not None:
             if self.tick_count % CHECK_TICKS == 0:
@@ -401,6 +405,17 @@ class LiveCore:
             sp.add("mapping", t_c - t_b)
             sp.add("sim step", t_d - t_c)
             sp.add("tick tail", t_e - t_d)
+
+    def prepare_next(self) -> None:
+        """Between ticks: the next step's part that no input changes (`sim.Simulator.prepare`), so a
+        tick that takes an event starts from what the event changes. The state and the recording
+        are the same bits with or without it."""
+        if self.spans is None:
+            self.sim.prepare(self.state)
+            return
+        t = time.perf_counter()
+        self.sim.prepare(self.state)
+        self.spans.add("prepared between ticks", time.perf_counter() - t)
 
     def after_frame(self) -> None:
         """The frame is published: write the recording's records kept since the last call and
@@ -667,6 +682,8 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
                 break
             if limit is not None and core.tick_count >= limit:
                 break
+            if wake is None or not wake(0.0):  # nothing waiting: do now what no input changes
+                core.prepare_next()
             boundary = start + (core.tick_count - k0) * core.dt
             if wake is not None:
                 now = wait_until(boundary - core.dt, clock, sleep, stop)  # at most one tick ahead

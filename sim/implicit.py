@@ -14,6 +14,13 @@ real-time budget. Here each substep is one local/global iteration of projective 
   constant and the same for x, y and z, so it is factored once (sparse LU, scipy SuperLU) and a
   substep costs one spring pass and two triangular solves with 3 right-hand sides (laid out and
   swept by supernodes, `sim.supernodal`).
+- the muscles enter as responses: the step is linear in their forces, so each muscle channel's
+  A^-1 of its force (`muscle_responses`, made with the factors) times its activation is added to
+  the solve of everything else (y, inertia, damping, the springs' local step, the fold guard, the
+  support, the last contact forces: `_predict`; the jaw pose's constant forces, the held nodes).
+  That solve depends on no muscle channel, so it can be made before the frame's inputs are known
+  (`ImplicitStepper.predict`): the live loop does it between ticks, and a frame uses it only when it
+  was made from the frame's very bits.
 - the lid and lip contact is solved with the global step (forces of unknown size on the margin
   pairs, `sim.margin_contact.SolvedContact`), then v' = (x' - x) / h; the eyeball contact is a
   projection after it.
@@ -124,56 +131,88 @@ def _csr_times(ptr, idx, val, x, out):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True, nogil=True)
-def _frame(x, v, n_sub, h, ext, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,  # type: ignore[no-untyped-def]
-           free, held, fh_ptr, fh_idx, fh_val, perm_r, perm_c, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag,
-           c_idx, c_w, c_sg, c_dim, c_opp, c_row_ptr, c_row_v, c_lam, c_loc, c_green, c_gptr, c_gvert, c_gval,
-           c_work, c_cand, c_schur, c_df, rounds, sweeps, eye_idx, eye_of, centres, radius,
-           f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, sn_work, y, rhs, xh, held_term, ys, xf_old):
-    """The n_sub substeps of one frame in place on x, v (ImplicitStepper.frame; the module
-    docstring): per substep the predicted positions y, the right-hand side (inertia, the frame's
-    constant forces, damping, the springs' local step, the normal support, the last contact forces),
-    the skin's guard against turning over (sim.antifold), the prefactored solve, the lid and lip contact (sim.margin_contact.SolvedContact), v = (x' - x)
-    / h and the eyeball contact. The arithmetic is the same, operation for operation, as the numpy
-    expressions it replaces, so the bits are too."""
+def _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,  # type: ignore[no-untyped-def]
+             c_idx, c_w, c_sg, c_dim, c_lam, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, base):
+    """The part of a substep's right-hand side that no input changes (ImplicitStepper.predict): the
+    predicted positions y = x + h v, then base = M/h^2 y + C/h x + the springs' local step + the
+    skin's guard against turning over (sim.antifold) + the normal support + the last contact
+    forces. A substep's right-hand side is base + the frame's constant forces."""
     n = x.shape[0]
-    nf = free.shape[0]
-    for k in range(held.shape[0]):  # held nodes do not move within a frame
+    for i in range(n):
+        for d in range(3):
+            y[i, d] = v[i, d] * h + x[i, d]
+    for i in range(n):
+        m = mass_h2[i]
+        c = damp_h[i]
+        for d in range(3):
+            base[i, d] = m * y[i, d] + c * x[i, d]
+    _pd_springs(y, springs, rest_len, k_low, k_high, thr, base)
+    _fold_forces(y, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, base)
+    for i in range(n):  # the support k_n n n^T: k_n (y - n (n . y)) on the right
+        ny = (normal[i, 0] * y[i, 0] + normal[i, 2] * y[i, 2]) + normal[i, 1] * y[i, 1]
+        k = kn[i]
+        for d in range(3):
+            base[i, d] += k * (y[i, d] - ny * normal[i, d])
+    _contact_force(base, c_idx, c_w, c_sg, c_dim, c_lam)
+
+
+@numba.njit(cache=True, nogil=True)
+def _held_and_solve(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, sn_ptr, r_ptr, r_idx,  # type: ignore[no-untyped-def]
+                    v_ptr, lv, uv, t_ptr, tv, u_diag, sn_work, xh, held_term, ys):
+    """The held nodes' coupling (they do not move within a frame), then ys = the prefactored
+    solve of base + ext minus it, in the factors' order (perm_c reads it back)."""
+    for k in range(held.shape[0]):
         i = held[k]
         for d in range(3):
             xh[k, d] = x[i, d]
     _csr_times(fh_ptr, fh_idx, fh_val, xh, held_term)
+    for q in range(free.shape[0]):
+        i = free[q]
+        r = perm_r[q]
+        for d in range(3):
+            ys[r, d] = (base[i, d] + ext[i, d]) - held_term[q, d]
+    _sn_sweeps(ys, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, sn_work)
+
+
+@numba.njit(cache=True, nogil=True)
+def _responses(resp, act, val, out):  # type: ignore[no-untyped-def]
+    """out = sum over the active channels (in order) of each one's response times its activation."""
+    for q in range(out.shape[0]):
+        for d in range(3):
+            acc = 0.0
+            for k in range(act.shape[0]):
+                acc += resp[act[k], q, d] * val[k]
+            out[q, d] = acc
+
+
+@numba.njit(cache=True, nogil=True)
+def _frame(x, v, n_sub, predicted, h, ext, resp, act, act_val, springs, rest_len, k_low, k_high, thr, normal,  # type: ignore[no-untyped-def]
+           kn, mass_h2, damp_h, free, held, fh_ptr, fh_idx, fh_val, perm_r, perm_c, sn_ptr, r_ptr, r_idx, v_ptr, lv,
+           uv, t_ptr, tv, u_diag, c_idx, c_w, c_sg, c_dim, c_opp, c_row_ptr, c_row_v, c_lam, c_loc, c_green, c_gptr,
+           c_gvert, c_gval, c_work, c_cand, c_schur, c_df, rounds, sweeps, eye_idx, eye_of, centres, radius,
+           f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, sn_work, y, base, xh, held_term, ys, xf_old, du):
+    """The n_sub substeps of one frame in place on x, v (ImplicitStepper.frame; the module
+    docstring): per substep the solve of the input-free right-hand side (`_predict`, the frame's
+    constant forces without the muscles, the held nodes; for the first substep already in ys when
+    `predicted`), plus the muscles' responses, the lid and lip contact
+    (sim.margin_contact.SolvedContact), v = (x' - x) / h and the eyeball contact."""
+    nf = free.shape[0]
+    muscles = act.shape[0] > 0
+    if muscles:
+        _responses(resp, act, act_val, du)
     inv_h = 1.0 / h
-    for _ in range(n_sub):
-        for i in range(n):
-            for d in range(3):
-                y[i, d] = v[i, d] * h + x[i, d]
-        for i in range(n):
-            m = mass_h2[i]
-            c = damp_h[i]
-            for d in range(3):
-                rhs[i, d] = m * y[i, d] + ext[i, d] + c * x[i, d]
-        _pd_springs(y, springs, rest_len, k_low, k_high, thr, rhs)
-        _fold_forces(y, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, rhs)
-        for i in range(n):  # the support k_n n n^T: k_n (y - n (n . y)) on the right
-            # n . y summed in the order numpy's einsum took (SSE2 pairs: the x and z terms first),
-            # so the steps keep the bits of takes recorded before this kernel
-            ny = (normal[i, 0] * y[i, 0] + normal[i, 2] * y[i, 2]) + normal[i, 1] * y[i, 1]
-            k = kn[i]
-            for d in range(3):
-                rhs[i, d] += k * (y[i, d] - ny * normal[i, d])
-        _contact_force(rhs, c_idx, c_w, c_sg, c_dim, c_lam)
-        for q in range(nf):
-            i = free[q]
-            r = perm_r[q]
-            for d in range(3):
-                ys[r, d] = rhs[i, d] - held_term[q, d]
-        _sn_sweeps(ys, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, sn_work)
+    for sub in range(n_sub):
+        if sub > 0 or not predicted:
+            _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,
+                     c_idx, c_w, c_sg, c_dim, c_lam, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, base)
+            _held_and_solve(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, sn_ptr, r_ptr, r_idx, v_ptr,
+                            lv, uv, t_ptr, tv, u_diag, sn_work, xh, held_term, ys)
         for q in range(nf):
             i = free[q]
             c = perm_c[q]
             for d in range(3):
                 xf_old[q, d] = x[i, d]
-                x[i, d] = ys[c, d]
+                x[i, d] = ys[c, d] + du[q, d] if muscles else ys[c, d]
         if c_idx.shape[0]:
             _repair(x, c_idx, c_w, c_opp, c_row_ptr, c_row_v)
             for _ in range(rounds):  # again while the correction pushed other pairs into contact
@@ -209,10 +248,14 @@ def warm_up() -> None:
                 dim=np.array([1]), opp=np.array([0]), row_ptr=np.array([0, 2]), row_v=np.array([0, 2]))
     contact = SolvedContact(cons, np.arange(3), 3, lambda b, out: np.copyto(out, b))
     prep.update({"c_" + k: val for k, val in contact.arrays().items()})
+    prep["resp"] = np.zeros((1, 2, 3))
     stepper._setup(x, prep)
     eyes = (np.array([1], dtype=np.int64), np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 5.0]]), 1.0)
-    stepper.frame(x, np.zeros_like(x), 1, np.zeros_like(x), (springs, np.ones(2), np.ones(2), np.ones(2), 0.1),
-                  np.zeros_like(x), eyes)
+    v, spring_arrays = np.zeros_like(x), (springs, np.ones(2), np.ones(2), np.ones(2), 0.1)
+    stepper.predict(x, v, np.zeros_like(x), spring_arrays, np.zeros_like(x), None, "warm-up")  # between ticks
+    active = (np.array([0], dtype=np.int64), np.array([0.5]))
+    stepper.frame(x, v, 1, np.zeros_like(x), spring_arrays, np.zeros_like(x), eyes, key="warm-up", active=active)
+    stepper.frame(x, v, 1, np.zeros_like(x), spring_arrays, np.zeros_like(x), eyes)
 
 
 def _sparse(name: str, m: sp.spmatrix) -> dict[str, np.ndarray]:
@@ -229,6 +272,29 @@ def _fold_arrays(guard: FoldGuard) -> dict[str, np.ndarray]:
     return dict(fold_tri=np.ascontiguousarray(guard.tri, dtype=np.int64), fold_frame=guard.frame,
                 fold_dm_inv=guard.dm_inv, fold_area=np.asarray(guard.area, dtype=np.float64),
                 fold_k=np.asarray(guard.k, dtype=np.float64), fold_floor=np.array(float(guard.floor)))
+
+
+def muscle_responses(solver: PrefactoredSolver, free: np.ndarray, n: int, fields: object,
+                     channels: np.ndarray) -> np.ndarray:
+    """(C, free nodes, 3): the step's response to each of `channels` (columns of the (3N, C) CSR
+    `fields`, with indptr, indices and data: a muscle's force at full activation), A^-1 of its
+    force on the free nodes; zero for the other columns. The step is linear in the muscles'
+    forces, so a frame adds the active channels' responses times their activations to the solve
+    of everything else (which the live loop computes before the inputs are known,
+    `ImplicitStepper.predict`) instead of solving the muscles' forces again each frame."""
+    indptr = np.asarray(fields.indptr)  # type: ignore[attr-defined]
+    indices = np.asarray(fields.indices)  # type: ignore[attr-defined]
+    data = np.asarray(fields.data, dtype=np.float64)  # type: ignore[attr-defined]
+    rows = np.repeat(np.arange(len(indptr) - 1), np.diff(indptr))
+    resp = np.zeros((int(fields.shape[1]), len(free), 3))  # type: ignore[attr-defined]
+    for c in channels:
+        f = np.zeros(3 * n)
+        on = indices == c
+        np.add.at(f, rows[on], data[on])
+        f3 = np.ascontiguousarray(f.reshape(n, 3)[free])
+        if f3.any():
+            solver.solve(f3, resp[int(c)])
+    return resp
 
 
 def prepare(model: FaceModel, h: float) -> dict[str, np.ndarray]:
@@ -259,6 +325,8 @@ def prepare(model: FaceModel, h: float) -> dict[str, np.ndarray]:
     # the skin's thickness against folding over (sim.antifold), on the predicted positions
     prep.update(_fold_arrays(FoldGuard(model.rest, model.triangles, springs, np.asarray(model.spring_k_high))))
     prep.update({"lu_" + k: val for k, val in solver.arrays.items()})
+    muscles = np.flatnonzero([c.kind == "muscle" for c in model.channels])
+    prep["resp"] = muscle_responses(solver, free, n, model.muscle_matrix, muscles)
     cons = solved_constraints(model.mesh, model.rest)  # the lid and lip contact (sim.margin_contact)
     if len(cons["idx"]):
         contact = SolvedContact(cons, free, n, solver.solve)
@@ -300,29 +368,80 @@ class ImplicitStepper:
         self._ext = np.zeros((n, 3))
         nf, nh = len(self.free), len(self.held)
         self._buf = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((nh, 3)), np.zeros((nf, 3)),
-                     np.zeros((nf, 3)), np.zeros((nf, 3)))
+                     np.zeros((nf, 3)), np.zeros((nf, 3)), np.zeros((nf, 3)))
+        self._resp = prep["resp"]  # each muscle channel's response (`muscle_responses`)
+        self._no_act = (np.zeros(0, dtype=np.int64), np.zeros(0))
+        # what the last `predict` was made from: its key, x, v and the contact's memory
+        self._predicted: object = None
+        self._px, self._pv = np.zeros((n, 3)), np.zeros((n, 3))
+        self._pc = np.zeros(0)
+
+    def _with_bending(self, ext: np.ndarray, shape: np.ndarray | None) -> np.ndarray:
+        """ext plus the margin bending term's rest side (its shape changes with the jaw)."""
+        if not len(self._bend[2]):
+            return ext
+        shape = self.rest if shape is None else shape
+        if shape is not self._shape:
+            self._shape = shape
+            _csr_times(*self._bend, np.ascontiguousarray(shape, dtype=np.float64), self._bend_rhs)
+        np.add(ext, self._bend_rhs, out=self._ext)
+        return self._ext
+
+    def predict(self, x: np.ndarray, v: np.ndarray, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
+                normal: np.ndarray, shape: np.ndarray | None, key: object) -> None:
+        """Solve now the first substep for everything but the muscles (`_predict`, ext: the frame's
+        constant forces without them, the held nodes), for a `frame` that follows with the same x,
+        v, contact memory and `key` (the caller's name for ext, shape, the springs' constants and
+        the normals: the jaw's pose and the skin's age). The live loop runs it between ticks, so a
+        tick that takes an input only adds the muscles' responses and solves the contact. A frame
+        given anything else computes it again: the same bits either way."""
+        idx, rest_len, k_low, k_high, thr = springs
+        c = self._contact
+        y, base, xh, held_term, ys = self._buf[:5]
+        ext = self._with_bending(ext, shape)
+        _predict(x, v, self.h, idx, rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2, self.damp_h,
+                 c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base)
+        _held_and_solve(x, self.held, *self._fh, base, ext, self.free, self.solver.perm_r, *self.solver.factors,
+                        self.solver.work, xh, held_term, ys)
+        np.copyto(self._px, x)
+        np.copyto(self._pv, v)
+        self._pc = self._contact_memory()
+        self._predicted = key
+
+    def _contact_memory(self) -> np.ndarray:
+        c = self._contact
+        return np.concatenate([c.lam, c.w, c.idx.ravel().astype(np.float64)])
+
+    def _is_predicted(self, x: np.ndarray, v: np.ndarray, key: object) -> bool:
+        """True when the last `predict` was made from these very bits and key."""
+        if self._predicted is None or key != self._predicted:
+            return False
+        same = (np.array_equal(self._px.view(np.int64), x.view(np.int64))
+                and np.array_equal(self._pv.view(np.int64), v.view(np.int64)))
+        return same and np.array_equal(self._pc.view(np.int64), self._contact_memory().view(np.int64))
 
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
-              normal: np.ndarray, eyes: tuple, shape: np.ndarray | None = None) -> None:  # type: ignore[type-arg]
-        """n_sub substeps in place. ext: the frame-constant forces (muscles, gravity, the target terms
-        of the tether and of the normal support); springs: (indices, rest lengths, k_low, k_high,
-        threshold) as the kernel takes them; normal (N,3): the support's normals this frame. The
-        support k_n n n^T enters like a spring: k_n I in the matrix, k_n (y - n (n . y)) on the right.
-        eyes: (vertices, their eye, eye centres, radius) of the eyeball contact applied after each
-        substep; shape (N,3): the rest shape of the margin bending term this frame (turned with the
-        jaw; None: the model's rest)."""
-        if len(self._bend[2]):  # the margin bending term's rest side (the shape changes with the jaw)
-            shape = self.rest if shape is None else shape
-            if shape is not self._shape:
-                self._shape = shape
-                _csr_times(*self._bend, np.ascontiguousarray(shape, dtype=np.float64), self._bend_rhs)
-            np.add(ext, self._bend_rhs, out=self._ext)
-            ext = self._ext
+              normal: np.ndarray, eyes: tuple, shape: np.ndarray | None = None,  # type: ignore[type-arg]
+              key: object = None, active: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """n_sub substeps in place. ext: the frame-constant forces (gravity, the target terms of the
+        tether and of the normal support, and muscles not given by `active`); springs: (indices,
+        rest lengths, k_low, k_high, threshold) as the kernel takes them; normal (N,3): the
+        support's normals this frame. The support k_n n n^T enters like a spring: k_n I in the
+        matrix, k_n (y - n (n . y)) on the right. eyes: (vertices, their eye, eye centres, radius)
+        of the eyeball contact applied after each substep; shape (N,3): the rest shape of the margin
+        bending term this frame (turned with the jaw; None: the model's rest); key: as `predict`'s
+        (None: never use a prediction); active: (channels, activations) whose responses
+        (`muscle_responses`) are added."""
+        predicted = key is not None and self._is_predicted(x, v, key)
+        self._predicted = None  # a prediction serves one frame
+        ext = self._with_bending(ext, shape)
+        act, act_val = self._no_act if active is None else active
         idx, rest_len, k_low, k_high, thr = springs
         c = self._contact
         from sim.margin_contact import ROUNDS, SWEEPS
 
-        _frame(x, v, n_sub, self.h, ext, idx, rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2,
-               self.damp_h, self.free, self.held, *self._fh, self.solver.perm_r, self.solver.perm_c,
-               *self.solver.factors, c.idx, c.w, c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam, c.loc, c.green,
-               c.gptr, c.gvert, c.gval, c._work, c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes, *self._folds, self.solver.work, *self._buf)
+        _frame(x, v, n_sub, predicted, self.h, ext, self._resp, act, act_val, idx, rest_len, k_low, k_high, thr,
+               normal, self.kn, self.mass_h2, self.damp_h, self.free, self.held, *self._fh, self.solver.perm_r,
+               self.solver.perm_c, *self.solver.factors, c.idx, c.w, c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam,
+               c.loc, c.green, c.gptr, c.gvert, c.gval, c._work, c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes,
+               *self._folds, self.solver.work, *self._buf)

@@ -457,6 +457,12 @@ class Simulator:
         self._held = np.flatnonzero(model.held)
         self._is_muscle = np.array([s.kind == "muscle" for s in model.channels], dtype=np.bool_)
         self._weight = np.ascontiguousarray(model.weight, dtype=np.float64)
+        if self._implicit is not None and self._implicit._resp.shape[0] < len(model.channels):
+            raise ValueError("the implicit step's muscle responses do not cover the face's channels")
+        self._ext_const = np.zeros((n, 3))  # the implicit step's constant forces without the muscles
+        self._const_jaw: tuple[float, float, float] | None = None  # the jaw pose they were made for
+        self._last_key: tuple[object, object] | None = None  # the last step's jaw pose and skin age
+        self._moving = True  # they changed in the last step
         self._jaw: tuple[float, float, float] | None = None  # the jaw pose the target and normals were set for
         self._target = model.rest + model.rest_offset
         self._shape = np.array(model.rest)
@@ -524,14 +530,34 @@ class Simulator:
         self._ext_values = np.array(v)
         return self._ext
 
+    def _constants_and_muscles(self, control: FaceControl) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """For the implicit step: the constant forces without the muscles (`_constant_forces` with
+        none active: recomputed only when the jaw moves) and the active muscle channels with their
+        activations (their forces enter as responses, `sim.implicit.muscle_responses`)."""
+        v = control.values
+        self._set_jaw((float(v[self._jaw_i]), float(v[self._jaw_forward_i]), float(v[self._jaw_side_i])))
+        if self._const_jaw != self._jaw:
+            mm = self.model.muscle_matrix  # with no entries: none of its muscles counted
+            none = np.zeros_like(mm.indptr)
+            _constant_forces(none, mm.indices, mm.data, v, self._is_muscle, self._weight,
+                             self._kr, self._target, self._kn, self._normal, self._ext_const)
+            self._const_jaw = self._jaw
+        act = np.flatnonzero(self._is_muscle & (v != 0.0))
+        return self._ext_const, (act, np.ascontiguousarray(v[act], dtype=np.float64))
+
     # -- stepping
 
-    def step(self, state: FaceState, control: FaceControl) -> FaceState:
+    def step(self, state: FaceState, control: FaceControl, surface: bool = True) -> FaceState:
         """Advance `state` by one frame in place (and return it). On NaN or blow-up, restore the state
-        at the start of the frame with zero velocity and append a GuardEvent."""
+        at the start of the frame with zero velocity and append a GuardEvent. surface=False leaves
+        state.surface (the wrinkles, drawn only) to a later `surface(state)`: the live loop marks the
+        simulated state ready before it, so an input's latency does not wait for the drawing's layer."""
         x, v = state.positions, state.velocities
         np.copyto(self._saved_x, x)
-        ext = self.external_forces(control)
+        if self._implicit is None:
+            ext = self.external_forces(control)
+        else:
+            ext, active = self._constants_and_muscles(control)
         held = self._held
         x[held] = self._target[held]
         v[held] = 0.0
@@ -546,7 +572,10 @@ class Simulator:
                 self._implicit.margins.recall(state.contact)
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
                                                             self._k_high, self._threshold), self._normal,
-                                 self._eyes, self._shape)
+                                 self._eyes, self._shape, key=(self._jaw, self._skin_age), active=active)
+            # a jaw or an age still moving will likely move again: `prepare` would be wasted then
+            self._moving = (self._jaw, self._skin_age) != self._last_key
+            self._last_key = (self._jaw, self._skin_age)
         reason = self._check(x)
         if reason:
             x[...] = self._saved_x
@@ -566,8 +595,27 @@ class Simulator:
         state.head_yaw = float(values[CHANNEL_INDEX["head_yaw"]])
         state.head_pitch = float(values[CHANNEL_INDEX["head_pitch"]])
         state.head_roll = float(values[CHANNEL_INDEX["head_roll"]])
-        self._surface(state)
+        if surface:
+            self._surface(state)
         return state
+
+    def prepare(self, state: FaceState) -> None:
+        """Compute ahead the part of the next step that no input changes (the implicit integrator's
+        `predict`), for a `step` of this very state with the skin's age and the jaw as in the last
+        step; the live loop calls it between ticks. A step given anything else does it itself:
+        the same bits either way. Nothing for RK2, nor while the jaw or the age is moving (the
+        last step moved them: the next one likely will too, and the work would be wasted)."""
+        if self._implicit is None or self._jaw is None or self._const_jaw != self._jaw or self._moving:
+            return
+        if self._implicit.margins is not None:
+            self._implicit.margins.recall(state.contact)
+        self._implicit.predict(state.positions, state.velocities, self._ext_const,
+                               (self._springs, self._rest_len, self._k_low, self._k_high, self._threshold),
+                               self._normal, self._shape, (self._jaw, self._skin_age))
+
+    def surface(self, state: FaceState) -> None:
+        """Fill state.surface for the positions of the last step (see `step`'s surface=False)."""
+        self._surface(state)
 
     def _age_skin(self, age: float) -> None:
         """Aged skin is softer at low strain and stiffens later (seed 003 section 2; the law is

@@ -37,8 +37,8 @@ def inputs_digest(model: Any, h: float) -> str:
     """SHA-256 of everything `sim.implicit.prepare(model, h)` reads: the substep, the springs and
     their stiffness, the per-vertex masses, damping and stiffnesses, the held vertices, the rest
     shape, the margin and skin bending parameters, the triangles, the lid and lip rows and regions
-    and the fold guard's constants (a face's hash alone leaves out the mesh's annotations the rows
-    and the thin skin come from)."""
+    the fold guard's constants and the muscle matrix (a face's hash alone leaves out the mesh's
+    annotations the rows and the thin skin come from)."""
     from sim.antifold import FLOOR, STRENGTH, thin_skin
     from sim.margin_contact import _rows
 
@@ -48,6 +48,10 @@ def inputs_digest(model: Any, h: float) -> str:
     for arr in (model.spring_indices, model.spring_k_high, model.mass, model.damping, model.support_stiffness,
                 model.rest_stiffness, model.held, model.rest, model.triangles,
                 thin_skin(model.mesh.regions, model.n_vertices)):
+        a = np.ascontiguousarray(arr)
+        d.update(f"{a.dtype.str}{a.shape}".encode() + a.tobytes())
+    mm = model.muscle_matrix  # the muscles' responses (sim.implicit.muscle_responses)
+    for arr in (mm.indptr, mm.indices, mm.data, np.array([c.kind == "muscle" for c in model.channels])):
         a = np.ascontiguousarray(arr)
         d.update(f"{a.dtype.str}{a.shape}".encode() + a.tobytes())
     for name, row in sorted(_rows(model.mesh).items()):
@@ -89,7 +93,7 @@ def prepared(model: Any, h: float) -> dict[str, np.ndarray]:
 _INT = ("free", "held", "fh_ptr", "fh_idx", "bend_ptr", "bend_idx", "lu_perm_r", "lu_perm_c", "lu_sn_ptr",
         "lu_r_ptr", "lu_v_ptr", "lu_t_ptr", "fold_tri")
 _FLOAT = ("mass_h2", "damp_h", "kn", "fh_val", "bend_val", "lu_lv", "lu_uv", "lu_tv", "lu_u_diag", "fold_frame",
-          "fold_dm_inv", "fold_area", "fold_k", "fold_floor")
+          "fold_dm_inv", "fold_area", "fold_k", "fold_floor", "resp")
 _CONTACT_INT = ("c_idx", "c_dim", "c_opp", "c_row_ptr", "c_row_v", "c_loc", "c_gptr", "c_gvert")
 _CONTACT_FLOAT = ("c_w", "c_sg", "c_green", "c_gval")
 
@@ -124,6 +128,8 @@ def check(a: dict[str, np.ndarray], n: int, h: float) -> None:
     for k in ("mass_h2", "damp_h", "kn"):
         if a[k].shape != (n,):
             raise ValueError(f"{k}: wrong shape")
+    if a["resp"].ndim != 3 or a["resp"].shape[1:] != (nf, 3):
+        raise ValueError("resp: wrong shape")
     for k in ("lu_perm_r", "lu_perm_c"):
         if a[k].shape != (nf,) or np.any(np.bincount(a[k], minlength=nf) != 1):
             raise ValueError(f"{k}: not a permutation")
