@@ -194,6 +194,10 @@ def _parse_system_keys() -> MappingSpec:
     return parse_mapping(SYSTEM_KEYS, "<system keys>")
 
 
+#: the take header's "muscles": the implicit step adds each muscle's precomputed response
+MUSCLES_AS = "responses"
+
+
 def session_header(face: Face, spec: MappingSpec, rate: float, devices: Sequence[str]) -> dict[str, Any]:
     return take_header(face, rate, {"source": spec.source, "text": spec.text}, devices)
 
@@ -211,6 +215,9 @@ def take_header(face: Face, rate: float, mapping: dict[str, str], devices: Seque
         "tick_rate": rate,
         "mapping": dict(mapping),
         "devices": list(devices),
+        # how the implicit step adds the muscles (sim.implicit): a take without it is replayed with
+        # the muscles summed into the frame's forces, as it was recorded (puppet.replay)
+        "muscles": MUSCLES_AS,
     }
 
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from puppet.curves import CurveLayer, CurveSet
 from puppet.errors import ConfigError, PuppetError
-from puppet.live import Face, load_face
+from puppet.live import MUSCLES_AS, Face, load_face
 from puppet.session import Session
 from safefile import quote
 
@@ -43,6 +43,9 @@ class Performance:
     checks: dict[int, str]
     #: ticks where the live program restarted (a crash): the face starts again from rest there
     restarts: tuple[int, ...] = ()
+    #: recorded before the implicit step added the muscles as responses (no "muscles" in its
+    #: header): replayed with them summed into the frame's forces, as recorded, for the same bits
+    muscles_summed: bool = False
 
     @property
     def ticks(self) -> int:
@@ -142,7 +145,8 @@ def build_performance(session: Session | None, curves: CurveSet | None, rig_path
                 checks = {k: v for k, v in checks.items() if k <= int(differs[0])}
         values = layered
     restarts = tuple(session.segments) if session is not None else ()
-    return Performance(face, values, rate, markers, checks, restarts)
+    summed = session is not None and session.header.get("muscles") != MUSCLES_AS
+    return Performance(face, values, rate, markers, checks, restarts, summed)
 
 
 def _clamp(values: np.ndarray, face: Face, source: str) -> None:
@@ -171,7 +175,7 @@ class Replayer:
         import sim
 
         self.perf = perf
-        self.sim = _new_simulator(perf.face.model, 1.0 / perf.rate)
+        self.sim = self._simulator()
         self.control = sim.FaceControl(perf.face.model)
         self.state = perf.face.model.rest_state()
         self.tick = 0
@@ -179,12 +183,17 @@ class Replayer:
         self.verified = 0
         self.mismatches: list[int] = []
 
+    def _simulator(self) -> Any:
+        s = _new_simulator(self.perf.face.model, 1.0 / self.perf.rate)
+        s.muscles_summed = self.perf.muscles_summed
+        return s
+
     def step(self) -> None:
         k = self.tick
         if k >= self.perf.ticks:
             return
         if k in self.perf.restarts:  # as the restarted live program did: a fresh simulator at rest
-            self.sim = _new_simulator(self.perf.face.model, 1.0 / self.perf.rate)
+            self.sim = self._simulator()
             self.state.assign(self.perf.face.model.rest_state())
         self.control.values[...] = self.perf.values[k]
         self.sim.step(self.state, self.control)

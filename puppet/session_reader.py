@@ -68,6 +68,8 @@ def _header(p: Path, line: bytes) -> dict[str, Any]:
             raise BadFile(f"{where}: the header names a channel twice")
         header["tick_rate"] = number(header["tick_rate"], f"{where}: tick_rate", MIN_RATE, MAX_RATE)
         header["rig"] = _rig(header.get("rig"), where)
+        if header.get("muscles") is not None:
+            header["muscles"] = string(header["muscles"], f"{where}: muscles", 40)
     except BadFile as err:
         raise ConfigError(f"{err} (the recording header is damaged)") from err
     header["channels"] = channels

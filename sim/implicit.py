@@ -132,11 +132,13 @@ def _csr_times(ptr, idx, val, x, out):  # type: ignore[no-untyped-def]
 
 @numba.njit(cache=True, nogil=True)
 def _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,  # type: ignore[no-untyped-def]
-             c_idx, c_w, c_sg, c_dim, c_lam, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, base):
+             c_idx, c_w, c_sg, c_dim, c_lam, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, base, ext, summed):
     """The part of a substep's right-hand side that no input changes (ImplicitStepper.predict): the
     predicted positions y = x + h v, then base = M/h^2 y + C/h x + the springs' local step + the
     skin's guard against turning over (sim.antifold) + the normal support + the last contact
-    forces. A substep's right-hand side is base + the frame's constant forces."""
+    forces. A substep's right-hand side is base + the frame's constant forces. summed: the frame's
+    constant forces `ext` (muscles included) go into base where takes recorded before the muscles'
+    responses summed them (`ImplicitStepper.frame`'s summed), so those takes keep their bits."""
     n = x.shape[0]
     for i in range(n):
         for d in range(3):
@@ -145,7 +147,7 @@ def _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2
         m = mass_h2[i]
         c = damp_h[i]
         for d in range(3):
-            base[i, d] = m * y[i, d] + c * x[i, d]
+            base[i, d] = m * y[i, d] + ext[i, d] + c * x[i, d] if summed else m * y[i, d] + c * x[i, d]
     _pd_springs(y, springs, rest_len, k_low, k_high, thr, base)
     _fold_forces(y, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, base)
     for i in range(n):  # the support k_n n n^T: k_n (y - n (n . y)) on the right
@@ -158,7 +160,7 @@ def _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2
 
 @numba.njit(cache=True, nogil=True)
 def _held_and_solve(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, sn_ptr, r_ptr, r_idx,  # type: ignore[no-untyped-def]
-                    v_ptr, lv, uv, t_ptr, tv, u_diag, sn_work, xh, held_term, ys):
+                    v_ptr, lv, uv, t_ptr, tv, u_diag, sn_work, xh, held_term, ys, summed):
     """The held nodes' coupling (they do not move within a frame), then ys = the prefactored
     solve of base + ext minus it, in the factors' order (perm_c reads it back)."""
     for k in range(held.shape[0]):
@@ -170,7 +172,7 @@ def _held_and_solve(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, sn
         i = free[q]
         r = perm_r[q]
         for d in range(3):
-            ys[r, d] = (base[i, d] + ext[i, d]) - held_term[q, d]
+            ys[r, d] = base[i, d] - held_term[q, d] if summed else (base[i, d] + ext[i, d]) - held_term[q, d]
     _sn_sweeps(ys, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, sn_work)
 
 
@@ -186,7 +188,7 @@ def _responses(resp, act, val, out):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True, nogil=True)
-def _frame(x, v, n_sub, predicted, h, ext, resp, act, act_val, springs, rest_len, k_low, k_high, thr, normal,  # type: ignore[no-untyped-def]
+def _frame(x, v, n_sub, predicted, summed, h, ext, resp, act, act_val, springs, rest_len, k_low, k_high, thr, normal,  # type: ignore[no-untyped-def]
            kn, mass_h2, damp_h, free, held, fh_ptr, fh_idx, fh_val, perm_r, perm_c, sn_ptr, r_ptr, r_idx, v_ptr, lv,
            uv, t_ptr, tv, u_diag, c_idx, c_w, c_sg, c_dim, c_opp, c_row_ptr, c_row_v, c_lam, c_loc, c_green, c_gptr,
            c_gvert, c_gval, c_work, c_cand, c_schur, c_df, rounds, sweeps, eye_idx, eye_of, centres, radius,
@@ -195,7 +197,8 @@ def _frame(x, v, n_sub, predicted, h, ext, resp, act, act_val, springs, rest_len
     docstring): per substep the solve of the input-free right-hand side (`_predict`, the frame's
     constant forces without the muscles, the held nodes; for the first substep already in ys when
     `predicted`), plus the muscles' responses, the lid and lip contact
-    (sim.margin_contact.SolvedContact), v = (x' - x) / h and the eyeball contact."""
+    (sim.margin_contact.SolvedContact), v = (x' - x) / h and the eyeball contact. summed: ext holds
+    the muscles too and is summed as takes recorded before the responses were (`_predict`)."""
     nf = free.shape[0]
     muscles = act.shape[0] > 0
     if muscles:
@@ -204,9 +207,10 @@ def _frame(x, v, n_sub, predicted, h, ext, resp, act, act_val, springs, rest_len
     for sub in range(n_sub):
         if sub > 0 or not predicted:
             _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,
-                     c_idx, c_w, c_sg, c_dim, c_lam, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, base)
+                     c_idx, c_w, c_sg, c_dim, c_lam, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, base, ext,
+                     summed)
             _held_and_solve(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, sn_ptr, r_ptr, r_idx, v_ptr,
-                            lv, uv, t_ptr, tv, u_diag, sn_work, xh, held_term, ys)
+                            lv, uv, t_ptr, tv, u_diag, sn_work, xh, held_term, ys, summed)
         for q in range(nf):
             i = free[q]
             c = perm_c[q]
@@ -400,9 +404,9 @@ class ImplicitStepper:
         y, base, xh, held_term, ys = self._buf[:5]
         ext = self._with_bending(ext, shape)
         _predict(x, v, self.h, idx, rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2, self.damp_h,
-                 c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base)
+                 c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base, ext, False)
         _held_and_solve(x, self.held, *self._fh, base, ext, self.free, self.solver.perm_r, *self.solver.factors,
-                        self.solver.work, xh, held_term, ys)
+                        self.solver.work, xh, held_term, ys, False)
         np.copyto(self._px, x)
         np.copyto(self._pv, v)
         self._pc = self._contact_memory()
@@ -422,7 +426,7 @@ class ImplicitStepper:
 
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
               normal: np.ndarray, eyes: tuple, shape: np.ndarray | None = None,  # type: ignore[type-arg]
-              key: object = None, active: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+              key: object = None, active: tuple[np.ndarray, np.ndarray] | None = None, summed: bool = False) -> None:
         """n_sub substeps in place. ext: the frame-constant forces (gravity, the target terms of the
         tether and of the normal support, and muscles not given by `active`); springs: (indices,
         rest lengths, k_low, k_high, threshold) as the kernel takes them; normal (N,3): the
@@ -431,8 +435,9 @@ class ImplicitStepper:
         of the eyeball contact applied after each substep; shape (N,3): the rest shape of the margin
         bending term this frame (turned with the jaw; None: the model's rest); key: as `predict`'s
         (None: never use a prediction); active: (channels, activations) whose responses
-        (`muscle_responses`) are added."""
-        predicted = key is not None and self._is_predicted(x, v, key)
+        (`muscle_responses`) are added; summed: ext holds every muscle and is summed in the order of
+        the step before the responses, for the takes recorded with it (no prediction, no `active`)."""
+        predicted = key is not None and not summed and self._is_predicted(x, v, key)
         self._predicted = None  # a prediction serves one frame
         ext = self._with_bending(ext, shape)
         act, act_val = self._no_act if active is None else active
@@ -440,7 +445,7 @@ class ImplicitStepper:
         c = self._contact
         from sim.margin_contact import ROUNDS, SWEEPS
 
-        _frame(x, v, n_sub, predicted, self.h, ext, self._resp, act, act_val, idx, rest_len, k_low, k_high, thr,
+        _frame(x, v, n_sub, predicted, summed, self.h, ext, self._resp, act, act_val, idx, rest_len, k_low, k_high, thr,
                normal, self.kn, self.mass_h2, self.damp_h, self.free, self.held, *self._fh, self.solver.perm_r,
                self.solver.perm_c, *self.solver.factors, c.idx, c.w, c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam,
                c.loc, c.green, c.gptr, c.gvert, c.gval, c._work, c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes,

@@ -463,6 +463,10 @@ class Simulator:
         self._const_jaw: tuple[float, float, float] | None = None  # the jaw pose they were made for
         self._last_key: tuple[object, object] | None = None  # the last step's jaw pose and skin age
         self._moving = True  # they changed in the last step
+        #: the implicit step sums every muscle's force into the frame's constant forces, as before
+        #: the muscles entered as responses: set by a replay of a take recorded then, so it keeps
+        #: its bits (puppet.replay; the results differ from the responses' only by rounding)
+        self.muscles_summed = False
         self._jaw: tuple[float, float, float] | None = None  # the jaw pose the target and normals were set for
         self._target = model.rest + model.rest_offset
         self._shape = np.array(model.rest)
@@ -554,8 +558,9 @@ class Simulator:
         simulated state ready before it, so an input's latency does not wait for the drawing's layer."""
         x, v = state.positions, state.velocities
         np.copyto(self._saved_x, x)
-        if self._implicit is None:
-            ext = self.external_forces(control)
+        summed = self._implicit is None or self.muscles_summed
+        if summed:
+            ext, active = self.external_forces(control), None
         else:
             ext, active = self._constants_and_muscles(control)
         held = self._held
@@ -572,7 +577,8 @@ class Simulator:
                 self._implicit.margins.recall(state.contact)
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
                                                             self._k_high, self._threshold), self._normal,
-                                 self._eyes, self._shape, key=(self._jaw, self._skin_age), active=active)
+                                 self._eyes, self._shape, key=(self._jaw, self._skin_age), active=active,
+                                 summed=summed)
             # a jaw or an age still moving will likely move again: `prepare` would be wasted then
             self._moving = (self._jaw, self._skin_age) != self._last_key
             self._last_key = (self._jaw, self._skin_age)
@@ -605,7 +611,8 @@ class Simulator:
         step; the live loop calls it between ticks. A step given anything else does it itself:
         the same bits either way. Nothing for RK2, nor while the jaw or the age is moving (the
         last step moved them: the next one likely will too, and the work would be wasted)."""
-        if self._implicit is None or self._jaw is None or self._const_jaw != self._jaw or self._moving:
+        if (self._implicit is None or self.muscles_summed or self._jaw is None or self._const_jaw != self._jaw
+                or self._moving):
             return
         if self._implicit.margins is not None:
             self._implicit.margins.recall(state.contact)
