@@ -3,8 +3,9 @@
 The scanned head's implicit integrator reads ~12 MB of prepared arrays every step (the factored
 matrix 5.7 MB, the skin's bending 1.8 MB, the lid and lip contact 1.8 MB, the fold guard 1.2 MB).
 Each worker process loading its own copy puts two copies in the cores' shared last-level cache
-with two workers, and they evict each other: a take then simulates about a fifth slower on each
-of two workers than on one. Here the first worker to need them writes them once to a file (in the
+with two workers, where they can evict each other (a take simulated about a fifth slower on each of
+two workers than on one; how much of that the copies cause was within the noise of the machine it
+was measured on, docs/studio.md). Here the first worker to need them writes them once to a file (in the
 face cache's folder), and every worker maps that file: the same physical pages of the kernel's
 page cache, so one copy in memory and in the CPU caches. The mapping is private (copy-on-write), so the arrays are ordinary writable numpy
 arrays to the compiled kernels (which never write them), and the values, so the results, are the
@@ -174,7 +175,8 @@ class SharedStore:
 
 
 def _evict(directory: Path) -> None:
-    files = sorted((p for p in directory.glob(PREFIX + "*") if not p.name.endswith(".part")), key=lambda p: p.stat().st_mtime if p.exists() else 0.0)
+    files = sorted((p for p in directory.glob(PREFIX + "*") if not p.name.endswith(".part")),
+                   key=lambda p: p.stat().st_mtime if p.exists() else 0.0)
     for p in files[:-KEEP] if len(files) > KEEP else []:
         try:
             p.unlink()
