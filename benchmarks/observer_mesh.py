@@ -211,7 +211,7 @@ def import_head(name: str, folder: Path, work: Path) -> Path:
     (work / f"{name}.json").write_text(json.dumps(lm))
     rig = work / f"{name}.npz"
     cmd = [sys.executable, "-m", "puppet", "import-face", str(work / f"{name}.obj"), "--landmarks",
-           str(work / f"{name}.json"), "--out", str(rig)]
+           str(work / f"{name}.json"), "--out", str(rig), "--rest-eyes"]
     run = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     if run.returncode:
         raise SystemExit(f"import-face failed on {name}: {run.stderr.strip()}")

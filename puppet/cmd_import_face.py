@@ -33,6 +33,9 @@ def register(subparsers: Any) -> None:
                    help="resolution of the built-in reference face (default 1)")
     p.add_argument("--name", default=None, help="rig name (default: the mesh file's stem)")
     p.add_argument("--no-image", action="store_true", help="do not render the muscles picture")
+    p.add_argument("--rest-eyes", action="store_true",
+                   help="open each eye to a resting eye's height (the upper lid over the iris' top) and "
+                        "seat the eyeball behind the lids, from the head's own geometry (docs/import-face.md)")
     p.set_defaults(func=run)
 
 
@@ -67,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
     from sim.build import compile_model
     from sim.rig import save_rig
     from sim.face.transfer import TransferError, read_landmarks, read_mesh, transfer_rig
+    from sim.face.transfer.pipeline import TransferOptions
     from sim.face.transfer.report import format_report
 
     out = Path(args.out)
@@ -78,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         head = read_mesh(args.mesh)
         landmarks = read_landmarks(args.landmarks)
-        result = transfer_rig(_reference(args), head, landmarks, name=args.name or Path(args.mesh).stem)
+        result = transfer_rig(_reference(args), head, landmarks, name=args.name or Path(args.mesh).stem,
+                              options=TransferOptions(seat_eyes=args.rest_eyes))
     except TransferError as err:
         raise ConfigError(str(err)) from err
     try:

@@ -110,3 +110,21 @@ def test_transfer_from_a_rig_file_without_picture(head, capsys) -> None:
     code = main(["import-face", str(d / "head.obj"), "--landmarks", str(d / "idx.json"), "--out",
                  str(d / "x.npz"), "--rig", str(d / "broken.npz")])
     assert code == 2 and "broken.npz" in capsys.readouterr().err
+
+
+def test_rest_eyes_seats_the_eyeballs_behind_the_lids(head, capsys) -> None:
+    """--rest-eyes moves each eyeball to sit behind the head's own lids (sim.face.transfer.eyes);
+    without it the eyeballs stay where the skin correspondence carried them."""
+    from puppet.cli import main
+    from sim.rig import load_rig
+
+    d, lms, _ = head
+    (d / "idx.json").write_text(json.dumps(lms))
+    centres = {}
+    for flag in ((), ("--rest-eyes",)):
+        out = d / f"eyes{len(flag)}.npz"
+        code = main(["import-face", str(d / "head.obj"), "--landmarks", str(d / "idx.json"), "--out", str(out),
+                     "--no-image", *flag])
+        assert code == 0, capsys.readouterr().err
+        centres[flag] = np.asarray(load_rig(out).mesh.eye_centers)
+    assert np.abs(centres[("--rest-eyes",)] - centres[()]).max() > 0.01  # cm: the eyeballs moved

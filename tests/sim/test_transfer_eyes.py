@@ -33,7 +33,7 @@ def reference():
 @pytest.fixture(scope="module", params=["open", "shut"])
 def imported(request, reference):
     head, lms = _open_head(reference) if request.param == "open" else closed_head(reference)
-    return transfer_rig(reference, head, lms).rig.mesh
+    return transfer_rig(reference, head, lms, options=TransferOptions(seat_eyes=True)).rig.mesh
 
 
 def _middle(v: np.ndarray, chain: np.ndarray, x: float) -> np.ndarray:

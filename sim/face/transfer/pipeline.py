@@ -50,7 +50,7 @@ class TransferOptions:
     frame_angle: float = 35.0
     area_stiffness: float = 10.0
     integrator: str = "implicit"
-    seat_eyes: bool = True
+    seat_eyes: bool = False
 
 
 @dataclass
