@@ -27,21 +27,21 @@ def add_face_normal(pos: np.ndarray, tri: np.ndarray, t: int, out: np.ndarray) -
     return cx, cy, cz
 
 
-@numba.njit(cache=True, nogil=True)
-def interleave_normals(pos: np.ndarray, tri: np.ndarray, out: np.ndarray) -> None:
-    """out[:, 0:3] = pos; out[:, 3:6] = unit area-weighted vertex normals, in one pass over the
-    triangles (each triangle's cross product, twice its area times its normal, added to its three
-    corners) and one over the vertices."""
-    n = pos.shape[0]
-    for i in range(n):
+@numba.njit(cache=True, nogil=True, inline="always")
+def start_rows(pos: np.ndarray, out: np.ndarray) -> None:
+    """out[:, 0:3] = pos, out[:, 3:6] = 0: the rows before the triangles' normals are added."""
+    for i in range(pos.shape[0]):
         out[i, 0] = pos[i, 0]
         out[i, 1] = pos[i, 1]
         out[i, 2] = pos[i, 2]
         out[i, 3] = 0.0
         out[i, 4] = 0.0
         out[i, 5] = 0.0
-    for t in range(tri.shape[0]):
-        add_face_normal(pos, tri, t, out)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def unit_normals(out: np.ndarray, n: int) -> None:
+    """The summed normals in out[:n, 3:6] made unit length (a vertex with none stays zero)."""
     for i in range(n):
         x, y, z = out[i, 3], out[i, 4], out[i, 5]
         length = np.sqrt(x * x + y * y + z * z)
@@ -49,3 +49,14 @@ def interleave_normals(pos: np.ndarray, tri: np.ndarray, out: np.ndarray) -> Non
         out[i, 3] = x * inv
         out[i, 4] = y * inv
         out[i, 5] = z * inv
+
+
+@numba.njit(cache=True, nogil=True)
+def interleave_normals(pos: np.ndarray, tri: np.ndarray, out: np.ndarray) -> None:
+    """out[:, 0:3] = pos; out[:, 3:6] = unit area-weighted vertex normals, in one pass over the
+    triangles (each triangle's cross product, twice its area times its normal, added to its three
+    corners) and one over the vertices."""
+    start_rows(pos, out)
+    for t in range(tri.shape[0]):
+        add_face_normal(pos, tri, t, out)
+    unit_normals(out, pos.shape[0])

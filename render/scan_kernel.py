@@ -8,7 +8,7 @@ import numba
 import numpy as np
 from sim.numba_start import prepare_blas_check
 
-from render.normals_kernel import add_face_normal
+from render.normals_kernel import add_face_normal, start_rows, unit_normals
 
 prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
@@ -155,25 +155,12 @@ def scan_rows(pos: np.ndarray, tri: np.ndarray, nbr_ptr: np.ndarray, nbr: np.nda
 
     When `closed` (the mouth's inside is not drawn), the triangles skip_tri marks and the vertices
     skip_v marks (deep in the mouth: their normals and folds feed no drawn vertex) are passed over."""
-    n = pos.shape[0]
-    for i in range(n):
-        out[i, 0] = pos[i, 0]
-        out[i, 1] = pos[i, 1]
-        out[i, 2] = pos[i, 2]
-        out[i, 3] = 0.0
-        out[i, 4] = 0.0
-        out[i, 5] = 0.0
+    start_rows(pos, out)
     for t in range(tri.shape[0]):
         if closed and skip_tri[t]:
             continue
         add_face_normal(pos, tri, t, out)
-    for i in range(n):
-        x, y, z = out[i, 3], out[i, 4], out[i, 5]
-        length = np.sqrt(x * x + y * y + z * z)
-        inv = np.float32(1.0) / max(length, np.float32(1e-12))
-        out[i, 3] = x * inv
-        out[i, 4] = y * inv
-        out[i, 5] = z * inv
+    unit_normals(out, pos.shape[0])
     _fold(pos, nbr_ptr, nbr, inv_len, scratch, out, skip_v, closed)
 
 

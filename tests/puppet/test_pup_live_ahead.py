@@ -6,23 +6,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from devices.events import ControlEvent
+from fakeclock import FakeClock
 from puppet import live
 from puppet.mapping import Mapper
 from puppet.replay import Replayer, build_performance
 from puppet.session import SessionWriter, read_session
-
-
-class _Clock:
-    """Moves only when slept on."""
-
-    def __init__(self) -> None:
-        self.t = 100.0
-
-    def __call__(self) -> float:
-        return self.t
-
-    def sleep(self, s: float) -> None:
-        self.t += max(s, 0.0)
 
 
 def test_a_take_recorded_with_steps_prepared_ahead_replays_bit_for_bit(tmp_path: Path) -> None:
@@ -34,7 +22,7 @@ def test_a_take_recorded_with_steps_prepared_ahead_replays_bit_for_bit(tmp_path:
     writer = SessionWriter(rec, live.session_header(face, spec, rate, ["mock://"]))
     core = live.LiveCore(face, mapper, writer=writer, rate=rate)
     assert core.sim.method == "implicit"
-    clk = _Clock()
+    clk = FakeClock()
     prepared = []
     prepare = core.sim.prepare
 
