@@ -11,15 +11,19 @@ prepare_blas_check()  # before this module's first kernel runs: see sim.numba_st
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
+def face_cross(pos: np.ndarray, a: int, b: int, c: int) -> tuple[float, float, float]:
+    """(b - a) x (c - a): twice the triangle's area times its normal."""
+    e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
+    e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
+    return e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
 def add_face_normal(pos: np.ndarray, tri: np.ndarray, t: int, out: np.ndarray) -> tuple[float, float, float]:
     """Triangle t's cross product (twice its area times its normal) added to out[:, 3:6] of its
     three corners; returned too."""
     a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
-    e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
-    e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
-    cx = e1y * e2z - e1z * e2y
-    cy = e1z * e2x - e1x * e2z
-    cz = e1x * e2y - e1y * e2x
+    cx, cy, cz = face_cross(pos, a, b, c)
     for v in (a, b, c):
         out[v, 3] += cx
         out[v, 4] += cy

@@ -8,7 +8,7 @@ import numba
 import numpy as np
 from sim.numba_start import prepare_blas_check
 
-from render.normals_kernel import add_face_normal, start_rows, unit_normals
+from render.normals_kernel import add_face_normal, face_cross, start_rows, unit_normals
 
 prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
@@ -194,11 +194,7 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
         if g < 0 or (closed and skip_tri[t]):
             continue
         a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
-        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
-        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
-        cx = e1y * e2z - e1z * e2y
-        cy = e1z * e2x - e1x * e2z
-        cz = e1x * e2y - e1y * e2x
+        cx, cy, cz = face_cross(pos, a, b, c)
         wx, wy, wz = ex - pos[a, 0], ey - pos[a, 1], ez - pos[a, 2]
         d = cx * wx + cy * wy + cz * wz
         if d < 0 and d * d > hair * (cx * cx + cy * cy + cz * cz) * (wx * wx + wy * wy + wz * wz):
