@@ -5,7 +5,7 @@
 // positions; normals are computed here, area-weighted over the same triangles as the show's renderer.
 "use strict";
 window.PuppetFace = function (canvas) {
-  const F = { ok: true, scene: null, frames: 0, drawn: 0, tick: -1, lags: [], drawLog: [], offset: null,
+  const F = { ok: true, scene: null, frames: 0, drawn: 0, moved: 0, shownTick: -1, tick: -1, lags: [], drawLog: [], offset: null,
               bytes: 0, error: null, mode: null, decoding: 0, cost: { decode: 0, normals: 0, draw: 0 } };
   let gl = null, ctx2d = null, picture = null;
   let S = null, pos = null, nrm = null, dirty = false, eye = [0, 0];
@@ -153,8 +153,12 @@ window.PuppetFace = function (canvas) {
   }
   function shown(c0) {
     F.drawn++; F.drawnAt = performance.now(); F.cost.draw += F.drawnAt - c0;
-    F.stale = false;
-    if (F.frameT !== undefined && F.offset !== null) {  // how far behind the server's read of the state
+    // a moment already shown, drawn again at another size, is not the face moving
+    const moved = F.tick !== F.shownTick;
+    F.shownTick = F.tick;
+    if (moved) F.moved++;
+    if (moved) F.stale = false;
+    if (moved && F.frameT !== undefined && F.offset !== null) {  // how far behind the server's read of the state
       const lag = performance.now() + F.offset - F.frameT * 1000;
       // a picture made over STALE_MS ago is a still face's last one, sent to a page that missed it
       // or has just opened: the face is not that far behind, it has not moved since

@@ -271,8 +271,8 @@
   let lastDrawn = 0, lastAt = performance.now(), stateAt = 0;
   const ago = (s) => (s < 90 ? `${s.toFixed(0)} s` : s < 5400 ? `${(s / 60).toFixed(0)} min` : `${(s / 3600).toFixed(1)} h`);
   function faceReadout(first) {
-    const now = performance.now(), n = face.drawn - lastDrawn, fps = n / ((now - lastAt) / 1000);
-    if (!first) { lastDrawn = face.drawn; lastAt = now; }
+    const now = performance.now(), n = face.moved - lastDrawn, fps = n / ((now - lastAt) / 1000);
+    if (!first) { lastDrawn = face.moved; lastAt = now; }
     if (!face.ok) return;
     let text;
     if (!faceOn) text = "not sent to this page";
