@@ -134,7 +134,7 @@ class HudRenderer:
                                       fragment_shader=shaders.HUD_LAYER_FS)
         self.layer_vbo = ctx.buffer(reserve=2 * 4 * 6 * 16, dynamic=True)
         self.layer_vao = ctx.vertex_array(self.layer_prog, [(self.layer_vbo, "2f", "in_pos")])
-        self._layer: tuple[tuple[int, int], moderngl.Texture, moderngl.Framebuffer] | None = None
+        self._layer: tuple[tuple[int, int], moderngl.Texture, moderngl.Framebuffer, moderngl.Texture] | None = None
         self._layer_count = 0
 
     def atlas(self, px: int) -> tuple[FontAtlas, moderngl.Texture]:
@@ -304,16 +304,31 @@ class HudRenderer:
             self.layer_vbo.orphan(len(raw) * 2)
         self.layer_vbo.write(raw)
         self._layer_count = 6 * len(rects)
+        # the frame samples a copy that was never a render target: llvmpipe finishes the frame's
+        # drawing so far (a second pass over its tiles, the face rasterised before the HUD is
+        # binned) whenever a texture drawn into is bound for sampling
+        shown = self._layer[3]  # type: ignore[index]
+        for a, b, c, d in zip(x0, y0, x1, y1):
+            box = (int(a), int(h - d), int(c - a), int(d - b))
+            if box[2] > 0 and box[3] > 0:
+                shown.write(layer_fbo.read(viewport=box, components=4, alignment=1), viewport=box, alignment=1)
 
     def _layer_target(self, size: tuple[int, int]) -> tuple[moderngl.Texture, moderngl.Framebuffer]:
+        """The layer drawn into and its framebuffer (a third texture, sampled by the frames, holds
+        a copy of its panels)."""
         if self._layer is None or self._layer[0] != size:
-            if self._layer is not None:
-                self._layer[2].release()
-                self._layer[1].release()
+            self._release_layer()
             tex = self.ctx.texture(size, 4)
-            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            self._layer = (size, tex, self.ctx.framebuffer([tex]))
+            shown = self.ctx.texture(size, 4)
+            shown.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self._layer = (size, tex, self.ctx.framebuffer([tex]), shown)
         return self._layer[1], self._layer[2]
+
+    def _release_layer(self) -> None:
+        if self._layer is not None:
+            for obj in reversed(self._layer[1:]):
+                obj.release()  # type: ignore[attr-defined]
+            self._layer = None
 
     def _render(self, tex: moderngl.Texture, size: tuple[int, int],
                 blend: tuple[int, ...] = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA)) -> None:
@@ -335,7 +350,7 @@ class HudRenderer:
         vx, vy = target.viewport[:2] if target is not None else (0, 0)
         self.layer_prog["viewport"].value = (float(size[0]), float(size[1]))
         self.layer_prog["origin"].value = (int(vx), int(vy))
-        self._layer[1].use(0)
+        self._layer[3].use(0)
         self.layer_prog["layer"].value = 0
         self.ctx.enable_only(moderngl.BLEND)
         self.ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
@@ -345,9 +360,7 @@ class HudRenderer:
     def release(self) -> None:
         for obj in (self.vao, self.vbo, self.prog, self.layer_vao, self.layer_vbo, self.layer_prog):
             obj.release()
-        if self._layer is not None:
-            self._layer[2].release()
-            self._layer[1].release()
+        self._release_layer()
         if self._atlas is not None:
             self._atlas[2].release()
 
