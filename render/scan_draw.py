@@ -19,7 +19,7 @@ from sim.face.scan.blendshapes import StateControl as PoseControl
 KINDS = ("SKIN", "CLAY", "HEAT")
 # the groups drawn with back faces culled, in drawing order: the skin first (so that the depth test
 # rejects the hidden pixels of what follows; the shaded look draws its brows and lips with every
-# term and the rest, most pixels, with the plain shader: the same colours, less work per pixel),
+# term and the rest, most pixels, with the plain shader: the same colours, the highlight per vertex),
 # the eyeballs, the eye sockets, the mouth's inside
 CULLED = ("plain", "features", "eyes", "sockets", "mouth")
 
@@ -101,7 +101,7 @@ class ScanDraw:
         self._gl += [*self.vaos.values(), self.eye_vao, self.lash_vao, *self.progs.values(), self.eye_prog,
                      self.lash_prog]
         self.mouth_drawn = False
-        self.split_skin = True  # False: the whole skin with every term (the same pixels, slower)
+        self.split_skin = True  # False: the whole skin with every term (the highlight per pixel: slower)
         self.cull_on_cpu = True  # False: every triangle to OpenGL, which culls them (the same pixels)
         self.cull_unseen = True  # False: keep the triangles that cover no pixel or lie hidden inside the head (the same pixels)
 

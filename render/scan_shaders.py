@@ -9,7 +9,8 @@ from render.shaders import HEADER, LIGHTING, LIGHTING_RAMP_ONLY
 # Per vertex: the light (key with a wider, redder wrap for the light scattered under the skin;
 # fill; sky; rim), the baked occlusion times the fold term of this frame, the albedo. Per pixel:
 # the vermilion and the brows' edges from their interpolated signed distances (cm), the brows'
-# hair from the face chart's coordinates, and a Blinn highlight, glossier on the lips.
+# hair from the face chart's coordinates, and a Blinn highlight, glossier on the lips (PLAIN: the
+# highlight per vertex too).
 SCAN_SKIN_VS = HEADER + LIGHTING + """
 uniform mat4 mvp;
 uniform mat4 view;
@@ -21,12 +22,10 @@ in vec3 in_albedo;
 in vec4 in_mat;
 in vec2 in_uv;
 in vec3 in_rest;
+out vec3 v_lit;
+#if !defined(PLAIN)
 out vec3 v_normal;
 out vec3 v_half;
-out vec3 v_lit;
-#if defined(PLAIN)
-out float v_spec;
-#else
 out vec4 v_mat;
 out vec2 v_uv;
 #endif
@@ -55,11 +54,13 @@ void main() {
     vec3 albedo = in_albedo;
 #endif
     v_lit = albedo * light + rim_light(n, v) * occ * albedo * 1.6;
+#if defined(PLAIN)
+    float x = max(dot(n, normalize(KEY_D + v)), 0.0) * inversesqrt(dot(n, n));
+    x *= x; x *= x; x *= x; x *= x; x *= x;
+    v_lit += in_mat.w * occ * x * vec3(1.0, 0.97, 0.92);
+#else
     v_normal = n;
     v_half = normalize(KEY_D + v);
-#if defined(PLAIN)
-    v_spec = in_mat.w * occ;
-#else
     v_mat = vec4(in_mat.xy, in_mat.w * occ, occ);
     v_uv = in_uv;
 #endif
@@ -67,18 +68,16 @@ void main() {
 """
 
 # The skin away from the brows and the vermilion (nine tenths of its triangles, most of its pixels):
-# the same light and highlight as SCAN_SKIN_FS there, with four interpolated values fewer and no
-# brow or lip terms (exactly 0 on these triangles), since llvmpipe pays per pixel for each.
+# SCAN_SKIN_FS's light without its brow or lip terms (exactly 0 on these triangles), and its
+# highlight taken per vertex (the same Blinn term, interpolated across the triangle): one vec3
+# interpolated instead of ten values. llvmpipe pays for each interpolated value in every triangle's
+# set-up and every pixel; on the scan's small triangles (a few pixels each at 720p) the picture
+# changes by at most a few levels where the highlight is sharpest (docs/rendering.md).
 SCAN_PLAIN_FS = HEADER + """
-in vec3 v_normal;
-in vec3 v_half;
 in vec3 v_lit;
-in float v_spec;
 out vec4 frag;
 void main() {
-    float x = max(dot(v_normal, v_half), 0.0) * inversesqrt(dot(v_normal, v_normal));
-    x *= x; x *= x; x *= x; x *= x; x *= x;
-    frag = vec4(sqrt(clamp(v_lit + v_spec * x * vec3(1.0, 0.97, 0.92), 0.0, 1.0)), 1.0);
+    frag = vec4(sqrt(clamp(v_lit, 0.0, 1.0)), 1.0);
 }
 """
 

@@ -111,8 +111,9 @@ def test_every_view_draws_the_simulated_scanned_head(gl) -> None:
 
 
 def test_plain_skin_shader_draws_the_same_skin(gl) -> None:
-    """Most of the skin is drawn with the plain shader, without the brow and vermilion terms: the
-    picture must be the one the full skin shader makes, brows, lips and highlights included."""
+    """Most of the skin is drawn with the plain shader, without the brow and vermilion terms and
+    with its highlight taken per vertex: the picture must be the one the full skin shader makes,
+    brows, lips and highlights included, but for a few levels where the highlight is sharpest."""
     shapes = ScanShapes(expressions={"jawOpen": 0.3, "mouthSmile_L": 0.8, "browInnerUp_R": 0.7})
     img, off, _ = _shot(gl, shapes)
     try:
@@ -123,7 +124,9 @@ def test_plain_skin_shader_draws_the_same_skin(gl) -> None:
         whole = off.render_frame(off.renderer.model.rest_state(), record=False).astype(float)
         assert gl.error == "GL_NO_ERROR"
         assert np.abs(whole - img[0, 0]).sum(axis=2).astype(bool).mean() > 0.2  # the face is in the picture
-        assert np.abs(whole - img).max() <= 1.0
+        diff = np.abs(whole - img).max(axis=2)
+        assert diff.max() <= 12.0  # the highlight per vertex: a few levels at most
+        assert (diff > 2).mean() < 0.005  # and hardly anywhere
     finally:
         off.release()
 
