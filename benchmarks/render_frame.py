@@ -13,7 +13,8 @@ llvmpipe rasterises on LP_NUM_THREADS threads (default: one per core); the run p
 used. `--lp-threads 1,2` reruns the benchmark once per value in a fresh process (the variable is
 read when the driver loads).
 `--scan N` times the scanned head (the default face) shaded + HUD against the floor in N
-alternating batches, whole frames (posing, rows, drawing; also with every triangle handed to
+alternating batches, whole frames (posing, rows, drawing; the whole frame's CPU split by thread:
+the calling thread, the listing helper, llvmpipe's rasterizer threads; also with every triangle handed to
 OpenGL, render.scan_draw's cull_on_cpu off, and with the triangles that cover no pixel or lie
 hidden inside the head kept, cull_unseen off) and the drawing alone (rows made beforehand: every
 triangle; also with the whole skin in its full shader, split_skin off), for comparison.
@@ -57,6 +58,29 @@ def _states(model: object, n: int, expression: str = "happiness") -> list[object
 
 
 Row = tuple[str, bool, float, float]
+
+
+def _thread_cpu() -> dict[str, int]:
+    """ns of CPU each kind of this process's threads has run: "main" (Python: posing, rows, and
+    OpenGL's vertex shading, set-up and binning, which llvmpipe does on the calling thread),
+    "raster" (llvmpipe's rasterizer threads: pixels), "other" (the scan's listing helper). Linux
+    only (/proc/self/task/*/schedstat); empty elsewhere."""
+    out: dict[str, int] = {}
+    try:
+        tids = os.listdir("/proc/self/task")
+    except OSError:
+        return out
+    for tid in tids:
+        try:
+            with open(f"/proc/self/task/{tid}/comm") as f:
+                comm = f.read().strip()
+            with open(f"/proc/self/task/{tid}/schedstat") as f:
+                ns = int(f.read().split()[0])
+        except (OSError, ValueError, IndexError):
+            continue
+        kind = "main" if int(tid) == os.getpid() else "raster" if comm.startswith("llvmpipe") else "other"
+        out[kind] = out.get(kind, 0) + ns
+    return out
 
 
 def _timed(fn: object, frames: int) -> tuple[float, float]:
@@ -235,6 +259,7 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                 drawn.append(r.scan.look.mouth_open(rw[:, :3]))
             times: dict[str, list[tuple[float, float]]] = {"whole": [], "all_tris": [], "unseen": [], "draw": [],
                                                            "unsplit": [], "floor": []}
+            threads: dict[str, list[float]] = {"main": [], "other": [], "raster": []}
             for b in range(batches + 1):
                 for key, use_rows in (("whole", False), ("all_tris", False), ("unseen", False), ("draw", True),
                                       ("unsplit", True)):
@@ -250,9 +275,14 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                         r.draw(s, hud)
                         off.ctx.finish()  # type: ignore[attr-defined]
                         s.scan_rows = rows[i % len(states)]  # type: ignore[attr-defined]
+                    before = _thread_cpu()
                     t = _timed(frame, 10)
+                    after = _thread_cpu()
                     if b:  # the first batch warms up
                         times[key].append(t)
+                        if key == "whole":
+                            for kind, v in threads.items():
+                                v.append((after.get(kind, 0) - before.get(kind, 0)) / 1e7)  # ms per frame
                 t = floor_ms(ctx, size, 10)
                 if b:
                     times["floor"].append(t)
@@ -267,6 +297,9 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                        f"no pixel or lie hidden kept {unseen[0] / f[0]:.2f}x (cpu {unseen[1] / f[1]:.2f}x); drawing alone "
                        f"{draw[0]:.2f} ms = {draw[0] / f[0]:.2f}x (cpu {draw[1] / f[1]:.2f}x); the same with "
                        f"the skin in one shader {unsplit[0] / f[0]:.2f}x (cpu {unsplit[1] / f[1]:.2f}x)")
+            if threads["main"]:
+                out.append(f"{'':<10} whole frame's CPU by thread, ms: " + ", ".join(
+                    f"{kind} {statistics.median(v):.2f}" for kind, v in threads.items()))
     return out
 
 
