@@ -304,9 +304,9 @@ class HudRenderer:
             self.layer_vbo.orphan(len(raw) * 2)
         self.layer_vbo.write(raw)
         self._layer_count = 6 * len(rects)
-        # the frame samples a copy that was never a render target: llvmpipe finishes the frame's
-        # drawing so far (a second pass over its tiles, the face rasterised before the HUD is
-        # binned) whenever a texture drawn into is bound for sampling
+        # the frames sample a copy that was never a render target: binding the layer (a
+        # framebuffer's texture) for sampling made llvmpipe rasterise the frame drawn so far on the
+        # spot, the HUD then in a second pass over the tiles (0.6-2.7 ms more CPU a frame at 720p)
         shown = self._layer[3]  # type: ignore[index]
         for a, b, c, d in zip(x0, y0, x1, y1):
             box = (int(a), int(h - d), int(c - a), int(d - b))
