@@ -1,5 +1,5 @@
 """The lids carried by the turning eye: a force on the skin round each eye that follows the
-eyeball's rotation (gaze channels `eyes_yaw`, `eyes_pitch`).
+eyeball's rotation (gaze channels `eyes_yaw`, `eyes_pitch`, `eyes_vergence`).
 
 The upper and lower lids rest on the globe, the margins on the cornea's bulge, and the conjunctiva
 joins the lids' back to the globe at the fornices; when the eye turns, the cornea pushes the lid
@@ -55,6 +55,13 @@ def coupling(rest: np.ndarray, area: np.ndarray, held: np.ndarray, centres: np.n
     return near.astype(np.int64), eye[near].astype(np.int64), gain
 
 
+def eye_yaws(yaw: float, vergence: float) -> tuple[float, float]:
+    """(left, right) eye's yaw (-1..1, + towards the face's left) for the shared gaze `yaw` and
+    the `vergence` (+ the eyes turned towards each other): the left eye turns by yaw - vergence,
+    the right one by yaw + vergence (a version and a vergence, each eye's turn their sum)."""
+    return min(1.0, max(-1.0, yaw - vergence)), min(1.0, max(-1.0, yaw + vergence))
+
+
 def eye_rotation(yaw: float, pitch: float) -> np.ndarray:
     """(3,3): the eye turned by `yaw` (+ towards the face's left, +X) and `pitch` (+ up) as the
     gaze channels give them (-1..1), about +Y then X, as the renderer turns the eyeballs."""
@@ -73,13 +80,15 @@ def _add_gaze_forces(rest, idx, eye, gain, centres, rot, out):  # type: ignore[n
         d1 = rest[i, 1] - centres[e, 1]
         d2 = rest[i, 2] - centres[e, 2]
         for j in range(3):
-            turned = d0 * rot[j, 0] + d1 * rot[j, 1] + d2 * rot[j, 2] + centres[e, j]
+            turned = d0 * rot[e, j, 0] + d1 * rot[e, j, 1] + d2 * rot[e, j, 2] + centres[e, j]
             out[i, j] += gain[k] * (turned - rest[i, j])
 
 
 def gaze_forces(rest: np.ndarray, idx: np.ndarray, eye: np.ndarray, gain: np.ndarray,
-                centres: np.ndarray, yaw: float, pitch: float, out: np.ndarray) -> None:
-    """Adds to `out` (N,3) dyn the coupling's pull for the gaze (yaw, pitch): each coupled vertex
-    towards where its rest position would be if the eye turned it rigidly, times its gain."""
+                centres: np.ndarray, yaw: float, pitch: float, vergence: float, out: np.ndarray) -> None:
+    """Adds to `out` (N,3) dyn the coupling's pull for the gaze (yaw, pitch, vergence): each
+    coupled vertex towards where its rest position would be if its eye turned it rigidly, times
+    its gain."""
+    rot = np.stack([eye_rotation(y, pitch) for y in eye_yaws(yaw, vergence)])
     _add_gaze_forces(rest, idx, eye, gain, np.ascontiguousarray(centres, dtype=np.float64),
-                     np.ascontiguousarray(eye_rotation(yaw, pitch)), out)
+                     np.ascontiguousarray(rot), out)

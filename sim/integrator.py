@@ -473,11 +473,12 @@ class Simulator:
         self.lids_follow_gaze = True
         self._gaze_lids = coupling(model.rest, model.area, model.held, model.mesh.eye_centers,
                                    float(model.eye_contact_radius))
-        self._gaze = (0.0, 0.0)  # the gaze the constant forces were last made for
+        self._gaze = (0.0, 0.0, 0.0)  # the gaze (yaw, pitch, vergence) the constant forces were last made for
         self._gaze_for: tuple[object, object] | None = None  # (jaw, gaze) self._ext_gaze was made for
         self._ext_gaze = np.zeros((n, 3))  # the implicit step's constant forces with the gaze's pull
         self._yaw_i = CHANNEL_INDEX["eyes_yaw"]
         self._pitch_i = CHANNEL_INDEX["eyes_pitch"]
+        self._verge_i = CHANNEL_INDEX["eyes_vergence"]
         self._jaw: tuple[float, float, float] | None = None  # the jaw pose the target and normals were set for
         self._target = model.rest + model.rest_offset
         self._shape = np.array(model.rest)
@@ -543,17 +544,18 @@ class Simulator:
         _constant_forces(mm.indptr, mm.indices, mm.data, control.values, self._is_muscle, self._weight,
                          self._kr, self._target, self._kn, self._normal, self._ext)
         gaze = self._set_gaze(v)
-        if gaze != (0.0, 0.0):
+        if gaze != (0.0, 0.0, 0.0):
             gaze_forces(self.model.rest, *self._gaze_lids, self.model.mesh.eye_centers, *gaze, self._ext)
         self._ext_values = np.array(v)
         return self._ext
 
-    def _set_gaze(self, v: np.ndarray) -> tuple[float, float]:
-        """The gaze (yaw, pitch) the lids are pulled by this frame ((0, 0) unless they follow it)."""
+    def _set_gaze(self, v: np.ndarray) -> tuple[float, float, float]:
+        """The gaze (yaw, pitch, vergence) the lids are pulled by this frame (zeros unless they
+        follow it)."""
         if self.lids_follow_gaze and len(self._gaze_lids[0]):
-            self._gaze = (min(1.0, max(-1.0, float(v[self._yaw_i]))), min(1.0, max(-1.0, float(v[self._pitch_i]))))
+            self._gaze = tuple(min(1.0, max(-1.0, float(v[i]))) for i in (self._yaw_i, self._pitch_i, self._verge_i))  # type: ignore[assignment]
         else:
-            self._gaze = (0.0, 0.0)
+            self._gaze = (0.0, 0.0, 0.0)
         return self._gaze
 
     def _constants_and_muscles(self, control: FaceControl) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
@@ -576,7 +578,7 @@ class Simulator:
         (`_ext_const`) alone at a still gaze, else with the lids' pull (`sim.gaze_lids`), recomputed
         only when the jaw or the gaze moves."""
         gaze = self._set_gaze(v)
-        if gaze == (0.0, 0.0):
+        if gaze == (0.0, 0.0, 0.0):
             return self._ext_const
         if self._gaze_for != (self._jaw, gaze):
             np.copyto(self._ext_gaze, self._ext_const)
@@ -630,6 +632,7 @@ class Simulator:
         values = control.values
         state.eye_yaw = float(values[CHANNEL_INDEX["eyes_yaw"]])
         state.eye_pitch = float(values[CHANNEL_INDEX["eyes_pitch"]])
+        state.eye_vergence = float(values[self._verge_i])
         state.jaw = float(values[CHANNEL_INDEX["jaw"]])
         state.tongue_out = float(values[CHANNEL_INDEX["tongue_out"]])
         state.age = float(values[CHANNEL_INDEX["age"]])
@@ -651,7 +654,7 @@ class Simulator:
             return
         if self._implicit.margins is not None:
             self._implicit.margins.recall(state.contact)
-        ext = self._ext_const if self._gaze == (0.0, 0.0) else self._ext_gaze
+        ext = self._ext_const if self._gaze == (0.0, 0.0, 0.0) else self._ext_gaze
         self._implicit.predict(state.positions, state.velocities, ext,
                                (self._springs, self._rest_len, self._k_low, self._k_high, self._threshold),
                                self._normal, self._shape, (self._jaw, self._skin_age, self._gaze))

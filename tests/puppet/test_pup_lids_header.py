@@ -58,3 +58,32 @@ def test_without_the_header_the_lids_stay_as_they_were_recorded_then(tmp_path: P
 
 def test_an_old_take_is_replayed_with_the_lids_still() -> None:
     assert not build_performance(read_session(OLD), None).lids_follow_gaze
+
+
+def test_one_eyes_look_turns_that_eye_only(tmp_path: Path) -> None:
+    """An ARKit CSV of the left eye looking out alone reads as that eye turned fully and the right
+    one not at all (the shared gaze half, the vergence half the other way), and is written back so."""
+    import csv
+
+    from puppet.capture.arkit_in import read_arkit_csv
+    from puppet.export.arkit import ARKIT_SHAPES, ArkitCsvWriter, timecode
+    from sim.channels import CHANNEL_NAMES
+
+    src = tmp_path / "look.csv"
+    rows = ["Timecode,BlendShapeCount," + ",".join(ARKIT_SHAPES)]
+    rows += [f"{timecode(f, 30)},{len(ARKIT_SHAPES)}," + ",".join("1" if s == "EyeLookOutLeft" else "0"
+                                                                   for s in ARKIT_SHAPES) for f in range(3)]
+    src.write_text("\n".join(rows) + "\n")
+    cap = read_arkit_csv(src)
+    yaw, verge = (cap.values[:, CHANNEL_NAMES.index(c)] for c in ("eyes_yaw", "eyes_vergence"))
+    assert np.allclose(yaw, 0.5) and np.allclose(verge, -0.5)
+    out = tmp_path / "back.csv"
+    w = ArkitCsvWriter(out, list(CHANNEL_NAMES), 30.0)
+    for k, v in enumerate(cap.values):
+        w.add(k, v)
+    w.close()
+    with open(out, newline="") as fh:
+        row = next(csv.DictReader(fh))
+    assert float(row["EyeLookOutLeft"]) == 1.0
+    assert all(float(row[s]) == 0.0 for s in ("EyeLookInLeft", "EyeLookInRight", "EyeLookOutRight"))
+    assert float(row["LeftEyeYaw"]) > 0.3 and float(row["RightEyeYaw"]) == 0.0  # quarter turns: 30 degrees, none

@@ -92,3 +92,17 @@ def test_a_still_gaze_leaves_the_steps_bits(face_model) -> None:  # type: ignore
             out[follow, yaw] = state.positions.copy()
     assert np.array_equal(out[True, 0.0], out[False, 0.0])
     assert not np.array_equal(out[True, 0.6], out[False, 0.6])
+
+
+def test_one_eye_turned_alone_carries_its_own_lids(ict) -> None:  # type: ignore[no-untyped-def]
+    """The vergence turns the eyes apart: the left eye looking out (yaw 0.5, vergence -0.5: the
+    left eye turned fully, the right one not at all) carries the left lids and leaves the right."""
+    from sim.gaze_lids import eye_yaws
+
+    assert eye_yaws(0.5, -0.5) == (1.0, 0.0)
+    lm = ict.mesh.landmarks
+    d = _settled(ict, {"eyes_yaw": 0.5, "eyes_vergence": -0.5}) - _settled(ict, {})
+    left = min(d[lm[k], 0] for k in ("upper_lid_l", "lower_lid_l"))
+    assert left > 0.05
+    for k in ("upper_lid_r", "lower_lid_r"):
+        assert abs(d[lm[k], 0]) < 0.2 * left, k
