@@ -7,9 +7,9 @@ margins along with it and the lid's skin follows, about 2 mm at the margin for a
 (the lid contour's peak moves with the cornea: the upper lid's highest point shifts towards the
 side the eye looks to). Read off the ICT FaceKit's scanned eyeLookIn/Out: the skin round the eye
 moves as the eye would turn it, by a share of the eye's rotation that is largest on the lids
-(0.2-0.25 of a rigid turn about the eye's centre) and falls smoothly with the distance from the
-globe's surface (half of it ~5 mm out, nothing past ~12 mm); a rigid turn scaled per distance band
-holds 76-86 % of the scan's motion there.
+(0.21-0.28 of a rigid turn about the centre of the sphere the lids slide on) and falls smoothly
+with the distance from the globe's surface (half of it ~5 mm out, nothing past ~12 mm); a rigid
+turn scaled per 1-3 mm band of distance holds 73-88 % of the scan's motion there.
 
 Modelled as a spring from every skin vertex near an eye to a point fixed on the turning globe,
 stiffness per unit skin area falling with the distance from the globe (`coupling`); only its pull
