@@ -15,7 +15,9 @@ Modelled as a spring from every skin vertex near an eye to a point fixed on the 
 stiffness per unit skin area falling with the distance from the globe (`coupling`); only its pull
 at the skin's rest position enters the step (`gaze_forces`: gain_i (R (p_i - c) + c - p_i), a force
 constant while the gaze holds), so the step's matrix and, at a still gaze, every force are as
-without it. The eye turns about its centre (the sphere the lids slide on) by the renderer's angles:
+without it. The implicit step adds it as the responses to eight fixed fields per eye times
+coefficients of the gaze (`basis_fields`), as it adds the muscles, so a moving gaze does not spoil
+the solve the live loop makes ahead of its inputs; the explicit step adds the force itself. The eye turns about its centre (the sphere the lids slide on) by the renderer's angles:
 30 degrees sideways and 20 up or down at a gaze of 1.
 """
 
@@ -92,3 +94,42 @@ def gaze_forces(rest: np.ndarray, idx: np.ndarray, eye: np.ndarray, gain: np.nda
     rot = np.stack([eye_rotation(y, pitch) for y in eye_yaws(yaw, vergence)])
     _add_gaze_forces(rest, idx, eye, gain, np.ascontiguousarray(centres, dtype=np.float64),
                      np.ascontiguousarray(rot), out)
+
+
+#: The eye's turn minus the identity, R - I with R = Ry(a) Rx(b), as a sum of eight fixed matrices
+#: times functions of the angles: with A = sin a Ky + (1 - cos a) Ky^2 and B likewise about x,
+#: R - I = A + B + A B. So the pull of a turned eye is a sum of eight fixed force fields per eye, each
+#: times a coefficient of the gaze (`basis_fields`, `basis_coefficients`): the implicit step adds their
+#: precomputed responses as it adds the muscles' (`sim.implicit.muscle_responses`), and a moving gaze
+#: leaves the solve the live loop makes ahead of the inputs usable.
+_KY = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+_KX = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+_BASIS = (_KY, _KY @ _KY, _KX, _KX @ _KX, _KY @ _KX, _KY @ _KX @ _KX, _KY @ _KY @ _KX, _KY @ _KY @ _KX @ _KX)
+N_BASIS = 2 * len(_BASIS)  # fields: eye 0's eight, then eye 1's
+
+
+def basis_fields(rest: np.ndarray, idx: np.ndarray, eye: np.ndarray, gain: np.ndarray,
+                 centres: np.ndarray) -> np.ndarray:
+    """(N_BASIS, N, 3) dyn: the fixed force fields whose sum, each times its `basis_coefficients`,
+    is the coupling's pull (`gaze_forces`): gain_i M_k (p_i - c_e) on eye e's vertices."""
+    out = np.zeros((N_BASIS, len(rest), 3))
+    c = np.asarray(centres, dtype=np.float64)
+    for e in range(2):
+        on = eye == e
+        d = np.asarray(rest, dtype=np.float64)[idx[on]] - c[e]
+        for k, m in enumerate(_BASIS):
+            out[e * len(_BASIS) + k, idx[on]] = gain[on, None] * (d @ m.T)
+    return out
+
+
+def basis_coefficients(yaw: float, pitch: float, vergence: float) -> np.ndarray:
+    """(N_BASIS,): the coefficients of `basis_fields` for the gaze (each eye's yaw with the
+    vergence, `eye_yaws`; the pitch shared)."""
+    b = -pitch * PITCH_MAX
+    sb, vb = math.sin(b), 1.0 - math.cos(b)
+    out = []
+    for y in eye_yaws(yaw, vergence):
+        a = y * YAW_MAX
+        sa, va = math.sin(a), 1.0 - math.cos(a)
+        out += [sa, va, sb, vb, sa * sb, sa * vb, va * sb, va * vb]
+    return np.array(out)

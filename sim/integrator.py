@@ -38,7 +38,7 @@ import numpy as np
 
 from sim.build import FaceModel
 from sim.channels import CHANNEL_INDEX
-from sim.gaze_lids import coupling, gaze_forces
+from sim.gaze_lids import N_BASIS, basis_coefficients, coupling, gaze_forces
 from sim.margin_contact import margin_contact, margin_pairs
 from sim.state import FaceControl, FaceState
 from sim.numba_start import prepare_blas_check
@@ -462,7 +462,7 @@ class Simulator:
             raise ValueError("the implicit step's muscle responses do not cover the face's channels")
         self._ext_const = np.zeros((n, 3))  # the implicit step's constant forces without the muscles
         self._const_jaw: tuple[float, float, float] | None = None  # the jaw pose they were made for
-        self._last_key: tuple[object, ...] | None = None  # the last step's jaw pose, skin age and gaze
+        self._last_key: tuple[object, object] | None = None  # the last step's jaw pose and skin age
         self._moving = True  # they changed in the last step
         #: the implicit step sums every muscle's force into the frame's constant forces, as before
         #: the muscles entered as responses: set by a replay of a take recorded then, so it keeps
@@ -473,9 +473,11 @@ class Simulator:
         self.lids_follow_gaze = True
         self._gaze_lids = coupling(model.rest, model.area, model.held, model.mesh.eye_centers,
                                    float(model.eye_contact_radius))
-        self._gaze = (0.0, 0.0, 0.0)  # the gaze (yaw, pitch, vergence) the constant forces were last made for
-        self._gaze_for: tuple[object, object] | None = None  # (jaw, gaze) self._ext_gaze was made for
-        self._ext_gaze = np.zeros((n, 3))  # the implicit step's constant forces with the gaze's pull
+        self._gaze = (0.0, 0.0, 0.0)  # the gaze (yaw, pitch, vergence) of the last frame
+        # the implicit step's responses to the gaze's fields follow the muscles' (sim.implicit.gaze_responses)
+        self._gaze_rows = np.arange(len(model.channels), len(model.channels) + N_BASIS, dtype=np.int64)
+        if self._implicit is not None and self._implicit._resp.shape[0] < len(model.channels) + N_BASIS:
+            raise ValueError("the implicit step's responses do not cover the gaze's pull on the lids")
         self._yaw_i = CHANNEL_INDEX["eyes_yaw"]
         self._pitch_i = CHANNEL_INDEX["eyes_pitch"]
         self._verge_i = CHANNEL_INDEX["eyes_vergence"]
@@ -571,20 +573,12 @@ class Simulator:
                              self._kr, self._target, self._kn, self._normal, self._ext_const)
             self._const_jaw = self._jaw
         act = np.flatnonzero(self._is_muscle & (v != 0.0))
-        return self._constants(v), (act, np.ascontiguousarray(v[act], dtype=np.float64))
-
-    def _constants(self, v: np.ndarray) -> np.ndarray:
-        """The implicit step's constant forces without the muscles for this frame's gaze: the jaw's
-        (`_ext_const`) alone at a still gaze, else with the lids' pull (`sim.gaze_lids`), recomputed
-        only when the jaw or the gaze moves."""
+        val = np.ascontiguousarray(v[act], dtype=np.float64)
         gaze = self._set_gaze(v)
-        if gaze == (0.0, 0.0, 0.0):
-            return self._ext_const
-        if self._gaze_for != (self._jaw, gaze):
-            np.copyto(self._ext_gaze, self._ext_const)
-            gaze_forces(self.model.rest, *self._gaze_lids, self.model.mesh.eye_centers, *gaze, self._ext_gaze)
-            self._gaze_for = (self._jaw, gaze)
-        return self._ext_gaze
+        if gaze != (0.0, 0.0, 0.0):  # the lids' pull by the turned eyes, as responses after the muscles'
+            act = np.concatenate([act, self._gaze_rows])
+            val = np.concatenate([val, basis_coefficients(*gaze)])
+        return self._ext_const, (act, val)
 
     # -- stepping
 
@@ -614,11 +608,11 @@ class Simulator:
                 self._implicit.margins.recall(state.contact)
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
                                                             self._k_high, self._threshold), self._normal,
-                                 self._eyes, self._shape, key=(self._jaw, self._skin_age, self._gaze),
-                                 active=active, summed=summed)
-            # a jaw, a gaze or an age still moving will likely move again: `prepare` would be wasted then
-            self._moving = (self._jaw, self._skin_age, self._gaze) != self._last_key
-            self._last_key = (self._jaw, self._skin_age, self._gaze)
+                                 self._eyes, self._shape, key=(self._jaw, self._skin_age), active=active,
+                                 summed=summed)
+            # a jaw or an age still moving will likely move again: `prepare` would be wasted then
+            self._moving = (self._jaw, self._skin_age) != self._last_key
+            self._last_key = (self._jaw, self._skin_age)
         reason = self._check(x)
         if reason:
             x[...] = self._saved_x
@@ -654,10 +648,9 @@ class Simulator:
             return
         if self._implicit.margins is not None:
             self._implicit.margins.recall(state.contact)
-        ext = self._ext_const if self._gaze == (0.0, 0.0, 0.0) else self._ext_gaze
-        self._implicit.predict(state.positions, state.velocities, ext,
+        self._implicit.predict(state.positions, state.velocities, self._ext_const,
                                (self._springs, self._rest_len, self._k_low, self._k_high, self._threshold),
-                               self._normal, self._shape, (self._jaw, self._skin_age, self._gaze))
+                               self._normal, self._shape, (self._jaw, self._skin_age))
 
     def surface(self, state: FaceState) -> None:
         """Fill state.surface for the positions of the last step (see `step`'s surface=False)."""

@@ -106,3 +106,20 @@ def test_one_eye_turned_alone_carries_its_own_lids(ict) -> None:  # type: ignore
     assert left > 0.05
     for k in ("upper_lid_r", "lower_lid_r"):
         assert abs(d[lm[k], 0]) < 0.2 * left, k
+
+
+def test_the_eyes_pull_is_its_fixed_fields_times_the_gazes_coefficients(ict) -> None:  # type: ignore[no-untyped-def]
+    """What the implicit step adds as responses (`basis_fields` x `basis_coefficients`) is the pull
+    of the turned eyes itself, for any gaze."""
+    from sim.gaze_lids import basis_coefficients, basis_fields, coupling, gaze_forces
+
+    rest = np.asarray(ict.rest)
+    lids = coupling(rest, ict.area, ict.held, ict.mesh.eye_centers, float(ict.eye_contact_radius))
+    fields = basis_fields(rest, *lids, ict.mesh.eye_centers)
+    rng = np.random.default_rng(7)
+    for gaze in [(1.0, 0.0, 0.0), (0.0, -1.0, 0.0), *rng.uniform(-1, 1, (5, 3))]:
+        direct = np.zeros_like(rest)
+        gaze_forces(rest, *lids, ict.mesh.eye_centers, *gaze, direct)
+        summed = np.tensordot(basis_coefficients(*gaze), fields, axes=1)
+        assert np.abs(direct).max() > 1.0
+        assert np.abs(summed - direct).max() < 1e-9 * np.abs(direct).max()

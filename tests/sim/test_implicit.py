@@ -201,11 +201,11 @@ def test_a_step_partly_computed_ahead_gives_the_same_bits() -> None:
         if 20 <= k < 30:
             c.set("jaw", 0.2 * (1.0 + np.sin(k / 3.0)))  # the prepare's jaw is not the step's
         if 30 <= k < 36:
-            c.set("eyes_yaw", 0.1 * (k - 30))  # nor its gaze (the lids follow it, sim.gaze_lids)
+            c.set("eyes_yaw", 0.1 * (k - 30))  # nor its gaze (the lids follow it as responses, sim.gaze_lids)
         ahead.prepare(s_ahead)
         impl = ahead._implicit
         assert impl is not None
-        used += impl._is_predicted(s_ahead.positions, s_ahead.velocities, (ahead._jaw, ahead._skin_age, ahead._gaze))
+        used += impl._is_predicted(s_ahead.positions, s_ahead.velocities, (ahead._jaw, ahead._skin_age))
         if k == 40:  # the state changes between the prepare and the step
             s_ahead.positions[7, 1] += 1e-3
             s_plain.positions[7, 1] += 1e-3
