@@ -576,8 +576,10 @@ class Simulator:
         val = np.ascontiguousarray(v[act], dtype=np.float64)
         gaze = self._set_gaze(v)
         if gaze != (0.0, 0.0, 0.0):  # the lids' pull by the turned eyes, as responses after the muscles'
-            act = np.concatenate([act, self._gaze_rows])
-            val = np.concatenate([val, basis_coefficients(*gaze)])
+            coef = basis_coefficients(*gaze)
+            on = coef != 0.0  # (a look straight aside or up needs a quarter of them)
+            act = np.concatenate([act, self._gaze_rows[on]])
+            val = np.concatenate([val, coef[on]])
         return self._ext_const, (act, val)
 
     # -- stepping
