@@ -42,11 +42,16 @@ def main(argv: list[str] | None = None) -> int:
         apply_expression(c, name, face=model.rig.name)
         poses[name] = c
     for spec in model.channels:
-        if spec.name in ("eyes_yaw", "eyes_pitch", "age") or spec.name.endswith("_r"):
+        if spec.name == "age" or spec.name.endswith("_r"):
             continue
-        c = FaceControl()
-        c.set(spec.name, spec.hi)
-        poses[spec.name] = c
+        for value in (spec.hi, spec.lo) if spec.kind == "eyes" else (spec.hi,):  # the lids follow the gaze
+            c = FaceControl()
+            c.set(spec.name, value)
+            poses[spec.name if value == spec.hi else f"{spec.name} {value:+g}"] = c
+    c = FaceControl()  # a blink looking aside: the lids closing on an eye that carries them sideways
+    for name, value in (("eyes_yaw", 1.0), ("orbicularis_oculi_lid_l", 1.0), ("orbicularis_oculi_lid_r", 1.0)):
+        c.set(name, value)
+    poses["blink looking aside"] = c
     total = 0.0
     for name, c in poses.items():
         if only and name not in only:

@@ -1,5 +1,5 @@
-"""Writes docs/images/scan_match_<group>.png: for each shape group (brows, eyes and lids, cheeks and
-nose, mouth, jaw) a few ARKit shapes, each as a row: the scanned face (the default face) driven by
+"""Writes docs/images/scan_match_<group>.png: for each shape group (brows, eyes and lids, the gaze
+sideways, cheeks and nose, mouth, jaw) a few ARKit shapes, each as a row: the scanned face (the default face) driven by
 the channels the ARKit import gives that shape at 1 (ramped up, then settled), beside the scan's own
 shape (same camera, same light, same renderer). What `benchmarks/scan_match.py` measures, shown.
 Run: .venv/bin/python docs/make_scan_match_gallery.py [--size 320x320] [--only brows,jaw]
@@ -27,6 +27,7 @@ GROUPS: dict[str, list[tuple[str, tuple[str, ...]]]] = {
               ("BrowOuterUpLeft", ("browOuterUp_L",))],
     "lids": [("EyeBlinkLeft", ("eyeBlink_L",)), ("EyeWideLeft", ("eyeWide_L",)), ("EyeLookUpLeft", ("eyeLookUp_L",)),
              ("EyeLookDownLeft", ("eyeLookDown_L",))],
+    "gaze": [("EyeLookOutLeft", ("eyeLookOut_L",)), ("EyeLookInLeft", ("eyeLookIn_L",))],
     "cheeks": [("CheekSquintLeft", ("cheekSquint_L",)), ("NoseSneerLeft", ("noseSneer_L",)),
                ("CheekPuff", ("cheekPuff_L", "cheekPuff_R"))],
     "mouth": [("MouthSmileLeft", ("mouthSmile_L",)), ("MouthPucker", ("mouthPucker",)),

@@ -196,6 +196,9 @@ def _parse_system_keys() -> MappingSpec:
 
 #: the take header's "muscles": the implicit step adds each muscle's precomputed response
 MUSCLES_AS = "responses"
+#: the take header's "lids": the lids follow the eyes' turn (`sim.gaze_lids`); a take without it
+#: was recorded before they did and is replayed with them still (puppet.replay)
+LIDS_AS = "gaze"
 
 
 def session_header(face: Face, spec: MappingSpec, rate: float, devices: Sequence[str]) -> dict[str, Any]:
@@ -218,6 +221,7 @@ def take_header(face: Face, rate: float, mapping: dict[str, str], devices: Seque
         # how the implicit step adds the muscles (sim.implicit): a take without it is replayed with
         # the muscles summed into the frame's forces, as it was recorded (puppet.replay)
         "muscles": MUSCLES_AS,
+        "lids": LIDS_AS,
     }
 
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from puppet.curves import CurveLayer, CurveSet
 from puppet.errors import ConfigError, PuppetError
-from puppet.live import MUSCLES_AS, Face, load_face
+from puppet.live import LIDS_AS, MUSCLES_AS, Face, load_face
 from puppet.session import Session
 from safefile import quote
 
@@ -46,6 +46,9 @@ class Performance:
     #: recorded before the implicit step added the muscles as responses (no "muscles" in its
     #: header): replayed with them summed into the frame's forces, as recorded, for the same bits
     muscles_summed: bool = False
+    #: the lids follow the eyes' turn (`sim.gaze_lids`); False for a take recorded before they did
+    #: (no "lids" in its header), replayed with the lids still, as recorded
+    lids_follow_gaze: bool = True
 
     @property
     def ticks(self) -> int:
@@ -146,7 +149,8 @@ def build_performance(session: Session | None, curves: CurveSet | None, rig_path
         values = layered
     restarts = tuple(session.segments) if session is not None else ()
     summed = session is not None and session.header.get("muscles") != MUSCLES_AS
-    return Performance(face, values, rate, markers, checks, restarts, summed)
+    follow = session is None or session.header.get("lids") == LIDS_AS
+    return Performance(face, values, rate, markers, checks, restarts, summed, follow)
 
 
 def _clamp(values: np.ndarray, face: Face, source: str) -> None:
@@ -186,6 +190,7 @@ class Replayer:
     def _simulator(self) -> Any:
         s = _new_simulator(self.perf.face.model, 1.0 / self.perf.rate)
         s.muscles_summed = self.perf.muscles_summed
+        s.lids_follow_gaze = self.perf.lids_follow_gaze
         return s
 
     def step(self) -> None:

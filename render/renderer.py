@@ -18,6 +18,7 @@ from render.meshdata import (HAIR, SKIN, Cavity, brow_coords, MuscleLines, eye_r
                              surface_rows, unique_edges, uv_sphere)
 from render.trails import TrailHistory
 from sim.face.turn import is_turned, turn_eye
+from sim.gaze_lids import eye_yaws
 
 VIEWS = ("shaded", "wireframe", "muscles", "trails", "heat")
 ANTIALIAS = ("fxaa", "none")
@@ -421,13 +422,14 @@ class FaceRenderer:
 
     def _draw_eyes(self, state: Any) -> None:
         mesh = self.model.mesh
-        yaw = float(np.clip(getattr(state, "eye_yaw", 0.0), -1, 1)) * EYE_YAW_MAX
+        yaws = eye_yaws(float(np.clip(getattr(state, "eye_yaw", 0.0), -1, 1)),
+                        float(np.clip(getattr(state, "eye_vergence", 0.0), -1, 1)))
         pitch = float(np.clip(getattr(state, "eye_pitch", 0.0), -1, 1)) * EYE_PITCH_MAX
-        gaze = eye_rotation(yaw, pitch)
         turn = head_turn(state)
         self.eye_prog["radius"].value = float(mesh.eye_radius)
         self.ctx.enable(moderngl.CULL_FACE)  # the back of an eyeball is never seen
-        for c in np.asarray(mesh.eye_centers, float):
+        for c, yaw in zip(np.asarray(mesh.eye_centers, float), yaws):  # left eye, right eye
+            gaze = eye_rotation(yaw * EYE_YAW_MAX, pitch)
             c, rot = turn_eye(c, gaze, *turn) if is_turned(*turn) else (c, gaze)
             self.eye_prog["rot"].write(_mat(rot))
             self.eye_prog["center"].value = tuple(c)

@@ -230,7 +230,8 @@ class FaceStream:
         was read, the gaze, and the deflated int16 positions (steps of QUANTUM from the rest)."""
         payload = encode_positions(self.positions(state), self.base, self._q, level)
         header = {"face": self.face_id, "tick": int(tick), "t": round(float(t), 6),
-                  "eye": [float(getattr(state, "eye_yaw", 0.0)), float(getattr(state, "eye_pitch", 0.0))]}
+                  "eye": [float(getattr(state, "eye_yaw", 0.0)), float(getattr(state, "eye_pitch", 0.0)),
+                          float(getattr(state, "eye_vergence", 0.0))]}
         return pack(FRAME, header, payload)
 
     def decode(self, msg: bytes) -> np.ndarray:

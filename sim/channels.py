@@ -122,6 +122,9 @@ CHANNEL_SPECS: tuple[ChannelSpec, ...] = (
     ChannelSpec("tongue_out", "tongue", ("AU19",), 0.0, 1.0, 0.0, None,
                 "tongue show: the tongue pushed out between the lips; moves a face's tongue where it has one "
                 "(the scanned head), no skin on the procedural face"),
+    ChannelSpec("eyes_vergence", "eyes", (), -1.0, 1.0, 0.0, None,
+                "the eyes turned towards each other (+, looking near) or apart (-): each eye turns by it on "
+                "top of eyes_yaw, the left one towards the face's right; 1 = 30 degrees each"),
 )
 
 CHANNEL_NAMES: tuple[str, ...] = tuple(spec.name for spec in CHANNEL_SPECS)

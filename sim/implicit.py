@@ -301,6 +301,21 @@ def muscle_responses(solver: PrefactoredSolver, free: np.ndarray, n: int, fields
     return resp
 
 
+def gaze_responses(solver: PrefactoredSolver, free: np.ndarray, model: FaceModel) -> np.ndarray:
+    """(N_BASIS, free nodes, 3): the step's response to each fixed field of the lids' pull by the
+    turning eyes (`sim.gaze_lids.basis_fields`); a frame adds them times the gaze's coefficients
+    after the muscles' responses, as it adds those."""
+    from sim.gaze_lids import N_BASIS, basis_fields, coupling
+
+    lids = coupling(model.rest, model.area, model.held, model.mesh.eye_centers, float(model.eye_contact_radius))
+    out = np.zeros((N_BASIS, len(free), 3))
+    for k, f in enumerate(basis_fields(np.asarray(model.rest), *lids, model.mesh.eye_centers)):
+        f3 = np.ascontiguousarray(f[free])
+        if f3.any():
+            solver.solve(f3, out[k])
+    return out
+
+
 def prepare(model: FaceModel, h: float) -> dict[str, np.ndarray]:
     """Everything an ImplicitStepper for `model` at substep h is made of, as arrays (the slow part
     of making one: building and factoring the matrix, the contact's Green's function). The face
@@ -330,7 +345,8 @@ def prepare(model: FaceModel, h: float) -> dict[str, np.ndarray]:
     prep.update(_fold_arrays(FoldGuard(model.rest, model.triangles, springs, np.asarray(model.spring_k_high))))
     prep.update({"lu_" + k: val for k, val in solver.arrays.items()})
     muscles = np.flatnonzero([c.kind == "muscle" for c in model.channels])
-    prep["resp"] = muscle_responses(solver, free, n, model.muscle_matrix, muscles)
+    prep["resp"] = np.concatenate([muscle_responses(solver, free, n, model.muscle_matrix, muscles),
+                                   gaze_responses(solver, free, model)])
     cons = solved_constraints(model.mesh, model.rest)  # the lid and lip contact (sim.margin_contact)
     if len(cons["idx"]):
         contact = SolvedContact(cons, free, n, solver.solve)

@@ -38,6 +38,7 @@ import numpy as np
 
 from sim.build import FaceModel
 from sim.channels import CHANNEL_INDEX
+from sim.gaze_lids import N_BASIS, basis_coefficients, coupling, gaze_forces
 from sim.margin_contact import margin_contact, margin_pairs
 from sim.state import FaceControl, FaceState
 from sim.numba_start import prepare_blas_check
@@ -467,6 +468,19 @@ class Simulator:
         #: the muscles entered as responses: set by a replay of a take recorded then, so it keeps
         #: its bits (puppet.replay; the results differ from the responses' only by rounding)
         self.muscles_summed = False
+        #: the lids follow the eyes' turn (`sim.gaze_lids`): cleared by a replay of a take recorded
+        #: before they did, so it keeps its bits (puppet.replay)
+        self.lids_follow_gaze = True
+        self._gaze_lids = coupling(model.rest, model.area, model.held, model.mesh.eye_centers,
+                                   float(model.eye_contact_radius))
+        self._gaze = (0.0, 0.0, 0.0)  # the gaze (yaw, pitch, vergence) of the last frame
+        # the implicit step's responses to the gaze's fields follow the muscles' (sim.implicit.gaze_responses)
+        self._gaze_rows = np.arange(len(model.channels), len(model.channels) + N_BASIS, dtype=np.int64)
+        if self._implicit is not None and self._implicit._resp.shape[0] < len(model.channels) + N_BASIS:
+            raise ValueError("the implicit step's responses do not cover the gaze's pull on the lids")
+        self._yaw_i = CHANNEL_INDEX["eyes_yaw"]
+        self._pitch_i = CHANNEL_INDEX["eyes_pitch"]
+        self._verge_i = CHANNEL_INDEX["eyes_vergence"]
         self._jaw: tuple[float, float, float] | None = None  # the jaw pose the target and normals were set for
         self._target = model.rest + model.rest_offset
         self._shape = np.array(model.rest)
@@ -531,8 +545,20 @@ class Simulator:
         mm = self.model.muscle_matrix
         _constant_forces(mm.indptr, mm.indices, mm.data, control.values, self._is_muscle, self._weight,
                          self._kr, self._target, self._kn, self._normal, self._ext)
+        gaze = self._set_gaze(v)
+        if gaze != (0.0, 0.0, 0.0):
+            gaze_forces(self.model.rest, *self._gaze_lids, self.model.mesh.eye_centers, *gaze, self._ext)
         self._ext_values = np.array(v)
         return self._ext
+
+    def _set_gaze(self, v: np.ndarray) -> tuple[float, float, float]:
+        """The gaze (yaw, pitch, vergence) the lids are pulled by this frame (zeros unless they
+        follow it)."""
+        if self.lids_follow_gaze and len(self._gaze_lids[0]):
+            self._gaze = tuple(min(1.0, max(-1.0, float(v[i]))) for i in (self._yaw_i, self._pitch_i, self._verge_i))  # type: ignore[assignment]
+        else:
+            self._gaze = (0.0, 0.0, 0.0)
+        return self._gaze
 
     def _constants_and_muscles(self, control: FaceControl) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
         """For the implicit step: the constant forces without the muscles (`_constant_forces` with
@@ -547,7 +573,14 @@ class Simulator:
                              self._kr, self._target, self._kn, self._normal, self._ext_const)
             self._const_jaw = self._jaw
         act = np.flatnonzero(self._is_muscle & (v != 0.0))
-        return self._ext_const, (act, np.ascontiguousarray(v[act], dtype=np.float64))
+        val = np.ascontiguousarray(v[act], dtype=np.float64)
+        gaze = self._set_gaze(v)
+        if gaze != (0.0, 0.0, 0.0):  # the lids' pull by the turned eyes, as responses after the muscles'
+            coef = basis_coefficients(*gaze)
+            on = coef != 0.0  # (a look straight aside or up needs a quarter of them)
+            act = np.concatenate([act, self._gaze_rows[on]])
+            val = np.concatenate([val, coef[on]])
+        return self._ext_const, (act, val)
 
     # -- stepping
 
@@ -595,6 +628,7 @@ class Simulator:
         values = control.values
         state.eye_yaw = float(values[CHANNEL_INDEX["eyes_yaw"]])
         state.eye_pitch = float(values[CHANNEL_INDEX["eyes_pitch"]])
+        state.eye_vergence = float(values[self._verge_i])
         state.jaw = float(values[CHANNEL_INDEX["jaw"]])
         state.tongue_out = float(values[CHANNEL_INDEX["tongue_out"]])
         state.age = float(values[CHANNEL_INDEX["age"]])

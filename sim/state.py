@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 class FaceState:
     """positions, velocities (N,3) cm and cm/s: the dynamics. surface (N,3) cm: what is drawn
     (positions plus wrinkle bulges; equals positions until wrinkles exist). time in s. eye_yaw,
-    eye_pitch (-1..1), age (years) and the head's turn head_yaw, head_pitch, head_roll (-1..1, see
+    eye_pitch, eye_vergence (-1..1), age (years) and the head's turn head_yaw, head_pitch, head_roll (-1..1, see
     sim.face.turn) are copied from the control at the last step so that a renderer needs only the
     state."""
 
@@ -37,6 +37,7 @@ class FaceState:
     head_pitch: float = 0.0
     head_roll: float = 0.0
     tongue_out: float = 0.0  # the tongue channel at the last step: a scanned head's tongue follows it
+    eye_vergence: float = 0.0  # the eyes turned towards each other (sim.gaze_lids.eye_yaws)
     # the implicit integrator's contact memory after the last step (impulses and pairs its next step
     # starts from; sim.margin_contact.SolvedContact.memory), None before the first: a state copied
     # or restored carries it, so stepping on from a checkpoint gives the same bits as the original
@@ -57,6 +58,7 @@ class FaceState:
             self.head_pitch,
             self.head_roll,
             self.tongue_out,
+            self.eye_vergence,
             None if self.contact is None else self.contact.copy(),
         )
 
@@ -67,7 +69,7 @@ class FaceState:
         self.surface[...] = other.surface
         self.time = other.time
         self.eye_yaw, self.eye_pitch, self.age = other.eye_yaw, other.eye_pitch, other.age
-        self.jaw, self.tongue_out = other.jaw, other.tongue_out
+        self.jaw, self.tongue_out, self.eye_vergence = other.jaw, other.tongue_out, other.eye_vergence
         self.head_yaw, self.head_pitch, self.head_roll = other.head_yaw, other.head_pitch, other.head_roll
         self.contact = None if other.contact is None else other.contact.copy()
 

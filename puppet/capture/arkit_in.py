@@ -5,7 +5,8 @@ mentalis by a share, `SHAPE_SHARES`); where two shapes drive one channel (EyeSqu
 the larger wins (BrowDown, exported from corrugator and procerus, comes back as the corrugator). Every one of the 52
 shapes has a channel (JawLeft and JawRight together give the signed jaw_sideways; MouthFunnel
 everts both lips, MouthShrugUpper the upper one). The head's rotation columns turn the head (head_yaw, head_pitch, head_roll, quarter
-turns); gaze comes from the EyeLook shapes (a tracker writes both, and they agree).
+turns); gaze comes from the EyeLook shapes: the eyes' mean yaw and pitch, and half the difference of
+their yaws as the vergence (one eye's look alone turns that eye only).
 
 Column names are matched without regard to case (MediaPipe writes `mouthSmileLeft`).
 Timecode HH:MM:SS:FF(.mmm), FF counted at the recording's frame rate (--fps; by default read
@@ -86,11 +87,15 @@ def shape_channels(shapes: dict[str, np.ndarray], n: int,
                 i = index[lid + suffix]
                 values[:, i] = np.maximum(values[:, i], share * np.clip(g(look + side), 0.0, 1.0))
 
-    yaw = 0.5 * ((g("EyeLookOutLeft") - g("EyeLookInLeft")) + (g("EyeLookInRight") - g("EyeLookOutRight")))
+    # each eye's yaw (+ towards the face's left): their mean is the shared gaze, half their
+    # difference the vergence (sim.gaze_lids.eye_yaws)
+    yaw_l, yaw_r = g("EyeLookOutLeft") - g("EyeLookInLeft"), g("EyeLookInRight") - g("EyeLookOutRight")
+    yaw = 0.5 * (yaw_l + yaw_r)
     pitch = 0.5 * ((g("EyeLookUpLeft") - g("EyeLookDownLeft")) + (g("EyeLookUpRight") - g("EyeLookDownRight")))
     if "JawLeft" in shapes or "JawRight" in shapes:
         values[:, index["jaw_sideways"]] = np.clip(g("JawLeft") - g("JawRight"), -1, 1)
     values[:, index["eyes_yaw"]] = np.clip(yaw, -1, 1)
+    values[:, index["eyes_vergence"]] = np.clip(0.5 * (yaw_r - yaw_l), -1, 1)
     values[:, index["eyes_pitch"]] = np.clip(pitch, -1, 1)
     for column, channel in (("HeadYaw", "head_yaw"), ("HeadPitch", "head_pitch"), ("HeadRoll", "head_roll")):
         if turns and column in turns:

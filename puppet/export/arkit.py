@@ -17,6 +17,7 @@ import numpy as np
 
 from devices.facestream import ARKIT_NAMES
 from puppet.errors import ConfigError
+from sim.gaze_lids import eye_yaws
 
 #: The 52 blendshapes in ARKit's order, spelt as the Live Link Face CSV does (PascalCase).
 ARKIT_SHAPES = tuple(n[0].upper() + n[1:] for n in ARKIT_NAMES)
@@ -99,10 +100,17 @@ def _rule(shape: str) -> Callable[[Getter], float] | None:
     if shape in ONE_CHANNEL:
         name = ONE_CHANNEL[shape]
         return lambda g: g(name)
-    # gaze: +yaw looks towards the face's left: out for the left eye, in for the right one
+    # gaze: +yaw looks towards the face's left: out for the left eye, in for the right one; each
+    # eye's yaw is the shared one with the vergence (the left eye's minus it, the right one's plus)
+    def left(g: Getter) -> float:
+        return eye_yaws(g("eyes_yaw"), g("eyes_vergence"))[0]
+
+    def right(g: Getter) -> float:
+        return eye_yaws(g("eyes_yaw"), g("eyes_vergence"))[1]
+
     gaze = {
-        "EyeLookOutLeft": lambda g: max(0.0, g("eyes_yaw")), "EyeLookInLeft": lambda g: max(0.0, -g("eyes_yaw")),
-        "EyeLookInRight": lambda g: max(0.0, g("eyes_yaw")), "EyeLookOutRight": lambda g: max(0.0, -g("eyes_yaw")),
+        "EyeLookOutLeft": lambda g: max(0.0, left(g)), "EyeLookInLeft": lambda g: max(0.0, -left(g)),
+        "EyeLookInRight": lambda g: max(0.0, right(g)), "EyeLookOutRight": lambda g: max(0.0, -right(g)),
         "EyeLookUpLeft": lambda g: max(0.0, g("eyes_pitch")), "EyeLookUpRight": lambda g: max(0.0, g("eyes_pitch")),
         "EyeLookDownLeft": lambda g: max(0.0, -g("eyes_pitch")),
         "EyeLookDownRight": lambda g: max(0.0, -g("eyes_pitch")),
@@ -144,8 +152,9 @@ def rotation_row(values: np.ndarray, index: dict[str, int]) -> list[float]:
         i = index.get(name)
         return float(values[i]) if i is not None else 0.0
 
-    yaw, pitch = g("eyes_yaw") * EYE_YAW_TURN, g("eyes_pitch") * EYE_PITCH_TURN
-    return [g("head_yaw"), g("head_pitch"), g("head_roll"), yaw, pitch, 0.0, yaw, pitch, 0.0]
+    (yaw_l, yaw_r), pitch = eye_yaws(g("eyes_yaw"), g("eyes_vergence")), g("eyes_pitch") * EYE_PITCH_TURN
+    return [g("head_yaw"), g("head_pitch"), g("head_roll"), yaw_l * EYE_YAW_TURN, pitch, 0.0,
+            yaw_r * EYE_YAW_TURN, pitch, 0.0]
 
 
 class ArkitCsvWriter:

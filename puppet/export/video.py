@@ -141,7 +141,7 @@ class RenderFrame:
 
     def __init__(self, interleaved: np.ndarray, time: float, eye_yaw: float, eye_pitch: float,
                  age: float, jaw: float = 0.0, scan_rows: np.ndarray | None = None,
-                 head: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+                 head: tuple[float, float, float] = (0.0, 0.0, 0.0), eye_vergence: float = 0.0) -> None:
         self.interleaved = interleaved
         self.surface = interleaved[:, :3]
         self.positions = self.surface
@@ -149,9 +149,10 @@ class RenderFrame:
         self.jaw = jaw
         self.scan_rows = scan_rows  # the scanned head posed, as render.scan_look.ScanRows makes them
         self.head_yaw, self.head_pitch, self.head_roll = head
+        self.eye_vergence = eye_vergence
 
 
-_SCALARS = struct.Struct("<8d")  # time, eye yaw, eye pitch, age, jaw, head yaw, pitch, roll
+_SCALARS = struct.Struct("<9d")  # time, eye yaw, eye pitch, age, jaw, head yaw, pitch, roll, eye vergence
 
 
 def _pack(j: int, state: Any, normals: Any, scan: Any = None) -> bytes:
@@ -164,7 +165,8 @@ def _pack(j: int, state: Any, normals: Any, scan: Any = None) -> bytes:
     rows = normals.interleaved(np.ascontiguousarray(state.surface, dtype=np.float32), turn)
     extra = b"" if scan is None else scan.rows(state).astype("<f4", copy=False).tobytes()
     body = rows.astype("<f4", copy=False).tobytes() + extra + _SCALARS.pack(
-        state.time, state.eye_yaw, state.eye_pitch, state.age, getattr(state, "jaw", 0.0), *turn)
+        state.time, state.eye_yaw, state.eye_pitch, state.age, getattr(state, "jaw", 0.0), *turn,
+        getattr(state, "eye_vergence", 0.0))
     return FRAME_HEAD.pack(j, len(body)) + body
 
 
@@ -172,8 +174,8 @@ def _unpack_state(body: bytes, n_scan: int = 0) -> RenderFrame:
     data = np.frombuffer(body[:-_SCALARS.size], dtype="<f4")
     scan = data[len(data) - 7 * n_scan:].reshape(-1, 7) if n_scan else None
     rows = data[:len(data) - 7 * n_scan].reshape(-1, 6)
-    t, yaw, pitch, age, jaw, *head = _SCALARS.unpack(body[-_SCALARS.size:])
-    return RenderFrame(rows, t, yaw, pitch, age, jaw, scan, (head[0], head[1], head[2]))
+    t, yaw, pitch, age, jaw, *head, verge = _SCALARS.unpack(body[-_SCALARS.size:])
+    return RenderFrame(rows, t, yaw, pitch, age, jaw, scan, (head[0], head[1], head[2]), verge)
 
 
 def _read_exact(f: Any, n: int) -> bytes:

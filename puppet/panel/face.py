@@ -36,7 +36,7 @@ MODES = ("picture", "mesh")
 DEFAULT_MODE = "picture"
 OFFER_FRESH_S = 0.25  # a frame the show offered is used while this recent; older, the feed renders
 STILL_CM = 0.002  # a face whose skin moved less than this since the last frame sent is still (a 50th of a pixel)
-STATE_SCALARS = ("eye_yaw", "eye_pitch", "age", "jaw", "head_yaw", "head_pitch", "head_roll", "tongue_out")
+STATE_SCALARS = ("eye_yaw", "eye_pitch", "eye_vergence", "age", "jaw", "head_yaw", "head_pitch", "head_roll", "tongue_out")
 
 
 @dataclass

@@ -348,6 +348,10 @@ def test_the_arkit_reader_inverts_the_export_mapping(tmp_path) -> None:
     for ch in one_to_one:
         j = CHANNEL_NAMES.index(ch)
         values[:, j] = rng.uniform(-1.0 if ch.startswith("eyes") else 0.0, 1.0, 20)
+    # the eyes turned towards or away from each other, each eye within its range (yaw +- vergence)
+    one_to_one.add("eyes_vergence")
+    yaw = values[:, CHANNEL_NAMES.index("eyes_yaw")]
+    values[:, CHANNEL_NAMES.index("eyes_vergence")] = rng.uniform(-1.0, 1.0, 20) * (1.0 - np.abs(yaw))
     # the lids follow the gaze (GAZE_LIDS): a pose comes back whole when its lids are at least the gaze's share
     pitch = values[:, CHANNEL_NAMES.index("eyes_pitch")]
     for look, (lid, share) in GAZE_LIDS.items():

@@ -149,6 +149,8 @@ def test_arkit_map_is_the_inverse_of_the_export(vocab: Vocabulary) -> None:
         values[names.index(chin)] = rng.uniform(share * press / SHAPE_SPAN["MouthPress"], 1.0)
         values[names.index("eyes_yaw")] = rng.uniform(-1, 1)
         values[names.index("eyes_pitch")] = rng.uniform(-1, 1)
+        # the eyes turned towards or away from each other, each eye within its range (yaw +- vergence)
+        values[names.index("eyes_vergence")] = rng.uniform(-1, 1) * (1.0 - abs(values[names.index("eyes_yaw")]))
         for ch in ("head_yaw", "head_pitch", "head_roll", "jaw_sideways"):
             values[names.index(ch)] = rng.uniform(-0.8, 0.8)
         for ch in ("jaw_forward", "lip_closure", "incisivus", "orbicularis_oris_marginalis_upper",

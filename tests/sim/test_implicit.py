@@ -185,7 +185,7 @@ def test_a_restored_checkpoint_steps_on_to_the_same_bits() -> None:
 
 def test_a_step_partly_computed_ahead_gives_the_same_bits() -> None:
     """The live loop computes the next step's input-free part between ticks (`Simulator.prepare`);
-    replay never does. Both must give the same bits, also when the jaw moves after the prepare or
+    replay never does. Both must give the same bits, also when the jaw or the gaze moves after the prepare or
     the state is changed under it (a restored checkpoint, a nudged vertex)."""
     from sim.face import default_model
 
@@ -200,6 +200,8 @@ def test_a_step_partly_computed_ahead_gives_the_same_bits() -> None:
         c.set("zygomaticus_major_l", 0.5 + 0.5 * np.sin(k / 5.0))
         if 20 <= k < 30:
             c.set("jaw", 0.2 * (1.0 + np.sin(k / 3.0)))  # the prepare's jaw is not the step's
+        if 30 <= k < 36:
+            c.set("eyes_yaw", 0.1 * (k - 30))  # nor its gaze (the lids follow it as responses, sim.gaze_lids)
         ahead.prepare(s_ahead)
         impl = ahead._implicit
         assert impl is not None

@@ -193,12 +193,15 @@ window.PuppetFace = function (canvas) {
       gl.drawElements(gl.TRIANGLES, S.cavity.count, gl.UNSIGNED_INT, 0); gl.depthMask(true);
     }
     const E = S.h.eyes; mats(S.P.eye);
-    gl.uniformMatrix3fv(gl.getUniformLocation(S.P.eye, "rot"), false,
-      eyeRotation(Math.max(-1, Math.min(1, eye[0])) * E.yaw_max, Math.max(-1, Math.min(1, eye[1])) * E.pitch_max));
     gl.uniform1f(gl.getUniformLocation(S.P.eye, "radius"), E.radius);
     gl.enable(gl.CULL_FACE); gl.bindVertexArray(S.eye.v);
-    for (const c of E.centers) { gl.uniform3fv(gl.getUniformLocation(S.P.eye, "center"), c);
-      gl.drawElements(gl.TRIANGLES, S.eye.count, gl.UNSIGNED_INT, 0); }
+    const clamp = (a) => Math.max(-1, Math.min(1, a)), verge = clamp(eye[2] || 0);
+    E.centers.forEach((c, i) => {  // the left eye turns by yaw - vergence, the right by yaw + vergence
+      const yaw = clamp(clamp(eye[0]) + (i ? verge : -verge));
+      gl.uniformMatrix3fv(gl.getUniformLocation(S.P.eye, "rot"), false,
+        eyeRotation(yaw * E.yaw_max, clamp(eye[1]) * E.pitch_max));
+      gl.uniform3fv(gl.getUniformLocation(S.P.eye, "center"), c);
+      gl.drawElements(gl.TRIANGLES, S.eye.count, gl.UNSIGNED_INT, 0); });
     gl.disable(gl.CULL_FACE); gl.bindVertexArray(null);
     if (F.finish) gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4));  // timing: wait for the raster
     shown(c0);

@@ -14,10 +14,10 @@ from sim.face.scan.data import scan_data
 
 class StateControl:
     """What a dressing reads besides the surface (`get(name)`), taken from a drawn or exported
-    state: its channel values when it carries a control, else the jaw and the eyes' yaw and pitch
-    that every FaceState keeps from its last step."""
+    state: its channel values when it carries a control, else the jaw and the eyes' yaw, pitch and
+    vergence that every FaceState keeps from its last step."""
 
-    _FIELDS = {"eyes_yaw": "eye_yaw", "eyes_pitch": "eye_pitch"}
+    _FIELDS = {"eyes_yaw": "eye_yaw", "eyes_pitch": "eye_pitch", "eyes_vergence": "eye_vergence"}
 
     def __init__(self, state: object) -> None:
         self.state = state

@@ -21,7 +21,8 @@ gives all 26719 vertices in the scan's order.
   all, narrowing as it stretches, over the jaw's share it follows; AU19 parts the lips and drops the jaw a
   little (`sim.facs`), so it shows between them.
 - The eyeballs (sclera and iris) turn about their centres by `eyes_yaw` / `eyes_pitch` (30 and 20
-  degrees at full value, as the renderer turns the procedural face's eyes).
+  degrees at full value, as the renderer turns the procedural face's eyes), each eye's yaw with the
+  `eyes_vergence` (`sim.gaze_lids.eye_yaws`).
 `turn_head` applies a rigid head turn about a neck pivot, fading down the neck.
 """
 
@@ -69,6 +70,21 @@ def _frames(p: FloatArray) -> FloatArray:
     n /= np.linalg.norm(n, axis=1)[:, None]
     t1 = e1 / np.linalg.norm(e1, axis=1)[:, None]
     return np.stack([t1, np.cross(n, t1), n], axis=1)
+
+
+def _eye_rotations(control: Any) -> tuple[FloatArray, bool]:
+    """((2,3,3) each eyeball's rotation, left then right; whether either turns) for the control's
+    gaze, as the renderer turns the eyes: each eye's yaw is the gaze's with the vergence
+    (`sim.gaze_lids.eye_yaws`), the pitch shared."""
+    from sim.gaze_lids import eye_yaws
+
+    yaw = float(np.clip(control.get("eyes_yaw"), -1.0, 1.0))
+    verge = float(np.clip(control.get("eyes_vergence"), -1.0, 1.0))
+    pitch = float(np.clip(control.get("eyes_pitch"), -1.0, 1.0)) * EYE_PITCH_MAX
+    yaws = eye_yaws(yaw, verge)
+    if not (any(yaws) or pitch):
+        return np.stack([np.eye(3), np.eye(3)]), False
+    return np.stack([rotation(y * EYE_YAW_MAX, 0.0, 0.0) @ rotation(0.0, -pitch, 0.0) for y in yaws]), True
 
 
 def _range(part: str) -> np.ndarray:
@@ -162,9 +178,7 @@ class ScanDressing:
 
         x = np.ascontiguousarray(surface, dtype=np.float64)
         rot, shift = self.jaw_motion(float(control.get("jaw")))
-        yaw = float(np.clip(control.get("eyes_yaw"), -1.0, 1.0)) * EYE_YAW_MAX
-        pitch = float(np.clip(control.get("eyes_pitch"), -1.0, 1.0)) * EYE_PITCH_MAX
-        eye_rot = rotation(yaw, 0.0, 0.0) @ rotation(0.0, -pitch, 0.0) if (yaw or pitch) else np.eye(3)
+        eye_rot, turned = _eye_rotations(control)
         n = len(self.rest)
         out = np.empty((n, 3), np.float32)
         tongue = float(np.clip(control.get("tongue_out"), 0.0, 1.0))
@@ -173,7 +187,7 @@ class ScanDressing:
                   tongue, np.ascontiguousarray(TONGUE_REACH, np.float64), float(TONGUE_NARROW),
                   np.ascontiguousarray(self.eye_idx[0], np.int64), np.ascontiguousarray(self.eye_idx[1], np.int64),
                   np.ascontiguousarray(self.eye_centres, np.float64), np.ascontiguousarray(eye_rot, np.float64),
-                  bool(yaw or pitch), np.empty((len(x), 3)), np.empty((n, 3)), out)
+                  turned, np.empty((len(x), 3)), np.empty((n, 3)), out)
         return out
 
     def pose_steps(self, surface: FloatArray, control: Any) -> FloatArray:
@@ -209,11 +223,9 @@ class ScanDressing:
         f = self.socket_fade[:, None]
         out[self.socket_idx] = self.rest[self.socket_idx] + f * ld + (1.0 - f) * sd
         # the eyes
-        yaw = float(np.clip(control.get("eyes_yaw"), -1.0, 1.0)) * EYE_YAW_MAX
-        pitch = float(np.clip(control.get("eyes_pitch"), -1.0, 1.0)) * EYE_PITCH_MAX
-        if yaw or pitch:
-            r = rotation(yaw, 0.0, 0.0) @ rotation(0.0, -pitch, 0.0)  # as the renderer turns eyes
-            for idx, c in zip(self.eye_idx, self.eye_centres):
+        eye_rot, turned = _eye_rotations(control)
+        if turned:
+            for idx, c, r in zip(self.eye_idx, self.eye_centres, eye_rot):
                 out[idx] = (self.rest[idx] - c) @ r.T + c
         return out.astype(np.float32)
 

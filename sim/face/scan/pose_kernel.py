@@ -23,7 +23,7 @@ def pose_scan(rest, x, skin, lip_idx, lip_anchor, lip_rot, bound_idx, bound_tri,
               d, buf, out):
     """out (26719,3) float32: the scan posed by the simulated surface x (N,3) with the jaw's motion
     p -> rot p + shift, the tongue out by `tongue` (0..1: its vertices move by their share of
-    `reach` and narrow by `narrow` of their sideways offset) and, if turn_eyes, the eyeballs turned by eye_rot about their centres.
+    `reach` and narrow by `narrow` of their sideways offset) and, if turn_eyes, the eyeballs turned by eye_rot (2,3,3: left, right) about their centres.
     d (N,3) and buf (26719,3) are float64 scratch."""
     n = rest.shape[0]
     for i in range(n):
@@ -97,7 +97,7 @@ def pose_scan(rest, x, skin, lip_idx, lip_anchor, lip_rot, bound_idx, bound_tri,
                 q1 = rest[i, 1] - centres[e, 1]
                 q2 = rest[i, 2] - centres[e, 2]
                 for c in range(3):
-                    buf[i, c] = eye_rot[c, 0] * q0 + eye_rot[c, 1] * q1 + eye_rot[c, 2] * q2 + centres[e, c]
+                    buf[i, c] = eye_rot[e, c, 0] * q0 + eye_rot[e, c, 1] * q1 + eye_rot[e, c, 2] * q2 + centres[e, c]
     for i in range(n):
         for c in range(3):
             out[i, c] = np.float32(buf[i, c])

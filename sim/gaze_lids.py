@@ -1,0 +1,135 @@
+"""The lids carried by the turning eye: a force on the skin round each eye that follows the
+eyeball's rotation (gaze channels `eyes_yaw`, `eyes_pitch`, `eyes_vergence`).
+
+The upper and lower lids rest on the globe, the margins on the cornea's bulge, and the conjunctiva
+joins the lids' back to the globe at the fornices; when the eye turns, the cornea pushes the lid
+margins along with it and the lid's skin follows, about 2 mm at the margin for a sideways look
+(the lid contour's peak moves with the cornea: the upper lid's highest point shifts towards the
+side the eye looks to). Read off the ICT FaceKit's scanned eyeLookIn/Out: the skin round the eye
+moves as the eye would turn it, by a share of the eye's rotation that is largest on the lids
+(0.21-0.28 of a rigid turn about the centre of the sphere the lids slide on) and falls smoothly
+with the distance from the globe's surface (half of it ~5 mm out, nothing past ~12 mm); a rigid
+turn scaled per 1-3 mm band of distance holds 73-88 % of the scan's motion there.
+
+Modelled as a spring from every skin vertex near an eye to a point fixed on the turning globe,
+stiffness per unit skin area falling with the distance from the globe (`coupling`); only its pull
+at the skin's rest position enters the step (`gaze_forces`: gain_i (R (p_i - c) + c - p_i), a force
+constant while the gaze holds), so the step's matrix and, at a still gaze, every force are as
+without it. The implicit step adds it as the responses to eight fixed fields per eye times
+coefficients of the gaze (`basis_fields`), as it adds the muscles, so a moving gaze does not spoil
+the solve the live loop makes ahead of its inputs; the explicit step adds the force itself. The eye turns about its centre (the sphere the lids slide on) by the renderer's angles:
+30 degrees sideways and 20 up or down at a gaze of 1.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+#: the gaze's full range (eyes_yaw, eyes_pitch = +-1) as the eye's rotation, radians (the renderer's)
+YAW_MAX = math.radians(30.0)
+PITCH_MAX = math.radians(20.0)
+#: the coupling's stiffness per unit skin area on the globe, dyn/cm per cm^2 (on the scanned head
+#: the lid margins then follow a sideways look as the scan's do)
+STIFFNESS = 4000.0
+#: cm: its fall-off with the distance from the globe's surface (Gaussian width), and where it ends
+WIDTH = 0.55
+REACH = 1.5
+
+
+def coupling(rest: np.ndarray, area: np.ndarray, held: np.ndarray, centres: np.ndarray,
+             radius: float, stiffness: float = STIFFNESS, width: float = WIDTH,
+             reach: float = REACH) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(vertex indices (G,) int64, their eye (G,) int64: 0 left, 1 right, gains (G,) dyn/cm):
+    the free skin within `reach` of an eye's sphere (`centres` (2,3), `radius` cm), in front of
+    its centre, with gain stiffness * area * exp(-(d / width)^2) at a distance d outside the
+    sphere (d <= 0, the lids resting on the cornea: the full gain)."""
+    c = np.asarray(centres, dtype=np.float64)
+    dist = np.stack([np.sqrt(np.sum((rest - c[e]) ** 2, axis=1)) for e in range(2)], axis=1)
+    eye = np.argmin(dist, axis=1)
+    d = dist[np.arange(len(rest)), eye] - float(radius)
+    front = (rest[:, 2] - c[eye, 2]) > 0.0
+    near = np.flatnonzero((d < reach) & front & ~np.asarray(held, dtype=bool))
+    dd = np.maximum(d[near], 0.0)
+    gain = stiffness * np.asarray(area, dtype=np.float64)[near] * np.exp(-(dd / width) ** 2)
+    return near.astype(np.int64), eye[near].astype(np.int64), gain
+
+
+def eye_yaws(yaw: float, vergence: float) -> tuple[float, float]:
+    """(left, right) eye's yaw (-1..1, + towards the face's left) for the shared gaze `yaw` and
+    the `vergence` (+ the eyes turned towards each other): the left eye turns by yaw - vergence,
+    the right one by yaw + vergence (a version and a vergence, each eye's turn their sum)."""
+    return min(1.0, max(-1.0, yaw - vergence)), min(1.0, max(-1.0, yaw + vergence))
+
+
+def eye_rotation(yaw: float, pitch: float) -> np.ndarray:
+    """(3,3): the eye turned by `yaw` (+ towards the face's left, +X) and `pitch` (+ up) as the
+    gaze channels give them (-1..1), about +Y then X, as the renderer turns the eyeballs."""
+    a, b = yaw * YAW_MAX, -pitch * PITCH_MAX
+    ry = np.array([[math.cos(a), 0.0, math.sin(a)], [0.0, 1.0, 0.0], [-math.sin(a), 0.0, math.cos(a)]])
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, math.cos(b), -math.sin(b)], [0.0, math.sin(b), math.cos(b)]])
+    return ry @ rx
+
+
+@numba.njit(cache=True, nogil=True)
+def _add_gaze_forces(rest, idx, eye, gain, centres, rot, out):  # type: ignore[no-untyped-def]
+    for k in range(idx.shape[0]):
+        i = idx[k]
+        e = eye[k]
+        d0 = rest[i, 0] - centres[e, 0]
+        d1 = rest[i, 1] - centres[e, 1]
+        d2 = rest[i, 2] - centres[e, 2]
+        for j in range(3):
+            turned = d0 * rot[e, j, 0] + d1 * rot[e, j, 1] + d2 * rot[e, j, 2] + centres[e, j]
+            out[i, j] += gain[k] * (turned - rest[i, j])
+
+
+def gaze_forces(rest: np.ndarray, idx: np.ndarray, eye: np.ndarray, gain: np.ndarray,
+                centres: np.ndarray, yaw: float, pitch: float, vergence: float, out: np.ndarray) -> None:
+    """Adds to `out` (N,3) dyn the coupling's pull for the gaze (yaw, pitch, vergence): each
+    coupled vertex towards where its rest position would be if its eye turned it rigidly, times
+    its gain."""
+    rot = np.stack([eye_rotation(y, pitch) for y in eye_yaws(yaw, vergence)])
+    _add_gaze_forces(rest, idx, eye, gain, np.ascontiguousarray(centres, dtype=np.float64),
+                     np.ascontiguousarray(rot), out)
+
+
+#: The eye's turn minus the identity, R - I with R = Ry(a) Rx(b), as a sum of eight fixed matrices
+#: times functions of the angles: with A = sin a Ky + (1 - cos a) Ky^2 and B likewise about x,
+#: R - I = A + B + A B. So the pull of a turned eye is a sum of eight fixed force fields per eye, each
+#: times a coefficient of the gaze (`basis_fields`, `basis_coefficients`): the implicit step adds their
+#: precomputed responses as it adds the muscles' (`sim.implicit.muscle_responses`), and a moving gaze
+#: leaves the solve the live loop makes ahead of the inputs usable.
+_KY = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+_KX = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+_BASIS = (_KY, _KY @ _KY, _KX, _KX @ _KX, _KY @ _KX, _KY @ _KX @ _KX, _KY @ _KY @ _KX, _KY @ _KY @ _KX @ _KX)
+N_BASIS = 2 * len(_BASIS)  # fields: eye 0's eight, then eye 1's
+
+
+def basis_fields(rest: np.ndarray, idx: np.ndarray, eye: np.ndarray, gain: np.ndarray,
+                 centres: np.ndarray) -> np.ndarray:
+    """(N_BASIS, N, 3) dyn: the fixed force fields whose sum, each times its `basis_coefficients`,
+    is the coupling's pull (`gaze_forces`): gain_i M_k (p_i - c_e) on eye e's vertices."""
+    out = np.zeros((N_BASIS, len(rest), 3))
+    c = np.asarray(centres, dtype=np.float64)
+    for e in range(2):
+        on = eye == e
+        d = np.asarray(rest, dtype=np.float64)[idx[on]] - c[e]
+        for k, m in enumerate(_BASIS):
+            out[e * len(_BASIS) + k, idx[on]] = gain[on, None] * (d @ m.T)
+    return out
+
+
+def basis_coefficients(yaw: float, pitch: float, vergence: float) -> np.ndarray:
+    """(N_BASIS,): the coefficients of `basis_fields` for the gaze (each eye's yaw with the
+    vergence, `eye_yaws`; the pitch shared)."""
+    b = -pitch * PITCH_MAX
+    sb, vb = math.sin(b), 1.0 - math.cos(b)
+    out = []
+    for y in eye_yaws(yaw, vergence):
+        a = y * YAW_MAX
+        sa, va = math.sin(a), 1.0 - math.cos(a)
+        out += [sa, va, sb, vb, sa * sb, sa * vb, va * sb, va * vb]
+    return np.array(out)
