@@ -233,7 +233,14 @@ def edge_path(v: np.ndarray, t: np.ndarray, points: list[np.ndarray], closed: bo
         stops.append(stops[0])
     path: list[int] = [stops[0]]
     for a, b in zip(stops[:-1], stops[1:]):
-        _, pred = dijkstra(g, indices=a, return_predecessors=True)
+        leg_graph = g
+        if closed:  # a loop passes each vertex once: later legs go round the earlier ones
+            used = np.zeros(len(v), bool)
+            used[[i for i in path if i not in (a, b)]] = True
+            ok = ~used[e].any(axis=1)
+            leg_graph = coo_matrix((np.r_[w[ok], w[ok]], (np.r_[e[ok, 0], e[ok, 1]], np.r_[e[ok, 1], e[ok, 0]])),
+                                   shape=(len(v),) * 2).tocsr()
+        _, pred = dijkstra(leg_graph, indices=a, return_predecessors=True)
         leg = [b]
         while leg[-1] != a:
             leg.append(int(pred[leg[-1]]))
