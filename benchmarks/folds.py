@@ -26,7 +26,7 @@ def turned_over_area(model, x: np.ndarray) -> float:  # type: ignore[no-untyped-
 
 def main(argv: list[str] | None = None) -> int:
     from puppet.face_cache import scan_model
-    from sim.facs import EXPRESSIONS, apply_expression
+    from sim.facs import EXPRESSIONS, apply_expression, preset_face
     from sim.integrator import Simulator
     from sim.state import FaceControl
 
@@ -39,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     poses: dict[str, FaceControl] = {}
     for name in EXPRESSIONS:
         c = FaceControl()
-        apply_expression(c, name, face=model.rig.name)
+        apply_expression(c, name, face=preset_face(model.rig))
         poses[name] = c
     for spec in model.channels:
         if spec.name == "age" or spec.name.endswith("_r"):

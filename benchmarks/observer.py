@@ -195,7 +195,7 @@ def scan_geometry() -> tuple[np.ndarray, np.ndarray]:
 
 def perform(model: Any, expression: str | None) -> tuple[Any, Any]:
     """(state, control) after dialling `expression` up over 40 frames, holding 20 and settling."""
-    from sim.facs import apply_expression
+    from sim.facs import apply_expression, preset_face
     from sim.integrator import Simulator
     from sim.state import FaceControl
 
@@ -205,7 +205,7 @@ def perform(model: Any, expression: str | None) -> tuple[Any, Any]:
     for k in range(60):
         control = FaceControl(model)
         if expression:
-            apply_expression(control, expression, min(1.0, (k + 1) / 40), model.rig.name)
+            apply_expression(control, expression, min(1.0, (k + 1) / 40), preset_face(model.rig))
         sim.step(state, control)
     sim.settle(state, control)
     return state, control

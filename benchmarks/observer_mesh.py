@@ -17,6 +17,21 @@ missing, downloads it by hand from its public address (the product itself never 
   https://github.com/mrdoob/three.js (commit 3232c8201a59dc1515500a139bd0e7b75a9e2a42; three.js
   JSON model format 2, 8,838 vertices). A scan with closed lids and closed lips: the lid and lip
   lines are declared as slits.
+- `nefertiti` (development head): the bust of Nefertiti (Egyptian Museum, Berlin), scanned by Nora
+  Al-Badri and Jan Nikolai Nelles in 2016 and released into the public domain; the remeshed
+  35,002-vertex version `objects/nefertiti/nefertiti-lowres.obj` of
+  https://github.com/odedstein/meshes (commit 835213277571d625722d25880c9c3010c6f45a5a; the remesh
+  also released into the public domain), in mm. A sculpture: the eyeballs are carved in one
+  surface with open lids (the eye rims are declared as closed loops, the carved eyeball inside
+  them removed), the lips are closed (the lip line is declared as a slit). Crown, neck and
+  shoulders are kept (held as the back of a head is).
+
+- `mediapipe` (held out, added last: measured once, nothing tuned on it): MediaPipe's canonical
+  face model, `mediapipe/modules/face_geometry/data/canonical_face_model.obj` of
+  https://github.com/google/mediapipe (commit a908d668c730da128dfa8d9f6bd25d519d006692, Apache
+  License 2.0), in cm. A 468-vertex face mask (no back of the head) whose eyes and lips stand
+  slightly apart but are bridged by triangles: the eye and lip rims are declared as closed loops.
+  Its landmarks are the model's own vertices of those names (its published landmark numbering).
 
 Landmarks: the 32 of docs/import-face.md, placed by hand on a frontal picture of each head and
 stored here as points in the file's own units; the openings are shortest edge paths through the
@@ -51,6 +66,10 @@ from observer import SIZE, Observer, perform, score  # noqa: E402
 
 MH_URL = ("https://raw.githubusercontent.com/makehumancommunity/makehuman/"
           "a8bc2d54/makehuman/data/3dobjs/base.obj")
+NEF_URL = ("https://raw.githubusercontent.com/odedstein/meshes/835213277571d625722d25880c9c3010c6f45a5a/"
+           "objects/nefertiti/nefertiti-lowres.obj")
+MP_URL = ("https://raw.githubusercontent.com/google/mediapipe/a908d668c730da128dfa8d9f6bd25d519d006692/"
+          "mediapipe/modules/face_geometry/data/canonical_face_model.obj")
 LEE_URL = ("https://raw.githubusercontent.com/mrdoob/three.js/"
            "3232c8201a59dc1515500a139bd0e7b75a9e2a42/examples/obj/leeperrysmith/LeePerrySmith.js")
 
@@ -92,6 +111,44 @@ LEE_POINTS = {
     "jaw_angle_l": [0.8693, -0.0623, 1.426], "jaw_angle_r": [-0.8289, -0.0312, 1.8496],
 }
 
+NEF_POINTS = {
+    "forehead_center": [3.13, 71.88, 143.24], "glabella": [3.12, 37.88, 156.48],
+    "brow_inner_l": [20.13, 41.88, 151.43], "brow_inner_r": [-13.88, 41.88, 151.97],
+    "brow_mid_l": [36.12, 46.38, 147.73], "brow_mid_r": [-29.88, 46.37, 149.24],
+    "brow_outer_l": [52.12, 40.87, 136.89], "brow_outer_r": [-45.88, 40.88, 140.44],
+    "eye_inner_l": [20.13, 22.87, 147.41], "eye_inner_r": [-13.37, 22.37, 148.73],
+    "eye_outer_l": [48.12, 24.88, 137.03], "eye_outer_r": [-44.88, 24.88, 137.2],
+    "upper_lid_l": [34.12, 29.88, 144.66], "upper_lid_r": [-28.88, 29.37, 149.48],
+    "lower_lid_l": [34.13, 20.38, 146.07], "lower_lid_r": [-28.88, 20.38, 144.74],
+    "nose_bridge": [3.12, 21.87, 164.42], "nose_tip": [3.12, -8.12, 181.14],
+    "nose_wing_l": [19.62, -10.12, 166.37], "nose_wing_r": [-12.88, -10.12, 166.14],
+    "subnasale": [3.13, -17.12, 173.7], "upper_lip_top": [3.12, -29.63, 171.56],
+    "upper_lip_center": [3.13, -36.13, 168.96], "lower_lip_center": [3.12, -37.62, 167.81],
+    "lower_lip_bottom": [3.12, -46.12, 168.29], "mouth_corner_l": [27.12, -35.62, 152.99],
+    "mouth_corner_r": [-21.38, -34.62, 154.07], "cheek_l": [39.13, -5.12, 147.22],
+    "cheek_r": [-32.88, -5.13, 149.36], "chin": [3.12, -68.12, 166.38],
+    "jaw_angle_l": [55.7, -45.8, 110.0], "jaw_angle_r": [-49.8, -45.8, 110.0],
+}
+
+MP_POINTS = {
+    "forehead_center": [0, 6.545, 5.027], "glabella": [0, 4.886, 5.385],
+    "brow_inner_l": [1.396, 5.012, 5.316], "brow_inner_r": [-1.396, 5.012, 5.316],
+    "brow_mid_l": [3.987, 5.109, 4.466], "brow_mid_r": [-3.987, 5.109, 4.466],
+    "brow_outer_l": [5.721, 4.255, 2.831], "brow_outer_r": [-5.721, 4.255, 2.831],
+    "eye_inner_l": [1.856, 2.585, 3.758], "eye_inner_r": [-1.856, 2.585, 3.758],
+    "eye_outer_l": [4.446, 2.664, 3.173], "eye_outer_r": [-4.446, 2.664, 3.173],
+    "upper_lid_l": [3.177, 2.964, 3.877], "upper_lid_r": [-3.177, 2.964, 3.877],
+    "lower_lid_l": [3.177, 2.294, 3.776], "lower_lid_r": [-3.177, 2.294, 3.776],
+    "nose_bridge": [0, 2.473, 5.789], "nose_tip": [0, -0.4632, 7.587],
+    "nose_wing_l": [1.786, -0.9783, 4.85], "nose_wing_r": [-1.786, -0.9783, 4.85],
+    "subnasale": [0, -2.089, 6.058], "upper_lip_top": [0, -3.406, 5.98],
+    "upper_lip_center": [0, -3.994, 5.219], "lower_lip_center": [0, -4.542, 5.405],
+    "lower_lip_bottom": [0, -5.365, 5.535], "mouth_corner_l": [2.456, -4.343, 4.284],
+    "mouth_corner_r": [-2.456, -4.343, 4.284], "cheek_l": [4.766, -0.7016, 3.535],
+    "cheek_r": [-4.766, -0.7016, 3.535], "chin": [0, -9.403, 4.264], "jaw_angle_l": [6.72, -4.789, -1.745],
+    "jaw_angle_r": [-6.72, -4.789, -1.745],
+}
+
 
 def meshes_folder(arg: str | None) -> Path:
     return Path(arg or os.environ.get("PUPPET_MESHES", Path.home() / ".cache" / "facepuppet" / "meshes"))
@@ -123,6 +180,18 @@ def load_makehuman(path: Path) -> tuple[np.ndarray, np.ndarray]:
     v, t = np.asarray(verts), np.asarray(tris)
     cut = v[np.unique(t), 1].max() - 3.2
     return _compact(v, t[(v[t][:, :, 1] > cut).all(axis=1)])
+
+
+def load_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """A plain OBJ (polygons fanned into triangles), the texture and normal indices skipped."""
+    verts, tris = [], []
+    for line in path.read_text().splitlines():
+        if line.startswith("v "):
+            verts.append([float(x) for x in line.split()[1:4]])
+        elif line.startswith("f "):
+            idx = [int(p.split("/")[0]) - 1 for p in line.split()[1:]]
+            tris += [[idx[0], idx[k], idx[k + 1]] for k in range(1, len(idx) - 1)]
+    return _compact(np.asarray(verts), np.asarray(tris))
 
 
 def load_three_json(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -164,7 +233,14 @@ def edge_path(v: np.ndarray, t: np.ndarray, points: list[np.ndarray], closed: bo
         stops.append(stops[0])
     path: list[int] = [stops[0]]
     for a, b in zip(stops[:-1], stops[1:]):
-        _, pred = dijkstra(g, indices=a, return_predecessors=True)
+        leg_graph = g
+        if closed:  # a loop passes each vertex once: later legs go round the earlier ones
+            used = np.zeros(len(v), bool)
+            used[[i for i in path if i not in (a, b)]] = True
+            ok = ~used[e].any(axis=1)
+            leg_graph = coo_matrix((np.r_[w[ok], w[ok]], (np.r_[e[ok, 0], e[ok, 1]], np.r_[e[ok, 1], e[ok, 0]])),
+                                   shape=(len(v),) * 2).tocsr()
+        _, pred = dijkstra(leg_graph, indices=a, return_predecessors=True)
         leg = [b]
         while leg[-1] != a:
             leg.append(int(pred[leg[-1]]))
@@ -172,11 +248,12 @@ def edge_path(v: np.ndarray, t: np.ndarray, points: list[np.ndarray], closed: bo
     return path[:-1] if closed else path
 
 
-def openings(v: np.ndarray, t: np.ndarray, pts: dict[str, list[float]], eyes_open: bool) -> dict[str, list[int]]:
-    """Declared openings: rim loops round the lips and eyes of a modelled head with open eyes and a
-    mouth lining (what they enclose is removed), the lip and lid lines as slits on a closed scan."""
+def openings(v: np.ndarray, t: np.ndarray, pts: dict[str, list[float]], eyes_open: bool,
+             lips_open: bool) -> dict[str, list[int]]:
+    """Declared openings: rim loops round open eyes and parted lips (what they enclose is removed:
+    a mouth's lining, a carved or fused eyeball), the lip and lid lines as slits where they are shut."""
     p = {k: np.asarray(x) for k, x in pts.items()}
-    if eyes_open:  # a modelled head: the lips part at the front, the mouth's lining closes behind them
+    if lips_open:  # a modelled head: the lips part at the front, the mouth's lining closes behind them
         out = {"mouth": edge_path(v, t, [p["mouth_corner_r"], p["upper_lip_center"], p["mouth_corner_l"],
                                          p["lower_lip_center"]], closed=True)}
     else:
@@ -193,9 +270,13 @@ def openings(v: np.ndarray, t: np.ndarray, pts: dict[str, list[float]], eyes_ope
 
 HEADS: dict[str, dict[str, Any]] = {
     "makehuman": {"file": "makehuman_base.obj", "url": MH_URL, "load": load_makehuman, "points": MH_POINTS,
-                  "eyes_open": True, "role": "development"},
+                  "eyes_open": True, "lips_open": True, "role": "development"},
+    "nefertiti": {"file": "nefertiti-lowres.obj", "url": NEF_URL, "load": load_obj, "points": NEF_POINTS,
+                  "eyes_open": True, "lips_open": False, "role": "development"},
     "leeperrysmith": {"file": "LeePerrySmith.js", "url": LEE_URL, "load": load_three_json, "points": LEE_POINTS,
-                      "eyes_open": False, "role": "held out"},
+                      "eyes_open": False, "lips_open": False, "role": "held out"},
+    "mediapipe": {"file": "canonical_face_model.obj", "url": MP_URL, "load": load_obj, "points": MP_POINTS,
+                  "eyes_open": True, "lips_open": True, "role": "held out"},
 }
 
 
@@ -207,7 +288,7 @@ def import_head(name: str, folder: Path, work: Path) -> Path:
     loader: Callable[[Path], tuple[np.ndarray, np.ndarray]] = spec["load"]
     v, t = loader(fetch_once(folder, spec["file"], spec["url"]))
     trimesh.Trimesh(v, t, process=False).export(work / f"{name}.obj")
-    lm = {"landmarks": spec["points"], "openings": openings(v, t, spec["points"], spec["eyes_open"])}
+    lm = {"landmarks": spec["points"], "openings": openings(v, t, spec["points"], spec["eyes_open"], spec["lips_open"])}
     (work / f"{name}.json").write_text(json.dumps(lm))
     rig = work / f"{name}.npz"
     cmd = [sys.executable, "-m", "puppet", "import-face", str(work / f"{name}.obj"), "--landmarks",

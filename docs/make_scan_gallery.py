@@ -62,7 +62,7 @@ class StillScan:
 
 def perform(model: Any, expression: str | None) -> Any:
     """Dial `expression` up from rest over RAMP_FRAMES, hold, settle; the final state."""
-    from sim.facs import apply_expression
+    from sim.facs import apply_expression, preset_face
     from sim.integrator import Simulator
     from sim.state import FaceControl
 
@@ -72,7 +72,7 @@ def perform(model: Any, expression: str | None) -> Any:
     for k in range(RAMP_FRAMES + HOLD_FRAMES):
         control = FaceControl(model)
         if expression:
-            apply_expression(control, expression, min(1.0, (k + 1) / RAMP_FRAMES), model.rig.name)
+            apply_expression(control, expression, min(1.0, (k + 1) / RAMP_FRAMES), preset_face(model.rig))
         sim.step(state, control)
     sim.settle(state, control)
     return state

@@ -143,7 +143,9 @@ def run(args: argparse.Namespace) -> int:
         raise PuppetError(f"--seconds {args.seconds:g}: expected 0..600")
     build_control(args)  # bad names and values fail before the face is built
     model = load_model(args)
-    control = build_control(args, getattr(model.rig, "name", None))
+    from sim.facs import preset_face
+
+    control = build_control(args, preset_face(model.rig))
 
     from sim.integrator import Simulator
 

@@ -106,6 +106,22 @@ limit 10; sadness' inner brows rising 2.1 mm at AU4 0.4 and resolution 1, target
 here (the lips parted, AU6 at full) is not yet read as happy on the scan (docs/scan-face.md)."""
 
 
+FACE_EXPRESSIONS["imported"] = {
+    "fear": {"AU1": 1.0, "AU4": 1.0, "AU5": 1.0, "AU20": 1.0},
+}
+"""An imported head (`sim.face.transfer`) has no teeth, so a dropped jaw opens a dark hole that the
+emotion observer read as surprise (and AU2's arched brows with it): its fear is the brows raised
+at the inner end and drawn together, the lids raised and the lips stretched, with the jaw shut
+(on the development heads of `benchmarks/observer_mesh.py`: fear read as fear, 0.89 and 0.87,
+where the shared preset read MakeHuman's as surprise, fear 0.09). Rigs imported before this
+table ask for no presets and keep the shared ones."""
+
+
+def preset_face(rig: object) -> str | None:
+    """The key of `expressions_for` for a rig: its `presets` when it names them, else its name."""
+    return getattr(rig, "presets", "") or getattr(rig, "name", None)
+
+
 def expressions_for(face: str | None = None) -> dict[str, dict[str, float]]:
     """The presets of one face (its rig's name; None or an unknown name: EXPRESSIONS)."""
     return {**EXPRESSIONS, **FACE_EXPRESSIONS.get(face or "", {})}

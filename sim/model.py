@@ -136,7 +136,10 @@ class FaceRig:
 
     integrator: what `sim.integrator.Simulator(method="auto")` runs this face on: "auto" (by the
     work per frame), "rk2" or "implicit". An imported head asks for "implicit", whose fold guard
-    keeps a foreign mesh's skin from turning over (`sim.antifold`)."""
+    keeps a foreign mesh's skin from turning over (`sim.antifold`).
+
+    presets: whose preset intensities the face takes (`sim.facs.preset_face`): "" for its name's
+    (the built-in faces), "imported" for a head brought in by `sim.face.transfer`."""
 
     mesh: FaceMesh
     muscles: dict[str, tuple[Muscle, ...]]
@@ -144,3 +147,4 @@ class FaceRig:
     name: str = "default"
     insertion: dict[str, np.ndarray] = field(default_factory=dict)
     integrator: str = "auto"
+    presets: str = ""

@@ -14,6 +14,8 @@ Fitted insertion gains (`FaceRig.insertion`, optional): header "insertion": [cha
 array `insertion_<channel>` (N,) f8 >= 0 each.
 The integrator the face asks for (`FaceRig.integrator`, optional): header "integrator": "rk2" or
 "implicit" (absent: "auto"; imported heads ask for "implicit").
+Whose preset intensities the face takes (`FaceRig.presets`, optional): header "presets": a name of
+`sim.facs.FACE_EXPRESSIONS` (absent: by the rig's name; imported heads: "imported").
 """
 
 from __future__ import annotations
@@ -71,6 +73,8 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
     }
     if rig.integrator != "auto":  # rig files of faces that leave the choice to the simulator are unchanged
         header["integrator"] = rig.integrator
+    if rig.presets:  # likewise: only a face that asks for other presets says so
+        header["presets"] = rig.presets
     arrays: dict[str, np.ndarray] = {
         "header": np.array(json.dumps(header)),
         "vertices": np.asarray(mesh.vertices, np.float64),
@@ -251,9 +255,10 @@ def _parse(data: Any, p: str) -> FaceRig:
     if integrator not in INTEGRATORS:
         raise RigFileError(f"{p}: integrator must be one of {', '.join(INTEGRATORS)}, "
                            f"not {quote(str(integrator)[:40])}")
+    presets = string(header["presets"], f"{p}: presets") if "presets" in header else ""
     return FaceRig(mesh=mesh, muscles=muscles, wrinkles=_wrinkles(header.get("wrinkles", []), p),
                    name=string(header.get("name", "rig"), f"{p}: name"), insertion=insertion,
-                   integrator=integrator)
+                   integrator=integrator, presets=presets)
 
 
 def _wrinkles(entries: Any, p: str) -> tuple:

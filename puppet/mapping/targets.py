@@ -57,7 +57,7 @@ class Vocabulary:
         try:
             from sim import facs
             aus = dict(getattr(facs, "AU_TABLE", {}))
-            exprs = dict(facs.expressions_for(getattr(getattr(model, "rig", None), "name", None)))
+            exprs = dict(facs.expressions_for(facs.preset_face(getattr(model, "rig", None))))
         except ImportError:
             pass
         return cls(chans, aus, exprs)

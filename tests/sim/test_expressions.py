@@ -144,3 +144,23 @@ def test_the_scanned_head_has_its_own_preset_intensities() -> None:
         assert set(got) == moved, name
         for i in moved:
             assert got[i] == pytest.approx(want.values[i]), (name, CHANNEL_SPECS[i].name)
+
+
+def test_an_imported_heads_fear_keeps_the_jaw_shut() -> None:
+    """A head without teeth shows a dark hole when the jaw drops (read as surprise): its fear
+    raises the lids, draws the brows together and stretches the lips with the jaw shut; a map's
+    vocabulary on such a rig (its `presets`, whatever its name) sets the same."""
+    from types import SimpleNamespace
+
+    from puppet.mapping.targets import Vocabulary
+    from sim.channels import CHANNEL_SPECS
+
+    imported, shared = FaceControl(), FaceControl()
+    facs.apply_expression(imported, "fear", face="imported")
+    facs.apply_expression(shared, "fear", face="procedural")
+    assert imported.get("jaw") == 0.0 < shared.get("jaw")
+    assert imported.get("levator_palpebrae_l") > 0.0 and imported.get("risorius_r") > 0.0
+    assert imported.get("corrugator_l") > shared.get("corrugator_l")
+    rig = SimpleNamespace(name="my head", presets="imported")
+    vocab = Vocabulary.from_model(SimpleNamespace(channels=CHANNEL_SPECS, rig=rig))
+    assert vocab.expressions["fear"] == facs.expressions_for("imported")["fear"]

@@ -169,3 +169,21 @@ def test_the_integrator_a_face_asks_for_round_trips_and_runs(synth_rig: FaceRig,
     with pytest.raises(RigFileError, match=r"bad\.npz: integrator must be one of auto, rk2, implicit") as err:
         load_rig(tmp_path / "bad.npz")
     assert "\n" not in str(err.value)
+
+
+def test_the_presets_a_face_asks_for_round_trip(synth_rig: FaceRig, tmp_path: Path) -> None:
+    """An imported head takes the presets of a face without teeth; the rig file keeps that, a rig
+    that asks for none keeps its file unchanged and takes the presets by its name."""
+    from dataclasses import replace
+
+    from sim.facs import EXPRESSIONS, expressions_for, preset_face
+
+    path = tmp_path / "r.npz"
+    save_rig(replace(synth_rig, presets="imported"), path)
+    back = load_rig(path)
+    assert back.presets == "imported" and preset_face(back) == "imported"
+    assert expressions_for(preset_face(back))["fear"] != EXPRESSIONS["fear"]
+    save_rig(synth_rig, path)
+    header = json.loads(str(np.load(path)["header"]))
+    assert "presets" not in header
+    assert preset_face(load_rig(path)) == synth_rig.name

@@ -131,6 +131,28 @@ def test_presets_move_the_landmarks_the_right_way_without_folds(default_import) 
     assert {e: round(turned_over_area(m.triangles, rest, p), 3) for e, p in folds.items()} == dict.fromkeys(folds, 0.0)
 
 
+def test_an_imported_head_takes_the_presets_of_a_face_without_teeth(default_import) -> None:
+    """Its fear keeps the jaw shut (a dropped jaw shows a dark hole), and still raises the inner
+    brows and stretches the lips on the transferred rig."""
+    from sim.facs import preset_face
+
+    res, model = default_import
+    assert res.rig.presets == "imported"
+    rest = np.asarray(model.rest)
+    lm = res.rig.mesh.landmarks
+    sim, state, control = Simulator(model, wrinkles=False), model.rest_state(), FaceControl(model)
+    apply_expression(control, "fear", 1.0, preset_face(res.rig))
+    assert control.get("jaw") == 0.0
+    for _ in range(40):
+        sim.step(state, control)
+    sim.settle(state, control)
+    p = state.positions
+    assert p[lm["brow_inner_l"], 1] - rest[lm["brow_inner_l"], 1] > 0.05
+    width = lambda q: np.linalg.norm(q[lm["mouth_corner_l"]] - q[lm["mouth_corner_r"]])  # noqa: E731
+    assert width(p) > width(rest) + 0.1
+    assert abs(p[lm["chin"], 1] - rest[lm["chin"], 1]) < 0.1
+
+
 def test_a_layer_under_the_skin_is_found_as_cavity() -> None:
     """Two coaxial sheets seen from a cylinder chart: the inner one (a mouth's lining behind the
     lips) lies under the outer and is hidden; the outer, and a lone sheet, are not."""

@@ -28,6 +28,7 @@ FloatArray = np.ndarray
 IntArray = np.ndarray
 FORWARD = np.array([0.0, 0.0, 1.0])
 UP = np.array([0.0, 1.0, 0.0])
+IMPORTED_PRESETS = "imported"  # sim.facs.FACE_EXPRESSIONS' intensities for a head without teeth
 CAVITY_DEPTH = 0.015  # of the landmark region's radius (~1 mm on an adult): a layer this far under
 # the outermost skin seen along the cylinder's radius is the inside of the mouth, a socket or a nostril
 
@@ -276,7 +277,7 @@ def transfer_rig(
         mesh.regions["cavity"] = cavity
     muscles = {ch: tuple(carry_muscle(smap, m) for m in parts) for ch, parts in reference.muscles.items()}
     rig = FaceRig(mesh=mesh, muscles=muscles, wrinkles=_carry_wrinkles(reference, smap), name=name,
-                  integrator=opt.integrator)
+                  integrator=opt.integrator, presets=IMPORTED_PRESETS)
     notes = []
     for what in opened:
         notes.append(what)
