@@ -196,6 +196,9 @@ def _parse_system_keys() -> MappingSpec:
 
 #: the take header's "muscles": the implicit step adds each muscle's precomputed response
 MUSCLES_AS = "responses"
+#: the take header's "jaw": the implicit step starts from the last step's jaw opening and skin age
+#: and adds the jaw's move as precomputed responses (sim.Simulator.jaw_responses)
+JAW_AS = "responses from the last step's pose"
 
 
 def session_header(face: Face, spec: MappingSpec, rate: float, devices: Sequence[str]) -> dict[str, Any]:
@@ -218,6 +221,9 @@ def take_header(face: Face, rate: float, mapping: dict[str, str], devices: Seque
         # how the implicit step adds the muscles (sim.implicit): a take without it is replayed with
         # the muscles summed into the frame's forces, as it was recorded (puppet.replay)
         "muscles": MUSCLES_AS,
+        # how it moves the jaw and ages the skin: a take without it is replayed with the jaw and the
+        # age taken whole at each step, as it was recorded (puppet.replay)
+        "jaw": JAW_AS,
     }
 
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from puppet.curves import CurveLayer, CurveSet
 from puppet.errors import ConfigError, PuppetError
-from puppet.live import MUSCLES_AS, Face, load_face
+from puppet.live import JAW_AS, MUSCLES_AS, Face, load_face
 from puppet.session import Session
 from safefile import quote
 
@@ -46,6 +46,9 @@ class Performance:
     #: recorded before the implicit step added the muscles as responses (no "muscles" in its
     #: header): replayed with them summed into the frame's forces, as recorded, for the same bits
     muscles_summed: bool = False
+    #: recorded with the jaw and the skin's age taken whole at each step (no "jaw" in its header):
+    #: replayed that way (sim.Simulator.jaw_responses off), for the same bits
+    jaw_responses: bool = True
 
     @property
     def ticks(self) -> int:
@@ -146,7 +149,8 @@ def build_performance(session: Session | None, curves: CurveSet | None, rig_path
         values = layered
     restarts = tuple(session.segments) if session is not None else ()
     summed = session is not None and session.header.get("muscles") != MUSCLES_AS
-    return Performance(face, values, rate, markers, checks, restarts, summed)
+    jaw = session is None or session.header.get("jaw") == JAW_AS
+    return Performance(face, values, rate, markers, checks, restarts, summed, jaw)
 
 
 def _clamp(values: np.ndarray, face: Face, source: str) -> None:
@@ -186,6 +190,7 @@ class Replayer:
     def _simulator(self) -> Any:
         s = _new_simulator(self.perf.face.model, 1.0 / self.perf.rate)
         s.muscles_summed = self.perf.muscles_summed
+        s.jaw_responses = self.perf.jaw_responses
         return s
 
     def step(self) -> None:

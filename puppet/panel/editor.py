@@ -149,7 +149,8 @@ class Editor:
                 values = np.array([layer.apply(values[k], k / p.rate) for k in range(values.shape[0])])
             old, old_rp = getattr(self, "_last_perf", None), self._replayer
             self._perf = Performance(self.face, values, p.rate, p.markers, p.checks if not self.curves.curves else {},
-                                     restarts=p.restarts, muscles_summed=p.muscles_summed)
+                                     restarts=p.restarts, muscles_summed=p.muscles_summed,
+                                     jaw_responses=p.jaw_responses)
             self._replayer = Replayer(self._perf)
             if old is not None and old_rp is not None and old.values.shape == values.shape:
                 # states before the first tick the edit changed are still right: keep their checkpoints
