@@ -487,9 +487,10 @@ class Simulator:
         self.jaw_responses = True
         self._last_pose: tuple[float, float, float] | None = None  # the last step's jaw pose
         held = self._held
-        self._held_rest = np.ascontiguousarray(model.rest[held], dtype=np.float64)
-        self._held_offset = np.ascontiguousarray(model.rest_offset[held], dtype=np.float64)
-        self._held_weight = np.ascontiguousarray(model.jaw_weight[held], dtype=np.float64)
+        # read-only where the model's are: `_turn_with_jaw` then runs the signature `_jaw_turned` compiled
+        self._held_rest = _like(model.rest, model.rest[held])
+        self._held_offset = _like(model.rest_offset, model.rest_offset[held])
+        self._held_weight = _like(model.jaw_weight, model.jaw_weight[held])
         self._held_target = np.zeros((len(held), 3))
         if self._implicit is not None:
             self._implicit.jaw_resp, self._implicit.jaw_slope = _jaw_grid(self)
@@ -725,6 +726,15 @@ class Simulator:
                 if speed < SETTLE_SPEED:
                     break
         return frames * self.frame_dt
+
+
+def _like(whole: np.ndarray, part: np.ndarray) -> np.ndarray:
+    """`part` as a contiguous float64 array, read-only when `whole` is (numba compiles a kernel once
+    per such type: the same flags, the same compiled code as for `whole`)."""
+    out = np.ascontiguousarray(part, dtype=np.float64)
+    if not whole.flags.writeable:
+        out.setflags(write=False)
+    return out
 
 
 #: the jaw's responses are made at the openings k / JAW_GRID (k = 0..JAW_GRID) and read linearly
