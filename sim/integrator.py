@@ -750,7 +750,8 @@ def _jaw_grid(s: Simulator) -> tuple[np.ndarray, np.ndarray]:
     to the jaw's pose (`sim.implicit.ImplicitStepper.jaw_response`: eq 9's target, the margin
     bending's rest shape and the held nodes with their springs' pull, all turned with the jaw), and
     the slope in the opening of the normal support's response, k_n n (n . d target / d jaw). Made
-    once per face and substep in a process (2 (JAW_GRID + 1) solves: 0.94 s on the scanned head at load 7)."""
+    once per face and substep in a process (2 (JAW_GRID + 1) solves: 0.94 s on the scanned head at
+    load 7)."""
     import hashlib
 
     m, stepper = s.model, s._implicit
@@ -788,7 +789,7 @@ def _jaw_grid(s: Simulator) -> tuple[np.ndarray, np.ndarray]:
     no_support = np.zeros_like(s._kn)
     slope = np.zeros_like(grid)
     for k in range(JAW_GRID + 1):
-        target, shape, _ = s._jaw_turned((k / JAW_GRID, 0.0, 0.0), shape=True)
+        target, shape, rot = s._jaw_turned((k / JAW_GRID, 0.0, 0.0), shape=True)
         _constant_forces(none, mm.indices, mm.data, np.zeros(len(s._is_muscle)), s._is_muscle, no_weight,
                          s._kr, target, no_support, normal, ext)
         edge = target[held_end]
@@ -797,8 +798,8 @@ def _jaw_grid(s: Simulator) -> tuple[np.ndarray, np.ndarray]:
         np.add.at(rhs, free_end, pull)
         stepper.jaw_response(rhs, shape, target[s._held], grid[k])
         lo, hi = max(0.0, k / JAW_GRID - _JAW_EPS), min(1.0, k / JAW_GRID + _JAW_EPS)
-        tangent = (s._jaw_turned((hi, 0.0, 0.0), shape=False)[0] - s._jaw_turned((lo, 0.0, 0.0), shape=False)[0]) / (hi - lo)
-        _, _, rot = s._jaw_turned((k / JAW_GRID, 0.0, 0.0), shape=False)
+        ahead, behind = s._jaw_turned((hi, 0.0, 0.0), shape=False)[0], s._jaw_turned((lo, 0.0, 0.0), shape=False)[0]
+        tangent = (ahead - behind) / (hi - lo)
         if rot is None:
             normal[...] = m.rest_normal
         else:
