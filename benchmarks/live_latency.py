@@ -20,11 +20,15 @@ the JSON and flush, done after the frame is ready and so not part of the latency
 time (this thread's) is printed beside its wall time: equal, the step was not kept waiting (by other
 threads holding the interpreter, or other programs holding the core) but did more or slower work.
 On the implicit integrator the loop solves the next step's all-but-the-muscles between ticks, when no
-input waits (`Simulator.prepare`, printed as "computed between ticks"); a tick whose jaw or skin age
-did not move then only adds the muscles' responses and solves the contact ("sim step").
+input waits (`Simulator.prepare`, printed as "computed between ticks"); a tick then only adds the
+muscles' responses and the jaw's (the step starts from the last step's jaw opening and skin age,
+`sim.Simulator.jaw_responses`) and solves the contact ("sim step"). `--jaw whole,responses` runs
+each row also as takes recorded before were stepped (the jaw and the age taken whole at each step),
+interleaved in the same run: the SGI box's default map turns the jaw and the age on two of its
+eight dials, which made those ticks whole steps.
 
 Run:  .venv/bin/python benchmarks/live_latency.py [--seconds 10] [--render 640x360] [--no-record]
-      [--rates 60,auto,240] [--wake off,on] [--realtime off,on] [--json]
+      [--rates 60,auto,240] [--wake off,on] [--realtime off,on] [--jaw whole,responses] [--json]
 """
 
 from __future__ import annotations
@@ -67,15 +71,19 @@ rate = 97
 
 def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int, int] | None,
              drive: Any = None, record: Path | None = None, rate: float = 60.0, wake: bool = False,
-             realtime: bool = False) -> dict[str, Any]:
+             realtime: bool = False, jaw: bool = True) -> dict[str, Any]:
     spec = live.build_mapping(face.vocab, None, [d.spec for d in devs])
     mapper = Mapper(spec, face.vocab)
     writer = None
     if record is not None:
         from puppet.session import SessionWriter
 
-        writer = SessionWriter(record, live.session_header(face, spec, rate, [d.spec for d in devs]))
+        header = live.session_header(face, spec, rate, [d.spec for d in devs])
+        if not jaw:  # as a take recorded before the jaw's responses says
+            del header["jaw"]
+        writer = SessionWriter(record, header)
     core = live.LiveCore(face, mapper, writer=writer, rate=rate)
+    core.sim.jaw_responses = jaw  # off: the jaw and the age taken whole at each step, as before
     core.latency.keep_all = True
     core.state_latency.keep_all = True
     spans = live.Spans() if hasattr(live, "Spans") else None
@@ -129,6 +137,9 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
         out = step(state, control, **kw)
         if spans is not None:
             spans.add("sim step CPU", time.thread_time() - c0)
+            impl = core.sim._implicit
+            if impl is not None and not impl.last_predicted:  # the step did its input-free part itself
+                spans.add("sim step CPU, nothing made ahead", time.thread_time() - c0)
         return out
 
     core.sim.step = cpu_timed_step  # type: ignore[method-assign]
@@ -177,18 +188,20 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
             "floor_p99_ms": float(np.percentile(np.add.outer(np.linspace(0, 1000 / 60, 400), wk), 99)),
             "where_ms": {k: [float(np.percentile(np.array(v) * 1000, 50)), float(np.percentile(np.array(v) * 1000, 99))]
                          for k, v in where.items() if v},
+            "counts": {} if spans is None else {k: len(v) for k, v in spans.data.items()},
             "spans_ms": {} if spans is None else {
                 k: [float(np.percentile(np.array(v) * 1000, 50)), float(np.percentile(np.array(v) * 1000, 99))]
                 for k, v in spans.data.items()}}
 
 
 def mock_source(face: live.Face, seconds: float, render: tuple[int, int] | None, tmp: Path,
-                record: bool = True, rate: float = 60.0, wake: bool = False, realtime: bool = False) -> dict[str, Any]:
+                record: bool = True, rate: float = 60.0, wake: bool = False, realtime: bool = False,
+                jaw: bool = True) -> dict[str, Any]:
     script = tmp / "dense.toml"
     script.write_text(MOCK.format(seconds=seconds + 1))
     dev = devices.open_device(f"mock://{script}")
     return run_loop(face, [dev], seconds, render, record=tmp / "mock.jsonl" if record else None, rate=rate, wake=wake,
-                    realtime=realtime)
+                    realtime=realtime, jaw=jaw)
 
 
 def _box_process(link: str, conn: Any) -> None:
@@ -210,7 +223,8 @@ def _box_process(link: str, conn: Any) -> None:
 
 
 def sgi_source(face: live.Face, seconds: float, render: tuple[int, int] | None, tmp: Path,
-               record: bool = True, rate: float = 60.0, wake: bool = False, realtime: bool = False) -> dict[str, Any]:
+               record: bool = True, rate: float = 60.0, wake: bool = False, realtime: bool = False,
+               jaw: bool = True) -> dict[str, Any]:
     import multiprocessing
 
     link = tmp / f"sgi-{time.monotonic_ns()}"
@@ -223,7 +237,7 @@ def sgi_source(face: live.Face, seconds: float, render: tuple[int, int] | None, 
         here.recv()
         dev = devices.open_device(f"sgi://{link}")
         return run_loop(face, [dev], seconds, render, record=tmp / "sgi.jsonl" if record else None,
-                        rate=rate, wake=wake, realtime=realtime)
+                        rate=rate, wake=wake, realtime=realtime, jaw=jaw)
     finally:
         here.send("stop")
         proc.join(5)
@@ -241,11 +255,15 @@ def main() -> int:
     ap.add_argument("--wake", default="off,on", help="waking the loop on an event: off, on, or both (off,on)")
     ap.add_argument("--realtime", default="off", help="as `puppet live --realtime` (the loop's thread and the devices' "
                     "readers under SCHED_FIFO): off, on, or both (off,on: interleaved in one run)")
+    ap.add_argument("--jaw", default="responses", help="how the step moves the jaw and ages the skin: responses "
+                    "(from the last step's pose, sim.Simulator.jaw_responses), whole (at each step, as takes recorded "
+                    "before), or both (whole,responses: interleaved in one run)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     render = tuple(int(x) for x in a.render.split("x")) if a.render else None
     wakes = [w == "on" for w in a.wake.split(",")]
     realtimes = [w == "on" for w in a.realtime.split(",")]
+    jaws = [w == "responses" for w in a.jaw.split(",")]
     face = live.load_face()
     chosen, cost = choose_tick_rate(face.model)  # what `puppet live` picks for this face (auto)
     print(f"the face's step: {', '.join(f'{r:g} Hz {c * 1000:.2f} ms' for r, c in cost.items())} (CPU); "
@@ -257,8 +275,10 @@ def main() -> int:
             for rate in rates:  # interleaved in one run, so the ratios share the machine's load
                 for wake in wakes:
                     for rt in realtimes:
-                        res[f"{name} {rate:g} Hz wake {'on' if wake else 'off'}{' rt' if rt else ''}"] = source(
-                            face, a.seconds, render, Path(d), not a.no_record, rate, wake, rt)
+                        for jaw in jaws:
+                            res[f"{name} {rate:g} Hz wake {'on' if wake else 'off'}{' rt' if rt else ''}"
+                                f"{'' if jaw else ' jaw whole'}"] = source(
+                                face, a.seconds, render, Path(d), not a.no_record, rate, wake, rt, jaw)
     if a.json:
         print(json.dumps(res, indent=2))
         return 0
@@ -267,21 +287,26 @@ def main() -> int:
         src = key.split()[0]
         base.setdefault(src, r)
         b = base[src]
-        print(f"{key:26s} events {r['events']:5d}  event->state p50 {r['state_p50_ms']:5.1f} p99 {r['state_p99_ms']:5.1f} ms"
+        print(f"{key:36s} events {r['events']:5d}  event->state p50 {r['state_p50_ms']:5.1f} p99 {r['state_p99_ms']:5.1f} ms"
               f" (x{r['state_p99_ms'] / b['state_p99_ms']:.2f})  event->frame p50 {r['p50_ms']:5.1f} p99 {r['p99_ms']:5.1f} ms"
               f" (x{r['p99_ms'] / b['p99_ms']:.2f}; target <= {r['target_ms']:.1f}, floor ~{r['floor_p99_ms']:.1f})")
         late = r["spans_ms"].get("woke late", [0.0, 0.0])
-        print(f"{'':26s} work after the boundary (drain + tick) p50 {r['work_p50_ms']:.1f} p99 {r['work_p99_ms']:.1f} ms, "
+        print(f"{'':36s} work after the boundary (drain + tick) p50 {r['work_p50_ms']:.1f} p99 {r['work_p99_ms']:.1f} ms, "
               f"woke late p99 {late[1]:.1f} ms, {r['ticks']} ticks")
         wh = r.get("where_ms", {})
-        print(f"{'':26s} an event's wait: for a tick in progress p50/p99 {wh['busy'][0]:.1f}/{wh['busy'][1]:.1f} ms, "
+        print(f"{'':36s} an event's wait: for a tick in progress p50/p99 {wh['busy'][0]:.1f}/{wh['busy'][1]:.1f} ms, "
               f"for the schedule or the wake-up {wh['schedule'][0]:.1f}/{wh['schedule'][1]:.1f} ms; its tick "
               f"{wh['tick'][0]:.1f}/{wh['tick'][1]:.1f} ms; sim step {r['spans_ms']['sim step'][0]:.1f}/"
               f"{r['spans_ms']['sim step'][1]:.1f} ms (CPU {r['spans_ms']['sim step CPU'][0]:.1f}/"
               f"{r['spans_ms']['sim step CPU'][1]:.1f})")
+        whole = r["counts"].get("sim step CPU, nothing made ahead", 0)
+        if whole:
+            w = r["spans_ms"]["sim step CPU, nothing made ahead"]
+            print(f"{'':36s} {whole} of {r['ticks']} steps found nothing made ahead (an input waiting, or the "
+                  f"step's pose not the one prepared): CPU p50/p99 {w[0]:.1f}/{w[1]:.1f} ms")
         ahead = r["spans_ms"].get("prepared between ticks")
         if ahead:
-            print(f"{'':26s} computed between ticks (the solve of all but the muscles) p50/p99 {ahead[0]:.1f}/{ahead[1]:.1f} ms")
+            print(f"{'':36s} computed between ticks (the solve of all but the muscles) p50/p99 {ahead[0]:.1f}/{ahead[1]:.1f} ms")
     print("ratios are against the first row of the same source in this run; goals: event->state p99 <= 6 ms, "
           f"event->frame p99 <= 18.7 ms; load average at the end {os.getloadavg()[0]:.2f}")
     return 0

@@ -199,6 +199,9 @@ MUSCLES_AS = "responses"
 #: the take header's "lids": the lids follow the eyes' turn (`sim.gaze_lids`); a take without it
 #: was recorded before they did and is replayed with them still (puppet.replay)
 LIDS_AS = "gaze"
+#: the take header's "jaw": the implicit step starts from the last step's jaw opening and skin age
+#: and adds the jaw's move as precomputed responses (sim.Simulator.jaw_responses)
+JAW_AS = "responses from the last step's pose"
 
 
 def session_header(face: Face, spec: MappingSpec, rate: float, devices: Sequence[str]) -> dict[str, Any]:
@@ -222,6 +225,9 @@ def take_header(face: Face, rate: float, mapping: dict[str, str], devices: Seque
         # the muscles summed into the frame's forces, as it was recorded (puppet.replay)
         "muscles": MUSCLES_AS,
         "lids": LIDS_AS,
+        # how it moves the jaw and ages the skin: a take without it is replayed with the jaw and the
+        # age taken whole at each step, as it was recorded (puppet.replay)
+        "jaw": JAW_AS,
     }
 
 
@@ -258,7 +264,8 @@ def prepare_kernels(model: Any, dt: float) -> None:
     does) and the wrinkle kernel (its layer may be built later, `wrinkles_later`). The throw-away
     simulator steps at rest and then with every channel moved a third of its range, so kernels that
     run only once a channel moves (the jaw's turn, which a voice or a dial starts mid-show) are
-    compiled too."""
+    compiled too, then with the jaw's opening alone moved (the step by its responses, which places
+    the held nodes on their own)."""
     import sim
     from sim.channels import CHANNEL_SPECS
 
@@ -268,6 +275,10 @@ def prepare_kernels(model: Any, dt: float) -> None:
     s.step(state, control)
     s.step(state, control)  # the jaw held: the next step can be prepared
     s.prepare(state)  # what the loop computes between ticks (`LiveCore.prepare_next`)
+    s.step(state, control)
+    control.values[:] = [c.default for c in CHANNEL_SPECS]  # the jaw's opening alone moved: its responses
+    control.set("jaw", 0.5)
+    s.prepare(state)
     s.step(state, control)
     if model.rig.wrinkles:
         from sim.wrinkles.kernels import warm_up
@@ -628,6 +639,38 @@ def ordinary_priority() -> None:
             pass
 
 
+#: how far below a real-time loop the recording's writer thread runs (`_BelowLoop`)
+WRITER_BELOW_LOOP = 2
+
+
+class _BelowLoop:
+    """While a thread the loop waits on is started from the loop's thread (the recording's writer:
+    the loop waits for it at a hand-over, and for the interpreter's lock while it holds it): under
+    a real-time loop it is real-time too, WRITER_BELOW_LOOP steps below, so the loop still preempts
+    it but the machine's other programs cannot keep it off the cores while the loop waits for it.
+    Started at the ordinary priority, it was: on a loaded machine (load 10-15 on 2 cores) the loop
+    waited 30-174 ms at a hand-over or at the lock while the writer waited for a core."""
+
+    def __enter__(self) -> None:
+        self.policy = os.sched_getscheduler(0) if hasattr(os, "sched_getscheduler") else None
+        if self.policy in (getattr(os, "SCHED_FIFO", None), getattr(os, "SCHED_RR", None)):
+            self.param = os.sched_getparam(0)
+            try:
+                os.sched_setscheduler(0, self.policy,  # type: ignore[arg-type]
+                                      os.sched_param(max(1, self.param.sched_priority - WRITER_BELOW_LOOP)))
+            except OSError:
+                self.policy = None
+        else:
+            self.policy = None
+
+    def __exit__(self, *exc: object) -> None:
+        if self.policy is not None:
+            try:
+                os.sched_setscheduler(0, self.policy, self.param)
+            except OSError:
+                pass
+
+
 class _OrdinaryThreads:
     """While threads are started from the loop's thread: they must not inherit a real-time priority
     (the wrinkle layer's build, the page's server would then hold a core against the loop)."""
@@ -680,7 +723,7 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
     limit = None if duration is None else int(round(duration * core.rate))
     per_frame = None if frame_rate is None or frame_rate >= core.rate else core.rate / frame_rate
     if core.writer is not None:  # the loop's thread never writes the file itself (a write can wait on the disk)
-        with _OrdinaryThreads():
+        with _BelowLoop():
             core.writer.write_behind()
     with _ShowRuntime() as runtime:
         start = clock()
@@ -920,7 +963,7 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
         win.after_draw.append(offer)
     win.hud = live_hud(core, devs, keymap)
     if core.writer is not None:  # as run_realtime
-        with _OrdinaryThreads():
+        with _BelowLoop():
             core.writer.write_behind()
     try:
         with _ShowRuntime() as runtime:

@@ -18,7 +18,7 @@ import numpy as np
 
 from puppet.curves import CurveLayer, CurveSet
 from puppet.errors import ConfigError, PuppetError
-from puppet.live import LIDS_AS, MUSCLES_AS, Face, load_face
+from puppet.live import JAW_AS, LIDS_AS, MUSCLES_AS, Face, load_face
 from puppet.session import Session
 from safefile import quote
 
@@ -49,6 +49,9 @@ class Performance:
     #: the lids follow the eyes' turn (`sim.gaze_lids`); False for a take recorded before they did
     #: (no "lids" in its header), replayed with the lids still, as recorded
     lids_follow_gaze: bool = True
+    #: recorded with the jaw and the skin's age taken whole at each step (no "jaw" in its header):
+    #: replayed that way (sim.Simulator.jaw_responses off), for the same bits
+    jaw_responses: bool = True
 
     @property
     def ticks(self) -> int:
@@ -150,7 +153,8 @@ def build_performance(session: Session | None, curves: CurveSet | None, rig_path
     restarts = tuple(session.segments) if session is not None else ()
     summed = session is not None and session.header.get("muscles") != MUSCLES_AS
     follow = session is None or session.header.get("lids") == LIDS_AS
-    return Performance(face, values, rate, markers, checks, restarts, summed, follow)
+    jaw = session is None or session.header.get("jaw") == JAW_AS
+    return Performance(face, values, rate, markers, checks, restarts, summed, follow, jaw)
 
 
 def _clamp(values: np.ndarray, face: Face, source: str) -> None:
@@ -191,6 +195,7 @@ class Replayer:
         s = _new_simulator(self.perf.face.model, 1.0 / self.perf.rate)
         s.muscles_summed = self.perf.muscles_summed
         s.lids_follow_gaze = self.perf.lids_follow_gaze
+        s.jaw_responses = self.perf.jaw_responses
         return s
 
     def step(self) -> None:

@@ -72,6 +72,8 @@ def _header(p: Path, line: bytes) -> dict[str, Any]:
             header["muscles"] = string(header["muscles"], f"{where}: muscles", 40)
         if header.get("lids") is not None:
             header["lids"] = string(header["lids"], f"{where}: lids", 40)
+        if header.get("jaw") is not None:
+            header["jaw"] = string(header["jaw"], f"{where}: jaw", 80)
     except BadFile as err:
         raise ConfigError(f"{err} (the recording header is damaged)") from err
     header["channels"] = channels

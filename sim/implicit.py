@@ -188,21 +188,46 @@ def _responses(resp, act, val, out):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True, nogil=True)
+def _jaw_interp(jr, jaw, out, sign):  # type: ignore[no-untyped-def]
+    """out += sign * the jaw's response at opening `jaw` (0..1), linear between the grid's openings
+    (`jaw_response`: jr[k] is the response at k / (len(jr) - 1))."""
+    steps = jr.shape[0] - 1
+    t = jaw * steps
+    k = min(int(t), steps - 1)
+    f = t - k
+    for q in range(out.shape[0]):
+        for d in range(3):
+            a = jr[k, q, d]
+            out[q, d] += sign * (a + f * (jr[k + 1, q, d] - a))
+
+
+@numba.njit(cache=True, nogil=True)
 def _frame(x, v, n_sub, predicted, summed, h, ext, resp, act, act_val, springs, rest_len, k_low, k_high, thr, normal,  # type: ignore[no-untyped-def]
            kn, mass_h2, damp_h, free, held, fh_ptr, fh_idx, fh_val, perm_r, perm_c, sn_ptr, r_ptr, r_idx, v_ptr, lv,
            uv, t_ptr, tv, u_diag, c_idx, c_w, c_sg, c_dim, c_opp, c_row_ptr, c_row_v, c_lam, c_loc, c_green, c_gptr,
            c_gvert, c_gval, c_work, c_cand, c_schur, c_df, rounds, sweeps, eye_idx, eye_of, centres, radius,
-           f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, sn_work, y, base, xh, held_term, ys, xf_old, du):
+           f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, sn_work, y, base, xh, held_term, ys, xf_old, du,
+           jaw_resp, jaw_slope, jaw_from, jaw_to):
     """The n_sub substeps of one frame in place on x, v (ImplicitStepper.frame; the module
     docstring): per substep the solve of the input-free right-hand side (`_predict`, the frame's
     constant forces without the muscles, the held nodes; for the first substep already in ys when
-    `predicted`), plus the muscles' responses, the lid and lip contact
-    (sim.margin_contact.SolvedContact), v = (x' - x) / h and the eyeball contact. summed: ext holds
-    the muscles too and is summed as takes recorded before the responses were (`_predict`)."""
+    `predicted`), plus the muscles' responses, plus the jaw's move from `jaw_from` to `jaw_to` as
+    the difference of its responses and the support's turn as its slope at the middle opening
+    times the move (`jaw_response`; none when jaw_resp has no rows), the lid and
+    lip contact (sim.margin_contact.SolvedContact), v = (x' - x) / h and the eyeball contact.
+    summed: ext holds the muscles too and is summed as takes recorded before the responses were
+    (`_predict`)."""
     nf = free.shape[0]
     muscles = act.shape[0] > 0
     if muscles:
         _responses(resp, act, act_val, du)
+    if jaw_resp.shape[0] > 0:
+        if not muscles:
+            du[...] = 0.0
+        _jaw_interp(jaw_resp, jaw_to, du, 1.0)
+        _jaw_interp(jaw_resp, jaw_from, du, -1.0)
+        _jaw_interp(jaw_slope, 0.5 * (jaw_from + jaw_to), du, jaw_to - jaw_from)
+        muscles = True
     inv_h = 1.0 / h
     for sub in range(n_sub):
         if sub > 0 or not predicted:
@@ -259,6 +284,9 @@ def warm_up() -> None:
     stepper.predict(x, v, np.zeros_like(x), spring_arrays, np.zeros_like(x), None, "warm-up")  # between ticks
     active = (np.array([0], dtype=np.int64), np.array([0.5]))
     stepper.frame(x, v, 1, np.zeros_like(x), spring_arrays, np.zeros_like(x), eyes, key="warm-up", active=active)
+    stepper.jaw_resp, stepper.jaw_slope = np.zeros((3, 2, 3)), np.zeros((3, 2, 3))
+    stepper.jaw_response(np.zeros_like(x), x, x[:1], stepper.jaw_resp[1])
+    stepper.frame(x, v, 1, np.zeros_like(x), spring_arrays, np.zeros_like(x), eyes, active=active, jaw=(0.2, 0.7))
     stepper.frame(x, v, 1, np.zeros_like(x), spring_arrays, np.zeros_like(x), eyes)
 
 
@@ -390,9 +418,16 @@ class ImplicitStepper:
         self._buf = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((nh, 3)), np.zeros((nf, 3)),
                      np.zeros((nf, 3)), np.zeros((nf, 3)), np.zeros((nf, 3)))
         self._resp = prep["resp"]  # each muscle channel's response (`muscle_responses`)
+        #: the jaw's responses at evenly spaced openings (`jaw_response`), set by the Simulator
+        self.jaw_resp = np.zeros((0, nf, 3))
+        #: and the slope of the normal support's response to the opening there (`frame`'s jaw)
+        self.jaw_slope = np.zeros((0, nf, 3))
         self._no_act = (np.zeros(0, dtype=np.int64), np.zeros(0))
+        self._no_jaw = np.zeros((0, nf, 3))
         # what the last `predict` was made from: its key, x, v and the contact's memory
         self._predicted: object = None
+        #: whether the last `frame` found its first substep's solve made ahead
+        self.last_predicted = False
         self._px, self._pv = np.zeros((n, 3)), np.zeros((n, 3))
         self._pc = np.zeros(0)
 
@@ -428,6 +463,24 @@ class ImplicitStepper:
         self._pc = self._contact_memory()
         self._predicted = key
 
+    def jaw_response(self, ext: np.ndarray, shape: np.ndarray | None, held_at: np.ndarray | None,
+                     out: np.ndarray) -> None:
+        """out (free nodes, 3) = A^-1 of the right-hand side's terms that the jaw's pose alone sets:
+        `ext` (the tether's and the support's constant forces at that pose), the margin bending's
+        rest side of `shape` and the held nodes' coupling with them at `held_at` (held nodes, 3).
+        The step is linear in them, so a jaw moved between two poses adds the difference of their
+        responses to the solve of everything else (`frame`'s jaw). shape, held_at None: ext alone."""
+        n = len(self.rest)
+        b = np.array(ext, dtype=np.float64)
+        if shape is not None and len(self._bend[2]):
+            bend = np.zeros((n, 3))
+            _csr_times(*self._bend, np.ascontiguousarray(shape, dtype=np.float64), bend)
+            b += bend
+        held_term = np.zeros((len(self.free), 3))
+        if held_at is not None:
+            _csr_times(*self._fh, np.ascontiguousarray(held_at, dtype=np.float64), held_term)
+        self.solver.solve(np.ascontiguousarray(b[self.free] - held_term), out)
+
     def _contact_memory(self) -> np.ndarray:
         c = self._contact
         return np.concatenate([c.lam, c.w, c.idx.ravel().astype(np.float64)])
@@ -442,7 +495,8 @@ class ImplicitStepper:
 
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
               normal: np.ndarray, eyes: tuple, shape: np.ndarray | None = None,  # type: ignore[type-arg]
-              key: object = None, active: tuple[np.ndarray, np.ndarray] | None = None, summed: bool = False) -> None:
+              key: object = None, active: tuple[np.ndarray, np.ndarray] | None = None, summed: bool = False,
+              jaw: tuple[float, float] | None = None) -> None:
         """n_sub substeps in place. ext: the frame-constant forces (gravity, the target terms of the
         tether and of the normal support, and muscles not given by `active`); springs: (indices,
         rest lengths, k_low, k_high, threshold) as the kernel takes them; normal (N,3): the
@@ -452,9 +506,13 @@ class ImplicitStepper:
         bending term this frame (turned with the jaw; None: the model's rest); key: as `predict`'s
         (None: never use a prediction); active: (channels, activations) whose responses
         (`muscle_responses`) are added; summed: ext holds every muscle and is summed in the order of
-        the step before the responses, for the takes recorded with it (no prediction, no `active`)."""
+        the step before the responses, for the takes recorded with it (no prediction, no `active`);
+        jaw: (from, to) openings: ext, shape, normal and the held nodes are the jaw's pose at `from`,
+        and the difference of the jaw's responses (`jaw_resp`, `jaw_response`) and the support's
+        slope (`jaw_slope`) move it to `to`."""
         predicted = key is not None and not summed and self._is_predicted(x, v, key)
         self._predicted = None  # a prediction serves one frame
+        self.last_predicted = predicted
         ext = self._with_bending(ext, shape)
         act, act_val = self._no_act if active is None else active
         idx, rest_len, k_low, k_high, thr = springs
@@ -465,4 +523,6 @@ class ImplicitStepper:
                normal, self.kn, self.mass_h2, self.damp_h, self.free, self.held, *self._fh, self.solver.perm_r,
                self.solver.perm_c, *self.solver.factors, c.idx, c.w, c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam,
                c.loc, c.green, c.gptr, c.gvert, c.gval, c._work, c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes,
-               *self._folds, self.solver.work, *self._buf)
+               *self._folds, self.solver.work, *self._buf, self.jaw_resp if jaw is not None else self._no_jaw,
+               self.jaw_slope if jaw is not None else self._no_jaw,
+               *(jaw if jaw is not None else (0.0, 0.0)))

@@ -491,6 +491,23 @@ class Simulator:
         self._jaw_i = CHANNEL_INDEX["jaw"]
         self._jaw_forward_i = CHANNEL_INDEX["jaw_forward"]
         self._jaw_side_i = CHANNEL_INDEX["jaw_sideways"]
+        self._age_i = CHANNEL_INDEX["age"]
+        #: the implicit step starts from the jaw's opening and the skin's age of the state's last
+        #: step, and the jaw's move since enters as the difference of its precomputed responses
+        #: (`sim.implicit.ImplicitStepper.jaw_response`): a moved jaw or age needs no whole step at
+        #: the input (`prepare` computes the rest ahead), and the skin's stiffness follows the age
+        #: one step later. False: the step computes everything at the control's pose and age, as
+        #: takes recorded before it did (puppet.replay sets it for them, so they keep their bits).
+        self.jaw_responses = True
+        self._last_pose: tuple[float, float, float] | None = None  # the last step's jaw pose
+        held = self._held
+        # read-only where the model's are: `_turn_with_jaw` then runs the signature `_jaw_turned` compiled
+        self._held_rest = _like(model.rest, model.rest[held])
+        self._held_offset = _like(model.rest_offset, model.rest_offset[held])
+        self._held_weight = _like(model.jaw_weight, model.jaw_weight[held])
+        self._held_target = np.zeros((len(held), 3))
+        if self._implicit is not None:
+            self._implicit.jaw_resp, self._implicit.jaw_slope = _jaw_grid(self)
 
     # -- the force terms that are constant over a frame
 
@@ -560,18 +577,22 @@ class Simulator:
             self._gaze = (0.0, 0.0, 0.0)
         return self._gaze
 
-    def _constants_and_muscles(self, control: FaceControl) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
-        """For the implicit step: the constant forces without the muscles (`_constant_forces` with
-        none active: recomputed only when the jaw moves) and the active muscle channels with their
-        activations (their forces enter as responses, `sim.implicit.muscle_responses`)."""
-        v = control.values
-        self._set_jaw((float(v[self._jaw_i]), float(v[self._jaw_forward_i]), float(v[self._jaw_side_i])))
+    def _constants(self, pose: tuple[float, float, float]) -> np.ndarray:
+        """For the implicit step: the constant forces without the muscles at the jaw `pose`
+        (`_constant_forces` with none active: recomputed only when the pose changes)."""
+        self._set_jaw(pose)
         if self._const_jaw != self._jaw:
             mm = self.model.muscle_matrix  # with no entries: none of its muscles counted
             none = np.zeros_like(mm.indptr)
-            _constant_forces(none, mm.indices, mm.data, v, self._is_muscle, self._weight,
-                             self._kr, self._target, self._kn, self._normal, self._ext_const)
+            _constant_forces(none, mm.indices, mm.data, np.zeros(len(self._is_muscle)), self._is_muscle,
+                             self._weight, self._kr, self._target, self._kn, self._normal, self._ext_const)
             self._const_jaw = self._jaw
+        return self._ext_const
+
+    def _muscles(self, control: FaceControl) -> tuple[np.ndarray, np.ndarray]:
+        """The active muscle channels with their activations (their forces enter the implicit step
+        as responses, `sim.implicit.muscle_responses`)."""
+        v = control.values
         act = np.flatnonzero(self._is_muscle & (v != 0.0))
         val = np.ascontiguousarray(v[act], dtype=np.float64)
         gaze = self._set_gaze(v)
@@ -580,7 +601,28 @@ class Simulator:
             on = coef != 0.0  # (a look straight aside or up needs a quarter of them)
             act = np.concatenate([act, self._gaze_rows[on]])
             val = np.concatenate([val, coef[on]])
-        return self._ext_const, (act, val)
+        return act, val
+
+    def _start_pose(self, state: FaceState, pose: tuple[float, float, float]) -> tuple[float, float, float]:
+        """The jaw pose a step towards `pose` starts from (`jaw_responses`): the state's last
+        opening, when only the opening moves and both lie on the responses' range; else `pose`."""
+        if (pose[1] == 0.0 and pose[2] == 0.0 and 0.0 <= pose[0] <= 1.0 and 0.0 <= state.jaw <= 1.0
+                and len(self._implicit.jaw_resp)):  # type: ignore[union-attr]
+            return (float(state.jaw), 0.0, 0.0)
+        return pose
+
+    def _place_held(self, x: np.ndarray, pose: tuple[float, float, float]) -> None:
+        """The held nodes onto eq 9's target at the jaw `pose`: the rows of `_jaw_turned`'s target,
+        computed for them alone (the same bits)."""
+        m = self.model
+        if pose == (0.0, 0.0, 0.0):
+            np.add(self._held_rest, self._held_offset, out=self._held_target)
+        else:
+            rot, slide = jaw_motion(m, *pose)
+            _turn_with_jaw(self._held_rest, self._held_offset, np.asarray(m.jaw_pivot, dtype=np.float64),
+                           self._held_weight, np.ascontiguousarray(rot, dtype=np.float64),
+                           np.asarray(slide, dtype=np.float64), self._held_target, np.empty((0, 3)))
+        x[self._held] = self._held_target
 
     # -- stepping
 
@@ -592,14 +634,18 @@ class Simulator:
         x, v = state.positions, state.velocities
         np.copyto(self._saved_x, x)
         summed = self._implicit is None or self.muscles_summed
+        values = control.values
+        pose = (float(values[self._jaw_i]), float(values[self._jaw_forward_i]), float(values[self._jaw_side_i]))
+        lagged = not summed and self.jaw_responses
+        start = self._start_pose(state, pose) if lagged else pose
         if summed:
             ext, active = self.external_forces(control), None
         else:
-            ext, active = self._constants_and_muscles(control)
+            ext, active = self._constants(start), self._muscles(control)
         held = self._held
         x[held] = self._target[held]
         v[held] = 0.0
-        self._age_skin(float(control.values[CHANNEL_INDEX["age"]]))
+        self._age_skin(state.age if lagged else float(values[self._age_i]))
         if self._implicit is None:
             _rk2_frame(x, v, self.substeps, self.dt, self._si3, self._sj3, self._rest_len, self._k_low,
                        self._k_high, self._k_damp, self._threshold, ext, self._kr, self._c, self._normal,
@@ -611,10 +657,14 @@ class Simulator:
             self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
                                                             self._k_high, self._threshold), self._normal,
                                  self._eyes, self._shape, key=(self._jaw, self._skin_age), active=active,
-                                 summed=summed)
+                                 summed=summed, jaw=None if start == pose else (start[0], pose[0]))
+            if start != pose:  # the held nodes follow the jaw to where the step moved it
+                self._place_held(x, pose)
             # a jaw or an age still moving will likely move again: `prepare` would be wasted then
+            # (unless the step starts from the state's pose, `jaw_responses`)
             self._moving = (self._jaw, self._skin_age) != self._last_key
             self._last_key = (self._jaw, self._skin_age)
+            self._last_pose = pose
         reason = self._check(x)
         if reason:
             x[...] = self._saved_x
@@ -643,10 +693,17 @@ class Simulator:
         """Compute ahead the part of the next step that no input changes (the implicit integrator's
         `predict`), for a `step` of this very state with the skin's age and the jaw as in the last
         step; the live loop calls it between ticks. A step given anything else does it itself:
-        the same bits either way. Nothing for RK2, nor while the jaw or the age is moving (the
-        last step moved them: the next one likely will too, and the work would be wasted)."""
-        if (self._implicit is None or self.muscles_summed or self._jaw is None or self._const_jaw != self._jaw
-                or self._moving):
+        the same bits either way. Nothing for RK2. With `jaw_responses` the next step starts from the
+        state's jaw opening and age, known now, whether they move or not; without, nothing while the
+        jaw or the age is moving (the last step moved them: the next one likely will too, and the
+        work would be wasted)."""
+        if self._implicit is None or self.muscles_summed:
+            return
+        if self.jaw_responses:
+            guess = self._last_pose if self._last_pose is not None else (float(state.jaw), 0.0, 0.0)
+            self._constants(self._start_pose(state, guess))
+            self._age_skin(state.age)
+        elif self._jaw is None or self._const_jaw != self._jaw or self._moving:
             return
         if self._implicit.margins is not None:
             self._implicit.margins.recall(state.contact)
@@ -703,6 +760,90 @@ class Simulator:
                 if speed < SETTLE_SPEED:
                     break
         return frames * self.frame_dt
+
+
+def _like(whole: np.ndarray, part: np.ndarray) -> np.ndarray:
+    """`part` as a contiguous float64 array, read-only when `whole` is (numba compiles a kernel once
+    per such type: the same flags, the same compiled code as for `whole`)."""
+    out = np.ascontiguousarray(part, dtype=np.float64)
+    if not whole.flags.writeable:
+        out.setflags(write=False)
+    return out
+
+
+#: the jaw's responses are made at the openings k / JAW_GRID (k = 0..JAW_GRID) and read linearly
+#: between them: a grid step turns the mandible 1.0 degree at the default jaw_max_angle (0.55 rad),
+#: which moves a chin 10 cm from the hinge off the chord by ~4 micrometres
+JAW_GRID = 32
+_JAW_MEMO: dict[tuple[int, str], tuple[object, tuple[np.ndarray, np.ndarray]]] = {}
+_JAW_EPS = 1e-4  # the opening's step of the target's central difference (the support's slope)
+
+
+def _jaw_grid(s: Simulator) -> tuple[np.ndarray, np.ndarray]:
+    """Two (JAW_GRID + 1, free nodes, 3) arrays at the grid's openings: the implicit step's response
+    to the jaw's pose (`sim.implicit.ImplicitStepper.jaw_response`: eq 9's target, the margin
+    bending's rest shape and the held nodes with their springs' pull, all turned with the jaw), and
+    the slope in the opening of the normal support's response, k_n n (n . d target / d jaw). Made
+    once per face and substep in a process (2 (JAW_GRID + 1) solves: 0.17 s of CPU on the scanned
+    head, 0.3 s at load 6)."""
+    import hashlib
+
+    m, stepper = s.model, s._implicit
+    assert stepper is not None
+    d = hashlib.sha256(repr((m.params.jaw_max_angle, m.params.jaw_max_slide, m.params.jaw_slide_angle)).encode())
+    for arr in (m.rest, m.rest_offset, m.jaw_weight, m.jaw_pivot, m.jaw_axis, m.rest_normal, s._kr, s._kn,
+                m.mesh.eye_centers):
+        d.update(np.ascontiguousarray(arr, dtype=np.float64).tobytes())
+    key = (id(stepper.prepared), d.hexdigest())
+    hit = _JAW_MEMO.get(key)
+    if hit is not None and hit[0] is stepper.prepared:
+        return hit[1]
+    grid = np.zeros((JAW_GRID + 1, len(stepper.free), 3))
+    # the springs from a held node to a free one: a step's local step (sim.implicit._pd_springs)
+    # carries their rest direction along with the held end, so the matrix's pull k_h on the free end
+    # is cancelled but for the axial stiffness (the step's derivative at rest: -k_h I + k_low u u^T
+    # on top of the matrix's +k_h): the held edge moves the free skin by that, not by k_h
+    held_at = np.asarray(m.held)
+    sp_i, sp_j = s._springs[:, 0].astype(np.int64), s._springs[:, 1].astype(np.int64)
+    cross = held_at[sp_i] != held_at[sp_j]
+    free_end = np.where(held_at[sp_i[cross]], sp_j[cross], sp_i[cross])
+    held_end = np.where(held_at[sp_i[cross]], sp_i[cross], sp_j[cross])
+    u = m.rest[held_end] - m.rest[free_end]
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    k_h, k_l = s._k_high_base[cross], s._k_low_base[cross]
+    mm = m.muscle_matrix
+    none = np.zeros_like(mm.indptr)
+    ext, normal = np.zeros((m.n_vertices, 3)), np.array(m.rest_normal, dtype=np.float64)
+    no_weight = np.zeros_like(s._weight)
+    # the normal support k_n n n^T (target - x) keeps the normals of the step's start pose: turned
+    # with the jaw, its constant side k_n n (n . target) and its side on x (sim.implicit._predict:
+    # n (n . y)) change together and, with x near the target, cancel to first order (the constant
+    # side alone would pull the whole skin by k_n times the normals' turn times its distance from
+    # the origin); what is left is the target's move along the normals, the slope below
+    no_support = np.zeros_like(s._kn)
+    slope = np.zeros_like(grid)
+    for k in range(JAW_GRID + 1):
+        target, shape, rot = s._jaw_turned((k / JAW_GRID, 0.0, 0.0), shape=True)
+        _constant_forces(none, mm.indices, mm.data, np.zeros(len(s._is_muscle)), s._is_muscle, no_weight,
+                         s._kr, target, no_support, normal, ext)
+        edge = target[held_end]
+        pull = k_l[:, None] * u * np.einsum("ij,ij->i", u, edge)[:, None] - k_h[:, None] * edge
+        rhs = ext.copy()
+        np.add.at(rhs, free_end, pull)
+        stepper.jaw_response(rhs, shape, target[s._held], grid[k])
+        lo, hi = max(0.0, k / JAW_GRID - _JAW_EPS), min(1.0, k / JAW_GRID + _JAW_EPS)
+        ahead, behind = s._jaw_turned((hi, 0.0, 0.0), shape=False)[0], s._jaw_turned((lo, 0.0, 0.0), shape=False)[0]
+        tangent = (ahead - behind) / (hi - lo)
+        if rot is None:
+            normal[...] = m.rest_normal
+        else:
+            _turn_normals(m.rest_normal, m.jaw_weight, np.ascontiguousarray(rot, dtype=np.float64), normal)
+        along = s._kn * np.einsum("ij,ij->i", normal, tangent)
+        stepper.jaw_response(along[:, None] * normal, None, None, slope[k])
+    if len(_JAW_MEMO) >= 2:
+        _JAW_MEMO.clear()
+    _JAW_MEMO[key] = (stepper.prepared, (grid, slope))
+    return grid, slope
 
 
 def _face_scale(model: FaceModel) -> float:

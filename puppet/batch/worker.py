@@ -96,13 +96,19 @@ def new_simulator(model: Any, frame_dt: float) -> Any:
 
 
 def _kept(model: Any, simulator: Any) -> dict[int, Any]:
-    """What a simulator's copy shares with the original (deepcopy's memo): the model, and the
-    implicit integrator's prepared arrays (read-only; mapped once per machine, `puppet.batch.shared`)."""
+    """What a simulator's copy shares with the original (deepcopy's memo): the model, the implicit
+    integrator's prepared arrays (read-only; mapped once per machine, `puppet.batch.shared`) and the
+    jaw's responses."""
     memo: dict[int, Any] = {id(model): model}
-    prep = getattr(getattr(simulator, "_implicit", None), "prepared", None)
+    stepper = getattr(simulator, "_implicit", None)
+    prep = getattr(stepper, "prepared", None)
     if isinstance(prep, dict):
         memo[id(prep)] = prep
         memo.update((id(a), a) for a in prep.values())
+    for name in ("jaw_resp", "jaw_slope"):  # the jaw's responses, made once per face (read-only)
+        a = getattr(stepper, name, None)
+        if a is not None:
+            memo[id(a)] = a
     return memo
 
 

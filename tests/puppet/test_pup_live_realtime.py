@@ -1,7 +1,9 @@
 """`puppet live --realtime`: the live loop's thread runs under SCHED_FIFO a step above the devices'
-reader threads, while the threads the loop starts during the show (the page's server, the wrinkle
-layer's build) keep the ordinary scheduling (at FIFO they would hold a core against the loop); where
-real-time scheduling is not permitted the show says so in one line and runs as usual."""
+reader threads and the recording's writer (which the loop waits for at a hand-over: at the ordinary
+priority other programs kept it, and the loop, waiting), while the threads the loop starts during
+the show (the page's server, the wrinkle layer's build) keep the ordinary scheduling (at FIFO they
+would hold a core against the loop); where real-time scheduling is not permitted the show says so in
+one line and runs as usual."""
 
 from __future__ import annotations
 
@@ -28,6 +30,8 @@ def tick(self, events):
         seen["loop_priority"] = os.sched_getparam(0).sched_priority
         seen["threads"] = {t.name: os.sched_getscheduler(t.native_id) for t in threading.enumerate()
                            if t is not threading.current_thread() and t.native_id}
+        seen["priority"] = {t.name: os.sched_getparam(t.native_id).sched_priority for t in threading.enumerate()
+                            if t is not threading.current_thread() and t.native_id}
 live.LiveCore.tick = tick
 from puppet.cli import main
 code = main(sys.argv[1:])
@@ -62,7 +66,9 @@ def test_the_loop_runs_real_time_above_the_readers_and_the_page_does_not(tmp_pat
     assert seen["loop"] == os.SCHED_FIFO and seen["loop_priority"] == 11
     readers = {n: p for n, p in seen["threads"].items() if n.startswith("device mock://")}
     assert readers and set(readers.values()) == {os.SCHED_FIFO}, seen["threads"]
-    others = {n: p for n, p in seen["threads"].items() if not n.startswith("device ")}
+    assert all(seen["priority"][n] < 11 for n in readers)
+    assert seen["threads"]["recording-writer"] == os.SCHED_FIFO and seen["priority"]["recording-writer"] < 11
+    others = {n: p for n, p in seen["threads"].items() if not n.startswith("device ") and n != "recording-writer"}
     assert any(n == "panel server" for n in others), others  # the page, started by the loop's thread
     assert set(others.values()) == {os.SCHED_OTHER}, others
     assert seen["after"] == os.SCHED_OTHER  # the show is over: what follows runs as usual

@@ -45,3 +45,31 @@ def test_puppet_replay_of_the_old_take_says_bit_identical(tmp_path: Path) -> Non
                          capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert "bit-identical to the live session at 2 checkpoints" in out.stdout
+
+
+#: recorded before the step started from the last step's jaw opening and skin age (its header has
+#: "muscles" but no "jaw"): the procedural face at resolution 1 at 120 Hz, the mock box's default
+#: map, a smile, the jaw and the age turned up in steps over one second
+OLD_JAW = Path(__file__).parent / "data" / "take_jaw_whole.jsonl"
+FINAL_JAW = "fa1ea5a1ccfac3a7"
+
+
+def test_a_take_with_the_jaw_and_age_taken_whole_replays_bit_for_bit() -> None:
+    perf = build_performance(read_session(OLD_JAW), None)
+    assert not perf.muscles_summed and not perf.jaw_responses
+    rp = Replayer(perf)
+    assert rp.sim.method == "implicit" and not rp.sim.jaw_responses
+    rp.seek(perf.ticks)
+    assert rp.verified == 2 and not rp.mismatches
+    from puppet.replay import state_digest
+
+    assert state_digest(rp.state) == FINAL_JAW
+
+
+def test_the_jaw_as_responses_would_not_replay_it() -> None:
+    """The take moves the jaw and the age, so the step from the last pose gives other bits."""
+    perf = build_performance(read_session(OLD_JAW), None)
+    perf.jaw_responses = True
+    rp = Replayer(perf)
+    rp.seek(perf.ticks)
+    assert rp.mismatches
