@@ -73,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
 def exit_at_once(code: int) -> None:
     """End this process now, without the interpreter's teardown: for a command that has closed
     everything it wrote and imported much (`puppet batch`: Dask, numpy, the simulator), taking the
-    ~1,000 modules apart one by one costs a tenth of a second or more after the work is done.
+    ~700 modules apart one by one costs a tenth of a second or more after the work is done.
     Only for the command line (`main` with no argv): a caller in-process gets its return."""
     import logging
     import os
