@@ -236,6 +236,7 @@ def farm_run(farm: Farm, cmd: list[str], client: Any) -> dict[str, Any]:
     return {"wall": wall, "cpu_ours": ours, "cpu_others": max(0.0, b1 - b0 - ours), "idle": i1 - i0,
             "tasks": len(spans), "task_s": sum(b - a for a, b in spans) / max(1, len(spans)),
             "first_start": min((a for a, _ in spans), default=0.0), "tail": max(ends) - min(ends) if ends else 0.0,
+            "after_last": wall - max(ends) if ends else 0.0,
             "per_worker": sorted(len(v) for v in comp.values()), "client_cpu": CPU[0], **roles,
             "steal": steal() - s0}
 
@@ -378,7 +379,7 @@ def main() -> int:
         for x in rs:
             print(f"     {n} worker{'s' if n > 1 else ''}: {x['wall']:.1f} s; {x['tasks']} tasks {x['per_worker']}, "
                   f"{x['task_s']:.2f} s each on its worker, first starts at {x['first_start']:.1f} s, "
-                  f"tail {x['tail']:.1f} s; CPU: ours {x['cpu_ours']:.1f} s, other users' {x['cpu_others']:.1f} s, "
+                  f"tail {x['tail']:.1f} s, exit {x['after_last']:.2f} s after the last; CPU: ours {x['cpu_ours']:.1f} s, other users' {x['cpu_others']:.1f} s, "
                   f"idle {x['idle']:.1f} s, stolen by the host {x['steal']:.1f} s")
             print(f"       where ours went: workers {x['worker_user']:.1f} s user + {x['worker_system']:.1f} s system "
                   f"(preempted {x['worker_preempted']:.0f} times), nannies {x['nanny']:.2f} s, scheduler "

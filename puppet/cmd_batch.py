@@ -44,7 +44,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     f.add_argument("--map", metavar="CORR.json", help="correspondence file (on every worker)")
     r = sub.add_parser("recognize", parents=[common], help="as `puppet recognize INPUT --json`, for many inputs")
     r.add_argument("--map", metavar="CORR.json", help="correspondence file (on every worker)")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, exit_at_once=True)  # `puppet.cli.exit_at_once`: Dask's teardown skipped
 
 
 def run(args: argparse.Namespace) -> int:

@@ -149,11 +149,13 @@ MEMORY_CHECK_MS = 1000.0
 
 
 def quieten(server: Any) -> None:
-    """Stop a Dask server's (worker, nanny, scheduler) diagnostic periodic callbacks and slow its
-    memory check."""
+    """Stop a Dask server's (worker, nanny, scheduler) diagnostic periodic callbacks for good and
+    slow its memory check."""
     pcs = getattr(server, "periodic_callbacks", {})
-    for name in QUIET:
-        pc = pcs.get(name)
+    for name in QUIET:  # taken out of the list, not only stopped: a server still starting (a worker or
+        # nanny joining the farm after the batch's plugins were registered, or a worker its nanny
+        # restarted) sets its plugins up first and then starts every periodic callback it lists
+        pc = pcs.pop(name, None)
         if pc is not None:
             pc.stop()
     pc = pcs.get("memory_monitor")

@@ -74,7 +74,7 @@ def test_export_through_the_farm_equals_replay(farm: Farm, tmp_path: Path, capsy
     # the batch quietened the farm's diagnostic timers (each wakes a process 50 times a second)
     def _timers(dask_worker=None, dask_scheduler=None):  # type: ignore[no-untyped-def]  # sent by value
         pcs = (dask_worker or dask_scheduler).periodic_callbacks
-        return {"tick": pcs["tick"].is_running(),
+        return {"tick": "tick" in pcs and pcs["tick"].is_running(),  # taken out of the list, or stopped
                 **({"memory_monitor": pcs["memory_monitor"].callback_time} if "memory_monitor" in pcs else {})}
 
     with farm.client() as c:
@@ -174,6 +174,33 @@ def test_worker_killed_mid_batch(farm: Farm, tmp_path: Path) -> None:
         assert (out / (t.stem + ".pc2")).read_bytes() == replay_out(t, tmp_path / (t.stem + ".pc2")), t.stem
     assert not [p.name for p in out.iterdir() if p.name.startswith(".") and ".part" in p.name]  # no half files
     farm.wait_for_workers(2)  # the nanny brought the killed worker back
+
+
+def test_a_worker_joining_after_a_batch_started_is_quiet_too(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """A worker added to the farm (or restarted by its nanny) after the batch's plugins were
+    registered keeps neither Dask's stack sampler nor its 20 ms tick: both would take CPU from the
+    frames of every take it runs."""
+    from farm import WORKER_ARGS
+
+    def diagnostics_running(dask_worker=None) -> list[str]:  # type: ignore[no-untyped-def]  # sent by value
+        return sorted(k for k, pc in dask_worker.periodic_callbacks.items()
+                      if k in ("tick", "profile", "profile-cycle") and pc.is_running())
+
+    (tmp_path / "farm").mkdir()
+    f = Farm(tmp_path / "farm", workers=1)
+    try:
+        take = write_take(tmp_path / "s" / "one.jsonl", ticks=20, seed=3)
+        assert main(["batch", "export", str(take), "--out", str(tmp_path), "--to", "csv", "--scheduler", f.address]) == 0
+        f.procs.append(f._spawn("late", "worker", "--scheduler-file", str(f.file), *WORKER_ARGS))
+        f.wait_for_workers(2)
+        assert main(["batch", "export", str(take), "--out", str(tmp_path), "--to", "csv", "--force",
+                     "--scheduler", f.address]) == 0
+        capsys.readouterr()
+        with f.client() as c:
+            assert c.run(diagnostics_running) == {w: [] for w in c.scheduler_info()["workers"]}
+            assert all(v == [] for v in c.run(diagnostics_running, nanny=True).values())
+    finally:
+        f.stop()
 
 
 @pytest.fixture
