@@ -28,7 +28,7 @@ from sim.face.scan.insertion_fit import VertexCalibration
 
 FIELDS = ("tether", "support", "modulus")
 BUMPS = 40  # bumps on one side (and the midline) per field
-LOW, HIGH = 0.1, 10.0  # bounds of each multiplier
+LOW, HIGH = 0.4, 2.5  # bounds of each multiplier (0.1..10 fitted laxer skin that read worse)
 PULL_FIELD = 1e-3  # weight of the pull of theta towards 0 (multiplier 1), per parameter
 MIDLINE = 0.4  # cm: bump centres closer than this to x = 0 have no mirror image
 
