@@ -7,7 +7,10 @@ shares over all of them at once, re-linearised on the simulator, and prints the 
 errors. `--holdout` fits on the left and unsided shapes and also reports the right ones, held out.
 Without --no-write it rewrites `sim/face/scan/ict_rig.npz` (the shipped part of the fit).
 
-    nice .venv/bin/python benchmarks/calibrate_scan.py [--rounds 2] [--holdout] [--per-vertex] [--no-write]
+`--skin` also fits the skin's material per region (its tether to the tissue beneath, its normal
+support, its springs' modulus: `sim.face.scan.skin_fit`) with the per-vertex gains.
+
+    nice .venv/bin/python benchmarks/calibrate_scan.py [--rounds 2] [--holdout] [--per-vertex | --skin] [--no-write]
 """
 
 from __future__ import annotations
@@ -50,6 +53,8 @@ def main() -> int:
     ap.add_argument("--holdout", action="store_true", help="fit on the left and unsided shapes only")
     ap.add_argument("--per-vertex", action="store_true",
                     help="fit a gain per skin vertex of each muscle's zone (smooth), not a dozen bumps")
+    ap.add_argument("--skin", action="store_true",
+                    help="also fit the skin's tether, support and modulus per region (with per-vertex gains)")
     ap.add_argument("--no-write", action="store_true", help="do not rewrite the shipped rig")
     args = ap.parse_args()
     items = [s for s in shapes() if rms(s.target) >= STILL_CM]
@@ -58,7 +63,7 @@ def main() -> int:
         test = [s for s in items if s.label.endswith("_R")]
     else:
         train, test = items, []
-    cal, model, _ = run(args.rounds, train, test, per_vertex=args.per_vertex)
+    cal, model, _ = run(args.rounds, train, test, per_vertex=args.per_vertex, skin=args.skin)
     if not args.no_write:
         from sim.face.scan.rig import RIG_FILE
         from sim.rig import save_rig

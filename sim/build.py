@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from sim.channels import CHANNEL_INDEX, CHANNEL_SPECS, ChannelSpec
-from sim.model import FaceMesh, FaceRig
+from sim.model import SKIN_FIELDS, FaceMesh, FaceRig
 from sim.muscles import muscle_field
 from sim.rowmath import norm3
 from sim.springs import build_springs, vertex_areas
@@ -316,6 +316,8 @@ def _rig_digest(rig: FaceRig, params: SkinParams) -> str:
                 h.update(key.encode() + raw)
     for name in sorted(rig.insertion):  # none on a face without fitted insertions: its hash is unchanged
         h.update(b"insertion" + name.encode() + np.ascontiguousarray(rig.insertion[name], np.float64).tobytes())
+    for name in sorted(rig.skin):  # none on a face with uniform skin: its hash is unchanged
+        h.update(b"skin" + name.encode() + np.ascontiguousarray(rig.skin[name], np.float64).tobytes())
     if rig.integrator != "auto":  # a face that asks for its integrator replays on it
         h.update(b"integrator" + rig.integrator.encode())
     for line in rig.wrinkles:  # WrinkleLine.to_dict() is plain JSON
@@ -338,6 +340,9 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
     tris = np.asarray(mesh.triangles, dtype=np.int32)
     springs, rest_len, k_low, n_edge = build_springs(rest, tris, p.sheet_modulus, p.bend_ratio,
                                                     p.max_stiffness_ratio)
+    skin = {name: np.asarray(rig.skin.get(name, np.ones(len(rest))), np.float64) for name in SKIN_FIELDS}
+    if "modulus" in rig.skin:  # a spring's material is the mean of its two ends' (FaceRig.skin)
+        k_low = k_low * 0.5 * (skin["modulus"][springs[:, 0]] + skin["modulus"][springs[:, 1]])
     area = vertex_areas(rest, tris)
     area = np.maximum(area, 1e-6)
     true_mass = p.areal_density * area
@@ -345,9 +350,9 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
     floor = p.min_mass_fraction * float(np.median(true_mass[~held] if (~held).any() else true_mass))
     mass = np.maximum(true_mass, floor)
     gravity = np.array([0.0, -p.g if p.gravity else 0.0, 0.0])
-    tether = p.tether * area
+    tether = p.tether * area * skin["tether"]
     k_high = p.high_ratio * k_low
-    support = p.support * area
+    support = p.support * area * skin["support"]
     bound = tether + support  # isotropic stand-in for k_r I + k_n n n^T: an upper bound
     omega = omega_exact(stiffness_matrix(rest, springs, k_high, bound), mass, ~held)
     omega_low = omega_exact(stiffness_matrix(rest, springs, k_low, bound), mass, ~held)

@@ -91,7 +91,7 @@ FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
         "happiness": {"AU6": 1.0, "AU12": 1.0, "AU25": 1.0},
         "sadness": {"AU1": 1.0, "AU2": 0.25, "AU4": 0.42, "AU11": 0.3, "AU15": 1.0, "AU17": 1.0, "AU43": 0.7},
         "fear": {"AU1": 1.0, "AU2": 0.3, "AU4": 1.0, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
-        "disgust": {"AU9": 1.0, "AU10": 1.0, "AU4": 0.5, "AU17": 0.5},
+        "disgust": {"AU9": 0.55, "AU10": 0.55, "AU4": 0.5, "AU17": 0.5},
     },
 }
 """Per face (its rig's name: "ict" is the scanned head and its identities), the presets whose
@@ -100,7 +100,9 @@ actions are weaker. The scanned head's stiffer skin moves less under the same ch
 the shared intensities the emotion observer (`benchmarks/observer.py`) read its smile and sadness
 as neutral and its fear as surprise. Fear with the brows fully drawn down (AU4 1.0), disgust at
 full AU9+10 and sadness with the lids drooping further (AU43 0.7) over a stronger AU4 read on the
-scan (its inner brows still rising 1.3 mm), while on the procedural face they overshoot its
+scan (its inner brows still rising 1.3 mm); on the skin fitted to the scans (`FaceRig.skin`, laxer)
+disgust at full AU9+10 folded the nose (0.21 cm2) and read as anger (0.83): at 0.55 it folds nothing
+and reads as disgust (0.34; 0.7 read angry 0.37). On the procedural face they overshoot its
 amplitude targets (fear's brows drawn together 6.7 mm, limit 5; the nose wing raised 10.6 mm,
 limit 10; sadness' inner brows rising 2.1 mm at AU4 0.4 and resolution 1, target 3), so they are the scan's own. The happiness
 here (the lips parted, AU6 at full) is not yet read as happy on the scan (docs/scan-face.md)."""

@@ -124,6 +124,9 @@ class PatchMuscle:
 Muscle = Union[LinearMuscle, SphincterMuscle, SheetMuscle, PatchMuscle]
 
 
+SKIN_FIELDS = ("modulus", "support", "tether")  # FaceRig.skin
+
+
 @dataclass(eq=False)
 class FaceRig:
     """Everything needed to simulate one face: its mesh, its muscles (channel name -> one or more
@@ -133,6 +136,14 @@ class FaceRig:
     (how densely the muscle inserts into the skin there; its direction of pull is its parts'). A
     channel not named has gain 1 everywhere. Fitted to scanned expressions for the scanned head
     (`sim.face.scan.calibrate`); the procedural face has none.
+
+    skin: per skin vertex (N,) non-negative multipliers of the skin's material where it is not
+    uniform: "tether" (its attachment to the tissue beneath, `SkinParams.tether`), "support" (the
+    resistance to indentation along the normal, `SkinParams.support`) and "modulus" (the membrane's
+    springs, `SkinParams.sheet_modulus` and bending; a spring takes the mean of its two ends'). Real
+    skin is held by retaining ligaments in some places and slides over fat pads in others. A key
+    not named is 1 everywhere; fitted to scanned expressions for the scanned head
+    (`sim.face.scan.skin_fit`); the procedural face has none.
 
     integrator: what `sim.integrator.Simulator(method="auto")` runs this face on: "auto" (by the
     work per frame), "rk2" or "implicit". An imported head asks for "implicit", whose fold guard
@@ -146,5 +157,6 @@ class FaceRig:
     wrinkles: tuple = ()
     name: str = "default"
     insertion: dict[str, np.ndarray] = field(default_factory=dict)
+    skin: dict[str, np.ndarray] = field(default_factory=dict)
     integrator: str = "auto"
     presets: str = ""

@@ -12,6 +12,8 @@ Rig file (`.npz`, version 1), read with `allow_pickle=False` so loading never ex
 Wrinkle lines (`sim.wrinkles.mask.WrinkleLine`) are stored as their plain `to_dict` form.
 Fitted insertion gains (`FaceRig.insertion`, optional): header "insertion": [channel names], and an
 array `insertion_<channel>` (N,) f8 >= 0 each.
+Fitted skin material (`FaceRig.skin`, optional): header "skin": [names of "tether", "support",
+"modulus"], and an array `skin_<name>` (N,) f8 >= 0 each (a multiplier of that material per vertex).
 The integrator the face asks for (`FaceRig.integrator`, optional): header "integrator": "rk2" or
 "implicit" (absent: "auto"; imported heads ask for "implicit").
 Whose preset intensities the face takes (`FaceRig.presets`, optional): header "presets": a name of
@@ -30,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from safefile import BadFile, atomic_write, load_json, number, quote, sequence, string, table
-from sim.model import FaceMesh, FaceRig, LinearMuscle, Muscle, PatchMuscle, SheetMuscle, SphincterMuscle
+from sim.model import SKIN_FIELDS, FaceMesh, FaceRig, LinearMuscle, Muscle, PatchMuscle, SheetMuscle, SphincterMuscle
 
 FORMAT = "facepuppet-rig"
 VERSION = 1
@@ -71,6 +73,8 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
         "wrinkles": [w.to_dict() for w in rig.wrinkles],
         "insertion": sorted(rig.insertion),
     }
+    if rig.skin:  # rig files of faces with uniform skin are unchanged
+        header["skin"] = sorted(rig.skin)
     if rig.integrator != "auto":  # rig files of faces that leave the choice to the simulator are unchanged
         header["integrator"] = rig.integrator
     if rig.presets:  # likewise: only a face that asks for other presets says so
@@ -94,6 +98,8 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
         arrays[f"region_{name}"] = np.asarray(mask, bool)
     for name, gain in rig.insertion.items():
         arrays[f"insertion_{name}"] = np.asarray(gain, np.float64)
+    for name, mult in rig.skin.items():
+        arrays[f"skin_{name}"] = np.asarray(mult, np.float64)
     with atomic_write(path, "wb") as fh:  # a failed save leaves the old rig as it was
         np.savez_compressed(fh, **arrays)
 
@@ -251,6 +257,15 @@ def _parse(data: Any, p: str) -> FaceRig:
         if np.any(gain < 0.0) or np.any(gain > 1e6):
             raise RigFileError(f"{p}: insertion gains of {quote(name)} must lie in 0..1e6")
         insertion[name] = gain.astype(np.float64)
+    skin = {}
+    for name in sequence(header.get("skin", []), f"{p}: skin", len(SKIN_FIELDS)):
+        name = string(name, f"{p}: skin field")
+        if name not in SKIN_FIELDS:
+            raise RigFileError(f"{p}: skin field must be one of {', '.join(SKIN_FIELDS)}, not {quote(name[:40])}")
+        mult = _array(data, f"skin_{name}", p, (n,), "f")
+        if not np.all(np.isfinite(mult)) or np.any(mult < 0.0) or np.any(mult > 1e3):
+            raise RigFileError(f"{p}: skin multipliers of {quote(name)} must lie in 0..1000")
+        skin[name] = mult.astype(np.float64)
     integrator = header.get("integrator", "auto")
     if integrator not in INTEGRATORS:
         raise RigFileError(f"{p}: integrator must be one of {', '.join(INTEGRATORS)}, "
@@ -258,7 +273,7 @@ def _parse(data: Any, p: str) -> FaceRig:
     presets = string(header["presets"], f"{p}: presets") if "presets" in header else ""
     return FaceRig(mesh=mesh, muscles=muscles, wrinkles=_wrinkles(header.get("wrinkles", []), p),
                    name=string(header.get("name", "rig"), f"{p}: name"), insertion=insertion,
-                   integrator=integrator, presets=presets)
+                   skin=skin, integrator=integrator, presets=presets)
 
 
 def _wrinkles(entries: Any, p: str) -> tuple:

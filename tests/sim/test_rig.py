@@ -187,3 +187,45 @@ def test_the_presets_a_face_asks_for_round_trip(synth_rig: FaceRig, tmp_path: Pa
     header = json.loads(str(np.load(path)["header"]))
     assert "presets" not in header
     assert preset_face(load_rig(path)) == synth_rig.name
+
+
+def test_skin_material_round_trips_and_sets_the_skin(synth_rig: FaceRig, tmp_path: Path) -> None:
+    """Fitted skin multipliers are kept by the rig file and set the compiled skin where they are:
+    the tether and the normal support per vertex, a spring by the mean of its two ends'; a field
+    not named stays uniform, and a face without any keeps its hash."""
+    from dataclasses import replace
+
+    n = len(synth_rig.mesh.vertices)
+    lax = np.where(np.arange(n) % 2 == 0, 0.25, 1.0)
+    rig = replace(synth_rig, skin={"tether": lax, "modulus": 2.0 * lax})
+    save_rig(rig, tmp_path / "s.npz")
+    back = load_rig(tmp_path / "s.npz")
+    assert set(back.skin) == {"tether", "modulus"} and np.array_equal(back.skin["tether"], lax)
+    plain, fitted = compile_model(synth_rig), compile_model(back)
+    assert fitted.hash != plain.hash
+    assert compile_model(replace(synth_rig, skin={})).hash == plain.hash
+    assert np.allclose(fitted.rest_stiffness, plain.rest_stiffness * lax)
+    assert np.array_equal(fitted.support_stiffness, plain.support_stiffness)
+    i, j = np.asarray(plain.spring_indices).T
+    assert np.allclose(fitted.spring_k_low, plain.spring_k_low * (lax[i] + lax[j]))
+
+
+def test_a_rig_with_an_unknown_skin_field_is_one_clear_line(synth_rig: FaceRig, tmp_path: Path) -> None:
+    from dataclasses import replace
+
+    n = len(synth_rig.mesh.vertices)
+    save_rig(replace(synth_rig, skin={"tether": np.ones(n)}), tmp_path / "s.npz")
+    data = dict(np.load(tmp_path / "s.npz"))
+    header = json.loads(str(data["header"]))
+    header["skin"] = ["stickiness"]
+    data["header"] = np.array(json.dumps(header))
+    data["skin_stickiness"] = np.ones(n)
+    np.savez(tmp_path / "bad.npz", **data)
+    with pytest.raises(RigFileError, match=r"bad\.npz: skin field must be one of") as err:
+        load_rig(tmp_path / "bad.npz")
+    assert "\n" not in str(err.value)
+    data["header"] = np.array(json.dumps({**header, "skin": ["tether"]}))
+    data["skin_tether"] = -np.ones(n)
+    np.savez(tmp_path / "neg.npz", **data)
+    with pytest.raises(RigFileError, match=r"neg\.npz: skin multipliers of .tether. must lie in 0\.\.1000"):
+        load_rig(tmp_path / "neg.npz")

@@ -294,3 +294,20 @@ def _jaw_only(c: FaceControl) -> FaceControl:
     out = FaceControl()
     out.set("jaw", c.get("jaw"))
     return out
+
+
+def test_an_identity_carries_the_fitted_skin_and_insertions() -> None:
+    """The skin's material and the insertion gains fitted to the scans belong to vertices: an
+    identity (same numbering, other positions) keeps them, and its face is built with them."""
+    from sim.build import compile_model
+    from sim.face.scan.rig import SCAN_PARAMS, scan_rig
+
+    generic = scan_rig()
+    other = scan_rig(np.linspace(-1.0, 1.0, 8))
+    assert generic.skin and generic.insertion
+    assert other.skin.keys() == generic.skin.keys() and other.insertion.keys() == generic.insertion.keys()
+    for name, mult in generic.skin.items():
+        assert np.array_equal(other.skin[name], mult)
+    model = compile_model(other, SCAN_PARAMS)
+    area = np.asarray(model.area)
+    assert np.allclose(model.rest_stiffness, SCAN_PARAMS.tether * area * generic.skin["tether"])

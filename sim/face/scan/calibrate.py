@@ -254,22 +254,29 @@ def settle_all(model, cal: Calibration, items: list[Shape]) -> dict[str, np.ndar
 def calibrated_model(base_model, cal: Calibration):  # type: ignore[no-untyped-def]
     from sim.build import compile_model
 
-    rig = replace(base_model.rig, insertion=cal.insertion())
+    skin = cal.skin() if hasattr(cal, "skin") else base_model.rig.skin
+    rig = replace(base_model.rig, insertion=cal.insertion(), skin=skin)
     return compile_model(rig, base_model.params)
 
 
-def run(rounds: int, train: list[Shape], test: list[Shape], log=print, per_vertex: bool = False):  # type: ignore[no-untyped-def]
+def run(rounds: int, train: list[Shape], test: list[Shape], log=print, per_vertex: bool = False,  # type: ignore[no-untyped-def]
+        skin: bool = False):
     """Fit on `train` over `rounds` re-linearisations; report the settled relative errors of both.
-    per_vertex: a gain per zone vertex (`sim.face.scan.insertion_fit`) instead of the bumps."""
+    per_vertex: a gain per zone vertex (`sim.face.scan.insertion_fit`) instead of the bumps;
+    skin: that, and the skin's material fitted with them (`sim.face.scan.skin_fit`)."""
     from sim.face.scan.rig import scan_model
 
     base = scan_model()
-    if base.rig.insertion:  # start from the placed muscles (gain 1), not an earlier fit
+    if base.rig.insertion or base.rig.skin:  # start from the placed muscles (gain 1) and uniform skin
         from sim.build import compile_model
 
-        base = compile_model(replace(base.rig, insertion={}), base.params)
+        base = compile_model(replace(base.rig, insertion={}, skin={}), base.params)
     t0 = time.monotonic()
-    if per_vertex:
+    if skin:
+        from sim.face.scan.skin_fit import SkinCalibration
+
+        cal = SkinCalibration(base)
+    elif per_vertex:
         from sim.face.scan.insertion_fit import VertexCalibration
 
         cal = VertexCalibration(base)

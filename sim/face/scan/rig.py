@@ -171,7 +171,8 @@ def scan_rig(weights: np.ndarray | None = None, name: str = "ict") -> FaceRig:
         _, k = front.query(np.asarray(line.points, float))
         wrinkles.append(replace(line, points=_r(np.asarray(line.points, float) + disp[k, :2]),
                                 width_minus=float(_r(line.width_minus * s)), width_plus=float(_r(line.width_plus * s))))
-    return FaceRig(mesh=mesh, muscles=muscles, wrinkles=tuple(wrinkles), name=name, insertion=rig.insertion)
+    return FaceRig(mesh=mesh, muscles=muscles, wrinkles=tuple(wrinkles), name=name, insertion=rig.insertion,
+                   skin=rig.skin)
 
 
 _MODELS: dict[bytes, object] = {}
