@@ -32,8 +32,10 @@ import numpy as np
 YAW_MAX = math.radians(30.0)
 PITCH_MAX = math.radians(20.0)
 #: the coupling's stiffness per unit skin area on the globe, dyn/cm per cm^2 (on the scanned head
-#: the lid margins then follow a sideways look as the scan's do)
-STIFFNESS = 4000.0
+#: the lid margins then follow a sideways look as the scan's do; swept 2000-6000 on the fitted
+#: skin, `scan_match.py --no-fit`, eyeLookIn/Out: 2000 0.57/0.61, 3000 0.49/0.56, 4000 0.57/0.66,
+#: 6000 1.00/1.13 -- stiffer overshoots)
+STIFFNESS = 3000.0
 #: cm: its fall-off with the distance from the globe's surface (Gaussian width), and where it ends
 WIDTH = 0.55
 REACH = 1.5
