@@ -48,10 +48,10 @@ def test_puppet_replay_of_the_old_take_says_bit_identical(tmp_path: Path) -> Non
 
 
 #: recorded before the step started from the last step's jaw opening and skin age (its header has
-#: "muscles" but no "jaw"): the procedural face at resolution 1 at 120 Hz, the mock box's default
-#: map, a smile, the jaw and the age turned up in steps over one second
+#: "muscles" but no "jaw"), by that code with the scanned head's fitted skin: the ict face at 120 Hz,
+#: the SGI box's default map played by the mock box, a smile, the jaw and the age turned up over one second
 OLD_JAW = Path(__file__).parent / "data" / "take_jaw_whole.jsonl"
-FINAL_JAW = "fa1ea5a1ccfac3a7"
+FINAL_JAW = "9b3cf2430cc91d86"
 
 
 def test_a_take_with_the_jaw_and_age_taken_whole_replays_bit_for_bit() -> None:
