@@ -4,7 +4,6 @@ changes; `draw(state)` uploads the surface and its normals and nothing else that
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import moderngl
@@ -18,13 +17,13 @@ from render.meshdata import (HAIR, SKIN, Cavity, brow_coords, MuscleLines, eye_r
                              surface_rows, unique_edges, uv_sphere)
 from render.trails import TrailHistory
 from sim.face.turn import is_turned, turn_eye
+from sim.gaze_lids import PITCH_MAX as EYE_PITCH_MAX
+from sim.gaze_lids import YAW_MAX as EYE_YAW_MAX
 from sim.gaze_lids import eye_yaws
 
 VIEWS = ("shaded", "wireframe", "muscles", "trails", "heat")
 ANTIALIAS = ("fxaa", "none")
 BACKGROUND = (0.29, 0.295, 0.305)  # neutral grey, display (gamma-encoded) values
-EYE_YAW_MAX = math.radians(30.0)
-EYE_PITCH_MAX = math.radians(20.0)
 MAX_TRAIL_NODES = 4000
 STILL_PATH_CM = 0.02  # nodes that moved less than this over the trail window count as motionless
 MOUTH_RIM = (0.20, 0.035, 0.03)

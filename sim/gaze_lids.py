@@ -28,7 +28,8 @@ import math
 import numba
 import numpy as np
 
-#: the gaze's full range (eyes_yaw, eyes_pitch = +-1) as the eye's rotation, radians (the renderer's)
+#: the gaze's full range (eyes_yaw, eyes_pitch = +-1) as the eye's rotation, radians: the one
+#: definition, used by the lids here, the scan's dressing and the renderer
 YAW_MAX = math.radians(30.0)
 PITCH_MAX = math.radians(20.0)
 #: the coupling's stiffness per unit skin area on the globe, dyn/cm per cm^2 (on the scanned head

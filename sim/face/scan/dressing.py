@@ -39,14 +39,14 @@ from scipy.spatial import cKDTree
 
 from sim.face.scan.anatomy import _rings, skin_layout
 from sim.face.scan.data import N_IDENTITIES, NARROW_FACE, PARTS, SCLERA, scan_data
+from sim.gaze_lids import PITCH_MAX as EYE_PITCH_MAX
+from sim.gaze_lids import YAW_MAX as EYE_YAW_MAX
 
 BIND = 0.5  # cm: unsimulated face skin this close to the simulated skin is bound to its triangles
 FOLLOW = 4.0  # cm over which the skin's displacement fades into the held head
 JAW_FOLLOW = 8.5  # cm: the same under the chin and jaw, down the throat
 NEAREST = 4  # skin vertices a following vertex takes its displacement from
 LIP_FADE = 1.2  # cm: how far into the mouth socket the lips' motion reaches
-EYE_YAW_MAX = math.radians(30.0)
-EYE_PITCH_MAX = math.radians(20.0)
 LID_UP = 3  # rows up the lid from its margin: with the margin's tangent, the lid's surface frame
 LID_THINGS = ("eyelashes", "eye_occlusion", "lacrimal", "eye_blend")
 TONGUE_REACH = np.array([0.0, 0.95, 2.6])  # cm the tongue's tip moves at tongue_out = 1 (head frame),
