@@ -123,7 +123,8 @@ def test_page_shows_the_face_the_show_draws(mode: str) -> None:
         info = lambda drv: drv.find_element("id", "faceinfo").text  # noqa: E731
         wait_for(lambda: info(watch).startswith("still"), 30, "the readout saying the face is still")
         assert "frames/s" not in info(watch)
-        assert info(hidden) == "not sent to this page"
+        # the readout is redrawn at most 4 times a second: on a loaded machine the hidden page's may lag
+        wait_for(lambda: info(hidden) == "not sent to this page", 30, "the hidden page saying no face is sent")
     finally:
         quit_browser(watch)
         quit_browser(hidden)
