@@ -14,3 +14,40 @@ def test_unknown_command_is_an_error() -> None:
         [sys.executable, "-m", "puppet", "no-such-command"], capture_output=True, text=True
     )
     assert out.returncode == 2
+
+
+def test_each_command_is_found_by_the_name_it_is_typed_with() -> None:
+    """A command's own module alone serves `puppet COMMAND ...`; the table naming them must hold
+    every command each module registers (else that command would be unknown), and nothing else."""
+    import argparse
+    import importlib
+
+    from puppet.cli import COMMANDS
+
+    for module, names in COMMANDS:
+        sub = argparse.ArgumentParser().add_subparsers()
+        importlib.import_module(module).register(sub)
+        assert tuple(sub.choices) == names, module
+
+
+def test_a_command_parses_the_same_with_only_its_module_loaded() -> None:
+    from puppet.cli import build_parser
+
+    for argv in (["batch", "export", "takes", "--out", "renders", "--to", "pc2", "--scheduler", "tcp://h:1"],
+                 ["monitor", "mock://x.json"], ["takes", "search", "performer:ana"],
+                 ["replay", "take.jsonl", "--out", "take.pc2"]):
+        alone, whole = build_parser(argv), build_parser()
+        assert len(alone._subparsers._group_actions[0].choices) < len(whole._subparsers._group_actions[0].choices)
+        a, w = vars(alone.parse_args(argv)), vars(whole.parse_args(argv))
+        assert a.keys() == w.keys() and all(a[k] == w[k] for k in a if k != "func"), argv
+        assert a["func"] is w["func"]
+
+
+def test_a_command_module_loads_only_when_its_command_runs() -> None:
+    out = subprocess.run([sys.executable, "-c", "import sys; from puppet.cli import main; main(['channels']); "
+                          "print(sorted(m for m in sys.modules if m.startswith('puppet.cmd_')))"],
+                         capture_output=True, text=True, check=True)
+    assert out.stdout.strip().splitlines()[-1] == "['puppet.cmd_channels']"
+    help_all = subprocess.run([sys.executable, "-m", "puppet", "--help"], capture_output=True, text=True, check=True)
+    for word in ("live", "batch", "monitor", "import-face", "takes"):
+        assert word in help_all.stdout
