@@ -6,7 +6,6 @@ scheduler (Dask's `allowed-failures`); the jobs have no side effects, so running
 
 from __future__ import annotations
 
-import glob
 import hashlib
 import json
 import logging
@@ -285,11 +284,17 @@ def store_spans(rep: Report, library: str | None) -> None:
 
 def _remove_parts(out_dir: Path, todo: list[Output]) -> None:
     """Half-written files a worker killed mid-write left beside the outputs (safefile's hidden
-    `.STEM.*.part*` names); the task ran again elsewhere and wrote the whole file."""
-    for o in todo:
-        for p in out_dir.glob(f".{glob.escape(Path(o.name).stem)}.*.part*"):
+    `.STEM.*.part*` names); the task ran again elsewhere and wrote the whole file. One listing of
+    the folder (a glob per output compiled a pattern each: ~20 ms after the last result)."""
+    prefixes = tuple(f".{Path(o.name).stem}." for o in todo)
+    try:
+        names = os.listdir(out_dir)
+    except OSError:
+        return
+    for name in names:
+        if name.startswith(prefixes) and any(name.startswith(p) and ".part" in name[len(p):] for p in prefixes):
             try:
-                p.unlink()
+                (out_dir / name).unlink()
             except OSError:
                 pass
 

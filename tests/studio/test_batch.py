@@ -349,3 +349,23 @@ def test_an_unreachable_scheduler_is_one_line(tmp_path: Path, capsys: pytest.Cap
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"127.0.0.1:{port}" in err[0] and "dask scheduler" in err[0], err
     assert not (tmp_path / "t.csv").exists()
+
+
+def test_half_written_outputs_are_removed_and_nothing_else(tmp_path: Path) -> None:
+    """What a worker killed mid-write leaves (safefile's hidden `.STEM.*.part*` temporaries of this
+    batch's outputs) goes when the batch ends; the outputs, other files and other batches' halves stay."""
+    from puppet.batch.plan import Input, Output
+    from puppet.batch.run import _remove_parts
+    from safefile import atomic_write
+
+    todo = [Output(Input(tmp_path / f"{s}.jsonl"), "export", f"{s}{x}", "key", {})
+            for s in ("take1", "take.2") for x in (".pc2", ".arkit.csv")]
+    for o in todo:
+        with atomic_write(tmp_path / o.name, "wb") as fh:
+            fh.write(b"whole")
+    halves = [".take1.k3j_x.part.pc2", ".take1.q8.part.obj", ".take.2.arkit.zz1.part.csv", ".take.2.a.part"]
+    kept = [".take10.k3j_x.part.pc2", ".other.a1.part.pc2", "take1.part.pc2", ".take1.pc2", "notes.txt"]
+    for name in halves + kept:
+        (tmp_path / name).write_bytes(b"half")
+    _remove_parts(tmp_path, todo)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(kept + [o.name for o in todo])
