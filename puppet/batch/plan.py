@@ -175,7 +175,7 @@ def reach_token(out_dir: Path) -> dict[str, str]:
     writes its outputs in place instead of sending their bytes back (a scanned head's 10 s point
     cache is ~190 MB). The file lives while the batch runs, is whole before any task is sent and
     a worker that cannot read it just sends the bytes: it is written without the rename and the
-    two disk flushes of a kept file (5-15 ms before the first task)."""
+    two disk flushes of a kept file (6 ms before the first task, 0.3 ms without)."""
     import secrets
 
     token = secrets.token_hex(16)
