@@ -3,27 +3,31 @@
 llvmpipe's cost for the scanned head is per triangle (fetch, set-up and binning on the calling
 thread, then rasterising), and at 1280x720 the skin's triangles are small: a median of 9 px².
 `coarse_plain()` is the plain skin (render.scan_look.ScanLook.skin_split: every triangle the brow
-and vermilion terms do not reach) with about half its triangles, made by half-edge collapses: a
-vertex is folded into a neighbour, so no vertex moves and every kept vertex keeps the normal and
-fold term the full skin gives it (render.scan_kernel.scan_rows still runs on the full skin). The
-brows and lips (the "features" triangles) and the plain skin's border with them are untouched, so
-the two lists meet without cracks.
+and vermilion terms do not reach) with fewer triangles, made by half-edge collapses: a vertex is
+folded into a neighbour, so no vertex moves and every kept vertex keeps the normal and fold term
+the full skin gives it (render.scan_kernel.scan_rows still runs on the full skin). The brows and
+lips (the "features" triangles) and the plain skin's border with them are untouched, so the two
+lists meet without cracks.
 
-The collapses are ordered by quadric error (Garland & Heckbert, "Surface simplification using
-quadric error metrics", SIGGRAPH 1997, eq. 2: the sum of squared distances to the planes of the
-triangles merged into a vertex), taken in the worst of many poses of the scan (its neutral, each
-of its 57 expression shapes, and the first identity modes at +-2.5 sd), so skin that folds in
-any expression stays fine. A collapse that turns any triangle over (or nearly) in any of those
-poses, makes a sliver at rest, or would make the surface non-manifold is refused. Kept whole:
-the skin's openings and the rings next to them (lid margins, the lips' inner edge, the neck's
-cut), the nose and the skin the baked occlusion darkens (nostrils, the eyes' corners, the ears'
-folds).
+A collapse is judged by measuring what it loses, in every one of 26 poses of the head as the
+renderer draws it (`_poses`: the default face at rest, with the jaw dropped and in the seven
+presets, simulated, wrinkles included; ten of the scan's extreme shapes; identity modes): each
+vertex it leaves out (the folded one and those folded into it before) against the new triangles
+around the target, by distance and by the normal, fold term and baked occlusion interpolated there
+against its own. Each error is taken over its tolerance (TOL_*); the collapses go cheapest first
+while the worst stays within tolerance (the measured-error ordering of Hoppe's progressive meshes,
+SIGGRAPH 1996, with a worst-case instead of a summed energy). Refused too: a collapse that turns a
+triangle over (or nearly) in any pose, leaves a sliver or a long edge at rest, or breaks the
+manifold (the link condition). Kept whole: the skin's openings and the rings next to them (the
+lips' inner edge, the neck's cut), the skin around the eyes (lids, their folds, the crow's feet),
+the glabella's frown lines, the nose, the ears and the chin (which crumples for a moment as the
+jaw drops).
 
-The list is made once (`python -m render.scan_lod`, about a minute) and shipped beside this
-module (`scan_lod.npz`): it depends only on the scan's topology, which every identity shares.
-`error_cm` is the largest distance, over those poses, from a vertex the coarse list leaves out
-to the coarse skin: the renderer draws the coarse list while that distance is under
-LOD_MAX_PX of a pixel on screen (render.scan_draw)."""
+The list is made once (`python -m render.scan_lod`, a few minutes) and shipped beside this module
+(`scan_lod.npz`): it depends only on the scan's topology, which every identity shares. `error_cm`
+is the largest distance, over the poses, from a vertex of the full plain skin to the coarse one.
+The renderer draws the coarse list while the skin's triangles are small on screen
+(render.scan_draw.ScanDraw.choose_level)."""
 
 from __future__ import annotations
 
@@ -37,9 +41,9 @@ from pathlib import Path
 import numpy as np
 
 DATA = Path(__file__).with_name("scan_lod.npz")
-TARGET = 0.5  # the share of the plain skin's triangles kept
+TARGET = 0.5  # the share of the plain skin's triangles kept at most (the tolerances stop it sooner)
 MIN_ANGLE = np.radians(12.0)  # the smallest angle a new triangle may have at rest
-MAX_EDGE = 0.8  # cm: the longest edge a new triangle may have at rest
+MAX_EDGE = 1.0  # cm: the longest edge a new triangle may have at rest
 FLIP_COS = 0.5  # a new triangle's normal must stay within 60 degrees of the one it replaces, in every pose
 OPENING_RINGS = 2  # rings of vertices around each opening of the skin kept whole
 # what a left-out vertex may differ by from the coarse skin there, in any pose: a collapse moving
@@ -47,11 +51,13 @@ OPENING_RINGS = 2  # rings of vertices around each opening of the skin kept whol
 # error over these scales: distance, the turn of the normal interpolated there (the lighting), the
 # fold term (render.scan_shaders: 1.8 of it darkens) and the baked occlusion
 TOL_CM = 0.1
-TOL_NORMAL = 0.25
-TOL_FOLD = 0.05
+TOL_NORMAL = 0.35
+TOL_FOLD = 0.06
 TOL_OCCLUSION = 0.05
 NOSE_BOX = ((-2.2, 2.2), (-2.2, 1.6), (9.2, 99.0))  # cm, the generic head: x, y, z of the nose kept whole
 EAR_BOX = ((6.6, 99.0), (-2.5, 6.5), (-5.0, 3.0))  # cm, the generic head: |x|, y, z of the ears kept whole
+GLABELLA_BOX = ((-1.8, 1.8), (3.0, 7.5), (8.0, 99.0))  # cm, the generic head: the frown lines kept whole
+CHIN_BOX = ((-4.2, 4.2), (-8.4, -6.4), (4.0, 99.0))  # cm, the generic head: the chin, that crumples as the jaw drops
 EYE_REACH = 0.8  # cm from the eyes' openings kept whole: lids, their folds and the crow's feet
 
 
@@ -60,7 +66,6 @@ def _poses() -> tuple[np.ndarray, np.ndarray]:
     scanned head as the renderer draws it: the default face at rest, with the jaw dropped (AU27)
     and in each of the seven presets, simulated and dressed (wrinkles included); the generic head in a few of the scan's own
     extreme shapes; the first four identity modes at +-2.5 standard deviations."""
-    from puppet.face_cache import scan_model
     from render.scan_draw import ScanPoser, dressing_of
     from render.scan_look import ScanLook
     from render.scan_rows import ScanRows
@@ -69,7 +74,10 @@ def _poses() -> tuple[np.ndarray, np.ndarray]:
     from sim.integrator import Simulator
     from sim.state import FaceControl
 
-    model = scan_model(None)
+    from sim.build import compile_model
+    from sim.face.scan.rig import SCAN_PARAMS, scan_rig
+
+    model = compile_model(scan_rig(None), SCAN_PARAMS)  # the default face (the application caches it)
     poser = ScanPoser(dressing_of(model))
     rows = []
     for name in (None, "AU27", *EXPRESSIONS):
@@ -117,7 +125,8 @@ def _kept_whole(tri: np.ndarray, plain: np.ndarray, n: int) -> np.ndarray:
         ring = grow
     keep |= ring
     neutral = scan_data().neutral
-    for box, x in ((NOSE_BOX, neutral[:, 0]), (EAR_BOX, np.abs(neutral[:, 0]))):
+    for box, x in ((NOSE_BOX, neutral[:, 0]), (EAR_BOX, np.abs(neutral[:, 0])), (GLABELLA_BOX, neutral[:, 0]),
+                   (CHIN_BOX, neutral[:, 0])):
         (x0, x1), (y0, y1), (z0, z1) = box
         y, z = neutral[:, 1], neutral[:, 2]
         keep |= (x > x0) & (x < x1) & (y > y0) & (y < y1) & (z > z0) & (z < z1)
