@@ -234,7 +234,8 @@ def head_vs_mask(resolution: int, size: tuple[int, int], batches: int, ctx: obje
 def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
     """The scanned head (the default face, sim.face.scan) shaded + HUD, in alternating 10-frame
     batches with the floor: each frame poses the whole scan from the simulated surface, makes its
-    rows (normals, fold term) and draws; also the drawing alone (rows made beforehand), for a
+    rows (normals, fold term) and draws; also with the full skin at any size (render.scan_lod's
+    coarse plain skin not used), the drawing alone (rows made beforehand), for a
     happiness onset, a surprise onset, the jaw dropped (AU27) and the face at rest (lips closed:
     the mouth's inside left out)."""
     import statistics
@@ -295,8 +296,9 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
             every, unseen, full = med["all_tris"], med["unseen"], med["full_skin"]
             out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; "
                        f"floor {f[0]:.2f} ms (cpu {f[1]:.2f}); whole frame {whole[0]:.2f} ms = "
-                       f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x; coarse skin drawn: {r.scan.coarse}), "
-                       f"with the full skin at any size {full[0] / f[0]:.2f}x (cpu {full[1] / f[1]:.2f}x), with every triangle handed to "
+                       f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x; coarse skin drawn: "
+                       f"{r.scan.coarse}), with the full skin at any size {full[0] / f[0]:.2f}x "
+                       f"(cpu {full[1] / f[1]:.2f}x), with every triangle handed to "
                        f"OpenGL {every[0] / f[0]:.2f}x (cpu {every[1] / f[1]:.2f}x), with the triangles that cover "
                        f"no pixel or lie hidden kept {unseen[0] / f[0]:.2f}x (cpu {unseen[1] / f[1]:.2f}x); drawing alone "
                        f"{draw[0]:.2f} ms = {draw[0] / f[0]:.2f}x (cpu {draw[1] / f[1]:.2f}x); the same with "

@@ -64,8 +64,9 @@ EYE_REACH = 0.8  # cm from the eyes' openings kept whole: lids, their folds and 
 def _poses() -> tuple[np.ndarray, np.ndarray]:
     """(P, N, 3) positions and (P, N, 4) normal and fold term (render.scan_kernel.scan_rows) of the
     scanned head as the renderer draws it: the default face at rest, with the jaw dropped (AU27)
-    and in each of the seven presets, simulated and dressed (wrinkles included); the generic head in a few of the scan's own
-    extreme shapes; the first four identity modes at +-2.5 standard deviations."""
+    and in each of the seven presets, simulated and dressed (wrinkles included); the generic head
+    in a few of the scan's own extreme shapes; the first four identity modes at +-2.5 standard
+    deviations."""
     from render.scan_draw import ScanPoser, dressing_of
     from render.scan_look import ScanLook
     from render.scan_rows import ScanRows

@@ -410,7 +410,7 @@ class ScanLook:
         return {"features": ~plain, "plain": plain}
 
     def coarse_plain(self) -> np.ndarray:
-        """(K, 3) int32 the plain skin's coarser list (render.scan_lod: about half its triangles,
+        """(K, 3) int32 the plain skin's coarser list (render.scan_lod: four fifths of its triangles,
         over the same vertices, meeting the features' triangles edge for edge), in Z-order."""
         from render.scan_lod import coarse_plain
 

@@ -75,9 +75,9 @@ class ScanRows:
              counts: np.ndarray | None = None, mvp: np.ndarray | None = None,
              size: tuple[int, int] | None = None) -> np.ndarray:
         """The rows of the scan posed so; given `eye` (the camera's position) and a group per
-        triangle of `look.triangles` (-1: none), also the triangles of each group g that may face
-        the eye, at kept[starts[g]:][:counts[g]] (`group` also covers the `listed` triangles); given also the camera's `mvp` (projection @ view)
-        and the picture's `size`, without those that cover no pixel or that the skin hides
+        triangle of `look.triangles` and then of `listed` (-1: none), also the triangles of each
+        group g that may face the eye, at kept[starts[g]:][:counts[g]]; given also the camera's
+        `mvp` (projection @ view) and the picture's `size`, without those that cover no pixel or that the skin hides
         (render.scan_kernel.seen_triangles, on a helper thread while this one makes the rows)."""
         from render.scan_kernel import openings, scan_rows, seen_triangles
 
