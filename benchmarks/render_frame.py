@@ -234,7 +234,8 @@ def head_vs_mask(resolution: int, size: tuple[int, int], batches: int, ctx: obje
 def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
     """The scanned head (the default face, sim.face.scan) shaded + HUD, in alternating 10-frame
     batches with the floor: each frame poses the whole scan from the simulated surface, makes its
-    rows (normals, fold term) and draws; also the drawing alone (rows made beforehand), for a
+    rows (normals, fold term) and draws; also with the full skin at any size (render.scan_lod's
+    coarse plain skin not used), the drawing alone (rows made beforehand), for a
     happiness onset, a surprise onset, the jaw dropped (AU27) and the face at rest (lips closed:
     the mouth's inside left out)."""
     import statistics
@@ -257,17 +258,20 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
             for s, rw in zip(states, rows):
                 s.scan_rows = rw  # type: ignore[attr-defined]
                 drawn.append(r.scan.look.mouth_open(rw[:, :3]))
-            times: dict[str, list[tuple[float, float]]] = {"whole": [], "all_tris": [], "unseen": [], "draw": [],
-                                                           "unsplit": [], "floor": []}
-            threads: dict[str, list[float]] = {"main": [], "other": [], "raster": []}
+            times: dict[str, list[tuple[float, float]]] = {"whole": [], "full_skin": [], "all_tris": [], "unseen": [],
+                                                           "draw": [], "unsplit": [], "floor": []}
+            threads: dict[str, dict[str, list[float]]] = {k: {"main": [], "other": [], "raster": []}
+                                                          for k in ("whole", "full_skin")}
             for b in range(batches + 1):
-                for key, use_rows in (("whole", False), ("all_tris", False), ("unseen", False), ("draw", True),
-                                      ("unsplit", True)):
+                for key, use_rows in (("whole", False), ("full_skin", False), ("all_tris", False), ("unseen", False),
+                                      ("draw", True), ("unsplit", True)):
                     def frame(i: int, use: bool = use_rows, split: bool = key != "unsplit",
-                              cull: bool = key != "all_tris", unseen: bool = key != "unseen") -> None:
+                              cull: bool = key != "all_tris", unseen: bool = key != "unseen",
+                              lod: bool = key != "full_skin") -> None:
                         s = states[i % len(states)]
                         if not use:
                             del s.scan_rows  # type: ignore[attr-defined]
+                        r.scan.lod = lod
                         r.scan.split_skin = split
                         r.scan.cull_on_cpu = cull
                         r.scan.cull_unseen = unseen
@@ -280,8 +284,8 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                     after = _thread_cpu()
                     if b:  # the first batch warms up
                         times[key].append(t)
-                        if key == "whole":
-                            for kind, v in threads.items():
+                        if key in ("whole", "full_skin"):
+                            for kind, v in threads[key].items():
                                 v.append((after.get(kind, 0) - before.get(kind, 0)) / 1e7)  # ms per frame
                 t = floor_ms(ctx, size, 10)
                 if b:
@@ -289,17 +293,20 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
             med = {k: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v))
                    for k, v in times.items()}
             f, whole, draw, unsplit = med["floor"], med["whole"], med["draw"], med["unsplit"]
-            every, unseen = med["all_tris"], med["unseen"]
+            every, unseen, full = med["all_tris"], med["unseen"], med["full_skin"]
             out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; "
                        f"floor {f[0]:.2f} ms (cpu {f[1]:.2f}); whole frame {whole[0]:.2f} ms = "
-                       f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x), with every triangle handed to "
+                       f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x; coarse skin drawn: "
+                       f"{r.scan.coarse}), with the full skin at any size {full[0] / f[0]:.2f}x "
+                       f"(cpu {full[1] / f[1]:.2f}x), with every triangle handed to "
                        f"OpenGL {every[0] / f[0]:.2f}x (cpu {every[1] / f[1]:.2f}x), with the triangles that cover "
                        f"no pixel or lie hidden kept {unseen[0] / f[0]:.2f}x (cpu {unseen[1] / f[1]:.2f}x); drawing alone "
                        f"{draw[0]:.2f} ms = {draw[0] / f[0]:.2f}x (cpu {draw[1] / f[1]:.2f}x); the same with "
                        f"the skin in one shader {unsplit[0] / f[0]:.2f}x (cpu {unsplit[1] / f[1]:.2f}x)")
-            if threads["main"]:
-                out.append(f"{'':<10} whole frame's CPU by thread, ms: " + ", ".join(
-                    f"{kind} {statistics.median(v):.2f}" for kind, v in threads.items()))
+            for key, label in (("whole", "whole frame's"), ("full_skin", "with the full skin,")):
+                if threads[key]["main"]:
+                    out.append(f"{'':<10} {label} CPU by thread, ms: " + ", ".join(
+                        f"{kind} {statistics.median(v):.2f}" for kind, v in threads[key].items()))
     return out
 
 

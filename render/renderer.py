@@ -282,8 +282,9 @@ class FaceRenderer:
         n = self.normals.n  # render process is handed them with the frame: see puppet.export.video)
         if self.scan is not None:
             scan_rows = getattr(state, "scan_rows", None)
+            view_m, mvp = self._matrices(w / max(h, 1))
+            self.scan.choose_level(mvp, (w * ss, h * ss))
             if scan_rows is None:  # posed here: the camera's position lets it leave back faces out
-                view_m, mvp = self._matrices(w / max(h, 1))
                 eye = np.linalg.inv(view_m)[:3, 3]
                 scan_rows = self.scan.rows(state, eye, mvp, (w * ss, h * ss))
             self._scan_rows = scan_rows

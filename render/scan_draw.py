@@ -22,6 +22,10 @@ KINDS = ("SKIN", "CLAY", "HEAT")
 # term and the rest, most pixels, with the plain shader: the same colours, the highlight per vertex),
 # the eyeballs, the eye sockets, the mouth's inside
 CULLED = ("plain", "features", "eyes", "sockets", "mouth")
+# px²: the coarse plain skin (render.scan_lod) is drawn while the full plain skin's median triangle
+# would cover at most this at the head's nearest point (at 1280x720 the default camera gives 32 px²
+# there, a median of 9 px² over the face as drawn; the gallery's 2x2 supersampled 480x480, 90 px²)
+LOD_MAX_PX2 = 40.0
 
 
 def dressing_of(model: Any) -> Any:
@@ -65,7 +69,15 @@ class ScanDraw:
             rest_state = model.rest_state()
             rest_scan = dressing.pose(np.asarray(rest_state.surface), PoseControl(rest_state))
         self.look = ScanLook(np.asarray(rest_scan, np.float64))
-        self.maker = ScanRows(self.look)
+        self.coarse_tri = self.look.coarse_plain()
+        self.maker = ScanRows(self.look, self.coarse_tri)
+        from render.scan_lod import coarse_plain
+
+        self.lod_error = coarse_plain()[1]  # cm: the coarse skin's largest distance from the full one
+        plain = self.look.skin_split()["plain"]
+        r = self.look.rest
+        self._plain_area = float(np.median(0.5 * np.linalg.norm(np.cross(r[plain[:, 1]] - r[plain[:, 0]],
+                                                                         r[plain[:, 2]] - r[plain[:, 0]]), axis=1)))
         self.progs = {k: ctx.program(vertex_shader=scan_shaders.scan_skin_source(k, vertex=True),
                                      fragment_shader=scan_shaders.scan_skin_source(k)) for k in (*KINDS, "PLAIN")}
         self.eye_prog = ctx.program(vertex_shader=scan_shaders.SCAN_EYE_VS, fragment_shader=scan_shaders.SCAN_EYE_FS)
@@ -87,11 +99,20 @@ class ScanDraw:
         self.cull_tri = np.ascontiguousarray(np.concatenate([groups[g] for g in CULLED]), np.int32)
         self.starts = np.cumsum([0, *(len(groups[g]) for g in CULLED)]).astype(np.int64)
         self.full = np.diff(self.starts).astype(np.int64)
-        self.group = look.group_of_triangles(CULLED)
+        # the listing's groups (render.scan_rows: the scan's triangles, then the coarse plain skin's)
+        # at each level of detail: the full skin, or its plain part from the coarse list
+        own = look.group_of_triangles(CULLED)
+        plain = CULLED.index("plain")
+        self.group = np.concatenate([own, np.full(len(self.coarse_tri), -1, np.int8)])
+        self.group_coarse = np.concatenate([np.where(own == plain, -1, own),
+                                            np.full(len(self.coarse_tri), plain, np.int8)]).astype(np.int8)
         self.kept = self.cull_tri.copy()
         self.counts = self.full.copy()
         self._facing_rows: np.ndarray | None = None  # the rows `kept` was made with
-        self._ibo_whole = True
+        self._ibo_level: bool | None = False  # what the index buffer holds: a listing (None), every triangle of a level
+        self._box = np.array([[x, y, z, 1.0] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
+        lo, hi = self.bounds()
+        self._box[:, :3] = lo + self._box[:, :3] * (hi - lo)
         self.ibo = ctx.buffer(self.cull_tri.tobytes(), dynamic=True)
         lashes = ctx.buffer(np.ascontiguousarray(groups["lashes"]).tobytes())
         self._gl: list[Any] = [self.vbo, *(b for b, _ in bufs.values()), self.ibo, lashes]
@@ -104,6 +125,8 @@ class ScanDraw:
         self.split_skin = True  # False: the whole skin with every term (the highlight per pixel: slower)
         self.cull_on_cpu = True  # False: every triangle to OpenGL, which culls them (the same pixels)
         self.cull_unseen = True  # False: keep the triangles that cover no pixel or lie hidden inside the head (the same pixels)
+        self.lod = True  # False: the full skin at any size on screen
+        self.coarse = False  # this frame's level: the plain skin from the coarse list
 
     def _vao(self, prog: moderngl.Program, bufs: dict[str, tuple[moderngl.Buffer, str]],
              ibo: moderngl.Buffer) -> moderngl.VertexArray:
@@ -125,6 +148,17 @@ class ScanDraw:
         seen = v[v[:, 1] > front[:, 1].min() - 2.0]  # down to a little below the chin
         return seen.min(axis=0), seen.max(axis=0)
 
+    def choose_level(self, mvp: np.ndarray, size: tuple[int, int]) -> bool:
+        """The level of detail for a frame drawn with the camera's `mvp` (projection @ view,
+        row-major) into a picture `size` pixels wide and high: the coarse plain skin while the
+        full plain skin's triangles are small on screen (their median area at the head's nearest
+        point at most LOD_MAX_PX2), else the full skin."""
+        m = np.asarray(mvp, np.float64)
+        w = float((self._box @ m[3]).min())
+        px_per_cm = 0.5 * size[1] * float(np.linalg.norm(m[1, :3])) / w if w > 1e-6 else np.inf
+        self.coarse = bool(self.lod and self._plain_area * px_per_cm**2 <= LOD_MAX_PX2)
+        return self.coarse
+
     def rows(self, state: Any, eye: np.ndarray | None = None, mvp: np.ndarray | None = None,
              size: tuple[int, int] | None = None) -> np.ndarray:
         """(26719, 7) float32 rows x y z nx ny nz fold of the scan posed to `state` (the same array
@@ -139,23 +173,28 @@ class ScanDraw:
             return self.maker.rows(posed)
         if not self.cull_unseen:
             mvp = None
-        rows = self.maker.rows(posed, eye, self.group, self.starts, self.kept, self.counts, mvp, size)
+        group = self.group_coarse if self.coarse else self.group
+        rows = self.maker.rows(posed, eye, group, self.starts, self.kept, self.counts, mvp, size)
         self._facing_rows = rows
         return rows
 
     def _indices(self, rows: np.ndarray, groups: int) -> None:
         """The index buffer's first `groups` slices for these rows: the triangles that may face the
-        camera when `rows` made them, else every triangle."""
+        camera when `rows` made them, else every triangle of this frame's level."""
         if rows is self._facing_rows:
             for g in range(groups):
                 lo = int(self.starts[g])
                 self.ibo.write(self.kept[lo:lo + int(self.counts[g])], offset=lo * 12)
-            self._ibo_whole = False
+            self._ibo_level = None
             return
-        if not self._ibo_whole:
+        if self._ibo_level is not self.coarse:
             self.ibo.write(self.cull_tri.tobytes())
-            self._ibo_whole = True
+            if self.coarse:  # the plain skin's slice comes first
+                self.ibo.write(self.coarse_tri.tobytes())
+            self._ibo_level = self.coarse
         self.counts[:] = self.full
+        if self.coarse:
+            self.counts[CULLED.index("plain")] = len(self.coarse_tri)
 
     def _render(self, vao: moderngl.VertexArray, group: str) -> None:
         g = CULLED.index(group)

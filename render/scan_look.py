@@ -409,6 +409,13 @@ class ScanLook:
         plain = (m[t, 0] >= BROW_CLEAR).all(axis=1) & (m[t, 1] >= LIP_CLEAR).all(axis=1)
         return {"features": ~plain, "plain": plain}
 
+    def coarse_plain(self) -> np.ndarray:
+        """(K, 3) int32 the plain skin's coarser list (render.scan_lod: four fifths of its triangles,
+        over the same vertices, meeting the features' triangles edge for edge), in Z-order."""
+        from render.scan_lod import coarse_plain
+
+        return spatial_order(coarse_plain()[0], self.rest).astype(np.int32)
+
     def group_of_triangles(self, order: tuple[str, ...]) -> np.ndarray:
         """(T,) int8: for each triangle of `triangles`, its group's place in `order` (group names,
         the skin's as "plain" / "features" of skin_split), -1 for a group not in it."""

@@ -20,9 +20,11 @@ class ScanRows:
     """The posed scan as the renderer's rows x y z nx ny nz fold (one (N, 7) float32 array,
     rewritten every call: upload it, don't keep it). While the lips are shut the mouth's inside is
     not drawn, and the rows of its deep part (what no drawn vertex's normal or fold reads) are left
-    as they were: its triangles are a quarter of the scan's."""
+    as they were: its triangles are a quarter of the scan's. `listed`: triangles over the same
+    vertices listed after the scan's own (a group index per triangle of both chooses which are
+    drawn), that the normals and fold terms do not read (the coarse plain skin, render.scan_lod)."""
 
-    def __init__(self, look: ScanLook) -> None:
+    def __init__(self, look: ScanLook, listed: np.ndarray | None = None) -> None:
         self.look = look
         self.buffer = np.zeros((N_VERTICES, 7), np.float32)
         self.scratch = np.zeros(N_VERTICES, np.float32)
@@ -33,6 +35,10 @@ class ScanRows:
         self.skip_tri, self.skip_v = self._deep_mouth()
         self.inside = np.zeros(N_VERTICES, np.uint8)  # the corners of triangles inside the head
         self.inside[self.tri[look.behind != 0].ravel()] = 1
+        extra = np.zeros((0, 3), np.int32) if listed is None else np.asarray(listed, np.int32)
+        self.list_tri = np.ascontiguousarray(np.concatenate([self.tri, extra]), np.int32)
+        self.list_skip = np.concatenate([self.skip_tri, np.zeros(len(extra), np.uint8)])
+        self.list_behind = np.concatenate([look.behind, np.zeros(len(extra), look.behind.dtype)])
         self.loops = [np.asarray(lp, np.int32) for lp in look.openings]
         self.loop_ptr = np.cumsum([0, *(len(lp) for lp in self.loops)]).astype(np.int64)
         self.loop_all = np.ascontiguousarray(np.concatenate(self.loops) if self.loops else np.zeros(0, np.int32))
@@ -69,9 +75,9 @@ class ScanRows:
              counts: np.ndarray | None = None, mvp: np.ndarray | None = None,
              size: tuple[int, int] | None = None) -> np.ndarray:
         """The rows of the scan posed so; given `eye` (the camera's position) and a group per
-        triangle of `look.triangles` (-1: none), also the triangles of each group g that may face
-        the eye, at kept[starts[g]:][:counts[g]]; given also the camera's `mvp` (projection @ view)
-        and the picture's `size`, without those that cover no pixel or that the skin hides
+        triangle of `look.triangles` and then of `listed` (-1: none), also the triangles of each
+        group g that may face the eye, at kept[starts[g]:][:counts[g]]; given also the camera's
+        `mvp` (projection @ view) and the picture's `size`, without those that cover no pixel or that the skin hides
         (render.scan_kernel.seen_triangles, on a helper thread while this one makes the rows)."""
         from render.scan_kernel import openings, scan_rows, seen_triangles
 
@@ -86,8 +92,8 @@ class ScanRows:
                 planes, boxes = self.planes, self.boxes
                 openings(p, self.loop_ptr, self.loop_all, clip, 2.0 * OPENING_MARGIN_PX / size[0],
                          2.0 * OPENING_MARGIN_PX / size[1], planes, boxes)
-            args = (p, self.tri, self.skip_tri, closed, group, starts, np.asarray(eye, np.float32), kept, counts,
-                    self.look.behind, clip, px, planes, boxes, self.inside, self.xy, self.code)
+            args = (p, self.list_tri, self.list_skip, closed, group, starts, np.asarray(eye, np.float32), kept,
+                    counts, self.list_behind, clip, px, planes, boxes, self.inside, self.xy, self.code)
             if not self.threaded:
                 seen_triangles(*args)
             else:

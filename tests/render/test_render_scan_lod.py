@@ -1,0 +1,121 @@
+"""The scanned head's coarse plain skin (render.scan_lod), drawn while the skin's triangles are small
+on screen: the same skin with fewer triangles over the same vertices, meeting the brows, lips and
+openings edge for edge, never turned over, and the same picture but for a few levels here and there."""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from render.offscreen import OffscreenRenderer
+from render.scan_draw import CULLED
+from render.scan_lod import coarse_plain
+from render.scan_look import ScanLook
+from sim.face.scan.data import scan_data
+
+
+def _directed(tri: np.ndarray) -> Counter:
+    return Counter(map(tuple, np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]).tolist()))
+
+
+def test_coarse_plain_skin_covers_the_same_skin_without_cracks() -> None:
+    look = ScanLook(scan_data().neutral)
+    full = look.skin_split()["plain"]
+    coarse, error = coarse_plain()
+    assert len(coarse) < 0.9 * len(full)
+    assert set(np.unique(coarse)) <= set(np.unique(full))  # no new vertex: every export keeps the scan's
+    d_full, d_coarse = _directed(full), _directed(coarse)
+    assert max(d_coarse.values()) == 1  # one winding, a manifold
+    # the border (edges with no twin): the openings' rims and the seam with the brows and lips, the same
+    border = {e for e in d_full if (e[1], e[0]) not in d_full}
+    assert {e for e in d_coarse if (e[1], e[0]) not in d_coarse} == border
+    r = look.rest
+    area = 0.5 * np.linalg.norm(np.cross(r[coarse[:, 1]] - r[coarse[:, 0]], r[coarse[:, 2]] - r[coarse[:, 0]]), axis=1)
+    assert area.min() > 1e-4  # cm²: no sliver left behind
+    full_area = 0.5 * np.linalg.norm(np.cross(r[full[:, 1]] - r[full[:, 0]], r[full[:, 2]] - r[full[:, 0]]), axis=1)
+    assert abs(area.sum() - full_area.sum()) < 0.01 * full_area.sum()
+    assert 0.0 < error < 0.2  # cm, over the poses it was made for
+
+
+@pytest.fixture(scope="module")
+def posed():
+    """The default face at rest, with the jaw dropped, and smiling (simulated)."""
+    from puppet.face_cache import scan_model
+    from sim.facs import apply_au, apply_expression
+    from sim.integrator import Simulator
+    from sim.state import FaceControl
+
+    model = scan_model(None)
+    out = {"rest": model.rest_state()}
+    for name, dial in (("jaw", lambda c: apply_au(c, "AU27", 1.0)),
+                       ("smile", lambda c: apply_expression(c, "happiness", 1.0))):
+        sim, state = Simulator(model), model.rest_state()
+        control = FaceControl(model)
+        dial(control)
+        for _ in range(8):
+            sim.step(state, control)
+        out[name] = state
+    return model, out
+
+
+def test_coarse_triangles_turn_over_only_where_the_skin_does(posed) -> None:
+    """Posed, every triangle the coarse list makes (not one of the full skin's) faces the way the
+    full skin's normals at its corners do, but where it touches a triangle of the full skin that
+    is itself turned over so (under the chin, with the jaw dropped)."""
+    from render.scan_draw import ScanPoser, dressing_of
+
+    model, states = posed
+    poser = ScanPoser(dressing_of(model))
+    full = ScanLook(scan_data().neutral).skin_split()["plain"]
+    own = {tuple(t) for t in np.sort(full, axis=1).tolist()}
+    coarse = coarse_plain()[0]
+    made = coarse[[tuple(t) not in own for t in np.sort(coarse, axis=1).tolist()]]
+    assert len(made) > 1000
+
+    def over(tri: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        p, n = rows[:, :3].astype(float), rows[:, 3:6].astype(float)
+        face = np.cross(p[tri[:, 1]] - p[tri[:, 0]], p[tri[:, 2]] - p[tri[:, 0]])
+        return np.einsum("ij,ij->i", face, n[tri].sum(axis=1)) <= 0
+
+    for name, state in states.items():
+        rows = poser.rows(state)
+        folded = np.zeros(len(rows), bool)
+        folded[full[over(full, rows)].ravel()] = True
+        bad = made[over(made, rows)]
+        assert not bad.size or folded[bad].any(axis=1).all(), (name, bad)
+        if name != "jaw":
+            assert not bad.size, name
+
+
+def test_coarse_skin_drawn_while_small_looks_the_same(gl, posed) -> None:
+    """At a size where the skin's triangles are small the coarse plain skin is drawn: fewer
+    triangles, and the picture of the full skin but for a few levels on a few pixels, the head's
+    outline in place; larger (1920x1080, the gallery's supersampled stills) the full skin is drawn."""
+    model, states = posed
+    plain = CULLED.index("plain")
+    with OffscreenRenderer(model, (640, 360), ctx=gl) as off:
+        scan = off.renderer.scan
+        for name, state in states.items():
+            scan.lod = True
+            coarse = off.render_frame(state, record=False).astype(int)
+            assert scan.coarse
+            drawn = int(scan.counts[plain])
+            scan.lod = False
+            full = off.render_frame(state, record=False).astype(int)
+            assert not scan.coarse and drawn < 0.85 * int(scan.counts[plain]), (name, drawn, scan.counts)
+            bg = full[0, 0]
+            head = np.abs(full - bg).sum(axis=2) > 0
+            assert head.mean() > 0.1  # the head is in the picture
+            diff = np.abs(full - coarse).max(axis=2)
+            assert diff[head].mean() < 1.0, name  # levels of 255
+            assert (diff[head] > 8).mean() < 0.005, name
+            outline = head != (np.abs(coarse - bg).sum(axis=2) > 0)
+            assert outline.sum() < 0.002 * head.sum(), name
+        scan.lod = True
+    for size, scale in (((1920, 1080), 1.0), ((960, 960), 0.78)):
+        with OffscreenRenderer(model, size, ctx=gl) as off:
+            off.renderer.camera.scale = scale
+            off.render_frame(states["rest"], record=False)
+            assert not off.renderer.scan.coarse, size
