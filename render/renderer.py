@@ -168,8 +168,9 @@ class FaceRenderer:
         self.eye_vao = ctx.vertex_array(self.eye_prog, [(sph_vbo, "3f", "in_pos")], sph_ibo)
         g += [sph_vbo, sph_ibo, *self.skin_vaos.values(), self.edge_vao, self.eye_vao]
         # every cavity in one buffer and one draw call: rim colour and teeth per vertex
+        # an imported head has no teeth of its own: its mouth's pocket draws them
         self.cavities, tris, depth, teeth, rims, base = face_cavities(
-            mesh, rest, dentition=getattr(model.rig, "presets", "") == IMPORTED)  # drawn teeth for a head without
+            mesh, rest, dentition=getattr(model.rig, "presets", "") == IMPORTED)
         self.cavity_vao = None
         if self.cavities:
             self.cavity_vbo = ctx.buffer(reserve=base * 12, dynamic=True)
