@@ -278,8 +278,9 @@ class Cavity:
     the skin, take at most MAX_INNER of them (evenly spaced), so a fine mesh's 128-node mouth
     does not cost a thousand thin triangles per frame. A mouth's pocket has dim upper teeth
     behind the upper lip; with `dentition` (a head without teeth of its own, brought in by
-    sim.face.transfer) a ring just inside the lips carries bright teeth all round, upper and lower,
-    so lips that part show teeth as a person's do rather than a dark hole."""
+    sim.face.transfer, whose rig's presets start with "imported") a ring just inside the lips
+    carries bright teeth all round, upper and lower, so lips that part show teeth as a person's
+    do rather than a dark hole."""
 
     RINGS = ((1.0, 0.0), (0.8, 0.35), (0.5, 0.9), (0.2, 1.3))  # (scale about centre, depth/width)
     # a mouth with teeth right behind the lips (`dentition`): a ring just inside the rim, where

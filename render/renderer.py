@@ -27,7 +27,7 @@ BACKGROUND = (0.29, 0.295, 0.305)  # neutral grey, display (gamma-encoded) value
 MAX_TRAIL_NODES = 4000
 STILL_PATH_CM = 0.02  # nodes that moved less than this over the trail window count as motionless
 MOUTH_RIM = (0.20, 0.035, 0.03)
-IMPORTED = "imported"  # FaceRig.presets of a head brought in by sim.face.transfer, which has no teeth
+IMPORTED = "imported"  # FaceRig.presets of a head brought in by sim.face.transfer ("imported", "imported-2", ...)
 SOCKET_RIM = (0.05, 0.03, 0.03)
 
 
@@ -170,7 +170,7 @@ class FaceRenderer:
         # every cavity in one buffer and one draw call: rim colour and teeth per vertex
         # an imported head has no teeth of its own: its mouth's pocket draws them
         self.cavities, tris, depth, teeth, rims, base = face_cavities(
-            mesh, rest, dentition=getattr(model.rig, "presets", "") == IMPORTED)
+            mesh, rest, dentition=str(getattr(model.rig, "presets", "")).startswith(IMPORTED))
         self.cavity_vao = None
         if self.cavities:
             self.cavity_vbo = ctx.buffer(reserve=base * 12, dynamic=True)

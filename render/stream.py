@@ -156,7 +156,7 @@ class FaceStream:
         self.camera.fit(lo, hi)
         # the cavities behind the mouth and the eye openings, streamed after the rows
         self.cavities, cav_tris, depth, teeth, rims, _ = face_cavities(
-            mesh, rest, self.n_rows, dentition=getattr(model.rig, "presets", "") == IMPORTED)
+            mesh, rest, self.n_rows, dentition=str(getattr(model.rig, "presets", "")).startswith(IMPORTED))
         self.base = np.vstack([rows_rest, *self._cavity_positions(rest)]).astype(np.float32)
         self.n_vertices = len(self.base)
         if self.rows.shell is not None:
