@@ -11,6 +11,9 @@ missing, downloads it by hand from its public address (the product itself never 
   ("body") above the shoulders is kept. Its eyes are open (the lids roll into the socket) and its
   lips are apart at the front, the mouth's lining closing behind them: the eye and lip rims are
   declared as closed loops (the lining and the sockets inside them are removed).
+- `makehuman-mask` (development head): the same MakeHuman head cut to a face mask (the skin in
+  front of the jaw angles, from under the chin to the hairline), the development stand-in for a
+  face tracker's canonical mesh, which has no head round the face.
 - `leeperrysmith` (held out: measured once, nothing tuned on it): "Infinite, 3D Head Scan by Lee
   Perry-Smith" (Infinite-Realities, based on a work at www.triplegangers.com), CC BY 3.0 Unported,
   as distributed with the three.js examples: `examples/obj/leeperrysmith/LeePerrySmith.js` of
@@ -36,12 +39,14 @@ missing, downloads it by hand from its public address (the product itself never 
 Landmarks: the 32 of docs/import-face.md, placed by hand on a frontal picture of each head and
 stored here as points in the file's own units; the openings are shortest edge paths through the
 landmarks (the lid line from corner to corner through the lid landmarks' middle; a rim loop through
-the four eye landmarks). The rig goes on with `puppet import-face` itself (a fresh process, as a
-user runs it); then each pose is simulated and drawn by the product's renderer exactly as
-observer.py does for the default face (same camera framing by the face's own landmarks, same crop
-and classifier).
+the four eye landmarks). The rig goes on with `puppet import-face --rest-eyes --rest-lips` itself
+(a fresh process, as a user runs it); then each pose is simulated and drawn by the product's
+renderer as observer.py does for the default face, with the camera putting each head's chin and
+forehead landmarks where the default face's are in observer.py's frames (`--framing face`; with
+`--framing head` the head is framed by its own extent, as `puppet pose` frames it, and a face mask
+then fills the frame and the face detector finds nothing); same crop and classifier.
 
-    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,leeperrysmith] [--save DIR]
+    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,nefertiti] [--save DIR] [--framing face|head]
 """
 
 from __future__ import annotations
