@@ -3,7 +3,8 @@ modelled heads often have them: the built-in face (resolution 0) given to the tr
 mesh with its lower lip pulled down and back, or its upper lid margins turned down. `rest_lips`
 brings the lips to the reference's gap (off: they stay apart); the skin's normal support fades out
 on the turned-down margins, so the lid raiser opens the eye further than with the support whole;
-the built-in face's own lids keep their material (nothing of them faces away from the front)."""
+the built-in face (resolution 0) imported as it is keeps its lids' material (none of its lid
+vertices faces more than 70 degrees away from the front)."""
 
 from __future__ import annotations
 
