@@ -11,6 +11,9 @@ missing, downloads it by hand from its public address (the product itself never 
   ("body") above the shoulders is kept. Its eyes are open (the lids roll into the socket) and its
   lips are apart at the front, the mouth's lining closing behind them: the eye and lip rims are
   declared as closed loops (the lining and the sockets inside them are removed).
+- `makehuman-mask` (development head): the same MakeHuman head cut to a face mask (the skin in
+  front of the jaw angles, from under the chin to the hairline), the development stand-in for a
+  face tracker's canonical mesh, which has no head round the face.
 - `leeperrysmith` (held out: measured once, nothing tuned on it): "Infinite, 3D Head Scan by Lee
   Perry-Smith" (Infinite-Realities, based on a work at www.triplegangers.com), CC BY 3.0 Unported,
   as distributed with the three.js examples: `examples/obj/leeperrysmith/LeePerrySmith.js` of
@@ -36,12 +39,14 @@ missing, downloads it by hand from its public address (the product itself never 
 Landmarks: the 32 of docs/import-face.md, placed by hand on a frontal picture of each head and
 stored here as points in the file's own units; the openings are shortest edge paths through the
 landmarks (the lid line from corner to corner through the lid landmarks' middle; a rim loop through
-the four eye landmarks). The rig goes on with `puppet import-face` itself (a fresh process, as a
-user runs it); then each pose is simulated and drawn by the product's renderer exactly as
-observer.py does for the default face (same camera framing by the face's own landmarks, same crop
-and classifier).
+the four eye landmarks). The rig goes on with `puppet import-face --rest-eyes --rest-lips` itself
+(a fresh process, as a user runs it); then each pose is simulated and drawn by the product's
+renderer as observer.py does for the default face, with the camera putting each head's chin and
+forehead landmarks where the default face's are in observer.py's frames (`--framing face`; with
+`--framing head` the head is framed by its own extent, as `puppet pose` frames it, and a face mask
+then fills the frame and the face detector finds nothing); same crop and classifier.
 
-    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,leeperrysmith] [--save DIR]
+    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,nefertiti] [--save DIR] [--framing face|head]
 """
 
 from __future__ import annotations
@@ -182,6 +187,15 @@ def load_makehuman(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return _compact(v, t[(v[t][:, :, 1] > cut).all(axis=1)])
 
 
+def load_makehuman_mask(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The MakeHuman head cut to a face mask (no crown, ears, back of the head or neck), as a face
+    tracker's canonical mesh is: the skin in front of the jaw angles, from under the chin to the
+    hairline."""
+    v, t = load_makehuman(path)
+    keep = (v[:, 2] > 1.12) & (v[:, 1] > 6.17) & (v[:, 1] < 7.86)
+    return _compact(v, t[keep[t].all(axis=1)])
+
+
 def load_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """A plain OBJ (polygons fanned into triangles), the texture and normal indices skipped."""
     verts, tris = [], []
@@ -271,6 +285,8 @@ def openings(v: np.ndarray, t: np.ndarray, pts: dict[str, list[float]], eyes_ope
 HEADS: dict[str, dict[str, Any]] = {
     "makehuman": {"file": "makehuman_base.obj", "url": MH_URL, "load": load_makehuman, "points": MH_POINTS,
                   "eyes_open": True, "lips_open": True, "role": "development"},
+    "makehuman-mask": {"file": "makehuman_base.obj", "url": MH_URL, "load": load_makehuman_mask,
+                       "points": MH_POINTS, "eyes_open": True, "lips_open": True, "role": "development"},
     "nefertiti": {"file": "nefertiti-lowres.obj", "url": NEF_URL, "load": load_obj, "points": NEF_POINTS,
                   "eyes_open": True, "lips_open": False, "role": "development"},
     "leeperrysmith": {"file": "LeePerrySmith.js", "url": LEE_URL, "load": load_three_json, "points": LEE_POINTS,
@@ -292,24 +308,50 @@ def import_head(name: str, folder: Path, work: Path) -> Path:
     (work / f"{name}.json").write_text(json.dumps(lm))
     rig = work / f"{name}.npz"
     cmd = [sys.executable, "-m", "puppet", "import-face", str(work / f"{name}.obj"), "--landmarks",
-           str(work / f"{name}.json"), "--out", str(rig), "--rest-eyes"]
+           str(work / f"{name}.json"), "--out", str(rig), "--rest-eyes", "--rest-lips"]
     run = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     if run.returncode:
         raise SystemExit(f"import-face failed on {name}: {run.stderr.strip()}")
     return rig
 
 
-def head_frames(rig_path: Path, names: list[str]) -> dict[str, np.ndarray]:
-    """{pose: grayscale frame} of the imported head, drawn as observer.py draws the default face."""
+def _face_box(model: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(middle of chin and forehead_center, chin-to-forehead height) of a face at rest (cm)."""
+    r, lm = np.asarray(model.rest, float), model.mesh.landmarks
+    chin, top = r[lm["chin"]], r[lm["forehead_center"]]
+    return 0.5 * (chin + top), np.full(3, top[1] - chin[1])
+
+
+def default_framing() -> tuple[np.ndarray, np.ndarray]:
+    """The box observer.py's camera frames on the default face, relative to its face (`_face_box`):
+    (lo, hi) offsets from the face's middle in units of its height."""
+    from puppet.face_cache import scan_model
+    from render.offscreen import OffscreenRenderer
+
+    model = scan_model(None)
+    mid, span = _face_box(model)
+    with OffscreenRenderer(model, (SIZE, SIZE), supersample=2) as off:
+        cam = off.renderer.camera
+        return (cam.lo - mid) / span, (cam.hi - mid) / span
+
+
+def head_frames(rig_path: Path, names: list[str], framing: tuple[np.ndarray, np.ndarray] | None = None
+                ) -> dict[str, np.ndarray]:
+    """{pose: grayscale frame} of the imported head, drawn as observer.py draws the default face;
+    `framing` (from `default_framing`): the camera puts the head's chin and forehead where the
+    default face's are in its frames (else it frames the head as `puppet pose` does)."""
     from render.offscreen import OffscreenRenderer
     from sim.build import compile_model
     from sim.rig import load_rig
 
     model = compile_model(load_rig(rig_path))
+    mid, span = _face_box(model)
     out: dict[str, np.ndarray] = {}
     for name in names:
         state, _ = perform(model, None if name == "neutral" else name)
         with OffscreenRenderer(model, (SIZE, SIZE), supersample=2) as off:
+            if framing is not None:
+                off.renderer.camera.fit(mid + framing[0] * span, mid + framing[1] * span)
             off.renderer.camera.scale = 0.62
             rgb = off.render_frame(state, record=False).astype(np.float64)
         out[name] = np.clip(rgb @ np.array([0.299, 0.587, 0.114]), 0, 255).astype(np.uint8)
@@ -324,13 +366,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--meshes", default=None, help="folder of the source files (downloaded when missing)")
     ap.add_argument("--only", default="", help="comma-separated poses (default: neutral and the seven presets)")
     ap.add_argument("--save", default="", help="folder for each frame as PNG")
+    ap.add_argument("--framing", default="face", choices=("face", "head"),
+                    help="face (default): each head's chin and forehead where the default face's are in "
+                         "observer.py's frames; head: the head framed as `puppet pose` frames it")
     args = ap.parse_args(argv)
     names = [n for n in args.only.split(",") if n] or ["neutral", *EXPRESSIONS]
     obs = Observer()
+    framing = default_framing() if args.framing == "face" else None
     with tempfile.TemporaryDirectory() as tmp:
         for head in [h for h in args.heads.split(",") if h]:
             rig = import_head(head, meshes_folder(args.meshes), Path(tmp))
-            score(obs, head_frames(rig, names), f"{head} ({HEADS[head]['role']})", args.save)
+            score(obs, head_frames(rig, names, framing), f"{head} ({HEADS[head]['role']})", args.save)
     return 0
 
 

@@ -36,6 +36,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--rest-eyes", action="store_true",
                    help="open each eye to a resting eye's height (the upper lid over the iris' top) and "
                         "seat the eyeball behind the lids, from the head's own geometry (docs/import-face.md)")
+    p.add_argument("--rest-lips", action="store_true",
+                   help="bring lips that stand apart at rest together, to the reference face's gap "
+                        "(docs/import-face.md)")
     p.set_defaults(func=run)
 
 
@@ -83,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
         head = read_mesh(args.mesh)
         landmarks = read_landmarks(args.landmarks)
         result = transfer_rig(_reference(args), head, landmarks, name=args.name or Path(args.mesh).stem,
-                              options=TransferOptions(seat_eyes=args.rest_eyes))
+                              options=TransferOptions(seat_eyes=args.rest_eyes, rest_lips=args.rest_lips))
     except TransferError as err:
         raise ConfigError(str(err)) from err
     try:

@@ -276,14 +276,23 @@ class Cavity:
     and recede from the hole's rim to an apex, so the background never shows through a hole.
     The rim ring follows every node of the hole's loop; the inner rings, mostly hidden behind
     the skin, take at most MAX_INNER of them (evenly spaced), so a fine mesh's 128-node mouth
-    does not cost a thousand thin triangles per frame."""
+    does not cost a thousand thin triangles per frame. A mouth's pocket has dim upper teeth
+    behind the upper lip; with `dentition` (a head without teeth of its own, brought in by
+    sim.face.transfer, whose rig's presets start with "imported") a ring just inside the lips
+    carries bright teeth all round, upper and lower, so lips that part show teeth as a person's
+    do rather than a dark hole."""
 
     RINGS = ((1.0, 0.0), (0.8, 0.35), (0.5, 0.9), (0.2, 1.3))  # (scale about centre, depth/width)
+    # a mouth with teeth right behind the lips (`dentition`): a ring just inside the rim, where
+    # the front teeth stand, then the rings above
+    DENTITION_RINGS = ((1.0, 0.0), (0.9, 0.06), (0.75, 0.16), (0.5, 0.9), (0.2, 1.3))
+    TEETH_SHADE = 2.2  # the teeth of `dentition`: in_teeth's value, brightening the shader's teeth
     MAX_INNER = 32
 
-    def __init__(self, loop: np.ndarray, rest: np.ndarray) -> None:
+    def __init__(self, loop: np.ndarray, rest: np.ndarray, dentition: bool = False) -> None:
         self.loop = np.asarray(loop, np.int64)
-        m, k = len(self.loop), len(self.RINGS)
+        rings_spec = self.DENTITION_RINGS if dentition else self.RINGS
+        m, k = len(self.loop), len(rings_spec)
         rim = rest[self.loop]
         self.width = float(max(np.ptp(rim[:, 0]), np.ptp(rim[:, 1]), 1e-3))
         # which loop positions each ring uses: all on the rim, an even subset inside
@@ -315,17 +324,20 @@ class Cavity:
         base = int(starts[-2])
         tris += [(base + i, base + (i + 1) % len(last), apex) for i in range(len(last))]
         self.triangles = np.array(tris, np.int32)
-        self.depth = np.r_[np.concatenate([np.full(len(rg), d) for rg, (_, d) in zip(rings, self.RINGS)]),
+        self.depth = np.r_[np.concatenate([np.full(len(rg), d) for rg, (_, d) in zip(rings, rings_spec)]),
                            1.6].astype(np.float32)
         self.n_vertices = apex + 1
         # upper teeth: the upper half of the second and third rings, behind the upper lip
         above = (rim[:, 1] > rim[:, 1].mean()).astype(np.float32)
         self.teeth = np.zeros(self.n_vertices, np.float32)
-        self.teeth[starts[1]:starts[2]] = above[rings[1]]
-        self.teeth[starts[2]:starts[3]] = above[rings[2]]
+        if dentition:  # upper and lower teeth all round, just behind the lips
+            self.teeth[starts[1]:starts[3]] = self.TEETH_SHADE
+        else:
+            self.teeth[starts[1]:starts[2]] = above[rings[1]]
+            self.teeth[starts[2]:starts[3]] = above[rings[2]]
         # per vertex: which rim node it scales from, the scale about the centre, the depth (cm)
         self._index = np.r_[np.concatenate([self.loop[rg] for rg in rings]), self.loop[:1]]
-        self._scale = np.r_[np.concatenate([np.full(len(rg), sc) for rg, (sc, _) in zip(rings, self.RINGS)]),
+        self._scale = np.r_[np.concatenate([np.full(len(rg), sc) for rg, (sc, _) in zip(rings, rings_spec)]),
                             0.0].astype(np.float32)[:, None]
         self._drop = (self.depth * self.width * 0.5).astype(np.float32)
         self._m = m

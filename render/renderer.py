@@ -27,21 +27,23 @@ BACKGROUND = (0.29, 0.295, 0.305)  # neutral grey, display (gamma-encoded) value
 MAX_TRAIL_NODES = 4000
 STILL_PATH_CM = 0.02  # nodes that moved less than this over the trail window count as motionless
 MOUTH_RIM = (0.20, 0.035, 0.03)
+IMPORTED = "imported"  # FaceRig.presets of a head brought in by sim.face.transfer ("imported", "imported-2", ...)
 SOCKET_RIM = (0.05, 0.03, 0.03)
 
 
-def face_cavities(mesh: Any, rest: np.ndarray, base: int = 0) -> tuple[list[Cavity], list[np.ndarray],
-                                                                       list[np.ndarray], list[np.ndarray],
-                                                                       list[np.ndarray], int]:
+def face_cavities(mesh: Any, rest: np.ndarray, base: int = 0, dentition: bool = False
+                  ) -> tuple[list[Cavity], list[np.ndarray], list[np.ndarray], list[np.ndarray],
+                             list[np.ndarray], int]:
     """The dark pockets behind the mouth and the eye openings of a face mesh (those whose loop has
     three nodes or more), as drawn in one buffer: (cavities, their triangles numbered from `base`,
-    depth, teeth share (the mouth's only), rim colour per vertex, the next free vertex number)."""
+    depth, teeth share (the mouth's only), rim colour per vertex, the next free vertex number).
+    `dentition`: the mouth shows teeth right behind its lips, above and below (`Cavity`)."""
     cavities: list[Cavity] = []
     tris, depth, teeth, rims = [], [], [], []
     for loop, rim in [(mesh.mouth_loop, MOUTH_RIM)] + [(lp, SOCKET_RIM) for lp in mesh.eye_loops]:
         if len(loop) < 3:
             continue
-        cav = Cavity(loop, rest)
+        cav = Cavity(loop, rest, dentition=dentition and rim == MOUTH_RIM)
         cavities.append(cav)
         tris.append(cav.triangles + base)
         depth.append(cav.depth)
@@ -166,7 +168,9 @@ class FaceRenderer:
         self.eye_vao = ctx.vertex_array(self.eye_prog, [(sph_vbo, "3f", "in_pos")], sph_ibo)
         g += [sph_vbo, sph_ibo, *self.skin_vaos.values(), self.edge_vao, self.eye_vao]
         # every cavity in one buffer and one draw call: rim colour and teeth per vertex
-        self.cavities, tris, depth, teeth, rims, base = face_cavities(mesh, rest)
+        # an imported head has no teeth of its own: its mouth's pocket draws them
+        self.cavities, tris, depth, teeth, rims, base = face_cavities(
+            mesh, rest, dentition=str(getattr(model.rig, "presets", "")).startswith(IMPORTED))
         self.cavity_vao = None
         if self.cavities:
             self.cavity_vbo = ctx.buffer(reserve=base * 12, dynamic=True)

@@ -211,7 +211,8 @@ void main() {
 }
 """
 
-# All cavities in one draw: the rim colour and the teeth (mouth only) are vertex attributes.
+# All cavities in one draw: the rim colour and the teeth (mouth only) are vertex attributes; a teeth
+# value above 1 brightens them (render.meshdata.Cavity's dentition, drawn for a head without teeth).
 CAVITY_FS = HEADER + """
 in float v_depth;
 in float v_teeth;
@@ -219,7 +220,7 @@ in vec3 v_rim;
 out vec4 frag;
 void main() {
     vec3 c = mix(v_rim, vec3(0.004, 0.002, 0.002), smoothstep(0.0, 0.6, v_depth));
-    c = mix(c, vec3(0.40, 0.38, 0.33) * (1.1 - v_depth), smoothstep(0.3, 0.6, v_teeth));
+    c = mix(c, vec3(0.40, 0.38, 0.33) * (1.1 - v_depth) * max(v_teeth, 1.0), smoothstep(0.3, 0.6, v_teeth));
     frag = vec4(sqrt(c), 1.0);
 }
 """

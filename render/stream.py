@@ -32,7 +32,7 @@ import numpy as np
 from render import shaders
 from render.camera import OrbitCamera
 from render.meshdata import HAIR, SKIN, brow_coords, skin_tint, surface_rows, uv_sphere
-from render.renderer import BACKGROUND, EYE_PITCH_MAX, EYE_YAW_MAX, face_cavities
+from render.renderer import BACKGROUND, EYE_PITCH_MAX, EYE_YAW_MAX, IMPORTED, face_cavities
 
 SCENE, FRAME, PICTURE = 1, 2, 3
 QUANTUM = 0.002  # cm per int16 step: 20 um, a 50th of a pixel on a page's face; range +-65 cm
@@ -155,7 +155,8 @@ class FaceStream:
             lo, hi = np.minimum(lo, seen.min(axis=0)), np.maximum(hi, seen.max(axis=0))
         self.camera.fit(lo, hi)
         # the cavities behind the mouth and the eye openings, streamed after the rows
-        self.cavities, cav_tris, depth, teeth, rims, _ = face_cavities(mesh, rest, self.n_rows)
+        self.cavities, cav_tris, depth, teeth, rims, _ = face_cavities(
+            mesh, rest, self.n_rows, dentition=str(getattr(model.rig, "presets", "")).startswith(IMPORTED))
         self.base = np.vstack([rows_rest, *self._cavity_positions(rest)]).astype(np.float32)
         self.n_vertices = len(self.base)
         if self.rows.shell is not None:

@@ -118,6 +118,17 @@ at the inner end and drawn together, the lids raised and the lips stretched, wit
 where the shared preset read MakeHuman's as surprise, fear 0.09). Rigs imported before this
 table ask for no presets and keep the shared ones."""
 
+FACE_EXPRESSIONS["imported-2"] = {
+    **FACE_EXPRESSIONS["imported"],
+    "sadness": FACE_EXPRESSIONS["ict"]["sadness"],
+}
+"""Heads imported since the renderer draws their teeth and `--rest-lips` can bring their lips
+together: the fear above, and the scanned head's sadness (the brows drawn down harder over the
+raised inner ends, the lids drooping further, the chin raised, AU11): on the development heads of
+`benchmarks/observer_mesh.py` the shared sadness read as fear on MakeHuman (sad 0.48, fear 0.50)
+and on its face mask (0.43, 0.56), this one as sad (0.45, 0.73; Nefertiti's 0.39, was 0.43). Rigs
+imported with "imported" keep that table (and their takes' bits)."""
+
 
 def preset_face(rig: object) -> str | None:
     """The key of `expressions_for` for a rig: its `presets` when it names them, else its name."""

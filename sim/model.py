@@ -150,7 +150,8 @@ class FaceRig:
     keeps a foreign mesh's skin from turning over (`sim.antifold`).
 
     presets: whose preset intensities the face takes (`sim.facs.preset_face`): "" for its name's
-    (the built-in faces), "imported" for a head brought in by `sim.face.transfer`."""
+    (the built-in faces), "imported-2" (before it "imported") for a head brought in by
+    `sim.face.transfer`."""
 
     mesh: FaceMesh
     muscles: dict[str, tuple[Muscle, ...]]

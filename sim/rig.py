@@ -17,7 +17,7 @@ Fitted skin material (`FaceRig.skin`, optional): header "skin": [names of "tethe
 The integrator the face asks for (`FaceRig.integrator`, optional): header "integrator": "rk2" or
 "implicit" (absent: "auto"; imported heads ask for "implicit").
 Whose preset intensities the face takes (`FaceRig.presets`, optional): header "presets": a name of
-`sim.facs.FACE_EXPRESSIONS` (absent: by the rig's name; imported heads: "imported").
+`sim.facs.FACE_EXPRESSIONS` (absent: by the rig's name; imported heads: "imported-2", before it "imported").
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ from sim.build import compile_model
 from sim.face import default_rig
 from sim.face.transfer.landmarks import parse_landmarks
 from sim.face.transfer.meshfile import from_arrays
-from sim.face.transfer.pipeline import transfer_rig
+from sim.face.transfer.pipeline import IMPORTED_PRESETS, transfer_rig
 from sim.face.transfer.synthetic import EYES, synthetic_mesh, synthetic_rig
 from sim.facs import apply_expression
 from sim.integrator import Simulator
@@ -137,7 +137,7 @@ def test_an_imported_head_takes_the_presets_of_a_face_without_teeth(default_impo
     from sim.facs import preset_face
 
     res, model = default_import
-    assert res.rig.presets == "imported"
+    assert res.rig.presets == IMPORTED_PRESETS
     rest = np.asarray(model.rest)
     lm = res.rig.mesh.landmarks
     sim, state, control = Simulator(model, wrinkles=False), model.rest_state(), FaceControl(model)

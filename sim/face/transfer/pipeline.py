@@ -21,14 +21,16 @@ from sim.face.transfer.eyes import seat_eyes
 from sim.face.transfer.lids import open_lids
 from sim.face.transfer.landmarks import LANDMARK_NAMES, LandmarkFile, TransferError, require
 from sim.face.transfer.meshfile import HeadMesh
+from sim.face.transfer.mouth import rest_lips
 from sim.face.transfer.openings import cut_slit, find_openings, is_closed_path, is_hole_loop, open_loop
 from sim.face.transfer.relax import Relaxation, relax_mask
+from sim.face.transfer.skin import lid_support
 
 FloatArray = np.ndarray
 IntArray = np.ndarray
 FORWARD = np.array([0.0, 0.0, 1.0])
 UP = np.array([0.0, 1.0, 0.0])
-IMPORTED_PRESETS = "imported"  # sim.facs.FACE_EXPRESSIONS' intensities for a head without teeth
+IMPORTED_PRESETS = "imported-2"  # sim.facs.FACE_EXPRESSIONS' intensities for a head without teeth
 CAVITY_DEPTH = 0.015  # of the landmark region's radius (~1 mm on an adult): a layer this far under
 # the outermost skin seen along the cylinder's radius is the inside of the mouth, a socket or a nostril
 
@@ -43,7 +45,9 @@ class TransferOptions:
     area term added to eq 8's springs (0 = the paper's springs alone); integrator: the rig's
     `FaceRig.integrator` (implicit: its fold guard keeps a foreign mesh's skin from turning over);
     seat_eyes: bring each eye's opening to a resting eye's and seat the eyeball behind it
-    (sim.face.transfer.eyes) rather than where the skin correspondence carries it."""
+    (sim.face.transfer.eyes) rather than where the skin correspondence carries it; lid_support:
+    fade the skin's normal support out on lids turned away from the front (sim.face.transfer.skin);
+    rest_lips: bring lips that stand apart at rest to the reference's gap (sim.face.transfer.mouth)."""
 
     region: float = 0.6
     landmark_offset: float = 0.1
@@ -52,6 +56,8 @@ class TransferOptions:
     area_stiffness: float = 10.0
     integrator: str = "implicit"
     seat_eyes: bool = False
+    lid_support: bool = True
+    rest_lips: bool = False
 
 
 @dataclass
@@ -272,13 +278,21 @@ def transfer_rig(
     if opt.seat_eyes:
         mesh, seated = seat_eyes(mesh)
         opened += seated
+    if opt.rest_lips:
+        mesh, closed = rest_lips(mesh, ref)
+        opened += closed
     cavity = inside & hidden_under(chart_new, new.vertices, new.triangles, uv_new, keep, CAVITY_DEPTH * radius)
     if cavity.any():  # the head's own lining of the mouth, sockets, nostrils: drawn dark
         mesh.regions["cavity"] = cavity
     muscles = {ch: tuple(carry_muscle(smap, m) for m in parts) for ch, parts in reference.muscles.items()}
+    support = lid_support(mesh) if opt.lid_support else None
     rig = FaceRig(mesh=mesh, muscles=muscles, wrinkles=_carry_wrinkles(reference, smap), name=name,
-                  integrator=opt.integrator, presets=IMPORTED_PRESETS)
+                  integrator=opt.integrator, presets=IMPORTED_PRESETS,
+                  skin={} if support is None else {"support": support})
     notes = []
+    if support is not None:
+        notes.append(f"{int((support < 1).sum())} lid vertices turned away from the front (folded into the "
+                     "socket) have less of the skin's normal support")
     for what in opened:
         notes.append(what)
     if not relax.converged:

@@ -1,0 +1,104 @@
+"""An imported head whose lips stand apart at rest, or whose lid margins fold into the socket, as
+modelled heads often have them: the built-in face (resolution 0) given to the transfer as a user's
+mesh with its lower lip pulled down and back, or its upper lid margins turned down. `rest_lips`
+brings the lips to the reference's gap (off: they stay apart); the skin's normal support fades out
+on the turned-down margins, so the lid raiser opens the eye further than with the support whole;
+the built-in face (resolution 0) imported as it is keeps its lids' material (none of its lid
+vertices faces more than 70 degrees away from the front)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim.build import compile_model
+from sim.face import default_rig
+from sim.face.transfer import TransferOptions, from_arrays, parse_landmarks, transfer_rig
+from sim.facs import apply_au
+from sim.integrator import Simulator
+from sim.state import FaceControl
+
+
+@pytest.fixture(scope="module")
+def reference():
+    return default_rig(0)
+
+
+def _landmarks(mesh):
+    return parse_landmarks({k: int(i) for k, i in mesh.landmarks.items()}, "lm.json")
+
+
+def _gap(mesh) -> float:
+    return float(np.linalg.norm(mesh.landmark("upper_lip_center") - mesh.landmark("lower_lip_center")))
+
+
+def _parted_lips(reference):
+    """The reference's mesh with the lower lip 4 mm lower and 4 mm further back, fading over 1 cm."""
+    m = reference.mesh
+    v = np.asarray(m.vertices, float).copy()
+    low = m.landmark("lower_lip_center")
+    corner = abs(m.landmark("mouth_corner_l")[0])
+    below = v[:, 1] <= low[1] + 0.02
+    d = np.hypot(np.clip(np.abs(v[:, 0]) - 0.6 * corner, 0.0, None), np.clip(v[:, 1] - low[1], None, 0.0))
+    w = np.where(below & (np.abs(v[:, 0]) < corner) & (v[:, 2] > low[2] - 1.0), np.clip(1.0 - d / 1.0, 0.0, 1.0), 0.0)
+    v += w[:, None] * np.array([0.0, -0.4, -0.4])
+    return from_arrays(v, m.triangles, "parted.obj"), _landmarks(m)
+
+
+def test_lips_apart_at_rest_are_brought_together(reference) -> None:
+    head, lms = _parted_lips(reference)
+    want = _gap(reference.mesh)
+    kept = transfer_rig(reference, head, lms).rig.mesh
+    assert _gap(kept) > want + 0.3  # the head as modelled: its lips stand apart
+    closed = transfer_rig(reference, head, lms, options=TransferOptions(rest_lips=True))
+    assert abs(_gap(closed.rig.mesh) - want) < 0.05
+    assert any("lips" in n for n in closed.notes)
+    model = compile_model(closed.rig)  # the closed rest shape simulates
+    assert np.isfinite(model.rest).all()
+
+
+def test_lips_already_together_are_left_alone(reference) -> None:
+    m = reference.mesh
+    head = from_arrays(m.vertices, m.triangles, "face.obj")
+    result = transfer_rig(reference, head, _landmarks(m), options=TransferOptions(rest_lips=True))
+    assert not any("lips" in n for n in result.notes)
+
+
+def _folded_lids(reference):
+    """The reference's mesh with each upper lid's margin (the eye loop's upper half) turned down
+    into the socket: pushed 8 mm back and 1.5 mm up, so the skin above it faces down."""
+    m = reference.mesh
+    v = np.asarray(m.vertices, float).copy()
+    for loop in m.eye_loops:
+        loop = np.asarray(loop)
+        v[loop[v[loop, 1] > v[loop, 1].mean() + 0.05]] += [0.0, 0.15, -0.8]
+    return from_arrays(v, m.triangles, "folded.obj"), _landmarks(m)
+
+
+def _lid_opening(rig) -> float:
+    """Mean rise (cm) of the upper lid landmarks under the lid raiser (AU5) at full."""
+    model = compile_model(rig)
+    sim = Simulator(model, wrinkles=False)
+    state = model.rest_state()
+    control = FaceControl(model)
+    apply_au(control, "AU5", 1.0)
+    sim.settle(state, control, max_seconds=3.0)
+    lm = model.mesh.landmarks
+    return float(np.mean([state.positions[lm[f"upper_lid_{s}"], 1] - model.rest[lm[f"upper_lid_{s}"], 1]
+                          for s in "lr"]))
+
+
+def test_lid_margins_folded_into_the_socket_lose_their_support(reference) -> None:
+    head, lms = _folded_lids(reference)
+    faded = transfer_rig(reference, head, lms).rig
+    whole = transfer_rig(reference, head, lms, options=TransferOptions(lid_support=False)).rig
+    support = faded.skin["support"]
+    assert support.min() < 0.9 and (support < 1).sum() < 0.1 * len(support)
+    assert not whole.skin
+    assert _lid_opening(faded) > _lid_opening(whole) + 0.02  # 0.15 against 0.12 cm when written
+
+
+def test_lids_facing_the_front_keep_their_material(reference) -> None:
+    m = reference.mesh
+    result = transfer_rig(reference, from_arrays(m.vertices, m.triangles, "face.obj"), _landmarks(m))
+    assert not result.rig.skin
