@@ -19,16 +19,19 @@ wrinkle surface), the tick's tail (digest copy, lights), the render; "recording 
 the JSON and flush, done after the frame is ready and so not part of the latency. The step's CPU
 time (this thread's) is printed beside its wall time: equal, the step was not kept waiting (by other
 threads holding the interpreter, or other programs holding the core) but did more or slower work.
-On the implicit integrator the loop solves the next step's all-but-the-muscles between ticks, when no
-input waits (`Simulator.prepare`, printed as "computed between ticks"); a tick then only adds the
+On the implicit integrator the loop solves the next step's all-but-the-muscles between ticks, then
+drains the input (`Simulator.prepare`, printed as "computed between ticks"); a tick then only adds the
 muscles' responses and the jaw's (the step starts from the last step's jaw opening and skin age,
 `sim.Simulator.jaw_responses`) and solves the contact ("sim step"). `--jaw whole,responses` runs
 each row also as takes recorded before were stepped (the jaw and the age taken whole at each step),
 interleaved in the same run: the SGI box's default map turns the jaw and the age on two of its
-eight dials, which made those ticks whole steps.
+eight dials, which made those ticks whole steps. `--solve idle,always` runs each row also as the loop
+did before (the solve between ticks only when no input waits, a tick finding one doing the whole step)
+beside now (the solve at every pass, the input drained after it).
 
 Run:  .venv/bin/python benchmarks/live_latency.py [--seconds 10] [--render 640x360] [--no-record]
-      [--rates 60,auto,240] [--wake off,on] [--realtime off,on] [--jaw whole,responses] [--json]
+      [--rates 60,auto,240] [--wake off,on] [--realtime off,on] [--jaw whole,responses] [--solve idle,always]
+      [--json]
 """
 
 from __future__ import annotations
