@@ -19,16 +19,19 @@ wrinkle surface), the tick's tail (digest copy, lights), the render; "recording 
 the JSON and flush, done after the frame is ready and so not part of the latency. The step's CPU
 time (this thread's) is printed beside its wall time: equal, the step was not kept waiting (by other
 threads holding the interpreter, or other programs holding the core) but did more or slower work.
-On the implicit integrator the loop solves the next step's all-but-the-muscles between ticks, when no
-input waits (`Simulator.prepare`, printed as "computed between ticks"); a tick then only adds the
+On the implicit integrator the loop solves the next step's all-but-the-muscles between ticks, then
+drains the input (`Simulator.prepare`, printed as "computed between ticks"); a tick then only adds the
 muscles' responses and the jaw's (the step starts from the last step's jaw opening and skin age,
 `sim.Simulator.jaw_responses`) and solves the contact ("sim step"). `--jaw whole,responses` runs
 each row also as takes recorded before were stepped (the jaw and the age taken whole at each step),
 interleaved in the same run: the SGI box's default map turns the jaw and the age on two of its
-eight dials, which made those ticks whole steps.
+eight dials, which made those ticks whole steps. `--solve idle,always` runs each row also as the loop
+did before (the solve between ticks only when no input waits, a tick finding one doing the whole step)
+beside now (the solve at every pass, the input drained after it).
 
 Run:  .venv/bin/python benchmarks/live_latency.py [--seconds 10] [--render 640x360] [--no-record]
-      [--rates 60,auto,240] [--wake off,on] [--realtime off,on] [--jaw whole,responses] [--json]
+      [--rates 60,auto,240] [--wake off,on] [--realtime off,on] [--jaw whole,responses] [--solve idle,always]
+      [--json]
 """
 
 from __future__ import annotations
@@ -71,7 +74,7 @@ rate = 97
 
 def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int, int] | None,
              drive: Any = None, record: Path | None = None, rate: float = 60.0, wake: bool = False,
-             realtime: bool = False, jaw: bool = True) -> dict[str, Any]:
+             realtime: bool = False, jaw: bool = True, solve: str = "always") -> dict[str, Any]:
     spec = live.build_mapping(face.vocab, None, [d.spec for d in devs])
     mapper = Mapper(spec, face.vocab)
     writer = None
@@ -157,7 +160,7 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
         print("--realtime: SCHED_FIFO not permitted here: the row runs at the ordinary priority", file=sys.stderr)
     try:
         live.run_realtime(core, drain, seconds, on_frame=on_frame, frame_rate=live.DISPLAY_RATE,
-                          wake=queue.wait_arrival if wake else None)
+                          wake=queue.wait_arrival if wake else None, ahead_when_idle=solve == "idle")
     finally:
         live.ordinary_priority()
         if writer is not None:
@@ -196,12 +199,12 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
 
 def mock_source(face: live.Face, seconds: float, render: tuple[int, int] | None, tmp: Path,
                 record: bool = True, rate: float = 60.0, wake: bool = False, realtime: bool = False,
-                jaw: bool = True) -> dict[str, Any]:
+                jaw: bool = True, solve: str = "always") -> dict[str, Any]:
     script = tmp / "dense.toml"
     script.write_text(MOCK.format(seconds=seconds + 1))
     dev = devices.open_device(f"mock://{script}")
     return run_loop(face, [dev], seconds, render, record=tmp / "mock.jsonl" if record else None, rate=rate, wake=wake,
-                    realtime=realtime, jaw=jaw)
+                    realtime=realtime, jaw=jaw, solve=solve)
 
 
 def _box_process(link: str, conn: Any) -> None:
@@ -224,7 +227,7 @@ def _box_process(link: str, conn: Any) -> None:
 
 def sgi_source(face: live.Face, seconds: float, render: tuple[int, int] | None, tmp: Path,
                record: bool = True, rate: float = 60.0, wake: bool = False, realtime: bool = False,
-               jaw: bool = True) -> dict[str, Any]:
+               jaw: bool = True, solve: str = "always") -> dict[str, Any]:
     import multiprocessing
 
     link = tmp / f"sgi-{time.monotonic_ns()}"
@@ -237,7 +240,7 @@ def sgi_source(face: live.Face, seconds: float, render: tuple[int, int] | None, 
         here.recv()
         dev = devices.open_device(f"sgi://{link}")
         return run_loop(face, [dev], seconds, render, record=tmp / "sgi.jsonl" if record else None,
-                        rate=rate, wake=wake, realtime=realtime, jaw=jaw)
+                        rate=rate, wake=wake, realtime=realtime, jaw=jaw, solve=solve)
     finally:
         here.send("stop")
         proc.join(5)
@@ -258,12 +261,17 @@ def main() -> int:
     ap.add_argument("--jaw", default="responses", help="how the step moves the jaw and ages the skin: responses "
                     "(from the last step's pose, sim.Simulator.jaw_responses), whole (at each step, as takes recorded "
                     "before), or both (whole,responses: interleaved in one run)")
+    ap.add_argument("--solve", default="always", help="when the loop makes the next step's input-free solve "
+                    "between ticks: always (also with an input waiting, which is drained after it), idle (only when "
+                    "no input waits, the tick then doing the whole step, as before), or both (idle,always: "
+                    "interleaved in one run)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     render = tuple(int(x) for x in a.render.split("x")) if a.render else None
     wakes = [w == "on" for w in a.wake.split(",")]
     realtimes = [w == "on" for w in a.realtime.split(",")]
     jaws = [w == "responses" for w in a.jaw.split(",")]
+    solves = a.solve.split(",")
     face = live.load_face()
     chosen, cost = choose_tick_rate(face.model)  # what `puppet live` picks for this face (auto)
     print(f"the face's step: {', '.join(f'{r:g} Hz {c * 1000:.2f} ms' for r, c in cost.items())} (CPU); "
@@ -276,9 +284,10 @@ def main() -> int:
                 for wake in wakes:
                     for rt in realtimes:
                         for jaw in jaws:
-                            res[f"{name} {rate:g} Hz wake {'on' if wake else 'off'}{' rt' if rt else ''}"
-                                f"{'' if jaw else ' jaw whole'}"] = source(
-                                face, a.seconds, render, Path(d), not a.no_record, rate, wake, rt, jaw)
+                            for when in solves:
+                                res[f"{name} {rate:g} Hz wake {'on' if wake else 'off'}{' rt' if rt else ''}"
+                                    f"{'' if jaw else ' jaw whole'}{' ahead ' + when if len(solves) > 1 else ''}"] = source(
+                                    face, a.seconds, render, Path(d), not a.no_record, rate, wake, rt, jaw, when)
     if a.json:
         print(json.dumps(res, indent=2))
         return 0

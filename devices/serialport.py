@@ -1,8 +1,11 @@
 """Shared plumbing of the serial-port backends (``sgi://``, ``serial://``, ``firmata://``).
 
-Reads block in ``select`` inside pyserial and return as soon as one byte arrives, so latency is
-not bounded by a poll interval; ``cancel_read`` wakes the reader for close and for queued
-host->box writes. The port is reopened by path, so a box behind a stable udev symlink
+Reads block in ``select`` and return as soon as one byte arrives, so latency is not bounded by a
+poll interval; ``cancel_read`` wakes the reader for close and for queued host->box writes. On POSIX
+the reader waits on pyserial's descriptors itself and takes whatever has arrived in one ``read``
+(pyserial's ``read(in_waiting or 1)`` then ``in_waiting`` took one byte, asked the driver, and read
+the rest of a packet in two more calls, each giving the interpreter's lock away and waiting to get
+it back while the live loop held it). The port is reopened by path, so a box behind a stable udev symlink
 (``/dev/serial/by-id/...``) comes back by itself after an unplug.
 """
 
@@ -10,6 +13,7 @@ from __future__ import annotations
 
 import errno
 import os
+import select
 import threading
 import time
 from collections import deque
@@ -29,6 +33,8 @@ class SerialPortDevice(Device):
     OPTIONS = frozenset({"baud"})
     #: After this long without data, check that the path still names the port we hold.
     IDLE_CHECK = 0.5
+    #: The most bytes one read takes (what a tty's input buffer holds).
+    READ_CHUNK = 4096
 
     def __init__(self, spec: DeviceSpec, **options: Any) -> None:
         super().__init__(spec, **options)
@@ -115,6 +121,9 @@ class SerialPortDevice(Device):
         port = self._port
         if port is None:
             raise OSError("port not open")
+        fd, abort = getattr(port, "fd", None), getattr(port, "pipe_abort_read_r", None)
+        if isinstance(fd, int) and isinstance(abort, int):  # pyserial on POSIX: its descriptors directly
+            return self._read_fd(fd, abort, timeout)
         if port.timeout != timeout:  # the setter reconfigures the tty (tcsetattr): only on change
             port.timeout = timeout
         data = port.read(port.in_waiting or 1)
@@ -123,6 +132,26 @@ class SerialPortDevice(Device):
             waiting = port.in_waiting
             if waiting:
                 data += port.read(waiting)
+        return data, t
+
+    def _read_fd(self, fd: int, abort: int, timeout: float) -> tuple[bytes, float]:
+        """`read_raw` on the port's descriptor: wait for input or `cancel_read` (pyserial's abort
+        pipe), then one non-blocking read of all that is there."""
+        ready, _, _ = select.select([fd, abort], [], [], max(0.0, timeout))
+        if abort in ready:
+            try:
+                os.read(abort, 1000)
+            except BlockingIOError:
+                pass
+        if fd not in ready:
+            return b"", time.monotonic()
+        try:
+            data = os.read(fd, self.READ_CHUNK)
+        except BlockingIOError:  # taken by someone else between the select and the read
+            return b"", time.monotonic()
+        t = time.monotonic()
+        if not data:  # a vanished USB adapter: always readable, never any data
+            raise OSError(f"{self.path}: the port reports input but gives none (unplugged?)")
         return data, t
 
     def _read(self, timeout: float) -> Iterable[ControlEvent]:

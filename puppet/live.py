@@ -705,7 +705,8 @@ def prepare_show() -> None:
 def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None,
                  clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep,
                  on_frame: Callable[[LiveCore], None] | None = None, stop: StopFlag | None = None,
-                 frame_rate: float | None = None, wake: Callable[[float], bool] | None = None) -> None:
+                 frame_rate: float | None = None, wake: Callable[[float], bool] | None = None,
+                 ahead_when_idle: bool = False) -> None:
     """Headless, on the wall clock: tick k happens at t0 + k*dt and takes every event that has
     arrived; a loop more than 4 ticks late drops wall time (re-anchors) rather than lag behind.
 
@@ -719,7 +720,12 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
     is at least half a frame period old (an event's frame does not wait for the schedule). `wake(timeout)` (e.g. EventQueue.wait_arrival): an event that arrives
     while the loop waits starts the next tick at once instead of at its boundary, never more than one
     tick ahead of the schedule: simulated time leads the wall clock by less than a tick, the tick
-    rate holds on average, and the recording keeps the tick each event was applied at, as ever."""
+    rate holds on average, and the recording keeps the tick each event was applied at, as ever.
+
+    Between ticks the loop makes the next step's part that no input changes (`LiveCore.prepare_next`),
+    also when an input is already waiting (the step would do that part all the same), and drains
+    the input after it: what arrives meanwhile joins the same tick. `ahead_when_idle`: only when no
+    input waits, the tick then doing the whole step (as before; benchmarks/live_latency.py compares)."""
     limit = None if duration is None else int(round(duration * core.rate))
     per_frame = None if frame_rate is None or frame_rate >= core.rate else core.rate / frame_rate
     if core.writer is not None:  # the loop's thread never writes the file itself (a write can wait on the disk)
@@ -736,8 +742,8 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
                 break
             if limit is not None and core.tick_count >= limit:
                 break
-            if wake is None or not wake(0.0):  # nothing waiting: do now what no input changes
-                core.prepare_next()
+            if not (ahead_when_idle and wake is not None and wake(0.0)):
+                core.prepare_next()  # what no input changes; an input arriving meanwhile is drained after
             boundary = start + (core.tick_count - k0) * core.dt
             if wake is not None:
                 now = wait_until(boundary - core.dt, clock, sleep, stop)  # at most one tick ahead

@@ -177,6 +177,15 @@ def _held_and_solve(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, sn
 
 
 @numba.njit(cache=True, nogil=True)
+def _same_bits(a, b):  # type: ignore[no-untyped-def]
+    """Whether two int64 views of float arrays of the same size hold the very same bits."""
+    for i in range(a.shape[0]):
+        if a[i] != b[i]:
+            return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
 def _responses(resp, act, val, out):  # type: ignore[no-untyped-def]
     """out = sum over the active channels (in order) of each one's response times its activation."""
     for q in range(out.shape[0]):
@@ -489,9 +498,14 @@ class ImplicitStepper:
         """True when the last `predict` was made from these very bits and key."""
         if self._predicted is None or key != self._predicted:
             return False
-        same = (np.array_equal(self._px.view(np.int64), x.view(np.int64))
-                and np.array_equal(self._pv.view(np.int64), v.view(np.int64)))
-        return same and np.array_equal(self._pc.view(np.int64), self._contact_memory().view(np.int64))
+        if x.shape != self._px.shape or v.shape != self._pv.shape or not (x.flags.c_contiguous and v.flags.c_contiguous):
+            return False
+        same = (_same_bits(self._px.reshape(-1).view(np.int64), x.reshape(-1).view(np.int64))
+                and _same_bits(self._pv.reshape(-1).view(np.int64), v.reshape(-1).view(np.int64)))
+        if not same:
+            return False
+        mem = self._contact_memory()
+        return mem.shape == self._pc.shape and _same_bits(self._pc.view(np.int64), mem.view(np.int64))
 
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
               normal: np.ndarray, eyes: tuple, shape: np.ndarray | None = None,  # type: ignore[type-arg]
