@@ -268,7 +268,7 @@ def test_a_tissue_structure_not_named_after_a_skin_field_is_one_clear_line(synth
         load_rig(tmp_path / "bad.npz")
     assert "\n" not in str(err.value)
     data["header"] = np.array(json.dumps(header))
-    data["tissue_tether_ligament"] = np.full(n, np.nan)
-    np.savez(tmp_path / "nan.npz", **data)
-    with pytest.raises(RigFileError, match=r"nan\.npz: tissue multipliers of .tether_ligament. must lie"):
-        load_rig(tmp_path / "nan.npz")
+    data["tissue_tether_ligament"] = -np.ones(n)
+    np.savez(tmp_path / "neg.npz", **data)
+    with pytest.raises(RigFileError, match=r"neg\.npz: tissue multipliers of .tether_ligament. must lie"):
+        load_rig(tmp_path / "neg.npz")
