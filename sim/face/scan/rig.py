@@ -178,6 +178,14 @@ def scan_rig(weights: np.ndarray | None = None, name: str = "ict") -> FaceRig:
                    skin=rig.skin, tissue=rig.tissue)
 
 
+def is_scan_rig(rig: FaceRig) -> bool:
+    """Whether a rig (e.g. one read from a file: an earlier version of the shipped rig, kept to
+    replay takes recorded on it) is the scanned head's: its skin is the scan's simulated skin."""
+    tris = skin_layout().triangles
+    return (len(rig.mesh.vertices) == len(skin_layout().vertices)
+            and np.array_equal(np.asarray(rig.mesh.triangles), np.asarray(tris)))
+
+
 _MODELS: dict[bytes, object] = {}
 
 
