@@ -194,16 +194,13 @@ def _check_members(p: str) -> None:
 
 
 def load_model(path: str | Path) -> Any:
-    """`load_rig` then `compile_model` (with the scanned head's skin parameters for a rig of the
-    scanned head's skin); a rig that reads but does not compile (a file that is valid field by
-    field but not as a face) is a RigFileError too, never a traceback."""
+    """`load_rig` then `compile_model`; a rig that reads but does not compile (a file that is
+    valid field by field but not as a face) is a RigFileError too, never a traceback."""
     from sim.build import compile_model
 
-    from sim.face.scan.rig import SCAN_PARAMS, is_scan_rig
-
     rig = load_rig(path)
-    try:  # the scanned head's rig (an earlier version of it, for a take recorded on it) is its skin's
-        return compile_model(rig, SCAN_PARAMS if is_scan_rig(rig) else None)
+    try:
+        return compile_model(rig)
     except Exception as err:  # noqa: BLE001 - the file's content, not a program error, reaches here
         raise RigFileError(f"{path}: the rig does not compile ({type(err).__name__}: "
                            f"{quote(str(err), 80)}); is it a rig written by `puppet import-face`?") from err
