@@ -15,19 +15,23 @@ error 1.21 (`benchmarks/scan_match.py --no-fit`), the skin above the lid and the
 Anatomy modelled (per eye, on the lid channel `orbicularis_oculi_lid_<side>`, AU43/AU45):
 
 - The pretarsal and preseptal orbicularis of the upper lid: the transferred upper strips, inserting
-  into the lid from the margin to the fold only (`insertion` gain `UPPER_GAIN` up to `UPPER_REACH[0]`
-  above the margin, fading to 0 at `UPPER_REACH[1]`); above the fold the muscle is the orbital part
-  (`orbicularis_oculi`, AU6), another channel.
+  into the lid from the margin to the fold only (`insertion` gain 1 up to `UPPER_REACH[0]` above
+  the margin, fading to 0 at `UPPER_REACH[1]`; above the fold the muscle is the orbital part,
+  `orbicularis_oculi`, AU6, another channel), attached just above the lower margin and set back
+  into the orbit by `SLOPE` of their drop (the scan's margin's own path over the globe), each as
+  strong as its part of the lid has far to travel (`UPPER_FORCE`, `CORNER_BOOST`).
 - The palpebral fibres run from the lateral raphe round the lids to the medial canthal tendon,
   which holds while the raphe yields: both lids slide towards the nose as the fibres shorten. A
   force towards the inner corner over the lids (`MEDIAL_PULL`, a patch of the lid channel), in
   place of the transferred lower strips, which lifted the lower lid (the scan's does not rise).
+- The tarsal plates keep the lids' shape: the skin next to each margin stiffer (`TARSUS`).
 - The lid fold: the skin of the upper lid between the tarsus and the fold is laxer (`FOLD`, a
   multiplier of the skin's modulus over `FOLD_BAND` above the margin): skin that lies folded at
   rest is not stretched until the fold unfurls.
 - The orbicularis retaining ligament ties the skin under the brow to the orbital rim
   (`LIGAMENT`, a multiplier of the skin's tether over `LIGAMENT_BAND` above the margin,
-  `FaceRig.tissue["tether_orbital_retaining"]`; the fold is `["modulus_lid_fold"]`).
+  `FaceRig.tissue["tether_orbital_retaining"]`; the tarsus and the fold are
+  `["modulus_lid_fold"]`).
 
 `with_lids(rig)` rebuilds these keys from the rig's own geometry (margins, corners, eye loops), so
 they follow any refit of the rest of the face; `python -m sim.face.scan.lids` rewrites them in
