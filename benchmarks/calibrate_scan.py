@@ -68,7 +68,9 @@ def main() -> int:
         from sim.face.scan.rig import RIG_FILE
         from sim.rig import save_rig
 
-        save_rig(replace(model.rig, insertion=shipped(model.rig.insertion)), RIG_FILE)
+        from sim.face.scan.lids import with_lids
+
+        save_rig(with_lids(replace(model.rig, insertion=shipped(model.rig.insertion))), RIG_FILE)
         print(f"wrote {RIG_FILE}")
     print("gaze shares: " + ", ".join(f"{k} {v:.3f}" for k, v in cal.shares.items()))
     return 0

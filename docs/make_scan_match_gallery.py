@@ -2,7 +2,8 @@
 sideways, cheeks and nose, mouth, jaw) a few ARKit shapes, each as a row: the scanned face (the default face) driven by
 the channels the ARKit import gives that shape at 1 (ramped up, then settled), beside the scan's own
 shape (same camera, same light, same renderer). What `benchmarks/scan_match.py` measures, shown.
-Run: .venv/bin/python docs/make_scan_match_gallery.py [--size 320x320] [--only brows,jaw]
+`blink` is a close-up of the left eye: at rest, ours closed by EyeBlinkLeft, the scan's eyeBlink_L.
+Run: .venv/bin/python docs/make_scan_match_gallery.py [--size 320x320] [--only brows,jaw,blink]
 """
 
 from __future__ import annotations
@@ -34,6 +35,9 @@ GROUPS: dict[str, list[tuple[str, tuple[str, ...]]]] = {
               ("MouthFunnel", ("mouthFunnel",)), ("MouthFrownLeft", ("mouthFrown_L",))],
     "jaw": [("JawOpen", ("jawOpen",)), ("JawLeft", ("jawLeft",)), ("JawForward", ("jawForward",))],
 }
+
+
+CLOSEUP = ("EyeBlinkLeft", "eyeBlink_L")  # the `blink` group: one row, rest | ours | the scan
 
 
 def perform(model: Any, values: Any) -> Any:
@@ -75,7 +79,21 @@ def main(argv: list[str] | None = None) -> int:
             cam.lo, cam.hi = cam.lo - [0.0, 3.0, 0.0], cam.hi - [0.0, 3.0, 0.0]
             return off.render_frame(state, record=False)
 
-    for group in [g for g in args.only.split(",") if g] or list(GROUPS):
+    def eye(m: Any, state: Any) -> np.ndarray:
+        with OffscreenRenderer(m, (360, 300), supersample=2) as off:  # type: ignore[arg-type]
+            cam = off.renderer.camera
+            cam.scale = 0.25  # the left eye and its brow
+            shift = (model.mesh.eye_centers[0] - 0.5 * (cam.lo + cam.hi)) * [1.0, 1.0, 0.0] + [0.0, 0.3, 0.0]
+            cam.lo, cam.hi = cam.lo + shift, cam.hi + shift
+            return off.render_frame(state, record=False)
+
+    chosen = [g for g in args.only.split(",") if g] or [*GROUPS, "blink"]
+    if "blink" in chosen:
+        arkit, scan = CLOSEUP
+        row = [eye(model, model.rest_state()), eye(model, perform(model, shape_channels({arkit: np.ones(1)}, 1)[0])),
+               eye(StillScan(model, ScanShapes(None, {scan: 1.0})), model.rest_state())]
+        _save(np.concatenate(row, axis=1), "scan_match_blink.png")
+    for group in [g for g in chosen if g != "blink"]:
         rows = []
         for arkit, scans in GROUPS[group]:
             ours = shot(model, perform(model, shape_channels({arkit: np.ones(1)}, 1)[0]))

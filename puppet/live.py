@@ -100,10 +100,15 @@ def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None
 
     if rig_path:
         try:
+            from sim.build import compile_model
+            from sim.face.scan.rig import SCAN_PARAMS, is_scan_rig
             from sim.rig import load_model, load_rig
 
             rig = load_rig(rig_path)
-            model = face_cache.rig_model(rig, Path(rig_path).read_bytes(), lambda: load_model(rig_path))
+            # a rig of the scanned head's skin (an earlier shipped ict_rig.npz, to replay a take
+            # recorded on it bit for bit) compiles with the scanned head's skin parameters
+            build = (lambda: compile_model(rig, SCAN_PARAMS)) if is_scan_rig(rig) else (lambda: load_model(rig_path))
+            model = face_cache.rig_model(rig, Path(rig_path).read_bytes(), build)
         except FileNotFoundError as err:
             raise ConfigError(f"{rig_path}: rig file not found") from err
         except (OSError, ValueError, KeyError) as err:

@@ -318,6 +318,8 @@ def _rig_digest(rig: FaceRig, params: SkinParams) -> str:
         h.update(b"insertion" + name.encode() + np.ascontiguousarray(rig.insertion[name], np.float64).tobytes())
     for name in sorted(rig.skin):  # none on a face with uniform skin: its hash is unchanged
         h.update(b"skin" + name.encode() + np.ascontiguousarray(rig.skin[name], np.float64).tobytes())
+    for name in sorted(rig.tissue):  # none on a face without named structures: its hash is unchanged
+        h.update(b"tissue" + name.encode() + np.ascontiguousarray(rig.tissue[name], np.float64).tobytes())
     if rig.integrator != "auto":  # a face that asks for its integrator replays on it
         h.update(b"integrator" + rig.integrator.encode())
     for line in rig.wrinkles:  # WrinkleLine.to_dict() is plain JSON
@@ -341,7 +343,10 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
     springs, rest_len, k_low, n_edge = build_springs(rest, tris, p.sheet_modulus, p.bend_ratio,
                                                     p.max_stiffness_ratio)
     skin = {name: np.asarray(rig.skin.get(name, np.ones(len(rest))), np.float64) for name in SKIN_FIELDS}
-    if "modulus" in rig.skin:  # a spring's material is the mean of its two ends' (FaceRig.skin)
+    for key in sorted(rig.tissue):  # named structures on top of the fitted fields (FaceRig.tissue)
+        name = key.split("_", 1)[0]
+        skin[name] = skin[name] * np.asarray(rig.tissue[key], np.float64)
+    if "modulus" in rig.skin or any(k.startswith("modulus_") for k in rig.tissue):  # a spring's material is the mean of its two ends' (FaceRig.skin)
         k_low = k_low * 0.5 * (skin["modulus"][springs[:, 0]] + skin["modulus"][springs[:, 1]])
     area = vertex_areas(rest, tris)
     area = np.maximum(area, 1e-6)

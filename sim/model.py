@@ -145,6 +145,13 @@ class FaceRig:
     not named is 1 everywhere; fitted to scanned expressions for the scanned head
     (`sim.face.scan.skin_fit`); the procedural face has none.
 
+    tissue: named structures of the skin on top of `skin`, each "<field>_<structure>" -> (N,)
+    multiplier (1 where the structure is not) of that skin field ("tether", "support", "modulus"):
+    "tether_orbital_retaining", the orbicularis retaining ligament tying the skin under the brow
+    to the orbital rim; "modulus_lid_fold", the upper lid's skin between the tarsus and the fold,
+    folded at rest and stretched only as the lid closes. Built from the scanned head's own geometry
+    (`sim.face.scan.lids`), so a refit of `skin` leaves them; the procedural face has none.
+
     integrator: what `sim.integrator.Simulator(method="auto")` runs this face on: "auto" (by the
     work per frame), "rk2" or "implicit". An imported head asks for "implicit", whose fold guard
     keeps a foreign mesh's skin from turning over (`sim.antifold`).
@@ -161,3 +168,4 @@ class FaceRig:
     skin: dict[str, np.ndarray] = field(default_factory=dict)
     integrator: str = "auto"
     presets: str = ""
+    tissue: dict[str, np.ndarray] = field(default_factory=dict)

@@ -14,6 +14,9 @@ Fitted insertion gains (`FaceRig.insertion`, optional): header "insertion": [cha
 array `insertion_<channel>` (N,) f8 >= 0 each.
 Fitted skin material (`FaceRig.skin`, optional): header "skin": [names of "tether", "support",
 "modulus"], and an array `skin_<name>` (N,) f8 >= 0 each (a multiplier of that material per vertex).
+Named structures of the skin (`FaceRig.tissue`, optional): header "tissue": [names, each
+"<skin field>_<structure>"], and an array `tissue_<name>` (N,) f8 >= 0 each (a multiplier of that
+skin field per vertex, on top of `skin_<field>`).
 The integrator the face asks for (`FaceRig.integrator`, optional): header "integrator": "rk2" or
 "implicit" (absent: "auto"; imported heads ask for "implicit").
 Whose preset intensities the face takes (`FaceRig.presets`, optional): header "presets": a name of
@@ -75,6 +78,8 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
     }
     if rig.skin:  # rig files of faces with uniform skin are unchanged
         header["skin"] = sorted(rig.skin)
+    if rig.tissue:  # likewise: rig files of faces without named structures are unchanged
+        header["tissue"] = sorted(rig.tissue)
     if rig.integrator != "auto":  # rig files of faces that leave the choice to the simulator are unchanged
         header["integrator"] = rig.integrator
     if rig.presets:  # likewise: only a face that asks for other presets says so
@@ -100,6 +105,8 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
         arrays[f"insertion_{name}"] = np.asarray(gain, np.float64)
     for name, mult in rig.skin.items():
         arrays[f"skin_{name}"] = np.asarray(mult, np.float64)
+    for name, mult in rig.tissue.items():
+        arrays[f"tissue_{name}"] = np.asarray(mult, np.float64)
     with atomic_write(path, "wb") as fh:  # a failed save leaves the old rig as it was
         np.savez_compressed(fh, **arrays)
 
@@ -266,6 +273,16 @@ def _parse(data: Any, p: str) -> FaceRig:
         if not np.all(np.isfinite(mult)) or np.any(mult < 0.0) or np.any(mult > 1e3):
             raise RigFileError(f"{p}: skin multipliers of {quote(name)} must lie in 0..1000")
         skin[name] = mult.astype(np.float64)
+    tissue = {}
+    for name in sequence(header.get("tissue", []), f"{p}: tissue", MAX_ENTRIES):
+        name = string(name, f"{p}: tissue structure")
+        if name.split("_", 1)[0] not in SKIN_FIELDS or "_" not in name:
+            raise RigFileError(f"{p}: a tissue structure is named <{'|'.join(SKIN_FIELDS)}>_<name>, "
+                               f"not {quote(name[:40])}")
+        mult = _array(data, f"tissue_{name}", p, (n,), "f")
+        if not np.all(np.isfinite(mult)) or np.any(mult < 0.0) or np.any(mult > 1e3):
+            raise RigFileError(f"{p}: tissue multipliers of {quote(name)} must lie in 0..1000")
+        tissue[name] = mult.astype(np.float64)
     integrator = header.get("integrator", "auto")
     if integrator not in INTEGRATORS:
         raise RigFileError(f"{p}: integrator must be one of {', '.join(INTEGRATORS)}, "
@@ -273,7 +290,7 @@ def _parse(data: Any, p: str) -> FaceRig:
     presets = string(header["presets"], f"{p}: presets") if "presets" in header else ""
     return FaceRig(mesh=mesh, muscles=muscles, wrinkles=_wrinkles(header.get("wrinkles", []), p),
                    name=string(header.get("name", "rig"), f"{p}: name"), insertion=insertion,
-                   skin=skin, integrator=integrator, presets=presets)
+                   skin=skin, integrator=integrator, presets=presets, tissue=tissue)
 
 
 def _wrinkles(entries: Any, p: str) -> tuple:

@@ -51,11 +51,15 @@ def test_puppet_replay_of_the_old_take_says_bit_identical(tmp_path: Path) -> Non
 #: "muscles" but no "jaw"), by that code with the scanned head's fitted skin: the ict face at 120 Hz,
 #: the SGI box's default map played by the mock box, a smile, the jaw and the age turned up over one second
 OLD_JAW = Path(__file__).parent / "data" / "take_jaw_whole.jsonl"
+#: the scanned head's rig it was recorded on (hash aceb05fae80282b4, the shipped ict_rig.npz then):
+#: the rig has changed since, and a take replays bit for bit on the rig it was recorded with
+#: (`puppet replay --rig`), as the replay's warning says
+OLD_JAW_RIG = Path(__file__).parent / "data" / "take_jaw_whole_rig.npz"
 FINAL_JAW = "9b3cf2430cc91d86"
 
 
 def test_a_take_with_the_jaw_and_age_taken_whole_replays_bit_for_bit() -> None:
-    perf = build_performance(read_session(OLD_JAW), None)
+    perf = build_performance(read_session(OLD_JAW), None, rig_path=str(OLD_JAW_RIG))
     assert not perf.muscles_summed and not perf.jaw_responses
     rp = Replayer(perf)
     assert rp.sim.method == "implicit" and not rp.sim.jaw_responses
@@ -68,7 +72,7 @@ def test_a_take_with_the_jaw_and_age_taken_whole_replays_bit_for_bit() -> None:
 
 def test_the_jaw_as_responses_would_not_replay_it() -> None:
     """The take moves the jaw and the age, so the step from the last pose gives other bits."""
-    perf = build_performance(read_session(OLD_JAW), None)
+    perf = build_performance(read_session(OLD_JAW), None, rig_path=str(OLD_JAW_RIG))
     perf.jaw_responses = True
     rp = Replayer(perf)
     rp.seek(perf.ticks)

@@ -229,3 +229,46 @@ def test_a_rig_with_an_unknown_skin_field_is_one_clear_line(synth_rig: FaceRig, 
     np.savez(tmp_path / "neg.npz", **data)
     with pytest.raises(RigFileError, match=r"neg\.npz: skin multipliers of .tether. must lie in 0\.\.1000"):
         load_rig(tmp_path / "neg.npz")
+
+
+def test_named_tissue_round_trips_on_top_of_the_skin(synth_rig: FaceRig, tmp_path: Path) -> None:
+    """A named structure of the skin (a retaining ligament's tether, the lid fold's laxity) is kept
+    by the rig file and multiplies its skin field on top of the fitted one; a face without any
+    keeps its hash."""
+    from dataclasses import replace
+
+    n = len(synth_rig.mesh.vertices)
+    held = np.where(np.arange(n) % 3 == 0, 10.0, 1.0)
+    lax = np.where(np.arange(n) % 2 == 0, 0.5, 1.0)
+    rig = replace(synth_rig, skin={"tether": lax}, tissue={"tether_ligament": held, "modulus_fold": lax})
+    save_rig(rig, tmp_path / "t.npz")
+    back = load_rig(tmp_path / "t.npz")
+    assert set(back.tissue) == {"tether_ligament", "modulus_fold"}
+    assert np.array_equal(back.tissue["tether_ligament"], held)
+    plain, skinned, both = compile_model(synth_rig), compile_model(replace(rig, tissue={})), compile_model(back)
+    assert len({plain.hash, skinned.hash, both.hash}) == 3
+    assert compile_model(replace(synth_rig, tissue={})).hash == plain.hash
+    assert np.allclose(both.rest_stiffness, plain.rest_stiffness * lax * held)
+    i, j = np.asarray(plain.spring_indices).T
+    assert np.allclose(both.spring_k_low, plain.spring_k_low * 0.5 * (lax[i] + lax[j]))
+
+
+def test_a_tissue_structure_not_named_after_a_skin_field_is_one_clear_line(synth_rig: FaceRig,
+                                                                           tmp_path: Path) -> None:
+    from dataclasses import replace
+
+    n = len(synth_rig.mesh.vertices)
+    save_rig(replace(synth_rig, tissue={"tether_ligament": np.ones(n)}), tmp_path / "t.npz")
+    data = dict(np.load(tmp_path / "t.npz"))
+    header = json.loads(str(data["header"]))
+    data["header"] = np.array(json.dumps({**header, "tissue": ["glue_ligament"]}))
+    data["tissue_glue_ligament"] = np.ones(n)
+    np.savez(tmp_path / "bad.npz", **data)
+    with pytest.raises(RigFileError, match=r"bad\.npz: a tissue structure is named") as err:
+        load_rig(tmp_path / "bad.npz")
+    assert "\n" not in str(err.value)
+    data["header"] = np.array(json.dumps(header))
+    data["tissue_tether_ligament"] = -np.ones(n)
+    np.savez(tmp_path / "neg.npz", **data)
+    with pytest.raises(RigFileError, match=r"neg\.npz: tissue multipliers of .tether_ligament. must lie"):
+        load_rig(tmp_path / "neg.npz")

@@ -81,12 +81,13 @@ def test_landmarks_are_found_where_they_are_stored() -> None:
 
 
 def test_the_shipped_rig_is_what_the_transfer_makes() -> None:
-    """ict_rig.npz is remade by `python -m sim.face.scan.make_rig`; the transfer's last bits follow
-    the BLAS kernel, so the comparison allows 1e-4 cm."""
+    """ict_rig.npz is remade by `python -m sim.face.scan.make_rig` (the transfer, then the lids
+    built on it); the transfer's last bits follow the BLAS kernel, so the comparison allows 1e-4 cm."""
+    from sim.face.scan.lids import with_lids
     from sim.face.scan.make_rig import transferred_rig
     from sim.face.scan.rig import scan_rig
 
-    shipped, made = scan_rig(), transferred_rig()
+    shipped, made = scan_rig(), with_lids(transferred_rig())
     assert np.array_equal(shipped.mesh.vertices, made.mesh.vertices)
     assert np.array_equal(shipped.mesh.held, made.mesh.held)
     assert np.abs(shipped.mesh.jaw_weight - made.mesh.jaw_weight).max() < 1e-4
@@ -297,8 +298,9 @@ def _jaw_only(c: FaceControl) -> FaceControl:
 
 
 def test_an_identity_carries_the_fitted_skin_and_insertions() -> None:
-    """The skin's material and the insertion gains fitted to the scans belong to vertices: an
-    identity (same numbering, other positions) keeps them, and its face is built with them."""
+    """The skin's material and the insertion gains fitted to the scans, and the lids' ligament and
+    fold, belong to vertices: an identity (same numbering, other positions) keeps them, and its
+    face is built with them."""
     from sim.build import compile_model
     from sim.face.scan.rig import SCAN_PARAMS, scan_rig
 
@@ -306,8 +308,9 @@ def test_an_identity_carries_the_fitted_skin_and_insertions() -> None:
     other = scan_rig(np.linspace(-1.0, 1.0, 8))
     assert generic.skin and generic.insertion
     assert other.skin.keys() == generic.skin.keys() and other.insertion.keys() == generic.insertion.keys()
-    for name, mult in generic.skin.items():
-        assert np.array_equal(other.skin[name], mult)
+    for name, mult in {**generic.skin, **generic.tissue}.items():
+        assert np.array_equal({**other.skin, **other.tissue}[name], mult)
     model = compile_model(other, SCAN_PARAMS)
     area = np.asarray(model.area)
-    assert np.allclose(model.rest_stiffness, SCAN_PARAMS.tether * area * generic.skin["tether"])
+    assert np.allclose(model.rest_stiffness, SCAN_PARAMS.tether * area * generic.skin["tether"]
+                       * generic.tissue["tether_orbital_retaining"])

@@ -146,13 +146,17 @@ def transferred_rig(weights: np.ndarray | None = None, name: str = "ict") -> Fac
 def pack(path: str | Path = RIG_FILE) -> None:
     """Write the generic head's rig as the shipped rig file, keeping the insertion gains and the
     skin's material fitted to the scans (`sim.face.scan.calibrate`, `sim.face.scan.skin_fit`, run
-    by `benchmarks/calibrate_scan.py`, which rewrites them) that the file already holds."""
+    by `benchmarks/calibrate_scan.py`, which rewrites them) that the file already holds, with the
+    lids built on it (`sim.face.scan.lids`)."""
     from dataclasses import replace
 
+    from sim.face.scan.lids import with_lids
     from sim.rig import load_rig, save_rig
 
     old = load_rig(path) if Path(path).is_file() else None
-    save_rig(replace(transferred_rig(), insertion=old.insertion if old else {}, skin=old.skin if old else {}), path)
+    made = replace(transferred_rig(), insertion=old.insertion if old else {}, skin=old.skin if old else {},
+                   tissue=old.tissue if old else {})
+    save_rig(with_lids(made), path)
 
 
 if __name__ == "__main__":

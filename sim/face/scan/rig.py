@@ -43,8 +43,11 @@ DIGITS = 7  # carried quantities are rounded to this many decimals (cm)
 SCAN_PARAMS = SkinParams(bend_ratio=6.0, support=27000.0)
 FORCE = 1.6
 # the orbital sphincter (AU6) folds the skin round the eye first; the lid strips need twice the
-# force to close the scan's lids over its cornea (AU45: 7-11.5 mm)
-FORCE_OF = {"orbicularis_oculi": 0.7, "orbicularis_oculi_lid": 2.0}
+# force to close the scan's lids over its cornea (AU45: 7-11.5 mm; sim.face.scan.lids sets the
+# upper strips' force itself); the levator 1.5 times the others: since the lid fold is lax and the
+# retaining ligament holds the skin under the brow (sim.face.scan.lids) its pull lifted the lid
+# 1.8 mm at AU5 (target 2.5-5; 2.7 at 2.4, eyeWide 0.67 -> 0.64, eyeLookUp 0.63 either way)
+FORCE_OF = {"orbicularis_oculi": 0.7, "orbicularis_oculi_lid": 2.0, "levator_palpebrae": 2.4}
 LID_CLEARANCE = 0.03  # cm: the lid contact sphere lies this far outside the eyeball
 EYE_REACH = 1.3  # cm off the eyeball's axis: the front the lid contact sphere holds
 
@@ -172,7 +175,15 @@ def scan_rig(weights: np.ndarray | None = None, name: str = "ict") -> FaceRig:
         wrinkles.append(replace(line, points=_r(np.asarray(line.points, float) + disp[k, :2]),
                                 width_minus=float(_r(line.width_minus * s)), width_plus=float(_r(line.width_plus * s))))
     return FaceRig(mesh=mesh, muscles=muscles, wrinkles=tuple(wrinkles), name=name, insertion=rig.insertion,
-                   skin=rig.skin)
+                   skin=rig.skin, tissue=rig.tissue)
+
+
+def is_scan_rig(rig: FaceRig) -> bool:
+    """Whether a rig (e.g. one read from a file: an earlier version of the shipped rig, kept to
+    replay takes recorded on it) is the scanned head's: its skin is the scan's simulated skin."""
+    tris = skin_layout().triangles
+    return (len(rig.mesh.vertices) == len(skin_layout().vertices)
+            and np.array_equal(np.asarray(rig.mesh.triangles), np.asarray(tris)))
 
 
 _MODELS: dict[bytes, object] = {}
