@@ -52,13 +52,13 @@ NOT_SHIPPED = ("incisivus", "orbicularis_oris_peripheralis_upper", "orbicularis_
                "orbicularis_oculi_lid")  # the fitted lid strip no longer closed the lids over the eyes
 
 
-def shipped(insertion: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+def shipped(insertion: dict[str, np.ndarray], not_shipped: tuple[str, ...] = NOT_SHIPPED) -> dict[str, np.ndarray]:
     """The insertion gains that ship: each channel's fitted gain g taken SHIPPED_SHARE of the way
-    from 1 (none of the way for NOT_SHIPPED channels, which are left out)."""
+    from 1 (none of the way for the `not_shipped` muscles, which are left out: gain 1)."""
     out = {}
     for ch, g in insertion.items():
         base = ch[:-2] if ch.endswith(("_l", "_r")) else ch
-        if base not in NOT_SHIPPED:
+        if base not in not_shipped:
             out[ch] = np.round(np.maximum(1.0 + SHIPPED_SHARE * (g - 1.0), 0.0), 6)
     return out
 

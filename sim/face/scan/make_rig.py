@@ -144,19 +144,15 @@ def transferred_rig(weights: np.ndarray | None = None, name: str = "ict") -> Fac
 
 
 def pack(path: str | Path = RIG_FILE) -> None:
-    """Write the generic head's rig as the shipped rig file, keeping the muscles' lines of action,
-    the insertion gains and the skin's material fitted to the scans (`sim.face.scan.fibre_fit`,
-    `sim.face.scan.calibrate`, `sim.face.scan.skin_fit`, run by `benchmarks/calibrate_scan.py`,
-    which rewrites them and starts the lines of action from this transfer) that the file holds."""
+    """Write the generic head's rig as the shipped rig file, keeping the insertion gains and the
+    skin's material fitted to the scans (`sim.face.scan.calibrate`, `sim.face.scan.skin_fit`, run
+    by `benchmarks/calibrate_scan.py`, which rewrites them) that the file already holds."""
     from dataclasses import replace
 
     from sim.rig import load_rig, save_rig
 
     old = load_rig(path) if Path(path).is_file() else None
-    new = transferred_rig()
-    if old:
-        new = replace(new, insertion=old.insertion, skin=old.skin, muscles=old.muscles)
-    save_rig(new, path)
+    save_rig(replace(transferred_rig(), insertion=old.insertion if old else {}, skin=old.skin if old else {}), path)
 
 
 if __name__ == "__main__":
