@@ -33,7 +33,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-SHAPES = ("mouthClose,mouthShrugLower,mouthPress_L,mouthDimple_L,mouthShrugUpper,browInnerUp,cheekPuff,"
+SHAPES = ("mouthClose,mouthShrugLower,mouthPress_L,mouthDimple_L,mouthShrugUpper,BrowInnerUp,CheekPuff,"
           "mouthLowerDown_L,mouthSmile_L,mouthFunnel,browDown_L")
 SMOOTH = 1e-3  # Laplacian weight per edge, relative to one shape's own size (as insertion_fit)
 
@@ -159,7 +159,7 @@ class Free:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--shapes", default=SHAPES, help="comma-separated scan names (default: the worst and a few good)")
+    ap.add_argument("--shapes", default=SHAPES, help="comma-separated scan or ARKit names (BrowInnerUp, CheekPuff: both halves; default: the worst and a few good)")
     ap.add_argument("--span-only", action="store_true", help="only the map and the channels' span (no free fits)")
     args = ap.parse_args()
     from scipy.optimize import lsq_linear
