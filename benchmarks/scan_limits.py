@@ -159,7 +159,9 @@ class Free:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--shapes", default=SHAPES, help="comma-separated scan or ARKit names (BrowInnerUp, CheekPuff: both halves; default: the worst and a few good)")
+    ap.add_argument("--shapes", default=SHAPES,
+                    help="comma-separated scan or ARKit names (BrowInnerUp, CheekPuff: both halves; "
+                         "default: the worst and a few good)")
     ap.add_argument("--span-only", action="store_true", help="only the map and the channels' span (no free fits)")
     args = ap.parse_args()
     from scipy.optimize import lsq_linear
