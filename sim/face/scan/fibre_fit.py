@@ -15,7 +15,9 @@ dE/dF, lambda per shape; a field's derivative in an offset is taken by central d
 muscle's own force law (`sim.muscles`, cheap: no solve). A channel inserts only into the zone its
 placed field reached (gain 0 outside it, where the moved field might otherwise reach), so the rig's
 `insertion_<channel>` arrays hold the gains over that zone and 0 elsewhere, and the moved muscles
-are the rig's own muscles: the simulator and every identity use them unchanged.
+are the rig's own muscles: the simulator and every identity use them unchanged. (`make_rig`
+remakes the muscles from the transfer: a rig whose lines of action were fitted is remade by
+`benchmarks/calibrate_scan.py --fibres`, which starts from that transfer.)
 """
 
 from __future__ import annotations
