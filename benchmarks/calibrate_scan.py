@@ -35,7 +35,7 @@ Its inputs are then the transfer's placed muscles, the scans, the ARKit map's ga
 it keeps from the file: run again on its own output it starts from the same inputs.
 
     nice .venv/bin/python benchmarks/calibrate_scan.py [--rounds 2] [--holdout] [--per-vertex | --skin | --keep-skin]
-        [--fibres] [--keep MUSCLES] [--map-shares] [--without SHAPES] [--not-shipped MUSCLES] [--no-write]
+        [--fibres] [--keep MUSCLES] [--map-shares] [--without SHAPES] [--not-shipped MUSCLES] [--no-write | --out RIG]
 """
 
 from __future__ import annotations
@@ -95,6 +95,7 @@ def main() -> int:
     ap.add_argument("--not-shipped", default=",".join(NOT_SHIPPED), metavar="MUSCLES",
                     help="comma-separated muscles written at gain 1 whatever their fit (default: NOT_SHIPPED; \"\": none)")
     ap.add_argument("--no-write", action="store_true", help="do not rewrite the shipped rig")
+    ap.add_argument("--out", type=Path, help="write the rig here instead of the shipped rig file")
     args = ap.parse_args()
     items = [s for s in shapes() if rms(s.target) >= STILL_CM]
     left_out = tuple(p for p in args.without.split(",") if p)
@@ -124,8 +125,9 @@ def main() -> int:
 
         gains = model.rig.insertion
         ship = shipped(gains, tuple(m for m in args.not_shipped.split(",") if m))
-        save_rig(replace(model.rig, insertion=ship), RIG_FILE)
-        print(f"wrote {RIG_FILE}")
+        out = args.out or RIG_FILE
+        save_rig(replace(model.rig, insertion=ship), out)
+        print(f"wrote {out}")
     print("gaze shares: " + ", ".join(f"{k} {v:.3f}" for k, v in cal.shares.items()))
     return 0
 
