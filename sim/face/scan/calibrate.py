@@ -52,13 +52,13 @@ NOT_SHIPPED = ("incisivus", "orbicularis_oris_peripheralis_upper", "orbicularis_
                "orbicularis_oculi_lid")  # the fitted lid strip no longer closed the lids over the eyes
 
 
-def shipped(insertion: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+def shipped(insertion: dict[str, np.ndarray], not_shipped: tuple[str, ...] = NOT_SHIPPED) -> dict[str, np.ndarray]:
     """The insertion gains that ship: each channel's fitted gain g taken SHIPPED_SHARE of the way
-    from 1 (none of the way for NOT_SHIPPED channels, which are left out)."""
+    from 1 (none of the way for the `not_shipped` muscles, which are left out: gain 1)."""
     out = {}
     for ch, g in insertion.items():
         base = ch[:-2] if ch.endswith(("_l", "_r")) else ch
-        if base not in NOT_SHIPPED:
+        if base not in not_shipped:
             out[ch] = np.round(np.maximum(1.0 + SHIPPED_SHARE * (g - 1.0), 0.0), 6)
     return out
 
@@ -173,6 +173,7 @@ class Calibration:
         self.n_params = k
         self.gains = np.ones(k)
         self.shares = {"EyeLookUp": 0.0, "EyeLookDown": 0.0}
+        self.fit_shares = True  # False: the shares stay as set (the ARKit map's)
 
     def group(self, ch: str) -> str:
         return ch[:-2] if ch.endswith(("_l", "_r")) else ch
@@ -214,7 +215,7 @@ class Calibration:
         low = np.linalg.cholesky(ata + 1e-12 * np.eye(self.n_params))
         rhs = np.linalg.solve(low, atb)
         self.gains = lsq_linear(low.T, rhs, bounds=(0.0, MAX_GAIN), method="bvls").x
-        for name in self.shares:  # one share per gaze direction, both sides
+        for name in self.shares if self.fit_shares else ():  # one share per gaze direction, both sides
             num = den = 0.0
             for s in items:
                 if not s.coupling or s.coupling[1] != name:
@@ -252,36 +253,66 @@ def settle_all(model, cal: Calibration, items: list[Shape]) -> dict[str, np.ndar
 
 
 def calibrated_model(base_model, cal: Calibration):  # type: ignore[no-untyped-def]
+    """The base model recompiled with the fitted gains (the base's own gains kept for the channels
+    the fit left alone) and the fitted skin (or the base's)."""
     from sim.build import compile_model
 
     skin = cal.skin() if hasattr(cal, "skin") else base_model.rig.skin
-    rig = replace(base_model.rig, insertion=cal.insertion(), skin=skin)
+    muscles = cal.muscles() if hasattr(cal, "muscles") else base_model.rig.muscles
+    rig = replace(base_model.rig, insertion={**base_model.rig.insertion, **cal.insertion()}, skin=skin,
+                  muscles=muscles)
     return compile_model(rig, base_model.params)
 
 
+def group(ch: str) -> str:
+    """A channel's muscle, both sides together ("zygomaticus_major_l" -> "zygomaticus_major")."""
+    return ch[:-2] if ch.endswith(("_l", "_r")) else ch
+
+
 def run(rounds: int, train: list[Shape], test: list[Shape], log=print, per_vertex: bool = False,  # type: ignore[no-untyped-def]
-        skin: bool = False):
+        skin: bool = False, keep: tuple[str, ...] = (), keep_skin: bool = False,
+        shares: dict[str, float] | None = None, fibres: bool = False):
     """Fit on `train` over `rounds` re-linearisations; report the settled relative errors of both.
     per_vertex: a gain per zone vertex (`sim.face.scan.insertion_fit`) instead of the bumps;
-    skin: that, and the skin's material fitted with them (`sim.face.scan.skin_fit`)."""
+    skin: that, and the skin's material fitted with them (`sim.face.scan.skin_fit`).
+    keep: muscles (both sides) whose gains are not fitted but the shipped rig's (gain 1 where it
+    has none); keep_skin: the shipped rig's skin material, not uniform skin (per-vertex gains
+    fitted on it); shares: the gaze's shares of the lids held at these values, not fitted;
+    fibres: the muscles' lines of action fitted with the per-vertex gains (`sim.face.scan.fibre_fit`)."""
+    from sim.build import compile_model
     from sim.face.scan.rig import scan_model
 
-    base = scan_model()
-    if base.rig.insertion or base.rig.skin:  # start from the placed muscles (gain 1) and uniform skin
-        from sim.build import compile_model
+    shipped_rig = scan_model().rig
+    kept = frozenset(c for c in shipped_rig.muscles if group(c) in keep)
+    if skin and (keep_skin or fibres):
+        raise ValueError("the skin's material is fitted alone with the gains")
+    if fibres:  # the lines of action start from where the transfer placed them, not the file's fit
+        from sim.face.scan.make_rig import transferred_rig
 
-        base = compile_model(replace(base.rig, insertion={}, skin={}), base.params)
+        placed = transferred_rig().muscles
+        shipped_rig = replace(shipped_rig, muscles={c: parts if c in kept else placed[c]
+                                                    for c, parts in shipped_rig.muscles.items()})
+    # start from the placed muscles (gain 1, or the kept gains) and uniform skin (or the kept skin)
+    base = compile_model(replace(shipped_rig, insertion={c: g for c, g in shipped_rig.insertion.items() if c in kept},
+                                 skin=shipped_rig.skin if keep_skin else {}), scan_model().params)
     t0 = time.monotonic()
     if skin:
         from sim.face.scan.skin_fit import SkinCalibration
 
-        cal = SkinCalibration(base)
-    elif per_vertex:
+        cal = SkinCalibration(base, fixed=kept)
+    elif fibres:
+        from sim.face.scan.fibre_fit import FibreCalibration
+
+        cal = FibreCalibration(base, fixed=kept)
+    elif per_vertex or keep_skin or kept:
         from sim.face.scan.insertion_fit import VertexCalibration
 
-        cal = VertexCalibration(base)
+        cal = VertexCalibration(base, fixed=kept)
     else:
         cal = Calibration(base)
+    if shares is not None:
+        cal.shares = dict(shares)
+        cal.fit_shares = False
     log(f"linear model: {cal.n_params} gains over {len(cal.groups)} muscles in {time.monotonic() - t0:.0f} s")
     every = {s.label: s for s in train + test}
     model = base

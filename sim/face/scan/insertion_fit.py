@@ -37,7 +37,8 @@ def mirror_map(points: np.ndarray) -> np.ndarray:
 class VertexCalibration:
     """The linear model of one compiled face with a gain per zone vertex per muscle (sides shared)."""
 
-    def __init__(self, model, smooth: float = SMOOTH, pull: float = PULL) -> None:  # type: ignore[no-untyped-def]
+    def __init__(self, model, smooth: float = SMOOTH, pull: float = PULL,  # type: ignore[no-untyped-def]
+                 fixed: frozenset[str] = frozenset()) -> None:
         import scipy.sparse as sp
 
         from sim.build import vertex_normals
@@ -52,7 +53,9 @@ class VertexCalibration:
         self.lu, self.free = _stiffness(model)
         normal = vertex_normals(rest, np.asarray(rig.mesh.triangles, np.int32))
         mirror = mirror_map(rest)
-        self.channels = [c for c in rig.muscles if c in model.channel_index]
+        # channels in `fixed` keep the model's insertion gains: out of the linear model, their
+        # settled motion is part of each shape's offset (what the linear model does not fit)
+        self.channels = [c for c in rig.muscles if c in model.channel_index and c not in fixed]
         self.field: dict[str, np.ndarray] = {}
         self.vert: dict[str, np.ndarray] = {}  # channel -> zone vertices (in its own side)
         self.par: dict[str, np.ndarray] = {}  # channel -> parameter index of each zone vertex
@@ -96,6 +99,7 @@ class VertexCalibration:
         self.smooth, self.pull = smooth, pull
         self.gains = np.ones(k)
         self.shares = {"EyeLookUp": 0.0, "EyeLookDown": 0.0}
+        self.fit_shares = True  # False: the shares stay as set (the ARKit map's)
 
     def shape_values(self, s: Shape) -> np.ndarray:
         return coupled_values(self.model, self.shares, s)
@@ -164,6 +168,8 @@ class VertexCalibration:
 
     def _fit_shares(self, items: list[Shape], offsets: dict[str, np.ndarray]) -> None:
         """The gaze's share of the lids, one per gaze direction, with the gains fixed."""
+        if not self.fit_shares:
+            return
         for name in self.shares:
             chosen = [s for s in items if s.coupling and s.coupling[1] == name]
             if not chosen:

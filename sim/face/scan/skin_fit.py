@@ -37,10 +37,11 @@ class SkinCalibration(VertexCalibration):
     """The linear model of one compiled face with per-vertex insertion gains and the skin's fields."""
 
     def __init__(self, model, bumps: int = BUMPS, fields: tuple[str, ...] = FIELDS,  # type: ignore[no-untyped-def]
-                 low: float = LOW, high: float = HIGH, pull_field: float = PULL_FIELD) -> None:
+                 low: float = LOW, high: float = HIGH, pull_field: float = PULL_FIELD,
+                 fixed: frozenset[str] = frozenset()) -> None:
         import scipy.sparse as sp
 
-        super().__init__(model)
+        super().__init__(model, fixed=fixed)
         rest, n = self.rest, self.n
         held = np.asarray(model.held, bool)
         self.fields = fields
