@@ -88,7 +88,7 @@ EXPRESSIONS: dict[str, dict[str, float]] = {
 
 FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
     "ict": {
-        "happiness": {"AU6": 1.0, "AU12": 1.0, "AU25": 1.0},
+        "happiness": {"AU6": 0.3, "AU10": 0.3, "AU12": 1.0, "AU13": 1.0, "AU25": 1.0},
         "sadness": {"AU1": 1.0, "AU2": 0.25, "AU4": 0.42, "AU11": 0.3, "AU15": 1.0, "AU17": 1.0, "AU43": 0.7},
         "fear": {"AU1": 1.0, "AU2": 0.3, "AU4": 1.0, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
         "disgust": {"AU9": 0.55, "AU10": 0.55, "AU4": 0.5, "AU17": 0.5},
@@ -104,8 +104,12 @@ scan (its inner brows still rising 1.3 mm); on the skin fitted to the scans (`Fa
 disgust at full AU9+10 folded the nose (0.21 cm2) and read as anger (0.83): at 0.55 it folds nothing
 and reads as disgust (0.34; 0.7 read angry 0.37). On the procedural face they overshoot its
 amplitude targets (fear's brows drawn together 6.7 mm, limit 5; the nose wing raised 10.6 mm,
-limit 10; sadness' inner brows rising 2.1 mm at AU4 0.4 and resolution 1, target 3), so they are the scan's own. The happiness
-here (the lips parted, AU6 at full) is not yet read as happy on the scan (docs/scan-face.md)."""
+limit 10; sadness' inner brows rising 2.1 mm at AU4 0.4 and resolution 1, target 3), so they are the scan's own.
+Happiness on the scan is the broad smile: the corners drawn up and out (AU12) and up (AU13), the
+upper lip raised a little over the parted lips (AU10 0.3, AU25) and the cheeks raised a little
+(AU6 0.3). With the lids rebuilt as the scan's blink (`sim.face.scan.lids`) the orbicularis oculi
+at full narrowed the eyes and the observer read AU6+12+25 as neutral (happy 0.11); this reads
+happy 0.59 (AU6 0.5: 0.49, AU6 0: 0.78)."""
 
 
 FACE_EXPRESSIONS["imported"] = {
