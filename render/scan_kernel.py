@@ -48,14 +48,21 @@ def _fold(pos: np.ndarray, nbr_ptr: np.ndarray, nbr: np.ndarray, inv_len: np.nda
 
 
 @numba.njit(cache=True, nogil=True)
-def openings(pos: np.ndarray, loop_ptr: np.ndarray, loops: np.ndarray, clip: np.ndarray, margin_x: float,
-             margin_y: float, planes: np.ndarray, boxes: np.ndarray) -> None:
+def openings(pos: np.ndarray, loop_ptr: np.ndarray, loops: np.ndarray, clip: np.ndarray, size: np.ndarray,
+             margin: float, planes: np.ndarray, boxes: np.ndarray, hulls: np.ndarray, hull_n: np.ndarray) -> None:
     """For each opening h of the skin (the posed vertices loops[loop_ptr[h]:loop_ptr[h + 1]] around it,
     ordered so that their area vector points out of the head): planes[h] = (n, d), n the unit area
     vector and d the least n . x over the loop (a point with n . p < d lies behind every point of
     any surface spanning the loop's corners); boxes[h] = the loop's box on screen (normalised device
-    x0, x1, y0, y1, widened by the margins), or every point of the screen when a loop vertex is not
-    in front of the camera (`clip`: projection @ view, row-major)."""
+    x0, x1, y0, y1, widened by `margin` pixels of the picture `size`), or every point of the screen
+    when a loop vertex is not in front of the camera (`clip`: projection @ view, row-major); and
+    the loop's convex hull on screen as hull_n[h] lines (nx, ny, c) in pixels, hulls[h, :hull_n[h]],
+    each pushed out by `margin` (a point with nx x + ny y > c lies beyond the hull), none (hull_n[h]
+    = 0) when a loop vertex is not in front of the camera. A surface spanning the loop can lie
+    within the loop's convex hull in space (a fan from its centroid), whose picture is the convex
+    hull of the loop's corners on screen: a point behind the plane and beyond one of these lines
+    is seen, if at all, through the skin, not through the opening."""
+    margin_x, margin_y = 2.0 * margin / size[0], 2.0 * margin / size[1]
     for h in range(loop_ptr.shape[0] - 1):
         lo, hi = loop_ptr[h], loop_ptr[h + 1]
         cx = cy = cz = 0.0
@@ -94,20 +101,79 @@ def openings(pos: np.ndarray, loop_ptr: np.ndarray, loops: np.ndarray, clip: np.
             x0, x1, y0, y1 = -np.inf, np.inf, -np.inf, np.inf
         boxes[h, 0], boxes[h, 1] = x0 - margin_x, x1 + margin_x
         boxes[h, 2], boxes[h, 3] = y0 - margin_y, y1 + margin_y
+        hull_n[h] = 0 if everywhere else _hull(pos, loops[lo:hi], clip, size, margin, hulls[h])
+
+
+@numba.njit(cache=True, nogil=True)
+def _hull(pos: np.ndarray, loop: np.ndarray, clip: np.ndarray, size: np.ndarray, margin: float,
+          lines: np.ndarray) -> int:
+    """The convex hull on screen (pixels) of the vertices `loop`, all in front of the camera, as
+    lines (nx, ny, c): nx x + ny y = c along each edge pushed out by `margin`, (nx, ny) the unit
+    outward normal; the number of lines written (0 when the hull is degenerate). Andrew's monotone
+    chain (Inf. Proc. Letters 9, 1979)."""
+    n = loop.shape[0]
+    pts = np.empty((n, 2))
+    for k in range(n):
+        px, py, pz = pos[loop[k], 0], pos[loop[k], 1], pos[loop[k], 2]
+        iw = 1.0 / (clip[3, 0] * px + clip[3, 1] * py + clip[3, 2] * pz + clip[3, 3])
+        pts[k, 0] = ((clip[0, 0] * px + clip[0, 1] * py + clip[0, 2] * pz + clip[0, 3]) * iw + 1.0) * 0.5 * size[0]
+        pts[k, 1] = ((clip[1, 0] * px + clip[1, 1] * py + clip[1, 2] * pz + clip[1, 3]) * iw + 1.0) * 0.5 * size[1]
+    order = np.argsort(pts[:, 0])
+    chain = np.empty(2 * n + 1, np.int64)
+    m = 0
+    for rnd in range(2):  # the lower hull left to right, then the upper right to left
+        base = m
+        for j in range(n):
+            k = order[j] if rnd == 0 else order[n - 1 - j]
+            while m >= base + 2:
+                o, a = chain[m - 2], chain[m - 1]
+                cross = ((pts[a, 0] - pts[o, 0]) * (pts[k, 1] - pts[o, 1])
+                         - (pts[a, 1] - pts[o, 1]) * (pts[k, 0] - pts[o, 0]))
+                if cross > 0.0:
+                    break
+                m -= 1
+            chain[m] = k
+            m += 1
+        m -= 1  # each half's last point starts the other half
+    if m < 3:
+        return 0
+    out = 0
+    for j in range(m):  # counter-clockwise: the outside is on the right of each edge
+        a, b = chain[j], chain[(j + 1) % m]
+        dx, dy = pts[b, 0] - pts[a, 0], pts[b, 1] - pts[a, 1]
+        length = np.sqrt(dx * dx + dy * dy)
+        if length < 1e-9:
+            continue
+        nx, ny = dy / length, -dx / length
+        lines[out, 0], lines[out, 1], lines[out, 2] = nx, ny, nx * pts[a, 0] + ny * pts[a, 1] + margin
+        out += 1
+    return out
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _beyond_hull(xy: np.ndarray, a: int, b: int, c: int, lines: np.ndarray, n: int) -> bool:
+    """Whether the corners a b c (pixels, xy) all lie beyond one line of a hull (see `_hull`);
+    False when a corner is not in front of the camera (NaN)."""
+    for e in range(n):
+        nx, ny, d = lines[e, 0], lines[e, 1], lines[e, 2]
+        if nx * xy[a, 0] + ny * xy[a, 1] > d and nx * xy[b, 0] + ny * xy[b, 1] > d and nx * xy[c, 0] + ny * xy[c, 1] > d:
+            return True
+    return False
 
 
 @numba.njit(cache=True, nogil=True)
 def _screen(pos: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndarray, boxes: np.ndarray,
-            inside: np.ndarray, xy: np.ndarray, code: np.ndarray) -> None:
+            inside: np.ndarray, xy: np.ndarray, code: np.ndarray, deep: np.ndarray) -> None:
     """xy: each vertex in pixels (x right, y up, the picture `size` wide and high; NaN for a vertex
     not in front of the camera); code, at the vertices `inside` marks: per opening h, four bits
     (left of, right of, below, above its box on screen) at bits 4h..4h+3, set only where the
-    vertex lies behind h's plane and in front of the camera."""
+    vertex lies behind h's plane and in front of the camera; deep: bit h where it lies so."""
     hx, hy = 0.5 * size[0], 0.5 * size[1]
     for i in range(pos.shape[0]):
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         w = clip[3, 0] * px + clip[3, 1] * py + clip[3, 2] * pz + clip[3, 3]
         c = 0
+        e = 0
         if w > 1e-6:
             iw = 1.0 / w
             x = (clip[0, 0] * px + clip[0, 1] * py + clip[0, 2] * pz + clip[0, 3]) * iw
@@ -116,16 +182,19 @@ def _screen(pos: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndar
             xy[i, 1] = (y + 1.0) * hy
             if not inside[i]:
                 code[i] = 0
+                deep[i] = 0
                 continue
             for h in range(planes.shape[0]):
                 if planes[h, 0] * px + planes[h, 1] * py + planes[h, 2] * pz < planes[h, 3]:
                     bits = ((x < boxes[h, 0]) * 1 + (x > boxes[h, 1]) * 2 + (y < boxes[h, 2]) * 4
                             + (y > boxes[h, 3]) * 8)
                     c |= bits << (4 * h)
+                    e |= 1 << h
         else:
             xy[i, 0] = np.nan
             xy[i, 1] = np.nan
         code[i] = c
+        deep[i] = e
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -168,7 +237,8 @@ def scan_rows(pos: np.ndarray, tri: np.ndarray, nbr_ptr: np.ndarray, nbr: np.nda
 def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, closed: bool, group: np.ndarray,
                    starts: np.ndarray, eye: np.ndarray, kept: np.ndarray, counts: np.ndarray,
                    behind: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndarray,
-                   boxes: np.ndarray, inside: np.ndarray, xy: np.ndarray, code: np.ndarray) -> None:
+                   boxes: np.ndarray, hulls: np.ndarray, hull_n: np.ndarray, inside: np.ndarray, xy: np.ndarray,
+                   code: np.ndarray, deep: np.ndarray) -> None:
     """The triangles of each drawn group g (group[t] = g >= 0) that may be seen from `eye` (the
     camera's position, model space), listed in order at kept[starts[g]:starts[g] + counts[g]]
     (independent of scan_rows, so the two can run at once). A triangle is left out when the eye
@@ -177,16 +247,17 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
     picture's size in pixels), also when it covers no pixel (`_no_pixel`: off the picture, or too
     thin to hold a pixel centre), and a triangle inside the head (behind[t]: a bit per opening of
     the skin it can be seen through, render.scan_look; its corners marked in `inside`) when, for
-    each of those openings (`planes`, `boxes`: see `openings`), it lies behind the opening and
-    its three corners beyond one side of the opening's box on screen: the line of sight to any of
+    each of those openings (`planes`, `boxes`, `hulls`: see `openings`), it lies behind the opening
+    and its three corners beyond one side of the opening's box on screen, or beyond one edge of
+    the opening's convex hull there (the box first: it costs least): the line of sight to any of
     its points then passes through the skin, which is drawn. The picture is the same, and the
-    rasterizer fetches and sets up only the rest. `xy` and `code` are scratch for the corners'
-    pixels and sides. The deep mouth's triangles (skip_tri) are passed over when `closed`."""
+    rasterizer fetches and sets up only the rest. `xy`, `code` and `deep` are scratch for the
+    corners' pixels, sides and the planes they lie behind. The deep mouth's triangles (skip_tri) are passed over when `closed`."""
     for g in range(counts.shape[0]):
         counts[g] = 0
     view = size[0] > 0
     if view:
-        _screen(pos, clip, size, planes, boxes, inside, xy, code)
+        _screen(pos, clip, size, planes, boxes, inside, xy, code, deep)
     ex, ey, ez = np.float32(eye[0]), np.float32(eye[1]), np.float32(eye[2])
     hair = np.float32(1e-6)  # (1e-3)^2: compared with squares, no square root per triangle
     for t in range(tri.shape[0]):
@@ -204,10 +275,13 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
                 continue
             if behind[t] and planes.shape[0]:
                 side = code[a] & code[b] & code[c]
+                under = deep[a] & deep[b] & deep[c]
                 hidden = True
                 for h in range(planes.shape[0]):
                     if (behind[t] >> h) & 1 and (side >> (4 * h)) & 15 == 0:
-                        hidden = False
+                        if not ((under >> h) & 1 and _beyond_hull(xy, a, b, c, hulls[h], hull_n[h])):
+                            hidden = False
+                            break
                 if hidden:
                     continue
         k = starts[g] + counts[g]

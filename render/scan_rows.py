@@ -13,7 +13,7 @@ import numpy as np
 from render.scan_look import ScanLook
 from sim.face.scan.data import N_VERTICES
 
-OPENING_MARGIN_PX = 3.0  # pixels an opening's box on screen is widened by (rounding, the pixel grid)
+OPENING_MARGIN_PX = 3.0  # pixels an opening's box and hull on screen are widened by (rounding, the pixel grid)
 
 
 class ScanRows:
@@ -29,6 +29,7 @@ class ScanRows:
         self.buffer = np.zeros((N_VERTICES, 7), np.float32)
         self.scratch = np.zeros(N_VERTICES, np.float32)
         self.code = np.zeros(N_VERTICES, np.int32)
+        self.deep = np.zeros(N_VERTICES, np.uint8)
         self.xy = np.zeros((N_VERTICES, 2), np.float32)
         self.size = np.zeros(2)
         self.tri = np.ascontiguousarray(look.triangles, np.int32)
@@ -44,7 +45,10 @@ class ScanRows:
         self.loop_all = np.ascontiguousarray(np.concatenate(self.loops) if self.loops else np.zeros(0, np.int32))
         self.planes = np.zeros((len(self.loops), 4))
         self.boxes = np.zeros((len(self.loops), 4))
-        self._no_view = (np.zeros((0, 4)), np.zeros((0, 4)), np.eye(4), np.zeros(2))
+        self.hulls = np.zeros((len(self.loops), max((len(lp) for lp in self.loops), default=0) + 1, 3))
+        self.hull_n = np.zeros(len(self.loops), np.int64)
+        self._no_view = (np.zeros((0, 4)), np.zeros((0, 4)), np.zeros((0, 1, 3)), np.zeros(0, np.int64), np.eye(4),
+                         np.zeros(2))
         self.threaded = True  # False: the listing of the triangles seen on the calling thread too
         self._pool: ThreadPoolExecutor | None = None
 
@@ -85,15 +89,15 @@ class ScanRows:
         closed = not self.look.mouth_open(p)
         listing: Future[None] | None = None
         if not (eye is None or group is None or starts is None or kept is None or counts is None):
-            planes, boxes, clip, px = self._no_view
+            planes, boxes, hulls, hull_n, clip, px = self._no_view
             if mvp is not None and size is not None and min(size) > 0:
                 clip, px = np.ascontiguousarray(mvp, np.float64), self.size
                 px[:] = size
-                planes, boxes = self.planes, self.boxes
-                openings(p, self.loop_ptr, self.loop_all, clip, 2.0 * OPENING_MARGIN_PX / size[0],
-                         2.0 * OPENING_MARGIN_PX / size[1], planes, boxes)
+                planes, boxes, hulls, hull_n = self.planes, self.boxes, self.hulls, self.hull_n
+                openings(p, self.loop_ptr, self.loop_all, clip, px, OPENING_MARGIN_PX, planes, boxes, hulls, hull_n)
             args = (p, self.list_tri, self.list_skip, closed, group, starts, np.asarray(eye, np.float32), kept,
-                    counts, self.list_behind, clip, px, planes, boxes, self.inside, self.xy, self.code)
+                    counts, self.list_behind, clip, px, planes, boxes, hulls, hull_n, self.inside, self.xy, self.code,
+                    self.deep)
             if not self.threaded:
                 seen_triangles(*args)
             else:

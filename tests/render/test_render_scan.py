@@ -204,3 +204,36 @@ def test_unseen_triangles_left_out_change_no_pixel(gl) -> None:
                 assert counts.sum() < 0.85 * scan.counts.sum()
                 assert counts[inner].sum() < 0.8 * scan.counts[inner].sum(), (counts, scan.counts)
         scan.cull_unseen = True
+
+
+def test_inside_seen_only_through_the_opening_hull() -> None:
+    """A triangle inside the head behind a round opening is left out when it lies beyond the
+    opening's convex hull on screen though inside the opening's box (the corners of the box), and
+    kept when any of it can show through the opening, or when it lies in front of the opening."""
+    from render.scan_kernel import openings, seen_triangles
+
+    ring = np.linspace(0.0, 2.0 * np.pi, 32, endpoint=False)
+    loop_pos = np.stack([np.cos(ring), np.sin(ring), np.zeros_like(ring)], axis=1)  # counter-clockwise from +z
+    tris = {"corner, behind": ([0.8, 0.85, -0.5], [0.9, 0.85, -0.5], [0.85, 0.95, -0.5]),
+            "centre, behind": ([-0.1, -0.1, -0.5], [0.1, -0.1, -0.5], [0.0, 0.1, -0.5]),
+            "astride the rim, behind": ([0.6, 0.6, -0.5], [0.95, 0.7, -0.5], [0.9, 0.95, -0.5]),
+            "corner, in front": ([0.8, 0.85, 0.5], [0.9, 0.85, 0.5], [0.85, 0.95, 0.5])}
+    pos = np.concatenate([loop_pos, *(np.array(t) for t in tris.values())]).astype(np.float32)
+    n_loop = len(loop_pos)
+    tri = (n_loop + np.arange(3 * len(tris)).reshape(-1, 3)).astype(np.int32)
+    clip = np.diag([0.5, 0.5, 0.1, 1.0])  # orthographic: a unit is 50 pixels of a 200 x 200 picture
+    size = np.array([200.0, 200.0])
+    planes, boxes = np.zeros((1, 4)), np.zeros((1, 4))
+    hulls, hull_n = np.zeros((1, n_loop + 1, 3)), np.zeros(1, np.int64)
+    openings(pos, np.array([0, n_loop]), np.arange(n_loop, dtype=np.int32), clip, size, 3.0, planes, boxes, hulls,
+             hull_n)
+    assert hull_n[0] == n_loop and np.allclose(planes[0], [0.0, 0.0, 1.0, 0.0], atol=1e-6)
+    inside = np.zeros(len(pos), np.uint8)
+    inside[n_loop:] = 1
+    kept, counts = np.zeros((len(tri), 3), np.int32), np.zeros(1, np.int64)
+    seen_triangles(pos, tri, np.zeros(len(tri), np.uint8), False, np.zeros(len(tri), np.int8), np.zeros(1, np.int64),
+                   np.array([0.0, 0.0, 10.0], np.float32), kept, counts, np.ones(len(tri), np.uint8), clip, size,
+                   planes, boxes, hulls, hull_n, inside, np.zeros((len(pos), 2), np.float32),
+                   np.zeros(len(pos), np.int32), np.zeros(len(pos), np.uint8))
+    shown = {name for name, t in zip(tris, tri) if any(np.array_equal(t, k) for k in kept[:counts[0]])}
+    assert shown == {"centre, behind", "astride the rim, behind", "corner, in front"}
