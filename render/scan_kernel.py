@@ -156,7 +156,8 @@ def _beyond_hull(xy: np.ndarray, a: int, b: int, c: int, lines: np.ndarray, n: i
     False when a corner is not in front of the camera (NaN)."""
     for e in range(n):
         nx, ny, d = lines[e, 0], lines[e, 1], lines[e, 2]
-        if nx * xy[a, 0] + ny * xy[a, 1] > d and nx * xy[b, 0] + ny * xy[b, 1] > d and nx * xy[c, 0] + ny * xy[c, 1] > d:
+        if (nx * xy[a, 0] + ny * xy[a, 1] > d and nx * xy[b, 0] + ny * xy[b, 1] > d
+                and nx * xy[c, 0] + ny * xy[c, 1] > d):
             return True
     return False
 
@@ -252,7 +253,8 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
     the opening's convex hull there (the box first: it costs least): the line of sight to any of
     its points then passes through the skin, which is drawn. The picture is the same, and the
     rasterizer fetches and sets up only the rest. `xy`, `code` and `deep` are scratch for the
-    corners' pixels, sides and the planes they lie behind. The deep mouth's triangles (skip_tri) are passed over when `closed`."""
+    corners' pixels, sides and the planes they lie behind. The deep mouth's triangles (skip_tri)
+    are passed over when `closed`."""
     for g in range(counts.shape[0]):
         counts[g] = 0
     view = size[0] > 0
