@@ -16,7 +16,8 @@ read when the driver loads).
 alternating batches, whole frames (posing, rows, drawing; the whole frame's CPU split by thread:
 the calling thread, the listing helper, llvmpipe's rasterizer threads; also with every triangle handed to
 OpenGL, render.scan_draw's cull_on_cpu off, and with the triangles that cover no pixel or lie
-hidden inside the head kept, cull_unseen off) and the drawing alone (rows made beforehand: every
+hidden inside the head kept, cull_unseen off, and with the eyes' and the mouth's insides hidden by
+their openings' boxes on screen alone, not their convex hulls, render.scan_rows's use_hulls off) and the drawing alone (rows made beforehand: every
 triangle; also with the whole skin in its full shader, split_skin off), for comparison.
 `--head-vs-mask N` times the default face with its held head against the mask alone in N
 alternating batches instead (both see the same load: the issue-11 budget, head at most 1.2x).
@@ -259,12 +260,12 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                 s.scan_rows = rw  # type: ignore[attr-defined]
                 drawn.append(r.scan.look.mouth_open(rw[:, :3]))
             times: dict[str, list[tuple[float, float]]] = {"whole": [], "full_skin": [], "all_tris": [], "unseen": [],
-                                                           "draw": [], "unsplit": [], "floor": []}
+                                                           "boxes": [], "draw": [], "unsplit": [], "floor": []}
             threads: dict[str, dict[str, list[float]]] = {k: {"main": [], "other": [], "raster": []}
                                                           for k in ("whole", "full_skin")}
             for b in range(batches + 1):
                 for key, use_rows in (("whole", False), ("full_skin", False), ("all_tris", False), ("unseen", False),
-                                      ("draw", True), ("unsplit", True)):
+                                      ("boxes", False), ("draw", True), ("unsplit", True)):
                     def frame(i: int, use: bool = use_rows, split: bool = key != "unsplit",
                               cull: bool = key != "all_tris", unseen: bool = key != "unseen",
                               lod: bool = key != "full_skin") -> None:
@@ -275,6 +276,7 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                         r.scan.split_skin = split
                         r.scan.cull_on_cpu = cull
                         r.scan.cull_unseen = unseen
+                        r.scan.maker.use_hulls = key != "boxes"
                         off.fbo.use()
                         r.draw(s, hud)
                         off.ctx.finish()  # type: ignore[attr-defined]
@@ -293,14 +295,16 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
             med = {k: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v))
                    for k, v in times.items()}
             f, whole, draw, unsplit = med["floor"], med["whole"], med["draw"], med["unsplit"]
-            every, unseen, full = med["all_tris"], med["unseen"], med["full_skin"]
+            every, unseen, full, boxes = med["all_tris"], med["unseen"], med["full_skin"], med["boxes"]
             out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; "
                        f"floor {f[0]:.2f} ms (cpu {f[1]:.2f}); whole frame {whole[0]:.2f} ms = "
                        f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x; coarse skin drawn: "
                        f"{r.scan.coarse}), with the full skin at any size {full[0] / f[0]:.2f}x "
                        f"(cpu {full[1] / f[1]:.2f}x), with every triangle handed to "
                        f"OpenGL {every[0] / f[0]:.2f}x (cpu {every[1] / f[1]:.2f}x), with the triangles that cover "
-                       f"no pixel or lie hidden kept {unseen[0] / f[0]:.2f}x (cpu {unseen[1] / f[1]:.2f}x); drawing alone "
+                       f"no pixel or lie hidden kept {unseen[0] / f[0]:.2f}x (cpu {unseen[1] / f[1]:.2f}x), with the "
+                       f"insides hidden by their openings' boxes alone (not their hulls) {boxes[0] / f[0]:.2f}x "
+                       f"(cpu {boxes[1] / f[1]:.2f}x); drawing alone "
                        f"{draw[0]:.2f} ms = {draw[0] / f[0]:.2f}x (cpu {draw[1] / f[1]:.2f}x); the same with "
                        f"the skin in one shader {unsplit[0] / f[0]:.2f}x (cpu {unsplit[1] / f[1]:.2f}x)")
             for key, label in (("whole", "whole frame's"), ("full_skin", "with the full skin,")):

@@ -47,6 +47,8 @@ class ScanRows:
         self.boxes = np.zeros((len(self.loops), 4))
         self.hulls = np.zeros((len(self.loops), max((len(lp) for lp in self.loops), default=0) + 1, 3))
         self.hull_n = np.zeros(len(self.loops), np.int64)
+        self.hull_none = np.zeros(len(self.loops), np.int64)
+        self.use_hulls = True  # False: the openings' boxes on screen alone hide the inside (the same pixels)
         self._no_view = (np.zeros((0, 4)), np.zeros((0, 4)), np.zeros((0, 1, 3)), np.zeros(0, np.int64), np.eye(4),
                          np.zeros(2))
         self.threaded = True  # False: the listing of the triangles seen on the calling thread too
@@ -95,6 +97,8 @@ class ScanRows:
                 px[:] = size
                 planes, boxes, hulls, hull_n = self.planes, self.boxes, self.hulls, self.hull_n
                 openings(p, self.loop_ptr, self.loop_all, clip, px, OPENING_MARGIN_PX, planes, boxes, hulls, hull_n)
+                if not self.use_hulls:
+                    hull_n = self.hull_none
             args = (p, self.list_tri, self.list_skip, closed, group, starts, np.asarray(eye, np.float32), kept,
                     counts, self.list_behind, clip, px, planes, boxes, hulls, hull_n, self.inside, self.xy, self.code,
                     self.deep)

@@ -169,8 +169,9 @@ def test_unseen_triangles_left_out_change_no_pixel(gl) -> None:
     """The triangles that cover no pixel (off the picture, too thin to hold a pixel centre) and the
     eyes' and the mouth's that the skin hides are left out too: from the front, the side, above
     and below, with the mouth open, the picture is the one with them kept, fewer of the eyes' and
-    mouth's triangles are drawn from the front, and the listing made on the helper thread is the
-    one made on the calling thread."""
+    mouth's triangles are drawn from the front (fewer of the mouth's than with the openings' boxes
+    on screen alone, not their hulls), and the listing made on the helper thread is the one made
+    on the calling thread."""
     from puppet.face_cache import scan_model
     from render.scan_draw import CULLED
     from sim.facs import apply_au
@@ -203,6 +204,12 @@ def test_unseen_triangles_left_out_change_no_pixel(gl) -> None:
             if yaw == 0.0 and pitch == 0.0:
                 assert counts.sum() < 0.85 * scan.counts.sum()
                 assert counts[inner].sum() < 0.8 * scan.counts[inner].sum(), (counts, scan.counts)
+                scan.cull_unseen, scan.maker.use_hulls = True, False  # the openings' boxes alone
+                boxed = off.render_frame(state, record=False).astype(int)
+                scan.maker.use_hulls = True
+                assert np.abs(boxed - every).max() == 0
+                mouth = CULLED.index("mouth")
+                assert counts[mouth] < 0.95 * scan.counts[mouth], (counts, scan.counts)
         scan.cull_unseen = True
 
 
