@@ -90,8 +90,9 @@ FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
     "ict": {
         "happiness": {"AU6": 0.3, "AU10": 0.3, "AU12": 1.0, "AU13": 1.0, "AU25": 1.0},
         "sadness": {"AU1": 1.0, "AU2": 0.25, "AU4": 0.42, "AU11": 0.3, "AU15": 1.0, "AU17": 1.0, "AU43": 0.7},
-        "fear": {"AU1": 1.0, "AU2": 0.3, "AU4": 1.0, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
-        "disgust": {"AU9": 0.55, "AU10": 0.55, "AU4": 0.5, "AU17": 0.5},
+        "fear": {"AU1": 1.0, "AU2": 0.15, "AU4": 1.0, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
+        "anger": {"AU4": 1.0, "AU5": 0.5, "AU7": 0.6, "AU23": 1.0},
+        "disgust": {"AU9": 0.55, "AU10": 0.55, "AU4": 0.6, "AU25": 1.0},
     },
 }
 """Per face (its rig's name: "ict" is the scanned head and its identities), the presets whose
@@ -109,7 +110,15 @@ Happiness on the scan is the broad smile: the corners drawn up and out (AU12) an
 upper lip raised a little over the parted lips (AU10 0.3, AU25) and the cheeks raised a little
 (AU6 0.3). With the lids rebuilt as the scan's blink (`sim.face.scan.lids`) the orbicularis oculi
 at full narrowed the eyes and the observer read AU6+12+25 as neutral (happy 0.11); this reads
-happy 0.59 (AU6 0.5: 0.49, AU6 0: 0.78)."""
+happy 0.59 (AU6 0.5: 0.49, AU6 0: 0.78).
+Fear is 1+2+4+5+20+25+26 with the outer brows raised only a little (AU2 0.15; at 0.3 fear 0.39 with
+surprise 0.31, at 0.45-0.6 surprise); it read sad (sad 0.50, fear 0.15) until the levator was made
+stronger (`sim.face.scan.rig.FORCE_OF`: under the brows drawn down it lifted the lid 3.0 mm, now
+3.8, target 6.5+), and reads fear 0.63 (AU26 0.4: 0.43; AU2 0.1 or 0.2: 0.35-0.48). Anger is the
+glare 4+5+7+23 with the lids raised harder (AU5 0.5): angry 0.47 (AU5 0.3, 0.4: 0.49, 0.41; AU7
+0.45 instead of 0.6: 0.20-0.51, read neutral at AU5 0.4). Disgust is 9+10 with the brows lowered and the
+lips parted (AU4 0.6, AU25; no AU17): disgust 0.78 (anger 0.15), where AU17 0.5 read disgust 0.44
+with anger 0.35 close; AU4 0.5: 0.67, AU9+10 0.5 or 0.6: 0.66-0.71, AU17 0.3 added: 0.64."""
 
 
 FACE_EXPRESSIONS["imported"] = {

@@ -44,10 +44,13 @@ SCAN_PARAMS = SkinParams(bend_ratio=6.0, support=27000.0)
 FORCE = 1.6
 # the orbital sphincter (AU6) folds the skin round the eye first; the lid strips need twice the
 # force to close the scan's lids over its cornea (AU45: 7-11.5 mm; sim.face.scan.lids sets the
-# upper strips' force itself); the levator 1.5 times the others: since the lid fold is lax and the
+# upper strips' force itself); the levator twice the others: since the lid fold is lax and the
 # retaining ligament holds the skin under the brow (sim.face.scan.lids) its pull lifted the lid
-# 1.8 mm at AU5 (target 2.5-5; 2.7 at 2.4, eyeWide 0.67 -> 0.64, eyeLookUp 0.63 either way)
-FORCE_OF = {"orbicularis_oculi": 0.7, "orbicularis_oculi_lid": 2.0, "levator_palpebrae": 2.4}
+# 1.8 mm at AU5 (target 2.5-5; 2.7 at 2.4), and under fear's brows drawn down (1+2+4+5) only
+# 3.0 mm (target 6.5+), where the emotion observer read fear as sad (fear 0.15): at 3.2 AU5
+# lifts the lid 3.6 mm and the scan's fear 3.8, which reads fear (docs/scan-face.md); at 4.0 the
+# lid's skin folded (the levator alone 0.12 cm2, limit 0.1)
+FORCE_OF = {"orbicularis_oculi": 0.7, "orbicularis_oculi_lid": 2.0, "levator_palpebrae": 3.2}
 LID_CLEARANCE = 0.03  # cm: the lid contact sphere lies this far outside the eyeball
 EYE_REACH = 1.3  # cm off the eyeball's axis: the front the lid contact sphere holds
 
