@@ -289,15 +289,22 @@ def build(target: float = TARGET, verbose: bool = False) -> tuple[np.ndarray, fl
     return coarse.astype(np.int32), deviation(coarse, tri[plain], pos)
 
 
-def _barycentric(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """(..., 3) barycentric weights of the points nearest p on the triangles a b c, clamped to the
-    triangle (negative weights dropped and the rest renormalised)."""
+def _projection(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(p - a, the triangles' normal n, |n|², and the barycentrics v, s of b and c) of points p
+    (..., 3) projected on the planes of the triangles a b c."""
     ab, ac = b - a, c - a
     n = np.cross(ab, ac)
     nn = np.maximum((n * n).sum(-1), 1e-18)
     w = p - a
     v = (np.cross(w, ac) * n).sum(-1) / nn
     s = (np.cross(ab, w) * n).sum(-1) / nn
+    return w, n, nn, v, s
+
+
+def _barycentric(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """(..., 3) barycentric weights of the points nearest p on the triangles a b c, clamped to the
+    triangle (negative weights dropped and the rest renormalised)."""
+    _, _, _, v, s = _projection(p, a, b, c)
     out = np.clip(np.stack([1.0 - v - s, v, s], axis=-1), 0.0, None)
     return out / np.maximum(out.sum(-1, keepdims=True), 1e-12)
 
@@ -306,13 +313,7 @@ def _point_triangle(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) 
     """Distances from points p (..., 3) to triangles a b c (..., 3) (Ericson, Real-Time Collision
     Detection, 5.1.5: the closest point by Voronoi regions, here by clamping barycentrics on each
     edge when the projection falls outside)."""
-    ab, ac = b - a, c - a
-    n = np.cross(ab, ac)
-    nn = np.maximum((n * n).sum(-1), 1e-18)
-    w = p - a
-    # barycentrics of the projection
-    v = (np.cross(w, ac) * n).sum(-1) / nn
-    s = (np.cross(ab, w) * n).sum(-1) / nn
+    w, n, nn, v, s = _projection(p, a, b, c)
     inside = (v >= 0) & (s >= 0) & (v + s <= 1)
     d_plane = np.abs((w * n).sum(-1)) / np.sqrt(nn)
 
