@@ -140,15 +140,9 @@ class FibreCalibration(VertexCalibration):
         r = self._solve(self._forces(g, vals)) - b
         lam = 2.0 * self._solve(r * w[None]).T.reshape(len(w), self.n, 3)  # dE/dF per shape
         ci = self.model.channel_index
-        grad_g = np.zeros_like(g)
-        for c in self.channels:
-            v = vals[:, ci[c]]
-            if np.any(v):
-                np.add.at(grad_g, self.par[c], np.einsum("s,svk,vk->v", v, lam[:, self.vert[c]], self.field[c]))
-        dg = self.diff @ g
-        val = float(np.sum(w * np.sum(r * r, axis=0))) + self.smooth * float(dg @ dg) \
-            + self.pull * float(np.sum((g - 1.0) ** 2))
-        grad_g += 2.0 * self.smooth * (self.diff.T @ dg) + 2.0 * self.pull * (g - 1.0)
+        penalty, grad_g = self._penalty(g)
+        grad_g += self._gain_gradient(g, vals, lam)
+        val = float(np.sum(w * np.sum(r * r, axis=0))) + penalty
         grad_t = 2.0 * self.pull_offset * theta
         val += self.pull_offset * float(theta @ theta)
         for c in self.channels:

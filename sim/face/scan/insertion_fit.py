@@ -151,20 +151,26 @@ class VertexCalibration:
         """The weighted squared misfit of every shape (values (S,C), targets b (3N,S), weights (S,))
         plus the smoothness and the pull, and its gradient in the gains (one adjoint solve a shape)."""
         r = self._solve(self._forces(g, vals)) - b
-        a = self._solve(r * w[None]).T.reshape(len(w), self.n, 3)
+        lam = 2.0 * self._solve(r * w[None]).T.reshape(len(w), self.n, 3)  # dE/dF per shape
+        penalty, grad = self._penalty(g)
+        return float(np.sum(w * np.sum(r * r, axis=0))) + penalty, self._gain_gradient(g, vals, lam) + grad
+
+    def _gain_gradient(self, g: np.ndarray, vals: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """The misfit's gradient in the gains, given dE/dF per shape `lam` (S,N,3): each channel's
+        field over its zone, times its value in each shape."""
         grad = np.zeros_like(g)
         ci = self.model.channel_index
         for c in self.channels:
             v = vals[:, ci[c]]
-            if not np.any(v):
-                continue
-            proj = np.einsum("s,svk,vk->v", v, a[:, self.vert[c]], self.field[c])
-            np.add.at(grad, self.par[c], 2.0 * proj)
+            if np.any(v):
+                np.add.at(grad, self.par[c], np.einsum("s,svk,vk->v", v, lam[:, self.vert[c]], self.field[c]))
+        return grad
+
+    def _penalty(self, g: np.ndarray) -> tuple[float, np.ndarray]:
+        """The gains' smoothness and pull towards 1, and their gradient."""
         dg = self.diff @ g
-        val = float(np.sum(w * np.sum(r * r, axis=0))) + self.smooth * float(dg @ dg) \
-            + self.pull * float(np.sum((g - 1.0) ** 2))
-        grad += 2.0 * self.smooth * (self.diff.T @ dg) + 2.0 * self.pull * (g - 1.0)
-        return val, grad
+        val = self.smooth * float(dg @ dg) + self.pull * float(np.sum((g - 1.0) ** 2))
+        return val, 2.0 * self.smooth * (self.diff.T @ dg) + 2.0 * self.pull * (g - 1.0)
 
     def _fit_shares(self, items: list[Shape], offsets: dict[str, np.ndarray]) -> None:
         """The gaze's share of the lids, one per gaze direction, with the gains fixed."""

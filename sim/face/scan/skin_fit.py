@@ -120,16 +120,9 @@ class SkinCalibration(VertexCalibration):
         s = len(w)
         uu = u.T.reshape(s, self.n, 3)
         ll = lam.T.reshape(s, self.n, 3)
-        grad_g = np.zeros_like(g)
-        ci = self.model.channel_index
-        for c in self.channels:
-            v = vals[:, ci[c]]
-            if np.any(v):
-                np.add.at(grad_g, self.par[c], np.einsum("s,svk,vk->v", v, ll[:, self.vert[c]], self.field[c]))
-        dg = self.diff @ g
-        val = float(np.sum(w * np.sum(r * r, axis=0))) + self.smooth * float(dg @ dg) \
-            + self.pull * float(np.sum((g - 1.0) ** 2)) + self.pull_field * float(theta @ theta)
-        grad_g += 2.0 * self.smooth * (self.diff.T @ dg) + 2.0 * self.pull * (g - 1.0)
+        penalty, grad_g = self._penalty(g)
+        grad_g += self._gain_gradient(g, vals, ll)
+        val = float(np.sum(w * np.sum(r * r, axis=0))) + penalty + self.pull_field * float(theta @ theta)
         grads = [grad_g]
         for f in self.fields:
             if f == "tether":
