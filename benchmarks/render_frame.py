@@ -19,6 +19,11 @@ OpenGL, render.scan_draw's cull_on_cpu off, and with the triangles that cover no
 hidden inside the head kept, cull_unseen off, and with the eyes' and the mouth's insides hidden by
 their openings' boxes on screen alone, not their convex hulls, render.scan_rows's use_hulls off) and the drawing alone (rows made beforehand: every
 triangle; also with the whole skin in its full shader, split_skin off), for comparison.
+`--scan-parts N` times where the scanned head's frame goes beyond the floor: the whole frame (shaded +
+HUD) against the same frame with one part left out (the HUD; the lashes; the mouth's inside; the
+eyeballs; the eye sockets; the skin's brows and lips; its plain rest; every group; the posing and
+rows alone, no drawing), in N alternating batches with the floor, with the CPU of each kind of
+thread: what a part costs is the whole frame's figure less the figure without it.
 `--head-vs-mask N` times the default face with its held head against the mask alone in N
 alternating batches instead (both see the same load: the issue-11 budget, head at most 1.2x).
 Run: .venv/bin/python benchmarks/render_frame.py [--lp-threads 1,2] [--resolutions 0,1] [--mask]
@@ -314,6 +319,73 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
     return out
 
 
+SCAN_PARTS = {"HUD": (), "lashes": ("lashes",), "mouth's inside": ("mouth",), "eyeballs": ("eyes",),
+              "eye sockets": ("sockets",), "brows and lips": ("features",), "plain skin": ("plain",),
+              "every group": ("plain", "features", "eyes", "sockets", "mouth", "lashes")}
+
+
+def scan_parts(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
+    """The scanned head shaded + HUD (as scan_vs_floor's whole frame) against the same frame with
+    one part left out (render.scan_draw.ScanDraw.left_out; the HUD not drawn; or the posing and
+    rows alone), in alternating 10-frame batches with the floor: per pose, median ms per frame as
+    a ratio to the floor, wall and CPU, and each kind of thread's CPU (ms per frame)."""
+    import statistics
+
+    import numpy as np
+
+    from puppet.face_cache import scan_model
+    from render.hud import HudInfo
+    from render.offscreen import OffscreenRenderer
+
+    model = scan_model(None)
+    hud = HudInfo(channels=[("zygomaticus_major_l", 0.8, 0, 1), ("jaw", 0.3, 0, 1)], age=30,
+                  devices=[("sgi:///dev/ttyS0", True), ("keyboard://", True)], fps=60.0,
+                  latency_ms=12.0, lines=["? help"])
+    out = []
+    with OffscreenRenderer(model, size, ctx=ctx) as off:  # type: ignore[arg-type]
+        r = off.renderer
+        w, h = size
+        for expression in ("happiness", "surprise", "jaw_open", "neutral"):
+            states = _states(model, 30, expression)
+            keys = ["whole", *SCAN_PARTS, "rows alone"]
+            times: dict[str, list[tuple[float, float]]] = {k: [] for k in [*keys, "floor"]}
+            threads: dict[str, list[tuple[float, float, float]]] = {k: [] for k in keys}
+            for b in range(batches + 1):
+                for key in keys:
+                    def frame(i: int, key: str = key) -> None:
+                        s = states[i % len(states)]
+                        if key == "rows alone":
+                            view_m, mvp = r._matrices(w / h)
+                            r.scan.choose_level(mvp, size)
+                            r.scan.rows(s, np.linalg.inv(view_m)[:3, 3], mvp, size)
+                            return
+                        r.scan.left_out = set(SCAN_PARTS.get(key, ()))
+                        off.fbo.use()
+                        r.draw(s, None if key == "HUD" else hud)
+                        off.ctx.finish()  # type: ignore[attr-defined]
+                        r.scan.left_out = set()
+                    before = _thread_cpu()
+                    t = _timed(frame, 10)
+                    after = _thread_cpu()
+                    if b:  # the first batch warms up
+                        times[key].append(t)
+                        threads[key].append(tuple((after.get(k, 0) - before.get(k, 0)) / 1e7
+                                                  for k in ("main", "other", "raster")))  # type: ignore[arg-type]
+                t = floor_ms(ctx, size, 10)
+                if b:
+                    times["floor"].append(t)
+            med = {k: (statistics.median(x for x, _ in v), statistics.median(c for _, c in v)) for k, v in times.items()}
+            f = med["floor"]
+            out.append(f"{expression}: floor {f[0]:.2f} ms (cpu {f[1]:.2f}), load {os.getloadavg()[0]:.1f}")
+            out.append(f"  {'':<22}{'x floor':>9}{'cpu x':>8}{'main':>8}{'helper':>8}{'raster':>8}  (ms a frame)")
+            for k in keys:
+                th = [statistics.median(x[j] for x in threads[k]) for j in range(3)]
+                label = k if k in ("whole", "rows alone") else f"without {k}"
+                out.append(f"  {label:<22}{med[k][0] / f[0]:>9.2f}{med[k][1] / f[1]:>8.2f}"
+                           + "".join(f"{v:>8.2f}" for v in th))
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", default="1280x720")
@@ -324,6 +396,9 @@ def main() -> None:
     ap.add_argument("--head-vs-mask", type=int, default=0, metavar="BATCHES",
                     help="instead: the head against the mask alone (shaded, +HUD) in BATCHES alternating "
                          "10-frame batches each, with the floor between them")
+    ap.add_argument("--scan-parts", type=int, default=0, metavar="BATCHES",
+                    help="instead: the scanned head's frame against the same frame with one part left out in turn, "
+                         "in BATCHES alternating 10-frame batches with the floor")
     ap.add_argument("--scan", type=int, default=0, metavar="BATCHES",
                     help="instead: the scanned head (the default face) shaded + HUD against the floor in "
                          "BATCHES alternating 10-frame batches")
@@ -347,6 +422,12 @@ def main() -> None:
           f"LP_NUM_THREADS={threads}, load average {os.getloadavg()[0]:.1f}")
     from sim.face import default_model
 
+    if args.scan_parts:
+        print(f"\nthe scanned head, shaded + HUD, and with one part left out: median per 10-frame batch over "
+              f"{args.scan_parts} batches")
+        for line in scan_parts(size, args.scan_parts, ctx):  # type: ignore[arg-type]
+            print(line)
+        return
     if args.scan:
         print(f"\nthe scanned head, shaded + HUD, median ms per 10-frame batch over {args.scan} batches")
         for line in scan_vs_floor(size, args.scan, ctx):  # type: ignore[arg-type]

@@ -127,6 +127,7 @@ class ScanDraw:
         self.cull_unseen = True  # False: keep the triangles that cover no pixel or lie hidden inside the head (the same pixels)
         self.lod = True  # False: the full skin at any size on screen
         self.coarse = False  # this frame's level: the plain skin from the coarse list
+        self.left_out: set[str] = set()  # groups (of CULLED, or "lashes") not drawn: what each costs, measured
 
     def _vao(self, prog: moderngl.Program, bufs: dict[str, tuple[moderngl.Buffer, str]],
              ibo: moderngl.Buffer) -> moderngl.VertexArray:
@@ -199,7 +200,7 @@ class ScanDraw:
     def _render(self, vao: moderngl.VertexArray, group: str) -> None:
         g = CULLED.index(group)
         n = int(self.counts[g])
-        if n:
+        if n and group not in self.left_out:
             vao.render(moderngl.TRIANGLES, vertices=3 * n, first=3 * int(self.starts[g]))
 
     def draw(self, rows: np.ndarray, kind: str, mvp: bytes, view_m: bytes, heat_scale: float) -> None:
@@ -224,7 +225,7 @@ class ScanDraw:
         if self.mouth_drawn:
             self._render(self.vaos[kind], "mouth")
         ctx.disable(moderngl.CULL_FACE)
-        if kind == "SKIN":  # hair over the skin: blended, without depth writes
+        if kind == "SKIN" and "lashes" not in self.left_out:  # hair over the skin: blended, without depth writes
             fbo = ctx.fbo
             ctx.enable(moderngl.BLEND)
             ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ZERO, moderngl.ONE)
