@@ -14,10 +14,12 @@ used. `--lp-threads 1,2` reruns the benchmark once per value in a fresh process 
 read when the driver loads).
 `--scan N` times the scanned head (the default face) shaded + HUD against the floor in N
 alternating batches, whole frames (posing, rows, drawing; the whole frame's CPU split by thread:
-the calling thread, the listing helper, llvmpipe's rasterizer threads; also with every triangle handed to
-OpenGL, render.scan_draw's cull_on_cpu off, and with the triangles that cover no pixel or lie
-hidden inside the head kept, cull_unseen off, and with the eyes' and the mouth's insides hidden by
-their openings' boxes on screen alone, not their convex hulls, render.scan_rows's use_hulls off) and the drawing alone (rows made beforehand: every
+the calling thread, the listing helper, llvmpipe's rasterizer threads); also with the full lashes
+drawn with the coarse skin (render.scan_look.coarse_lashes not used), with the full skin and lashes
+at any size, with every triangle handed to OpenGL (render.scan_draw's cull_on_cpu off), with the
+triangles that cover no pixel or lie hidden inside the head kept (cull_unseen off), and with the
+eyes' and the mouth's insides hidden by their openings' boxes on screen alone, not their convex
+hulls (render.scan_rows's use_hulls off); and the drawing alone (rows made beforehand: every
 triangle; also with the whole skin in its full shader, split_skin off), for comparison.
 `--scan-parts N` times where the scanned head's frame goes beyond the floor: the whole frame (shaded +
 HUD) against the same frame with one part left out (the HUD; the lashes; the mouth's inside; the
@@ -265,12 +267,13 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                 s.scan_rows = rw  # type: ignore[attr-defined]
                 drawn.append(r.scan.look.mouth_open(rw[:, :3]))
             times: dict[str, list[tuple[float, float]]] = {"whole": [], "full_skin": [], "all_tris": [], "unseen": [],
-                                                           "boxes": [], "draw": [], "unsplit": [], "floor": []}
+                                                           "boxes": [], "full_lashes": [], "draw": [], "unsplit": [],
+                                                           "floor": []}
             threads: dict[str, dict[str, list[float]]] = {k: {"main": [], "other": [], "raster": []}
                                                           for k in ("whole", "full_skin")}
             for b in range(batches + 1):
                 for key, use_rows in (("whole", False), ("full_skin", False), ("all_tris", False), ("unseen", False),
-                                      ("boxes", False), ("draw", True), ("unsplit", True)):
+                                      ("boxes", False), ("full_lashes", False), ("draw", True), ("unsplit", True)):
                     def frame(i: int, use: bool = use_rows, split: bool = key != "unsplit",
                               cull: bool = key != "all_tris", unseen: bool = key != "unseen",
                               lod: bool = key != "full_skin") -> None:
@@ -282,9 +285,13 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                         r.scan.cull_on_cpu = cull
                         r.scan.cull_unseen = unseen
                         r.scan.maker.use_hulls = key != "boxes"
+                        few = r.scan.coarse_lash_vao
+                        if key == "full_lashes":
+                            r.scan.coarse_lash_vao = r.scan.lash_vao
                         off.fbo.use()
                         r.draw(s, hud)
                         off.ctx.finish()  # type: ignore[attr-defined]
+                        r.scan.coarse_lash_vao = few
                         s.scan_rows = rows[i % len(states)]  # type: ignore[attr-defined]
                     before = _thread_cpu()
                     t = _timed(frame, 10)
@@ -301,11 +308,13 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                    for k, v in times.items()}
             f, whole, draw, unsplit = med["floor"], med["whole"], med["draw"], med["unsplit"]
             every, unseen, full, boxes = med["all_tris"], med["unseen"], med["full_skin"], med["boxes"]
+            lashes = med["full_lashes"]
             out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; "
                        f"floor {f[0]:.2f} ms (cpu {f[1]:.2f}); whole frame {whole[0]:.2f} ms = "
                        f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x; coarse skin drawn: "
-                       f"{r.scan.coarse}), with the full skin at any size {full[0] / f[0]:.2f}x "
-                       f"(cpu {full[1] / f[1]:.2f}x), with every triangle handed to "
+                       f"{r.scan.coarse}), with the full lashes (the coarse skin) {lashes[0] / f[0]:.2f}x "
+                       f"(cpu {lashes[1] / f[1]:.2f}x), with the full skin and lashes at any size "
+                       f"{full[0] / f[0]:.2f}x (cpu {full[1] / f[1]:.2f}x), with every triangle handed to "
                        f"OpenGL {every[0] / f[0]:.2f}x (cpu {every[1] / f[1]:.2f}x), with the triangles that cover "
                        f"no pixel or lie hidden kept {unseen[0] / f[0]:.2f}x (cpu {unseen[1] / f[1]:.2f}x), with the "
                        f"insides hidden by their openings' boxes alone (not their hulls) {boxes[0] / f[0]:.2f}x "

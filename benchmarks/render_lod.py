@@ -3,9 +3,11 @@ presets and the face at rest, simulated as docs/make_scan_gallery.py does, drawn
 (1280x720, one sample per pixel, shaded) with the level of detail forced each way; per preset the
 largest and mean difference (levels of 255, the largest channel), the share of pixels that differ
 by more than 2 and 8 levels, and the pixels whose head / background cover changed. With --out DIR,
-each pair (full | coarse | difference x8) is written there as a PNG to be looked at.
+each pair (full | coarse | difference x8) is written there as a PNG to be looked at. With --lashes,
+the lashes alone: the coarse skin both times, the full lashes against the coarse ones
+(render.scan_look.coarse_lashes), and the pictures cropped to the eyes, enlarged 3x.
 
-Run: .venv/bin/python benchmarks/render_lod.py [--size 1280x720] [--out /tmp/lod]
+Run: .venv/bin/python benchmarks/render_lod.py [--size 1280x720] [--out /tmp/lod] [--lashes]
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ def main() -> int:
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--out", default="", help="a folder for the pictures (default: none written)")
     ap.add_argument("--only", default="", help="comma-separated presets (default: neutral and all seven)")
+    ap.add_argument("--lashes", action="store_true", help="the full lashes against the coarse ones, the skin coarse")
     args = ap.parse_args()
     size = tuple(int(v) for v in args.size.lower().split("x"))
     sys.path.insert(0, str(ROOT))
@@ -47,9 +50,13 @@ def main() -> int:
             state = perform(model, None if name == "neutral" else name)
             shots, drawn = [], []
             for lod in (False, True):
-                scan.lod = lod
-                scan.choose_level = _forced(scan, lod)  # type: ignore[method-assign]
+                scan.lod = lod or args.lashes
+                scan.choose_level = _forced(scan, lod or args.lashes)  # type: ignore[method-assign]
+                coarse_lashes = scan.coarse_lash_vao
+                if args.lashes and not lod:
+                    scan.coarse_lash_vao = scan.lash_vao
                 shots.append(off.render_frame(state, record=False))
+                scan.coarse_lash_vao = coarse_lashes
                 drawn.append(int(scan.counts[0]))
                 del scan.choose_level
             full, coarse = (s.astype(int) for s in shots)
@@ -62,8 +69,14 @@ def main() -> int:
                 from PIL import Image
 
                 d = np.clip(diff * 8, 0, 255).astype(np.uint8)
-                pic = np.concatenate([shots[0], shots[1], np.stack([d] * 3, axis=2)], axis=1)
-                Image.fromarray(pic).save(out / f"lod_{name}.png")
+                pics = [shots[0], shots[1], np.stack([d] * 3, axis=2)]
+                if args.lashes:  # the eyes: the rows and columns where the lashes differ, and a margin
+                    ys, xs = np.nonzero(diff) if diff.any() else (np.array([0, size[1] - 1]), np.array([0, size[0] - 1]))
+                    y0, y1 = max(ys.min() - 12, 0), min(ys.max() + 12, size[1])
+                    x0, x1 = max(xs.min() - 12, 0), min(xs.max() + 12, size[0])
+                    pics = [p[y0:y1, x0:x1].repeat(3, axis=0).repeat(3, axis=1) for p in pics]
+                pic = np.concatenate(pics, axis=0 if args.lashes else 1)
+                Image.fromarray(pic).save(out / f"{'lashes' if args.lashes else 'lod'}_{name}.png")
     return 0
 
 

@@ -22,9 +22,10 @@ KINDS = ("SKIN", "CLAY", "HEAT")
 # term and the rest, most pixels, with the plain shader: the same colours, the highlight per vertex),
 # the eyeballs, the eye sockets, the mouth's inside
 CULLED = ("plain", "features", "eyes", "sockets", "mouth")
-# px²: the coarse plain skin (render.scan_lod) is drawn while the full plain skin's median triangle
-# would cover at most this at the head's nearest point (at 1280x720 the default camera gives 32 px²
-# there, a median of 9 px² over the face as drawn; the gallery's 2x2 supersampled 480x480, 90 px²)
+# px²: the coarse plain skin (render.scan_lod) and the coarse lashes (render.scan_look) are drawn
+# while the full plain skin's median triangle would cover at most this at the head's nearest point
+# (at 1280x720 the default camera gives 32 px² there, a median of 9 px² over the face as drawn; the
+# gallery's 2x2 supersampled 480x480, 90 px²)
 LOD_MAX_PX2 = 40.0
 
 
@@ -115,17 +116,21 @@ class ScanDraw:
         self._box[:, :3] = lo + self._box[:, :3] * (hi - lo)
         self.ibo = ctx.buffer(self.cull_tri.tobytes(), dynamic=True)
         lashes = ctx.buffer(np.ascontiguousarray(groups["lashes"]).tobytes())
-        self._gl: list[Any] = [self.vbo, *(b for b, _ in bufs.values()), self.ibo, lashes]
+        # the lashes drawn with the coarse plain skin: fewer triangles over the same vertices
+        coarse_lashes = look.coarse_lashes()
+        few = ctx.buffer(np.ascontiguousarray(coarse_lashes if len(coarse_lashes) else groups["lashes"]).tobytes())
+        self._gl: list[Any] = [self.vbo, *(b for b, _ in bufs.values()), self.ibo, lashes, few]
         self.vaos = {kind: self._vao(prog, bufs, self.ibo) for kind, prog in self.progs.items()}
         self.eye_vao = self._vao(self.eye_prog, bufs, self.ibo)
         self.lash_vao = self._vao(self.lash_prog, bufs, lashes)
-        self._gl += [*self.vaos.values(), self.eye_vao, self.lash_vao, *self.progs.values(), self.eye_prog,
-                     self.lash_prog]
+        self.coarse_lash_vao = self._vao(self.lash_prog, bufs, few)
+        self._gl += [*self.vaos.values(), self.eye_vao, self.lash_vao, self.coarse_lash_vao, *self.progs.values(),
+                     self.eye_prog, self.lash_prog]
         self.mouth_drawn = False
         self.split_skin = True  # False: the whole skin with every term (the highlight per pixel: slower)
         self.cull_on_cpu = True  # False: every triangle to OpenGL, which culls them (the same pixels)
         self.cull_unseen = True  # False: keep the triangles that cover no pixel or lie hidden inside the head (the same pixels)
-        self.lod = True  # False: the full skin at any size on screen
+        self.lod = True  # False: the full skin (and lashes) at any size on screen
         self.coarse = False  # this frame's level: the plain skin from the coarse list
         self.left_out: set[str] = set()  # groups (of CULLED, or "lashes") not drawn: what each costs, measured
 
@@ -230,7 +235,7 @@ class ScanDraw:
             ctx.enable(moderngl.BLEND)
             ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ZERO, moderngl.ONE)
             fbo.depth_mask = False
-            self.lash_vao.render(moderngl.TRIANGLES)
+            (self.coarse_lash_vao if self.coarse else self.lash_vao).render(moderngl.TRIANGLES)
             fbo.depth_mask = True
             ctx.disable(moderngl.BLEND)
 

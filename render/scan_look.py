@@ -220,6 +220,68 @@ def _static_layout() -> dict[str, np.ndarray]:
             "stomion_y": np.array(stomion_y)}
 
 
+LASH_ROWS, LASH_COLUMNS = 6, 19  # each lash strip of the scan: rows from tip to root, columns along the lid
+COARSE_LASH_ROWS = (0, 1, 3, 5)  # the rows the coarse strips keep (the curl is sharpest near the tip)
+COARSE_LASH_STEP = 2  # and every second column, the last kept
+
+
+def _lash_row(uv: np.ndarray) -> np.ndarray:
+    """(K,) the row (0 .. LASH_ROWS - 1, tip to root) of each lash vertex from its chart coordinates."""
+    return np.rint((uv[:, 1] % 1.0 - 0.014) / 0.0278).astype(int) % LASH_ROWS
+
+
+@lru_cache(maxsize=1)
+def coarse_lashes() -> np.ndarray:
+    """(K, 3) int32 the lashes as fewer triangles over the same vertices: each strip's grid of
+    LASH_ROWS x LASH_COLUMNS vertices kept at rows COARSE_LASH_ROWS and every COARSE_LASH_STEP-th
+    column, each quad split along the diagonal most of the scan's own quads it spans are split
+    along (2160 -> 648 triangles). Empty when a strip is not such a grid."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    every = scan_data().vertex_uv()
+    full = _static_layout()["lashes"]
+    cols = list(range(0, LASH_COLUMNS, COARSE_LASH_STEP))
+    if cols[-1] != LASH_COLUMNS - 1:
+        cols.append(LASH_COLUMNS - 1)
+    rows = list(COARSE_LASH_ROWS)
+    out = []
+    for part in LASH_PARTS:
+        lo, hi = PARTS[part]
+        t = full[(full[:, 0] >= lo) & (full[:, 0] < hi)] - lo
+        n = hi - lo
+        uv = every[lo:hi]
+        row = _lash_row(uv)
+        link = coo_matrix((np.ones(t.size), (np.repeat(t[:, 0], 3), t.ravel())), shape=(n, n))
+        count, strip = connected_components(link + link.T, directed=False)
+        grid = np.zeros((count, LASH_ROWS, LASH_COLUMNS), np.int64)
+        place = np.zeros((n, 2), np.int64)  # each vertex's (row, column)
+        for k in range(count):
+            for r in range(LASH_ROWS):
+                members = np.flatnonzero((strip == k) & (row == r))
+                if len(members) != LASH_COLUMNS:
+                    return np.zeros((0, 3), np.int32)
+                members = members[np.argsort(uv[members, 0] % 1.0)]
+                grid[k, r] = members
+                place[members] = np.stack([np.full(LASH_COLUMNS, r), np.arange(LASH_COLUMNS)], axis=1)
+        # the scan's split of each of its quads: +1 along the (row, column) diagonal, -1 across it
+        split = np.zeros((count, LASH_ROWS - 1, LASH_COLUMNS - 1), np.int64)
+        for tri in t:
+            rc = place[tri]
+            for i, j in ((0, 1), (1, 2), (0, 2)):
+                dr, dc = rc[i] - rc[j]
+                if dr and dc:
+                    split[strip[tri[0]], min(rc[i, 0], rc[j, 0]), min(rc[i, 1], rc[j, 1])] = 1 if dr * dc > 0 else -1
+        for k in range(count):
+            g = grid[k][np.ix_(rows, cols)] + lo
+            for r in range(len(rows) - 1):
+                for c in range(len(cols) - 1):
+                    a, b, d, e = g[r, c], g[r, c + 1], g[r + 1, c + 1], g[r + 1, c]
+                    along = split[k, rows[r]:rows[r + 1], cols[c]:cols[c + 1]].sum() >= 0
+                    out += [(a, b, d), (a, d, e)] if along else [(a, b, e), (b, d, e)]
+    return np.array(out, np.int32).reshape(-1, 3)
+
+
 def _extra_coords(face_uv: np.ndarray) -> np.ndarray:
     """The per-vertex coordinates the shaders read besides the face chart: the eyeballs' own chart
     (the iris at its centre: the angle around it gives the iris its fibres) and, on the lashes,
@@ -233,7 +295,7 @@ def _extra_coords(face_uv: np.ndarray) -> np.ndarray:
         out[lo:hi] = every[lo:hi]
         lo, hi = PARTS[f"eyelashes_{side}"]
         uv = every[lo:hi]
-        row = np.rint((uv[:, 1] % 1.0 - 0.014) / 0.0278).astype(int) % 6
+        row = _lash_row(uv)
         block = np.floor(uv[:, 1] % 1.0 * 2.0)  # the lower lid's strips are the chart's lower half
         out[lo:hi, 0] = uv[:, 0] % 1.0 + 2.0 * (block == 0)
         out[lo:hi, 1] = 1.0 - row / 5.0
@@ -415,6 +477,10 @@ class ScanLook:
         from render.scan_lod import coarse_plain
 
         return spatial_order(coarse_plain()[0], self.rest).astype(np.int32)
+
+    def coarse_lashes(self) -> np.ndarray:
+        """(K, 3) int32 the lashes as fewer triangles (`coarse_lashes`), in Z-order as the full list."""
+        return spatial_order(coarse_lashes(), self.rest).astype(np.int32)
 
     def group_of_triangles(self, order: tuple[str, ...]) -> np.ndarray:
         """(T,) int8: for each triangle of `triangles`, its group's place in `order` (group names,
