@@ -117,8 +117,7 @@ class ScanDraw:
         self.ibo = ctx.buffer(self.cull_tri.tobytes(), dynamic=True)
         lashes = ctx.buffer(np.ascontiguousarray(groups["lashes"]).tobytes())
         # the lashes drawn with the coarse plain skin: fewer triangles over the same vertices
-        coarse_lashes = look.coarse_lashes()
-        few = ctx.buffer(np.ascontiguousarray(coarse_lashes if len(coarse_lashes) else groups["lashes"]).tobytes())
+        few = ctx.buffer(np.ascontiguousarray(look.coarse_lashes()).tobytes())
         self._gl: list[Any] = [self.vbo, *(b for b, _ in bufs.values()), self.ibo, lashes, few]
         self.vaos = {kind: self._vao(prog, bufs, self.ibo) for kind, prog in self.progs.items()}
         self.eye_vao = self._vao(self.eye_prog, bufs, self.ibo)

@@ -479,8 +479,10 @@ class ScanLook:
         return spatial_order(coarse_plain()[0], self.rest).astype(np.int32)
 
     def coarse_lashes(self) -> np.ndarray:
-        """(K, 3) int32 the lashes as fewer triangles (`coarse_lashes`), in Z-order as the full list."""
-        return spatial_order(coarse_lashes(), self.rest).astype(np.int32)
+        """(K, 3) int32 the lashes as fewer triangles (`coarse_lashes`), in Z-order as the full list;
+        the full list when the scan's strips are not the grids expected."""
+        few = coarse_lashes()
+        return spatial_order(few, self.rest).astype(np.int32) if len(few) else self.groups["lashes"]
 
     def group_of_triangles(self, order: tuple[str, ...]) -> np.ndarray:
         """(T,) int8: for each triangle of `triangles`, its group's place in `order` (group names,

@@ -92,11 +92,13 @@ def test_coarse_triangles_turn_over_only_where_the_skin_does(posed) -> None:
 def test_coarse_skin_drawn_while_small_looks_the_same(gl, posed) -> None:
     """At a size where the skin's triangles are small the coarse plain skin is drawn: fewer
     triangles, and the picture of the full skin but for a few levels on a few pixels, the head's
-    outline in place; larger (1920x1080, the gallery's supersampled stills) the full skin is drawn."""
+    outline in place; larger (1920x1080, the gallery's supersampled stills) the full skin is drawn.
+    The lashes, coarse with the coarse skin too, are left out of both pictures (compared below)."""
     model, states = posed
     plain = CULLED.index("plain")
     with OffscreenRenderer(model, (640, 360), ctx=gl) as off:
         scan = off.renderer.scan
+        scan.left_out = {"lashes"}
         for name, state in states.items():
             scan.lod = True
             coarse = off.render_frame(state, record=False).astype(int)
@@ -119,3 +121,56 @@ def test_coarse_skin_drawn_while_small_looks_the_same(gl, posed) -> None:
             off.renderer.camera.scale = scale
             off.render_frame(states["rest"], record=False)
             assert not off.renderer.scan.coarse, size
+
+
+def test_coarse_lashes_cover_the_same_strips() -> None:
+    """The coarse lashes are fewer triangles over the lashes' own vertices, none degenerate, spanning
+    the same strips: about the same area at rest, and the same extent on each side."""
+    from render.scan_look import coarse_lashes
+    from sim.face.scan.data import PARTS
+
+    rest = scan_data().neutral
+    full = ScanLook(rest).groups["lashes"]
+    few = coarse_lashes()
+    assert 0 < len(few) < 0.35 * len(full)
+    lo, hi = min(PARTS["eyelashes_l"][0], PARTS["eyelashes_r"][0]), max(PARTS["eyelashes_l"][1],
+                                                                          PARTS["eyelashes_r"][1])
+    assert few.min() >= lo and few.max() < hi
+
+    def areas(t: np.ndarray) -> np.ndarray:
+        return 0.5 * np.linalg.norm(np.cross(rest[t[:, 1]] - rest[t[:, 0]], rest[t[:, 2]] - rest[t[:, 0]]), axis=1)
+
+    assert areas(few).min() > 0.01 * np.median(areas(full))
+    assert 0.85 < areas(few).sum() / areas(full).sum() < 1.05
+    for part in ("eyelashes_l", "eyelashes_r"):
+        a, b = PARTS[part]
+        side_full = rest[np.unique(full[(full[:, 0] >= a) & (full[:, 0] < b)])]
+        side_few = rest[np.unique(few[(few[:, 0] >= a) & (few[:, 0] < b)])]
+        assert np.abs(side_full.min(axis=0) - side_few.min(axis=0)).max() < 0.05  # cm
+        assert np.abs(side_full.max(axis=0) - side_few.max(axis=0)).max() < 0.05
+
+
+def test_coarse_lashes_look_like_the_full_ones(gl, posed) -> None:
+    """Drawn with the coarse skin, the coarse lashes darken about as many pixels as the full lashes
+    do, and the picture differs from the full lashes' by a few levels on a few pixels."""
+    model, states = posed
+    with OffscreenRenderer(model, (1280, 720), ctx=gl) as off:
+        scan = off.renderer.scan
+        for name, state in states.items():
+            few = off.render_frame(state, record=False).astype(int)
+            assert scan.coarse
+            coarse_vao = scan.coarse_lash_vao
+            scan.coarse_lash_vao = scan.lash_vao
+            full = off.render_frame(state, record=False).astype(int)
+            scan.coarse_lash_vao = coarse_vao
+            scan.left_out = {"lashes"}
+            bare = off.render_frame(state, record=False).astype(int)
+            scan.left_out = set()
+            head = np.abs(full - full[0, 0]).sum(axis=2) > 0
+            hair_full = (np.abs(full - bare).max(axis=2) > 8).sum()
+            hair_few = (np.abs(few - bare).max(axis=2) > 8).sum()
+            assert hair_full > 500 and 0.8 < hair_few / hair_full < 1.2, (name, hair_full, hair_few)
+            diff = np.abs(full - few).max(axis=2)
+            assert diff[head].mean() < 0.5, name
+            assert (diff[head] > 8).mean() < 0.01, name
+            assert gl.error == "GL_NO_ERROR"
