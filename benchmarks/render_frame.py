@@ -383,7 +383,8 @@ def scan_parts(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
                 t = floor_ms(ctx, size, 10)
                 if b:
                     times["floor"].append(t)
-            med = {k: (statistics.median(x for x, _ in v), statistics.median(c for _, c in v)) for k, v in times.items()}
+            med = {k: (statistics.median(x for x, _ in v), statistics.median(c for _, c in v))
+                   for k, v in times.items()}
             f = med["floor"]
             out.append(f"{expression}: floor {f[0]:.2f} ms (cpu {f[1]:.2f}), load {os.getloadavg()[0]:.1f}")
             out.append(f"  {'':<22}{'x floor':>9}{'cpu x':>8}{'main':>8}{'helper':>8}{'raster':>8}  (ms a frame)")

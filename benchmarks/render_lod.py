@@ -71,7 +71,8 @@ def main() -> int:
                 d = np.clip(diff * 8, 0, 255).astype(np.uint8)
                 pics = [shots[0], shots[1], np.stack([d] * 3, axis=2)]
                 if args.lashes:  # the eyes: the rows and columns where the lashes differ, and a margin
-                    ys, xs = np.nonzero(diff) if diff.any() else (np.array([0, size[1] - 1]), np.array([0, size[0] - 1]))
+                    whole = (np.array([0, size[1] - 1]), np.array([0, size[0] - 1]))
+                    ys, xs = np.nonzero(diff) if diff.any() else whole
                     y0, y1 = max(ys.min() - 12, 0), min(ys.max() + 12, size[1])
                     x0, x1 = max(xs.min() - 12, 0), min(xs.max() + 12, size[0])
                     pics = [p[y0:y1, x0:x1].repeat(3, axis=0).repeat(3, axis=1) for p in pics]
