@@ -10,8 +10,8 @@ rest is split into a smooth part (a Gaussian average over the rest skin, SIGMA w
 left (the buckles, and a scan's own fine lines); the residual keeps its direction but its length
 goes through a soft limit (LIMIT tanh(r / LIMIT)): fine lines of a few tenths of a millimetre stay
 nearly whole, a buckle of 2-3 mm becomes a soft fold of about LIMIT. The normals and fold terms
-are then made from the softened surface as before, and how deep each vertex lay in its buckle's
-fold adds a soft shadow (`shade`). Only the drawing is changed: the simulation, its bits and the
+are then made from the softened surface as before, and how deep the skin around each vertex lay
+in its buckle's folds (spread by the same Gaussian) adds a soft shadow over it (`shade`). Only the drawing is changed: the simulation, its bits and the
 exported vertices (`ScanDressing.pose`) are not.
 """
 
@@ -28,7 +28,7 @@ BELOW_EYES = 0.8  # cm below the eyes' centres at which it starts (fading in ove
 TOP = (10.5, 11.5)  # cm above the eyes' centres over which it fades out (the hairline, above it
 # the skin barely moves)
 CREASE_FOLD = 0.15  # the fold term (render.scan_shaders: 1.8 of it darkens) at most added for a softened fold
-CREASE_DEPTH = 0.1  # cm: the depth of a softened fold that adds three quarters of CREASE_FOLD
+CREASE_DEPTH = 0.1  # cm: the (spread) depth of softened folds that adds three quarters of CREASE_FOLD
 SIDE = 6.5  # cm from the midline: no further (the temples)
 
 
@@ -77,7 +77,7 @@ class FoldSoftener:
         self.weight = w[zone].astype(np.float32)
         self.rest = rest.astype(np.float32)
         self.support = np.unique(np.concatenate([flat, zone])).astype(np.int32)
-        self.disp = np.zeros((n, 3), np.float32)
+        self.disp = np.zeros((n, 4), np.float32)
         tri = look.groups["skin"]  # type: ignore[attr-defined]
         area = np.cross(rest[tri[:, 1]] - rest[tri[:, 0]], rest[tri[:, 2]] - rest[tri[:, 0]])
         normal = np.zeros((n, 3))
@@ -101,7 +101,7 @@ class FoldSoftener:
 
     def shade(self, rows: np.ndarray) -> np.ndarray:
         """`rows` (the renderer's x y z nx ny nz fold, made from the last `soften`'s output) with the
-        softened folds' depth added to the fold term (CREASE_FOLD tanh(depth / CREASE_DEPTH)): the
-        fold a buckle made keeps a soft shadow as wide as the buckle was, not a hard seam."""
+        softened folds' depth, spread by the Gaussian, added to the fold term (CREASE_FOLD
+        tanh(depth / CREASE_DEPTH)): skin that buckled keeps a soft, broad shadow, not a seam."""
         rows[self.zone, 6] += self.crease
         return rows

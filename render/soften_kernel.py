@@ -17,15 +17,16 @@ def soften_zone(posed: np.ndarray, rest: np.ndarray, support: np.ndarray, zone: 
     """For each zone vertex i = zone[z]: r = (posed - rest)[i] minus the Gaussian mean of
     (posed - rest) over cols[ptr[z]:ptr[z + 1]] (weights gauss, summing to 1); out[i] = posed[i]
     - weight[z] (1 - limit tanh(|r| / limit) / |r|) r. Reads `posed` only, writes `out` only;
-    `disp` (N, 3) is scratch, written at the rows `support` lists (every index of cols and zone).
-    crease[z] = shadow tanh(depth / shadow_depth), depth = weight[z] max(0, -r . normal[z]): how
-    deep the vertex was pushed into the skin below its surroundings' motion (the depth of the fold
-    it lay in), 0 on a ridge."""
+    `disp` (N, 4) is scratch, written at the rows `support` lists (every index of cols and zone).
+    crease[z] = shadow tanh(d / shadow_depth), d the Gaussian mean over the same neighbours of
+    weight max(0, -r . normal): how deep the skin around the vertex was pushed in below its
+    surroundings' motion (the folds of a buckle, spread over it), 0 where it moved smoothly."""
     for k in range(support.shape[0]):
         j = support[k]
         disp[j, 0] = posed[j, 0] - rest[j, 0]
         disp[j, 1] = posed[j, 1] - rest[j, 1]
         disp[j, 2] = posed[j, 2] - rest[j, 2]
+        disp[j, 3] = np.float32(0.0)
     for z in range(zone.shape[0]):
         i = zone[z]
         sx = sy = sz = np.float32(0.0)
@@ -39,7 +40,7 @@ def soften_zone(posed: np.ndarray, rest: np.ndarray, support: np.ndarray, zone: 
         ry = disp[i, 1] - sy
         rz = disp[i, 2] - sz
         depth = -(rx * normal[z, 0] + ry * normal[z, 1] + rz * normal[z, 2])
-        crease[z] = shadow * np.tanh(weight[z] * depth / shadow_depth) if depth > 0.0 else np.float32(0.0)
+        disp[i, 3] = weight[z] * depth if depth > 0.0 else np.float32(0.0)
         length = np.sqrt(rx * rx + ry * ry + rz * rz)
         if length < 1e-9:
             continue
@@ -47,3 +48,8 @@ def soften_zone(posed: np.ndarray, rest: np.ndarray, support: np.ndarray, zone: 
         out[i, 0] = posed[i, 0] - c * rx
         out[i, 1] = posed[i, 1] - c * ry
         out[i, 2] = posed[i, 2] - c * rz
+    for z in range(zone.shape[0]):  # the depth spread as the Gaussian spreads it
+        s = np.float32(0.0)
+        for k in range(ptr[z], ptr[z + 1]):
+            s += gauss[k] * disp[cols[k], 3]
+        crease[z] = shadow * np.tanh(s / shadow_depth)

@@ -1,5 +1,5 @@
 """The upper face's buckles softened before the scanned head is shaded (render.scan_soften): a buckle
-a few vertices wide becomes a soft fold with a soft shadow, the expression's broad motion, a rigid
+a few vertices wide becomes a soft fold under a soft shadow, the expression's broad motion, a rigid
 move and the lids are left as they are."""
 
 from __future__ import annotations
@@ -59,15 +59,14 @@ def test_a_buckle_becomes_a_soft_fold_and_the_broad_motion_stays(soft: FoldSofte
     # the broad motion alone is kept
     smooth = soft.soften(broad.astype(np.float32)).astype(np.float64)
     assert np.abs(smooth[fh] - broad[fh]).max() < 0.02
-    # the folds keep a shadow: the valleys darken (the fold term grows), the ridges do not
+    # the buckled skin keeps a soft shadow over it (the fold term grows), skin moved smoothly none
     rows = np.zeros((len(rest), 7), np.float32)
     soft.soften(posed)
-    fold = soft.shade(rows)[:, 6]
-    valley = fh[ripple[fh] < -0.2]
-    ridge = fh[ripple[fh] > 0.2]
-    assert (fold[valley] > 0.05).all()
-    assert (fold[ridge] == 0.0).all()
-
+    fold = soft.shade(rows)[:, 6].copy()
+    assert (fold[fh] > 0.05).all()
+    rows[:] = 0.0
+    soft.soften(broad.astype(np.float32))
+    assert np.abs(soft.shade(rows)[fh, 6]).max() < 0.1 * fold[fh].min()  # under 1 % darker
 
 def test_the_lids_are_never_moved(soft: FoldSoftener) -> None:
     rest = soft.rest
