@@ -14,6 +14,7 @@ import numpy as np
 from render import scan_shaders
 from render.scan_look import IRIS_ANGLE, PUPIL_ANGLE, ScanLook
 from render.scan_rows import ScanRows
+from render.scan_soften import FoldSoftener
 from sim.face.scan.blendshapes import StateControl as PoseControl
 
 KINDS = ("SKIN", "CLAY", "HEAT")
@@ -44,6 +45,21 @@ def dressing_of(model: Any) -> Any:
     return dressing_for(model)
 
 
+def posed_scan(dressing: Any, softener: FoldSoftener | None, state: Any) -> np.ndarray:
+    """The scan as drawn for `state`: posed by the dressing, the upper face's buckles softened
+    (render.scan_soften; in the head's own frame, before a head turn), turned with the head."""
+    control = PoseControl(state)
+    if softener is None:
+        return dressing.pose_turned(np.asarray(state.surface), control, state)
+    posed = softener.soften(dressing.pose(np.asarray(state.surface), control))
+    turn = getattr(dressing, "turn_head", None)
+    if turn is None:
+        return posed
+    from sim.face.turn import state_turn
+
+    return turn(posed, *state_turn(state))
+
+
 class ScanPoser:
     """The per-frame CPU half of drawing a scanned head, without OpenGL: the scan posed to a state
     and its rows (an export's simulating process makes them for its render processes)."""
@@ -52,10 +68,10 @@ class ScanPoser:
         self.dressing = dressing
         self.look = ScanLook(np.asarray(dressing.rest, np.float64))
         self.maker = ScanRows(self.look)
+        self.softener = FoldSoftener(self.look)
 
     def rows(self, state: Any) -> np.ndarray:
-        posed = self.dressing.pose_turned(np.asarray(state.surface), PoseControl(state), state)
-        return self.maker.rows(posed)
+        return self.softener.shade(self.maker.rows(posed_scan(self.dressing, self.softener, state)))
 
 
 class ScanDraw:
@@ -72,6 +88,7 @@ class ScanDraw:
         self.look = ScanLook(np.asarray(rest_scan, np.float64))
         self.coarse_tri = self.look.coarse_plain()
         self.maker = ScanRows(self.look, self.coarse_tri)
+        self.softener: FoldSoftener | None = FoldSoftener(self.look)  # None: the buckles drawn as simulated
         from render.scan_lod import coarse_plain
 
         self.lod_error = coarse_plain()[1]  # cm: the coarse skin's largest distance from the full one
@@ -172,16 +189,19 @@ class ScanDraw:
         row-major) and the picture's `size` too, without the triangles that cover no pixel or that
         the skin hides (the eyes' and the mouth's, seen only through their openings), unless
         `cull_unseen` is False (the same pixels)."""
-        posed = self.dressing.pose_turned(np.asarray(state.surface), PoseControl(state), state)
+        posed = posed_scan(self.dressing, self.softener, state)
         if eye is None or not self.cull_on_cpu:
             self._facing_rows = None
-            return self.maker.rows(posed)
+            return self._shaded(self.maker.rows(posed))
         if not self.cull_unseen:
             mvp = None
         group = self.group_coarse if self.coarse else self.group
-        rows = self.maker.rows(posed, eye, group, self.starts, self.kept, self.counts, mvp, size)
+        rows = self._shaded(self.maker.rows(posed, eye, group, self.starts, self.kept, self.counts, mvp, size))
         self._facing_rows = rows
         return rows
+
+    def _shaded(self, rows: np.ndarray) -> np.ndarray:
+        return rows if self.softener is None else self.softener.shade(rows)
 
     def _indices(self, rows: np.ndarray, groups: int) -> None:
         """The index buffer's first `groups` slices for these rows: the triangles that may face the

@@ -1,0 +1,107 @@
+"""Softening the upper face's buckles before the scanned head is shaded (render.scan_draw).
+
+The simulated skin, compressed by the brows' muscles, can buckle between a few of its vertices: in
+fear, sadness and surprise uneven bumps over the inner brows where a scanned forehead stays smooth
+with a few even lines, in anger and disgust a sharp V of ridges at the glabella, drawn as a hard
+dark seam where the scan folds softly (docs/rendering.md, "The upper face's buckles softened").
+
+Here, on the forehead, brows and glabella (away from the lids), the posed scan's displacement from
+rest is split into a smooth part (a Gaussian average over the rest skin, SIGMA wide) and what is
+left (the buckles, and a scan's own fine lines); the residual keeps its direction but its length
+goes through a soft limit (LIMIT tanh(r / LIMIT)): fine lines of a few tenths of a millimetre stay
+nearly whole, a buckle of 2-3 mm becomes a soft fold of about LIMIT. The normals and fold terms
+are then made from the softened surface as before, and how deep the skin around each vertex lay
+in its buckle's folds (spread by the same Gaussian) adds a soft shadow over it (`shade`). Only the drawing is changed: the simulation, its bits and the
+exported vertices (`ScanDressing.pose`) are not.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+SIGMA = 0.5  # cm: the Gaussian's width (the skin's edges there are about 0.37 cm)
+REACH = 1.5  # sigmas: the Gaussian is cut off beyond this distance (at 2: the same look by eye, 1.35x the work)
+LIMIT = 0.05  # cm: a residual this long keeps three quarters of its length, a longer one at most this
+LID_CLEAR = (1.0, 1.8)  # cm from the lid margins: nothing changed nearer, all of it beyond
+BELOW_EYES = 0.8  # cm below the eyes' centres at which it starts (fading in over the same span)
+TOP = (10.5, 11.5)  # cm above the eyes' centres over which it fades out (the hairline, above it
+# the skin barely moves)
+CREASE_FOLD = 0.15  # the fold term (render.scan_shaders: 1.8 of it darkens) at most added for a softened fold
+CREASE_DEPTH = 0.1  # cm: the (spread) depth of softened folds that adds three quarters of CREASE_FOLD
+SIDE = 6.5  # cm from the midline: no further (the temples)
+
+
+def _smoothstep(x: np.ndarray) -> np.ndarray:
+    t = np.clip(x, 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+class FoldSoftener:
+    """For one rest pose of the scan (a ScanLook): `soften(posed)` gives the posed scan with the
+    upper face's buckles softened (a new array; `posed` is left as it is)."""
+
+    def __init__(self, look: object) -> None:
+        from render.scan_look import eye_centres
+
+        rest = np.asarray(look.rest, np.float64)  # type: ignore[attr-defined]
+        n = len(rest)
+        skin = np.zeros(n, bool)
+        skin[look.groups["skin"].ravel()] = True  # type: ignore[attr-defined]
+        eyes = eye_centres(rest)
+        eye_y = float(eyes[:, 1].mean())
+        margins = [np.asarray(lp) for lp in look.openings  # type: ignore[attr-defined]
+                   if np.min(np.linalg.norm(rest[np.asarray(lp)].mean(axis=0) - eyes, axis=1)) < 1.5]
+        if len(margins) != 2:
+            raise ValueError(f"the scan's skin has {len(margins)} openings at the eyes, expected 2")
+        lid = cKDTree(rest[np.concatenate(margins)]).query(rest)[0]
+        y = rest[:, 1] - eye_y
+        w = (_smoothstep((lid - LID_CLEAR[0]) / (LID_CLEAR[1] - LID_CLEAR[0]))
+             * _smoothstep((y + BELOW_EYES) / BELOW_EYES)
+             * (1.0 - _smoothstep((y - TOP[0]) / (TOP[1] - TOP[0])))
+             * (1.0 - _smoothstep((np.abs(rest[:, 0]) - SIDE + 0.5) / 0.5))
+             * (skin & (rest[:, 2] > eyes[:, 2].mean() - 4.0)))
+        zone = np.flatnonzero(w > 0.0)
+        skin_v = np.flatnonzero(skin)
+        near = cKDTree(rest[skin_v]).query_ball_point(rest[zone], REACH * SIGMA)
+        cols = [skin_v[np.asarray(j, np.int64)] for j in near]
+        count = np.array([len(c) for c in cols])
+        rows = np.repeat(np.arange(len(zone)), count)
+        flat = np.concatenate(cols)
+        g = np.exp(-0.5 * np.sum((rest[flat] - rest[zone[rows]]) ** 2, axis=1) / SIGMA**2)
+        g /= np.bincount(rows, g)[rows]
+        self.zone = zone.astype(np.int32)
+        self.ptr = np.concatenate([[0], np.cumsum(count)]).astype(np.int32)
+        self.cols = flat.astype(np.int32)
+        self.gauss = g.astype(np.float32)
+        self.weight = w[zone].astype(np.float32)
+        self.rest = rest.astype(np.float32)
+        self.support = np.unique(np.concatenate([flat, zone])).astype(np.int32)
+        self.disp = np.zeros((n, 4), np.float32)
+        tri = look.groups["skin"]  # type: ignore[attr-defined]
+        area = np.cross(rest[tri[:, 1]] - rest[tri[:, 0]], rest[tri[:, 2]] - rest[tri[:, 0]])
+        normal = np.zeros((n, 3))
+        for k in range(3):
+            np.add.at(normal, tri[:, k], area)
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+        self.normal = normal[zone].astype(np.float32)
+        self.crease = np.zeros(len(zone), np.float32)
+
+    def soften(self, posed: np.ndarray) -> np.ndarray:
+        """(N, 3) float32: `posed` with the residual of its displacement from rest on the upper face
+        (what the Gaussian average leaves) limited softly to LIMIT, faded by the zone's weight."""
+        from render.soften_kernel import soften_zone
+
+        p = np.ascontiguousarray(posed, np.float32)
+        out = p.copy()
+        soften_zone(p, self.rest, self.support, self.zone, self.ptr, self.cols, self.gauss, self.weight,
+                    self.normal, np.float32(LIMIT), np.float32(CREASE_FOLD), np.float32(CREASE_DEPTH), self.disp, out,
+                    self.crease)
+        return out
+
+    def shade(self, rows: np.ndarray) -> np.ndarray:
+        """`rows` (the renderer's x y z nx ny nz fold, made from the last `soften`'s output) with the
+        softened folds' depth, spread by the Gaussian, added to the fold term (CREASE_FOLD
+        tanh(depth / CREASE_DEPTH)): skin that buckled keeps a soft, broad shadow, not a seam."""
+        rows[self.zone, 6] += self.crease
+        return rows

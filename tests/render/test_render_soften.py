@@ -1,0 +1,83 @@
+"""The upper face's buckles softened before the scanned head is shaded (render.scan_soften): a buckle
+a few vertices wide becomes a soft fold under a soft shadow, the expression's broad motion, a rigid
+move and the lids are left as they are."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from render.scan_look import ScanLook, eye_centres
+from render.scan_soften import LID_CLEAR, LIMIT, FoldSoftener
+from sim.face.scan.data import scan_data
+
+
+@pytest.fixture(scope="module")
+def soft() -> FoldSoftener:
+    return FoldSoftener(ScanLook(scan_data().neutral))
+
+
+def _forehead(s: FoldSoftener) -> np.ndarray:
+    """The zone's vertices that get all of it, on the forehead proper (above the brows)."""
+    rest = s.rest[s.zone]
+    eye_y = eye_centres(s.rest.astype(float))[:, 1].mean()
+    return s.zone[(s.weight > 0.999) & (rest[:, 1] > eye_y + 3.0) & (rest[:, 1] < eye_y + 6.0)
+                  & (np.abs(rest[:, 0]) < 3.5)]
+
+
+def _normal(s: FoldSoftener) -> np.ndarray:
+    n = np.zeros_like(s.rest)
+    n[s.zone] = s.normal
+    return n
+
+
+def test_rest_and_a_rigid_move_are_left_as_they_are(soft: FoldSoftener) -> None:
+    rest = soft.rest
+    assert np.array_equal(soft.soften(rest), rest)
+    moved = rest + np.array([0.3, -0.2, 0.5], np.float32)
+    np.testing.assert_allclose(soft.soften(moved), moved, atol=2e-5)
+    rows = np.zeros((len(rest), 7), np.float32)
+    soft.soften(rest)
+    assert not soft.shade(rows).any()  # no fold, no shadow
+
+
+def test_a_buckle_becomes_a_soft_fold_and_the_broad_motion_stays(soft: FoldSoftener) -> None:
+    rest = soft.rest.astype(np.float64)
+    fh = _forehead(soft)
+    assert len(fh) > 100
+    eyes = eye_centres(rest)
+    # a brow raise: 6 mm up, fading over a few centimetres, and on it vertical ridges 1 cm apart,
+    # 2.5 mm high along the skin's normal (the simulated forehead's buckles are 1.5-3.5 mm)
+    lift = 0.6 * np.exp(-0.5 * np.sum((rest[:, :2] - [0.0, eyes[0, 1] + 3.0]) ** 2, axis=1) / 3.0**2)
+    ripple = 0.25 * np.sin(2.0 * np.pi * rest[:, 0] / 1.0)
+    broad = rest + lift[:, None] * [0.0, 1.0, 0.0]
+    posed = (broad + ripple[:, None] * _normal(soft)).astype(np.float32)
+    out = soft.soften(posed).astype(np.float64)
+    left = np.linalg.norm(out[fh] - broad[fh], axis=1)
+    assert left.max() <= LIMIT + 0.03  # the ripple down to a soft fold of about LIMIT
+    assert np.linalg.norm(posed[fh] - broad[fh], axis=1).max() > 0.2
+    # the broad motion alone is kept
+    smooth = soft.soften(broad.astype(np.float32)).astype(np.float64)
+    assert np.abs(smooth[fh] - broad[fh]).max() < 0.02
+    # the buckled skin keeps a soft shadow over it (the fold term grows), skin moved smoothly none
+    rows = np.zeros((len(rest), 7), np.float32)
+    soft.soften(posed)
+    fold = soft.shade(rows)[:, 6].copy()
+    assert (fold[fh] > 0.05).all()
+    rows[:] = 0.0
+    soft.soften(broad.astype(np.float32))
+    assert np.abs(soft.shade(rows)[fh, 6]).max() < 0.1 * fold[fh].min()  # under 1 % darker
+
+def test_the_lids_are_never_moved(soft: FoldSoftener) -> None:
+    rest = soft.rest
+    rng = np.random.default_rng(0)
+    posed = rest + rng.normal(0.0, 0.2, rest.shape).astype(np.float32)
+    out = soft.soften(posed)
+    moved = np.flatnonzero(np.any(out != posed, axis=1))
+    assert len(moved) > 100
+    look = ScanLook(scan_data().neutral)
+    eyes = eye_centres(rest.astype(float))
+    margins = np.concatenate([lp for lp in look.openings
+                              if np.min(np.linalg.norm(rest[lp].mean(axis=0) - eyes, axis=1)) < 1.5])
+    dist = np.min(np.linalg.norm(rest[moved][:, None] - rest[margins][None], axis=2), axis=1)
+    assert dist.min() >= LID_CLEAR[0]
