@@ -76,3 +76,25 @@ def test_imported_frontalis_pulls_the_mid_brow_skin(face) -> None:
         brow = np.asarray(rig.mesh.vertices)[rig.mesh.landmarks[f"brow_mid_{side}"]][None]
         pulled = sum(float(_pull(m, brow)[0]) for part in ("inner", "outer") for m in rig.muscles[f"frontalis_{part}_{side}"])
         assert pulled > 0.25, side
+
+
+def test_matched_forces_pull_as_hard_in_all_as_the_reference(face) -> None:
+    """A head twice the reference's size with its forehead stretched: after match_forces every
+    channel's total force over the free skin, for the face's area, is the reference's (within the
+    factor's limits), where the carried muscles alone differ."""
+    from sim.face.builder import build_face_mesh
+    from sim.face.transfer import TransferOptions, from_arrays, parse_landmarks, transfer_rig
+    from sim.face.transfer.forces import LIMITS, channel_totals
+
+    target = build_face_mesh(1)
+    v = np.asarray(target.vertices, float) * 2.0
+    v[:, 1] += 0.4 * np.clip(v[:, 1] - v[target.landmarks["glabella"], 1], 0.0, None)
+    head = from_arrays(v, target.triangles, "head.obj")
+    lms = parse_landmarks({k: int(i) for k, i in target.landmarks.items()}, "head.json")
+    plain = transfer_rig(face, head, lms, name="head").rig
+    matched = transfer_rig(face, head, lms, name="head", options=TransferOptions(match_forces=True)).rig
+    want, before, after = channel_totals(face), channel_totals(plain), channel_totals(matched)
+    assert max(abs(before[ch] / want[ch] - 1) for ch in want if want[ch] > 0) > 0.1
+    for ch, total in want.items():
+        if total > 0 and LIMITS[0] < total / before[ch] < LIMITS[1]:
+            assert after[ch] == pytest.approx(total, rel=1e-6), ch

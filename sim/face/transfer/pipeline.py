@@ -31,7 +31,7 @@ FloatArray = np.ndarray
 IntArray = np.ndarray
 FORWARD = np.array([0.0, 0.0, 1.0])
 UP = np.array([0.0, 1.0, 0.0])
-IMPORTED_PRESETS = "imported-2"  # sim.facs.FACE_EXPRESSIONS' intensities for a head without teeth
+IMPORTED_PRESETS = "imported-3"  # sim.facs.FACE_EXPRESSIONS' intensities for a head without teeth
 CAVITY_DEPTH = 0.015  # of the landmark region's radius (~1 mm on an adult): a layer this far under
 # the outermost skin seen along the cylinder's radius is the inside of the mouth, a socket or a nostril
 
