@@ -74,7 +74,8 @@ def test_imported_frontalis_pulls_the_mid_brow_skin(face) -> None:
     rig = transfer_rig(face, head, lms, name="head", options=TransferOptions(cover_sheets=True)).rig
     for side in "lr":
         brow = np.asarray(rig.mesh.vertices)[rig.mesh.landmarks[f"brow_mid_{side}"]][None]
-        pulled = sum(float(_pull(m, brow)[0]) for part in ("inner", "outer") for m in rig.muscles[f"frontalis_{part}_{side}"])
+        parts = [m for part in ("inner", "outer") for m in rig.muscles[f"frontalis_{part}_{side}"]]
+        pulled = sum(float(_pull(m, brow)[0]) for m in parts)
         assert pulled > 0.25, side
 
 
