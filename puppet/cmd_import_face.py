@@ -86,7 +86,8 @@ def run(args: argparse.Namespace) -> int:
         head = read_mesh(args.mesh)
         landmarks = read_landmarks(args.landmarks)
         result = transfer_rig(_reference(args), head, landmarks, name=args.name or Path(args.mesh).stem,
-                              options=TransferOptions(seat_eyes=args.rest_eyes, rest_lips=args.rest_lips))
+                              options=TransferOptions(seat_eyes=args.rest_eyes, rest_lips=args.rest_lips,
+                                                      cover_sheets=True, match_forces=True))
     except TransferError as err:
         raise ConfigError(str(err)) from err
     try:

@@ -157,7 +157,7 @@ class FaceRig:
     keeps a foreign mesh's skin from turning over (`sim.antifold`).
 
     presets: whose preset intensities the face takes (`sim.facs.preset_face`): "" for its name's
-    (the built-in faces), "imported-2" (before it "imported") for a head brought in by
+    (the built-in faces), "imported-3" (before it "imported-2", "imported") for a head brought in by
     `sim.face.transfer`."""
 
     mesh: FaceMesh

@@ -20,7 +20,7 @@ skin field per vertex, on top of `skin_<field>`).
 The integrator the face asks for (`FaceRig.integrator`, optional): header "integrator": "rk2" or
 "implicit" (absent: "auto"; imported heads ask for "implicit").
 Whose preset intensities the face takes (`FaceRig.presets`, optional): header "presets": a name of
-`sim.facs.FACE_EXPRESSIONS` (absent: by the rig's name; imported heads: "imported-2", before it "imported").
+`sim.facs.FACE_EXPRESSIONS` (absent: by the rig's name; imported heads: "imported-3", before it "imported-2", "imported").
 """
 
 from __future__ import annotations

@@ -139,6 +139,36 @@ def carry_muscle(m: SurfaceMap, muscle: Muscle) -> Muscle:
     raise TypeError(f"unknown muscle type {type(muscle).__name__}")
 
 
+def cover_sheet(m: SurfaceMap, reference: SheetMuscle, carried: SheetMuscle, strong: float = 0.25) -> SheetMuscle:
+    """The carried sheet widened and slid along its attachment line until its zone (the rectangle
+    of `sim.muscles.sheet_zone`) covers the skin the reference sheet pulls on, as the
+    correspondence carries that skin (the reference's vertices where the sheet's fall-off reaches
+    `strong` of its peak). The four points carry separately, the deep attachment and the skin's
+    insertion by different maps, so the carried rectangle can lie askew on the skin it should
+    cover: two neighbouring sheets (the frontalis' inner and outer parts) then leave a strip of
+    skin between them that neither pulls. All four points move by the same vector along the
+    attachment line, so the pull direction and every point's length ratio (eqs 19, 21) are kept;
+    the width only grows, so a sheet already covering its skin is left as it is."""
+    from sim.muscles import sheet_falloff, sheet_length_ratio, sheet_length_ratio_limit, sheet_zone
+
+    ref_x = m.ref_vertices
+    w = sheet_falloff(sheet_length_ratio(reference, ref_x), reference.eta,
+                      sheet_length_ratio_limit(reference)) * sheet_zone(reference, ref_x)
+    if not np.any(w > 0):
+        return carried
+    images = m.new_vertices[w >= strong * w.max()]
+    a1, a2 = np.asarray(carried.attach1, float), np.asarray(carried.attach2, float)
+    t = (a2 - a1) / np.linalg.norm(a2 - a1)
+    ac = 0.5 * (a1 + a2)
+    lateral = (images - ac) @ t
+    lo = min(float(lateral.min()), -0.5 * carried.width)
+    hi = max(float(lateral.max()), 0.5 * carried.width)
+    shift = 0.5 * (lo + hi) * t
+    return SheetMuscle(carried.name, a1 + shift, a2 + shift, np.asarray(carried.insert1, float) + shift,
+                       np.asarray(carried.insert2, float) + shift, carried.length, hi - lo, carried.eta,
+                       carried.scale)
+
+
 def muscle_points(muscle: Muscle) -> FloatArray:
     """The defining points of a muscle, for comparisons and reports."""
     if isinstance(muscle, LinearMuscle):

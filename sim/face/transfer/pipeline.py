@@ -10,14 +10,15 @@ import numpy as np
 from scipy.interpolate import RBFInterpolator
 from scipy.spatial import cKDTree
 
-from sim.model import FaceMesh, FaceRig
-from sim.face.transfer.carry import SurfaceMap, carry_muscle, carry_wrinkle
+from sim.model import FaceMesh, FaceRig, Muscle, SheetMuscle
+from sim.face.transfer.carry import SurfaceMap, carry_muscle, carry_wrinkle, cover_sheet
 from sim.face.transfer.cylinder import Cylinder, fit_cylinder
 from sim.face.transfer.flatten import CylinderChart, flat_triangulation, hidden_under, project_back
 from sim.face.transfer.frame import Similarity, fit_similarity, landmark_axes, rotation_angle
 from sim.face.transfer.geometry import (closest_points, edge_use_counts, in_polygon, locate_2d, outer_loop,
                                    triangle_normals, unique_edges)
 from sim.face.transfer.eyes import seat_eyes
+from sim.face.transfer.forces import match_forces
 from sim.face.transfer.lids import open_lids
 from sim.face.transfer.landmarks import LANDMARK_NAMES, LandmarkFile, TransferError, require
 from sim.face.transfer.meshfile import HeadMesh
@@ -30,7 +31,7 @@ FloatArray = np.ndarray
 IntArray = np.ndarray
 FORWARD = np.array([0.0, 0.0, 1.0])
 UP = np.array([0.0, 1.0, 0.0])
-IMPORTED_PRESETS = "imported-2"  # sim.facs.FACE_EXPRESSIONS' intensities for a head without teeth
+IMPORTED_PRESETS = "imported-3"  # sim.facs.FACE_EXPRESSIONS' intensities for a head without teeth
 CAVITY_DEPTH = 0.015  # of the landmark region's radius (~1 mm on an adult): a layer this far under
 # the outermost skin seen along the cylinder's radius is the inside of the mouth, a socket or a nostril
 
@@ -47,7 +48,12 @@ class TransferOptions:
     seat_eyes: bring each eye's opening to a resting eye's and seat the eyeball behind it
     (sim.face.transfer.eyes) rather than where the skin correspondence carries it; lid_support:
     fade the skin's normal support out on lids turned away from the front (sim.face.transfer.skin);
-    rest_lips: bring lips that stand apart at rest to the reference's gap (sim.face.transfer.mouth)."""
+    rest_lips: bring lips that stand apart at rest to the reference's gap (sim.face.transfer.mouth);
+    cover_sheets: widen a channel's one sheet muscle until it covers the skin the reference's pulls on
+    (sim.face.transfer.carry.cover_sheet; off here so the scanned head's rig, made by this
+    transfer, stays as shipped; `puppet import-face` turns it on); match_forces: scale each
+    channel's muscles so they pull as hard in all as the reference's (sim.face.transfer.forces;
+    off here for the same reason, on in `puppet import-face`)."""
 
     region: float = 0.6
     landmark_offset: float = 0.1
@@ -58,6 +64,8 @@ class TransferOptions:
     seat_eyes: bool = False
     lid_support: bool = True
     rest_lips: bool = False
+    cover_sheets: bool = False
+    match_forces: bool = False
 
 
 @dataclass
@@ -77,6 +85,17 @@ class Transfer:
     flipped_winding: bool
     dropped_vertices: int
     notes: list[str] = field(default_factory=list)
+
+
+def _carry(smap: SurfaceMap, parts: tuple[Muscle, ...], opt: TransferOptions) -> tuple[Muscle, ...]:
+    """One channel's reference muscles on the new head (`carry_muscle`). When asked, a channel
+    whose one part is a sheet is also made to cover its skin (`cover_sheet`); a channel of many
+    sheets (the lids' strips) tiles its skin with them, and a strip widened would overlap its
+    neighbours."""
+    out = tuple(carry_muscle(smap, m) for m in parts)
+    if opt.cover_sheets and len(parts) == 1 and isinstance(parts[0], SheetMuscle):
+        return (cover_sheet(smap, parts[0], out[0]),)  # type: ignore[arg-type]
+    return out
 
 
 def _resolve(lf: LandmarkFile, head: HeadMesh, names: list[str],
@@ -284,12 +303,19 @@ def transfer_rig(
     cavity = inside & hidden_under(chart_new, new.vertices, new.triangles, uv_new, keep, CAVITY_DEPTH * radius)
     if cavity.any():  # the head's own lining of the mouth, sockets, nostrils: drawn dark
         mesh.regions["cavity"] = cavity
-    muscles = {ch: tuple(carry_muscle(smap, m) for m in parts) for ch, parts in reference.muscles.items()}
+    muscles = {ch: _carry(smap, parts, opt) for ch, parts in reference.muscles.items()}
     support = lid_support(mesh) if opt.lid_support else None
     rig = FaceRig(mesh=mesh, muscles=muscles, wrinkles=_carry_wrinkles(reference, smap), name=name,
                   integrator=opt.integrator, presets=IMPORTED_PRESETS,
                   skin={} if support is None else {"support": support})
     notes = []
+    if opt.match_forces:
+        rig.muscles, factors = match_forces(reference, rig)
+        changed = {ch: k for ch, k in factors.items() if abs(np.log(k)) > np.log(1.25)}
+        if changed:
+            listed = ", ".join(f"{ch} {k:.2f}" for ch, k in sorted(changed.items()))
+            notes.append(f"{len(changed)} of {len(factors)} channels' force scaled (above x1.25 or below x0.8) "
+                         f"to pull as hard in all as the reference's: {listed}")
     if support is not None:
         notes.append(f"{int((support < 1).sum())} lid vertices turned away from the front (folded into the "
                      "socket) have less of the skin's normal support")
