@@ -30,13 +30,38 @@ from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
 
 
+#: how far ahead (values) of the one in use each sweep asks the memory for the factors: a substep's
+#: solve finds them out of the caches (the rest of the tick and other programs evicted them), and
+#: runs of a few columns are too short for the processor's own prefetcher to get ahead
+AHEAD = 1024
 NARROW = 4  # runs narrower than this: the backward sweep takes each row in registers
 BLOCK = 4  # columns (rows of U) a sweep applies in one pass over a run's buffer: 4 x 3 multipliers fit the registers
+
+
+@intrinsic
+def _prefetch(typingctx, arr, i):  # type: ignore[no-untyped-def]
+    """Ask for the cache line holding arr[i] (LLVM's prefetch: read, high locality); no effect on
+    any value. i must lie inside arr."""
+    sig = types.void(arr, i)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        ary = context.make_array(signature.args[0])(context, builder, args[0])
+        byte = ir.IntType(8).as_pointer()
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [byte] + [ir.IntType(32)] * 3),
+                                            "llvm.prefetch.p0")
+        i32 = ir.IntType(32)
+        builder.call(fn, [builder.bitcast(builder.gep(ary.data, [args[1]]), byte), i32(0), i32(3), i32(1)])
+        return context.get_dummy_value()
+
+    return sig, codegen
 
 
 @numba.njit(cache=True, nogil=True)
@@ -50,7 +75,19 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
     a1 = acc[1]
     a2 = acc[2]
     nodes = sn_ptr.shape[0] - 1
+    nl = lv.shape[0]
+    nt = tv.shape[0]
+    pl = 0  # the next value of lv (tv) to prefetch
+    pt = 0
     for k in range(nodes):  # forward: L has a unit diagonal
+        end = min(v_ptr[k + 1] + AHEAD, nl)
+        while pl < end:
+            _prefetch(lv, pl)
+            pl += 8  # a cache line of float64
+        end = min(t_ptr[k + 1] + AHEAD, nt)
+        while pt < end:
+            _prefetch(tv, pt)
+            pt += 8
         s = sn_ptr[k]
         w = sn_ptr[k + 1] - s
         t = t_ptr[k]
@@ -179,7 +216,17 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
             y[r, 0] = a0[i]
             y[r, 1] = a1[i]
             y[r, 2] = a2[i]
+    pl = nl - 1  # uv and tv are read from their ends
+    pt = nt - 1
     for k in range(nodes - 1, -1, -1):  # backward: the columns after the run first, from the last
+        end = max(v_ptr[k] - AHEAD, 0)
+        while pl >= end:
+            _prefetch(uv, pl)
+            pl -= 8
+        end = max(t_ptr[k] - AHEAD, 0)
+        while pt >= end:
+            _prefetch(tv, pt)
+            pt -= 8
         s = sn_ptr[k]
         w = sn_ptr[k + 1] - s
         t = t_ptr[k]
