@@ -204,13 +204,16 @@ def _remember(x, v, lam, w, idx, px, pv, plam, pw, pidx):  # type: ignore[no-unt
 
 @numba.njit(cache=True, nogil=True)
 def _responses(resp, act, val, out):  # type: ignore[no-untyped-def]
-    """out = sum over the active channels (in order) of each one's response times its activation."""
-    for q in range(out.shape[0]):
-        for d in range(3):
-            acc = 0.0
-            for k in range(act.shape[0]):
-                acc += resp[act[k], q, d] * val[k]
-            out[q, d] = acc
+    """out = sum over the active channels (in order) of each one's response times its activation:
+    each value summed from 0 in the channels' order, a channel's whole response at a time (one
+    contiguous pass each, which the compiler vectorizes)."""
+    o = out.reshape(-1)
+    o[:] = 0.0
+    for k in range(act.shape[0]):
+        r = resp[act[k]].reshape(-1)
+        a = val[k]
+        for p in range(o.shape[0]):
+            o[p] += r[p] * a
 
 
 @numba.njit(cache=True, nogil=True)
