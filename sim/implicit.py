@@ -53,8 +53,8 @@ from sim.antifold import FoldGuard, _fold_forces, skin_bending, thin_skin
 from sim.antifold import warm_up as warm_up_folds
 from sim.build import FaceModel
 from sim.integrator import _eye_contact
-from sim.margin_contact import (SolvedContact, _contact_force, _contact_resolve, _repair, margin_bending,
-                                 solved_constraints, warm_up_solved)
+from sim.margin_contact import (ROUNDS, SWEEPS, SolvedContact, _contact_force, _contact_resolve, _repair,
+                                 margin_bending, solved_constraints, warm_up_solved)
 from sim.numba_start import prepare_blas_check
 from sim.supernodal import PrefactoredSolver, _sn_sweeps
 
@@ -544,11 +544,10 @@ class ImplicitStepper:
         predicted = key is not None and not summed and self._is_predicted(x, v, key)
         self._predicted = None  # a prediction serves one frame
         self.last_predicted = predicted
-        ext = self._with_bending(ext, shape)
+        if n_sub > 1 or not predicted:  # (a prediction holds the first substep's)
+            ext = self._with_bending(ext, shape)
         act, act_val = self._no_act if active is None else active
         c = self._contact
-        from sim.margin_contact import ROUNDS, SWEEPS
-
         du = self._buf[6]
         jaw_resp, jaw_slope = (self.jaw_resp, self.jaw_slope) if jaw is not None else (self._no_jaw, self._no_jaw)
         jaw_from, jaw_to = jaw if jaw is not None else (0.0, 0.0)
