@@ -13,8 +13,8 @@ timed the same way after the procedural resolutions, with its build time (rig tr
 posing of all its 26,719 vertices (`ScanDressing.pose`, the renderer's side of a frame) and its cost
 as a ratio to resolution 0's in the same run, and at the live loop's faster ticks (120 and 240 Hz:
 one substep a tick, so 2 and 4 solves per 60 Hz frame), a tick as the live loop runs it at 60 and
-120 Hz (`puppet live` headless picks 120 Hz for this face: the step with the input, the wrinkle
-surface and the next step's input-free solve made between ticks), and the prefactored solve alone,
+120 Hz (`puppet live` headless picks the rate from the face's measured step, `puppet.tick_rate`:
+the step with the input, the wrinkle surface and the next step's input-free solve made between ticks), and the prefactored solve alone,
 by supernodes (`sim.supernodal`, what the step runs) against the plain column-by-column sweeps over
 the same factors (what it ran before; the same bits), in alternating batches. The last block
 compares the two integrators' transients on the default face: time for the left mouth corner to
