@@ -12,11 +12,13 @@ prefactored solve). The scanned head (sim.face.scan, the default face of the app
 timed the same way after the procedural resolutions, with its build time (rig transfer, compile), the
 posing of all its 26,719 vertices (`ScanDressing.pose`, the renderer's side of a frame) and its cost
 as a ratio to resolution 0's in the same run, and at the live loop's faster ticks (120 and 240 Hz:
-one substep a tick, so 2 and 4 solves per 60 Hz frame; `puppet live` headless ticks at 240 Hz), and
-the prefactored solve alone, by supernodes (`sim.supernodal`, what the step runs) against the plain
-column-by-column sweeps over the same factors (what it ran before; the same bits), in alternating
-batches. The last block compares the two integrators' transients on the default face:
-time for the left mouth corner to reach 90 % of its settled AU12 displacement.
+one substep a tick, so 2 and 4 solves per 60 Hz frame), a tick as the live loop runs it at 60 and
+120 Hz (`puppet live` headless picks the rate from the face's measured step, `puppet.tick_rate`:
+the step with the input, the wrinkle surface and the next step's input-free solve made between ticks), and the prefactored solve alone,
+by supernodes (`sim.supernodal`, what the step runs) against the plain column-by-column sweeps over
+the same factors (what it ran before; the same bits), in alternating batches. The last block
+compares the two integrators' transients on the default face: time for the left mouth corner to
+reach 90 % of its settled AU12 displacement.
 """
 
 from __future__ import annotations
@@ -118,6 +120,36 @@ def _solve_vs_columns(solver: object, batches: int = 15) -> str:
             f"({best['columns'] / best['supernodes']:.2f}x; same bits: {same})")
 
 
+def _live_ticks(model: object, control: object, rate: float, frames: int) -> str:
+    """A tick as the live loop runs it (puppet.live.LiveCore): the step with the input (the muscles'
+    activations moving every tick), the wrinkle surface, then the next step's input-free solve
+    between ticks (`Simulator.prepare`); CPU time of this thread, mean over 8 x `frames` ticks."""
+    from sim.integrator import Simulator
+
+    sim = Simulator(model, 1.0 / rate, wrinkles=True)  # type: ignore[arg-type]
+    state, c = model.rest_state(), control.copy()  # type: ignore[attr-defined]
+    base = np.array(c.values)
+    muscle = sim._is_muscle
+    parts: dict[str, list[float]] = {"step": [], "surface": [], "between ticks": []}
+    for k in range(8 * frames + 10):
+        c.values[muscle] = base[muscle] * (0.8 + 0.2 * np.sin(k / 10.0))
+        t0 = time.thread_time()
+        sim.step(state, c, surface=False)  # type: ignore[arg-type]
+        t1 = time.thread_time()
+        sim.surface(state)
+        t2 = time.thread_time()
+        sim.prepare(state)
+        t3 = time.thread_time()
+        if k >= 10:
+            for key, dt in zip(parts, (t1 - t0, t2 - t1, t3 - t2)):
+                parts[key].append(dt)
+    tick = sum(float(np.mean(v)) for v in parts.values()) * 1e3
+    share = 100 * tick * rate / 60.0 / (1e3 * FRAME)
+    return (f"    live loop at {rate:.0f} Hz (input each tick, wrinkles, the next solve between ticks): {tick:.2f} ms a tick "
+            f"({share:.1f}% of a 60 Hz frame; " + ", ".join(f"{k} {1e3 * np.mean(v):.2f}" for k, v in parts.items())
+            + " ms)")
+
+
 def _rise_time(model: object, method: str) -> float:
     from sim.integrator import Simulator
     from sim.state import FaceControl
@@ -217,6 +249,8 @@ def _scan(control: object, frames: int, auto_ms: dict[int, float]) -> None:
         tick_ms = _frame_ms(fast, model, control, frames * ticks)
         print(f"    at {rate:.0f} Hz ticks: {tick_ms:.2f} ms a tick, {ticks * tick_ms:.2f} ms per 60 Hz frame "
               f"({100 * ticks * tick_ms / (1e3 * FRAME):.1f}% of a 60 Hz frame)")
+    for rate in (60.0, 120.0):
+        print(_live_ticks(model, control, rate, frames))
     print(_solve_vs_columns(sim._implicit.solver))  # type: ignore[attr-defined]
     t0 = time.thread_time()
     Simulator(model, 1.0 / 50.0, wrinkles=False)  # a substep no other simulator here used

@@ -53,8 +53,8 @@ from sim.antifold import FoldGuard, _fold_forces, skin_bending, thin_skin
 from sim.antifold import warm_up as warm_up_folds
 from sim.build import FaceModel
 from sim.integrator import _eye_contact
-from sim.margin_contact import (SolvedContact, _contact_force, _contact_resolve, _repair, margin_bending,
-                                 solved_constraints, warm_up_solved)
+from sim.margin_contact import (ROUNDS, SWEEPS, SolvedContact, _contact_force, _contact_resolve, _repair,
+                                 margin_bending, solved_constraints, warm_up_solved)
 from sim.numba_start import prepare_blas_check
 from sim.supernodal import PrefactoredSolver, _sn_sweeps
 
@@ -159,10 +159,10 @@ def _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2
 
 
 @numba.njit(cache=True, nogil=True)
-def _held_and_solve(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, sn_ptr, r_ptr, r_idx,  # type: ignore[no-untyped-def]
-                    v_ptr, lv, uv, t_ptr, tv, u_diag, sn_work, xh, held_term, ys, summed):
-    """The held nodes' coupling (they do not move within a frame), then ys = the prefactored
-    solve of base + ext minus it, in the factors' order (perm_c reads it back)."""
+def _held_rhs(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, xh, held_term, ys, summed):  # type: ignore[no-untyped-def]
+    """ys = base + ext minus the held nodes' coupling (they do not move within a frame), in the
+    factors' row order: the right-hand side of the prefactored solve (`_sn_sweeps` then solves it
+    in place, a kernel of its own: compiled inside this one its loops ran 20 % slower)."""
     for k in range(held.shape[0]):
         i = held[k]
         for d in range(3):
@@ -173,12 +173,11 @@ def _held_and_solve(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, sn
         r = perm_r[q]
         for d in range(3):
             ys[r, d] = base[i, d] - held_term[q, d] if summed else (base[i, d] + ext[i, d]) - held_term[q, d]
-    _sn_sweeps(ys, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, sn_work)
 
 
 @numba.njit(cache=True, nogil=True)
 def _same_bits(a, b):  # type: ignore[no-untyped-def]
-    """Whether two int64 views of float arrays of the same size hold the very same bits."""
+    """Whether two int64 arrays (views of float arrays) of the same size hold the very same bits."""
     for i in range(a.shape[0]):
         if a[i] != b[i]:
             return False
@@ -186,14 +185,35 @@ def _same_bits(a, b):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True, nogil=True)
+def _unchanged(x, v, lam, w, idx, px, pv, plam, pw, pidx):  # type: ignore[no-untyped-def]
+    """Whether a state (x, v and the contact's memory lam, w, idx; the floats as int64 views) holds
+    the very bits of the one `_remember` kept (px, ...; the same sizes)."""
+    return (_same_bits(x, px) and _same_bits(v, pv) and _same_bits(lam, plam) and _same_bits(w, pw)
+            and _same_bits(idx.reshape(-1), pidx.reshape(-1)))
+
+
+@numba.njit(cache=True, nogil=True)
+def _remember(x, v, lam, w, idx, px, pv, plam, pw, pidx):  # type: ignore[no-untyped-def]
+    """px, pv, plam, pw, pidx = copies of x, v and the contact's memory (`_unchanged`)."""
+    px[...] = x
+    pv[...] = v
+    plam[...] = lam
+    pw[...] = w
+    pidx[...] = idx
+
+
+@numba.njit(cache=True, nogil=True)
 def _responses(resp, act, val, out):  # type: ignore[no-untyped-def]
-    """out = sum over the active channels (in order) of each one's response times its activation."""
-    for q in range(out.shape[0]):
-        for d in range(3):
-            acc = 0.0
-            for k in range(act.shape[0]):
-                acc += resp[act[k], q, d] * val[k]
-            out[q, d] = acc
+    """out = sum over the active channels (in order) of each one's response times its activation:
+    each value summed from 0 in the channels' order, a channel's whole response at a time (one
+    contiguous pass each, which the compiler vectorizes)."""
+    o = out.reshape(-1)
+    o[:] = 0.0
+    for k in range(act.shape[0]):
+        r = resp[act[k]].reshape(-1)
+        a = val[k]
+        for p in range(o.shape[0]):
+            o[p] += r[p] * a
 
 
 @numba.njit(cache=True, nogil=True)
@@ -211,22 +231,11 @@ def _jaw_interp(jr, jaw, out, sign):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True, nogil=True)
-def _frame(x, v, n_sub, predicted, summed, h, ext, resp, act, act_val, springs, rest_len, k_low, k_high, thr, normal,  # type: ignore[no-untyped-def]
-           kn, mass_h2, damp_h, free, held, fh_ptr, fh_idx, fh_val, perm_r, perm_c, sn_ptr, r_ptr, r_idx, v_ptr, lv,
-           uv, t_ptr, tv, u_diag, c_idx, c_w, c_sg, c_dim, c_opp, c_row_ptr, c_row_v, c_lam, c_loc, c_green, c_gptr,
-           c_gvert, c_gval, c_work, c_cand, c_schur, c_df, rounds, sweeps, eye_idx, eye_of, centres, radius,
-           f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, sn_work, y, base, xh, held_term, ys, xf_old, du,
-           jaw_resp, jaw_slope, jaw_from, jaw_to):
-    """The n_sub substeps of one frame in place on x, v (ImplicitStepper.frame; the module
-    docstring): per substep the solve of the input-free right-hand side (`_predict`, the frame's
-    constant forces without the muscles, the held nodes; for the first substep already in ys when
-    `predicted`), plus the muscles' responses, plus the jaw's move from `jaw_from` to `jaw_to` as
-    the difference of its responses and the support's turn as its slope at the middle opening
-    times the move (`jaw_response`; none when jaw_resp has no rows), the lid and
-    lip contact (sim.margin_contact.SolvedContact), v = (x' - x) / h and the eyeball contact.
-    summed: ext holds the muscles too and is summed as takes recorded before the responses were
-    (`_predict`)."""
-    nf = free.shape[0]
+def _inputs(resp, act, act_val, jaw_resp, jaw_slope, jaw_from, jaw_to, du):  # type: ignore[no-untyped-def]
+    """du = what a frame's inputs add to each substep's solve (ImplicitStepper.frame): the muscles'
+    responses, plus the jaw's move from `jaw_from` to `jaw_to` as the difference of its responses
+    and the support's turn as its slope at the middle opening times the move (`jaw_response`; none
+    when jaw_resp has no rows). Returns False when there is nothing to add (du not written)."""
     muscles = act.shape[0] > 0
     if muscles:
         _responses(resp, act, act_val, du)
@@ -237,31 +246,36 @@ def _frame(x, v, n_sub, predicted, summed, h, ext, resp, act, act_val, springs, 
         _jaw_interp(jaw_resp, jaw_from, du, -1.0)
         _jaw_interp(jaw_slope, 0.5 * (jaw_from + jaw_to), du, jaw_to - jaw_from)
         muscles = True
+    return muscles
+
+
+@numba.njit(cache=True, nogil=True)
+def _advance(x, v, h, ys, du, muscles, free, perm_c, xf_old, c_idx, c_w, c_sg, c_dim, c_opp, c_row_ptr, c_row_v,  # type: ignore[no-untyped-def]
+             c_lam, c_loc, c_green, c_gptr, c_gvert, c_gval, c_work, c_cand, c_schur, c_df, rounds, sweeps,
+             eye_idx, eye_of, centres, radius):
+    """The end of a substep in place on x, v (ImplicitStepper.frame; the module docstring): x' =
+    the solve ys (in the factors' order: perm_c reads it back) plus the inputs' du (`_inputs`,
+    when `muscles`), the lid and lip contact (sim.margin_contact.SolvedContact), v = (x' - x) / h
+    and the eyeball contact."""
+    nf = free.shape[0]
+    for q in range(nf):
+        i = free[q]
+        c = perm_c[q]
+        for d in range(3):
+            xf_old[q, d] = x[i, d]
+            x[i, d] = ys[c, d] + du[q, d] if muscles else ys[c, d]
+    if c_idx.shape[0]:
+        _repair(x, c_idx, c_w, c_opp, c_row_ptr, c_row_v)
+        for _ in range(rounds):  # again while the correction pushed other pairs into contact
+            if not _contact_resolve(x, c_idx, c_w, c_sg, c_dim, c_lam, c_loc, c_green, c_gptr, c_gvert,
+                                    c_gval, c_work, c_cand, c_schur, c_df, sweeps):
+                break
     inv_h = 1.0 / h
-    for sub in range(n_sub):
-        if sub > 0 or not predicted:
-            _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,
-                     c_idx, c_w, c_sg, c_dim, c_lam, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, base, ext,
-                     summed)
-            _held_and_solve(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, sn_ptr, r_ptr, r_idx, v_ptr,
-                            lv, uv, t_ptr, tv, u_diag, sn_work, xh, held_term, ys, summed)
-        for q in range(nf):
-            i = free[q]
-            c = perm_c[q]
-            for d in range(3):
-                xf_old[q, d] = x[i, d]
-                x[i, d] = ys[c, d] + du[q, d] if muscles else ys[c, d]
-        if c_idx.shape[0]:
-            _repair(x, c_idx, c_w, c_opp, c_row_ptr, c_row_v)
-            for _ in range(rounds):  # again while the correction pushed other pairs into contact
-                if not _contact_resolve(x, c_idx, c_w, c_sg, c_dim, c_lam, c_loc, c_green, c_gptr, c_gvert,
-                                        c_gval, c_work, c_cand, c_schur, c_df, sweeps):
-                    break
-        for q in range(nf):
-            i = free[q]
-            for d in range(3):
-                v[i, d] = (x[i, d] - xf_old[q, d]) * inv_h
-        _eye_contact(x, v, eye_idx, eye_of, centres, radius)
+    for q in range(nf):
+        i = free[q]
+        for d in range(3):
+            v[i, d] = (x[i, d] - xf_old[q, d]) * inv_h
+    _eye_contact(x, v, eye_idx, eye_of, centres, radius)
 
 
 def warm_up() -> None:
@@ -437,8 +451,9 @@ class ImplicitStepper:
         self._predicted: object = None
         #: whether the last `frame` found its first substep's solve made ahead
         self.last_predicted = False
+        c = self._contact
         self._px, self._pv = np.zeros((n, 3)), np.zeros((n, 3))
-        self._pc = np.zeros(0)
+        self._plam, self._pw, self._pidx = np.zeros_like(c.lam), np.zeros_like(c.w), np.zeros_like(c.idx)
 
     def _with_bending(self, ext: np.ndarray, shape: np.ndarray | None) -> np.ndarray:
         """ext plus the margin bending term's rest side (its shape changes with the jaw)."""
@@ -459,18 +474,23 @@ class ImplicitStepper:
         the normals: the jaw's pose and the skin's age). The live loop runs it between ticks, so a
         tick that takes an input only adds the muscles' responses and solves the contact. A frame
         given anything else computes it again: the same bits either way."""
+        ext = self._with_bending(ext, shape)
+        self._solve_free(x, v, ext, springs, normal, False)
+        c = self._contact
+        _remember(x, v, c.lam, c.w, c.idx, self._px, self._pv, self._plam, self._pw, self._pidx)
+        self._predicted = key
+
+    def _solve_free(self, x: np.ndarray, v: np.ndarray, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
+                    normal: np.ndarray, summed: bool) -> None:
+        """ys = the solve of a substep's right-hand side without the inputs' responses: `_predict`,
+        the held nodes' coupling (`_held_rhs`) and the prefactored solve (three kernels)."""
         idx, rest_len, k_low, k_high, thr = springs
         c = self._contact
         y, base, xh, held_term, ys = self._buf[:5]
-        ext = self._with_bending(ext, shape)
         _predict(x, v, self.h, idx, rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2, self.damp_h,
-                 c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base, ext, False)
-        _held_and_solve(x, self.held, *self._fh, base, ext, self.free, self.solver.perm_r, *self.solver.factors,
-                        self.solver.work, xh, held_term, ys, False)
-        np.copyto(self._px, x)
-        np.copyto(self._pv, v)
-        self._pc = self._contact_memory()
-        self._predicted = key
+                 c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base, ext, summed)
+        _held_rhs(x, self.held, *self._fh, base, ext, self.free, self.solver.perm_r, xh, held_term, ys, summed)
+        _sn_sweeps(ys, *self.solver.factors, self.solver.work)
 
     def jaw_response(self, ext: np.ndarray, shape: np.ndarray | None, held_at: np.ndarray | None,
                      out: np.ndarray) -> None:
@@ -490,22 +510,19 @@ class ImplicitStepper:
             _csr_times(*self._fh, np.ascontiguousarray(held_at, dtype=np.float64), held_term)
         self.solver.solve(np.ascontiguousarray(b[self.free] - held_term), out)
 
-    def _contact_memory(self) -> np.ndarray:
-        c = self._contact
-        return np.concatenate([c.lam, c.w, c.idx.ravel().astype(np.float64)])
-
     def _is_predicted(self, x: np.ndarray, v: np.ndarray, key: object) -> bool:
         """True when the last `predict` was made from these very bits and key."""
         if self._predicted is None or key != self._predicted:
             return False
         if x.shape != self._px.shape or v.shape != self._pv.shape or not (x.flags.c_contiguous and v.flags.c_contiguous):
             return False
-        same = (_same_bits(self._px.reshape(-1).view(np.int64), x.reshape(-1).view(np.int64))
-                and _same_bits(self._pv.reshape(-1).view(np.int64), v.reshape(-1).view(np.int64)))
-        if not same:
+        c = self._contact
+        if c.lam.shape != self._plam.shape or c.idx.shape != self._pidx.shape:
             return False
-        mem = self._contact_memory()
-        return mem.shape == self._pc.shape and _same_bits(self._pc.view(np.int64), mem.view(np.int64))
+        bits = np.int64
+        return bool(_unchanged(x.reshape(-1).view(bits), v.reshape(-1).view(bits), c.lam.view(bits), c.w.view(bits), c.idx,
+                               self._px.reshape(-1).view(bits), self._pv.reshape(-1).view(bits), self._plam.view(bits),
+                               self._pw.view(bits), self._pidx))
 
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
               normal: np.ndarray, eyes: tuple, shape: np.ndarray | None = None,  # type: ignore[type-arg]
@@ -527,16 +544,17 @@ class ImplicitStepper:
         predicted = key is not None and not summed and self._is_predicted(x, v, key)
         self._predicted = None  # a prediction serves one frame
         self.last_predicted = predicted
-        ext = self._with_bending(ext, shape)
+        if n_sub > 1 or not predicted:  # (a prediction holds the first substep's)
+            ext = self._with_bending(ext, shape)
         act, act_val = self._no_act if active is None else active
-        idx, rest_len, k_low, k_high, thr = springs
         c = self._contact
-        from sim.margin_contact import ROUNDS, SWEEPS
-
-        _frame(x, v, n_sub, predicted, summed, self.h, ext, self._resp, act, act_val, idx, rest_len, k_low, k_high, thr,
-               normal, self.kn, self.mass_h2, self.damp_h, self.free, self.held, *self._fh, self.solver.perm_r,
-               self.solver.perm_c, *self.solver.factors, c.idx, c.w, c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam,
-               c.loc, c.green, c.gptr, c.gvert, c.gval, c._work, c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes,
-               *self._folds, self.solver.work, *self._buf, self.jaw_resp if jaw is not None else self._no_jaw,
-               self.jaw_slope if jaw is not None else self._no_jaw,
-               *(jaw if jaw is not None else (0.0, 0.0)))
+        du = self._buf[6]
+        jaw_resp, jaw_slope = (self.jaw_resp, self.jaw_slope) if jaw is not None else (self._no_jaw, self._no_jaw)
+        jaw_from, jaw_to = jaw if jaw is not None else (0.0, 0.0)
+        muscles = _inputs(self._resp, act, act_val, jaw_resp, jaw_slope, jaw_from, jaw_to, du)
+        for sub in range(n_sub):
+            if sub > 0 or not predicted:
+                self._solve_free(x, v, ext, springs, normal, summed)
+            _advance(x, v, self.h, self._buf[4], du, muscles, self.free, self.solver.perm_c, self._buf[5], c.idx, c.w,
+                     c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam, c.loc, c.green, c.gptr, c.gvert, c.gval, c._work,
+                     c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes)

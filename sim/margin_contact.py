@@ -454,37 +454,50 @@ def _contact_resolve(x, idx, w, sg, dim, lam, loc, green, gptr, gvert, gval, wor
             nc += 1
     if nc == 0:
         return 0
-    for ii in range(nc):  # S = J G F^T on the candidates
+    # each candidate's three vertices (their rows of the Green's function, -1: held), its row of J
+    # and its column of F^T, gathered once (the same expressions as the sums below used inline)
+    rows = np.empty((nc, 3), dtype=np.int64)
+    jcoef = np.empty((nc, 3))
+    fcoef = np.empty((nc, 3))
+    for ii in range(nc):
         k = cand[ii]
-        jk0, jk1, jk2 = sg[k, 0], -sg[k, 0] * (1.0 - w[k]), -sg[k, 0] * w[k]
+        for pk in range(3):
+            rows[ii, pk] = loc[idx[k, pk]]
+        jcoef[ii, 0] = sg[k, 0]
+        jcoef[ii, 1] = -sg[k, 0] * (1.0 - w[k])
+        jcoef[ii, 2] = -sg[k, 0] * w[k]
+        fcoef[ii, 0] = sg[k, 0] * sg[k, 2]
+        fcoef[ii, 1] = -sg[k, 0] * (1.0 - w[k]) * sg[k, 3]
+        fcoef[ii, 2] = -sg[k, 0] * w[k] * sg[k, 3]
+    for ii in range(nc):  # S = J G F^T on the candidates, each entry summed in the same order
+        dk = dim[cand[ii]]
         for jj in range(nc):
-            m = cand[jj]
             acc = 0.0
-            if dim[m] == dim[k]:
-                fm0 = sg[m, 0] * sg[m, 2]
-                fm1 = -sg[m, 0] * (1.0 - w[m]) * sg[m, 3]
-                fm2 = -sg[m, 0] * w[m] * sg[m, 3]
+            if dim[cand[jj]] == dk:
                 for pk in range(3):
-                    u = loc[idx[k, pk]]
+                    u = rows[ii, pk]
                     if u < 0:
                         continue
-                    jc = jk0 if pk == 0 else (jk1 if pk == 1 else jk2)
+                    jc = jcoef[ii, pk]
                     for pm in range(3):
-                        v = loc[idx[m, pm]]
+                        v = rows[jj, pm]
                         if v >= 0:
-                            acc += jc * green[u, v] * (fm0 if pm == 0 else (fm1 if pm == 1 else fm2))
+                            acc += jc * green[u, v] * fcoef[jj, pm]
             schur[ii, jj] = acc
-        dl[k] = 0.0
+    dlc = np.zeros(nc)  # the candidates' change of lam, in candidate order
     for _ in range(sweeps):
         for ii in range(nc):
             k = cand[ii]
             if schur[ii, ii] <= 0.0:
                 continue
             res = c[k]
+            srow = schur[ii]
             for jj in range(nc):
-                res += schur[ii, jj] * dl[cand[jj]]
-            new = lam[k] + dl[k] - res / schur[ii, ii]
-            dl[k] = (new if new > 0.0 else 0.0) - lam[k]
+                res += srow[jj] * dlc[jj]
+            new = lam[k] + dlc[ii] - res / schur[ii, ii]
+            dlc[ii] = (new if new > 0.0 else 0.0) - lam[k]
+    for ii in range(nc):
+        dl[cand[ii]] = dlc[ii]
     for ii in range(nc):
         k = cand[ii]
         d = dl[k]

@@ -14,7 +14,9 @@ of R, then column s + 1, ...; the backward sweep subtracts the last column of R 
 run's rows, then the one before, .... Those innermost loops run over contiguous values of
 independent rows, which the compiler turns into vector instructions, and the index lists shrink
 to a fourteenth (one list of rows per run instead of a row index per entry of each factor).
-(Runs of one column scatter directly; narrow runs take each backward row in registers.)
+(Runs of one column scatter directly; narrow runs take each backward row in registers.) Where a run
+has four columns or more, each pass over the buffer applies four of them (four rows of U going
+backward), one value after the other, so the buffer is read and written a quarter as often.
 
 The arithmetic is the column sweeps', operation for operation: every value of the right-hand side
 receives its subtractions in the same order (the forward sweep's in increasing column, the
@@ -28,24 +30,64 @@ from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
 
 
+#: how far ahead (values) of the one in use each sweep asks the memory for the factors: a substep's
+#: solve finds them out of the caches (the rest of the tick and other programs evicted them), and
+#: runs of a few columns are too short for the processor's own prefetcher to get ahead
+AHEAD = 1024
 NARROW = 4  # runs narrower than this: the backward sweep takes each row in registers
+BLOCK = 4  # columns (rows of U) a sweep applies in one pass over a run's buffer: 4 x 3 multipliers fit the registers
+
+
+@intrinsic
+def _prefetch(typingctx, arr, i):  # type: ignore[no-untyped-def]
+    """Ask for the cache line holding arr[i] (LLVM's prefetch: read, high locality); no effect on
+    any value. i must lie inside arr."""
+    sig = types.void(arr, i)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        ary = context.make_array(signature.args[0])(context, builder, args[0])
+        byte = ir.IntType(8).as_pointer()
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [byte] + [ir.IntType(32)] * 3),
+                                            "llvm.prefetch.p0")
+        i32 = ir.IntType(32)
+        builder.call(fn, [builder.bitcast(builder.gep(ary.data, [args[1]]), byte), i32(0), i32(3), i32(1)])
+        return context.get_dummy_value()
+
+    return sig, codegen
 
 
 @numba.njit(cache=True, nogil=True)
 def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc):  # type: ignore[no-untyped-def]
     """y = U^-1 L^-1 y in place for 3 right-hand sides, supernode by supernode (module docstring);
     acc: a (3, longest run or row list) work buffer. The innermost loops index slices (never a
-    computed offset, whose possible negative value would keep the compiler from vectorizing)."""
+    computed offset, whose possible negative value would keep the compiler from vectorizing), and
+    take BLOCK columns (rows of U) at once where a run has them: each value still receives their
+    subtractions one by one in the sweep's order, so the bits are the column sweeps'."""
     a0 = acc[0]
     a1 = acc[1]
     a2 = acc[2]
     nodes = sn_ptr.shape[0] - 1
+    nl = lv.shape[0]
+    nt = tv.shape[0]
+    pl = 0  # the next value of lv (tv) to prefetch
+    pt = 0
     for k in range(nodes):  # forward: L has a unit diagonal
+        end = min(v_ptr[k + 1] + AHEAD, nl)
+        while pl < end:
+            _prefetch(lv, pl)
+            pl += 8  # a cache line of float64
+        end = min(t_ptr[k + 1] + AHEAD, nt)
+        while pt < end:
+            _prefetch(tv, pt)
+            pt += 8
         s = sn_ptr[k]
         w = sn_ptr[k + 1] - s
         t = t_ptr[k]
@@ -67,7 +109,48 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
             a0[ii] = y[s + ii, 0]
             a1[ii] = y[s + ii, 1]
             a2[ii] = y[s + ii, 2]
-        for jj in range(w):  # inside the run: column by column
+        jj = 0
+        while jj + BLOCK <= w:  # inside the run: four columns at a time, the first three finished in turn
+            c0 = tv[t + jj * w:t + (jj + 1) * w]
+            c1 = tv[t + (jj + 1) * w:t + (jj + 2) * w]
+            c2 = tv[t + (jj + 2) * w:t + (jj + 3) * w]
+            c3 = tv[t + (jj + 3) * w:t + (jj + 4) * w]
+            p0 = a0[jj]
+            p1 = a1[jj]
+            p2 = a2[jj]
+            q0 = a0[jj + 1] - c0[jj + 1] * p0
+            q1 = a1[jj + 1] - c0[jj + 1] * p1
+            q2 = a2[jj + 1] - c0[jj + 1] * p2
+            u0 = (a0[jj + 2] - c0[jj + 2] * p0) - c1[jj + 2] * q0
+            u1 = (a1[jj + 2] - c0[jj + 2] * p1) - c1[jj + 2] * q1
+            u2 = (a2[jj + 2] - c0[jj + 2] * p2) - c1[jj + 2] * q2
+            z0 = ((a0[jj + 3] - c0[jj + 3] * p0) - c1[jj + 3] * q0) - c2[jj + 3] * u0
+            z1 = ((a1[jj + 3] - c0[jj + 3] * p1) - c1[jj + 3] * q1) - c2[jj + 3] * u1
+            z2 = ((a2[jj + 3] - c0[jj + 3] * p2) - c1[jj + 3] * q2) - c2[jj + 3] * u2
+            a0[jj + 1] = q0
+            a1[jj + 1] = q1
+            a2[jj + 1] = q2
+            a0[jj + 2] = u0
+            a1[jj + 2] = u1
+            a2[jj + 2] = u2
+            a0[jj + 3] = z0
+            a1[jj + 3] = z1
+            a2[jj + 3] = z2
+            for ii in range(jj + BLOCK, w):
+                b0 = a0[ii] - c0[ii] * p0
+                b1 = a1[ii] - c0[ii] * p1
+                b2 = a2[ii] - c0[ii] * p2
+                b0 = b0 - c1[ii] * q0
+                b1 = b1 - c1[ii] * q1
+                b2 = b2 - c1[ii] * q2
+                b0 = b0 - c2[ii] * u0
+                b1 = b1 - c2[ii] * u1
+                b2 = b2 - c2[ii] * u2
+                a0[ii] = b0 - c3[ii] * z0
+                a1[ii] = b1 - c3[ii] * z1
+                a2[ii] = b2 - c3[ii] * z2
+            jj += BLOCK
+        while jj < w:  # the run's last columns one by one
             x0 = a0[jj]
             x1 = a1[jj]
             x2 = a2[jj]
@@ -76,6 +159,7 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
                 a0[ii] -= col[ii] * x0
                 a1[ii] -= col[ii] * x1
                 a2[ii] -= col[ii] * x2
+            jj += 1
         for ii in range(w):
             y[s + ii, 0] = a0[ii]
             y[s + ii, 1] = a1[ii]
@@ -85,7 +169,39 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
             a0[i] = y[r, 0]
             a1[i] = y[r, 1]
             a2[i] = y[r, 2]
-        for jj in range(w):
+        jj = 0
+        while jj + BLOCK <= w:  # four columns at a time
+            p0 = y[s + jj, 0]
+            p1 = y[s + jj, 1]
+            p2 = y[s + jj, 2]
+            q0 = y[s + jj + 1, 0]
+            q1 = y[s + jj + 1, 1]
+            q2 = y[s + jj + 1, 2]
+            u0 = y[s + jj + 2, 0]
+            u1 = y[s + jj + 2, 1]
+            u2 = y[s + jj + 2, 2]
+            z0 = y[s + jj + 3, 0]
+            z1 = y[s + jj + 3, 1]
+            z2 = y[s + jj + 3, 2]
+            c0 = lv[base + jj * m:base + (jj + 1) * m]
+            c1 = lv[base + (jj + 1) * m:base + (jj + 2) * m]
+            c2 = lv[base + (jj + 2) * m:base + (jj + 3) * m]
+            c3 = lv[base + (jj + 3) * m:base + (jj + 4) * m]
+            for i in range(m):
+                b0 = a0[i] - c0[i] * p0
+                b1 = a1[i] - c0[i] * p1
+                b2 = a2[i] - c0[i] * p2
+                b0 = b0 - c1[i] * q0
+                b1 = b1 - c1[i] * q1
+                b2 = b2 - c1[i] * q2
+                b0 = b0 - c2[i] * u0
+                b1 = b1 - c2[i] * u1
+                b2 = b2 - c2[i] * u2
+                a0[i] = b0 - c3[i] * z0
+                a1[i] = b1 - c3[i] * z1
+                a2[i] = b2 - c3[i] * z2
+            jj += BLOCK
+        while jj < w:
             x0 = y[s + jj, 0]
             x1 = y[s + jj, 1]
             x2 = y[s + jj, 2]
@@ -94,12 +210,23 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
                 a0[i] -= col[i] * x0
                 a1[i] -= col[i] * x1
                 a2[i] -= col[i] * x2
+            jj += 1
         for i in range(m):
             r = r_idx[r0 + i]
             y[r, 0] = a0[i]
             y[r, 1] = a1[i]
             y[r, 2] = a2[i]
+    pl = nl - 1  # uv and tv are read from their ends
+    pt = nt - 1
     for k in range(nodes - 1, -1, -1):  # backward: the columns after the run first, from the last
+        end = max(v_ptr[k] - AHEAD, 0)
+        while pl >= end:
+            _prefetch(uv, pl)
+            pl -= 8
+        end = max(t_ptr[k] - AHEAD, 0)
+        while pt >= end:
+            _prefetch(tv, pt)
+            pt -= 8
         s = sn_ptr[k]
         w = sn_ptr[k + 1] - s
         t = t_ptr[k]
@@ -124,8 +251,44 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
                 a0[ii] = b0
                 a1[ii] = b1
                 a2[ii] = b2
-        else:  # many rows: all of them take the last column, then the one before, ...
-            for i in range(m - 1, -1, -1):
+        else:  # many rows: all of them take the last column, then the one before, ... four at a time
+            i = m - 1
+            while i >= BLOCK - 1:
+                c = r_idx[r0 + i]
+                p0 = y[c, 0]
+                p1 = y[c, 1]
+                p2 = y[c, 2]
+                c = r_idx[r0 + i - 1]
+                q0 = y[c, 0]
+                q1 = y[c, 1]
+                q2 = y[c, 2]
+                c = r_idx[r0 + i - 2]
+                u0 = y[c, 0]
+                u1 = y[c, 1]
+                u2 = y[c, 2]
+                c = r_idx[r0 + i - 3]
+                z0 = y[c, 0]
+                z1 = y[c, 1]
+                z2 = y[c, 2]
+                e0 = uv[base + i * w:base + (i + 1) * w]
+                e1 = uv[base + (i - 1) * w:base + i * w]
+                e2 = uv[base + (i - 2) * w:base + (i - 1) * w]
+                e3 = uv[base + (i - 3) * w:base + (i - 2) * w]
+                for ii in range(w):
+                    b0 = a0[ii] - e0[ii] * p0
+                    b1 = a1[ii] - e0[ii] * p1
+                    b2 = a2[ii] - e0[ii] * p2
+                    b0 = b0 - e1[ii] * q0
+                    b1 = b1 - e1[ii] * q1
+                    b2 = b2 - e1[ii] * q2
+                    b0 = b0 - e2[ii] * u0
+                    b1 = b1 - e2[ii] * u1
+                    b2 = b2 - e2[ii] * u2
+                    a0[ii] = b0 - e3[ii] * z0
+                    a1[ii] = b1 - e3[ii] * z1
+                    a2[ii] = b2 - e3[ii] * z2
+                i -= BLOCK
+            while i >= 0:
                 c = r_idx[r0 + i]
                 x0 = y[c, 0]
                 x1 = y[c, 1]
@@ -135,7 +298,56 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
                     a0[ii] -= row[ii] * x0
                     a1[ii] -= row[ii] * x1
                     a2[ii] -= row[ii] * x2
-        for jj in range(w - 1, -1, -1):  # then the run's own columns from the last, each once final
+                i -= 1
+        jj = w - 1
+        while jj >= BLOCK - 1:  # then the run's own columns from the last, four at a time, each once final
+            c0 = tv[t + jj * w:t + (jj + 1) * w]
+            c1 = tv[t + (jj - 1) * w:t + jj * w]
+            c2 = tv[t + (jj - 2) * w:t + (jj - 1) * w]
+            d = u_diag[s + jj]
+            p0 = a0[jj] / d
+            p1 = a1[jj] / d
+            p2 = a2[jj] / d
+            d = u_diag[s + jj - 1]
+            q0 = (a0[jj - 1] - c0[jj - 1] * p0) / d
+            q1 = (a1[jj - 1] - c0[jj - 1] * p1) / d
+            q2 = (a2[jj - 1] - c0[jj - 1] * p2) / d
+            d = u_diag[s + jj - 2]
+            u0 = ((a0[jj - 2] - c0[jj - 2] * p0) - c1[jj - 2] * q0) / d
+            u1 = ((a1[jj - 2] - c0[jj - 2] * p1) - c1[jj - 2] * q1) / d
+            u2 = ((a2[jj - 2] - c0[jj - 2] * p2) - c1[jj - 2] * q2) / d
+            d = u_diag[s + jj - 3]
+            z0 = (((a0[jj - 3] - c0[jj - 3] * p0) - c1[jj - 3] * q0) - c2[jj - 3] * u0) / d
+            z1 = (((a1[jj - 3] - c0[jj - 3] * p1) - c1[jj - 3] * q1) - c2[jj - 3] * u1) / d
+            z2 = (((a2[jj - 3] - c0[jj - 3] * p2) - c1[jj - 3] * q2) - c2[jj - 3] * u2) / d
+            y[s + jj, 0] = p0
+            y[s + jj, 1] = p1
+            y[s + jj, 2] = p2
+            y[s + jj - 1, 0] = q0
+            y[s + jj - 1, 1] = q1
+            y[s + jj - 1, 2] = q2
+            y[s + jj - 2, 0] = u0
+            y[s + jj - 2, 1] = u1
+            y[s + jj - 2, 2] = u2
+            y[s + jj - 3, 0] = z0
+            y[s + jj - 3, 1] = z1
+            y[s + jj - 3, 2] = z2
+            c3 = tv[t + (jj - 3) * w:t + (jj - 2) * w]
+            for ii in range(jj - 3):
+                b0 = a0[ii] - c0[ii] * p0
+                b1 = a1[ii] - c0[ii] * p1
+                b2 = a2[ii] - c0[ii] * p2
+                b0 = b0 - c1[ii] * q0
+                b1 = b1 - c1[ii] * q1
+                b2 = b2 - c1[ii] * q2
+                b0 = b0 - c2[ii] * u0
+                b1 = b1 - c2[ii] * u1
+                b2 = b2 - c2[ii] * u2
+                a0[ii] = b0 - c3[ii] * z0
+                a1[ii] = b1 - c3[ii] * z1
+                a2[ii] = b2 - c3[ii] * z2
+            jj -= BLOCK
+        while jj >= 0:  # the run's first columns one by one
             d = u_diag[s + jj]
             x0 = a0[jj] / d
             x1 = a1[jj] / d
@@ -148,6 +360,7 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
                 a0[ii] -= col[ii] * x0
                 a1[ii] -= col[ii] * x1
                 a2[ii] -= col[ii] * x2
+            jj -= 1
 
 
 @numba.njit(cache=True, nogil=True)
