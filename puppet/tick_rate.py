@@ -17,8 +17,12 @@ from puppet.live import LIVE_TICK_RATE, TICK_RATES, Face
 #: The rest of a tick (events, mapping, recording) and the drawing need the remainder: with the
 #: scanned head's step at 1.4-1.9 ms, 240 Hz (a third to half a core) fell behind on the shared
 #: development machine (event->state p99 133-155 ms at load 6, `benchmarks/live_latency.py`) where
-#: 120 Hz held 33-35 ms; the procedural face's RK2 step still affords 240 Hz.
-TICK_BUDGET = 0.3
+#: 120 Hz held 33-35 ms; the procedural face's RK2 step still affords 240 Hz. With the faster
+#: solve the scanned head's step timed here is 1.12-1.16 ms (27-28 % of a core at 240 Hz), but in
+#: the live loop, where the factors are out of the caches by the next tick, it costs 1.3-2.2 ms:
+#: a quarter of a core keeps this machine's scanned head at 120 Hz, and a machine twice as fast
+#: at 240 Hz.
+TICK_BUDGET = 0.25
 
 
 def choose_tick_rate(model: Any, rates: Sequence[float] = TICK_RATES, budget: float = TICK_BUDGET,
