@@ -17,6 +17,8 @@ Fitted skin material (`FaceRig.skin`, optional): header "skin": [names of "tethe
 Named structures of the skin (`FaceRig.tissue`, optional): header "tissue": [names, each
 "<skin field>_<structure>"], and an array `tissue_<name>` (N,) f8 >= 0 each (a multiplier of that
 skin field per vertex, on top of `skin_<field>`).
+Active strain (`FaceRig.strain`, optional; `sim.active_strain`): header "strain": [channel names],
+and an array `strain_<channel>` (N,6) f8 in -1..1 each (xx, yy, zz, xy, xz, yz per vertex).
 The integrator the face asks for (`FaceRig.integrator`, optional): header "integrator": "rk2" or
 "implicit" (absent: "auto"; imported heads ask for "implicit").
 Whose preset intensities the face takes (`FaceRig.presets`, optional): header "presets": a name of

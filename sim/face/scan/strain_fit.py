@@ -31,14 +31,14 @@ from typing import Any
 
 import numpy as np
 
-SMOOTH = 3e-3  # Laplacian weight per edge and component, relative to one shape's own size
+SMOOTH = 1e-3  # Laplacian weight per edge and component, relative to one shape's own size
 RIDGE = 1e-4  # pull of each component towards 0
 BOUND = 0.4  # |E_ab| at most this (a spring shortens or lengthens at most 40 % at full value)
 _COMP = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 _MIRROR_SIGN = np.array([1.0, 1.0, 1.0, -1.0, -1.0, 1.0])  # M E M, M = diag(-1, 1, 1)
 
 
-def step_stiffness(model: Any) -> tuple[Any, np.ndarray]:
+def step_stiffness(model: Any, bending: bool = True) -> tuple[Any, np.ndarray]:
     """The skin's stiffness at rest (`calibrate._stiffness`'s) plus the implicit step's bending,
     factorised over the free degrees of freedom, and their indices."""
     import scipy.sparse as sp
@@ -56,6 +56,9 @@ def step_stiffness(model: Any) -> tuple[Any, np.ndarray]:
     rows = (3 * np.arange(n)[:, None, None] + np.arange(3)[None, :, None]) + 0 * np.arange(3)[None, None, :]
     cols = (3 * np.arange(n)[:, None, None] + np.arange(3)[None, None, :]) + 0 * np.arange(3)[None, :, None]
     k = k + sp.csr_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())), shape=(3 * n, 3 * n))
+    if not bending:
+        free = np.flatnonzero(np.repeat(~np.asarray(model.held, bool), 3))
+        return splu(k.tocsr()[free][:, free].tocsc()), free
     bend = margin_bending(model.mesh, model.rest, springs, np.asarray(model.spring_k_high),
                           model.params.lid_bending, model.params.lip_bending)
     if model.params.skin_bending:
@@ -88,7 +91,8 @@ def spring_strain_matrix(rest: np.ndarray, springs: np.ndarray, sel: np.ndarray,
 class StrainCalibration:
     """The linear model of one compiled face with an active strain field per muscle (sides shared)."""
 
-    def __init__(self, model: Any, smooth: float = SMOOTH, ridge: float = RIDGE, bound: float = BOUND) -> None:
+    def __init__(self, model: Any, smooth: float = SMOOTH, ridge: float = RIDGE, bound: float = BOUND,
+                 bending: bool = True) -> None:
         import scipy.sparse as sp
 
         from sim.build import vertex_normals
@@ -99,7 +103,7 @@ class StrainCalibration:
         rig = model.rig
         rest = np.asarray(model.rest)
         n = self.n = len(rest)
-        self.lu, self.free = step_stiffness(model)
+        self.lu, self.free = step_stiffness(model, bending)
         normal = vertex_normals(rest, np.asarray(rig.mesh.triangles, np.int32))
         mirror = mirror_map(rest)
         springs = np.asarray(model.spring_indices, np.int64)
@@ -234,3 +238,4 @@ class StrainCalibration:
             if np.abs(e).max() > tol:
                 out[c] = np.round(e, 6)
         return out
+
