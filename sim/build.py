@@ -280,7 +280,11 @@ def gravity_offsets(weight: np.ndarray, tether: np.ndarray, support: np.ndarray,
 
 
 def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray,
-                   normal: np.ndarray | None = None) -> sp.csr_matrix:
+                   normal: np.ndarray | None = None,
+                   springs: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> sp.csr_matrix:
+    """(3N, C) each channel's force field at full value: its muscle's pull (times the fitted
+    insertion gain), plus its active strain's force (`sim.active_strain`; `springs`: indices, rest
+    lengths, k_low of the skin's springs) where the rig has one."""
     import scipy.sparse as sp
 
     n = len(rest)
@@ -294,6 +298,11 @@ def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray,
             gain = rig.insertion.get(spec.name)
             if gain is not None:  # the fitted insertion density (sim.model.FaceRig.insertion)
                 f = f * np.asarray(gain, np.float64)[:, None]
+            strain = rig.strain.get(spec.name)
+            if strain is not None and springs is not None:  # the tissue's active strain (FaceRig.strain)
+                from sim.active_strain import strain_force
+
+                f = f + strain_force(rest, springs[0], springs[1], springs[2], np.asarray(strain, np.float64))
             cols.append(sp.csc_matrix(f.reshape(3 * n, 1)))
         else:
             cols.append(sp.csc_matrix((3 * n, 1)))
@@ -318,6 +327,8 @@ def _rig_digest(rig: FaceRig, params: SkinParams) -> str:
         h.update(b"insertion" + name.encode() + np.ascontiguousarray(rig.insertion[name], np.float64).tobytes())
     for name in sorted(rig.skin):  # none on a face with uniform skin: its hash is unchanged
         h.update(b"skin" + name.encode() + np.ascontiguousarray(rig.skin[name], np.float64).tobytes())
+    for name in sorted(rig.strain):  # none on a face without active strain: its hash is unchanged
+        h.update(b"strain" + name.encode() + np.ascontiguousarray(rig.strain[name], np.float64).tobytes())
     for name in sorted(rig.tissue):  # none on a face without named structures: its hash is unchanged
         h.update(b"tissue" + name.encode() + np.ascontiguousarray(rig.tissue[name], np.float64).tobytes())
     if rig.integrator != "auto":  # a face that asks for its integrator replays on it
@@ -392,7 +403,7 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
         jaw_pivot=_frozen(mesh.jaw_pivot, np.float64),
         jaw_axis=_frozen(np.asarray(mesh.jaw_axis) / norm3(mesh.jaw_axis), np.float64),
         gravity=_frozen(gravity),
-        muscle_matrix=_muscle_matrix(rig, rest, area, normal),
+        muscle_matrix=_muscle_matrix(rig, rest, area, normal, (springs, rest_len, k_low)),
         params=p,
         omega_max=omega,
         hash=_rig_digest(rig, p),

@@ -152,6 +152,12 @@ class FaceRig:
     folded at rest and stretched only as the lid closes. Built from the scanned head's own geometry
     (`sim.face.scan.lids`), so a refit of `skin` leaves them; the procedural face has none.
 
+    strain: channel name -> (N, 6) active strain per skin vertex (xx, yy, zz, xy, xz, yz): the
+    change of the tissue's rest shape as that channel's muscle contracts, per unit value
+    (`sim.active_strain`; a spring's rest length changes by the mean of its two ends' strain along
+    it, where both ends carry one). Fitted to scanned expressions for the scanned head
+    (`sim.face.scan.strain_fit`); a channel not named has none, the procedural face none.
+
     integrator: what `sim.integrator.Simulator(method="auto")` runs this face on: "auto" (by the
     work per frame), "rk2" or "implicit". An imported head asks for "implicit", whose fold guard
     keeps a foreign mesh's skin from turning over (`sim.antifold`).
@@ -169,3 +175,4 @@ class FaceRig:
     integrator: str = "auto"
     presets: str = ""
     tissue: dict[str, np.ndarray] = field(default_factory=dict)
+    strain: dict[str, np.ndarray] = field(default_factory=dict)

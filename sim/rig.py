@@ -17,6 +17,8 @@ Fitted skin material (`FaceRig.skin`, optional): header "skin": [names of "tethe
 Named structures of the skin (`FaceRig.tissue`, optional): header "tissue": [names, each
 "<skin field>_<structure>"], and an array `tissue_<name>` (N,) f8 >= 0 each (a multiplier of that
 skin field per vertex, on top of `skin_<field>`).
+Active strain (`FaceRig.strain`, optional; `sim.active_strain`): header "strain": [channel names],
+and an array `strain_<channel>` (N,6) f8 in -1..1 each (xx, yy, zz, xy, xz, yz per vertex).
 The integrator the face asks for (`FaceRig.integrator`, optional): header "integrator": "rk2" or
 "implicit" (absent: "auto"; imported heads ask for "implicit").
 Whose preset intensities the face takes (`FaceRig.presets`, optional): header "presets": a name of
@@ -80,6 +82,8 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
         header["skin"] = sorted(rig.skin)
     if rig.tissue:  # likewise: rig files of faces without named structures are unchanged
         header["tissue"] = sorted(rig.tissue)
+    if rig.strain:  # likewise: rig files of faces without active strain are unchanged
+        header["strain"] = sorted(rig.strain)
     if rig.integrator != "auto":  # rig files of faces that leave the choice to the simulator are unchanged
         header["integrator"] = rig.integrator
     if rig.presets:  # likewise: only a face that asks for other presets says so
@@ -107,6 +111,8 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
         arrays[f"skin_{name}"] = np.asarray(mult, np.float64)
     for name, mult in rig.tissue.items():
         arrays[f"tissue_{name}"] = np.asarray(mult, np.float64)
+    for name, strain in rig.strain.items():
+        arrays[f"strain_{name}"] = np.asarray(strain, np.float64)
     with atomic_write(path, "wb") as fh:  # a failed save leaves the old rig as it was
         np.savez_compressed(fh, **arrays)
 
@@ -283,6 +289,13 @@ def _parse(data: Any, p: str) -> FaceRig:
         if not np.all(np.isfinite(mult)) or np.any(mult < 0.0) or np.any(mult > 1e3):
             raise RigFileError(f"{p}: tissue multipliers of {quote(name)} must lie in 0..1000")
         tissue[name] = mult.astype(np.float64)
+    strain = {}
+    for name in sequence(header.get("strain", []), f"{p}: strain", MAX_ENTRIES):
+        name = string(name, f"{p}: strain channel")
+        e = _array(data, f"strain_{name}", p, (n, 6), "f")
+        if not np.all(np.isfinite(e)) or np.any(np.abs(e) > 1.0):
+            raise RigFileError(f"{p}: active strain of {quote(name)} must lie in -1..1")
+        strain[name] = e.astype(np.float64)
     integrator = header.get("integrator", "auto")
     if integrator not in INTEGRATORS:
         raise RigFileError(f"{p}: integrator must be one of {', '.join(INTEGRATORS)}, "
@@ -290,7 +303,7 @@ def _parse(data: Any, p: str) -> FaceRig:
     presets = string(header["presets"], f"{p}: presets") if "presets" in header else ""
     return FaceRig(mesh=mesh, muscles=muscles, wrinkles=_wrinkles(header.get("wrinkles", []), p),
                    name=string(header.get("name", "rig"), f"{p}: name"), insertion=insertion,
-                   skin=skin, integrator=integrator, presets=presets, tissue=tissue)
+                   skin=skin, integrator=integrator, presets=presets, tissue=tissue, strain=strain)
 
 
 def _wrinkles(entries: Any, p: str) -> tuple:
