@@ -64,6 +64,35 @@ def _prefetch(typingctx, arr, i):  # type: ignore[no-untyped-def]
     return sig, codegen
 
 
+@numba.njit(inline="always")
+def _take4(a0, a1, a2, c0, c1, c2, c3, p0, p1, p2, q0, q1, q2, u0, u1, u2, z0, z1, z2, lo, hi):  # type: ignore[no-untyped-def]
+    """Rows lo..hi-1 of the buffer (a0, a1, a2) take four columns c0..c3 in turn, times the
+    values (p, q, u, z): each subtraction separate and in that order (one pass, the column sweeps'
+    bits)."""
+    for i in range(lo, hi):
+        b0 = a0[i] - c0[i] * p0
+        b1 = a1[i] - c0[i] * p1
+        b2 = a2[i] - c0[i] * p2
+        b0 = b0 - c1[i] * q0
+        b1 = b1 - c1[i] * q1
+        b2 = b2 - c1[i] * q2
+        b0 = b0 - c2[i] * u0
+        b1 = b1 - c2[i] * u1
+        b2 = b2 - c2[i] * u2
+        a0[i] = b0 - c3[i] * z0
+        a1[i] = b1 - c3[i] * z1
+        a2[i] = b2 - c3[i] * z2
+
+
+@numba.njit(inline="always")
+def _take1(a0, a1, a2, col, x0, x1, x2, lo, hi):  # type: ignore[no-untyped-def]
+    """Rows lo..hi-1 of the buffer take one column times (x0, x1, x2)."""
+    for i in range(lo, hi):
+        a0[i] -= col[i] * x0
+        a1[i] -= col[i] * x1
+        a2[i] -= col[i] * x2
+
+
 @numba.njit(cache=True, nogil=True)
 def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc):  # type: ignore[no-untyped-def]
     """y = U^-1 L^-1 y in place for 3 right-hand sides, supernode by supernode (module docstring);
@@ -136,29 +165,14 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
             a0[jj + 3] = z0
             a1[jj + 3] = z1
             a2[jj + 3] = z2
-            for ii in range(jj + BLOCK, w):
-                b0 = a0[ii] - c0[ii] * p0
-                b1 = a1[ii] - c0[ii] * p1
-                b2 = a2[ii] - c0[ii] * p2
-                b0 = b0 - c1[ii] * q0
-                b1 = b1 - c1[ii] * q1
-                b2 = b2 - c1[ii] * q2
-                b0 = b0 - c2[ii] * u0
-                b1 = b1 - c2[ii] * u1
-                b2 = b2 - c2[ii] * u2
-                a0[ii] = b0 - c3[ii] * z0
-                a1[ii] = b1 - c3[ii] * z1
-                a2[ii] = b2 - c3[ii] * z2
+            _take4(a0, a1, a2, c0, c1, c2, c3, p0, p1, p2, q0, q1, q2, u0, u1, u2, z0, z1, z2, jj + BLOCK, w)
             jj += BLOCK
         while jj < w:  # the run's last columns one by one
             x0 = a0[jj]
             x1 = a1[jj]
             x2 = a2[jj]
             col = tv[t + jj * w:t + (jj + 1) * w]
-            for ii in range(jj + 1, w):
-                a0[ii] -= col[ii] * x0
-                a1[ii] -= col[ii] * x1
-                a2[ii] -= col[ii] * x2
+            _take1(a0, a1, a2, col, x0, x1, x2, jj + 1, w)
             jj += 1
         for ii in range(w):
             y[s + ii, 0] = a0[ii]
@@ -187,29 +201,14 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
             c1 = lv[base + (jj + 1) * m:base + (jj + 2) * m]
             c2 = lv[base + (jj + 2) * m:base + (jj + 3) * m]
             c3 = lv[base + (jj + 3) * m:base + (jj + 4) * m]
-            for i in range(m):
-                b0 = a0[i] - c0[i] * p0
-                b1 = a1[i] - c0[i] * p1
-                b2 = a2[i] - c0[i] * p2
-                b0 = b0 - c1[i] * q0
-                b1 = b1 - c1[i] * q1
-                b2 = b2 - c1[i] * q2
-                b0 = b0 - c2[i] * u0
-                b1 = b1 - c2[i] * u1
-                b2 = b2 - c2[i] * u2
-                a0[i] = b0 - c3[i] * z0
-                a1[i] = b1 - c3[i] * z1
-                a2[i] = b2 - c3[i] * z2
+            _take4(a0, a1, a2, c0, c1, c2, c3, p0, p1, p2, q0, q1, q2, u0, u1, u2, z0, z1, z2, 0, m)
             jj += BLOCK
         while jj < w:
             x0 = y[s + jj, 0]
             x1 = y[s + jj, 1]
             x2 = y[s + jj, 2]
             col = lv[base + jj * m:base + (jj + 1) * m]
-            for i in range(m):
-                a0[i] -= col[i] * x0
-                a1[i] -= col[i] * x1
-                a2[i] -= col[i] * x2
+            _take1(a0, a1, a2, col, x0, x1, x2, 0, m)
             jj += 1
         for i in range(m):
             r = r_idx[r0 + i]
@@ -274,19 +273,7 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
                 e1 = uv[base + (i - 1) * w:base + i * w]
                 e2 = uv[base + (i - 2) * w:base + (i - 1) * w]
                 e3 = uv[base + (i - 3) * w:base + (i - 2) * w]
-                for ii in range(w):
-                    b0 = a0[ii] - e0[ii] * p0
-                    b1 = a1[ii] - e0[ii] * p1
-                    b2 = a2[ii] - e0[ii] * p2
-                    b0 = b0 - e1[ii] * q0
-                    b1 = b1 - e1[ii] * q1
-                    b2 = b2 - e1[ii] * q2
-                    b0 = b0 - e2[ii] * u0
-                    b1 = b1 - e2[ii] * u1
-                    b2 = b2 - e2[ii] * u2
-                    a0[ii] = b0 - e3[ii] * z0
-                    a1[ii] = b1 - e3[ii] * z1
-                    a2[ii] = b2 - e3[ii] * z2
+                _take4(a0, a1, a2, e0, e1, e2, e3, p0, p1, p2, q0, q1, q2, u0, u1, u2, z0, z1, z2, 0, w)
                 i -= BLOCK
             while i >= 0:
                 c = r_idx[r0 + i]
@@ -294,10 +281,7 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
                 x1 = y[c, 1]
                 x2 = y[c, 2]
                 row = uv[base + i * w:base + (i + 1) * w]
-                for ii in range(w):
-                    a0[ii] -= row[ii] * x0
-                    a1[ii] -= row[ii] * x1
-                    a2[ii] -= row[ii] * x2
+                _take1(a0, a1, a2, row, x0, x1, x2, 0, w)
                 i -= 1
         jj = w - 1
         while jj >= BLOCK - 1:  # then the run's own columns from the last, four at a time, each once final
@@ -333,19 +317,7 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
             y[s + jj - 3, 1] = z1
             y[s + jj - 3, 2] = z2
             c3 = tv[t + (jj - 3) * w:t + (jj - 2) * w]
-            for ii in range(jj - 3):
-                b0 = a0[ii] - c0[ii] * p0
-                b1 = a1[ii] - c0[ii] * p1
-                b2 = a2[ii] - c0[ii] * p2
-                b0 = b0 - c1[ii] * q0
-                b1 = b1 - c1[ii] * q1
-                b2 = b2 - c1[ii] * q2
-                b0 = b0 - c2[ii] * u0
-                b1 = b1 - c2[ii] * u1
-                b2 = b2 - c2[ii] * u2
-                a0[ii] = b0 - c3[ii] * z0
-                a1[ii] = b1 - c3[ii] * z1
-                a2[ii] = b2 - c3[ii] * z2
+            _take4(a0, a1, a2, c0, c1, c2, c3, p0, p1, p2, q0, q1, q2, u0, u1, u2, z0, z1, z2, 0, jj - 3)
             jj -= BLOCK
         while jj >= 0:  # the run's first columns one by one
             d = u_diag[s + jj]
@@ -356,10 +328,7 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
             y[s + jj, 1] = x1
             y[s + jj, 2] = x2
             col = tv[t + jj * w:t + (jj + 1) * w]
-            for ii in range(jj):
-                a0[ii] -= col[ii] * x0
-                a1[ii] -= col[ii] * x1
-                a2[ii] -= col[ii] * x2
+            _take1(a0, a1, a2, col, x0, x1, x2, 0, jj)
             jj -= 1
 
 
