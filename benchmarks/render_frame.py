@@ -239,6 +239,17 @@ def head_vs_mask(resolution: int, size: tuple[int, int], batches: int, ctx: obje
     return out
 
 
+def _scan_and_hud() -> tuple[object, object]:
+    """The scanned head's model (the default face) and the HUD a show draws over it."""
+    from puppet.face_cache import scan_model
+    from render.hud import HudInfo
+
+    hud = HudInfo(channels=[("zygomaticus_major_l", 0.8, 0, 1), ("jaw", 0.3, 0, 1)], age=30,
+                  devices=[("sgi:///dev/ttyS0", True), ("keyboard://", True)], fps=60.0,
+                  latency_ms=12.0, lines=["? help"])
+    return scan_model(None), hud
+
+
 def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
     """The scanned head (the default face, sim.face.scan) shaded + HUD, in alternating 10-frame
     batches with the floor: each frame poses the whole scan from the simulated surface, makes its
@@ -248,14 +259,9 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
     the mouth's inside left out)."""
     import statistics
 
-    from puppet.face_cache import scan_model
-    from render.hud import HudInfo
     from render.offscreen import OffscreenRenderer
 
-    model = scan_model(None)
-    hud = HudInfo(channels=[("zygomaticus_major_l", 0.8, 0, 1), ("jaw", 0.3, 0, 1)], age=30,
-                  devices=[("sgi:///dev/ttyS0", True), ("keyboard://", True)], fps=60.0,
-                  latency_ms=12.0, lines=["? help"])
+    model, hud = _scan_and_hud()
     out = []
     with OffscreenRenderer(model, size, ctx=ctx) as off:  # type: ignore[arg-type]
         r = off.renderer
@@ -342,14 +348,9 @@ def scan_parts(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
 
     import numpy as np
 
-    from puppet.face_cache import scan_model
-    from render.hud import HudInfo
     from render.offscreen import OffscreenRenderer
 
-    model = scan_model(None)
-    hud = HudInfo(channels=[("zygomaticus_major_l", 0.8, 0, 1), ("jaw", 0.3, 0, 1)], age=30,
-                  devices=[("sgi:///dev/ttyS0", True), ("keyboard://", True)], fps=60.0,
-                  latency_ms=12.0, lines=["? help"])
+    model, hud = _scan_and_hud()
     out = []
     with OffscreenRenderer(model, size, ctx=ctx) as off:  # type: ignore[arg-type]
         r = off.renderer

@@ -75,10 +75,10 @@ class Shape:
     coupling: tuple[str, str] | None
 
 
-def _stiffness(model) -> tuple[object, np.ndarray]:  # type: ignore[no-untyped-def]
-    """The factorised stiffness at rest over the free degrees of freedom, and their indices."""
+def rest_stiffness(model) -> object:  # type: ignore[no-untyped-def]
+    """The skin's stiffness at rest, (3n, 3n) sparse: the springs' at their rest lengths and each
+    vertex's support along its rest normal."""
     import scipy.sparse as sp
-    from scipy.sparse.linalg import splu
 
     from sim.build import stiffness_matrix
 
@@ -88,7 +88,14 @@ def _stiffness(model) -> tuple[object, np.ndarray]:  # type: ignore[no-untyped-d
     blocks = model.support_stiffness[:, None, None] * nrm[:, :, None] * nrm[:, None, :]
     rows = (3 * np.arange(n)[:, None, None] + np.arange(3)[None, :, None]) + 0 * np.arange(3)[None, None, :]
     cols = (3 * np.arange(n)[:, None, None] + np.arange(3)[None, None, :]) + 0 * np.arange(3)[None, :, None]
-    k = k + sp.csr_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())), shape=(3 * n, 3 * n))
+    return k + sp.csr_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())), shape=(3 * n, 3 * n))
+
+
+def _stiffness(model) -> tuple[object, np.ndarray]:  # type: ignore[no-untyped-def]
+    """The factorised stiffness at rest over the free degrees of freedom, and their indices."""
+    from scipy.sparse.linalg import splu
+
+    k = rest_stiffness(model)
     free = np.flatnonzero(np.repeat(~np.asarray(model.held, bool), 3))
     return splu(k[free][:, free].tocsc()), free
 

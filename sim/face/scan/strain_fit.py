@@ -39,23 +39,18 @@ _MIRROR_SIGN = np.array([1.0, 1.0, 1.0, -1.0, -1.0, 1.0])  # M E M, M = diag(-1,
 
 
 def step_stiffness(model: Any, bending: bool = True) -> tuple[Any, np.ndarray]:
-    """The skin's stiffness at rest (`calibrate._stiffness`'s) plus the implicit step's bending,
+    """The skin's stiffness at rest (`calibrate.rest_stiffness`) plus the implicit step's bending,
     factorised over the free degrees of freedom, and their indices."""
     import scipy.sparse as sp
     from scipy.sparse.linalg import splu
 
     from sim.antifold import skin_bending, thin_skin
-    from sim.build import stiffness_matrix
+    from sim.face.scan.calibrate import rest_stiffness
     from sim.margin_contact import margin_bending
 
     n = model.n_vertices
     springs = np.asarray(model.spring_indices)
-    k = stiffness_matrix(model.rest, model.spring_indices, model.spring_k_low, model.rest_stiffness)
-    nrm = model.rest_normal
-    blocks = model.support_stiffness[:, None, None] * nrm[:, :, None] * nrm[:, None, :]
-    rows = (3 * np.arange(n)[:, None, None] + np.arange(3)[None, :, None]) + 0 * np.arange(3)[None, None, :]
-    cols = (3 * np.arange(n)[:, None, None] + np.arange(3)[None, None, :]) + 0 * np.arange(3)[None, :, None]
-    k = k + sp.csr_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())), shape=(3 * n, 3 * n))
+    k = rest_stiffness(model)
     if not bending:
         free = np.flatnonzero(np.repeat(~np.asarray(model.held, bool), 3))
         return splu(k.tocsr()[free][:, free].tocsc()), free
