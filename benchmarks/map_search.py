@@ -68,11 +68,13 @@ SHARES = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--shapes", help="comma-separated ARKit names (default: every one in CANDIDATES)")
+    ap.add_argument("--any", action="store_true",
+                    help="try every muscle channel as the share (a coarser grid), not only CANDIDATES")
     args = ap.parse_args()
 
     from puppet.capture import arkit_in
     from puppet.face_cache import scan_model
-    from sim.fit.basis import Settler
+    from sim.fit.basis import Settler, fit_channels
 
     t0 = time.monotonic()
     settler = Settler(scan_model())
@@ -112,8 +114,9 @@ def main() -> int:
                 e = error(shape, s, sh)
                 if e < best[0]:
                     best = (e, s, sh)
-        for ch in CANDIDATES.get(shape, ()):
-            for w in SHARES:
+        every = tuple(dict.fromkeys(c.removesuffix("_l").removesuffix("_r") for c in fit_channels()))
+        for ch in every if args.any else CANDIDATES.get(shape, ()):
+            for w in (0.15, 0.4, 0.8) if args.any else SHARES:
                 e = error(shape, best[1], (ch, w))
                 if e < best[0]:
                     best = (e, best[1], (ch, w))
@@ -123,7 +126,7 @@ def main() -> int:
                 if e < best[0]:
                     best = (e, s, best[2])
             ch, w = best[2]
-            for dw in (-0.05, 0.05):
+            for dw in (-0.1, -0.05, 0.05, 0.1) if args.any else (-0.05, 0.05):
                 w2 = round(min(1.0, max(0.05, w + dw)), 2)
                 e = error(shape, best[1], (ch, w2))
                 if e < best[0]:

@@ -56,15 +56,14 @@ SHAPE_SPAN = {"BrowInnerUp": 0.4, "EyeSquint": 0.4, "MouthPress": 0.6, "MouthDim
 #: its own shape and the share, as the lids do with the gaze; a channel named without its side is
 #: the shape's side, both sides for an unsided shape): pressed lips push the chin's soft tissue up
 #: (mentalis), as the scanned mouthPress does; puffed cheeks hold the air behind pursed lips
-#: (incisivus), which the scanned cheekPuff carries 13 mm forward; closed, funnelled lips are
-#: carried forward by the incisivi; the lower lip pushed up or rolled in meets the upper one (lip
+#: (incisivus), which the scanned cheekPuff carries 13 mm forward; funnelled lips are carried
+#: forward by the incisivi; the lower lip pushed up or rolled in meets the upper one (lip
 #: closure); the dimple's buccinator pulls on the modiolus with the corner's elevator (levator
 #: anguli oris); the lower lip's depressor draws the corner down a little with its neighbour
 #: (depressor anguli oris); the brows lowered and the nose wrinkled bring the orbital orbicularis
 #: with them (its upper fibres lower the brow, its lower ones lift the cheek under the lid).
-SHAPE_SHARES = {"MouthPress": ("mentalis", 0.7), "CheekPuff": ("incisivus", 1.0), "MouthClose": ("incisivus", 0.8),
-                "MouthFunnel": ("incisivus", 0.5), "MouthShrugLower": ("lip_closure", 0.35),
-                "MouthRollLower": ("lip_closure", 0.4), "MouthDimple": ("levator_anguli_oris", 1.0),
+SHAPE_SHARES = {"MouthPress": ("mentalis", 0.7), "CheekPuff": ("incisivus", 1.0), "MouthFunnel": ("incisivus", 0.5),
+                "MouthShrugLower": ("lip_closure", 0.35), "MouthRollLower": ("lip_closure", 0.4), "MouthDimple": ("levator_anguli_oris", 1.0),
                 "MouthLowerDown": ("depressor_anguli_oris", 0.2), "BrowDown": ("orbicularis_oculi", 0.15),
                 "NoseSneer": ("orbicularis_oculi", 0.6)}
 #: Shapes that are one channel each (besides the sided ones above).
