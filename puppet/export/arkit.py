@@ -4,7 +4,7 @@ The mapping is a documented approximation (see docs/live.md): every one of the 5
 channel, but we have muscles ARKit cannot express (zygomaticus minor AU11, levator anguli oris
 AU13, age). MouthFunnel is written from the lower lip's eversion and MouthShrugUpper from the
 upper's (a funnel everts both), so a pose whose upper lip is everted at least as far as its lower
-one comes back as itself. "Left" is the face's own left, the `_l` side of our channels."""
+one, and no further than the shrug's span (`SHAPE_SPAN`) unless exactly as far, comes back as itself. "Left" is the face's own left, the `_l` side of our channels."""
 
 from __future__ import annotations
 
@@ -51,7 +51,7 @@ MOUTH_CLOSE_SPAN = 0.25
 #: (docs/scan-face.md). The export divides by it (a larger channel value writes 1), the import and
 #: the map multiply.
 SHAPE_SPAN = {"BrowInnerUp": 0.4, "EyeSquint": 0.4, "MouthPress": 0.6, "MouthDimple": 0.8, "MouthLowerDown": 0.8,
-              "EyeWide": 0.7}
+              "EyeWide": 0.7, "MouthShrugUpper": 0.8}
 #: Shapes that also drive another channel by a share of the shape (the channel takes the larger of
 #: its own shape and the share, as the lids do with the gaze; a channel named without its side is
 #: the shape's side, both sides for an unsided shape): pressed lips push the chin's soft tissue up
@@ -60,12 +60,13 @@ SHAPE_SPAN = {"BrowInnerUp": 0.4, "EyeSquint": 0.4, "MouthPress": 0.6, "MouthDim
 #: forward by the incisivi; the lower lip pushed up or rolled in meets the upper one (lip
 #: closure); the dimple's buccinator pulls on the modiolus with the corner's elevator (levator
 #: anguli oris); the lower lip's depressor draws the corner down a little with its neighbour
-#: (depressor anguli oris); the brows lowered and the nose wrinkled bring the orbital orbicularis
+#: (depressor anguli oris); the upper lip's shrug lifts it a little with its elevator (levator
+#: labii superioris, both sides); the brows lowered and the nose wrinkled bring the orbital orbicularis
 #: with them (its upper fibres lower the brow, its lower ones lift the cheek under the lid).
 SHAPE_SHARES = {"MouthPress": ("mentalis", 0.7), "CheekPuff": ("incisivus", 1.0), "MouthFunnel": ("incisivus", 0.5),
                 "MouthShrugLower": ("lip_closure", 0.35), "MouthRollLower": ("lip_closure", 0.4), "MouthDimple": ("levator_anguli_oris", 1.0),
                 "MouthLowerDown": ("depressor_anguli_oris", 0.2), "BrowDown": ("orbicularis_oculi", 0.15),
-                "NoseSneer": ("orbicularis_oculi", 0.6)}
+                "NoseSneer": ("orbicularis_oculi", 0.6), "MouthShrugUpper": ("levator_labii", 0.2)}
 #: Shapes that are one channel each (besides the sided ones above).
 ONE_CHANNEL = {
     "JawForward": "jaw_forward", "MouthClose": "lip_closure", "MouthPucker": "incisivus",
