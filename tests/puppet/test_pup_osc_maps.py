@@ -218,3 +218,23 @@ def test_damaged_maps_give_one_line_or_a_result(name: str, vocab: Vocabulary) ->
         except ConfigError as err:
             msg = str(err)
             assert msg.startswith(f"{name}-{k}.toml:") and "\n" not in msg.strip(), msg
+
+
+@pytest.mark.parametrize("weight", [0.2, 0.9])
+def test_each_arkit_shape_alone_drives_the_same_channels_through_the_map_and_the_import(
+        vocab: Vocabulary, weight: float) -> None:
+    """One shape streamed through the shipped map and read from a CSV (`shape_channels`) give the
+    same pose, spans and shares included; a left shape leaves the face's right side at rest."""
+    from puppet.capture.arkit_in import shape_channels
+    from sim.channels import CHANNEL_NAMES
+
+    rest = {c.name: c.default for c in vocab.channels}
+    for shape in ARKIT_SHAPES:
+        m = Mapper(merge([(load_default_map("arkit"), LIVE)]), vocab)
+        streamed = run(m, [axis(shape[0].lower() + shape[1:], weight, LIVE)])
+        read = dict(zip(CHANNEL_NAMES, shape_channels({shape: np.full(1, weight)}, 1)[0]))
+        for name, v in streamed.items():
+            assert v == pytest.approx(read[name], abs=1e-9), (shape, name)
+        if shape.endswith("Left"):
+            moved = [n for n, v in streamed.items() if n.endswith("_r") and v != rest[n]]
+            assert not moved, (shape, moved)
