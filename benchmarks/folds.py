@@ -1,5 +1,5 @@
-"""How much skin turns over on the scanned head under each preset and each channel at full value
-(cm2 of triangles whose normal points against their rest normal), the figure tests/sim/
+"""How much skin turns over on the scanned head under each preset, each channel at full value and
+each ARKit shape that shares a second channel (cm2 of triangles whose normal points against their rest normal), the figure tests/sim/
 test_scan_face.py holds to 0.1 cm2 (run by hand):
 
     nice .venv/bin/python benchmarks/folds.py [--only anger,corrugator_l,...]
@@ -52,6 +52,14 @@ def main(argv: list[str] | None = None) -> int:
     for name, value in (("eyes_yaw", 1.0), ("orbicularis_oculi_lid_l", 1.0), ("orbicularis_oculi_lid_r", 1.0)):
         c.set(name, value)
     poses["blink looking aside"] = c
+    from puppet.capture.arkit_in import shape_channels
+    from puppet.export.arkit import ARKIT_SHAPES, SHAPE_SHARES
+
+    for shape in ARKIT_SHAPES:  # the ARKit shapes that drive a second channel by a share, at 1
+        if shape.removesuffix("Left").removesuffix("Right") in SHAPE_SHARES and not shape.endswith("Right"):
+            c = FaceControl()
+            c.values[...] = shape_channels({shape: np.ones(1)}, 1)[0]
+            poses[f"ARKit {shape}"] = c
     total = 0.0
     for name, c in poses.items():
         if only and name not in only:

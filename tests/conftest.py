@@ -49,3 +49,32 @@ def xvfb_display() -> Iterator[str]:
         yield display
     finally:
         stop_xvfb(proc)
+
+
+@pytest.fixture
+def arkit_expressible():  # type: ignore[no-untyped-def]
+    """A function making a pose one the ARKit shapes can carry (in place, values (..., C) in the
+    order of `names`): each calibrated shape's channels within its span (`SHAPE_SPAN`), and each
+    share (`SHAPE_SHARES`) at least its share of the shape, as a stream of shapes gives it."""
+    import numpy as np
+
+    from puppet.capture.arkit_in import share_targets, shape_targets
+    from puppet.export.arkit import ARKIT_SHAPES, SHAPE_SHARES, SHAPE_SPAN
+
+    def base(shape: str) -> str:
+        return shape.removesuffix("Left").removesuffix("Right")
+
+    def expressible(values: np.ndarray, names: list[str]) -> np.ndarray:
+        index = {n: i for i, n in enumerate(names)}
+        for shape in ARKIT_SHAPES:
+            for ch in shape_targets(shape) if base(shape) in SHAPE_SPAN else ():
+                values[..., index[ch]] = np.minimum(values[..., index[ch]], SHAPE_SPAN[base(shape)])
+        for _ in range(3):  # a share may drive another shape's channel, which has its own share
+            for shape in (s for s in ARKIT_SHAPES if base(s) in SHAPE_SHARES):
+                ch, share = SHAPE_SHARES[base(shape)]
+                unit = np.minimum(1.0, values[..., index[shape_targets(shape)[0]]] / SHAPE_SPAN.get(base(shape), 1.0))
+                for t in share_targets(shape, ch, index):
+                    values[..., index[t]] = np.maximum(values[..., index[t]], share * unit)
+        return values
+
+    return expressible

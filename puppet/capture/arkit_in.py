@@ -49,6 +49,16 @@ def shape_targets(shape: str) -> list[str]:
             "MouthPressRight": ["orbicularis_oris"]}.get(shape, [])
 
 
+def share_targets(shape: str, channel: str, index: dict[str, int]) -> list[str]:
+    """The channels a shape's share (`SHAPE_SHARES`) drives: the channel itself, or, named without
+    its side, the shape's own side (both sides for an unsided shape)."""
+    if channel in index:
+        return [channel]
+    if shape.endswith(("Left", "Right")):
+        return [channel + ("_l" if shape.endswith("Left") else "_r")]
+    return [channel + "_l", channel + "_r"]
+
+
 def shape_channels(shapes: dict[str, np.ndarray], n: int,
                    turns: dict[str, np.ndarray] | None = None, couple: bool = True) -> np.ndarray:
     """(n, C) channel values for blendshape columns ``{PascalCase shape: (n,) weights 0..1}`` and
@@ -73,10 +83,11 @@ def shape_channels(shapes: dict[str, np.ndarray], n: int,
             driven[i] = True
         if base in SHAPE_SHARES:
             ch, share = SHAPE_SHARES[base]
-            i = index[ch]
-            own = share * np.clip(col, 0.0, 1.0)
-            values[:, i] = np.maximum(values[:, i], own) if driven[i] else own
-            driven[i] = True
+            for target in share_targets(shape, ch, index):
+                i = index[target]
+                own = share * np.clip(col, 0.0, 1.0)
+                values[:, i] = np.maximum(values[:, i], own) if driven[i] else own
+                driven[i] = True
 
     def g(name: str) -> np.ndarray:
         return np.asarray(shapes.get(name, np.zeros(n)), float)

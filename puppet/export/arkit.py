@@ -4,7 +4,7 @@ The mapping is a documented approximation (see docs/live.md): every one of the 5
 channel, but we have muscles ARKit cannot express (zygomaticus minor AU11, levator anguli oris
 AU13, age). MouthFunnel is written from the lower lip's eversion and MouthShrugUpper from the
 upper's (a funnel everts both), so a pose whose upper lip is everted at least as far as its lower
-one comes back as itself. "Left" is the face's own left, the `_l` side of our channels."""
+one, and no further than the shrug's span (`SHAPE_SPAN`) unless exactly as far, comes back as itself. "Left" is the face's own left, the `_l` side of our channels."""
 
 from __future__ import annotations
 
@@ -43,18 +43,30 @@ SIMPLE_SHAPES = {
 #: ARKit's mouthClose counts against the jaw's opening (the lips meet at mouthClose = jawOpen); our
 #: lip_closure at 1 closes a jaw opened 0.25, so MouthClose = 0.25 lip_closure (and back).
 MOUTH_CLOSE_SPAN = 0.25
-#: Calibrated against the ICT FaceKit's scanned shapes on the scanned face (benchmarks/scan_match.py):
-#: the value of a shape's channel that the shape at 1 stands for. Driven at 1, these channels moved
-#: the skin further than the scans (the inner brows 1.8 times as far, over more of the forehead; the
-#: squint's orbital sphincter pulled the skin round the whole eye in); at these values each is
-#: closest to its scan (docs/scan-face.md). The export divides by it (a larger channel value writes
-#: 1), the import and the map multiply.
-SHAPE_SPAN = {"BrowInnerUp": 0.4, "BrowDown": 0.8, "EyeSquint": 0.4, "MouthPress": 0.6}
+#: Calibrated against the ICT FaceKit's scanned shapes on the scanned face (benchmarks/scan_match.py,
+#: the values searched on the simulator by benchmarks/map_search.py): the value of a shape's
+#: channel that the shape at 1 stands for. Driven at 1, these channels moved the skin further than
+#: the scans (the inner brows 1.8 times as far, over more of the forehead; the squint's orbital
+#: sphincter pulled the skin round the whole eye in); at these values each is closest to its scan
+#: (docs/scan-face.md). The export divides by it (a larger channel value writes 1), the import and
+#: the map multiply.
+SHAPE_SPAN = {"BrowInnerUp": 0.4, "EyeSquint": 0.4, "MouthPress": 0.6, "MouthDimple": 0.8, "MouthLowerDown": 0.8,
+              "EyeWide": 0.7, "MouthShrugUpper": 0.8}
 #: Shapes that also drive another channel by a share of the shape (the channel takes the larger of
-#: its own shape and the share, as the lids do with the gaze): pressed lips push the chin's soft
-#: tissue up (mentalis), as the scanned mouthPress does; puffed cheeks hold the air behind pursed
-#: lips (incisivus), which the scanned cheekPuff carries 13 mm forward.
-SHAPE_SHARES = {"MouthPress": ("mentalis", 0.7), "CheekPuff": ("incisivus", 1.0)}
+#: its own shape and the share, as the lids do with the gaze; a channel named without its side is
+#: the shape's side, both sides for an unsided shape): pressed lips push the chin's soft tissue up
+#: (mentalis), as the scanned mouthPress does; puffed cheeks hold the air behind pursed lips
+#: (incisivus), which the scanned cheekPuff carries 13 mm forward; funnelled lips are carried
+#: forward by the incisivi; the lower lip pushed up or rolled in meets the upper one (lip
+#: closure); the dimple's buccinator pulls on the modiolus with the corner's elevator (levator
+#: anguli oris); the lower lip's depressor draws the corner down a little with its neighbour
+#: (depressor anguli oris); the upper lip's shrug lifts it a little with its elevator (levator
+#: labii superioris, both sides); the brows lowered and the nose wrinkled bring the orbital orbicularis
+#: with them (its upper fibres lower the brow, its lower ones lift the cheek under the lid).
+SHAPE_SHARES = {"MouthPress": ("mentalis", 0.7), "CheekPuff": ("incisivus", 1.0), "MouthFunnel": ("incisivus", 0.5),
+                "MouthShrugLower": ("lip_closure", 0.35), "MouthRollLower": ("lip_closure", 0.4), "MouthDimple": ("levator_anguli_oris", 1.0),
+                "MouthLowerDown": ("depressor_anguli_oris", 0.2), "BrowDown": ("orbicularis_oculi", 0.15),
+                "NoseSneer": ("orbicularis_oculi", 0.6), "MouthShrugUpper": ("levator_labii", 0.2)}
 #: Shapes that are one channel each (besides the sided ones above).
 ONE_CHANNEL = {
     "JawForward": "jaw_forward", "MouthClose": "lip_closure", "MouthPucker": "incisivus",
@@ -90,16 +102,16 @@ def _rule(shape: str) -> Callable[[Getter], float] | None:
     if shape == "JawOpen":
         return lambda g: g("jaw")
     if shape == "MouthShrugLower":
-        return lambda g: g("mentalis")
+        return lambda g: g("mentalis") / span
     if shape == "JawLeft":
         return lambda g: max(0.0, g("jaw_sideways"))
     if shape == "JawRight":
         return lambda g: max(0.0, -g("jaw_sideways"))
     if shape == "MouthClose":
-        return lambda g: MOUTH_CLOSE_SPAN * g("lip_closure")
+        return lambda g: MOUTH_CLOSE_SPAN * g("lip_closure") / span
     if shape in ONE_CHANNEL:
         name = ONE_CHANNEL[shape]
-        return lambda g: g(name)
+        return lambda g: g(name) / span
     # gaze: +yaw looks towards the face's left: out for the left eye, in for the right one; each
     # eye's yaw is the shared one with the vergence (the left eye's minus it, the right one's plus)
     def left(g: Getter) -> float:

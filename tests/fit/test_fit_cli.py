@@ -335,10 +335,10 @@ def test_fit_on_a_rig_file_records_it_for_replay(tmp_path, performance, capsys) 
     assert main(["replay", str(take), "--headless"]) == 0
 
 
-def test_the_arkit_reader_inverts_the_export_mapping(tmp_path) -> None:
+def test_the_arkit_reader_inverts_the_export_mapping(tmp_path, arkit_expressible) -> None:  # type: ignore[no-untyped-def]
     """Every channel the ARKit export writes one-to-one comes back with its value (5 decimals)."""
     from puppet.capture.arkit_in import read_arkit_csv
-    from puppet.export.arkit import GAZE_LIDS, SHAPE_SHARES, SHAPE_SPAN, SIMPLE_SHAPES, ArkitCsvWriter
+    from puppet.export.arkit import GAZE_LIDS, SIMPLE_SHAPES, ArkitCsvWriter
     from sim.channels import CHANNEL_NAMES, CHANNEL_SPECS
 
     one_to_one = {b + s for b in set(SIMPLE_SHAPES.values()) - {"orbicularis_oculi"} for s in ("_l", "_r")}
@@ -352,6 +352,9 @@ def test_the_arkit_reader_inverts_the_export_mapping(tmp_path) -> None:
     one_to_one.add("eyes_vergence")
     yaw = values[:, CHANNEL_NAMES.index("eyes_yaw")]
     values[:, CHANNEL_NAMES.index("eyes_vergence")] = rng.uniform(-1.0, 1.0, 20) * (1.0 - np.abs(yaw))
+    # a shape calibrated to the scans writes its channels up to its span; a shape that shares another
+    # channel (pressed lips lift the chin, ...) comes back whole when that channel is at least its share
+    arkit_expressible(values, list(CHANNEL_NAMES))
     # the lids follow the gaze (GAZE_LIDS): a pose comes back whole when its lids are at least the gaze's share
     pitch = values[:, CHANNEL_NAMES.index("eyes_pitch")]
     for look, (lid, share) in GAZE_LIDS.items():
@@ -359,12 +362,6 @@ def test_the_arkit_reader_inverts_the_export_mapping(tmp_path) -> None:
         for s in ("_l", "_r"):
             j = CHANNEL_NAMES.index(lid + s)
             values[:, j] = np.maximum(values[:, j], share * gaze)
-    # a shape calibrated to the scans writes its channel up to its span; pressed lips lift the chin
-    press = CHANNEL_NAMES.index("orbicularis_oris")
-    values[:, press] *= SHAPE_SPAN["MouthPress"]
-    chin, share = SHAPE_SHARES["MouthPress"]
-    j = CHANNEL_NAMES.index(chin)
-    values[:, j] = np.maximum(values[:, j], share * values[:, press] / SHAPE_SPAN["MouthPress"])
     path = tmp_path / "rt.arkit.csv"
     w = ArkitCsvWriter(path, list(CHANNEL_NAMES), 60.0)
     for k, v in enumerate(values):
