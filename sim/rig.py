@@ -130,6 +130,16 @@ def _array(data: Any, key: str, path: str, shape: tuple[int | None, ...], kind: 
     return a
 
 
+def _bounded(data: Any, key: str, path: str, shape: tuple[int | None, ...], bounds: tuple[float, float],
+             says: str) -> np.ndarray:
+    """A float array of the rig file (`_array`) whose every value lies within bounds, as float64;
+    else the error `says`."""
+    a = _array(data, key, path, shape, "f")
+    if np.any(a < bounds[0]) or np.any(a > bounds[1]):
+        raise RigFileError(f"{path}: {says}")
+    return a.astype(np.float64)
+
+
 def _muscle(entry: Any, path: str) -> tuple[str, Muscle]:
     if not isinstance(entry, dict) or entry.get("type") not in _TYPES:
         raise RigFileError(f"{path}: muscle entry {quote(entry)} lacks a type in {sorted(_TYPES)}")
@@ -266,36 +276,28 @@ def _parse(data: Any, p: str) -> FaceRig:
     insertion = {}
     for name in sequence(header.get("insertion", []), f"{p}: insertion", MAX_ENTRIES):
         name = string(name, f"{p}: insertion channel")
-        gain = _array(data, f"insertion_{name}", p, (n,), "f")
-        if np.any(gain < 0.0) or np.any(gain > 1e6):
-            raise RigFileError(f"{p}: insertion gains of {quote(name)} must lie in 0..1e6")
-        insertion[name] = gain.astype(np.float64)
+        insertion[name] = _bounded(data, f"insertion_{name}", p, (n,), (0.0, 1e6),
+                                   f"insertion gains of {quote(name)} must lie in 0..1e6")
     skin = {}
     for name in sequence(header.get("skin", []), f"{p}: skin", len(SKIN_FIELDS)):
         name = string(name, f"{p}: skin field")
         if name not in SKIN_FIELDS:
             raise RigFileError(f"{p}: skin field must be one of {', '.join(SKIN_FIELDS)}, not {quote(name[:40])}")
-        mult = _array(data, f"skin_{name}", p, (n,), "f")
-        if not np.all(np.isfinite(mult)) or np.any(mult < 0.0) or np.any(mult > 1e3):
-            raise RigFileError(f"{p}: skin multipliers of {quote(name)} must lie in 0..1000")
-        skin[name] = mult.astype(np.float64)
+        skin[name] = _bounded(data, f"skin_{name}", p, (n,), (0.0, 1e3),
+                              f"skin multipliers of {quote(name)} must lie in 0..1000")
     tissue = {}
     for name in sequence(header.get("tissue", []), f"{p}: tissue", MAX_ENTRIES):
         name = string(name, f"{p}: tissue structure")
         if name.split("_", 1)[0] not in SKIN_FIELDS or "_" not in name:
             raise RigFileError(f"{p}: a tissue structure is named <{'|'.join(SKIN_FIELDS)}>_<name>, "
                                f"not {quote(name[:40])}")
-        mult = _array(data, f"tissue_{name}", p, (n,), "f")
-        if not np.all(np.isfinite(mult)) or np.any(mult < 0.0) or np.any(mult > 1e3):
-            raise RigFileError(f"{p}: tissue multipliers of {quote(name)} must lie in 0..1000")
-        tissue[name] = mult.astype(np.float64)
+        tissue[name] = _bounded(data, f"tissue_{name}", p, (n,), (0.0, 1e3),
+                                f"tissue multipliers of {quote(name)} must lie in 0..1000")
     strain = {}
     for name in sequence(header.get("strain", []), f"{p}: strain", MAX_ENTRIES):
         name = string(name, f"{p}: strain channel")
-        e = _array(data, f"strain_{name}", p, (n, 6), "f")
-        if not np.all(np.isfinite(e)) or np.any(np.abs(e) > 1.0):
-            raise RigFileError(f"{p}: active strain of {quote(name)} must lie in -1..1")
-        strain[name] = e.astype(np.float64)
+        strain[name] = _bounded(data, f"strain_{name}", p, (n, 6), (-1.0, 1.0),
+                                f"active strain of {quote(name)} must lie in -1..1")
     integrator = header.get("integrator", "auto")
     if integrator not in INTEGRATORS:
         raise RigFileError(f"{p}: integrator must be one of {', '.join(INTEGRATORS)}, "
