@@ -43,6 +43,7 @@ class FoldSoftener:
 
     def __init__(self, look: object) -> None:
         from render.scan_look import eye_centres
+        from sim.build import vertex_normals
 
         rest = np.asarray(look.rest, np.float64)  # type: ignore[attr-defined]
         n = len(rest)
@@ -78,12 +79,7 @@ class FoldSoftener:
         self.rest = rest.astype(np.float32)
         self.support = np.unique(np.concatenate([flat, zone])).astype(np.int32)
         self.disp = np.zeros((n, 4), np.float32)
-        tri = look.groups["skin"]  # type: ignore[attr-defined]
-        area = np.cross(rest[tri[:, 1]] - rest[tri[:, 0]], rest[tri[:, 2]] - rest[tri[:, 0]])
-        normal = np.zeros((n, 3))
-        for k in range(3):
-            np.add.at(normal, tri[:, k], area)
-        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+        normal = vertex_normals(rest, np.asarray(look.groups["skin"]))  # type: ignore[attr-defined]
         self.normal = normal[zone].astype(np.float32)
         self.crease = np.zeros(len(zone), np.float32)
 
