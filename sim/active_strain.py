@@ -27,14 +27,21 @@ import numpy as np
 COMPONENTS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))  # the columns of a strain array
 
 
+def fibre_terms(rest: np.ndarray, springs: np.ndarray) -> np.ndarray:
+    """(S, 6) per spring the products d_p d_q of its rest direction d over COMPONENTS (doubled off
+    the diagonal), so that s_e = a_e . (E(i) + E(j)) / 2."""
+    i, j = springs[:, 0], springs[:, 1]
+    d = rest[i] - rest[j]
+    d = d / np.linalg.norm(d, axis=1)[:, None]
+    return np.stack([d[:, p] * d[:, q] * (1.0 if p == q else 2.0) for p, q in COMPONENTS], axis=1)
+
+
 def spring_strain(rest: np.ndarray, springs: np.ndarray, strain: np.ndarray) -> np.ndarray:
     """(S,) each spring's strain s_e at full value from the per-vertex strain (N, 6); 0 where either
     end carries none."""
     springs = np.asarray(springs, np.int64)
     i, j = springs[:, 0], springs[:, 1]
-    d = rest[i] - rest[j]
-    d = d / np.linalg.norm(d, axis=1)[:, None]
-    a = np.stack([d[:, p] * d[:, q] * (1.0 if p == q else 2.0) for p, q in COMPONENTS], axis=1)
+    a = fibre_terms(rest, springs)
     carries = np.any(strain != 0.0, axis=1)
     s = 0.5 * np.sum(a * (strain[i] + strain[j]), axis=1)
     return np.where(carries[i] & carries[j], s, 0.0)

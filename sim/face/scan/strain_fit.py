@@ -34,7 +34,6 @@ import numpy as np
 SMOOTH = 1e-3  # Laplacian weight per edge and component, relative to one shape's own size
 RIDGE = 1e-4  # pull of each component towards 0
 BOUND = 0.4  # |E_ab| at most this (a spring shortens or lengthens at most 40 % at full value)
-_COMP = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 _MIRROR_SIGN = np.array([1.0, 1.0, 1.0, -1.0, -1.0, 1.0])  # M E M, M = diag(-1, 1, 1)
 
 
@@ -70,10 +69,10 @@ def spring_strain_matrix(rest: np.ndarray, springs: np.ndarray, sel: np.ndarray,
     zone vertex; par (N,) the parameter vertex of each skin vertex, -1 outside the zone)."""
     import scipy.sparse as sp
 
+    from sim.active_strain import fibre_terms
+
     i, j = springs[sel, 0], springs[sel, 1]
-    d = rest[i] - rest[j]
-    d /= np.linalg.norm(d, axis=1)[:, None]
-    a = np.stack([d[:, p] * d[:, q] * (1.0 if p == q else 2.0) for p, q in _COMP], axis=1)
+    a = fibre_terms(rest, springs[sel])
     if mirrored:
         a = a * _MIRROR_SIGN
     m = len(sel)
