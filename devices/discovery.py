@@ -24,15 +24,45 @@ class DeviceInfo:
     usable: bool
 
 
-def discover(probe: bool = False, hid_api_module: Any = None) -> list[DeviceInfo]:
-    """Everything found; each family is looked at independently so one failure hides nothing else."""
-    found: list[DeviceInfo] = []
-    for family in (lambda: serial_ports(probe), lambda: hid_devices(probe, hid_api_module), can_channels,
-                   midi_ports, audio_inputs):
+#: seconds one family of devices may take to answer (probing serial ports takes longer); a family
+#: that has not answered by then (a wedged JACK server or sound driver blocks its client for good) is
+#: left out of this discovery with a warning, so a show never waits on it
+FAMILY_TIMEOUT = 10.0
+PROBE_TIMEOUT = 60.0
+
+
+def discover(probe: bool = False, hid_api_module: Any = None, timeout: float | None = None) -> list[DeviceInfo]:
+    """Everything found; each family is looked at independently (in its own thread, at most
+    ``timeout`` seconds) so one failure or one driver that never answers hides nothing else."""
+    import threading
+
+    families = (("serial ports", lambda: serial_ports(probe)), ("HID devices", lambda: hid_devices(probe, hid_api_module)),
+                ("CAN channels", can_channels), ("MIDI ports", midi_ports), ("audio inputs", audio_inputs))
+    results: list[list[DeviceInfo] | None] = [None] * len(families)
+
+    def look(i: int, family: Any) -> None:
         try:
-            found += family()
+            results[i] = list(family())
         except Exception as err:  # a broken driver stack must not hide the other families
             log.warning("device discovery: %s", err)
+            results[i] = []
+
+    threads = [threading.Thread(target=look, args=(i, f), name=f"discover-{name}", daemon=True)
+               for i, (name, f) in enumerate(families)]
+    for t in threads:
+        t.start()
+    limit = timeout if timeout is not None else (PROBE_TIMEOUT if probe else FAMILY_TIMEOUT)
+    import time
+
+    deadline = time.monotonic() + limit
+    found: list[DeviceInfo] = []
+    for (name, _), t, i in zip(families, threads, range(len(families)), strict=True):
+        t.join(max(0.0, deadline - time.monotonic()))
+        got = results[i]
+        if got is None:  # still waiting on its driver: the thread is left to finish on its own
+            log.warning("device discovery: the %s did not answer within %g s; left out this time", name, limit)
+            continue
+        found += got
     found.append(DeviceInfo("keyboard://", "keyboard of the application window (always available)", "keyboard", True))
     return found
 

@@ -4,7 +4,8 @@ by `puppet live` on its own (it could be a synthesizer), but `puppet learn --dev
 
 from __future__ import annotations
 
-from devices.discovery import DeviceInfo
+from devices.discovery import DeviceInfo, log
+from devices.errors import DeviceError
 from devices.midi.port import list_ports
 
 #: Ports that are never a controller.
@@ -17,7 +18,12 @@ def midi_ports(apis: tuple[str, ...] = ("alsa", "jack")) -> list[DeviceInfo]:
     out: list[DeviceInfo] = []
     seen: set[str] = set()
     for api in apis:
-        for port, profile in list_ports(api):
+        try:
+            ports = list_ports(api)
+        except DeviceError as err:  # one API's server stuck: the other's ports are still listed
+            log.warning("device discovery: %s", err)
+            continue
+        for port, profile in ports:
             if port.lower().startswith(SKIP):
                 continue
             client = port.split(":", 1)[0].strip() or port

@@ -322,6 +322,8 @@ class MidiPortDevice(MidiDevice):
 
 _ENUMERATORS: dict[str, tuple[object, Any]] = {}
 _ENUM_LOCK = threading.Lock()
+#: seconds a listing waits for the one before it
+ENUM_WAIT = 5.0
 
 
 def _server_identity(api: str) -> object:
@@ -349,7 +351,11 @@ def list_ports(api: str) -> list[tuple[str, str]]:
     from devices.midi.profile import profile_for_port
 
     ident = _server_identity(api)
-    with _ENUM_LOCK:
+    # a listing stuck in its server (a wedged JACK server blocks a client for good) holds the lock:
+    # the next listing gives up rather than queue behind it
+    if not _ENUM_LOCK.acquire(timeout=ENUM_WAIT):
+        raise DeviceError(f"the {api.upper()} MIDI server did not answer: its ports are not listed")
+    try:
         kept = _ENUMERATORS.get(api)
         client = kept[1] if kept is not None and kept[0] == ident else None
         if kept is not None and client is None:
@@ -363,3 +369,5 @@ def list_ports(api: str) -> list[tuple[str, str]]:
             _ENUMERATORS.pop(api, None)
             delete_client(client)
             return []
+    finally:
+        _ENUM_LOCK.release()

@@ -51,3 +51,46 @@ def test_puppet_devices_json_runs() -> None:
     rows = [json.loads(line) for line in out.stdout.splitlines()]
     assert {"spec": "keyboard://", "kind": "keyboard", "usable": True} == {k: rows[-1][k] for k in ("spec", "kind", "usable")}
     assert all(set(r) == {"spec", "description", "kind", "usable"} for r in rows)
+
+
+def test_a_driver_that_never_answers_hides_nothing_else(monkeypatch: pytest.MonkeyPatch,
+                                                        caplog: pytest.LogCaptureFixture) -> None:
+    """A wedged JACK server blocks its client for good: discovery leaves that family out after its
+    time, says so, and still lists every other box (a show must never wait on it)."""
+    import threading
+    import time
+
+    import devices.discovery as disc
+
+    stuck = threading.Event()
+    monkeypatch.setattr(disc, "serial_ports", lambda probe: [])
+    monkeypatch.setattr(disc, "midi_ports", lambda: [stuck.wait(), []][1])  # blocks until released
+    monkeypatch.setattr(disc, "audio_inputs", lambda: 1 / 0)
+    api = FakeHidApi(FakeHidUnit(0x077D, 0x0410, "A"))
+    try:
+        t0 = time.monotonic()
+        with caplog.at_level("WARNING", logger="devices"):
+            specs = [i.spec for i in discover(hid_api_module=api, timeout=0.5)]
+        assert time.monotonic() - t0 < 30  # it returned (the blocked family is not waited for)
+    finally:
+        stuck.set()
+    assert specs == ["hid://077d:0410", "keyboard://"]
+    assert "MIDI ports did not answer" in caplog.text and "division by zero" in caplog.text
+
+
+def test_a_stuck_midi_listing_makes_the_next_one_give_up(monkeypatch: pytest.MonkeyPatch) -> None:
+    """While one listing is stuck in its server, the next does not queue behind it for good."""
+    from devices.errors import DeviceError
+    from devices.midi import discover as mdisc
+    from devices.midi import port
+
+    monkeypatch.setattr(port, "ENUM_WAIT", 0.2)
+    monkeypatch.setattr(port, "api_available", lambda api: True)
+    monkeypatch.setattr(port, "_server_identity", lambda api: api)
+    assert port._ENUM_LOCK.acquire(timeout=5)
+    try:
+        with pytest.raises(DeviceError, match="did not answer"):
+            port.list_ports("jack")
+        assert mdisc.midi_ports() == []  # both APIs left out, with a warning, no exception
+    finally:
+        port._ENUM_LOCK.release()

@@ -6,6 +6,7 @@ private JACK server, the box emulated in a third process."""
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -25,6 +26,7 @@ def test_nanokontrol2_live_show_with_unplug(tmp_path: Path, jack_server: str) ->
     rec = tmp_path / "show.jsonl"
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     env["PYTHONUNBUFFERED"] = "1"
+    env["PYTHONFAULTHANDLER"] = "1"  # on a failure below, SIGABRT makes it print where each thread was
     proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--headless", "--duration", "14",
                              "--record", str(rec)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=env, cwd=tmp_path)
@@ -46,7 +48,7 @@ def test_nanokontrol2_live_show_with_unplug(tmp_path: Path, jack_server: str) ->
         xtouch.send((0x9A, 10, 127), (0x8A, 10, 0))                        # its button 3: surprise
         xtouch.wait_received(lambda r: (0x9A, 2, 1) in r)                  # lit on its LED note
     except BaseException:
-        proc.kill()
+        proc.send_signal(signal.SIGABRT)
         out, err = proc.communicate(timeout=30)
         print(f"puppet live said:\n{out}\n{err}")
         box.close()
