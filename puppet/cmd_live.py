@@ -52,10 +52,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                    "measured step affords, 120 for the scanned head; 60 in a window and on a script's clock); "
                    "frames are still drawn at the display's rate, a faster tick shortens the wait of an event "
                    "for the simulation; the take records it (see docs/live.md)")
-    p.add_argument("--realtime", action="store_true",
+    p.add_argument("--realtime", action=argparse.BooleanOptionalAction, default=None,
                    help="headless: run the live loop and the devices' reader threads under real-time scheduling "
                    "(SCHED_FIFO) so a busy machine delays no tick; needs CAP_SYS_NICE or an rtprio limit "
-                   "(see docs/live.md, Latency)")
+                   "(see docs/live.md, Latency). Default: used wherever it is permitted, quietly; --realtime "
+                   "says so when it is not; --no-realtime keeps the ordinary scheduling")
     p.add_argument("--standby", action="store_true", help=argparse.SUPPRESS)  # --supervise's spare
     p.set_defaults(func=run)
 
@@ -399,19 +400,23 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
             run_window(core, queue.drain, args.duration, devs, fullscreen=args.fullscreen, stop=stop, win=win,
                        pictures=pictures)
         else:
-            if getattr(args, "realtime", False):
+            # real-time scheduling wherever it is permitted (None: the default, tried quietly), as
+            # audio programs do: on a busy machine the ordinary scheduling delays ticks by 13-160 ms
+            asked = getattr(args, "realtime", None)
+            wanted = asked is not False
+            if wanted:
                 os.environ["PUPPET_REALTIME_DEVICES"] = "1"  # the readers: SCHED_FIFO a step below the loop
             for d in devs:
                 d.add_listener(queue)
                 d.start()
-            why = live.realtime_priority() if getattr(args, "realtime", False) else None
-            if why is not None:
+            why = live.realtime_priority() if wanted else None
+            if why is not None and asked:
                 warn(f"--realtime: real-time scheduling not permitted here ({why}); the show runs at the "
                      "ordinary priority")
             try:
                 live.run_realtime(core, queue.drain, args.duration, stop=stop, wake=queue.wait_arrival)
             finally:
-                if getattr(args, "realtime", False):
+                if wanted:
                     live.ordinary_priority()
     finally:
         import gc
