@@ -213,6 +213,12 @@ def test_unseen_triangles_left_out_change_no_pixel(gl) -> None:
         scan.cull_unseen = True
 
 
+def _no_balls(n_vertices: int, n_triangles: int) -> tuple[np.ndarray, ...]:
+    """seen_triangles' ball arguments for no hiding balls."""
+    return (np.zeros((0, 4), np.int32), np.zeros((0, 4)), np.zeros(0), np.zeros(n_vertices, np.uint8),
+            np.zeros(n_triangles, np.uint8), np.zeros(n_vertices, np.uint8))
+
+
 def test_inside_seen_only_through_the_opening_hull() -> None:
     """A triangle inside the head behind a round opening is left out when it lies beyond the
     opening's convex hull on screen though inside the opening's box (the corners of the box), and
@@ -241,6 +247,6 @@ def test_inside_seen_only_through_the_opening_hull() -> None:
     seen_triangles(pos, tri, np.zeros(len(tri), np.uint8), False, np.zeros(len(tri), np.int8), np.zeros(1, np.int64),
                    np.array([0.0, 0.0, 10.0], np.float32), kept, counts, np.ones(len(tri), np.uint8), clip, size,
                    planes, boxes, hulls, hull_n, inside, np.zeros((len(pos), 2), np.float32),
-                   np.zeros(len(pos), np.int32), np.zeros(len(pos), np.uint8))
+                   np.zeros(len(pos), np.int32), np.zeros(len(pos), np.uint8), *_no_balls(len(pos), len(tri)))
     shown = {name for name, t in zip(tris, tri) if any(np.array_equal(t, k) for k in kept[:counts[0]])}
     assert shown == {"centre, behind", "astride the rim, behind", "corner, in front"}
