@@ -223,23 +223,36 @@ def _no_pixel(xy: np.ndarray, a: int, b: int, c: int, size: np.ndarray, small: f
     if abs(area) < 1e-12:
         return False  # no orientation to test against: kept
     s = 1.0 if area > 0.0 else -1.0
-    # each edge's inside is where its edge function is >= 0; within SNAP of it: >= -SNAP x its length
-    sa = SNAP * np.sqrt((cx - bx) ** 2 + (cy - by) ** 2)
-    sb = SNAP * np.sqrt((ax - cx) ** 2 + (ay - cy) ** 2)
-    sc = SNAP * np.sqrt((bx - ax) ** 2 + (by - ay) ** 2)
+    # the centre nearest the triangle's centroid first: most small triangles hold it
+    if _near_triangle(ax, ay, bx, by, cx, cy, s, np.floor((ax + bx + cx) / 3.0) + 0.5,
+                      np.floor((ay + by + cy) / 3.0) + 0.5):
+        return False
     j = j0
     while j <= j1:
-        py = j + 0.5
         i = i0
         while i <= i1:
-            px = i + 0.5
-            if (s * ((cx - bx) * (py - by) - (cy - by) * (px - bx)) >= -sa
-                    and s * ((ax - cx) * (py - cy) - (ay - cy) * (px - cx)) >= -sb
-                    and s * ((bx - ax) * (py - ay) - (by - ay) * (px - ax)) >= -sc):
+            if _near_triangle(ax, ay, bx, by, cx, cy, s, i + 0.5, j + 0.5):
                 return False
             i += 1.0
         j += 1.0
     return True
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _edge_near(ux: float, uy: float, vx: float, vy: float, s: float, px: float, py: float) -> bool:
+    """Whether (px, py) lies on the inner side of the edge u -> v (s: the triangle's orientation)
+    or within SNAP of its line."""
+    dx, dy = vx - ux, vy - uy
+    e = s * (dx * (py - uy) - dy * (px - ux))
+    return e >= 0.0 or e * e <= SNAP * SNAP * (dx * dx + dy * dy)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _near_triangle(ax: float, ay: float, bx: float, by: float, cx: float, cy: float, s: float, px: float,
+                   py: float) -> bool:
+    """Whether the point (px, py) lies in the triangle a b c grown by SNAP along each edge."""
+    return (_edge_near(bx, by, cx, cy, s, px, py) and _edge_near(cx, cy, ax, ay, s, px, py)
+            and _edge_near(ax, ay, bx, by, s, px, py))
 
 
 @numba.njit(cache=True, nogil=True)

@@ -62,7 +62,7 @@ class ScanRows:
             self.near[self.list_tri[(self.occluded >> k) & 1 != 0].ravel()] |= np.uint8(1 << k)
         self.sides = np.zeros(N_VERTICES, np.uint8)
         self._balls = (self.ball_idx, self.ball_w, self.ball_r, self.near, self.occluded)
-        self._no_balls = (self.ball_idx[:0], self.ball_w[:0], self.ball_r[:0], self.near, self.occluded)
+        self._no_balls = (self.ball_idx[:0], self.ball_w[:0], self.ball_r[:0], self.near, np.zeros_like(self.occluded))
         self.use_balls = True  # False: the eyeballs hide nothing (the same pixels)
         self.small_box = SMALL_BOX  # 0: the triangles' boxes alone tell which hold no pixel centre (the same pixels)
         self.threaded = True  # False: the listing of the triangles seen on the calling thread too
