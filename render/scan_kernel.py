@@ -257,17 +257,18 @@ def _near_triangle(ax: float, ay: float, bx: float, by: float, cx: float, cy: fl
 
 @numba.njit(cache=True, nogil=True)
 def ball_sides(pos: np.ndarray, eye: np.ndarray, ball_idx: np.ndarray, ball_w: np.ndarray, ball_r: np.ndarray,
-               near: np.ndarray, out: np.ndarray) -> None:
+               near: np.ndarray, near_bits: np.ndarray, out: np.ndarray) -> None:
     """For each ball k (its centre the affine combination ball_w[k] of the posed vertices
-    ball_idx[k], so it follows their rigid motion; radius ball_r[k]) and each vertex i that near[i]
-    marks for it (bit k): out[i] bit k set when the vertex lies in the ball, or within the ball's
-    cone of sight from `eye` and beyond the plane of the circle where that cone touches the ball.
-    That region is convex (the ball and the cone behind the circle meet tangentially), and the line
-    of sight to any point in it enters the ball first: a triangle whose corners all lie in it is
-    hidden by any closed surface around the ball (an eyeball's outer shell, drawn)."""
+    ball_idx[k], so it follows their rigid motion; radius ball_r[k]) and each vertex near[j] whose
+    near_bits[j] holds bit k: out[near[j]] bit k set when the vertex lies in the ball, or within the
+    ball's cone of sight from `eye` and beyond the plane of the circle where that cone touches the
+    ball (left as it was at the other vertices). That region is convex (the ball and the cone
+    behind the circle meet tangentially), and the line of sight to any point in it enters the ball
+    first: a triangle whose corners all lie in it is hidden by any closed surface around the ball
+    (an eyeball's outer shell, drawn)."""
     ex, ey, ez = float(eye[0]), float(eye[1]), float(eye[2])
-    for i in range(pos.shape[0]):
-        out[i] = 0
+    for j in range(near.shape[0]):
+        out[near[j]] = 0
     for k in range(ball_idx.shape[0]):
         cx = cy = cz = 0.0
         for m in range(ball_idx.shape[1]):
@@ -280,9 +281,10 @@ def ball_sides(pos: np.ndarray, eye: np.ndarray, ball_idx: np.ndarray, ball_w: n
         reach = wx * wx + wy * wy + wz * wz - r2  # the squared distance to the ball's tangent circle
         if reach <= 0.0:
             continue  # the eye in the ball: it hides nothing
-        for i in range(pos.shape[0]):
-            if not (near[i] >> k) & 1:
+        for j in range(near.shape[0]):
+            if not (near_bits[j] >> k) & 1:
                 continue
+            i = near[j]
             qx, qy, qz = pos[i, 0], pos[i, 1], pos[i, 2]
             dx, dy, dz = qx - cx, qy - cy, qz - cz
             if dx * dx + dy * dy + dz * dz < r2:
@@ -320,7 +322,8 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
                    behind: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndarray,
                    boxes: np.ndarray, hulls: np.ndarray, hull_n: np.ndarray, inside: np.ndarray, xy: np.ndarray,
                    code: np.ndarray, deep: np.ndarray, ball_idx: np.ndarray, ball_w: np.ndarray, ball_r: np.ndarray,
-                   near: np.ndarray, occluded: np.ndarray, sides: np.ndarray, small: float) -> None:
+                   near: np.ndarray, near_bits: np.ndarray, occluded: np.ndarray, sides: np.ndarray,
+                   small: float) -> None:
     """The triangles of each drawn group g (group[t] = g >= 0) that may be seen from `eye` (the
     camera's position, model space), listed in order at kept[starts[g]:starts[g] + counts[g]]
     (independent of scan_rows, so the two can run at once). A triangle is left out when the eye
@@ -337,7 +340,7 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
     three corners lie in that ball's hidden region. The picture is the same, and the
     rasterizer fetches and sets up only the rest. `xy`, `code` and `deep` are scratch for the
     corners' pixels, sides and the planes they lie behind, `sides` for the balls' bits at the
-    vertices `near` marks. The deep mouth's triangles (skip_tri)
+    vertices `near` lists (`near_bits`: the balls that may hide each). The deep mouth's triangles (skip_tri)
     are passed over when `closed`."""
     for g in range(counts.shape[0]):
         counts[g] = 0
@@ -345,7 +348,7 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
     if view:
         _screen(pos, clip, size, planes, boxes, inside, xy, code, deep)
         if ball_idx.shape[0]:
-            ball_sides(pos, eye, ball_idx, ball_w, ball_r, near, sides)
+            ball_sides(pos, eye, ball_idx, ball_w, ball_r, near, near_bits, sides)
     ex, ey, ez = np.float32(eye[0]), np.float32(eye[1]), np.float32(eye[2])
     hair = np.float32(1e-6)  # (1e-3)^2: compared with squares, no square root per triangle
     for t in range(tri.shape[0]):

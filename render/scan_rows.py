@@ -57,12 +57,15 @@ class ScanRows:
         # the eyeballs' hiding balls (render.scan_look.eye_balls): the eye sockets behind them left out
         self.ball_idx, self.ball_w, self.ball_r, occluded = look.eye_balls()
         self.occluded = np.concatenate([occluded, np.zeros(len(extra), np.uint8)])
-        self.near = np.zeros(N_VERTICES, np.uint8)  # the corners of the triangles each ball can hide
+        bits = np.zeros(N_VERTICES, np.uint8)  # the balls that may hide a triangle at each vertex
         for k in range(len(self.ball_r)):
-            self.near[self.list_tri[(self.occluded >> k) & 1 != 0].ravel()] |= np.uint8(1 << k)
+            bits[self.list_tri[(self.occluded >> k) & 1 != 0].ravel()] |= np.uint8(1 << k)
+        self.near = np.flatnonzero(bits).astype(np.int32)
+        self.near_bits = bits[self.near]
         self.sides = np.zeros(N_VERTICES, np.uint8)
-        self._balls = (self.ball_idx, self.ball_w, self.ball_r, self.near, self.occluded)
-        self._no_balls = (self.ball_idx[:0], self.ball_w[:0], self.ball_r[:0], self.near, np.zeros_like(self.occluded))
+        self._balls = (self.ball_idx, self.ball_w, self.ball_r, self.near, self.near_bits, self.occluded)
+        self._no_balls = (self.ball_idx[:0], self.ball_w[:0], self.ball_r[:0], self.near, self.near_bits,
+                          np.zeros_like(self.occluded))
         self.use_balls = True  # False: the eyeballs hide nothing (the same pixels)
         self.small_box = SMALL_BOX  # 0: the triangles' boxes alone tell which hold no pixel centre (the same pixels)
         self.threaded = True  # False: the listing of the triangles seen on the calling thread too
