@@ -330,18 +330,18 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
     lies behind its plane by more than 1e-3 rad (OpenGL's back-face culling would drop it
     anyway). Given the camera's `clip` matrix (projection @ view, row-major; size[0] > 0, the
     picture's size in pixels), also when it covers no pixel (`_no_pixel`: off the picture, or too
-    thin to hold a pixel centre; a triangle whose box holds at most `small` centres, each tested), and a triangle inside the head (behind[t]: a bit per opening of
-    the skin it can be seen through, render.scan_look; its corners marked in `inside`) when, for
-    each of those openings (`planes`, `boxes`, `hulls`: see `openings`), it lies behind the opening
-    and its three corners beyond one side of the opening's box on screen, or beyond one edge of
-    the opening's convex hull there (the box first: it costs least): the line of sight to any of
-    its points then passes through the skin, which is drawn; and a triangle that a ball can hide
-    (occluded[t]: a bit per ball, see `ball_sides`; an eye socket behind its eyeball) when its
-    three corners lie in that ball's hidden region. The picture is the same, and the
-    rasterizer fetches and sets up only the rest. `xy`, `code` and `deep` are scratch for the
-    corners' pixels, sides and the planes they lie behind, `sides` for the balls' bits at the
-    vertices `near` lists (`near_bits`: the balls that may hide each). The deep mouth's triangles (skip_tri)
-    are passed over when `closed`."""
+    thin to hold a pixel centre; one whose box holds at most `small` centres is tested at each);
+    a triangle inside the head (behind[t]: a bit per opening of the skin it can be seen through,
+    render.scan_look; its corners marked in `inside`) when, for each of those openings (`planes`,
+    `boxes`, `hulls`: see `openings`), it lies behind the opening and its three corners beyond one
+    side of the opening's box on screen, or beyond one edge of the opening's convex hull there
+    (the box first: it costs least): the line of sight to any of its points then passes through
+    the skin, which is drawn; and a triangle that a ball can hide (occluded[t]: a bit per ball, see
+    `ball_sides`; an eye socket behind its eyeball) when its three corners lie in that ball's
+    hidden region. The picture is the same, and the rasterizer fetches and sets up only the rest.
+    `xy`, `code` and `deep` are scratch for the corners' pixels, sides and the planes they lie
+    behind, `sides` for the balls' bits at the vertices `near` lists (`near_bits`: the balls that
+    may hide each). The deep mouth's triangles (skip_tri) are passed over when `closed`."""
     for g in range(counts.shape[0]):
         counts[g] = 0
     view = size[0] > 0
