@@ -19,7 +19,9 @@ drawn with the coarse skin (render.scan_look.coarse_lashes not used), with the f
 at any size, with every triangle handed to OpenGL (render.scan_draw's cull_on_cpu off), with the
 triangles that cover no pixel or lie hidden inside the head kept (cull_unseen off), and with the
 eyes' and the mouth's insides hidden by their openings' boxes on screen alone, not their convex
-hulls (render.scan_rows's use_hulls off); and the drawing alone (rows made beforehand: every
+hulls (render.scan_rows's use_hulls off), and with the small triangles judged by their boxes
+alone and no eyeball hiding its socket (render.scan_rows's small_box 0, use_balls off); and the
+drawing alone (rows made beforehand: every
 triangle; also with the whole skin in its full shader, split_skin off), for comparison.
 `--scan-parts N` times where the scanned head's frame goes beyond the floor: the whole frame (shaded +
 HUD) against the same frame with one part left out (the HUD; the lashes; the mouth's inside; the
