@@ -19,7 +19,9 @@ drawn with the coarse skin (render.scan_look.coarse_lashes not used), with the f
 at any size, with every triangle handed to OpenGL (render.scan_draw's cull_on_cpu off), with the
 triangles that cover no pixel or lie hidden inside the head kept (cull_unseen off), and with the
 eyes' and the mouth's insides hidden by their openings' boxes on screen alone, not their convex
-hulls (render.scan_rows's use_hulls off); and the drawing alone (rows made beforehand: every
+hulls (render.scan_rows's use_hulls off), and with the small triangles judged by their boxes
+alone and no eyeball hiding its socket (render.scan_rows's small_box 0, use_balls off); and the
+drawing alone (rows made beforehand: every
 triangle; also with the whole skin in its full shader, split_skin off), for comparison.
 `--scan-parts N` times where the scanned head's frame goes beyond the floor: the whole frame (shaded +
 HUD) against the same frame with one part left out (the HUD; the lashes; the mouth's inside; the
@@ -260,6 +262,7 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
     import statistics
 
     from render.offscreen import OffscreenRenderer
+    from render.scan_rows import SMALL_BOX
 
     model, hud = _scan_and_hud()
     out = []
@@ -273,13 +276,14 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                 s.scan_rows = rw  # type: ignore[attr-defined]
                 drawn.append(r.scan.look.mouth_open(rw[:, :3]))
             times: dict[str, list[tuple[float, float]]] = {"whole": [], "full_skin": [], "all_tris": [], "unseen": [],
-                                                           "boxes": [], "full_lashes": [], "draw": [], "unsplit": [],
-                                                           "floor": []}
+                                                           "boxes": [], "full_lashes": [], "loose": [], "draw": [],
+                                                           "unsplit": [], "floor": []}
             threads: dict[str, dict[str, list[float]]] = {k: {"main": [], "other": [], "raster": []}
-                                                          for k in ("whole", "full_skin")}
+                                                          for k in ("whole", "full_skin", "loose")}
             for b in range(batches + 1):
                 for key, use_rows in (("whole", False), ("full_skin", False), ("all_tris", False), ("unseen", False),
-                                      ("boxes", False), ("full_lashes", False), ("draw", True), ("unsplit", True)):
+                                      ("boxes", False), ("full_lashes", False), ("loose", False), ("draw", True),
+                                      ("unsplit", True)):
                     def frame(i: int, use: bool = use_rows, split: bool = key != "unsplit",
                               cull: bool = key != "all_tris", unseen: bool = key != "unseen",
                               lod: bool = key != "full_skin") -> None:
@@ -291,6 +295,8 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                         r.scan.cull_on_cpu = cull
                         r.scan.cull_unseen = unseen
                         r.scan.maker.use_hulls = key != "boxes"
+                        r.scan.maker.small_box = 0.0 if key == "loose" else SMALL_BOX
+                        r.scan.maker.use_balls = key != "loose"
                         few = r.scan.coarse_lash_vao
                         if key == "full_lashes":
                             r.scan.coarse_lash_vao = r.scan.lash_vao
@@ -304,7 +310,7 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                     after = _thread_cpu()
                     if b:  # the first batch warms up
                         times[key].append(t)
-                        if key in ("whole", "full_skin"):
+                        if key in threads:
                             for kind, v in threads[key].items():
                                 v.append((after.get(kind, 0) - before.get(kind, 0)) / 1e7)  # ms per frame
                 t = floor_ms(ctx, size, 10)
@@ -314,7 +320,7 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                    for k, v in times.items()}
             f, whole, draw, unsplit = med["floor"], med["whole"], med["draw"], med["unsplit"]
             every, unseen, full, boxes = med["all_tris"], med["unseen"], med["full_skin"], med["boxes"]
-            lashes = med["full_lashes"]
+            lashes, loose = med["full_lashes"], med["loose"]
             out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; "
                        f"floor {f[0]:.2f} ms (cpu {f[1]:.2f}); whole frame {whole[0]:.2f} ms = "
                        f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x; coarse skin drawn: "
@@ -324,10 +330,12 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                        f"OpenGL {every[0] / f[0]:.2f}x (cpu {every[1] / f[1]:.2f}x), with the triangles that cover "
                        f"no pixel or lie hidden kept {unseen[0] / f[0]:.2f}x (cpu {unseen[1] / f[1]:.2f}x), with the "
                        f"insides hidden by their openings' boxes alone (not their hulls) {boxes[0] / f[0]:.2f}x "
-                       f"(cpu {boxes[1] / f[1]:.2f}x); drawing alone "
+                       f"(cpu {boxes[1] / f[1]:.2f}x), with the small triangles' boxes alone and no eyeball hiding "
+                       f"the sockets {loose[0] / f[0]:.2f}x (cpu {loose[1] / f[1]:.2f}x); drawing alone "
                        f"{draw[0]:.2f} ms = {draw[0] / f[0]:.2f}x (cpu {draw[1] / f[1]:.2f}x); the same with "
                        f"the skin in one shader {unsplit[0] / f[0]:.2f}x (cpu {unsplit[1] / f[1]:.2f}x)")
-            for key, label in (("whole", "whole frame's"), ("full_skin", "with the full skin,")):
+            for key, label in (("whole", "whole frame's"), ("full_skin", "with the full skin,"),
+                               ("loose", "with the small triangles' boxes alone and no eyeball hiding,")):
                 if threads[key]["main"]:
                     out.append(f"{'':<10} {label} CPU by thread, ms: " + ", ".join(
                         f"{kind} {statistics.median(v):.2f}" for kind, v in threads[key].items()))

@@ -199,10 +199,12 @@ def _screen(pos: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndar
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _no_pixel(xy: np.ndarray, a: int, b: int, c: int, size: np.ndarray) -> bool:
-    """Whether the triangle a b c (corners in pixels, xy) lies wholly off the picture or its box
-    holds no pixel centre (k + 0.5), so it can cover no pixel; False when a corner is not in
-    front of the camera. SNAP pixels of slack cover the rasterizer's rounding of the corners."""
+def _no_pixel(xy: np.ndarray, a: int, b: int, c: int, size: np.ndarray, small: float) -> bool:
+    """Whether the triangle a b c (corners in pixels, xy) lies wholly off the picture, its box holds
+    no pixel centre (k + 0.5), or (a box of at most `small` centres) none of those centres lies
+    within SNAP pixels of it, so it can cover no pixel; False when a corner is not in front of the
+    camera. SNAP pixels of slack cover the rasterizer's rounding of the corners (a point of the
+    triangle moves by at most that when they move by that)."""
     ax, bx, cx = xy[a, 0], xy[b, 0], xy[c, 0]
     ay, by, cy = xy[a, 1], xy[b, 1], xy[c, 1]
     if np.isnan(ax) or np.isnan(bx) or np.isnan(cx):
@@ -211,7 +213,87 @@ def _no_pixel(xy: np.ndarray, a: int, b: int, c: int, size: np.ndarray) -> bool:
     y0, y1 = min(ay, by, cy) - SNAP, max(ay, by, cy) + SNAP
     if x1 < 0.0 or y1 < 0.0 or x0 > size[0] or y0 > size[1]:
         return True
-    return np.floor(x1 - 0.5) < np.ceil(x0 - 0.5) or np.floor(y1 - 0.5) < np.ceil(y0 - 0.5)
+    i0, i1 = np.ceil(x0 - 0.5), np.floor(x1 - 0.5)
+    j0, j1 = np.ceil(y0 - 0.5), np.floor(y1 - 0.5)
+    if i1 < i0 or j1 < j0:
+        return True
+    if (i1 - i0 + 1.0) * (j1 - j0 + 1.0) > small:
+        return False
+    area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+    if abs(area) < 1e-12:
+        return False  # no orientation to test against: kept
+    s = 1.0 if area > 0.0 else -1.0
+    # the centre nearest the triangle's centroid first: most small triangles hold it
+    if _near_triangle(ax, ay, bx, by, cx, cy, s, np.floor((ax + bx + cx) / 3.0) + 0.5,
+                      np.floor((ay + by + cy) / 3.0) + 0.5):
+        return False
+    j = j0
+    while j <= j1:
+        i = i0
+        while i <= i1:
+            if _near_triangle(ax, ay, bx, by, cx, cy, s, i + 0.5, j + 0.5):
+                return False
+            i += 1.0
+        j += 1.0
+    return True
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _edge_near(ux: float, uy: float, vx: float, vy: float, s: float, px: float, py: float) -> bool:
+    """Whether (px, py) lies on the inner side of the edge u -> v (s: the triangle's orientation)
+    or within SNAP of its line."""
+    dx, dy = vx - ux, vy - uy
+    e = s * (dx * (py - uy) - dy * (px - ux))
+    return e >= 0.0 or e * e <= SNAP * SNAP * (dx * dx + dy * dy)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _near_triangle(ax: float, ay: float, bx: float, by: float, cx: float, cy: float, s: float, px: float,
+                   py: float) -> bool:
+    """Whether the point (px, py) lies in the triangle a b c grown by SNAP along each edge."""
+    return (_edge_near(bx, by, cx, cy, s, px, py) and _edge_near(cx, cy, ax, ay, s, px, py)
+            and _edge_near(ax, ay, bx, by, s, px, py))
+
+
+@numba.njit(cache=True, nogil=True)
+def ball_sides(pos: np.ndarray, eye: np.ndarray, ball_idx: np.ndarray, ball_w: np.ndarray, ball_r: np.ndarray,
+               near: np.ndarray, near_bits: np.ndarray, out: np.ndarray) -> None:
+    """For each ball k (its centre the affine combination ball_w[k] of the posed vertices
+    ball_idx[k], so it follows their rigid motion; radius ball_r[k]) and each vertex near[j] whose
+    near_bits[j] holds bit k: out[near[j]] bit k set when the vertex lies in the ball, or within the
+    ball's cone of sight from `eye` and beyond the plane of the circle where that cone touches the
+    ball (left as it was at the other vertices). That region is convex (the ball and the cone
+    behind the circle meet tangentially), and the line of sight to any point in it enters the ball
+    first: a triangle whose corners all lie in it is hidden by any closed surface around the ball
+    (an eyeball's outer shell, drawn)."""
+    ex, ey, ez = float(eye[0]), float(eye[1]), float(eye[2])
+    for j in range(near.shape[0]):
+        out[near[j]] = 0
+    for k in range(ball_idx.shape[0]):
+        cx = cy = cz = 0.0
+        for m in range(ball_idx.shape[1]):
+            v = ball_idx[k, m]
+            cx += ball_w[k, m] * pos[v, 0]
+            cy += ball_w[k, m] * pos[v, 1]
+            cz += ball_w[k, m] * pos[v, 2]
+        r2 = ball_r[k] * ball_r[k]
+        wx, wy, wz = cx - ex, cy - ey, cz - ez
+        reach = wx * wx + wy * wy + wz * wz - r2  # the squared distance to the ball's tangent circle
+        if reach <= 0.0:
+            continue  # the eye in the ball: it hides nothing
+        for j in range(near.shape[0]):
+            if not (near_bits[j] >> k) & 1:
+                continue
+            i = near[j]
+            qx, qy, qz = pos[i, 0], pos[i, 1], pos[i, 2]
+            dx, dy, dz = qx - cx, qy - cy, qz - cz
+            if dx * dx + dy * dy + dz * dz < r2:
+                out[i] |= 1 << k
+                continue
+            vx, vy, vz = qx - ex, qy - ey, qz - ez
+            t = vx * wx + vy * wy + vz * wz
+            if t > reach and t * t >= (vx * vx + vy * vy + vz * vz) * reach:
+                out[i] |= 1 << k
 
 
 @numba.njit(cache=True, nogil=True)
@@ -239,27 +321,34 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
                    starts: np.ndarray, eye: np.ndarray, kept: np.ndarray, counts: np.ndarray,
                    behind: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndarray,
                    boxes: np.ndarray, hulls: np.ndarray, hull_n: np.ndarray, inside: np.ndarray, xy: np.ndarray,
-                   code: np.ndarray, deep: np.ndarray) -> None:
+                   code: np.ndarray, deep: np.ndarray, ball_idx: np.ndarray, ball_w: np.ndarray, ball_r: np.ndarray,
+                   near: np.ndarray, near_bits: np.ndarray, occluded: np.ndarray, sides: np.ndarray,
+                   small: float) -> None:
     """The triangles of each drawn group g (group[t] = g >= 0) that may be seen from `eye` (the
     camera's position, model space), listed in order at kept[starts[g]:starts[g] + counts[g]]
     (independent of scan_rows, so the two can run at once). A triangle is left out when the eye
     lies behind its plane by more than 1e-3 rad (OpenGL's back-face culling would drop it
     anyway). Given the camera's `clip` matrix (projection @ view, row-major; size[0] > 0, the
     picture's size in pixels), also when it covers no pixel (`_no_pixel`: off the picture, or too
-    thin to hold a pixel centre), and a triangle inside the head (behind[t]: a bit per opening of
-    the skin it can be seen through, render.scan_look; its corners marked in `inside`) when, for
-    each of those openings (`planes`, `boxes`, `hulls`: see `openings`), it lies behind the opening
-    and its three corners beyond one side of the opening's box on screen, or beyond one edge of
-    the opening's convex hull there (the box first: it costs least): the line of sight to any of
-    its points then passes through the skin, which is drawn. The picture is the same, and the
-    rasterizer fetches and sets up only the rest. `xy`, `code` and `deep` are scratch for the
-    corners' pixels, sides and the planes they lie behind. The deep mouth's triangles (skip_tri)
-    are passed over when `closed`."""
+    thin to hold a pixel centre; one whose box holds at most `small` centres is tested at each);
+    a triangle inside the head (behind[t]: a bit per opening of the skin it can be seen through,
+    render.scan_look; its corners marked in `inside`) when, for each of those openings (`planes`,
+    `boxes`, `hulls`: see `openings`), it lies behind the opening and its three corners beyond one
+    side of the opening's box on screen, or beyond one edge of the opening's convex hull there
+    (the box first: it costs least): the line of sight to any of its points then passes through
+    the skin, which is drawn; and a triangle that a ball can hide (occluded[t]: a bit per ball, see
+    `ball_sides`; an eye socket behind its eyeball) when its three corners lie in that ball's
+    hidden region. The picture is the same, and the rasterizer fetches and sets up only the rest.
+    `xy`, `code` and `deep` are scratch for the corners' pixels, sides and the planes they lie
+    behind, `sides` for the balls' bits at the vertices `near` lists (`near_bits`: the balls that
+    may hide each). The deep mouth's triangles (skip_tri) are passed over when `closed`."""
     for g in range(counts.shape[0]):
         counts[g] = 0
     view = size[0] > 0
     if view:
         _screen(pos, clip, size, planes, boxes, inside, xy, code, deep)
+        if ball_idx.shape[0]:
+            ball_sides(pos, eye, ball_idx, ball_w, ball_r, near, near_bits, sides)
     ex, ey, ez = np.float32(eye[0]), np.float32(eye[1]), np.float32(eye[2])
     hair = np.float32(1e-6)  # (1e-3)^2: compared with squares, no square root per triangle
     for t in range(tri.shape[0]):
@@ -273,7 +362,9 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
         if d < 0 and d * d > hair * (cx * cx + cy * cy + cz * cz) * (wx * wx + wy * wy + wz * wz):
             continue
         if view:
-            if _no_pixel(xy, a, b, c, size):
+            if _no_pixel(xy, a, b, c, size, small):
+                continue
+            if occluded[t] & sides[a] & sides[b] & sides[c]:
                 continue
             if behind[t] and planes.shape[0]:
                 side = code[a] & code[b] & code[c]

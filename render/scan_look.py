@@ -47,6 +47,7 @@ GUMS_DEPTH = 4.0
 SKIN_PARTS = ("face", "head_neck")
 LASH_PARTS = ("eyelashes_l", "eyelashes_r")
 SOCKET_PARTS = ("eye_socket_l", "eye_socket_r")
+EYE_BALL_MARGIN_CM = 0.1  # the eyeballs' hiding balls lie this far inside their outer shells
 
 
 def part_faces(part: str) -> np.ndarray:
@@ -458,6 +459,45 @@ class ScanLook:
             cosang = (p - c) @ g / np.maximum(r, 1e-9)
             out[lo:lo + SCLERA] = np.arccos(np.clip(cosang, -1.0, 1.0))
         return out
+
+    def eye_balls(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Balls that hide what lies behind them, one in each eyeball: (K, 4) int32 sclera
+        vertices and (K, 4) float64 affine weights whose combination is the ball's centre (so it
+        follows the eyeball's rigid motion: gaze and head turn), (K,) float64 radii, and per
+        triangle of `triangles` a bit per ball that can hide it (the eye sockets behind their
+        eyeball). The centre is the sclera's fitted sphere's; the radius the least distance from
+        it to the plane of any triangle of the eyeball's outer shell, less EYE_BALL_MARGIN_CM, so
+        the ball lies inside that closed shell (drawn, opaque) with room for the depth buffer's
+        precision."""
+        rest = self.rest
+        idx, weights, radii = [], [], []
+        occluded = np.zeros(len(self.triangles), np.uint8)
+        lo_sockets = sum(len(self.groups[g]) for g in ("skin", "mouth", "eyes"))
+        sockets = self.groups["sockets"]
+        for k, side in enumerate("lr"):
+            lo, _ = PARTS[f"eyeball_{side}"]
+            p = rest[lo:lo + SCLERA]
+            fit = np.linalg.lstsq(np.c_[2.0 * p, np.ones(len(p))], (p**2).sum(axis=1), rcond=None)[0]
+            centre = fit[:3]
+            shell = _eyeball_shell(side)
+            a, b, c = rest[shell[:, 0]], rest[shell[:, 1]], rest[shell[:, 2]]
+            n = np.cross(b - a, c - a)
+            n /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
+            reach = np.einsum("ij,ij->i", a - centre, n)  # + : the triangle faces away from the centre
+            if len(reach) == 0 or reach.min() <= EYE_BALL_MARGIN_CM:
+                continue  # not a closed shell around its centre: hides nothing
+            own = lo + np.array([np.argmin(p[:, 0]), np.argmax(p[:, 0]), np.argmax(p[:, 1]), np.argmax(p[:, 2])])
+            m = np.vstack([rest[own].T, np.ones(4)])
+            if abs(np.linalg.det(m)) < 1e-9:
+                continue
+            idx.append(own)
+            weights.append(np.linalg.solve(m, np.r_[centre, 1.0]))
+            radii.append(float(reach.min()) - EYE_BALL_MARGIN_CM)
+            slo, shi = PARTS[f"eye_socket_{side}"]
+            mine = (sockets[:, 0] >= slo) & (sockets[:, 0] < shi)
+            occluded[lo_sockets:lo_sockets + len(sockets)][mine] |= np.uint8(1 << (len(idx) - 1))
+        return (np.array(idx, np.int32).reshape(-1, 4), np.array(weights, np.float64).reshape(-1, 4),
+                np.array(radii, np.float64), occluded)
 
     def skin_split(self) -> dict[str, np.ndarray]:
         return {k: self.groups["skin"][m] for k, m in self._skin_masks().items()}

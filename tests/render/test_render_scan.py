@@ -213,6 +213,69 @@ def test_unseen_triangles_left_out_change_no_pixel(gl) -> None:
         scan.cull_unseen = True
 
 
+def _no_balls(n_vertices: int, n_triangles: int, small: float = 0.0) -> tuple[object, ...]:
+    """seen_triangles' last arguments for no hiding balls (the triangles' boxes alone for the
+    pixel centres unless `small`)."""
+    return (np.zeros((0, 4), np.int32), np.zeros((0, 4)), np.zeros(0), np.zeros(0, np.int32), np.zeros(0, np.uint8),
+            np.zeros(n_triangles, np.uint8), np.zeros(n_vertices, np.uint8), small)
+
+
+def _listed(pos: np.ndarray, tri: np.ndarray, clip: np.ndarray, size: np.ndarray, eye: np.ndarray,
+            tail: tuple[object, ...]) -> set[int]:
+    """The triangles seen_triangles keeps (one group, no openings)."""
+    from render.scan_kernel import seen_triangles
+
+    n, t = len(pos), len(tri)
+    kept, counts = np.zeros((t, 3), np.int32), np.zeros(1, np.int64)
+    seen_triangles(pos, tri, np.zeros(t, np.uint8), False, np.zeros(t, np.int8), np.zeros(1, np.int64),
+                   eye.astype(np.float32), kept, counts, np.zeros(t, np.uint8), clip, size, np.zeros((0, 4)),
+                   np.zeros((0, 4)), np.zeros((0, 1, 3)), np.zeros(0, np.int64), np.zeros(n, np.uint8),
+                   np.zeros((n, 2), np.float32), np.zeros(n, np.int32), np.zeros(n, np.uint8), *tail)
+    return {k for k, corners in enumerate(tri) if any(np.array_equal(corners, row) for row in kept[:counts[0]])}
+
+
+def test_small_triangle_between_pixel_centres_left_out() -> None:
+    """A small triangle whose box holds a pixel centre that the triangle misses is left out when
+    the centres are tested one by one (it cannot cover a pixel); one that holds a centre, or
+    passes within the rasterizer's rounding of one, is kept."""
+    clip = np.diag([0.01, 0.01, 0.1, 1.0])  # orthographic: x pixels = 100 + x of a 200 x 200 picture
+    size = np.array([200.0, 200.0])
+    corners = {"sliver beside the centre (10.5, 10.5)": [(10.0, 10.0), (10.4, 10.0), (11.2, 11.0)],
+               "holds (20.5, 20.5)": [(20.0, 20.0), (21.2, 20.0), (20.0, 21.2)],
+               "its edge 1/200 px from (30.5, 30.5)": [(30.0, 30.0), (31.0, 31.0 - 0.005 * np.sqrt(2.0)),
+                                                       (30.0, 31.0)]}
+    pos = np.array([(x - 100.0, y - 100.0, 0.0) for tri in corners.values() for x, y in tri], np.float32)
+    tri = np.arange(len(pos), dtype=np.int32).reshape(-1, 3)
+    eye = np.array([0.0, 0.0, 10.0])
+    assert _listed(pos, tri, clip, size, eye, _no_balls(len(pos), len(tri))) == {0, 1, 2}  # the boxes alone
+    assert _listed(pos, tri, clip, size, eye, _no_balls(len(pos), len(tri), small=6.0)) == {1, 2}
+
+
+def test_triangles_behind_a_ball_left_out() -> None:
+    """A triangle that a ball may hide is left out when it lies in the ball, or in the ball's cone
+    of sight behind it; kept beside it, in front of it, or astride the cone's edge, and when the
+    ball follows the vertices that carry it away."""
+    ring = np.array([(1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1)], np.float64)  # their mean: the centre
+    tris = {"in the ball": [(-0.2, -0.2, -0.5), (0.2, -0.2, -0.5), (0.0, 0.2, -0.5)],
+            "behind it": [(-0.2, -0.2, -3.0), (0.2, -0.2, -3.0), (0.0, 0.2, -3.0)],
+            "beside it": [(2.8, -0.2, -3.0), (3.2, -0.2, -3.0), (3.0, 0.2, -3.0)],
+            "in front of it": [(-0.2, -0.2, 2.0), (0.2, -0.2, 2.0), (0.0, 0.2, 2.0)],
+            "astride the cone's edge": [(0.5, -0.2, -3.0), (1.5, -0.2, -3.0), (1.0, 0.2, -3.0)]}
+    pos = np.concatenate([ring, *(np.array(t) for t in tris.values())]).astype(np.float32)
+    tri = (len(ring) + np.arange(3 * len(tris))).reshape(-1, 3).astype(np.int32)
+    clip = np.diag([0.1, 0.1, 0.01, 1.0])
+    size = np.array([200.0, 200.0])
+    near = np.arange(len(ring), len(pos), dtype=np.int32)
+    tail = (np.arange(4, dtype=np.int32)[None], np.full((1, 4), 0.25), np.array([1.0]), near,
+            np.ones(len(near), np.uint8), np.ones(len(tri), np.uint8), np.zeros(len(pos), np.uint8), 0.0)
+    eye = np.array([0.0, 0.0, 10.0])
+    shown = {name for k, name in enumerate(tris) if k in _listed(pos, tri, clip, size, eye, tail)}
+    assert shown == {"beside it", "in front of it", "astride the cone's edge"}
+    pos[:len(ring), 0] += 3.0  # the ball moves over to the triangle beside it
+    shown = {name for k, name in enumerate(tris) if k in _listed(pos, tri, clip, size, eye, tail)}
+    assert shown == {"in the ball", "behind it", "in front of it", "astride the cone's edge"}
+
+
 def test_inside_seen_only_through_the_opening_hull() -> None:
     """A triangle inside the head behind a round opening is left out when it lies beyond the
     opening's convex hull on screen though inside the opening's box (the corners of the box), and
@@ -241,6 +304,6 @@ def test_inside_seen_only_through_the_opening_hull() -> None:
     seen_triangles(pos, tri, np.zeros(len(tri), np.uint8), False, np.zeros(len(tri), np.int8), np.zeros(1, np.int64),
                    np.array([0.0, 0.0, 10.0], np.float32), kept, counts, np.ones(len(tri), np.uint8), clip, size,
                    planes, boxes, hulls, hull_n, inside, np.zeros((len(pos), 2), np.float32),
-                   np.zeros(len(pos), np.int32), np.zeros(len(pos), np.uint8))
+                   np.zeros(len(pos), np.int32), np.zeros(len(pos), np.uint8), *_no_balls(len(pos), len(tri)))
     shown = {name for name, t in zip(tris, tri) if any(np.array_equal(t, k) for k in kept[:counts[0]])}
     assert shown == {"centre, behind", "astride the rim, behind", "corner, in front"}
