@@ -29,6 +29,15 @@ missing, downloads it by hand from its public address (the product itself never 
   them removed), the lips are closed (the lip line is declared as a slit). Crown, neck and
   shoulders are kept (held as the back of a head is).
 
+- `ict-identity` (development): the scanned head shipped with the product (the ICT FaceKit, MIT)
+  with the identity of seed 7 (`--face ict?identity=7`), exported as a third party would find it:
+  the skin alone (face and head-neck parts; no eyeballs, teeth or mouth socket), its eyes and lips
+  holes the importer finds, its landmarks the scan's own vertices (`sim/face/scan/landmarks.json`).
+  A scan of a real person, not a modelled head; nothing is downloaded.
+- `ict-shut` (development): the same skin with the scan's own blinks (eyeBlink_L and _R at 1) and
+  each eye's hole closed by a strip of triangles joining its rims from corner to corner, so its
+  lids are one shut surface as a scan with closed eyes is; the lid lines are declared as slits.
+
 - `mediapipe` (held out, added last: measured once, nothing tuned on it): MediaPipe's canonical
   face model, `mediapipe/modules/face_geometry/data/canonical_face_model.obj` of
   https://github.com/google/mediapipe (commit a908d668c730da128dfa8d9f6bd25d519d006692, Apache
@@ -46,7 +55,8 @@ forehead landmarks where the default face's are in observer.py's frames (`--fram
 `--framing head` the head is framed by its own extent, as `puppet pose` frames it, and a face mask
 then fills the frame and the face detector finds nothing); same crop and classifier.
 
-    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,nefertiti] [--save DIR] [--framing face|head]
+    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,nefertiti,ict-identity] [--save DIR]
+                                                      [--framing face|head]
 """
 
 from __future__ import annotations
@@ -59,6 +69,7 @@ import sys
 import tempfile
 import urllib.request
 from pathlib import Path
+from collections import Counter
 from typing import Any, Callable
 
 import numpy as np
@@ -282,7 +293,118 @@ def openings(v: np.ndarray, t: np.ndarray, pts: dict[str, list[float]], eyes_ope
     return out
 
 
+ICT_SEED = 7  # the development identity of the scanned head (`--face ict?identity=7`)
+
+
+def load_ict_identity(_path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The scanned head's skin (face and head-neck parts, no eyes, teeth or mouth socket) with the
+    identity of `seed`, as a third party would export it: an open-eyed scan with its own lips
+    meeting at rest, the eye and mouth openings left as holes."""
+    return _compact(*_ict_skin(shut=False))
+
+
+def _ict_skin(shut: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The identity's skin vertices (the scan's order, all parts) and the skin's triangles; `shut`:
+    with the scan's own blinks (eyeBlink_L and _R at 1) applied."""
+    from puppet.faces import seed_identity
+    from sim.face.scan.data import scan_data
+
+    d = scan_data()
+    v = d.neutral + d.identity_delta(np.asarray(seed_identity(ICT_SEED)))
+    if shut:
+        v = v + d.expression("eyeBlink_L") + d.expression("eyeBlink_R")
+    return v, np.concatenate([d.triangles("face"), d.triangles("head_neck")])
+
+
+def ict_points(shut: bool = False) -> dict[str, list[float]]:
+    """The scanned head's own landmarks (its vertex numbers, `sim/face/scan/landmarks.json`, all in
+    the face part, which the compaction keeps in place) as points on the identity's skin."""
+    lm = json.loads((ROOT / "sim" / "face" / "scan" / "landmarks.json").read_text())
+    v, _ = _ict_skin(shut)
+    return {k: [float(x) for x in v[i]] for k, i in lm.items()}
+
+
+def load_ict_shut(_path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The identity scanned with its eyes shut, as a scan with closed lids comes: the blinked
+    lids' rims (which meet) joined by a strip of triangles, so each eye is one closed surface, to
+    be declared as a lid line (a slit) like any shut scan's."""
+    v, t = _compact(*_ict_skin(shut=True))
+    points = ict_points(shut=True)
+    new: list[list[int]] = []
+    for loop in _boundary_loops(t):
+        for s in "lr":
+            centre = 0.5 * (np.asarray(points[f"eye_inner_{s}"]) + np.asarray(points[f"eye_outer_{s}"]))
+            if len(loop) > 10 and np.linalg.norm(v[loop].mean(axis=0) - centre) < 1.0:
+                new += _zip_loop(v, np.asarray(loop))
+    directed = {(x[k], x[(k + 1) % 3]) for x in t.tolist() for k in range(3)}
+    uses = Counter(tuple(sorted(e)) for x in t.tolist() for e in ((x[0], x[1]), (x[1], x[2]), (x[2], x[0])))
+    added = []
+    for x in new:
+        es = [tuple(sorted(e)) for e in ((x[0], x[1]), (x[1], x[2]), (x[2], x[0]))]
+        if len(set(x)) < 3 or any(uses[e] >= 2 for e in es):
+            continue  # a degenerate corner, or an edge that already has its two triangles
+        if any((x[k], x[(k + 1) % 3]) in directed for k in range(3)):
+            x = x[::-1]  # wound as its neighbours are
+        uses.update(es)
+        directed.update((x[k], x[(k + 1) % 3]) for k in range(3))
+        added.append(x)
+    return v, np.concatenate([t, np.asarray(added, dtype=t.dtype).reshape(-1, 3)])
+
+
+def _boundary_loops(t: np.ndarray) -> list[list[int]]:
+    """The mesh's holes: each boundary loop's vertices in order."""
+    e = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+    u, c = np.unique(e, axis=0, return_counts=True)
+    nb: dict[int, list[int]] = {}
+    for a, b in u[c == 1].tolist():
+        nb.setdefault(a, []).append(b)
+        nb.setdefault(b, []).append(a)
+    loops, seen = [], set()
+    for start in nb:
+        if start in seen:
+            continue
+        loop, prev, cur = [start], -1, start
+        seen.add(start)
+        while True:
+            nxt = [x for x in nb[cur] if x != prev and x not in seen]
+            if not nxt:
+                break
+            prev, cur = cur, nxt[0]
+            loop.append(cur)
+            seen.add(cur)
+        loops.append(loop)
+    return loops
+
+
+def _zip_loop(v: np.ndarray, loop: np.ndarray) -> list[list[int]]:
+    """Triangles joining a hole's two halves (split at its leftmost and rightmost vertices), walked
+    from one corner to the other by their arc length."""
+    a, b = int(np.argmin(v[loop, 0])), int(np.argmax(v[loop, 0]))
+    i, j = min(a, b), max(a, b)
+    one = [int(x) for x in loop[i:j + 1]]
+    other = [int(x) for x in np.r_[loop[j:], loop[:i + 1]][::-1]]
+
+    def frac(arc: list[int]) -> np.ndarray:
+        s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(v[arc], axis=0), axis=1))]
+        return s / s[-1]
+
+    f1, f2 = frac(one), frac(other)
+    out, p, q = [], 0, 0
+    while p < len(one) - 1 or q < len(other) - 1:
+        if q >= len(other) - 1 or (p < len(one) - 1 and f1[p + 1] < f2[q + 1]):
+            out.append([one[p], one[p + 1], other[q]])
+            p += 1
+        else:
+            out.append([one[p], other[q + 1], other[q]])
+            q += 1
+    return out
+
+
 HEADS: dict[str, dict[str, Any]] = {
+    "ict-identity": {"file": None, "url": None, "load": load_ict_identity, "points": None,
+                     "eyes_open": True, "lips_open": None, "role": "development"},
+    "ict-shut": {"file": None, "url": None, "load": load_ict_shut, "points": None,
+                 "eyes_open": False, "lips_open": None, "role": "development"},
     "makehuman": {"file": "makehuman_base.obj", "url": MH_URL, "load": load_makehuman, "points": MH_POINTS,
                   "eyes_open": True, "lips_open": True, "role": "development"},
     "makehuman-mask": {"file": "makehuman_base.obj", "url": MH_URL, "load": load_makehuman_mask,
@@ -302,9 +424,16 @@ def import_head(name: str, folder: Path, work: Path) -> Path:
 
     spec = HEADS[name]
     loader: Callable[[Path], tuple[np.ndarray, np.ndarray]] = spec["load"]
-    v, t = loader(fetch_once(folder, spec["file"], spec["url"]))
+    v, t = loader(fetch_once(folder, spec["file"], spec["url"]) if spec["file"] else folder)
     trimesh.Trimesh(v, t, process=False).export(work / f"{name}.obj")
-    lm = {"landmarks": spec["points"], "openings": openings(v, t, spec["points"], spec["eyes_open"], spec["lips_open"])}
+    if spec["points"] is None:  # the scanned head: its mouth (and open eyes) are holes the importer finds
+        pts = ict_points(shut=not spec["eyes_open"])
+        lm: dict[str, Any] = {"landmarks": pts}
+        if not spec["eyes_open"]:
+            lm["openings"] = {k: p for k, p in openings(v, t, pts, False, False).items() if k != "mouth"}
+    else:
+        lm = {"landmarks": spec["points"],
+              "openings": openings(v, t, spec["points"], spec["eyes_open"], spec["lips_open"])}
     (work / f"{name}.json").write_text(json.dumps(lm))
     rig = work / f"{name}.npz"
     cmd = [sys.executable, "-m", "puppet", "import-face", str(work / f"{name}.obj"), "--landmarks",
