@@ -5,14 +5,16 @@ muscle channels whose settled response at rest points most along the scan's moti
 skin; a channel named without its side drives the shape's side, both sides for an unsided shape:
 left and right stay twins), plus the shipped shares. Each share carries an L1 cost (`--sparsity`:
 a share at 1 must take that much off the squared relative error), so the entry keeps the few
-channels that matter. `sim.fit.settled.fit_settled` fits them by Levenberg-Marquardt
-whose Jacobian is taken from settled poses about the current settled pose (Broyden's update between
-full Jacobians). Then the entry is made readable: shares below `--min-share` are dropped, the rest
-rounded to 0.05 and the span refitted in the same way with the shares held; the result is settled
-from rest exactly as `scan_match.py` measures it and kept only if it beats the shipped entry by
-more than 0.01. A sided shape is fitted on its left side; its right twin is settled with the same
-entry and reported (held out). Prints per shape the shipped and fitted errors and the entry as
-`SHAPE_SPAN` / `SHAPE_SHARES` (puppet/export/arkit.py) write it.
+channels that matter, and is bounded so that a pose exported and streamed back returns as itself
+(`share_limits`). `sim.fit.settled.fit_settled` fits them by Levenberg-Marquardt whose Jacobian is
+taken from settled poses about the current settled pose (Broyden's update between full Jacobians).
+Then the entry is made readable: shares below `--min-share` are dropped, the rest rounded to 0.05,
+the span rounded and tried 0.05 either way; each entry is settled from rest exactly as
+`scan_match.py` measures it, and marked KEEP when it beats the shipped entry by more than 0.01. A
+sided shape is fitted on its left side; its right twin is settled with the same entry and reported
+(held out). Prints per shape the shipped and fitted errors and the entry as `SHAPE_SPAN` /
+`SHAPE_SHARES` (puppet/export/arkit.py) write it; those and `puppet/maps/arkit.toml` are edited by
+hand from it (a test holds the map and the import to the same channels).
 
     nice .venv/bin/python benchmarks/map_fit.py [--shapes MouthClose,MouthDimpleLeft,...] [--rounds 8]
 """

@@ -71,16 +71,19 @@ SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
     "MouthPress": (("mentalis", 0.55), ("levator_anguli_oris", 0.1)),
     "CheekPuff": (("incisivus", 1.0), ("orbicularis_oris_peripheralis_lower", 0.35), ("orbicularis_oculi", 0.4)),
     "MouthFunnel": (("incisivus", 0.5),),
-    "MouthShrugLower": (("lip_closure", 0.25), ("orbicularis_oris", 0.35), ("zygomaticus_major", 0.15), ("incisivus", 0.25)),
+    "MouthShrugLower": (("lip_closure", 0.25), ("orbicularis_oris", 0.35), ("zygomaticus_major", 0.15),
+                        ("incisivus", 0.25)),
     "MouthRollLower": (("lip_closure", 0.4),),
+    "MouthRollUpper": (("risorius", 0.2), ("orbicularis_oris", 0.6)),
     "MouthDimple": (("levator_anguli_oris", 0.4), ("zygomaticus_major", 0.15), ("mentalis", 0.2)),
     "MouthLowerDown": (("depressor_anguli_oris", 0.2),),
     "BrowDown": (("orbicularis_oculi", 0.15),),
     "NoseSneer": (("orbicularis_oculi", 0.55), ("levator_anguli_oris", 0.4), ("corrugator", 0.35)),
     "MouthShrugUpper": (("levator_labii", 0.2),),
-    "MouthUpperUp": (("levator_labii_alaeque_nasi", 0.25),), "MouthRollUpper": (("risorius", 0.2), ("orbicularis_oris", 0.6)),
+    "MouthUpperUp": (("levator_labii_alaeque_nasi", 0.25),),
     "Mouth": (("zygomaticus_major", 0.5), ("risorius", 0.25), ("levator_labii_alaeque_nasi", 0.2), ("incisivus", 0.35)),
-    "MouthClose": (("mentalis", 1.0), ("zygomaticus_major", 0.3), ("levator_anguli_oris", 1.0), ("orbicularis_oris_peripheralis_upper", 0.8)),
+    "MouthClose": (("mentalis", 1.0), ("levator_anguli_oris", 1.0), ("orbicularis_oris_peripheralis_upper", 0.8),
+                   ("zygomaticus_major", 0.3)),
 }
 #: Shapes that are one channel each (besides the sided ones above).
 ONE_CHANNEL = {

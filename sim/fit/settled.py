@@ -53,7 +53,8 @@ def settle_tight(settler: Settler, values: np.ndarray, start: object) -> object:
     limit = max(1, int(round(MAX_SECONDS / sim.frame_dt)))
     for frame in range(1, limit + 1):
         sim.step(state, settler.control)
-        if frame * sim.frame_dt >= MIN_SECONDS and float(np.sqrt(np.max(np.sum(state.velocities**2, axis=1)))) < SETTLE_SPEED:
+        speed = float(np.sqrt(np.max(np.sum(state.velocities**2, axis=1))))
+        if frame * sim.frame_dt >= MIN_SECONDS and speed < SETTLE_SPEED:
             break
     settler.settles += 1
     return state
@@ -86,7 +87,11 @@ def fit_settled(settler: Settler, values: Callable[[np.ndarray], np.ndarray], ta
         if jac is None or since >= refresh:
             jac = np.empty((r.size, x.size))
             for j in range(x.size):
-                step = h if x[j] + h <= hi[j] else -h
+                step = h if x[j] + h <= hi[j] else -h if x[j] - h >= lo[j] else (
+                    hi[j] - x[j] if hi[j] - x[j] >= x[j] - lo[j] else lo[j] - x[j])  # a range narrower than h
+                if step == 0.0:
+                    jac[:, j] = 0.0
+                    continue
                 xj = x.copy()
                 xj[j] += step
                 sj = settle_tight(settler, values(xj), state)
