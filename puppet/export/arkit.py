@@ -59,7 +59,7 @@ SHAPE_SPAN = {"BrowInnerUp": 0.55, "EyeSquint": 0.5, "MouthPress": 0.6, "MouthDi
 #: shape came closer to its scan by more than 0.01 and its right twin, held out, followed. What they
 #: model: pressed lips push the chin's soft tissue up (mentalis), as the scanned mouthPress does;
 #: puffed cheeks hold the air behind pursed lips (incisivus), which the scanned cheekPuff carries
-#: 13 mm forward, the cheeks' skin pushed up under the eyes; funnelled lips are carried forward by
+#: 13 mm forward; funnelled lips are carried forward by
 #: the incisivi; the lower lip pushed up or rolled in meets the upper one (lip closure, the
 #: sphincter); the dimple's buccinator pulls on the modiolus with the corner's elevators; the nose
 #: wrinkled brings the orbital orbicularis, the corner's elevator and the brow's head down with it;
@@ -69,7 +69,7 @@ SHAPE_SPAN = {"BrowInnerUp": 0.55, "EyeSquint": 0.5, "MouthPress": 0.6, "MouthDi
 #: as itself.
 SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
     "MouthPress": (("mentalis", 0.55), ("levator_anguli_oris", 0.1)),
-    "CheekPuff": (("incisivus", 1.0), ("orbicularis_oris_peripheralis_lower", 0.35), ("orbicularis_oculi", 0.4)),
+    "CheekPuff": (("incisivus", 1.0),),
     "MouthFunnel": (("incisivus", 0.5),),
     "MouthShrugLower": (("lip_closure", 0.25), ("orbicularis_oris", 0.35), ("zygomaticus_major", 0.15),
                         ("incisivus", 0.25)),
