@@ -1,7 +1,8 @@
 """Search the ARKit map's entry of each scanned shape on the simulator itself (run by hand).
 
-The map's format allows per shape: its span on its own channel(s) (`SHAPE_SPAN`, 0..1 of the
-channel's range) and at most one other channel by a share (`SHAPE_SHARES`). The linear statics the
+The map's entry of a shape: its span on its own channel(s) (`SHAPE_SPAN`, 0..1 of the channel's
+range) and other channels by shares (`SHAPE_SHARES`); this searches one share (the shipped first
+one), `map_fit.py` fits several by Levenberg-Marquardt on settled poses. The linear statics the
 earlier fits used do not predict the settled poses well, so this settles every candidate as
 `scan_match.py` does (the shape at 1 through `puppet.capture.arkit_in.shape_channels`) and keeps the
 lowest relative error: a coordinate search, span first, then each anatomically plausible share
@@ -90,7 +91,7 @@ def main() -> int:
         if share is None:
             shares.pop(base, None)
         else:
-            shares[base] = share
+            shares[base] = (share,)
         try:
             values = arkit_in.shape_channels({shape: np.ones(1)}, 1)[0]
         finally:
@@ -106,7 +107,7 @@ def main() -> int:
     for shape in todo:
         t1 = time.monotonic()
         base = shape.removesuffix("Left").removesuffix("Right")
-        span0, share0 = spans.get(base, 1.0), shares.get(base)
+        span0, share0 = spans.get(base, 1.0), next(iter(shares.get(base, ())), None)  # its first share
         e0 = error(shape, span0, share0)
         best = (e0, span0, share0)
         for s in SPANS:  # the span with the shipped share, then without any

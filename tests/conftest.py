@@ -71,10 +71,10 @@ def arkit_expressible():  # type: ignore[no-untyped-def]
                 values[..., index[ch]] = np.minimum(values[..., index[ch]], SHAPE_SPAN[base(shape)])
         for _ in range(3):  # a share may drive another shape's channel, which has its own share
             for shape in (s for s in ARKIT_SHAPES if base(s) in SHAPE_SHARES):
-                ch, share = SHAPE_SHARES[base(shape)]
                 unit = np.minimum(1.0, values[..., index[shape_targets(shape)[0]]] / SHAPE_SPAN.get(base(shape), 1.0))
-                for t in share_targets(shape, ch, index):
-                    values[..., index[t]] = np.maximum(values[..., index[t]], share * unit)
+                for ch, share in SHAPE_SHARES[base(shape)]:
+                    for t in share_targets(shape, ch, index):
+                        values[..., index[t]] = np.maximum(values[..., index[t]], share * unit)
         return values
 
     return expressible

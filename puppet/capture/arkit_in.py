@@ -1,7 +1,7 @@
 """A Live Link Face / ARKit blendshape CSV recording -> channel values, through the inverse of the
 mapping `puppet.export.arkit` writes (docs/live.md): each blendshape drives the channel(s) it was
-computed from, scaled by the shape's calibrated span (`SHAPE_SPAN`; MouthPress also drives the
-mentalis by a share, `SHAPE_SHARES`); where two shapes drive one channel (EyeSquint and CheekSquint)
+computed from, scaled by the shape's calibrated span (`SHAPE_SPAN`; many also drive other channels by
+shares, `SHAPE_SHARES`: MouthPress the mentalis, ...); where two shapes drive one channel (EyeSquint and CheekSquint)
 the larger wins (BrowDown, exported from corrugator and procerus, comes back as the corrugator). Every one of the 52
 shapes has a channel (JawLeft and JawRight together give the signed jaw_sideways; MouthFunnel
 everts both lips, MouthShrugUpper the upper one). The head's rotation columns turn the head (head_yaw, head_pitch, head_roll, quarter
@@ -81,8 +81,7 @@ def shape_channels(shapes: dict[str, np.ndarray], n: int,
             own = span * np.clip(col, 0.0, 1.0)
             values[:, i] = np.maximum(values[:, i], own) if driven[i] else own
             driven[i] = True
-        if base in SHAPE_SHARES:
-            ch, share = SHAPE_SHARES[base]
+        for ch, share in SHAPE_SHARES.get(base, ()):
             for target in share_targets(shape, ch, index):
                 i = index[target]
                 own = share * np.clip(col, 0.0, 1.0)

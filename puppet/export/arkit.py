@@ -43,30 +43,48 @@ SIMPLE_SHAPES = {
 #: ARKit's mouthClose counts against the jaw's opening (the lips meet at mouthClose = jawOpen); our
 #: lip_closure at 1 closes a jaw opened 0.25, so MouthClose = 0.25 lip_closure (and back).
 MOUTH_CLOSE_SPAN = 0.25
-#: Calibrated against the ICT FaceKit's scanned shapes on the scanned face (benchmarks/scan_match.py,
-#: the values searched on the simulator by benchmarks/map_search.py): the value of a shape's
-#: channel that the shape at 1 stands for. Driven at 1, these channels moved the skin further than
-#: the scans (the inner brows 1.8 times as far, over more of the forehead; the squint's orbital
-#: sphincter pulled the skin round the whole eye in); at these values each is closest to its scan
-#: (docs/scan-face.md). The export divides by it (a larger channel value writes 1), the import and
-#: the map multiply.
-SHAPE_SPAN = {"BrowInnerUp": 0.4, "EyeSquint": 0.4, "MouthPress": 0.6, "MouthDimple": 0.8, "MouthLowerDown": 0.8,
-              "EyeWide": 0.7, "MouthShrugUpper": 0.8}
-#: Shapes that also drive another channel by a share of the shape (the channel takes the larger of
-#: its own shape and the share, as the lids do with the gaze; a channel named without its side is
-#: the shape's side, both sides for an unsided shape): pressed lips push the chin's soft tissue up
-#: (mentalis), as the scanned mouthPress does; puffed cheeks hold the air behind pursed lips
-#: (incisivus), which the scanned cheekPuff carries 13 mm forward; funnelled lips are carried
-#: forward by the incisivi; the lower lip pushed up or rolled in meets the upper one (lip
-#: closure); the dimple's buccinator pulls on the modiolus with the corner's elevator (levator
-#: anguli oris); the lower lip's depressor draws the corner down a little with its neighbour
-#: (depressor anguli oris); the upper lip's shrug lifts it a little with its elevator (levator
-#: labii superioris, both sides); the brows lowered and the nose wrinkled bring the orbital orbicularis
-#: with them (its upper fibres lower the brow, its lower ones lift the cheek under the lid).
-SHAPE_SHARES = {"MouthPress": ("mentalis", 0.7), "CheekPuff": ("incisivus", 1.0), "MouthFunnel": ("incisivus", 0.5),
-                "MouthShrugLower": ("lip_closure", 0.35), "MouthRollLower": ("lip_closure", 0.4), "MouthDimple": ("levator_anguli_oris", 1.0),
-                "MouthLowerDown": ("depressor_anguli_oris", 0.2), "BrowDown": ("orbicularis_oculi", 0.15),
-                "NoseSneer": ("orbicularis_oculi", 0.6), "MouthShrugUpper": ("levator_labii", 0.2)}
+#: Calibrated against the ICT FaceKit's scanned shapes on the scanned face (benchmarks/scan_match.py;
+#: fitted on the simulator's settled poses by benchmarks/map_fit.py): the value of a shape's channel
+#: that the shape at 1 stands for. Driven at 1, these channels moved the skin further than the scans
+#: (the inner brows 1.8 times as far, over more of the forehead; the squint's orbital sphincter pulled
+#: the skin round the whole eye in); at these values each is closest to its scan (docs/scan-face.md).
+#: The export divides by it (a larger channel value writes 1), the import and the map multiply.
+SHAPE_SPAN = {"BrowInnerUp": 0.55, "EyeSquint": 0.5, "MouthPress": 0.6, "MouthDimple": 0.6, "MouthLowerDown": 0.8,
+              "EyeWide": 0.7, "MouthShrugUpper": 0.8, "MouthUpperUp": 0.7}
+#: Shapes that also drive other channels, each by a share of the shape (the channel takes the larger
+#: of its own shape and the share, as the lids do with the gaze; a channel named without its side is
+#: the shape's side, both sides for an unsided shape; "Mouth" is MouthLeft / MouthRight). Fitted on
+#: the simulator's settled poses (benchmarks/map_fit.py: Levenberg-Marquardt on the span and every
+#: share at once, the shares' L1 cost keeping the few that matter), each kept where the settled
+#: shape came closer to its scan by more than 0.01 and its right twin, held out, followed. What they
+#: model: pressed lips push the chin's soft tissue up (mentalis), as the scanned mouthPress does;
+#: puffed cheeks hold the air behind pursed lips (incisivus), which the scanned cheekPuff carries
+#: 13 mm forward; funnelled lips are carried forward by
+#: the incisivi; the lower lip pushed up or rolled in meets the upper one (lip closure, the
+#: sphincter); the dimple's buccinator pulls on the modiolus with the corner's elevators; the nose
+#: wrinkled brings the orbital orbicularis, the corner's elevator and the brow's head down with it;
+#: the mouth shifted sideways is drawn by that side's zygomaticus and risorius; the lips closed over
+#: an open jaw are pushed up by the chin (mentalis) and the corners' elevators. A share is at most
+#: the span of the shape that writes its channel back, so a pose exported and streamed back returns
+#: as itself.
+SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
+    "MouthPress": (("mentalis", 0.55), ("levator_anguli_oris", 0.1)),
+    "CheekPuff": (("incisivus", 1.0),),
+    "MouthFunnel": (("incisivus", 0.5),),
+    "MouthShrugLower": (("lip_closure", 0.25), ("orbicularis_oris", 0.35), ("zygomaticus_major", 0.15),
+                        ("incisivus", 0.25)),
+    "MouthRollLower": (("lip_closure", 0.4),),
+    "MouthRollUpper": (("risorius", 0.2), ("orbicularis_oris", 0.6)),
+    "MouthDimple": (("levator_anguli_oris", 0.4), ("zygomaticus_major", 0.15), ("mentalis", 0.2)),
+    "MouthLowerDown": (("depressor_anguli_oris", 0.2),),
+    "BrowDown": (("orbicularis_oculi", 0.15),),
+    "NoseSneer": (("orbicularis_oculi", 0.55), ("levator_anguli_oris", 0.4), ("corrugator", 0.35)),
+    "MouthShrugUpper": (("levator_labii", 0.2),),
+    "MouthUpperUp": (("levator_labii_alaeque_nasi", 0.25),),
+    "Mouth": (("zygomaticus_major", 0.5), ("risorius", 0.25), ("levator_labii_alaeque_nasi", 0.2), ("incisivus", 0.35)),
+    "MouthClose": (("mentalis", 1.0), ("levator_anguli_oris", 1.0), ("orbicularis_oris_peripheralis_upper", 0.8),
+                   ("zygomaticus_major", 0.3)),
+}
 #: Shapes that are one channel each (besides the sided ones above).
 ONE_CHANNEL = {
     "JawForward": "jaw_forward", "MouthClose": "lip_closure", "MouthPucker": "incisivus",
