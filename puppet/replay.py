@@ -18,7 +18,7 @@ import numpy as np
 
 from puppet.curves import CurveLayer, CurveSet
 from puppet.errors import ConfigError, PuppetError
-from puppet.live import JAW_AS, LIDS_AS, MUSCLES_AS, Face, load_face
+from puppet.live import BENDING_AS, JAW_AS, LIDS_AS, MUSCLES_AS, Face, load_face
 from puppet.session import Session
 from safefile import quote
 
@@ -98,12 +98,15 @@ def face_for(session: Session | None, rig_path: str | None, face: str | None = N
     path = rig_path or rig.get("path")
     if path and not Path(path).exists():
         raise ConfigError(f"{session.path}: recorded with rig {quote(path, 120)}, which is missing; pass --rig PATH")
+    # a take recorded before a scanned head's forehead bent as its bound layer replays on the
+    # forehead it was recorded on (puppet.live.BENDING_AS; other faces have none)
+    bound = session.header.get("bending") == BENDING_AS
     if path:
-        loaded = load_face(path)
+        loaded = load_face(path, bound_forehead=bound)
     else:
         try:
             asked: Any = face if face is not None else (recorded_face(rig) or "procedural")
-            loaded = load_face(None, int(rig.get("resolution", 0) or 0), face=asked)
+            loaded = load_face(None, int(rig.get("resolution", 0) or 0), face=asked, bound_forehead=bound)
         except PuppetError as err:
             if face is not None:
                 raise
