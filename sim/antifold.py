@@ -29,18 +29,22 @@ constant, linear bending of the displacement from the rest shape, carried in the
 integrator's matrix (so it is unconditionally stable), that costs next to nothing for the smooth
 fields every muscle makes and as much as an edge's stretch for a ripple one edge long.
 
-Over the forehead, brows, glabella and nasal root that bending is stiffer (`bound_layer`,
-`SkinParams.forehead_bending`). There the skin is not a sheet of its own over soft fat: skin, the
-dense connective tissue under it and the frontalis, procerus and galea aponeurotica are bound into
-one layer (the scalp's first three layers) that slides over loose areolar tissue on the bone. A
-plate's bending rigidity grows as the cube of its thickness (D = E t^3 / 12 (1 - nu^2), for the
-same material): the bound layer's 5.5 mm (soft tissue over the glabella and supraglabella, 5-6 mm
-in adult tissue-depth tables, e.g. De Greef et al. 2006, Forensic Sci. Int. 159S, table 3) against
-the 2 mm of skin the rest of the face bends as gives (5.5 / 2)^3 = 21 times the bending. Compressed
-by the frontalis, corrugators and procerus, the thin sheet buckled into bumps a few edges wide
-(fear's forehead, anger's glabella); the thick layer folds, if at all, in broad even rolls. The
-layer stops short of the lids (their thin skin creases), and the sliding stays free: the term
-acts on the displacement's curvature only, not on the layer's motion over the bone.
+Over the forehead that bending is stiffer (`bound_layer`, `SkinParams.forehead_bending`). There
+the skin is not a sheet of its own over soft fat: skin, the dense connective tissue under it and the
+frontalis and galea aponeurotica are bound into one layer (the scalp's first three layers) that
+slides over loose areolar tissue on the bone. A plate's bending rigidity grows as the cube of its
+thickness (D = E t^3 / 12 (1 - nu^2), for the same material), so a layer t thick bends (t / 2 mm)^3
+times as stiffly as the 2 mm of skin the rest of the face bends as. The soft tissue over the
+mid-forehead is 4-5 mm deep (adult tissue-depth tables, e.g. De Greef et al. 2006, Forensic Sci.
+Int. 159S, table 3), and at 4 mm (8 times) the frontalis' compression folds the forehead in broad,
+shallow rolls instead of the thin sheet's uneven bumps a few edges wide; but the emotion observer
+then reads anger as neutral (its cue is the creases the corrugators make above the brows' heads).
+The scanned head ships 3 (a layer 2.9 mm thick: `FOREHEAD_BENDING`), the stiffest measured at which
+it still reads all seven presets (docs/scan-face.md, "The forehead's bound layer"). The sliding
+stays free: the term acts on the curvature of the displacement only, not on the layer's motion over
+the bone. Below the brows' line (the glabella, the nasal root, the lids) the skin bends as
+elsewhere: there the corrugators and procerus insert into the dermis and crease it (the frown
+lines of AU4).
 """
 
 from __future__ import annotations
@@ -200,9 +204,9 @@ def warm_up() -> None:
 
 THIN_SMOOTHING = 0.2  # its share on thin skin (the lids, the lips: 0.5 mm against ~2 mm)
 SKIN_LAYER = 0.2  # cm: the skin that bends on its own over the rest of the face
-BOUND_LAYER = 0.55  # cm: the forehead's and glabella's skin, connective tissue, muscle and galea bound as one
-FOREHEAD_BENDING = (BOUND_LAYER / SKIN_LAYER) ** 3  # the bound layer's bending in the skin's (~21)
-BOUND_BELOW_EYES = 0.8  # cm below the eyes' centres at which the bound layer starts (fading in over as much)
+BOUND_LAYER = 0.29  # cm: the forehead's bound layer as the scanned head ships it (module docstring)
+FOREHEAD_BENDING = 3.0  # its bending in the skin's own: (BOUND_LAYER / SKIN_LAYER)^3, rounded
+BOUND_ABOVE_EYES = (1.5, 2.5)  # cm above the eyes' centres: none of it below, all of it above (the brows' line)
 BOUND_LID_CLEAR = (0.6, 1.4)  # cm from the lid margins: none of it nearer, all of it beyond
 
 
@@ -213,9 +217,9 @@ def _smoothstep(t: np.ndarray) -> np.ndarray:
 
 def bound_layer(rest: np.ndarray, eye_centers: np.ndarray, eye_loops: "list[np.ndarray]") -> np.ndarray:
     """(n,) 0..1: how much of each skin vertex lies on the forehead's bound layer (module
-    docstring): everything above `BOUND_BELOW_EYES` below the eyes' centres (the brows, the
-    glabella, the nasal root, the forehead), faded in over as much, and away from the lids (none
-    within `BOUND_LID_CLEAR`[0] of a lid margin, all of it beyond [1]), smooth in between."""
+    docstring): none below `BOUND_ABOVE_EYES`[0] above the eyes' centres, all of it above [1] (the
+    forehead above the brows' line, to the hairline and the temples), and none within
+    `BOUND_LID_CLEAR`[0] of a lid margin, all of it beyond [1]; smooth in between."""
     from scipy.spatial import cKDTree
 
     rest = np.asarray(rest, np.float64)
@@ -223,7 +227,8 @@ def bound_layer(rest: np.ndarray, eye_centers: np.ndarray, eye_loops: "list[np.n
     lid = cKDTree(rest[margins]).query(rest)[0]
     y = rest[:, 1] - float(np.asarray(eye_centers, np.float64)[:, 1].mean())
     c0, c1 = BOUND_LID_CLEAR
-    return _smoothstep((lid - c0) / (c1 - c0)) * _smoothstep((y + BOUND_BELOW_EYES) / BOUND_BELOW_EYES)
+    y0, y1 = BOUND_ABOVE_EYES
+    return _smoothstep((lid - c0) / (c1 - c0)) * _smoothstep((y - y0) / (y1 - y0))
 
 
 def bending_weights(model: object) -> np.ndarray:
