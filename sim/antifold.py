@@ -36,15 +36,14 @@ slides over loose areolar tissue on the bone. A plate's bending rigidity grows a
 thickness (D = E t^3 / 12 (1 - nu^2), for the same material), so a layer t thick bends (t / 2 mm)^3
 times as stiffly as the 2 mm of skin the rest of the face bends as. The soft tissue over the
 mid-forehead is 4-5 mm deep (adult tissue-depth tables, e.g. De Greef et al. 2006, Forensic Sci.
-Int. 159S, table 3), and at 4 mm (8 times) the frontalis' compression folds the forehead in broad,
-shallow rolls instead of the thin sheet's uneven bumps a few edges wide; but the emotion observer
-then reads anger as neutral (its cue is the creases the corrugators make above the brows' heads).
-The scanned head ships 3 (a layer 2.9 mm thick: `FOREHEAD_BENDING`), the stiffest measured at which
-it still reads all seven presets (docs/scan-face.md, "The forehead's bound layer"). The sliding
-stays free: the term acts on the curvature of the displacement only, not on the layer's motion over
-the bone. Below the brows' line (the glabella, the nasal root, the lids) the skin bends as
-elsewhere: there the corrugators and procerus insert into the dermis and crease it (the frown
-lines of AU4).
+Int. 159S, table 3): at 4 mm, 8 times, the frontalis' compression folds the forehead in broad,
+shallow rolls instead of the thin sheet's uneven bumps and jagged arcs a few edges wide. The
+sliding stays free: the term acts on the curvature of the displacement only, not on the layer's
+motion over the bone. The layer starts half a centimetre above the brows: over the brows and just
+above them the corrugators and procerus insert into the dermis and crease it (the frown lines of
+AU4), which the thick plate would smooth away (and the emotion observer then reads anger as
+neutral: docs/scan-face.md, "The forehead's bound layer"); there, and on the glabella, the nasal
+root and the lids, the skin bends as elsewhere.
 """
 
 from __future__ import annotations
@@ -204,9 +203,10 @@ def warm_up() -> None:
 
 THIN_SMOOTHING = 0.2  # its share on thin skin (the lids, the lips: 0.5 mm against ~2 mm)
 SKIN_LAYER = 0.2  # cm: the skin that bends on its own over the rest of the face
-BOUND_LAYER = 0.29  # cm: the forehead's bound layer as the scanned head ships it (module docstring)
-FOREHEAD_BENDING = 3.0  # its bending in the skin's own: (BOUND_LAYER / SKIN_LAYER)^3, rounded
-BOUND_ABOVE_EYES = (1.5, 2.5)  # cm above the eyes' centres: none of it below, all of it above (the brows' line)
+BOUND_LAYER = 0.4  # cm: the forehead's skin, connective tissue, frontalis and galea bound as one
+FOREHEAD_BENDING = (BOUND_LAYER / SKIN_LAYER) ** 3  # the bound layer's bending in the skin's own (8)
+BOUND_ABOVE_EYES = (3.0, 4.0)  # cm above the eyes' centres: none of it below, all of it above (the
+# brows lie 1.7-2.5 cm above them, the corrugators' creases just above the brows' heads)
 BOUND_LID_CLEAR = (0.6, 1.4)  # cm from the lid margins: none of it nearer, all of it beyond
 
 
@@ -218,7 +218,7 @@ def _smoothstep(t: np.ndarray) -> np.ndarray:
 def bound_layer(rest: np.ndarray, eye_centers: np.ndarray, eye_loops: "list[np.ndarray]") -> np.ndarray:
     """(n,) 0..1: how much of each skin vertex lies on the forehead's bound layer (module
     docstring): none below `BOUND_ABOVE_EYES`[0] above the eyes' centres, all of it above [1] (the
-    forehead above the brows' line, to the hairline and the temples), and none within
+    forehead from half a centimetre above the brows to the hairline and the temples), and none within
     `BOUND_LID_CLEAR`[0] of a lid margin, all of it beyond [1]; smooth in between."""
     from scipy.spatial import cKDTree
 

@@ -71,10 +71,10 @@ class SkinParams:
     skin_bending:   the skin's own bending about its rest shape, relative to the median edge spring
                     (`sim.antifold.skin_bending`; the implicit integrator only, 0 turns it off): a
                     fine mesh's compressed skin otherwise buckles into mesh-scale ripples.
-    forehead_bending: that bending over the forehead above the brows, in the skin's own: the
+    forehead_bending: that bending over the forehead (from half a centimetre above the brows), in the skin's own: the
                     layer bound there (skin, connective tissue, frontalis, galea) is thicker than
                     skin alone (`sim.antifold.bound_layer`; the scanned head
-                    `sim.antifold.FOREHEAD_BENDING`, 3). 1: as the rest of the skin (and left out
+                    `sim.antifold.FOREHEAD_BENDING`, 8). 1: as the rest of the skin (and left out
                     of the face's hash, so faces without it keep theirs).
     """
 

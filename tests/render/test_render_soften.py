@@ -29,7 +29,7 @@ def test_the_forehead_above_the_brows_is_drawn_as_simulated(soft: FoldSoftener) 
     """Its bound layer bends stiffly enough in the simulation (sim.antifold.bound_layer)."""
     rest = soft.rest[soft.zone]
     eye_y = eye_centres(soft.rest.astype(float))[:, 1].mean()
-    assert len(soft.zone) > 100 and rest[:, 1].max() < eye_y + 3.5
+    assert len(soft.zone) > 100 and rest[:, 1].max() < eye_y + 4.5
 
 
 def _normal(s: FoldSoftener) -> np.ndarray:

@@ -52,7 +52,7 @@ def test_a_turned_over_triangle_is_pushed_back_and_the_force_is_internal() -> No
 
 def test_the_forehead_bends_as_its_bound_layer_and_nothing_else_changes() -> None:
     """On the procedural face (whose parameter is 1) the skin's bending is as before and its hash
-    too; with the bound layer the forehead bends 3 times as stiffly, the glabella below the brows,
+    too; with the bound layer the forehead bends 8 times as stiffly, the glabella below the brows,
     the nose, cheeks, lips and the lids' thin skin as before, with the same matrix pattern (no new
     fill in the step's factors)."""
     from dataclasses import replace

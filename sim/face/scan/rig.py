@@ -41,9 +41,9 @@ DIGITS = 7  # carried quantities are rounded to this many decimals (cm)
 #   bend 6, support 27000, force 1.6:    6 poses fold, 24 targets   <- chosen: the expressions read
 # The stiffer skin lags the jaw: at the procedural face's 0.55 rad AU27 parts the lips 36 mm (real
 # maximal opening 44-57); 0.68 rad gave 41 mm but folded 0.46 cm2 at the mouth, so it stays 0.55.
-# The forehead's bound layer bends 3 times as stiffly as the skin elsewhere (sim.antifold.
-# FOREHEAD_BENDING, a plate 2.9 mm thick): with the skin's own bending alone the frontalis buckled
-# the forehead into uneven bumps over the inner brows (docs/scan-face.md, "The forehead's bound layer").
+# The forehead's bound layer bends as a plate 4 mm thick (sim.antifold.FOREHEAD_BENDING, 8 times the
+# skin's own): with the skin's own bending alone the frontalis buckled the forehead into uneven bumps
+# and jagged arcs over the brows (docs/scan-face.md, "The forehead's bound layer").
 SCAN_PARAMS = SkinParams(bend_ratio=6.0, support=27000.0, forehead_bending=FOREHEAD_BENDING)
 #: the scanned head's skin before the forehead's bound layer: a take recorded then (its header
 #: without "bending", puppet.live.BENDING_AS) replays on it, bit for bit
