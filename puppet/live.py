@@ -214,8 +214,8 @@ LIDS_AS = "gaze"
 #: and adds the jaw's move as precomputed responses (sim.Simulator.jaw_responses)
 JAW_AS = "responses from the last step's pose"
 #: the take header's "bending": a scanned head's forehead bends as its bound layer
-#: (sim.antifold.bound_layer); a take without it was recorded on the thinner forehead and is
-#: replayed on it (puppet.replay)
+#: (sim.antifold.bound_layer); a take without it, made on another face hash, was recorded on the
+#: thinner forehead and is replayed on it (puppet.replay)
 BENDING_AS = "forehead bound layer"
 
 
