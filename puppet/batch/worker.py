@@ -63,15 +63,16 @@ def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None
     """`puppet.live.load_face`, remembered per process under `face_key`."""
     from puppet import live
 
-    key = (*face_key(rig_path, resolution, face), bound_forehead)
+    key = face_key(rig_path, resolution, face) + (() if bound_forehead else ("thin forehead",))
+    extra = {} if bound_forehead else {"bound_forehead": False}  # (a take recorded before the layer)
     if key[0] == "rig" and key[2] is None:
-        return live.load_face(rig_path, resolution, face, bound_forehead)
+        return live.load_face(rig_path, resolution, face, **extra)
     hit = _faces.get(key)
     if hit is not None:
         _faces.move_to_end(key)
         stats["face_hits"] += 1
         return hit
-    loaded = live.load_face(rig_path, resolution, face, bound_forehead)
+    loaded = live.load_face(rig_path, resolution, face, **extra)
     stats["face_loads"] += 1
     _faces[key] = loaded
     while len(_faces) > MAX_FACES:
