@@ -354,19 +354,22 @@ def default_model(resolution: int = 0) -> Any:
     return cached_model(f"default-face:{resolution}".encode(), lambda: sim.face.default_model(resolution))
 
 
-def scan_model(weights: Any = None) -> Any:
+def scan_model(weights: Any = None, bound_forehead: bool = True) -> Any:
     """The scanned head (`sim.face.scan`) of an identity (None: the generic head; else up to 100
     identity weights), compiled, from the cache when it can be trusted: a build takes ~8 s (the
-    rig transfer and two eigenvalue solves), a start from the cache well under one."""
+    rig transfer and two eigenvalue solves), a start from the cache well under one.
+    bound_forehead False: its skin as before the forehead's bound layer (takes recorded then)."""
     import numpy as np
 
     from sim.build import compile_model
-    from sim.face.scan.rig import SCAN_PARAMS, scan_rig
+    from sim.face.scan.rig import scan_params, scan_rig
 
     use_stepper_store()
     w = None if weights is None else np.asarray(weights, dtype=np.float64).ravel()
     what = b"scan-face:ict:" + (b"generic" if w is None else hashlib.sha256(w.tobytes()).digest())
-    return cached_model(what, lambda: compile_model(scan_rig(w), SCAN_PARAMS))
+    if not bound_forehead:
+        what += b":thin forehead"
+    return cached_model(what, lambda: compile_model(scan_rig(w), scan_params(bound_forehead)))
 
 
 _SHELL_ARRAYS = ("vertices", "triangles", "hair", "hair_coords", "ring", "ring_mask", "moving", "col_mask",
@@ -459,11 +462,12 @@ def use_stepper_store() -> None:
         prepared.use_store(store)
 
 
-def rig_model(rig: Any, rig_bytes: bytes, build: Callable[[], Any] | None = None) -> Any:
+def rig_model(rig: Any, rig_bytes: bytes, build: Callable[[], Any] | None = None, variant: bytes = b"") -> Any:
     """The compiled face of a rig loaded from a file whose bytes are `rig_bytes`; `build` compiles
-    it on a cache miss (default: `sim.compile_model(rig)`)."""
+    it on a cache miss (default: `sim.compile_model(rig)`); `variant` names other parameters
+    `build` compiles it with (part of the key)."""
     import sim.face
 
     use_stepper_store()
-    return cached_model(b"rig-file:" + hashlib.sha256(rig_bytes).digest(),
+    return cached_model(b"rig-file:" + hashlib.sha256(rig_bytes).digest() + variant,
                         build or (lambda: sim.compile_model(rig)), rig)

@@ -89,10 +89,13 @@ class Face:
     rig: dict[str, Any]
 
 
-def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None) -> Face:
+def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None,
+              bound_forehead: bool = True) -> Face:
     """The face asked for: the rig file at rig_path (a one-line ConfigError if it is wrong), else
     `face` (a --face text or a puppet.faces.FaceChoice; None: the default face). Compiled faces
-    come from the on-disk cache when it holds a trustworthy entry (puppet.face_cache)."""
+    come from the on-disk cache when it holds a trustworthy entry (puppet.face_cache).
+    bound_forehead False: a scanned head's skin as before the forehead's bound layer
+    (`sim.face.scan.rig.scan_params`), for a take recorded then (its header without "bending")."""
     import sim
 
     from puppet import face_cache
@@ -101,14 +104,17 @@ def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None
     if rig_path:
         try:
             from sim.build import compile_model
-            from sim.face.scan.rig import SCAN_PARAMS, is_scan_rig
+            from sim.face.scan.rig import is_scan_rig, scan_params
             from sim.rig import load_model, load_rig
 
             rig = load_rig(rig_path)
             # a rig of the scanned head's skin (an earlier shipped ict_rig.npz, to replay a take
             # recorded on it bit for bit) compiles with the scanned head's skin parameters
-            build = (lambda: compile_model(rig, SCAN_PARAMS)) if is_scan_rig(rig) else (lambda: load_model(rig_path))
-            model = face_cache.rig_model(rig, Path(rig_path).read_bytes(), build)
+            scan = is_scan_rig(rig)
+            params = scan_params(bound_forehead)
+            build = (lambda: compile_model(rig, params)) if scan else (lambda: load_model(rig_path))
+            variant = b":thin forehead" if scan and not bound_forehead else b""
+            model = face_cache.rig_model(rig, Path(rig_path).read_bytes(), build, variant)
         except FileNotFoundError as err:
             raise ConfigError(f"{rig_path}: rig file not found") from err
         except (OSError, ValueError, KeyError) as err:
@@ -121,7 +127,7 @@ def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None
         model = face_cache.default_model(choice.resolution)
         info = {"name": "default", "hash": model.hash, "path": None, **choice.header()}
     else:
-        model = face_cache.scan_model(choice.weights if choice.weights.any() else None)
+        model = face_cache.scan_model(choice.weights if choice.weights.any() else None, bound_forehead)
         info = {"name": str(model.rig.name), "hash": model.hash, "path": None, **choice.header()}
     return Face(model, Vocabulary.from_model(model), info)
 
@@ -207,6 +213,10 @@ LIDS_AS = "gaze"
 #: the take header's "jaw": the implicit step starts from the last step's jaw opening and skin age
 #: and adds the jaw's move as precomputed responses (sim.Simulator.jaw_responses)
 JAW_AS = "responses from the last step's pose"
+#: the take header's "bending": a scanned head's forehead bends as its bound layer
+#: (sim.antifold.bound_layer); a take without it, made on another face hash, was recorded on the
+#: thinner forehead and is replayed on it (puppet.replay)
+BENDING_AS = "forehead bound layer"
 
 
 def session_header(face: Face, spec: MappingSpec, rate: float, devices: Sequence[str]) -> dict[str, Any]:
@@ -233,6 +243,9 @@ def take_header(face: Face, rate: float, mapping: dict[str, str], devices: Seque
         # how it moves the jaw and ages the skin: a take without it is replayed with the jaw and the
         # age taken whole at each step, as it was recorded (puppet.replay)
         "jaw": JAW_AS,
+        # how a scanned head's forehead bends: a take without it is replayed on the forehead it
+        # was recorded on (puppet.replay)
+        "bending": BENDING_AS,
     }
 
 

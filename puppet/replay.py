@@ -18,7 +18,7 @@ import numpy as np
 
 from puppet.curves import CurveLayer, CurveSet
 from puppet.errors import ConfigError, PuppetError
-from puppet.live import JAW_AS, LIDS_AS, MUSCLES_AS, Face, load_face
+from puppet.live import BENDING_AS, JAW_AS, LIDS_AS, MUSCLES_AS, Face, load_face
 from puppet.session import Session
 from safefile import quote
 
@@ -98,18 +98,31 @@ def face_for(session: Session | None, rig_path: str | None, face: str | None = N
     path = rig_path or rig.get("path")
     if path and not Path(path).exists():
         raise ConfigError(f"{session.path}: recorded with rig {quote(path, 120)}, which is missing; pass --rig PATH")
+    # a take recorded before a scanned head's forehead bent as its bound layer (no "bending" in its
+    # header, puppet.live.BENDING_AS, and another face hash than the face has now) replays on the
+    # forehead it was recorded on; other faces have no such layer
+    want = rig.get("hash")
+
+    def thin_forehead(loaded: Face) -> bool:
+        layer = getattr(getattr(loaded.model, "params", None), "forehead_bending", 1.0)
+        return session.header.get("bending") != BENDING_AS and layer != 1.0 and bool(want) and loaded.rig["hash"] != want
+
     if path:
         loaded = load_face(path)
+        if thin_forehead(loaded):
+            loaded = load_face(path, bound_forehead=False)
     else:
         try:
             asked: Any = face if face is not None else (recorded_face(rig) or "procedural")
-            loaded = load_face(None, int(rig.get("resolution", 0) or 0), face=asked)
+            resolution = int(rig.get("resolution", 0) or 0)
+            loaded = load_face(None, resolution, face=asked)
+            if thin_forehead(loaded):
+                loaded = load_face(None, resolution, face=asked, bound_forehead=False)
         except PuppetError as err:
             if face is not None:
                 raise
             raise ConfigError(f"{session.path}: the face it records cannot be loaded: {err}; "
                               f"pass --face SPEC") from err
-    want = rig.get("hash")
     if want and loaded.rig["hash"] != want:
         import sys
 

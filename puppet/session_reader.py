@@ -74,6 +74,8 @@ def _header(p: Path, line: bytes) -> dict[str, Any]:
             header["lids"] = string(header["lids"], f"{where}: lids", 40)
         if header.get("jaw") is not None:
             header["jaw"] = string(header["jaw"], f"{where}: jaw", 80)
+        if header.get("bending") is not None:
+            header["bending"] = string(header["bending"], f"{where}: bending", 80)
     except BadFile as err:
         raise ConfigError(f"{err} (the recording header is damaged)") from err
     header["channels"] = channels

@@ -1,11 +1,13 @@
 """Softening the upper face's buckles before the scanned head is shaded (render.scan_draw).
 
 The simulated skin, compressed by the brows' muscles, can buckle between a few of its vertices: in
-fear, sadness and surprise uneven bumps over the inner brows where a scanned forehead stays smooth
-with a few even lines, in anger and disgust a sharp V of ridges at the glabella, drawn as a hard
-dark seam where the scan folds softly (docs/rendering.md, "The upper face's buckles softened").
+anger and disgust a sharp V of ridges at the glabella, drawn as a hard dark seam where the scan
+folds softly (docs/rendering.md, "The upper face's buckles softened"). (Higher up the forehead's
+bound layer, `sim.antifold.bound_layer`, bends stiffly enough in the simulation itself: the drawing
+leaves it as simulated.)
 
-Here, on the forehead, brows and glabella (away from the lids), the posed scan's displacement from
+Here, on the brows, the skin just above them, the glabella and the nasal root (away from the lids),
+the posed scan's displacement from
 rest is split into a smooth part (a Gaussian average over the rest skin, SIGMA wide) and what is
 left (the buckles, and a scan's own fine lines); the residual keeps its direction but its length
 goes through a soft limit (LIMIT tanh(r / LIMIT)): fine lines of a few tenths of a millimetre stay
@@ -25,8 +27,9 @@ REACH = 1.5  # sigmas: the Gaussian is cut off beyond this distance (at 2: the s
 LIMIT = 0.05  # cm: a residual this long keeps three quarters of its length, a longer one at most this
 LID_CLEAR = (1.0, 1.8)  # cm from the lid margins: nothing changed nearer, all of it beyond
 BELOW_EYES = 0.8  # cm below the eyes' centres at which it starts (fading in over the same span)
-TOP = (10.5, 11.5)  # cm above the eyes' centres over which it fades out (the hairline, above it
-# the skin barely moves)
+TOP = (3.5, 4.5)  # cm above the eyes' centres over which it fades out: above it the skin is the
+# forehead's bound layer (sim.antifold.bound_layer, all of it from 4 cm up), whose own bending keeps
+# it from buckling, drawn as simulated (to the hairline before: 10.5-11.5 cm)
 CREASE_FOLD = 0.15  # the fold term (render.scan_shaders: 1.8 of it darkens) at most added for a softened fold
 CREASE_DEPTH = 0.1  # cm: the (spread) depth of softened folds that adds three quarters of CREASE_FOLD
 SIDE = 6.5  # cm from the midline: no further (the temples)

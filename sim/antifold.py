@@ -28,6 +28,22 @@ buckles into mesh-scale ripples (a smile crumpled the cheeks and the skin round 
 constant, linear bending of the displacement from the rest shape, carried in the implicit
 integrator's matrix (so it is unconditionally stable), that costs next to nothing for the smooth
 fields every muscle makes and as much as an edge's stretch for a ripple one edge long.
+
+Over the forehead that bending is stiffer (`bound_layer`, `SkinParams.forehead_bending`). There
+the skin is not a sheet of its own over soft fat: skin, the dense connective tissue under it and the
+frontalis and galea aponeurotica are bound into one layer (the scalp's first three layers) that
+slides over loose areolar tissue on the bone. A plate's bending rigidity grows as the cube of its
+thickness (D = E t^3 / 12 (1 - nu^2), for the same material), so a layer t thick bends (t / 2 mm)^3
+times as stiffly as the 2 mm of skin the rest of the face bends as. The soft tissue over the
+mid-forehead is 4-5 mm deep (adult tissue-depth tables, e.g. De Greef et al. 2006, Forensic Sci.
+Int. 159S, table 3): at 4 mm, 8 times, the frontalis' compression folds the forehead in broad,
+shallow rolls instead of the thin sheet's uneven bumps and jagged arcs a few edges wide. The
+sliding stays free: the term acts on the curvature of the displacement only, not on the layer's
+motion over the bone. The layer starts half a centimetre above the brows: over the brows and just
+above them the corrugators and procerus insert into the dermis and crease it (the frown lines of
+AU4), which the thick plate would smooth away (and the emotion observer then reads anger as
+neutral: docs/scan-face.md, "The forehead's bound layer"); there, and on the glabella, the nasal
+root and the lids, the skin bends as elsewhere.
 """
 
 from __future__ import annotations
@@ -186,10 +202,68 @@ def warm_up() -> None:
 
 
 THIN_SMOOTHING = 0.2  # its share on thin skin (the lids, the lips: 0.5 mm against ~2 mm)
+SKIN_LAYER = 0.2  # cm: the skin that bends on its own over the rest of the face
+BOUND_LAYER = 0.4  # cm: the forehead's skin, connective tissue, frontalis and galea bound as one
+FOREHEAD_BENDING = (BOUND_LAYER / SKIN_LAYER) ** 3  # the bound layer's bending in the skin's own (8)
+BOUND_ABOVE_EYES = (3.0, 4.0)  # cm above the eyes' centres: none of it below, all of it above (the
+# brows lie 1.7-2.5 cm above them, the corrugators' creases just above the brows' heads)
+BOUND_LID_CLEAR = (0.6, 1.4)  # cm from the lid margins: none of it nearer, all of it beyond
+
+
+def _smoothstep(t: np.ndarray) -> np.ndarray:
+    t = np.clip(t, 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def bound_layer(rest: np.ndarray, eye_centers: np.ndarray, eye_loops: "list[np.ndarray]") -> np.ndarray:
+    """(n,) 0..1: how much of each skin vertex lies on the forehead's bound layer (module
+    docstring): none below `BOUND_ABOVE_EYES`[0] above the eyes' centres, all of it above [1] (the
+    forehead from half a centimetre above the brows to the hairline and the temples), and none within
+    `BOUND_LID_CLEAR`[0] of a lid margin, all of it beyond [1]; smooth in between."""
+    from scipy.spatial import cKDTree
+
+    rest = np.asarray(rest, np.float64)
+    margins = np.concatenate([np.asarray(loop, np.int64) for loop in eye_loops])
+    lid = cKDTree(rest[margins]).query(rest)[0]
+    y = rest[:, 1] - float(np.asarray(eye_centers, np.float64)[:, 1].mean())
+    c0, c1 = BOUND_LID_CLEAR
+    y0, y1 = BOUND_ABOVE_EYES
+    return _smoothstep((lid - c0) / (c1 - c0)) * _smoothstep((y - y0) / (y1 - y0))
+
+
+def bending_weights(model: object) -> np.ndarray:
+    """(n,) each skin vertex's share of `skin_bending`'s stiffness on a compiled face: a fifth on
+    the lids and lips (thin skin), `SkinParams.forehead_bending` times over the forehead's bound
+    layer (`bound_layer`; not on a face whose parameter is 1), 1 elsewhere."""
+    mesh = model.mesh  # type: ignore[attr-defined]
+    n = int(model.n_vertices)  # type: ignore[attr-defined]
+    w = np.ones(n)
+    w[thin_skin(mesh.regions, n)] *= THIN_SMOOTHING
+    thick = float(model.params.forehead_bending)  # type: ignore[attr-defined]
+    if thick != 1.0:
+        w *= 1.0 + (thick - 1.0) * bound_layer(model.rest, mesh.eye_centers, mesh.eye_loops)  # type: ignore[attr-defined]
+    return w
+
+
+def bending_of(model: object) -> "sp.csr_matrix":
+    """(n, n) the implicit step's bending in its matrix: the lid and lip rows'
+    (`sim.margin_contact.margin_bending`) plus the skin's own (`skin_bending`, weighted by
+    `bending_weights`), as `sim.implicit.prepare` and the strain fit's statics use it."""
+    from sim.margin_contact import margin_bending
+
+    p = model.params  # type: ignore[attr-defined]
+    k_high = np.asarray(model.spring_k_high)  # type: ignore[attr-defined]
+    bend = margin_bending(model.mesh, model.rest, np.asarray(model.spring_indices), k_high,  # type: ignore[attr-defined]
+                          p.lid_bending, p.lip_bending)
+    if p.skin_bending:
+        bend = bend + skin_bending(int(model.n_vertices), model.triangles, k_high, p.skin_bending,  # type: ignore[attr-defined]
+                                   weights=bending_weights(model))
+    return bend
 
 
 def skin_bending(n: int, triangles: np.ndarray, k_high: np.ndarray, strength: float,
-                 thin: np.ndarray | None = None, thin_share: float = THIN_SMOOTHING) -> "sp.csr_matrix":
+                 thin: np.ndarray | None = None, thin_share: float = THIN_SMOOTHING,
+                 weights: np.ndarray | None = None) -> "sp.csr_matrix":
     """(n, n) the skin's own bending for the implicit integrator's matrix: the energy k_b/2 sum_i |u_i -
     mean_j u_j|^2 of the displacements u from the (jaw-turned) rest shape, the mean over vertex i's
     neighbours along the triangles' edges (the umbrella operator; u - mean u is the discrete
@@ -198,7 +272,8 @@ def skin_bending(n: int, triangles: np.ndarray, k_high: np.ndarray, strength: fl
     over a few edges (every muscle's pull, a translation) costs next to nothing; one alternating
     from vertex to vertex (the buckled ripples a fine spring net makes of compressed skin, which
     skin a few millimetres thick does not) costs as much as stretching an edge. At `thin` (n,) bool
-    vertices (the lids and lips, whose thin skin creases) the term is `thin_share` as stiff."""
+    vertices (the lids and lips, whose thin skin creases) the term is `thin_share` as stiff;
+    `weights` (n,), when given, is each vertex's share instead (`bending_weights`)."""
     import scipy.sparse as sp
 
     tri = np.asarray(triangles, np.int64)
@@ -208,7 +283,9 @@ def skin_bending(n: int, triangles: np.ndarray, k_high: np.ndarray, strength: fl
     adj.data[:] = 1.0
     deg = np.asarray(adj.sum(axis=1)).ravel()
     w = np.where(deg > 0, 1.0, 0.0)
-    if thin is not None:
+    if weights is not None:
+        w *= np.asarray(weights, np.float64)
+    elif thin is not None:
         w[np.asarray(thin, bool)] *= thin_share
     lap = sp.eye(n, format="csr") - sp.diags(1.0 / np.maximum(deg, 1.0)) @ adj
     kb = float(strength) * float(np.median(k_high))

@@ -71,6 +71,11 @@ class SkinParams:
     skin_bending:   the skin's own bending about its rest shape, relative to the median edge spring
                     (`sim.antifold.skin_bending`; the implicit integrator only, 0 turns it off): a
                     fine mesh's compressed skin otherwise buckles into mesh-scale ripples.
+    forehead_bending: that bending over the forehead (from half a centimetre above the brows), in the skin's own: the
+                    layer bound there (skin, connective tissue, frontalis, galea) is thicker than
+                    skin alone (`sim.antifold.bound_layer`; the scanned head
+                    `sim.antifold.FOREHEAD_BENDING`, 8). 1: as the rest of the skin (and left out
+                    of the face's hash, so faces without it keep theirs).
     """
 
     areal_density: float = 0.3
@@ -93,6 +98,7 @@ class SkinParams:
     lid_bending: float = 3.0
     lip_bending: float = 1.0
     skin_bending: float = 0.5
+    forehead_bending: float = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -335,7 +341,10 @@ def _rig_digest(rig: FaceRig, params: SkinParams) -> str:
         h.update(b"integrator" + rig.integrator.encode())
     for line in rig.wrinkles:  # WrinkleLine.to_dict() is plain JSON
         h.update(json.dumps(line.to_dict(), sort_keys=True).encode())
-    h.update(json.dumps(asdict(params), sort_keys=True).encode())
+    p = asdict(params)
+    if p["forehead_bending"] == 1.0:  # a face without the forehead's bound layer keeps its hash
+        del p["forehead_bending"]
+    h.update(json.dumps(p, sort_keys=True).encode())
     return h.hexdigest()[:16]
 
 

@@ -49,12 +49,12 @@ from typing import TYPE_CHECKING
 import numba
 import numpy as np
 
-from sim.antifold import FoldGuard, _fold_forces, skin_bending, thin_skin
+from sim.antifold import FoldGuard, _fold_forces, bending_of
 from sim.antifold import warm_up as warm_up_folds
 from sim.build import FaceModel
 from sim.integrator import _eye_contact
 from sim.margin_contact import (ROUNDS, SWEEPS, SolvedContact, _contact_force, _contact_resolve, _repair,
-                                 margin_bending, solved_constraints, warm_up_solved)
+                                 solved_constraints, warm_up_solved)
 from sim.numba_start import prepare_blas_check
 from sim.supernodal import PrefactoredSolver, _sn_sweeps
 
@@ -380,11 +380,7 @@ def prepare(model: FaceModel, h: float) -> dict[str, np.ndarray]:
     mass_h2 = np.asarray(model.mass) / h**2
     damp_h = np.asarray(model.damping) / h
     kn = np.asarray(model.support_stiffness)
-    bend = margin_bending(model.mesh, model.rest, springs, np.asarray(model.spring_k_high),
-                          model.params.lid_bending, model.params.lip_bending)
-    if model.params.skin_bending:  # the skin's own bending (sim.antifold), in the matrix
-        bend = bend + skin_bending(n, model.triangles, np.asarray(model.spring_k_high),
-                                   model.params.skin_bending, thin_skin(model.mesh.regions, n))
+    bend = bending_of(model)  # the lid and lip rows' and the skin's own bending (sim.antifold), in the matrix
     a = (laplacian(n, springs, np.asarray(model.spring_k_high)) + bend
          + sp.diags(mass_h2 + damp_h + np.asarray(model.rest_stiffness) + kn)).tocsr()
     solver = PrefactoredSolver(a[free][:, free])

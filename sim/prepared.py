@@ -36,10 +36,10 @@ def use_store(store: Store | None) -> None:
 def inputs_digest(model: Any, h: float) -> str:
     """SHA-256 of everything `sim.implicit.prepare(model, h)` reads: the substep, the springs and
     their stiffness, the per-vertex masses, damping and stiffnesses, the held vertices, the rest
-    shape, the margin and skin bending parameters, the triangles, the lid and lip rows and regions
-    the fold guard's constants and the muscle matrix (a face's hash alone leaves out the mesh's
+    shape, the margin and skin bending parameters and the skin's bending weights, the triangles,
+    the lid and lip rows and regions the fold guard's constants and the muscle matrix (a face's hash alone leaves out the mesh's
     annotations the rows and the thin skin come from)."""
-    from sim.antifold import FLOOR, STRENGTH, thin_skin
+    from sim.antifold import FLOOR, STRENGTH, bending_weights
     from sim.gaze_lids import N_BASIS, REACH, STIFFNESS, WIDTH
     from sim.margin_contact import _rows
 
@@ -48,7 +48,7 @@ def inputs_digest(model: Any, h: float) -> str:
                        f"fold={FLOOR!r},{STRENGTH!r} gaze={STIFFNESS!r},{WIDTH!r},{REACH!r},{N_BASIS}".encode())
     for arr in (model.spring_indices, model.spring_k_high, model.mass, model.damping, model.support_stiffness,
                 model.rest_stiffness, model.held, model.rest, model.triangles,
-                thin_skin(model.mesh.regions, model.n_vertices)):
+                bending_weights(model)):
         a = np.ascontiguousarray(arr)
         d.update(f"{a.dtype.str}{a.shape}".encode() + a.tobytes())
     mm = model.muscle_matrix  # the muscles' responses (sim.implicit.muscle_responses)

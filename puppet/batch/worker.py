@@ -58,19 +58,21 @@ def face_key(rig_path: str | None, resolution: int, face: Any) -> tuple[Any, ...
     return ("face", choice.kind, choice.spec, choice.resolution, choice.weights.astype("<f8").tobytes())
 
 
-def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None) -> Any:
+def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None,
+              bound_forehead: bool = True) -> Any:
     """`puppet.live.load_face`, remembered per process under `face_key`."""
     from puppet import live
 
-    key = face_key(rig_path, resolution, face)
+    key = face_key(rig_path, resolution, face) + (() if bound_forehead else ("thin forehead",))
+    extra = {} if bound_forehead else {"bound_forehead": False}  # (a take recorded before the layer)
     if key[0] == "rig" and key[2] is None:
-        return live.load_face(rig_path, resolution, face)
+        return live.load_face(rig_path, resolution, face, **extra)
     hit = _faces.get(key)
     if hit is not None:
         _faces.move_to_end(key)
         stats["face_hits"] += 1
         return hit
-    loaded = live.load_face(rig_path, resolution, face)
+    loaded = live.load_face(rig_path, resolution, face, **extra)
     stats["face_loads"] += 1
     _faces[key] = loaded
     while len(_faces) > MAX_FACES:

@@ -77,3 +77,41 @@ def test_the_jaw_as_responses_would_not_replay_it() -> None:
     rp = Replayer(perf)
     rp.seek(perf.ticks)
     assert rp.mismatches
+
+
+#: recorded before a scanned head's forehead bent as its bound layer (its header has "muscles",
+#: "lids" and "jaw" but no "bending"), by that code: the ict face at 120 Hz, the SGI box's default
+#: map played by the mock box, the brows raised (frontalis) then drawn down (corrugator, procerus)
+#: over one second
+OLD_FOREHEAD = Path(__file__).parent / "data" / "take_thin_forehead.jsonl"
+FINAL_FOREHEAD = "1fa7a8221aa4c588"
+THIN_FOREHEAD_HASH = "0804b9ee47a2e609"  # the default face's hash then
+
+
+def test_a_take_from_before_the_bound_forehead_replays_bit_for_bit_on_its_face() -> None:
+    perf = build_performance(read_session(OLD_FOREHEAD), None)
+    assert "bending" not in read_session(OLD_FOREHEAD).header
+    assert perf.face.model.params.forehead_bending == 1.0
+    assert perf.face.rig["hash"] == THIN_FOREHEAD_HASH
+    rp = Replayer(perf)
+    rp.seek(perf.ticks)
+    assert rp.verified == 2 and not rp.mismatches
+    from puppet.replay import state_digest
+
+    assert state_digest(rp.state) == FINAL_FOREHEAD
+
+
+def test_the_bound_forehead_would_not_replay_it() -> None:
+    """What the header's "bending" is for: the take raises and knits the brows, which the bound
+    layer's bending changes."""
+    from puppet.live import BENDING_AS
+    from puppet.replay import Replayer as R
+
+    session = read_session(OLD_FOREHEAD)
+    session.header["bending"] = BENDING_AS
+    perf = build_performance(session, None)
+    assert perf.face.model.params.forehead_bending > 1.0
+    assert perf.face.rig["hash"] != THIN_FOREHEAD_HASH
+    rp = R(perf)
+    rp.seek(perf.ticks)
+    assert rp.mismatches

@@ -48,3 +48,38 @@ def test_a_turned_over_triangle_is_pushed_back_and_the_force_is_internal() -> No
         y += 1e-3 * out
         steps += 1
     assert _det(g, y) >= 0.9 * g.floor, steps
+
+
+def test_the_forehead_bends_as_its_bound_layer_and_nothing_else_changes() -> None:
+    """On the procedural face (whose parameter is 1) the skin's bending is as before and its hash
+    too; with the bound layer the forehead bends 8 times as stiffly, the glabella below the brows,
+    the nose, cheeks, lips and the lids' thin skin as before, with the same matrix pattern (no new
+    fill in the step's factors)."""
+    from dataclasses import replace
+
+    from sim.antifold import FOREHEAD_BENDING, THIN_SMOOTHING, bending_of, bending_weights
+    from sim.build import SkinParams, _rig_digest, compile_model
+    from sim.face import default_rig
+
+    rig = default_rig(0)
+    plain = compile_model(rig, SkinParams(gravity=False))
+    bound = compile_model(rig, SkinParams(gravity=False, forehead_bending=FOREHEAD_BENDING))
+    assert plain.hash == _rig_digest(rig, SkinParams(gravity=False)) != bound.hash
+    w0, w1 = bending_weights(plain), bending_weights(bound)
+    regions = {k: np.asarray(v, bool) for k, v in rig.mesh.regions.items()}
+    thin = np.zeros(len(w0), bool)
+    for name, mask in regions.items():
+        if "lid" in name or "lip" in name:
+            thin |= mask
+    assert np.all(w0[thin] == THIN_SMOOTHING) and np.all(w0[~thin] == 1.0)
+    forehead = regions["forehead"] & ~thin
+    assert np.median(w1[forehead]) == FOREHEAD_BENDING
+    for name in ("nose", "cheek_l", "chin", "upper_lip", "lower_lip", "upper_lid_l", "lower_lid_l"):
+        assert np.array_equal(w1[regions[name]], w0[regions[name]]), name
+    a, b = bending_of(plain), bending_of(bound)
+    assert a.nnz == b.nnz and np.array_equal(a.indices, b.indices) and np.array_equal(a.indptr, b.indptr)
+    assert abs(b - a).sum() > 0.0
+    # the bound layer's bending leaves a translation and a rest pose alone (no force at rest)
+    shift = np.ones(len(w0))
+    assert np.abs(b @ shift).max() < 1e-9 * abs(b).max()
+    assert replace(SkinParams(), forehead_bending=1.0) == SkinParams()

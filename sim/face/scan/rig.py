@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.antifold import FOREHEAD_BENDING
 from sim.build import SkinParams
 from sim.face.scan.anatomy import skin_layout
 from sim.face.scan.data import N_IDENTITIES, PARTS, SCLERA, scan_data
@@ -40,7 +41,19 @@ DIGITS = 7  # carried quantities are rounded to this many decimals (cm)
 #   bend 6, support 27000, force 1.6:    6 poses fold, 24 targets   <- chosen: the expressions read
 # The stiffer skin lags the jaw: at the procedural face's 0.55 rad AU27 parts the lips 36 mm (real
 # maximal opening 44-57); 0.68 rad gave 41 mm but folded 0.46 cm2 at the mouth, so it stays 0.55.
-SCAN_PARAMS = SkinParams(bend_ratio=6.0, support=27000.0)
+# The forehead's bound layer bends as a plate 4 mm thick (sim.antifold.FOREHEAD_BENDING, 8 times the
+# skin's own): with the skin's own bending alone the frontalis buckled the forehead into uneven bumps
+# and jagged arcs over the brows (docs/scan-face.md, "The forehead's bound layer").
+SCAN_PARAMS = SkinParams(bend_ratio=6.0, support=27000.0, forehead_bending=FOREHEAD_BENDING)
+#: the scanned head's skin before the forehead's bound layer: a take recorded then (its header
+#: without "bending", puppet.live.BENDING_AS) replays on it, bit for bit
+SCAN_PARAMS_THIN_FOREHEAD = replace(SCAN_PARAMS, forehead_bending=1.0)
+
+
+def scan_params(bound_forehead: bool = True) -> SkinParams:
+    """The scanned head's skin parameters: as shipped, or (False) as before the forehead's bound
+    layer, for takes recorded then."""
+    return SCAN_PARAMS if bound_forehead else SCAN_PARAMS_THIN_FOREHEAD
 FORCE = 1.6
 # the orbital sphincter (AU6) folds the skin round the eye first; the lid strips need twice the
 # force to close the scan's lids over its cornea (AU45: 7-11.5 mm; sim.face.scan.lids sets the
@@ -192,15 +205,15 @@ def is_scan_rig(rig: FaceRig) -> bool:
 _MODELS: dict[bytes, object] = {}
 
 
-def scan_model(weights: np.ndarray | None = None):  # type: ignore[no-untyped-def]
-    """The scanned head compiled with `SCAN_PARAMS` (kept for the process; the application caches
-    it on disk through `puppet.face_cache.scan_model`)."""
+def scan_model(weights: np.ndarray | None = None, bound_forehead: bool = True):  # type: ignore[no-untyped-def]
+    """The scanned head compiled with `scan_params(bound_forehead)` (kept for the process; the
+    application caches it on disk through `puppet.face_cache.scan_model`)."""
     from sim.build import compile_model
 
     w = None if weights is None else np.asarray(weights, dtype=np.float64).ravel()
-    key = b"generic" if w is None else w.tobytes()
+    key = (b"generic" if w is None else w.tobytes()) + (b"" if bound_forehead else b":thin forehead")
     if key not in _MODELS:
         if len(_MODELS) >= 4:
             _MODELS.pop(next(iter(_MODELS)))
-        _MODELS[key] = compile_model(scan_rig(w), SCAN_PARAMS)
+        _MODELS[key] = compile_model(scan_rig(w), scan_params(bound_forehead))
     return _MODELS[key]

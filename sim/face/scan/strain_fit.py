@@ -43,22 +43,14 @@ def step_stiffness(model: Any, bending: bool = True) -> tuple[Any, np.ndarray]:
     import scipy.sparse as sp
     from scipy.sparse.linalg import splu
 
-    from sim.antifold import skin_bending, thin_skin
+    from sim.antifold import bending_of
     from sim.face.scan.calibrate import rest_stiffness
-    from sim.margin_contact import margin_bending
 
-    n = model.n_vertices
-    springs = np.asarray(model.spring_indices)
     k = rest_stiffness(model)
     if not bending:
         free = np.flatnonzero(np.repeat(~np.asarray(model.held, bool), 3))
         return splu(k.tocsr()[free][:, free].tocsc()), free
-    bend = margin_bending(model.mesh, model.rest, springs, np.asarray(model.spring_k_high),
-                          model.params.lid_bending, model.params.lip_bending)
-    if model.params.skin_bending:
-        bend = bend + skin_bending(n, model.triangles, np.asarray(model.spring_k_high),
-                                   model.params.skin_bending, thin_skin(model.mesh.regions, n))
-    k = k + sp.kron(bend, sp.eye(3))
+    k = k + sp.kron(bending_of(model), sp.eye(3))
     free = np.flatnonzero(np.repeat(~np.asarray(model.held, bool), 3))
     return splu(k.tocsr()[free][:, free].tocsc()), free
 
