@@ -239,7 +239,8 @@ def farm_run(farm: Farm, cmd: list[str], client: Any) -> dict[str, Any]:
             "first_start": min((a for a, _ in spans), default=0.0), "tail": max(ends) - min(ends) if ends else 0.0,
             "after_last": wall - max(ends) if ends else 0.0,
             "per_worker": sorted(len(v) for v in comp.values()), "client_cpu": CPU[0], **roles,
-            "steal": steal() - s0, **timeline(wall, comp, {k: v - t0 for k, v in seen.items()})}
+            "steal": steal() - s0, **timeline(wall, comp, {k: v - t0 for k, v in seen.items()}),
+            "workers_tasks": [[round(b - a, 2) for a, b in sorted(v)] for _, v in sorted(comp.items())]}
 
 
 #: the parts of a farm run's wall, in order (`timeline`)
@@ -428,6 +429,7 @@ def main() -> int:
                   f"{x['task_s']:.2f} s each on its worker, first starts at {x['first_start']:.1f} s, "
                   f"tail {x['tail']:.1f} s, exit {x['after_last']:.2f} s after the last; CPU: ours {x['cpu_ours']:.1f} s, other users' {x['cpu_others']:.1f} s, "
                   f"idle {x['idle']:.1f} s, stolen by the host {x['steal']:.1f} s")
+            print(f"       each worker's tasks in order (s): {x['workers_tasks']}")
             print(f"       where ours went: workers {x['worker_user']:.1f} s user + {x['worker_system']:.1f} s system "
                   f"(preempted {x['worker_preempted']:.0f} times), nannies {x['nanny']:.2f} s, scheduler "
                   f"{x['scheduler']:.2f} s, client {x['client_cpu']:.2f} s")
