@@ -233,12 +233,60 @@ def farm_run(farm: Farm, cmd: list[str], client: Any) -> dict[str, Any]:
                 comp.setdefault(t["worker"], []).append((ss["start"] - t0, ss["stop"] - t0))
     spans = [x for v in comp.values() for x in v]
     ends = [max(b for _, b in v) for v in comp.values()]
+    seen = client.run_on_scheduler(_scheduler_times, t0, client.id)
     return {"wall": wall, "cpu_ours": ours, "cpu_others": max(0.0, b1 - b0 - ours), "idle": i1 - i0,
             "tasks": len(spans), "task_s": sum(b - a for a, b in spans) / max(1, len(spans)),
             "first_start": min((a for a, _ in spans), default=0.0), "tail": max(ends) - min(ends) if ends else 0.0,
             "after_last": wall - max(ends) if ends else 0.0,
             "per_worker": sorted(len(v) for v in comp.values()), "client_cpu": CPU[0], **roles,
-            "steal": steal() - s0}
+            "steal": steal() - s0, **timeline(wall, comp, {k: v - t0 for k, v in seen.items()}),
+            "workers_tasks": [[round(b - a, 2) for a, b in sorted(v)] for _, v in sorted(comp.items())]}
+
+
+#: the parts of a farm run's wall, in order (`timeline`)
+PARTS = ("launch", "setup", "dispatch", "compute", "gaps", "tail", "exit")
+
+
+def _scheduler_times(since: float, watcher: str, dask_scheduler: Any = None) -> dict[str, float]:
+    """When the scheduler saw the batch's client connect, its first export task arrive and the
+    client leave (time.time(), this machine's clock)."""
+    out = {}
+    for t, msg in dask_scheduler.get_events("all"):
+        if t >= since and isinstance(msg, dict) and msg.get("client") != watcher:
+            if msg.get("action") == "add-client":
+                out.setdefault("connected", t)
+            elif msg.get("action") == "remove-client":
+                out["left"] = t
+    arrived = [tr.timestamp for tr in dask_scheduler.transition_log
+               if tr.timestamp >= since and str(tr.key).startswith("export-")]
+    if arrived:
+        out["submitted"] = min(arrived)
+    return out
+
+
+def timeline(wall: float, comp: dict[str, list[tuple[float, float]]], seen: dict[str, float]) -> dict[str, float]:
+    """A batch's wall split into what happened one after the other (seconds): the client's start
+    until the scheduler saw it connect (Python, imports, reading and hashing the takes), until its
+    first task arrived (checking the workers' program, registering the plugins), until a worker
+    started it, the workers' time (mean over workers: computing, the gaps between two tasks, and
+    idle at the end while another worker ran its last task), and from the last task's end to the
+    command's exit. The parts add up to the wall."""
+    if not comp:
+        return {}
+    first = min(a for v in comp.values() for a, _ in v)
+    last = max(b for v in comp.values() for _, b in v)
+    connected = seen.get("connected", first)
+    submitted = min(max(seen.get("submitted", first), connected), first)
+    busy = gaps = idle = 0.0
+    for v in comp.values():
+        v = sorted(v)
+        busy += sum(b - a for a, b in v)
+        gaps += (v[0][0] - first) + sum(v[k + 1][0] - v[k][1] for k in range(len(v) - 1))
+        idle += last - v[-1][1]
+    n = len(comp)
+    return {"t_launch": min(connected, first), "t_setup": submitted - min(connected, first),
+            "t_dispatch": first - submitted, "t_compute": busy / n, "t_gaps": gaps / n, "t_tail": idle / n,
+            "t_exit": wall - last}
 
 
 def _noop(x: int) -> int:
@@ -340,7 +388,7 @@ def main() -> int:
                 res["pc2_farm_runs"] = [[round(x, 1), round(y, 1)] for x, y in zip(one_w, two_w)]
                 res["pc2_farm_pair_ratios"] = [round(x / y, 2) for x, y in zip(one_w, two_w)]
                 res["pc2_farm_loads"] = loads
-                res["pc2_farm_detail"] = {n: [{k: (round(v, 2) if isinstance(v, float) else v) for k, v in x.items()}
+                res["pc2_farm_detail"] = {n: [{k: (round(v, 3) if isinstance(v, float) else v) for k, v in x.items()}
                                               for x in rs] for n, rs in runs.items()}
                 res["pc2_farm_identical"] = same(d / "single", d / "farm", ".pc2", takes)
                 res["task_overhead_ms"] = overhead(farm.address) * 1e3
@@ -381,9 +429,20 @@ def main() -> int:
                   f"{x['task_s']:.2f} s each on its worker, first starts at {x['first_start']:.1f} s, "
                   f"tail {x['tail']:.1f} s, exit {x['after_last']:.2f} s after the last; CPU: ours {x['cpu_ours']:.1f} s, other users' {x['cpu_others']:.1f} s, "
                   f"idle {x['idle']:.1f} s, stolen by the host {x['steal']:.1f} s")
+            print(f"       each worker's tasks in order (s): {x['workers_tasks']}")
             print(f"       where ours went: workers {x['worker_user']:.1f} s user + {x['worker_system']:.1f} s system "
                   f"(preempted {x['worker_preempted']:.0f} times), nannies {x['nanny']:.2f} s, scheduler "
                   f"{x['scheduler']:.2f} s, client {x['client_cpu']:.2f} s")
+    print("     where 2 workers lose against half of 1 worker's run (s; each pair; the parts add up to the "
+          "difference):")
+    for one, two in zip(res["pc2_farm_detail"][1], res["pc2_farm_detail"][2]):
+        if "t_compute" not in one or "t_compute" not in two:
+            continue
+        parts = {name: two[f"t_{name}"] - one[f"t_{name}"] / 2 for name in PARTS}
+        cpu = [(x["worker_user"] + x["worker_system"]) / max(1, x["tasks"]) for x in (one, two)]
+        print(f"       {two['wall'] - one['wall'] / 2:+.2f} = " + ", ".join(f"{k} {v:+.2f}" for k, v in parts.items())
+              + f" (1 worker: " + ", ".join(f"{k} {one[f't_{k}']:.2f}" for k in PARTS) + f"; workers' CPU a task "
+              f"{cpu[0]:.2f} s on one, {cpu[1]:.2f} s on each of two)")
     print(f"scheduling: {res['task_overhead_ms']:.2f} ms per no-op task")
     for c in res.get("ceiling", []):
         print(f"ceiling: {c['kernel']} as 1 vs 2 processes {c['ratio']:.2f}x (pairs {c['pairs']}; CPU each of two "

@@ -11,6 +11,7 @@ import json
 import logging
 import os
 import sys
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -88,15 +89,18 @@ def _connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
 
 
 def check_farm(client: Any) -> int:
-    """Every worker must run this very program (version and sources); returns the worker count."""
+    """Every worker must run this very program (version and sources); returns the worker count.
+    One round trip when the farm has workers (waiting for one only when it has none yet)."""
     from dask.distributed import TimeoutError as DaskTimeout
 
-    try:
-        client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
-    except (DaskTimeout, TimeoutError, OSError) as err:
-        raise PuppetError(f"no Dask worker joined the scheduler within {CONNECT_TIMEOUT:g} s") from err
     mine = jobs.identity()
     theirs = client.run(jobs.identity)
+    if not theirs:
+        try:
+            client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
+        except (DaskTimeout, TimeoutError, OSError) as err:
+            raise PuppetError(f"no Dask worker joined the scheduler within {CONNECT_TIMEOUT:g} s") from err
+        theirs = client.run(jobs.identity)
     for addr, ident in theirs.items():
         if tuple(ident) != mine:
             raise PuppetError(f"worker {addr} runs puppet {ident[0]} (sources {ident[1]}), this machine "
@@ -122,11 +126,31 @@ def _video_plan(o: Output, chunk_frames: int) -> list[int] | None:
     return [min(ticks, int(round(j / fps * rate))) for j in range(n)]
 
 
+def quieten_farm(client: Any) -> threading.Thread:
+    """Register the batch's plugins (`puppet.batch.worker`: per-process caches, malloc thresholds,
+    the diagnostic timers stopped) on the workers, their nannies and the scheduler, on a thread:
+    three round trips through the scheduler that the tasks need not wait for (a task installs the
+    caches itself, `jobs._staged`), so they are made once the tasks are submitted. Join it before
+    closing the client."""
+
+    def register() -> None:
+        steps = (lambda: client.register_plugin(worker.plugin()),
+                 lambda: client.register_plugin(worker.nanny_plugin()),
+                 lambda: client.run_on_scheduler(worker.quieten_scheduler))
+        for step in steps:
+            try:
+                step()
+            except Exception:  # no nanny (`dask worker --no-nanny`), a scheduler refusing `run`, closing
+                pass
+
+    t = threading.Thread(target=register, name="batch-plugins", daemon=True)
+    t.start()
+    return t
+
+
 def run(action: str, selection: list[str], out_dir: Path, *, kinds: list[str] | None = None,
         opts: dict[str, Any] | None = None, scheduler: str | None = None, workers: int | None = None,
         chunk_frames: int = 0, library: str | None = None, force: bool = False, bar: bool = True) -> Report:
-    from tqdm import tqdm
-
     opts = opts or {}
     rep = Report()
     if not out_dir.is_dir():
@@ -151,18 +175,13 @@ def run(action: str, selection: list[str], out_dir: Path, *, kinds: list[str] | 
         _store_spans_or_warn(rep, library)
         return rep
     client, cluster = connect(scheduler, workers)
+    plugins: list[threading.Thread] = []
     try:
         rep.workers = check_farm(client)
-        client.register_plugin(worker.plugin())  # per-process caches, malloc and quiet timers
-        for quiet in (lambda: client.register_plugin(worker.nanny_plugin()),
-                      lambda: client.run_on_scheduler(worker.quieten_scheduler)):
-            try:
-                quiet()
-            except Exception:  # no nanny (`dask worker --no-nanny`), a scheduler refusing `run`
-                pass
         dest = reach_token(out_dir)
         try:
-            _submit_and_collect(client, todo, out_dir, chunk_frames, rep, tqdm, bar, dest)
+            _submit_and_collect(client, todo, out_dir, chunk_frames, rep, bar, dest,
+                                submitted=lambda: plugins.append(quieten_farm(client)))
             try:  # workers that joined (or left) while it ran
                 rep.workers = max(1, len(client.scheduler_info()["workers"]))
             except Exception:
@@ -171,6 +190,8 @@ def run(action: str, selection: list[str], out_dir: Path, *, kinds: list[str] | 
             drop_token(out_dir, dest)
             _remove_parts(out_dir, todo)
     finally:
+        for t in plugins:
+            t.join(CONNECT_TIMEOUT)
         client.close()
         if cluster is not None:
             cluster.close()
@@ -187,7 +208,9 @@ def _store_spans_or_warn(rep: Report, library: str | None) -> None:
 
 
 def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_frames: int, rep: Report,
-                        tqdm: Any, show: bool, dest: dict[str, str] | None = None) -> None:
+                        show: bool, dest: dict[str, str] | None = None, submitted: Any = None) -> None:
+    """Every task submitted (then `submitted()` called, and the progress bar's module imported:
+    what the workers need not wait for), each result written as it lands."""
     from dask.distributed import as_completed
 
     final: dict[Any, list[Output]] = {}
@@ -221,6 +244,10 @@ def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_fr
         final[client.submit(jobs.export_outputs, group[0].item.files, origin,
                             [(o.name, o.opts) for o in group], dest, key=key, priority=_size(group[0]))] = group
     rep.tasks = len(final) + len(helpers)
+    if submitted is not None:
+        submitted()
+    from tqdm import tqdm
+
     desc = f"batch on {rep.workers} worker{'' if rep.workers == 1 else 's'}"
     with tqdm(total=rep.tasks, desc=desc, unit="task", file=sys.stderr, dynamic_ncols=True,
               disable=not show) as progress:

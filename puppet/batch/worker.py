@@ -16,7 +16,8 @@ simulation's ~150 KB scratch arrays on every step, about 40 % more CPU per take 
 and installs the caches above in `puppet.replay`; it, `NannySetup` and `quieten_scheduler` stop the
 worker's, its nanny's and the scheduler's diagnostic timers and slow the memory checks
 (`quieten`: together 2 to 3 % of a core per worker with nothing running, taken from the frames).
-Tasks run one at a time per process (`--nthreads 1`), so the caches need no locks."""
+Tasks run one at a time per process (`--nthreads 1`), so the caches need no locks (only `install`,
+which the plugin may run while the first task runs)."""
 
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ import ctypes
 import ctypes.util
 import hashlib
 import os
+import threading
 from collections import OrderedDict
 from pathlib import Path
 from typing import Any
@@ -125,20 +127,24 @@ def tune_malloc() -> bool:
 
 
 _installed = [False]
+_install_lock = threading.Lock()
 
 
 def install() -> None:
-    """This process replays through the caches above (idempotent: once per process)."""
+    """This process replays through the caches above (idempotent: once per process). Locked: the
+    batch's plugin may set a worker up on its event loop while the worker's first task, already
+    running, does so too."""
     from puppet import replay
 
-    if not _installed[0]:
-        tune_malloc()
-        if SHARE_PREPARED:
-            from puppet.batch import shared
+    with _install_lock:
+        if not _installed[0]:
+            tune_malloc()
+            if SHARE_PREPARED:
+                from puppet.batch import shared
 
-            shared.install()
-        _installed[0] = True
-    replay.use_loaders(load_face=load_face, new_simulator=new_simulator)
+                shared.install()
+            _installed[0] = True
+        replay.use_loaders(load_face=load_face, new_simulator=new_simulator)
 
 
 #: a Dask server's diagnostics that wake its event loop while a task computes: the 20 ms "event

@@ -132,8 +132,7 @@ def test_longer_takes_are_submitted_with_higher_priority(tmp_path: Path) -> None
     dask.distributed.as_completed = as_completed
     try:
         with pytest.raises(NoFutures):
-            batch_run._submit_and_collect(Client(), outs, tmp_path, 0, batch_run.Report(), __import__("tqdm").tqdm,
-                                          False)
+            batch_run._submit_and_collect(Client(), outs, tmp_path, 0, batch_run.Report(), False)
     finally:
         dask.distributed.as_completed = real
     priority = {n: dict(asked)[k] for n, k in zip(lengths, [k for k, _ in asked])}
