@@ -38,6 +38,20 @@ def replay_out(take: Path, out: Path, *extra: str) -> bytes:
     return out.read_bytes()
 
 
+def test_a_bad_scheduler_address_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """Checked before anything runs: Dask's parser raised a traceback on `foo`, and a batch with
+    every output up to date never connected, so `tcp://HOST:notaport` passed unnoticed."""
+    take = tmp_path / "a.jsonl"
+    write_take(take, seed=1)
+    out = tmp_path / "out"
+    assert main(["batch", "export", str(take), "--out", str(out), "--to", "csv", "--workers", "1"]) == 0
+    capsys.readouterr()
+    for bad in ("foo", "tcp://127.0.0.1", "tcp://127.0.0.1:notaport", "http://127.0.0.1:8786"):
+        assert main(["batch", "export", str(take), "--out", str(out), "--to", "csv", "--scheduler", bad]) == 2
+        _, err = capsys.readouterr()
+        assert err.count("\n") == 1 and "tcp://HOST:PORT" in err, (bad, err)
+
+
 def test_export_through_the_farm_equals_replay(farm: Farm, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     shoot = tmp_path / "shoot"
     takes = [write_take(shoot / f"take{k}.jsonl", ticks=30 + 15 * k, seed=k, performer="ana") for k in range(3)]
