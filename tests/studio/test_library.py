@@ -57,6 +57,9 @@ def test_import_search_tag_note_show(folder: Path, tmp_path: Path, capsys: pytes
     assert ids("performer:ana") == ["ana_brow.jsonl", "ana_smile.jsonl"]
     assert ids("date:2026-12-03") == ["bob_jaw.jsonl"]
     assert ids("after:2026-12-02") == ["ana_brow.jsonl", "bob_jaw.jsonl"]
+    for bad in ("date:2026-13", "after:yesterday", "before:2026-02-30"):  # not "no takes": say why
+        code, out, err = takes_cli(capsys, lib, "search", bad)
+        assert code == 2 and err.count("\n") == 1 and bad in err and "YYYY-MM-DD" in err, (bad, err)
     assert ids("smil") == ["ana_smile.jsonl"]  # a word's start matches the name
     assert ids("good") == ["ana_smile.jsonl"]  # marker labels are searched
     assert takes_cli(capsys, lib, "tag", str(smile["id"]), "Keeper")[0] == 0
