@@ -156,8 +156,8 @@ class Library:
         performer: dict[str, str] = {}
         for r in recs:
             if r["op"] in ("take", "moved") and isinstance(r.get("path"), str) and isinstance(r.get("hash"), str):
-                where.pop(r["hash"], None)  # keeps the order of the latest mention
-                where[r["hash"]] = r["path"]
+                where[r["hash"]] = r["path"]  # the latest place, in the order of the first mention: the
+                # takes get their ids back in the order they were registered
             if r["op"] == "take" and isinstance(r.get("performer"), str) and isinstance(r.get("hash"), str):
                 performer[r["hash"]] = r["performer"]
         paths = list(dict.fromkeys(where.values()))

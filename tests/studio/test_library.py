@@ -200,6 +200,33 @@ def test_damaged_library_is_one_line_and_rebuilt(folder: Path, tmp_path: Path,
     assert rebuilt >= 8
 
 
+def test_reimport_adds_nothing_and_a_rebuild_keeps_the_ids(folder: Path, tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture) -> None:
+    """Importing a folder again registers nothing twice and says so; a take registered again (a
+    show continuing it) keeps its id, and so does every take when a damaged library is rebuilt:
+    `puppet takes show 2` is the same take before and after."""
+    lib = tmp_path / "lib" / "takes.db"
+    assert "registered 3 takes" in takes_cli(capsys, lib, "import", str(folder))[1]
+    journal = (lib.parent / "takes.db.journal").read_bytes()
+    code, out, _ = takes_cli(capsys, lib, "import", str(folder))
+    assert code == 0 and "registered 0 takes" in out and "3 already in the library" in out
+    assert (lib.parent / "takes.db.journal").read_bytes() == journal
+    write_take(folder / "later.jsonl", seed=4, performer="cy", start_time="2026-12-04T10:00:00.000+00:00")
+    code, out, _ = takes_cli(capsys, lib, "import", str(folder))
+    assert "registered 1 take from" in out and "3 already" in out
+    first = min(json.loads(takes_cli(capsys, lib, "list", "--json")[1]), key=lambda r: r["id"])
+    with Library(lib) as store:
+        store.register(first["path"])
+    before = {r["path"]: r["id"] for r in json.loads(takes_cli(capsys, lib, "list", "--json")[1])}
+    assert sorted(before.values()) == [1, 2, 3, 4]
+    lib.write_bytes(b"not a database" * 100)
+    for extra in lib.parent.glob("takes.db-*"):
+        extra.unlink()
+    code, out, err = takes_cli(capsys, lib, "list", "--json")
+    assert code == 0 and "damaged" in err
+    assert {r["path"]: r["id"] for r in json.loads(out)} == before
+
+
 def test_live_recording_is_registered(tmp_path: Path) -> None:
     script = tmp_path / "s.toml"
     script.write_text('impersonate = "sgi"\nspeed = 0\nduration = 0.5\n[[ramp]]\ncontrol = "dial1"\n'
