@@ -86,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     for origin, why in rep.failed.items():
         print(f"puppet: failed: {why}", file=sys.stderr)
     done = len({p.name for p in rep.written})
-    print(f"puppet: batch {action}: wrote {done} files to {out}"
+    print(f"puppet: batch {action}: wrote {_count(done, 'file')} to {out}"
           + (f" on {_count(rep.workers, 'worker')} ({_count(rep.tasks, 'task')})" if rep.tasks else "")
           + (f"; {len(rep.skipped)} outputs up to date, skipped" if rep.skipped else "")
           + (f"; expressions stored for {rep.library_takes} library takes" if rep.library_takes else "")
