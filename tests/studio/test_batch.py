@@ -383,3 +383,15 @@ def test_half_written_outputs_are_removed_and_nothing_else(tmp_path: Path) -> No
         (tmp_path / name).write_bytes(b"half")
     _remove_parts(tmp_path, todo)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(kept + [o.name for o in todo])
+
+
+def test_a_query_matching_nothing_names_the_library(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """Recordings go to the library of the show that made them: a query that finds nothing says
+    which library it searched, so a user looking in the wrong one sees it."""
+    lib = tmp_path / "mine.db"
+    write_take(tmp_path / "a.jsonl", seed=1, performer="ana")
+    assert main(["takes", "import", str(tmp_path), "--library", str(lib)]) == 0
+    capsys.readouterr()
+    assert main(["batch", "export", "performer:bob", "--library", str(lib), "--out", str(tmp_path / "o")]) == 2
+    _, err = capsys.readouterr()
+    assert err.count("\n") == 1 and str(lib) in err and "performer:bob" in err, err
