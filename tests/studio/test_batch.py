@@ -395,3 +395,12 @@ def test_a_query_matching_nothing_names_the_library(tmp_path: Path, capsys: pyte
     assert main(["batch", "export", "performer:bob", "--library", str(lib), "--out", str(tmp_path / "o")]) == 2
     _, err = capsys.readouterr()
     assert err.count("\n") == 1 and str(lib) in err and "performer:bob" in err, err
+
+
+def test_out_naming_a_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    take = tmp_path / "a.jsonl"
+    write_take(take, seed=1)
+    (tmp_path / "renders").write_text("a file where the folder should be\n")
+    assert main(["batch", "export", str(take), "--out", str(tmp_path / "renders"), "--to", "csv", "--workers", "1"]) == 2
+    _, err = capsys.readouterr()
+    assert err.count("\n") == 1 and "not a folder" in err, err
