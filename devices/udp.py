@@ -45,8 +45,9 @@ WINDOW = 0.1
 RECV_BUFFER = 65536
 #: /proc/net/udp is read for drops at most this often (seconds), when nothing arrives.
 PROC_EVERY = 0.5
-#: The backlog found when reading starts is read without the flood budget for at most this long.
-BACKLOG_LIMIT = 1.0
+#: The backlog found when reading starts is read without the flood budget, at most as many
+#: datagrams as the receive buffer can hold (a datagram takes at least this many of its bytes).
+BACKLOG_BYTES = 256
 
 
 def split_host_port(location: str, default_port: int, spec: str) -> tuple[str, int]:
@@ -184,8 +185,8 @@ class UdpListenerDevice(SelectWaking, Device):
         self._window_start = 0.0
         self._window_count = 0
         # datagrams queued while nobody read (between opening and the reader's start, e.g. while a
-        # show prepares its face): read in one go, not a flood; until when (monotonic), once known
-        self._backlog_until: float | None = None
+        # show prepares its face): read in one go, not a flood; how many may still be, once known
+        self._backlog_left: int | None = None
         self._announced = False
 
     # ------------------------------------------------------------------ hooks for subclasses
@@ -218,7 +219,7 @@ class UdpListenerDevice(SelectWaking, Device):
         self._ancillary = enable_drop_counter(sock)
         self._sock_drops = 0
         self._sock = sock
-        self._backlog_until = None
+        self._backlog_left = None
         self.bound = sock.getsockname()[:2]
         if self.exposure and not self._announced:
             self._announced = True
@@ -252,8 +253,8 @@ class UdpListenerDevice(SelectWaking, Device):
         if sock is None:
             raise OSError("socket not open")
         now = time.monotonic()
-        if self._backlog_until is None:
-            self._backlog_until = now + BACKLOG_LIMIT
+        if self._backlog_left is None:
+            self._backlog_left = max(self._budget(), self.rcvbuf_granted // BACKLOG_BYTES)
         if self._window_count >= self._budget() and now - self._window_start < WINDOW:
             # over budget: leave the rest in (and to) the kernel until the window ends
             self._stop.wait(min(timeout, WINDOW - (now - self._window_start)))
@@ -262,6 +263,7 @@ class UdpListenerDevice(SelectWaking, Device):
         if self._waker in ready:
             self._waker.drain()
         if sock not in ready:
+            self._backlog_left = 0  # nothing waited: from now on every datagram is counted
             now = time.monotonic()
             self._poll_drops(sock, now)
             return self._idle(now)
@@ -276,10 +278,12 @@ class UdpListenerDevice(SelectWaking, Device):
                 else:
                     n, addr = sock.recvfrom_into(self._buf, RECV_BUFFER, socket.MSG_TRUNC)
             except (BlockingIOError, InterruptedError):
-                self._backlog_until = 0.0  # the queue is empty: whatever comes now is counted
+                self._backlog_left = 0  # the queue is empty: whatever comes now is counted
                 break
             t = time.monotonic()
-            if t >= self._backlog_until and not self._count(t):
+            if self._backlog_left:
+                self._backlog_left -= 1
+            elif not self._count(t):
                 self.discarded += 1
                 break
             sender = str(addr[0])
