@@ -401,6 +401,7 @@ def test_out_naming_a_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFix
     take = tmp_path / "a.jsonl"
     write_take(take, seed=1)
     (tmp_path / "renders").write_text("a file where the folder should be\n")
-    assert main(["batch", "export", str(take), "--out", str(tmp_path / "renders"), "--to", "csv", "--workers", "1"]) == 2
+    out = tmp_path / "renders"
+    assert main(["batch", "export", str(take), "--out", str(out), "--to", "csv", "--workers", "1"]) == 2
     _, err = capsys.readouterr()
     assert err.count("\n") == 1 and "not a folder" in err, err
