@@ -75,6 +75,8 @@ def run(args: argparse.Namespace) -> int:
         opts.update(view=args.view, size=list(args.size), supersample=args.supersample, crf=args.crf)
     else:
         opts.update(rig=args.rig, map=args.map)
+    if args.scheduler is not None:
+        args.scheduler = scheduler_address(args.scheduler)
     out = Path(args.out)
     rep = run_batch(action, args.selection, out, kinds=kinds, opts=opts, scheduler=args.scheduler,
                     workers=args.workers, chunk_frames=getattr(args, "chunk_frames", 0), library=args.library,
@@ -84,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     for origin, why in rep.failed.items():
         print(f"puppet: failed: {why}", file=sys.stderr)
     done = len({p.name for p in rep.written})
-    print(f"puppet: batch {action}: wrote {done} files to {out}"
+    print(f"puppet: batch {action}: wrote {_count(done, 'file')} to {out}"
           + (f" on {_count(rep.workers, 'worker')} ({_count(rep.tasks, 'task')})" if rep.tasks else "")
           + (f"; {len(rep.skipped)} outputs up to date, skipped" if rep.skipped else "")
           + (f"; expressions stored for {rep.library_takes} library takes" if rep.library_takes else "")
@@ -94,3 +96,24 @@ def run(args: argparse.Namespace) -> int:
 
 def _count(n: int, thing: str) -> str:
     return f"{n} {thing}{'' if n == 1 else 's'}"
+
+
+def scheduler_address(text: str) -> str:
+    """`--scheduler`: tcp://HOST:PORT (or tls://, or HOST:PORT, taken as tcp://), checked before
+    anything is done: Dask's own parser raises a traceback on `foo`, and a batch with nothing to do
+    never connected, so a mistyped address passed unnoticed."""
+    from urllib.parse import urlsplit
+
+    from puppet.errors import PuppetError
+
+    bad = PuppetError(f"--scheduler {text!r}: expected tcp://HOST:PORT, the address `dask scheduler` prints")
+    given = text.strip()
+    url = urlsplit(given if "://" in given else "tcp://" + given)
+    try:
+        port = url.port
+    except ValueError:
+        raise bad from None
+    if url.scheme not in ("tcp", "tls") or not url.hostname or port is None or not 0 < port < 65536 \
+            or url.path not in ("", "/") or url.query or url.username:
+        raise bad
+    return f"{url.scheme}://{url.netloc}"

@@ -190,6 +190,10 @@ def _run(args: argparse.Namespace) -> int:
         print(f"puppet: {msg}", file=sys.stderr)
 
     live.check_duration(args.duration)
+    if args.face is not None and args.rig is None:  # a mistyped face is said before anything starts
+        from puppet.faces import parse_face
+
+        parse_face(args.face)
     if args.supervise or args.resume:
         if args.demo:
             raise PuppetError("--demo plays once: leave out --supervise and --resume")

@@ -171,7 +171,12 @@ def run(args: argparse.Namespace) -> int:
     if history:
         history.pop()  # the newest surface is the state itself
     write_pose(model, state, out, size=size, view=args.view, history=list(history))
-    print(f"pose: {len(model.rest)} vertices, {seconds:.2f} s simulated, wrote {out}")
+    from puppet.export.scan import scan_dressing
+
+    dressing = scan_dressing(model) if suffix in (".npz", ".obj") else None
+    what = f"{len(model.rest)} vertices" if dressing is None else \
+        f"{len(model.rest)} simulated skin vertices posing the scan's {len(dressing.rest)}"
+    print(f"pose: {what}, {seconds:.2f} s simulated, wrote {out}")
     return 0
 
 

@@ -126,9 +126,11 @@ def run(args: argparse.Namespace) -> int:
                 print(f"puppet: skipped {why}", file=sys.stderr)
             if len(rep.skipped) > 5:
                 print(f"puppet: ... and {len(rep.skipped) - 5} more files skipped", file=sys.stderr)
-            print(f"puppet: registered {len(rep.registered)} takes from {args.folder}"
+            n = len(rep.registered)
+            print(f"puppet: registered {n} take{'' if n == 1 else 's'} from {args.folder}"
                   + (f" ({len(rep.skipped)} files were not recordings)" if rep.skipped else "")
-                  + "; `puppet takes check` adds their thumbnails and expression spans")
+                  + (f"; {len(rep.known)} already in the library, unchanged" if rep.known else "")
+                  + ("; `puppet takes check` adds their thumbnails and expression spans" if n else ""))
         elif act == "check":
             rep = check(lib, [Path(r) for r in args.roots], analyse=not args.no_analyse,
                         progress=lambda s: print(f"puppet: {s}", file=sys.stderr))

@@ -51,3 +51,17 @@ def test_a_command_module_loads_only_when_its_command_runs() -> None:
     help_all = subprocess.run([sys.executable, "-m", "puppet", "--help"], capture_output=True, text=True, check=True)
     for word in ("live", "batch", "monitor", "import-face", "takes"):
         assert word in help_all.stdout
+
+
+def test_a_mistyped_face_is_the_only_line(tmp_path) -> None:
+    """`puppet live --face ...` with no box and no display: the face is wrong, so the demo is not
+    announced first; one line, exit 2 (the same for a damaged saved identity)."""
+    import os
+
+    env = dict(os.environ, PUPPET_DATA_DIR=str(tmp_path), PUPPET_LIBRARY="off")
+    env.pop("DISPLAY", None)
+    (tmp_path / "broken.json").write_text("{bad")
+    for face in ("ict?identity=abc", "nosuch", "broken"):
+        r = subprocess.run([sys.executable, "-m", "puppet", "live", "--headless", "--duration", "1", "--face", face],
+                           capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
+        assert r.returncode == 2 and r.stderr.count("\n") == 1 and "demo" not in r.stderr, (face, r.stderr)

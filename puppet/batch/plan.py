@@ -60,8 +60,10 @@ def select(selection: list[str], library: str | None, suffixes: tuple[str, ...])
         query = " ".join(words)
         with open_library(library) as lib:
             found = lib.search(query)
+            where = lib.path
         if not found:
-            raise PuppetError(f"no file, folder or take in the library matches {query!r:.100}")
+            raise PuppetError(f"no file, folder or take in the library {where} matches {query!r:.100} "
+                              "(another library: --library PATH)")
         for t in found:
             if t["missing"]:
                 raise PuppetError(f"take {t['id']} ({t['path']}) is missing; `puppet takes check` looks for it")

@@ -154,9 +154,14 @@ def run(action: str, selection: list[str], out_dir: Path, *, kinds: list[str] | 
     opts = opts or {}
     rep = Report()
     if not out_dir.is_dir():
+        if out_dir.exists():
+            raise PuppetError(f"--out {out_dir}: a file, not a folder; name a folder for the outputs")
         if not out_dir.parent.is_dir():
             raise PuppetError(f"{out_dir}: neither it nor its parent folder exists")
-        out_dir.mkdir(exist_ok=True)
+        try:
+            out_dir.mkdir(exist_ok=True)
+        except OSError as err:
+            raise PuppetError(f"--out {out_dir}: cannot create the folder ({err.strerror})") from err
     outs = plan(action, selection, kinds or [], opts, library)
     todo = []
     for o in outs:

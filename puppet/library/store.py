@@ -156,8 +156,8 @@ class Library:
         performer: dict[str, str] = {}
         for r in recs:
             if r["op"] in ("take", "moved") and isinstance(r.get("path"), str) and isinstance(r.get("hash"), str):
-                where.pop(r["hash"], None)  # keeps the order of the latest mention
-                where[r["hash"]] = r["path"]
+                where[r["hash"]] = r["path"]  # the latest place, in the order of the first mention: the
+                # takes get their ids back in the order they were registered
             if r["op"] == "take" and isinstance(r.get("performer"), str) and isinstance(r.get("hash"), str):
                 performer[r["hash"]] = r["performer"]
         paths = list(dict.fromkeys(where.values()))
@@ -359,6 +359,9 @@ class Library:
             elif key in ("expression", "expr"):
                 where.append("EXISTS (SELECT 1 FROM spans s WHERE s.take_id = t.id AND s.expression = lower(?))")
                 params.append(val)
+            elif key in ("date", "after", "before") and not _date_prefix(val):
+                raise PuppetError(f"query {tok!r:.80}: a date is YYYY-MM-DD or the start of one "
+                                  f"({key}:2026-12-03, {key}:2026-12)")
             elif key == "date":
                 where.append("substr(t.recorded, 1, length(?)) = ?")
                 params += [val, val]
@@ -388,6 +391,22 @@ class Library:
         except sqlite3.OperationalError as err:
             raise PuppetError(f"cannot search for {query!r:.80}: {err}") from err
         return [self.get(i) for i in ids]
+
+
+def _date_prefix(text: str) -> bool:
+    """`2026`, `2026-12`, `2026-12-03` (a real day), or that followed by a time (T10, T10:15, ...)."""
+    import re
+    from datetime import date
+
+    m = re.fullmatch(r"(\d{4})(?:-(\d{2})(?:-(\d{2})(?:[T ]\d{2}(?::\d{2}(?::\d{2}(?:\.\d+)?)?)?)?)?)?", text)
+    if m is None:
+        return False
+    y, mo, d = int(m[1]), int(m[2] or 1), int(m[3] or 1)
+    try:
+        date(y, mo, d)
+    except ValueError:
+        return False
+    return True
 
 
 def find_by_hash(digest: str, size: int, roots: Iterable[Path], limit: int = 200_000) -> str | None:

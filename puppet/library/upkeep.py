@@ -23,6 +23,7 @@ THUMB_SIZE = (256, 144)
 class ImportReport:
     registered: list[int] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)  # "FILE: why"
+    known: list[int] = field(default_factory=list)  # already registered there, unchanged
 
 
 def import_folder(lib: Library, folder: str | Path, performer: str | None = None) -> ImportReport:
@@ -34,6 +35,11 @@ def import_folder(lib: Library, folder: str | Path, performer: str | None = None
     files = sorted(p for p in root.rglob("*.jsonl") if not any(part.startswith(".") for part in p.relative_to(root).parts))
     for p in files:
         try:
+            row = lib.con.execute("SELECT id, hash, size FROM takes WHERE path = ? AND missing = 0",
+                                  (str(p.resolve()),)).fetchone()
+            if row is not None and performer is None and p.stat().st_size == row[2] and file_hash(p)[0] == row[1]:
+                rep.known.append(int(row[0]))  # nothing new: no second registration in the journal
+                continue
             rep.registered.append(lib.register(p, performer=performer))
         except (ConfigError, PuppetError) as err:
             rep.skipped.append(str(err))

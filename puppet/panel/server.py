@@ -114,6 +114,11 @@ class PanelServer:
             loop.run_until_complete(self._bind())
         except BaseException as err:  # noqa: BLE001 - reported to start()
             self._error = err
+            try:  # the app's startup tasks (the page's broadcast) end with it, silently
+                if self._runner is not None:
+                    loop.run_until_complete(self._runner.cleanup())
+            except Exception:  # noqa: BLE001 - the bind error is what start() reports
+                pass
             self._ready.set()
             loop.close()
             return

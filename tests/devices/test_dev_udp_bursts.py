@@ -71,3 +71,30 @@ def test_a_flood_is_counted_from_the_kernel_and_every_datagram_accounted_for() -
         assert dev.datagrams + dev.drops - first == n
     finally:
         dev.close()
+
+
+def test_what_waited_before_the_reader_started_is_a_backlog_not_a_flood() -> None:
+    """A phone streams while a cold show prepares its face (the device is open, nobody reads):
+    when the reader starts, the queued datagrams are read at once without the flood warning and
+    none is thrown away; a flood after that is still bounded by max_rate."""
+    n = 1000
+    dev = devices.open_device("livelink://127.0.0.1:0?max_rate=1000")  # 100 a window of 0.1 s
+    try:
+        from devices.facestream.livelink import encode_frame
+
+        port = dev.bound[1]  # type: ignore[attr-defined]
+        tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        for i in range(n):
+            tx.sendto(encode_frame({"jawOpen": i / n}, frame=i), ("127.0.0.1", port))
+        _read_all(dev, n)
+        assert (dev.datagrams, dev.drops) == (n, 0)
+        assert dev.warnings.counts["flood"] == 0
+        for i in range(20 * n):  # then far more than 1000 a second: bounded
+            tx.sendto(encode_frame({"jawOpen": 0.5}, frame=i), ("127.0.0.1", port))
+        tx.close()
+        deadline = time.monotonic() + WAIT
+        while dev.warnings.counts["flood"] == 0 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert dev.warnings.counts["flood"] > 0
+    finally:
+        dev.close()

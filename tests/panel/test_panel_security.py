@@ -201,6 +201,26 @@ def test_edit_command_errors_are_one_line(tmp_path: Path) -> None:
         assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
 
 
+def test_a_page_port_in_use_is_one_line(tmp_path: Path) -> None:
+    """Another program holds the page's port: one line and exit 2, no asyncio complaint about the
+    page's broadcast task after it."""
+    import socket
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT), PUPPET_LIBRARY="off")
+    env.pop("DISPLAY", None)
+    script = tmp_path / "s.toml"
+    script.write_text('impersonate = "sgi"\nduration = 1.0\n')
+    with socket.socket() as holder:
+        holder.bind(("127.0.0.1", 0))
+        holder.listen()
+        port = holder.getsockname()[1]
+        r = subprocess.run([sys.executable, "-m", "puppet", "live", "--headless", "--device", f"mock://{script}",
+                            "--duration", "1", "--panel", str(port)],
+                           capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.count("\n") == 1 and "in use" in r.stderr, r.stderr
+
+
 def test_lan_url_is_printed_with_a_qr_code(lan_page) -> None:
     import io
 

@@ -56,11 +56,13 @@ def test_pc2_and_obj_carry_the_scan(tmp_path: Path, face: live.Face) -> None:
     assert moved[:9409].max() > 0.1 and moved[9409:11248].max() < moved[:9409].max()  # the face moved
 
 
-def test_pose_obj_is_the_posed_scan(tmp_path: Path) -> None:
+def test_pose_obj_is_the_posed_scan(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     from puppet.cli import main
 
     out = tmp_path / "smile.obj"
     assert main(["pose", "--face", "ict", "--expression", "happiness", "--seconds", "0.3", "--out", str(out)]) == 0
+    said = capsys.readouterr().out  # the count it names is the file's, not only the simulated skin's
+    assert f"the scan's {N_VERTICES}" in said, said
     verts, faces = _obj(out)
     d = scan_data()
     assert verts.shape == (N_VERTICES, 3) and len(faces) == len(d.faces)

@@ -38,6 +38,20 @@ def replay_out(take: Path, out: Path, *extra: str) -> bytes:
     return out.read_bytes()
 
 
+def test_a_bad_scheduler_address_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """Checked before anything runs: Dask's parser raised a traceback on `foo`, and a batch with
+    every output up to date never connected, so `tcp://HOST:notaport` passed unnoticed."""
+    take = tmp_path / "a.jsonl"
+    write_take(take, seed=1)
+    out = tmp_path / "out"
+    assert main(["batch", "export", str(take), "--out", str(out), "--to", "csv", "--workers", "1"]) == 0
+    capsys.readouterr()
+    for bad in ("foo", "tcp://127.0.0.1", "tcp://127.0.0.1:notaport", "http://127.0.0.1:8786"):
+        assert main(["batch", "export", str(take), "--out", str(out), "--to", "csv", "--scheduler", bad]) == 2
+        _, err = capsys.readouterr()
+        assert err.count("\n") == 1 and "tcp://HOST:PORT" in err, (bad, err)
+
+
 def test_export_through_the_farm_equals_replay(farm: Farm, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     shoot = tmp_path / "shoot"
     takes = [write_take(shoot / f"take{k}.jsonl", ticks=30 + 15 * k, seed=k, performer="ana") for k in range(3)]
@@ -369,3 +383,25 @@ def test_half_written_outputs_are_removed_and_nothing_else(tmp_path: Path) -> No
         (tmp_path / name).write_bytes(b"half")
     _remove_parts(tmp_path, todo)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(kept + [o.name for o in todo])
+
+
+def test_a_query_matching_nothing_names_the_library(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """Recordings go to the library of the show that made them: a query that finds nothing says
+    which library it searched, so a user looking in the wrong one sees it."""
+    lib = tmp_path / "mine.db"
+    write_take(tmp_path / "a.jsonl", seed=1, performer="ana")
+    assert main(["takes", "import", str(tmp_path), "--library", str(lib)]) == 0
+    capsys.readouterr()
+    assert main(["batch", "export", "performer:bob", "--library", str(lib), "--out", str(tmp_path / "o")]) == 2
+    _, err = capsys.readouterr()
+    assert err.count("\n") == 1 and str(lib) in err and "performer:bob" in err, err
+
+
+def test_out_naming_a_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    take = tmp_path / "a.jsonl"
+    write_take(take, seed=1)
+    (tmp_path / "renders").write_text("a file where the folder should be\n")
+    out = tmp_path / "renders"
+    assert main(["batch", "export", str(take), "--out", str(out), "--to", "csv", "--workers", "1"]) == 2
+    _, err = capsys.readouterr()
+    assert err.count("\n") == 1 and "not a folder" in err, err

@@ -57,6 +57,9 @@ def test_import_search_tag_note_show(folder: Path, tmp_path: Path, capsys: pytes
     assert ids("performer:ana") == ["ana_brow.jsonl", "ana_smile.jsonl"]
     assert ids("date:2026-12-03") == ["bob_jaw.jsonl"]
     assert ids("after:2026-12-02") == ["ana_brow.jsonl", "bob_jaw.jsonl"]
+    for bad in ("date:2026-13", "after:yesterday", "before:2026-02-30"):  # not "no takes": say why
+        code, out, err = takes_cli(capsys, lib, "search", bad)
+        assert code == 2 and err.count("\n") == 1 and bad in err and "YYYY-MM-DD" in err, (bad, err)
     assert ids("smil") == ["ana_smile.jsonl"]  # a word's start matches the name
     assert ids("good") == ["ana_smile.jsonl"]  # marker labels are searched
     assert takes_cli(capsys, lib, "tag", str(smile["id"]), "Keeper")[0] == 0
@@ -195,6 +198,33 @@ def test_damaged_library_is_one_line_and_rebuilt(folder: Path, tmp_path: Path,
             # the rebuilt file is whole: a second run says nothing
             assert takes_cli(capsys, d / "takes.db", "list")[2] == "", name
     assert rebuilt >= 8
+
+
+def test_reimport_adds_nothing_and_a_rebuild_keeps_the_ids(folder: Path, tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture) -> None:
+    """Importing a folder again registers nothing twice and says so; a take registered again (a
+    show continuing it) keeps its id, and so does every take when a damaged library is rebuilt:
+    `puppet takes show 2` is the same take before and after."""
+    lib = tmp_path / "lib" / "takes.db"
+    assert "registered 3 takes" in takes_cli(capsys, lib, "import", str(folder))[1]
+    journal = (lib.parent / "takes.db.journal").read_bytes()
+    code, out, _ = takes_cli(capsys, lib, "import", str(folder))
+    assert code == 0 and "registered 0 takes" in out and "3 already in the library" in out
+    assert (lib.parent / "takes.db.journal").read_bytes() == journal
+    write_take(folder / "later.jsonl", seed=4, performer="cy", start_time="2026-12-04T10:00:00.000+00:00")
+    code, out, _ = takes_cli(capsys, lib, "import", str(folder))
+    assert "registered 1 take from" in out and "3 already" in out
+    first = min(json.loads(takes_cli(capsys, lib, "list", "--json")[1]), key=lambda r: r["id"])
+    with Library(lib) as store:
+        store.register(first["path"])
+    before = {r["path"]: r["id"] for r in json.loads(takes_cli(capsys, lib, "list", "--json")[1])}
+    assert sorted(before.values()) == [1, 2, 3, 4]
+    lib.write_bytes(b"not a database" * 100)
+    for extra in lib.parent.glob("takes.db-*"):
+        extra.unlink()
+    code, out, err = takes_cli(capsys, lib, "list", "--json")
+    assert code == 0 and "damaged" in err
+    assert {r["path"]: r["id"] for r in json.loads(out)} == before
 
 
 def test_live_recording_is_registered(tmp_path: Path) -> None:

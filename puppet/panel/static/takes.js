@@ -74,7 +74,7 @@
       list.replaceChildren();
       if (!j.ok) { say(j.error); return; }
       j.takes.forEach((t) => list.appendChild(item(t)));
-      say(j.takes.length ? `${j.takes.length} takes` : "no takes");
+      say(j.takes.length ? `${j.takes.length} take${j.takes.length === 1 ? "" : "s"}` : "no takes");
     }).catch(() => say("the take library cannot be read"));
   }
 
