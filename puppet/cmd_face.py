@@ -1,6 +1,6 @@
 """``puppet face``: the scanned head's saved identities (characters).
 
-    puppet face save NAME --identity SEED|w1,w2,...   save (or replace) an identity; use it with --face NAME
+    puppet face save NAME --identity SEED|w1,w2,... [--replace]   save an identity; use it with --face NAME
     puppet face list [--json]                        the saved identities
 """
 
@@ -23,6 +23,8 @@ def register(subparsers: Any) -> None:
     s.add_argument("name", metavar="NAME")
     s.add_argument("--identity", required=True, metavar="SEED|w1,w2,...",
                    help="a seed (weights drawn from N(0, 1), reproducible) or up to 100 weights")
+    s.add_argument("--replace", action="store_true",
+                   help="replace a saved identity of that name with other weights (else it is kept and this says so)")
     s.set_defaults(func=_save)
     ls = sub.add_parser("list", help="the saved identities")
     ls.add_argument("--json", action="store_true", help="machine-readable output")
@@ -37,6 +39,17 @@ def _save(args: argparse.Namespace) -> int:
         weights, seed = parse_identity(args.identity)
     except ValueError as err:
         raise PuppetError(str(err)) from err
+    from puppet.faces import identity_path, read_identity
+
+    old = identity_path(args.name)
+    if old.exists() and not args.replace:
+        try:
+            same = read_identity(old)[1:] == (tuple(weights), seed)
+        except Exception:  # an unreadable file of that name is not silently replaced either
+            same = False
+        if not same:
+            raise PuppetError(f"an identity named {args.name} is already saved ({old}) with other weights: "
+                              "add --replace to replace it, or choose another name")
     path = save_identity(args.name, weights, seed)
     print(f"saved identity {args.name} to {path}; use it with --face {args.name}")
     return 0

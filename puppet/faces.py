@@ -142,7 +142,7 @@ def data_dir() -> Path:
     return Path(base) / "facepuppet" / "identities"
 
 
-def _path(name: str) -> Path:
+def identity_path(name: str) -> Path:
     if not NAME_RE.match(name) or name in KINDS:
         raise PuppetError(f"identity name {name!r}: use a letter then letters, digits, - or _ (at most 64), "
                           f"not {' or '.join(KINDS)}")
@@ -155,7 +155,7 @@ def save_identity(name: str, weights: tuple[float, ...], seed: int | None = None
 
     from safefile import atomic_write
 
-    path = _path(name)
+    path = identity_path(name)
     body = {"format": FORMAT, "version": VERSION, "name": name, "seed": seed,
             "identity": [float(x) for x in weights]}
     try:
@@ -190,7 +190,7 @@ def read_identity(path: Path) -> tuple[str, tuple[float, ...], int | None]:
 
 def load_identity(name: str) -> tuple[float, ...]:
     """The weights of a saved identity; PuppetError if there is none of that name."""
-    path = _path(name)
+    path = identity_path(name)
     if not path.is_file():
         raise PuppetError(f"--face {name}: no saved identity of that name in {path.parent} (expected {FORMS}; "
                           "`puppet face list` shows the saved ones)")

@@ -59,6 +59,14 @@ def test_saved_identity_round_trip(tmp_path: Path, monkeypatch: pytest.MonkeyPat
     assert err.count("\n") == 1 and "bad.json" in err and not (tmp_path / "p.npz").exists()
     assert main(["face", "save", "bob", "--identity", "1,2,x"]) == 2  # a bad --identity changes nothing
     assert faces.parse_face("bob") == bob
+    # a saved character is never replaced by accident: other weights under its name need --replace
+    capsys.readouterr()
+    assert main(["face", "save", "bob", "--identity", "8"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--replace" in err and faces.parse_face("bob") == bob
+    assert main(["face", "save", "bob", "--identity", "7"]) == 0  # the same again: nothing lost, no fuss
+    assert main(["face", "save", "bob", "--identity", "8", "--replace"]) == 0
+    assert faces.parse_face("bob").identity == faces.parse_face("ict?identity=8").identity
 
 
 def _record(tmp_path: Path, face: live.Face, name: str) -> tuple[Path, list[bytes]]:
