@@ -36,8 +36,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     s = sub.add_parser("note", parents=[common], help="set a take's note")
     s.add_argument("id", type=int, metavar="ID")
     s.add_argument("text", metavar="TEXT")
-    s = sub.add_parser("import", parents=[common], help="register every recording under a folder")
-    s.add_argument("folder", metavar="FOLDER")
+    s = sub.add_parser("import", parents=[common], help="register every recording under a folder (or one recording)")
+    s.add_argument("folder", metavar="FOLDER|FILE")
     s.add_argument("--performer", metavar="NAME", help="performer of takes that do not name one")
     s = sub.add_parser("check", parents=[common],
                        help="find moved or deleted takes; add thumbnails and expression spans")
@@ -132,6 +132,9 @@ def run(args: argparse.Namespace) -> int:
                   + (f"; {len(rep.known)} already in the library, unchanged" if rep.known else "")
                   + ("; `puppet takes check` adds their thumbnails and expression spans" if n else ""))
         elif act == "check":
+            for r in args.roots:
+                if not Path(r).is_dir():
+                    raise PuppetError(f"{r}: not a folder (--in names a folder to look for moved takes in)")
             rep = check(lib, [Path(r) for r in args.roots], analyse=not args.no_analyse,
                         progress=lambda s: print(f"puppet: {s}", file=sys.stderr))
             for i, where in rep.found:

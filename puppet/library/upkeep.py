@@ -27,12 +27,17 @@ class ImportReport:
 
 
 def import_folder(lib: Library, folder: str | Path, performer: str | None = None) -> ImportReport:
-    """Register every recording (`*.jsonl`) under `folder`; other files are skipped with the reason."""
+    """Register every recording (`*.jsonl`) under `folder` (or the one recording `folder` names);
+    other files are skipped with the reason."""
     root = Path(folder)
-    if not root.is_dir():
-        raise PuppetError(f"{folder}: not a folder")
+    if root.is_file():
+        files = [root]
+    elif root.is_dir():
+        files = sorted(p for p in root.rglob("*.jsonl")
+                       if not any(part.startswith(".") for part in p.relative_to(root).parts))
+    else:
+        raise PuppetError(f"{folder}: no such folder or recording")
     rep = ImportReport()
-    files = sorted(p for p in root.rglob("*.jsonl") if not any(part.startswith(".") for part in p.relative_to(root).parts))
     for p in files:
         try:
             row = lib.con.execute("SELECT id, hash, size FROM takes WHERE path = ? AND missing = 0",

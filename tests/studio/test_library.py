@@ -105,6 +105,20 @@ def test_check_finds_moved_takes_and_marks_deleted(folder: Path, tmp_path: Path,
     assert paths == {"renamed.jsonl": 0, "ana_brow.jsonl": 1, "bob_jaw.jsonl": 0}
     assert [Path(r["path"]).name for r in json.loads(takes_cli(capsys, lib, "search", "missing:yes", "--json")[1])] \
         == ["ana_brow.jsonl"]
+    # --in naming no folder is one line, exit 2 (not a check that silently looked nowhere)
+    code, out, err = takes_cli(capsys, lib, "check", "--no-analyse", "--in", str(tmp_path / "no-such"))
+    assert code == 2 and err.count("\n") == 1 and "no-such: not a folder" in err
+
+
+def test_import_one_recording(folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    lib = tmp_path / "takes.db"
+    code, out, _ = takes_cli(capsys, lib, "import", str(folder / "day2" / "bob_jaw.jsonl"))
+    assert code == 0 and "registered 1 take " in out
+    assert [Path(r["path"]).name for r in json.loads(takes_cli(capsys, lib, "list", "--json")[1])] == ["bob_jaw.jsonl"]
+    code, _, err = takes_cli(capsys, lib, "import", str(folder / "notes.jsonl"))  # not a recording: said why
+    assert code == 0 and "notes.jsonl" in err
+    code, _, err = takes_cli(capsys, lib, "import", str(tmp_path / "gone.jsonl"))
+    assert code == 2 and "no such folder or recording" in err
 
 
 WRITER = """
