@@ -349,7 +349,7 @@ def _rest_openings(new: _Head, ref: FaceMesh) -> list[str]:
         if loop is None or not any(loop is c for c in new.cut):
             continue
         ratio = _gap_ratio(ref, f"upper_lid_{side}", f"lower_lid_{side}", f"eye_outer_{side}", f"eye_inner_{side}")
-        new.vertices = open_lids(new.vertices, loop, ratio, UP)
+        new.vertices = open_lids(new.vertices, loop, ratio, UP, new.triangles)
         notes.append(f"the lids of eye_{side} were shut; they were parted at rest by the reference's opening")
     if notes:  # landmarks given as points keep their place on the skin: they move as their vertex
         for n in new.landmarks:
