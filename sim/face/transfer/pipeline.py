@@ -301,6 +301,10 @@ def transfer_rig(
         mesh, closed = rest_lips(mesh, ref)
         opened += closed
     cavity = inside & hidden_under(chart_new, new.vertices, new.triangles, uv_new, keep, CAVITY_DEPTH * radius)
+    if opt.seat_eyes and cavity.any():  # skin the seated lids uncover (a shut lid's margin) is not lining
+        uv_seated, _, keep_seated = flat_triangulation(chart_new, mesh.vertices, new.triangles)
+        cavity &= hidden_under(chart_new, mesh.vertices, new.triangles, uv_seated, keep_seated,
+                               CAVITY_DEPTH * radius)
     if cavity.any():  # the head's own lining of the mouth, sockets, nostrils: drawn dark
         mesh.regions["cavity"] = cavity
     muscles = {ch: _carry(smap, parts, opt) for ch, parts in reference.muscles.items()}
