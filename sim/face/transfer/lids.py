@@ -15,6 +15,7 @@ IntArray = np.ndarray
 UPPER_SHARE = 0.75  # of the opening made by the upper lid (it moves most in a real blink)
 REACH_UP = 0.55  # how far above the lid line (of the eye's width) the skin follows the upper lid
 REACH_DOWN = 0.3  # and below it, the lower lid
+SIDE_REACH = 2.0  # of the width: how far along the skin `lid_sides` tells the lids apart
 DEPTH = 0.5  # skin further than this (of the eye's width) in front of or behind the lid line stays
 
 
@@ -28,13 +29,38 @@ def slit_sides(loop: IntArray) -> tuple[IntArray, IntArray]:
     return path, lower
 
 
+def lid_sides(vertices: FloatArray, triangles: IntArray, upper: IntArray, lower: IntArray) -> np.ndarray:
+    """(N,) bool: the vertices nearer, along the mesh's edges, to the upper chain's inner vertices
+    than to the lower's, within SIDE_REACH x the opening's width of them; the rest False. A thick
+    lid's front can hang below the rims' middle (the scanned head's upper lid, blinked, reaches
+    down over its own margin to the lower lid's): by height such skin would be taken for the lower
+    lid's and torn from its own when the lids part."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    v = np.asarray(vertices, float)
+    t = np.asarray(triangles, dtype=np.int64)
+    upper, lower = np.asarray(upper, dtype=np.int64), np.asarray(lower, dtype=np.int64)
+    e = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    w = np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1)
+    graph = coo_matrix((w, (e[:, 0], e[:, 1])), shape=(len(v), len(v))).tocsr()
+    limit = SIDE_REACH * float(np.linalg.norm(v[upper[-1]] - v[upper[0]]))
+    to_upper = dijkstra(graph, directed=False, indices=upper[1:-1], min_only=True, limit=limit)
+    to_lower = dijkstra(graph, directed=False, indices=lower[1:-1], min_only=True, limit=limit)
+    return np.isfinite(to_upper) & (to_upper < to_lower)
+
+
 def set_gap(vertices: FloatArray, upper: IntArray, lower: IntArray, gap: float, up: FloatArray,
-            upper_share: float = UPPER_SHARE) -> FloatArray:
+            upper_share: float = UPPER_SHARE, upper_side: np.ndarray | None = None) -> FloatArray:
     """The vertices with the opening between two chains (corner to corner, both from the same
     corner) made `gap` wide at the middle: a shut line opens along a sine that is nothing at the
     corners; an open one keeps its shape, scaled. The upper chain takes `upper_share` of the
     change, the lower the rest, and the skin within REACH_UP / REACH_DOWN of the eye's (mouth's)
-    width above (below) follows smoothly; nothing beyond the corners or far in depth moves."""
+    width above (below) follows smoothly; nothing beyond the corners or far in depth moves. Which
+    lid a vertex follows: `upper_side` (N,) bool (`lid_sides`) when given, else whether it lies
+    above the middle between the chains; a vertex of one lid lying beyond the other's chain
+    (skin hanging over the opening) follows less the further it lies beyond, over the other
+    side's reach."""
     v = np.asarray(vertices, float).copy()
     upper, lower = np.asarray(upper, dtype=np.int64), np.asarray(lower, dtype=np.int64)
     a, b = v[upper[0]], v[upper[-1]]
@@ -63,21 +89,35 @@ def set_gap(vertices: FloatArray, upper: IntArray, lower: IntArray, gap: float, 
     near = inside & (np.abs(depth) < DEPTH * width)
     centre = 0.5 * (top + bottom)
     move = np.zeros(len(v))
-    above = near & (h >= centre)
-    below = near & (h < centre)
+    high = h >= centre if upper_side is None else np.asarray(upper_side, bool)
+    above = near & high
+    below = near & ~high
     over = np.clip(h - top, 0.0, None) / (REACH_UP * width)
     under = np.clip(bottom - h, 0.0, None) / (REACH_DOWN * width)
-    move[above] = upper_share * np.clip(1.0 - over[above], 0.0, 1.0) ** 2
-    move[below] = -(1.0 - upper_share) * np.clip(1.0 - under[below], 0.0, 1.0) ** 2
+    move[above] = upper_share * (np.clip(1.0 - over[above], 0.0, 1.0) * np.clip(1.0 - under[above], 0.0, 1.0)) ** 2
+    move[below] = -(1.0 - upper_share) * (np.clip(1.0 - under[below], 0.0, 1.0) * np.clip(1.0 - over[below], 0.0, 1.0)) ** 2
     move[upper[1:-1]] = upper_share
     move[lower[1:-1]] = -(1.0 - upper_share)
     move[[upper[0], upper[-1]]] = 0.0
     return v + (move * change)[:, None] * up
 
 
-def open_lids(vertices: FloatArray, loop: IntArray, ratio: float, up: FloatArray) -> FloatArray:
+def open_lids(vertices: FloatArray, loop: IntArray, ratio: float, up: FloatArray,
+              triangles: IntArray | None = None) -> FloatArray:
     """The vertices with the lids of one cut eye (`openings.cut_slit`'s loop) parted by `ratio` x
-    the eye's width at the middle, tapering to nothing at the corners."""
+    the eye's width at the middle, tapering to nothing at the corners; with `triangles`, each
+    vertex follows the lid it belongs to along the skin (`lid_sides`), else the one it lies on the
+    side of, and the margin whose skin lies higher is the upper one, whichever side of the cut
+    holds the copies."""
     path, lower = slit_sides(loop)
     width = float(np.linalg.norm(vertices[path[-1]] - vertices[path[0]]))
-    return set_gap(vertices, path, lower, ratio * width, up)
+    sides = None
+    if triangles is not None:
+        sides = lid_sides(vertices, triangles, path, lower)
+        other = lid_sides(vertices, triangles, lower, path)
+        h = np.asarray(vertices, float) @ np.asarray(up, float)
+        if sides.any() and other.any() and h[sides].mean() < h[other].mean():
+            # the cut gave the path's copies to the upper lid's skin (a lid line that winds along a
+            # scan's edges can start on either side): the copies are the upper margin
+            path, lower, sides = lower, path, other
+    return set_gap(vertices, path, lower, ratio * width, up, upper_side=sides)

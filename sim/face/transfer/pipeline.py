@@ -301,6 +301,10 @@ def transfer_rig(
         mesh, closed = rest_lips(mesh, ref)
         opened += closed
     cavity = inside & hidden_under(chart_new, new.vertices, new.triangles, uv_new, keep, CAVITY_DEPTH * radius)
+    if opt.seat_eyes and cavity.any():  # skin the seated lids uncover (a shut lid's margin) is not lining
+        uv_seated, _, keep_seated = flat_triangulation(chart_new, mesh.vertices, new.triangles)
+        cavity &= hidden_under(chart_new, mesh.vertices, new.triangles, uv_seated, keep_seated,
+                               CAVITY_DEPTH * radius)
     if cavity.any():  # the head's own lining of the mouth, sockets, nostrils: drawn dark
         mesh.regions["cavity"] = cavity
     muscles = {ch: _carry(smap, parts, opt) for ch, parts in reference.muscles.items()}
@@ -349,7 +353,7 @@ def _rest_openings(new: _Head, ref: FaceMesh) -> list[str]:
         if loop is None or not any(loop is c for c in new.cut):
             continue
         ratio = _gap_ratio(ref, f"upper_lid_{side}", f"lower_lid_{side}", f"eye_outer_{side}", f"eye_inner_{side}")
-        new.vertices = open_lids(new.vertices, loop, ratio, UP)
+        new.vertices = open_lids(new.vertices, loop, ratio, UP, new.triangles)
         notes.append(f"the lids of eye_{side} were shut; they were parted at rest by the reference's opening")
     if notes:  # landmarks given as points keep their place on the skin: they move as their vertex
         for n in new.landmarks:
