@@ -362,13 +362,13 @@ def scan_model(weights: Any = None, bound_forehead: bool = True) -> Any:
     import numpy as np
 
     from sim.build import compile_model
-    from sim.face.scan.rig import scan_params, scan_rig
+    from sim.face.scan.rig import THIN_FOREHEAD_KEY, scan_params, scan_rig
 
     use_stepper_store()
     w = None if weights is None else np.asarray(weights, dtype=np.float64).ravel()
     what = b"scan-face:ict:" + (b"generic" if w is None else hashlib.sha256(w.tobytes()).digest())
     if not bound_forehead:
-        what += b":thin forehead"
+        what += THIN_FOREHEAD_KEY
     return cached_model(what, lambda: compile_model(scan_rig(w), scan_params(bound_forehead)))
 
 

@@ -104,7 +104,7 @@ def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None
     if rig_path:
         try:
             from sim.build import compile_model
-            from sim.face.scan.rig import is_scan_rig, scan_params
+            from sim.face.scan.rig import THIN_FOREHEAD_KEY, is_scan_rig, scan_params
             from sim.rig import load_model, load_rig
 
             rig = load_rig(rig_path)
@@ -113,7 +113,7 @@ def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None
             scan = is_scan_rig(rig)
             params = scan_params(bound_forehead)
             build = (lambda: compile_model(rig, params)) if scan else (lambda: load_model(rig_path))
-            variant = b":thin forehead" if scan and not bound_forehead else b""
+            variant = THIN_FOREHEAD_KEY if scan and not bound_forehead else b""
             model = face_cache.rig_model(rig, Path(rig_path).read_bytes(), build, variant)
         except FileNotFoundError as err:
             raise ConfigError(f"{rig_path}: rig file not found") from err

@@ -54,6 +54,10 @@ def scan_params(bound_forehead: bool = True) -> SkinParams:
     """The scanned head's skin parameters: as shipped, or (False) as before the forehead's bound
     layer, for takes recorded then."""
     return SCAN_PARAMS if bound_forehead else SCAN_PARAMS_THIN_FOREHEAD
+
+
+#: what a compiled face's cache key gains when it is built with `scan_params(False)`
+THIN_FOREHEAD_KEY = b":thin forehead"
 FORCE = 1.6
 # the orbital sphincter (AU6) folds the skin round the eye first; the lid strips need twice the
 # force to close the scan's lids over its cornea (AU45: 7-11.5 mm; sim.face.scan.lids sets the
@@ -211,7 +215,7 @@ def scan_model(weights: np.ndarray | None = None, bound_forehead: bool = True): 
     from sim.build import compile_model
 
     w = None if weights is None else np.asarray(weights, dtype=np.float64).ravel()
-    key = (b"generic" if w is None else w.tobytes()) + (b"" if bound_forehead else b":thin forehead")
+    key = (b"generic" if w is None else w.tobytes()) + (b"" if bound_forehead else THIN_FOREHEAD_KEY)
     if key not in _MODELS:
         if len(_MODELS) >= 4:
             _MODELS.pop(next(iter(_MODELS)))
