@@ -45,6 +45,21 @@ def dressing_of(model: Any) -> Any:
     return dressing_for(model)
 
 
+def sealed_vertices(dressing: Any) -> np.ndarray | None:
+    """(26719,) bool the teeth and gums as the face's dressing poses them (rigid with the skull or
+    the jaw, behind the lips: tests/sim/test_scan_face.py), not the tongue, which `tongue_out`
+    puts out between the lips; None for a dressing that does not say where its tongue is."""
+    tongue = getattr(dressing, "tongue_idx", None)
+    if tongue is None:
+        return None
+    from sim.face.scan.data import N_VERTICES, PARTS
+
+    out = np.zeros(N_VERTICES, bool)
+    out[PARTS["gums_tongue"][0]:PARTS["teeth"][1]] = True  # the two parts lie next to each other
+    out[np.asarray(tongue, np.int64)] = False
+    return out
+
+
 def posed_scan(dressing: Any, softener: FoldSoftener | None, state: Any) -> np.ndarray:
     """The scan as drawn for `state`: posed by the dressing, the upper face's buckles softened
     (render.scan_soften; in the head's own frame, before a head turn), turned with the head."""
@@ -87,7 +102,7 @@ class ScanDraw:
             rest_scan = dressing.pose(np.asarray(rest_state.surface), PoseControl(rest_state))
         self.look = ScanLook(np.asarray(rest_scan, np.float64))
         self.coarse_tri = self.look.coarse_plain()
-        self.maker = ScanRows(self.look, self.coarse_tri)
+        self.maker = ScanRows(self.look, self.coarse_tri, sealed_vertices(dressing))
         self.softener: FoldSoftener | None = FoldSoftener(self.look)  # None: the buckles drawn as simulated
         from render.scan_lod import coarse_plain
 
@@ -127,6 +142,7 @@ class ScanDraw:
         self.kept = self.cull_tri.copy()
         self.counts = self.full.copy()
         self._facing_rows: np.ndarray | None = None  # the rows `kept` was made with
+        self._made_rows: np.ndarray | None = None  # the rows last made here (the lips' test made with them)
         self._ibo_level: bool | None = False  # what the index buffer holds: a listing (None), every triangle of a level
         self._box = np.array([[x, y, z, 1.0] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
         lo, hi = self.bounds()
@@ -148,6 +164,7 @@ class ScanDraw:
         self.cull_unseen = True  # False: keep the triangles that cover no pixel or lie hidden inside the head (the same pixels)
         self.lod = True  # False: the full skin (and lashes) at any size on screen
         self.coarse = False  # this frame's level: the plain skin from the coarse list
+        self._level_key: tuple[bytes, tuple[int, ...], bool] | None = None  # what `coarse` was chosen for
         self.left_out: set[str] = set()  # groups (of CULLED, or "lashes") not drawn: what each costs, measured
 
     def _vao(self, prog: moderngl.Program, bufs: dict[str, tuple[moderngl.Buffer, str]],
@@ -176,6 +193,10 @@ class ScanDraw:
         full plain skin's triangles are small on screen (their median area at the head's nearest
         point at most LOD_MAX_PX2), else the full skin."""
         m = np.asarray(mvp, np.float64)
+        key = (m.tobytes(), tuple(size), self.lod)
+        if key == self._level_key:
+            return self.coarse
+        self._level_key = key
         w = float((self._box @ m[3]).min())
         px_per_cm = 0.5 * size[1] * float(np.linalg.norm(m[1, :3])) / w if w > 1e-6 else np.inf
         self.coarse = bool(self.lod and self._plain_area * px_per_cm**2 <= LOD_MAX_PX2)
@@ -192,12 +213,13 @@ class ScanDraw:
         posed = posed_scan(self.dressing, self.softener, state)
         if eye is None or not self.cull_on_cpu:
             self._facing_rows = None
-            return self._shaded(self.maker.rows(posed))
+            self._made_rows = self._shaded(self.maker.rows(posed))
+            return self._made_rows
         if not self.cull_unseen:
             mvp = None
         group = self.group_coarse if self.coarse else self.group
         rows = self._shaded(self.maker.rows(posed, eye, group, self.starts, self.kept, self.counts, mvp, size))
-        self._facing_rows = rows
+        self._facing_rows = self._made_rows = rows
         return rows
 
     def _shaded(self, rows: np.ndarray) -> np.ndarray:
@@ -230,7 +252,10 @@ class ScanDraw:
     def draw(self, rows: np.ndarray, kind: str, mvp: bytes, view_m: bytes, heat_scale: float) -> None:
         """Draw the posed scan (its rows) in look `kind`."""
         self.vbo.write(rows)
-        self.mouth_drawn = self.look.mouth_open(rows[:, :3])
+        # the lips' test made with these rows (render.scan_rows), else made here
+        self.mouth_drawn = (not self.maker.closed if rows is self._made_rows
+                            else self.look.mouth_open(rows[:, :3]))
+        self._made_rows = None
         self._indices(rows, len(CULLED) if self.mouth_drawn else len(CULLED) - 1)
         self._facing_rows = None
         prog = self.progs[kind]

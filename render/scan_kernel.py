@@ -49,7 +49,8 @@ def _fold(pos: np.ndarray, nbr_ptr: np.ndarray, nbr: np.ndarray, inv_len: np.nda
 
 @numba.njit(cache=True, nogil=True)
 def openings(pos: np.ndarray, loop_ptr: np.ndarray, loops: np.ndarray, clip: np.ndarray, size: np.ndarray,
-             margin: float, planes: np.ndarray, boxes: np.ndarray, hulls: np.ndarray, hull_n: np.ndarray) -> None:
+             margin: float, planes: np.ndarray, boxes: np.ndarray, hulls: np.ndarray, hull_n: np.ndarray,
+             walls: np.ndarray, wall_n: np.ndarray, wall_margin: float) -> None:
     """For each opening h of the skin (the posed vertices loops[loop_ptr[h]:loop_ptr[h + 1]] around it,
     ordered so that their area vector points out of the head): planes[h] = (n, d), n the unit area
     vector and d the least n . x over the loop (a point with n . p < d lies behind every point of
@@ -61,7 +62,11 @@ def openings(pos: np.ndarray, loop_ptr: np.ndarray, loops: np.ndarray, clip: np.
     = 0) when a loop vertex is not in front of the camera. A surface spanning the loop can lie
     within the loop's convex hull in space (a fan from its centroid), whose picture is the convex
     hull of the loop's corners on screen: a point behind the plane and beyond one of these lines
-    is seen, if at all, through the skin, not through the opening."""
+    is seen, if at all, through the skin, not through the opening. walls[h, :wall_n[h]]: the
+    sides (wx, wy, wz, c) of the prism along the plane's normal over the loop's convex hull seen
+    along that normal, each pushed out by `wall_margin` (a point with w . p > c lies outside the
+    prism): the line along the normal through a point beyond a wall misses every surface spanning
+    the loop within its convex hull (see seen_triangles' `sealed`)."""
     margin_x, margin_y = 2.0 * margin / size[0], 2.0 * margin / size[1]
     for h in range(loop_ptr.shape[0] - 1):
         lo, hi = loop_ptr[h], loop_ptr[h + 1]
@@ -102,6 +107,37 @@ def openings(pos: np.ndarray, loop_ptr: np.ndarray, loops: np.ndarray, clip: np.
         boxes[h, 0], boxes[h, 1] = x0 - margin_x, x1 + margin_x
         boxes[h, 2], boxes[h, 3] = y0 - margin_y, y1 + margin_y
         hull_n[h] = 0 if everywhere else _hull(pos, loops[lo:hi], clip, size, margin, hulls[h])
+        if walls.shape[0]:
+            wall_n[h] = _walls(pos, loops[lo:hi], ax, ay, az, wall_margin, walls[h])
+
+
+@numba.njit(cache=True, nogil=True)
+def _walls(pos: np.ndarray, loop: np.ndarray, nx: float, ny: float, nz: float, margin: float,
+           out: np.ndarray) -> int:
+    """The sides of the prism along the unit vector n over the convex hull of the vertices `loop`
+    seen along n, as planes (wx, wy, wz, c), w the unit outward normal, pushed out by `margin`;
+    how many were written (0 when the hull is degenerate)."""
+    if abs(nx) <= abs(ny) and abs(nx) <= abs(nz):  # u: n x the axis least along n
+        ux, uy, uz = 0.0, nz, -ny
+    elif abs(ny) <= abs(nz):
+        ux, uy, uz = -nz, 0.0, nx
+    else:
+        ux, uy, uz = ny, -nx, 0.0
+    inv = 1.0 / np.sqrt(ux * ux + uy * uy + uz * uz)
+    ux, uy, uz = ux * inv, uy * inv, uz * inv
+    vx, vy, vz = ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
+    n = loop.shape[0]
+    pts = np.empty((n, 2))
+    for k in range(n):
+        px, py, pz = pos[loop[k], 0], pos[loop[k], 1], pos[loop[k], 2]
+        pts[k, 0] = ux * px + uy * py + uz * pz
+        pts[k, 1] = vx * px + vy * py + vz * pz
+    lines = np.empty((n + 1, 3))
+    m = _hull_lines(pts, margin, lines)
+    for j in range(m):
+        a, b = lines[j, 0], lines[j, 1]
+        out[j, 0], out[j, 1], out[j, 2], out[j, 3] = a * ux + b * vx, a * uy + b * vy, a * uz + b * vz, lines[j, 2]
+    return m
 
 
 @numba.njit(cache=True, nogil=True)
@@ -118,6 +154,14 @@ def _hull(pos: np.ndarray, loop: np.ndarray, clip: np.ndarray, size: np.ndarray,
         iw = 1.0 / (clip[3, 0] * px + clip[3, 1] * py + clip[3, 2] * pz + clip[3, 3])
         pts[k, 0] = ((clip[0, 0] * px + clip[0, 1] * py + clip[0, 2] * pz + clip[0, 3]) * iw + 1.0) * 0.5 * size[0]
         pts[k, 1] = ((clip[1, 0] * px + clip[1, 1] * py + clip[1, 2] * pz + clip[1, 3]) * iw + 1.0) * 0.5 * size[1]
+    return _hull_lines(pts, margin, lines)
+
+
+@numba.njit(cache=True, nogil=True)
+def _hull_lines(pts: np.ndarray, margin: float, lines: np.ndarray) -> int:
+    """The convex hull of the points `pts` (N, 2) as lines (nx, ny, c), each pushed out by
+    `margin` (see `_hull`); how many were written. Andrew's monotone chain."""
+    n = pts.shape[0]
     order = np.argsort(pts[:, 0])
     chain = np.empty(2 * n + 1, np.int64)
     m = 0
@@ -162,13 +206,24 @@ def _beyond_hull(xy: np.ndarray, a: int, b: int, c: int, lines: np.ndarray, n: i
     return False
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _beyond_walls(pos: np.ndarray, a: int, b: int, c: int, walls: np.ndarray, n: int) -> bool:
+    """Whether the corners a b c all lie beyond one wall of a prism (see `_walls`)."""
+    for e in range(n):
+        wx, wy, wz, d = walls[e, 0], walls[e, 1], walls[e, 2], walls[e, 3]
+        if (wx * pos[a, 0] + wy * pos[a, 1] + wz * pos[a, 2] > d and wx * pos[b, 0] + wy * pos[b, 1] + wz * pos[b, 2] > d
+                and wx * pos[c, 0] + wy * pos[c, 1] + wz * pos[c, 2] > d):
+            return True
+    return False
+
+
 @numba.njit(cache=True, nogil=True)
 def _screen(pos: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndarray, boxes: np.ndarray,
             inside: np.ndarray, xy: np.ndarray, code: np.ndarray, deep: np.ndarray) -> None:
     """xy: each vertex in pixels (x right, y up, the picture `size` wide and high; NaN for a vertex
     not in front of the camera); code, at the vertices `inside` marks: per opening h, four bits
-    (left of, right of, below, above its box on screen) at bits 4h..4h+3, set only where the
-    vertex lies behind h's plane and in front of the camera; deep: bit h where it lies so."""
+    (left of, right of, below, above its box on screen) at bits 4h..4h+3, set where the vertex
+    lies in front of the camera; deep: bit h where it lies behind h's plane too."""
     hx, hy = 0.5 * size[0], 0.5 * size[1]
     for i in range(pos.shape[0]):
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
@@ -186,10 +241,10 @@ def _screen(pos: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndar
                 deep[i] = 0
                 continue
             for h in range(planes.shape[0]):
+                bits = ((x < boxes[h, 0]) * 1 + (x > boxes[h, 1]) * 2 + (y < boxes[h, 2]) * 4
+                        + (y > boxes[h, 3]) * 8)
+                c |= bits << (4 * h)
                 if planes[h, 0] * px + planes[h, 1] * py + planes[h, 2] * pz < planes[h, 3]:
-                    bits = ((x < boxes[h, 0]) * 1 + (x > boxes[h, 1]) * 2 + (y < boxes[h, 2]) * 4
-                            + (y > boxes[h, 3]) * 8)
-                    c |= bits << (4 * h)
                     e |= 1 << h
         else:
             xy[i, 0] = np.nan
@@ -323,7 +378,7 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
                    boxes: np.ndarray, hulls: np.ndarray, hull_n: np.ndarray, inside: np.ndarray, xy: np.ndarray,
                    code: np.ndarray, deep: np.ndarray, ball_idx: np.ndarray, ball_w: np.ndarray, ball_r: np.ndarray,
                    near: np.ndarray, near_bits: np.ndarray, occluded: np.ndarray, sides: np.ndarray,
-                   small: float) -> None:
+                   small: float, sealed: np.ndarray, walls: np.ndarray, wall_n: np.ndarray) -> None:
     """The triangles of each drawn group g (group[t] = g >= 0) that may be seen from `eye` (the
     camera's position, model space), listed in order at kept[starts[g]:starts[g] + counts[g]]
     (independent of scan_rows, so the two can run at once). A triangle is left out when the eye
@@ -341,17 +396,45 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
     hidden region. The picture is the same, and the rasterizer fetches and sets up only the rest.
     `xy`, `code` and `deep` are scratch for the corners' pixels, sides and the planes they lie
     behind, `sides` for the balls' bits at the vertices `near` lists (`near_bits`: the balls that
-    may hide each). The deep mouth's triangles (skip_tri) are passed over when `closed`."""
+    may hide each). The deep mouth's triangles (skip_tri) are passed over when `closed`.
+    sealed[t]: a bit per opening that the triangle never passes through (a tooth or gum, which stay
+    behind the lips): for such an opening, in place of lying behind its plane, the triangle may lie
+    beside it, its three corners beyond one wall of the opening's prism (`walls`, `wall_n`: see
+    `openings`); the line along the opening's normal from any of its points then misses the
+    opening's spanning surface and meets the skin, so it lies enclosed by skin and that surface as
+    a triangle behind the opening does."""
+    seen_setup(pos, counts, eye, clip, size, planes, boxes, inside, xy, code, deep, ball_idx, ball_w, ball_r, near,
+               near_bits, sides)
+    seen_range(pos, tri, skip_tri, closed, group, starts, eye, kept, counts, behind, size, planes, hulls, hull_n, xy,
+               code, deep, occluded, sides, small, sealed, walls, wall_n, 0, tri.shape[0])
+
+
+@numba.njit(cache=True, nogil=True)
+def seen_setup(pos: np.ndarray, counts: np.ndarray, eye: np.ndarray, clip: np.ndarray, size: np.ndarray,
+               planes: np.ndarray, boxes: np.ndarray, inside: np.ndarray, xy: np.ndarray, code: np.ndarray,
+               deep: np.ndarray, ball_idx: np.ndarray, ball_w: np.ndarray, ball_r: np.ndarray, near: np.ndarray,
+               near_bits: np.ndarray, sides: np.ndarray) -> None:
+    """seen_triangles' first part: no triangle listed yet; the vertices' pixels, sides and balls."""
     for g in range(counts.shape[0]):
         counts[g] = 0
-    view = size[0] > 0
-    if view:
+    if size[0] > 0:
         _screen(pos, clip, size, planes, boxes, inside, xy, code, deep)
         if ball_idx.shape[0]:
             ball_sides(pos, eye, ball_idx, ball_w, ball_r, near, near_bits, sides)
+
+
+@numba.njit(cache=True, nogil=True)
+def seen_range(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, closed: bool, group: np.ndarray,
+               starts: np.ndarray, eye: np.ndarray, kept: np.ndarray, counts: np.ndarray, behind: np.ndarray,
+               size: np.ndarray, planes: np.ndarray, hulls: np.ndarray, hull_n: np.ndarray, xy: np.ndarray,
+               code: np.ndarray, deep: np.ndarray, occluded: np.ndarray, sides: np.ndarray, small: float,
+               sealed: np.ndarray, walls: np.ndarray, wall_n: np.ndarray, first: int, last: int) -> None:
+    """seen_triangles' second part (after seen_setup) for the triangles first .. last - 1, listed
+    after those already counted in `counts`."""
+    view = size[0] > 0
     ex, ey, ez = np.float32(eye[0]), np.float32(eye[1]), np.float32(eye[2])
     hair = np.float32(1e-6)  # (1e-3)^2: compared with squares, no square root per triangle
-    for t in range(tri.shape[0]):
+    for t in range(first, last):
         g = group[t]
         if g < 0 or (closed and skip_tri[t]):
             continue
@@ -371,10 +454,15 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
                 under = deep[a] & deep[b] & deep[c]
                 hidden = True
                 for h in range(planes.shape[0]):
-                    if (behind[t] >> h) & 1 and (side >> (4 * h)) & 15 == 0:
-                        if not ((under >> h) & 1 and _beyond_hull(xy, a, b, c, hulls[h], hull_n[h])):
-                            hidden = False
-                            break
+                    if not (behind[t] >> h) & 1:
+                        continue
+                    if not ((under >> h) & 1 or ((sealed[t] >> h) & 1
+                                                 and _beyond_walls(pos, a, b, c, walls[h], wall_n[h]))):
+                        hidden = False
+                        break
+                    if (side >> (4 * h)) & 15 == 0 and not _beyond_hull(xy, a, b, c, hulls[h], hull_n[h]):
+                        hidden = False
+                        break
                 if hidden:
                     continue
         k = starts[g] + counts[g]

@@ -359,6 +359,7 @@ class ScanLook:
         self.gaze_angle = self._gaze_angles(rest)
         self.lip_pairs = _lip_pairs(rest, scan_data().neutral, float(lay["stomion_y"]))
         self.lip_rest = np.linalg.norm(rest[self.lip_pairs[:, 0]] - rest[self.lip_pairs[:, 1]], axis=1)
+        self.mouth_opening = -1  # which of `openings` is the mouth's (-1: none known)
         self.openings, self.behind = self._openings(rest)
 
     def _openings(self, rest: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
@@ -383,6 +384,7 @@ class ScanLook:
         eyes = [k for k in range(len(loops)) if k not in (neck, mouth)]
         if len(loops) > 7 or neck == mouth or not eyes:
             return loops, np.zeros(len(self.triangles), np.uint8)  # not the layout expected: hide nothing
+        self.mouth_opening = mouth
         behind = [np.zeros(len(self.groups["skin"]), np.uint8),
                   np.full(len(self.groups["mouth"]), (1 << mouth) | (1 << neck), np.uint8)]
         for name in ("eyes", "sockets"):

@@ -170,8 +170,9 @@ def test_unseen_triangles_left_out_change_no_pixel(gl) -> None:
     eyes' and the mouth's that the skin hides are left out too: from the front, the side, above
     and below, with the mouth open, the picture is the one with them kept, fewer of the eyes' and
     mouth's triangles are drawn from the front (fewer of the mouth's than with the openings' boxes
-    on screen alone, not their hulls), and the listing made on the helper thread is the one made
-    on the calling thread."""
+    on screen alone, not their hulls, or with the teeth and gums hidden only behind the mouth's
+    opening), and the listing made on the helper thread, or shared between the two threads, is
+    the one made on the calling thread."""
     from puppet.face_cache import scan_model
     from render.scan_draw import CULLED
     from sim.facs import apply_au
@@ -185,6 +186,7 @@ def test_unseen_triangles_left_out_change_no_pixel(gl) -> None:
     for _ in range(6):
         sim.step(state, control)
     inner = [CULLED.index(g) for g in ("eyes", "mouth")]
+    mouth_g = CULLED.index("mouth")
     with OffscreenRenderer(model, (320, 180), ctx=gl) as off:
         scan = off.renderer.scan
         for yaw, pitch in ((0.0, 0.0), (-0.9, -0.4), (0.2, -1.2), (0.0, 1.2)):
@@ -196,11 +198,23 @@ def test_unseen_triangles_left_out_change_no_pixel(gl) -> None:
             off.render_frame(state, record=False)
             scan.maker.threaded = True
             assert np.array_equal(counts, scan.counts) and np.array_equal(kept, scan.kept)
+            # the listing shared between the threads (the calling thread's share appended) at any split
+            for split in (0, len(scan.maker.list_tri) // 2, int(np.flatnonzero(scan.group == mouth_g)[100])):
+                scan.maker.split = split
+                off.render_frame(state, record=False)
+                assert np.array_equal(counts, scan.counts), split
+                assert all(np.array_equal(kept[a:a + k], scan.kept[a:a + k]) for a, k in zip(scan.starts, counts))
+            scan.maker.use_walls = False  # the teeth and gums hidden only behind the mouth's opening
+            plane = off.render_frame(state, record=False).astype(int)
+            plane_counts = scan.counts.copy()
+            scan.maker.use_walls = True
             scan.cull_unseen = False
             every = off.render_frame(state, record=False).astype(int)
             assert scan.mouth_drawn and gl.error == "GL_NO_ERROR"
             assert np.abs(every - every[0, 0]).sum(axis=2).astype(bool).mean() > 0.1  # the head is in view
             assert np.abs(left_out - every).max() == 0, (yaw, pitch)
+            assert np.abs(plane - every).max() == 0, (yaw, pitch)
+            assert counts[mouth_g] <= plane_counts[mouth_g]
             if yaw == 0.0 and pitch == 0.0:
                 assert counts.sum() < 0.85 * scan.counts.sum()
                 assert counts[inner].sum() < 0.8 * scan.counts[inner].sum(), (counts, scan.counts)
@@ -210,6 +224,7 @@ def test_unseen_triangles_left_out_change_no_pixel(gl) -> None:
                 assert np.abs(boxed - every).max() == 0
                 mouth = CULLED.index("mouth")
                 assert counts[mouth] < 0.95 * scan.counts[mouth], (counts, scan.counts)
+                assert counts[mouth] < plane_counts[mouth], (counts, plane_counts)
         scan.cull_unseen = True
 
 
@@ -230,7 +245,8 @@ def _listed(pos: np.ndarray, tri: np.ndarray, clip: np.ndarray, size: np.ndarray
     seen_triangles(pos, tri, np.zeros(t, np.uint8), False, np.zeros(t, np.int8), np.zeros(1, np.int64),
                    eye.astype(np.float32), kept, counts, np.zeros(t, np.uint8), clip, size, np.zeros((0, 4)),
                    np.zeros((0, 4)), np.zeros((0, 1, 3)), np.zeros(0, np.int64), np.zeros(n, np.uint8),
-                   np.zeros((n, 2), np.float32), np.zeros(n, np.int32), np.zeros(n, np.uint8), *tail)
+                   np.zeros((n, 2), np.float32), np.zeros(n, np.int32), np.zeros(n, np.uint8), *tail,
+                   np.zeros(t, np.uint8), np.zeros((0, 1, 4)), np.zeros(0, np.int64))
     return {k for k, corners in enumerate(tri) if any(np.array_equal(corners, row) for row in kept[:counts[0]])}
 
 
@@ -295,8 +311,9 @@ def test_inside_seen_only_through_the_opening_hull() -> None:
     size = np.array([200.0, 200.0])
     planes, boxes = np.zeros((1, 4)), np.zeros((1, 4))
     hulls, hull_n = np.zeros((1, n_loop + 1, 3)), np.zeros(1, np.int64)
+    walls, wall_n = np.zeros((1, n_loop + 1, 4)), np.zeros(1, np.int64)
     openings(pos, np.array([0, n_loop]), np.arange(n_loop, dtype=np.int32), clip, size, 3.0, planes, boxes, hulls,
-             hull_n)
+             hull_n, walls, wall_n, 0.05)
     assert hull_n[0] == n_loop and np.allclose(planes[0], [0.0, 0.0, 1.0, 0.0], atol=1e-6)
     inside = np.zeros(len(pos), np.uint8)
     inside[n_loop:] = 1
@@ -304,6 +321,52 @@ def test_inside_seen_only_through_the_opening_hull() -> None:
     seen_triangles(pos, tri, np.zeros(len(tri), np.uint8), False, np.zeros(len(tri), np.int8), np.zeros(1, np.int64),
                    np.array([0.0, 0.0, 10.0], np.float32), kept, counts, np.ones(len(tri), np.uint8), clip, size,
                    planes, boxes, hulls, hull_n, inside, np.zeros((len(pos), 2), np.float32),
-                   np.zeros(len(pos), np.int32), np.zeros(len(pos), np.uint8), *_no_balls(len(pos), len(tri)))
+                   np.zeros(len(pos), np.int32), np.zeros(len(pos), np.uint8), *_no_balls(len(pos), len(tri)),
+                   np.zeros(len(tri), np.uint8), walls, wall_n)
     shown = {name for name, t in zip(tris, tri) if any(np.array_equal(t, k) for k in kept[:counts[0]])}
     assert shown == {"centre, behind", "astride the rim, behind", "corner, in front"}
+
+
+def _listed_through(pos: np.ndarray, tri: np.ndarray, loop: np.ndarray, clip: np.ndarray, size: np.ndarray,
+                    eye: np.ndarray, sealed: np.ndarray) -> np.ndarray:
+    """(T,) bool: the triangles seen_triangles keeps, all inside the head behind one opening (its
+    corners `loop`), `sealed` marking those that never pass through it."""
+    from render.scan_kernel import openings, seen_triangles
+
+    n, t = len(pos), len(tri)
+    planes, boxes = np.zeros((1, 4)), np.zeros((1, 4))
+    hulls, hull_n = np.zeros((1, len(loop) + 1, 3)), np.zeros(1, np.int64)
+    walls, wall_n = np.zeros((1, len(loop) + 1, 4)), np.zeros(1, np.int64)
+    openings(pos, np.array([0, len(loop)]), loop, clip, size, 3.0, planes, boxes, hulls, hull_n, walls, wall_n, 0.05)
+    inside = np.ones(n, np.uint8)
+    inside[loop] = 0
+    kept, counts = np.zeros((t, 3), np.int32), np.zeros(1, np.int64)
+    seen_triangles(pos, tri, np.zeros(t, np.uint8), False, np.zeros(t, np.int8), np.zeros(1, np.int64),
+                   eye.astype(np.float32), kept, counts, np.ones(t, np.uint8), clip, size, planes, boxes, hulls,
+                   hull_n, inside, np.zeros((n, 2), np.float32), np.zeros(n, np.int32), np.zeros(n, np.uint8),
+                   *_no_balls(n, t), sealed.astype(np.uint8), walls, wall_n)
+    return np.array([any(np.array_equal(c, k) for k in kept[:counts[0]]) for c in tri])
+
+
+def test_sealed_triangles_hidden_beside_the_opening() -> None:
+    """A triangle that never passes through the opening (a tooth behind the lips) is left out when
+    it lies beside the opening (outside the prism along the opening's normal over its outline) and
+    beyond the opening's outline on screen, though in front of the opening's plane; kept when it is
+    not so marked, and kept when it lies in front of the opening within that prism (an incisor's
+    edge between parted lips) even where a camera from the side sees it beyond the outline."""
+    ring = np.linspace(0.0, 2.0 * np.pi, 32, endpoint=False)
+    loop_pos = np.stack([np.cos(ring), np.sin(ring), np.zeros_like(ring)], axis=1)  # counter-clockwise from +z
+    tris = {"beside, in front": ([-0.1, 1.3, 0.2], [0.1, 1.3, 0.2], [0.0, 1.4, 0.2]),
+            "within, in front": ([-0.1, 0.0, 1.0], [0.1, 0.0, 1.0], [0.0, 0.1, 1.0])}
+    pos = np.concatenate([loop_pos, *(np.array(t) for t in tris.values())]).astype(np.float32)
+    loop = np.arange(len(loop_pos), dtype=np.int32)
+    tri = (len(loop_pos) + np.arange(3 * len(tris)).reshape(-1, 3)).astype(np.int32)
+    size = np.array([200.0, 200.0])
+    front = np.diag([0.5, 0.5, 0.1, 1.0])  # orthographic along -z: a unit is 50 pixels
+    side = front.copy()
+    side[0, 2] = 0.8  # and sheared: a point 1 in front of the opening moves 80 pixels right
+    sealed = np.ones(len(tri), np.uint8)
+    eye = np.array([0.0, 0.0, 10.0])
+    assert list(_listed_through(pos, tri, loop, front, size, eye, sealed)) == [False, True]
+    assert list(_listed_through(pos, tri, loop, front, size, eye, 0 * sealed)) == [True, True]
+    assert list(_listed_through(pos, tri, loop, side, size, eye, sealed)) == [False, True]
