@@ -22,8 +22,7 @@ eyes' and the mouth's insides hidden by their openings' boxes on screen alone, n
 hulls (render.scan_rows's use_hulls off), and with the small triangles judged by their boxes
 alone and no eyeball hiding its socket (render.scan_rows's small_box 0, use_balls off), and with
 the teeth and gums hidden only behind the mouth's opening, not beside it (render.scan_rows's
-use_walls off), and with that and the helper thread listing every triangle (main's listing before
-both: use_walls and shared off); and the drawing alone (rows made beforehand: every
+use_walls off); and the drawing alone (rows made beforehand: every
 triangle; also with the whole skin in its full shader, split_skin off), for comparison.
 `--scan-parts N` times where the scanned head's frame goes beyond the floor: the whole frame (shaded +
 HUD) against the same frame with one part left out (the HUD; the lashes; the mouth's inside; the
@@ -278,15 +277,15 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                 s.scan_rows = rw  # type: ignore[attr-defined]
                 drawn.append(r.scan.look.mouth_open(rw[:, :3]))
             times: dict[str, list[tuple[float, float]]] = {"whole": [], "full_skin": [], "all_tris": [], "unseen": [],
-                                                           "boxes": [], "full_lashes": [], "loose": [], "plane": [], "before": [],
+                                                           "boxes": [], "full_lashes": [], "loose": [], "plane": [],
                                                            "draw": [],
                                                            "unsplit": [], "floor": []}
             threads: dict[str, dict[str, list[float]]] = {k: {"main": [], "other": [], "raster": []}
-                                                          for k in ("whole", "full_skin", "loose", "plane", "before")}
+                                                          for k in ("whole", "full_skin", "loose", "plane")}
             for b in range(batches + 1):
                 for key, use_rows in (("whole", False), ("full_skin", False), ("all_tris", False), ("unseen", False),
                                       ("boxes", False), ("full_lashes", False), ("loose", False), ("plane", False),
-                                      ("before", False), ("draw", True),
+                                      ("draw", True),
                                       ("unsplit", True)):
                     def frame(i: int, use: bool = use_rows, split: bool = key != "unsplit",
                               cull: bool = key != "all_tris", unseen: bool = key != "unseen",
@@ -301,8 +300,7 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                         r.scan.maker.use_hulls = key != "boxes"
                         r.scan.maker.small_box = 0.0 if key == "loose" else SMALL_BOX
                         r.scan.maker.use_balls = key != "loose"
-                        r.scan.maker.use_walls = key not in ("plane", "before")
-                        r.scan.maker.shared = key != "before"
+                        r.scan.maker.use_walls = key != "plane"
                         few = r.scan.coarse_lash_vao
                         if key == "full_lashes":
                             r.scan.coarse_lash_vao = r.scan.lash_vao
@@ -326,7 +324,7 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                    for k, v in times.items()}
             f, whole, draw, unsplit = med["floor"], med["whole"], med["draw"], med["unsplit"]
             every, unseen, full, boxes = med["all_tris"], med["unseen"], med["full_skin"], med["boxes"]
-            lashes, loose, plane, before = med["full_lashes"], med["loose"], med["plane"], med["before"]
+            lashes, loose, plane = med["full_lashes"], med["loose"], med["plane"]
             out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; "
                        f"floor {f[0]:.2f} ms (cpu {f[1]:.2f}); whole frame {whole[0]:.2f} ms = "
                        f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x; coarse skin drawn: "
@@ -337,15 +335,14 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                        f"no pixel or lie hidden kept {unseen[0] / f[0]:.2f}x (cpu {unseen[1] / f[1]:.2f}x), with the "
                        f"insides hidden by their openings' boxes alone (not their hulls) {boxes[0] / f[0]:.2f}x "
                        f"(cpu {boxes[1] / f[1]:.2f}x), with the small triangles' boxes alone and no eyeball hiding "
-                       f"the sockets {loose[0] / f[0]:.2f}x (cpu {loose[1] / f[1]:.2f}x), with the teeth and gums hidden only "
-                       f"behind the mouth's opening {plane[0] / f[0]:.2f}x (cpu {plane[1] / f[1]:.2f}x), and the helper "
-                       f"listing every triangle {before[0] / f[0]:.2f}x (cpu {before[1] / f[1]:.2f}x); drawing alone "
+                       f"the sockets {loose[0] / f[0]:.2f}x (cpu {loose[1] / f[1]:.2f}x), with the teeth and gums "
+                       f"hidden only behind the mouth's opening {plane[0] / f[0]:.2f}x (cpu {plane[1] / f[1]:.2f}x); "
+                       f"drawing alone "
                        f"{draw[0]:.2f} ms = {draw[0] / f[0]:.2f}x (cpu {draw[1] / f[1]:.2f}x); the same with "
                        f"the skin in one shader {unsplit[0] / f[0]:.2f}x (cpu {unsplit[1] / f[1]:.2f}x)")
             for key, label in (("whole", "whole frame's"), ("full_skin", "with the full skin,"),
                                ("loose", "with the small triangles' boxes alone and no eyeball hiding,"),
-                               ("plane", "with the teeth and gums hidden only behind the mouth's opening,"),
-                               ("before", "and with the helper listing every triangle,")):
+                               ("plane", "with the teeth and gums hidden only behind the mouth's opening,")):
                 if threads[key]["main"]:
                     out.append(f"{'':<10} {label} CPU by thread, ms: " + ", ".join(
                         f"{kind} {statistics.median(v):.2f}" for kind, v in threads[key].items()))

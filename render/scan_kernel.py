@@ -211,7 +211,8 @@ def _beyond_walls(pos: np.ndarray, a: int, b: int, c: int, walls: np.ndarray, n:
     """Whether the corners a b c all lie beyond one wall of a prism (see `_walls`)."""
     for e in range(n):
         wx, wy, wz, d = walls[e, 0], walls[e, 1], walls[e, 2], walls[e, 3]
-        if (wx * pos[a, 0] + wy * pos[a, 1] + wz * pos[a, 2] > d and wx * pos[b, 0] + wy * pos[b, 1] + wz * pos[b, 2] > d
+        if (wx * pos[a, 0] + wy * pos[a, 1] + wz * pos[a, 2] > d
+                and wx * pos[b, 0] + wy * pos[b, 1] + wz * pos[b, 2] > d
                 and wx * pos[c, 0] + wy * pos[c, 1] + wz * pos[c, 2] > d):
             return True
     return False
@@ -403,38 +404,16 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
     `openings`); the line along the opening's normal from any of its points then misses the
     opening's spanning surface and meets the skin, so it lies enclosed by skin and that surface as
     a triangle behind the opening does."""
-    seen_setup(pos, counts, eye, clip, size, planes, boxes, inside, xy, code, deep, ball_idx, ball_w, ball_r, near,
-               near_bits, sides)
-    seen_range(pos, tri, skip_tri, closed, group, starts, eye, kept, counts, behind, size, planes, hulls, hull_n, xy,
-               code, deep, occluded, sides, small, sealed, walls, wall_n, 0, tri.shape[0])
-
-
-@numba.njit(cache=True, nogil=True)
-def seen_setup(pos: np.ndarray, counts: np.ndarray, eye: np.ndarray, clip: np.ndarray, size: np.ndarray,
-               planes: np.ndarray, boxes: np.ndarray, inside: np.ndarray, xy: np.ndarray, code: np.ndarray,
-               deep: np.ndarray, ball_idx: np.ndarray, ball_w: np.ndarray, ball_r: np.ndarray, near: np.ndarray,
-               near_bits: np.ndarray, sides: np.ndarray) -> None:
-    """seen_triangles' first part: no triangle listed yet; the vertices' pixels, sides and balls."""
     for g in range(counts.shape[0]):
         counts[g] = 0
-    if size[0] > 0:
+    view = size[0] > 0
+    if view:
         _screen(pos, clip, size, planes, boxes, inside, xy, code, deep)
         if ball_idx.shape[0]:
             ball_sides(pos, eye, ball_idx, ball_w, ball_r, near, near_bits, sides)
-
-
-@numba.njit(cache=True, nogil=True)
-def seen_range(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, closed: bool, group: np.ndarray,
-               starts: np.ndarray, eye: np.ndarray, kept: np.ndarray, counts: np.ndarray, behind: np.ndarray,
-               size: np.ndarray, planes: np.ndarray, hulls: np.ndarray, hull_n: np.ndarray, xy: np.ndarray,
-               code: np.ndarray, deep: np.ndarray, occluded: np.ndarray, sides: np.ndarray, small: float,
-               sealed: np.ndarray, walls: np.ndarray, wall_n: np.ndarray, first: int, last: int) -> None:
-    """seen_triangles' second part (after seen_setup) for the triangles first .. last - 1, listed
-    after those already counted in `counts`."""
-    view = size[0] > 0
     ex, ey, ez = np.float32(eye[0]), np.float32(eye[1]), np.float32(eye[2])
     hair = np.float32(1e-6)  # (1e-3)^2: compared with squares, no square root per triangle
-    for t in range(first, last):
+    for t in range(tri.shape[0]):
         g = group[t]
         if g < 0 or (closed and skip_tri[t]):
             continue

@@ -6,9 +6,7 @@ that sits idle while the rasterizer's threads wait for this frame's triangles.""
 
 from __future__ import annotations
 
-import threading
-import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
@@ -85,10 +83,6 @@ class ScanRows:
         self.use_balls = True  # False: the eyeballs hide nothing (the same pixels)
         self.small_box = SMALL_BOX  # 0: the triangles' boxes alone tell which hold no pixel centre (the same pixels)
         self.closed = True  # whether the lips were shut in the rows last made
-        self.split = len(self.list_tri)  # the threaded listing: the helper lists the triangles before this
-        self._kept2: np.ndarray | None = None  # this thread's share of the listing, before it is appended
-        self._counts2: np.ndarray | None = None
-        self.shared = True  # False: the helper lists every triangle (the same lists)
         self.threaded = True  # False: the listing of the triangles seen on the calling thread too
         self._pool: ThreadPoolExecutor | None = None
 
@@ -123,10 +117,11 @@ class ScanRows:
         group g that may face the eye, at kept[starts[g]:][:counts[g]]; given also the camera's
         `mvp` (projection @ view) and the picture's `size`, without those that cover no pixel or that the skin hides
         (render.scan_kernel.seen_triangles, on a helper thread while this one makes the rows)."""
-        from render.scan_kernel import openings, scan_rows, seen_range, seen_setup
+        from render.scan_kernel import openings, scan_rows, seen_triangles
 
         p = np.ascontiguousarray(posed, dtype=np.float32)
         closed = self.closed = not self.look.mouth_open(p)
+        listing: Future[None] | None = None
         if not (eye is None or group is None or starts is None or kept is None or counts is None):
             planes, boxes, hulls, hull_n, clip, px = self._no_view
             if mvp is not None and size is not None and min(size) > 0:
@@ -137,75 +132,23 @@ class ScanRows:
                          self.walls, self.wall_n, WALL_MARGIN_CM)
                 if not self.use_hulls:
                     hull_n = self.hull_none
-            eye32 = np.asarray(eye, np.float32)
-            ball_idx, ball_w, ball_r, near, near_bits, occluded = self._balls if self.use_balls else self._no_balls
-            sealed = self.sealed if self.use_walls else self._no_walls
-            setup = (p, counts, eye32, clip, px, planes, boxes, self.inside, self.xy, self.code, self.deep, ball_idx,
-                     ball_w, ball_r, near, near_bits, self.sides)
-            tail = (self.list_behind, px, planes, hulls, hull_n, self.xy, self.code, self.deep, occluded, self.sides,
-                    float(self.small_box), sealed, self.walls, self.wall_n)
-            head = (p, self.list_tri, self.list_skip, closed, group, starts, eye32)
+            args = (p, self.list_tri, self.list_skip, closed, group, starts, np.asarray(eye, np.float32), kept,
+                    counts, self.list_behind, clip, px, planes, boxes, hulls, hull_n, self.inside, self.xy, self.code,
+                    self.deep, *(self._balls if self.use_balls else self._no_balls), self.sides, float(self.small_box),
+                    self.sealed if self.use_walls else self._no_walls, self.walls, self.wall_n)
             if not self.threaded:
-                seen_setup(*setup)
-                seen_range(*head, kept, counts, *tail, 0, len(self.list_tri))
+                seen_triangles(*args)
             else:
-                self._listed_rows(p, closed, head, setup, tail, kept, counts, starts)
-                return self.buffer
-        scan_rows(p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch, self.buffer,
-                  self.skip_tri, self.skip_v, closed)
-        return self.buffer
-
-    def _listed_rows(self, p: np.ndarray, closed: bool, head: tuple[object, ...], setup: tuple[object, ...],
-                     tail: tuple[object, ...], kept: np.ndarray, counts: np.ndarray, starts: np.ndarray) -> None:
-        """The rows on this thread while the helper lists the triangles before `split`; then this
-        thread lists the rest into its own scratch, appended to each group's list once the helper
-        is done (the same lists in the same order as one pass). `split` moves each frame towards
-        where the two threads finish together (the listing is the longer with the lips apart)."""
-        from render.scan_kernel import scan_rows, seen_range, seen_setup
-
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="scan-rows")
-        n = len(self.list_tri)
-        split = int(min(max(self.split, 0), n)) if self.shared else n
-        if self._kept2 is None or self._kept2.shape != kept.shape:
-            self._kept2 = np.zeros_like(kept)
-            self._counts2 = np.zeros_like(counts)
-        kept2, counts2 = self._kept2, self._counts2
-        assert counts2 is not None
-
-        def helper() -> float:
-            t0 = time.thread_time()
-            seen_setup(*setup)
-            ready.set()
-            seen_range(*head, kept, counts, *tail, 0, split)
-            return time.thread_time() - t0
-
-        ready = threading.Event()
-        listing = self._pool.submit(helper)
+                if self._pool is None:
+                    self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="scan-rows")
+                listing = self._pool.submit(seen_triangles, *args)
         try:
-            t0 = time.thread_time()
             scan_rows(p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch, self.buffer,
                       self.skip_tri, self.skip_v, closed)
-            t1 = time.thread_time()
-            while not ready.wait(0.01):
-                if listing.done():
-                    listing.result()  # the helper's error, if any
-            counts2[:] = 0
-            seen_range(*head, kept2, counts2, *tail, split, n)
-            t2 = time.thread_time()
         finally:
-            t_helper = listing.result()
-        for g in range(len(counts)):
-            k = int(counts2[g])
-            if k:
-                lo = int(starts[g]) + int(counts[g])
-                kept[lo:lo + k] = kept2[int(starts[g]):int(starts[g]) + k]
-                counts[g] += k
-        # per listed triangle, each side's time; move the split by half the difference's worth
-        mine = t2 - t0
-        rate = (t_helper + (t2 - t1)) / n
-        if self.shared:
-            self.split = int(min(max(split + 0.5 * (mine - t_helper) / max(rate, 1e-12), 0), n))
+            if listing is not None:
+                listing.result()
+        return self.buffer
 
     def close(self) -> None:
         """Stop the helper thread (made again if rows are asked for later)."""
