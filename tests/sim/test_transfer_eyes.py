@@ -218,3 +218,41 @@ def test_an_eyeball_too_small_for_the_opening_is_grown_to_fit_it(reference) -> N
     assert np.abs(seated.vertices - v).max() < 0.02  # the head's own lids are kept
     kept, _ = seat_eyes(mesh)
     assert kept.eye_radius == mesh.eye_radius
+
+
+def _toy_eye() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(vertices, upper, lower): an eye 2 cm wide along +X, margins 0.8 cm apart at the middle, in
+    the plane z = 0, facing +Z; vertices 8-9 stand for a shut lid's back layer (behind the
+    margins, inside the opening), 10 for the skin under the lower lid (behind the margins too, but
+    below the opening), 11 for skin in front of the margins."""
+    x = np.array([0.0, 0.5, 1.0, 1.5, 2.0])
+    h = np.array([0.0, 0.3, 0.4, 0.3, 0.0])
+    v = np.concatenate([np.stack([x, h, 0 * x], 1), np.stack([x[1:-1], -h[1:-1], 0 * x[1:-1]], 1),
+                        [[0.8, 0.1, -0.1], [1.2, 0.1, -0.1], [1.0, -0.6, -0.1], [1.0, 0.2, 0.1]]])
+    return v, np.array([0, 1, 2, 3, 4]), np.array([0, 5, 6, 7, 4])
+
+
+def test_a_shut_lids_back_layer_is_not_seen_as_lid() -> None:
+    """A triangle from the lower margin up to the back layer crosses the opening's middle seen from
+    the front, but lies behind the margins: the opening seen is the margins' (before, one vertex in
+    front sufficed to count the triangle, and such a layer read as a lid covering half the eye)."""
+    from sim.face.transfer.eyes import seen_opening
+
+    v, upper, lower = _toy_eye()
+    top, bottom = seen_opening(v, np.array([[6, 8, 9]]), upper, lower)
+    assert top == pytest.approx(0.4) and bottom == pytest.approx(-0.4)
+
+
+def test_the_back_layer_goes_behind_the_seated_eyeball() -> None:
+    """Skin behind the margins, inside the opening and in front of the eyeball (a shut lid's back
+    layer stretched across when the lids part) is moved behind the eyeball, where it hides; skin
+    below the opening and skin in front of the margins stay where they are."""
+    from sim.face.transfer.eyes import tuck_back_layer
+
+    v, upper, lower = _toy_eye()
+    centre, radius = np.array([1.0, 0.0, -1.2]), 1.0
+    out = tuck_back_layer(v, upper, lower, centre, radius, np.array([0.0, 0.0, 1.0]))
+    assert np.all(out[[8, 9], 2] < centre[2] - 0.9 * radius)  # behind the eyeball's back
+    np.testing.assert_allclose(out[[8, 9], :2], v[[8, 9], :2])  # straight back
+    stay = [0, 1, 2, 3, 4, 5, 6, 7, 10, 11]
+    np.testing.assert_array_equal(out[stay], v[stay])

@@ -97,6 +97,25 @@ def _not_behind(v: FloatArray, upper: IntArray, lower: IntArray, forward: FloatA
     return np.where((t > 0.0) & (t < 1.0), d >= rim - 1e-9, d >= deepest - 1e-9)
 
 
+def _within_opening(v: FloatArray, upper: IntArray, lower: IntArray, forward: FloatArray) -> np.ndarray:
+    """(N,) bool: the vertices that a view along `forward` finds between the corners and between
+    the two lid margins (the opening's outline seen from the front)."""
+    a, b = v[upper[0]], v[upper[-1]]
+    axis = b - a
+    up = np.cross(forward, axis)
+    up /= np.linalg.norm(up)
+    t = (v - a) @ axis / (axis @ axis)
+    h = (v - a) @ up
+
+    def height(chain: IntArray) -> FloatArray:
+        tc = (v[chain] - a) @ axis / (axis @ axis)
+        order = np.argsort(tc)
+        return np.interp(np.clip(t, 0.0, 1.0), tc[order], h[chain][order])
+
+    top, bottom = height(upper), height(lower)
+    return (t > 0.0) & (t < 1.0) & (h > np.minimum(top, bottom)) & (h < np.maximum(top, bottom))
+
+
 def seen_opening(vertices: FloatArray, triangles: IntArray, upper: IntArray, lower: IntArray,
                  t: float = 0.5) -> tuple[float, float]:
     """(top, bottom) heights (cm, along the eye's up from its inner corner) of the opening one sees
@@ -105,8 +124,12 @@ def seen_opening(vertices: FloatArray, triangles: IntArray, upper: IntArray, low
     where a lid meets the eyeball or was cut) can lie behind and beyond the edge one sees: a thick
     lid's margin rolls in towards the eyeball and its front hangs over it, and the halves of a shut
     lid parted at rest fold over the opening. Skin deeper than the lid margins (a socket, an eye
-    surface modelled behind the opening) is not seen through the eyeball and is left out. A shut
-    opening gives top == bottom, at the rims' middle."""
+    surface modelled behind the opening) is not seen through the eyeball and is left out: a
+    triangle counts only when none of its corners lies behind them. (A triangle counted when one
+    corner lay in front: the back layer of a lid shut in the file, stretched from a margin across
+    the opening when the lids part, then read as the lower lid, and the shut-lidded development
+    head's eye was parted 1.8 cm with the iris high over a grey wedge.) A shut opening gives
+    top == bottom, at the rims' middle."""
     v = np.asarray(vertices, float)
     upper, lower = np.asarray(upper, dtype=np.int64), np.asarray(lower, dtype=np.int64)
     a, b = v[upper[0]], v[upper[-1]]
@@ -128,7 +151,7 @@ def seen_opening(vertices: FloatArray, triangles: IntArray, upper: IntArray, low
     # triangles the column crosses, near the eye, not behind the lid margins
     front = _not_behind(v, upper, lower, forward)
     keep = ((ts.min(axis=1) <= x) & (ts.max(axis=1) >= x) & (np.abs(th - centre).min(axis=1) < width)
-            & front[tri].any(axis=1))
+            & front[tri].all(axis=1))
     ts, th = ts[keep], th[keep]
     lo = np.full(len(ts), np.inf)
     hi = np.full(len(ts), -np.inf)
@@ -209,7 +232,31 @@ def seat_eye(vertices: FloatArray, triangles: IntArray, loop: IntArray, inner: F
     lids = (reach > 0) & _not_behind(v, upper, lower, forward)
     depth = float(np.min(along[lids] - np.sqrt(reach[lids]))) if lids.any() else -eye_radius
     centre = base + depth * forward
+    v = tuck_back_layer(v, upper, lower, centre, eye_radius, forward)
     return v, centre, EyeSeat(before, after)
+
+
+def tuck_back_layer(vertices: FloatArray, upper: IntArray, lower: IntArray, centre: FloatArray,
+                    eye_radius: float, forward: FloatArray) -> FloatArray:
+    """The vertices with the skin lying behind the lid margins but in front of the seated eyeball
+    moved behind it. That skin is the back layer of a lid shut in the file (or a membrane closing
+    its eye), stretched across the opening when the lids part: drawn in front of the eyeball it
+    covered part of the eye with a grey wedge. In a living eye the lid's back surface runs from
+    the margin round the eyeball into the socket, so each such vertex goes straight back, along
+    the forward axis, to just behind the eyeball's back (CLEARANCE x radius outside it), where
+    the eyeball hides it; skin already inside the eyeball stays."""
+    v = np.asarray(vertices, float).copy()
+    r = eye_radius * (1.0 + CLEARANCE)
+    q = v - centre
+    along = q @ forward
+    across2 = np.einsum("ij,ij->i", q, q) - along ** 2
+    column = across2 < r ** 2
+    back = -np.sqrt(np.where(column, r ** 2 - across2, 0.0))
+    outside = np.einsum("ij,ij->i", q, q) > eye_radius ** 2
+    tuck = column & outside & (along > back) & _within_opening(v, upper, lower, forward) \
+        & ~_not_behind(v, upper, lower, forward)
+    v[tuck] += ((back - along)[tuck])[:, None] * forward
+    return v
 
 
 def _seen_gap(vertices: FloatArray, triangles: IntArray, upper: IntArray, lower: IntArray) -> float:

@@ -315,10 +315,10 @@ def transfer_rig(
     notes = []
     if opt.match_forces:
         rig.muscles, factors = match_forces(reference, rig)
-        changed = {ch: k for ch, k in factors.items() if abs(np.log(k)) > np.log(1.25)}
+        changed = {ch: k for ch, k in factors.items() if k > 1.25}
         if changed:
             listed = ", ".join(f"{ch} {k:.2f}" for ch, k in sorted(changed.items()))
-            notes.append(f"{len(changed)} of {len(factors)} channels' force scaled (above x1.25 or below x0.8) "
+            notes.append(f"{len(changed)} of {len(factors)} channels' force scaled (above x1.25; none is scaled down) "
                          f"to pull as hard in all as the reference's: {listed}")
     if support is not None:
         notes.append(f"{int((support < 1).sum())} lid vertices turned away from the front (folded into the "
