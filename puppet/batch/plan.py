@@ -102,9 +102,24 @@ def load(path: Path) -> Input:
     return item
 
 
+#: what an input's name ends with that its outputs do not carry (longest first: `x.arkit.csv` -> `x`)
+INPUT_SUFFIXES = (".arkit.csv", ".jsonl", ".csv", ".c3d", ".pc2")
+
+
+def output_stem(path: Path) -> str:
+    """The input's name without its own suffix: `show.1.jsonl` (the earlier take a new recording
+    to `show.jsonl` keeps) -> `show.1`, never `show`, so its outputs do not replace the current
+    take's; a capture exported as `phone.arkit.csv` -> `phone`."""
+    name = path.name
+    for suffix in INPUT_SUFFIXES:
+        if name.lower().endswith(suffix) and len(name) > len(suffix):
+            return name[: -len(suffix)]
+    return path.stem or name
+
+
 def output_names(items: list[Input], suffix: str) -> list[str]:
     """`STEM + suffix` per input; inputs sharing a stem get their content hash's start added."""
-    stems = [i.path.name.split(".")[0] or i.path.stem for i in items]
+    stems = [output_stem(i.path) for i in items]
     dup = {s for s in stems if stems.count(s) > 1}
     return [f"{s}-{i.digest[:8]}{suffix}" if s in dup else f"{s}{suffix}" for s, i in zip(stems, items)]
 
