@@ -62,6 +62,9 @@ class Library:
         try:
             self.con, new = schema.connect(self.path)
         except schema.LibraryDamaged as err:
+            if not self._journaled():  # never a library (a file named by mistake): left as it is
+                raise ConfigError(f"{self.path}: not a take library ({err}) and no journal of one beside it; "
+                                  "pass --library with the library's file (a new name starts a new one)") from err
             self.con = self._rebuild(str(err))
         else:
             if new and self.journal.exists() and self.journal.stat().st_size:
@@ -79,6 +82,13 @@ class Library:
         self.close()
 
     # ---- journal and rebuild -------------------------------------------------------------
+
+    def _journaled(self) -> bool:
+        """Whether the journal beside the file names anything: a library's rebuild has takes to read."""
+        try:
+            return self.journal.stat().st_size > 0
+        except OSError:
+            return False
 
     def _log(self, **rec: Any) -> None:
         line = (json.dumps(rec, ensure_ascii=False, separators=(",", ":")) + "\n").encode()

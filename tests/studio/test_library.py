@@ -268,3 +268,24 @@ def test_library_option_before_the_action_and_env(folder: Path, tmp_path: Path, 
     assert [Path(r["path"]).name for r in json.loads(capsys.readouterr().out)] == ["bob_jaw.jsonl"]
     monkeypatch.setenv("PUPPET_LIBRARY", "off")
     assert main(["takes", "list"]) == 2 and "PUPPET_LIBRARY=off" in capsys.readouterr().err
+
+
+def test_a_file_that_was_never_a_library_is_left_alone(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """`--library` naming some other file by mistake (a text file, another program's database) is
+    one line and exit 2, and the file stays as it was: only a library whose journal names takes is
+    moved aside and rebuilt."""
+    text = tmp_path / "accounts.txt"
+    text.write_text("root:x:0:0:root:/root:/bin/bash\n")
+    other = tmp_path / "other.sqlite"
+    con = sqlite3.connect(other)
+    con.execute("CREATE TABLE notes (id INTEGER PRIMARY KEY, body TEXT)")
+    con.execute("INSERT INTO notes (body) VALUES ('keep me')")
+    con.commit()
+    con.close()
+    for path in (text, other):
+        before = path.read_bytes()
+        code, out, err = takes_cli(capsys, path, "list")
+        assert code == 2 and out == "", (path, out)
+        assert len(err.strip().splitlines()) == 1 and str(path) in err and "Traceback" not in err, err
+        assert path.read_bytes() == before
+        assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(path.name)) == [path.name], path
