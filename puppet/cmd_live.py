@@ -331,7 +331,8 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         rate = float(point.header.get("tick_rate", rate))  # a take goes on at the rate it was made at
         header["tick_rate"] = rate
         writer = resume.open_resumed(point, SessionWriter, header)
-    else:
+    kept = None  # where a take already at --record went (the library follows it there)
+    if point is None:
         if record:
             from puppet.session import keep_previous
 
@@ -435,7 +436,8 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         if writer is not None and record and writer.error is None:
             from puppet.library import register_recording
 
-            register_recording(record, getattr(args, "performer", None), getattr(args, "library", None), warn)
+            register_recording(record, getattr(args, "performer", None), getattr(args, "library", None), warn,
+                               kept=kept)
     p50, p99 = core.latency.percentile(50), core.latency.percentile(99)
     lat = f"; input-to-frame latency p50 {p50 * 1e3:.1f} ms, p99 {p99 * 1e3:.1f} ms" if p50 is not None else ""
     where = f" to {record}" if record else ""

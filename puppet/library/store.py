@@ -317,6 +317,14 @@ class Library:
                 self._reindex(con, take_id)
         return len(ids)
 
+    def follow(self, old: str | Path, new: str | Path) -> None:
+        """The take registered at `old` was moved to `new` (its content there unchanged): its entry,
+        tags and notes go with it, so whatever is recorded at `old` next is a take of its own."""
+        old_path, new_path = str(Path(old).resolve()), str(Path(new).resolve())
+        row = self.con.execute("SELECT id, hash FROM takes WHERE path = ?", (old_path,)).fetchone()
+        if row is not None and file_hash(new_path)[0] == row[1]:
+            self.set_place(int(row[0]), new_path, False)
+
     def set_place(self, take_id: int, path: str | None, missing: bool) -> None:
         with schema.write(self.con) as con:
             if path is not None:

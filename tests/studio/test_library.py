@@ -289,3 +289,28 @@ def test_a_file_that_was_never_a_library_is_left_alone(tmp_path: Path, capsys: p
         assert len(err.strip().splitlines()) == 1 and str(path) in err and "Traceback" not in err, err
         assert path.read_bytes() == before
         assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(path.name)) == [path.name], path
+
+
+def test_recording_again_to_a_take_keeps_its_tags_with_the_kept_take(tmp_path: Path) -> None:
+    """Recording to a path that holds a take keeps the earlier take as NAME.1.jsonl: the library
+    follows it there (its id, tags and notes), and the new recording is a take of its own."""
+    script = tmp_path / "s.toml"
+    script.write_text('impersonate = "sgi"\nspeed = 0\nduration = 0.5\n[[ramp]]\ncontrol = "dial1"\n'
+                      'start = 0.0\nduration = 0.4\nfrom = 0.0\nto = 1.0\nrate = 50\n')
+    lib, rec = tmp_path / "takes.db", tmp_path / "show.jsonl"
+    cmd = [sys.executable, "-m", "puppet", "live", "--headless", "--no-panel", "--device", f"mock://{script}",
+           "--record", str(rec), "--library", str(lib)]
+    assert subprocess.run(cmd + ["--performer", "ana"], capture_output=True, timeout=180).returncode == 0
+    with Library(lib) as library:
+        first = library.search("")[0]["id"]
+        library.tag(first, "keeper")
+        library.note(first, "the good one")
+    assert subprocess.run(cmd + ["--performer", "bob"], capture_output=True, timeout=180).returncode == 0
+    kept = tmp_path / "show.1.jsonl"
+    assert kept.is_file()
+    with Library(lib) as library:
+        rows = {Path(t["path"]).name: t for t in library.search("")}
+        assert sorted(rows) == ["show.1.jsonl", "show.jsonl"]
+        assert rows["show.1.jsonl"]["id"] == first and rows["show.1.jsonl"]["tags"] == ["keeper"]
+        assert rows["show.1.jsonl"]["notes"] == "the good one" and rows["show.1.jsonl"]["performer"] == "ana"
+        assert rows["show.jsonl"]["tags"] == [] and rows["show.jsonl"]["performer"] == "bob"
