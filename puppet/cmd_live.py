@@ -262,7 +262,7 @@ def _open_panel(args: argparse.Namespace, face: Any, devs: list[Any], explicit: 
     if getattr(args, "no_panel", False) or (scripted and not explicit):
         return
     try:
-        roles = parse_roles(getattr(args, "panel_role", []))
+        roles = parse_roles(getattr(args, "panel_role", []), face.vocab)
     except ValueError as err:
         raise devices.DeviceSpecError(str(err)) from err
     port = "" if args.panel is None else f":{args.panel}"
