@@ -314,3 +314,18 @@ def test_recording_again_to_a_take_keeps_its_tags_with_the_kept_take(tmp_path: P
         assert rows["show.1.jsonl"]["id"] == first and rows["show.1.jsonl"]["tags"] == ["keeper"]
         assert rows["show.1.jsonl"]["notes"] == "the good one" and rows["show.1.jsonl"]["performer"] == "ana"
         assert rows["show.jsonl"]["tags"] == [] and rows["show.jsonl"]["performer"] == "bob"
+
+
+def test_the_listing_keeps_its_columns_however_long_a_cell(folder: Path, tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture) -> None:
+    lib = tmp_path / "takes.db"
+    with Library(lib) as library:
+        first = library.register(folder / "ana_smile.jsonl", performer="Anastasia Lopez-Villanueva")
+        library.register(folder / "ana_brow.jsonl")
+        library.set_spans(library.get(first)["hash"], [(0.0, 0.2, "happiness", 0.9), (0.2, 0.4, "sadness", 0.8),
+                                                       (0.4, 0.5, "surprise", 0.9)])
+    code, out, _ = takes_cli(capsys, lib, "list")
+    lines = out.splitlines()
+    assert code == 0 and len(lines) == 3 and "happiness,sadness,surprise" in out, out
+    column = lines[0].index("path")
+    assert all(line[column:].startswith(str(folder)) for line in lines[1:]), out
