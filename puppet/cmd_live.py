@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -182,6 +183,25 @@ def run(args: argparse.Namespace) -> int:
             gc.enable()
 
 
+#: seconds the face may take to load before the show says that it is being prepared
+SLOW_FACE_NOTICE = 2.0
+
+
+def _load_face_saying(live: Any, args: argparse.Namespace, warn: Callable[[str], None]) -> Any:
+    """live.load_face, with a line if it is slow: with empty caches (the first show after an
+    install or update) building the scanned face took a minute of silence before any line."""
+    import threading
+
+    timer = threading.Timer(SLOW_FACE_NOTICE, warn, ["preparing the face: building it and its caches, once "
+                                                     "after an install or update (a minute or more)"])
+    timer.daemon = True
+    timer.start()
+    try:
+        return live.load_face(args.rig, face=args.face)
+    finally:
+        timer.cancel()
+
+
 def _run(args: argparse.Namespace) -> int:
     from puppet import live
     from puppet.errors import PuppetError
@@ -235,7 +255,7 @@ def _run(args: argparse.Namespace) -> int:
         snapshot = Path(record).with_suffix(".png")
         warn(f"no display found (DISPLAY is not set): running headless, recording to {record} and "
              f"saving the last frame to {snapshot}; replay with `puppet replay {record} --out video.mp4`")
-    face = live.load_face(args.rig, face=args.face)
+    face = _load_face_saying(live, args, warn)
     mapped = [(d.spec, d.description) for d in devs]  # these get their default maps
     if windowed and not any(d.spec.startswith("keyboard") for d in devs):
         import devices
