@@ -66,3 +66,14 @@ def test_the_page_exports_a_kept_take_beside_it_under_its_own_name(tmp_path: Pat
     assert done["job"]["state"] == "done", done
     assert done["started"]["out"] == str(tmp_path / "show.1.csv")
     assert (tmp_path / "show.1.csv").is_file() and not (tmp_path / "show.csv").exists()
+
+
+def test_a_negative_chunk_length_is_one_line(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    from puppet.cli import main
+
+    take = tmp_path / "a.jsonl"
+    take.write_text("")
+    assert main(["batch", "export", str(take), "--out", str(tmp_path / "out"), "--chunk-frames", "-5"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--chunk-frames" in err, err
+    assert not (tmp_path / "out").exists()  # refused before anything started
