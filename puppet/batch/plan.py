@@ -49,7 +49,8 @@ def select(selection: list[str], library: str | None, suffixes: tuple[str, ...])
         p = Path(s)
         if p.is_dir():
             paths += sorted(q for q in p.rglob("*") if q.is_file() and q.name.lower().endswith(suffixes)
-                            and not any(part.startswith(".") for part in q.relative_to(p).parts))
+                            and not any(part.startswith(".") for part in q.relative_to(p).parts)
+                            and not _channel_export(q))
         elif p.is_file():
             paths.append(p)
         else:
@@ -78,6 +79,21 @@ def select(selection: list[str], library: str | None, suffixes: tuple[str, ...])
     if not out:
         raise PuppetError("the selection names no input files")
     return out
+
+
+#: how the channel CSV that `puppet replay --out take.csv` writes begins (puppet.export)
+CHANNEL_CSV_HEAD = b"frame,time,tick,"
+
+
+def _channel_export(path: Path) -> bool:
+    """A take's channels exported as CSV beside it: in a folder, not a capture to fit or recognize."""
+    if not path.name.lower().endswith(".csv"):
+        return False
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(len(CHANNEL_CSV_HEAD)) == CHANNEL_CSV_HEAD
+    except OSError:
+        return False
 
 
 def load(path: Path) -> Input:

@@ -77,3 +77,18 @@ def test_a_negative_chunk_length_is_one_line(tmp_path: Path, capsys) -> None:  #
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--chunk-frames" in err, err
     assert not (tmp_path / "out").exists()  # refused before anything started
+
+
+def test_a_folder_for_recognize_leaves_out_the_takes_own_channel_exports(tmp_path: Path) -> None:
+    # `puppet replay take.jsonl --out take.csv` (or the page's csv button) writes the channels beside
+    # the take: not a capture, so a folder's recognize or fit must not fail on it
+    from puppet.batch.plan import select
+    from puppet.batch.run import SUFFIXES
+
+    (tmp_path / "take.jsonl").write_text("{}\n")
+    (tmp_path / "take.csv").write_text("frame,time,tick,jaw\n0,0.0,0,0.5\n")
+    (tmp_path / "dots.csv").write_text("time,nose_x,nose_y,nose_z\n0.0,1,2,3\n")
+    for action, want in (("recognize", ["dots.csv", "take.jsonl"]), ("fit", ["dots.csv"])):
+        assert sorted(p.name for p in select([str(tmp_path)], None, SUFFIXES[action])) == want, action
+    # named on its own, a file is taken as given (and fails with its reason)
+    assert [p.name for p in select([str(tmp_path / "take.csv")], None, SUFFIXES["fit"])] == ["take.csv"]
