@@ -184,7 +184,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 #: seconds the face may take to load before the show says that it is being prepared
-SLOW_FACE_NOTICE = 2.0
+SLOW_FACE_NOTICE = 3.0
 
 
 def _load_face_saying(live: Any, args: argparse.Namespace, warn: Callable[[str], None]) -> Any:
@@ -192,8 +192,8 @@ def _load_face_saying(live: Any, args: argparse.Namespace, warn: Callable[[str],
     install or update) building the scanned face took a minute of silence before any line."""
     import threading
 
-    timer = threading.Timer(SLOW_FACE_NOTICE, warn, ["preparing the face: building it and its caches, once "
-                                                     "after an install or update (a minute or more)"])
+    timer = threading.Timer(SLOW_FACE_NOTICE, warn, ["preparing the face: loading it (the first show after an "
+                                                     "install or update builds it and its caches: a minute or more)"])
     timer.daemon = True
     timer.start()
     try:
