@@ -59,6 +59,8 @@ def run(args: argparse.Namespace) -> int:
     opts: dict = {"fps": args.fps}
     if args.workers is not None and args.workers < 1:
         raise PuppetError("--workers must be at least 1")
+    if getattr(args, "chunk_frames", 0) < 0:
+        raise PuppetError(f"--chunk-frames must be 0 (never split) or a number of frames, got {args.chunk_frames}")
     if action == "export":
         kinds = [k.strip().lower() for k in args.to.split(",") if k.strip()]
         bad = [k for k in kinds if k not in EXPORT_KINDS]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -182,6 +183,25 @@ def run(args: argparse.Namespace) -> int:
             gc.enable()
 
 
+#: seconds the face may take to load before the show says that it is being prepared
+SLOW_FACE_NOTICE = 3.0
+
+
+def _load_face_saying(live: Any, args: argparse.Namespace, warn: Callable[[str], None]) -> Any:
+    """live.load_face, with a line if it is slow: with empty caches (the first show after an
+    install or update) building the scanned face took a minute of silence before any line."""
+    import threading
+
+    timer = threading.Timer(SLOW_FACE_NOTICE, warn, ["preparing the face: loading it (the first show after an "
+                                                     "install or update builds it and its caches: a minute or more)"])
+    timer.daemon = True
+    timer.start()
+    try:
+        return live.load_face(args.rig, face=args.face)
+    finally:
+        timer.cancel()
+
+
 def _run(args: argparse.Namespace) -> int:
     from puppet import live
     from puppet.errors import PuppetError
@@ -235,7 +255,7 @@ def _run(args: argparse.Namespace) -> int:
         snapshot = Path(record).with_suffix(".png")
         warn(f"no display found (DISPLAY is not set): running headless, recording to {record} and "
              f"saving the last frame to {snapshot}; replay with `puppet replay {record} --out video.mp4`")
-    face = live.load_face(args.rig, face=args.face)
+    face = _load_face_saying(live, args, warn)
     mapped = [(d.spec, d.description) for d in devs]  # these get their default maps
     if windowed and not any(d.spec.startswith("keyboard") for d in devs):
         import devices
@@ -262,7 +282,7 @@ def _open_panel(args: argparse.Namespace, face: Any, devs: list[Any], explicit: 
     if getattr(args, "no_panel", False) or (scripted and not explicit):
         return
     try:
-        roles = parse_roles(getattr(args, "panel_role", []))
+        roles = parse_roles(getattr(args, "panel_role", []), face.vocab)
     except ValueError as err:
         raise devices.DeviceSpecError(str(err)) from err
     port = "" if args.panel is None else f":{args.panel}"
@@ -331,7 +351,8 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         rate = float(point.header.get("tick_rate", rate))  # a take goes on at the rate it was made at
         header["tick_rate"] = rate
         writer = resume.open_resumed(point, SessionWriter, header)
-    else:
+    kept = None  # where a take already at --record went (the library follows it there)
+    if point is None:
         if record:
             from puppet.session import keep_previous
 
@@ -435,7 +456,8 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         if writer is not None and record and writer.error is None:
             from puppet.library import register_recording
 
-            register_recording(record, getattr(args, "performer", None), getattr(args, "library", None), warn)
+            register_recording(record, getattr(args, "performer", None), getattr(args, "library", None), warn,
+                               kept=kept)
     p50, p99 = core.latency.percentile(50), core.latency.percentile(99)
     lat = f"; input-to-frame latency p50 {p50 * 1e3:.1f} ms, p99 {p99 * 1e3:.1f} ms" if p50 is not None else ""
     where = f" to {record}" if record else ""

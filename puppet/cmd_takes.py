@@ -47,13 +47,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.set_defaults(func=run)
 
 
-def _line(t: dict[str, Any]) -> str:
-    date = (t["recorded"] or "")[:16].replace("T", " ")
-    flag = "  [missing]" if t["missing"] else ""
+def _cells(t: dict[str, Any]) -> tuple[str, str, str]:
+    """The listing's variable-width cells: performer, tags, expressions."""
     tags = ",".join(t["tags"]) or "-"
     exprs = ",".join(sorted({e["expression"] for e in t["expressions"]} - {"neutral"})) or "-"
-    return (f"{t['id']:>5}  {date:<16}  {t['duration']:7.2f} s  {t['performer'] or '-':<12}  {tags:<16}  "
-            f"{exprs:<20}  {t['path']}{flag}")
+    return t["performer"] or "-", tags, exprs
+
+
+def _line(t: dict[str, Any], widths: tuple[int, int, int] = (12, 16, 20)) -> str:
+    date = (t["recorded"] or "")[:16].replace("T", " ")
+    flag = "  [missing]" if t["missing"] else ""
+    cells = "  ".join(f"{c:<{w}}" for c, w in zip(_cells(t), widths))
+    return f"{t['id']:>5}  {date:<16}  {t['duration']:7.2f} s  {cells}  {t['path']}{flag}"
 
 
 def _public(t: dict[str, Any]) -> dict[str, Any]:
@@ -69,9 +74,12 @@ def _listing(rows: list[dict[str, Any]], as_json: bool) -> None:
     if not rows:
         print("puppet: no takes")
         return
-    print(f"{'id':>5}  {'recorded (UTC)':<16}  {'length':>9}  {'performer':<12}  {'tags':<16}  {'expressions':<20}  path")
+    # columns as wide as their widest cell, so the paths line up however many expressions a take has
+    widths = tuple(max([w] + [len(c[k]) for c in map(_cells, rows)]) for k, w in enumerate((12, 16, 20)))
+    heads = "  ".join(f"{h:<{w}}" for h, w in zip(("performer", "tags", "expressions"), widths))
+    print(f"{'id':>5}  {'recorded (UTC)':<16}  {'length':>9}  {heads}  path")
     for t in rows:
-        print(_line(t))
+        print(_line(t, widths))  # type: ignore[arg-type]  # three widths
 
 
 def run(args: argparse.Namespace) -> int:

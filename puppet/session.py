@@ -21,6 +21,7 @@ complete record, with a warning."""
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import threading
@@ -84,6 +85,44 @@ class _Syncer:
             self._thread.join(timeout=10)
 
 
+def _being_recorded(path: Path) -> bool:
+    """Whether a show holds the recording lock on `path` (SessionWriter takes it for the show)."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)  # releases the lock just taken
+    return False
+
+
+def _open_locked(path: Path, append_to: int | None) -> IO[str]:
+    """The take opened for writing under an exclusive lock held until it closes, so that a second
+    show given the same file is refused before it truncates or moves the first one's take."""
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        raise ConfigError(f"{path}: another show is recording to it; choose another --record name") from None
+    except OSError:
+        pass  # a file system without locks: written as before
+    try:
+        os.ftruncate(fd, 0 if append_to is None else append_to)
+        fh = os.fdopen(fd, "r+", encoding="utf-8", newline="\n")
+    except BaseException:
+        os.close(fd)
+        raise
+    fh.seek(0 if append_to is None else append_to)
+    return fh
+
+
 def keep_previous(path: str | Path) -> Path | None:
     """Before a new take is written to `path`, move a take already there aside (to the first free
     `NAME.1.jsonl`, `NAME.2.jsonl`, ...) so that starting a show never destroys an earlier one;
@@ -94,6 +133,8 @@ def keep_previous(path: str | Path) -> Path | None:
             return None
     except OSError:
         return None
+    if _being_recorded(p):
+        raise ConfigError(f"{p}: another show is recording to it; choose another --record name")
     for n in range(1, 10_000):
         kept = p.with_name(f"{p.stem}.{n}{p.suffix}")
         if not kept.exists():
@@ -133,12 +174,7 @@ class SessionWriter:
         self.channels: list[str] = list(header["channels"])
         self._lock = threading.Lock()
         try:
-            if append_to is None:
-                self._file: IO[str] | None = open(self.path, "w", encoding="utf-8", newline="\n")
-            else:
-                self._file = open(self.path, "r+", encoding="utf-8", newline="\n")
-                self._file.seek(append_to)
-                self._file.truncate()
+            self._file: IO[str] | None = _open_locked(self.path, append_to)
         except OSError as err:
             raise ConfigError(f"{self.path}: cannot write the recording: {err.strerror}") from err
         full = {"t": "header", "format": FORMAT, "version": VERSION, **header}

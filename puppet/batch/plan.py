@@ -49,7 +49,8 @@ def select(selection: list[str], library: str | None, suffixes: tuple[str, ...])
         p = Path(s)
         if p.is_dir():
             paths += sorted(q for q in p.rglob("*") if q.is_file() and q.name.lower().endswith(suffixes)
-                            and not any(part.startswith(".") for part in q.relative_to(p).parts))
+                            and not any(part.startswith(".") for part in q.relative_to(p).parts)
+                            and not _channel_export(q))
         elif p.is_file():
             paths.append(p)
         else:
@@ -80,6 +81,21 @@ def select(selection: list[str], library: str | None, suffixes: tuple[str, ...])
     return out
 
 
+#: how the channel CSV that `puppet replay --out take.csv` writes begins (puppet.export)
+CHANNEL_CSV_HEAD = b"frame,time,tick,"
+
+
+def _channel_export(path: Path) -> bool:
+    """A take's channels exported as CSV beside it: in a folder, not a capture to fit or recognize."""
+    if not path.name.lower().endswith(".csv"):
+        return False
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(len(CHANNEL_CSV_HEAD)) == CHANNEL_CSV_HEAD
+    except OSError:
+        return False
+
+
 def load(path: Path) -> Input:
     """Read an input and its sidecar (a PC2 capture's rest OBJ) for sending to a worker."""
     item = Input(path)
@@ -102,9 +118,24 @@ def load(path: Path) -> Input:
     return item
 
 
+#: what an input's name ends with that its outputs do not carry (longest first: `x.arkit.csv` -> `x`)
+INPUT_SUFFIXES = (".arkit.csv", ".jsonl", ".csv", ".c3d", ".pc2")
+
+
+def output_stem(path: Path) -> str:
+    """The input's name without its own suffix: `show.1.jsonl` (the earlier take a new recording
+    to `show.jsonl` keeps) -> `show.1`, never `show`, so its outputs do not replace the current
+    take's; a capture exported as `phone.arkit.csv` -> `phone`."""
+    name = path.name
+    for suffix in INPUT_SUFFIXES:
+        if name.lower().endswith(suffix) and len(name) > len(suffix):
+            return name[: -len(suffix)]
+    return path.stem or name
+
+
 def output_names(items: list[Input], suffix: str) -> list[str]:
     """`STEM + suffix` per input; inputs sharing a stem get their content hash's start added."""
-    stems = [i.path.name.split(".")[0] or i.path.stem for i in items]
+    stems = [output_stem(i.path) for i in items]
     dup = {s for s in stems if stems.count(s) > 1}
     return [f"{s}-{i.digest[:8]}{suffix}" if s in dup else f"{s}{suffix}" for s, i in zip(stems, items)]
 

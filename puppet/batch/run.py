@@ -265,6 +265,11 @@ def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_fr
             try:
                 result = fut.result()
             except Exception as err:  # the job's reason (or the worker's death, past the retries)
+                if _scheduler_lost(err):  # no take's fault: every task still out is cancelled with it
+                    logging.getLogger("distributed.client").setLevel(logging.CRITICAL)  # its close's tracebacks
+                    raise PuppetError(f"lost the connection to the Dask scheduler mid-batch ({len(rep.written)} "
+                                      "files written, kept); start it again and run the same command: it "
+                                      "does only what is missing") from None
                 rep.failed.setdefault(origin, _reason(err, origin))
                 continue
             finally:
@@ -329,6 +334,11 @@ def _remove_parts(out_dir: Path, todo: list[Output]) -> None:
                 (out_dir / name).unlink()
             except OSError:
                 pass
+
+
+def _scheduler_lost(err: BaseException) -> bool:
+    """Whether a task's future was cancelled because the client lost the scheduler."""
+    return type(err).__name__ == "FutureCancelledError" and "connection" in str(err).lower()
 
 
 def _reason(err: BaseException, origin: str) -> str:

@@ -24,14 +24,18 @@ def open_library(arg: str | None) -> Library:
 
 
 def register_recording(record: str | Path, performer: str | None, arg: str | None,
-                       warn: Callable[[str], None]) -> int | None:
+                       warn: Callable[[str], None], kept: str | Path | None = None) -> int | None:
     """Register a take just recorded by `puppet live`; never raises (a show's recording is safe on
-    disk whatever the library does). Returns the take's id, or None."""
+    disk whatever the library does). `kept`: where the take `record` held before was moved
+    (session.keep_previous); the library follows it there, tags and notes with it. Returns the
+    take's id, or None."""
     path = library_path(arg)
     if path is None:
         return None
     try:
         with Library(path, warn=warn) as lib:
+            if kept is not None:
+                lib.follow(record, kept)
             return lib.register(record, performer=performer)
     except Exception as err:  # the library must never cost the performer the take
         warn(f"the take {record} is safe but was not added to the library {path}: {err}")

@@ -126,6 +126,12 @@ def connect(path: Path) -> tuple[sqlite3.Connection, bool]:
     except sqlite3.Error as err:
         raise ConfigError(f"{path}: cannot open the take library: {err}") from err
     try:
+        if con.execute("PRAGMA user_version").fetchone()[0] == 0:
+            other = [r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")]
+            if other:  # another program's database: not ours to change
+                con.close()
+                raise ConfigError(f"{path}: not a take library (a database with the tables "
+                                  f"{', '.join(other[:3])[:80]}); pass --library with the library's file")
         con.execute("PRAGMA foreign_keys = ON")
         mode = con.execute("PRAGMA journal_mode = WAL").fetchone()[0]
         if str(mode).lower() != "wal":

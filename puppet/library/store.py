@@ -62,6 +62,9 @@ class Library:
         try:
             self.con, new = schema.connect(self.path)
         except schema.LibraryDamaged as err:
+            if not self._journaled():  # never a library (a file named by mistake): left as it is
+                raise ConfigError(f"{self.path}: not a take library ({err}) and no journal of one beside it; "
+                                  "pass --library with the library's file (a new name starts a new one)") from err
             self.con = self._rebuild(str(err))
         else:
             if new and self.journal.exists() and self.journal.stat().st_size:
@@ -79,6 +82,13 @@ class Library:
         self.close()
 
     # ---- journal and rebuild -------------------------------------------------------------
+
+    def _journaled(self) -> bool:
+        """Whether the journal beside the file names anything: a library's rebuild has takes to read."""
+        try:
+            return self.journal.stat().st_size > 0
+        except OSError:
+            return False
 
     def _log(self, **rec: Any) -> None:
         line = (json.dumps(rec, ensure_ascii=False, separators=(",", ":")) + "\n").encode()
@@ -306,6 +316,14 @@ class Library:
                                 [(take_id, *s) for s in spans])
                 self._reindex(con, take_id)
         return len(ids)
+
+    def follow(self, old: str | Path, new: str | Path) -> None:
+        """The take registered at `old` was moved to `new` (its content there unchanged): its entry,
+        tags and notes go with it, so whatever is recorded at `old` next is a take of its own."""
+        old_path, new_path = str(Path(old).resolve()), str(Path(new).resolve())
+        row = self.con.execute("SELECT id, hash FROM takes WHERE path = ?", (old_path,)).fetchone()
+        if row is not None and file_hash(new_path)[0] == row[1]:
+            self.set_place(int(row[0]), new_path, False)
 
     def set_place(self, take_id: int, path: str | None, missing: bool) -> None:
         with schema.write(self.con) as con:

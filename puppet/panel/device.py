@@ -53,14 +53,22 @@ class Client:
     face: bool = False  # the page watches the face
 
 
-def parse_roles(items: Sequence[str]) -> dict[str, list[str]]:
-    """`NAME=PAT,PAT` items (the --panel-role option) -> {name: patterns}; ValueError if malformed."""
+def parse_roles(items: Sequence[str], vocab: Any = None) -> dict[str, list[str]]:
+    """`NAME=PAT,PAT` items (the --panel-role option) -> {name: patterns}; ValueError if malformed
+    or, given the face's `vocab`, if a pattern matches no control (a typo served an empty page)."""
     roles: dict[str, list[str]] = {}
     for item in items:
         name, sep, pats = item.partition("=")
         if not sep or not NAME_RE.fullmatch(name) or not pats.strip():
             raise ValueError(f"expected --panel-role NAME=PATTERN[,PATTERN...] (e.g. mouth=jaw,orbicularis_oris), got {item!r}")
         roles[name] = [p.strip() for p in pats.split(",") if p.strip()]
+        if vocab is not None:
+            from puppet.panel.layout import MARKER, PANIC, allowed_controls
+
+            for pat in roles[name]:
+                if not allowed_controls(vocab, [pat]) - {PANIC, MARKER}:
+                    raise ValueError(f"--panel-role {name}: {pat!r} matches no channel, pair, action unit or "
+                                     "expression of this face (`puppet channels` lists them)")
     return roles
 
 

@@ -19,6 +19,8 @@ from typing import Any
 
 from aiohttp import web
 
+from puppet.batch.plan import output_stem
+
 MAX_RESULTS = 200
 EXPORT_SUFFIXES = {"mp4": ".mp4", "pc2": ".pc2", "csv": ".csv"}
 
@@ -106,7 +108,7 @@ class TakeRoutes:
         take = Path(t["path"])
         if t["missing"] or not take.is_file():
             return web.json_response({"ok": False, "error": f"{take} is missing"})
-        out = take.with_name(take.name.split(".")[0] + EXPORT_SUFFIXES[kind])
+        out = take.with_name(output_stem(take) + EXPORT_SUFFIXES[kind])
         job = {"id": t["id"], "out": str(out), "state": "running", "error": ""}
         proc = subprocess.Popen([sys.executable, "-m", "puppet", "replay", str(take), "--out", str(out)],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)

@@ -71,6 +71,14 @@ def test_channel_limits(vocab) -> None:
             parse_roles([bad])
 
 
+def test_a_role_naming_no_control_is_refused(vocab) -> None:
+    # a typo (`mouth=jaww`) served a page of nothing but panic and marker, silently
+    assert parse_roles(["mouth=jaw,AU26,frontalis_*"], vocab) == {"mouth": ["jaw", "AU26", "frontalis_*"]}
+    for bad in ("mouth=jaww", "mouth=jaw,nosuch"):
+        with pytest.raises(ValueError, match="matches no"):
+            parse_roles([bad], vocab)
+
+
 def test_page_map_drives_channels_through_the_mapper(vocab) -> None:
     m = Mapper(panel_map(vocab), vocab)
     names = [c.name for c in vocab.channels]

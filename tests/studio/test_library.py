@@ -268,3 +268,64 @@ def test_library_option_before_the_action_and_env(folder: Path, tmp_path: Path, 
     assert [Path(r["path"]).name for r in json.loads(capsys.readouterr().out)] == ["bob_jaw.jsonl"]
     monkeypatch.setenv("PUPPET_LIBRARY", "off")
     assert main(["takes", "list"]) == 2 and "PUPPET_LIBRARY=off" in capsys.readouterr().err
+
+
+def test_a_file_that_was_never_a_library_is_left_alone(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """`--library` naming some other file by mistake (a text file, another program's database) is
+    one line and exit 2, and the file stays as it was: only a library whose journal names takes is
+    moved aside and rebuilt."""
+    text = tmp_path / "accounts.txt"
+    text.write_text("root:x:0:0:root:/root:/bin/bash\n")
+    other = tmp_path / "other.sqlite"
+    con = sqlite3.connect(other)
+    con.execute("CREATE TABLE notes (id INTEGER PRIMARY KEY, body TEXT)")
+    con.execute("INSERT INTO notes (body) VALUES ('keep me')")
+    con.commit()
+    con.close()
+    for path in (text, other):
+        before = path.read_bytes()
+        code, out, err = takes_cli(capsys, path, "list")
+        assert code == 2 and out == "", (path, out)
+        assert len(err.strip().splitlines()) == 1 and str(path) in err and "Traceback" not in err, err
+        assert path.read_bytes() == before
+        assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(path.name)) == [path.name], path
+
+
+def test_recording_again_to_a_take_keeps_its_tags_with_the_kept_take(tmp_path: Path) -> None:
+    """Recording to a path that holds a take keeps the earlier take as NAME.1.jsonl: the library
+    follows it there (its id, tags and notes), and the new recording is a take of its own."""
+    script = tmp_path / "s.toml"
+    script.write_text('impersonate = "sgi"\nspeed = 0\nduration = 0.5\n[[ramp]]\ncontrol = "dial1"\n'
+                      'start = 0.0\nduration = 0.4\nfrom = 0.0\nto = 1.0\nrate = 50\n')
+    lib, rec = tmp_path / "takes.db", tmp_path / "show.jsonl"
+    cmd = [sys.executable, "-m", "puppet", "live", "--headless", "--no-panel", "--device", f"mock://{script}",
+           "--record", str(rec), "--library", str(lib)]
+    assert subprocess.run(cmd + ["--performer", "ana"], capture_output=True, timeout=180).returncode == 0
+    with Library(lib) as library:
+        first = library.search("")[0]["id"]
+        library.tag(first, "keeper")
+        library.note(first, "the good one")
+    assert subprocess.run(cmd + ["--performer", "bob"], capture_output=True, timeout=180).returncode == 0
+    kept = tmp_path / "show.1.jsonl"
+    assert kept.is_file()
+    with Library(lib) as library:
+        rows = {Path(t["path"]).name: t for t in library.search("")}
+        assert sorted(rows) == ["show.1.jsonl", "show.jsonl"]
+        assert rows["show.1.jsonl"]["id"] == first and rows["show.1.jsonl"]["tags"] == ["keeper"]
+        assert rows["show.1.jsonl"]["notes"] == "the good one" and rows["show.1.jsonl"]["performer"] == "ana"
+        assert rows["show.jsonl"]["tags"] == [] and rows["show.jsonl"]["performer"] == "bob"
+
+
+def test_the_listing_keeps_its_columns_however_long_a_cell(folder: Path, tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture) -> None:
+    lib = tmp_path / "takes.db"
+    with Library(lib) as library:
+        first = library.register(folder / "ana_smile.jsonl", performer="Anastasia Lopez-Villanueva")
+        library.register(folder / "ana_brow.jsonl")
+        library.set_spans(library.get(first)["hash"], [(0.0, 0.2, "happiness", 0.9), (0.2, 0.4, "sadness", 0.8),
+                                                       (0.4, 0.5, "surprise", 0.9)])
+    code, out, _ = takes_cli(capsys, lib, "list")
+    lines = out.splitlines()
+    assert code == 0 and len(lines) == 3 and "happiness,sadness,surprise" in out, out
+    column = lines[0].index("path")
+    assert all(line[column:].startswith(str(folder)) for line in lines[1:]), out

@@ -1,0 +1,34 @@
+"""A show whose face is slow to load (empty caches: the first show after an install) says so while
+it loads, instead of a silent minute before the first line."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from puppet import cmd_live, live
+from puppet.cli import main
+from puppet.errors import PuppetError
+
+SCRIPT = Path(__file__).resolve().parents[2] / "examples" / "mock" / "sgi_rehearsal.toml"
+
+
+def test_a_slow_face_load_is_announced_while_it_loads(monkeypatch: pytest.MonkeyPatch,
+                                                      capsys: pytest.CaptureFixture) -> None:
+    def slow_load(*args: object, **kwargs: object) -> None:
+        time.sleep(1.0)  # the notice is due after SLOW_FACE_NOTICE (set far shorter below)
+        raise PuppetError("the face stops here")
+
+    monkeypatch.setattr(live, "load_face", slow_load)
+    monkeypatch.setattr(cmd_live, "SLOW_FACE_NOTICE", 0.05)
+    monkeypatch.setenv("PUPPET_LIBRARY", "off")
+    code = main(["live", "--headless", "--no-panel", "--no-realtime", "--device", f"mock://{SCRIPT}",
+                 "--duration", "1"])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    lines = err.splitlines()
+    notice = [i for i, line in enumerate(lines) if line.startswith("puppet: preparing the face")]
+    stop = [i for i, line in enumerate(lines) if "the face stops here" in line]
+    assert notice and stop and notice[0] < stop[0], err

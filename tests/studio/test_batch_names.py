@@ -1,0 +1,94 @@
+"""Batch and page export names: an output is named after its input without the input's own suffix,
+so two takes the product itself keeps side by side never share an output."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from puppet.batch.plan import Input, output_names, output_stem
+
+
+def _inputs(*names: str) -> list[Input]:
+    return [Input(Path("/shoot") / n, digest=f"{k:02d}" * 32) for k, n in enumerate(names)]
+
+
+def test_a_kept_earlier_take_gets_its_own_outputs() -> None:
+    # recording to show.jsonl again keeps the earlier take as show.1.jsonl (session.keep_previous):
+    # its outputs must not take over show.mp4, which the current take's own export is called
+    names = output_names(_inputs("show.jsonl", "show.1.jsonl", "scene2.take3.jsonl"), ".mp4")
+    assert names == ["show.mp4", "show.1.mp4", "scene2.take3.mp4"]
+
+
+def test_an_exported_capture_fits_back_to_its_take_name() -> None:
+    assert output_names(_inputs("phone.arkit.csv", "dots.csv", "cap.c3d"), ".jsonl") == \
+        ["phone.jsonl", "dots.jsonl", "cap.jsonl"]
+    assert output_stem(Path("Show.JSONL")) == "Show"
+
+
+def test_inputs_sharing_a_name_in_two_folders_are_told_apart() -> None:
+    items = [Input(Path("/day1/take.jsonl"), digest="a" * 64), Input(Path("/day2/take.jsonl"), digest="b" * 64)]
+    assert output_names(items, ".pc2") == ["take-aaaaaaaa.pc2", "take-bbbbbbbb.pc2"]
+
+
+def test_the_page_exports_a_kept_take_beside_it_under_its_own_name(tmp_path: Path) -> None:
+    import asyncio
+    import sys
+
+    from aiohttp import web
+    from aiohttp.test_utils import TestClient, TestServer
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from takes import write_take
+
+    from puppet.library.store import Library
+    from puppet.panel.takes import TakeRoutes
+
+    current = write_take(tmp_path / "show.jsonl", ticks=20, seed=1)
+    kept = write_take(tmp_path / "show.1.jsonl", ticks=30, seed=2)
+    lib_path = tmp_path / "takes.db"
+    with Library(lib_path) as lib:
+        lib.register(current)
+        kept_id = lib.register(kept)
+
+    async def export() -> dict:
+        app = web.Application()
+        TakeRoutes(lambda: lib_path).add(app)
+        async with TestClient(TestServer(app, host="127.0.0.1")) as client:
+            started = await (await client.post(f"/api/takes/{kept_id}/export?to=csv")).json()
+            for _ in range(600):
+                jobs = (await (await client.get("/api/takes/exports")).json())["exports"]
+                if jobs and jobs[-1]["state"] != "running":
+                    return {"started": started, "job": jobs[-1]}
+                await asyncio.sleep(0.1)
+        raise AssertionError("the export did not finish")
+
+    done = asyncio.run(export())
+    assert done["job"]["state"] == "done", done
+    assert done["started"]["out"] == str(tmp_path / "show.1.csv")
+    assert (tmp_path / "show.1.csv").is_file() and not (tmp_path / "show.csv").exists()
+
+
+def test_a_negative_chunk_length_is_one_line(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    from puppet.cli import main
+
+    take = tmp_path / "a.jsonl"
+    take.write_text("")
+    assert main(["batch", "export", str(take), "--out", str(tmp_path / "out"), "--chunk-frames", "-5"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--chunk-frames" in err, err
+    assert not (tmp_path / "out").exists()  # refused before anything started
+
+
+def test_a_folder_for_recognize_leaves_out_the_takes_own_channel_exports(tmp_path: Path) -> None:
+    # `puppet replay take.jsonl --out take.csv` (or the page's csv button) writes the channels beside
+    # the take: not a capture, so a folder's recognize or fit must not fail on it
+    from puppet.batch.plan import select
+    from puppet.batch.run import SUFFIXES
+
+    (tmp_path / "take.jsonl").write_text("{}\n")
+    (tmp_path / "take.csv").write_text("frame,time,tick,jaw\n0,0.0,0,0.5\n")
+    (tmp_path / "dots.csv").write_text("time,nose_x,nose_y,nose_z\n0.0,1,2,3\n")
+    for action, want in (("recognize", ["dots.csv", "take.jsonl"]), ("fit", ["dots.csv"])):
+        assert sorted(p.name for p in select([str(tmp_path)], None, SUFFIXES[action])) == want, action
+    # named on its own, a file is taken as given (and fails with its reason)
+    assert [p.name for p in select([str(tmp_path / "take.csv")], None, SUFFIXES["fit"])] == ["take.csv"]
