@@ -33,6 +33,16 @@ TOP = (3.5, 4.5)  # cm above the eyes' centres over which it fades out: above it
 CREASE_FOLD = 0.15  # the fold term (render.scan_shaders: 1.8 of it darkens) at most added for a softened fold
 CREASE_DEPTH = 0.1  # cm: the (spread) depth of softened folds that adds three quarters of CREASE_FOLD
 SIDE = 6.5  # cm from the midline: no further (the temples)
+WIDE_SIGMA = 0.7  # cm: the Gaussian's width between the brows' heads (the glabella's V)
+WIDE_HALF = (0.4, 1.0)  # cm: half width and half height of the glabella's patch (centred between the
+# glabella and the nasion), all of it within, fading over WIDE_FADE beyond
+WIDE_FADE = (0.6, 0.6)
+NOSE_SIGMA = 0.3  # cm: the Gaussian's width under the nose (the nostril sills)
+NOSE_LIMIT = 0.02  # cm: the residual's soft limit there
+WIDE_LIMIT = 0.03  # cm: the same at the glabella
+WIDE_FOLD = 0.15  # the softened folds' shadow at most there (CREASE_FOLD elsewhere)
+NOSE_CENTRE = (0.0, 0.35, -0.2)  # cm from the subnasale: the middle of the nose's base
+NOSE_HALF = (1.7, 0.8, 1.0)  # cm: the nose base's half extents (x, y, z), all of it within 0.7 of them
 
 
 def _smoothstep(x: np.ndarray) -> np.ndarray:
@@ -65,20 +75,36 @@ class FoldSoftener:
              * (1.0 - _smoothstep((y - TOP[0]) / (TOP[1] - TOP[0])))
              * (1.0 - _smoothstep((np.abs(rest[:, 0]) - SIDE + 0.5) / 0.5))
              * (skin & (rest[:, 2] > eyes[:, 2].mean() - 4.0)))
+        from sim.face.scan.anatomy import load_landmarks
+
+        marks = load_landmarks()
+        gl = 0.5 * (rest[marks["glabella"]] + rest[marks["nose_bridge"]])
+        wide = ((1.0 - _smoothstep((np.abs(rest[:, 0] - gl[0]) - WIDE_HALF[0]) / WIDE_FADE[0]))
+                * (1.0 - _smoothstep((np.abs(rest[:, 1] - gl[1]) - WIDE_HALF[1]) / WIDE_FADE[1])))
+        sigma = SIGMA + (WIDE_SIGMA - SIGMA) * wide
+        limit = LIMIT + (WIDE_LIMIT - LIMIT) * wide
+        fold = CREASE_FOLD + (WIDE_FOLD - CREASE_FOLD) * wide
+        base = np.abs(rest - (rest[marks["subnasale"]] + NOSE_CENTRE)) / NOSE_HALF
+        nose = np.prod(1.0 - _smoothstep((base - 0.7) / 0.3), axis=1) * skin
+        sigma = np.where(nose > w, NOSE_SIGMA, sigma)
+        limit = np.where(nose > w, NOSE_LIMIT, limit)
+        w = np.maximum(w, nose)
         zone = np.flatnonzero(w > 0.0)
         skin_v = np.flatnonzero(skin)
-        near = cKDTree(rest[skin_v]).query_ball_point(rest[zone], REACH * SIGMA)
+        near = cKDTree(rest[skin_v]).query_ball_point(rest[zone], REACH * sigma[zone])
         cols = [skin_v[np.asarray(j, np.int64)] for j in near]
         count = np.array([len(c) for c in cols])
         rows = np.repeat(np.arange(len(zone)), count)
         flat = np.concatenate(cols)
-        g = np.exp(-0.5 * np.sum((rest[flat] - rest[zone[rows]]) ** 2, axis=1) / SIGMA**2)
+        g = np.exp(-0.5 * np.sum((rest[flat] - rest[zone[rows]]) ** 2, axis=1) / sigma[zone[rows]] ** 2)
         g /= np.bincount(rows, g)[rows]
         self.zone = zone.astype(np.int32)
         self.ptr = np.concatenate([[0], np.cumsum(count)]).astype(np.int32)
         self.cols = flat.astype(np.int32)
         self.gauss = g.astype(np.float32)
         self.weight = w[zone].astype(np.float32)
+        self.limit = limit[zone].astype(np.float32)
+        self.fold = fold[zone].astype(np.float32)
         self.rest = rest.astype(np.float32)
         self.support = np.unique(np.concatenate([flat, zone])).astype(np.int32)
         self.disp = np.zeros((n, 4), np.float32)
@@ -94,7 +120,7 @@ class FoldSoftener:
         p = np.ascontiguousarray(posed, np.float32)
         out = p.copy()
         soften_zone(p, self.rest, self.support, self.zone, self.ptr, self.cols, self.gauss, self.weight,
-                    self.normal, np.float32(LIMIT), np.float32(CREASE_FOLD), np.float32(CREASE_DEPTH), self.disp, out,
+                    self.normal, self.limit, self.fold, np.float32(CREASE_DEPTH), self.disp, out,
                     self.crease)
         return out
 

@@ -88,3 +88,29 @@ def test_the_lids_are_never_moved(soft: FoldSoftener) -> None:
                               if np.min(np.linalg.norm(rest[lp].mean(axis=0) - eyes, axis=1)) < 1.5])
     dist = np.min(np.linalg.norm(rest[moved][:, None] - rest[margins][None], axis=2), axis=1)
     assert dist.min() >= LID_CLEAR[0]
+
+
+def test_a_pleat_under_the_nose_is_smoothed_and_the_lip_lift_stays(soft: FoldSoftener) -> None:
+    """The nostril sills: the upper lip raised into the nose's base crumpled the skin there into a
+    pleat a few millimetres wide, drawn as a pale seam under the nostrils."""
+    from render.scan_soften import NOSE_LIMIT
+    from sim.face.scan.anatomy import load_landmarks
+
+    rest = soft.rest.astype(np.float64)
+    sub = rest[load_landmarks()["subnasale"]]
+    zone = np.zeros(len(rest), bool)
+    zone[soft.zone[soft.weight > 0.999]] = True
+    rel = rest - sub
+    sill = np.flatnonzero(zone & (np.abs(rel[:, 0]) < 1.0) & (rel[:, 1] > 0.0) & (rel[:, 1] < 0.6))
+    assert len(sill) > 20
+    # the lip and the nose's base raised 5 mm, fading over 2 cm, and on it a pleat: ridges 0.4 cm
+    # apart across the sill, 1.5 mm high along the skin's normal
+    lift = 0.5 * np.exp(-0.5 * np.sum(rel[:, :2] ** 2, axis=1) / 2.0**2)
+    broad = rest + lift[:, None] * [0.0, 1.0, 0.0]
+    pleat = 0.15 * np.sin(2.0 * np.pi * rel[:, 0] / 0.4)
+    posed = (broad + pleat[:, None] * _normal(soft)).astype(np.float32)
+    out = soft.soften(posed).astype(np.float64)
+    assert np.linalg.norm(posed[sill] - broad[sill], axis=1).max() > 0.1
+    assert np.linalg.norm(out[sill] - broad[sill], axis=1).max() <= NOSE_LIMIT + 0.02
+    smooth = soft.soften(broad.astype(np.float32)).astype(np.float64)
+    assert np.abs(smooth[sill] - broad[sill]).max() < 0.02
