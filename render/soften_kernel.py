@@ -13,12 +13,12 @@ prepare_blas_check()  # before this module's first kernel runs: see sim.numba_st
 @numba.njit(cache=True, nogil=True)
 def soften_zone(posed: np.ndarray, rest: np.ndarray, support: np.ndarray, zone: np.ndarray, ptr: np.ndarray,
                 cols: np.ndarray, gauss: np.ndarray, weight: np.ndarray, normal: np.ndarray, limit: np.ndarray,
-                shadow: np.ndarray, shadow_depth: float, disp: np.ndarray, out: np.ndarray, crease: np.ndarray) -> None:
+                shadow: float, shadow_depth: float, disp: np.ndarray, out: np.ndarray, crease: np.ndarray) -> None:
     """For each zone vertex i = zone[z]: r = (posed - rest)[i] minus the Gaussian mean of
     (posed - rest) over cols[ptr[z]:ptr[z + 1]] (weights gauss, summing to 1); out[i] = posed[i]
     - weight[z] (1 - limit[z] tanh(|r| / limit[z]) / |r|) r. Reads `posed` only, writes `out` only;
     `disp` (N, 4) is scratch, written at the rows `support` lists (every index of cols and zone).
-    crease[z] = shadow[z] tanh(d / shadow_depth), d the Gaussian mean over the same neighbours of
+    crease[z] = shadow tanh(d / shadow_depth), d the Gaussian mean over the same neighbours of
     weight max(0, -r . normal): how deep the skin around the vertex was pushed in below its
     surroundings' motion (the folds of a buckle, spread over it), 0 where it moved smoothly."""
     for k in range(support.shape[0]):
@@ -52,4 +52,4 @@ def soften_zone(posed: np.ndarray, rest: np.ndarray, support: np.ndarray, zone: 
         s = np.float32(0.0)
         for k in range(ptr[z], ptr[z + 1]):
             s += gauss[k] * disp[cols[k], 3]
-        crease[z] = shadow[z] * np.tanh(s / shadow_depth)
+        crease[z] = shadow * np.tanh(s / shadow_depth)
