@@ -12,11 +12,11 @@ prepare_blas_check()  # before this module's first kernel runs: see sim.numba_st
 
 @numba.njit(cache=True, nogil=True)
 def soften_zone(posed: np.ndarray, rest: np.ndarray, support: np.ndarray, zone: np.ndarray, ptr: np.ndarray,
-                cols: np.ndarray, gauss: np.ndarray, weight: np.ndarray, normal: np.ndarray, limit: float,
+                cols: np.ndarray, gauss: np.ndarray, weight: np.ndarray, normal: np.ndarray, limit: np.ndarray,
                 shadow: float, shadow_depth: float, disp: np.ndarray, out: np.ndarray, crease: np.ndarray) -> None:
     """For each zone vertex i = zone[z]: r = (posed - rest)[i] minus the Gaussian mean of
     (posed - rest) over cols[ptr[z]:ptr[z + 1]] (weights gauss, summing to 1); out[i] = posed[i]
-    - weight[z] (1 - limit tanh(|r| / limit) / |r|) r. Reads `posed` only, writes `out` only;
+    - weight[z] (1 - limit[z] tanh(|r| / limit[z]) / |r|) r. Reads `posed` only, writes `out` only;
     `disp` (N, 4) is scratch, written at the rows `support` lists (every index of cols and zone).
     crease[z] = shadow tanh(d / shadow_depth), d the Gaussian mean over the same neighbours of
     weight max(0, -r . normal): how deep the skin around the vertex was pushed in below its
@@ -44,7 +44,7 @@ def soften_zone(posed: np.ndarray, rest: np.ndarray, support: np.ndarray, zone: 
         length = np.sqrt(rx * rx + ry * ry + rz * rz)
         if length < 1e-9:
             continue
-        c = weight[z] * (np.float32(1.0) - limit * np.tanh(length / limit) / length)
+        c = weight[z] * (np.float32(1.0) - limit[z] * np.tanh(length / limit[z]) / length)
         out[i, 0] = posed[i, 0] - c * rx
         out[i, 1] = posed[i, 1] - c * ry
         out[i, 2] = posed[i, 2] - c * rz

@@ -88,3 +88,49 @@ def test_the_lids_are_never_moved(soft: FoldSoftener) -> None:
                               if np.min(np.linalg.norm(rest[lp].mean(axis=0) - eyes, axis=1)) < 1.5])
     dist = np.min(np.linalg.norm(rest[moved][:, None] - rest[margins][None], axis=2), axis=1)
     assert dist.min() >= LID_CLEAR[0]
+
+
+def test_a_pleat_under_the_nose_is_smoothed_and_the_lip_lift_stays(soft: FoldSoftener) -> None:
+    """The nostril sills: the upper lip raised into the nose's base crumpled the skin there into a
+    pleat a few millimetres wide, drawn as a pale seam under the nostrils."""
+    from render.scan_soften import NOSE_LIMIT
+    from sim.face.scan.anatomy import load_landmarks
+
+    rest = soft.rest.astype(np.float64)
+    sub = rest[load_landmarks()["subnasale"]]
+    zone = np.zeros(len(rest), bool)
+    zone[soft.zone[soft.weight > 0.999]] = True
+    rel = rest - sub
+    sill = np.flatnonzero(zone & (np.abs(rel[:, 0]) < 1.0) & (rel[:, 1] > 0.0) & (rel[:, 1] < 0.6))
+    assert len(sill) > 20
+    # the lip and the nose's base raised 5 mm, fading over 2 cm, and on it a pleat: ridges 0.4 cm
+    # apart across the sill, 1.5 mm high along the skin's normal
+    lift = 0.5 * np.exp(-0.5 * np.sum(rel[:, :2] ** 2, axis=1) / 2.0**2)
+    broad = rest + lift[:, None] * [0.0, 1.0, 0.0]
+    pleat = 0.15 * np.sin(2.0 * np.pi * rel[:, 0] / 0.4)
+    posed = (broad + pleat[:, None] * _normal(soft)).astype(np.float32)
+    out = soft.soften(posed).astype(np.float64)
+    assert np.linalg.norm(posed[sill] - broad[sill], axis=1).max() > 0.1
+    assert np.linalg.norm(out[sill] - broad[sill], axis=1).max() <= NOSE_LIMIT + 0.02
+    smooth = soft.soften(broad.astype(np.float32)).astype(np.float64)
+    assert np.abs(smooth[sill] - broad[sill]).max() < 0.02
+
+
+def test_the_glabellas_v_is_drawn_shallow(soft: FoldSoftener) -> None:
+    """Between the brows the corrugators and procerus fold the skin into a V whose bottom is an edge
+    or two wide (drawn as a dark seam): a V 2 mm deep and 1 cm across keeps at most 60 % of its depth."""
+    from sim.face.scan.anatomy import load_landmarks
+
+    rest = soft.rest.astype(np.float64)
+    marks = load_landmarks()
+    centre = 0.5 * (rest[marks["glabella"]] + rest[marks["nose_bridge"]])
+    normal = _normal(soft)
+    depth = 0.2 * np.clip(1.0 - np.abs(rest[:, 0] - centre[0]) / 0.5, 0.0, None)
+    posed = (rest - depth[:, None] * normal).astype(np.float32)
+    out = soft.soften(posed).astype(np.float64)
+    zone = np.zeros(len(rest), bool)
+    zone[soft.zone] = True
+    bottom = np.flatnonzero(zone & (np.abs(rest[:, 0] - centre[0]) < 0.15) & (np.abs(rest[:, 1] - centre[1]) < 0.8))
+    assert len(bottom) >= 5
+    left = np.einsum("ij,ij->i", rest[bottom] - out[bottom], normal[bottom])
+    assert (left > 0.0).all() and left.max() <= 0.6 * depth[bottom].max()
