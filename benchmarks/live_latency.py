@@ -29,14 +29,23 @@ eight dials, which made those ticks whole steps. `--solve idle,always` runs each
 did before (the solve between ticks only when no input waits, a tick finding one doing the whole step)
 beside now (the solve at every pass, the input drained after it).
 
+"runnable, no CPU" is the loop thread's time on the run queue without a CPU (the kernel's
+`/proc/thread-self/schedstat`, its second field) from the previous tick's end to the end of an
+event's tick: what of that event's latency other programs took, the rest being the loop's own work
+and its sleeps. Beside it, the share of a core the loop's thread used over the row. The SGI box
+emulator runs in a session of its own, so that it is not in the show's autogroup (the fair scheduler
+shares the CPU between sessions first, then between the threads of one): a box outside the machine
+takes nothing of the show's share. `--repeat N` runs every row N times, interleaved.
+
 Run:  .venv/bin/python benchmarks/live_latency.py [--seconds 10] [--render 640x360] [--no-record]
       [--rates 60,auto,240] [--wake off,on] [--realtime off,on] [--jaw whole,responses] [--solve idle,always]
-      [--json]
+      [--repeat N] [--json]
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import random
@@ -103,7 +112,7 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
     work: list[float] = []
     # per event: where its event -> state time went (busy: a tick in progress when it arrived;
     # schedule: the loop waiting for the schedule or waking up; tick: its own tick's work)
-    where: dict[str, list[float]] = {"busy": [], "schedule": [], "tick": []}
+    where: dict[str, list[float]] = {"busy": [], "schedule": [], "tick": [], "runnable, no CPU": []}
     ends: list[float] = []  # each tick's simulation step done (time.monotonic)
     batches: list[list[float]] = []
 
@@ -126,9 +135,19 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
         work.append(time.monotonic() - starts[-1])
     tick = core.tick
 
+    delays: list[float] = []  # the loop thread's time runnable but not running (schedstat), at each tick's end
+
+    def run_delay() -> float:
+        try:
+            with open("/proc/thread-self/schedstat") as f:
+                return int(f.read().split()[1]) / 1e9
+        except OSError:
+            return 0.0
+
     def timed_tick(events: Any) -> None:
         tick(events)
         ends.append(time.monotonic())
+        delays.append(run_delay())
 
     core.tick = timed_tick  # type: ignore[method-assign]
     step = core.sim.step
@@ -158,10 +177,12 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
         th.start()
     if realtime and live.realtime_priority() is not None:
         print("--realtime: SCHED_FIFO not permitted here: the row runs at the ordinary priority", file=sys.stderr)
+    cpu_start, wall_start = time.thread_time(), time.monotonic()
     try:
         live.run_realtime(core, drain, seconds, on_frame=on_frame, frame_rate=live.DISPLAY_RATE,
                           wake=queue.wait_arrival if wake else None, ahead_when_idle=solve == "idle")
     finally:
+        cpu_end, wall_end = time.thread_time(), time.monotonic()
         live.ordinary_priority()
         if writer is not None:
             writer.close(core.tick_count)
@@ -178,10 +199,13 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
             where["busy"].append(busy)
             where["schedule"].append(max(0.0, starts[k] - max(te, ends[k - 1])))
             where["tick"].append(ends[k] - starts[k])
+            # what of it the loop spent waiting for a CPU (the last tick's end -> its own tick's end)
+            where["runnable, no CPU"].append(delays[k] - delays[k - 1])
+    loop_cpu = (cpu_end - cpu_start) / max(1e-9, wall_end - wall_start)  # the loop thread's share of a core
     lat = np.array(core.latency.all) * 1000
     st = np.array(core.state_latency.all) * 1000
     wk = np.array(work) * 1000
-    return {"rate": rate, "wake": wake, "state_p50_ms": float(np.percentile(st, 50)),
+    return {"rate": rate, "wake": wake, "loop_cpu": loop_cpu, "state_p50_ms": float(np.percentile(st, 50)),
             "state_p99_ms": float(np.percentile(st, 99)),
             "events": int(lat.size), "p50_ms": float(np.percentile(lat, 50)), "p99_ms": float(np.percentile(lat, 99)),
             "max_ms": float(lat.max()), "ticks": core.tick_count, "target_ms": 1000 / 60 + 2,
@@ -213,6 +237,8 @@ def _box_process(link: str, conn: Any) -> None:
     moments until told to stop."""
     sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "devices")]
     from emulators import SgiBoxEmulator
+
+    os.setsid()  # a session of its own: not in the show's autogroup, whose share of the CPU a box does not take
 
     box = SgiBoxEmulator(Path(link))
     try:
@@ -265,6 +291,7 @@ def main() -> int:
                     "between ticks: always (also with an input waiting, which is drained after it), idle (only when "
                     "no input waits, the tick then doing the whole step, as before), or both (idle,always: "
                     "interleaved in one run)")
+    ap.add_argument("--repeat", type=int, default=1, help="run every row this many times, interleaved")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     render = tuple(int(x) for x in a.render.split("x")) if a.render else None
@@ -279,15 +306,17 @@ def main() -> int:
     rates = list(dict.fromkeys(chosen if x == "auto" else float(x) for x in a.rates.split(",")))
     res: dict[str, dict[str, Any]] = {}
     with tempfile.TemporaryDirectory() as d:
-        for name, source in (("mock", mock_source), ("sgi_pty", sgi_source)):
-            for rate in rates:  # interleaved in one run, so the ratios share the machine's load
-                for wake in wakes:
-                    for rt in realtimes:
-                        for jaw in jaws:
-                            for when in solves:
-                                res[f"{name} {rate:g} Hz wake {'on' if wake else 'off'}{' rt' if rt else ''}"
-                                    f"{'' if jaw else ' jaw whole'}{' ahead ' + when if len(solves) > 1 else ''}"] = source(
-                                    face, a.seconds, render, Path(d), not a.no_record, rate, wake, rt, jaw, when)
+        for rep in range(a.repeat):  # every row again, interleaved, so each repetition shares the load
+            for name, source in (("mock", mock_source), ("sgi_pty", sgi_source)):
+                for rate, wake, rt, jaw, when in itertools.product(rates, wakes, realtimes, jaws, solves):
+                    key = (f"{name} {rate:g} Hz wake {'on' if wake else 'off'}{' rt' if rt else ''}"
+                           f"{'' if jaw else ' jaw whole'}{' ahead ' + when if len(solves) > 1 else ''}"
+                           f"{f' #{rep + 1}' if a.repeat > 1 else ''}")
+                    res[key] = source(face, a.seconds, render, Path(d), not a.no_record, rate, wake, rt, jaw, when)
+                    print(f"{key}: state p99 {res[key]['state_p99_ms']:.1f} ms (runnable, no CPU p99 "
+                          f"{res[key]['where_ms']['runnable, no CPU'][1]:.1f} ms; the loop's thread "
+                          f"{res[key]['loop_cpu']:.0%} of a core), load {os.getloadavg()[0]:.2f}",
+                          file=sys.stderr, flush=True)
     if a.json:
         print(json.dumps(res, indent=2))
         return 0
@@ -301,13 +330,16 @@ def main() -> int:
               f" (x{r['p99_ms'] / b['p99_ms']:.2f}; target <= {r['target_ms']:.1f}, floor ~{r['floor_p99_ms']:.1f})")
         late = r["spans_ms"].get("woke late", [0.0, 0.0])
         print(f"{'':36s} work after the boundary (drain + tick) p50 {r['work_p50_ms']:.1f} p99 {r['work_p99_ms']:.1f} ms, "
-              f"woke late p99 {late[1]:.1f} ms, {r['ticks']} ticks")
+              f"woke late p99 {late[1]:.1f} ms, {r['ticks']} ticks; the loop's thread used {r['loop_cpu']:.0%} of a core")
         wh = r.get("where_ms", {})
         print(f"{'':36s} an event's wait: for a tick in progress p50/p99 {wh['busy'][0]:.1f}/{wh['busy'][1]:.1f} ms, "
               f"for the schedule or the wake-up {wh['schedule'][0]:.1f}/{wh['schedule'][1]:.1f} ms; its tick "
               f"{wh['tick'][0]:.1f}/{wh['tick'][1]:.1f} ms; sim step {r['spans_ms']['sim step'][0]:.1f}/"
               f"{r['spans_ms']['sim step'][1]:.1f} ms (CPU {r['spans_ms']['sim step CPU'][0]:.1f}/"
               f"{r['spans_ms']['sim step CPU'][1]:.1f})")
+        if "runnable, no CPU" in wh:
+            print(f"{'':36s} the loop runnable but given no CPU from the previous tick's end to its tick's end "
+                  f"p50/p99 {wh['runnable, no CPU'][0]:.1f}/{wh['runnable, no CPU'][1]:.1f} ms")
         whole = r["counts"].get("sim step CPU, nothing made ahead", 0)
         if whole:
             w = r["spans_ms"]["sim step CPU, nothing made ahead"]
