@@ -165,6 +165,8 @@ def run_loop(face: live.Face, devs: list[Any], seconds: float, render: tuple[int
         return out
 
     core.sim.step = cpu_timed_step  # type: ignore[method-assign]
+    if solve == "never":  # the whole step at each tick, as replay does
+        core.prepare_next = lambda: None  # type: ignore[method-assign]
     live.prepare_show()  # as `puppet live` does before it starts the devices
     os.environ["PUPPET_REALTIME_DEVICES"] = "1" if realtime else "0"  # as `puppet live --realtime`
     for d in devs:
@@ -289,8 +291,8 @@ def main() -> int:
                     "before), or both (whole,responses: interleaved in one run)")
     ap.add_argument("--solve", default="always", help="when the loop makes the next step's input-free solve "
                     "between ticks: always (also with an input waiting, which is drained after it), idle (only when "
-                    "no input waits, the tick then doing the whole step, as before), or both (idle,always: "
-                    "interleaved in one run)")
+                    "no input waits, the tick then doing the whole step, as before), never (the whole step at "
+                    "every tick, as replay does), or several (idle,always: interleaved in one run)")
     ap.add_argument("--repeat", type=int, default=1, help="run every row this many times, interleaved")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
