@@ -51,6 +51,17 @@ def bumps(points: np.ndarray, zone: np.ndarray, n: int, centres: np.ndarray | No
     return out, centres
 
 
+def mirrored_bumps(points: np.ndarray, zone: np.ndarray, n: int) -> np.ndarray:
+    """(n, N) bumps over a zone that straddles the midline, each the sum of a bump about a centre
+    on the left half (x >= 0, farthest-point sampled) and one about its mirror image: a partition
+    of unity whose every member is mirror-symmetric, so a left shape's fit moves the right side
+    as the left."""
+    left = zone & (points[:, 0] >= 0.0)
+    _, centres = bumps(points, left, n)
+    phi, _ = bumps(points, zone, 2 * n, np.concatenate([centres, centres * MIRROR]))
+    return phi[:n] + phi[n:]
+
+
 @dataclass
 class Pose:
     """One shape of the fit: its channel values and the wanted displacement (N, 3) from rest (cm)."""
@@ -95,9 +106,12 @@ class InsertionBumps:
                 mag = np.linalg.norm(f, axis=1)
                 if not mag.any():
                     raise ValueError(f"{ch} has no force field to fit")
-                phi, found = bumps(rest, mag > 1e-3 * mag.max(), per_group,
-                                   None if centres is None else centres * MIRROR)
-                centres = found if centres is None else centres
+                zone = mag > 1e-3 * mag.max()
+                if len(sides) == 1:  # one muscle across the midline: each bump paired with its mirror image
+                    phi = mirrored_bumps(rest, zone, per_group)
+                else:
+                    phi, found = bumps(rest, zone, per_group, None if centres is None else centres * MIRROR)
+                    centres = found if centres is None else centres
                 resp = np.zeros((len(phi), len(free), 3))
                 for b in range(len(phi)):
                     stepper.solver.solve(np.ascontiguousarray((phi[b][:, None] * f)[free]), resp[b])
@@ -133,10 +147,14 @@ class InsertionBumps:
 
 def fit_rig_settled(settler: Settler, rig: InsertionBumps, poses: Sequence[Pose], x0: np.ndarray,
                     lo: np.ndarray, hi: np.ndarray, *, rounds: int = 6, h: float = 0.1, refresh: int = 3,
-                    ridge: float = 1e-3, log: Callable[[str], None] | None = None) -> SettledFit:
+                    ridge: float = 1e-3, log: Callable[[str], None] | None = None,
+                    weights: Sequence[float] | None = None) -> SettledFit:
     """Levenberg-Marquardt (`sim.fit.settled.levenberg_settled`) of the rig's bump gains over every
-    pose at once. SettledFit.error: the root mean square of the poses' relative errors."""
-    norms = [float(np.linalg.norm(p.target)) for p in poses]
+    pose at once. weights: each pose's weight on its squared relative error (1 each; a pose held
+    where it is, a preset, may weigh otherwise). SettledFit.error: the root mean square of the
+    poses' weighted relative errors."""
+    w = np.ones(len(poses)) if weights is None else np.asarray(weights, float)
+    norms = [float(np.linalg.norm(p.target)) / np.sqrt(wi) for p, wi in zip(poses, w)]
 
     def residual(x: np.ndarray, start: object) -> tuple[np.ndarray, object]:
         rig.apply(x)
@@ -149,7 +167,7 @@ def fit_rig_settled(settler: Settler, rig: InsertionBumps, poses: Sequence[Pose]
 
     starts = [settler.rest_state] * len(poses)
     try:
-        return levenberg_settled(settler, residual, starts, x0, lo, hi, norm=float(np.sqrt(len(poses))),
+        return levenberg_settled(settler, residual, starts, x0, lo, hi, norm=float(np.sqrt(np.sum(w))),
                                  rounds=rounds, h=h, refresh=refresh, ridge=ridge, log=log)
     finally:
         rig.restore()
@@ -167,3 +185,72 @@ def relative_errors(settler: Settler, rig: InsertionBumps, poses: Sequence[Pose]
         return out
     finally:
         rig.restore()
+
+
+class SkinBumps:
+    """The skin's fields (`FaceRig.skin`: tether, support, modulus) scaled by exp(sum of theta_b
+    phi_b) over smooth Gaussian bumps (width `sigma` cm, about `centres`, mirror pairs sharing a
+    parameter): theta 0 is the rig as it is. The step's matrix changes with them, so each parameter
+    vector is a rig compiled and prepared again (a few seconds) and its rest settled (a caller that
+    does not want those trial faces in the face cache turns its store off: `sim.prepared.use_store`)."""
+
+    def __init__(self, model: object, centres: Sequence[np.ndarray], fields: Sequence[str] = ("tether", "modulus"),
+                 sigma: float = 0.8, method: str = "auto") -> None:
+        self.model, self.method = model, method
+        rest = np.asarray(model.rest)  # type: ignore[attr-defined]
+        self.phi = np.array([sum(np.exp(-np.sum((rest - c) ** 2, axis=1) / (2 * sigma**2)) for c in pair)
+                             for pair in centres])
+        self.fields = tuple(fields)
+        self.n_params = len(self.fields) * len(self.phi)
+        self.names = [f"{f}:{b}" for f in self.fields for b in range(len(self.phi))]
+        self._memo: dict[bytes, Settler] = {}
+        self.settles = 0
+
+    def skin(self, x: np.ndarray) -> dict[str, np.ndarray]:
+        rig = self.model.rig  # type: ignore[attr-defined]
+        n = len(self.phi[0])
+        out = {name: np.asarray(rig.skin.get(name, np.ones(n)), np.float64) for name in rig.skin}
+        for k, name in enumerate(self.fields):
+            theta = x[k * len(self.phi):(k + 1) * len(self.phi)]
+            out[name] = np.asarray(rig.skin.get(name, np.ones(n)), np.float64) * np.exp(theta @ self.phi)
+        return out
+
+    def settler(self, x: np.ndarray) -> Settler:
+        from dataclasses import replace
+
+        from sim.build import compile_model
+
+        key = np.round(x, 6).tobytes()
+        if key not in self._memo:
+            if len(self._memo) >= 4:
+                self._memo.pop(next(iter(self._memo)))
+            m = self.model
+            self._memo[key] = Settler(compile_model(replace(m.rig, skin=self.skin(x)), m.params),  # type: ignore[attr-defined]
+                                      method=self.method)
+        return self._memo[key]
+
+
+def fit_skin_settled(skin: SkinBumps, poses: Sequence[Pose], x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, *,
+                     rounds: int = 6, h: float = 0.1, refresh: int = 3, ridge: float = 1e-3,
+                     log: Callable[[str], None] | None = None) -> SettledFit:
+    """Levenberg-Marquardt of the skin's bump parameters over every pose at once, each pose settled
+    on the rig compiled with them, from the pose settled before (the same vertices)."""
+    norms = [float(np.linalg.norm(p.target)) for p in poses]
+
+    class Count:
+        settles = 0
+
+    count = Count()
+
+    def residual(x: np.ndarray, start: object) -> tuple[np.ndarray, object]:
+        s = skin.settler(x)
+        states, parts = [], []
+        for p, s0, nrm in zip(poses, start, norms):  # type: ignore[call-overload]
+            st = settle_tight(s, p.values, s0 if s0 is not None else s.rest_state)
+            states.append(st)
+            parts.append((st.positions - s.rest - p.target).ravel() / nrm)
+        count.settles += len(poses)
+        return np.concatenate(parts), states
+
+    return levenberg_settled(count, residual, [None] * len(poses), x0, lo, hi,  # type: ignore[arg-type]
+                             norm=float(np.sqrt(len(poses))), rounds=rounds, h=h, refresh=refresh, ridge=ridge, log=log)

@@ -84,3 +84,44 @@ def test_a_rig_made_with_other_gains_is_found_again_from_two_poses(settler) -> N
     assert all(b <= a for a, b in zip(errors, errors[1:]))
     assert fit.error < 0.3 * errors[0]
     np.testing.assert_allclose(fit.x, truth, atol=0.2)
+
+
+def test_an_unsided_muscles_bumps_are_mirror_symmetric_and_a_partition_of_unity() -> None:
+    """A muscle across the midline gets bumps that weigh each point as its mirror image (a fit on a
+    left shape then moves the right side alike) and sum to 1 over its zone, 0 outside it."""
+    from sim.fit.rig_settled import mirrored_bumps
+
+    rng = np.random.default_rng(3)
+    half = rng.uniform([0.05, -2.0, 0.0], [3.0, 2.0, 1.0], (200, 3))
+    mid = np.column_stack([np.zeros(20), rng.uniform(-2.0, 2.0, 20), rng.uniform(0.0, 1.0, 20)])
+    points = np.concatenate([half, half * np.array([-1.0, 1.0, 1.0]), mid])
+    zone = np.abs(points[:, 1]) < 1.5
+    phi = mirrored_bumps(points, zone, 4)
+    assert phi.shape == (4, len(points))
+    np.testing.assert_allclose(phi[:, :200], phi[:, 200:400], atol=1e-12)
+    np.testing.assert_allclose(phi.sum(axis=0)[zone], 1.0, atol=1e-12)
+    assert not phi[:, ~zone].any()
+    assert np.all(phi.max(axis=1) > 0.5)  # four distinct bumps, not one smeared over the zone
+
+
+def test_a_laxer_skin_about_the_mouth_lets_a_smile_move_further(settler) -> None:  # type: ignore[no-untyped-def]
+    """The skin's bumps at 0 settle as the rig; the tether and modulus halved about the mouth corners
+    let the same smile carry the corner further; the skin far from the bumps keeps its fields."""
+    from sim.fit.rig_settled import SkinBumps
+
+    model = settler.model
+    rest = np.asarray(model.rest)
+    v = settler.values_for({"zygomaticus_major_l": 0.8})
+    smile = np.linalg.norm(settler.pose(v) - settler.rest, axis=1)
+    corner = rest[np.argmax(smile)]  # where the smile moves the skin most
+    skin = SkinBumps(model, [np.array([corner, corner * np.array([-1.0, 1.0, 1.0])])], sigma=1.0, method="implicit")
+    same = skin.settler(np.zeros(2))
+    np.testing.assert_allclose(same.pose(v) - same.rest, settler.pose(v) - settler.rest, atol=1e-3)
+    lax = skin.settler(np.full(2, np.log(0.5)))
+    moved = np.linalg.norm(lax.pose(v) - lax.rest, axis=1).max()
+    assert moved > 1.05 * smile.max()
+    far = np.linalg.norm(rest - corner, axis=1) > 6.0
+    for field in ("tether", "modulus"):
+        np.testing.assert_allclose(skin.skin(np.full(2, np.log(0.5)))[field][far & (rest[:, 0] > 0)],
+                                   np.asarray(model.rig.skin.get(field, np.ones(len(rest))))[far & (rest[:, 0] > 0)],
+                                   rtol=1e-3)
