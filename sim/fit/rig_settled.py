@@ -14,6 +14,9 @@ squared relative error (what `benchmarks/scan_match.py` reports per shape).
 
 `insertion(x)` gives the per-vertex gains a rig file stores (`FaceRig.insertion`), the product of
 the shipped ones and the fitted bumps.
+
+`SkinBumps` / `fit_skin_settled` do the same for the skin's fields (`FaceRig.skin`) about chosen
+points; those change the step's matrix, so every parameter vector is a rig compiled again.
 """
 
 from __future__ import annotations
@@ -204,7 +207,6 @@ class SkinBumps:
         self.n_params = len(self.fields) * len(self.phi)
         self.names = [f"{f}:{b}" for f in self.fields for b in range(len(self.phi))]
         self._memo: dict[bytes, Settler] = {}
-        self.settles = 0
 
     def skin(self, x: np.ndarray) -> dict[str, np.ndarray]:
         rig = self.model.rig  # type: ignore[attr-defined]
