@@ -11,7 +11,12 @@ error settled from rest as `scan_match.py` measures it (fitted shapes, held-out 
 every measured shape. `--write PATH` writes a rig file with the fitted insertions (for
 `puppet replay --rig`, `observer.py`, `folds.py` to judge before anything ships).
 
+`--hold-presets W` also keeps the presets that drive a fitted muscle where they settle now;
+`--skin` fits the skin's tether and modulus about the lips, chin and corners instead (`SKIN_AT`).
+Figures and what they showed: docs/scan-face.md, "The rig's own muscles fitted on the settled poses".
+
     nice .venv/bin/python benchmarks/rig_fit.py [--groups mentalis,orbicularis_oris,...] [--bumps 4] [--all]
+    nice .venv/bin/python benchmarks/rig_fit.py --skin [--shapes mouthPress_L,mouthClose,...]
 """
 
 from __future__ import annotations
