@@ -70,15 +70,32 @@ def fit_settled(settler: Settler, values: Callable[[np.ndarray], np.ndarray], ta
     parameters the target does not see where they are). sparsity (P,): an L1 cost per parameter
     (x >= 0 where it is set), relative to the target's energy: a parameter at 1 must take that
     much off the squared relative error to be worth it."""
-    x = np.clip(np.asarray(x0, float), lo, hi)
     norm = float(np.linalg.norm(target))
-    l1 = np.zeros(x.size) if sparsity is None else np.asarray(sparsity, float) * norm**2
+
+    def residual(x: np.ndarray, start: object) -> tuple[np.ndarray, object]:
+        state = settle_tight(settler, values(x), start)
+        return (state.positions - settler.rest - target).ravel(), state  # type: ignore[attr-defined]
+
+    l1 = None if sparsity is None else np.asarray(sparsity, float) * norm**2
+    return levenberg_settled(settler, residual, settler.rest_state, x0, lo, hi, norm=norm, rounds=rounds,
+                             h=h, refresh=refresh, ridge=ridge, l1=l1, log=log)
+
+
+def levenberg_settled(settler: Settler, residual: Callable[[np.ndarray, object], tuple[np.ndarray, object]],
+                      start: object, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, *, norm: float,
+                      rounds: int = 8, h: float = 0.05, refresh: int = 3, ridge: float = 1e-3,
+                      l1: np.ndarray | None = None, log: Callable[[str], None] | None = None) -> SettledFit:
+    """The Levenberg-Marquardt of `fit_settled` on any settled residual: residual(x, start) ->
+    (r, state), r the misfit of the pose(s) settled under parameters x from `start` (what a
+    previous call returned: the perturbed poses of a Jacobian column settle from the current
+    ones). norm: |r| is reported relative to it; l1 (P,): the absolute L1 cost per parameter."""
+    x = np.clip(np.asarray(x0, float), lo, hi)
+    l1 = np.zeros(x.size) if l1 is None else np.asarray(l1, float)
 
     def cost(res: np.ndarray, at: np.ndarray) -> float:
         return float(res @ res) + 2.0 * float(l1 @ at)
 
-    state = settle_tight(settler, values(x), settler.rest_state)
-    r = (state.positions - settler.rest - target).ravel()  # type: ignore[attr-defined]
+    r, state = residual(x, start)
     out = SettledFit(x.copy(), float(np.linalg.norm(r)) / norm)
     out.history.append((settler.settles, out.error))
     jac: np.ndarray | None = None
@@ -94,8 +111,7 @@ def fit_settled(settler: Settler, values: Callable[[np.ndarray], np.ndarray], ta
                     continue
                 xj = x.copy()
                 xj[j] += step
-                sj = settle_tight(settler, values(xj), state)
-                jac[:, j] = ((sj.positions - settler.rest - target).ravel() - r) / step  # type: ignore[attr-defined]
+                jac[:, j] = (residual(xj, state)[0] - r) / step
             since = 0
         scale = np.sqrt(np.sum(jac * jac, axis=0)) + 1e-12
         energy = float(np.mean(scale**2))
@@ -109,8 +125,7 @@ def fit_settled(settler: Settler, values: Callable[[np.ndarray], np.ndarray], ta
             dx = lsq_linear(a, b, bounds=(lo - x, hi - x)).x
             if np.max(np.abs(dx)) < 1e-4:
                 break
-            trial = settle_tight(settler, values(x + dx), state)
-            r2 = (trial.positions - settler.rest - target).ravel()  # type: ignore[attr-defined]
+            r2, trial = residual(x + dx, state)
             jac += np.outer((r2 - r) - jac @ dx, dx) / float(dx @ dx)  # Broyden's secant update
             if cost(r2, x + dx) < cost(r, x):
                 x, r, state = x + dx, r2, trial
