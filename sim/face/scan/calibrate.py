@@ -35,6 +35,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from sim.fit.rig_settled import bumps as _bumps  # the scan fits' bumps, written once
+
 BUMPS = 12
 PULL = 1e-3  # weight of the pull towards gain 1 (per gain), relative to one shape's own size
 MAX_GAIN = 8.0
@@ -98,30 +100,6 @@ def _stiffness(model) -> tuple[object, np.ndarray]:  # type: ignore[no-untyped-d
     k = rest_stiffness(model)
     free = np.flatnonzero(np.repeat(~np.asarray(model.held, bool), 3))
     return splu(k[free][:, free].tocsc()), free
-
-
-def _bumps(points: np.ndarray, zone: np.ndarray, n: int, centres: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(B, N) partition of unity over the zone's vertices (zero elsewhere), Gaussian bumps about
-    `centres` or about n centres spread over the zone by farthest-point sampling; and the centres."""
-    idx = np.flatnonzero(zone)
-    p = points[idx]
-    if centres is None:
-        first = int(np.argmin(np.linalg.norm(p - p.mean(axis=0), axis=1)))
-        chosen = [first]
-        d = np.linalg.norm(p - p[first], axis=1)
-        for _ in range(min(n, len(idx)) - 1):
-            nxt = int(np.argmax(d))
-            chosen.append(nxt)
-            d = np.minimum(d, np.linalg.norm(p - p[nxt], axis=1))
-        centres = p[chosen]
-    cd = np.linalg.norm(centres[:, None] - centres[None], axis=2) + np.eye(len(centres)) * 1e9
-    sigma = max(0.6 * float(np.median(cd.min(axis=1))), 0.05) if len(centres) > 1 else 1.0
-    w = np.exp(-np.sum((p[None] - centres[:, None]) ** 2, axis=2) / (2 * sigma**2))
-    w /= np.maximum(w.sum(axis=0), 1e-300)
-    out = np.zeros((len(centres), len(points)))
-    out[:, idx] = w
-    return out, centres
-
 
 
 def coupled_values(model: Any, shares: dict[str, float], s: Shape) -> np.ndarray:

@@ -76,6 +76,15 @@ def _point(vertices: FloatArray, chain: IntArray, a: FloatArray, axis: FloatArra
     return np.array([np.interp(t, tc[order], p[order, k]) for k in range(3)])
 
 
+def _along_margin(v: FloatArray, chain: IntArray, a: FloatArray, axis: FloatArray, t: FloatArray,
+                  value: FloatArray) -> FloatArray:
+    """(N,) a per-vertex `value` of a lid margin's chain, read at each vertex's fraction `t` between
+    the corners (clipped to them), interpolated along the corners' axis."""
+    tc = (v[chain] - a) @ axis / (axis @ axis)
+    order = np.argsort(tc)
+    return np.interp(np.clip(t, 0.0, 1.0), tc[order], value[chain][order])
+
+
 def _not_behind(v: FloatArray, upper: IntArray, lower: IntArray, forward: FloatArray) -> np.ndarray:
     """(N,) bool: the vertices no deeper along `forward` than the lid margins between the corners
     at their place (the shallower of the two chains there; beyond the corners, than the deepest
@@ -86,13 +95,7 @@ def _not_behind(v: FloatArray, upper: IntArray, lower: IntArray, forward: FloatA
     axis = b - a
     t = (v - a) @ axis / (axis @ axis)
     d = (v - a) @ forward
-
-    def depth(chain: IntArray) -> FloatArray:
-        tc = (v[chain] - a) @ axis / (axis @ axis)
-        order = np.argsort(tc)
-        return np.interp(np.clip(t, 0.0, 1.0), tc[order], d[chain][order])
-
-    rim = np.minimum(depth(upper), depth(lower))
+    rim = np.minimum(_along_margin(v, upper, a, axis, t, d), _along_margin(v, lower, a, axis, t, d))
     deepest = float(d[np.r_[upper, lower]].min())
     return np.where((t > 0.0) & (t < 1.0), d >= rim - 1e-9, d >= deepest - 1e-9)
 
@@ -106,13 +109,7 @@ def _within_opening(v: FloatArray, upper: IntArray, lower: IntArray, forward: Fl
     up /= np.linalg.norm(up)
     t = (v - a) @ axis / (axis @ axis)
     h = (v - a) @ up
-
-    def height(chain: IntArray) -> FloatArray:
-        tc = (v[chain] - a) @ axis / (axis @ axis)
-        order = np.argsort(tc)
-        return np.interp(np.clip(t, 0.0, 1.0), tc[order], h[chain][order])
-
-    top, bottom = height(upper), height(lower)
+    top, bottom = _along_margin(v, upper, a, axis, t, h), _along_margin(v, lower, a, axis, t, h)
     return (t > 0.0) & (t < 1.0) & (h > np.minimum(top, bottom)) & (h < np.maximum(top, bottom))
 
 
