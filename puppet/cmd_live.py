@@ -26,6 +26,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                    help="the face: ict (the scanned head), ict?identity=SEED, procedural or a saved identity's NAME")
     p.add_argument("--record", metavar="FILE", help="record the session to FILE (JSON Lines)")
     p.add_argument("--performer", metavar="NAME", help="who performs (kept in the take and the take library)")
+    p.add_argument("--tag", action="append", default=[], metavar="TAG",
+                   help="tag the recording in the take library; repeatable")
     p.add_argument("--library", metavar="PATH", help="the take library the recording is added to (default: your "
                    "data folder; PUPPET_LIBRARY=off for none)")
     p.add_argument("--headless", action="store_true", help="no window: for scripted and recorded runs")
@@ -360,6 +362,11 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
             if kept is not None:
                 warn(f"{record} already held a take: kept as {kept}")
         writer = SessionWriter(record, header) if record else None
+    if writer is not None and record:  # the library knows the take from its first tick
+        from puppet.library import begin_recording
+
+        begin_recording(record, header, getattr(args, "performer", None), list(getattr(args, "tag", None) or []),
+                        getattr(args, "library", None), warn, kept=kept)
     by_spec = {d.spec: d for d in devs}
 
     def lights(dev: str, ctl: str, on: bool) -> None:
@@ -457,7 +464,7 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
             from puppet.library import register_recording
 
             register_recording(record, getattr(args, "performer", None), getattr(args, "library", None), warn,
-                               kept=kept)
+                               tags=list(getattr(args, "tag", None) or []))
     p50, p99 = core.latency.percentile(50), core.latency.percentile(99)
     lat = f"; input-to-frame latency p50 {p50 * 1e3:.1f} ms, p99 {p99 * 1e3:.1f} ms" if p50 is not None else ""
     where = f" to {record}" if record else ""

@@ -15,8 +15,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         description="Every take recorded with `puppet live --record` is registered in the take library (one "
         "SQLite file in your data folder, or --library PATH). Search words match names, performers, notes, "
         "tags, markers, expressions and devices; filters: performer:NAME tag:T expression:E date:2026-12-03 "
-        "(or date:2026-12) after:DATE before:DATE missing:yes face:NAME. `check` finds moved takes again by "
-        "their content and adds thumbnails and expression spans. See docs/studio.md.",
+        "(or date:2026-12) after:DATE before:DATE missing:yes face:NAME state:crashed|damaged|recording. `check` finds moved takes again by "
+        "their content, completes takes whose show died, marks takes whose file no longer holds them, and adds "
+        "thumbnails and expression spans. See docs/studio.md.",
     )
     p.add_argument("--library", metavar="PATH", help="the library file (default: your data folder)")
     sub = p.add_subparsers(dest="takes_command", metavar="ACTION", required=True)
@@ -47,6 +48,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.set_defaults(func=run)
 
 
+#: how the listing flags a take's state (a complete take: nothing)
+STATES = {
+    "recording": "  [recording]",
+    "died": "  [its show died: `puppet takes check` completes it]",
+    "crashed": "  [ended by a crash]",
+    "damaged": "  [damaged: no longer a take]",
+}
+#: the same, said in full by `takes show`
+STATE_TEXT = {
+    "complete": "complete",
+    "recording": "being recorded by a show",
+    "died": "its show died while recording; `puppet takes check` completes this entry from the file",
+    "crashed": "ended by a crash; read up to its last whole tick",
+    "damaged": "damaged: the file no longer holds this take (details kept from before)",
+}
+
+
 def _cells(t: dict[str, Any]) -> tuple[str, str, str]:
     """The listing's variable-width cells: performer, tags, expressions."""
     tags = ",".join(t["tags"]) or "-"
@@ -56,7 +74,7 @@ def _cells(t: dict[str, Any]) -> tuple[str, str, str]:
 
 def _line(t: dict[str, Any], widths: tuple[int, int, int] = (12, 16, 20)) -> str:
     date = (t["recorded"] or "")[:16].replace("T", " ")
-    flag = "  [missing]" if t["missing"] else ""
+    flag = "  [missing]" if t["missing"] else STATES.get(t["state"], "")
     cells = "  ".join(f"{c:<{w}}" for c, w in zip(_cells(t), widths))
     return f"{t['id']:>5}  {date:<16}  {t['duration']:7.2f} s  {cells}  {t['path']}{flag}"
 
@@ -115,7 +133,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"{'tags':>11}: {', '.join(t['tags']) or '-'}")
             print(f"{'markers':>11}: " + (", ".join(f"{m[1]} at {m[0]:.2f} s" for m in t["markers"]) or "-"))
             print(f"{'thumbnail':>11}: " + (f"{len(t['thumbnail'])} bytes" if t["thumbnail"] else "not yet (takes check)"))
-            print(f"{'state':>11}: " + ("missing (not found by the last check)" if t["missing"] else "present"))
+            print(f"{'state':>11}: " + ("missing (not found by the last check)" if t["missing"]
+                                        else STATE_TEXT.get(t["state"], t["state"])))
             if t["expressions"]:
                 print(f"{'expressions':>11}:")
                 for e in t["expressions"]:
@@ -149,12 +168,23 @@ def run(args: argparse.Namespace) -> int:
                 print(f"puppet: take {i} moved: found again at {where}")
             for i in rep.missing:
                 print(f"puppet: take {i} is missing: {lib.get(i)['path']}")
+            for i in rep.crashed:
+                t = lib.get(i)
+                print(f"puppet: take {i} ended by a crash: completed from {t['path']} ({t['duration']:.2f} s, "
+                      f"up to its last whole tick)")
+            for i, why in rep.damaged:
+                print(f"puppet: take {i} is damaged: {why}; its entry keeps the take's details and is marked "
+                      "damaged (restore the file, or `puppet takes check --in FOLDER` where a copy is)")
+            for i in rep.recording:
+                print(f"puppet: take {i} is being recorded by a show: left as it is")
             for why in rep.failed[:5]:
                 print(f"puppet: {why}", file=sys.stderr)
-            print(f"puppet: checked {rep.ok + len(rep.changed) + len(rep.found) + len(rep.missing)} takes: {rep.ok} in "
-                  f"place, {len(rep.changed)} changed and re-read, {len(rep.found)} found again, "
-                  f"{len(rep.missing)} missing; analysed {len(rep.analysed)}")
+            print(f"puppet: checked {rep.checked} takes: {rep.ok} in place, {len(rep.changed)} changed and "
+                  f"re-read, {len(rep.found)} found again, {len(rep.missing)} missing, {len(rep.crashed)} "
+                  f"completed after a crash, {len(rep.damaged)} damaged, {len(rep.recording)} being recorded; "
+                  f"analysed {len(rep.analysed)}")
             if args.json:
                 print(json.dumps({"ok": rep.ok, "changed": rep.changed, "found": rep.found,
-                                  "missing": rep.missing, "analysed": rep.analysed}))
+                                  "missing": rep.missing, "analysed": rep.analysed, "crashed": rep.crashed,
+                                  "damaged": [i for i, _ in rep.damaged], "recording": rep.recording}))
     return 0

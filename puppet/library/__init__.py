@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from puppet.errors import PuppetError
 from puppet.library.store import Library, default_path
@@ -23,12 +24,13 @@ def open_library(arg: str | None) -> Library:
     return Library(path)
 
 
-def register_recording(record: str | Path, performer: str | None, arg: str | None,
-                       warn: Callable[[str], None], kept: str | Path | None = None) -> int | None:
-    """Register a take just recorded by `puppet live`; never raises (a show's recording is safe on
-    disk whatever the library does). `kept`: where the take `record` held before was moved
-    (session.keep_previous); the library follows it there, tags and notes with it. Returns the
-    take's id, or None."""
+def begin_recording(record: str | Path, header: dict[str, Any], performer: str | None, tags: list[str],
+                    arg: str | None, warn: Callable[[str], None], kept: str | Path | None = None) -> int | None:
+    """Register the take `puppet live` begins recording (its header written): path, date, face and
+    identity, devices, performer, `tags`; `register_recording` completes it when the show ends,
+    `puppet takes check` if the show dies first. Never raises (the show goes on whatever the
+    library does). `kept`: where the take `record` held before was moved (session.keep_previous);
+    the library follows it there, tags and notes with it. Returns the take's id, or None."""
     path = library_path(arg)
     if path is None:
         return None
@@ -36,7 +38,27 @@ def register_recording(record: str | Path, performer: str | None, arg: str | Non
         with Library(path, warn=warn) as lib:
             if kept is not None:
                 lib.follow(record, kept)
-            return lib.register(record, performer=performer)
+            return lib.begin(record, header, performer=performer, tags=tags)
+    except Exception as err:  # the library must never cost the performer the show
+        warn(f"the take {record} is being recorded but was not added to the library {path}: {err}; "
+             "it is added when the show ends")
+        return None
+
+
+def register_recording(record: str | Path, performer: str | None, arg: str | None,
+                       warn: Callable[[str], None], kept: str | Path | None = None,
+                       tags: list[str] | tuple[str, ...] = ()) -> int | None:
+    """Complete the library's entry of a take just recorded by `puppet live` (duration, hash,
+    markers; registering it if its start was not); never raises (a show's recording is safe on
+    disk whatever the library does). `kept`: as for `begin_recording`. Returns the take's id, or None."""
+    path = library_path(arg)
+    if path is None:
+        return None
+    try:
+        with Library(path, warn=warn) as lib:
+            if kept is not None:
+                lib.follow(record, kept)
+            return lib.register(record, performer=performer, tags=tags)
     except Exception as err:  # the library must never cost the performer the take
         warn(f"the take {record} is safe but was not added to the library {path}: {err}")
         return None

@@ -72,6 +72,14 @@ MIGRATIONS: list[str] = [
         tokenize = 'unicode61 remove_diacritics 2'
     );
     """,
+    # 1 -> 2: a take is registered when its recording starts; its state says how far it got
+    """
+    ALTER TABLE takes ADD COLUMN state TEXT NOT NULL DEFAULT 'complete';
+    -- complete: ended cleanly | recording: a show is writing it (or died: `takes check` completes it)
+    -- crashed: its show died, completed from what the file holds | damaged: the file is no longer this take
+    ALTER TABLE takes ADD COLUMN recorder TEXT;   -- "HOST PID" of the show recording it
+    CREATE INDEX takes_state ON takes(state);
+    """,
 ]
 SCHEMA_VERSION = len(MIGRATIONS)
 

@@ -12,6 +12,7 @@ import fcntl
 import json
 import os
 import shlex
+import socket
 import sqlite3
 import sys
 from collections.abc import Callable, Iterable
@@ -20,7 +21,7 @@ from typing import Any
 
 from puppet.errors import ConfigError, PuppetError
 from puppet.library import schema
-from puppet.library.takeinfo import TakeInfo, file_hash, read_take_info
+from puppet.library.takeinfo import TakeInfo, file_hash, header_fields, read_take_info
 
 MAX_TAG = 64
 MAX_NOTE = 4000
@@ -164,12 +165,15 @@ class Library:
         recs = self._read_journal()
         where: dict[str, str] = {}  # hash -> latest known path
         performer: dict[str, str] = {}
+        started: dict[str, dict[str, Any]] = {}  # path -> its latest recording's start
         for r in recs:
             if r["op"] in ("take", "moved") and isinstance(r.get("path"), str) and isinstance(r.get("hash"), str):
                 where[r["hash"]] = r["path"]  # the latest place, in the order of the first mention: the
                 # takes get their ids back in the order they were registered
             if r["op"] == "take" and isinstance(r.get("performer"), str) and isinstance(r.get("hash"), str):
                 performer[r["hash"]] = r["performer"]
+            if r["op"] == "recording" and isinstance(r.get("path"), str):
+                started[r["path"]] = r
         paths = list(dict.fromkeys(where.values()))
         found = lost = 0
         for p in paths:
@@ -183,6 +187,22 @@ class Library:
             info.performer = performer.get(info.hash, info.performer)
             self._register(info, journal=False)
             found += 1
+        for p, r in started.items():  # recordings begun: completed, or still going, or their show died
+            tags = [t for t in r.get("tags") or [] if isinstance(t, str)]
+            perf = r.get("performer") if isinstance(r.get("performer"), str) else None
+            try:
+                if self.con.execute("SELECT 1 FROM takes WHERE path = ?", (p,)).fetchone() is None:
+                    info = read_take_info(p)
+                    info.performer = perf or info.performer
+                    take_id = self._register(info, journal=False)
+                    if recording_alive(p, None):  # still being recorded: its show completes it
+                        self.set_state(take_id, "recording")
+                    found += 1
+                row = self.con.execute("SELECT id FROM takes WHERE path = ?", (p,)).fetchone()
+                for t in tags:
+                    self._tag(row[0], t, False, journal=False)
+            except (ConfigError, PuppetError, OSError, ValueError):
+                lost += 1
         for r in recs:
             h = r.get("hash")
             if not isinstance(h, str):
@@ -213,6 +233,8 @@ class Library:
         return take_id
 
     def _register(self, info: TakeInfo, journal: bool = True) -> int:
+        """The take's entry made or completed from what its file holds: `complete` when the take
+        ended cleanly, `crashed` when its show died (the file read up to its last whole tick)."""
         with schema.write(self.con) as con:
             row = con.execute("SELECT id, hash, performer FROM takes WHERE path = ?", (info.path,)).fetchone()
             if row is None:
@@ -221,7 +243,8 @@ class Library:
             fields = dict(path=info.path, hash=info.hash, size=info.size, recorded=info.recorded,
                           duration=info.duration, ticks=info.ticks, tick_rate=info.tick_rate, face=info.face,
                           identity=info.identity, resolution=info.resolution, program=info.program,
-                          devices=info.devices_json(), markers=info.markers_json(), missing=0)
+                          devices=info.devices_json(), markers=info.markers_json(), missing=0,
+                          state="complete" if info.ended else "crashed", recorder=None)
             if row is None:
                 fields.update(performer=info.performer, registered=_now())
                 cols = ", ".join(fields)
@@ -240,6 +263,40 @@ class Library:
             self._reindex(con, take_id)
         if journal:
             self._log(op="take", path=info.path, hash=info.hash, performer=info.performer)
+        return take_id
+
+    def begin(self, path: str | Path, header: dict[str, Any], performer: str | None = None,
+              tags: Iterable[str] = (), journal: bool = True) -> int:
+        """Register a take whose recording starts now, from its header (date, face and identity,
+        devices, performer) and the command line's tags; its state is `recording` until `register`
+        completes it when the show ends, or `puppet takes check` after the show died. A take at
+        `path` already registered (a recording resumed after a crash) keeps its id, tags and notes."""
+        p = str(Path(path).resolve())
+        head = header_fields(header)
+        if performer:
+            head["performer"] = str(performer)[:200]
+        tags = [clean_tag(t) for t in tags]
+        fields = dict(path=p, hash="", size=0, duration=0.0, ticks=0, markers="[]", missing=0, analysed=0,
+                      state="recording", recorder=recorder_id(), **head)
+        fields["devices"] = json.dumps(head["devices"])
+        with schema.write(self.con) as con:
+            row = con.execute("SELECT id FROM takes WHERE path = ?", (p,)).fetchone()
+            if row is None:
+                fields["registered"] = _now()
+                con.execute(f"INSERT INTO takes ({', '.join(fields)}) VALUES ({', '.join('?' * len(fields))})",
+                            tuple(fields.values()))
+                take_id = int(con.execute("SELECT last_insert_rowid()").fetchone()[0])
+            else:
+                take_id = int(row[0])
+                if not fields["performer"]:
+                    del fields["performer"]
+                con.execute("DELETE FROM spans WHERE take_id = ?", (take_id,))
+                con.execute(f"UPDATE takes SET {', '.join(f'{k} = ?' for k in fields)} WHERE id = ?",
+                            (*fields.values(), take_id))
+            con.executemany("INSERT OR IGNORE INTO tags (take_id, tag) VALUES (?, ?)", [(take_id, t) for t in tags])
+            self._reindex(con, take_id)
+        if journal:
+            self._log(op="recording", path=p, performer=head["performer"], tags=tags)
         return take_id
 
     def _reindex(self, con: sqlite3.Connection, take_id: int) -> None:
@@ -325,6 +382,12 @@ class Library:
         if row is not None and file_hash(new_path)[0] == row[1]:
             self.set_place(int(row[0]), new_path, False)
 
+    def set_state(self, take_id: int, state: str) -> None:
+        """Mark a take's entry (`damaged`: its file no longer holds this take; its details, tags
+        and notes are kept, so the take is found again by its hash)."""
+        with schema.write(self.con) as con:
+            con.execute("UPDATE takes SET state = ? WHERE id = ?", (state, take_id))
+
     def set_place(self, take_id: int, path: str | None, missing: bool) -> None:
         with schema.write(self.con) as con:
             if path is not None:
@@ -342,6 +405,8 @@ class Library:
         d = dict(row)
         d["devices"] = json.loads(d["devices"] or "[]")
         d["markers"] = json.loads(d["markers"] or "[]")
+        if d["state"] == "recording" and not recording_alive(d["path"], d["recorder"]):
+            d["state"] = "died"  # its show was killed: `puppet takes check` completes the entry
         d["tags"] = [r[0] for r in self.con.execute("SELECT tag FROM tags WHERE take_id = ? ORDER BY tag", (take_id,))]
         d["expressions"] = [dict(start=r[0], end=r[1], expression=r[2], score=r[3]) for r in self.con.execute(
             "SELECT start, end, expression, score FROM spans WHERE take_id = ? ORDER BY start", (take_id,))]
@@ -354,7 +419,8 @@ class Library:
         """Takes matching `query`: words (full text over name, performer, notes, tags, markers,
         expressions, devices, face; prefixes match) and filters `performer:NAME`, `tag:T`,
         `expression:E`, `date:YYYY-MM-DD` (or a prefix: `date:2026-12`), `after:DATE`,
-        `before:DATE`, `missing:yes|no`, `face:NAME`. All must hold."""
+        `before:DATE`, `missing:yes|no`, `face:NAME`, `state:complete|recording|crashed|damaged`.
+        All must hold."""
         where, params = [], []
         words = []
         try:
@@ -365,7 +431,7 @@ class Library:
             key, sep, val = tok.partition(":")
             key = key.lower()
             if not sep or key not in ("performer", "tag", "expression", "expr", "date", "after", "before",
-                                      "missing", "face", "id"):
+                                      "missing", "face", "id", "state"):
                 words.append(tok)
                 continue
             if key == "performer":
@@ -392,6 +458,9 @@ class Library:
             elif key == "missing":
                 where.append("t.missing = ?")
                 params.append(1 if val.lower() in ("yes", "1", "true") else 0)
+            elif key == "state":
+                where.append("t.state = lower(?)")
+                params.append("recording" if val.lower() == "died" else val)
             elif key == "face":
                 where.append("t.face = ?")
                 params.append(val)
@@ -409,6 +478,52 @@ class Library:
         except sqlite3.OperationalError as err:
             raise PuppetError(f"cannot search for {query!r:.80}: {err}") from err
         return [self.get(i) for i in ids]
+
+
+def recorder_id() -> str:
+    """Who records a take: "HOST PID" of this process."""
+    return f"{socket.gethostname()} {os.getpid()}"
+
+
+def recording_alive(path: str | Path, recorder: str | None) -> bool:
+    """Whether the show that began recording the take at `path` still records it: it holds the
+    recording's lock (which the kernel drops when the process dies, SIGKILL included), or, where
+    the file system has no locks, its process on this host still runs (another host's show is
+    taken as alive)."""
+    from puppet.session import _being_recorded
+
+    if _being_recorded(Path(path)):
+        return True
+    host, _, pid = (recorder or "").rpartition(" ")
+    if not pid.isdigit():
+        return False
+    if host != socket.gethostname():
+        return True
+    try:
+        os.kill(int(pid), 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return _locks_unsupported(Path(path))
+
+
+def _locks_unsupported(path: Path) -> bool:
+    """Whether flock does nothing on the file system of `path` (then a live process is the only sign)."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        fcntl.flock(fd, fcntl.LOCK_UN)
+    except BlockingIOError:
+        return False
+    except OSError:
+        return True
+    finally:
+        os.close(fd)
+    return False
 
 
 def _date_prefix(text: str) -> bool:

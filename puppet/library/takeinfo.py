@@ -7,6 +7,7 @@ import hashlib
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from puppet.errors import ConfigError
 
@@ -39,6 +40,7 @@ class TakeInfo:
     markers: list[tuple[float, str]] = field(default_factory=list)
     performer: str = ""
     warnings: list[str] = field(default_factory=list)
+    ended: bool = True  # the take has its end record (False: its show died; it reads to its last whole tick)
 
     def devices_json(self) -> str:
         return json.dumps(self.devices)
@@ -55,23 +57,31 @@ def read_take_info(path: str | Path) -> TakeInfo:
     p = Path(path).resolve()
     digest, size = file_hash(p)
     s = read_session(p)
-    h = s.header
+    return TakeInfo(
+        path=str(p), hash=digest, size=size, duration=float(s.duration), ticks=int(s.ticks),
+        markers=[(k / s.tick_rate, str(label)[:200]) for k, label in s.markers[:10_000]],
+        warnings=list(s.warnings), ended=bool(s.complete), **header_fields(s.header),
+    )
+
+
+def header_fields(h: dict[str, Any]) -> dict[str, Any]:
+    """The library's fields a recording's header holds (date, tick rate, face and identity,
+    program, devices, performer): all the library knows of a take when its recording starts."""
     rig = h.get("rig") or {}
+    if not isinstance(rig, dict):
+        rig = {}
     devs = h.get("devices")
-    devices = [str(d)[:200] for d in devs[:64]] if isinstance(devs, list) else []
     performer = h.get("performer")
     start = h.get("start_time")
     program = h.get("program")
-    return TakeInfo(
-        path=str(p), hash=digest, size=size,
+    rate = h.get("tick_rate")
+    return dict(
         recorded=str(start)[:40] if isinstance(start, str) else None,
-        duration=float(s.duration), ticks=int(s.ticks), tick_rate=float(s.tick_rate),
+        tick_rate=float(rate) if isinstance(rate, (int, float)) and not isinstance(rate, bool) else 60.0,
         face=rig.get("name") if isinstance(rig.get("name"), str) else ("file" if rig.get("path") else None),
         identity=rig.get("hash") if isinstance(rig.get("hash"), str) else None,
         resolution=rig.get("resolution") if isinstance(rig.get("resolution"), int) else None,
         program=str(program)[:100] if isinstance(program, str) else None,
-        devices=devices,
-        markers=[(k / s.tick_rate, str(label)[:200]) for k, label in s.markers[:10_000]],
+        devices=[str(d)[:200] for d in devs[:64]] if isinstance(devs, list) else [],
         performer=str(performer)[:200] if isinstance(performer, str) else "",
-        warnings=list(s.warnings),
     )

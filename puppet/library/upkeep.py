@@ -38,7 +38,13 @@ def import_folder(lib: Library, folder: str | Path, performer: str | None = None
     else:
         raise PuppetError(f"{folder}: no such folder or recording")
     rep = ImportReport()
+    from puppet.session import _being_recorded
+
     for p in files:
+        if _being_recorded(p):
+            rep.skipped.append(f"{p}: a show is recording it now; its library registers it (import it again "
+                               "when the show is over for another library)")
+            continue
         try:
             row = lib.con.execute("SELECT id, hash, size FROM takes WHERE path = ? AND missing = 0",
                                   (str(p.resolve()),)).fetchone()
@@ -59,6 +65,14 @@ class CheckReport:
     missing: list[int] = field(default_factory=list)
     analysed: list[int] = field(default_factory=list)
     failed: list[str] = field(default_factory=list)
+    crashed: list[int] = field(default_factory=list)  # its show died: completed from what the file holds
+    recording: list[int] = field(default_factory=list)  # a show is recording it now: left to the show
+    damaged: list[tuple[int, str]] = field(default_factory=list)  # no longer a take: why
+
+    @property
+    def checked(self) -> int:
+        return (self.ok + len(self.changed) + len(self.found) + len(self.missing) + len(self.crashed)
+                + len(self.recording) + len(self.damaged))
 
 
 def check(lib: Library, roots: list[Path] | None = None, analyse: bool = True,
@@ -73,24 +87,44 @@ def check(lib: Library, roots: list[Path] | None = None, analyse: bool = True,
     search += sorted(e for e in extra if e.is_dir() and e != Path("/"))
     for r in rows:
         p = Path(r["path"])
+        if r["state"] == "recording":  # its show is still at it
+            rep.recording.append(r["id"])
+            continue
+        if r["state"] == "died" and p.is_file():  # its show was killed: the take holds its last whole tick
+            try:
+                lib.register(p)
+                rep.crashed.append(r["id"])
+            except (ConfigError, PuppetError) as err:
+                _damaged(lib, rep, r, err)
+            continue
         if p.is_file():
             try:
                 digest, size = file_hash(p)
             except ConfigError as err:
                 rep.failed.append(str(err))
                 continue
-            if digest != r["hash"]:
+            if digest != r["hash"] or r["state"] == "damaged":
                 try:
                     lib.register(p)
-                    rep.changed.append(r["id"])
                 except (ConfigError, PuppetError) as err:
-                    rep.failed.append(str(err))
+                    again = find_by_hash(r["hash"], r["size"], [d for d in search if d.is_dir()]) if r["hash"] else None
+                    if again is not None:  # the take itself is elsewhere: the entry follows it
+                        lib.set_place(r["id"], again, False)
+                        lib.set_state(r["id"], "complete" if r["state"] == "damaged" else r["state"])
+                        rep.found.append((r["id"], again))
+                    else:
+                        _damaged(lib, rep, r, err)
+                    continue
+                if digest == r["hash"]:
+                    rep.ok += 1  # a damaged take's file holds the take again
+                else:
+                    rep.changed.append(r["id"])
             else:
                 rep.ok += 1
                 if r["missing"]:
                     lib.set_place(r["id"], None, False)
             continue
-        again = find_by_hash(r["hash"], r["size"], [d for d in search if d.is_dir()])
+        again = find_by_hash(r["hash"], r["size"], [d for d in search if d.is_dir()]) if r["hash"] else None
         if again is not None:
             lib.set_place(r["id"], again, False)
             rep.found.append((r["id"], again))
@@ -100,7 +134,7 @@ def check(lib: Library, roots: list[Path] | None = None, analyse: bool = True,
     if analyse:
         for i in lib.all_ids():
             r = lib.get(i)
-            if r["analysed"] or r["missing"]:
+            if r["analysed"] or r["missing"] or r["state"] in ("recording", "died", "damaged"):
                 continue
             if progress:
                 progress(f"analysing take {i} ({Path(r['path']).name})")
@@ -112,6 +146,13 @@ def check(lib: Library, roots: list[Path] | None = None, analyse: bool = True,
             lib.set_analysis(i, r["hash"], thumb, spans)
             rep.analysed.append(i)
     return rep
+
+
+def _damaged(lib: Library, rep: CheckReport, r: dict, err: Exception) -> None:
+    """The file at the take's place no longer holds a take: the entry keeps its details, tags and
+    notes (the take is found again by its hash if it turns up) and is marked `damaged`."""
+    lib.set_state(r["id"], "damaged")
+    rep.damaged.append((r["id"], str(err)))
 
 
 def thumbnail(path: str | Path) -> bytes | None:

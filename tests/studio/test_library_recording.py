@@ -1,0 +1,133 @@
+"""The take library while takes are recorded: a take is registered when its recording starts, a
+show killed mid-recording leaves an entry that `puppet takes check` completes from what the file
+holds, and a take whose file no longer holds it is reported and marked damaged."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from puppet.cli import main
+from puppet.library.store import Library
+from puppet.library.takeinfo import file_hash
+from puppet.session import read_session
+from takes import write_take
+
+SCRIPT = ('impersonate = "sgi"\nspeed = {speed}\nduration = {duration}\n[[ramp]]\ncontrol = "dial1"\n'
+          'start = 0.0\nduration = 0.4\nfrom = 0.0\nto = 1.0\nrate = 50\n')
+
+
+def takes_json(capsys: pytest.CaptureFixture, lib: Path, *args: str) -> object:
+    assert main(["takes", *args, "--library", str(lib), "--json"]) == 0
+    return json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+
+
+def test_a_show_killed_mid_recording_is_listed_and_completed_by_check(tmp_path: Path,
+                                                                      capsys: pytest.CaptureFixture) -> None:
+    script = tmp_path / "s.toml"
+    script.write_text(SCRIPT.format(speed=1, duration=60))
+    lib, rec = tmp_path / "takes.db", tmp_path / "show.jsonl"
+    proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--headless", "--no-panel", "--device",
+                             f"mock://{script}", "--record", str(rec), "--library", str(lib), "--performer", "ana",
+                             "--tag", "Rehearsal", "--duration", "60", "--tick-rate", "60"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=dict(os.environ))
+    try:
+        deadline = time.monotonic() + 90
+        while time.monotonic() < deadline:  # a good part of the take on disk, and the show still running
+            if rec.exists() and rec.read_text().count('"t":"sync"') >= 8:
+                break
+            assert proc.poll() is None, "the show ended before it was killed"
+            time.sleep(0.05)
+        else:
+            pytest.fail("the recording never got flushed")
+        with Library(lib) as library:  # registered while the show runs
+            [during] = library.search("")
+        assert during["state"] == "recording" and Path(during["path"]) == rec.resolve()
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(10)
+    assert '"t":"end"' not in rec.read_text()
+
+    [listed] = takes_json(capsys, lib, "list")  # the library lists the take its show died recording
+    assert listed["state"] == "died" and listed["performer"] == "ana" and listed["tags"] == ["rehearsal"]
+    assert listed["devices"] == [f"mock://{script}"] and listed["face"] and listed["recorded"]
+    assert main(["takes", "list", "--library", str(lib)]) == 0
+    assert "takes check" in capsys.readouterr().out  # the listing says what completes it
+
+    report = takes_json(capsys, lib, "check", "--no-analyse")
+    assert report["crashed"] == [listed["id"]] and report["damaged"] == []
+    s = read_session(rec)
+    assert not s.complete and s.ticks >= 40
+    with Library(lib) as library:
+        t = library.get(listed["id"])
+    assert t["state"] == "crashed" and t["ticks"] == s.ticks and t["duration"] == pytest.approx(s.duration)
+    assert t["hash"] == file_hash(rec)[0] and t["tags"] == ["rehearsal"] and t["performer"] == "ana"
+    # checked again: the take is in place, unchanged
+    assert takes_json(capsys, lib, "check", "--no-analyse")["ok"] == 1
+
+
+def test_a_finished_show_completes_the_entry_its_start_made(tmp_path: Path) -> None:
+    script = tmp_path / "s.toml"
+    script.write_text(SCRIPT.format(speed=0, duration=0.5))
+    lib, rec = tmp_path / "takes.db", tmp_path / "show.jsonl"
+    r = subprocess.run([sys.executable, "-m", "puppet", "live", "--headless", "--no-panel", "--device",
+                        f"mock://{script}", "--record", str(rec), "--library", str(lib), "--tag", "a", "--tag", "b"],
+                       capture_output=True, text=True, timeout=180)
+    assert r.returncode == 0, r.stderr
+    with Library(lib) as library:
+        [t] = library.search("")
+    assert t["state"] == "complete" and t["duration"] == pytest.approx(0.5) and t["tags"] == ["a", "b"]
+    assert t["hash"] == file_hash(rec)[0]
+
+
+def test_an_overwritten_take_is_reported_and_marked_damaged(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    lib = tmp_path / "takes.db"
+    take = write_take(tmp_path / "shoot" / "ana.jsonl", seed=1, performer="ana")
+    good = take.read_bytes()
+    assert main(["takes", "import", str(take.parent), "--library", str(lib)]) == 0
+    capsys.readouterr()
+    [known] = takes_json(capsys, lib, "list")
+    assert main(["takes", "tag", str(known["id"]), "keeper", "--library", str(lib)]) == 0
+    capsys.readouterr()
+
+    take.write_bytes(b"\x00garbage\xff" * 100)
+    assert main(["takes", "check", "--no-analyse", "--library", str(lib)]) == 0
+    out = capsys.readouterr().out
+    assert f"take {known['id']} is damaged" in out and str(take) in out and "0 in place" in out and "1 damaged" in out
+    with Library(lib) as library:
+        t = library.get(known["id"])
+        assert [x["id"] for x in library.search("state:damaged")] == [known["id"]]
+    # the entry is marked, its details kept (the take's hash, duration, tags): found again by them
+    assert t["state"] == "damaged" and t["hash"] == known["hash"] and t["duration"] == known["duration"]
+    assert t["tags"] == ["keeper"]
+    assert main(["takes", "list", "--library", str(lib)]) == 0
+    assert "[damaged" in capsys.readouterr().out
+
+    # the take restored: in place again, complete
+    take.write_bytes(good)
+    report = takes_json(capsys, lib, "check", "--no-analyse")
+    assert report["ok"] == 1 and report["damaged"] == []
+    with Library(lib) as library:
+        assert library.get(known["id"])["state"] == "complete"
+
+
+def test_an_overwritten_take_whose_copy_is_elsewhere_follows_the_copy(tmp_path: Path,
+                                                                     capsys: pytest.CaptureFixture) -> None:
+    lib = tmp_path / "takes.db"
+    take = write_take(tmp_path / "shoot" / "ana.jsonl", seed=1)
+    assert main(["takes", "import", str(take), "--library", str(lib)]) == 0
+    copy = tmp_path / "backup" / "ana.jsonl"
+    copy.parent.mkdir()
+    copy.write_bytes(take.read_bytes())
+    take.write_text("not a take any more\n")
+    report = takes_json(capsys, lib, "check", "--no-analyse", "--in", str(copy.parent))
+    assert report["found"] == [[1, str(copy.resolve())]] and report["damaged"] == []
+    with Library(lib) as library:
+        assert library.get(1)["state"] == "complete" and Path(library.get(1)["path"]) == copy.resolve()
