@@ -13,10 +13,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         "takes",
         help="the take library: list, search, show, tag, note, import FOLDER, check",
         description="Every take recorded with `puppet live --record` is registered in the take library (one "
-        "SQLite file in your data folder, or --library PATH). Search words match names, performers, notes, "
-        "tags, markers, expressions and devices; filters: performer:NAME tag:T expression:E date:2026-12-03 "
-        "(or date:2026-12) after:DATE before:DATE missing:yes face:NAME state:crashed|damaged|recording. `check` finds moved takes again by "
-        "their content, completes takes whose show died, marks takes whose file no longer holds them, and adds "
+        "SQLite file in your data folder, or --library PATH) when its recording starts, and completed when it "
+        "ends. Search words match names, performers, notes, tags, markers, expressions and devices; filters: "
+        "performer:NAME tag:T expression:E date:2026-12-03 (or date:2026-12) after:DATE before:DATE missing:yes "
+        "face:NAME state:crashed|damaged|recording. `check` finds moved takes again by their content, completes takes whose show died, marks takes whose file no longer holds them, and adds "
         "thumbnails and expression spans. See docs/studio.md.",
     )
     p.add_argument("--library", metavar="PATH", help="the library file (default: your data folder)")
@@ -41,7 +41,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     s.add_argument("folder", metavar="FOLDER|FILE")
     s.add_argument("--performer", metavar="NAME", help="performer of takes that do not name one")
     s = sub.add_parser("check", parents=[common],
-                       help="find moved or deleted takes; add thumbnails and expression spans")
+                       help="find moved or deleted takes, complete takes whose show died, mark takes "
+                       "whose file no longer holds them; add thumbnails and expression spans")
     s.add_argument("--in", dest="roots", action="append", default=[], metavar="FOLDER",
                    help="also look here for moved takes; repeatable")
     s.add_argument("--no-analyse", action="store_true", help="skip thumbnails and expression spans")

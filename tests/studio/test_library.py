@@ -130,7 +130,9 @@ from takes import write_take
 lib = Library(sys.argv[1])
 name = sys.argv[2]
 for k in range(int(sys.argv[3])):
-    p = write_take(Path(sys.argv[4]) / f"{{name}}_{{k}}.jsonl", ticks=5, seed=k, performer=name)
+    p = Path(sys.argv[4]) / f"{{name}}_{{k}}.jsonl"
+    lib.begin(p, {{"performer": name, "tick_rate": 60.0}}, tags=["live-" + name])  # as a show starts
+    write_take(p, ticks=5, seed=k, performer=name)
     i = lib.register(p)
     lib.tag(i, "batch-" + name)
     lib.tag(1, name + str(k))
@@ -153,8 +155,9 @@ def test_two_writing_processes(tmp_path: Path) -> None:
     assert con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
     assert con.execute("SELECT count(*) FROM takes").fetchone()[0] == 2 * n + 1
     assert con.execute("SELECT count(*) FROM tags WHERE take_id = 1").fetchone()[0] == 2 * n
+    assert con.execute("SELECT count(*) FROM takes WHERE state != 'complete'").fetchone()[0] == 0
     with Library(lib_path) as lib:
-        assert len(lib.search("performer:ana tag:batch-ana")) == n
+        assert len(lib.search("performer:ana tag:batch-ana tag:live-ana")) == n
         assert len(lib.search("bob")) == n + 1  # bob's takes and take 1, tagged bob0..bob24
 
 

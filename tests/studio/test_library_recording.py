@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import sqlite3
 import subprocess
 import sys
 import time
@@ -131,3 +132,60 @@ def test_an_overwritten_take_whose_copy_is_elsewhere_follows_the_copy(tmp_path: 
     assert report["found"] == [[1, str(copy.resolve())]] and report["damaged"] == []
     with Library(lib) as library:
         assert library.get(1)["state"] == "complete" and Path(library.get(1)["path"]) == copy.resolve()
+
+
+def test_two_shows_recording_at_once_into_one_library(tmp_path: Path) -> None:
+    script = tmp_path / "s.toml"
+    script.write_text(SCRIPT.format(speed=0, duration=0.5))
+    lib = tmp_path / "takes.db"
+    procs = [subprocess.Popen([sys.executable, "-m", "puppet", "live", "--headless", "--no-panel", "--device",
+                               f"mock://{script}", "--record", str(tmp_path / f"{name}.jsonl"), "--library", str(lib),
+                               "--performer", name], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+             for name in ("ana", "bob")]
+    for p in procs:
+        _, err = p.communicate(timeout=240)
+        assert p.returncode == 0, err
+    con = sqlite3.connect(lib)
+    assert con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+    con.close()
+    with Library(lib) as library:
+        rows = {t["performer"]: t for t in library.search("")}
+    assert sorted(rows) == ["ana", "bob"]
+    for name, t in rows.items():
+        assert t["state"] == "complete" and Path(t["path"]).name == f"{name}.jsonl"
+        assert t["duration"] == pytest.approx(0.5) and t["hash"] == file_hash(t["path"])[0]
+
+
+def test_a_rebuilt_library_keeps_a_take_whose_show_died(tmp_path: Path) -> None:
+    """The journal names a take from its start: a library rebuilt after damage has the take whose
+    show died before it ended, read up to its last whole tick, with its performer and tags."""
+    lib = tmp_path / "takes.db"
+    take = write_take(tmp_path / "shoot" / "cut.jsonl", ticks=30, seed=2)
+    lines = take.read_text().splitlines(keepends=True)
+    assert '"end"' in lines[-1]
+    take.write_text("".join(lines[:-1]) + lines[-2][:7])  # no end record, a tick cut half way: a killed show
+    s = read_session(take)
+    assert not s.complete
+    with Library(lib) as library:
+        library.begin(take, s.header, performer="ana", tags=["wide"])
+    lib.write_bytes(b"not a database any more" * 100)
+    with Library(lib, warn=lambda w: None) as library:
+        [t] = library.search("")
+    assert t["state"] == "crashed" and t["performer"] == "ana" and t["tags"] == ["wide"]
+    assert t["ticks"] == s.ticks and t["hash"] == file_hash(take)[0]
+
+
+def test_a_library_of_the_first_schema_opens_with_its_takes_complete(tmp_path: Path) -> None:
+    from puppet.library import schema
+
+    lib = tmp_path / "takes.db"
+    con = sqlite3.connect(lib, isolation_level=None)
+    for stmt in schema._statements(schema.MIGRATIONS[0]):
+        con.execute(stmt)
+    con.execute("INSERT INTO takes (path, hash, size, registered, duration, ticks, tick_rate, performer) "
+                "VALUES ('/takes/a.jsonl', 'abc', 10, '2026-12-01', 2.5, 150, 60.0, 'ana')")
+    con.execute("PRAGMA user_version = 1")
+    con.close()
+    with Library(lib) as library:
+        [t] = library.search("state:complete")
+    assert t["performer"] == "ana" and t["duration"] == 2.5
