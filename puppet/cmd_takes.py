@@ -169,6 +169,10 @@ def run(args: argparse.Namespace) -> int:
                 print(f"puppet: take {i} moved: found again at {where}")
             for i in rep.missing:
                 print(f"puppet: take {i} is missing: {lib.get(i)['path']}")
+            for i in rep.changed:
+                t = lib.get(i)
+                print(f"puppet: take {i} changed: {t['path']} holds another take now; its entry was re-read from it "
+                      f"({t['duration']:.2f} s; thumbnail and expressions made again)")
             for i in rep.crashed:
                 t = lib.get(i)
                 print(f"puppet: take {i} ended by a crash: completed from {t['path']} ({t['duration']:.2f} s, "

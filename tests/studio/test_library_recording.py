@@ -189,3 +189,18 @@ def test_a_library_of_the_first_schema_opens_with_its_takes_complete(tmp_path: P
     with Library(lib) as library:
         [t] = library.search("state:complete")
     assert t["performer"] == "ana" and t["duration"] == 2.5
+
+
+def test_a_take_overwritten_by_another_take_is_reported_and_re_read(tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture) -> None:
+    lib = tmp_path / "takes.db"
+    take = write_take(tmp_path / "shoot" / "ana.jsonl", ticks=30, seed=1)
+    assert main(["takes", "import", str(take), "--library", str(lib)]) == 0
+    write_take(take, ticks=45, seed=3)  # another recording made to the same name
+    capsys.readouterr()
+    assert main(["takes", "check", "--no-analyse", "--library", str(lib)]) == 0
+    out = capsys.readouterr().out
+    assert "take 1 changed" in out and "1 changed and re-read" in out
+    with Library(lib) as library:
+        t = library.get(1)
+    assert t["state"] == "complete" and t["ticks"] == 45 and t["hash"] == file_hash(take)[0]
