@@ -163,20 +163,46 @@ class Library:
 
     def _replay_journal(self) -> tuple[int, int]:
         recs = self._read_journal()
-        where: dict[str, str] = {}  # hash -> latest known path
+        # a take is known by its content hash, or by "rec:PATH" while its recording is not completed;
+        # the takes get their ids back in the order they were first mentioned (registered, or begun)
+        order: dict[str, None] = {}
+        where: dict[str, str] = {}  # key -> latest known path
         performer: dict[str, str] = {}
-        started: dict[str, dict[str, Any]] = {}  # path -> its latest recording's start
+        begun_tags: dict[str, list[str]] = {}  # key -> the tags given when its recording began
+        pending: dict[str, str] = {}  # path -> the key of the recording begun there, until it completes
         for r in recs:
-            if r["op"] in ("take", "moved") and isinstance(r.get("path"), str) and isinstance(r.get("hash"), str):
-                where[r["hash"]] = r["path"]  # the latest place, in the order of the first mention: the
-                # takes get their ids back in the order they were registered
-            if r["op"] == "take" and isinstance(r.get("performer"), str) and isinstance(r.get("hash"), str):
-                performer[r["hash"]] = r["performer"]
-            if r["op"] == "recording" and isinstance(r.get("path"), str):
-                started[r["path"]] = r
-        paths = list(dict.fromkeys(where.values()))
+            p, h = r.get("path"), r.get("hash")
+            if not isinstance(p, str):
+                continue
+            if r["op"] == "recording":
+                k = pending[p] = "rec:" + p
+                order.setdefault(k)
+                where[k] = p
+                begun_tags.setdefault(k, []).extend(t for t in r.get("tags") or [] if isinstance(t, str))
+                if isinstance(r.get("performer"), str) and r["performer"]:
+                    performer[k] = r["performer"]
+            elif r["op"] in ("take", "moved") and isinstance(h, str):
+                k = pending.pop(p, None) if r["op"] == "take" else None
+                if k is not None:  # the recording begun at p completed as h: h takes its place
+                    if h in order:
+                        del order[k]
+                    else:
+                        order = {(h if x == k else x): None for x in order}
+                    where.pop(k, None)
+                    begun_tags.setdefault(h, []).extend(begun_tags.pop(k, []))
+                    if k in performer:
+                        performer.setdefault(h, performer.pop(k))
+                order.setdefault(h)
+                where[h] = p
+                if r["op"] == "take" and isinstance(r.get("performer"), str) and r["performer"]:
+                    performer[h] = r["performer"]  # (a take's performer is never cleared)
         found = lost = 0
-        for p in paths:
+        done: set[str] = set()
+        for k in order:
+            p = where[k]
+            if p in done:
+                continue
+            done.add(p)
             try:
                 info = read_take_info(p)
             except (ConfigError, PuppetError, OSError, ValueError):
@@ -184,25 +210,16 @@ class Library:
                 continue
             if where.get(info.hash, p) != p:
                 continue  # the take moved on; registered at its newer place
-            info.performer = performer.get(info.hash, info.performer)
-            self._register(info, journal=False)
+            info.performer = performer.get(info.hash) or performer.get(k) or info.performer
+            take_id = self._register(info, journal=False)
+            if k.startswith("rec:") and recording_alive(p, None):  # still being recorded: its show completes it
+                self.set_state(take_id, "recording")
+            for t in begun_tags.get(k, []) + (begun_tags.get(info.hash, []) if info.hash != k else []):
+                try:
+                    self._tag(take_id, t, False, journal=False)
+                except PuppetError:
+                    continue
             found += 1
-        for p, r in started.items():  # recordings begun: completed, or still going, or their show died
-            tags = [t for t in r.get("tags") or [] if isinstance(t, str)]
-            perf = r.get("performer") if isinstance(r.get("performer"), str) else None
-            try:
-                if self.con.execute("SELECT 1 FROM takes WHERE path = ?", (p,)).fetchone() is None:
-                    info = read_take_info(p)
-                    info.performer = perf or info.performer
-                    take_id = self._register(info, journal=False)
-                    if recording_alive(p, None):  # still being recorded: its show completes it
-                        self.set_state(take_id, "recording")
-                    found += 1
-                row = self.con.execute("SELECT id FROM takes WHERE path = ?", (p,)).fetchone()
-                for t in tags:
-                    self._tag(row[0], t, False, journal=False)
-            except (ConfigError, PuppetError, OSError, ValueError):
-                lost += 1
         for r in recs:
             h = r.get("hash")
             if not isinstance(h, str):

@@ -156,16 +156,55 @@ def test_two_shows_recording_at_once_into_one_library(tmp_path: Path) -> None:
         assert t["duration"] == pytest.approx(0.5) and t["hash"] == file_hash(t["path"])[0]
 
 
-def test_a_rebuilt_library_keeps_a_take_whose_show_died(tmp_path: Path) -> None:
-    """The journal names a take from its start: a library rebuilt after damage has the take whose
-    show died before it ended, read up to its last whole tick, with its performer and tags."""
-    lib = tmp_path / "takes.db"
-    take = write_take(tmp_path / "shoot" / "cut.jsonl", ticks=30, seed=2)
+def _killed(take: Path) -> Path:
+    """`take` as a show killed mid-recording leaves it: no end record, the last tick cut half way."""
     lines = take.read_text().splitlines(keepends=True)
     assert '"end"' in lines[-1]
-    take.write_text("".join(lines[:-1]) + lines[-2][:7])  # no end record, a tick cut half way: a killed show
-    s = read_session(take)
-    assert not s.complete
+    take.write_text("".join(lines[:-1]) + lines[-2][:7])
+    return take
+
+
+def test_a_rebuilt_library_keeps_the_takes_as_they_were_begun(tmp_path: Path) -> None:
+    """The journal names a take from its start: a library rebuilt after damage has the take whose
+    show died before it ended (read up to its last whole tick), with its performer and tags, and
+    every take gets its id back; a crashed take completed by check and moved since is found where
+    it went."""
+    lib = tmp_path / "takes.db"
+    shoot = tmp_path / "shoot"
+    a, b, c, d = (shoot / f"{n}.jsonl" for n in "abcd")
+    with Library(lib) as library:
+        library.begin(a, {"tick_rate": 60.0}, performer="ana", tags=["one"])
+        write_take(a, ticks=20, seed=1)
+        library.register(a, performer="ana", tags=["one"])
+        library.begin(b, {"tick_rate": 60.0}, performer="bob", tags=["wide"])
+        _killed(write_take(b, ticks=30, seed=2))
+        write_take(c, ticks=25, seed=3)
+        library.register(c)
+        library.begin(d, {"tick_rate": 60.0}, performer="dee", tags=["moved"])
+        _killed(write_take(d, ticks=35, seed=4))
+    assert main(["takes", "check", "--no-analyse", "--library", str(lib)]) == 0  # completes b and d
+    moved = tmp_path / "elsewhere" / "d.jsonl"
+    moved.parent.mkdir()
+    d.rename(moved)
+    assert main(["takes", "check", "--no-analyse", "--library", str(lib), "--in", str(moved.parent)]) == 0
+    with Library(lib) as library:
+        before = {t["id"]: (Path(t["path"]).name, t["state"], t["performer"], t["tags"]) for t in library.search("")}
+    assert before == {1: ("a.jsonl", "complete", "ana", ["one"]), 2: ("b.jsonl", "crashed", "bob", ["wide"]),
+                      3: ("c.jsonl", "complete", "", []), 4: ("d.jsonl", "crashed", "dee", ["moved"])}
+    lib.write_bytes(b"not a database any more" * 100)
+    warned: list[str] = []
+    with Library(lib, warn=warned.append) as library:
+        after = {t["id"]: (Path(t["path"]).name, t["state"], t["performer"], t["tags"]) for t in library.search("")}
+        assert Path(library.get(4)["path"]) == moved.resolve()
+        assert library.get(2)["ticks"] == read_session(b).ticks and not read_session(b).complete
+    assert after == before
+    assert any("4 registered" in w and "no longer found" not in w for w in warned), warned
+
+
+def test_a_rebuilt_library_keeps_a_take_whose_show_died_unchecked(tmp_path: Path) -> None:
+    lib = tmp_path / "takes.db"
+    take = write_take(tmp_path / "shoot" / "cut.jsonl", ticks=30, seed=2)
+    s = read_session(_killed(take))
     with Library(lib) as library:
         library.begin(take, s.header, performer="ana", tags=["wide"])
     lib.write_bytes(b"not a database any more" * 100)
