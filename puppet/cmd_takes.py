@@ -16,8 +16,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         "SQLite file in your data folder, or --library PATH) when its recording starts, and completed when it "
         "ends. Search words match names, performers, notes, tags, markers, expressions and devices; filters: "
         "performer:NAME tag:T expression:E date:2026-12-03 (or date:2026-12) after:DATE before:DATE missing:yes "
-        "face:NAME state:crashed|damaged|recording. `check` finds moved takes again by their content, completes takes whose show died, marks takes whose file no longer holds them, and adds "
-        "thumbnails and expression spans. See docs/studio.md.",
+        "face:NAME state:crashed|damaged|recording. `check` finds moved takes again by their content, completes "
+        "takes whose show died, marks takes whose file no longer holds them, and adds thumbnails and expression "
+        "spans. See docs/studio.md.",
     )
     p.add_argument("--library", metavar="PATH", help="the library file (default: your data folder)")
     sub = p.add_subparsers(dest="takes_command", metavar="ACTION", required=True)
