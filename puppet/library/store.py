@@ -393,10 +393,20 @@ class Library:
 
     def follow(self, old: str | Path, new: str | Path) -> None:
         """The take registered at `old` was moved to `new` (its content there unchanged): its entry,
-        tags and notes go with it, so whatever is recorded at `old` next is a take of its own."""
+        tags and notes go with it, so whatever is recorded at `old` next is a take of its own. A
+        take whose show died before completing its entry is completed from the file at `new`."""
         old_path, new_path = str(Path(old).resolve()), str(Path(new).resolve())
-        row = self.con.execute("SELECT id, hash FROM takes WHERE path = ?", (old_path,)).fetchone()
-        if row is not None and file_hash(new_path)[0] == row[1]:
+        row = self.con.execute("SELECT id, hash, state FROM takes WHERE path = ?", (old_path,)).fetchone()
+        if row is None:
+            return
+        if row[2] == "recording" and not row[1]:  # its show died before completing it: completed there
+            with schema.write(self.con) as con:
+                con.execute("UPDATE takes SET path = ? WHERE id = ?", (new_path, int(row[0])))
+            try:
+                self.register(new_path)
+            except (ConfigError, PuppetError):
+                self.set_state(int(row[0]), "damaged")
+        elif file_hash(new_path)[0] == row[1]:
             self.set_place(int(row[0]), new_path, False)
 
     def set_state(self, take_id: int, state: str) -> None:

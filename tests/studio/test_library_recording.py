@@ -243,3 +243,26 @@ def test_a_take_overwritten_by_another_take_is_reported_and_re_read(tmp_path: Pa
     with Library(lib) as library:
         t = library.get(1)
     assert t["state"] == "complete" and t["ticks"] == 45 and t["hash"] == file_hash(take)[0]
+
+
+def test_recording_again_after_a_show_died_keeps_the_dead_show_s_take(tmp_path: Path) -> None:
+    """A show killed mid-recording, then a show recording to the same file: the killed show's take
+    is kept aside as show.1.jsonl and its entry (id, performer, tags) goes with it, completed."""
+    script = tmp_path / "s.toml"
+    script.write_text(SCRIPT.format(speed=0, duration=0.5))
+    lib, rec = tmp_path / "takes.db", tmp_path / "show.jsonl"
+    with Library(lib) as library:  # as the killed show left it: begun, never completed
+        first = library.begin(rec, {"tick_rate": 60.0}, performer="ana", tags=["first"])
+    _killed(write_take(rec, ticks=30, seed=5))
+    r = subprocess.run([sys.executable, "-m", "puppet", "live", "--headless", "--no-panel", "--device",
+                        f"mock://{script}", "--record", str(rec), "--library", str(lib), "--performer", "bob"],
+                       capture_output=True, text=True, timeout=180)
+    assert r.returncode == 0, r.stderr
+    with Library(lib) as library:
+        rows = {Path(t["path"]).name: t for t in library.search("")}
+    assert sorted(rows) == ["show.1.jsonl", "show.jsonl"]
+    kept = rows["show.1.jsonl"]
+    assert kept["id"] == first and kept["performer"] == "ana" and kept["tags"] == ["first"]
+    assert kept["state"] == "crashed" and kept["ticks"] == read_session(tmp_path / "show.1.jsonl").ticks
+    assert rows["show.jsonl"]["performer"] == "bob" and rows["show.jsonl"]["state"] == "complete"
+    assert rows["show.jsonl"]["tags"] == []
