@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -68,6 +69,10 @@ def select(selection: list[str], library: str | None, suffixes: tuple[str, ...])
         for t in found:
             if t["missing"]:
                 raise PuppetError(f"take {t['id']} ({t['path']}) is missing; `puppet takes check` looks for it")
+            if t.get("state") == "recording":  # a show records it now: its end is not written yet
+                print(f"puppet: warning: take {t['id']} ({t['path']}) is being recorded by a show; left out "
+                      "(run the batch again when it ends)", file=sys.stderr)
+                continue
             paths.append(Path(t["path"]))
     seen: set[Path] = set()
     out = []

@@ -92,3 +92,31 @@ def test_a_folder_for_recognize_leaves_out_the_takes_own_channel_exports(tmp_pat
         assert sorted(p.name for p in select([str(tmp_path)], None, SUFFIXES[action])) == want, action
     # named on its own, a file is taken as given (and fails with its reason)
     assert [p.name for p in select([str(tmp_path / "take.csv")], None, SUFFIXES["fit"])] == ["take.csv"]
+
+
+def test_a_library_query_leaves_out_a_take_a_show_is_recording(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """A take a show is still recording has no end yet: the batch leaves it out and says so, and
+    takes the rest; once its show has died (the lock gone) it is taken as far as the file goes."""
+    import fcntl
+    import os
+
+    from puppet.batch.plan import select
+    from puppet.library.store import Library
+    from puppet.session import read_session
+    from takes import write_take
+
+    lib = tmp_path / "takes.db"
+    done = write_take(tmp_path / "done.jsonl", ticks=30, seed=1)
+    live = write_take(tmp_path / "live.jsonl", ticks=30, seed=2)
+    with Library(lib) as library:
+        library.register(done)
+        library.begin(live, read_session(live).header, performer="ana")
+    fd = os.open(live, os.O_RDONLY)  # the recording's lock, as the show holds it
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    try:
+        chosen = select(["missing:no"], str(lib), (".jsonl",))
+    finally:
+        os.close(fd)
+    assert chosen == [done.resolve()]
+    assert "is being recorded by a show; left out" in capsys.readouterr().err
+    assert sorted(select(["missing:no"], str(lib), (".jsonl",))) == sorted([done.resolve(), live.resolve()])
