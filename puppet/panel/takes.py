@@ -20,6 +20,7 @@ from typing import Any
 from aiohttp import web
 
 from puppet.batch.plan import output_stem
+from puppet.library.store import recording_alive
 
 MAX_RESULTS = 200
 EXPORT_SUFFIXES = {"mp4": ".mp4", "pc2": ".pc2", "csv": ".csv"}
@@ -74,7 +75,8 @@ class TakeRoutes:
             return [{"id": t["id"], "name": Path(t["path"]).name, "path": t["path"], "recorded": t["recorded"],
                      "duration": t["duration"], "performer": t["performer"], "tags": t["tags"], "notes": t["notes"],
                      "expressions": sorted({e["expression"] for e in t["expressions"]} - {"neutral"}),
-                     "thumbnail": bool(t["thumbnail"]), "missing": bool(t["missing"])} for t in rows[:MAX_RESULTS]]
+                     "thumbnail": bool(t["thumbnail"]), "missing": bool(t["missing"]),
+                     "state": t.get("state", "complete")} for t in rows[:MAX_RESULTS]]
 
         try:
             return web.json_response({"ok": True, "takes": await self._run(find)})
@@ -108,6 +110,9 @@ class TakeRoutes:
         take = Path(t["path"])
         if t["missing"] or not take.is_file():
             return web.json_response({"ok": False, "error": f"{take} is missing"})
+        if t.get("state") == "recording" and await self._run(lambda: recording_alive(take, t.get("recorder"))):
+            return web.json_response({"ok": False, "error": f"{take.name} is being recorded by a show; "
+                                      "export it when the show ends"})
         out = take.with_name(output_stem(take) + EXPORT_SUFFIXES[kind])
         job = {"id": t["id"], "out": str(out), "state": "running", "error": ""}
         proc = subprocess.Popen([sys.executable, "-m", "puppet", "replay", str(take), "--out", str(out)],

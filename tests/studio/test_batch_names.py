@@ -120,3 +120,44 @@ def test_a_library_query_leaves_out_a_take_a_show_is_recording(tmp_path: Path, c
     assert chosen == [done.resolve()]
     assert "is being recorded by a show; left out" in capsys.readouterr().err
     assert sorted(select(["missing:no"], str(lib), (".jsonl",))) == sorted([done.resolve(), live.resolve()])
+
+
+def test_the_page_shows_a_take_being_recorded_and_does_not_export_it(tmp_path: Path) -> None:
+    """The page's list says which take a show is recording (and, once the show died, that `puppet
+    takes check` completes it); exporting a take still being recorded is refused with a reason."""
+    import asyncio
+    import fcntl
+    import os
+
+    from aiohttp import web
+    from aiohttp.test_utils import TestClient, TestServer
+    from takes import write_take
+
+    from puppet.library.store import Library
+    from puppet.panel.takes import TakeRoutes
+    from puppet.session import read_session
+
+    live = write_take(tmp_path / "live.jsonl", ticks=30, seed=2)
+    lib_path = tmp_path / "takes.db"
+    with Library(lib_path) as lib:
+        take_id = lib.begin(live, read_session(live).header)
+
+    async def page() -> tuple[dict, dict]:
+        app = web.Application()
+        TakeRoutes(lambda: lib_path).add(app)
+        async with TestClient(TestServer(app, host="127.0.0.1")) as client:
+            listed = await (await client.get("/api/takes")).json()
+            export = await (await client.post(f"/api/takes/{take_id}/export?to=csv")).json()
+            return listed, export
+
+    fd = os.open(live, os.O_RDONLY)  # the recording's lock, as the show holds it
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    try:
+        listed, export = asyncio.run(page())
+    finally:
+        os.close(fd)
+    assert [t["state"] for t in listed["takes"]] == ["recording"]
+    assert not export["ok"] and "being recorded by a show" in export["error"]
+    assert not (tmp_path / "live.csv").exists()
+    listed, export = asyncio.run(page())  # the show gone: listed as died, exported as far as it goes
+    assert [t["state"] for t in listed["takes"]] == ["died"] and export["ok"]

@@ -40,7 +40,9 @@
     const when = (t.recorded || "").slice(0, 16).replace("T", " ");
     const bits = [when, `${t.duration.toFixed(1)} s`, t.performer, t.tags.join(", "), t.expressions.join(", ")];
     text.innerHTML = "<b></b><br><span class='stat'></span>";
-    text.querySelector("b").textContent = `${t.id} · ${t.name}` + (t.missing ? " (missing)" : "");
+    const STATES = { recording: " (being recorded)", died: " (its show died: puppet takes check completes it)",
+      crashed: " (its show died; kept up to its last tick)", damaged: " (damaged: no longer a take)" };
+    text.querySelector("b").textContent = `${t.id} · ${t.name}` + (t.missing ? " (missing)" : "") + (STATES[t.state] || "");
     text.querySelector("span").textContent = bits.filter((b) => b).join(" · ");
     li.appendChild(text);
     const edit = document.createElement("button");
