@@ -85,21 +85,28 @@ class _Syncer:
             self._thread.join(timeout=10)
 
 
-def _being_recorded(path: Path) -> bool:
-    """Whether a show holds the recording lock on `path` (SessionWriter takes it for the show)."""
+def lock_probe(path: Path) -> str | None:
+    """What the recording lock on `path` says: "held" (a show records to it), "free", "unsupported"
+    (a file system where flock does nothing), or None when the file cannot be opened. Probed with a
+    shared lock, released at once, so two probes never see each other."""
     try:
         fd = os.open(path, os.O_RDONLY)
     except OSError:
-        return False
+        return None
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
     except BlockingIOError:
-        return True
+        return "held"
     except OSError:
-        return False
+        return "unsupported"
     finally:
         os.close(fd)  # releases the lock just taken
-    return False
+    return "free"
+
+
+def _being_recorded(path: Path) -> bool:
+    """Whether a show holds the recording lock on `path` (SessionWriter takes it for the show)."""
+    return lock_probe(path) == "held"
 
 
 def _open_locked(path: Path, append_to: int | None) -> IO[str]:

@@ -31,18 +31,9 @@ def begin_recording(record: str | Path, header: dict[str, Any], performer: str |
     `puppet takes check` if the show dies first. Never raises (the show goes on whatever the
     library does). `kept`: where the take `record` held before was moved (session.keep_previous);
     the library follows it there, tags and notes with it. Returns the take's id, or None."""
-    path = library_path(arg)
-    if path is None:
-        return None
-    try:
-        with Library(path, warn=warn) as lib:
-            if kept is not None:
-                lib.follow(record, kept)
-            return lib.begin(record, header, performer=performer, tags=tags)
-    except Exception as err:  # the library must never cost the performer the show
-        warn(f"the take {record} is being recorded but was not added to the library {path}: {err}; "
-             "it is added when the show ends")
-        return None
+    return _on_library(record, arg, warn, kept, lambda lib: lib.begin(record, header, performer=performer, tags=tags),
+                       lambda path, err: f"the take {record} is being recorded but was not added to the library "
+                       f"{path}: {err}; it is added when the show ends")
 
 
 def register_recording(record: str | Path, performer: str | None, arg: str | None,
@@ -51,6 +42,15 @@ def register_recording(record: str | Path, performer: str | None, arg: str | Non
     """Complete the library's entry of a take just recorded by `puppet live` (duration, hash,
     markers; registering it if its start was not); never raises (a show's recording is safe on
     disk whatever the library does). `kept`: as for `begin_recording`. Returns the take's id, or None."""
+    return _on_library(record, arg, warn, kept, lambda lib: lib.register(record, performer=performer, tags=tags),
+                       lambda path, err: f"the take {record} is safe but was not added to the library {path}: {err}")
+
+
+def _on_library(record: str | Path, arg: str | None, warn: Callable[[str], None], kept: str | Path | None,
+                act: Callable[[Library], int], failed: Callable[[Path, Exception], str]) -> int | None:
+    """`act` on the library `arg` names (none: nothing), after following the take kept aside from
+    `record` to `kept`; whatever goes wrong is `failed`'s one warning, never an error: the library
+    must never cost the performer the show or the take. Returns `act`'s take id, or None."""
     path = library_path(arg)
     if path is None:
         return None
@@ -58,7 +58,7 @@ def register_recording(record: str | Path, performer: str | None, arg: str | Non
         with Library(path, warn=warn) as lib:
             if kept is not None:
                 lib.follow(record, kept)
-            return lib.register(record, performer=performer, tags=tags)
-    except Exception as err:  # the library must never cost the performer the take
-        warn(f"the take {record} is safe but was not added to the library {path}: {err}")
+            return act(lib)
+    except Exception as err:
+        warn(failed(path, err))
         return None

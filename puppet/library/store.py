@@ -537,20 +537,9 @@ def recording_alive(path: str | Path, recorder: str | None) -> bool:
 
 def _locks_unsupported(path: Path) -> bool:
     """Whether flock does nothing on the file system of `path` (then a live process is the only sign)."""
-    try:
-        fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        return False
-    try:
-        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-        fcntl.flock(fd, fcntl.LOCK_UN)
-    except BlockingIOError:
-        return False
-    except OSError:
-        return True
-    finally:
-        os.close(fd)
-    return False
+    from puppet.session import lock_probe
+
+    return lock_probe(path) == "unsupported"
 
 
 def _date_prefix(text: str) -> bool:
