@@ -26,7 +26,11 @@
   const say = (text) => { $("takes-status").textContent = text; };
   const api = (path, opts) => fetch(path + (path.includes("?") ? q.replace("?", "&") : q), opts).then((r) => r.json());
 
+  const STATES = { recording: " (recording)", died: " (show died: run takes check)",
+    crashed: " (show died; kept to its last tick)", damaged: " (damaged)" };
+
   function item(t) {
+    const unfinished = t.state === "recording" || t.state === "died";  // no duration known yet
     const li = document.createElement("li");
     li.className = "take" + (t.missing ? " missing" : "");
     if (t.thumbnail) {
@@ -38,10 +42,8 @@
     }
     const text = document.createElement("div");
     const when = (t.recorded || "").slice(0, 16).replace("T", " ");
-    const bits = [when, `${t.duration.toFixed(1)} s`, t.performer, t.tags.join(", "), t.expressions.join(", ")];
+    const bits = [when, unfinished ? "" : `${t.duration.toFixed(1)} s`, t.performer, t.tags.join(", "), t.expressions.join(", ")];
     text.innerHTML = "<b></b><br><span class='stat'></span>";
-    const STATES = { recording: " (being recorded)", died: " (its show died: puppet takes check completes it)",
-      crashed: " (its show died; kept up to its last tick)", damaged: " (damaged: no longer a take)" };
     text.querySelector("b").textContent = `${t.id} · ${t.name}` + (t.missing ? " (missing)" : "") + (STATES[t.state] || "");
     text.querySelector("span").textContent = bits.filter((b) => b).join(" · ");
     li.appendChild(text);
