@@ -106,11 +106,13 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from puppet.errors import PuppetError
-    from puppet.library import open_library
+    from puppet.library import complete_died, open_library
     from puppet.library.upkeep import check, import_folder
 
     with open_library(args.library) as lib:
         act = args.takes_command
+        if act in ("list", "search", "show"):
+            complete_died(lib, lambda s: print(f"puppet: {s}", file=sys.stderr))
         if act == "list":
             _listing(lib.search(""), args.json)
         elif act == "search":

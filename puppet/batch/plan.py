@@ -57,10 +57,11 @@ def select(selection: list[str], library: str | None, suffixes: tuple[str, ...])
         else:
             words.append(s)
     if words:
-        from puppet.library import open_library
+        from puppet.library import complete_died, open_library
 
         query = " ".join(words)
         with open_library(library) as lib:
+            complete_died(lib, lambda s: print(f"puppet: {s}", file=sys.stderr))
             found = lib.search(query)
             where = lib.path
         if not found:

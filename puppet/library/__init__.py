@@ -24,6 +24,19 @@ def open_library(arg: str | None) -> Library:
     return Library(path)
 
 
+def complete_died(lib: Library, say: Callable[[str], None] | None = None) -> None:
+    """Complete the entries of takes whose show died (as `puppet takes check` does) before they
+    are listed or selected; `say` hears one line per take completed or found damaged."""
+    from puppet.library.upkeep import complete_died as complete
+
+    rep = complete(lib)
+    if say is not None:
+        for i in rep.crashed:
+            say(f"take {i}: its show died while recording; its entry is completed from what the file holds")
+        for i, why in rep.damaged:
+            say(f"take {i}: its show died and its file no longer holds it ({why}); marked damaged")
+
+
 def begin_recording(record: str | Path, header: dict[str, Any], performer: str | None, tags: list[str],
                     arg: str | None, warn: Callable[[str], None], kept: str | Path | None = None) -> int | None:
     """Register the take `puppet live` begins recording (its header written): path, date, face and

@@ -91,11 +91,7 @@ def check(lib: Library, roots: list[Path] | None = None, analyse: bool = True,
             rep.recording.append(r["id"])
             continue
         if r["state"] == "died" and p.is_file():  # its show was killed: the take holds its last whole tick
-            try:
-                lib.register(p)
-                rep.crashed.append(r["id"])
-            except (ConfigError, PuppetError) as err:
-                _damaged(lib, rep, r, err)
+            _complete(lib, rep, r)
             continue
         if p.is_file():
             try:
@@ -146,6 +142,37 @@ def check(lib: Library, roots: list[Path] | None = None, analyse: bool = True,
             lib.set_analysis(i, r["hash"], thumb, spans)
             rep.analysed.append(i)
     return rep
+
+
+def complete_died(lib: Library) -> CheckReport:
+    """Complete the entries of the takes whose show died while recording them (read up to their
+    last whole tick: state `crashed`; a file that no longer holds the take: `damaged`), as `check`
+    does, so a listing never waits for a `takes check` by hand. Takes being recorded are left to
+    their shows. A library that cannot be written to leaves them as they are."""
+    import sqlite3
+
+    rep = CheckReport()
+    ids = [r[0] for r in lib.con.execute("SELECT id FROM takes WHERE state = 'recording'")]
+    warn, lib.warn = lib.warn, lambda s: None  # the reader's "no end record" is what completing says
+    try:
+        for i in ids:
+            r = lib.get(i)
+            if r["state"] == "died" and Path(r["path"]).is_file():
+                _complete(lib, rep, r)
+    except (sqlite3.Error, OSError):
+        pass
+    finally:
+        lib.warn = warn
+    return rep
+
+
+def _complete(lib: Library, rep: CheckReport, r: dict) -> None:
+    """A take whose show died: its entry completed from what its file holds, or marked damaged."""
+    try:
+        lib.register(Path(r["path"]))
+        rep.crashed.append(r["id"])
+    except (ConfigError, PuppetError) as err:
+        _damaged(lib, rep, r, err)
 
 
 def _damaged(lib: Library, rep: CheckReport, r: dict, err: Exception) -> None:

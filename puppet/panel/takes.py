@@ -69,7 +69,10 @@ class TakeRoutes:
         q = request.query.get("q", "")[:500]
 
         def find() -> list[dict[str, Any]]:
+            from puppet.library import complete_died
+
             with self._open() as lib:
+                complete_died(lib)
                 rows = lib.search(q)
             rows.reverse()
             return [{"id": t["id"], "name": Path(t["path"]).name, "path": t["path"], "recorded": t["recorded"],

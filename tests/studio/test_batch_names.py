@@ -123,12 +123,13 @@ def test_a_library_query_leaves_out_a_take_a_show_is_recording(tmp_path: Path, c
 
 
 def test_the_page_shows_a_take_being_recorded_and_does_not_export_it(tmp_path: Path) -> None:
-    """The page's list says which take a show is recording (and, once the show died, that `puppet
-    takes check` completes it); exporting a take still being recorded is refused with a reason."""
+    """The page's list says which take a show is recording (and, once the show is gone, completes
+    its entry from the file); exporting a take still being recorded is refused with a reason."""
     import asyncio
     import fcntl
     import os
 
+    import pytest
     from aiohttp import web
     from aiohttp.test_utils import TestClient, TestServer
     from takes import write_take
@@ -159,5 +160,6 @@ def test_the_page_shows_a_take_being_recorded_and_does_not_export_it(tmp_path: P
     assert [t["state"] for t in listed["takes"]] == ["recording"]
     assert not export["ok"] and "being recorded by a show" in export["error"]
     assert not (tmp_path / "live.csv").exists()
-    listed, export = asyncio.run(page())  # the show gone: listed as died, exported as far as it goes
-    assert [t["state"] for t in listed["takes"]] == ["died"] and export["ok"]
+    listed, export = asyncio.run(page())  # the show gone: completed from the file (its end is there), exported
+    assert [t["state"] for t in listed["takes"]] == ["complete"] and export["ok"]
+    assert listed["takes"][0]["duration"] == pytest.approx(read_session(live).duration)

@@ -56,22 +56,51 @@ def test_a_show_killed_mid_recording_is_listed_and_completed_by_check(tmp_path: 
         proc.wait(10)
     assert '"t":"end"' not in rec.read_text()
 
-    [listed] = takes_json(capsys, lib, "list")  # the library lists the take its show died recording
-    assert listed["state"] == "died" and listed["performer"] == "ana" and listed["tags"] == ["rehearsal"]
+    # the listing completes the entry of the take its show died recording, from what the file holds
+    [listed] = takes_json(capsys, lib, "list")
+    assert listed["state"] == "crashed" and listed["performer"] == "ana" and listed["tags"] == ["rehearsal"]
     assert listed["devices"] == [f"mock://{script}"] and listed["face"] and listed["recorded"]
-    assert main(["takes", "list", "--library", str(lib)]) == 0
-    assert "takes check" in capsys.readouterr().out  # the listing says what completes it
-
-    report = takes_json(capsys, lib, "check", "--no-analyse")
-    assert report["crashed"] == [listed["id"]] and report["damaged"] == []
     s = read_session(rec)
     assert not s.complete and s.ticks >= 40
+    assert listed["duration"] == pytest.approx(s.duration)
     with Library(lib) as library:
         t = library.get(listed["id"])
-    assert t["state"] == "crashed" and t["ticks"] == s.ticks and t["duration"] == pytest.approx(s.duration)
+    assert t["state"] == "crashed" and t["ticks"] == s.ticks
     assert t["hash"] == file_hash(rec)[0] and t["tags"] == ["rehearsal"] and t["performer"] == "ana"
-    # checked again: the take is in place, unchanged
-    assert takes_json(capsys, lib, "check", "--no-analyse")["ok"] == 1
+    assert main(["takes", "list", "--library", str(lib)]) == 0
+    assert "ended by a crash" in capsys.readouterr().out
+    # checked: the take is in place, unchanged
+    report = takes_json(capsys, lib, "check", "--no-analyse")
+    assert report["ok"] == 1 and report["crashed"] == [] and report["damaged"] == []
+
+
+def test_a_take_whose_show_died_is_completed_wherever_the_library_is_read(tmp_path: Path,
+                                                                         capsys: pytest.CaptureFixture) -> None:
+    """Listing, showing, a batch's library query and the page's takes list complete the entry of a
+    take whose show died (no `takes check` by hand), and say so on the command line; a take whose
+    file no longer holds it is marked damaged."""
+    from puppet.batch.plan import select
+
+    lib = tmp_path / "takes.db"
+    cut = _killed(write_take(tmp_path / "shoot" / "cut.jsonl", ticks=30, seed=2))
+    gone = tmp_path / "shoot" / "gone.jsonl"
+    with Library(lib) as library:
+        first = library.begin(cut, read_session(cut).header, performer="ana", tags=["wide"])
+        second = library.begin(gone, {"tick_rate": 60.0}, performer="bob")
+    gone.write_text("not a take\n")
+    capsys.readouterr()
+    assert main(["takes", "show", str(first), "--library", str(lib)]) == 0
+    out, err = capsys.readouterr()
+    assert "ended by a crash" in out
+    assert f"take {first}: its show died" in err and f"take {second}: its show died and its file" in err
+    with Library(lib) as library:
+        assert library.get(first)["ticks"] == read_session(cut).ticks
+        assert library.get(second)["state"] == "damaged"
+        library.begin(cut, read_session(cut).header)  # as a show would leave it again
+    assert select(["wide"], str(lib), (".jsonl",)) == [cut.resolve()]
+    assert "its show died" in capsys.readouterr().err
+    with Library(lib) as library:
+        assert library.get(first)["state"] == "crashed"
 
 
 def test_a_finished_show_completes_the_entry_its_start_made(tmp_path: Path) -> None:
