@@ -89,9 +89,10 @@ EXPRESSIONS: dict[str, dict[str, float]] = {
 FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
     "ict": {
         "happiness": {"AU6": 0.3, "AU10": 0.3, "AU12": 1.0, "AU13": 1.0, "AU25": 1.0},
-        "sadness": {"AU1": 1.0, "AU2": 0.25, "AU4": 0.42, "AU11": 0.3, "AU15": 1.0, "AU17": 1.0, "AU43": 0.7},
+        "sadness": {"AU1": 1.0, "AU4": 0.42, "AU11": 0.3, "AU15": 1.0, "AU17": 1.0, "AU43": 0.7},
+        "surprise": {"AU1": 1.0, "AU2": 1.0, "AU5": 0.6, "AU26": 1.0},
         "fear": {"AU1": 1.0, "AU2": 0.15, "AU4": 1.0, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
-        "anger": {"AU4": 1.0, "AU5": 0.5, "AU7": 0.6, "AU23": 1.0},
+        "anger": {"AU4": 1.0, "AU5": 0.5, "AU7": 0.8, "AU23": 1.0},
         "disgust": {"AU9": 0.55, "AU10": 0.55, "AU4": 0.6, "AU25": 1.0},
     },
 }
@@ -118,7 +119,15 @@ stronger (`sim.face.scan.rig.FORCE_OF`: under the brows drawn down it lifted the
 glare 4+5+7+23 with the lids raised harder (AU5 0.5): angry 0.47 (AU5 0.3, 0.4: 0.49, 0.41; AU7
 0.45 instead of 0.6: 0.20-0.51, read neutral at AU5 0.4). Disgust is 9+10 with the brows lowered and the
 lips parted (AU4 0.6, AU25; no AU17): disgust 0.78 (anger 0.15), where AU17 0.5 read disgust 0.44
-with anger 0.35 close; AU4 0.5: 0.67, AU9+10 0.5 or 0.6: 0.66-0.71, AU17 0.3 added: 0.64."""
+with anger 0.35 close; AU4 0.5: 0.67, AU9+10 0.5 or 0.6: 0.66-0.71, AU17 0.3 added: 0.64.
+Read again on the softened, bound forehead (`observer.py --faces ict --views`, the frontal camera
+and eight others up to 12 degrees off, docs/scan-face.md "The presets on the scanned head"):
+surprise is FACS 1+2+5+26 with the upper lids raised (AU5 0.6; the retaining ligament holds the
+scan's lids under raised brows, so 1+2 alone left the iris under the lid and read neutral as often
+as surprise, 0.45 against 0.42) and the jaw dropped further (AU26 1.0): surprise 0.90, 0.82-0.99 over
+the views (AU5 0.5-0.7 alike); sadness is 1+4+15+17 without the outer brows (AU2 0.25 gave the
+brows an arch that read neutral from above): 0.89, was 0.75; anger tightens the lids harder (AU7
+0.8; 0.6 read angry 0.33 against sad 0.31): 0.51 (AU7 0.9, AU5 0.4: 0.38, 0.50)."""
 
 
 FACE_EXPRESSIONS["imported"] = {
@@ -132,8 +141,8 @@ where the shared preset read MakeHuman's as surprise, fear 0.09). Rigs imported 
 table ask for no presets and keep the shared ones."""
 
 FACE_EXPRESSIONS["imported-2"] = {
-    **FACE_EXPRESSIONS["imported"],
-    "sadness": FACE_EXPRESSIONS["ict"]["sadness"],
+    **FACE_EXPRESSIONS["imported"],  # the sadness: the scanned head's as it was then (with AU2 0.25)
+    "sadness": {"AU1": 1.0, "AU2": 0.25, "AU4": 0.42, "AU11": 0.3, "AU15": 1.0, "AU17": 1.0, "AU43": 0.7},
 }
 """Heads imported since the renderer draws their teeth and `--rest-lips` can bring their lips
 together: the fear above, and the scanned head's sadness (the brows drawn down harder over the
@@ -145,7 +154,7 @@ imported with "imported" keep that table (and their takes' bits)."""
 
 FACE_EXPRESSIONS["imported-3"] = {
     **FACE_EXPRESSIONS["imported-2"],
-    "sadness": {au: v for au, v in FACE_EXPRESSIONS["ict"]["sadness"].items() if au != "AU2"},
+    "sadness": {au: v for au, v in FACE_EXPRESSIONS["imported-2"]["sadness"].items() if au != "AU2"},
 }
 """Heads imported since the transfer makes the frontalis cover the whole brow and matches each
 channel's force to the reference's (`puppet import-face`; their brows rise as far as the built-in

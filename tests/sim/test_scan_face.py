@@ -146,6 +146,7 @@ def test_presets_move_their_landmarks_the_right_way(model, presets) -> None:  # 
         assert mv("sadness", f"brow_inner_{s}")["up"] > 1.0
         assert mv("sadness", f"mouth_corner_{s}")["up"] < -0.5
         assert mv("surprise", f"brow_mid_{s}")["up"] > 2.0
+        assert mv("surprise", f"upper_lid_{s}")["up"] > 2.0  # FACS 1+2+5: the eyes opened wide
         assert mv("fear", f"brow_inner_{s}")["up"] > 1.0
         assert mv("fear", f"upper_lid_{s}")["up"] > 1.0
         assert mv("fear", f"mouth_corner_{s}")["out"] > 0.5
