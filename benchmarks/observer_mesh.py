@@ -207,6 +207,21 @@ def load_makehuman_mask(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return _compact(v, t[keep[t].all(axis=1)])
 
 
+LOWRES_VERTICES = 470  # about MediaPipe's canonical face mesh's 468
+
+
+def load_makehuman_lowres(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The MakeHuman face mask decimated (quadric error, `fast_simplification`) to about
+    LOWRES_VERTICES vertices, the resolution of a face tracker's canonical mesh: a coarse mask with
+    no head round it, no eyeballs and no mouth inside once its rims are opened."""
+    import fast_simplification
+
+    v, t = load_makehuman_mask(path)
+    keep = 1.0 - LOWRES_VERTICES / len(v)
+    vo, fo = fast_simplification.simplify(v.astype(np.float32), t.astype(np.int32), target_reduction=keep)
+    return _compact(np.asarray(vo, float), np.asarray(fo, np.int64))
+
+
 def load_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """A plain OBJ (polygons fanned into triangles), the texture and normal indices skipped."""
     verts, tris = [], []
@@ -409,6 +424,8 @@ HEADS: dict[str, dict[str, Any]] = {
                   "eyes_open": True, "lips_open": True, "role": "development"},
     "makehuman-mask": {"file": "makehuman_base.obj", "url": MH_URL, "load": load_makehuman_mask,
                        "points": MH_POINTS, "eyes_open": True, "lips_open": True, "role": "development"},
+    "makehuman-lowres": {"file": "makehuman_base.obj", "url": MH_URL, "load": load_makehuman_lowres,
+                         "points": MH_POINTS, "eyes_open": True, "lips_open": True, "role": "development"},
     "nefertiti": {"file": "nefertiti-lowres.obj", "url": NEF_URL, "load": load_obj, "points": NEF_POINTS,
                   "eyes_open": True, "lips_open": False, "role": "development"},
     "leeperrysmith": {"file": "LeePerrySmith.js", "url": LEE_URL, "load": load_three_json, "points": LEE_POINTS,
