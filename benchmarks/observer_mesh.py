@@ -14,6 +14,10 @@ missing, downloads it by hand from its public address (the product itself never 
 - `makehuman-mask` (development head): the same MakeHuman head cut to a face mask (the skin in
   front of the jaw angles, from under the chin to the hairline), the development stand-in for a
   face tracker's canonical mesh, which has no head round the face.
+- `makehuman-lowres` (development head): the MakeHuman face mask decimated by quadric error
+  (`fast_simplification`, in the `observe` extra) to about 470 vertices, the resolution of a face
+  tracker's canonical mesh, so the transfer is tried on that kind of input without the held-out
+  one: a coarse mask, no head round it, no eyeballs, no mouth inside once its rims are opened.
 - `leeperrysmith` (held out: measured once, nothing tuned on it): "Infinite, 3D Head Scan by Lee
   Perry-Smith" (Infinite-Realities, based on a work at www.triplegangers.com), CC BY 3.0 Unported,
   as distributed with the three.js examples: `examples/obj/leeperrysmith/LeePerrySmith.js` of
@@ -55,7 +59,7 @@ forehead landmarks where the default face's are in observer.py's frames (`--fram
 `--framing head` the head is framed by its own extent, as `puppet pose` frames it, and a face mask
 then fills the frame and the face detector finds nothing); same crop and classifier.
 
-    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,nefertiti,ict-identity] [--save DIR]
+    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,makehuman-lowres,nefertiti,ict-identity] [--save DIR]
                                                       [--framing face|head]
 """
 
