@@ -14,6 +14,10 @@ missing, downloads it by hand from its public address (the product itself never 
 - `makehuman-mask` (development head): the same MakeHuman head cut to a face mask (the skin in
   front of the jaw angles, from under the chin to the hairline), the development stand-in for a
   face tracker's canonical mesh, which has no head round the face.
+- `makehuman-lowres` (development head): the MakeHuman face mask decimated by quadric error
+  (`fast_simplification`, in the `observe` extra) to about 470 vertices, the resolution of a face
+  tracker's canonical mesh, so the transfer is tried on that kind of input without the held-out
+  one: a coarse mask, no head round it, no eyeballs, no mouth inside once its rims are opened.
 - `leeperrysmith` (held out: measured once, nothing tuned on it): "Infinite, 3D Head Scan by Lee
   Perry-Smith" (Infinite-Realities, based on a work at www.triplegangers.com), CC BY 3.0 Unported,
   as distributed with the three.js examples: `examples/obj/leeperrysmith/LeePerrySmith.js` of
@@ -55,7 +59,7 @@ forehead landmarks where the default face's are in observer.py's frames (`--fram
 `--framing head` the head is framed by its own extent, as `puppet pose` frames it, and a face mask
 then fills the frame and the face detector finds nothing); same crop and classifier.
 
-    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,nefertiti,ict-identity] [--save DIR]
+    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,makehuman-lowres,nefertiti,ict-identity] [--save DIR]
                                                       [--framing face|head]
 """
 
@@ -205,6 +209,21 @@ def load_makehuman_mask(path: Path) -> tuple[np.ndarray, np.ndarray]:
     v, t = load_makehuman(path)
     keep = (v[:, 2] > 1.12) & (v[:, 1] > 6.17) & (v[:, 1] < 7.86)
     return _compact(v, t[keep[t].all(axis=1)])
+
+
+LOWRES_VERTICES = 470  # about MediaPipe's canonical face mesh's 468
+
+
+def load_makehuman_lowres(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The MakeHuman face mask decimated (quadric error, `fast_simplification`) to about
+    LOWRES_VERTICES vertices, the resolution of a face tracker's canonical mesh: a coarse mask with
+    no head round it, no eyeballs and no mouth inside once its rims are opened."""
+    import fast_simplification
+
+    v, t = load_makehuman_mask(path)
+    keep = 1.0 - LOWRES_VERTICES / len(v)
+    vo, fo = fast_simplification.simplify(v.astype(np.float32), t.astype(np.int32), target_reduction=keep)
+    return _compact(np.asarray(vo, float), np.asarray(fo, np.int64))
 
 
 def load_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -409,6 +428,8 @@ HEADS: dict[str, dict[str, Any]] = {
                   "eyes_open": True, "lips_open": True, "role": "development"},
     "makehuman-mask": {"file": "makehuman_base.obj", "url": MH_URL, "load": load_makehuman_mask,
                        "points": MH_POINTS, "eyes_open": True, "lips_open": True, "role": "development"},
+    "makehuman-lowres": {"file": "makehuman_base.obj", "url": MH_URL, "load": load_makehuman_lowres,
+                         "points": MH_POINTS, "eyes_open": True, "lips_open": True, "role": "development"},
     "nefertiti": {"file": "nefertiti-lowres.obj", "url": NEF_URL, "load": load_obj, "points": NEF_POINTS,
                   "eyes_open": True, "lips_open": False, "role": "development"},
     "leeperrysmith": {"file": "LeePerrySmith.js", "url": LEE_URL, "load": load_three_json, "points": LEE_POINTS,

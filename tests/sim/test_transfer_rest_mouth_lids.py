@@ -14,6 +14,7 @@ import pytest
 from sim.build import compile_model
 from sim.face import default_rig
 from sim.face.transfer import TransferOptions, from_arrays, parse_landmarks, transfer_rig
+from sim.face.transfer.mouth import mouth_width, seen_gaps
 from sim.facs import apply_au
 from sim.integrator import Simulator
 from sim.state import FaceControl
@@ -55,6 +56,40 @@ def test_lips_apart_at_rest_are_brought_together(reference) -> None:
     assert any("lips" in n for n in closed.notes)
     model = compile_model(closed.rig)  # the closed rest shape simulates
     assert np.isfinite(model.rest).all()
+
+
+def _parted_at_sides(reference):
+    """The reference's mesh with the lower lip pulled down 2 mm at the middle and about 6 mm half
+    way to each corner (nothing at the corners), fading over 1 cm below: lips modelled apart more
+    at the sides than at the middle, as a cupid's bow and a full lower lip leave them."""
+    m = reference.mesh
+    v = np.asarray(m.vertices, float).copy()
+    low = m.landmark("lower_lip_center")
+    corner = abs(m.landmark("mouth_corner_l")[0])
+    s = np.clip(np.abs(v[:, 0]) / corner, 0.0, 1.0)
+    drop = 0.2 * np.cos(0.5 * np.pi * s) + 0.5 * np.sin(np.pi * s)
+    below = (v[:, 1] <= low[1] + 0.02) & (np.abs(v[:, 0]) < corner) & (v[:, 2] > low[2] - 1.0)
+    fade = np.clip(1.0 - np.clip(low[1] - v[:, 1], 0.0, None) / 1.0, 0.0, 1.0)
+    v[:, 1] -= np.where(below, drop * fade, 0.0)
+    return from_arrays(v, m.triangles, "sides.obj"), _landmarks(m)
+
+
+def test_lips_apart_at_the_sides_are_closed_as_seen_from_the_front(reference) -> None:
+    """No column of the mouth, seen from the front, stands further apart at rest than the
+    reference's at the same place (scaled by the mouths' widths): the gap at the middle alone,
+    brought to the reference's with the modelled shape kept, left the sides three times as wide
+    and a row of teeth showed there in every pose."""
+    head, lms = _parted_at_sides(reference)
+    kept = transfer_rig(reference, head, lms).rig.mesh
+    _, ref_seen = seen_gaps(reference.mesh)
+    scale = mouth_width(kept) / mouth_width(reference.mesh)
+    _, before = seen_gaps(kept)
+    assert (before - scale * ref_seen).max() > 0.3  # as modelled: the sides gape
+    closed = transfer_rig(reference, head, lms, options=TransferOptions(rest_lips=True)).rig
+    _, after = seen_gaps(closed.mesh)
+    assert (after - scale * ref_seen).max() < 0.03
+    assert after.min() > -0.03  # closed, not crossed
+    assert np.isfinite(compile_model(closed).rest).all()
 
 
 def test_lips_already_together_are_left_alone(reference) -> None:

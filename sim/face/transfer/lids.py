@@ -51,7 +51,8 @@ def lid_sides(vertices: FloatArray, triangles: IntArray, upper: IntArray, lower:
 
 
 def set_gap(vertices: FloatArray, upper: IntArray, lower: IntArray, gap: float, up: FloatArray,
-            upper_share: float = UPPER_SHARE, upper_side: np.ndarray | None = None) -> FloatArray:
+            upper_share: float = UPPER_SHARE, upper_side: np.ndarray | None = None,
+            profile: FloatArray | None = None) -> FloatArray:
     """The vertices with the opening between two chains (corner to corner, both from the same
     corner) made `gap` wide at the middle: a shut line opens along a sine that is nothing at the
     corners; an open one keeps its shape, scaled. The upper chain takes `upper_share` of the
@@ -60,7 +61,8 @@ def set_gap(vertices: FloatArray, upper: IntArray, lower: IntArray, gap: float, 
     lid a vertex follows: `upper_side` (N,) bool (`lid_sides`) when given, else whether it lies
     above the middle between the chains; a vertex of one lid lying beyond the other's chain
     (skin hanging over the opening) follows less the further it lies beyond, over the other
-    side's reach."""
+    side's reach. `profile` (K,): the gap wanted at K evenly spaced points from corner to corner
+    (over `gap`, the middle's), closing only: each column narrower than that is left as it is."""
     v = np.asarray(vertices, float).copy()
     upper, lower = np.asarray(upper, dtype=np.int64), np.asarray(lower, dtype=np.int64)
     a, b = v[upper[0]], v[upper[-1]]
@@ -84,6 +86,9 @@ def set_gap(vertices: FloatArray, upper: IntArray, lower: IntArray, gap: float, 
     mid = float(line(upper, np.array([0.5]), up)[0] - line(lower, np.array([0.5]), up)[0])
     shape = now / mid if mid > 1e-3 * width else np.sin(np.pi * t)
     change = gap * shape - now
+    if profile is not None:
+        want = gap * np.interp(t, np.linspace(0.0, 1.0, len(profile)), np.asarray(profile, float))
+        change = np.minimum(want - now, 0.0)
     h = (v - a) @ up
     depth = (v - a) @ forward - 0.5 * (line(upper, t, forward) + line(lower, t, forward))
     near = inside & (np.abs(depth) < DEPTH * width)

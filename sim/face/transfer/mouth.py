@@ -5,7 +5,14 @@ its lip channels, the jaw and the presets part them. A head whose lips stand apa
 gap (or, with drawn teeth, a row of teeth) in every expression, the resting face included. The
 two lips are moved towards each other along the line joining their middles, each taking half,
 with the skin around them following (`lids.set_gap`), until they stand as far apart as the
-reference's for the mouth's width."""
+reference's for the mouth's width. Then, seen from the front, each column of the mouth from corner
+to corner is closed to the reference's gap there (`seen_gaps`, scaled by the mouths' widths; only
+closing): the middle alone, brought together along a line that runs mostly in depth (the lower
+lip behind the upper) with the modelled shape kept, left MakeHuman's lips 2.5 mm apart half way to
+the corners (the reference's 1 mm) and a row of teeth showed there in every pose. Only for lips
+modelled apart (more than PARTED x the reference's gap): closed so on a scan whose lips meet, the
+scanned head's identity lost its sadness (read as neutral) and, with its lids shut, its anger and
+disgust."""
 
 from __future__ import annotations
 
@@ -19,11 +26,33 @@ from sim.face.transfer.lids import set_gap
 
 FloatArray = np.ndarray
 LIP_SHARE = 0.5  # of the closing made by the upper lip
+PARTED = 2.0  # lips further apart than this x the reference's gap were modelled apart (MakeHuman's
+# 4.8 x); a scan's lips that meet, their landmarks a hair off the rims (1.7 x on the scanned head's
+# identity), are only brought to the reference's gap at the middle
+COLUMNS = 21  # points from corner to corner at which the gap seen from the front is compared
+UP = np.array([0.0, 1.0, 0.0])
 
 
 def lip_gap(mesh: FaceMesh) -> FloatArray:
     """(3,) from the lower lip's middle (`lower_lip_center`) to the upper's (cm)."""
     return mesh.landmark("upper_lip_center") - mesh.landmark("lower_lip_center")
+
+
+def seen_gaps(mesh: FaceMesh, columns: int = COLUMNS) -> tuple[float, FloatArray]:
+    """(the lips' rims' vertical gap at the middle of the mouth, at `columns` evenly spaced points
+    from corner to corner) in cm, as seen from the front: the upper rim's height less the lower's."""
+    v = np.asarray(mesh.vertices, float)
+    upper, lower = lid_chains(v, mesh.mouth_loop, mesh.landmark("mouth_corner_r"), mesh.landmark("mouth_corner_l"))
+    a, axis = v[upper[0]], v[upper[-1]] - v[upper[0]]
+    t = np.linspace(0.0, 1.0, columns)
+
+    def height(chain: np.ndarray) -> FloatArray:
+        tc = (v[chain] - a) @ axis / float(axis @ axis)
+        order = np.argsort(tc)
+        return np.interp(t, tc[order], v[chain][order, 1])
+
+    seen = height(upper) - height(lower)
+    return float(np.interp(0.5, t, seen)), seen
 
 
 def mouth_width(mesh: FaceMesh) -> float:
@@ -41,6 +70,11 @@ def rest_lips(mesh: FaceMesh, reference: FaceMesh) -> tuple[FaceMesh, list[str]]
     v = np.asarray(mesh.vertices, float)
     upper, lower = lid_chains(v, mesh.mouth_loop, mesh.landmark("mouth_corner_r"), mesh.landmark("mouth_corner_l"))
     moved = set_gap(v, upper, lower, want, gap / now, upper_share=LIP_SHARE)
+    ref_gap, ref_profile = seen_gaps(reference)
+    if now > PARTED * want and ref_gap > 0:  # lips modelled apart: then, as seen from the front, no
+        # column of the mouth further apart than the reference's
+        wide = ref_gap * mouth_width(mesh) / mouth_width(reference)
+        moved = set_gap(moved, upper, lower, wide, UP, upper_share=LIP_SHARE, profile=ref_profile / ref_gap)
     out = dataclasses.replace(mesh, vertices=moved)
     return out, [f"the lips stood {now:.2f} cm apart at rest; brought to {float(np.linalg.norm(lip_gap(out))):.2f} "
                  f"(the reference's {want:.2f} for this mouth)"]
