@@ -148,6 +148,16 @@ def check_times(where: str, times: np.ndarray) -> None:
         raise ConfigError(f"{where}: times must increase from frame to frame (frame {bad[0] + 1} to {bad[0] + 2})")
 
 
+def csv_rows(path: Path, text: str, what: str) -> list[list[str]]:
+    """The rows of a capture's CSV text; what the csv module refuses (a cell beyond its 128 KiB
+    limit, a NUL) is one line naming the file and line."""
+    reader = csv.reader(text.splitlines())
+    try:
+        return list(reader)
+    except csv.Error as err:
+        raise ConfigError(f"{path}: line {reader.line_num}: not a readable {what} ({err})") from err
+
+
 def read_landmark_csv(path: Path, mesh: Any, corr: dict[str, int] | None = None) -> PointCapture:
     """The landmark CSV (module docstring)."""
     try:
@@ -156,7 +166,7 @@ def read_landmark_csv(path: Path, mesh: Any, corr: dict[str, int] | None = None)
         raise ConfigError(f"{path}: cannot read the landmark CSV: {err.strerror}") from err
     except UnicodeDecodeError as err:
         raise ConfigError(f"{path}: the landmark CSV is not UTF-8 text") from err
-    rows = list(csv.reader(text.splitlines()))
+    rows = csv_rows(path, text, "landmark CSV")
     if not rows or not rows[0]:
         raise ConfigError(f"{path}:1: empty file; expected a header 'time,NAME_x,NAME_y,NAME_z,...'")
     header = [h.strip() for h in rows[0]]

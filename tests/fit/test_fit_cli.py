@@ -400,3 +400,15 @@ def test_the_commands_as_a_user_runs_them(tmp_path, face0, basis0) -> None:  # t
 
     assert [s["expression"] for s in spans] == ["neutral"]
     assert set(spans[0]["scores"]) == {*EXPRESSIONS, "neutral"}
+
+
+def test_a_csv_field_beyond_the_csv_modules_limit_is_one_line(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """A cell of 200,000 characters (a pasted blob, a file that lost its line ends) in a landmark
+    CSV and in a Live Link CSV: one line naming the file, not the csv module's own exception."""
+    blob = "[" * 200_000
+    for name, text in {"points.csv": f"time,chin_x,chin_y,chin_z\n0,{blob},1,2\n",
+                       "phone.csv": f"Timecode,BlendShapeCount,JawOpen\n00:00:00:00.000,1,{blob}\n"}.items():
+        p = tmp_path / name
+        p.write_text(text)
+        err = _one_line_exit_2(capsys, ["fit", str(p), "--out", str(tmp_path / "o.jsonl")], tmp_path / "o.jsonl")
+        assert name in err and "line 2" in err, err
