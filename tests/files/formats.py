@@ -338,6 +338,29 @@ def good_library(d: Path) -> bytes:
     return db.read_bytes()
 
 
+def good_pc2(d: Path) -> bytes:
+    """Three samples of the good recording as a PC2 cache, its OBJ kept as pc2-rest.obj."""
+    take = d / "pc2-take.jsonl"
+    take.write_bytes(good_recording(d))
+    out = d / "good.pc2"
+    r = run_cli(["replay", str(take), "--to", "0.05", "--out", str(out)], take)
+    assert r.kind == "ok", r.text
+    (d / "good.obj").rename(d / "pc2-rest.obj")
+    return out.read_bytes()
+
+
+def read_pc2(f: Path, d: Path) -> Outcome:
+    """`puppet fit X.pc2` (the OBJ beside it is the good one)."""
+    import shutil
+
+    shutil.copyfile(d / "pc2-rest.obj", f.with_suffix(".obj"))
+    out = d / "pc2.jsonl"
+    try:
+        return run_cli(["fit", str(f), "--face", "procedural", "--out", str(out)], f, (out,))
+    finally:
+        f.with_suffix(".obj").unlink()
+
+
 def read_landmark_csv(f: Path, d: Path) -> Outcome:
     out = d / "fit.jsonl"
     return run_cli(["fit", str(f), "--face", "procedural", "--out", str(out)], f, (out,))
@@ -457,6 +480,7 @@ FORMATS: tuple[Format, ...] = (
     Format("landmarks", ".json", good_landmarks, lambda g: damage.json_variants(g, n=150), read_landmarks),
     Format("landmark-csv", ".csv", good_landmark_csv, lambda g: damage.text_variants(g, n=150), read_landmark_csv),
     Format("arkit-csv", ".csv", good_arkit_csv, lambda g: damage.text_variants(g, n=150), read_landmark_csv),
+    Format("pc2", ".pc2", good_pc2, lambda g: damage.binary_variants(g, n=120), read_pc2),
     Format("identity", ".json", good_identity, lambda g: damage.json_variants(g, n=150), read_identity),
     Format("wav", ".wav", good_wav, lambda g: damage.binary_variants(g, n=120, extra=_wav_extra), read_wav,
            refused=0.1),

@@ -412,3 +412,21 @@ def test_a_csv_field_beyond_the_csv_modules_limit_is_one_line(tmp_path, capsys) 
         p.write_text(text)
         err = _one_line_exit_2(capsys, ["fit", str(p), "--out", str(tmp_path / "o.jsonl")], tmp_path / "o.jsonl")
         assert name in err and "line 2" in err, err
+
+
+def test_a_damaged_point_cache_is_one_line(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """A PC2 cut inside a float (a copy that stopped), and headers with negative counts: one line
+    naming the file, before anything is fitted."""
+    import struct
+
+    (tmp_path / "cut.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    head = struct.Struct("<12siiffi")
+    body = np.zeros(2 * 3 * 3, "<f4").tobytes()
+    cases = {"cut": head.pack(b"POINTCACHE2\0", 1, 3, 0.0, 1.0, 2) + body[:-2],
+             "negative points": head.pack(b"POINTCACHE2\0", 1, -1, 0.0, 1.0, 0),
+             "negative samples": head.pack(b"POINTCACHE2\0", 1, 3, 0.0, 1.0, -2) + body}
+    for kind, data in cases.items():
+        (tmp_path / "cut.pc2").write_bytes(data)
+        err = _one_line_exit_2(capsys, ["fit", str(tmp_path / "cut.pc2"), "--out", str(tmp_path / "o.jsonl")],
+                               tmp_path / "o.jsonl")
+        assert "cut.pc2" in err, (kind, err)
