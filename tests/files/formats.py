@@ -361,6 +361,32 @@ def read_pc2(f: Path, d: Path) -> Outcome:
         f.with_suffix(".obj").unlink()
 
 
+def good_c3d(d: Path) -> bytes:
+    """Six frames of twelve landmarks of the procedural face as C3D markers."""
+    import io as _io
+
+    import c3d
+    import numpy as np
+
+    import sim.face
+
+    model = sim.face.default_model(0)
+    names = sorted(model.mesh.landmarks)[:12]
+    rest = model.rest[[model.mesh.landmarks[n] for n in names]]
+    w = c3d.Writer(point_rate=30.0)
+    frames = []
+    for k in range(6):
+        p = np.zeros((len(names), 5), np.float32)
+        p[:, :3] = rest * 10
+        p[:, 1] -= 0.2 * k
+        frames.append((p, np.zeros((0, 0), np.float32)))
+    w.add_frames(frames)
+    w.set_point_labels(names)
+    buf = _io.BytesIO()
+    w.write(buf)
+    return buf.getvalue()
+
+
 def read_landmark_csv(f: Path, d: Path) -> Outcome:
     out = d / "fit.jsonl"
     return run_cli(["fit", str(f), "--face", "procedural", "--out", str(out)], f, (out,))
@@ -480,6 +506,7 @@ FORMATS: tuple[Format, ...] = (
     Format("landmarks", ".json", good_landmarks, lambda g: damage.json_variants(g, n=150), read_landmarks),
     Format("landmark-csv", ".csv", good_landmark_csv, lambda g: damage.text_variants(g, n=150), read_landmark_csv),
     Format("arkit-csv", ".csv", good_arkit_csv, lambda g: damage.text_variants(g, n=150), read_landmark_csv),
+    Format("c3d", ".c3d", good_c3d, lambda g: damage.binary_variants(g, n=150), read_landmark_csv),
     Format("pc2", ".pc2", good_pc2, lambda g: damage.binary_variants(g, n=120), read_pc2),
     Format("identity", ".json", good_identity, lambda g: damage.json_variants(g, n=150), read_identity),
     Format("wav", ".wav", good_wav, lambda g: damage.binary_variants(g, n=120, extra=_wav_extra), read_wav,
