@@ -430,3 +430,20 @@ def test_a_damaged_point_cache_is_one_line(tmp_path, capsys) -> None:  # type: i
         err = _one_line_exit_2(capsys, ["fit", str(tmp_path / "cut.pc2"), "--out", str(tmp_path / "o.jsonl")],
                                tmp_path / "o.jsonl")
         assert "cut.pc2" in err, (kind, err)
+
+
+def test_a_report_naming_the_capture_or_the_take_is_refused(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
+    """`--report` is written last: naming the capture itself (or the take) replaced the user's
+    capture with the report. Refused in one line before anything is fitted; both files kept."""
+    times, names, pts = performance
+    cap = tmp_path / "capture.csv"
+    write_landmark_csv(cap, times[:6], pts[:6], names)
+    before = cap.read_bytes()
+    take = tmp_path / "take.jsonl"
+    err = _one_line_exit_2(capsys, ["fit", str(cap), "--report", str(cap), "--out", str(take)], take)
+    assert "--report" in err and "capture.csv" in err
+    assert cap.read_bytes() == before
+    take.write_bytes(b"the user's take\n")
+    assert main(["fit", str(cap), "--report", str(tmp_path / "." / "take.jsonl"), "--out", str(take)]) == 2
+    assert "--report" in capsys.readouterr().err
+    assert take.read_bytes() == b"the user's take\n"
