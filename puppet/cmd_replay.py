@@ -55,6 +55,12 @@ def run(args: argparse.Namespace) -> int:
 
     if args.file is None and args.curves is None:
         raise PuppetError("give a recording FILE and/or --curves FILE")
+    if args.out:
+        from pathlib import Path
+
+        for given in (args.file, args.curves):
+            if given and Path(args.out).resolve() == Path(given).resolve():
+                raise PuppetError(f"--out {args.out}: that is the file being replayed ({given}); name another file")
     session = read_session(args.file) if args.file else None
     if session is not None:
         for w in session.warnings:
