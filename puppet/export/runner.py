@@ -121,6 +121,24 @@ def _export_csv(perf: Performance, out: Path, kind: str, ticks: list[int], names
     return f"wrote {len(ticks)} frames at {opts.fps:g} fps to {out}"
 
 
+REST_OBJ_MARK = b"# facepuppet rest pose"
+
+
+def _keep_foreign_obj(obj: Path, out: Path) -> None:
+    """The rest mesh beside a PC2 replaces only a rest mesh an export wrote (its first line says
+    so), never the user's own OBJ of that name."""
+    try:
+        with open(obj, "rb") as fh:
+            head = fh.read(len(REST_OBJ_MARK))
+    except FileNotFoundError:
+        return
+    except OSError as err:
+        raise PuppetError(f"{obj}: cannot check the mesh beside {out.name}: {err.strerror}") from err
+    if head != REST_OBJ_MARK:
+        raise PuppetError(f"{obj}: a mesh a PC2 export did not write; {out.name}'s rest mesh would replace it: "
+                          "move it or give --out another name")
+
+
 def _pc2_sink(perf: Performance, out: Path, opts: ExportOptions, stack: ExitStack) -> Callable[[Any], None]:
     """Opens `out` (and its rest .obj beside it) for writing on `stack`; returns the per-frame add."""
     from puppet.export.pc2 import PC2Writer, write_obj
@@ -129,6 +147,7 @@ def _pc2_sink(perf: Performance, out: Path, opts: ExportOptions, stack: ExitStac
 
     model = perf.face.model
     obj = out.with_suffix(".obj")
+    _keep_foreign_obj(obj, out)
     dressing = scan_dressing(model)  # the scanned head: the scan's own vertices and faces
     rest = model.rest if dressing is None else dressing.rest
     obj_tmp = stack.enter_context(atomic_path(obj))
