@@ -11,6 +11,10 @@ def _size(text: str) -> tuple[int, int]:
     m = re.fullmatch(r"(\d+)x(\d+)", text.strip().lower())
     if not m or int(m.group(1)) < 2 or int(m.group(2)) < 2:
         raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT like 1280x720, got {text!r}")
+    from render.offscreen import MAX_IMAGE_SIDE
+
+    if max(int(m.group(1)), int(m.group(2))) > MAX_IMAGE_SIDE:
+        raise argparse.ArgumentTypeError(f"at most {MAX_IMAGE_SIDE} pixels a side, got {text!r}")
     return int(m.group(1)), int(m.group(2))
 
 
