@@ -222,6 +222,7 @@ def export_together(perf: Performance, outputs: list[tuple[Path, ExportOptions]]
                 if not (1 <= opts.supersample <= 4 and 0 <= crf <= 51):
                     raise PuppetError(f"--supersample must be 1 to 4 and --crf 0 to 51 (got {opts.supersample}, "
                                       f"{crf})")
+                _check_drawn_side(opts)
                 target = stack.enter_context(atomic_path(out))
                 sink = FrameSink(perf.face.model, target, "mp4", opts.fps, opts.size, opts.view, opts.supersample,
                                  opts.preset or DEFAULT_PRESET, crf)
@@ -238,11 +239,21 @@ def export_together(perf: Performance, outputs: list[tuple[Path, ExportOptions]]
     return [done[i] for i in range(len(outputs))]
 
 
+def _check_drawn_side(opts: ExportOptions) -> None:
+    from render.offscreen import MAX_DRAWN_SIDE
+
+    side = max(opts.size) * opts.supersample
+    if side > MAX_DRAWN_SIDE:
+        raise PuppetError(f"--size {opts.size[0]}x{opts.size[1]} with --supersample {opts.supersample} draws {side} "
+                          f"pixels a side, more than {MAX_DRAWN_SIDE}: lower one of them")
+
+
 def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], opts: ExportOptions) -> str:
     from puppet.export.video import DEFAULT_CRF, DEFAULT_PRESET, PARALLEL_MIN_FRAMES, render_parallel, render_serial
 
     if not 1 <= opts.supersample <= 4:
         raise PuppetError(f"--supersample must be 1 to 4, got {opts.supersample}")
+    _check_drawn_side(opts)
     crf = DEFAULT_CRF if opts.crf is None else opts.crf
     if not 0 <= crf <= 51:
         raise PuppetError(f"--crf must be 0 to 51, got {crf}")
