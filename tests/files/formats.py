@@ -387,6 +387,25 @@ def good_c3d(d: Path) -> bytes:
     return buf.getvalue()
 
 
+def good_correspondence(d: Path) -> bytes:
+    """A `--map` file naming the twelve points of the landmark CSV p0..p11 as rig landmarks."""
+    header = good_landmark_csv(d).split(b"\n", 1)[0].decode().split(",")[1:]
+    names = [h[:-2] for h in header[::3]]
+    return json.dumps({"points": {f"p{i}": n for i, n in enumerate(names)}}, indent=1).encode()
+
+
+def read_correspondence(f: Path, d: Path) -> Outcome:
+    """`puppet fit points.csv --map FILE` with the landmark CSV's points renamed p0..p11."""
+    cap = d / "points.csv"
+    if not cap.exists():
+        lines = good_landmark_csv(d).decode().split("\n")
+        cols = lines[0].split(",")
+        cols = ["time"] + [f"p{(i - 1) // 3}_{c[-1]}" for i, c in enumerate(cols) if i]
+        cap.write_text("\n".join([",".join(cols), *lines[1:]]))
+    out = d / "mapped.jsonl"
+    return run_cli(["fit", str(cap), "--face", "procedural", "--map", str(f), "--out", str(out)], f, (out,))
+
+
 def read_landmark_csv(f: Path, d: Path) -> Outcome:
     out = d / "fit.jsonl"
     return run_cli(["fit", str(f), "--face", "procedural", "--out", str(out)], f, (out,))
@@ -506,6 +525,8 @@ FORMATS: tuple[Format, ...] = (
     Format("landmarks", ".json", good_landmarks, lambda g: damage.json_variants(g, n=150), read_landmarks),
     Format("landmark-csv", ".csv", good_landmark_csv, lambda g: damage.text_variants(g, n=150), read_landmark_csv),
     Format("arkit-csv", ".csv", good_arkit_csv, lambda g: damage.text_variants(g, n=150), read_landmark_csv),
+    Format("correspondence", ".json", good_correspondence, lambda g: damage.json_variants(g, n=150),
+           read_correspondence),
     Format("c3d", ".c3d", good_c3d, lambda g: damage.binary_variants(g, n=150), read_landmark_csv),
     Format("pc2", ".pc2", good_pc2, lambda g: damage.binary_variants(g, n=120), read_pc2),
     Format("identity", ".json", good_identity, lambda g: damage.json_variants(g, n=150), read_identity),

@@ -447,3 +447,24 @@ def test_a_report_naming_the_capture_or_the_take_is_refused(tmp_path, performanc
     assert main(["fit", str(cap), "--report", str(tmp_path / "." / "take.jsonl"), "--out", str(take)]) == 2
     assert "--report" in capsys.readouterr().err
     assert take.read_bytes() == b"the user's take\n"
+
+
+def test_a_correspondence_file_nested_deep_or_holding_huge_values_is_one_short_line(tmp_path, performance,
+                                                                                    capsys) -> None:  # type: ignore[no-untyped-def]
+    """--map files nested thousands deep ended in a RecursionError; a pasted 20,000-character name
+    or a 400-digit number was quoted whole into an error line of 20,000 characters."""
+    times, names, pts = performance
+    good = tmp_path / "good.csv"
+    write_landmark_csv(good, times[:4], pts[:4], names)
+    cases = {"deep": "[" * 5000 + "]" * 5000,
+             "deep_value": '{"points": {"a": ' + "[" * 5000 + "]" * 5000 + "}}",
+             "long_value": json.dumps({"points": {"a": "x" * 20000}}),
+             "long_key": json.dumps({"points": {"k" * 20000: "chin"}}),
+             "long_extra_key": json.dumps({"points": {"a": "chin"}, "q" * 20000: 1}),
+             "big_number": '{"points": {"a": ' + "9" * 400 + "}}"}
+    for kind, text in cases.items():
+        corr = tmp_path / f"{kind}.json"
+        corr.write_text(text)
+        out = tmp_path / f"{kind}.jsonl"
+        err = _one_line_exit_2(capsys, ["fit", str(good), "--map", str(corr), "--out", str(out)], out)
+        assert corr.name in err and len(err) < 400, (kind, err[:300])
