@@ -258,6 +258,11 @@ def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], op
     if not 0 <= crf <= 51:
         raise PuppetError(f"--crf must be 0 to 51, got {crf}")
     enc = {"supersample": opts.supersample, "preset": opts.preset or DEFAULT_PRESET, "crf": crf}
+    sound = opts.sound if kind == "mp4" else None
+    if sound is not None:  # a damaged WAV is named before anything is drawn
+        from devices.audio.wavfile import read_wav
+
+        read_wav(sound)
     frames = ((j, state) for j, _, state, _ in iter_frames(perf, ticks))
     place = atomic_dir(out) if kind == "frames" else atomic_path(out)
     with place as target, _bar(len(ticks), out.name or str(out)) as bar:
@@ -266,12 +271,13 @@ def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], op
                             workers=opts.workers, **enc)
         else:
             render_serial(perf.face.model, target, kind, opts.fps, opts.size, opts.view, frames, bar.update, **enc)
+        if sound is not None:  # muxed before the rename: a failure keeps the user's old file
+            from puppet.export.sound import mux_sound
+
+            mux_sound(target, sound, opts.start, opts.speed, len(ticks) / opts.fps, shown=out)
     if kind == "png":
         return f"wrote a {opts.size[0]}x{opts.size[1]} still to {out}"
-    if kind == "mp4" and opts.sound is not None:
-        from puppet.export.sound import mux_sound
-
-        mux_sound(out, opts.sound, opts.start, opts.speed, len(ticks) / opts.fps)
+    if sound is not None:
         return (f"wrote {len(ticks)} frames at {opts.fps:g} fps ({opts.size[0]}x{opts.size[1]}, view {opts.view}) "
                 f"with the take's sound ({opts.sound.name}, AAC) to {out}")
     return f"wrote {len(ticks)} frames at {opts.fps:g} fps ({opts.size[0]}x{opts.size[1]}, view {opts.view}) to {out}"
