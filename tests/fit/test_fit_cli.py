@@ -432,7 +432,7 @@ def test_a_damaged_point_cache_is_one_line(tmp_path, capsys) -> None:  # type: i
         assert "cut.pc2" in err, (kind, err)
 
 
-def test_a_report_naming_the_capture_or_the_take_is_refused(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
+def test_a_report_naming_the_capture_or_the_take_is_refused(tmp_path, performance, capsys):  # type: ignore[no-untyped-def]
     """`--report` is written last: naming the capture itself (or the take) replaced the user's
     capture with the report. Refused in one line before anything is fitted; both files kept."""
     times, names, pts = performance
@@ -449,8 +449,7 @@ def test_a_report_naming_the_capture_or_the_take_is_refused(tmp_path, performanc
     assert take.read_bytes() == b"the user's take\n"
 
 
-def test_a_correspondence_file_nested_deep_or_holding_huge_values_is_one_short_line(tmp_path, performance,
-                                                                                    capsys) -> None:  # type: ignore[no-untyped-def]
+def test_a_deep_or_huge_correspondence_file_is_one_short_line(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
     """--map files nested thousands deep ended in a RecursionError; a pasted 20,000-character name
     or a 400-digit number was quoted whole into an error line of 20,000 characters."""
     times, names, pts = performance
