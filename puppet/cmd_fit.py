@@ -113,6 +113,21 @@ def summary(result: object, cap: object) -> list[str]:
     return lines
 
 
+def _check_report(report: Path, args: argparse.Namespace, out: Path) -> None:
+    """The report is written last, over whatever it names: never the capture (nor the OBJ beside
+    a point cache, nor the --map file) and never the take just written."""
+    from puppet.errors import PuppetError
+
+    inp = Path(args.input)
+    kept = [inp, inp.with_suffix(".obj")] if inp.suffix.lower() == ".pc2" else [inp]
+    if args.map and Path(args.map).suffix:
+        kept.append(Path(args.map))
+    for other in (*kept, out):
+        if report.resolve() == other.resolve():
+            what = "the take --out writes" if other is out else "a file this fit reads"
+            raise PuppetError(f"--report {report}: that is {what} ({other}); name another file for the report")
+
+
 def run(args: argparse.Namespace) -> int:
     from puppet.capture import ChannelCapture, read_capture
     from puppet.capture.take import full_values, resample, write_curves, write_report, write_take
@@ -121,6 +136,8 @@ def run(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     kind = _check_out(out)
+    if args.report:
+        _check_report(Path(args.report), args, out)
     neutral = _neutral(args.neutral)
     if args.fps is not None and not args.fps > 0:
         raise PuppetError("--fps must be positive")

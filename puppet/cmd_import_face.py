@@ -68,6 +68,18 @@ def _render(model: Any, path: Path) -> str | None:
     return str(path)
 
 
+def _drawn_here(picture: Path, report: Path) -> bool:
+    """Whether RIG.png may be (re)drawn: it is not there, or the report of an earlier import beside
+    it shows it (a texture of the head's own name never is)."""
+    if not picture.exists():
+        return True
+    try:
+        with open(report, encoding="utf-8", errors="replace") as fh:
+            return f"]({picture.name})" in fh.read(1 << 20)
+    except OSError:
+        return False
+
+
 def run(args: argparse.Namespace) -> int:
     """Read, transfer, compile (proves the rig simulates), save, report, render."""
     from sim.build import compile_model
@@ -99,8 +111,16 @@ def run(args: argparse.Namespace) -> int:
     except OSError as err:
         raise ConfigError(f"{out}: cannot write the rig: {err.strerror or err}") from err
     seconds = time.perf_counter() - start
-    image = None if args.no_image else _render(model, out.with_suffix(".png"))
     report = out.with_suffix(".report.md")
+    picture = out.with_suffix(".png")
+    image = None
+    if args.no_image:
+        pass
+    elif _drawn_here(picture, report):
+        image = _render(model, picture)
+    else:
+        print(f"puppet: warning: {picture} is not a picture import-face drew (a texture?): kept; the muscles "
+              "picture is not drawn (give --out another name to get it)", file=sys.stderr)
     with atomic_write(report) as fh:
         fh.write(format_report(result, args.mesh, args.landmarks, seconds, Path(image).name if image else None))
     m = result.rig.mesh

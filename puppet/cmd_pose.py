@@ -76,6 +76,10 @@ def _size(text: str) -> tuple[int, int]:
         raise PuppetError(f"--size {text!r}: expected WxH, e.g. 1280x720") from None
     if not sep or min(size) < 1:
         raise PuppetError(f"--size {text!r}: expected WxH, e.g. 1280x720")
+    from render.offscreen import MAX_IMAGE_SIDE
+
+    if max(size) > MAX_IMAGE_SIDE:
+        raise PuppetError(f"--size {text!r}: at most {MAX_IMAGE_SIDE} pixels a side")
     return size
 
 

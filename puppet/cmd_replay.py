@@ -11,6 +11,10 @@ def _size(text: str) -> tuple[int, int]:
     m = re.fullmatch(r"(\d+)x(\d+)", text.strip().lower())
     if not m or int(m.group(1)) < 2 or int(m.group(2)) < 2:
         raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT like 1280x720, got {text!r}")
+    from render.offscreen import MAX_IMAGE_SIDE
+
+    if max(int(m.group(1)), int(m.group(2))) > MAX_IMAGE_SIDE:
+        raise argparse.ArgumentTypeError(f"at most {MAX_IMAGE_SIDE} pixels a side, got {text!r}")
     return int(m.group(1)), int(m.group(2))
 
 
@@ -55,6 +59,12 @@ def run(args: argparse.Namespace) -> int:
 
     if args.file is None and args.curves is None:
         raise PuppetError("give a recording FILE and/or --curves FILE")
+    if args.out:
+        from pathlib import Path
+
+        for given in (args.file, args.curves):
+            if given and Path(args.out).resolve() == Path(given).resolve():
+                raise PuppetError(f"--out {args.out}: that is the file being replayed ({given}); name another file")
     session = read_session(args.file) if args.file else None
     if session is not None:
         for w in session.warnings:

@@ -49,6 +49,10 @@ def _json_line(raw: bytes) -> Any:
 
 def _header(p: Path, line: bytes) -> dict[str, Any]:
     where = f"{p}:1"
+    if line.startswith((b"\xff\xfe", b"\xfe\xff", b"\0\0\xfe\xff", b"{\0", b"\0{")):
+        # json reads a UTF-16/32 header line by itself, and every record after it would be damage
+        raise ConfigError(f"{where}: not a facepuppet recording in UTF-8 (it looks like UTF-16 or UTF-32: "
+                          "save it as UTF-8)")
     try:
         header = _json_line(line)
     except (ValueError, UnicodeDecodeError, RecursionError) as err:

@@ -16,6 +16,11 @@ from render.hud import HudInfo
 from render.renderer import FaceRenderer
 
 IMAGE_SUFFIXES = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG"}
+#: the largest image side the commands accept: 8K, within every GL's renderbuffer limit we render
+#: with (llvmpipe: 16384) and within memory when supersampled
+MAX_IMAGE_SIDE = 8192
+#: the largest side drawn, supersampling included (llvmpipe's renderbuffer and texture limit)
+MAX_DRAWN_SIDE = 16384
 
 
 def create_context() -> moderngl.Context:

@@ -58,8 +58,8 @@ def _staged(files: dict[str, bytes], origin: str, notes: list[str] | None = None
             if notes is not None:
                 notes += [line.replace(str(first), origin) for line in quiet.getvalue().splitlines()
                           if line.startswith("puppet: warning: ")]
-        except JobFailed:
-            raise
+        except JobFailed as err:
+            raise JobFailed(str(err).replace(str(first), origin).replace(tmp + os.sep, "")) from None
         except Exception as err:
             from puppet.errors import PuppetError
             from safefile import BadFile

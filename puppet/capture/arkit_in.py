@@ -14,13 +14,12 @@ from where the seconds roll over, or 60, Live Link's default, for a clip shorter
 
 from __future__ import annotations
 
-import csv
 import re
 from pathlib import Path
 
 import numpy as np
 
-from puppet.capture.points import ChannelCapture, check_times
+from puppet.capture.points import ChannelCapture, check_times, csv_rows
 from puppet.errors import ConfigError
 from puppet.export.arkit import (ARKIT_SHAPES, GAZE_LIDS, MOUTH_CLOSE_SPAN, ONE_CHANNEL, ROTATIONS, SHAPE_SHARES, SHAPE_SPAN,
                                  SIMPLE_SHAPES, UNSUPPORTED)
@@ -135,7 +134,7 @@ def read_arkit_csv(path: Path, fps: float | None = None) -> ChannelCapture:
     from sim.channels import CHANNEL_NAMES
 
     try:
-        rows = list(csv.reader(path.read_text(encoding="utf-8-sig").splitlines()))
+        rows = csv_rows(path, path.read_text(encoding="utf-8-sig"), "ARKit CSV")
     except OSError as err:
         raise ConfigError(f"{path}: cannot read the ARKit CSV: {err.strerror}") from err
     except UnicodeDecodeError as err:

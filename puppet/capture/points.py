@@ -17,7 +17,6 @@ is an error.
 from __future__ import annotations
 
 import csv
-import json
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from puppet.errors import ConfigError
+from safefile import few, load_json, quote, read_text
 
 MIN_POINTS = 4
 _VERTEX = re.compile(r"v(\d+)")
@@ -69,7 +69,7 @@ def rig_point(name: str, mesh: Any) -> int | None:
 
 def _unknown(where: str, name: str, mesh: Any) -> ConfigError:
     some = ", ".join(sorted(mesh.landmarks)[:6])
-    return ConfigError(f"{where}: {name!r} is not a rig landmark ({some}, ...; docs/fit.md lists them) "
+    return ConfigError(f"{where}: {quote(name)} is not a rig landmark ({some}, ...; docs/fit.md lists them) "
                        f"nor a vertex v0..v{len(mesh.vertices) - 1}; use a correspondence file (--map) "
                        "for other layouts")
 
@@ -81,16 +81,12 @@ def load_correspondence(path: str | Path, mesh: Any) -> dict[str, int]:
     shipped = Path(__file__).parent / "layouts" / f"{p.name}.json"
     if not p.exists() and p.parent == Path(".") and shipped.is_file():
         p = shipped
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except OSError as err:
-        raise ConfigError(f"{p}: cannot read the correspondence file: {err.strerror}") from err
-    except (ValueError, UnicodeDecodeError) as err:
-        raise ConfigError(f"{p}: the correspondence file is not valid JSON ({err})") from err
+    data = load_json(read_text(p, "correspondence file", 16 << 20), str(p), "correspondence file")
     if isinstance(data, dict) and "points" in data:
         extra = set(data) - {"points", "layout", "comment"}
         if extra:
-            raise ConfigError(f"{p}: unknown key(s) {sorted(extra)}; expected layout, points, comment")
+            raise ConfigError(f"{p}: unknown key(s) {few([quote(k) for k in sorted(extra)])}; expected layout, "
+                              "points, comment")
         data = data["points"]
     if not isinstance(data, dict) or not data:
         raise ConfigError(f"{p}: expected {{\"points\": {{\"INPUT_NAME\": \"rig_landmark\", ...}}}}")
@@ -98,12 +94,13 @@ def load_correspondence(path: str | Path, mesh: Any) -> dict[str, int]:
     used: dict[int, str] = {}
     for key, value in data.items():
         if not isinstance(value, str):
-            raise ConfigError(f"{p}: point {key!r} must name a rig landmark (a string), got {value!r}")
+            raise ConfigError(f"{p}: point {quote(key)} must name a rig landmark (a string), got {quote(value)}")
         v = rig_point(value, mesh)
         if v is None:
-            raise _unknown(f"{p}: point {key!r}", value, mesh)
+            raise _unknown(f"{p}: point {quote(key)}", value, mesh)
         if v in used:
-            raise ConfigError(f"{p}: points {used[v]!r} and {key!r} both map to {value!r}; map each rig point once")
+            raise ConfigError(f"{p}: points {quote(used[v])} and {quote(key)} both map to {quote(value)}; map each "
+                              "rig point once")
         used[v] = key
         out[str(key)] = v
     if len(out) < MIN_POINTS:
@@ -148,6 +145,16 @@ def check_times(where: str, times: np.ndarray) -> None:
         raise ConfigError(f"{where}: times must increase from frame to frame (frame {bad[0] + 1} to {bad[0] + 2})")
 
 
+def csv_rows(path: Path, text: str, what: str) -> list[list[str]]:
+    """The rows of a capture's CSV text; what the csv module refuses (a cell beyond its 128 KiB
+    limit, a NUL) is one line naming the file and line."""
+    reader = csv.reader(text.splitlines())
+    try:
+        return list(reader)
+    except csv.Error as err:
+        raise ConfigError(f"{path}: line {reader.line_num}: not a readable {what} ({err})") from err
+
+
 def read_landmark_csv(path: Path, mesh: Any, corr: dict[str, int] | None = None) -> PointCapture:
     """The landmark CSV (module docstring)."""
     try:
@@ -156,7 +163,7 @@ def read_landmark_csv(path: Path, mesh: Any, corr: dict[str, int] | None = None)
         raise ConfigError(f"{path}: cannot read the landmark CSV: {err.strerror}") from err
     except UnicodeDecodeError as err:
         raise ConfigError(f"{path}: the landmark CSV is not UTF-8 text") from err
-    rows = list(csv.reader(text.splitlines()))
+    rows = csv_rows(path, text, "landmark CSV")
     if not rows or not rows[0]:
         raise ConfigError(f"{path}:1: empty file; expected a header 'time,NAME_x,NAME_y,NAME_z,...'")
     header = [h.strip() for h in rows[0]]
@@ -167,7 +174,7 @@ def read_landmark_csv(path: Path, mesh: Any, corr: dict[str, int] | None = None)
         stem = header[j][:-2]
         if [header[j], header[j + 1], header[j + 2]] != [stem + "_x", stem + "_y", stem + "_z"] or not stem:
             raise ConfigError(f"{path}:1: columns {j + 1}-{j + 3} must be NAME_x,NAME_y,NAME_z, got "
-                              f"{','.join(header[j:j + 3])}")
+                              f"{quote(','.join(header[j:j + 3]))}")
         names.append(stem)
     if len(set(names)) != len(names):
         raise ConfigError(f"{path}:1: a point appears twice in the header")

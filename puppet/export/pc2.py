@@ -80,9 +80,12 @@ def read_pc2(path: str | Path) -> tuple[dict[str, float | int], np.ndarray]:
     magic, version, n, start, sampling, samples = PC2_HEADER.unpack_from(data)
     if magic != PC2_MAGIC:
         raise ConfigError(f"{path}: not a PC2 file (bad magic)")
+    if n < 0 or samples < 0:
+        raise ConfigError(f"{path}: the PC2 header counts {n} points and {samples} samples; not a PC2 file")
+    if len(data) - PC2_HEADER.size != samples * n * 12:
+        raise ConfigError(f"{path}: PC2 body holds {len(data) - PC2_HEADER.size} bytes, header promises "
+                          f"{samples * n * 12} (cut short or damaged; export it again)")
     body = np.frombuffer(data, dtype="<f4", offset=PC2_HEADER.size)
-    if body.size != samples * n * 3:
-        raise ConfigError(f"{path}: PC2 body holds {body.size} floats, header promises {samples * n * 3}")
     head = {"version": version, "num_points": n, "start_frame": start, "sampling": sampling, "num_samples": samples}
     return head, body.reshape(samples, n, 3)
 

@@ -121,6 +121,24 @@ def _export_csv(perf: Performance, out: Path, kind: str, ticks: list[int], names
     return f"wrote {len(ticks)} frames at {opts.fps:g} fps to {out}"
 
 
+REST_OBJ_MARK = b"# facepuppet rest pose"
+
+
+def _keep_foreign_obj(obj: Path, out: Path) -> None:
+    """The rest mesh beside a PC2 replaces only a rest mesh an export wrote (its first line says
+    so), never the user's own OBJ of that name."""
+    try:
+        with open(obj, "rb") as fh:
+            head = fh.read(len(REST_OBJ_MARK))
+    except FileNotFoundError:
+        return
+    except OSError as err:
+        raise PuppetError(f"{obj}: cannot check the mesh beside {out.name}: {err.strerror}") from err
+    if head != REST_OBJ_MARK:
+        raise PuppetError(f"{obj}: a mesh a PC2 export did not write; {out.name}'s rest mesh would replace it: "
+                          "move it or give --out another name")
+
+
 def _pc2_sink(perf: Performance, out: Path, opts: ExportOptions, stack: ExitStack) -> Callable[[Any], None]:
     """Opens `out` (and its rest .obj beside it) for writing on `stack`; returns the per-frame add."""
     from puppet.export.pc2 import PC2Writer, write_obj
@@ -129,6 +147,7 @@ def _pc2_sink(perf: Performance, out: Path, opts: ExportOptions, stack: ExitStac
 
     model = perf.face.model
     obj = out.with_suffix(".obj")
+    _keep_foreign_obj(obj, out)
     dressing = scan_dressing(model)  # the scanned head: the scan's own vertices and faces
     rest = model.rest if dressing is None else dressing.rest
     obj_tmp = stack.enter_context(atomic_path(obj))
@@ -203,6 +222,7 @@ def export_together(perf: Performance, outputs: list[tuple[Path, ExportOptions]]
                 if not (1 <= opts.supersample <= 4 and 0 <= crf <= 51):
                     raise PuppetError(f"--supersample must be 1 to 4 and --crf 0 to 51 (got {opts.supersample}, "
                                       f"{crf})")
+                _check_drawn_side(opts)
                 target = stack.enter_context(atomic_path(out))
                 sink = FrameSink(perf.face.model, target, "mp4", opts.fps, opts.size, opts.view, opts.supersample,
                                  opts.preset or DEFAULT_PRESET, crf)
@@ -219,15 +239,30 @@ def export_together(perf: Performance, outputs: list[tuple[Path, ExportOptions]]
     return [done[i] for i in range(len(outputs))]
 
 
+def _check_drawn_side(opts: ExportOptions) -> None:
+    from render.offscreen import MAX_DRAWN_SIDE
+
+    side = max(opts.size) * opts.supersample
+    if side > MAX_DRAWN_SIDE:
+        raise PuppetError(f"--size {opts.size[0]}x{opts.size[1]} with --supersample {opts.supersample} draws {side} "
+                          f"pixels a side, more than {MAX_DRAWN_SIDE}: lower one of them")
+
+
 def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], opts: ExportOptions) -> str:
     from puppet.export.video import DEFAULT_CRF, DEFAULT_PRESET, PARALLEL_MIN_FRAMES, render_parallel, render_serial
 
     if not 1 <= opts.supersample <= 4:
         raise PuppetError(f"--supersample must be 1 to 4, got {opts.supersample}")
+    _check_drawn_side(opts)
     crf = DEFAULT_CRF if opts.crf is None else opts.crf
     if not 0 <= crf <= 51:
         raise PuppetError(f"--crf must be 0 to 51, got {crf}")
     enc = {"supersample": opts.supersample, "preset": opts.preset or DEFAULT_PRESET, "crf": crf}
+    sound = opts.sound if kind == "mp4" else None
+    if sound is not None:  # a damaged WAV is named before anything is drawn
+        from devices.audio.wavfile import read_wav
+
+        read_wav(sound)
     frames = ((j, state) for j, _, state, _ in iter_frames(perf, ticks))
     place = atomic_dir(out) if kind == "frames" else atomic_path(out)
     with place as target, _bar(len(ticks), out.name or str(out)) as bar:
@@ -236,12 +271,13 @@ def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], op
                             workers=opts.workers, **enc)
         else:
             render_serial(perf.face.model, target, kind, opts.fps, opts.size, opts.view, frames, bar.update, **enc)
+        if sound is not None:  # muxed before the rename: a failure keeps the user's old file
+            from puppet.export.sound import mux_sound
+
+            mux_sound(target, sound, opts.start, opts.speed, len(ticks) / opts.fps, shown=out)
     if kind == "png":
         return f"wrote a {opts.size[0]}x{opts.size[1]} still to {out}"
-    if kind == "mp4" and opts.sound is not None:
-        from puppet.export.sound import mux_sound
-
-        mux_sound(out, opts.sound, opts.start, opts.speed, len(ticks) / opts.fps)
+    if sound is not None:
         return (f"wrote {len(ticks)} frames at {opts.fps:g} fps ({opts.size[0]}x{opts.size[1]}, view {opts.view}) "
                 f"with the take's sound ({opts.sound.name}, AAC) to {out}")
     return f"wrote {len(ticks)} frames at {opts.fps:g} fps ({opts.size[0]}x{opts.size[1]}, view {opts.view}) to {out}"

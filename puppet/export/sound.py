@@ -24,8 +24,10 @@ def _atempo(speed: float) -> list[str]:
     return stages
 
 
-def mux_sound(video: Path, wav: Path, start: float, speed: float, duration: float) -> None:
-    """Add `wav` (from take time `start`, at `speed`) to `video` as its AAC track, in place."""
+def mux_sound(video: Path, wav: Path, start: float, speed: float, duration: float, shown: Path | None = None) -> None:
+    """Add `wav` (from take time `start`, at `speed`) to `video` as its AAC track, in place;
+    `shown` is the name errors give (the export's target, where `video` is its temporary file)."""
+    shown = video if shown is None else shown
     import imageio_ffmpeg
 
     tmp = video.with_name(f".{video.name}.sound.mp4")
@@ -38,12 +40,12 @@ def mux_sound(video: Path, wav: Path, start: float, speed: float, duration: floa
     try:
         done = subprocess.run(cmd, capture_output=True, text=True, timeout=3600)
     except (OSError, subprocess.TimeoutExpired) as err:
-        raise PuppetError(f"{video}: the video is written, but its sound could not be added ({err})") from err
+        raise PuppetError(f"{shown}: the sound {wav} could not be added ({err}); {shown} is left as it was") from err
     if done.returncode != 0:
         try:
             tmp.unlink()
         except OSError:
             pass
         last = (done.stderr.strip().splitlines() or ["ffmpeg failed"])[-1]
-        raise PuppetError(f"{video}: the video is written, but its sound could not be added: {last}")
+        raise PuppetError(f"{shown}: the sound {wav} could not be added ({last[:200]}); {shown} is left as it was")
     os.replace(tmp, video)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import tempfile
 import traceback
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -69,6 +70,7 @@ class Format:
     good: Callable[[Path], bytes]
     variants: Callable[[bytes], Iterator[damage.Variant]]
     read: Callable[[Path, Path], Outcome]  # (file, work folder) -> outcome
+    refused: float = 0.25  # at least this share of the variants must be refused (damaged sound still plays)
 
 
 # ------------------------------------------------------------------------------ good files
@@ -266,6 +268,224 @@ def read_landmarks(f: Path, d: Path) -> Outcome:
     return run_cli(["import-face", str(mesh), "--landmarks", str(f), "--out", str(out), "--no-image"], f, (out,))
 
 
+# ------------------------------------------------------------------------------ more inputs
+# (fit's captures, a saved identity, a voice, the take library)
+
+def good_landmark_csv(d: Path) -> bytes:
+    """Six frames of the procedural face's landmarks, the jaw dropping a little."""
+    import sim.face
+
+    model = sim.face.default_model(0)
+    names = sorted(model.mesh.landmarks)[:12]
+    rest = model.rest[[model.mesh.landmarks[n] for n in names]]
+    rows = ["time," + ",".join(f"{n}_{c}" for n in names for c in "xyz")]
+    for k in range(6):
+        pts = rest.copy()
+        pts[:, 1] -= 0.02 * k * (pts[:, 1] < rest[:, 1].mean())
+        rows.append(f"{k / 30:.6f}," + ",".join(f"{x:.6g}" for x in pts.ravel()))
+    return ("\n".join(rows) + "\n").encode()
+
+
+def good_arkit_csv(d: Path) -> bytes:
+    from puppet.export.arkit import ArkitCsvWriter
+    from puppet.live import load_face
+
+    face = load_face(None, 0, face="procedural")
+    names = [c.name for c in face.vocab.channels]
+    p = d / "good.arkit.csv"
+    w = ArkitCsvWriter(p, names, 60.0)
+    vals = list(face.vocab.defaults())
+    for k in range(8):
+        vals[names.index("jaw")] = 0.05 * k
+        w.add(k, vals)
+    w.close()
+    return p.read_bytes()
+
+
+def good_identity(d: Path) -> bytes:
+    return json.dumps({"format": "facepuppet-identity", "version": 1, "name": "bob", "seed": 7,
+                       "identity": [round(0.1 * ((i * 7) % 13 - 6), 3) for i in range(100)]}, indent=1).encode()
+
+
+def good_wav(d: Path) -> bytes:
+    import wave
+
+    import numpy as np
+
+    t = np.arange(4000) / 16000.0
+    x = (0.3 * np.sin(2 * np.pi * 180 * t) * np.minimum(1, t * 20) * 32767).astype("<i2")
+    p = d / "good.wav"
+    with wave.open(str(p), "wb") as w:
+        w.setnchannels(1)
+        w.setsampwidth(2)
+        w.setframerate(16000)
+        w.writeframes(x.tobytes())
+    return p.read_bytes()
+
+
+def good_voice_profile(d: Path) -> bytes:
+    return (Path(__file__).parents[2] / "devices" / "audio" / "profiles" / "default.json").read_bytes()
+
+
+def good_library(d: Path) -> bytes:
+    """A take library holding one take (registered by `puppet takes import`)."""
+    folder = d / "lib-takes"
+    folder.mkdir(exist_ok=True)
+    (folder / "take.jsonl").write_bytes(good_recording(d))
+    db = d / "good.db"
+    r = run_cli(["takes", "--library", str(db), "import", str(folder)], db)
+    assert r.kind == "ok", r.text
+    return db.read_bytes()
+
+
+def good_pc2(d: Path) -> bytes:
+    """Three samples of the good recording as a PC2 cache, its OBJ kept as pc2-rest.obj."""
+    take = d / "pc2-take.jsonl"
+    take.write_bytes(good_recording(d))
+    out = d / "good.pc2"
+    r = run_cli(["replay", str(take), "--to", "0.05", "--out", str(out)], take)
+    assert r.kind == "ok", r.text
+    (d / "good.obj").rename(d / "pc2-rest.obj")
+    return out.read_bytes()
+
+
+def read_pc2(f: Path, d: Path) -> Outcome:
+    """`puppet fit X.pc2` (the OBJ beside it is the good one)."""
+    import shutil
+
+    shutil.copyfile(d / "pc2-rest.obj", f.with_suffix(".obj"))
+    out = d / "pc2.jsonl"
+    try:
+        return run_cli(["fit", str(f), "--face", "procedural", "--out", str(out)], f, (out,))
+    finally:
+        f.with_suffix(".obj").unlink()
+
+
+def good_c3d(d: Path) -> bytes:
+    """Six frames of twelve landmarks of the procedural face as C3D markers."""
+    import io as _io
+
+    import c3d
+    import numpy as np
+
+    import sim.face
+
+    model = sim.face.default_model(0)
+    names = sorted(model.mesh.landmarks)[:12]
+    rest = model.rest[[model.mesh.landmarks[n] for n in names]]
+    w = c3d.Writer(point_rate=30.0)
+    frames = []
+    for k in range(6):
+        p = np.zeros((len(names), 5), np.float32)
+        p[:, :3] = rest * 10
+        p[:, 1] -= 0.2 * k
+        frames.append((p, np.zeros((0, 0), np.float32)))
+    w.add_frames(frames)
+    w.set_point_labels(names)
+    buf = _io.BytesIO()
+    w.write(buf)
+    return buf.getvalue()
+
+
+def good_correspondence(d: Path) -> bytes:
+    """A `--map` file naming the twelve points of the landmark CSV p0..p11 as rig landmarks."""
+    header = good_landmark_csv(d).split(b"\n", 1)[0].decode().split(",")[1:]
+    names = [h[:-2] for h in header[::3]]
+    return json.dumps({"points": {f"p{i}": n for i, n in enumerate(names)}}, indent=1).encode()
+
+
+def read_correspondence(f: Path, d: Path) -> Outcome:
+    """`puppet fit points.csv --map FILE` with the landmark CSV's points renamed p0..p11."""
+    cap = d / "points.csv"
+    if not cap.exists():
+        lines = good_landmark_csv(d).decode().split("\n")
+        cols = lines[0].split(",")
+        cols = ["time"] + [f"p{(i - 1) // 3}_{c[-1]}" for i, c in enumerate(cols) if i]
+        cap.write_text("\n".join([",".join(cols), *lines[1:]]))
+    out = d / "mapped.jsonl"
+    return run_cli(["fit", str(cap), "--face", "procedural", "--map", str(f), "--out", str(out)], f, (out,))
+
+
+def read_landmark_csv(f: Path, d: Path) -> Outcome:
+    out = d / "fit.jsonl"
+    return run_cli(["fit", str(f), "--face", "procedural", "--out", str(out)], f, (out,))
+
+
+def read_identity(f: Path, d: Path) -> Outcome:
+    """`--face NAME` of a saved identity, as `puppet face list` and every command read it."""
+    import os
+
+    saved = d / "identities"
+    saved.mkdir(exist_ok=True)
+    (saved / "bob.json").write_bytes(f.read_bytes())
+    old = os.environ.get("PUPPET_DATA_DIR")
+    os.environ["PUPPET_DATA_DIR"] = str(saved)
+    try:
+        r = run_cli(["face", "list"], saved / "bob.json", also="bob.json")
+        if r.kind != "traceback":
+            from puppet.faces import load_identity
+
+            try:
+                load_identity("bob")
+            except Exception as err:  # noqa: BLE001 - what a --face bob would print
+                from puppet.errors import PuppetError
+
+                line = str(err)
+                if not isinstance(err, PuppetError) or "\n" in line or len(line) > MAX_LINE or "bob.json" not in line:
+                    return Outcome("traceback", f"--face bob: {type(err).__name__}: {line[:300]}")
+        return r
+    finally:
+        if old is None:
+            del os.environ["PUPPET_DATA_DIR"]
+        else:
+            os.environ["PUPPET_DATA_DIR"] = old
+
+
+def read_wav(f: Path, d: Path) -> Outcome:
+    out = d / "voice.jsonl"
+    return run_cli(["fit", str(f), "--face", "procedural", "--out", str(out)], f, (out,))
+
+
+def read_voice_profile(f: Path, d: Path) -> Outcome:
+    wav = d / "speech.wav"
+    if not wav.exists():
+        good_wav(d)
+        (d / "good.wav").rename(wav)
+    out = d / "voice.jsonl"
+    return run_cli(["fit", str(wav), "--face", "procedural", "--voice-profile", str(f), "--out", str(out)], f,
+                   (out,))
+
+
+def read_library(f: Path, d: Path) -> Outcome:
+    """`puppet takes list` on a damaged library: a result (the library rebuilt, with a warning) or
+    one line. The damaged file is kept beside it, never lost (an empty one holds nothing to keep)."""
+    before = f.read_bytes()
+    r = run_cli(["takes", "--library", str(f), "list"], f)
+    kept = [p for p in f.parent.glob(f.name + ".damaged-*")]
+    lost = before and not (f.exists() and f.read_bytes() == before) and not any(p.read_bytes() == before for p in kept)
+    if lost:
+        return Outcome("traceback", f"the damaged library was not kept: {r.text[-300:]}")
+    for p in kept:
+        p.unlink()
+    return r
+
+
+def _wav_extra(rng: object) -> Iterator[damage.Variant]:
+    import struct
+
+    good = good_wav(Path(tempfile.mkdtemp(prefix="wav-")))
+    yield "channels-0", good[:22] + struct.pack("<H", 0) + good[24:]
+    yield "channels-huge", good[:22] + struct.pack("<H", 65535) + good[24:]
+    yield "rate-0", good[:24] + struct.pack("<I", 0) + good[28:]
+    yield "rate-huge", good[:24] + struct.pack("<I", 2**32 - 1) + good[28:]
+    yield "bits-7", good[:34] + struct.pack("<H", 7) + good[36:]
+    yield "data-4GB", good[:40] + struct.pack("<I", 2**32 - 1) + good[44:]
+    yield "fmt-huge", good[:16] + struct.pack("<I", 2**32 - 1) + good[20:]
+    yield "no-fmt", good[:12] + good[36:]
+    yield "riff-only", good[:12]
+    yield "not-wave", good[:8] + b"AVI " + good[12:]
+
+
 def _ply_extra(rng: object) -> Iterator[damage.Variant]:
     good = good_ply_bin(Path("."))
     head, _, body = good.partition(b"end_header\n")
@@ -303,6 +523,18 @@ FORMATS: tuple[Format, ...] = (
     Format("off", ".off", good_off, lambda g: damage.text_variants(g, n=120), read_mesh),
     Format("glb", ".glb", good_glb, lambda g: damage.binary_variants(g, n=120), read_mesh),
     Format("landmarks", ".json", good_landmarks, lambda g: damage.json_variants(g, n=150), read_landmarks),
+    Format("landmark-csv", ".csv", good_landmark_csv, lambda g: damage.text_variants(g, n=150), read_landmark_csv),
+    Format("arkit-csv", ".csv", good_arkit_csv, lambda g: damage.text_variants(g, n=150), read_landmark_csv),
+    Format("correspondence", ".json", good_correspondence, lambda g: damage.json_variants(g, n=150),
+           read_correspondence),
+    Format("c3d", ".c3d", good_c3d, lambda g: damage.binary_variants(g, n=150), read_landmark_csv),
+    Format("pc2", ".pc2", good_pc2, lambda g: damage.binary_variants(g, n=120), read_pc2),
+    Format("identity", ".json", good_identity, lambda g: damage.json_variants(g, n=150), read_identity),
+    Format("wav", ".wav", good_wav, lambda g: damage.binary_variants(g, n=120, extra=_wav_extra), read_wav,
+           refused=0.1),
+    Format("voice-profile", ".json", good_voice_profile, lambda g: damage.json_variants(g, n=150),
+           read_voice_profile),
+    Format("library", ".db", good_library, lambda g: damage.binary_variants(g, n=130), read_library),
 )
 
 

@@ -55,8 +55,9 @@ def test_an_export_that_fails_midway_leaves_the_old_file_and_a_good_one_replaces
         out.write_bytes(OLD)
         old = out
     obj = out.with_suffix(".obj")
+    old_obj = b"# facepuppet rest pose of an earlier export\n" + OLD  # a foreign OBJ is refused, not replaced
     if name.endswith(".pc2"):
-        obj.write_bytes(OLD)
+        obj.write_bytes(old_obj)
     real_bar = runner._bar
 
     def crashing_bar(total: int, what: str):
@@ -79,13 +80,13 @@ def test_an_export_that_fails_midway_leaves_the_old_file_and_a_good_one_replaces
         export(perf, out, opts)
     assert old.read_bytes() == OLD
     if name.endswith(".pc2"):
-        assert obj.read_bytes() == OLD
+        assert obj.read_bytes() == old_obj
     assert _leftovers(tmp_path) == []
     monkeypatch.setattr(runner, "_bar", real_bar)
     export(perf, out, opts)
     assert old.read_bytes() != OLD and old.stat().st_size > 0
     if name.endswith(".pc2"):
-        assert obj.read_bytes() != OLD
+        assert obj.read_bytes() != old_obj
     assert _leftovers(tmp_path) == []
 
 

@@ -143,3 +143,22 @@ def test_a_mesh_count_asking_for_more_than_the_file_holds_is_one_line(tmp_path: 
     p.write_bytes(forge(good))
     with pytest.raises(TransferError, match=rf"head\{suffix}: .*(84 \+ 50 x 4294967295|promises 99999999999)"):
         read_mesh(p)
+
+
+@pytest.mark.parametrize("encoding", ["utf-16", "utf-16-be", "utf-32"])
+def test_a_recording_resaved_as_utf16_is_one_line_with_the_hint(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                                                encoding: str) -> None:
+    """A take re-saved by an editor as UTF-16: json reads such a header line by itself, and the
+    take replayed as an empty one (exit 0, a warning about line 2): the performance silently gone.
+    It is one line naming the file and the encoding, exit 2; a UTF-8 byte-order mark still reads."""
+    from puppet.cli import main
+
+    good = formats.good_recording(tmp_path).decode()
+    p = tmp_path / "saved.jsonl"
+    p.write_bytes(good.encode(encoding))
+    assert main(["replay", str(p), "--headless"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "saved.jsonl:1" in err and "UTF-" in err and "UTF-8" in err, err
+    p.write_bytes(b"\xef\xbb\xbf" + good.encode())
+    assert main(["replay", str(p), "--headless"]) == 0
+    assert "replayed 24 ticks" in capsys.readouterr().out

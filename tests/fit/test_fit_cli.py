@@ -400,3 +400,70 @@ def test_the_commands_as_a_user_runs_them(tmp_path, face0, basis0) -> None:  # t
 
     assert [s["expression"] for s in spans] == ["neutral"]
     assert set(spans[0]["scores"]) == {*EXPRESSIONS, "neutral"}
+
+
+def test_a_csv_field_beyond_the_csv_modules_limit_is_one_line(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """A cell of 200,000 characters (a pasted blob, a file that lost its line ends) in a landmark
+    CSV and in a Live Link CSV: one line naming the file, not the csv module's own exception."""
+    blob = "[" * 200_000
+    for name, text in {"points.csv": f"time,chin_x,chin_y,chin_z\n0,{blob},1,2\n",
+                       "phone.csv": f"Timecode,BlendShapeCount,JawOpen\n00:00:00:00.000,1,{blob}\n"}.items():
+        p = tmp_path / name
+        p.write_text(text)
+        err = _one_line_exit_2(capsys, ["fit", str(p), "--out", str(tmp_path / "o.jsonl")], tmp_path / "o.jsonl")
+        assert name in err and "line 2" in err, err
+
+
+def test_a_damaged_point_cache_is_one_line(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """A PC2 cut inside a float (a copy that stopped), and headers with negative counts: one line
+    naming the file, before anything is fitted."""
+    import struct
+
+    (tmp_path / "cut.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    head = struct.Struct("<12siiffi")
+    body = np.zeros(2 * 3 * 3, "<f4").tobytes()
+    cases = {"cut": head.pack(b"POINTCACHE2\0", 1, 3, 0.0, 1.0, 2) + body[:-2],
+             "negative points": head.pack(b"POINTCACHE2\0", 1, -1, 0.0, 1.0, 0),
+             "negative samples": head.pack(b"POINTCACHE2\0", 1, 3, 0.0, 1.0, -2) + body}
+    for kind, data in cases.items():
+        (tmp_path / "cut.pc2").write_bytes(data)
+        err = _one_line_exit_2(capsys, ["fit", str(tmp_path / "cut.pc2"), "--out", str(tmp_path / "o.jsonl")],
+                               tmp_path / "o.jsonl")
+        assert "cut.pc2" in err, (kind, err)
+
+
+def test_a_report_naming_the_capture_or_the_take_is_refused(tmp_path, performance, capsys):  # type: ignore[no-untyped-def]
+    """`--report` is written last: naming the capture itself (or the take) replaced the user's
+    capture with the report. Refused in one line before anything is fitted; both files kept."""
+    times, names, pts = performance
+    cap = tmp_path / "capture.csv"
+    write_landmark_csv(cap, times[:6], pts[:6], names)
+    before = cap.read_bytes()
+    take = tmp_path / "take.jsonl"
+    err = _one_line_exit_2(capsys, ["fit", str(cap), "--report", str(cap), "--out", str(take)], take)
+    assert "--report" in err and "capture.csv" in err
+    assert cap.read_bytes() == before
+    take.write_bytes(b"the user's take\n")
+    assert main(["fit", str(cap), "--report", str(tmp_path / "." / "take.jsonl"), "--out", str(take)]) == 2
+    assert "--report" in capsys.readouterr().err
+    assert take.read_bytes() == b"the user's take\n"
+
+
+def test_a_deep_or_huge_correspondence_file_is_one_short_line(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
+    """--map files nested thousands deep ended in a RecursionError; a pasted 20,000-character name
+    or a 400-digit number was quoted whole into an error line of 20,000 characters."""
+    times, names, pts = performance
+    good = tmp_path / "good.csv"
+    write_landmark_csv(good, times[:4], pts[:4], names)
+    cases = {"deep": "[" * 5000 + "]" * 5000,
+             "deep_value": '{"points": {"a": ' + "[" * 5000 + "]" * 5000 + "}}",
+             "long_value": json.dumps({"points": {"a": "x" * 20000}}),
+             "long_key": json.dumps({"points": {"k" * 20000: "chin"}}),
+             "long_extra_key": json.dumps({"points": {"a": "chin"}, "q" * 20000: 1}),
+             "big_number": '{"points": {"a": ' + "9" * 400 + "}}"}
+    for kind, text in cases.items():
+        corr = tmp_path / f"{kind}.json"
+        corr.write_text(text)
+        out = tmp_path / f"{kind}.jsonl"
+        err = _one_line_exit_2(capsys, ["fit", str(good), "--map", str(corr), "--out", str(out)], out)
+        assert corr.name in err and len(err) < 400, (kind, err[:300])

@@ -128,3 +128,26 @@ def test_rest_eyes_seats_the_eyeballs_behind_the_lids(head, capsys) -> None:
         assert code == 0, capsys.readouterr().err
         centres[flag] = np.asarray(load_rig(out).mesh.eye_centers)
     assert np.abs(centres[("--rest-eyes",)] - centres[()]).max() > 0.01  # cm: the eyeballs moved
+
+
+def test_a_texture_named_like_the_rig_is_kept(head, tmp_path: Path, capsys) -> None:
+    """head.obj with its texture head.png beside it, imported to head.npz: the muscles picture
+    (RIG.png) used to replace the texture. The texture is kept, with a warning, every time; a
+    picture an earlier import drew is still replaced."""
+    from puppet.cli import main
+
+    d, lms, verts = head
+    (tmp_path / "head.obj").write_bytes((d / "head.obj").read_bytes())
+    (tmp_path / "idx.json").write_text(json.dumps({"landmarks": lms}))
+    texture = tmp_path / "head.png"
+    texture.write_bytes(b"\x89PNG the user's texture")
+    argv = ["import-face", str(tmp_path / "head.obj"), "--landmarks", str(tmp_path / "idx.json"), "--out",
+            str(tmp_path / "head.npz")]
+    for _ in range(2):
+        assert main(argv) == 0
+        assert texture.read_bytes() == b"\x89PNG the user's texture"
+        assert "head.png" in capsys.readouterr().err
+    texture.unlink()
+    assert main(argv) == 0 and texture.read_bytes().startswith(b"\x89PNG\r\n")
+    drawn = texture.stat().st_mtime_ns
+    assert main(argv) == 0 and texture.stat().st_mtime_ns != drawn  # its own picture: drawn again

@@ -107,3 +107,26 @@ def test_channels_table(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["channels"]) == 0
     text = capsys.readouterr().out
     assert "zygomaticus_major_l" in text and "sphincter" in text and "AU12" in text
+
+
+@pytest.mark.parametrize("argv", [["pose", "--seconds", "0", "--size", "99999x99999"],
+                                  ["replay", "--curves", "CURVES", "--size", "40000x16"],
+                                  ["replay", "--curves", "CURVES", "--size", "8000x16", "--supersample", "4"]])
+def test_an_image_size_beyond_what_can_be_drawn_is_one_line(argv: list[str], tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    """`--size 99999x99999` ended `puppet pose` in moderngl's traceback (the framebuffer cannot be
+    made), `puppet replay` in a line about the OpenGL context, and 8000 pixels supersampled 4
+    times in a traceback; each says the limit now, exit 2, and writes nothing."""
+    curves = tmp_path / "k.curves"
+    curves.write_text("facepuppet-curves 1\ncurve jaw linear replace\n 0 0\n 0.1 0.5\nend\n")
+    out = tmp_path / "big.png"
+    argv = [str(curves) if a == "CURVES" else a for a in argv]
+    try:
+        code = main([*argv, "--out", str(out)])
+    except SystemExit as e:  # argparse's own line
+        code = e.code
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "Traceback" not in err, err
+    lines = err.splitlines()
+    assert ("8192" in lines[-1] or "16384" in lines[-1]) and "--size" in lines[-1], err
+    assert not out.exists()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -80,3 +82,17 @@ def test_export_then_play_back_reproduces_the_performance() -> None:
     back = np.array([layer.apply(base, k / rate) for k in range(len(t))])
     assert np.abs(back[:, idx("zygomaticus_major_l")] - smile).max() < 0.01
     assert back[-1, idx("age")] == 40.0 and back[0, idx("age")] == 30.0
+
+
+def test_an_export_over_its_own_curves_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`puppet replay --curves keys.curves --out keys.curves` baked the hand-set keys into a key
+    per tick over the very file being read; refused in one line, the keys kept byte for byte."""
+    from puppet.cli import main
+
+    keys = tmp_path / "keys.curves"
+    keys.write_text("facepuppet-curves 1\n# hand-set\ncurve jaw smooth replace\n  0.0 0\n  0.5 0.6\nend\n")
+    before = keys.read_bytes()
+    assert main(["replay", "--curves", str(keys), "--out", str(tmp_path / "." / "keys.curves")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "keys.curves" in err and "--out" in err, err
+    assert keys.read_bytes() == before

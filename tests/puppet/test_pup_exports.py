@@ -173,3 +173,23 @@ def test_odd_size_and_options_are_checked(recording: Path, tmp_path: Path) -> No
         export(perf, tmp_path / "x.mp4", ExportOptions(crf=99))
     with pytest.raises(PuppetError, match="--supersample"):
         export(perf, tmp_path / "x.mp4", ExportOptions(supersample=0))
+
+
+def test_a_pc2_export_keeps_a_users_own_obj_beside_it(recording: Path, tmp_path: Path) -> None:
+    """`--out face.pc2` writes its rest mesh to face.obj: where face.obj is the user's own mesh (the
+    one `puppet import-face face.obj` read, a Blender export) the export is refused in one line and
+    the mesh kept; a rest mesh an earlier export wrote is replaced as before."""
+    from puppet.errors import PuppetError
+
+    perf = build_performance(read_session(recording), None)
+    mine = tmp_path / "face.obj"
+    mine.write_text("# Blender 4.1\nmtllib face.mtl\nv 0 0 0\nvt 0 0\n")
+    before = mine.read_bytes()
+    with pytest.raises(PuppetError, match="face.obj") as err:
+        export(perf, tmp_path / "face.pc2", ExportOptions(fps=30))
+    assert "\n" not in str(err.value)
+    assert mine.read_bytes() == before and not (tmp_path / "face.pc2").exists()
+    mine.unlink()
+    export(perf, tmp_path / "face.pc2", ExportOptions(fps=30, end=0.2))
+    export(perf, tmp_path / "face.pc2", ExportOptions(fps=30, end=0.1))  # its own rest mesh: replaced
+    assert read_pc2(tmp_path / "face.pc2")[0]["num_samples"] == 3

@@ -92,3 +92,17 @@ def test_the_mp4_has_the_sound_in_step(clip: Path, tmp_path: Path) -> None:
     moved = [j for j in range(len(frames)) if np.abs(frames[j] - frames[0]).max() > 8]
     assert moved, "the face never moved"
     assert CLICK_S * FPS <= moved[0] <= VOWEL_S * FPS + 6  # the mouth moves with the sound, not before it
+
+
+def test_a_damaged_sound_keeps_the_users_old_video(clip: Path, tmp_path: Path) -> None:
+    """The take's WAV damaged (random bytes): the export wrote the silent video over the user's
+    old MP4 and then failed naming the MP4. One line naming the WAV now, exit 2, the old MP4
+    byte for byte."""
+    take, video = tmp_path / "take.jsonl", tmp_path / "take.mp4"
+    assert puppet("fit", str(clip), "--out", str(take)).returncode == 0
+    (tmp_path / "speech.wav").write_bytes(np.random.default_rng(5).integers(0, 256, 3000, np.uint8).tobytes())
+    video.write_bytes(b"the user's old video")
+    done = puppet("replay", str(take), "--out", str(video), "--fps", str(FPS), "--size", "160x96", "--to", "0.3")
+    errors = [ln for ln in done.stderr.splitlines() if ln.startswith("puppet: error:")]
+    assert done.returncode == 2 and len(errors) == 1 and "speech.wav" in errors[0], done.stderr
+    assert video.read_bytes() == b"the user's old video"

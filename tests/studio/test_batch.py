@@ -405,3 +405,17 @@ def test_out_naming_a_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFix
     assert main(["batch", "export", str(take), "--out", str(out), "--to", "csv", "--workers", "1"]) == 2
     _, err = capsys.readouterr()
     assert err.count("\n") == 1 and "not a folder" in err, err
+
+
+def test_a_header_only_take_fails_naming_the_users_file(tmp_path: Path, in_this_process: None) -> None:
+    """A take killed after its header, in a batch: the failure names the user's file, not the
+    private copy a task reads (a temporary folder gone by the time the user reads the line)."""
+    from puppet.batch import jobs
+
+    take = write_take(tmp_path / "s" / "short.jsonl", ticks=45, seed=3)
+    empty = tmp_path / "s" / "empty.jsonl"
+    empty.write_bytes(take.read_bytes().split(b"\n", 1)[0] + b"\n")
+    with pytest.raises(jobs.JobFailed) as err:
+        jobs.export_outputs({empty.name: empty.read_bytes()}, str(empty), [("empty.csv", {"fps": None})], None)
+    assert str(err.value).startswith(f"{empty} holds no performance"), err.value
+    assert "puppet-batch-" not in str(err.value)
