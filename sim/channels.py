@@ -8,6 +8,8 @@ and the FACS action units it takes part in (see `sim.facs`).
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 
@@ -132,14 +134,25 @@ CHANNEL_INDEX: dict[str, int] = {name: i for i, name in enumerate(CHANNEL_NAMES)
 MUSCLE_CHANNELS: tuple[str, ...] = tuple(s.name for s in CHANNEL_SPECS if s.kind == "muscle")
 
 
+def unknown_name(kind: str, name: object, valid: Iterable[str]) -> str:
+    """One short line for an unknown `kind` of name: every valid name when they fit in a short
+    line, else the nearest ones and where the whole list is (`puppet channels`)."""
+    valid = list(valid)
+    said = repr(str(name)[:60] + ("..." if len(str(name)) > 60 else ""))
+    every = ", ".join(valid)
+    if len(every) <= 200:
+        return f"unknown {kind} {said}; valid: {every}"
+    near = difflib.get_close_matches(str(name)[:60], valid, n=4, cutoff=0.5)
+    hint = f"nearest: {', '.join(near)}; " if near else ""
+    return f"unknown {kind} {said}; {hint}`puppet channels` lists every one"
+
+
 def channel_spec(name: str) -> ChannelSpec:
-    """The spec of a channel, or ChannelError listing the valid names."""
+    """The spec of a channel, or ChannelError naming the nearest valid names."""
     try:
         return CHANNEL_SPECS[CHANNEL_INDEX[name]]
     except KeyError:
-        raise ChannelError(
-            f"unknown channel {name!r}; valid channels: {', '.join(CHANNEL_NAMES)}"
-        ) from None
+        raise ChannelError(unknown_name("channel", name, CHANNEL_NAMES)) from None
 
 
 def check_value(spec: ChannelSpec, value: float) -> float:

@@ -19,7 +19,7 @@ presets and AUs that share a muscle do not add up beyond what either asks for.
 
 from __future__ import annotations
 
-from sim.channels import ChannelError, channel_spec, check_value
+from sim.channels import ChannelError, channel_spec, check_value, unknown_name
 from sim.state import FaceControl
 
 
@@ -188,7 +188,7 @@ def apply_au(control: FaceControl, au: str, intensity: float) -> None:
     unknown AU or an out-of-range intensity."""
     key = _normalise_au(au)
     if key not in AU_TABLE:
-        raise ChannelError(f"unknown action unit {au!r}; valid: {', '.join(AU_TABLE)}")
+        raise ChannelError(unknown_name("action unit", au, AU_TABLE))
     v = float(intensity)
     if not (0.0 <= v <= 1.0):
         raise ChannelError(f"action unit {key} takes intensities in 0..1, got {intensity!r}")
@@ -204,7 +204,7 @@ def apply_expression(control: FaceControl, name: str, weight: float = 1.0, face:
     key = name.strip().lower()
     table = expressions_for(face)
     if key not in table:
-        raise ChannelError(f"unknown expression {name!r}; valid: {', '.join(EXPRESSIONS)}")
+        raise ChannelError(unknown_name("expression", name, EXPRESSIONS))
     w = float(weight)
     if not (0.0 <= w <= 1.0):
         raise ChannelError(f"expression {key} takes weights in 0..1, got {weight!r}")

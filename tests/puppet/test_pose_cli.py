@@ -53,11 +53,12 @@ def test_pose_obj(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     "args, needle",
     [
-        (["--set", "nosuch=1"], "zygomaticus_major_l"),  # names the valid channels
+        (["--set", "nosuch=1"], "`puppet channels` lists every one"),  # where the valid names are
+        (["--set", "zygomatic_major_l=1"], "nearest: zygomaticus_major_l"),  # the nearest valid names
         (["--set", "jaw=1.5"], "0..1"),
         (["--set", "jaw"], "CHANNEL=VALUE"),
         (["--set", "jaw=abc"], "number"),
-        (["--au", "AU99=1"], "AU12"),
+        (["--au", "AU99=1"], "nearest: AU9"),
         (["--au", "AU12=2"], "0..1"),
         (["--expression", "joy"], "happiness"),
         (["--expression", "anger=3"], "0..1"),
@@ -72,6 +73,7 @@ def test_bad_channel_au_expression_or_value_is_one_line_exit_2(
     assert res.returncode == 2
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("puppet: error:") and needle in lines[0]
+    assert len(lines[0]) <= 300  # a short line, not every valid name
     assert not out.exists()
 
 
