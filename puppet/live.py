@@ -371,6 +371,12 @@ class LiveCore:
         self.spans: Spans | None = None
         #: restored channel values kept until the performer takes them over (puppet.resume)
         self.hold: Any = None
+        #: the wrinkle surface (drawn only) made for the ticks that are drawn, not every tick: set by
+        #: the headless loop, which ticks faster than it draws and calls `finish_surface` before a
+        #: frame. Meanwhile state.surface stays that of the last tick drawn (what a page watching
+        #: the face between frames sees)
+        self.surface_later = False
+        self._surface_due = False
         self._crash_at = _crash_tick()
 
     def _build_wrinkles(self) -> None:
@@ -430,7 +436,10 @@ class LiveCore:
                 self.state_latency.add(done - te)
         if sp is not None:
             t_d = pc()
-        self.sim.surface(self.state)  # the wrinkles only displace what is drawn: after the state is ready
+        if self.surface_later:  # the wrinkles only displace what is drawn: after the state is ready
+            self._surface_due = True
+        else:
+            self.sim.surface(self.state)
         self.tick_count = k + 1
         if writer is not None:
             if self.tick_count % CHECK_TICKS == 0:
@@ -445,6 +454,12 @@ class LiveCore:
             sp.add("mapping", t_c - t_b)
             sp.add("sim step", t_d - t_c)
             sp.add("tick tail", t_e - t_d)
+
+    def finish_surface(self) -> None:
+        """The wrinkle surface of the last tick, when `surface_later` left it for the frame."""
+        if self._surface_due:
+            self._surface_due = False
+            self.sim.surface(self.state)
 
     def prepare_next(self) -> None:
         """Between ticks: the next step's part that no input changes (`sim.Simulator.prepare`), so a
@@ -743,12 +758,28 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
     Between ticks the loop makes the next step's part that no input changes (`LiveCore.prepare_next`),
     also when an input is already waiting (the step would do that part all the same), and drains
     the input after it: what arrives meanwhile joins the same tick. `ahead_when_idle`: only when no
-    input waits, the tick then doing the whole step (as before; benchmarks/live_latency.py compares)."""
+    input waits, the tick then doing the whole step (as before; benchmarks/live_latency.py compares).
+
+    With frames slower than ticks the wrinkle surface (drawn only) is made for the ticks drawn
+    (`LiveCore.surface_later`), right before `on_frame`."""
     limit = None if duration is None else int(round(duration * core.rate))
     per_frame = None if frame_rate is None or frame_rate >= core.rate else core.rate / frame_rate
     if core.writer is not None:  # the loop's thread never writes the file itself (a write can wait on the disk)
         with _BelowLoop():
             core.writer.write_behind()
+    core.surface_later = per_frame is not None
+    try:
+        _realtime_loop(core, drain, limit, per_frame, clock, sleep, on_frame, stop, wake, ahead_when_idle)
+    finally:
+        core.surface_later = False
+        core.finish_surface()
+
+
+def _realtime_loop(core: LiveCore, drain: Callable[[], list[Event]], limit: int | None, per_frame: float | None,
+                   clock: Callable[[], float], sleep: Callable[[float], None],
+                   on_frame: Callable[[LiveCore], None] | None, stop: StopFlag | None,
+                   wake: Callable[[float], bool] | None, ahead_when_idle: bool) -> None:
+    """The loop of `run_realtime`."""
     with _ShowRuntime() as runtime:
         start = clock()
         k0 = core.tick_count  # a resumed take starts at its first new tick
@@ -794,6 +825,7 @@ def run_realtime(core: LiveCore, drain: Callable[[], list[Event]], duration: flo
                 else:
                     next_frame += per_frame * max(1, int((done - next_frame) // per_frame) + 1)
                 last_frame = done
+            core.finish_surface()
             if on_frame is not None:
                 on_frame(core)
             core.presented(clock())

@@ -20,15 +20,21 @@ from puppet.live import LIVE_TICK_RATE, TICK_RATES, Face
 #: 120 Hz held 33-35 ms; the procedural face's RK2 step still affords 240 Hz. With the faster
 #: solve the scanned head's step timed here is 1.12-1.16 ms (27-28 % of a core at 240 Hz), but in
 #: the live loop, where the factors are out of the caches by the next tick, it costs 1.3-2.2 ms:
-#: a quarter of a core keeps this machine's scanned head at 120 Hz, and a machine twice as fast
-#: at 240 Hz.
-TICK_BUDGET = 0.25
+#: a quarter of a core kept this machine's scanned head at 120 Hz. With the faster live tick
+#: (`docs/simulation.md`, "The live tick on the scanned head") the step timed here is 0.97-1.07 ms at
+#: load 4-5 (the code before: 1.04-1.07), 23-26 % of a core at 240 Hz: a quarter no longer kept 240 Hz
+#: out, where four ticks a frame cost 27-30 % of a frame. A fifth of a core keeps 120 Hz (240 Hz
+#: needs a step of 0.83 ms or less, 120 Hz 1.67 ms: the procedural face's RK2 step, 0.27 ms at
+#: 240 Hz, still affords 240). The step is the fastest of a few (`choose_tick_rate`): at load 4-5
+#: their median here was 1.0-2.1 ms, which would have put a busy machine's choice at 60 Hz.
+TICK_BUDGET = 0.2
 
 
 def choose_tick_rate(model: Any, rates: Sequence[float] = TICK_RATES, budget: float = TICK_BUDGET,
-                     steps: int = 5) -> tuple[float, dict[float, float]]:
+                     steps: int = 7) -> tuple[float, dict[float, float]]:
     """The highest of `rates` whose simulation step, timed here on this face (CPU time of this
-    thread, the median of `steps` steps of a throw-away simulator after one warm step), keeps the
+    thread, the fastest of `steps` steps of a throw-away simulator after one warm step: what the
+    machine's core does, the least touched by other programs sharing its caches), keeps the
     simulation under `budget` of a core; the lowest rate when none does. Returns the rate and the
     seconds per step measured at each rate tried. The scanned head's implicit step costs about the
     same at any dt, so 240 Hz would take a third to half a core where 120 Hz leaves room for
@@ -46,7 +52,7 @@ def choose_tick_rate(model: Any, rates: Sequence[float] = TICK_RATES, budget: fl
             c0 = time.thread_time()
             s.step(state, control)
             times.append(time.thread_time() - c0)
-        cost[rate] = float(np.median(times))
+        cost[rate] = float(np.min(times))
         if cost[rate] * rate <= budget:
             return rate, cost
     return min(rates), cost

@@ -87,29 +87,48 @@ def implicit_substeps(model: FaceModel, frame_dt: float) -> int:
     return max(1, math.ceil(frame_dt * omega_r / OMEGA_H))
 
 
-@numba.njit(cache=True, nogil=True)
-def _pd_springs(y, springs, rest_len, k_low, k_high, thr, out):  # type: ignore[no-untyped-def]
-    """Adds sum_s k_h (e_j - e_i) d_s to out (the local step; see the module docstring)."""
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _pd_springs(y, springs, rest_len, k_low, k_high, thr, out, work):  # type: ignore[no-untyped-def]
+    """Adds sum_s k_h (e_j - e_i) d_s to out (the local step; see the module docstring). Three
+    passes over work (3, springs): gather the edge vectors, the per-spring math (no indexing, so
+    the compiler vectorizes its square roots and divisions; error_model "numpy": a zero length
+    gives inf instead of raising, which the step's guard catches), then the scatter in spring
+    order. Every value is the same expression as in one pass, so the same bits."""
+    ex = work[0]
+    ey = work[1]
+    ez = work[2]
     for s in range(springs.shape[0]):
         i = springs[s, 0]
         j = springs[s, 1]
-        dx = y[j, 0] - y[i, 0]
-        dy = y[j, 1] - y[i, 1]
-        dz = y[j, 2] - y[i, 2]
+        ex[s] = y[j, 0] - y[i, 0]
+        ey[s] = y[j, 1] - y[i, 1]
+        ez[s] = y[j, 2] - y[i, 2]
+    for s in range(springs.shape[0]):
+        dx = ex[s]
+        dy = ey[s]
+        dz = ez[s]
         r = math.sqrt(dx * dx + dy * dy + dz * dz)
         stretch = r - rest_len[s]
         knee = thr * rest_len[s]
-        if stretch <= knee:
-            t = k_low[s] * stretch
-        else:
-            t = k_low[s] * knee + k_high[s] * (stretch - knee)
+        soft = k_low[s] * stretch
+        stiff = k_low[s] * knee + k_high[s] * (stretch - knee)
+        t = soft if stretch <= knee else stiff
         scale = (k_high[s] * r - t) / r  # k_h * l_s / r: d_s = l_s u_s
-        out[j, 0] += scale * dx
-        out[j, 1] += scale * dy
-        out[j, 2] += scale * dz
-        out[i, 0] -= scale * dx
-        out[i, 1] -= scale * dy
-        out[i, 2] -= scale * dz
+        ex[s] = scale * dx
+        ey[s] = scale * dy
+        ez[s] = scale * dz
+    for s in range(springs.shape[0]):
+        i = springs[s, 0]
+        j = springs[s, 1]
+        fx = ex[s]
+        fy = ey[s]
+        fz = ez[s]
+        out[j, 0] += fx
+        out[j, 1] += fy
+        out[j, 2] += fz
+        out[i, 0] -= fx
+        out[i, 1] -= fy
+        out[i, 2] -= fz
 
 
 @numba.njit(cache=True, nogil=True)
@@ -132,23 +151,30 @@ def _csr_times(ptr, idx, val, x, out):  # type: ignore[no-untyped-def]
 
 @numba.njit(cache=True, nogil=True)
 def _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,  # type: ignore[no-untyped-def]
-             c_idx, c_w, c_sg, c_dim, c_lam, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, base, ext, summed):
+             c_idx, c_w, c_sg, c_dim, c_lam, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, base, ext, summed,
+             work, px, pv, keep):
     """The part of a substep's right-hand side that no input changes (ImplicitStepper.predict): the
     predicted positions y = x + h v, then base = M/h^2 y + C/h x + the springs' local step + the
     skin's guard against turning over (sim.antifold) + the normal support + the last contact
     forces. A substep's right-hand side is base + the frame's constant forces. summed: the frame's
     constant forces `ext` (muscles included) go into base where takes recorded before the muscles'
-    responses summed them (`ImplicitStepper.frame`'s summed), so those takes keep their bits."""
+    responses summed them (`ImplicitStepper.frame`'s summed), so those takes keep their bits.
+    work: (3, springs) scratch of `_pd_springs`; keep: also px, pv = copies of x, v (what
+    `ImplicitStepper.predict` remembers, made in the same pass over them)."""
     n = x.shape[0]
-    for i in range(n):
-        for d in range(3):
-            y[i, d] = v[i, d] * h + x[i, d]
     for i in range(n):
         m = mass_h2[i]
         c = damp_h[i]
         for d in range(3):
-            base[i, d] = m * y[i, d] + ext[i, d] + c * x[i, d] if summed else m * y[i, d] + c * x[i, d]
-    _pd_springs(y, springs, rest_len, k_low, k_high, thr, base)
+            xi = x[i, d]
+            vi = v[i, d]
+            yi = vi * h + xi
+            y[i, d] = yi
+            base[i, d] = m * yi + ext[i, d] + c * xi if summed else m * yi + c * xi
+            if keep:
+                px[i, d] = xi
+                pv[i, d] = vi
+    _pd_springs(y, springs, rest_len, k_low, k_high, thr, base, work)
     _fold_forces(y, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, base)
     for i in range(n):  # the support k_n n n^T: k_n (y - n (n . y)) on the right
         ny = (normal[i, 0] * y[i, 0] + normal[i, 2] * y[i, 2]) + normal[i, 1] * y[i, 1]
@@ -187,16 +213,14 @@ def _same_bits(a, b):  # type: ignore[no-untyped-def]
 @numba.njit(cache=True, nogil=True)
 def _unchanged(x, v, lam, w, idx, px, pv, plam, pw, pidx):  # type: ignore[no-untyped-def]
     """Whether a state (x, v and the contact's memory lam, w, idx; the floats as int64 views) holds
-    the very bits of the one `_remember` kept (px, ...; the same sizes)."""
+    the very bits of the one `_predict` (keep) and `_remember` kept (px, ...; the same sizes)."""
     return (_same_bits(x, px) and _same_bits(v, pv) and _same_bits(lam, plam) and _same_bits(w, pw)
             and _same_bits(idx.reshape(-1), pidx.reshape(-1)))
 
 
 @numba.njit(cache=True, nogil=True)
-def _remember(x, v, lam, w, idx, px, pv, plam, pw, pidx):  # type: ignore[no-untyped-def]
-    """px, pv, plam, pw, pidx = copies of x, v and the contact's memory (`_unchanged`)."""
-    px[...] = x
-    pv[...] = v
+def _remember(lam, w, idx, plam, pw, pidx):  # type: ignore[no-untyped-def]
+    """plam, pw, pidx = copies of the contact's memory (`_unchanged`; x and v are kept by `_predict`)."""
     plam[...] = lam
     pw[...] = w
     pidx[...] = idx
@@ -216,18 +240,35 @@ def _responses(resp, act, val, out):  # type: ignore[no-untyped-def]
             o[p] += r[p] * a
 
 
-@numba.njit(cache=True, nogil=True)
-def _jaw_interp(jr, jaw, out, sign):  # type: ignore[no-untyped-def]
-    """out += sign * the jaw's response at opening `jaw` (0..1), linear between the grid's openings
-    (`jaw_response`: jr[k] is the response at k / (len(jr) - 1))."""
-    steps = jr.shape[0] - 1
+@numba.njit(inline="always")
+def _on_grid(rows, jaw):  # type: ignore[no-untyped-def]
+    """The grid's opening k below `jaw` (0..1) and the fraction f past it, for a response grid of
+    `rows` openings (`jaw_response`: row k is the response at k / (rows - 1))."""
+    steps = rows - 1
     t = jaw * steps
     k = min(int(t), steps - 1)
-    f = t - k
-    for q in range(out.shape[0]):
+    return k, t - k
+
+
+@numba.njit(cache=True, nogil=True)
+def _jaw_moves(jr, js, jaw_from, jaw_to, du, add):  # type: ignore[no-untyped-def]
+    """du (+= where add, else =) the jaw's response at `jaw_to` minus the one at `jaw_from` plus
+    the slope `js` at the middle opening times the move, each linear between the grid's openings;
+    one pass, each value receiving the three terms in that order (as three passes gave it)."""
+    kt, ft = _on_grid(jr.shape[0], jaw_to)
+    kf, ff = _on_grid(jr.shape[0], jaw_from)
+    ks, fs = _on_grid(js.shape[0], 0.5 * (jaw_from + jaw_to))
+    move = jaw_to - jaw_from
+    for q in range(du.shape[0]):
         for d in range(3):
-            a = jr[k, q, d]
-            out[q, d] += sign * (a + f * (jr[k + 1, q, d] - a))
+            val = du[q, d] if add else 0.0
+            a = jr[kt, q, d]
+            val += 1.0 * (a + ft * (jr[kt + 1, q, d] - a))
+            a = jr[kf, q, d]
+            val += -1.0 * (a + ff * (jr[kf + 1, q, d] - a))
+            a = js[ks, q, d]
+            val += move * (a + fs * (js[ks + 1, q, d] - a))
+            du[q, d] = val
 
 
 @numba.njit(cache=True, nogil=True)
@@ -240,11 +281,7 @@ def _inputs(resp, act, act_val, jaw_resp, jaw_slope, jaw_from, jaw_to, du):  # t
     if muscles:
         _responses(resp, act, act_val, du)
     if jaw_resp.shape[0] > 0:
-        if not muscles:
-            du[...] = 0.0
-        _jaw_interp(jaw_resp, jaw_to, du, 1.0)
-        _jaw_interp(jaw_resp, jaw_from, du, -1.0)
-        _jaw_interp(jaw_slope, 0.5 * (jaw_from + jaw_to), du, jaw_to - jaw_from)
+        _jaw_moves(jaw_resp, jaw_slope, jaw_from, jaw_to, du, muscles)
         muscles = True
     return muscles
 
@@ -436,6 +473,7 @@ class ImplicitStepper:
         nf, nh = len(self.free), len(self.held)
         self._buf = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((nh, 3)), np.zeros((nf, 3)),
                      np.zeros((nf, 3)), np.zeros((nf, 3)), np.zeros((nf, 3)))
+        self._springs_scratch = np.zeros((3, 0))
         self._resp = prep["resp"]  # each muscle channel's response (`muscle_responses`)
         #: the jaw's responses at evenly spaced openings (`jaw_response`), set by the Simulator
         self.jaw_resp = np.zeros((0, nf, 3))
@@ -471,20 +509,29 @@ class ImplicitStepper:
         tick that takes an input only adds the muscles' responses and solves the contact. A frame
         given anything else computes it again: the same bits either way."""
         ext = self._with_bending(ext, shape)
-        self._solve_free(x, v, ext, springs, normal, False)
+        self._predicted = None
+        self._solve_free(x, v, ext, springs, normal, False, keep=x.shape == self._px.shape)
         c = self._contact
-        _remember(x, v, c.lam, c.w, c.idx, self._px, self._pv, self._plam, self._pw, self._pidx)
+        _remember(c.lam, c.w, c.idx, self._plam, self._pw, self._pidx)
         self._predicted = key
 
+    def _spring_work(self, springs: int) -> np.ndarray:
+        """The (3, springs) scratch of the springs' local step (`_pd_springs`), made once."""
+        if self._springs_scratch.shape[1] != springs:
+            self._springs_scratch = np.zeros((3, springs))
+        return self._springs_scratch
+
     def _solve_free(self, x: np.ndarray, v: np.ndarray, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
-                    normal: np.ndarray, summed: bool) -> None:
+                    normal: np.ndarray, summed: bool, keep: bool = False) -> None:
         """ys = the solve of a substep's right-hand side without the inputs' responses: `_predict`,
-        the held nodes' coupling (`_held_rhs`) and the prefactored solve (three kernels)."""
+        the held nodes' coupling (`_held_rhs`) and the prefactored solve (three kernels); keep:
+        x and v are copied for `_is_predicted` on the way."""
         idx, rest_len, k_low, k_high, thr = springs
         c = self._contact
         y, base, xh, held_term, ys = self._buf[:5]
         _predict(x, v, self.h, idx, rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2, self.damp_h,
-                 c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base, ext, summed)
+                 c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base, ext, summed,
+                 self._spring_work(len(idx)), self._px, self._pv, keep)
         _held_rhs(x, self.held, *self._fh, base, ext, self.free, self.solver.perm_r, xh, held_term, ys, summed)
         _sn_sweeps(ys, *self.solver.factors, self.solver.work)
 

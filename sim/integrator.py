@@ -149,6 +149,17 @@ def _max_deviation(x, target):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(**KERNEL)
+def _hold(x, v, held, target):  # type: ignore[no-untyped-def]
+    """The held nodes on their targets, at rest (x[held] = target[held], v[held] = 0, without
+    numpy's gathered copy)."""
+    for k in range(held.shape[0]):
+        i = held[k]
+        for d in range(3):
+            x[i, d] = target[i, d]
+            v[i, d] = 0.0
+
+
+@numba.njit(**KERNEL)
 def _eye_contact(x, v, idx, eye, centres, radius):  # type: ignore[no-untyped-def]
     """Keeps the contact vertices outside the eyeball spheres: a vertex inside is put back on the
     sphere and loses the inward part of its velocity (the eyeball is rigid and frictionless)."""
@@ -220,6 +231,7 @@ def warm_up(implicit: bool = True) -> None:
     _constant_forces(np.zeros(4, dtype=np.int32), np.zeros(0, dtype=np.int32), np.zeros(0), np.zeros(1),
                      np.ones(1, dtype=np.bool_), frozen, np.ones(1), x1, np.ones(1), x1, np.zeros((1, 3)))
     _max_deviation(x1, x1)
+    _hold(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)))
     _eye_contact(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64),
                  np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 1.0]]), 0.5)
     x = np.array([[0.0, 0.0, 0.0], [1.1, 0.0, 0.0]])
@@ -655,9 +667,7 @@ class Simulator:
             ext, active = self.external_forces(control), None
         else:
             ext, active = self._constants(start), self._muscles(control)
-        held = self._held
-        x[held] = self._target[held]
-        v[held] = 0.0
+        _hold(x, v, self._held, self._target)
         self._age_skin(state.age if lagged else float(values[self._age_i]))
         if self._implicit is None:
             _rk2_frame(x, v, self.substeps, self.dt, self._si3, self._sj3, self._rest_len, self._k_low,

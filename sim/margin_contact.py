@@ -360,7 +360,9 @@ class SolvedContact:
         """What the next substep starts from besides x and v, as one float array: the impulses
         (warm start) and each pair's segment on the opposite row (its force is applied before the
         pairs are found again). A state carries it so a restored checkpoint steps on the same bits."""
-        return np.concatenate([self.lam, self.w, self.idx[:, 1], self.idx[:, 2]]).astype(np.float64)
+        out = np.empty(4 * len(self.lam))
+        _memory(self.lam, self.w, self.idx, out)  # (numpy's concatenate took 13 us a step)
+        return out
 
     def recall(self, mem: np.ndarray | None) -> None:
         """Restore `memory()`'s values; None (a state at rest, before any step): no contact force."""
@@ -368,10 +370,7 @@ class SolvedContact:
         if mem is None or mem.shape != (4 * p,):
             self.lam[...] = 0.0
             return
-        self.lam[...] = mem[:p]
-        self.w[...] = mem[p:2 * p]
-        self.idx[:, 1] = mem[2 * p:3 * p].astype(np.int64)
-        self.idx[:, 2] = mem[3 * p:].astype(np.int64)
+        _recall(mem, self.lam, self.w, self.idx)
 
     def add_force(self, rhs: np.ndarray) -> None:
         """rhs += F^T lam: the contact forces of the last substep (step 1)."""
@@ -387,6 +386,28 @@ class SolvedContact:
                 break
 
 
+@numba.njit(**KERNEL)
+def _memory(lam, w, idx, out):  # type: ignore[no-untyped-def]
+    """out = lam, w, idx[:, 1], idx[:, 2] one after the other, as floats (SolvedContact.memory)."""
+    p = lam.shape[0]
+    for k in range(p):
+        out[k] = lam[k]
+        out[p + k] = w[k]
+        out[2 * p + k] = float(idx[k, 1])
+        out[3 * p + k] = float(idx[k, 2])
+
+
+@numba.njit(**KERNEL)
+def _recall(mem, lam, w, idx):  # type: ignore[no-untyped-def]
+    """The inverse of `_memory` (SolvedContact.recall; the indices truncated, as astype does)."""
+    p = lam.shape[0]
+    for k in range(p):
+        lam[k] = mem[k]
+        w[k] = mem[p + k]
+        idx[k, 1] = int(mem[2 * p + k])
+        idx[k, 2] = int(mem[3 * p + k])
+
+
 def warm_up_solved() -> None:
     """Compile (or load from numba's cache) SolvedContact's kernels on a three-vertex system."""
     cons = dict(idx=np.array([[0, 1, 2]]), w=np.array([0.5]), sg=np.array([[1.0, 0.0, 1.0, 1.0]]),
@@ -394,6 +415,7 @@ def warm_up_solved() -> None:
     contact = SolvedContact(cons, np.arange(3), 3, lambda b, out: np.copyto(out, b))
     contact.add_force(np.zeros((3, 3)))
     contact.resolve(np.array([[0.0, -0.1, 0.0], [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
+    contact.recall(contact.memory())
 
 
 @numba.njit(**KERNEL)

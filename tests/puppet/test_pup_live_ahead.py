@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from devices.events import ControlEvent
 from fakeclock import FakeClock
 from puppet import live
@@ -92,3 +94,41 @@ def test_a_tick_that_finds_input_waiting_still_starts_from_the_solve_made_ahead(
     assert len(used) == 12 and all(used)
     # as before: the loop skipped the solve when input waited and each such tick did the whole step
     assert not any(_steps_with_input_waiting(ahead_when_idle=True))
+
+
+def test_a_headless_show_makes_the_wrinkle_surface_for_the_ticks_it_draws() -> None:
+    # 120 Hz ticks, 60 Hz frames: the surface (drawn only) is made once a frame, for the tick drawn,
+    # so every frame shows its own tick's skin and the ticks between frames do not pay for it
+    face = live.load_face(face="procedural")
+    spec = live.build_mapping(face.vocab, None, ["mock://"])
+    core = live.LiveCore(face, Mapper(spec, face.vocab), rate=120.0)
+    assert core.sim.wrinkles and face.model.rig.wrinkles
+    clk = FakeClock()
+    made = []
+    surface = core.sim.surface
+
+    def counted(state: object) -> None:
+        made.append(core.tick_count)
+        surface(state)  # type: ignore[arg-type]
+
+    core.sim.surface = counted  # type: ignore[method-assign]
+    k = 0
+
+    def drain() -> list[ControlEvent]:
+        nonlocal k
+        k += 1
+        return [ControlEvent("mock://", "dial1", "dial", k / 30, 0.0, 0, clk.t)] if k in (3, 9, 15) else []
+
+    stale = []
+
+    def on_frame(c: live.LiveCore) -> None:
+        expected = c.state.copy()
+        surface(expected)
+        stale.append(not np.array_equal(expected.surface, c.state.surface))
+
+    live.run_realtime(core, drain, 0.25, clock=clk, sleep=clk.sleep, on_frame=on_frame, frame_rate=60.0)
+    assert core.tick_count == 30 and len(stale) >= 15 and not any(stale)
+    assert len(made) <= len(stale) + 1 < core.tick_count  # (the last tick's made after the loop if not drawn)
+    after = core.state.copy()
+    surface(after)
+    assert np.array_equal(after.surface, core.state.surface)  # the loop leaves the last tick's surface made
