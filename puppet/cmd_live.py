@@ -234,6 +234,8 @@ def _run(args: argparse.Namespace) -> int:
 
         if not stand_by(args, lambda: live.load_face(args.rig, face=args.face)):
             return 0
+    if args.map and not Path(args.map).is_file():  # said before any demo or show starts
+        raise PuppetError(f"{args.map}: no such map file (`puppet learn --map FILE` makes one)")
     windowed = not args.headless and live.display_available()
     if args.demo:
         if args.device:

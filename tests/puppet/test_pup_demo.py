@@ -94,3 +94,14 @@ def test_demo_in_a_window_plays_and_records(xvfb_display: str, tmp_path: Path) -
 def test_help_mentions_demo(flag: str, tmp_path: Path) -> None:
     out = puppet("live", "--help", env=ENV, cwd=tmp_path)
     assert flag in out.stdout
+
+
+def test_a_missing_map_is_said_before_the_demo_starts(tmp_path: Path) -> None:
+    """With no box and no display, a --map that is not there is one line and exit 2, before the
+    demo's announcement (and nothing is recorded)."""
+    r = puppet("live", "--headless", "--map", str(tmp_path / "mine.toml"), env={**NO_DISPLAY, "PUPPET_LIBRARY": "off"},
+               cwd=tmp_path, timeout=120)
+    assert r.returncode == 2
+    assert r.stderr.strip().splitlines() == [f"puppet: error: {tmp_path / 'mine.toml'}: no such map file "
+                                             "(`puppet learn --map FILE` makes one)"]
+    assert not list(tmp_path.iterdir())
