@@ -8,7 +8,7 @@
   .csv         native channel curves
   .curves      keyframe curves text, editable, playable with `puppet replay --curves`
 
-Every export shows a tqdm progress bar and writes its frame rate explicitly."""
+Every export shows a tqdm progress bar on a terminal and writes its frame rate explicitly."""
 
 from __future__ import annotations
 
@@ -58,7 +58,8 @@ def kind_of(out: Path) -> str:
 
 
 def _bar(total: int, what: str) -> tqdm:
-    return tqdm(total=total, desc=what, unit="frame", file=sys.stderr, dynamic_ncols=True, leave=False)
+    # a bar on a terminal only: in a log or a pipe it would be a line of carriage returns
+    return tqdm(total=total, desc=what, unit="frame", file=sys.stderr, dynamic_ncols=True, leave=False, disable=None)
 
 
 def export(perf: Performance, out: str | Path, opts: ExportOptions) -> str:

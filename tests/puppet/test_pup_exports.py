@@ -193,3 +193,12 @@ def test_a_pc2_export_keeps_a_users_own_obj_beside_it(recording: Path, tmp_path:
     export(perf, tmp_path / "face.pc2", ExportOptions(fps=30, end=0.2))
     export(perf, tmp_path / "face.pc2", ExportOptions(fps=30, end=0.1))  # its own rest mesh: replaced
     assert read_pc2(tmp_path / "face.pc2")[0]["num_samples"] == 3
+
+
+def test_an_export_into_a_log_has_no_progress_bar(recording: Path, tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture) -> None:
+    """Exporting with stderr in a file or a pipe (a log, a farm's output) writes no bar of carriage
+    returns."""
+    perf = build_performance(read_session(recording), None)
+    export(perf, tmp_path / "c.csv", ExportOptions(fps=60))
+    assert "\r" not in capsys.readouterr().err
