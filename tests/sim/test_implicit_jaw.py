@@ -167,3 +167,30 @@ def test_the_springs_follow_the_age_law_whichever_scale_moves(model, monkeypatch
         p = softer_when_old(age, float(model.strain_threshold))
         assert s._k_low.tobytes() == (base_low * p.k_low_scale).tobytes(), age
         assert s._k_high.tobytes() == (base_high * p.k_high_scale).tobytes(), age
+
+
+def test_the_turned_normals_and_fixed_forces_have_the_bits_of_numpy(model) -> None:  # type: ignore[no-untyped-def]
+    """A new jaw pose's support normals (`_turn_normals`) are numpy's unit rows of the turned
+    normals to the bit, and the implicit step's constant forces without muscles (`_fixed_forces`)
+    are the muscle kernel's with none counted: what takes recorded before were stepped with."""
+    from sim.integrator import _constant_forces, _fixed_forces, _turn_normals
+
+    s = Simulator(model, 1.0 / 120.0)
+    m = s.model
+    for jaw in (0.05, 0.4, 1.0):
+        rot = np.ascontiguousarray(s._jaw_motion((jaw, 0.0, 0.0))[0])
+        n, w = np.asarray(m.rest_normal), np.asarray(m.jaw_weight)[:, None]
+        turned = n + w * (np.stack([n[:, 0] * rot[j, 0] + n[:, 1] * rot[j, 1] + n[:, 2] * rot[j, 2] for j in range(3)], axis=-1) - n)
+        want = turned / np.sqrt((turned[:, 0] * turned[:, 0] + turned[:, 1] * turned[:, 1]) + turned[:, 2] * turned[:, 2])[:, None]
+        got = np.zeros_like(want)
+        _turn_normals(m.rest_normal, m.jaw_weight, rot, got)
+        assert got.tobytes() == want.tobytes(), jaw
+        target = s.rest_target(jaw)
+        mm = m.muscle_matrix
+        summed, fixed = np.zeros_like(target), np.full_like(target, np.nan)
+        _constant_forces(np.zeros_like(mm.indptr), mm.indices, mm.data, np.zeros(len(s._is_muscle)), s._is_muscle,
+                         s._weight, s._kr, target, s._kn, got, summed)
+        _fixed_forces(s._weight, s._kr, target, s._kn, got, fixed)
+        assert fixed.tobytes() == summed.tobytes(), jaw
+    with pytest.raises(ZeroDivisionError):
+        _turn_normals(np.zeros((2, 3)), np.zeros(2), np.eye(3), np.zeros((2, 3)))
