@@ -171,7 +171,7 @@ def test_the_springs_follow_the_age_law_whichever_scale_moves(model, monkeypatch
 
 def test_the_turned_normals_and_fixed_forces_have_the_bits_of_numpy(model) -> None:  # type: ignore[no-untyped-def]
     """A new jaw pose's support normals (`_turn_normals`) are numpy's unit rows of the turned
-    normals to the bit, and the implicit step's constant forces without muscles (`_fixed_forces`)
+    normals to the bit, its target, rest shape and held nodes (`_turn_with_jaw`) numpy's turn, and the implicit step's constant forces without muscles (`_fixed_forces`)
     are the muscle kernel's with none counted: what takes recorded before were stepped with."""
     from sim.integrator import _constant_forces, _fixed_forces, _turn_normals
 
@@ -183,8 +183,23 @@ def test_the_turned_normals_and_fixed_forces_have_the_bits_of_numpy(model) -> No
         turned = n + w * (np.stack([n[:, 0] * rot[j, 0] + n[:, 1] * rot[j, 1] + n[:, 2] * rot[j, 2] for j in range(3)], axis=-1) - n)
         want = turned / np.sqrt((turned[:, 0] * turned[:, 0] + turned[:, 1] * turned[:, 1]) + turned[:, 2] * turned[:, 2])[:, None]
         got = np.zeros_like(want)
-        _turn_normals(m.rest_normal, m.jaw_weight, rot, got)
+        _turn_normals(np.array(n.T), np.array(w[:, 0]), rot, got, np.zeros((4, len(n))))
         assert got.tobytes() == want.tobytes(), jaw
+        s._set_jaw((jaw, 0.0, 0.0))
+        assert s._normal.tobytes() == want.tobytes(), jaw
+        rest, offset = np.asarray(m.rest), np.asarray(m.rest_offset)
+        pivot, slide = np.asarray(m.jaw_pivot, dtype=np.float64), s._jaw_motion((jaw, 0.0, 0.0))[1]
+
+        def times(a: np.ndarray) -> np.ndarray:
+            return np.stack([a[:, 0] * rot[j, 0] + a[:, 1] * rot[j, 1] + a[:, 2] * rot[j, 2] for j in range(3)], axis=-1)
+
+        turned = times(rest - pivot) + pivot
+        base = rest + offset
+        assert s._target.tobytes() == (base + w * (turned + times(offset) + slide - base)).tobytes(), jaw
+        assert s._shape.tobytes() == (rest + w * (turned + slide - rest)).tobytes(), jaw
+        held = np.zeros_like(rest)
+        s._place_held(held, (jaw, 0.0, 0.0))
+        assert held[s._held].tobytes() == s._target[s._held].tobytes(), jaw
         target = s.rest_target(jaw)
         mm = m.muscle_matrix
         summed, fixed = np.zeros_like(target), np.full_like(target, np.nan)
@@ -193,4 +208,4 @@ def test_the_turned_normals_and_fixed_forces_have_the_bits_of_numpy(model) -> No
         _fixed_forces(s._weight, s._kr, target, s._kn, got, fixed)
         assert fixed.tobytes() == summed.tobytes(), jaw
     with pytest.raises(ZeroDivisionError):
-        _turn_normals(np.zeros((2, 3)), np.zeros(2), np.eye(3), np.zeros((2, 3)))
+        _turn_normals(np.zeros((3, 2)), np.zeros(2), np.eye(3), np.zeros((2, 3)), np.zeros((4, 2)))
