@@ -42,7 +42,7 @@ from sim.gaze_lids import N_BASIS, basis_coefficients, coupling, gaze_forces
 from sim.margin_contact import margin_contact, margin_pairs
 from sim.state import FaceControl, FaceState
 from sim.numba_start import prepare_blas_check
-from sim.rowmath import norm3, times3
+from sim.rowmath import norm3
 
 prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
@@ -230,6 +230,7 @@ def warm_up(implicit: bool = True) -> None:
     frozen.setflags(write=False)
     _constant_forces(np.zeros(4, dtype=np.int32), np.zeros(0, dtype=np.int32), np.zeros(0), np.zeros(1),
                      np.ones(1, dtype=np.bool_), frozen, np.ones(1), x1, np.ones(1), x1, np.zeros((1, 3)))
+    _fixed_forces(frozen, np.ones(1), x1, np.ones(1), x1, np.zeros((1, 3)))
     _max_deviation(x1, x1)
     _hold(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)))
     _eye_contact(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64),
@@ -322,49 +323,87 @@ def jaw_motion(model: FaceModel, jaw: float, forward: float = 0.0,
 
 
 @numba.njit(cache=True, nogil=True)
-def _turn_with_jaw(rest, offset, pivot, weight, rot, slide, target, shape):  # type: ignore[no-untyped-def]
-    """Eq 9's target (and, when `shape` has rows, the rest shape) turned with the jaw, row by row,
-    with the operations in the order of the numpy expressions they replace (the same bits):
+def _turn_with_jaw(rest, offset, pivot, weight, rot, slide, target, shape, tmp):  # type: ignore[no-untyped-def]
+    """Eq 9's target (and, when `shape` has rows, the rest shape) turned with the jaw, with the
+    operations in the order of the numpy expressions they replace (the same bits):
     turned = (rest - pivot) @ rot.T + pivot; base = rest + offset;
     target = base + w ((turned + offset @ rot.T) + slide - base); shape = rest + w ((turned + slide) - rest).
-    A moving jaw recomputes this every tick over the vertices it carries."""
-    with_shape = shape.shape[0] > 0
-    for i in range(rest.shape[0]):
+    rest, offset (3, N): by coordinate (`Simulator._by_coordinate`), so the pass over the vertices
+    is vector code, into tmp (6, N), then laid out in rows: 43 -> 20 us on the scanned head, where
+    a moving jaw recomputes this every tick."""
+    n = rest.shape[1]
+    r00, r01, r02 = rot[0, 0], rot[0, 1], rot[0, 2]
+    r10, r11, r12 = rot[1, 0], rot[1, 1], rot[1, 2]
+    r20, r21, r22 = rot[2, 0], rot[2, 1], rot[2, 2]
+    p0, p1, p2 = pivot[0], pivot[1], pivot[2]
+    s0, s1, s2 = slide[0], slide[1], slide[2]
+    for i in range(n):
         w = weight[i]
-        d0 = rest[i, 0] - pivot[0]
-        d1 = rest[i, 1] - pivot[1]
-        d2 = rest[i, 2] - pivot[2]
-        o0 = offset[i, 0]
-        o1 = offset[i, 1]
-        o2 = offset[i, 2]
+        x0, x1, x2 = rest[0, i], rest[1, i], rest[2, i]
+        o0, o1, o2 = offset[0, i], offset[1, i], offset[2, i]
+        d0, d1, d2 = x0 - p0, x1 - p1, x2 - p2
+        u0 = d0 * r00 + d1 * r01 + d2 * r02 + p0
+        u1 = d0 * r10 + d1 * r11 + d2 * r12 + p1
+        u2 = d0 * r20 + d1 * r21 + d2 * r22 + p2
+        v0 = o0 * r00 + o1 * r01 + o2 * r02
+        v1 = o0 * r10 + o1 * r11 + o2 * r12
+        v2 = o0 * r20 + o1 * r21 + o2 * r22
+        b0, b1, b2 = x0 + o0, x1 + o1, x2 + o2
+        tmp[0, i] = b0 + w * (u0 + v0 + s0 - b0)
+        tmp[1, i] = b1 + w * (u1 + v1 + s1 - b1)
+        tmp[2, i] = b2 + w * (u2 + v2 + s2 - b2)
+        tmp[3, i] = x0 + w * (u0 + s0 - x0)
+        tmp[4, i] = x1 + w * (u1 + s1 - x1)
+        tmp[5, i] = x2 + w * (u2 + s2 - x2)
+    with_shape = shape.shape[0] > 0
+    for i in range(n):
         for j in range(3):
-            turned = d0 * rot[j, 0] + d1 * rot[j, 1] + d2 * rot[j, 2] + pivot[j]
-            turned_offset = o0 * rot[j, 0] + o1 * rot[j, 1] + o2 * rot[j, 2]
-            r = rest[i, j]
-            base = r + offset[i, j]
-            target[i, j] = base + w * (turned + turned_offset + slide[j] - base)
+            target[i, j] = tmp[j, i]
             if with_shape:
-                shape[i, j] = r + w * (turned + slide[j] - r)
+                shape[i, j] = tmp[3 + j, i]
 
 
-@numba.njit(cache=True, nogil=True)
-def _turn_normals(normal, weight, rot, out):  # type: ignore[no-untyped-def]
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _turn_normals(normal, weight, rot, out, tmp):  # type: ignore[no-untyped-def]
     """out = the unit rows of normal + w (normal @ rot.T - normal), in the order of the numpy
     expressions `n / np.linalg.norm(n, axis=1)[:, None]` they replace (the squares summed left to
     right, as numpy's reduction over a row of three does), so the same bits; a moving jaw turns the
-    support normals every tick (the normalisation alone took 0.13 ms in numpy on the scanned head)."""
-    for i in range(normal.shape[0]):
+    support normals every tick (the normalisation alone took 0.13 ms in numpy on the scanned head).
+    normal (3, N): by coordinate (`Simulator._by_coordinate`), so the pass over the vertices, square
+    roots and divisions included, is vector code, into tmp (4, N), then laid out in rows: 40 -> 15
+    us there. A normal turned to zero length raises ZeroDivisionError."""
+    n = normal.shape[1]
+    r00, r01, r02 = rot[0, 0], rot[0, 1], rot[0, 2]
+    r10, r11, r12 = rot[1, 0], rot[1, 1], rot[1, 2]
+    r20, r21, r22 = rot[2, 0], rot[2, 1], rot[2, 2]
+    for i in range(n):
         w = weight[i]
-        n0 = normal[i, 0]
-        n1 = normal[i, 1]
-        n2 = normal[i, 2]
-        t0 = n0 + w * (n0 * rot[0, 0] + n1 * rot[0, 1] + n2 * rot[0, 2] - n0)
-        t1 = n1 + w * (n0 * rot[1, 0] + n1 * rot[1, 1] + n2 * rot[1, 2] - n1)
-        t2 = n2 + w * (n0 * rot[2, 0] + n1 * rot[2, 1] + n2 * rot[2, 2] - n2)
+        n0, n1, n2 = normal[0, i], normal[1, i], normal[2, i]
+        t0 = n0 + w * (n0 * r00 + n1 * r01 + n2 * r02 - n0)
+        t1 = n1 + w * (n0 * r10 + n1 * r11 + n2 * r12 - n1)
+        t2 = n2 + w * (n0 * r20 + n1 * r21 + n2 * r22 - n2)
         length = math.sqrt((t0 * t0 + t1 * t1) + t2 * t2)
-        out[i, 0] = t0 / length
-        out[i, 1] = t1 / length
-        out[i, 2] = t2 / length
+        tmp[0, i] = t0 / length
+        tmp[1, i] = t1 / length
+        tmp[2, i] = t2 / length
+        tmp[3, i] = length
+    for i in range(n):
+        if tmp[3, i] == 0.0:
+            raise ZeroDivisionError("a support normal turned to zero length")
+        for j in range(3):
+            out[i, j] = tmp[j, i]
+
+
+@numba.njit(**KERNEL)
+def _fixed_forces(weight, kr, target, kn, nrm, out):  # type: ignore[no-untyped-def]
+    """`_constant_forces` with no muscle (the implicit step's, whose muscles enter as responses),
+    each value by the same operations (the same bits) without the muscle matrix's empty rows:
+    40 -> 15 us on the scanned head, remade at each new jaw pose."""
+    for i in range(out.shape[0]):
+        support = kn[i] * (nrm[i, 0] * target[i, 0] + nrm[i, 1] * target[i, 1] + nrm[i, 2] * target[i, 2])
+        for d in range(3):
+            acc = 0.0
+            out[i, d] = acc + weight[i, d] + kr[i] * target[i, d] + support * nrm[i, d]
 
 
 @dataclass(frozen=True)
@@ -377,9 +416,17 @@ class GuardEvent:
 
 
 def jaw_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    """Rotation matrix about a unit axis (Rodrigues)."""
-    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * times3(k, k)
+    """Rotation matrix about a unit axis (Rodrigues): I + sin(angle) K + (1 - cos(angle)) K K, with
+    K the axis's cross-product matrix. Spelled out on Python floats, each entry by the operations
+    numpy's `np.eye(3) + s * k + c * times3(k, k)` does in its order (the same bits), because a
+    moving jaw makes it every tick: 0.05 ms of small numpy operations, 4 us so."""
+    a0, a1, a2 = float(axis[0]), float(axis[1]), float(axis[2])
+    k = ((0.0, -a2, a1), (a2, 0.0, -a0), (-a1, a0, 0.0))
+    s = math.sin(angle)
+    c = 1.0 - math.cos(angle)
+    return np.array([[((1.0 if i == j else 0.0) + s * k[i][j])
+                      + c * ((k[i][0] * k[0][j] + k[i][1] * k[1][j]) + k[i][2] * k[2][j]) for j in range(3)]
+                     for i in range(3)])
 
 
 def jaw_slide(model: FaceModel) -> np.ndarray:
@@ -456,6 +503,7 @@ class Simulator:
         self._k_damp = np.array(model.spring_damping[order], order="C")
         self._k_low_base = self._k_low.copy()
         self._k_high_base = self._k_high.copy()
+        self._k_high_scale = 1.0  # the scale of `_k_high` (`_age_skin`)
         self._kr = np.array(model.rest_stiffness, order="C")
         self._c = np.array(model.damping, order="C")
         self._kn = np.array(model.support_stiffness, order="C")
@@ -522,8 +570,20 @@ class Simulator:
         self._held_offset = _like(model.rest_offset, model.rest_offset[held])
         self._held_weight = _like(model.jaw_weight, model.jaw_weight[held])
         self._held_target = np.zeros((len(held), 3))
+        # the turns' inputs by coordinate (`_turn_with_jaw`, `_turn_normals`: vector code over the vertices)
+        self._rest3, self._offset3 = self._by_coordinate(model.rest), self._by_coordinate(model.rest_offset)
+        self._normal3 = self._by_coordinate(model.rest_normal)
+        self._jaw_weight = np.array(model.jaw_weight, dtype=np.float64)
+        self._held_rest3, self._held_offset3 = self._by_coordinate(self._held_rest), self._by_coordinate(self._held_offset)
+        self._held_weight = np.array(self._held_weight, dtype=np.float64)
+        self._turn_tmp, self._held_tmp = np.zeros((6, n)), np.zeros((6, len(held)))
         if self._implicit is not None:
             self._implicit.jaw_resp, self._implicit.jaw_slope = _jaw_grid(self)
+
+    @staticmethod
+    def _by_coordinate(rows: np.ndarray) -> np.ndarray:
+        """(3, N) writeable contiguous copy of (N, 3) rows: the same values, one numba signature."""
+        return np.array(np.asarray(rows, dtype=np.float64).T, order="C")
 
     # -- the force terms that are constant over a frame
 
@@ -547,9 +607,9 @@ class Simulator:
         rot, slide = self._jaw_motion(pose)
         target = np.empty_like(m.rest)
         turned_shape = np.empty_like(m.rest) if shape else np.empty((0, 3))
-        _turn_with_jaw(m.rest, m.rest_offset, np.asarray(m.jaw_pivot, dtype=np.float64), m.jaw_weight,
+        _turn_with_jaw(self._rest3, self._offset3, np.asarray(m.jaw_pivot, dtype=np.float64), self._jaw_weight,
                        np.ascontiguousarray(rot, dtype=np.float64), np.asarray(slide, dtype=np.float64),
-                       target, turned_shape)
+                       target, turned_shape, self._turn_tmp)
         return target, (turned_shape if shape else None), rot
 
     def _jaw_motion(self, pose: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -574,7 +634,8 @@ class Simulator:
         if rot is None:
             self._normal[...] = m.rest_normal
         else:
-            _turn_normals(m.rest_normal, m.jaw_weight, np.ascontiguousarray(rot, dtype=np.float64), self._normal)
+            _turn_normals(self._normal3, self._jaw_weight, np.ascontiguousarray(rot, dtype=np.float64), self._normal,
+                          self._turn_tmp)
         self._jaw = pose
 
     def external_forces(self, control: FaceControl) -> np.ndarray:
@@ -607,10 +668,7 @@ class Simulator:
         (`_constant_forces` with none active: recomputed only when the pose changes)."""
         self._set_jaw(pose)
         if self._const_jaw != self._jaw:
-            mm = self.model.muscle_matrix  # with no entries: none of its muscles counted
-            none = np.zeros_like(mm.indptr)
-            _constant_forces(none, mm.indices, mm.data, np.zeros(len(self._is_muscle)), self._is_muscle,
-                             self._weight, self._kr, self._target, self._kn, self._normal, self._ext_const)
+            _fixed_forces(self._weight, self._kr, self._target, self._kn, self._normal, self._ext_const)
             self._const_jaw = self._jaw
         return self._ext_const
 
@@ -644,9 +702,9 @@ class Simulator:
             np.add(self._held_rest, self._held_offset, out=self._held_target)
         else:
             rot, slide = self._jaw_motion(pose)
-            _turn_with_jaw(self._held_rest, self._held_offset, np.asarray(m.jaw_pivot, dtype=np.float64),
+            _turn_with_jaw(self._held_rest3, self._held_offset3, np.asarray(m.jaw_pivot, dtype=np.float64),
                            self._held_weight, np.ascontiguousarray(rot, dtype=np.float64),
-                           np.asarray(slide, dtype=np.float64), self._held_target, np.empty((0, 3)))
+                           np.asarray(slide, dtype=np.float64), self._held_target, np.empty((0, 3)), self._held_tmp)
         x[self._held] = self._held_target
 
     # -- stepping
@@ -748,7 +806,10 @@ class Simulator:
 
         skin = skin_params_for_age(age, float(self.model.strain_threshold))
         np.multiply(self._k_low_base, skin.k_low_scale, out=self._k_low)
-        np.multiply(self._k_high_base, min(skin.k_high_scale, 1.0), out=self._k_high)
+        high = min(skin.k_high_scale, 1.0)
+        if high != self._k_high_scale:  # (the age law leaves k_h alone: skipped while the age moves)
+            np.multiply(self._k_high_base, high, out=self._k_high)
+            self._k_high_scale = high
         self._threshold = skin.strain_threshold
         self._skin_age = age
 
@@ -860,7 +921,7 @@ def _jaw_grid(s: Simulator) -> tuple[np.ndarray, np.ndarray]:
         if rot is None:
             normal[...] = m.rest_normal
         else:
-            _turn_normals(m.rest_normal, m.jaw_weight, np.ascontiguousarray(rot, dtype=np.float64), normal)
+            _turn_normals(s._normal3, s._jaw_weight, np.ascontiguousarray(rot, dtype=np.float64), normal, s._turn_tmp)
         along = s._kn * np.einsum("ij,ij->i", normal, tangent)
         stepper.jaw_response(along[:, None] * normal, None, None, slope[k])
     if len(_JAW_MEMO) >= 2:

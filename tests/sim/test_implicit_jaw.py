@@ -81,3 +81,131 @@ def test_the_jaw_as_responses_settles_where_the_whole_step_does(model) -> None: 
     travel = float(np.linalg.norm(sw.positions[chin] - model.rest[chin], axis=1).max())
     assert worst < 0.002 * travel  # under 0.1 mm on a 3.5 cm travel of the chin
     assert np.abs(sf.positions - sw.positions).max() < 1e-5 * travel
+
+
+def test_the_flat_product_has_the_bits_of_the_sparse_product() -> None:
+    """The margin bending's rest side, made every tick while the jaw moves (`_csr_times_flat`), is
+    scipy's product K_b x to the bit, empty rows included."""
+    import scipy.sparse as sp
+
+    from sim.implicit import _csr_times_flat, _flat_csr
+
+    rng = np.random.default_rng(7)
+    a = sp.random(300, 280, density=0.06, random_state=11, format="csr")
+    a.data = rng.normal(size=a.nnz) * 10.0 ** rng.integers(-6, 6, size=a.nnz)
+    a.data[a.indptr[5]:a.indptr[6]] = 0.0  # an empty row
+    a.eliminate_zeros()
+    x = rng.normal(size=(280, 3)) * 10.0 ** rng.integers(-3, 3, size=(280, 1))
+    out = np.full((300, 3), np.nan)
+    _csr_times_flat(*_flat_csr(a.indptr, a.indices, a.data), x.reshape(-1), out)
+    assert out.tobytes() == (a @ x).tobytes()
+    assert not out[5].any()
+
+
+def test_the_jaw_rotation_has_the_bits_of_rodrigues_in_numpy() -> None:
+    """`jaw_rotation` (spelled out on floats, made every tick the jaw moves) gives each entry of
+    I + sin(t) K + (1 - cos(t)) K K as numpy's elementwise formula does, so takes keep their bits."""
+    import math
+
+    from sim.integrator import jaw_rotation
+
+    rng = np.random.default_rng(3)
+    for k in range(300):
+        axis = rng.normal(size=3)
+        axis /= math.sqrt(float(axis @ axis))
+        angle = float(rng.uniform(-0.6, 0.6)) if k % 10 else 0.0
+        kx = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+        kk = np.stack([kx[:, 0] * kx[0, j] + kx[:, 1] * kx[1, j] + kx[:, 2] * kx[2, j] for j in range(3)], axis=-1)
+        want = np.eye(3) + math.sin(angle) * kx + (1.0 - math.cos(angle)) * kk
+        assert jaw_rotation(axis, angle).tobytes() == want.tobytes(), k
+    r = jaw_rotation(np.array([0.0, 0.0, 1.0]), math.pi / 2)
+    assert np.allclose(r @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])  # a quarter turn about z takes x to y
+
+
+def test_the_jaw_move_sums_its_three_terms_in_order() -> None:
+    """`_jaw_moves` (one flat pass) gives each value what three numpy passes give it: the response
+    at the new opening, minus the one at the old, plus the slope times the move, each linear
+    between the grid's openings, added to what du holds or from zero."""
+    from sim.implicit import _jaw_moves
+
+    rng = np.random.default_rng(5)
+    jr, js = rng.normal(size=(9, 40, 3)), rng.normal(size=(9, 40, 3))
+    held = rng.normal(size=(40, 3))
+
+    def lerp(grid: np.ndarray, t: float) -> np.ndarray:
+        k = min(int(t * 8), 7)
+        f = t * 8 - k
+        return grid[k] + f * (grid[k + 1] - grid[k])
+
+    for a, b in ((0.31, 0.37), (0.9, 0.2), (0.0, 1.0), (0.5, 0.5)):
+        for add in (True, False):
+            du = held.copy()
+            _jaw_moves(jr, js, a, b, du, add)
+            want = held.copy() if add else np.zeros_like(held)
+            want += 1.0 * lerp(jr, b)
+            want += -1.0 * lerp(jr, a)
+            want += (b - a) * lerp(js, 0.5 * (a + b))
+            assert du.tobytes() == want.tobytes(), (a, b, add)
+
+
+def test_the_springs_follow_the_age_law_whichever_scale_moves(model, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The collagen's stiffness k_h is rescaled only when its scale changes (the age law keeps it):
+    a law that does soften it at some age gets it softened there and back at the others."""
+    from sim.wrinkles import aging
+
+    law = aging.skin_params_for_age
+
+    def softer_when_old(age: float, base: float = 0.15) -> aging.SkinParams:
+        p = law(age, base)
+        return aging.SkinParams(p.k_low_scale, 0.5 if age >= 70.0 else p.k_high_scale, p.strain_threshold)
+
+    monkeypatch.setattr(aging, "skin_params_for_age", softer_when_old)
+    s = Simulator(model, 1.0 / 120.0)
+    base_low, base_high = s._k_low_base, s._k_high_base
+    for age in (30.0, 50.0, 75.0, 80.0, 60.0, 90.0, 40.0):
+        s._age_skin(age)
+        p = softer_when_old(age, float(model.strain_threshold))
+        assert s._k_low.tobytes() == (base_low * p.k_low_scale).tobytes(), age
+        assert s._k_high.tobytes() == (base_high * p.k_high_scale).tobytes(), age
+
+
+def test_the_turned_normals_and_fixed_forces_have_the_bits_of_numpy(model) -> None:  # type: ignore[no-untyped-def]
+    """A new jaw pose's support normals (`_turn_normals`) are numpy's unit rows of the turned
+    normals to the bit, its target, rest shape and held nodes (`_turn_with_jaw`) numpy's turn, and the implicit step's constant forces without muscles (`_fixed_forces`)
+    are the muscle kernel's with none counted: what takes recorded before were stepped with."""
+    from sim.integrator import _constant_forces, _fixed_forces, _turn_normals
+
+    s = Simulator(model, 1.0 / 120.0)
+    m = s.model
+    for jaw in (0.05, 0.4, 1.0):
+        rot = np.ascontiguousarray(s._jaw_motion((jaw, 0.0, 0.0))[0])
+        n, w = np.asarray(m.rest_normal), np.asarray(m.jaw_weight)[:, None]
+        turned = n + w * (np.stack([n[:, 0] * rot[j, 0] + n[:, 1] * rot[j, 1] + n[:, 2] * rot[j, 2] for j in range(3)], axis=-1) - n)
+        want = turned / np.sqrt((turned[:, 0] * turned[:, 0] + turned[:, 1] * turned[:, 1]) + turned[:, 2] * turned[:, 2])[:, None]
+        got = np.zeros_like(want)
+        _turn_normals(np.array(n.T), np.array(w[:, 0]), rot, got, np.zeros((4, len(n))))
+        assert got.tobytes() == want.tobytes(), jaw
+        s._set_jaw((jaw, 0.0, 0.0))
+        assert s._normal.tobytes() == want.tobytes(), jaw
+        rest, offset = np.asarray(m.rest), np.asarray(m.rest_offset)
+        pivot, slide = np.asarray(m.jaw_pivot, dtype=np.float64), s._jaw_motion((jaw, 0.0, 0.0))[1]
+
+        def times(a: np.ndarray) -> np.ndarray:
+            return np.stack([a[:, 0] * rot[j, 0] + a[:, 1] * rot[j, 1] + a[:, 2] * rot[j, 2] for j in range(3)], axis=-1)
+
+        turned = times(rest - pivot) + pivot
+        base = rest + offset
+        assert s._target.tobytes() == (base + w * (turned + times(offset) + slide - base)).tobytes(), jaw
+        assert s._shape.tobytes() == (rest + w * (turned + slide - rest)).tobytes(), jaw
+        held = np.zeros_like(rest)
+        s._place_held(held, (jaw, 0.0, 0.0))
+        assert held[s._held].tobytes() == s._target[s._held].tobytes(), jaw
+        target = s.rest_target(jaw)
+        mm = m.muscle_matrix
+        summed, fixed = np.zeros_like(target), np.full_like(target, np.nan)
+        _constant_forces(np.zeros_like(mm.indptr), mm.indices, mm.data, np.zeros(len(s._is_muscle)), s._is_muscle,
+                         s._weight, s._kr, target, s._kn, got, summed)
+        _fixed_forces(s._weight, s._kr, target, s._kn, got, fixed)
+        assert fixed.tobytes() == summed.tobytes(), jaw
+    with pytest.raises(ZeroDivisionError):
+        _turn_normals(np.zeros((3, 2)), np.zeros(2), np.eye(3), np.zeros((2, 3)), np.zeros((4, 2)))
