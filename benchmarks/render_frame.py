@@ -22,7 +22,8 @@ eyes' and the mouth's insides hidden by their openings' boxes on screen alone, n
 hulls (render.scan_rows's use_hulls off), and with the small triangles judged by their boxes
 alone and no eyeball hiding its socket (render.scan_rows's small_box 0, use_balls off), and with
 the teeth and gums hidden only behind the mouth's opening, not beside it (render.scan_rows's
-use_walls off); and the drawing alone (rows made beforehand: every
+use_walls off), and with the full lining, gums and tongue drawn with the coarse skin
+(render.scan_draw's lod_inside off); and the drawing alone (rows made beforehand: every
 triangle; also with the whole skin in its full shader, split_skin off), for comparison.
 `--scan-parts N` times where the scanned head's frame goes beyond the floor: the whole frame (shaded +
 HUD) against the same frame with one part left out (the HUD; the lashes; the mouth's inside; the
@@ -257,7 +258,8 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
     """The scanned head (the default face, sim.face.scan) shaded + HUD, in alternating 10-frame
     batches with the floor: each frame poses the whole scan from the simulated surface, makes its
     rows (normals, fold term) and draws; also with the full skin at any size (render.scan_lod's
-    coarse plain skin not used), the drawing alone (rows made beforehand), for a
+    coarse plain skin not used), with the full lining, gums and tongue (render.scan_lod's coarse
+    inside not used), the drawing alone (rows made beforehand), for a
     happiness onset, a surprise onset, the jaw dropped (AU27) and the face at rest (lips closed:
     the mouth's inside left out)."""
     import statistics
@@ -278,14 +280,15 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                 drawn.append(r.scan.look.mouth_open(rw[:, :3]))
             times: dict[str, list[tuple[float, float]]] = {"whole": [], "full_skin": [], "all_tris": [], "unseen": [],
                                                            "boxes": [], "full_lashes": [], "loose": [], "plane": [],
-                                                           "draw": [],
+                                                           "full_inside": [], "draw": [],
                                                            "unsplit": [], "floor": []}
             threads: dict[str, dict[str, list[float]]] = {k: {"main": [], "other": [], "raster": []}
-                                                          for k in ("whole", "full_skin", "loose", "plane")}
+                                                          for k in ("whole", "full_skin", "loose", "plane",
+                                                                    "full_inside")}
             for b in range(batches + 1):
                 for key, use_rows in (("whole", False), ("full_skin", False), ("all_tris", False), ("unseen", False),
                                       ("boxes", False), ("full_lashes", False), ("loose", False), ("plane", False),
-                                      ("draw", True),
+                                      ("full_inside", False), ("draw", True),
                                       ("unsplit", True)):
                     def frame(i: int, use: bool = use_rows, split: bool = key != "unsplit",
                               cull: bool = key != "all_tris", unseen: bool = key != "unseen",
@@ -294,6 +297,7 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                         if not use:
                             del s.scan_rows  # type: ignore[attr-defined]
                         r.scan.lod = lod
+                        r.scan.lod_inside = key != "full_inside"
                         r.scan.split_skin = split
                         r.scan.cull_on_cpu = cull
                         r.scan.cull_unseen = unseen
@@ -324,7 +328,7 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                    for k, v in times.items()}
             f, whole, draw, unsplit = med["floor"], med["whole"], med["draw"], med["unsplit"]
             every, unseen, full, boxes = med["all_tris"], med["unseen"], med["full_skin"], med["boxes"]
-            lashes, loose, plane = med["full_lashes"], med["loose"], med["plane"]
+            lashes, loose, plane, inside = med["full_lashes"], med["loose"], med["plane"], med["full_inside"]
             out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; "
                        f"floor {f[0]:.2f} ms (cpu {f[1]:.2f}); whole frame {whole[0]:.2f} ms = "
                        f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x; coarse skin drawn: "
@@ -336,13 +340,17 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                        f"insides hidden by their openings' boxes alone (not their hulls) {boxes[0] / f[0]:.2f}x "
                        f"(cpu {boxes[1] / f[1]:.2f}x), with the small triangles' boxes alone and no eyeball hiding "
                        f"the sockets {loose[0] / f[0]:.2f}x (cpu {loose[1] / f[1]:.2f}x), with the teeth and gums "
-                       f"hidden only behind the mouth's opening {plane[0] / f[0]:.2f}x (cpu {plane[1] / f[1]:.2f}x); "
+                       f"hidden only behind the mouth's opening {plane[0] / f[0]:.2f}x (cpu {plane[1] / f[1]:.2f}x), "
+                       f"with "
+                       f"the full lining, gums and tongue (the coarse skin) {inside[0] / f[0]:.2f}x "
+                       f"(cpu {inside[1] / f[1]:.2f}x); "
                        f"drawing alone "
                        f"{draw[0]:.2f} ms = {draw[0] / f[0]:.2f}x (cpu {draw[1] / f[1]:.2f}x); the same with "
                        f"the skin in one shader {unsplit[0] / f[0]:.2f}x (cpu {unsplit[1] / f[1]:.2f}x)")
             for key, label in (("whole", "whole frame's"), ("full_skin", "with the full skin,"),
                                ("loose", "with the small triangles' boxes alone and no eyeball hiding,"),
-                               ("plane", "with the teeth and gums hidden only behind the mouth's opening,")):
+                               ("plane", "with the teeth and gums hidden only behind the mouth's opening,"),
+                               ("full_inside", "with the full lining, gums and tongue,")):
                 if threads[key]["main"]:
                     out.append(f"{'':<10} {label} CPU by thread, ms: " + ", ".join(
                         f"{kind} {statistics.median(v):.2f}" for kind, v in threads[key].items()))

@@ -23,7 +23,7 @@ KINDS = ("SKIN", "CLAY", "HEAT")
 # term and the rest, most pixels, with the plain shader: the same colours, the highlight per vertex),
 # the eyeballs, the eye sockets, the mouth's inside
 CULLED = ("plain", "features", "eyes", "sockets", "mouth")
-# px²: the coarse plain skin (render.scan_lod) and the coarse lashes (render.scan_look) are drawn
+# px²: the coarse plain skin and mouth's inside (render.scan_lod) and the coarse lashes (render.scan_look) are drawn
 # while the full plain skin's median triangle would cover at most this at the head's nearest point
 # (at 1280x720 the default camera gives 32 px² there, a median of 9 px² over the face as drawn; the
 # gallery's 2x2 supersampled 480x480, 90 px²)
@@ -102,7 +102,10 @@ class ScanDraw:
             rest_scan = dressing.pose(np.asarray(rest_state.surface), PoseControl(rest_state))
         self.look = ScanLook(np.asarray(rest_scan, np.float64))
         self.coarse_tri = self.look.coarse_plain()
-        self.maker = ScanRows(self.look, self.coarse_tri, sealed_vertices(dressing))
+        # the mouth's lining, gums and tongue drawn from a coarser list with the coarse skin (render.scan_lod)
+        self.inside_full, self.coarse_inside = self.look.coarse_inside()
+        self.maker = ScanRows(self.look, np.concatenate([self.coarse_tri, self.coarse_inside]),
+                              sealed_vertices(dressing), len(self.coarse_inside))
         self.softener: FoldSoftener | None = FoldSoftener(self.look)  # None: the buckles drawn as simulated
         from render.scan_lod import coarse_plain
 
@@ -135,15 +138,25 @@ class ScanDraw:
         # the listing's groups (render.scan_rows: the scan's triangles, then the coarse plain skin's)
         # at each level of detail: the full skin, or its plain part from the coarse list
         own = look.group_of_triangles(CULLED)
-        plain = CULLED.index("plain")
-        self.group = np.concatenate([own, np.full(len(self.coarse_tri), -1, np.int8)])
-        self.group_coarse = np.concatenate([np.where(own == plain, -1, own),
-                                            np.full(len(self.coarse_tri), plain, np.int8)]).astype(np.int8)
+        plain, mouth = CULLED.index("plain"), CULLED.index("mouth")
+        extra = len(self.coarse_tri) + len(self.coarse_inside)
+        self.group = np.concatenate([own, np.full(extra, -1, np.int8)])
+        replaced = own == plain
+        lo = len(look.groups["skin"])  # `triangles` are the groups in order, the skin's first
+        replaced[lo:lo + len(self.inside_full)] |= self.inside_full
+        self.group_coarse = np.concatenate([np.where(replaced, -1, own), np.full(len(self.coarse_tri), plain),
+                                            np.full(len(self.coarse_inside), mouth)]).astype(np.int8)
+        self.group_coarse_skin = np.concatenate([np.where(own == plain, -1, own), np.full(len(self.coarse_tri), plain),
+                                                 np.full(len(self.coarse_inside), -1)]).astype(np.int8)
+        # the mouth's slice at the coarse level, as the listing orders it: the teeth, then the coarse inside
+        self.coarse_mouth = np.ascontiguousarray(np.concatenate([groups["mouth"][~self.inside_full],
+                                                                 self.coarse_inside]), np.int32)
         self.kept = self.cull_tri.copy()
         self.counts = self.full.copy()
         self._facing_rows: np.ndarray | None = None  # the rows `kept` was made with
         self._made_rows: np.ndarray | None = None  # the rows last made here (the lips' test made with them)
-        self._ibo_level: bool | None = False  # what the index buffer holds: a listing (None), every triangle of a level
+        # what the index buffer holds: a listing (None), every triangle of a level (coarse, coarse inside)
+        self._ibo_level: tuple[bool, bool] | None = (False, False)
         self._box = np.array([[x, y, z, 1.0] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
         lo, hi = self.bounds()
         self._box[:, :3] = lo + self._box[:, :3] * (hi - lo)
@@ -163,6 +176,7 @@ class ScanDraw:
         self.cull_on_cpu = True  # False: every triangle to OpenGL, which culls them (the same pixels)
         self.cull_unseen = True  # False: keep the triangles that cover no pixel or lie hidden inside the head (the same pixels)
         self.lod = True  # False: the full skin (and lashes) at any size on screen
+        self.lod_inside = True  # False: the full lining, gums and tongue with the coarse skin
         self.coarse = False  # this frame's level: the plain skin from the coarse list
         self._level_key: tuple[bytes, tuple[int, ...], bool] | None = None  # what `coarse` was chosen for
         self.left_out: set[str] = set()  # groups (of CULLED, or "lashes") not drawn: what each costs, measured
@@ -217,7 +231,7 @@ class ScanDraw:
             return self._made_rows
         if not self.cull_unseen:
             mvp = None
-        group = self.group_coarse if self.coarse else self.group
+        group = self.group if not self.coarse else self.group_coarse if self.lod_inside else self.group_coarse_skin
         rows = self._shaded(self.maker.rows(posed, eye, group, self.starts, self.kept, self.counts, mvp, size))
         self._facing_rows = self._made_rows = rows
         return rows
@@ -234,14 +248,19 @@ class ScanDraw:
                 self.ibo.write(self.kept[lo:lo + int(self.counts[g])], offset=lo * 12)
             self._ibo_level = None
             return
-        if self._ibo_level is not self.coarse:
+        inside = self.coarse and self.lod_inside
+        if self._ibo_level != (self.coarse, inside):
             self.ibo.write(self.cull_tri.tobytes())
             if self.coarse:  # the plain skin's slice comes first
                 self.ibo.write(self.coarse_tri.tobytes())
-            self._ibo_level = self.coarse
+            if inside:
+                self.ibo.write(self.coarse_mouth.tobytes(), offset=int(self.starts[CULLED.index("mouth")]) * 12)
+            self._ibo_level = (self.coarse, inside)
         self.counts[:] = self.full
         if self.coarse:
             self.counts[CULLED.index("plain")] = len(self.coarse_tri)
+        if inside:
+            self.counts[CULLED.index("mouth")] = len(self.coarse_mouth)
 
     def _render(self, vao: moderngl.VertexArray, group: str) -> None:
         g = CULLED.index(group)

@@ -23,10 +23,16 @@ lips' inner edge, the neck's cut), the skin around the eyes (lids, their folds, 
 the glabella's frown lines, the nose, the ears and the chin (which crumples for a moment as the
 jaw drops).
 
-The list is made once (`python -m render.scan_lod`, a few minutes) and shipped beside this module
-(`scan_lod.npz`): it depends only on the scan's topology, which every identity shares. `error_cm`
-is the largest distance, over the poses, from a vertex of the full plain skin to the coarse one.
-The renderer draws the coarse list while the skin's triangles are small on screen
+The mouth's lining, gums and tongue as drawn (`build_inside`; the teeth stay whole: no collapse of
+theirs keeps within the tolerances) are made coarser the same way, judged in the open mouth's
+poses (INSIDE_POSES, the tongue out among them), each part's borders and the two rings next to
+them kept whole (the lining's edge along the lips, the gums' and tongue's cut at their depth).
+
+The lists are made once (`python -m render.scan_lod`, a few minutes; `python -m render.scan_lod
+inside` the inside's alone) and shipped beside this module (`scan_lod.npz`): they depend only on
+the scan's topology, which every identity shares. `error_cm` (`inside_error_cm`) is the largest
+distance, over the poses, from a vertex of the full plain skin (inside) to the coarse one. The
+renderer draws both coarse lists while the skin's triangles are small on screen
 (render.scan_draw.ScanDraw.choose_level)."""
 
 from __future__ import annotations
@@ -326,13 +332,23 @@ def _point_triangle(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) 
     return np.where(inside, d_plane, d_edge)
 
 
-def deviation(coarse: np.ndarray, fine: np.ndarray, poses: np.ndarray) -> float:
+def deviation(coarse: np.ndarray, fine: np.ndarray, poses: np.ndarray, every: bool = False) -> float:
     """cm: the largest distance, over the poses, from a vertex of the fine triangles to the
-    coarse ones (the nearest 12 by centroid examined)."""
+    coarse ones (the nearest 12 by centroid examined; `every`: all of them, for layered surfaces
+    such as the tongue on the gums, where the nearest centroids may lie on the other layer)."""
     from scipy.spatial import cKDTree
 
     verts = np.unique(fine)
     worst = 0.0
+    if every:
+        for pos in poses:
+            near = np.full(len(verts), np.inf)
+            for lo in range(0, len(coarse), 512):
+                t = coarse[lo:lo + 512]
+                near = np.minimum(near, _point_triangle(pos[verts][:, None], pos[t[:, 0]][None], pos[t[:, 1]][None],
+                                                        pos[t[:, 2]][None]).min(axis=1))
+            worst = max(worst, float(near.max()))
+        return worst
     for pos in poses:
         cen = pos[coarse].mean(axis=1)
         _, idx = cKDTree(cen).query(pos[verts], k=12)
@@ -342,6 +358,22 @@ def deviation(coarse: np.ndarray, fine: np.ndarray, poses: np.ndarray) -> float:
     return worst
 
 
+def inside_of(tri: np.ndarray) -> np.ndarray:
+    """(T,) bool which of these triangles lie in INSIDE_PARTS (of the mouth's: what `coarse_inside`
+    stands for)."""
+    from sim.face.scan.data import PARTS
+
+    t = np.asarray(tri)
+    return (t >= PARTS[INSIDE_PARTS[0]][0]).all(axis=1) & (t < PARTS[INSIDE_PARTS[-1]][1]).all(axis=1)
+
+
+@lru_cache(maxsize=1)
+def coarse_inside() -> tuple[np.ndarray, float]:
+    """(K, 3) int32 the shipped coarse lining, gums and tongue and their error (cm)."""
+    with np.load(DATA, allow_pickle=False) as d:
+        return d["inside"].astype(np.int32), float(d["inside_error_cm"])
+
+
 @lru_cache(maxsize=1)
 def coarse_plain() -> tuple[np.ndarray, float]:
     """(K, 3) int32 the shipped coarse plain skin and its error (cm)."""
@@ -349,13 +381,110 @@ def coarse_plain() -> tuple[np.ndarray, float]:
         return d["plain"].astype(np.int32), float(d["error_cm"])
 
 
+# the open mouth's poses the coarse inside is judged in: the jaw dropped, the presets that part the
+# lips (sadness settles with them shut), and action units that open the mouth, the tongue out in two
+INSIDE_POSES = (("AU27",), ("AU27", "AU19"), ("AU19", "AU26"), ("AU25",), ("AU12", "AU25"), ("AU20", "AU25", "AU26"),
+                ("AU22", "AU25"), ("AU10", "AU16", "AU25"), "happiness", "surprise", "fear", "disgust", "contempt")
+INSIDE_PARTS = ("mouth_socket", "gums_tongue")  # the lining, the gums and the tongue (the teeth stay whole)
+
+
+def _open_poses() -> tuple[np.ndarray, np.ndarray]:
+    """(P, N, 3) positions and (P, N, 4) normal and fold term of the scanned head (the default
+    face) as drawn in INSIDE_POSES, each settled (60 steps, the onset over 40)."""
+    from render.scan_draw import ScanPoser, dressing_of
+    from sim.build import compile_model
+    from sim.face.scan.rig import SCAN_PARAMS, scan_rig
+    from sim.facs import apply_au, apply_expression, preset_face
+    from sim.integrator import Simulator
+    from sim.state import FaceControl
+
+    model = compile_model(scan_rig(None), SCAN_PARAMS)
+    poser = ScanPoser(dressing_of(model))
+    rows = []
+    for pose in INSIDE_POSES:
+        sim, state = Simulator(model), model.rest_state()
+        for k in range(60):
+            control = FaceControl(model)
+            w = min(1.0, (k + 1) / 40)
+            if isinstance(pose, str):
+                apply_expression(control, pose, w, preset_face(model.rig))
+            else:
+                for au in pose:
+                    apply_au(control, au, w)
+            sim.step(state, control)
+        rows.append(poser.rows(state).copy())
+    r = np.stack(rows).astype(np.float64)
+    return r[..., :3], r[..., 3:7]
+
+
+def build_inside(verbose: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
+    """The mouth's lining, gums and tongue as drawn (render.scan_look's "mouth" group, the teeth
+    left out) and a coarser list of them over the same vertices: ((F, 3) the full triangles
+    replaced, (K, 3) the coarse ones, the error in cm), judged over the open mouth's poses by the
+    skin's tolerances; each part's borders and the rings next to them kept whole."""
+    from render.scan_look import ScanLook, _static_layout
+    from sim.face.scan.data import N_VERTICES, PARTS, scan_data
+    from sim.springs import boundary_loops
+
+    lay = _static_layout()
+    mouth = lay["mouth"].astype(np.int64)
+    lo, hi = PARTS[INSIDE_PARTS[0]][0], PARTS[INSIDE_PARTS[-1]][1]
+    tri = mouth[(mouth >= lo).all(axis=1) & (mouth < hi).all(axis=1)]
+    pos, rows = _open_poses()
+    occ = ScanLook(scan_data().neutral).material[:, 2].astype(np.float64)
+    attr = np.concatenate([rows, np.broadcast_to(occ[None, :, None], (len(rows), N_VERTICES, 1))], axis=2)
+    keep = np.ones(N_VERTICES, bool)
+    keep[np.unique(tri)] = False
+    ring = np.zeros(N_VERTICES, bool)
+    for lp in boundary_loops(tri):
+        ring[np.asarray(lp)] = True
+    edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    for _ in range(OPENING_RINGS):
+        grow = ring.copy()
+        grow[edges[ring[edges[:, 0]], 1]] = True
+        grow[edges[ring[edges[:, 1]], 0]] = True
+        ring = grow
+    keep |= ring
+    col = _Collapser(tri, pos, attr, ~keep)
+    heap = []
+    for u in np.flatnonzero(~keep):
+        c, v = col.best(int(u))
+        if v >= 0:
+            heap.append((c, int(u), v, 0))
+    heapq.heapify(heap)
+    removed = 0
+    while heap:
+        c, u, v, ver = heapq.heappop(heap)
+        if ver != col.version[u] or not col.removable[u]:
+            continue
+        touched = col.collapse(u, v)
+        removed += 2
+        for w in touched:
+            col.version[w] += 1
+            c2, v2 = col.best(w)
+            if v2 >= 0:
+                heapq.heappush(heap, (c2, w, v2, int(col.version[w])))
+        if verbose and removed % 500 == 0:
+            print(f"removed {removed} of {len(tri)} triangles, error {c:.3f} of the tolerance", flush=True)
+    coarse = col.tri[col.alive]
+    return tri.astype(np.int32), coarse.astype(np.int32), deviation(coarse, tri, pos, every=True)
+
+
 def main() -> None:
-    coarse, err = build(verbose=True)
-    print(f"{len(coarse)} triangles, largest deviation over the poses {err * 10:.3f} mm")
+    """Builds both lists; `python -m render.scan_lod inside` builds the mouth's inside alone and keeps
+    the shipped plain skin."""
+    if sys.argv[1:] == ["inside"]:
+        coarse, err = coarse_plain()
+    else:
+        coarse, err = build(verbose=True)
+        print(f"{len(coarse)} triangles, largest deviation over the poses {err * 10:.3f} mm")
+    full, inside, inside_err = build_inside(verbose=True)
+    print(f"the mouth's inside {len(full)} -> {len(inside)} triangles, largest deviation {inside_err * 10:.3f} mm")
     fd, tmp = tempfile.mkstemp(dir=DATA.parent, suffix=".npz")
     os.close(fd)
     try:
-        np.savez_compressed(tmp, plain=coarse.astype(np.uint16), error_cm=np.float64(err))
+        np.savez_compressed(tmp, plain=coarse.astype(np.uint16), error_cm=np.float64(err),
+                            inside=inside.astype(np.uint16), inside_error_cm=np.float64(inside_err))
         os.replace(tmp, DATA)
     except BaseException:
         os.unlink(tmp)

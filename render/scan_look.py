@@ -520,6 +520,13 @@ class ScanLook:
 
         return spatial_order(coarse_plain()[0], self.rest).astype(np.int32)
 
+    def coarse_inside(self) -> tuple[np.ndarray, np.ndarray]:
+        """((T,) bool the mouth group's triangles that render.scan_lod's coarse inside stands for (its
+        lining, gums and tongue), (K, 3) int32 that coarse list, in Z-order)."""
+        from render.scan_lod import coarse_inside, inside_of
+
+        return inside_of(self.groups["mouth"]), spatial_order(coarse_inside()[0], self.rest).astype(np.int32)
+
     def coarse_lashes(self) -> np.ndarray:
         """(K, 3) int32 the lashes as fewer triangles (`coarse_lashes`), in Z-order as the full list;
         the full list when the scan's strips are not the grids expected."""

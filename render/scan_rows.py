@@ -27,12 +27,15 @@ class ScanRows:
     not drawn, and the rows of its deep part (what no drawn vertex's normal or fold reads) are left
     as they were: its triangles are a quarter of the scan's. `listed`: triangles over the same
     vertices listed after the scan's own (a group index per triangle of both chooses which are
-    drawn), that the normals and fold terms do not read (the coarse plain skin, render.scan_lod).
+    drawn), that the normals and fold terms do not read (the coarse plain skin, render.scan_lod),
+    the last `listed_mouth` of them the mouth's (the coarse lining, gums and tongue: hidden by the
+    mouth's opening as its triangles are, and passed over while the lips are shut).
     `sealed`: (N,) bool the vertices that never pass through the lips (the teeth and gums as the
     face's dressing poses them): the mouth's triangles among them may be hidden beside the mouth's
     opening as well as behind it (render.scan_kernel.seen_triangles)."""
 
-    def __init__(self, look: ScanLook, listed: np.ndarray | None = None, sealed: np.ndarray | None = None) -> None:
+    def __init__(self, look: ScanLook, listed: np.ndarray | None = None, sealed: np.ndarray | None = None,
+                 listed_mouth: int = 0) -> None:
         self.look = look
         self.buffer = np.zeros((N_VERTICES, 7), np.float32)
         self.scratch = np.zeros(N_VERTICES, np.float32)
@@ -48,6 +51,10 @@ class ScanRows:
         self.list_tri = np.ascontiguousarray(np.concatenate([self.tri, extra]), np.int32)
         self.list_skip = np.concatenate([self.skip_tri, np.zeros(len(extra), np.uint8)])
         self.list_behind = np.concatenate([look.behind, np.zeros(len(extra), look.behind.dtype)])
+        if listed_mouth:
+            lo = len(look.groups["skin"])  # `triangles` are the groups in order, the skin's first
+            self.list_skip[-listed_mouth:] = 1
+            self.list_behind[-listed_mouth:] = look.behind[lo:lo + len(look.groups["mouth"])].max(initial=0)
         self.loops = [np.asarray(lp, np.int32) for lp in look.openings]
         self.loop_ptr = np.cumsum([0, *(len(lp) for lp in self.loops)]).astype(np.int64)
         self.loop_all = np.ascontiguousarray(np.concatenate(self.loops) if self.loops else np.zeros(0, np.int32))
@@ -61,7 +68,7 @@ class ScanRows:
         self.sealed = np.zeros(len(self.list_tri), np.uint8)
         if sealed is not None and look.mouth_opening >= 0:
             mouth = np.zeros(len(self.list_tri), bool)
-            mouth[:len(self.tri)] = (look.behind >> look.mouth_opening) & 1 != 0
+            mouth[:] = (self.list_behind >> look.mouth_opening) & 1 != 0
             self.sealed[mouth & np.asarray(sealed, bool)[self.list_tri].all(axis=1)] = 1 << look.mouth_opening
         self.use_walls = True  # False: the teeth and gums hidden only behind the mouth's opening (the same pixels)
         self._no_walls = np.zeros_like(self.sealed)

@@ -136,6 +136,7 @@ def test_back_faces_left_out_on_the_cpu_change_no_pixel(gl) -> None:
     front, the side and behind, with the mouth open, the picture is the one OpenGL's own culling
     makes, and a good share of the triangles is left out."""
     from puppet.face_cache import scan_model
+    from render.scan_draw import CULLED
     from sim.facs import apply_au
     from sim.integrator import Simulator
     from sim.state import FaceControl
@@ -154,8 +155,9 @@ def test_back_faces_left_out_on_the_cpu_change_no_pixel(gl) -> None:
             culled = off.render_frame(state, record=False).astype(int)
             assert scan.mouth_drawn
             kept, whole = int(scan.counts.sum()), int(scan.full.sum())
-            if scan.coarse:  # this size draws the coarse plain skin (render.scan_lod): its whole list
+            if scan.coarse:  # this size draws the coarse plain skin and inside (render.scan_lod): their whole lists
                 whole -= int(scan.full[0]) - len(scan.coarse_tri)
+                whole -= int(scan.full[CULLED.index("mouth")]) - len(scan.coarse_mouth)
             scan.cull_on_cpu = False
             every = off.render_frame(state, record=False).astype(int)
             assert gl.error == "GL_NO_ERROR"

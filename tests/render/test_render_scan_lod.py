@@ -174,3 +174,78 @@ def test_coarse_lashes_look_like_the_full_ones(gl, posed) -> None:
             assert diff[head].mean() < 0.5, name
             assert (diff[head] > 8).mean() < 0.01, name
             assert gl.error == "GL_NO_ERROR"
+
+
+@pytest.fixture(scope="module")
+def mouth_open():
+    """The default face settled with the jaw dropped, with the tongue out (AU19+26) and surprised,
+    and settled at rest (the lips shut)."""
+    from puppet.face_cache import scan_model
+    from sim.facs import apply_au, apply_expression
+    from sim.integrator import Simulator
+    from sim.state import FaceControl
+
+    model = scan_model(None)
+    out = {}
+    for name, dial in (("jaw", lambda c, w: apply_au(c, "AU27", w)),
+                       ("tongue", lambda c, w: (apply_au(c, "AU19", w), apply_au(c, "AU26", w))),
+                       ("surprise", lambda c, w: apply_expression(c, "surprise", w)),
+                       ("rest", lambda c, w: None)):
+        sim, state = Simulator(model), model.rest_state()
+        for k in range(40):
+            control = FaceControl(model)
+            dial(control, min(1.0, (k + 1) / 30))
+            sim.step(state, control)
+        out[name] = state
+    return model, out
+
+
+def test_coarse_inside_stays_on_the_full_one(mouth_open) -> None:
+    """The coarse lining, gums and tongue (render.scan_lod.coarse_inside) are fewer triangles over
+    the same vertices, meeting the rest of the mouth and the lips' edge where the full ones do, and
+    with the mouth open every vertex of the full inside lies within the skin's tolerance of them."""
+    from render.scan_draw import ScanPoser, dressing_of
+    from render.scan_lod import TOL_CM, coarse_inside, deviation, inside_of
+
+    model, states = mouth_open
+    mouth = ScanLook(scan_data().neutral).groups["mouth"]
+    full = mouth[inside_of(mouth)]
+    coarse, error = coarse_inside()
+    assert len(coarse) < 0.6 * len(full)
+    assert set(np.unique(coarse)) <= set(np.unique(full))
+    d_full, d_coarse = _directed(full), _directed(coarse)
+    assert max(d_coarse.values()) == 1
+    border = {e for e in d_full if (e[1], e[0]) not in d_full}
+    assert {e for e in d_coarse if (e[1], e[0]) not in d_coarse} == border
+    assert 0.0 < error < 1.2 * TOL_CM
+    poser = ScanPoser(dressing_of(model))
+    for name in ("jaw", "tongue", "surprise"):
+        p = poser.rows(states[name])[:, :3].astype(np.float64)
+        assert deviation(coarse, full, p[None], every=True) < 1.2 * TOL_CM, name
+
+
+def test_coarse_inside_drawn_with_the_coarse_skin(gl, mouth_open) -> None:
+    """With the coarse skin the mouth's inside is drawn from fewer triangles, the picture of the full
+    inside but for a few levels on a few pixels inside the mouth; with the lips shut the picture is
+    the same to the byte."""
+    model, states = mouth_open
+    mouth = CULLED.index("mouth")
+    with OffscreenRenderer(model, (1280, 720), ctx=gl) as off:
+        scan = off.renderer.scan
+        for name, state in states.items():
+            scan.lod_inside = True
+            coarse = off.render_frame(state, record=False).astype(int)
+            drawn, opened = int(scan.counts[mouth]), scan.mouth_drawn
+            assert scan.coarse
+            scan.lod_inside = False
+            full = off.render_frame(state, record=False).astype(int)
+            scan.lod_inside = True
+            if name == "rest":
+                assert not opened and np.array_equal(full, coarse)
+                continue
+            assert opened and drawn < int(scan.counts[mouth]), (name, drawn, scan.counts)
+            diff = np.abs(full - coarse).max(axis=2)
+            assert diff.max() > 0, name  # the coarse inside was drawn
+            assert diff.mean() < 0.05, name  # levels of 255 over the picture
+            assert (diff > 8).mean() < 0.001, name
+        assert gl.error == "GL_NO_ERROR"
