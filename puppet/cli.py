@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import sys
 
 from devices.errors import DeviceError
@@ -68,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         code = int(args.func(args) or 0)
     except (PuppetError, DeviceError, BadFile) as err:
-        print(f"puppet: error: {err}", file=sys.stderr)
+        print(f"puppet: error: {short_words(str(err))}", file=sys.stderr)
         code = 2
     except KeyboardInterrupt:
         return 130
@@ -80,6 +81,12 @@ def main(argv: list[str] | None = None) -> int:
     if argv is None and getattr(args, "exit_at_once", False):
         exit_at_once(code)
     return code
+
+
+def short_words(message: str, longest: int = 300) -> str:
+    """The error line with any word longer than `longest` characters (a pasted path or value of
+    thousands) shown by its start and end, so the line stays short and still names the thing."""
+    return re.sub(r"\S{%d,}" % (longest + 1), lambda m: f"{m.group()[:120]}...{m.group()[-60:]}", message)
 
 
 def exit_at_once(code: int) -> None:

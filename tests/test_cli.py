@@ -65,3 +65,13 @@ def test_a_mistyped_face_is_the_only_line(tmp_path) -> None:
         r = subprocess.run([sys.executable, "-m", "puppet", "live", "--headless", "--duration", "1", "--face", face],
                            capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
         assert r.returncode == 2 and r.stderr.count("\n") == 1 and "demo" not in r.stderr, (face, r.stderr)
+
+
+def test_an_error_naming_a_pasted_huge_value_stays_one_short_line() -> None:
+    """A device spec of thousands of characters (a paste gone wrong) is named by its start and end:
+    one line, exit 2, not a screen of it."""
+    spec = "mock://" + "a" * 5000 + "x.toml"
+    r = subprocess.run([sys.executable, "-m", "puppet", "monitor", spec], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2
+    [line] = r.stderr.strip().splitlines()
+    assert line.startswith("puppet: error: mock://aaaa") and "a...a" in line and "ax.toml" in line and len(line) < 500
