@@ -132,29 +132,11 @@ def _pd_springs(y, springs, rest_len, k_low, k_high, thr, out, work):  # type: i
 
 
 @numba.njit(cache=True, nogil=True)
-def _csr_times(ptr, idx, val, x, out):  # type: ignore[no-untyped-def]
-    """out = A x for a CSR A and x (m, 3), each row summed in stored order from 0 (as scipy does)."""
-    for i in range(out.shape[0]):
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
-        for p in range(ptr[i], ptr[i + 1]):
-            a = val[p]
-            j = idx[p]
-            a0 += a * x[j, 0]
-            a1 += a * x[j, 1]
-            a2 += a * x[j, 2]
-        out[i, 0] = a0
-        out[i, 1] = a1
-        out[i, 2] = a2
-
-
-@numba.njit(cache=True, nogil=True)
 def _csr_times_flat(ptr, idx3, val, x, out):  # type: ignore[no-untyped-def]
-    """`_csr_times` with the same operations in the same order (the same bits), for a product made
-    every tick (the margin bending's rest side while the jaw moves): x flat (3m,), the row pointers
-    and three times the column indices as uint32 (`_flat_csr`), which spares the index arithmetic
-    and the negative-index checks: 0.13 -> 0.08 ms on the scanned head's 114,578 entries."""
+    """out = A x for a CSR A and x (m, 3) given flat (3m,), each row summed in stored order from 0
+    (as scipy does: the same bits): the row pointers and three times the column indices as uint32
+    (`_flat_csr`), which spares the index arithmetic and the negative-index checks (0.13 -> 0.08
+    ms on the scanned head's 114,578 entries of the margin bending, made every tick the jaw moves)."""
     for i in range(out.shape[0]):
         a0 = 0.0
         a1 = 0.0
@@ -222,7 +204,7 @@ def _held_rhs(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, xh, held
         i = held[k]
         for d in range(3):
             xh[k, d] = x[i, d]
-    _csr_times(fh_ptr, fh_idx, fh_val, xh, held_term)
+    _csr_times_flat(fh_ptr, fh_idx, fh_val, xh.reshape(-1), held_term)
     for q in range(free.shape[0]):
         i = free[q]
         r = perm_r[q]
@@ -487,7 +469,7 @@ class ImplicitStepper:
         self.free, self.held = prep["free"], prep["held"]
         self.mass_h2, self.damp_h, self.kn = prep["mass_h2"], prep["damp_h"], prep["kn"]
         self.rest = rest
-        self._fh = (prep["fh_ptr"], prep["fh_idx"], prep["fh_val"])
+        self._fh = _flat_csr(prep["fh_ptr"], prep["fh_idx"], prep["fh_val"])
         self._bend = (prep["bend_ptr"], prep["bend_idx"], prep["bend_val"])
         self._bend_flat = _flat_csr(*self._bend)
         self._folds = (prep["fold_tri"], prep["fold_frame"], prep["fold_dm_inv"], prep["fold_area"], prep["fold_k"],
@@ -581,11 +563,11 @@ class ImplicitStepper:
         b = np.array(ext, dtype=np.float64)
         if shape is not None and len(self._bend[2]):
             bend = np.zeros((n, 3))
-            _csr_times(*self._bend, np.ascontiguousarray(shape, dtype=np.float64), bend)
+            _csr_times_flat(*self._bend_flat, np.ascontiguousarray(shape, dtype=np.float64).reshape(-1), bend)
             b += bend
         held_term = np.zeros((len(self.free), 3))
         if held_at is not None:
-            _csr_times(*self._fh, np.ascontiguousarray(held_at, dtype=np.float64), held_term)
+            _csr_times_flat(*self._fh, np.ascontiguousarray(held_at, dtype=np.float64).reshape(-1), held_term)
         self.solver.solve(np.ascontiguousarray(b[self.free] - held_term), out)
 
     def _is_predicted(self, x: np.ndarray, v: np.ndarray, key: object) -> bool:
