@@ -73,30 +73,12 @@ def _poses() -> tuple[np.ndarray, np.ndarray]:
     and in each of the seven presets, simulated and dressed (wrinkles included); the generic head
     in a few of the scan's own extreme shapes; the first four identity modes at +-2.5 standard
     deviations."""
-    from render.scan_draw import ScanPoser, dressing_of
     from render.scan_look import ScanLook
     from render.scan_rows import ScanRows
     from sim.face.scan.data import scan_data
-    from sim.facs import EXPRESSIONS, apply_au, apply_expression, preset_face
-    from sim.integrator import Simulator
-    from sim.state import FaceControl
+    from sim.facs import EXPRESSIONS
 
-    from sim.build import compile_model
-    from sim.face.scan.rig import SCAN_PARAMS, scan_rig
-
-    model = compile_model(scan_rig(None), SCAN_PARAMS)  # the default face (the application caches it)
-    poser = ScanPoser(dressing_of(model))
-    rows = []
-    for name in (None, "AU27", *EXPRESSIONS):
-        sim, state = Simulator(model), model.rest_state()
-        for k in range(60):
-            control = FaceControl(model)
-            if name == "AU27":
-                apply_au(control, name, min(1.0, (k + 1) / 40))
-            elif name:
-                apply_expression(control, name, min(1.0, (k + 1) / 40), preset_face(model.rig))
-            sim.step(state, control)
-        rows.append(poser.rows(state).copy())
+    rows = _settled(((), ("AU27",), *EXPRESSIONS))
     d = scan_data()
     shapes = [d.neutral + d.expression(n) for n in EXTREMES]
     for k in range(4):
@@ -114,13 +96,10 @@ EXTREMES = ("jawOpen", "eyeBlink_L", "eyeBlink_R", "mouthSmile_L", "browInnerUp_
             "cheekPuff_L", "noseSneer_R", "mouthFunnel", "browDown_R")
 
 
-def _kept_whole(tri: np.ndarray, plain: np.ndarray, n: int) -> np.ndarray:
-    """(n,) bool: the vertices no collapse may remove."""
-    from sim.face.scan.data import scan_data
+def _border_rings(tri: np.ndarray, n: int) -> np.ndarray:
+    """(n,) bool: the vertices of the triangles' borders and the OPENING_RINGS rings next to them."""
     from sim.springs import boundary_loops
 
-    keep = np.zeros(n, bool)
-    keep[tri[~plain].ravel()] = True  # the brows' and lips' triangles and their border
     ring = np.zeros(n, bool)
     for lp in boundary_loops(tri):
         ring[np.asarray(lp)] = True
@@ -130,7 +109,17 @@ def _kept_whole(tri: np.ndarray, plain: np.ndarray, n: int) -> np.ndarray:
         grow[edges[ring[edges[:, 0]], 1]] = True
         grow[edges[ring[edges[:, 1]], 0]] = True
         ring = grow
-    keep |= ring
+    return ring
+
+
+def _kept_whole(tri: np.ndarray, plain: np.ndarray, n: int) -> np.ndarray:
+    """(n,) bool: the vertices no collapse may remove."""
+    from sim.face.scan.data import scan_data
+    from sim.springs import boundary_loops
+
+    keep = np.zeros(n, bool)
+    keep[tri[~plain].ravel()] = True  # the brows' and lips' triangles and their border
+    keep |= _border_rings(tri, n)
     neutral = scan_data().neutral
     for box, x in ((NOSE_BOX, neutral[:, 0]), (EAR_BOX, np.abs(neutral[:, 0])), (GLABELLA_BOX, neutral[:, 0]),
                    (CHIN_BOX, neutral[:, 0])):
@@ -252,23 +241,9 @@ class _Collapser:
         return touched
 
 
-def build(target: float = TARGET, verbose: bool = False) -> tuple[np.ndarray, float]:
-    """(K, 3) int32 the coarse plain skin (scan vertex indices, the scan's winding) and its error
-    (cm, see `deviation`)."""
-    from render.scan_look import BROW_CLEAR, LIP_CLEAR, ScanLook, _static_layout
-    from sim.face.scan.data import N_VERTICES, scan_data
-
-    lay = _static_layout()
-    tri = lay["skin"].astype(np.int64)
-    plain = (lay["brow"][tri] >= BROW_CLEAR).all(axis=1) & (lay["lip"][tri] >= LIP_CLEAR).all(axis=1)
-    n_skin = int(tri.max()) + 1
-    pos, rows = _poses()
-    occ = ScanLook(scan_data().neutral).material[:, 2].astype(np.float64)
-    attr = np.concatenate([rows, np.broadcast_to(occ[None, :, None], (len(rows), N_VERTICES, 1))], axis=2)
-    pos, attr = pos[:, :n_skin], attr[:, :n_skin]
-    keep = _kept_whole(tri, plain, N_VERTICES)[:n_skin]
-    col = _Collapser(tri, pos, attr, ~keep)
-    goal = int(plain.sum() * (1.0 - target))  # triangles to remove (two per collapse)
+def _collapse(col: "_Collapser", keep: np.ndarray, goal: int, say_every: int = 0) -> "_Collapser":
+    """Collapse the cheapest edges first (each vertex's best, re-judged when its fan changes) while
+    the tolerances allow, until `goal` triangles are removed; `say_every` removed: a progress line."""
     heap = []
     for u in np.flatnonzero(~keep):
         c, v = col.best(int(u))
@@ -287,8 +262,28 @@ def build(target: float = TARGET, verbose: bool = False) -> tuple[np.ndarray, fl
             c2, v2 = col.best(w)
             if v2 >= 0:
                 heapq.heappush(heap, (c2, w, v2, int(col.version[w])))
-        if verbose and removed % 1000 == 0:
+        if say_every and removed % say_every == 0:
             print(f"removed {removed}/{goal} triangles, error {c:.3f} of the tolerance", flush=True)
+    return col
+
+
+def build(target: float = TARGET, verbose: bool = False) -> tuple[np.ndarray, float]:
+    """(K, 3) int32 the coarse plain skin (scan vertex indices, the scan's winding) and its error
+    (cm, see `deviation`)."""
+    from render.scan_look import BROW_CLEAR, LIP_CLEAR, ScanLook, _static_layout
+    from sim.face.scan.data import N_VERTICES, scan_data
+
+    lay = _static_layout()
+    tri = lay["skin"].astype(np.int64)
+    plain = (lay["brow"][tri] >= BROW_CLEAR).all(axis=1) & (lay["lip"][tri] >= LIP_CLEAR).all(axis=1)
+    n_skin = int(tri.max()) + 1
+    pos, rows = _poses()
+    occ = ScanLook(scan_data().neutral).material[:, 2].astype(np.float64)
+    attr = np.concatenate([rows, np.broadcast_to(occ[None, :, None], (len(rows), N_VERTICES, 1))], axis=2)
+    pos, attr = pos[:, :n_skin], attr[:, :n_skin]
+    keep = _kept_whole(tri, plain, N_VERTICES)[:n_skin]
+    goal = int(plain.sum() * (1.0 - target))  # triangles to remove (two per collapse)
+    col = _collapse(_Collapser(tri, pos, attr, ~keep), keep, goal, 1000 if verbose else 0)
     out = col.tri[col.alive]
     # a triangle keeps its slot, and only plain triangles have a removable corner: the flags hold
     coarse = out[plain[col.alive]]
@@ -388,9 +383,10 @@ INSIDE_POSES = (("AU27",), ("AU27", "AU19"), ("AU19", "AU26"), ("AU25",), ("AU12
 INSIDE_PARTS = ("mouth_socket", "gums_tongue")  # the lining, the gums and the tongue (the teeth stay whole)
 
 
-def _open_poses() -> tuple[np.ndarray, np.ndarray]:
-    """(P, N, 3) positions and (P, N, 4) normal and fold term of the scanned head (the default
-    face) as drawn in INSIDE_POSES, each settled (60 steps, the onset over 40)."""
+def _settled(poses: tuple) -> list[np.ndarray]:
+    """The rows (render.scan_kernel.scan_rows) of the scanned head (the default face) as drawn in
+    each pose, settled (60 steps, the onset over 40): a pose is a tuple of action units or a
+    preset's name."""
     from render.scan_draw import ScanPoser, dressing_of
     from sim.build import compile_model
     from sim.face.scan.rig import SCAN_PARAMS, scan_rig
@@ -398,10 +394,10 @@ def _open_poses() -> tuple[np.ndarray, np.ndarray]:
     from sim.integrator import Simulator
     from sim.state import FaceControl
 
-    model = compile_model(scan_rig(None), SCAN_PARAMS)
+    model = compile_model(scan_rig(None), SCAN_PARAMS)  # the default face (the application caches it)
     poser = ScanPoser(dressing_of(model))
     rows = []
-    for pose in INSIDE_POSES:
+    for pose in poses:
         sim, state = Simulator(model), model.rest_state()
         for k in range(60):
             control = FaceControl(model)
@@ -413,7 +409,13 @@ def _open_poses() -> tuple[np.ndarray, np.ndarray]:
                     apply_au(control, au, w)
             sim.step(state, control)
         rows.append(poser.rows(state).copy())
-    r = np.stack(rows).astype(np.float64)
+    return rows
+
+
+def _open_poses() -> tuple[np.ndarray, np.ndarray]:
+    """(P, N, 3) positions and (P, N, 4) normal and fold term of the scanned head as drawn in
+    INSIDE_POSES, each settled."""
+    r = np.stack(_settled(INSIDE_POSES)).astype(np.float64)
     return r[..., :3], r[..., 3:7]
 
 
@@ -424,7 +426,6 @@ def build_inside(verbose: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
     skin's tolerances; each part's borders and the rings next to them kept whole."""
     from render.scan_look import ScanLook, _static_layout
     from sim.face.scan.data import N_VERTICES, PARTS, scan_data
-    from sim.springs import boundary_loops
 
     lay = _static_layout()
     mouth = lay["mouth"].astype(np.int64)
@@ -435,37 +436,8 @@ def build_inside(verbose: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
     attr = np.concatenate([rows, np.broadcast_to(occ[None, :, None], (len(rows), N_VERTICES, 1))], axis=2)
     keep = np.ones(N_VERTICES, bool)
     keep[np.unique(tri)] = False
-    ring = np.zeros(N_VERTICES, bool)
-    for lp in boundary_loops(tri):
-        ring[np.asarray(lp)] = True
-    edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
-    for _ in range(OPENING_RINGS):
-        grow = ring.copy()
-        grow[edges[ring[edges[:, 0]], 1]] = True
-        grow[edges[ring[edges[:, 1]], 0]] = True
-        ring = grow
-    keep |= ring
-    col = _Collapser(tri, pos, attr, ~keep)
-    heap = []
-    for u in np.flatnonzero(~keep):
-        c, v = col.best(int(u))
-        if v >= 0:
-            heap.append((c, int(u), v, 0))
-    heapq.heapify(heap)
-    removed = 0
-    while heap:
-        c, u, v, ver = heapq.heappop(heap)
-        if ver != col.version[u] or not col.removable[u]:
-            continue
-        touched = col.collapse(u, v)
-        removed += 2
-        for w in touched:
-            col.version[w] += 1
-            c2, v2 = col.best(w)
-            if v2 >= 0:
-                heapq.heappush(heap, (c2, w, v2, int(col.version[w])))
-        if verbose and removed % 500 == 0:
-            print(f"removed {removed} of {len(tri)} triangles, error {c:.3f} of the tolerance", flush=True)
+    keep |= _border_rings(tri, N_VERTICES)
+    col = _collapse(_Collapser(tri, pos, attr, ~keep), keep, len(tri), 500 if verbose else 0)
     coarse = col.tri[col.alive]
     return tri.astype(np.int32), coarse.astype(np.int32), deviation(coarse, tri, pos, every=True)
 
