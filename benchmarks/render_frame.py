@@ -25,6 +25,11 @@ the teeth and gums hidden only behind the mouth's opening, not beside it (render
 use_walls off), and with the full lining, gums and tongue drawn with the coarse skin
 (render.scan_draw's lod_inside off); and the drawing alone (rows made beforehand: every
 triangle; also with the whole skin in its full shader, split_skin off), for comparison.
+`--scan N --stream` times the scanned head (shaded + HUD) and the floor as streams of frames, each
+frame's pixels read back (the floor's too), serial and pipelined (render.pipeline: the next frame's
+CPU half made while llvmpipe rasterises the frame before; the floor's frames flushed and read at
+the next one the same way), in alternating 20-frame batches, and prints per pose the serial
+ratio and the stream ratio to the floor side by side, wall and CPU, with the CPU by thread.
 `--scan-parts N` times where the scanned head's frame goes beyond the floor: the whole frame (shaded +
 HUD) against the same frame with one part left out (the HUD; the lashes; the mouth's inside; the
 eyeballs; the eye sockets; the skin's brows and lips; its plain rest; every group; the posing and
@@ -33,6 +38,7 @@ thread: what a part costs is the whole frame's figure less the figure without it
 `--head-vs-mask N` times the default face with its held head against the mask alone in N
 alternating batches instead (both see the same load: the issue-11 budget, head at most 1.2x).
 Run: .venv/bin/python benchmarks/render_frame.py [--lp-threads 1,2] [--resolutions 0,1] [--mask]
+     .venv/bin/python benchmarks/render_frame.py --scan 10 --stream
      .venv/bin/python benchmarks/render_frame.py --head-vs-mask 30 --resolutions 0,2
 """
 
@@ -357,6 +363,124 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
     return out
 
 
+class _FloorStream:
+    """The floor (floor_ms's frame: a full-screen textured quad into a colour + depth framebuffer)
+    as a stream of frames read back, with render.pipeline.FrameStream's push/finish: serial, each
+    frame drawn and read back; pipelined, each frame drawn and flushed and read back at the next
+    push (the floor has no CPU half, so it gains only what the flush overlaps)."""
+
+    def __init__(self, ctx: object, size: tuple[int, int]) -> None:
+        import numpy as np
+
+        self.ctx, self.size = ctx, size
+        rng = np.random.default_rng(0)
+        self.tex = ctx.texture(size, 4, rng.integers(0, 255, (size[1], size[0], 4), dtype=np.uint8).tobytes())  # type: ignore[attr-defined]
+        self.prog = ctx.program(vertex_shader=FLOOR_VS, fragment_shader=FLOOR_FS)  # type: ignore[attr-defined]
+        self.quad = ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], dtype="f4").tobytes())  # type: ignore[attr-defined]
+        self.vao = ctx.vertex_array(self.prog, [(self.quad, "2f", "pos")])  # type: ignore[attr-defined]
+        self.fbo = ctx.framebuffer([ctx.renderbuffer(size, 4)], ctx.depth_renderbuffer(size))  # type: ignore[attr-defined]
+        self.pipelined = True
+        self._pending = False
+
+    def _draw(self) -> None:
+        self.fbo.use()
+        self.fbo.clear(0.2, 0.2, 0.2, 1.0)
+        self.tex.use(0)
+        self.vao.render(mode=5)  # triangle strip
+
+    def push(self, state: object = None, hud: object = None, tag: object = None) -> list[bytes]:
+        from render.pipeline import flush
+
+        if not self.pipelined:
+            self._draw()
+            return [self.fbo.read(components=3, alignment=1)]
+        done = self.finish()
+        self._draw()
+        flush()
+        self._pending = True
+        return done
+
+    def finish(self) -> list[bytes]:
+        if not self._pending:
+            return []
+        self._pending = False
+        return [self.fbo.read(components=3, alignment=1)]
+
+    def release(self) -> None:
+        for obj in (self.vao, self.quad, self.prog, self.tex, self.fbo):
+            obj.release()
+
+
+STREAM_BATCH = 20  # frames per timed batch of a stream: each batch fills and drains the pipeline once
+
+
+def scan_stream(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
+    """The scanned head shaded + HUD and the floor, each as a stream of frames read back (every
+    frame's pixels, the floor's too), serial (each frame drawn, then read back) and pipelined
+    (render.pipeline: the next frame's CPU half made while llvmpipe rasterises the frame before; the
+    floor's frames flushed and read back at the next one the same way), in alternating
+    STREAM_BATCH-frame batches (the onset's 30 frames in turn, the order of the four rotated each
+    batch): per pose the serial ratio and the stream ratio side by side, wall and CPU, and each
+    kind of thread's CPU a frame."""
+    import statistics
+
+    from render.offscreen import OffscreenRenderer
+
+    model, hud = _scan_and_hud()
+    floor = _FloorStream(ctx, size)
+    out = []
+    keys = ("floor serial", "floor stream", "scan serial", "scan stream")
+    try:
+        with OffscreenRenderer(model, size, ctx=ctx) as off:  # type: ignore[arg-type]
+            streams = {"scan serial": off.stream(False), "scan stream": off.stream(True)}
+            for expression in ("happiness", "surprise", "jaw_open", "neutral"):
+                states = _states(model, 30, expression)
+                times: dict[str, list[tuple[float, float]]] = {k: [] for k in keys}
+                threads: dict[str, list[tuple[float, ...]]] = {k: [] for k in keys}
+                loads = []
+                for b in range(batches + 1):
+                    order = keys[b % 4:] + keys[:b % 4]
+                    for key in order:
+                        if key.startswith("floor"):
+                            floor.pipelined = key == "floor stream"
+                            st: object = floor
+                        else:
+                            st = streams[key]
+                        got = 0
+
+                        def frame(i: int, st: object = st) -> None:
+                            nonlocal got
+                            k = b * STREAM_BATCH + i
+                            got += len(st.push(states[k % len(states)], hud, k))  # type: ignore[attr-defined]
+                            if i == STREAM_BATCH - 1:
+                                got += len(st.finish())  # type: ignore[attr-defined]
+
+                        before = _thread_cpu()
+                        t = _timed(frame, STREAM_BATCH)
+                        after = _thread_cpu()
+                        assert got == STREAM_BATCH, (key, got)
+                        if b:  # the first batch warms up
+                            times[key].append(t)
+                            threads[key].append(tuple((after.get(k, 0) - before.get(k, 0)) / 1e6 / STREAM_BATCH
+                                                      for k in ("main", "other", "raster")))
+                    loads.append(os.getloadavg()[0])
+                med = {k: (statistics.median(x for x, _ in v), statistics.median(c for _, c in v))
+                       for k, v in times.items()}
+                fs, fp, ss, sp = (med[k] for k in keys)
+                out.append(f"{expression:<10} load {min(loads):.1f}-{max(loads):.1f}; floor serial {fs[0]:.2f} ms "
+                           f"(cpu {fs[1]:.2f}), stream {fp[0]:.2f} ms (cpu {fp[1]:.2f}); scan serial {ss[0]:.2f} ms "
+                           f"(cpu {ss[1]:.2f}), stream {sp[0]:.2f} ms (cpu {sp[1]:.2f})")
+                out.append(f"{'':<10} x floor, wall: serial {ss[0] / fs[0]:.2f}x, stream {sp[0] / fp[0]:.2f}x; "
+                           f"cpu: serial {ss[1] / fs[1]:.2f}x, stream {sp[1] / fp[1]:.2f}x")
+                for key in keys:
+                    th = [statistics.median(x[j] for x in threads[key]) for j in range(3)]
+                    out.append(f"{'':<10} {key:<13} CPU a frame by thread, ms: main {th[0]:.2f}, "
+                               f"helper {th[1]:.2f}, raster {th[2]:.2f}")
+    finally:
+        floor.release()
+    return out
+
+
 SCAN_PARTS = {"HUD": (), "lashes": ("lashes",), "mouth's inside": ("mouth",), "eyeballs": ("eyes",),
               "eye sockets": ("sockets",), "brows and lips": ("features",), "plain skin": ("plain",),
               "every group": ("plain", "features", "eyes", "sockets", "mouth", "lashes")}
@@ -436,6 +560,9 @@ def main() -> None:
     ap.add_argument("--scan", type=int, default=0, metavar="BATCHES",
                     help="instead: the scanned head (the default face) shaded + HUD against the floor in "
                          "BATCHES alternating 10-frame batches")
+    ap.add_argument("--stream", action="store_true",
+                    help="with --scan: the scanned head and the floor as streams of frames read back, serial "
+                         "and pipelined (render.pipeline), in alternating batches")
     args = ap.parse_args()
     if args.lp_threads:
         for n in args.lp_threads.split(","):
@@ -460,6 +587,12 @@ def main() -> None:
         print(f"\nthe scanned head, shaded + HUD, and with one part left out: median per 10-frame batch over "
               f"{args.scan_parts} batches")
         for line in scan_parts(size, args.scan_parts, ctx):  # type: ignore[arg-type]
+            print(line)
+        return
+    if args.scan and args.stream:
+        print(f"\nthe scanned head, shaded + HUD, and the floor as streams of frames read back, serial and "
+              f"pipelined: median ms per {STREAM_BATCH}-frame batch over {args.scan} batches")
+        for line in scan_stream(size, args.scan, ctx):  # type: ignore[arg-type]
             print(line)
         return
     if args.scan:

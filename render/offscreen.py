@@ -13,6 +13,7 @@ import numpy as np
 from PIL import Image
 
 from render.hud import HudInfo
+from render.pipeline import FrameStream
 from render.renderer import FaceRenderer
 
 IMAGE_SUFFIXES = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG"}
@@ -66,6 +67,11 @@ class OffscreenRenderer:
         raw = self.fbo.read(components=3, alignment=1)
         img = np.frombuffer(raw, np.uint8).reshape(self.size[1], self.size[0], 3)
         return np.ascontiguousarray(img[::-1])
+
+    def stream(self, pipelined: bool = True) -> FrameStream:
+        """Frames drawn in a stream and read back (render.pipeline.FrameStream): pipelined, each
+        frame's CPU half is made while the frame before rasterises (the same pixels)."""
+        return FrameStream(self, pipelined)
 
     def release(self) -> None:
         if self.ctx.fbo is self.fbo:

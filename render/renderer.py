@@ -4,7 +4,7 @@ changes; `draw(state)` uploads the surface and its normals and nothing else that
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import moderngl
 import numpy as np
@@ -65,6 +65,16 @@ def _mat(m: np.ndarray) -> bytes:
     return np.ascontiguousarray(m.T, dtype=np.float32).tobytes()
 
 
+class Prepared(NamedTuple):
+    """A frame's CPU half made by `FaceRenderer.prepare`: the state, its rows (None: the state
+    brings its own), what they were made for, and the renderer's count of rows made then."""
+
+    state: Any
+    rows: np.ndarray | None
+    key: Any
+    made: int
+
+
 class FaceRenderer:
     """Renders one face model. Attributes a caller may change between frames: `view` (one of
     VIEWS), `camera` (OrbitCamera), `antialias` ("fxaa" | "none"), `supersample` (n: render n x n
@@ -85,6 +95,7 @@ class FaceRenderer:
         self.heat_scale = 0.8
         self.model: Any = None
         self.trails: TrailHistory | None = None
+        self._made = 0  # frames' rows made (prepare, draw): a prepared frame is used only if it is the last
         self.skin_progs = {kind: ctx.program(vertex_shader=shaders.skin_source(kind, vertex=True),
                                              fragment_shader=shaders.skin_source(kind))
                            for kind in ("SKIN", "CLAY", "HEAT")}
@@ -272,8 +283,42 @@ class FaceRenderer:
         return self._scene[1], self._scene[2]
 
     # -- per frame --------------------------------------------------------------------------------
-    def draw(self, state: Any, hud: HudInfo | None = None, record: bool = True) -> None:
-        """Draw `state` into the bound framebuffer's viewport; record its surface for the trails."""
+    def prepare(self, state: Any, size: tuple[int, int]) -> Prepared:
+        """The CPU half of drawing `state` into a viewport `size` = (w, h) pixels: the scanned
+        head posed and its rows and triangle lists made (or a mesh face's rows), no OpenGL call,
+        so it may run while llvmpipe still rasterises the frame before (render.pipeline).
+        `draw(state, prepared=...)` then uses it if nothing was made or changed since (the
+        camera, the size, another frame's rows); else it makes its own: the same pixels."""
+        w, h = int(size[0]), int(size[1])
+        ss = max(1, int(self.supersample))
+        self._made += 1
+        if self.scan is not None:
+            if getattr(state, "scan_rows", None) is not None:
+                return Prepared(state, None, None, self._made)
+            view_m, mvp = self._matrices(w / max(h, 1))
+            self.scan.choose_level(mvp, (w * ss, h * ss))
+            eye = np.linalg.inv(view_m)[:3, 3]
+            rows = self.scan.rows(state, eye, mvp, (w * ss, h * ss))
+            return Prepared(state, rows, (self._camera_key, (w, h), ss), self._made)
+        if getattr(state, "interleaved", None) is not None:
+            return Prepared(state, None, None, self._made)
+        surface = np.ascontiguousarray(state.surface, dtype=np.float32)
+        return Prepared(state, self.normals.interleaved(surface, head_turn(state)), None, self._made)
+
+    def _prepared_rows(self, prepared: Prepared | None, state: Any, w: int, h: int, ss: int) -> np.ndarray | None:
+        """The rows `prepared` made for this frame, or None when they are not this frame's."""
+        if prepared is None or prepared.rows is None or prepared.state is not state or prepared.made != self._made:
+            return None
+        if self.scan is not None:
+            self._matrices(w / max(h, 1))
+            if prepared.key != (self._camera_key, (w, h), ss):
+                return None
+        return prepared.rows
+
+    def draw(self, state: Any, hud: HudInfo | None = None, record: bool = True,
+             prepared: Prepared | None = None) -> None:
+        """Draw `state` into the bound framebuffer's viewport; record its surface for the trails.
+        `prepared`: this frame's CPU half made beforehand by `prepare` (the same pixels)."""
         if self.model is None or self.trails is None:
             raise RuntimeError("FaceRenderer.draw before populate(model)")
         ctx = self.ctx
@@ -282,12 +327,16 @@ class FaceRenderer:
             raise RuntimeError("FaceRenderer.draw needs a bound framebuffer (fbo.use())")
         vx, vy, w, h = target.viewport
         ss = max(1, int(self.supersample))
+        ready = self._prepared_rows(prepared, state, w, h, ss)
+        self._made += 1
         rows = getattr(state, "interleaved", None)  # x y z nx ny nz rows made elsewhere (an export's
         n = self.normals.n  # render process is handed them with the frame: see puppet.export.video)
         if self.scan is not None:
             scan_rows = getattr(state, "scan_rows", None)
             view_m, mvp = self._matrices(w / max(h, 1))
             self.scan.choose_level(mvp, (w * ss, h * ss))
+            if scan_rows is None:
+                scan_rows = ready
             if scan_rows is None:  # posed here: the camera's position lets it leave back faces out
                 eye = np.linalg.inv(view_m)[:3, 3]
                 scan_rows = self.scan.rows(state, eye, mvp, (w * ss, h * ss))
@@ -298,8 +347,10 @@ class FaceRenderer:
             else:
                 rows = None
         elif rows is None:
-            surface = np.ascontiguousarray(state.surface, dtype=np.float32)
-            rows = self.normals.interleaved(surface, head_turn(state))
+            rows = ready
+            if rows is None:
+                surface = np.ascontiguousarray(state.surface, dtype=np.float32)
+                rows = self.normals.interleaved(surface, head_turn(state))
             surface = np.ascontiguousarray(rows[:n, :3])  # as drawn: the head turned on the neck
         else:
             surface = np.ascontiguousarray(rows[:n, :3])

@@ -210,6 +210,7 @@ def export_together(perf: Performance, outputs: list[tuple[Path, ExportOptions]]
     elif shared:
         with ExitStack() as stack:
             plan: list[tuple[int, int, Callable[[Any], None]]] = []  # (tick, output, frame's add)
+            sinks: list[FrameSink] = []
             for i, out, kind, opts in shared:
                 if not out.parent.exists():
                     raise ConfigError(f"{out}: folder {out.parent} does not exist")
@@ -228,6 +229,7 @@ def export_together(perf: Performance, outputs: list[tuple[Path, ExportOptions]]
                 sink = FrameSink(perf.face.model, target, "mp4", opts.fps, opts.size, opts.view, opts.supersample,
                                  opts.preset or DEFAULT_PRESET, crf)
                 stack.callback(sink.close)
+                sinks.append(sink)
                 frames = iter(range(len(ticks)))
                 plan += [(k, i, lambda st, s=sink, f=frames: s.add(next(f), st)) for k in ticks]
                 done[i] = (f"wrote {len(ticks)} frames at {opts.fps:g} fps ({opts.size[0]}x{opts.size[1]}, "
@@ -237,6 +239,8 @@ def export_together(perf: Performance, outputs: list[tuple[Path, ExportOptions]]
             for k, _, add in plan:
                 rp.seek(k)
                 add(rp.state)
+            for sink in sinks:
+                sink.finish()
     return [done[i] for i in range(len(outputs))]
 
 

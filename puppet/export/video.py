@@ -56,7 +56,7 @@ class FrameSink:
 
     def __init__(self, model: Any, out: Path, kind: str, fps: float, size: tuple[int, int], view: str,
                  supersample: int = 1, preset: str = DEFAULT_PRESET, crf: int = DEFAULT_CRF,
-                 encode: bool = True) -> None:
+                 encode: bool = True, pipelined: bool = True) -> None:
         try:
             from render.offscreen import OffscreenRenderer, save_image
         except ImportError as err:
@@ -69,6 +69,9 @@ class FrameSink:
         except Exception as err:  # no EGL / GL: one clear line, not a traceback
             raise PuppetError(f"cannot create an offscreen OpenGL context: {err}") from err
         self.out, self.kind, self.size = out, kind, size
+        # pipelined (render.pipeline): a frame is written at the next `add` (or `finish`), its CPU
+        # half and the writing of the frame before it made while llvmpipe rasterises it
+        self.frames = self.renderer.stream(pipelined)
         self.writer: Encoder | None = None
         try:
             if kind == "mp4" and encode:
@@ -88,14 +91,27 @@ class FrameSink:
         return off.fbo.read(components=3, alignment=1)
 
     def add(self, j: int, state: Any) -> None:
+        """Draw frame `j`; write it (pipelined: write the frame added before it)."""
+        for k, raw in self.frames.push(state, None, j):
+            self._write(k, raw)
+
+    def finish(self) -> None:
+        """Write the frame still being drawn (after the last `add`)."""
+        for k, raw in self.frames.finish():
+            self._write(k, raw)
+
+    def _write(self, j: int, raw: bytes) -> None:
         if self.kind == "mp4":
             assert self.writer is not None
-            self.writer.add(self.raw(state))
+            self.writer.add(raw)
             return
-        img = self.renderer.render_frame(state)
+        from render.pipeline import image
+
+        img = image(raw, self.renderer.size)
         self._save(img, self.out if self.kind == "png" else self.out / f"frame_{j:06d}.png")
 
     def close(self) -> None:
+        """Release the renderer and close the file (a frame still drawn and not `finish`ed is dropped)."""
         try:
             if self.writer is not None:
                 self.writer.close()
@@ -213,7 +229,7 @@ def worker_main() -> int:
 
         model = RenderModel(load_rig(cfg["rig"]), cfg.get("scan_rest"))
         sink = FrameSink(model, Path(cfg["out"]), cfg["kind"], cfg["fps"], tuple(cfg["size"]), cfg["view"],
-                         supersample=cfg.get("supersample", 1), encode=False)
+                         supersample=cfg.get("supersample", 1), encode=False, pipelined=False)
     except Exception as err:  # reported to the parent as one message
         send(-2, f"{type(err).__name__}: {err}".encode())
         return 1
@@ -250,6 +266,7 @@ def render_serial(model: Any, out: Path, kind: str, fps: float, size: tuple[int,
         for j, state in frames:
             sink.add(j, state)
             progress(1)
+        sink.finish()
     finally:
         sink.close()
 
