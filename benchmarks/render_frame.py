@@ -380,7 +380,7 @@ class _FloorStream:
         self.vao = ctx.vertex_array(self.prog, [(self.quad, "2f", "pos")])  # type: ignore[attr-defined]
         self.fbo = ctx.framebuffer([ctx.renderbuffer(size, 4)], ctx.depth_renderbuffer(size))  # type: ignore[attr-defined]
         self.pipelined = True
-        self._pending = False
+        self._pending: list[object] = []
 
     def _draw(self) -> None:
         self.fbo.use()
@@ -388,23 +388,23 @@ class _FloorStream:
         self.tex.use(0)
         self.vao.render(mode=5)  # triangle strip
 
-    def push(self, state: object = None, hud: object = None, tag: object = None) -> list[bytes]:
+    def push(self, state: object = None, hud: object = None, tag: object = None) -> list[tuple[object, bytes]]:
         from render.pipeline import flush
 
         if not self.pipelined:
             self._draw()
-            return [self.fbo.read(components=3, alignment=1)]
+            return [(tag, self.fbo.read(components=3, alignment=1))]
         done = self.finish()
         self._draw()
         flush()
-        self._pending = True
+        self._pending = [tag]
         return done
 
-    def finish(self) -> list[bytes]:
+    def finish(self) -> list[tuple[object, bytes]]:
         if not self._pending:
             return []
-        self._pending = False
-        return [self.fbo.read(components=3, alignment=1)]
+        tag, self._pending = self._pending[0], []
+        return [(tag, self.fbo.read(components=3, alignment=1))]
 
     def release(self) -> None:
         for obj in (self.vao, self.quad, self.prog, self.tex, self.fbo):
@@ -420,8 +420,8 @@ def scan_stream(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
     (render.pipeline: the next frame's CPU half made while llvmpipe rasterises the frame before; the
     floor's frames flushed and read back at the next one the same way), in alternating
     STREAM_BATCH-frame batches (the onset's 30 frames in turn, the order of the four rotated each
-    batch): per pose the serial ratio and the stream ratio side by side, wall and CPU, and each
-    kind of thread's CPU a frame."""
+    batch): per pose the serial ratio and the stream ratio side by side, wall and CPU, each kind
+    of thread's CPU a frame, and the latency: from the push of a state to its pixels read back."""
     import statistics
 
     from render.offscreen import OffscreenRenderer
@@ -437,6 +437,7 @@ def scan_stream(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
                 states = _states(model, 30, expression)
                 times: dict[str, list[tuple[float, float]]] = {k: [] for k in keys}
                 threads: dict[str, list[tuple[float, ...]]] = {k: [] for k in keys}
+                latency: dict[str, list[float]] = {k: [] for k in keys}  # push of a state -> its pixels back
                 loads = []
                 for b in range(batches + 1):
                     order = keys[b % 4:] + keys[:b % 4]
@@ -447,13 +448,19 @@ def scan_stream(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
                         else:
                             st = streams[key]
                         got = 0
+                        pushed: dict[int, float] = {}
 
-                        def frame(i: int, st: object = st) -> None:
+                        def frame(i: int, st: object = st, key: str = key) -> None:
                             nonlocal got
                             k = b * STREAM_BATCH + i
-                            got += len(st.push(states[k % len(states)], hud, k))  # type: ignore[attr-defined]
+                            pushed[k] = time.perf_counter()
+                            done = st.push(states[k % len(states)], hud, k)  # type: ignore[attr-defined]
                             if i == STREAM_BATCH - 1:
-                                got += len(st.finish())  # type: ignore[attr-defined]
+                                done += st.finish()  # type: ignore[attr-defined]
+                            now = time.perf_counter()
+                            got += len(done)
+                            if b:
+                                latency[key] += [(now - pushed[j]) * 1e3 for j, _ in done]
 
                         before = _thread_cpu()
                         t = _timed(frame, STREAM_BATCH)
@@ -475,7 +482,8 @@ def scan_stream(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
                 for key in keys:
                     th = [statistics.median(x[j] for x in threads[key]) for j in range(3)]
                     out.append(f"{'':<10} {key:<13} CPU a frame by thread, ms: main {th[0]:.2f}, "
-                               f"helper {th[1]:.2f}, raster {th[2]:.2f}")
+                               f"helper {th[1]:.2f}, raster {th[2]:.2f}; a state's push to its pixels back "
+                               f"{statistics.median(latency[key]):.2f} ms (median)")
     finally:
         floor.release()
     return out
