@@ -381,6 +381,7 @@ class _FloorStream:
         self.fbo = ctx.framebuffer([ctx.renderbuffer(size, 4)], ctx.depth_renderbuffer(size))  # type: ignore[attr-defined]
         self.pipelined = True
         self._pending: list[object] = []
+        self.read_at = 0.0
 
     def _draw(self) -> None:
         self.fbo.use()
@@ -393,7 +394,9 @@ class _FloorStream:
 
         if not self.pipelined:
             self._draw()
-            return [(tag, self.fbo.read(components=3, alignment=1))]
+            raw = self.fbo.read(components=3, alignment=1)
+            self.read_at = time.perf_counter()
+            return [(tag, raw)]
         done = self.finish()
         self._draw()
         flush()
@@ -404,7 +407,9 @@ class _FloorStream:
         if not self._pending:
             return []
         tag, self._pending = self._pending[0], []
-        return [(tag, self.fbo.read(components=3, alignment=1))]
+        raw = self.fbo.read(components=3, alignment=1)
+        self.read_at = time.perf_counter()
+        return [(tag, raw)]
 
     def release(self) -> None:
         for obj in (self.vao, self.quad, self.prog, self.tex, self.fbo):
@@ -455,12 +460,11 @@ def scan_stream(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
                             k = b * STREAM_BATCH + i
                             pushed[k] = time.perf_counter()
                             done = st.push(states[k % len(states)], hud, k)  # type: ignore[attr-defined]
+                            if done and b:  # a frame's pixels are ready when read back (before the push draws)
+                                latency[key] += [(st.read_at - pushed[j]) * 1e3 for j, _ in done]  # type: ignore[attr-defined]
                             if i == STREAM_BATCH - 1:
                                 done += st.finish()  # type: ignore[attr-defined]
-                            now = time.perf_counter()
                             got += len(done)
-                            if b:
-                                latency[key] += [(now - pushed[j]) * 1e3 for j, _ in done]
 
                         before = _thread_cpu()
                         t = _timed(frame, STREAM_BATCH)
@@ -482,7 +486,7 @@ def scan_stream(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
                 for key in keys:
                     th = [statistics.median(x[j] for x in threads[key]) for j in range(3)]
                     out.append(f"{'':<10} {key:<13} CPU a frame by thread, ms: main {th[0]:.2f}, "
-                               f"helper {th[1]:.2f}, raster {th[2]:.2f}; a state's push to its pixels back "
+                               f"helper {th[1]:.2f}, raster {th[2]:.2f}; a state's push to its pixels read back "
                                f"{statistics.median(latency[key]):.2f} ms (median)")
     finally:
         floor.release()

@@ -33,6 +33,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--headless", action="store_true", help="no window: for scripted and recorded runs")
     p.add_argument("--duration", type=float, metavar="S", help="stop cleanly after S seconds")
     p.add_argument("--fullscreen", action="store_true", help="fullscreen window")
+    p.add_argument("--pipelined", action="store_true",
+                   help="window: make each frame's posing while the frame before is still being drawn (more "
+                   "frames a second on a software rasterizer, each shown a frame later)")
     p.add_argument("--demo", action="store_true",
                    help="perform the built-in demo (about 20 s): in the window when there is a display, "
                    "else headless into a recording, an MP4 and a PNG in the current folder")
@@ -432,7 +435,7 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
                 d.start()
             pictures = [p.face_feed for p in panel_devices(devs) if p.face_feed.mode == "picture"]
             run_window(core, queue.drain, args.duration, devs, fullscreen=args.fullscreen, stop=stop, win=win,
-                       pictures=pictures)
+                       pictures=pictures, pipelined=args.pipelined)
         else:
             # real-time scheduling wherever it is permitted (None: the default, tried quietly), as
             # audio programs do: on a busy machine the ordinary scheduling delays ticks by 13-160 ms

@@ -957,13 +957,15 @@ def open_live_window(model: Any, devs: Sequence[Any]) -> Any:
 
 def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float | None, devs: Sequence[Any],
                fullscreen: bool = False, stop: StopFlag | None = None, win: Any = None,
-               pictures: Sequence[Any] = ()) -> None:
+               pictures: Sequence[Any] = (), pipelined: bool = False) -> None:
     """Ticks on the wall clock (at most 4 per frame, then the schedule re-anchors), frames at the
     window's pace; latency is measured when the frame showing an event has been swapped. `win`: a
     window from `open_live_window` (else one is opened here). `pictures`: the performer's pages'
     face feeds (puppet.panel.face.FaceFeed); while a page watches, the window's own frame is read
     back and offered to them PICTURE_HZ times a second, so the pages show the audience's pixels and
-    the server draws nothing of its own."""
+    the server draws nothing of its own. `pipelined`: each frame's CPU half made while the frame
+    before still rasterises (render.window.FaceWindow.pipelined): more frames a second on a
+    software rasterizer, each shown one step later; the latency counts to the swap that shows it."""
     kb, keymap = _keyboard_alone(devs)
     if win is None:
         win = open_live_window(core.face.model, devs)
@@ -972,6 +974,8 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
         return
     if fullscreen:
         win.toggle_fullscreen()
+    win.pipelined = pipelined
+    held: list[float] = []  # pipelined: the events in the frame drawn, shown by the next step's swap
 
     def on_key(name: str, action: str, t: float) -> None:
         if action == "press" and _common_key(win, name):
@@ -1026,9 +1030,15 @@ def run_window(core: LiveCore, drain: Callable[[], list[Event]], duration: float
             sched["start"] = time.monotonic()
             while True:
                 t_frame = time.monotonic()
+                shown = win.frames_shown
                 if not win.step():
                     break
-                core.presented(time.monotonic())  # after the swap: the frame is on its way to the screen
+                if pipelined:  # this step showed the frame the step before drew
+                    drawn = list(core.unpresented)
+                    core.unpresented[:] = held
+                    held = drawn
+                if win.frames_shown > shown:
+                    core.presented(time.monotonic())  # after the swap: the frame is on its way to the screen
                 core.after_frame()
                 runtime.after_frame()
                 # the HUD for the next frame is built off the critical path (it is one frame old)

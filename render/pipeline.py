@@ -13,6 +13,7 @@ them (encoding, writing) runs while frame N+1 rasterises."""
 from __future__ import annotations
 
 import ctypes
+import time
 from typing import Any
 
 import numpy as np
@@ -44,12 +45,14 @@ class FrameStream:
     `push(state, hud, tag)` returns the frames read back by then as (tag, raw) pairs, raw being the
     RGB rows bottom row first (`OffscreenRenderer.image` turns them into a picture): pipelined, the
     frame pushed before this one (drawn while this one's CPU half was made); serial
-    (`pipelined=False`), this one. `finish()` returns the last one still in flight."""
+    (`pipelined=False`), this one. `finish()` returns the last one still in flight. `read_at`: when
+    the last frame returned was read back (its pixels were ready then, before this push's drawing)."""
 
     def __init__(self, off: Any, pipelined: bool = True) -> None:
         self.off = off
         self.pipelined = pipelined
         self._pending: list[Any] = []  # the tag of the frame drawn and flushed, not yet read
+        self.read_at = 0.0  # time.perf_counter() when the last frame's pixels were read back
 
     def push(self, state: Any, hud: HudInfo | None = None, tag: Any = None,
              record: bool = True) -> list[tuple[Any, bytes]]:
@@ -77,7 +80,9 @@ class FrameStream:
         off.renderer.draw(state, hud=hud, record=record, prepared=prepared)
 
     def _read(self) -> bytes:
-        return self.off.fbo.read(components=3, alignment=1)
+        raw = self.off.fbo.read(components=3, alignment=1)
+        self.read_at = time.perf_counter()
+        return raw
 
 
 def image(raw: bytes, size: tuple[int, int]) -> np.ndarray:

@@ -18,6 +18,7 @@ import moderngl
 import numpy as np
 
 from render.hud import HudInfo
+from render.pipeline import flush
 from render.renderer import VIEWS, FaceRenderer, affordable_antialias
 
 KeyCallback = Callable[[str, str, float], None]
@@ -106,6 +107,15 @@ class FaceWindow:
         self.builtin_keys = builtin_keys
         self.key_help: list[str] | None = None if key_help is None else list(key_help)
         self.fps = 0.0
+        #: pipelined frames (render.pipeline): each step makes its frame's CPU half while llvmpipe
+        #: still rasterises the frame the step before drew, then shows that frame and draws its own;
+        #: a frame is shown one step later than serially (`shown` says which state is on screen)
+        self.pipelined = False
+        #: the state whose frame is in the back buffer, drawn and not yet shown (what `after_draw`
+        #: callbacks read back), and the state of the frame last shown (swapped)
+        self.drawn: Any = None
+        self.shown: Any = None
+        self.frames_shown = 0  # swaps so far
         self._last_frame: float | None = None
         self._drag: tuple[float, float] | None = None
         self._windowed: tuple[int, int, int, int] | None = None
@@ -138,17 +148,20 @@ class FaceWindow:
         w, h = glfw.get_framebuffer_size(self.win)
         return int(w), int(h)
 
-    def draw(self) -> None:
-        """Draw the current state and HUD into the back buffer (without swapping)."""
+    def draw(self, prepared: Any = None) -> None:
+        """Draw the current state and HUD into the back buffer (without swapping); `prepared`: its
+        CPU half made beforehand (FaceRenderer.prepare)."""
         glfw.make_context_current(self.win)
         screen = self.ctx.screen
         screen.use()
         w, h = self.framebuffer_size()
         screen.viewport = (0, 0, max(w, 1), max(h, 1))
-        self.renderer.draw(self.state, hud=self._hud_for_frame())
+        self.renderer.draw(self.state, hud=self._hud_for_frame(), prepared=prepared)
 
     def step(self, wait: float | None = None) -> bool:
         """One frame: events, frame callbacks, draw, swap. False once the window should close.
+        `pipelined`: events, frame callbacks, this frame's CPU half, swap (the frame the step
+        before drew), draw and flush this one (shown by the next step).
 
         wait: block up to this many seconds for an event first (a still face needs no redraws
         until the viewer does something); None polls, for a live face changing every frame."""
@@ -165,11 +178,29 @@ class FaceWindow:
             fn(self, now)
         if self.should_close:
             return False
+        if self.pipelined:
+            glfw.make_context_current(self.win)
+            w, h = self.framebuffer_size()
+            prepared = self.renderer.prepare(self.state, (max(w, 1), max(h, 1)))  # the last frame rasterises
+            self.present()
+            self.draw(prepared)
+            flush()
+            self.drawn = self.state
+            return not self.should_close
         self.draw()
+        self.drawn = self.state
+        self.present()
+        return not self.should_close
+
+    def present(self) -> None:
+        """Show the frame drawn and not yet shown, if any (its `after_draw` callbacks first)."""
+        if self.drawn is None:
+            return
         for fn in self.after_draw:
             fn(self)
         glfw.swap_buffers(self.win)
-        return not self.should_close
+        self.shown, self.drawn = self.drawn, None
+        self.frames_shown += 1
 
     def run(self, max_frames: int | None = None, wait: float | None = None) -> None:
         """Show frames until the window is closed (or `max_frames` were shown); see `step`."""

@@ -1,5 +1,5 @@
 """The window under Xvfb, driven by xdotool: the keyboard fallback moves a muscle in a recorded
-live session; the replay window opens, takes transport keys and quits."""
+live session (frames serial or pipelined); the replay window opens, takes transport keys and quits."""
 
 from __future__ import annotations
 
@@ -40,10 +40,11 @@ def _need_xdotool() -> None:
         pytest.fail("xdotool is not installed: run `bash .ci/setup`")
 
 
-def test_keyboard_fallback_drives_a_muscle_in_the_window(xvfb_display: str, tmp_path: Path) -> None:
+@pytest.mark.parametrize("mode", [[], ["--pipelined"]], ids=["serial", "pipelined"])
+def test_keyboard_fallback_drives_a_muscle_in_the_window(xvfb_display: str, tmp_path: Path, mode: list[str]) -> None:
     rec = tmp_path / "kb.jsonl"
     env = {**os.environ, "DISPLAY": xvfb_display}
-    proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--record", str(rec), "--duration", "30"],
+    proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--record", str(rec), "--duration", "30", *mode],
                             env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         wid = _wait_window(xvfb_display, "facepuppet live", proc)

@@ -52,3 +52,23 @@ def test_window_without_display_raises_no_display(monkeypatch: pytest.MonkeyPatc
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     with pytest.raises(NoDisplayError, match="DISPLAY"):
         FaceWindow(faces.model)
+
+
+PIPELINE_PROBE = Path(__file__).with_name("window_pipeline_probe.py")
+
+
+def test_pipelined_window_shows_the_serial_frames(xvfb_display: str, tmp_path: Path) -> None:
+    """Pipelined (each step makes its frame's CPU half while the frame before still rasterises,
+    then shows that one): every state drawn reaches the window with the serial frame's pixels."""
+    env = {**os.environ, "DISPLAY": xvfb_display, "PYTHONPATH": str(ROOT)}
+    run = subprocess.run([sys.executable, str(PIPELINE_PROBE), str(tmp_path)], env=env, cwd=ROOT,
+                         capture_output=True, text=True, timeout=180)
+    assert run.returncode == 0, run.stderr[-2000:]
+    serial, piped = np.load(tmp_path / "serial.npz"), np.load(tmp_path / "pipelined.npz")
+    shown = json.loads((tmp_path / "shown.json").read_text())
+    assert sorted(serial.files) == sorted(piped.files) and len(serial.files) >= 9
+    n = len(serial.files)
+    assert shown == {"serial": [n - 1], "pipelined": [n - 1]}  # the last state is the one left on screen
+    for k in serial.files:
+        assert np.array_equal(serial[k], piped[k]), k
+    assert np.abs(serial["f0"].astype(int) - serial[f"f{n - 1}"].astype(int)).mean() > 0.1  # the face moved
