@@ -481,8 +481,12 @@ def scan_stream(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
                 out.append(f"{expression:<10} load {min(loads):.1f}-{max(loads):.1f}; floor serial {fs[0]:.2f} ms "
                            f"(cpu {fs[1]:.2f}), stream {fp[0]:.2f} ms (cpu {fp[1]:.2f}); scan serial {ss[0]:.2f} ms "
                            f"(cpu {ss[1]:.2f}), stream {sp[0]:.2f} ms (cpu {sp[1]:.2f})")
+                quicker = sum(p[0] < q[0] for p, q in zip(times["scan stream"], times["scan serial"]))
+                floor_quicker = sum(p[0] < q[0] for p, q in zip(times["floor stream"], times["floor serial"]))
                 out.append(f"{'':<10} x floor, wall: serial {ss[0] / fs[0]:.2f}x, stream {sp[0] / fp[0]:.2f}x; "
-                           f"cpu: serial {ss[1] / fs[1]:.2f}x, stream {sp[1] / fp[1]:.2f}x")
+                           f"cpu: serial {ss[1] / fs[1]:.2f}x, stream {sp[1] / fp[1]:.2f}x; the stream quicker than "
+                           f"serial in {quicker}/{batches} batches (the floor's: {floor_quicker}/{batches}), the scan's "
+                           f"wall time stream / serial {sp[0] / ss[0]:.2f}")
                 for key in keys:
                     th = [statistics.median(x[j] for x in threads[key]) for j in range(3)]
                     out.append(f"{'':<10} {key:<13} CPU a frame by thread, ms: main {th[0]:.2f}, "
