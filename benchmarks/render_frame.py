@@ -30,6 +30,9 @@ frame's pixels read back (the floor's too), serial and pipelined (render.pipelin
 CPU half made while llvmpipe rasterises the frame before; the floor's frames flushed and read at
 the next one the same way), in alternating 20-frame batches, and prints per pose the serial
 ratio and the stream ratio to the floor side by side, wall and CPU, with the CPU by thread.
+`--scan N --window` does the same in a window on $DISPLAY (run it under `xvfb-run -s "-screen 0
+1920x1080x24"` without a display): each step a new state shown, serial and pipelined
+(render.window.FaceWindow.pipelined), with the swap's own time.
 `--scan-parts N` times where the scanned head's frame goes beyond the floor: the whole frame (shaded +
 HUD) against the same frame with one part left out (the HUD; the lashes; the mouth's inside; the
 eyeballs; the eye sockets; the skin's brows and lips; its plain rest; every group; the posing and
@@ -497,6 +500,67 @@ def scan_stream(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
     return out
 
 
+def scan_window(size: tuple[int, int], batches: int) -> list[str]:
+    """The scanned head shaded + HUD in a FaceWindow on $DISPLAY (no vsync), each step showing a new
+    state, serial and pipelined (FaceWindow.pipelined) in alternating STREAM_BATCH-step batches: per
+    pose the median step (wall, CPU) and swap (wall: serially it waits for the rasterisation and
+    copies the frame to the X server; pipelined the rasterisation is mostly done by then)."""
+    import statistics
+
+    import glfw
+
+    from render.window import FaceWindow
+
+    model, hud = _scan_and_hud()
+    out = []
+    with FaceWindow(model, size=size, title="render_frame", vsync=False) as win:  # type: ignore[arg-type]
+        win.hud = hud  # type: ignore[assignment]
+        swaps: list[float] = []
+        swap = glfw.swap_buffers
+
+        def timed_swap(w: object) -> None:
+            t = time.perf_counter()
+            swap(w)
+            swaps.append(time.perf_counter() - t)
+
+        glfw.swap_buffers = timed_swap
+        try:
+            for expression in ("happiness", "surprise", "jaw_open", "neutral"):
+                states = _states(model, 30, expression)
+                n = [0]
+
+                def feed(w: FaceWindow, t: float, states: list[object] = states) -> None:
+                    w.state = states[n[0] % len(states)]
+                    n[0] += 1
+
+                win.add_frame_callback(feed)
+                times: dict[bool, list[tuple[float, float, float]]] = {False: [], True: []}
+                loads = []
+                for b in range(batches + 1):
+                    for pipelined in ((False, True) if b % 2 else (True, False)):
+                        win.pipelined = pipelined
+                        swaps.clear()
+                        w0, c0 = time.perf_counter(), time.process_time()
+                        for _ in range(STREAM_BATCH):
+                            win.step()
+                        win.present()  # the last frame drawn, pipelined
+                        if b:
+                            times[pipelined].append(((time.perf_counter() - w0) / STREAM_BATCH * 1e3,
+                                                     (time.process_time() - c0) / STREAM_BATCH * 1e3,
+                                                     statistics.median(swaps) * 1e3))
+                    loads.append(os.getloadavg()[0])
+                win._frame_callbacks.remove(feed)
+                med = {k: [statistics.median(x[j] for x in v) for j in range(3)] for k, v in times.items()}
+                quicker = sum(p[0] < q[0] for p, q in zip(times[True], times[False]))
+                out.append(f"{expression:<10} load {min(loads):.1f}-{max(loads):.1f}; a step serial {med[False][0]:.2f} ms "
+                           f"(cpu {med[False][1]:.2f}, swap {med[False][2]:.2f}), pipelined {med[True][0]:.2f} ms "
+                           f"(cpu {med[True][1]:.2f}, swap {med[True][2]:.2f}); pipelined quicker in "
+                           f"{quicker}/{batches} batches")
+        finally:
+            glfw.swap_buffers = swap
+    return out
+
+
 SCAN_PARTS = {"HUD": (), "lashes": ("lashes",), "mouth's inside": ("mouth",), "eyeballs": ("eyes",),
               "eye sockets": ("sockets",), "brows and lips": ("features",), "plain skin": ("plain",),
               "every group": ("plain", "features", "eyes", "sockets", "mouth", "lashes")}
@@ -579,6 +643,9 @@ def main() -> None:
     ap.add_argument("--stream", action="store_true",
                     help="with --scan: the scanned head and the floor as streams of frames read back, serial "
                          "and pipelined (render.pipeline), in alternating batches")
+    ap.add_argument("--window", action="store_true",
+                    help="with --scan: the scanned head in a window on $DISPLAY (e.g. under xvfb-run), serial and "
+                         "pipelined steps in alternating batches")
     args = ap.parse_args()
     if args.lp_threads:
         for n in args.lp_threads.split(","):
@@ -591,6 +658,13 @@ def main() -> None:
                            check=True)
         return
     size = tuple(int(v) for v in args.size.lower().split("x"))
+    if args.scan and args.window:  # the window's own context (GLX), no EGL one
+        print(f"{size[0]}x{size[1]}, LP_NUM_THREADS={os.environ.get('LP_NUM_THREADS', 'unset')}, load average "
+              f"{os.getloadavg()[0]:.1f}\nthe scanned head, shaded + HUD, in a window on $DISPLAY, serial and "
+              f"pipelined: median per {STREAM_BATCH}-step batch over {args.scan} batches")
+        for line in scan_window(size, args.scan):  # type: ignore[arg-type]
+            print(line)
+        return
     from render.offscreen import create_context
 
     ctx = create_context()
