@@ -54,9 +54,9 @@ class TransferOptions:
     (sim.face.transfer.carry.cover_sheet; off here so the scanned head's rig, made by this
     transfer, stays as shipped; `puppet import-face` turns it on); match_forces: scale each
     channel's muscles so they pull as hard in all as the reference's (sim.face.transfer.forces;
-    off here for the same reason, on in `puppet import-face`); refine: split a coarse head's
-    triangles (sim.face.transfer.refine) until its edges near the landmarks are within twice the
-    reference's (off here for the same reason, on in `puppet import-face`)."""
+    off here for the same reason, on in `puppet import-face`); refine: split the triangles of a
+    head whose edges near the landmarks are over 2.5 x the reference's (sim.face.transfer.refine)
+    until they are within 1.5 x (off here for the same reason, on in `puppet import-face`)."""
 
     region: float = 0.6
     landmark_offset: float = 0.1
@@ -343,8 +343,8 @@ def transfer_rig(
 
 def _refine(new: _Head, ref: FaceMesh, ref_pts: dict[str, FloatArray], lf: LandmarkFile, names: list[str],
             radius: float) -> str | None:
-    """Split a coarse head's triangles (sim.face.transfer.refine) until its edges near the landmarks
-    are within `refine.COARSE` x the reference's; opening loops and cut slits follow. Landmarks the
+    """Split a coarse head's triangles (sim.face.transfer.refine: over `COARSE` x the reference's
+    edges near the landmarks, until within `FINE` x); opening loops and cut slits follow. Landmarks the
     file gives as points go to their nearest point on the smoothed surface and its nearest vertex
     (one on the same opening when the coarse one was on an opening's rim; kept on a cut slit, whose
     sides coincide); those given as vertex indices follow their vertex. Returns the report's note,
@@ -361,8 +361,8 @@ def _refine(new: _Head, ref: FaceMesh, ref_pts: dict[str, FloatArray], lf: Landm
     before = len(new.vertices)
     cut_keys = [k for k, loop in new.openings.items() if any(loop is c for c in new.cut)]
     verts, tris, loops = new.vertices, new.triangles, dict(new.openings)
-    for _ in range(levels):
-        verts, tris, loops = subdivide(verts, tris, loops)
+    for _ in range(levels):  # the face only: a head's back and neck are held and keep their mesh
+        verts, tris, loops = subdivide(verts, tris, loops, _region(verts, lm_arr, radius))
     new.vertices, new.triangles, new.openings = verts, tris, loops
     new.cut = [loops[k] for k in cut_keys]
     on_loop = {int(v): k for k, loop in loops.items() for v in loop}
