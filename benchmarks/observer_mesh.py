@@ -42,6 +42,10 @@ missing, downloads it by hand from its public address (the product itself never 
   each eye's hole closed by a strip of triangles joining its rims from corner to corner, so its
   lids are one shut surface as a scan with closed eyes is; the lid lines are declared as slits.
 
+- `ict-lowres` (development): the `ict-identity` skin decimated by quadric error
+  (`fast_simplification`) to about 2,000 vertices over the whole head and neck: a coarse scan of a
+  real person, so the transfer's refining of coarse heads is tried on a head other than MakeHuman's.
+
 - `mediapipe` (held out, added last: measured once, nothing tuned on it): MediaPipe's canonical
   face model, `mediapipe/modules/face_geometry/data/canonical_face_model.obj` of
   https://github.com/google/mediapipe (commit a908d668c730da128dfa8d9f6bd25d519d006692, Apache
@@ -59,7 +63,7 @@ forehead landmarks where the default face's are in observer.py's frames (`--fram
 `--framing head` the head is framed by its own extent, as `puppet pose` frames it, and a face mask
 then fills the frame and the face detector finds nothing); same crop and classifier.
 
-    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,makehuman-lowres,nefertiti,ict-identity] [--save DIR]
+    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,makehuman-lowres,nefertiti,ict-identity,ict-lowres] [--save DIR]
                                                       [--framing face|head]
 """
 
