@@ -11,10 +11,10 @@ points moved to (1 - k beta) v + beta sum(neighbours) with beta = 3 / (8 k) for 
 (3/16 for k = 3; Warren's simplification of Loop's beta), a border point to 3/4 v + 1/8 of its two
 border neighbours. Only the face is split (`subdivide`'s `near`): a head's back and neck are held
 and would only cost simulation time. The surface becomes smooth, so it bends where the rig asks,
-and the eye and mouth rims become smooth curves. Every original vertex keeps its index (it moves by a fraction of a coarse edge,
-towards the smooth surface), so landmarks and openings given by index stay valid; the new vertices
-are appended. Opening loops gain their edges' new vertices in order and stay closed loops along the
-refined border.
+and the eye and mouth rims become smooth curves. Every original vertex keeps its index (it moves by
+a fraction of a coarse edge, towards the smooth surface), so landmarks and openings given by index
+stay valid; the new vertices are appended. Opening loops gain their edges' new vertices in order
+and stay closed loops along the refined border.
 
 Tried on the 470-vertex development mask (`benchmarks/observer_mesh.py`): Phong tessellation
 (original vertices kept in place, the new ones lifted off the flat facets) left the facets' creases
