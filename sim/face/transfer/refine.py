@@ -18,7 +18,7 @@ and stay closed loops along the refined border.
 
 Tried on the 470-vertex development mask (`benchmarks/observer_mesh.py`): Phong tessellation
 (original vertices kept in place, the new ones lifted off the flat facets) left the facets' creases
-in the skin at rest; one split (edges 1.7 x the reference's) read worse than two.
+in the skin at rest; one split (edges 1.85 x the reference's) read worse than two.
 """
 
 from __future__ import annotations
