@@ -42,6 +42,10 @@ missing, downloads it by hand from its public address (the product itself never 
   each eye's hole closed by a strip of triangles joining its rims from corner to corner, so its
   lids are one shut surface as a scan with closed eyes is; the lid lines are declared as slits.
 
+- `ict-lowres` (development): the `ict-identity` skin decimated by quadric error
+  (`fast_simplification`) to about 2,000 vertices over the whole head and neck: a coarse scan of a
+  real person, so the transfer's refining of coarse heads is tried on a head other than MakeHuman's.
+
 - `mediapipe` (held out, added last: measured once, nothing tuned on it): MediaPipe's canonical
   face model, `mediapipe/modules/face_geometry/data/canonical_face_model.obj` of
   https://github.com/google/mediapipe (commit a908d668c730da128dfa8d9f6bd25d519d006692, Apache
@@ -59,7 +63,7 @@ forehead landmarks where the default face's are in observer.py's frames (`--fram
 `--framing head` the head is framed by its own extent, as `puppet pose` frames it, and a face mask
 then fills the frame and the face detector finds nothing); same crop and classifier.
 
-    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,makehuman-lowres,nefertiti,ict-identity] [--save DIR]
+    nice .venv/bin/python benchmarks/observer_mesh.py [--heads makehuman,makehuman-lowres,nefertiti,ict-identity,ict-lowres] [--save DIR]
                                                       [--framing face|head]
 """
 
@@ -343,6 +347,22 @@ def ict_points(shut: bool = False) -> dict[str, list[float]]:
     return {k: [float(x) for x in v[i]] for k, i in lm.items()}
 
 
+ICT_LOWRES_VERTICES = 2000
+
+
+def load_ict_lowres(_path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The scanned identity's skin (`load_ict_identity`) decimated by quadric error
+    (`fast_simplification`) to about ICT_LOWRES_VERTICES vertices over the whole head and neck (about
+    a third of them on the face): a coarse scan of a real person, to try the coarse-mesh path of the
+    transfer on a head other than MakeHuman's."""
+    import fast_simplification
+
+    v, t = load_ict_identity(_path)
+    keep = 1.0 - ICT_LOWRES_VERTICES / len(v)
+    vo, fo = fast_simplification.simplify(v.astype(np.float32), t.astype(np.int32), target_reduction=keep)
+    return _compact(np.asarray(vo, float), np.asarray(fo, np.int64))
+
+
 def load_ict_shut(_path: Path) -> tuple[np.ndarray, np.ndarray]:
     """The identity scanned with its eyes shut, as a scan with closed lids comes: the blinked
     lids' rims (which meet) joined by a strip of triangles, so each eye is one closed surface, to
@@ -422,6 +442,8 @@ def _zip_loop(v: np.ndarray, loop: np.ndarray) -> list[list[int]]:
 HEADS: dict[str, dict[str, Any]] = {
     "ict-identity": {"file": None, "url": None, "load": load_ict_identity, "points": None,
                      "eyes_open": True, "lips_open": None, "role": "development"},
+    "ict-lowres": {"file": None, "url": None, "load": load_ict_lowres, "points": None,
+                   "eyes_open": True, "lips_open": None, "role": "development"},
     "ict-shut": {"file": None, "url": None, "load": load_ict_shut, "points": None,
                  "eyes_open": False, "lips_open": None, "role": "development"},
     "makehuman": {"file": "makehuman_base.obj", "url": MH_URL, "load": load_makehuman, "points": MH_POINTS,

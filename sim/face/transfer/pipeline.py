@@ -24,6 +24,7 @@ from sim.face.transfer.landmarks import LANDMARK_NAMES, LandmarkFile, TransferEr
 from sim.face.transfer.meshfile import HeadMesh
 from sim.face.transfer.mouth import rest_lips
 from sim.face.transfer.openings import cut_slit, find_openings, is_closed_path, is_hole_loop, open_loop
+from sim.face.transfer.refine import edge_scale, levels_needed, subdivide
 from sim.face.transfer.relax import Relaxation, relax_mask
 from sim.face.transfer.skin import lid_support
 
@@ -53,7 +54,9 @@ class TransferOptions:
     (sim.face.transfer.carry.cover_sheet; off here so the scanned head's rig, made by this
     transfer, stays as shipped; `puppet import-face` turns it on); match_forces: scale each
     channel's muscles so they pull as hard in all as the reference's (sim.face.transfer.forces;
-    off here for the same reason, on in `puppet import-face`)."""
+    off here for the same reason, on in `puppet import-face`); refine: split the triangles of a
+    head whose edges near the landmarks are over 2.5 x the reference's (sim.face.transfer.refine)
+    until they are within 1.5 x (off here for the same reason, on in `puppet import-face`)."""
 
     region: float = 0.6
     landmark_offset: float = 0.1
@@ -66,6 +69,7 @@ class TransferOptions:
     rest_lips: bool = False
     cover_sheets: bool = False
     match_forces: bool = False
+    refine: bool = False
 
 
 @dataclass
@@ -266,6 +270,7 @@ def transfer_rig(
     sim, shape = _orient(pts, ref_pts, names, landmarks, opt)
     radius = opt.region * float(np.linalg.norm(ref_pts["eye_outer_l"] - ref_pts["eye_outer_r"]))
     new = _bring_in(head, landmarks, names, pts, vids, sim, radius)
+    refined = _refine(new, ref, ref_pts, landmarks, names, radius) if opt.refine else None
     opened = _rest_openings(new, ref)
     lm_arr = np.stack([new.landmarks[n] for n in names])
 
@@ -312,7 +317,7 @@ def transfer_rig(
     rig = FaceRig(mesh=mesh, muscles=muscles, wrinkles=_carry_wrinkles(reference, smap), name=name,
                   integrator=opt.integrator, presets=IMPORTED_PRESETS,
                   skin={} if support is None else {"support": support})
-    notes = []
+    notes = [] if refined is None else [refined]
     if opt.match_forces:
         rig.muscles, factors = match_forces(reference, rig)
         changed = {ch: k for ch, k in factors.items() if k > 1.25}
@@ -334,6 +339,55 @@ def transfer_rig(
         notes.append(f"{worst} is {shape[worst]:.1f} cm from where the reference face has it: check it")
     return Transfer(rig, sim, cyl_ref, cyl_new, relax, shape, errors, int((~hit).sum()), folded,
                     int((~inside).sum()), new.flipped, new.dropped, notes)
+
+
+def _refine(new: _Head, ref: FaceMesh, ref_pts: dict[str, FloatArray], lf: LandmarkFile, names: list[str],
+            radius: float) -> str | None:
+    """Split a coarse head's triangles (sim.face.transfer.refine: over `COARSE` x the reference's
+    edges near the landmarks, until within `FINE` x); opening loops and cut slits follow. Landmarks the
+    file gives as points go to their nearest point on the smoothed surface and its nearest vertex
+    (one on the same opening when the coarse one was on an opening's rim; kept on a cut slit, whose
+    sides coincide); those given as vertex indices follow their vertex. Returns the report's note,
+    None if the head is not coarse."""
+    width = float(np.linalg.norm(new.landmarks["eye_outer_l"] - new.landmarks["eye_outer_r"]))
+    ref_width = float(np.linalg.norm(ref_pts["eye_outer_l"] - ref_pts["eye_outer_r"]))
+    lm_arr = np.stack([new.landmarks[n] for n in names])
+    scale = edge_scale(new.vertices, new.triangles, _region(new.vertices, lm_arr, radius), width)
+    ref_scale = edge_scale(ref.vertices, ref.triangles,
+                           _region(ref.vertices, np.stack([ref_pts[n] for n in names]), radius), ref_width)
+    levels = levels_needed(scale, ref_scale)
+    if levels == 0:
+        return None
+    before = len(new.vertices)
+    cut_keys = [k for k, loop in new.openings.items() if any(loop is c for c in new.cut)]
+    verts, tris, loops = new.vertices, new.triangles, dict(new.openings)
+    for _ in range(levels):  # the face only: a head's back and neck are held and keep their mesh
+        verts, tris, loops = subdivide(verts, tris, loops, _region(verts, lm_arr, radius))
+    new.vertices, new.triangles, new.openings = verts, tris, loops
+    new.cut = [loops[k] for k in cut_keys]
+    on_loop = {int(v): k for k, loop in loops.items() for v in loop}
+    tree = cKDTree(verts)
+    given = np.stack([new.landmarks[n] for n in names])
+    foot = closest_points(given, verts, tris)[0]  # the file's points on the smoothed surface
+    for i, n in enumerate(names):
+        if isinstance(lf.entries[n], (int, np.integer)):
+            new.landmarks[n] = verts[new.landmark_vertex[n]].copy()  # named by index: it moved with the surface
+            continue
+        new.landmarks[n] = foot[i]
+        key = on_loop.get(new.landmark_vertex[n])
+        if key in cut_keys:  # a slit's two sides coincide: the landmark keeps its side
+            continue
+        if key is None:
+            _, order = tree.query(foot[i], k=8)
+            free = [int(j) for j in np.atleast_1d(order) if int(j) not in on_loop]
+            if free:
+                new.landmark_vertex[n] = free[0]
+        else:
+            ring = loops[key]
+            new.landmark_vertex[n] = int(ring[np.linalg.norm(verts[ring] - foot[i], axis=1).argmin()])
+    return (f"the head is coarse (its edges near the landmarks {scale / ref_scale:.1f} x the reference's, for "
+            f"the eyes' width): its triangles were split {levels} time(s) for the simulation, "
+            f"{before} -> {len(verts)} vertices")
 
 
 def _gap_ratio(mesh: FaceMesh, upper: str, lower: str, a: str, b: str) -> float:
