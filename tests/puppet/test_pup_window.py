@@ -55,6 +55,11 @@ def test_keyboard_fallback_drives_a_muscle_in_the_window(xvfb_display: str, tmp_
         _xdo(xvfb_display, "keyup", "a")
         _xdo(xvfb_display, "key", "m")       # marker
         time.sleep(0.5)
+        # on a loaded machine the loop may not have run a second of ticks yet: wait for the
+        # recording's first checkpoint, which the replay below verifies
+        deadline = time.monotonic() + 30
+        while '"chk"' not in rec.read_text(errors="replace") and time.monotonic() < deadline:
+            time.sleep(0.2)
         _xdo(xvfb_display, "key", "F10")     # quit
         out, err = proc.communicate(timeout=60)
     finally:
