@@ -240,15 +240,34 @@ def _remember(lam, w, idx, plam, pw, pidx):  # type: ignore[no-untyped-def]
 @numba.njit(cache=True, nogil=True)
 def _responses(resp, act, val, out):  # type: ignore[no-untyped-def]
     """out = sum over the active channels (in order) of each one's response times its activation:
-    each value summed from 0 in the channels' order, a channel's whole response at a time (one
-    contiguous pass each, which the compiler vectorizes)."""
+    each value summed from 0 in the channels' order, four channels' responses a pass (contiguous
+    passes, which the compiler vectorizes; each value takes its four terms one after the other, so
+    the bits are those of a pass a channel; out is read and written a quarter as often: 49 -> 31
+    us for the dial box's 15 channels on the scanned head)."""
     o = out.reshape(-1)
-    o[:] = 0.0
-    for k in range(act.shape[0]):
+    m = o.shape[0]
+    k = 0
+    while k + 4 <= act.shape[0]:
+        r0, r1 = resp[act[k]].reshape(-1), resp[act[k + 1]].reshape(-1)
+        r2, r3 = resp[act[k + 2]].reshape(-1), resp[act[k + 3]].reshape(-1)
+        a0, a1, a2, a3 = val[k], val[k + 1], val[k + 2], val[k + 3]
+        first = k == 0
+        for p in range(m):
+            s = 0.0 if first else o[p]
+            s += r0[p] * a0
+            s += r1[p] * a1
+            s += r2[p] * a2
+            s += r3[p] * a3
+            o[p] = s
+        k += 4
+    if k == 0:
+        o[:] = 0.0
+    while k < act.shape[0]:
         r = resp[act[k]].reshape(-1)
         a = val[k]
-        for p in range(o.shape[0]):
+        for p in range(m):
             o[p] += r[p] * a
+        k += 1
 
 
 @numba.njit(inline="always")

@@ -102,6 +102,30 @@ def test_the_flat_product_has_the_bits_of_the_sparse_product() -> None:
     assert not out[5].any()
 
 
+def test_the_muscles_responses_four_a_pass_have_the_bits_of_one_channel_a_pass() -> None:
+    """The muscles' responses summed four channels a pass (`_responses`) give each value the bits
+    of the sum a channel at a time from 0, whatever the number of channels (signed zeros too), so
+    takes keep their bits."""
+    from sim.implicit import _responses
+
+    rng = np.random.default_rng(5)
+    resp = rng.normal(size=(12, 40, 3)) * 10.0 ** rng.integers(-4, 4, size=(12, 40, 1))
+    resp[3, :5] = -0.0
+    for count in range(10):
+        act = rng.permutation(12)[:count].astype(np.int64)
+        val = rng.uniform(-1.0, 1.0, size=count)
+        want = np.zeros((40, 3))
+        for k in range(count):
+            want += resp[act[k]] * val[k]
+        out = np.full((40, 3), np.nan)
+        _responses(resp, act, val, out)
+        assert out.tobytes() == want.tobytes(), count
+    act = np.array([3], dtype=np.int64)
+    out = np.full((40, 3), np.nan)
+    _responses(resp, act, np.array([1.0]), out)
+    assert not np.signbit(out[:5]).any()  # 0 + (-0) * 1: a sum from 0, as a pass a channel made it
+
+
 def test_the_jaw_rotation_has_the_bits_of_rodrigues_in_numpy() -> None:
     """`jaw_rotation` (spelled out on floats, made every tick the jaw moves) gives each entry of
     I + sin(t) K + (1 - cos(t)) K K as numpy's elementwise formula does, so takes keep their bits."""
