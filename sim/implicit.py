@@ -52,7 +52,7 @@ import numpy as np
 from sim.antifold import FoldGuard, _fold_forces, bending_of
 from sim.antifold import warm_up as warm_up_folds
 from sim.build import FaceModel
-from sim.integrator import _eye_contact
+from sim.integrator import JawTurn, _eye_contact
 from sim.margin_contact import (ROUNDS, SWEEPS, SolvedContact, _contact_force, _contact_resolve, _repair,
                                  solved_constraints, warm_up_solved)
 from sim.numba_start import prepare_blas_check
@@ -158,6 +158,24 @@ def _flat_csr(ptr: np.ndarray, idx: np.ndarray, val: np.ndarray) -> tuple[np.nda
         raise ValueError("a CSR matrix too large for 32-bit indices")
     return (np.ascontiguousarray(ptr, dtype=np.uint32), np.ascontiguousarray(3 * np.asarray(idx, dtype=np.int64), dtype=np.uint32),
             np.array(val, dtype=np.float64))
+
+
+@numba.njit(cache=True, nogil=True)
+def _bend_turned(b0, b1, c, rot, slide, out):  # type: ignore[no-untyped-def]
+    """out = the margin bending's rest side K_b s for the rest shape s turned with the jaw by the
+    rotation `rot` and the slide `slide` (`ImplicitStepper.turn_basis`): K_b s is linear in them,
+    row i = b0_i + rot b1_i + c_i slide, three values a row from K_b's products made once instead
+    of its 114,578 entries (scanned head) a pose."""
+    r00, r01, r02 = rot[0, 0], rot[0, 1], rot[0, 2]
+    r10, r11, r12 = rot[1, 0], rot[1, 1], rot[1, 2]
+    r20, r21, r22 = rot[2, 0], rot[2, 1], rot[2, 2]
+    s0, s1, s2 = slide[0], slide[1], slide[2]
+    for i in range(out.shape[0]):
+        e0, e1, e2 = b1[i, 0], b1[i, 1], b1[i, 2]
+        ci = c[i]
+        out[i, 0] = b0[i, 0] + (r00 * e0 + r01 * e1 + r02 * e2) + ci * s0
+        out[i, 1] = b0[i, 1] + (r10 * e0 + r11 * e1 + r12 * e2) + ci * s1
+        out[i, 2] = b0[i, 2] + (r20 * e0 + r21 * e1 + r22 * e2) + ci * s2
 
 
 @numba.njit(cache=True, nogil=True)
@@ -503,7 +521,8 @@ class ImplicitStepper:
                                               opp=np.zeros(0), row_ptr=np.zeros(1), row_v=np.zeros(0), loc=np.zeros(n),
                                               green=np.zeros((0, 0)), gptr=np.zeros(1), gvert=np.zeros(0), gval=np.zeros(0)))
         self._contact = self.margins if self.margins is not None else none
-        self._shape: np.ndarray | None = None
+        self._shape: np.ndarray | JawTurn | None = None
+        self._turn_b = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n))  # `turn_basis`
         self._bend_rhs = np.zeros((n, 3))
         self._ext = np.zeros((n, 3))
         nf, nh = len(self.free), len(self.held)
@@ -525,19 +544,41 @@ class ImplicitStepper:
         self._px, self._pv = np.zeros((n, 3)), np.zeros((n, 3))
         self._plam, self._pw, self._pidx = np.zeros_like(c.lam), np.zeros_like(c.w), np.zeros_like(c.idx)
 
-    def _with_bending(self, ext: np.ndarray, shape: np.ndarray | None) -> np.ndarray:
-        """ext plus the margin bending term's rest side (its shape changes with the jaw)."""
+    def turn_basis(self, weight: np.ndarray, pivot: np.ndarray) -> None:
+        """Make the products that give the margin bending's rest side for any turn of the jaw
+        (`_bend_turned`, a `frame` or `predict` given a JawTurn as its shape): the rest shape
+        turned by R and slid by s is s_i = r_i + w_i ((R - I)(r_i - p) + s) for the jaw's weights
+        w and pivot p, so K_b s = (K_b r - K_b W D) + (K_b W D) R^T + (K_b w) s^T with D the rows
+        r_i - p. The same values as the product K_b s up to rounding (a take's header says which
+        it was recorded with: sim.Simulator.bending_turned)."""
+        n = len(self.rest)
+        weight = np.asarray(weight, dtype=np.float64)
+        wd = np.ascontiguousarray(weight[:, None] * (np.asarray(self.rest, dtype=np.float64) - np.asarray(pivot)))
+        kr, kwd, kw = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+        if len(self._bend[2]):
+            _csr_times_flat(*self._bend_flat, np.ascontiguousarray(self.rest, dtype=np.float64).reshape(-1), kr)
+            _csr_times_flat(*self._bend_flat, wd.reshape(-1), kwd)
+            _csr_times_flat(*self._bend_flat, np.ascontiguousarray(np.repeat(weight[:, None], 3, axis=1)).reshape(-1), kw)
+        self._turn_b = (kr - kwd, kwd, np.ascontiguousarray(kw[:, 0]))
+
+    def _with_bending(self, ext: np.ndarray, shape: np.ndarray | JawTurn | None) -> np.ndarray:
+        """ext plus the margin bending term's rest side (its shape changes with the jaw; a JawTurn:
+        the rest shape turned by it, made by `_bend_turned` from `turn_basis`'s products)."""
         if not len(self._bend[2]):
             return ext
         shape = self.rest if shape is None else shape
         if shape is not self._shape:
             self._shape = shape
-            _csr_times_flat(*self._bend_flat, np.ascontiguousarray(shape, dtype=np.float64).reshape(-1), self._bend_rhs)
+            if isinstance(shape, JawTurn):
+                _bend_turned(*self._turn_b, shape.rot, shape.slide, self._bend_rhs)
+            else:
+                _csr_times_flat(*self._bend_flat, np.ascontiguousarray(shape, dtype=np.float64).reshape(-1),
+                                self._bend_rhs)
         np.add(ext, self._bend_rhs, out=self._ext)
         return self._ext
 
     def predict(self, x: np.ndarray, v: np.ndarray, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
-                normal: np.ndarray, shape: np.ndarray | None, key: object) -> None:
+                normal: np.ndarray, shape: np.ndarray | JawTurn | None, key: object) -> None:
         """Solve now the first substep for everything but the muscles (`_predict`, ext: the frame's
         constant forces without them, the held nodes), for a `frame` that follows with the same x,
         v, contact memory and `key` (the caller's name for ext, shape, the springs' constants and
@@ -604,7 +645,7 @@ class ImplicitStepper:
                                self._pw.view(bits), self._pidx))
 
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
-              normal: np.ndarray, eyes: tuple, shape: np.ndarray | None = None,  # type: ignore[type-arg]
+              normal: np.ndarray, eyes: tuple, shape: np.ndarray | JawTurn | None = None,  # type: ignore[type-arg]
               key: object = None, active: tuple[np.ndarray, np.ndarray] | None = None, summed: bool = False,
               jaw: tuple[float, float] | None = None) -> None:
         """n_sub substeps in place. ext: the frame-constant forces (gravity, the target terms of the
@@ -613,8 +654,8 @@ class ImplicitStepper:
         support's normals this frame. The support k_n n n^T enters like a spring: k_n I in the
         matrix, k_n (y - n (n . y)) on the right. eyes: (vertices, their eye, eye centres, radius)
         of the eyeball contact applied after each substep; shape (N,3): the rest shape of the margin
-        bending term this frame (turned with the jaw; None: the model's rest); key: as `predict`'s
-        (None: never use a prediction); active: (channels, activations) whose responses
+        bending term this frame (turned with the jaw, or the JawTurn that turns it; None: the
+        model's rest); key: as `predict`'s (None: never use a prediction); active: (channels, activations) whose responses
         (`muscle_responses`) are added; summed: ext holds every muscle and is summed in the order of
         the step before the responses, for the takes recorded with it (no prediction, no `active`);
         jaw: (from, to) openings: ext, shape, normal and the held nodes are the jaw's pose at `from`,

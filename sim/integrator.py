@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -406,6 +407,14 @@ def _fixed_forces(weight, kr, target, kn, nrm, out):  # type: ignore[no-untyped-
             out[i, d] = acc + weight[i, d] + kr[i] * target[i, d] + support * nrm[i, d]
 
 
+class JawTurn(NamedTuple):
+    """The jaw's turn of the rest shape (`jaw_motion`): what the implicit step's margin bending
+    makes its rest side from when `Simulator.bending_turned` (sim.implicit.ImplicitStepper.turn_basis)."""
+
+    rot: np.ndarray  # (3, 3), contiguous float64
+    slide: np.ndarray  # (3,) cm
+
+
 @dataclass(frozen=True)
 class GuardEvent:
     """The blow-up guard fired at simulated time `time` (s) for `reason`; the state was restored to
@@ -547,7 +556,7 @@ class Simulator:
         self._motion_pose: tuple[float, float, float] | None = None  # `_jaw_motion`'s last pose
         self._motion: tuple[np.ndarray, np.ndarray] = (np.eye(3), np.zeros(3))
         self._target = model.rest + model.rest_offset
-        self._shape = np.array(model.rest)
+        self._shape: np.ndarray | JawTurn = np.array(model.rest)
         self._force = np.zeros((n, 3))  # the RK2 kernel's force scratch
         self._xm = np.zeros((n, 3))
         self._vm = np.zeros((n, 3))
@@ -563,6 +572,12 @@ class Simulator:
         #: one step later. False: the step computes everything at the control's pose and age, as
         #: takes recorded before it did (puppet.replay sets it for them, so they keep their bits).
         self.jaw_responses = True
+        #: the implicit step's margin bending makes its rest side at an open jaw from the jaw's
+        #: turn (`JawTurn`, sim.implicit.ImplicitStepper.turn_basis: three values a row) instead of
+        #: the product of its matrix with the turned rest shape; the same forces up to rounding.
+        #: False: the product, as takes recorded before (puppet.replay sets it for them, for their
+        #: bits). Set before the first step.
+        self.bending_turned = True
         self._last_pose: tuple[float, float, float] | None = None  # the last step's jaw pose
         held = self._held
         # read-only where the model's are: `_turn_with_jaw` then runs the signature `_jaw_turned` compiled
@@ -579,6 +594,8 @@ class Simulator:
         self._turn_tmp, self._held_tmp = np.zeros((6, n)), np.zeros((6, len(held)))
         if self._implicit is not None:
             self._implicit.jaw_resp, self._implicit.jaw_slope = _jaw_grid(self)
+            self._implicit.turn_basis(self._jaw_weight, np.asarray(model.jaw_pivot, dtype=np.float64))
+        self._rest_shape = np.array(model.rest)  # the margin bending's rest shape at rest (`bending_turned`)
 
     @staticmethod
     def _by_coordinate(rows: np.ndarray) -> np.ndarray:
@@ -628,8 +645,12 @@ class Simulator:
         if pose == self._jaw:
             return
         m = self.model
-        self._target, shape, rot = self._jaw_turned(pose, shape=self._implicit is not None)
-        if shape is not None:
+        turned = self._implicit is not None and self.bending_turned
+        self._target, shape, rot = self._jaw_turned(pose, shape=self._implicit is not None and not turned)
+        if turned:  # (at rest the product with the rest shape: the bits of a take without the jaw stay)
+            self._shape = self._rest_shape if rot is None else JawTurn(
+                np.ascontiguousarray(rot, dtype=np.float64), np.ascontiguousarray(self._jaw_motion(pose)[1], dtype=np.float64))
+        elif shape is not None:
             self._shape = shape
         if rot is None:
             self._normal[...] = m.rest_normal
