@@ -14,7 +14,8 @@ tree makes it every tick), and on every tick that ends a 60 Hz frame the surface
 leaves it for the frame) and the recording's JSON (`after_frame`); no drawing. Timed: this thread's
 CPU time (time.thread_time, one core's work), per batch; printed: the median and the best batch of
 each tree as milliseconds a tick and as the share of a 60 Hz frame (ticks per frame x tick), their
-ratio, and whether both trees reached the very same positions after each batch (the replay's bits).
+ratio, and whether both trees reached the very same positions after each batch (the replay's bits;
+when not, how far apart they came at most: a change of the step's bits that a take header names).
 With --scenario dials also the simulation's part of the loop alone: the CPU time inside the
 simulator's step, its prepare between ticks and the surface (each call timed; the mapping, the
 events and the recording are the rest).
@@ -87,7 +88,8 @@ def _sim_ticks(tree: str, rate: float) -> None:
             sim.prepare(state)
         cpu = time.thread_time() - t0
         digest = hashlib.sha256(state.positions.tobytes()).hexdigest()[:16]
-        print(json.dumps({"cpu": cpu, "sim": cpu, "digest": digest, "events": k}), flush=True)
+        print(json.dumps({"cpu": cpu, "sim": cpu, "digest": digest, "events": k, "x": state.positions.ravel().tolist()}),
+              flush=True)
 
 
 def _worker(tree: str, rate: float, seconds: float) -> None:
@@ -146,7 +148,8 @@ def _worker(tree: str, rate: float, seconds: float) -> None:
                 core.after_frame()
         cpu = clock() - t0
         digest = hashlib.sha256(core.state.positions.tobytes()).hexdigest()[:16]
-        print(json.dumps({"cpu": cpu, "sim": spent[0], "digest": digest, "events": i}), flush=True)
+        print(json.dumps({"cpu": cpu, "sim": spent[0], "digest": digest, "events": i,
+                          "x": core.state.positions.ravel().tolist()}), flush=True)
     writer.close(core.tick_count)
 
 
@@ -197,10 +200,12 @@ def main() -> None:
     cpu: dict[str, list[float]] = {k: [] for k in trees}
     simulated: dict[str, list[float]] = {k: [] for k in trees}
     same = True
+    apart = 0.0  # the largest distance between the two trees' positions after a batch, cm
     for b in range(a.batches):
         order = list(trees) if b % 2 == 0 else list(reversed(trees))
         out = {k: _batch(procs[k], a.ticks) for k in order}
         same = same and out["before"]["digest"] == out["now"]["digest"]
+        apart = max(apart, max(abs(p - q) for p, q in zip(out["before"]["x"], out["now"]["x"])))
         for k in trees:
             cpu[k].append(out[k]["cpu"] / a.ticks * 1e3)
             simulated[k].append(out[k].get("sim", out[k]["cpu"]) / a.ticks * 1e3)
@@ -216,7 +221,8 @@ def main() -> None:
               f"best batch {best:.3f} ms ({100 * per_frame * best / (1e3 / 60):.1f} %)")
     ratios = [b / n for b, n in zip(cpu["before"], cpu["now"])]
     print(f"  before / now: median of the paired batches {statistics.median(ratios):.2f}x "
-          f"(range {min(ratios):.2f}-{max(ratios):.2f}); the same positions after every batch: {same}")
+          f"(range {min(ratios):.2f}-{max(ratios):.2f}); the same positions after every batch: {same}"
+          + ("" if same else f" (at most {apart:.3g} cm apart)"))
     if a.scenario == "dials":
         print("  of which the simulation (the simulator's step, its prepare between ticks and the surface):")
         for k in trees:
