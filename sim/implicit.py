@@ -392,6 +392,7 @@ def warm_up() -> None:
     prep["resp"] = np.zeros((1, 2, 3))
     stepper._setup(x, prep)
     _csr_times_flat(*_flat_csr(*_sparse("w", sp.csr_matrix(np.ones((3, 3)))).values()), x.reshape(-1), np.zeros((3, 3)))
+    _bend_turned(np.zeros((3, 3)), np.zeros((3, 3)), np.zeros(3), np.eye(3), np.zeros(3), np.zeros((3, 3)))
     eyes = (np.array([1], dtype=np.int64), np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 5.0]]), 1.0)
     v, spring_arrays = np.zeros_like(x), (springs, np.ones(2), np.ones(2), np.ones(2), 0.1)
     stepper.predict(x, v, np.zeros_like(x), spring_arrays, np.zeros_like(x), None, "warm-up")  # between ticks
