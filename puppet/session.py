@@ -289,9 +289,10 @@ class SessionWriter:
             changed = np.flatnonzero(values != self._last).tolist()
         if len(changed):
             keys = self._keys
-            if keys is not None and type(tick) is int and np.isfinite(values[changed]).all():  # `_json`'s text
+            floats = [float(values[i]) for i in changed]
+            if keys is not None and type(tick) is int and all(map(math.isfinite, floats)):  # `_json`'s text
                 self._write_line(f'{{"t":"v","tick":{tick},"v":{{'
-                                 + ",".join([keys[i] + float.__repr__(float(values[i])) for i in changed]) + "}}")
+                                 + ",".join([keys[i] + float.__repr__(f) for i, f in zip(changed, floats)]) + "}}")
             else:
                 self._write({"t": "v", "tick": tick, "v": {self.channels[i]: float(values[i]) for i in changed}})
             self._covered = max(self._covered, tick + 1)

@@ -748,14 +748,14 @@ class Simulator:
                                                             self._k_high, self._threshold), self._normal,
                                  self._eyes, self._shape, key=(self._jaw, self._skin_age), active=active,
                                  summed=summed, jaw=None if start == pose else (start[0], pose[0]))
-            if start != pose:  # the held nodes follow the jaw to where the step moved it
-                checked = self._target  # (the guard checks the step against the pose it started from)
-                self._place_held(x, pose)
             # a jaw or an age still moving will likely move again: `prepare` would be wasted then
             # (unless the step starts from the state's pose, `jaw_responses`)
             self._moving = (self._jaw, self._skin_age) != self._last_key
             self._last_key = (self._jaw, self._skin_age)
             self._last_pose = pose
+            if start != pose:  # the held nodes follow the jaw to where the step moved it
+                checked = self._target  # (the guard checks the step against the pose it started from)
+                self._place_held(x, pose)
         reason = self._check(x, checked)
         if reason:
             x[...] = self._saved_x
