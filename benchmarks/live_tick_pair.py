@@ -14,7 +14,11 @@ tree makes it every tick), and on every tick that ends a 60 Hz frame the surface
 leaves it for the frame) and the recording's JSON (`after_frame`); no drawing. Timed: this thread's
 CPU time (time.thread_time, one core's work), per batch; printed: the median and the best batch of
 each tree as milliseconds a tick and as the share of a 60 Hz frame (ticks per frame x tick), their
-ratio, and whether both trees reached the very same positions after each batch (the replay's bits).
+ratio, and whether both trees reached the very same positions after each batch (the replay's bits;
+when not, how far apart they came at most: a change of the step's bits that a take header names).
+With --scenario dials also the simulation's part of the loop alone: the CPU time inside the
+simulator's step, its prepare between ticks and the surface (each call timed; the mapping, the
+events and the recording are the rest).
 """
 
 from __future__ import annotations
@@ -84,7 +88,8 @@ def _sim_ticks(tree: str, rate: float) -> None:
             sim.prepare(state)
         cpu = time.thread_time() - t0
         digest = hashlib.sha256(state.positions.tobytes()).hexdigest()[:16]
-        print(json.dumps({"cpu": cpu, "digest": digest, "events": k}), flush=True)
+        print(json.dumps({"cpu": cpu, "sim": cpu, "digest": digest, "events": k, "x": state.positions.ravel().tolist()}),
+              flush=True)
 
 
 def _worker(tree: str, rate: float, seconds: float) -> None:
@@ -110,10 +115,25 @@ def _worker(tree: str, rate: float, seconds: float) -> None:
     core.surface_later = later  # as run_realtime sets it headless with frames slower than ticks
     per_frame = max(1, int(round(rate / 60.0)))
     i = 0
+    clock = time.thread_time
+    spent = [0.0]  # this batch's CPU time in the simulator's own calls (step, prepare, surface)
+    simulator = core.sim
+
+    def timed(fn):  # type: ignore[no-untyped-def]
+        def run(*args, **kw):  # type: ignore[no-untyped-def]
+            t = clock()
+            out = fn(*args, **kw)
+            spent[0] += clock() - t
+            return out
+        return run
+
+    for name in ("step", "prepare", "surface"):  # the instance's attributes: the class is untouched
+        setattr(simulator, name, timed(getattr(simulator, name)))
     print(json.dumps({"ready": live.__file__, "surface_later": later}), flush=True)
     for line in sys.stdin:
         n = int(line)
-        t0 = time.thread_time()
+        spent[0] = 0.0
+        t0 = clock()
         for _ in range(n):
             boundary = core.tick_count * core.dt + 1e-12
             batch = []
@@ -126,9 +146,10 @@ def _worker(tree: str, rate: float, seconds: float) -> None:
                 if later:
                     core.finish_surface()
                 core.after_frame()
-        cpu = time.thread_time() - t0
+        cpu = clock() - t0
         digest = hashlib.sha256(core.state.positions.tobytes()).hexdigest()[:16]
-        print(json.dumps({"cpu": cpu, "digest": digest, "events": i}), flush=True)
+        print(json.dumps({"cpu": cpu, "sim": spent[0], "digest": digest, "events": i,
+                          "x": core.state.positions.ravel().tolist()}), flush=True)
     writer.close(core.tick_count)
 
 
@@ -177,13 +198,17 @@ def main() -> None:
     for p in procs.values():
         _batch(p, a.warm)
     cpu: dict[str, list[float]] = {k: [] for k in trees}
+    simulated: dict[str, list[float]] = {k: [] for k in trees}
     same = True
+    apart = 0.0  # the largest distance between the two trees' positions after a batch, cm
     for b in range(a.batches):
         order = list(trees) if b % 2 == 0 else list(reversed(trees))
         out = {k: _batch(procs[k], a.ticks) for k in order}
         same = same and out["before"]["digest"] == out["now"]["digest"]
+        apart = max(apart, max(abs(p - q) for p, q in zip(out["before"]["x"], out["now"]["x"])))
         for k in trees:
             cpu[k].append(out[k]["cpu"] / a.ticks * 1e3)
+            simulated[k].append(out[k].get("sim", out[k]["cpu"]) / a.ticks * 1e3)
     for p in procs.values():
         assert p.stdin is not None
         p.stdin.close()
@@ -196,7 +221,17 @@ def main() -> None:
               f"best batch {best:.3f} ms ({100 * per_frame * best / (1e3 / 60):.1f} %)")
     ratios = [b / n for b, n in zip(cpu["before"], cpu["now"])]
     print(f"  before / now: median of the paired batches {statistics.median(ratios):.2f}x "
-          f"(range {min(ratios):.2f}-{max(ratios):.2f}); the same positions after every batch: {same}")
+          f"(range {min(ratios):.2f}-{max(ratios):.2f}); the same positions after every batch: {same}"
+          + ("" if same else f" (at most {apart:.3g} cm apart)"))
+    if a.scenario == "dials":
+        print("  of which the simulation (the simulator's step, its prepare between ticks and the surface):")
+        for k in trees:
+            med, best = statistics.median(simulated[k]), min(simulated[k])
+            print(f"  {k:6s}: {med:.3f} ms a tick median ({100 * per_frame * med / (1e3 / 60):.1f} % of a 60 Hz frame), "
+                  f"best batch {best:.3f} ms ({100 * per_frame * best / (1e3 / 60):.1f} %)")
+        ratios = [b / n for b, n in zip(simulated["before"], simulated["now"])]
+        print(f"  before / now (simulation): median of the paired batches {statistics.median(ratios):.2f}x "
+              f"(range {min(ratios):.2f}-{max(ratios):.2f})")
     print(f"load after: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}")
 
 

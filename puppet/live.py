@@ -213,6 +213,10 @@ LIDS_AS = "gaze"
 #: the take header's "jaw": the implicit step starts from the last step's jaw opening and skin age
 #: and adds the jaw's move as precomputed responses (sim.Simulator.jaw_responses)
 JAW_AS = "responses from the last step's pose"
+#: the take header's "jaw bending": the margin bending's rest side at an open jaw is made from the
+#: jaw's turn (sim.Simulator.bending_turned); a take without it is replayed with the product of the
+#: bending matrix and the turned rest shape, as it was recorded (puppet.replay)
+JAW_BENDING_AS = "from the turn"
 #: the take header's "bending": a scanned head's forehead bends as its bound layer
 #: (sim.antifold.bound_layer); a take without it, made on another face hash, was recorded on the
 #: thinner forehead and is replayed on it (puppet.replay)
@@ -243,6 +247,7 @@ def take_header(face: Face, rate: float, mapping: dict[str, str], devices: Seque
         # how it moves the jaw and ages the skin: a take without it is replayed with the jaw and the
         # age taken whole at each step, as it was recorded (puppet.replay)
         "jaw": JAW_AS,
+        "jaw bending": JAW_BENDING_AS,
         # how a scanned head's forehead bends: a take without it is replayed on the forehead it
         # was recorded on (puppet.replay)
         "bending": BENDING_AS,

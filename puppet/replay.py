@@ -18,7 +18,7 @@ import numpy as np
 
 from puppet.curves import CurveLayer, CurveSet
 from puppet.errors import ConfigError, PuppetError
-from puppet.live import BENDING_AS, JAW_AS, LIDS_AS, MUSCLES_AS, Face, load_face
+from puppet.live import BENDING_AS, JAW_AS, JAW_BENDING_AS, LIDS_AS, MUSCLES_AS, Face, load_face
 from puppet.session import Session
 from safefile import quote
 
@@ -52,6 +52,9 @@ class Performance:
     #: recorded with the jaw and the skin's age taken whole at each step (no "jaw" in its header):
     #: replayed that way (sim.Simulator.jaw_responses off), for the same bits
     jaw_responses: bool = True
+    #: recorded with the margin bending's rest side made as the product with the turned rest shape
+    #: (no "jaw bending" in its header): replayed that way (sim.Simulator.bending_turned off)
+    bending_turned: bool = True
 
     @property
     def ticks(self) -> int:
@@ -167,7 +170,8 @@ def build_performance(session: Session | None, curves: CurveSet | None, rig_path
     summed = session is not None and session.header.get("muscles") != MUSCLES_AS
     follow = session is None or session.header.get("lids") == LIDS_AS
     jaw = session is None or session.header.get("jaw") == JAW_AS
-    return Performance(face, values, rate, markers, checks, restarts, summed, follow, jaw)
+    turned = session is None or session.header.get("jaw bending") == JAW_BENDING_AS
+    return Performance(face, values, rate, markers, checks, restarts, summed, follow, jaw, turned)
 
 
 def _clamp(values: np.ndarray, face: Face, source: str) -> None:
@@ -209,6 +213,7 @@ class Replayer:
         s.muscles_summed = self.perf.muscles_summed
         s.lids_follow_gaze = self.perf.lids_follow_gaze
         s.jaw_responses = self.perf.jaw_responses
+        s.bending_turned = self.perf.bending_turned
         return s
 
     def step(self) -> None:

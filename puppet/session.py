@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import fcntl
 import json
+import math
 import os
 import threading
 import time
@@ -45,6 +46,17 @@ FSYNC_SECONDS = 0.9
 
 def _json(obj: dict[str, Any]) -> str:
     return json.dumps(obj, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+
+
+def _number(x: object) -> str | None:
+    """`_json`'s text for a plain int, a finite float or None; None for anything else (which
+    `_json` then encodes, or refuses as it always did)."""
+    t = type(x)
+    if t is float:
+        return float.__repr__(x) if math.isfinite(x) else None  # type: ignore[arg-type]
+    if t is int:
+        return int.__repr__(x)  # type: ignore[arg-type]
+    return "null" if x is None else None
 
 
 class _Syncer:
@@ -179,6 +191,11 @@ class SessionWriter:
         self.path = Path(path)
         self._clock = clock
         self.channels: list[str] = list(header["channels"])
+        # the records' fixed parts as `_json` writes them: each channel's key in a "v" record, and
+        # each (device, control, kind)'s fields of an "ev" record (made once: the live loop writes
+        # a record per event and per tick)
+        self._keys = [_json({c: 0})[1:-2] for c in self.channels] if len(set(self.channels)) == len(self.channels) else None
+        self._ev_fields: dict[tuple[str, str, str], str] = {}
         self._lock = threading.Lock()
         try:
             self._file: IO[str] | None = _open_locked(self.path, append_to)
@@ -207,9 +224,12 @@ class SessionWriter:
         self._last = np.array(last_values, dtype=np.float64, copy=True)
 
     def _write(self, rec: dict[str, Any]) -> None:
+        self._write_line(_json(rec))
+
+    def _write_line(self, line: str) -> None:
         if self._file is not None:
             try:
-                self._file.write(_json(rec) + "\n")
+                self._file.write(line + "\n")
             except OSError as err:
                 self._fail(err)
 
@@ -240,8 +260,20 @@ class SessionWriter:
             self._write({"t": "st", "tick": tick, "dev": ev.device, "status": ev.status, "detail": ev.detail})
             return
         raw = ev.raw if isinstance(ev.raw, (int, float, str)) or ev.raw is None else repr(ev.raw)
-        self._write({"t": "ev", "tick": tick, "dev": ev.device, "ctl": ev.control, "kind": ev.kind,
-                     "value": float(ev.value), "delta": ev.delta, "raw": raw, "time": ev.t - t0})
+        value, when = float(ev.value), ev.t - t0
+        parts = (_number(tick), _number(value), _number(ev.delta), _number(raw), _number(when))
+        key = (ev.device, ev.control, ev.kind)
+        fields = self._ev_fields.get(key)
+        if None in parts or fields is None or len(self._ev_fields) > 4096:
+            # the same text by `_json` (and its errors for what it refuses); the fields kept for later
+            rec = {"t": "ev", "tick": tick, "dev": ev.device, "ctl": ev.control, "kind": ev.kind,
+                   "value": value, "delta": ev.delta, "raw": raw, "time": when}
+            if fields is None and len(self._ev_fields) <= 4096 and all(type(x) is str for x in key):
+                self._ev_fields[key] = _json({"dev": ev.device, "ctl": ev.control, "kind": ev.kind})[1:-1]
+            self._write(rec)
+            return
+        k, v, d, r, w = parts
+        self._write_line(f'{{"t":"ev","tick":{k},{fields},"value":{v},"delta":{d},"raw":{r},"time":{w}}}')
 
     def values(self, tick: int, values: np.ndarray) -> None:
         """Channel values applied to sim step `tick`; only the ones that changed are written."""
@@ -256,7 +288,13 @@ class SessionWriter:
         else:
             changed = np.flatnonzero(values != self._last).tolist()
         if len(changed):
-            self._write({"t": "v", "tick": tick, "v": {self.channels[i]: float(values[i]) for i in changed}})
+            keys = self._keys
+            floats = [float(values[i]) for i in changed]
+            if keys is not None and type(tick) is int and all(map(math.isfinite, floats)):  # `_json`'s text
+                self._write_line(f'{{"t":"v","tick":{tick},"v":{{'
+                                 + ",".join([keys[i] + float.__repr__(f) for i, f in zip(changed, floats)]) + "}}")
+            else:
+                self._write({"t": "v", "tick": tick, "v": {self.channels[i]: float(values[i]) for i in changed}})
             self._covered = max(self._covered, tick + 1)
         self._last = values.copy()
 

@@ -101,8 +101,8 @@ def new_simulator(model: Any, frame_dt: float) -> Any:
 
 def _kept(model: Any, simulator: Any) -> dict[int, Any]:
     """What a simulator's copy shares with the original (deepcopy's memo): the model, the implicit
-    integrator's prepared arrays (read-only; mapped once per machine, `puppet.batch.shared`) and the
-    jaw's responses."""
+    integrator's prepared arrays (read-only; mapped once per machine, `puppet.batch.shared`), the
+    jaw's responses and the bending's products for the jaw's turn."""
     memo: dict[int, Any] = {id(model): model}
     stepper = getattr(simulator, "_implicit", None)
     prep = getattr(stepper, "prepared", None)
@@ -113,6 +113,8 @@ def _kept(model: Any, simulator: Any) -> dict[int, Any]:
         a = getattr(stepper, name, None)
         if a is not None:
             memo[id(a)] = a
+    for a in getattr(stepper, "_turn_b", ()):  # the margin bending's products for the jaw's turn (read-only)
+        memo[id(a)] = a
     return memo
 
 

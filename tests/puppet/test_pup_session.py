@@ -244,3 +244,38 @@ def test_a_writer_writing_behind_holds_at_most_one_tick_unwritten(tmp_path: Path
     w.close(8)
     assert max(unwritten) <= 1, unwritten
     assert read_session(tmp_path / "t.jsonl").ticks == 8
+
+
+def test_the_records_put_together_are_the_json_encoders_text(tmp_path: Path) -> None:
+    """Events and values written from their fields' kept text (the live loop writes a record per
+    event and per tick) are the very lines `json` writes for the same records, for odd names,
+    raw values of every kind, signed zeros and awkward doubles; what json refuses it still refuses."""
+    from puppet.session import _json
+
+    names = ['a"b', "é\\n", "ch\n2", "-0"]
+    events = [ControlEvent("mock://x?y=\"1\"", "dial0", "dial", 0.005, 1.0, 1, 12.5),
+              ControlEvent("mock://x?y=\"1\"", "dial0", "dial", -0.0, -3, 1e-300, 12.5 + 1e-9),
+              ControlEvent("mock://x?y=\"1\"", "dial0", "dial", 1 / 3, None, "raw \"é\"\n", 13.0),
+              ControlEvent("sgi://tty", "button3", "button", 1.0, None, None, 14.0),
+              ControlEvent("sgi://tty", "button3", "button", 0.0, None, True, 14.0),
+              ControlEvent("sgi://tty", "button3", "button", 0.0, None, b"\x01", 14.5),
+              ControlEvent("sgi://tty", "key:ü", "key", 1.0, 2.5, 7, 1e20)]
+    rows = [np.array([0.1, -0.0, 1e-310, 2.0 / 3.0]), np.array([0.1, 5e-324, 1e-310, 1e300])]
+    p = tmp_path / "s.jsonl"
+    want = []
+    with SessionWriter(p, {**header(), "channels": names}, fsync_seconds=None) as w:
+        for k, ev in enumerate(events + events):
+            w.event(k, ev, t0=10.0)
+            raw = ev.raw if isinstance(ev.raw, (int, float, str)) or ev.raw is None else repr(ev.raw)
+            want.append(_json({"t": "ev", "tick": k, "dev": ev.device, "ctl": ev.control, "kind": ev.kind,
+                               "value": float(ev.value), "delta": ev.delta, "raw": raw, "time": ev.t - 10.0}))
+        for k, r in enumerate(rows):
+            w.values(k, r)
+            w.tick(k + 1)
+        w.close(len(rows))
+    want.append(_json({"t": "v", "tick": 0, "v": dict(zip(names, map(float, rows[0])))}))
+    want.append(_json({"t": "v", "tick": 1, "v": {names[1]: 5e-324, names[3]: 1e300}}))
+    lines = p.read_text().splitlines()
+    assert lines[1:1 + len(want)] == want
+    with SessionWriter(tmp_path / "nan.jsonl", header(), fsync_seconds=None) as w, pytest.raises(ValueError):
+        w.event(0, ControlEvent("mock://", "dial0", "dial", float("nan"), 1.0, 1, 12.5))

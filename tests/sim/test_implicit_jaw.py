@@ -102,6 +102,30 @@ def test_the_flat_product_has_the_bits_of_the_sparse_product() -> None:
     assert not out[5].any()
 
 
+def test_the_muscles_responses_four_a_pass_have_the_bits_of_one_channel_a_pass() -> None:
+    """The muscles' responses summed four channels a pass (`_responses`) give each value the bits
+    of the sum a channel at a time from 0, whatever the number of channels (signed zeros too), so
+    takes keep their bits."""
+    from sim.implicit import _responses
+
+    rng = np.random.default_rng(5)
+    resp = rng.normal(size=(12, 40, 3)) * 10.0 ** rng.integers(-4, 4, size=(12, 40, 1))
+    resp[3, :5] = -0.0
+    for count in range(10):
+        act = rng.permutation(12)[:count].astype(np.int64)
+        val = rng.uniform(-1.0, 1.0, size=count)
+        want = np.zeros((40, 3))
+        for k in range(count):
+            want += resp[act[k]] * val[k]
+        out = np.full((40, 3), np.nan)
+        _responses(resp, act, val, out)
+        assert out.tobytes() == want.tobytes(), count
+    act = np.array([3], dtype=np.int64)
+    out = np.full((40, 3), np.nan)
+    _responses(resp, act, np.array([1.0]), out)
+    assert not np.signbit(out[:5]).any()  # 0 + (-0) * 1: a sum from 0, as a pass a channel made it
+
+
 def test_the_jaw_rotation_has_the_bits_of_rodrigues_in_numpy() -> None:
     """`jaw_rotation` (spelled out on floats, made every tick the jaw moves) gives each entry of
     I + sin(t) K + (1 - cos(t)) K K as numpy's elementwise formula does, so takes keep their bits."""
@@ -176,6 +200,7 @@ def test_the_turned_normals_and_fixed_forces_have_the_bits_of_numpy(model) -> No
     from sim.integrator import _constant_forces, _fixed_forces, _turn_normals
 
     s = Simulator(model, 1.0 / 120.0)
+    s.bending_turned = False  # the turned rest shape too, which takes without "jaw bending" use
     m = s.model
     for jaw in (0.05, 0.4, 1.0):
         rot = np.ascontiguousarray(s._jaw_motion((jaw, 0.0, 0.0))[0])
@@ -195,11 +220,13 @@ def test_the_turned_normals_and_fixed_forces_have_the_bits_of_numpy(model) -> No
 
         turned = times(rest - pivot) + pivot
         base = rest + offset
-        assert s._target.tobytes() == (base + w * (turned + times(offset) + slide - base)).tobytes(), jaw
+        want_target = base + w * (turned + times(offset) + slide - base)
+        assert s._target.tobytes() == want_target.tobytes(), jaw
         assert s._shape.tobytes() == (rest + w * (turned + slide - rest)).tobytes(), jaw
         held = np.zeros_like(rest)
+        s._set_jaw((0.0, 0.0, 0.0))
         s._place_held(held, (jaw, 0.0, 0.0))
-        assert held[s._held].tobytes() == s._target[s._held].tobytes(), jaw
+        assert held[s._held].tobytes() == want_target[s._held].tobytes(), jaw
         target = s.rest_target(jaw)
         mm = m.muscle_matrix
         summed, fixed = np.zeros_like(target), np.full_like(target, np.nan)
@@ -209,3 +236,52 @@ def test_the_turned_normals_and_fixed_forces_have_the_bits_of_numpy(model) -> No
         assert fixed.tobytes() == summed.tobytes(), jaw
     with pytest.raises(ZeroDivisionError):
         _turn_normals(np.zeros((3, 2)), np.zeros(2), np.eye(3), np.zeros((2, 3)), np.zeros((4, 2)))
+
+
+def test_the_bending_rest_side_from_the_turn_is_the_product_with_the_turned_shape(model) -> None:  # type: ignore[no-untyped-def]
+    """The margin bending's rest side made from the jaw's turn (`Simulator.bending_turned`,
+    `_bend_turned`) is K_b times the rest shape turned with the jaw, opened, thrust or moved
+    sideways, to rounding."""
+    from sim.implicit import _bend_turned, _csr_times_flat
+
+    s = Simulator(model, 1.0 / 120.0)
+    impl = s._implicit
+    assert impl is not None and len(impl._bend[2])  # the face has margin bending rows
+    for pose in ((0.4, 0.0, 0.0), (1.0, 0.0, 0.0), (0.3, 0.6, 0.0), (0.5, 0.0, -0.8)):
+        shape = s.rest_target(*pose[:1], offset=False, forward=pose[1], sideways=pose[2])
+        want = np.zeros_like(shape)
+        _csr_times_flat(*impl._bend_flat, shape.reshape(-1), want)
+        rot, slide = s._jaw_motion(pose)
+        got = np.full_like(shape, np.nan)
+        _bend_turned(*impl._turn_b, np.ascontiguousarray(rot), np.ascontiguousarray(slide), got)
+        assert np.abs(got - want).max() <= 1e-12 * np.abs(want).max(), pose
+        assert np.abs(want - impl._turn_b[0] - impl._turn_b[1]).max() > 0.0  # the turn changes it
+
+
+def test_the_bending_from_the_turn_moves_the_face_as_the_product_does(model) -> None:  # type: ignore[no-untyped-def]
+    """Stepped with the bending's rest side from the jaw's turn or from the product, the face
+    moves and settles the same to rounding (under 1e-9 of the chin's travel) while the jaw opens
+    and the skin ages; with the jaw shut the two are the same bits (takes without the jaw keep
+    theirs)."""
+    turned, product = Simulator(model, 1.0 / 120.0), Simulator(model, 1.0 / 120.0)
+    assert turned.bending_turned
+    product.bending_turned = False
+    c = FaceControl(model)
+    st, sp_ = model.rest_state(), model.rest_state()
+    c.set("zygomaticus_major_l", 0.6)
+    for k in range(20):  # the jaw shut: the product with the rest shape either way
+        turned.step(st, c)
+        product.step(sp_, c)
+    assert st.positions.tobytes() == sp_.positions.tobytes()
+    worst = 0.0
+    for k in range(240):
+        c.set("jaw", 0.7 * min(1.0, k / 36))
+        c.set("age", 30.0 + 40.0 * min(1.0, k / 60))
+        for s, state in ((turned, st), (product, sp_)):
+            s.step(state, c)
+            s.prepare(state)
+        worst = max(worst, float(np.abs(st.positions - sp_.positions).max()))
+    chin = _chin(model)
+    travel = float(np.linalg.norm(sp_.positions[chin] - model.rest[chin], axis=1).max())
+    assert st.positions.tobytes() != sp_.positions.tobytes()  # other bits: the header says which
+    assert worst < 1e-9 * travel
