@@ -45,6 +45,23 @@ VARIANTS = {
 }
 
 
+class Sheet(Free):
+    """The shipped single sheet with its springs' modulus (bending springs included) scaled by
+    `modulus`: how far a smooth pull spreads (the spread's length goes with sqrt(modulus / tether))."""
+
+    def __init__(self, model, modulus: float) -> None:  # type: ignore[no-untyped-def]
+        from dataclasses import replace
+
+        from sim.face.scan.calibrate import _stiffness
+
+        super().__init__(model)
+        self.lu, self.free = _stiffness(replace(model, spring_k_low=np.asarray(model.spring_k_low) * modulus))
+        self.scale = 1.0
+
+    def solve(self, f: np.ndarray) -> np.ndarray:
+        return self.scale * super().solve(f)
+
+
 class Layered(Free):
     """scan_limits' free fits with the forces on a layer of `sim.layered`'s tissue and the skin's
     displacement read off: u_skin = S^T K^-1 L f (K symmetric: the adjoint is L^T K^-1 S r)."""
@@ -93,7 +110,8 @@ class Layered(Free):
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--shapes", default=SHAPES, help="comma-separated scan or ARKit names (BrowInnerUp: both halves)")
-    ap.add_argument("--variants", default="uniform,ligaments", help=f"of {', '.join(VARIANTS)}")
+    ap.add_argument("--variants", default="uniform,no-deep,smas,ligaments-strong,ligaments",
+                    help=f"of {', '.join(VARIANTS)}, or sheet:M (the sheet's springs times M)")
     ap.add_argument("--maxiter", type=int, default=Free.MAXITER, help="L-BFGS-B iterations a fit")
     ap.add_argument("--no-sheet", action="store_true", help="leave out the shipped sheet's own fit")
     args = ap.parse_args()
@@ -113,11 +131,11 @@ def main() -> int:
     sheet = Free(model)
     models = {} if args.no_sheet else {"sheet": sheet}
     for name in args.variants.split(","):
-        m = Layered(model, *VARIANTS[name])
+        m = Sheet(model, float(name.split(":")[1])) if name.startswith("sheet:") else Layered(model, *VARIANTS[name])
         ratio = [rms(sheet.linear(v)) / rms(m.linear(v)) for v in values.values()]
         m.scale = float(np.median(ratio))
         models[name] = m
-        print(f"{name}: {len(m.layers.springs)} springs, {len(m.free_l)} free dofs; compliance scaled by "
+        print(f"{name}: compliance scaled by "
               f"{m.scale:.2f} (per shape {min(ratio):.2f}..{max(ratio):.2f})", flush=True)
     print(f"settled and built in {time.monotonic() - t0:.0f} s")
     print(f"{'shape':20s} {'map':>5s} " + " ".join(f"{k:>14s}" for k in models))

@@ -56,7 +56,7 @@ class Layers:
         return np.flatnonzero(np.repeat(~self.held, 3))
 
 
-def _edges(springs: np.ndarray, triangles: np.ndarray, n: int) -> np.ndarray:
+def _edges(triangles: np.ndarray, n: int) -> np.ndarray:
     """The mesh's edges (E,2) among the first n vertices, each once (i < j)."""
     tri = np.asarray(triangles, np.int64)
     e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
@@ -83,7 +83,7 @@ def layered(rest: np.ndarray, normal: np.ndarray, triangles: np.ndarray, springs
     nodes = np.concatenate([rest, rest - t[:, None] * normal, rest - 2.0 * t[:, None] * normal])
     springs = np.asarray(springs, np.int64)
     deep_k = np.broadcast_to(np.asarray(deep_modulus, float), (len(springs),)) * np.asarray(k_skin, float)
-    edges = _edges(springs, triangles, n)
+    edges = _edges(triangles, n)
     parts_s, parts_k = [springs, springs + n], [np.asarray(k_skin, float), deep_k]
     for upper, shear in ((SKIN, skin_shear), (DEEP, bone_shear)):
         lo = upper + 1
