@@ -46,6 +46,8 @@ class Free:
     """Per-shape free fits in the rig's linear statics: gains per (muscle, zone vertex) along the
     fixed lines of action, or a free smooth force per zone vertex."""
 
+    MAXITER = 500  # L-BFGS-B iterations of each free fit
+
     def __init__(self, model) -> None:  # type: ignore[no-untyped-def]
         import scipy.sparse as sp
 
@@ -108,6 +110,10 @@ class Free:
         out[self.free] = self.lu.solve(np.ascontiguousarray(f.ravel()[self.free]))
         return out.reshape(self.n, 3)
 
+    def adjoint(self, r: np.ndarray) -> np.ndarray:
+        """The transpose of `solve` applied to r (N,3): solve itself, the stiffness being symmetric."""
+        return self.solve(r)
+
     def linear(self, values: np.ndarray) -> np.ndarray:
         f = np.zeros((self.n, 3))
         for c, fc in self.field.items():
@@ -121,13 +127,13 @@ class Free:
 
         def obj(x: np.ndarray) -> tuple[float, np.ndarray]:
             r = self.solve(force(x)) - b
-            lam = self.solve(2.0 * w * r)
+            lam = self.adjoint(2.0 * w * r)
             dx = diff @ x
             return (w * float(np.sum(r * r)) + SMOOTH * float(dx @ dx),
                     grad_of(lam) + 2.0 * SMOOTH * (diff.T @ dx))
 
         res = minimize(obj, x0, jac=True, method="L-BFGS-B", bounds=[(lo, None)] * len(x0),
-                       options={"maxiter": 500})
+                       options={"maxiter": self.MAXITER})
         return self.solve(force(res.x))
 
     def best_gains(self, b: np.ndarray) -> np.ndarray:
