@@ -215,20 +215,21 @@ def main() -> None:
         p.wait()
     per_frame = a.rate / 60.0
     print(f"{a.scenario}: {a.rate:.0f} Hz ticks, {a.batches} batches of {a.ticks} ticks each tree, alternating")
-    for k in trees:
-        med, best = statistics.median(cpu[k]), min(cpu[k])
-        print(f"  {k:6s}: {med:.3f} ms a tick median ({100 * per_frame * med / (1e3 / 60):.1f} % of a 60 Hz frame), "
-              f"best batch {best:.3f} ms ({100 * per_frame * best / (1e3 / 60):.1f} %)")
+
+    def medians(times: dict[str, list[float]]) -> None:
+        for k in trees:
+            med, best = statistics.median(times[k]), min(times[k])
+            print(f"  {k:6s}: {med:.3f} ms a tick median ({100 * per_frame * med / (1e3 / 60):.1f} % of a 60 Hz "
+                  f"frame), best batch {best:.3f} ms ({100 * per_frame * best / (1e3 / 60):.1f} %)")
+
+    medians(cpu)
     ratios = [b / n for b, n in zip(cpu["before"], cpu["now"])]
     print(f"  before / now: median of the paired batches {statistics.median(ratios):.2f}x "
           f"(range {min(ratios):.2f}-{max(ratios):.2f}); the same positions after every batch: {same}"
           + ("" if same else f" (at most {apart:.3g} cm apart)"))
     if a.scenario == "dials":
         print("  of which the simulation (the simulator's step, its prepare between ticks and the surface):")
-        for k in trees:
-            med, best = statistics.median(simulated[k]), min(simulated[k])
-            print(f"  {k:6s}: {med:.3f} ms a tick median ({100 * per_frame * med / (1e3 / 60):.1f} % of a 60 Hz frame), "
-                  f"best batch {best:.3f} ms ({100 * per_frame * best / (1e3 / 60):.1f} %)")
+        medians(simulated)
         ratios = [b / n for b, n in zip(simulated["before"], simulated["now"])]
         print(f"  before / now (simulation): median of the paired batches {statistics.median(ratios):.2f}x "
               f"(range {min(ratios):.2f}-{max(ratios):.2f})")
