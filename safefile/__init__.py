@@ -11,6 +11,7 @@ old file byte for byte. Knows nothing of faces, devices or OpenGL: any package m
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
@@ -205,6 +206,12 @@ def table(v: Any, where: str, max_len: int = 100_000) -> dict[str, Any]:
 
 # ---------------------------------------------------------------------------------------- writing
 
+#: errno values of a write that found no room (the disk, the quota, the file size limit).
+_DISK_FULL = frozenset(getattr(errno, n) for n in ("ENOSPC", "EDQUOT", "EFBIG") if hasattr(errno, n))
+#: errno values of an fsync the file system does not offer (the data is not known to be lost).
+_NO_SYNC = frozenset(getattr(errno, n) for n in ("EINVAL", "ENOTSUP", "EOPNOTSUPP") if hasattr(errno, n))
+
+
 def _temp_name(target: Path, folder: bool = False) -> Path:
     """A fresh hidden name beside `target` that keeps its suffix (encoders choose by suffix)."""
     fd_dir = target.parent if str(target.parent) else Path(".")
@@ -230,8 +237,9 @@ def _commit(tmp: Path, target: Path) -> None:
     try:
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
-    except OSError:
-        pass
+    except OSError as err:
+        if err.errno not in _NO_SYNC:  # the data did not reach the disk: keep the old file
+            raise
     os.replace(tmp, target)
     try:  # the rename itself reaches the disk
         dfd = os.open(target.parent if str(target.parent) else ".", os.O_RDONLY)
@@ -248,15 +256,26 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
     """A temporary path beside `target` for a writer that wants a file name (an encoder, numpy);
     renamed onto `target` when the block ends without error, removed otherwise."""
     target = Path(target)
+    if target.is_dir():
+        raise BadFile(f"{target}: is a folder; name a file to write")
     try:
         tmp = _temp_name(target)
     except OSError as err:
         raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
     try:
-        yield tmp
-        _commit(tmp, target)
-    except BaseException:
+        try:
+            yield tmp
+        except OSError as err:
+            if err.errno in _DISK_FULL:
+                raise BadFile(f"{target}: cannot write: {err.strerror}") from err
+            raise
+        try:
+            _commit(tmp, target)
+        except OSError as err:
+            raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
+    except BaseException as err:
         tmp.unlink(missing_ok=True)
+        _name_target(err, tmp, target)
         raise
 
 
@@ -278,15 +297,34 @@ def atomic_dir(target: str | Path) -> Iterator[Path]:
     renamed into `target` (created if missing); on error the folder is removed and `target` is
     left as it was."""
     target = Path(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
+    if target.exists() and not target.is_dir():
+        raise BadFile(f"{target}: is a file, not a folder; name a folder for the frames (or a file with a suffix)")
     try:
+        target.parent.mkdir(parents=True, exist_ok=True)
         tmp = _temp_name(target, folder=True)
     except OSError as err:
         raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
     try:
-        yield tmp
-        target.mkdir(exist_ok=True)
-        for f in sorted(tmp.iterdir()):
-            os.replace(f, target / f.name)
+        try:
+            yield tmp
+        except OSError as err:
+            if err.errno in _DISK_FULL:
+                raise BadFile(f"{target}: cannot write: {err.strerror}") from err
+            raise
+        try:
+            target.mkdir(exist_ok=True)
+            for f in sorted(tmp.iterdir()):
+                os.replace(f, target / f.name)
+        except OSError as err:
+            raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
+    except BaseException as err:
+        _name_target(err, tmp, target)
+        raise
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _name_target(err: BaseException, tmp: Path, target: Path) -> None:
+    """A writer's error names the file the user gave, never the hidden temporary one."""
+    if len(err.args) == 1 and isinstance(err.args[0], str) and str(tmp) in err.args[0]:
+        err.args = (err.args[0].replace(str(tmp), str(target)),)

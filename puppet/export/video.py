@@ -237,6 +237,9 @@ def worker_main() -> int:
         return 0
     except BrokenPipeError:
         return 1
+    except OSError as err:  # writing a frame (a full disk): the folder's name, not the exception's
+        send(-2, f"{cfg['out']}: cannot write: {err.strerror or err}".encode())
+        return 1
     except Exception as err:
         send(-2, f"{type(err).__name__}: {err}".encode())
         return 1
