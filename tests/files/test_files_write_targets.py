@@ -46,7 +46,7 @@ def _leftovers(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir() if ".part" in p.name)
 
 
-@pytest.mark.parametrize("name", ["take.csv", "take.arkit.csv", "take.pc2", "still.png", "frames"])
+@pytest.mark.parametrize("name", ["take.csv", "take.arkit.csv", "take.pc2", "still.png", "take.mp4", "frames"])
 def test_a_full_disk_is_one_line_naming_the_export_and_the_old_file_stays(tmp_path: Path, name: str) -> None:
     formats.good_recording(tmp_path)
     out = tmp_path / name
@@ -62,6 +62,17 @@ def test_a_full_disk_is_one_line_naming_the_export_and_the_old_file_stays(tmp_pa
     assert "cannot write" in line
     assert old.read_bytes() == OLD
     assert _leftovers(tmp_path) == [] and (name != "frames" or _leftovers(out) == [])
+
+
+def test_an_mp4_that_ffmpeg_could_not_finish_is_an_error_and_the_old_video_stays(tmp_path: Path) -> None:
+    """A short video is held in ffmpeg until its end, so a full disk shows only in ffmpeg's exit
+    status (here ffmpeg is stopped by the file size limit): it used to be renamed over the old
+    video, 600 bytes without its index, exit 0."""
+    formats.good_recording(tmp_path)
+    (tmp_path / "short.mp4").write_bytes(OLD)
+    r = _puppet(["replay", "good.jsonl", "--to", "0.2", "--size", "320x240", "--out", "short.mp4"], tmp_path, full=True)
+    _one_line(r, "short.mp4")
+    assert (tmp_path / "short.mp4").read_bytes() == OLD and _leftovers(tmp_path) == []
 
 
 @pytest.mark.parametrize("name", ["still.png", "pose.npz", "pose.obj"])
