@@ -292,10 +292,11 @@ def atomic_write(target: str | Path, mode: str = "w", encoding: str | None = "ut
 
 
 @contextmanager
-def atomic_dir(target: str | Path) -> Iterator[Path]:
+def atomic_dir(target: str | Path, stale: str | None = None) -> Iterator[Path]:
     """A temporary folder beside `target`; when the block ends without error each file in it is
-    renamed into `target` (created if missing); on error the folder is removed and `target` is
-    left as it was."""
+    renamed into `target` (created if missing) and the files of `target` matching the glob `stale`
+    that this write did not make are removed; on error the folder is removed and `target` is left
+    as it was."""
     target = Path(target)
     if target.exists() and not target.is_dir():
         raise BadFile(f"{target}: is a file, not a folder; name a folder for the frames (or a file with a suffix)")
@@ -313,8 +314,14 @@ def atomic_dir(target: str | Path) -> Iterator[Path]:
             raise
         try:
             target.mkdir(exist_ok=True)
-            for f in sorted(tmp.iterdir()):
+            made = sorted(tmp.iterdir())
+            for f in made:
                 os.replace(f, target / f.name)
+            if stale is not None:  # an earlier, longer export's frames would follow the new ones
+                names = {f.name for f in made}
+                for old in target.glob(stale):
+                    if old.name not in names and old.is_file():
+                        old.unlink()
         except OSError as err:
             raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
     except BaseException as err:

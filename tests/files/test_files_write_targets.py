@@ -108,6 +108,21 @@ def test_a_file_where_a_frames_folder_is_named_is_one_line_and_the_file_is_kept(
     assert (tmp_path / "shots").read_bytes() == OLD and _leftovers(tmp_path) == []
 
 
+def test_a_shorter_export_into_a_frames_folder_leaves_only_its_own_frames(tmp_path: Path) -> None:
+    """A folder that held a longer export's frames holds only the new export's after it (an image
+    sequence read by Blender or ffmpeg would otherwise run on into the old take); other files stay."""
+    formats.good_recording(tmp_path)
+    take, shots = tmp_path / "good.jsonl", tmp_path / "shots"
+    common = ["replay", str(take), "--size", "64x48", "--fps", "60", "--out", str(shots)]
+    assert formats.run_cli(common, take).kind == "ok"
+    first = sorted(p.name for p in shots.iterdir())
+    (shots / "notes.txt").write_bytes(OLD)
+    assert formats.run_cli([*common, "--to", "0.1"], take).kind == "ok"
+    second = sorted(p.name for p in shots.glob("frame_*.png"))
+    assert 3 <= len(second) < len(first) and second == first[:len(second)]
+    assert (shots / "notes.txt").read_bytes() == OLD
+
+
 def test_a_sync_that_fails_keeps_the_old_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """fsync reporting an I/O error means the new bytes may not be on the disk: renaming them over
     the old file could lose both, so the write fails and the old file stays."""
