@@ -338,6 +338,34 @@ def good_library(d: Path) -> bytes:
     return db.read_bytes()
 
 
+def good_journal(d: Path) -> bytes:
+    """A take library's journal (`takes.db.journal`): a recording begun and completed as a take,
+    a second take imported, a tag and a note, as `puppet live --record` and `puppet takes` write it."""
+    folder = d / "journal-takes"
+    folder.mkdir(exist_ok=True)
+    rec = good_recording(d)
+    (folder / "a.jsonl").write_bytes(rec)
+    (folder / "b.jsonl").write_bytes(rec.replace(b'"tick_rate":60.0', b'"tick_rate":50.0', 1))
+    db = d / "journal-good.db"
+    for argv in (["import", str(folder)], ["tag", "1", "hero"], ["note", "2", "the second try"]):
+        r = run_cli(["takes", "--library", str(db), *argv], db)
+        assert r.kind == "ok", r.text
+    lines = db.with_name(db.name + ".journal").read_bytes().splitlines(keepends=True)
+    begun = json.dumps({"op": "recording", "path": str(folder / "a.jsonl"), "tags": ["live", "dial"],
+                        "performer": "ana"}).encode() + b"\n"
+    return begun + b"".join(lines)
+
+
+def read_journal(f: Path, d: Path) -> Outcome:
+    """`puppet takes list` on a library whose database is gone and whose journal is damaged: the
+    library is rebuilt from what the journal still says (a result), or one line."""
+    db = d / "journal.db"
+    for p in d.glob("journal.db*"):
+        p.unlink()
+    db.with_name(db.name + ".journal").write_bytes(f.read_bytes())
+    return run_cli(["takes", "--library", str(db), "list"], f, also=db.name)
+
+
 def good_pc2(d: Path) -> bytes:
     """Three samples of the good recording as a PC2 cache, its OBJ kept as pc2-rest.obj."""
     take = d / "pc2-take.jsonl"
@@ -535,6 +563,8 @@ FORMATS: tuple[Format, ...] = (
     Format("voice-profile", ".json", good_voice_profile, lambda g: damage.json_variants(g, n=150),
            read_voice_profile),
     Format("library", ".db", good_library, lambda g: damage.binary_variants(g, n=130), read_library),
+    Format("library-journal", ".journal", good_journal, lambda g: damage.jsonl_variants(g, n=160), read_journal,
+           refused=0.0),  # the journal is read as far as it can be: every variant rebuilds a library
 )
 
 
