@@ -16,6 +16,7 @@ import json
 import math
 import os
 import shutil
+import stat
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -55,6 +56,31 @@ def few(names: list[str] | tuple[str, ...], n: int = 8) -> str:
 
 
 # ---------------------------------------------------------------------------------------- reading
+
+def file_kind(path: str | Path) -> str:
+    """"file", "folder", "missing" or "other" (a pipe, a socket, a device): what a name given
+    as a file to read is, so the message can say what is wrong instead of "no such file"."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return "missing"
+    if stat.S_ISREG(st.st_mode):
+        return "file"
+    return "folder" if stat.S_ISDIR(st.st_mode) else "other"
+
+
+def not_a_file(path: str | Path, what: str) -> str | None:
+    """None for a regular file, else the one line for a name that is not one: `what` is e.g.
+    "capture file"."""
+    kind = file_kind(path)
+    if kind == "file":
+        return None
+    if kind == "missing":
+        return f"{path}: no such {what}"
+    if kind == "folder":
+        return f"{path}: is a folder, not a {what}"
+    return f"{path}: not a regular file (a pipe or a device); save it as a file and name that"
+
 
 def read_bytes(path: str | Path, what: str, limit: int = MAX_BYTES) -> bytes:
     """The file's bytes; a file larger than `limit` is refused after reading `limit + 1` bytes at
