@@ -186,6 +186,10 @@ def parse_profile(text: str, source: str = "<profile>", name: str | None = None,
         m = re.search(r"\(at line (\d+)", str(err))
         raise ProfileError(f"{source}:{m.group(1) if m else 1}: TOML syntax error: "
                            f"{re.sub(r' [(]at line.*', '', str(err))}") from err
+    except RecursionError as err:  # an array nested thousands deep
+        raise ProfileError(f"{source}:1: the profile is nested too deep; a profile is flat tables") from err
+    except ValueError as err:  # an integer of thousands of digits
+        raise ProfileError(f"{source}:1: the profile holds an unusable number ({str(err)[:60]})") from err
     c = _Check(text, source)
     for key in data:
         if key not in TOP_KEYS:

@@ -366,6 +366,16 @@ def read_journal(f: Path, d: Path) -> Outcome:
     return run_cli(["takes", "--library", str(db), "list"], f, also=db.name)
 
 
+def good_midi_profile(d: Path) -> bytes:
+    return (Path(__file__).parents[2] / "devices" / "midi" / "profiles" / "nanokontrol2.toml").read_bytes()
+
+
+def read_midi_profile(f: Path, d: Path) -> Outcome:
+    """`puppet monitor rawmidi://...?profile=FILE`: the profile is read and checked as the box opens
+    (/dev/null: a port that sends nothing)."""
+    return run_cli(["monitor", f"rawmidi:///dev/null?profile={f}", "--duration", "0"], f)
+
+
 def good_pc2(d: Path) -> bytes:
     """Three samples of the good recording as a PC2 cache, its OBJ kept as pc2-rest.obj."""
     take = d / "pc2-take.jsonl"
@@ -563,6 +573,7 @@ FORMATS: tuple[Format, ...] = (
     Format("voice-profile", ".json", good_voice_profile, lambda g: damage.json_variants(g, n=150),
            read_voice_profile),
     Format("library", ".db", good_library, lambda g: damage.binary_variants(g, n=130), read_library),
+    Format("midi-profile", ".toml", good_midi_profile, lambda g: damage.toml_variants(g, n=240), read_midi_profile),
     Format("library-journal", ".journal", good_journal, lambda g: damage.jsonl_variants(g, n=160), read_journal,
            refused=0.0),  # the journal is read as far as it can be: every variant rebuilds a library
 )
