@@ -114,6 +114,14 @@ def good_curves(d: Path) -> bytes:
             b"curve AU12 step max\n 0.1 0.5\n 0.2 1\nend\n")
 
 
+def good_curves_v2(d: Path) -> bytes:
+    """Version 2, as the force-graph editor saves it: an interpolation per key, a hold, a step."""
+    return (b"facepuppet-curves 2\n# saved by the editor\ncurve zygomaticus_major smooth replace\n"
+            b"  0.000000  0\n  0.200000  0.8  linear\n  0.300000  0.8  step\n  0.400000  0.1\nend\n"
+            b"curve jaw linear add\n  0.000000  0  smooth\n  0.300000  0.5\nend\n"
+            b"curve AU12 step max\n  0.100000  0.5\n  0.200000  1  smooth\nend\n")
+
+
 def good_rig(d: Path) -> bytes:
     from sim.face import default_rig
     from sim.rig import save_rig
@@ -549,6 +557,7 @@ FORMATS: tuple[Format, ...] = (
            lambda g: damage.recording_variants(g, seed=15, n=150), read_recording_headless),
     Format("mapping", ".toml", good_mapping, lambda g: damage.toml_variants(g, n=300), read_mapping),
     Format("curves", ".curves", good_curves, lambda g: damage.text_variants(g, n=240), read_curves),
+    Format("curves-v2", ".curves", good_curves_v2, lambda g: damage.text_variants(g, seed=21, n=240), read_curves),
     Format("rig", ".npz", good_rig, lambda g: damage.rig_variants(g, n=180), read_rig),
     Format("mock-toml", ".toml", good_mock_toml, lambda g: damage.toml_variants(g, n=240), read_mock),
     Format("mock-json", ".json", good_mock_json, lambda g: damage.json_variants(g, n=200), read_mock),
