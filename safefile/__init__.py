@@ -242,8 +242,22 @@ def _temp_name(target: Path, folder: bool = False) -> Path:
     """A fresh hidden name beside `target` that keeps its suffix (encoders choose by suffix)."""
     fd_dir = target.parent if str(target.parent) else Path(".")
     if folder:
-        return Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".part", dir=fd_dir))
-    fd, name = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=f".part{target.suffix}", dir=fd_dir)
+        suffix, stem = ".part", target.name
+    else:
+        suffix, stem = f".part{target.suffix}", target.stem
+    try:
+        name_max = os.pathconf(fd_dir, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    # a name the file system takes for the target must not fail for its temporary one: the stem is
+    # cut to leave room for the dots, 8 random characters and the suffix (bytes, as the kernel counts)
+    room = name_max - 10 - len(os.fsencode(suffix))
+    raw = os.fsencode(stem)
+    if len(raw) > room:
+        stem = raw[:max(room, 1)].decode("utf-8", "ignore") or "x"
+    if folder:
+        return Path(tempfile.mkdtemp(prefix=f".{stem}.", suffix=suffix, dir=fd_dir))
+    fd, name = tempfile.mkstemp(prefix=f".{stem}.", suffix=suffix, dir=fd_dir)
     os.close(fd)
     return Path(name)
 

@@ -137,3 +137,17 @@ def test_a_sync_that_fails_keeps_the_old_file(tmp_path: Path, monkeypatch: pytes
         with atomic_write(target) as fh:
             fh.write("new")
     assert target.read_bytes() == OLD and _leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("name", ["b" * 246 + ".csv", "é" * 121 + ".pc2", "c" * 250],
+                         ids=["250-byte-csv", "246-byte-unicode-pc2", "250-byte-frames-folder"])
+def test_an_output_name_as_long_as_the_file_system_allows_is_written(tmp_path: Path, name: str) -> None:
+    """The temporary name beside the target is longer than the target's: a name near the file
+    system's 255-byte limit was refused as 'File name too long' though the file itself could be."""
+    formats.good_recording(tmp_path)
+    take, out = tmp_path / "good.jsonl", tmp_path / name
+    r = formats.run_cli(["replay", str(take), "--to", "0.05", "--size", "64x48", "--out", str(out)], take)
+    assert r.kind == "ok", r.text
+    assert out.exists() and _leftovers(tmp_path) == []
+    if out.suffix == ".pc2":
+        assert out.with_suffix(".obj").is_file()
