@@ -235,7 +235,7 @@ def table(v: Any, where: str, max_len: int = 100_000) -> dict[str, Any]:
 #: errno values of a write that found no room (the disk, the quota, the file size limit).
 _DISK_FULL = frozenset(getattr(errno, n) for n in ("ENOSPC", "EDQUOT", "EFBIG") if hasattr(errno, n))
 #: errno values of an fsync the file system does not offer (the data is not known to be lost).
-_NO_SYNC = frozenset(getattr(errno, n) for n in ("EINVAL", "ENOTSUP", "EOPNOTSUPP") if hasattr(errno, n))
+_NO_SYNC = frozenset(getattr(errno, n) for n in ("EINVAL", "ENOTSUP", "EOPNOTSUPP", "ENOSYS") if hasattr(errno, n))
 
 
 def _temp_name(target: Path, folder: bool = False) -> Path:
