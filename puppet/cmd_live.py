@@ -237,8 +237,14 @@ def _run(args: argparse.Namespace) -> int:
 
         if not stand_by(args, lambda: live.load_face(args.rig, face=args.face)):
             return 0
-    if args.map and not Path(args.map).is_file():  # said before any demo or show starts
-        raise PuppetError(f"{args.map}: no such map file (`puppet learn --map FILE` makes one)")
+    if args.map:  # said before any demo or show starts (a pipe, `--map <(...)`, is read as it comes)
+        from safefile import file_kind
+
+        kind = file_kind(args.map)
+        if kind == "missing":
+            raise PuppetError(f"{args.map}: no such map file (`puppet learn --map FILE` makes one)")
+        if kind == "folder":
+            raise PuppetError(f"{args.map}: is a folder, not a map file")
     windowed = not args.headless and live.display_available()
     if args.demo:
         if args.device:

@@ -42,7 +42,7 @@ def _keep(line: bytes, ticks: int) -> bool:
         return False
     try:
         rec = json.loads(line)
-    except ValueError:
+    except (ValueError, RecursionError):  # cut, or damaged (nested thousands deep): it goes
         return False
     if not isinstance(rec, dict) or rec.get("t") == "end":
         return False

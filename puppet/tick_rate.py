@@ -76,7 +76,7 @@ def live_tick_rate(face: Face, announce: Callable[[str], None] | None = None) ->
             rate = float(json.loads(path.read_text())["rate"])
             if rate in TICK_RATES:
                 return rate
-        except (OSError, ValueError, KeyError, TypeError):
+        except (OSError, ValueError, KeyError, TypeError, RecursionError):  # damaged: measured again
             pass
     if announce is not None:
         announce("measuring the face's tick cost (once for this face)")
@@ -91,6 +91,6 @@ def live_tick_rate(face: Face, announce: Callable[[str], None] | None = None) ->
             path.parent.mkdir(parents=True, exist_ok=True)
             with atomic_write(path) as fh:
                 json.dump({"rate": rate, "step_ms": {f"{r:g}": c * 1000 for r, c in cost.items()}}, fh)
-        except OSError:
+        except (OSError, ValueError):  # a cache that cannot be written (full, read-only: safefile's BadFile)
             pass
     return rate

@@ -11,10 +11,12 @@ old file byte for byte. Knows nothing of faces, devices or OpenGL: any package m
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
 import shutil
+import stat
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -54,6 +56,31 @@ def few(names: list[str] | tuple[str, ...], n: int = 8) -> str:
 
 
 # ---------------------------------------------------------------------------------------- reading
+
+def file_kind(path: str | Path) -> str:
+    """"file", "folder", "missing" or "other" (a pipe, a socket, a device): what a name given
+    as a file to read is, so the message can say what is wrong instead of "no such file"."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return "missing"
+    if stat.S_ISREG(st.st_mode):
+        return "file"
+    return "folder" if stat.S_ISDIR(st.st_mode) else "other"
+
+
+def not_a_file(path: str | Path, what: str) -> str | None:
+    """None for a regular file, else the one line for a name that is not one: `what` is e.g.
+    "capture file"."""
+    kind = file_kind(path)
+    if kind == "file":
+        return None
+    if kind == "missing":
+        return f"{path}: no such {what}"
+    if kind == "folder":
+        return f"{path}: is a folder, not a {what}"
+    return f"{path}: not a regular file (a pipe or a device); save it as a file and name that"
+
 
 def read_bytes(path: str | Path, what: str, limit: int = MAX_BYTES) -> bytes:
     """The file's bytes; a file larger than `limit` is refused after reading `limit + 1` bytes at
@@ -205,12 +232,32 @@ def table(v: Any, where: str, max_len: int = 100_000) -> dict[str, Any]:
 
 # ---------------------------------------------------------------------------------------- writing
 
+#: errno values of a write that found no room (the disk, the quota, the file size limit).
+_DISK_FULL = frozenset(getattr(errno, n) for n in ("ENOSPC", "EDQUOT", "EFBIG") if hasattr(errno, n))
+#: errno values of an fsync the file system does not offer (the data is not known to be lost).
+_NO_SYNC = frozenset(getattr(errno, n) for n in ("EINVAL", "ENOTSUP", "EOPNOTSUPP", "ENOSYS") if hasattr(errno, n))
+
+
 def _temp_name(target: Path, folder: bool = False) -> Path:
     """A fresh hidden name beside `target` that keeps its suffix (encoders choose by suffix)."""
     fd_dir = target.parent if str(target.parent) else Path(".")
     if folder:
-        return Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".part", dir=fd_dir))
-    fd, name = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=f".part{target.suffix}", dir=fd_dir)
+        suffix, stem = ".part", target.name
+    else:
+        suffix, stem = f".part{target.suffix}", target.stem
+    try:
+        name_max = os.pathconf(fd_dir, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    # a name the file system takes for the target must not fail for its temporary one: the stem is
+    # cut to leave room for the dots, 8 random characters and the suffix (bytes, as the kernel counts)
+    room = name_max - 10 - len(os.fsencode(suffix))
+    raw = os.fsencode(stem)
+    if len(raw) > room:
+        stem = raw[:max(room, 1)].decode("utf-8", "ignore") or "x"
+    if folder:
+        return Path(tempfile.mkdtemp(prefix=f".{stem}.", suffix=suffix, dir=fd_dir))
+    fd, name = tempfile.mkstemp(prefix=f".{stem}.", suffix=suffix, dir=fd_dir)
     os.close(fd)
     return Path(name)
 
@@ -230,8 +277,9 @@ def _commit(tmp: Path, target: Path) -> None:
     try:
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
-    except OSError:
-        pass
+    except OSError as err:
+        if err.errno not in _NO_SYNC:  # the data did not reach the disk: keep the old file
+            raise
     os.replace(tmp, target)
     try:  # the rename itself reaches the disk
         dfd = os.open(target.parent if str(target.parent) else ".", os.O_RDONLY)
@@ -248,15 +296,26 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
     """A temporary path beside `target` for a writer that wants a file name (an encoder, numpy);
     renamed onto `target` when the block ends without error, removed otherwise."""
     target = Path(target)
+    if target.is_dir():
+        raise BadFile(f"{target}: is a folder; name a file to write")
     try:
         tmp = _temp_name(target)
     except OSError as err:
         raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
     try:
-        yield tmp
-        _commit(tmp, target)
-    except BaseException:
+        try:
+            yield tmp
+        except OSError as err:
+            if err.errno in _DISK_FULL:
+                raise BadFile(f"{target}: cannot write: {err.strerror}") from err
+            raise
+        try:
+            _commit(tmp, target)
+        except OSError as err:
+            raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
+    except BaseException as err:
         tmp.unlink(missing_ok=True)
+        _name_target(err, tmp, target)
         raise
 
 
@@ -273,20 +332,46 @@ def atomic_write(target: str | Path, mode: str = "w", encoding: str | None = "ut
 
 
 @contextmanager
-def atomic_dir(target: str | Path) -> Iterator[Path]:
+def atomic_dir(target: str | Path, stale: str | None = None) -> Iterator[Path]:
     """A temporary folder beside `target`; when the block ends without error each file in it is
-    renamed into `target` (created if missing); on error the folder is removed and `target` is
-    left as it was."""
+    renamed into `target` (created if missing) and the files of `target` matching the glob `stale`
+    that this write did not make are removed; on error the folder is removed and `target` is left
+    as it was."""
     target = Path(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
+    if target.exists() and not target.is_dir():
+        raise BadFile(f"{target}: is a file, not a folder; name a folder for the frames (or a file with a suffix)")
     try:
+        target.parent.mkdir(parents=True, exist_ok=True)
         tmp = _temp_name(target, folder=True)
     except OSError as err:
         raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
     try:
-        yield tmp
-        target.mkdir(exist_ok=True)
-        for f in sorted(tmp.iterdir()):
-            os.replace(f, target / f.name)
+        try:
+            yield tmp
+        except OSError as err:
+            if err.errno in _DISK_FULL:
+                raise BadFile(f"{target}: cannot write: {err.strerror}") from err
+            raise
+        try:
+            target.mkdir(exist_ok=True)
+            made = sorted(tmp.iterdir())
+            for f in made:
+                os.replace(f, target / f.name)
+            if stale is not None:  # an earlier, longer export's frames would follow the new ones
+                names = {f.name for f in made}
+                for old in target.glob(stale):
+                    if old.name not in names and old.is_file():
+                        old.unlink()
+        except OSError as err:
+            raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
+    except BaseException as err:
+        _name_target(err, tmp, target)
+        raise
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _name_target(err: BaseException, tmp: Path, target: Path) -> None:
+    """A writer's error names the file the user gave, never the hidden temporary one."""
+    if len(err.args) == 1 and isinstance(err.args[0], str) and str(tmp) in err.args[0]:
+        err.args = (err.args[0].replace(str(tmp), str(target)),)

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from safefile import BadFile, atomic_write, load_json, number, quote, sequence, string, table
+from safefile import BadFile, atomic_write, load_json, not_a_file, number, quote, sequence, string, table
 from sim.model import SKIN_FIELDS, FaceMesh, FaceRig, LinearMuscle, Muscle, PatchMuscle, SheetMuscle, SphincterMuscle
 
 FORMAT = "facepuppet-rig"
@@ -169,8 +169,9 @@ def load_rig(path: str | Path) -> FaceRig:
     """Read a rig file; RigFileError (a ValueError) with a one-line message if it is malformed."""
     p = str(path)
     try:
-        if not Path(p).is_file():
-            raise RigFileError(f"{p}: no such rig file")
+        why = not_a_file(p, "rig file")
+        if why:
+            raise RigFileError(why)
         if not zipfile.is_zipfile(p):
             raise RigFileError(
                 f"{p}: not a rig file (a rig is an .npz archive written by `puppet import-face`)"

@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from devices.errors import DeviceSpecError
+from safefile import quote
 
 MESSAGES = ("cc", "cc14", "note", "pitchbend", "nrpn", "rpn")
 KINDS = ("axis", "dial", "button")
@@ -152,18 +153,18 @@ class _Check:
 
     def int_(self, v: Any, path: tuple[Any, ...], lo: int, hi: int) -> int:
         if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-            raise self.fail(path, f"expected a whole number {lo}..{hi} for {path[-1]}, got {v!r}")
+            raise self.fail(path, f"expected a whole number {lo}..{hi} for {path[-1]}, got {quote(v)}")
         return v
 
     def num(self, v: Any, path: tuple[Any, ...], lo: float, hi: float) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= v <= hi):
-            raise self.fail(path, f"expected a number {lo:g}..{hi:g} for {path[-1]}, got {v!r}")
+            raise self.fail(path, f"expected a number {lo:g}..{hi:g} for {path[-1]}, got {quote(v)}")
         return float(v)
 
     def str_(self, v: Any, path: tuple[Any, ...], choices: tuple[str, ...] | None = None) -> str:
         if not isinstance(v, str) or not v or len(v) > 200 or (choices is not None and v not in choices):
             want = f"one of {', '.join(choices)}" if choices else "a non-empty string (at most 200 characters)"
-            raise self.fail(path, f"expected {want} for {path[-1]}, got {v!r}")
+            raise self.fail(path, f"expected {want} for {path[-1]}, got {quote(v)}")
         return v
 
     def ints(self, v: Any, path: tuple[Any, ...], count: int, lo: int, hi: int) -> list[int]:
@@ -186,10 +187,14 @@ def parse_profile(text: str, source: str = "<profile>", name: str | None = None,
         m = re.search(r"\(at line (\d+)", str(err))
         raise ProfileError(f"{source}:{m.group(1) if m else 1}: TOML syntax error: "
                            f"{re.sub(r' [(]at line.*', '', str(err))}") from err
+    except RecursionError as err:  # an array nested thousands deep
+        raise ProfileError(f"{source}:1: the profile is nested too deep; a profile is flat tables") from err
+    except ValueError as err:  # an integer of thousands of digits
+        raise ProfileError(f"{source}:1: the profile holds an unusable number ({str(err)[:60]})") from err
     c = _Check(text, source)
     for key in data:
         if key not in TOP_KEYS:
-            raise c.fail((key,), f"unknown key {key!r}; expected one of {', '.join(sorted(TOP_KEYS))}")
+            raise c.fail((key,), f"unknown key {quote(key)}; expected one of {', '.join(sorted(TOP_KEYS))}")
     title = c.str_(data.get("name", Path(source).stem), ("name",))
     match = data.get("match", [])
     if not isinstance(match, list) or len(match) > 32:
@@ -238,7 +243,8 @@ def _controls(c: _Check, i: int, item: Any, channel: int, dead_band: int) -> lis
         raise c.fail(p, "expected a [[control]] table")
     for key in item:
         if key not in CONTROL_KEYS:
-            raise c.fail(p + (key,), f"unknown control key {key!r}; expected one of {', '.join(sorted(CONTROL_KEYS))}")
+            raise c.fail(p + (key,), f"unknown control key {quote(key)}; "
+                         f"expected one of {', '.join(sorted(CONTROL_KEYS))}")
     if "name" not in item or "message" not in item or "number" not in item and item.get("message") != "pitchbend":
         raise c.fail(p, "expected name, message and number in every [[control]]")
     count = c.int_(item.get("count", 1), p + ("count",), 1, 128)
@@ -314,7 +320,7 @@ def _lights(c: _Check, v: Any, path: tuple[Any, ...], count: int, message: str, 
         raise c.fail(path, f"expected {what} = true or {what} = {{message = \"note\", number = N, on = 127, off = 0}}")
     for key in v:
         if key not in LIGHT_KEYS:
-            raise c.fail(path, f"unknown {what} key {key!r}; expected one of {', '.join(sorted(LIGHT_KEYS))}")
+            raise c.fail(path, f"unknown {what} key {quote(key)}; expected one of {', '.join(sorted(LIGHT_KEYS))}")
     msg = c.str_(v.get("message", message if message in LIGHT_MESSAGES else "cc"), path, LIGHT_MESSAGES)
     step = c.int_(v.get("step", 1), path, 0, 127)
     nums = _numbers(c, v["number"], path, count, step, 127) if "number" in v else numbers

@@ -183,7 +183,7 @@ def up_to_date(out_dir: Path, o: Output) -> bool:
             if _stamp(out_dir / fname) != stamp:
                 return False
         return bool(m["files"])
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # damaged (nested thousands deep): the output is redone
         return False
 
 

@@ -255,7 +255,7 @@ def _submit_and_collect(client: Any, todo: list[Output], out_dir: Path, chunk_fr
 
     desc = f"batch on {rep.workers} worker{'' if rep.workers == 1 else 's'}"
     with tqdm(total=rep.tasks, desc=desc, unit="task", file=sys.stderr, dynamic_ncols=True,
-              disable=not show) as progress:
+              disable=None if show else True) as progress:  # None: a bar on a terminal only, not in a log
         for fut in as_completed(list(final) + list(helpers)):
             progress.update(1)
             group = final.get(fut)

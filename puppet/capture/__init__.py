@@ -14,6 +14,7 @@ from typing import Any
 
 from puppet.capture.points import ChannelCapture, PointCapture, load_correspondence
 from puppet.errors import ConfigError
+from safefile import not_a_file
 
 __all__ = ["ChannelCapture", "PointCapture", "load_correspondence", "read_capture"]
 
@@ -32,8 +33,9 @@ def read_capture(path: str | Path, face: Any, correspondence: str | Path | None 
     """The capture in `path`, for the rig of `face` (a `puppet.live.Face`); fps: the rate of
     formats that store none (PC2; ARKit timecodes' frame field), default 60."""
     p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"{p}: no such capture file")
+    why = not_a_file(p, "capture file")  # a pipe cannot be read twice (its format is told by its first line)
+    if why:
+        raise ConfigError(why)
     corr = load_correspondence(correspondence, face.model.mesh) if correspondence else None
     suffix = p.suffix.lower()
     if suffix == ".pc2":

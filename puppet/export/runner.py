@@ -269,7 +269,7 @@ def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], op
 
         read_wav(sound)
     frames = ((j, state) for j, _, state, _ in iter_frames(perf, ticks))
-    place = atomic_dir(out) if kind == "frames" else atomic_path(out)
+    place = atomic_dir(out, stale="frame_*.png") if kind == "frames" else atomic_path(out)
     with place as target, _bar(len(ticks), out.name or str(out)) as bar:
         if len(ticks) >= PARALLEL_MIN_FRAMES and opts.parallel:
             render_parallel(perf.face.model, target, kind, opts.fps, opts.size, opts.view, frames, bar.update,

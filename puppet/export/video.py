@@ -30,25 +30,81 @@ def render_workers() -> int:
 
 
 class Encoder:
-    """H.264 through imageio-ffmpeg, fed the renderer's raw rows bottom-up (ffmpeg flips them, so
-    no copy is made here)."""
+    """H.264 by ffmpeg (imageio-ffmpeg's binary), fed the renderer's raw rows bottom-up (ffmpeg
+    flips them, so no copy is made here). ffmpeg's log goes to a scratch file and its exit status
+    is checked: a video ffmpeg could not finish (a full disk at the trailer, ffmpeg killed) is an
+    error, never a cut file renamed over the user's old one."""
 
     def __init__(self, out: Path, fps: float, size: tuple[int, int], preset: str = DEFAULT_PRESET,
                  crf: int = DEFAULT_CRF) -> None:
+        import subprocess
+        import tempfile
+        from fractions import Fraction
+
         import imageio_ffmpeg
 
         vf = "vflip" if size[0] % 2 == 0 and size[1] % 2 == 0 else "vflip,pad=ceil(iw/2)*2:ceil(ih/2)*2"
-        self._gen = imageio_ffmpeg.write_frames(
-            str(out), size, pix_fmt_in="rgb24", pix_fmt_out="yuv420p", fps=fps, quality=None,
-            codec="libx264", macro_block_size=1, ffmpeg_log_level="error",
-            output_params=["-preset", preset, "-crf", str(int(crf)), "-vf", vf])
-        self._gen.send(None)  # starts ffmpeg
+        cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-f", "rawvideo", "-vcodec", "rawvideo",
+               "-s", f"{int(size[0]):d}x{int(size[1]):d}", "-pix_fmt", "rgb24",
+               "-r", str(Fraction(float(fps)).limit_denominator()), "-i", "-", "-an",
+               "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-v", "error",
+               "-preset", preset, "-crf", str(int(crf)), "-vf", vf, str(out)]
+        self.out = out
+        self._log = tempfile.TemporaryFile()
+        # its own session: a Ctrl-C reaches this process, which closes the encoder
+        self._proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._log,
+                                      start_new_session=True)
+        self._failed = False
 
     def add(self, raw: bytes | memoryview) -> None:
-        self._gen.send(raw)
+        assert self._proc.stdin is not None
+        try:
+            self._proc.stdin.write(raw)
+        except OSError as err:
+            self._failed = True
+            raise PuppetError(self._failure(err)) from err
 
     def close(self) -> None:
-        self._gen.close()
+        """Ends the video; raises if ffmpeg did not finish it (unless the failure was raised already)."""
+        proc = self._proc
+        if proc.stdin is not None and not proc.stdin.closed:
+            try:
+                proc.stdin.close()
+            except OSError:
+                self._failed = True
+        code = proc.wait()
+        failed, self._failed = self._failed, True  # a second close reports nothing
+        if code != 0 and not failed:
+            raise PuppetError(self._failure(None))
+
+    def _failure(self, err: BaseException | None) -> str:
+        """One line: ffmpeg's last words, or what stopped it."""
+        import signal
+
+        try:
+            code = self._proc.wait(timeout=10)
+        except Exception:  # noqa: BLE001 - still running: its pipe broke for another reason
+            code = None
+        self._log.seek(0)
+        said = [ln.strip() for ln in self._log.read()[-4096:].decode("utf-8", "replace").splitlines() if ln.strip()]
+        reason = said[-1] if said else (str(err).splitlines()[0] if err is not None else f"ffmpeg ended with {code}")
+        if code is not None and code < 0:
+            reason = (os.strerror(27) if -code == getattr(signal, "SIGXFSZ", -1)  # EFBIG: the file size limit
+                      else f"the encoder was stopped by signal {-code}")
+        return encoder_failure(self.out, reason)
+
+
+def encoder_failure(out: Path, reason: str | BaseException) -> str:
+    """One line for an encoder that stopped. A full disk shows there as a broken pipe or a muxer's
+    complaint: the free room of the output's disk is checked and named instead."""
+    text = (str(reason).strip().splitlines() or [type(reason).__name__])[0]
+    try:
+        st = os.statvfs(Path(out).parent if str(Path(out).parent) else ".")
+        if st.f_bavail * st.f_frsize < 4 * 1024 * 1024:
+            text = os.strerror(28)  # ENOSPC
+    except OSError:
+        pass
+    return f"{out}: cannot write: {text}"
 
 
 class FrameSink:
@@ -253,6 +309,9 @@ def worker_main() -> int:
         return 0
     except BrokenPipeError:
         return 1
+    except OSError as err:  # writing a frame (a full disk): the folder's name, not the exception's
+        send(-2, f"{cfg['out']}: cannot write: {err.strerror or err}".encode())
+        return 1
     except Exception as err:
         send(-2, f"{type(err).__name__}: {err}".encode())
         return 1
@@ -407,7 +466,7 @@ def render_parallel(model: Any, out: Path, kind: str, fps: float, size: tuple[in
                     nxt += 1
                     state["done"] += 1
         except Exception as err:  # the encoder failed (disk full, ffmpeg gone)
-            state["error"] = f"{out}: cannot write: {err}"
+            state["error"] = str(err) if isinstance(err, PuppetError) else encoder_failure(out, err)
 
     try:
         if kind == "mp4":

@@ -155,8 +155,8 @@ class Library:
         for line in text.splitlines():
             try:
                 rec = json.loads(line)
-            except ValueError:
-                continue  # a line cut by a crash, or damage: the rest still counts
+            except (ValueError, RecursionError):
+                continue  # a line cut by a crash, or damage (nested thousands deep): the rest still counts
             if isinstance(rec, dict) and isinstance(rec.get("op"), str):
                 out.append(rec)
         return out
@@ -178,7 +178,9 @@ class Library:
                 k = pending[p] = "rec:" + p
                 order.setdefault(k)
                 where[k] = p
-                begun_tags.setdefault(k, []).extend(t for t in r.get("tags") or [] if isinstance(t, str))
+                tags = r.get("tags")
+                tags = tags if isinstance(tags, list) else []  # a damaged line: no tags rather than none of it
+                begun_tags.setdefault(k, []).extend(t for t in tags if isinstance(t, str))
                 if isinstance(r.get("performer"), str) and r["performer"]:
                     performer[k] = r["performer"]
             elif r["op"] in ("take", "moved") and isinstance(h, str):

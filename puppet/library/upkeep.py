@@ -35,12 +35,17 @@ def import_folder(lib: Library, folder: str | Path, performer: str | None = None
     elif root.is_dir():
         files = sorted(p for p in root.rglob("*.jsonl")
                        if not any(part.startswith(".") for part in p.relative_to(root).parts))
+    elif root.exists():
+        raise PuppetError(f"{folder}: not a regular file (a pipe or a device); save the recording as a file")
     else:
         raise PuppetError(f"{folder}: no such folder or recording")
     rep = ImportReport()
     from puppet.session import _being_recorded
 
     for p in files:
+        if not p.is_file():  # a pipe named like a take would wait forever for a writer
+            rep.skipped.append(f"{p}: not a regular file (a folder, a pipe or a device)")
+            continue
         if _being_recorded(p):
             rep.skipped.append(f"{p}: a show is recording it now; its library registers it (import it again "
                                "when the show is over for another library)")

@@ -79,7 +79,7 @@ def decode_input(text: str, allowed: set[str]) -> tuple[str, float] | None:
         return None
     try:
         msg = json.loads(text)
-    except ValueError:
+    except (ValueError, RecursionError):  # 4096 bytes nest 2048 deep, past json's recursion limit
         return None
     if not isinstance(msg, dict) or msg.get("t") != "in":
         return None

@@ -332,7 +332,7 @@ def parse_face_message(text: str) -> dict[str, Any] | None:
         return None
     try:
         msg = json.loads(text)
-    except ValueError:
+    except (ValueError, RecursionError):
         return None
     if not isinstance(msg, dict):
         return None

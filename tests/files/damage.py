@@ -181,6 +181,23 @@ def recording_variants(good: bytes, seed: int = 14, n: int = 300) -> Iterator[Va
     yield from generic(good, rng, n // 5, n // 5)
 
 
+def jsonl_variants(good: bytes, seed: int = 14, n: int = 250) -> Iterator[Variant]:
+    """JSON Lines (a journal): a field of some line replaced or deleted, a line doubled or dropped,
+    and the byte-level damage."""
+    rng = random.Random(seed)
+    lines = good.decode().splitlines()
+    for _ in range(n // 2):
+        i = rng.randrange(len(lines))
+        name, r = next(json_fields(json.loads(lines[i]), rng, 1))
+        ls = list(lines)
+        ls[i] = dump_json(r)
+        yield f"line{i}:{name}", ("\n".join(ls) + "\n").encode()
+    for i in range(len(lines)):
+        yield f"drop{i}", ("\n".join(lines[:i] + lines[i + 1:]) + "\n").encode()
+        yield f"twice{i}", ("\n".join(lines[:i + 1] + lines[i:]) + "\n").encode()
+    yield from generic(good, rng, n // 4, n // 4)
+
+
 def json_variants(good: bytes, seed: int = 14, n: int = 250) -> Iterator[Variant]:
     rng = random.Random(seed)
     value = json.loads(good)

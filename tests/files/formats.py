@@ -114,6 +114,14 @@ def good_curves(d: Path) -> bytes:
             b"curve AU12 step max\n 0.1 0.5\n 0.2 1\nend\n")
 
 
+def good_curves_v2(d: Path) -> bytes:
+    """Version 2, as the force-graph editor saves it: an interpolation per key, a hold, a step."""
+    return (b"facepuppet-curves 2\n# saved by the editor\ncurve zygomaticus_major smooth replace\n"
+            b"  0.000000  0\n  0.200000  0.8  linear\n  0.300000  0.8  step\n  0.400000  0.1\nend\n"
+            b"curve jaw linear add\n  0.000000  0  smooth\n  0.300000  0.5\nend\n"
+            b"curve AU12 step max\n  0.100000  0.5\n  0.200000  1  smooth\nend\n")
+
+
 def good_rig(d: Path) -> bytes:
     from sim.face import default_rig
     from sim.rig import save_rig
@@ -338,6 +346,44 @@ def good_library(d: Path) -> bytes:
     return db.read_bytes()
 
 
+def good_journal(d: Path) -> bytes:
+    """A take library's journal (`takes.db.journal`): a recording begun and completed as a take,
+    a second take imported, a tag and a note, as `puppet live --record` and `puppet takes` write it."""
+    folder = d / "journal-takes"
+    folder.mkdir(exist_ok=True)
+    rec = good_recording(d)
+    (folder / "a.jsonl").write_bytes(rec)
+    (folder / "b.jsonl").write_bytes(rec.replace(b'"tick_rate":60.0', b'"tick_rate":50.0', 1))
+    db = d / "journal-good.db"
+    for argv in (["import", str(folder)], ["tag", "1", "hero"], ["note", "2", "the second try"]):
+        r = run_cli(["takes", "--library", str(db), *argv], db)
+        assert r.kind == "ok", r.text
+    lines = db.with_name(db.name + ".journal").read_bytes().splitlines(keepends=True)
+    begun = json.dumps({"op": "recording", "path": str(folder / "a.jsonl"), "tags": ["live", "dial"],
+                        "performer": "ana"}).encode() + b"\n"
+    return begun + b"".join(lines)
+
+
+def read_journal(f: Path, d: Path) -> Outcome:
+    """`puppet takes list` on a library whose database is gone and whose journal is damaged: the
+    library is rebuilt from what the journal still says (a result), or one line."""
+    db = d / "journal.db"
+    for p in d.glob("journal.db*"):
+        p.unlink()
+    db.with_name(db.name + ".journal").write_bytes(f.read_bytes())
+    return run_cli(["takes", "--library", str(db), "list"], f, also=db.name)
+
+
+def good_midi_profile(d: Path) -> bytes:
+    return (Path(__file__).parents[2] / "devices" / "midi" / "profiles" / "nanokontrol2.toml").read_bytes()
+
+
+def read_midi_profile(f: Path, d: Path) -> Outcome:
+    """`puppet monitor rawmidi://...?profile=FILE`: the profile is read and checked as the box opens
+    (/dev/null: a port that sends nothing)."""
+    return run_cli(["monitor", f"rawmidi:///dev/null?profile={f}", "--duration", "0"], f)
+
+
 def good_pc2(d: Path) -> bytes:
     """Three samples of the good recording as a PC2 cache, its OBJ kept as pc2-rest.obj."""
     take = d / "pc2-take.jsonl"
@@ -511,6 +557,7 @@ FORMATS: tuple[Format, ...] = (
            lambda g: damage.recording_variants(g, seed=15, n=150), read_recording_headless),
     Format("mapping", ".toml", good_mapping, lambda g: damage.toml_variants(g, n=300), read_mapping),
     Format("curves", ".curves", good_curves, lambda g: damage.text_variants(g, n=240), read_curves),
+    Format("curves-v2", ".curves", good_curves_v2, lambda g: damage.text_variants(g, seed=21, n=240), read_curves),
     Format("rig", ".npz", good_rig, lambda g: damage.rig_variants(g, n=180), read_rig),
     Format("mock-toml", ".toml", good_mock_toml, lambda g: damage.toml_variants(g, n=240), read_mock),
     Format("mock-json", ".json", good_mock_json, lambda g: damage.json_variants(g, n=200), read_mock),
@@ -535,6 +582,9 @@ FORMATS: tuple[Format, ...] = (
     Format("voice-profile", ".json", good_voice_profile, lambda g: damage.json_variants(g, n=150),
            read_voice_profile),
     Format("library", ".db", good_library, lambda g: damage.binary_variants(g, n=130), read_library),
+    Format("midi-profile", ".toml", good_midi_profile, lambda g: damage.toml_variants(g, n=240), read_midi_profile),
+    Format("library-journal", ".journal", good_journal, lambda g: damage.jsonl_variants(g, n=160), read_journal,
+           refused=0.0),  # the journal is read as far as it can be: every variant rebuilds a library
 )
 
 

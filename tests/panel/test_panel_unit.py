@@ -58,6 +58,21 @@ def test_decoder_survives_damaged_messages(vocab) -> None:
         assert decode_input(bad, allowed) is None
 
 
+def test_a_page_message_nested_as_deep_as_its_size_allows_is_ignored(vocab) -> None:
+    """A message of at most 4096 bytes nests 2048 deep, past json's recursion limit: it is a
+    malformed message like any other (it ended the page's connection with aiohttp's traceback
+    on the show's terminal)."""
+    from puppet.panel.device import MAX_MESSAGE
+    from puppet.panel.face import parse_face_message
+
+    allowed = allowed_controls(vocab, ["jaw"])
+    for deep in ("[" * (MAX_MESSAGE // 2) + "]" * (MAX_MESSAGE // 2), '{"t":"in","c":' + "[" * 2000 + "]" * 2000 + "}",
+                 "[" * 128 + "]" * 128):
+        assert decode_input(deep[:MAX_MESSAGE], allowed) is None
+        assert parse_face_message(deep[:256]) is None
+    assert parse_face_message('{"w":' + "[" * 120 + "]" * 120 + "}") is None
+
+
 def test_channel_limits(vocab) -> None:
     every = set(controls_of(vocab))
     assert allowed_controls(vocab, None) == every

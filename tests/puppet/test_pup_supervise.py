@@ -129,6 +129,18 @@ def test_resume_point_of_a_file_cut_anywhere(tmp_path: Path, face: live.Face) ->
         assert back.segments == ([point.ticks] if point.ticks else [])
 
 
+def test_resume_after_a_damaged_last_line_nested_thousands_deep(tmp_path: Path, face: live.Face) -> None:
+    """The crash left a damaged last line (nested thousands deep): the take continues after the
+    last complete tick and the damaged line is cut off; it was a RecursionError traceback."""
+    full = _take(tmp_path, face, 40, end=True).read_bytes()
+    body = full[:full.rindex(b'{"t":"end"')]
+    p = tmp_path / "deep.jsonl"
+    p.write_bytes(body + b"[" * 5000 + b"]" * 5000 + b"\n")
+    point = resume.resume_point(p, face)
+    assert point is not None and point.offset == len(body)
+    assert point.ticks == read_session(p).ticks
+
+
 def test_resume_refuses_another_faces_recording(tmp_path: Path, face: live.Face) -> None:
     p = _take(tmp_path, face, 5, end=False)
     lines = p.read_text().splitlines()

@@ -43,3 +43,29 @@ def test_a_take_without_a_tick_rate_replays_at_60_hz(tmp_path: Path) -> None:
     replay = puppet("replay", str(rec), "--headless", env=ENV)
     assert replay.returncode == 0, replay.stderr
     assert "bit-identical" in replay.stdout and "(1.20 s)" in replay.stdout
+
+
+def test_a_damaged_or_unwritable_tick_rate_cache_only_means_measuring_again(tmp_path: Path, monkeypatch) -> None:
+    """The measured rate kept in the face cache: a file nested thousands deep is measured again
+    (it was a RecursionError before the show started), and a cache that cannot be written (a full
+    disk or a read-only folder: safefile's one-line BadFile) leaves the show its measured rate."""
+    import safefile
+    from puppet import face_cache
+    from puppet.live import load_face
+    from puppet.tick_rate import TICK_RATES, live_tick_rate
+
+    monkeypatch.setenv(face_cache.ENV, str(tmp_path))
+    face = load_face(None, 0, face="procedural")
+    rate = live_tick_rate(face)
+    assert rate in TICK_RATES
+    (kept,) = tmp_path.glob("tick-rate-*.json")
+    kept.write_text("[" * 5000 + "]" * 5000)
+    assert live_tick_rate(face) in TICK_RATES
+    kept.unlink()
+
+    def full(path, *a, **k):
+        raise safefile.BadFile(f"{path}: cannot write: No space left on device")
+
+    monkeypatch.setattr(safefile, "atomic_write", full)
+    assert live_tick_rate(face) in TICK_RATES
+    assert not list(tmp_path.glob("tick-rate-*.json"))

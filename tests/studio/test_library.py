@@ -121,6 +121,19 @@ def test_import_one_recording(folder: Path, tmp_path: Path, capsys: pytest.Captu
     assert code == 2 and "no such folder or recording" in err
 
 
+
+def test_import_skips_a_pipe_named_like_a_take_instead_of_waiting_for_it(folder: Path, tmp_path: Path) -> None:
+    """A FIFO `x.jsonl` in the folder (a script's leftover): opening it waited forever for a writer."""
+    os.mkfifo(folder / "day2" / "pipe.jsonl")
+    lib = tmp_path / "takes.db"
+    run = [sys.executable, "-m", "puppet", "takes", "--library", str(lib), "import"]
+    r = subprocess.run([*run, str(folder)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and "pipe.jsonl: not a regular file" in r.stderr, r.stderr
+    assert "registered" in r.stdout
+    r = subprocess.run([*run, str(folder / "day2" / "pipe.jsonl")], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "pipe.jsonl: not a regular file" in r.stderr, r.stderr
+
+
 WRITER = """
 import sys
 sys.path.insert(0, {here!r})

@@ -10,7 +10,7 @@ import re
 
 import numpy as np
 
-from safefile import BadFile, quote, read_bytes
+from safefile import BadFile, not_a_file, quote, read_bytes
 from sim.face.transfer.landmarks import TransferError
 
 FloatArray = np.ndarray
@@ -59,8 +59,9 @@ def read_mesh(path: str | Path) -> HeadMesh:
     import trimesh
 
     path = str(path)
-    if not Path(path).is_file():
-        raise TransferError(f"{path}: no such mesh file")
+    why = not_a_file(path, "mesh file")
+    if why:
+        raise TransferError(why)
     if Path(path).suffix.lower() not in MESH_SUFFIXES:
         raise TransferError(f"{path}: unsupported mesh format; use one of {', '.join(MESH_SUFFIXES)}")
     suffix = Path(path).suffix.lower()

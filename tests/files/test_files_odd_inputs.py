@@ -1,0 +1,62 @@
+"""Names given as files to read that are not files: a folder, a pipe with no writer, a pipe fed by
+the shell (`--map <(make_map)`). Each is a result, or one line saying what the name is (not "no
+such file" for a folder that is there), exit 2, and nothing waits forever."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+import formats
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _commands(name: str, tmp_path: Path) -> dict[str, list[str]]:
+    return {
+        "fit": ["fit", name, "--out", str(tmp_path / "fit.jsonl")],
+        "import-face": ["import-face", name, "--landmarks", str(tmp_path / "lm.json"), "--out",
+                        str(tmp_path / "r.npz"), "--no-image"],
+        "pose --rig": ["pose", "--rig", name, "--seconds", "0", "--out", str(tmp_path / "p.npz")],
+        "live --map": ["live", "--map", name, "--headless", "--no-panel", "--duration", "0.05", "--device",
+                       "mock://?sine=dial0"],
+    }
+
+
+@pytest.mark.parametrize("command", ["fit", "import-face", "pose --rig", "live --map"])
+def test_a_folder_named_as_the_file_to_read_is_one_line_saying_so(tmp_path: Path, command: str) -> None:
+    folder = tmp_path / "named.csv"
+    folder.mkdir()
+    r = formats.run_cli(_commands(str(folder), tmp_path)[command], folder)
+    assert r.kind == "error", r.text
+    assert "is a folder" in r.text and "no such" not in r.text
+
+
+@pytest.mark.parametrize("command", ["fit", "import-face", "pose --rig"])
+def test_a_pipe_named_where_a_file_is_read_twice_is_one_line_and_does_not_wait(tmp_path: Path, command: str) -> None:
+    """A FIFO with no writer: opening it would wait forever; these readers need a file they can
+    read twice (the format told by the first line, a zip's directory), so they say so at once."""
+    fifo = tmp_path / "named.obj"
+    os.mkfifo(fifo)
+    r = formats.run_cli(_commands(str(fifo), tmp_path)[command], fifo)
+    assert r.kind == "error", r.text
+    assert "not a regular file" in r.text
+
+
+def test_a_map_fed_through_a_pipe_by_the_shell_is_read(tmp_path: Path) -> None:
+    """`puppet live --map <(make_map)`: the shell names a pipe /dev/fd/N; it was refused as 'no
+    such map file'."""
+    text = (ROOT / "puppet" / "maps" / "sgi.toml").read_bytes()
+    rd, wr = os.pipe()
+    try:
+        os.write(wr, text)  # the whole map fits in the pipe's buffer
+        os.close(wr)
+        wr = -1
+        r = formats.run_cli(_commands(f"/dev/fd/{rd}", tmp_path)["live --map"], Path(f"/dev/fd/{rd}"))
+    finally:
+        os.close(rd)
+        if wr >= 0:
+            os.close(wr)
+    assert r.kind == "ok", r.text
