@@ -445,7 +445,13 @@ def build_inside(verbose: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
 def main() -> None:
     """Builds both lists; `python -m render.scan_lod inside` builds the mouth's inside alone and keeps
     the shipped plain skin."""
-    if sys.argv[1:] == ["inside"]:
+    import argparse
+
+    ap = argparse.ArgumentParser(prog="python -m render.scan_lod",
+                                 description=f"Rebuild the scanned head's coarse lists and rewrite {DATA.name}.")
+    ap.add_argument("part", nargs="?", choices=["all", "inside"], default="all",
+                    help="inside: the mouth's inside alone (the shipped plain skin kept); all: both (default)")
+    if ap.parse_args().part == "inside":
         coarse, err = coarse_plain()
     else:
         coarse, err = build(verbose=True)

@@ -249,3 +249,20 @@ def test_coarse_inside_drawn_with_the_coarse_skin(gl, mouth_open) -> None:
             assert diff.mean() < 0.05, name  # levels of 255 over the picture
             assert (diff > 8).mean() < 0.001, name
         assert gl.error == "GL_NO_ERROR"
+
+
+def test_the_rebuild_command_asks_before_it_rewrites_the_shipped_lists() -> None:
+    """`--help` or an unknown part is answered without building or rewriting scan_lod.npz."""
+    import subprocess
+    import sys
+
+    from render.scan_lod import DATA
+
+    before = (DATA.stat().st_mtime_ns, DATA.read_bytes())
+    shown = subprocess.run([sys.executable, "-m", "render.scan_lod", "--help"], capture_output=True, text=True,
+                           timeout=120)
+    assert shown.returncode == 0 and "inside" in shown.stdout
+    wrong = subprocess.run([sys.executable, "-m", "render.scan_lod", "bogus"], capture_output=True, text=True,
+                           timeout=120)
+    assert wrong.returncode == 2 and "invalid choice" in wrong.stderr
+    assert (DATA.stat().st_mtime_ns, DATA.read_bytes()) == before
