@@ -177,15 +177,52 @@ def run(args: argparse.Namespace) -> int:
     (`puppet.live._ShowRuntime`), and the collector is on again for anything after the show."""
     import gc
 
-    if args.supervise:  # the supervisor runs for the whole show: it keeps its collector
-        return _run(args)
-    was_enabled = gc.isenabled()
-    gc.disable()
+    streams = sys.stdout, sys.stderr
+    sys.stdout, sys.stderr = _Unbroken(sys.stdout), _Unbroken(sys.stderr)
     try:
-        return _run(args)
+        if args.supervise:  # the supervisor runs for the whole show: it keeps its collector
+            return _run(args)
+        was_enabled = gc.isenabled()
+        gc.disable()
+        try:
+            return _run(args)
+        finally:
+            if was_enabled:
+                gc.enable()
     finally:
-        if was_enabled:
-            gc.enable()
+        sys.stdout, sys.stderr = streams
+
+
+class _Unbroken:
+    """A show's terminal output that a reader who left cannot stop: `puppet live 2>&1 | head` or
+    a closed log pipe. The first write that finds the pipe broken points the stream's file at
+    /dev/null (later writes, the children's and the exit's flush go nowhere) and the show, its
+    recording and its exports go on."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return int(self._stream.write(text))
+        except (BrokenPipeError, ConnectionResetError):
+            self._gone()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except (BrokenPipeError, ConnectionResetError):
+            self._gone()
+
+    def _gone(self) -> None:
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), self._stream.fileno())
+        except (OSError, ValueError, AttributeError):
+            pass
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
 
 
 #: seconds the face may take to load before the show says that it is being prepared

@@ -105,3 +105,18 @@ def test_a_missing_map_is_said_before_the_demo_starts(tmp_path: Path) -> None:
     assert r.stderr.strip().splitlines() == [f"puppet: error: {tmp_path / 'mine.toml'}: no such map file "
                                              "(`puppet learn --map FILE` makes one)"]
     assert not list(tmp_path.iterdir())
+
+
+def test_a_reader_who_leaves_does_not_stop_the_show(tmp_path: Path) -> None:
+    """`puppet live 2>&1 | head -1`: the pipe breaks at the show's first lines; the show goes on,
+    its take ends complete and the demo's MP4 and PNG are written (it was killed mid-way, exit 141)."""
+    env = {**NO_DISPLAY, "PUPPET_LIBRARY": "off"}
+    proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--headless", "--duration", "3",
+                             "--record", "t.jsonl"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            env=env, cwd=tmp_path)
+    assert proc.stdout is not None
+    proc.stdout.readline()
+    proc.stdout.close()  # the reader leaves
+    assert proc.wait(timeout=180) == 0
+    assert read_session(tmp_path / "t.jsonl").complete
+    assert (tmp_path / "t.mp4").stat().st_size > 0 and (tmp_path / "t.png").stat().st_size > 0
