@@ -22,10 +22,18 @@ The arithmetic is the column sweeps', operation for operation: every value of th
 receives its subtractions in the same order (the forward sweep's in increasing column, the
 backward's in decreasing column) and each is a separate multiply and subtract, so a solve gives the
 same bits as the plain column-by-column sweeps over the same factors.
+
+The matrix is symmetric and factored with one permutation for rows and columns, so U = D L^T up to
+rounding (D: U's diagonal): `_sym_sweeps` solves from L and D alone, L^-T D^-1 L^-1, reading each
+value of L twice and none of U's: the same answer to rounding, other bits (new takes; the take
+header's "solve", sim.Simulator.symmetric_solve), fewer bytes to bring from memory each solve. Its
+backward sweep takes L's columns (contiguous) as sums over the rows below a run, which it
+adds in four lanes of vector code; `_sn_sweeps` stays for the takes recorded with it.
 """
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING
 
 import numba
@@ -380,13 +388,16 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
 @numba.njit(cache=True, nogil=True)
 def _sym_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, t_ptr, tl, u_diag, acc):  # type: ignore[no-untyped-def]
     """y = L^-T D^-1 L^-1 y in place for 3 right-hand sides: the solve from the symmetric factor
-    alone (module docstring: U = D L^T up to rounding, D U's diagonal), the forward sweep
-    `_sn_sweeps`' and a backward sweep that reads L's values where `_sn_sweeps` reads U's. Each
-    unknown of a run is its value divided by its pivot less two sums: L's column below the run
-    times the unknowns there (four partial sums over every fourth row, the lanes of vector code,
-    added (0 + 1) + (2 + 3)), then the run's own column below the diagonal times the run's later
-    unknowns, one after the other. Not the bits of `_sn_sweeps` (a take's header says which solve
-    it was recorded with). acc: (6, `work_size`)."""
+    alone (module docstring), `_sn_sweeps`' forward sweep, then a backward sweep that reads L's
+    values where `_sn_sweeps` reads U's. Run by run from the last, each unknown of the run is its
+    value divided by its pivot less the sum of L's column below the run times the (final) unknowns
+    there: lane k of four sums the rows k, k + 4, ... of the run's row list in turn (`_dot4`, vector
+    code), the lanes added (0 + 1) + (2 + 3); then the run's own unknowns from the last, each final
+    value subtracted, times L's row inside the run, from the earlier ones (four at a time as in
+    `_sn_sweeps`, one after the other for each value). tl: the runs' triangles with L's values on
+    both sides of the diagonal (`mirrored`; the forward sweep reads the lower side, tv's values).
+    Not the bits of `_sn_sweeps` (a take's header says which solve it was recorded with).
+    acc: (6, `work_size`)."""
     _forward(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, t_ptr, tl, acc)
     a0 = acc[0]
     a1 = acc[1]
@@ -627,9 +638,6 @@ class PrefactoredSolver:
         self.perm_r, self.perm_c = arrays["perm_r"], arrays["perm_c"]
         self.factors = tuple(arrays[k] for k in self.KEYS[2:])
         self.fill = int(2 * len(arrays["lv"]) + len(arrays["tv"]) + self.n)
-        #: what `_sym_sweeps` reads: L's values and D alone, U's (uv) left unread
-        self.sym_factors = tuple(arrays[k] for k in ("sn_ptr", "r_ptr", "r_idx", "v_ptr", "lv", "t_ptr")) + (
-            mirrored(arrays["sn_ptr"], arrays["t_ptr"], arrays["tv"]), arrays["u_diag"])
         #: the symmetric solve needs the same permutation of rows and columns (A = P^T L D L^T P)
         self.symmetric = bool(np.array_equal(self.perm_r, self.perm_c))
         self.work = np.zeros((6, work_size(arrays)))
@@ -639,6 +647,14 @@ class PrefactoredSolver:
         """out = A^-1 b for b (n, 3)."""
         _sn_solve(b, self.perm_r, self.perm_c, *self.factors, self.work, self._y, out)
         return out
+
+    @functools.cached_property
+    def sym_factors(self) -> tuple[np.ndarray, ...]:
+        """What `_sym_sweeps` reads: L's values, the runs' triangles with L's values on both sides
+        (`mirrored`, made on first use: 0.86 MB on the scanned head) and D; U's (uv) left unread."""
+        a = self.arrays
+        return tuple(a[k] for k in ("sn_ptr", "r_ptr", "r_idx", "v_ptr", "lv", "t_ptr")) + (
+            mirrored(a["sn_ptr"], a["t_ptr"], a["tv"]), a["u_diag"])
 
     def solve_symmetric(self, b: np.ndarray, out: np.ndarray) -> np.ndarray:
         """out = A^-1 b for b (n, 3) from L and D alone (`_sym_sweeps`): the same up to rounding."""
