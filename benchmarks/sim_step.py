@@ -16,7 +16,9 @@ one substep a tick, so 2 and 4 solves per 60 Hz frame), a tick as the live loop 
 120 Hz (`puppet live` headless picks the rate from the face's measured step, `puppet.tick_rate`:
 the step with the input, the wrinkle surface once a 60 Hz frame and the next step's input-free solve made between ticks), and the prefactored solve alone,
 by supernodes (`sim.supernodal`, what the step runs) against the plain column-by-column sweeps over
-the same factors (what it ran before; the same bits), in alternating batches. The last block
+the same factors (what it ran before; the same bits), in alternating batches, and the substep's solve
+from the symmetric factor (L and D, what new takes use) against the one from L and U, with the factors
+in the caches and with 12 MB written before each solve, in alternating batches. The last block
 compares the two integrators' transients on the default face: time for the left mouth corner to
 reach 90 % of its settled AU12 displacement.
 """

@@ -73,3 +73,17 @@ def test_without_the_header_a_new_take_is_replayed_with_l_and_u(tmp_path: Path) 
     rp = _replay(take)
     assert not rp.perf.symmetric_solve
     assert rp.mismatches  # recorded with the symmetric solve: L and U give other bits
+
+
+def test_a_damaged_solve_entry_is_named(tmp_path: Path) -> None:
+    import pytest
+
+    from puppet.errors import ConfigError
+
+    lines = OLD.read_text().splitlines()
+    header = json.loads(lines[0])
+    header["solve"] = ["symmetric factor"]
+    take = tmp_path / "bad.jsonl"
+    take.write_text("\n".join([json.dumps(header)] + lines[1:]) + "\n")
+    with pytest.raises(ConfigError, match="solve"):
+        read_session(take)
