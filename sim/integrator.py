@@ -592,17 +592,16 @@ class Simulator:
     @property
     def symmetric_solve(self) -> bool:
         """The implicit step's substeps solve from the symmetric factor alone (L and D:
-        `sim.supernodal._sym_sweeps`, the same positions up to rounding, half the factors' values
-        read). False: from L and U, as takes recorded before (puppet.replay sets it for them, for
-        their bits). Always False for the explicit integrator. Set before the first step."""
+        `sim.supernodal._sym_sweeps`, the same positions up to rounding, U's values unread). False:
+        from L and U, as takes recorded before (puppet.replay sets it for them, for their bits).
+        Always False for the explicit integrator, and for factors whose rows and columns were
+        permuted differently (then L and U whatever is asked). Set before the first step."""
         return self._implicit is not None and self._implicit.symmetric_solve
 
     @symmetric_solve.setter
     def symmetric_solve(self, on: bool) -> None:
-        if self._implicit is not None:
-            if on and not self._implicit.solver.symmetric:
-                raise ValueError("this face's factors have no symmetric form")
-            self._implicit.symmetric_solve = bool(on)
+        if self._implicit is not None:  # (factors permuted differently by rows and columns: L and U always)
+            self._implicit.symmetric_solve = bool(on) and self._implicit.solver.symmetric
 
     @staticmethod
     def _by_coordinate(rows: np.ndarray) -> np.ndarray:
