@@ -16,7 +16,9 @@ one substep a tick, so 2 and 4 solves per 60 Hz frame), a tick as the live loop 
 120 Hz (`puppet live` headless picks the rate from the face's measured step, `puppet.tick_rate`:
 the step with the input, the wrinkle surface once a 60 Hz frame and the next step's input-free solve made between ticks), and the prefactored solve alone,
 by supernodes (`sim.supernodal`, what the step runs) against the plain column-by-column sweeps over
-the same factors (what it ran before; the same bits), in alternating batches. The last block
+the same factors (what it ran before; the same bits), in alternating batches, and the substep's solve
+from the symmetric factor (L and D, what new takes use) against the one from L and U, with the factors
+in the caches and with 12 MB written before each solve, in alternating batches. The last block
 compares the two integrators' transients on the default face: time for the left mouth corner to
 reach 90 % of its settled AU12 displacement.
 """
@@ -118,6 +120,45 @@ def _solve_vs_columns(solver: object, batches: int = 15) -> str:
             best[key] = min(best[key], (time.thread_time() - t0) / 20 * 1e3)
     return (f"    the solve alone: by supernodes {best['supernodes']:.2f} ms, by columns {best['columns']:.2f} ms "
             f"({best['columns'] / best['supernodes']:.2f}x; same bits: {same})")
+
+
+def _symmetric_vs_lu(solver: object, batches: int = 15) -> str:
+    """The substep's solve from the symmetric factor (`_sym_sweeps`: L and D) against the one from
+    L and U (`_sn_sweeps`), alternating batches of 20 solves, once with the factors in the caches
+    and once with 12 MB written before each solve (as the rest of a live tick and other programs
+    evict them); and how far apart their answers are."""
+    from sim.supernodal import _sn_sweeps, _sym_sweeps
+
+    b = np.random.default_rng(3).normal(size=(solver.n, 3))  # type: ignore[attr-defined]
+    y1, y2 = b.copy(), b.copy()
+    _sn_sweeps(y1, *solver.factors, solver.work)  # type: ignore[attr-defined]
+    _sym_sweeps(y2, *solver.sym_factors, solver.work)  # type: ignore[attr-defined]
+    apart = float(np.abs(y1 - y2).max() / np.abs(y1).max())
+    evict = np.zeros(12 * 2**20 // 8)
+    out = []
+    for cold in (False, True):
+        best = {"LU": [], "LDL^T": []}
+        for _ in range(batches):
+            for key in best:
+                spent = 0.0
+                for _ in range(20):
+                    y = b.copy()
+                    if cold:
+                        evict += 1.0
+                    t0 = time.thread_time()
+                    if key == "LU":
+                        _sn_sweeps(y, *solver.factors, solver.work)  # type: ignore[attr-defined]
+                    else:
+                        _sym_sweeps(y, *solver.sym_factors, solver.work)  # type: ignore[attr-defined]
+                    spent += time.thread_time() - t0
+                best[key].append(spent / 20 * 1e3)
+        lu, sym = np.median(best["LU"]), np.median(best["LDL^T"])
+        out.append(f"{'after 12 MB written' if cold else 'factors in the caches'}: L and U {lu:.3f} ms, "
+                   f"L and D {sym:.3f} ms ({lu / sym:.2f}x)")
+    read = lambda *ks: sum(solver.arrays[k].nbytes for k in ks) / 2**20  # type: ignore[attr-defined]  # noqa: E731
+    return (f"    the substep's solve, medians of {batches} batches: " + "; ".join(out) +
+            f"; values read {read('lv', 'uv', 'tv', 'u_diag'):.2f} -> {read('lv', 'tv', 'u_diag'):.2f} MB; "
+            f"answers apart by {apart:.1e} of the largest")
 
 
 def _live_ticks(model: object, control: object, rate: float, frames: int) -> str:
@@ -256,6 +297,7 @@ def _scan(control: object, frames: int, auto_ms: dict[int, float]) -> None:
     for rate in (60.0, 120.0):
         print(_live_ticks(model, control, rate, frames))
     print(_solve_vs_columns(sim._implicit.solver))  # type: ignore[attr-defined]
+    print(_symmetric_vs_lu(sim._implicit.solver))  # type: ignore[attr-defined]
     t0 = time.thread_time()
     Simulator(model, 1.0 / 50.0, wrinkles=False)  # a substep no other simulator here used
     print(f"    a simulator's set-up (its matrix factored, nothing kept): {time.thread_time() - t0:.2f} s; "

@@ -217,6 +217,10 @@ JAW_AS = "responses from the last step's pose"
 #: jaw's turn (sim.Simulator.bending_turned); a take without it is replayed with the product of the
 #: bending matrix and the turned rest shape, as it was recorded (puppet.replay)
 JAW_BENDING_AS = "from the turn"
+#: the take header's "solve": the implicit step's substeps solve from the symmetric factor alone
+#: (sim.Simulator.symmetric_solve: L and D, U's values unread); a take without it is replayed with
+#: the solve from L and U, as it was recorded (puppet.replay)
+SOLVE_AS = "symmetric factor"
 #: the take header's "bending": a scanned head's forehead bends as its bound layer
 #: (sim.antifold.bound_layer); a take without it, made on another face hash, was recorded on the
 #: thinner forehead and is replayed on it (puppet.replay)
@@ -248,6 +252,7 @@ def take_header(face: Face, rate: float, mapping: dict[str, str], devices: Seque
         # age taken whole at each step, as it was recorded (puppet.replay)
         "jaw": JAW_AS,
         "jaw bending": JAW_BENDING_AS,
+        "solve": SOLVE_AS,
         # how a scanned head's forehead bends: a take without it is replayed on the forehead it
         # was recorded on (puppet.replay)
         "bending": BENDING_AS,

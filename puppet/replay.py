@@ -18,7 +18,7 @@ import numpy as np
 
 from puppet.curves import CurveLayer, CurveSet
 from puppet.errors import ConfigError, PuppetError
-from puppet.live import BENDING_AS, JAW_AS, JAW_BENDING_AS, LIDS_AS, MUSCLES_AS, Face, load_face
+from puppet.live import BENDING_AS, JAW_AS, JAW_BENDING_AS, LIDS_AS, MUSCLES_AS, SOLVE_AS, Face, load_face
 from puppet.session import Session
 from safefile import quote
 
@@ -55,6 +55,9 @@ class Performance:
     #: recorded with the margin bending's rest side made as the product with the turned rest shape
     #: (no "jaw bending" in its header): replayed that way (sim.Simulator.bending_turned off)
     bending_turned: bool = True
+    #: recorded with the substeps solving from L and U (no "solve" in its header): replayed that way
+    #: (sim.Simulator.symmetric_solve off)
+    symmetric_solve: bool = True
 
     @property
     def ticks(self) -> int:
@@ -171,7 +174,8 @@ def build_performance(session: Session | None, curves: CurveSet | None, rig_path
     follow = session is None or session.header.get("lids") == LIDS_AS
     jaw = session is None or session.header.get("jaw") == JAW_AS
     turned = session is None or session.header.get("jaw bending") == JAW_BENDING_AS
-    return Performance(face, values, rate, markers, checks, restarts, summed, follow, jaw, turned)
+    symmetric = session is None or session.header.get("solve") == SOLVE_AS
+    return Performance(face, values, rate, markers, checks, restarts, summed, follow, jaw, turned, symmetric)
 
 
 def _clamp(values: np.ndarray, face: Face, source: str) -> None:
@@ -214,6 +218,7 @@ class Replayer:
         s.lids_follow_gaze = self.perf.lids_follow_gaze
         s.jaw_responses = self.perf.jaw_responses
         s.bending_turned = self.perf.bending_turned
+        s.symmetric_solve = self.perf.symmetric_solve
         return s
 
     def step(self) -> None:

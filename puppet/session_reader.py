@@ -80,6 +80,8 @@ def _header(p: Path, line: bytes) -> dict[str, Any]:
             header["jaw"] = string(header["jaw"], f"{where}: jaw", 80)
         if header.get("bending") is not None:
             header["bending"] = string(header["bending"], f"{where}: bending", 80)
+        if header.get("solve") is not None:
+            header["solve"] = string(header["solve"], f"{where}: solve", 80)
     except BadFile as err:
         raise ConfigError(f"{err} (the recording header is damaged)") from err
     header["channels"] = channels

@@ -56,7 +56,7 @@ from sim.integrator import JawTurn, _eye_contact
 from sim.margin_contact import (ROUNDS, SWEEPS, SolvedContact, _contact_force, _contact_resolve, _repair,
                                  solved_constraints, warm_up_solved)
 from sim.numba_start import prepare_blas_check
-from sim.supernodal import PrefactoredSolver, _sn_sweeps
+from sim.supernodal import PrefactoredSolver, _sn_sweeps, _sym_sweeps
 
 if TYPE_CHECKING:  # scipy is imported where a matrix is built: a stepper made from the face cache needs none
     import scipy.sparse as sp
@@ -513,6 +513,10 @@ class ImplicitStepper:
         self._folds = (prep["fold_tri"], prep["fold_frame"], prep["fold_dm_inv"], prep["fold_area"], prep["fold_k"],
                        float(prep["fold_floor"]))
         self.solver = PrefactoredSolver(arrays={k: prep["lu_" + k] for k in PrefactoredSolver.KEYS})
+        #: a substep's solve from the symmetric factor alone (`sim.supernodal._sym_sweeps`: L and D,
+        #: U's values left unread); False: from L and U (`_sn_sweeps`), as takes recorded before
+        #: (sim.Simulator.symmetric_solve). The prepared responses are the LU solve's either way.
+        self.symmetric_solve = self.solver.symmetric
         if "c_idx" in prep:
             self.margins: SolvedContact | None = SolvedContact.from_arrays(
                 {k: prep["c_" + k] for k in SolvedContact.KEYS})
@@ -611,7 +615,10 @@ class ImplicitStepper:
                  c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base, ext, summed,
                  self._spring_work(len(idx)), self._px, self._pv, keep)
         _held_rhs(x, self.held, *self._fh, base, ext, self.free, self.solver.perm_r, xh, held_term, ys, summed)
-        _sn_sweeps(ys, *self.solver.factors, self.solver.work)
+        if self.symmetric_solve:
+            _sym_sweeps(ys, *self.solver.sym_factors, self.solver.work)
+        else:
+            _sn_sweeps(ys, *self.solver.factors, self.solver.work)
 
     def jaw_response(self, ext: np.ndarray, shape: np.ndarray | None, held_at: np.ndarray | None,
                      out: np.ndarray) -> None:

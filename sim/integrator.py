@@ -589,6 +589,20 @@ class Simulator:
             self._implicit.turn_basis(self._jaw_weight, np.asarray(model.jaw_pivot, dtype=np.float64))
         self._rest_shape = np.array(model.rest)  # the margin bending's rest shape at rest (`bending_turned`)
 
+    @property
+    def symmetric_solve(self) -> bool:
+        """The implicit step's substeps solve from the symmetric factor alone (L and D:
+        `sim.supernodal._sym_sweeps`, the same positions up to rounding, U's values unread). False:
+        from L and U, as takes recorded before (puppet.replay sets it for them, for their bits).
+        Always False for the explicit integrator, and for factors whose rows and columns were
+        permuted differently (then L and U whatever is asked). Set before the first step."""
+        return self._implicit is not None and self._implicit.symmetric_solve
+
+    @symmetric_solve.setter
+    def symmetric_solve(self, on: bool) -> None:
+        if self._implicit is not None:  # (factors permuted differently by rows and columns: L and U always)
+            self._implicit.symmetric_solve = bool(on) and self._implicit.solver.symmetric
+
     @staticmethod
     def _by_coordinate(rows: np.ndarray) -> np.ndarray:
         """(3, N) writeable contiguous copy of (N, 3) rows: the same values, one numba signature."""

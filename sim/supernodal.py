@@ -22,10 +22,18 @@ The arithmetic is the column sweeps', operation for operation: every value of th
 receives its subtractions in the same order (the forward sweep's in increasing column, the
 backward's in decreasing column) and each is a separate multiply and subtract, so a solve gives the
 same bits as the plain column-by-column sweeps over the same factors.
+
+The matrix is symmetric and factored with one permutation for rows and columns, so U = D L^T up to
+rounding (D: U's diagonal): `_sym_sweeps` solves from L and D alone, L^-T D^-1 L^-1, reading each
+value of L twice and none of U's: the same answer to rounding, other bits (new takes; the take
+header's "solve", sim.Simulator.symmetric_solve), fewer bytes to bring from memory each solve. Its
+backward sweep takes L's columns (contiguous) as sums over the rows below a run, which it
+adds in four lanes of vector code; `_sn_sweeps` stays for the takes recorded with it.
 """
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING
 
 import numba
@@ -64,6 +72,39 @@ def _prefetch(typingctx, arr, i):  # type: ignore[no-untyped-def]
     return sig, codegen
 
 
+@intrinsic
+def _dot4(typingctx, col, g0, g1, g2, blocks):  # type: ignore[no-untyped-def]
+    """Four lanes a right-hand side: lane k of s_r sums col[i] * g_r[i] over the rows i = 4 b + k,
+    b < blocks, in increasing i (each a multiply then an add, as the scalar loop would); returns
+    (s_0 lanes 0-3, s_1 lanes 0-3, s_2 lanes 0-3). Written as vectors of four float64 so the lanes
+    run side by side (numba's straight-line vectorizer is off); the same bits on any processor."""
+    sig = types.UniTuple(types.float64, 12)(col, g0, g1, g2, blocks)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        f64 = ir.DoubleType()
+        vec = ir.VectorType(f64, 4)
+        vptr = vec.as_pointer()
+        datas = [context.make_array(signature.args[j])(context, builder, args[j]).data for j in range(4)]
+        zero = ir.Constant(vec, [0.0] * 4)
+        accs = [cgutils.alloca_once_value(builder, zero) for _ in range(3)]
+        with cgutils.for_range(builder, args[4]) as loop:
+            off = builder.mul(loop.index, ir.Constant(loop.index.type, 4))
+
+            def load(data):  # type: ignore[no-untyped-def]
+                ld = builder.load(builder.bitcast(builder.gep(data, [off]), vptr))
+                ld.align = 8
+                return ld
+
+            c = load(datas[0])
+            for r in range(3):
+                builder.store(builder.fadd(builder.load(accs[r]), builder.fmul(c, load(datas[r + 1]))), accs[r])
+        i32 = ir.IntType(32)
+        vals = [builder.extract_element(builder.load(accs[r]), i32(k)) for r in range(3) for k in range(4)]
+        return context.make_tuple(builder, signature.return_type, vals)
+
+    return sig, codegen
+
+
 @numba.njit(inline="always")
 def _take4(a0, a1, a2, c0, c1, c2, c3, p0, p1, p2, q0, q1, q2, u0, u1, u2, z0, z1, z2, lo, hi):  # type: ignore[no-untyped-def]
     """Rows lo..hi-1 of the buffer (a0, a1, a2) take four columns c0..c3 in turn, times the
@@ -93,13 +134,9 @@ def _take1(a0, a1, a2, col, x0, x1, x2, lo, hi):  # type: ignore[no-untyped-def]
         a2[i] -= col[i] * x2
 
 
-@numba.njit(cache=True, nogil=True)
-def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc):  # type: ignore[no-untyped-def]
-    """y = U^-1 L^-1 y in place for 3 right-hand sides, supernode by supernode (module docstring);
-    acc: a (3, longest run or row list) work buffer. The innermost loops index slices (never a
-    computed offset, whose possible negative value would keep the compiler from vectorizing), and
-    take BLOCK columns (rows of U) at once where a run has them: each value still receives their
-    subtractions one by one in the sweep's order, so the bits are the column sweeps'."""
+@numba.njit(inline="always")
+def _forward(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, t_ptr, tv, acc):  # type: ignore[no-untyped-def]
+    """y = L^-1 y in place (L unit lower), the forward sweep of `_sn_sweeps` and `_sym_sweeps`."""
     a0 = acc[0]
     a1 = acc[1]
     a2 = acc[2]
@@ -215,6 +252,22 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
             y[r, 0] = a0[i]
             y[r, 1] = a1[i]
             y[r, 2] = a2[i]
+
+
+@numba.njit(cache=True, nogil=True)
+def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc):  # type: ignore[no-untyped-def]
+    """y = U^-1 L^-1 y in place for 3 right-hand sides, supernode by supernode (module docstring);
+    acc: a (3, longest run or row list) work buffer. The innermost loops index slices (never a
+    computed offset, whose possible negative value would keep the compiler from vectorizing), and
+    take BLOCK columns (rows of U) at once where a run has them: each value still receives their
+    subtractions one by one in the sweep's order, so the bits are the column sweeps'."""
+    _forward(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, t_ptr, tv, acc)
+    a0 = acc[0]
+    a1 = acc[1]
+    a2 = acc[2]
+    nodes = sn_ptr.shape[0] - 1
+    nl = lv.shape[0]
+    nt = tv.shape[0]
     pl = nl - 1  # uv and tv are read from their ends
     pt = nt - 1
     for k in range(nodes - 1, -1, -1):  # backward: the columns after the run first, from the last
@@ -333,6 +386,113 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
 
 
 @numba.njit(cache=True, nogil=True)
+def _sym_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, t_ptr, tl, u_diag, acc):  # type: ignore[no-untyped-def]
+    """y = L^-T D^-1 L^-1 y in place for 3 right-hand sides: the solve from the symmetric factor
+    alone (module docstring), `_sn_sweeps`' forward sweep, then a backward sweep that reads L's
+    values where `_sn_sweeps` reads U's. Run by run from the last, each unknown of the run is its
+    value divided by its pivot less the sum of L's column below the run times the (final) unknowns
+    there: lane k of four sums the rows k, k + 4, ... of the run's row list in turn (`_dot4`, vector
+    code), the lanes added (0 + 1) + (2 + 3); then the run's own unknowns from the last, each final
+    value subtracted, times L's row inside the run, from the earlier ones (four at a time as in
+    `_sn_sweeps`, one after the other for each value). tl: the runs' triangles with L's values on
+    both sides of the diagonal (`mirrored`; the forward sweep reads the lower side, tv's values).
+    Not the bits of `_sn_sweeps` (a take's header says which solve it was recorded with).
+    acc: (6, `work_size`)."""
+    _forward(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, t_ptr, tl, acc)
+    a0 = acc[0]
+    a1 = acc[1]
+    a2 = acc[2]
+    g0 = acc[3]
+    g1 = acc[4]
+    g2 = acc[5]
+    nodes = sn_ptr.shape[0] - 1
+    pl = lv.shape[0] - 1  # lv and tv are read from their ends
+    pt = tl.shape[0] - 1
+    for k in range(nodes - 1, -1, -1):
+        end = max(v_ptr[k] - AHEAD, 0)
+        while pl >= end:
+            _prefetch(lv, pl)
+            pl -= 8
+        end = max(t_ptr[k] - AHEAD, 0)
+        while pt >= end:
+            _prefetch(tl, pt)
+            pt -= 8
+        s = sn_ptr[k]
+        w = sn_ptr[k + 1] - s
+        t = t_ptr[k]
+        base = v_ptr[k]
+        r0 = r_ptr[k]
+        m = r_ptr[k + 1] - r0
+        for i in range(m):  # the unknowns below the run, final already, side by side
+            r = r_idx[r0 + i]
+            g0[i] = y[r, 0]
+            g1[i] = y[r, 1]
+            g2[i] = y[r, 2]
+        q = m - m % 4
+        for jj in range(w):  # the sums below the run: lane k sums the rows i = k (mod 4), in increasing i
+            col = lv[base + jj * m:base + (jj + 1) * m]
+            s00, s01, s02, s03, s10, s11, s12, s13, s20, s21, s22, s23 = _dot4(col, g0, g1, g2, q // 4)
+            if q < m:
+                s00 += col[q] * g0[q]
+                s10 += col[q] * g1[q]
+                s20 += col[q] * g2[q]
+            if q + 1 < m:
+                s01 += col[q + 1] * g0[q + 1]
+                s11 += col[q + 1] * g1[q + 1]
+                s21 += col[q + 1] * g2[q + 1]
+            if q + 2 < m:
+                s02 += col[q + 2] * g0[q + 2]
+                s12 += col[q + 2] * g1[q + 2]
+                s22 += col[q + 2] * g2[q + 2]
+            d = u_diag[s + jj]
+            a0[jj] = y[s + jj, 0] / d - ((s00 + s01) + (s02 + s03))
+            a1[jj] = y[s + jj, 1] / d - ((s10 + s11) + (s12 + s13))
+            a2[jj] = y[s + jj, 2] / d - ((s20 + s21) + (s22 + s23))
+        jj = w - 1
+        while jj >= BLOCK - 1:  # then the run's own columns from the last (L's rows, mirrored), four at a time
+            c0 = tl[t + jj * w:t + (jj + 1) * w]
+            c1 = tl[t + (jj - 1) * w:t + jj * w]
+            c2 = tl[t + (jj - 2) * w:t + (jj - 1) * w]
+            p0 = a0[jj]
+            p1 = a1[jj]
+            p2 = a2[jj]
+            q0 = a0[jj - 1] - c0[jj - 1] * p0
+            q1 = a1[jj - 1] - c0[jj - 1] * p1
+            q2 = a2[jj - 1] - c0[jj - 1] * p2
+            u0 = (a0[jj - 2] - c0[jj - 2] * p0) - c1[jj - 2] * q0
+            u1 = (a1[jj - 2] - c0[jj - 2] * p1) - c1[jj - 2] * q1
+            u2 = (a2[jj - 2] - c0[jj - 2] * p2) - c1[jj - 2] * q2
+            z0 = ((a0[jj - 3] - c0[jj - 3] * p0) - c1[jj - 3] * q0) - c2[jj - 3] * u0
+            z1 = ((a1[jj - 3] - c0[jj - 3] * p1) - c1[jj - 3] * q1) - c2[jj - 3] * u1
+            z2 = ((a2[jj - 3] - c0[jj - 3] * p2) - c1[jj - 3] * q2) - c2[jj - 3] * u2
+            y[s + jj, 0] = p0
+            y[s + jj, 1] = p1
+            y[s + jj, 2] = p2
+            y[s + jj - 1, 0] = q0
+            y[s + jj - 1, 1] = q1
+            y[s + jj - 1, 2] = q2
+            y[s + jj - 2, 0] = u0
+            y[s + jj - 2, 1] = u1
+            y[s + jj - 2, 2] = u2
+            y[s + jj - 3, 0] = z0
+            y[s + jj - 3, 1] = z1
+            y[s + jj - 3, 2] = z2
+            c3 = tl[t + (jj - 3) * w:t + (jj - 2) * w]
+            _take4(a0, a1, a2, c0, c1, c2, c3, p0, p1, p2, q0, q1, q2, u0, u1, u2, z0, z1, z2, 0, jj - 3)
+            jj -= BLOCK
+        while jj >= 0:  # the run's first columns one by one
+            x0 = a0[jj]
+            x1 = a1[jj]
+            x2 = a2[jj]
+            y[s + jj, 0] = x0
+            y[s + jj, 1] = x1
+            y[s + jj, 2] = x2
+            col = tl[t + jj * w:t + (jj + 1) * w]
+            _take1(a0, a1, a2, col, x0, x1, x2, 0, jj)
+            jj -= 1
+
+
+@numba.njit(cache=True, nogil=True)
 def _sn_solve(b, perm_r, perm_c, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc, y, out):  # type: ignore[no-untyped-def]
     """x = Pc U^-1 L^-1 Pr b for 3 right-hand sides (see _sn_sweeps)."""
     n = b.shape[0]
@@ -415,6 +575,19 @@ def supernodes(lower: sp.csc_matrix, upper: sp.csc_matrix) -> dict[str, np.ndarr
                 u_diag=u_diag)
 
 
+def mirrored(sn_ptr: np.ndarray, t_ptr: np.ndarray, tv: np.ndarray) -> np.ndarray:
+    """The runs' triangles with L's values on both sides of the diagonal (`_sym_sweeps` reads a
+    row of L inside a run where `_sn_sweeps` reads a column of U): as long as tv."""
+    out = np.array(tv, dtype=np.float64)
+    for k in range(len(sn_ptr) - 1):
+        w = int(sn_ptr[k + 1] - sn_ptr[k])
+        if w > 1:
+            tri = out[t_ptr[k]:t_ptr[k + 1]].reshape(w, w)  # [column, row]: L's below the diagonal: row > column
+            low = np.triu(tri, 1)
+            tri[...] = low + low.T
+    return out
+
+
 def check_layout(a: dict[str, np.ndarray], n: int, prefix: str = "lu_") -> None:
     """Raises ValueError unless the arrays (`prefix` + the keys of `supernodes`) are a layout the
     kernel can follow for n unknowns without reading outside them."""
@@ -465,10 +638,30 @@ class PrefactoredSolver:
         self.perm_r, self.perm_c = arrays["perm_r"], arrays["perm_c"]
         self.factors = tuple(arrays[k] for k in self.KEYS[2:])
         self.fill = int(2 * len(arrays["lv"]) + len(arrays["tv"]) + self.n)
-        self.work = np.zeros((3, work_size(arrays)))
+        #: the symmetric solve needs the same permutation of rows and columns (A = P^T L D L^T P)
+        self.symmetric = bool(np.array_equal(self.perm_r, self.perm_c))
+        self.work = np.zeros((6, work_size(arrays)))
         self._y = np.zeros((self.n, 3))
 
     def solve(self, b: np.ndarray, out: np.ndarray) -> np.ndarray:
         """out = A^-1 b for b (n, 3)."""
         _sn_solve(b, self.perm_r, self.perm_c, *self.factors, self.work, self._y, out)
+        return out
+
+    @functools.cached_property
+    def sym_factors(self) -> tuple[np.ndarray, ...]:
+        """What `_sym_sweeps` reads: L's values, the runs' triangles with L's values on both sides
+        (`mirrored`, made on first use: 0.86 MB on the scanned head) and D; U's (uv) left unread."""
+        a = self.arrays
+        return tuple(a[k] for k in ("sn_ptr", "r_ptr", "r_idx", "v_ptr", "lv", "t_ptr")) + (
+            mirrored(a["sn_ptr"], a["t_ptr"], a["tv"]), a["u_diag"])
+
+    def solve_symmetric(self, b: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """out = A^-1 b for b (n, 3) from L and D alone (`_sym_sweeps`): the same up to rounding."""
+        if not self.symmetric:
+            raise ValueError("rows and columns permuted differently: no symmetric factor")
+        y = self._y
+        y[self.perm_r] = b
+        _sym_sweeps(y, *self.sym_factors, self.work)
+        out[...] = y[self.perm_c]
         return out

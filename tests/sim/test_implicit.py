@@ -214,3 +214,80 @@ def test_a_step_partly_computed_ahead_gives_the_same_bits() -> None:
         assert s_ahead.positions.tobytes() == s_plain.positions.tobytes(), k
         assert s_ahead.velocities.tobytes() == s_plain.velocities.tobytes(), k
     assert used >= 40  # the prepared part was there to be used on most ticks
+
+
+def _symmetric_reference(lu: object, arrays: dict, b: np.ndarray) -> np.ndarray:  # type: ignore[type-arg]
+    """Pc L^-T D^-1 L^-1 Pr b value by value in the order `sim.supernodal._sym_sweeps` defines: the
+    column sweeps' forward sweep; then run by run from the last, each unknown of the run its value
+    divided by its pivot less the sum of L's column below the run times the unknowns there (lane k
+    of four summing the rows k, k + 4, ... of the run's row list, then (0 + 1) + (2 + 3)), and the
+    run's own unknowns from the last, each taking its later ones in turn."""
+    low, up = sp.csc_matrix(lu.L), sp.csc_matrix(lu.U)  # type: ignore[attr-defined]
+    n = low.shape[0]
+    dense = low.toarray()
+    diag = up.diagonal()
+    y = np.zeros_like(b)
+    y[lu.perm_r] = b  # type: ignore[attr-defined]
+    for j in range(n):
+        for p in range(low.indptr[j], low.indptr[j + 1]):
+            if low.indices[p] > j:
+                y[low.indices[p]] -= low.data[p] * y[j]
+    sn, rp, ri = arrays["sn_ptr"], arrays["r_ptr"], arrays["r_idx"]
+    for k in range(len(sn) - 2, -1, -1):
+        s, e = int(sn[k]), int(sn[k + 1])
+        rows = ri[rp[k]:rp[k + 1]]
+        a = {}
+        for j in range(s, e):
+            lanes = [np.zeros(3) for _ in range(4)]
+            for i, r in enumerate(rows):
+                lanes[i % 4] = lanes[i % 4] + dense[r, j] * y[r]
+            a[j] = y[j] / diag[j] - ((lanes[0] + lanes[1]) + (lanes[2] + lanes[3]))
+        for j in range(e - 1, s - 1, -1):
+            y[j] = a[j]
+            for i in range(s, j):
+                a[i] = a[i] - dense[j, i] * y[j]
+    return y[lu.perm_c]  # type: ignore[attr-defined]
+
+
+def test_the_solve_from_the_symmetric_factor_is_the_lu_solve_to_rounding(synth_model: FaceModel) -> None:
+    """The substeps' solve from L and D alone (`sim.supernodal._sym_sweeps`, new takes: the header's
+    "solve") has the bits its order defines, and the LU solve's values up to rounding, not its bits."""
+    from scipy.sparse.linalg import splu
+
+    n = synth_model.n_vertices
+    a = laplacian(n, np.asarray(synth_model.spring_indices), np.asarray(synth_model.spring_k_high))
+    a = (a @ a + a + sp.diags(np.asarray(synth_model.mass) * 3600.0)).tocsc()  # a wider stencil: wide runs
+    solver = PrefactoredSolver(a)
+    assert solver.symmetric
+    widths, below = np.diff(solver.arrays["sn_ptr"]), np.diff(solver.arrays["r_ptr"])
+    assert widths.max() >= 8 and (widths == 1).any() and (below % 4 != 0).any()  # wide runs, lone columns, tails
+    lu = splu(a, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    rng = np.random.default_rng(12)
+    differ = 0
+    for _ in range(3):
+        b = rng.normal(size=(n, 3)) * 10.0 ** rng.uniform(-3, 3, size=(n, 1))
+        sym, full = np.zeros_like(b), np.zeros_like(b)
+        solver.solve_symmetric(b, sym)
+        solver.solve(b, full)
+        assert sym.tobytes() == _symmetric_reference(lu, solver.arrays, b).tobytes()
+        assert np.abs(sym - full).max() <= 1e-13 * np.abs(full).max()
+        assert np.abs(a @ sym - b).max() <= 1e-12 * (abs(a) @ np.abs(sym)).max()  # a backward-stable solve
+        differ += int(np.count_nonzero(sym != full))
+    assert differ  # other bits: what the take header is for
+
+
+def test_the_symmetric_solve_steps_to_the_same_face_up_to_rounding(synth_model_nograv: FaceModel) -> None:
+    c = FaceControl()
+    c.set("orbicularis_oris", 1.0)
+    out = {}
+    for on in (True, False):
+        sim = Simulator(synth_model_nograv, wrinkles=False, method="implicit")
+        assert sim.symmetric_solve  # new simulators solve from the symmetric factor
+        sim.symmetric_solve = on
+        state = synth_model_nograv.rest_state()
+        for _ in range(30):
+            sim.step(state, c)
+        out[on] = state.positions.copy()
+    moved = np.abs(out[False] - synth_model_nograv.rest).max()
+    assert moved > 1e-3
+    assert 0.0 < np.abs(out[True] - out[False]).max() < 1e-9 * moved
