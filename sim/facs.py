@@ -127,7 +127,14 @@ scan's lids under raised brows, so 1+2 alone left the iris under the lid and rea
 as surprise, 0.45 against 0.42) and the jaw dropped further (AU26 1.0): surprise 0.90, 0.82-0.99 over
 the views (AU5 0.5-0.7 alike); sadness is 1+4+15+17 without the outer brows (AU2 0.25 gave the
 brows an arch that read neutral from above): 0.89, was 0.75; anger tightens the lids harder (AU7
-0.8; 0.6 read angry 0.33 against sad 0.31): 0.51 (AU7 0.9, AU5 0.4: 0.38, 0.50)."""
+0.8; 0.6 read angry 0.33 against sad 0.31): 0.51 (AU7 0.9, AU5 0.4: 0.38, 0.50).
+Then, for the nine views: anger is FACS 4+5+7+17+23 (the chin raised, AU17 1.0; lids at AU7 0.85)
+with the outer brows lifted a little (AU2 0.3: the scan's AU4 draws the whole brow down, its tail
+drooping as in sadness; Waters' anger pulls the outer frontalis too): angry 0.62 and angry in 7 of
+the nine views (5 before; it read sad from below); AU2 0.25: 6 views, 0.32-0.35 reads neutral
+(the brows flatten), without AU2 5 views. Sadness deepens the nasolabial furrow harder (AU11 0.6,
+EMFACS 1+4+11+15): 0.92 and 8 views (AU11 0.4-0.7: 7-8). Disgust pulls the lip corners down
+(AU15 0.4, the 9+15+16 of the EMFACS table): 0.74 and 8 views (AU15 0.3-0.5: 0.69-0.71, 8 views)."""
 
 
 FACE_EXPRESSIONS["imported"] = {
