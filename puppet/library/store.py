@@ -343,7 +343,10 @@ class Library:
                      devices, t["face"] or ""))
 
     def _take(self, take_id: int) -> sqlite3.Row:
-        row = self.con.execute("SELECT * FROM takes WHERE id = ?", (take_id,)).fetchone()
+        # an id past SQLite's 64-bit integers (typed on a command line, a page's URL) is no take
+        # either: the query raised OverflowError (a traceback; the page's a 500)
+        row = None if not -(1 << 63) <= take_id < (1 << 63) else \
+            self.con.execute("SELECT * FROM takes WHERE id = ?", (take_id,)).fetchone()
         if row is None:
             raise PuppetError(f"no take {take_id} in the library {self.path} (see `puppet takes list`)")
         return row

@@ -370,3 +370,15 @@ def test_two_imports_at_once_count_each_take_once(folder: Path, tmp_path: Path,
     monkeypatch.setattr(Library, "register", real)
     fresh = import_folder(Library(tmp_path / "fresh.db"), folder)
     assert len(fresh.registered) == 3 and fresh.known == []
+
+
+def test_a_take_id_past_64_bits_is_no_take(folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """`puppet takes show 99999999999999999999999` (a pasted number, a page's URL): SQLite's
+    OverflowError was a traceback (the page's take routes answered 500 with it on the show's
+    terminal). It is 'no take N', one line, exit 2, like any id the library does not hold."""
+    lib = tmp_path / "takes.db"
+    assert takes_cli(capsys, lib, "import", str(folder))[0] == 0
+    huge = str(1 << 80)
+    for args in (("show", huge), ("tag", huge, "keep"), ("note", huge, "text"), ("show", str(-(1 << 70)))):
+        code, out, err = takes_cli(capsys, lib, *args)
+        assert code == 2 and err.count("\n") == 1 and f"no take {args[1]}" in err, (args, err)
