@@ -105,7 +105,8 @@ def _message(chunk: bytes, tag: int | None, out: list[OscMessage]) -> None:
     if start < len(chunk):
         stop = chunk.find(b"\0", start)
         tags = chunk[start:stop if stop >= 0 else len(chunk)]
-        if not tags.startswith(b",") or not TYPE_TAGS.issuperset(tags.decode("latin-1")):
+        # a second comma passes the set test but python-osc logs it per datagram on the root logger
+        if not tags.startswith(b",") or b"," in tags[1:] or not TYPE_TAGS.issuperset(tags.decode("latin-1")):
             raise OscDecodeError(f"unknown argument types {tags[:16]!r}")
     try:
         msg = _py_message(chunk)
