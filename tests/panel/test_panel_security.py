@@ -231,3 +231,21 @@ def test_lan_url_is_printed_with_a_qr_code(lan_page) -> None:
     text = out.getvalue()
     assert f"token={lan_page.server.token}" in text
     assert sum(text.count(c) for c in "█▀▄") > 100  # the QR code in block characters
+
+
+def test_editor_answers_a_body_nested_thousands_deep_with_one_reason(editor) -> None:
+    """A POST body of 100000 nested arrays (within the 1 MB limit): json's RecursionError was a
+    500 with a traceback on the editor's terminal. It is a 400 naming why, and the editor serves on."""
+    port, d, _ = editor
+    before = {p.name: p.read_bytes() for p in d.iterdir() if p.is_file()}
+    for path in ("/api/curves", "/api/export"):
+        c = http.client.HTTPConnection("127.0.0.1", port, timeout=60)
+        try:
+            c.request("POST", path, body="[" * 100_000 + "]" * 100_000, headers={"Content-Type": "application/json"})
+            r = c.getresponse()
+            reply = json.loads(r.read())
+        finally:
+            c.close()
+        assert r.status == 400 and reply["ok"] is False and "nested too deep" in reply["error"], (path, reply)
+    assert {p.name: p.read_bytes() for p in d.iterdir() if p.is_file()} == before
+    assert post(port, "/api/curves", {"curves": CURVES})[0] == 200
