@@ -88,6 +88,9 @@ class Editor:
         self.take = Path(take).resolve()
         self.folder = self.take.parent
         self.session = read_session(self.take)
+        if self.session.ticks < 1:  # its export was an IndexError traceback (a 500 on the page)
+            raise ConfigError(f"{self.take} holds no performance (its header only: the show stopped before its "
+                              "first tick); nothing to edit")
         self.digest = take_digest(self.take)
         self.base = build_performance(self.session, None, rig)
         self.face = self.base.face
