@@ -112,7 +112,8 @@ def _message(chunk: bytes, tag: int | None, out: list[OscMessage]) -> None:
         msg = _py_message(chunk)
         out.append(OscMessage(msg._address_regexp, tuple(msg._parameters), tag))
     except Exception as err:  # python-osc raises ParseError, but damaged input finds others
-        raise OscDecodeError(f"damaged message: {err}") from err
+        # python-osc's messages can quote the whole type-tag string (thousands of '[' in one line)
+        raise OscDecodeError(f"damaged message: {str(err)[:100]}") from err
 
 
 def _elements(bundle: bytes) -> Iterator[bytes]:

@@ -277,3 +277,13 @@ def test_a_comma_among_the_type_tags_is_refused_quietly(caplog: pytest.LogCaptur
         assert values(lis.control_events("/after"), "/after") == [0.5]
         assert lis.dev.warnings.counts["garbage"] == 20
     assert not [r for r in caplog.records if r.name == "root"]
+
+
+def test_a_damaged_message_is_named_in_a_short_line() -> None:
+    """Type tags ',[[[...' (3000 unclosed arrays): python-osc's error quoted the whole tag string, so
+    the show's warning line ran to 3000+ characters. The reason is cut to a readable length."""
+    tags = b"," + b"[" * 3000 + b"\x00"
+    data = b"/a\x00\x00" + tags + b"\x00" * (-len(tags) % 4)
+    with pytest.raises(Exception) as err:
+        decode_packet(data)
+    assert "damaged message" in str(err.value) and len(str(err.value)) < 200
