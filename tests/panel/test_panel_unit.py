@@ -31,6 +31,14 @@ def vocab():
     return load_face().vocab
 
 
+def test_decoder_ignores_an_integer_past_floats(vocab) -> None:
+    """`{"t":"in","c":...,"v":1000...0}` with 400 digits (within the 4096-byte limit): float() raised
+    OverflowError, which ended that page's connection with aiohttp's traceback on the show's terminal."""
+    allowed = allowed_controls(vocab, ["jaw"])
+    for digits in ("1" + "0" * 400, "-1" + "0" * 400):
+        assert decode_input('{"t":"in","c":"slider:jaw","v":%s}' % digits, allowed) is None
+
+
 def test_decoder_survives_damaged_messages(vocab) -> None:
     allowed = allowed_controls(vocab, ["jaw"])
     good = '{"t":"in","c":"slider:jaw","v":0.25}'
