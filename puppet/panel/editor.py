@@ -30,6 +30,15 @@ def take_digest(path: Path) -> str:
     return hashlib.sha1(path.read_bytes()).hexdigest()[:16]
 
 
+def _finite(x: int | float) -> bool:
+    """A finite number; an integer past floats (309+ digits) is not one (math.isfinite raised
+    OverflowError: the page's save answered 500 with a traceback on the editor's terminal)."""
+    try:
+        return math.isfinite(x)
+    except OverflowError:
+        return False
+
+
 def curves_from_json(data: Any, take: tuple[str, str] | None) -> CurveSet:
     """The page's curves (`[{target, interp, mode, keys: [[t, v, seg?], ...]}, ...]`), checked
     like a file: ValueError with what is wrong."""
@@ -56,7 +65,7 @@ def curves_from_json(data: Any, take: tuple[str, str] | None) -> CurveSet:
             t, v = k[0], k[1]
             if isinstance(t, bool) or isinstance(v, bool) or not isinstance(t, (int, float)) or not isinstance(v, (int, float)):
                 raise ValueError(f"curve {i} ({target}): key times and values are numbers")
-            if not (math.isfinite(t) and math.isfinite(v)) or t < 0 or t > 1e6:
+            if not (_finite(t) and _finite(v)) or t < 0 or t > 1e6:
                 raise ValueError(f"curve {i} ({target}): key times are finite seconds >= 0, values finite")
             seg = k[2] if len(k) == 3 else interp
             if seg not in INTERPS:

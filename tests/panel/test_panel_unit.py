@@ -232,3 +232,13 @@ def test_every_channel_of_the_face_sits_in_its_face_region() -> None:
         if spec.kind != "age":
             assert region_of(spec.name) != "other", spec.name
     assert region_of("levator_palpebrae_l") == region_of("orbicularis_oculi_lid_r") == "eyes"
+
+
+def test_page_curves_with_an_integer_past_floats_are_refused_with_the_reason() -> None:
+    """A key [0, 1000...0] with 400 digits in the editor's save: math.isfinite raised OverflowError
+    (not a ValueError), so the save answered 500 with a traceback on the editor's terminal."""
+    from puppet.panel.editor import curves_from_json
+
+    for key in ([0, 10**400], [10**400, 0.5], [0, -(10**400)]):
+        with pytest.raises(ValueError, match="finite"):
+            curves_from_json([{"target": "jaw", "keys": [key]}], ("take.jsonl", "0" * 16))
