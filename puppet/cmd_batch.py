@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+
+#: The local cluster's largest size: worker processes a core (more only queue for the CPU).
+MAX_WORKERS_PER_CORE = 4
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -59,6 +63,11 @@ def run(args: argparse.Namespace) -> int:
     opts: dict = {"fps": args.fps}
     if args.workers is not None and args.workers < 1:
         raise PuppetError("--workers must be at least 1")
+    most = MAX_WORKERS_PER_CORE * max(1, os.cpu_count() or 1)
+    if args.workers is not None and args.workers > most and args.scheduler is None:
+        # each is a process of its own: --workers 100000 started processes until the machine choked
+        raise PuppetError(f"--workers {args.workers}: at most {most} on this machine ({MAX_WORKERS_PER_CORE} a core); "
+                          "a farm of more machines is joined with --scheduler")
     if getattr(args, "chunk_frames", 0) < 0:
         raise PuppetError(f"--chunk-frames must be 0 (never split) or a number of frames, got {args.chunk_frames}")
     if action == "export":
@@ -110,8 +119,8 @@ def scheduler_address(text: str) -> str:
 
     bad = PuppetError(f"--scheduler {text!r}: expected tcp://HOST:PORT, the address `dask scheduler` prints")
     given = text.strip()
-    url = urlsplit(given if "://" in given else "tcp://" + given)
-    try:
+    try:  # urlsplit itself refuses an unclosed IPv6 bracket (tcp://[::1) with a ValueError
+        url = urlsplit(given if "://" in given else "tcp://" + given)
         port = url.port
     except ValueError:
         raise bad from None

@@ -50,7 +50,7 @@ def _save(args: argparse.Namespace) -> int:
         if not same:
             raise PuppetError(f"an identity named {args.name} is already saved ({old}) with other weights: "
                               "add --replace to replace it, or choose another name")
-    path = save_identity(args.name, weights, seed)
+    path = save_identity(args.name, weights, seed, replace=args.replace)
     print(f"saved identity {args.name} to {path}; use it with --face {args.name}")
     return 0
 

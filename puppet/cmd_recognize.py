@@ -70,7 +70,9 @@ def analyse(args: argparse.Namespace) -> tuple[list, list]:
             names = [c.name for c in face.vocab.channels]
     settler, basis, tpl = face_basis(face)
     if values is not None:
-        every = max(1, int(round(rate / 30.0)))
+        # about 30 frames a second; a take shorter than one such frame (a tick or two) is read at
+        # its own rate: none was simulated and the arrays did not match (a ValueError traceback)
+        every = max(1, min(int(round(rate / 30.0)), len(values)))
         times, pos = simulate_take(face, values, rate, every)
         disp = pos - basis.rest[None]
         verts = np.arange(face.model.n_vertices)

@@ -17,9 +17,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--out", required=True, metavar="DIR", help="folder for the pictures (created if missing)")
     p.add_argument("--rig", metavar="R", help="rig file (default: the built-in face)")
     p.add_argument("--style", choices=("trails", "arrows"), default="trails")
-    p.add_argument("--gain", type=float, default=1.0, metavar="X", help="magnify the motion (default 1)")
+    p.add_argument("--gain", type=float, default=1.0, metavar="X", help="magnify the motion (default 1, at most 100)")
     p.add_argument("--weight", type=float, default=1.0, metavar="W", help="preset weight 0..1 (default 1)")
     p.set_defaults(func=run)
+
+
+#: The largest --gain: the presets move the skin by millimetres, magnified past this they leave the picture.
+MAX_GAIN = 100.0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -29,8 +33,9 @@ def run(args: argparse.Namespace) -> int:
     from sim.facs import EXPRESSIONS
     from sim.fit.basis import Settler, preset_values
 
-    if not 0 < args.weight <= 1 or not args.gain > 0:
-        raise PuppetError("--weight takes 0..1 and --gain a positive number")
+    # --gain inf (or 1e308) drew a picture flooded by one arrow and said it was written
+    if not 0 < args.weight <= 1 or not 0 < args.gain <= MAX_GAIN:
+        raise PuppetError(f"--weight takes 0..1 and --gain a positive number up to {MAX_GAIN:g}")
     out = Path(args.out)
     try:
         out.mkdir(parents=True, exist_ok=True)

@@ -15,6 +15,7 @@ changed or went away."""
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import os
 import re
@@ -149,22 +150,67 @@ def identity_path(name: str) -> Path:
     return data_dir() / f"{name}.json"
 
 
-def save_identity(name: str, weights: tuple[float, ...], seed: int | None = None) -> Path:
-    """Write the identity `name` (replacing one of that name) atomically; returns its file."""
+def save_identity(name: str, weights: tuple[float, ...], seed: int | None = None, replace: bool = True) -> Path:
+    """Write the identity `name` atomically; returns its file. With `replace` False an identity of
+    that name saved meanwhile (another `puppet face save` at the same moment) is never overwritten:
+    the file is linked into place only where none is, and other weights found there are an error."""
     import json
+    import tempfile
 
     from safefile import atomic_write
 
     path = identity_path(name)
     body = {"format": FORMAT, "version": VERSION, "name": name, "seed": seed,
             "identity": [float(x) for x in weights]}
+    text = json.dumps(body, indent=1) + "\n"
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_write(path) as fh:
-            fh.write(json.dumps(body, indent=1) + "\n")
+        if replace:
+            with atomic_write(path) as fh:
+                fh.write(text)
+            return path
+        fd, made = tempfile.mkstemp(prefix=".identity.", suffix=".json", dir=path.parent)
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(text)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.chmod(made, 0o666 & ~_umask())
+            try:
+                os.link(made, path)  # fails where a file of that name is: nothing is replaced
+            except FileExistsError:
+                pass
+            except OSError as err:  # a file system without hard links: the check and the rename
+                if err.errno not in _NO_LINKS:
+                    raise
+                if not os.path.lexists(path):
+                    os.replace(made, path)
+                    return path
+            else:
+                return path
+        finally:
+            if os.path.lexists(made):
+                os.unlink(made)
     except OSError as err:
         raise PuppetError(f"{path}: cannot save the identity: {err.strerror or err}") from err
+    try:
+        same = read_identity(path)[1:] == (tuple(float(x) for x in weights), seed)
+    except Exception:  # an unreadable file of that name is not silently replaced either
+        same = False
+    if not same:
+        raise PuppetError(f"an identity named {name} is already saved ({path}) with other weights: "
+                          "add --replace to replace it, or choose another name")
     return path
+
+
+#: errno values of a link(2) the file system does not offer.
+_NO_LINKS = frozenset(getattr(errno, n) for n in ("EPERM", "ENOTSUP", "EOPNOTSUPP", "ENOSYS") if hasattr(errno, n))
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def read_identity(path: Path) -> tuple[str, tuple[float, ...], int | None]:

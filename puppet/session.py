@@ -142,6 +142,20 @@ def _open_locked(path: Path, append_to: int | None) -> IO[str]:
     return fh
 
 
+def _aside(p: Path, n: int) -> Path:
+    """`NAME.n.jsonl` beside `p`, NAME cut (in bytes, on a character boundary) when the name would
+    pass the file system's limit: a take named near 255 bytes is kept aside like any other."""
+    try:
+        name_max = os.pathconf(p.parent if str(p.parent) else ".", "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    tail = f".{n}{p.suffix}"
+    raw = os.fsencode(p.stem)
+    if len(raw) + len(os.fsencode(tail)) > name_max:
+        raw = raw[:max(name_max - len(os.fsencode(tail)), 1)]
+    return p.with_name((raw.decode("utf-8", "ignore") or "x") + tail)
+
+
 def keep_previous(path: str | Path) -> Path | None:
     """Before a new take is written to `path`, move a take already there aside (to the first free
     `NAME.1.jsonl`, `NAME.2.jsonl`, ...) so that starting a show never destroys an earlier one;
@@ -155,8 +169,8 @@ def keep_previous(path: str | Path) -> Path | None:
     if _being_recorded(p):
         raise ConfigError(f"{p}: another show is recording to it; choose another --record name")
     for n in range(1, 10_000):
-        kept = p.with_name(f"{p.stem}.{n}{p.suffix}")
-        if not kept.exists():
+        kept = _aside(p, n)
+        if not os.path.lexists(kept):
             try:
                 os.link(p, kept)  # never replaces a file that appeared meanwhile
             except FileExistsError:

@@ -16,7 +16,9 @@ import json
 import math
 import os
 import shutil
+import select
 import stat
+import sys
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -82,12 +84,43 @@ def not_a_file(path: str | Path, what: str) -> str | None:
     return f"{path}: not a regular file (a pipe or a device); save it as a file and name that"
 
 
+#: Seconds a pipe may stay silent before the reader is told what is being waited for.
+PIPE_NOTICE_S = 1.0
+
+
+def _open_to_read(p: Path, what: str) -> Any:
+    """`open(p, "rb")`, except for a named pipe (`mkfifo take.jsonl`, or the shell's `<(...)`):
+    opening one blocked until a writer came, silently, forever when none does. It is opened
+    without blocking and watched; after PIPE_NOTICE_S of nothing one line says what is waited for
+    (Ctrl+C stops), then the wait goes on, and what comes is read from that same opening."""
+    try:
+        fifo = stat.S_ISFIFO(os.stat(p).st_mode)
+    except (OSError, ValueError):
+        fifo = False
+    if not fifo:
+        return open(p, "rb")
+    fd = os.open(p, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        poller = select.poll()
+        poller.register(fd, select.POLLIN | select.POLLHUP)
+        if not poller.poll(PIPE_NOTICE_S * 1000):
+            print(f"puppet: {p}: the {what} is a pipe and nothing has been written to it yet; waiting "
+                  "(Ctrl+C stops)", file=sys.stderr, flush=True)
+            while not poller.poll(1000):
+                pass
+        os.set_blocking(fd, True)  # a writer is there: reads wait for its bytes, 0 when it closes
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
 def read_bytes(path: str | Path, what: str, limit: int = MAX_BYTES) -> bytes:
     """The file's bytes; a file larger than `limit` is refused after reading `limit + 1` bytes at
     most (never more, whatever the file claims or holds)."""
     p = Path(path)
     try:
-        with open(p, "rb") as fh:
+        with _open_to_read(p, what) as fh:
             data = fh.read(limit + 1)
     except FileNotFoundError as err:
         raise BadFile(f"{p}: cannot read {what} (no such file)") from err

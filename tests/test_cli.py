@@ -75,3 +75,15 @@ def test_an_error_naming_a_pasted_huge_value_stays_one_short_line() -> None:
     assert r.returncode == 2
     [line] = r.stderr.strip().splitlines()
     assert line.startswith("puppet: error: mock://aaaa") and "a...a" in line and "ax.toml" in line and len(line) < 500
+
+
+def test_templates_refuse_an_unbounded_gain(tmp_path, capsys) -> None:
+    """`puppet templates --gain inf` (or 1e308) drew pictures flooded by one arrow and reported them
+    written; it is one line naming the bound, exit 2, nothing written."""
+    from puppet.cli import main
+
+    for gain in ("inf", "1e308", "nan", "0"):
+        out = tmp_path / f"t{gain}"
+        assert main(["templates", "--out", str(out), "--gain", gain]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "--gain" in err and not out.exists()

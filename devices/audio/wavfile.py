@@ -90,6 +90,22 @@ def to_pcm16(x: np.ndarray) -> bytes:
     return np.round(np.clip(np.asarray(x, dtype=np.float64), -1.0, 32767 / 32768) * 32768.0).astype("<i2").tobytes()
 
 
+def _partial_name(path: Path) -> Path:
+    """`NAME.partial` beside `path`; for a name within 8 bytes of the file system's limit (a take
+    named near 255 bytes records `take.wav`), the part before `.wav` is cut to fit, in bytes on a
+    character boundary, so the sound of a take the file system accepts is recorded."""
+    try:
+        name_max = os.pathconf(path.parent if str(path.parent) else ".", "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    tail = os.fsencode(path.suffix + ".partial")
+    raw = os.fsencode(path.stem)
+    if len(raw) + len(tail) > name_max:
+        raw = raw[:max(name_max - len(tail), 1)]
+    stem = raw.decode("utf-8", "ignore") or "x"
+    return path.with_name(stem + path.suffix + ".partial")
+
+
 class WavWriter:
     """Mono 16-bit WAV written as it comes (see the module docstring). Not thread-safe."""
 
@@ -98,7 +114,7 @@ class WavWriter:
     def __init__(self, path: str | Path, rate: int) -> None:
         self.path = Path(path)
         self.rate = int(rate)
-        self.partial = self.path.with_name(self.path.name + ".partial")
+        self.partial = _partial_name(self.path)
         self.frames = 0
         self._f = open(self.partial, "wb")
         self._f.write(wav_header(self.rate, 0))

@@ -48,9 +48,11 @@ def kind_of(out: Path) -> str:
     if name.endswith(".arkit.csv"):
         return "arkit"
     suffix = out.suffix.lower()
-    if out.is_dir() or suffix == "" or str(out).endswith(("/", "\\")):
-        return "frames"
     kinds = {".mp4": "mp4", ".png": "png", ".pc2": "pc2", ".csv": "csv", ".curves": "curves"}
+    # a folder in the way of `x.csv` is the file's name taken, not a request for PNG frames (they
+    # went into it): the write names the folder; a folder of any other name gets the frames
+    if (out.is_dir() and suffix not in kinds) or suffix == "" or str(out).endswith(("/", "\\")):
+        return "frames"
     if suffix not in kinds:
         raise PuppetError(f"{out}: unknown export type {suffix!r}; expected .mp4, a folder for PNG frames, "
                           ".png, .pc2, .csv, .arkit.csv or .curves")

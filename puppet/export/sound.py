@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import subprocess
+import tempfile
 from pathlib import Path
 
 from puppet.errors import PuppetError
@@ -30,7 +31,11 @@ def mux_sound(video: Path, wav: Path, start: float, speed: float, duration: floa
     shown = video if shown is None else shown
     import imageio_ffmpeg
 
-    tmp = video.with_name(f".{video.name}.sound.mp4")
+    # a short name of its own: one made from the video's (already near the file system's 255-byte
+    # limit when the user's name is) failed as 'File name too long'
+    fd, made = tempfile.mkstemp(prefix=".sound.", suffix=".mp4", dir=video.parent)
+    os.close(fd)
+    tmp = Path(made)
     cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-loglevel", "error", "-i", str(video),
            "-ss", f"{start:.6f}", "-i", str(wav), "-map", "0:v:0", "-map", "1:a:0", "-c:v", "copy",
            "-c:a", "aac", "-b:a", "160k"]
@@ -40,6 +45,7 @@ def mux_sound(video: Path, wav: Path, start: float, speed: float, duration: floa
     try:
         done = subprocess.run(cmd, capture_output=True, text=True, timeout=3600)
     except (OSError, subprocess.TimeoutExpired) as err:
+        tmp.unlink(missing_ok=True)
         raise PuppetError(f"{shown}: the sound {wav} could not be added ({err}); {shown} is left as it was") from err
     if done.returncode != 0:
         try:

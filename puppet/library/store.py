@@ -238,23 +238,33 @@ class Library:
 
     # ---- writing ---------------------------------------------------------------------------
 
-    def register(self, path: str | Path, performer: str | None = None, tags: Iterable[str] = ()) -> int:
+    def register(self, path: str | Path, performer: str | None = None, tags: Iterable[str] = (),
+                 unchanged: list[int] | None = None) -> int:
         """Add (or refresh) the take at `path`; returns its id. A take whose content is already
-        registered at a place where it is missing is taken as moved there."""
+        registered at a place where it is missing is taken as moved there. With `unchanged` (a
+        list; not with `performer`), a take found registered there with the same content, complete,
+        is left as it is and its id appended (decided inside the write: another process may have
+        registered it since the caller looked)."""
         info = read_take_info(path)
         for w in info.warnings:
             self.warn(w)
         if performer:
             info.performer = str(performer)[:200]
-        take_id = self._register(info)
+        take_id = self._register(info, unchanged=unchanged)
         for t in tags:
             self.tag(take_id, t)
         return take_id
 
-    def _register(self, info: TakeInfo, journal: bool = True) -> int:
+    def _register(self, info: TakeInfo, journal: bool = True, unchanged: list[int] | None = None) -> int:
         """The take's entry made or completed from what its file holds: `complete` when the take
         ended cleanly, `crashed` when its show died (the file read up to its last whole tick)."""
         with schema.write(self.con) as con:
+            if unchanged is not None and info.ended:
+                same = con.execute("SELECT id FROM takes WHERE path = ? AND hash = ? AND missing = 0 AND "
+                                   "state = 'complete'", (info.path, info.hash)).fetchone()
+                if same is not None:
+                    unchanged.append(int(same[0]))
+                    return int(same[0])
             row = con.execute("SELECT id, hash, performer FROM takes WHERE path = ?", (info.path,)).fetchone()
             if row is None:
                 row = con.execute("SELECT id, hash, performer FROM takes WHERE hash = ? AND missing = 1",
@@ -333,7 +343,10 @@ class Library:
                      devices, t["face"] or ""))
 
     def _take(self, take_id: int) -> sqlite3.Row:
-        row = self.con.execute("SELECT * FROM takes WHERE id = ?", (take_id,)).fetchone()
+        # an id past SQLite's 64-bit integers (typed on a command line, a page's URL) is no take
+        # either: the query raised OverflowError (a traceback; the page's a 500)
+        row = None if not -(1 << 63) <= take_id < (1 << 63) else \
+            self.con.execute("SELECT * FROM takes WHERE id = ?", (take_id,)).fetchone()
         if row is None:
             raise PuppetError(f"no take {take_id} in the library {self.path} (see `puppet takes list`)")
         return row

@@ -56,7 +56,10 @@ def import_folder(lib: Library, folder: str | Path, performer: str | None = None
             if row is not None and performer is None and p.stat().st_size == row[2] and file_hash(p)[0] == row[1]:
                 rep.known.append(int(row[0]))  # nothing new: no second registration in the journal
                 continue
-            rep.registered.append(lib.register(p, performer=performer))
+            known = len(rep.known)  # another import may have registered it since the look above
+            take_id = lib.register(p, performer=performer, unchanged=rep.known if performer is None else None)
+            if len(rep.known) == known:
+                rep.registered.append(take_id)
         except (ConfigError, PuppetError) as err:
             rep.skipped.append(str(err))
     return rep

@@ -4,6 +4,9 @@ only changes the target (what MIDI-learn users ask for)."""
 
 from __future__ import annotations
 
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -53,12 +56,42 @@ def _inline(v: Any) -> Any:
     return v
 
 
+@contextmanager
+def _folder_lock(folder: Path) -> Iterator[None]:
+    """Hold an exclusive lock on the mapping's folder (flock on the folder itself: no lock file is
+    left beside the user's map) while one binding is read, changed and renamed into place, so two
+    `puppet learn` on one map (two boxes, two terminals) each add their binding; before, the last
+    rename won and the other's binding was lost though both said 'added'. A folder that cannot be
+    locked (missing, or a file system without flock) is written as before."""
+    try:
+        import fcntl
+
+        fd = os.open(folder if str(folder) else ".", os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    except (ImportError, OSError):
+        yield
+        return
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError:
+            pass
+        yield
+    finally:
+        os.close(fd)  # closing the only descriptor releases the lock
+
+
 def learn_binding(path: str | Path, control: str, device: str, target: str, kind: str,
                   mode: str | None = None, settings: dict[str, Any] | None = None) -> str:
     """Add (or retarget) the binding of `control` on `device` to `target` in the file at `path`
     (created if missing). Returns "added" or "updated". The result is parsed again before it
     replaces the file, so a learn never leaves a broken mapping behind."""
     p = Path(path)
+    with _folder_lock(p.parent):
+        return _learn_binding(p, control, device, target, kind, mode, settings)
+
+
+def _learn_binding(p: Path, control: str, device: str, target: str, kind: str, mode: str | None,
+                   settings: dict[str, Any] | None) -> str:
     if p.exists():
         try:
             text = read_text(p, "mapping file", 16 * 1024 * 1024)

@@ -86,7 +86,10 @@ def decode_input(text: str, allowed: set[str]) -> tuple[str, float] | None:
     ctl, val = msg.get("c"), msg.get("v")
     if not isinstance(ctl, str) or ctl not in allowed or isinstance(val, bool) or not isinstance(val, (int, float)):
         return None
-    v = float(val)
+    try:
+        v = float(val)
+    except OverflowError:  # an integer of 309+ digits: it ended the page's connection with a traceback
+        return None
     if not math.isfinite(v):
         return None
     return ctl, min(1.0, max(0.0, v))

@@ -30,6 +30,15 @@ def take_digest(path: Path) -> str:
     return hashlib.sha1(path.read_bytes()).hexdigest()[:16]
 
 
+def _finite(x: int | float) -> bool:
+    """A finite number; an integer past floats (309+ digits) is not one (math.isfinite raised
+    OverflowError: the page's save answered 500 with a traceback on the editor's terminal)."""
+    try:
+        return math.isfinite(x)
+    except OverflowError:
+        return False
+
+
 def curves_from_json(data: Any, take: tuple[str, str] | None) -> CurveSet:
     """The page's curves (`[{target, interp, mode, keys: [[t, v, seg?], ...]}, ...]`), checked
     like a file: ValueError with what is wrong."""
@@ -56,7 +65,7 @@ def curves_from_json(data: Any, take: tuple[str, str] | None) -> CurveSet:
             t, v = k[0], k[1]
             if isinstance(t, bool) or isinstance(v, bool) or not isinstance(t, (int, float)) or not isinstance(v, (int, float)):
                 raise ValueError(f"curve {i} ({target}): key times and values are numbers")
-            if not (math.isfinite(t) and math.isfinite(v)) or t < 0 or t > 1e6:
+            if not (_finite(t) and _finite(v)) or t < 0 or t > 1e6:
                 raise ValueError(f"curve {i} ({target}): key times are finite seconds >= 0, values finite")
             seg = k[2] if len(k) == 3 else interp
             if seg not in INTERPS:
@@ -88,6 +97,9 @@ class Editor:
         self.take = Path(take).resolve()
         self.folder = self.take.parent
         self.session = read_session(self.take)
+        if self.session.ticks < 1:  # its export was an IndexError traceback (a 500 on the page)
+            raise ConfigError(f"{self.take} holds no performance (its header only: the show stopped before its "
+                              "first tick); nothing to edit")
         self.digest = take_digest(self.take)
         self.base = build_performance(self.session, None, rig)
         self.face = self.base.face
@@ -267,7 +279,7 @@ class Editor:
 
         async def post_curves(request: web.Request) -> web.Response:
             try:
-                body = await request.json()
+                body = await _json_body(request)
                 if not isinstance(body, dict):
                     raise ValueError("expected an object")
                 await asyncio.get_running_loop().run_in_executor(self.render_pool, self.set_curves, body.get("curves"))
@@ -293,7 +305,7 @@ class Editor:
 
         async def do_export(request: web.Request) -> web.Response:
             try:
-                body = await request.json()
+                body = await _json_body(request)
                 name = body.get("name") if isinstance(body, dict) else None
                 loop = asyncio.get_running_loop()
                 perf = await loop.run_in_executor(self.render_pool, self.performance)  # the pool that owns it
@@ -357,3 +369,12 @@ class Editor:
             return web.Response(status=204)
 
         app.router.add_get(prefix + "/favicon.ico", no_icon)
+
+
+async def _json_body(request: Any) -> Any:
+    """A request's JSON body with bounded nesting (safefile.load_json); a body nested thousands
+    deep was json's RecursionError: a 500 and a traceback on the editor's terminal. Every way a
+    body is unusable is a ValueError (the routes answer 400 with it)."""
+    from safefile import load_json
+
+    return load_json(await request.text(), "the request", "request")

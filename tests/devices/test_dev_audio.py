@@ -174,3 +174,18 @@ def test_recorder_follows_a_schedule_that_drops_wall_time_at_once(tmp_path) -> N
     y, _ = read_wav(tmp_path / "r.wav")
     assert len(y) == 8800
     assert np.allclose(y[:8000], 0.1, atol=1e-3) and np.allclose(y[8000:], 0.5, atol=1e-3)
+
+
+def test_wav_writer_records_beside_a_take_named_near_the_file_system_limit(tmp_path) -> None:
+    """A take of 254 bytes (`NAME.jsonl`) records its sound to `NAME.wav` (252 bytes): the writer's
+    `NAME.wav.partial` was 260 bytes and the show's sound could not be opened ('File name too long').
+    The WAV is written and moved into place, nothing left beside it."""
+    target = tmp_path / ("ä" * 123 + "xx.wav")
+    assert len(target.name.encode()) == 254 - len(".jsonl") + len(".wav")
+    x = np.sin(np.arange(4800) / 10) * 0.5
+    w = WavWriter(target, 48000)
+    w.write(x)
+    assert w.close() == target
+    y, rate = read_wav(target)
+    assert rate == 48000 and np.max(np.abs(y - x)) < 1 / 32768
+    assert [p.name for p in tmp_path.iterdir()] == [target.name]

@@ -263,3 +263,27 @@ def test_close_is_prompt_and_idempotent() -> None:
         lis.dev.close()
         assert not lis.dev.connected and not lis.dev._thread.is_alive()
         assert len(os.listdir("/proc/self/fd")) < fds  # socket and wake pipe released
+
+
+def test_a_comma_among_the_type_tags_is_refused_quietly(caplog: pytest.LogCaptureFixture) -> None:
+    """A datagram typed ',,f' (a sender's bug): python-osc logged 'Unhandled parameter type: ,' on
+    the root logger for every one, so a sender at 100 Hz printed 100 unthrottled lines a second on
+    the show's terminal. It is garbage now, counted by the device's own throttled warnings."""
+    bad = b"/face/jaw\x00\x00\x00,,f\x00" + struct.pack(">f", 0.5)
+    with pytest.raises(Exception, match="unknown argument types"):
+        decode_packet(bad)
+    with caplog.at_level("WARNING"), listening("osc://127.0.0.1:0") as lis:
+        lis.send(*[bad] * 20, osc_message("/after", 0.5))
+        assert values(lis.control_events("/after"), "/after") == [0.5]
+        assert lis.dev.warnings.counts["garbage"] == 20
+    assert not [r for r in caplog.records if r.name == "root"]
+
+
+def test_a_damaged_message_is_named_in_a_short_line() -> None:
+    """Type tags ',[[[...' (3000 unclosed arrays): python-osc's error quoted the whole tag string, so
+    the show's warning line ran to 3000+ characters. The reason is cut to a readable length."""
+    tags = b"," + b"[" * 3000 + b"\x00"
+    data = b"/a\x00\x00" + tags + b"\x00" * (-len(tags) % 4)
+    with pytest.raises(Exception) as err:
+        decode_packet(data)
+    assert "damaged message" in str(err.value) and len(str(err.value)) < 200

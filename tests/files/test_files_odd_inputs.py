@@ -60,3 +60,27 @@ def test_a_map_fed_through_a_pipe_by_the_shell_is_read(tmp_path: Path) -> None:
         if wr >= 0:
             os.close(wr)
     assert r.kind == "ok", r.text
+
+
+def test_a_take_read_from_a_pipe_says_it_waits_then_replays_what_comes(tmp_path: Path) -> None:
+    """`puppet replay fifo.jsonl` with no writer waited forever without a word. It says at once
+    what it waits for (one line, Ctrl+C stops) and replays the take once one is written in."""
+    import subprocess
+    import sys
+
+    data = ROOT / "tests" / "puppet" / "data"
+    fifo = tmp_path / "live.jsonl"
+    os.mkfifo(fifo)
+    proc = subprocess.Popen([sys.executable, "-m", "puppet", "replay", str(fifo), "--headless", "--rig",
+                             str(data / "take_jaw_whole_rig.npz")], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stderr.readline()  # before anything is written: the reader must speak first
+        assert "is a pipe and nothing has been written to it yet" in line and str(fifo) in line, line
+        with open(fifo, "wb") as fh:
+            fh.write((data / "take_jaw_whole.jsonl").read_bytes())
+        out, err = proc.communicate(timeout=300)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert proc.returncode == 0 and "bit-identical" in out, out + err

@@ -128,6 +128,19 @@ def test_recognize_a_take(tmp_path, face0, capsys) -> None:  # type: ignore[no-u
     assert [s["expression"] for s in spans] == ["neutral", "sadness"]
 
 
+def test_recognize_a_take_of_one_tick(tmp_path, face0, capsys) -> None:  # type: ignore[no-untyped-def]
+    """A take of one tick (a show stopped at once): recognize simulated none of its ~30 frames a
+    second and ended in a ValueError traceback. It reads the take at its own rate: one span."""
+    from puppet.capture.take import write_take
+
+    take = tmp_path / "blink.jsonl"
+    write_take(take, face0, np.array([face0.vocab.defaults()]), 60.0, {"test": True})
+    capsys.readouterr()
+    assert main(["recognize", str(take), "--json"]) == 0
+    spans = json.loads(capsys.readouterr().out)
+    assert [s["expression"] for s in spans] == ["neutral"]
+
+
 def test_68_point_layout_through_the_shipped_correspondence(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
     from puppet.capture.points import load_correspondence
 

@@ -231,3 +231,35 @@ def test_lan_url_is_printed_with_a_qr_code(lan_page) -> None:
     text = out.getvalue()
     assert f"token={lan_page.server.token}" in text
     assert sum(text.count(c) for c in "█▀▄") > 100  # the QR code in block characters
+
+
+def test_editor_answers_a_body_nested_thousands_deep_with_one_reason(editor) -> None:
+    """A POST body of 100000 nested arrays (within the 1 MB limit): json's RecursionError was a
+    500 with a traceback on the editor's terminal. It is a 400 naming why, and the editor serves on."""
+    port, d, _ = editor
+    before = {p.name: p.read_bytes() for p in d.iterdir() if p.is_file()}
+    for path in ("/api/curves", "/api/export"):
+        c = http.client.HTTPConnection("127.0.0.1", port, timeout=60)
+        try:
+            c.request("POST", path, body="[" * 100_000 + "]" * 100_000, headers={"Content-Type": "application/json"})
+            r = c.getresponse()
+            reply = json.loads(r.read())
+        finally:
+            c.close()
+        assert r.status == 400 and reply["ok"] is False and "nested too deep" in reply["error"], (path, reply)
+    assert {p.name: p.read_bytes() for p in d.iterdir() if p.is_file()} == before
+    assert post(port, "/api/curves", {"curves": CURVES})[0] == 200
+
+
+def test_edit_a_take_with_no_tick_is_one_line(tmp_path: Path) -> None:
+    """A take holding its header only (the show stopped before its first tick): the editor opened
+    on it and its export answered 500 with an IndexError traceback. `puppet edit` says there is
+    nothing to edit, one line (and the end-record warning), exit 2."""
+    header = (ROOT / "tests" / "puppet" / "data" / "take_jaw_whole.jsonl").read_text().splitlines()[0]
+    take = tmp_path / "stopped.jsonl"
+    take.write_text(header + "\n")
+    r = subprocess.run([sys.executable, "-m", "puppet", "edit", str(take), "--duration", "5"], capture_output=True,
+                       text=True, env=dict(os.environ, PYTHONPATH=str(ROOT)), timeout=120)
+    errors = [ln for ln in r.stderr.splitlines() if ln.startswith("puppet: error:")]
+    assert r.returncode == 2 and len(errors) == 1 and "nothing to edit" in errors[0], r.stdout + r.stderr
+    assert "Traceback" not in r.stderr and not list(tmp_path.glob("*.curves"))

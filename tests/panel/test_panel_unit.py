@@ -31,6 +31,14 @@ def vocab():
     return load_face().vocab
 
 
+def test_decoder_ignores_an_integer_past_floats(vocab) -> None:
+    """`{"t":"in","c":...,"v":1000...0}` with 400 digits (within the 4096-byte limit): float() raised
+    OverflowError, which ended that page's connection with aiohttp's traceback on the show's terminal."""
+    allowed = allowed_controls(vocab, ["jaw"])
+    for digits in ("1" + "0" * 400, "-1" + "0" * 400):
+        assert decode_input('{"t":"in","c":"slider:jaw","v":%s}' % digits, allowed) is None
+
+
 def test_decoder_survives_damaged_messages(vocab) -> None:
     allowed = allowed_controls(vocab, ["jaw"])
     good = '{"t":"in","c":"slider:jaw","v":0.25}'
@@ -224,3 +232,13 @@ def test_every_channel_of_the_face_sits_in_its_face_region() -> None:
         if spec.kind != "age":
             assert region_of(spec.name) != "other", spec.name
     assert region_of("levator_palpebrae_l") == region_of("orbicularis_oculi_lid_r") == "eyes"
+
+
+def test_page_curves_with_an_integer_past_floats_are_refused_with_the_reason() -> None:
+    """A key [0, 1000...0] with 400 digits in the editor's save: math.isfinite raised OverflowError
+    (not a ValueError), so the save answered 500 with a traceback on the editor's terminal."""
+    from puppet.panel.editor import curves_from_json
+
+    for key in ([0, 10**400], [10**400, 0.5], [0, -(10**400)]):
+        with pytest.raises(ValueError, match="finite"):
+            curves_from_json([{"target": "jaw", "keys": [key]}], ("take.jsonl", "0" * 16))

@@ -70,3 +70,27 @@ def test_channel_csv_is_exact(tmp_path: Path) -> None:
     rows = list(csv.reader(open(tmp_path / "c.csv")))
     assert rows[0] == ["frame", "time", "tick", "a", "b"]
     assert [float(x) for x in rows[1][3:]] == vals.tolist()
+
+
+def test_a_folder_in_the_way_of_a_file_export_is_named_not_filled(tmp_path: Path) -> None:
+    """`replay --out d.csv` where d.csv is a folder wrote PNG frames into it (a user asking for a
+    CSV got pictures in a folder called .csv). Every file export now names the folder, exit 2,
+    the folder as it was; a folder without an export suffix (shot.01) still gets the frames."""
+    import subprocess
+    import sys
+
+    take = Path(__file__).parent / "data" / "take_jaw_whole.jsonl"
+    rig = ["--rig", str(take.with_name("take_jaw_whole_rig.npz"))]
+    for name in ("d.csv", "d.mp4", "d.png", "d.pc2", "d.curves", "d.arkit.csv"):
+        folder = tmp_path / name
+        folder.mkdir()
+        done = subprocess.run([sys.executable, "-m", "puppet", "replay", str(take), "--out", str(folder),
+                               "--to", "0.05", "--size", "64x48", *rig], capture_output=True, text=True, timeout=300)
+        assert done.returncode == 2 and done.stderr.count("\n") == 1 and f"{name}: is a folder" in done.stderr, \
+            done.stderr
+        assert list(folder.iterdir()) == []
+    shot = tmp_path / "shot.01"
+    shot.mkdir()
+    done = subprocess.run([sys.executable, "-m", "puppet", "replay", str(take), "--out", str(shot),
+                           "--to", "0.05", "--size", "64x48", *rig], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0 and sorted(p.name for p in shot.iterdir())[0] == "frame_000000.png", done.stderr

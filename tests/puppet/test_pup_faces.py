@@ -107,3 +107,28 @@ def test_take_records_its_face_and_replays_on_it(tmp_path: Path, spec: str) -> N
         rp.step()
         assert rp.state.positions.tobytes() == want, f"tick {k} differs"
     assert seen[-1] != face.model.rest.tobytes()
+
+
+def test_two_saves_of_one_name_at_once_never_both_report_saved(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                               capsys) -> None:
+    """`puppet face save bob --identity 7` and `... --identity 8` at the same moment: both found no
+    bob, both wrote, the last rename won and both said 'saved'. The other save lands between this
+    one's check and its write here: this one now refuses in one line (exit 2) and bob keeps seed 7."""
+    monkeypatch.setenv("PUPPET_DATA_DIR", str(tmp_path / "ids"))
+    real = faces.identity_path
+
+    class Racing(type(Path())):
+        def exists(self, *args, **kwargs) -> bool:  # the other show's save, just after this check
+            faces.save_identity("bob", faces.parse_face("ict?identity=7").identity, 7)
+            return False
+
+    monkeypatch.setattr(faces, "identity_path", lambda name: Racing(real(name)))
+    assert main(["face", "save", "bob", "--identity", "8"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--replace" in err
+    monkeypatch.setattr(faces, "identity_path", real)
+    assert faces.parse_face("bob").identity == faces.parse_face("ict?identity=7").identity
+    assert not list((tmp_path / "ids").glob(".*"))
+    assert main(["face", "save", "bob", "--identity", "7"]) == 0  # the same weights: no fuss
+    assert main(["face", "save", "bob", "--identity", "8", "--replace"]) == 0
+    assert faces.parse_face("bob").identity == faces.parse_face("ict?identity=8").identity

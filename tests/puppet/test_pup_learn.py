@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import tomlkit
 
 from devices.events import ControlEvent
 from puppet.errors import ConfigError
@@ -125,3 +126,33 @@ def test_learn_binds_the_new_actions(tmp_path: Path, target: str, event_value: f
         assert v[names.index(target)] == pytest.approx(want, abs=0.04)  # (the learnt dead zone at the ends)
     else:
         assert all(v[names.index(ch)] == pytest.approx(w, abs=1e-3) for ch, w in AU_TABLE[target].items())
+
+
+def test_two_learns_on_one_map_at_once_keep_both_bindings(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two `puppet learn --map m.toml` at once (two boxes): each read the map, added its binding
+    and renamed its copy into place, so the last rename won and the other binding was lost though
+    both said 'added'. Here the other learn runs while this one holds its changed copy: both
+    bindings are in the map afterwards."""
+    import threading
+
+    import puppet.mapping.learn as learn
+
+    mp = tmp_path / "m.toml"
+    assert learn_binding(mp, "dial0", "sgi://", "jaw", "dial") == "added"
+    dumps, other = learn.tomlkit.dumps, []
+
+    def racing_dumps(doc):  # the first call: this learn's changed copy, not yet written
+        monkeypatch.setattr(learn.tomlkit, "dumps", dumps)
+        t = threading.Thread(target=lambda: other.append(learn_binding(mp, "dial2", "sgi://", "age", "dial")))
+        t.start()
+        t.join(2.0)  # the other learn finishes now, or waits for this one to write
+        other.append(t)
+        return dumps(doc)
+
+    monkeypatch.setattr(learn.tomlkit, "dumps", racing_dumps)
+    assert learn_binding(mp, "dial1", "sgi://", "eyes_yaw", "dial") == "added"
+    thread = next(x for x in other if isinstance(x, threading.Thread))
+    thread.join()
+    assert "added" in other
+    got = {(b["control"], b["target"]) for b in tomlkit.parse(mp.read_text())["binding"]}
+    assert got == {("dial0", "jaw"), ("dial1", "eyes_yaw"), ("dial2", "age")}

@@ -29,3 +29,17 @@ def test_a_take_being_recorded_is_not_taken_over(tmp_path: Path) -> None:
         first.close(1)
     kept = keep_previous(path)  # once the show is over, its take is kept aside as before
     assert kept == tmp_path / "show.1.jsonl" and kept.read_bytes().startswith(before)
+
+
+def test_a_take_named_near_the_file_system_limit_is_kept_aside(tmp_path: Path) -> None:
+    """A second show recording to a 254-byte take name: keeping the first take aside as
+    NAME.1.jsonl (2 bytes longer) ended the show's start in an OSError traceback ('File name too
+    long'). The earlier take is kept under a name cut to fit, its bytes intact, every time."""
+    path = tmp_path / ("ö" * 122 + "abcd.jsonl")
+    assert len(path.name.encode()) == 254
+    for k in range(3):
+        path.write_text(f"take {k}\\n")
+        kept = keep_previous(path)
+        assert kept is not None and kept.read_text() == f"take {k}\\n" and not path.exists()
+        assert kept.name.endswith(f".{k + 1}.jsonl") and len(kept.name.encode()) <= 255
+    assert len(list(tmp_path.iterdir())) == 3

@@ -106,3 +106,19 @@ def test_a_damaged_sound_keeps_the_users_old_video(clip: Path, tmp_path: Path) -
     errors = [ln for ln in done.stderr.splitlines() if ln.startswith("puppet: error:")]
     assert done.returncode == 2 and len(errors) == 1 and "speech.wav" in errors[0], done.stderr
     assert video.read_bytes() == b"the user's old video"
+
+
+def test_a_video_named_near_the_file_system_limit_gets_its_sound(clip: Path, tmp_path: Path) -> None:
+    """An MP4 name of 245 bytes (a valid name): its sound's temporary file was named after the
+    video's temporary name plus '.sound.mp4', past 255 bytes, so the export failed as 'File name
+    too long'. The video is written with its sound and nothing is left beside it."""
+    take = tmp_path / "take.jsonl"
+    assert puppet("fit", str(clip), "--out", str(take)).returncode == 0
+    video = tmp_path / ("é" * 120 + "s.mp4")
+    assert len(video.name.encode()) == 245
+    done = puppet("replay", str(take), "--out", str(video), "--fps", str(FPS), "--size", "96x64", "--to", "0.3")
+    assert done.returncode == 0, done.stderr
+    probe = subprocess.run(["ffprobe", "-v", "error", "-show_entries", "stream=codec_type", "-of", "csv=p=0",
+                            str(video)], capture_output=True, text=True).stdout
+    assert "audio" in probe and "video" in probe
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([take.name, video.name])

@@ -419,3 +419,17 @@ def test_a_header_only_take_fails_naming_the_users_file(tmp_path: Path, in_this_
         jobs.export_outputs({empty.name: empty.read_bytes()}, str(empty), [("empty.csv", {"fps": None})], None)
     assert str(err.value).startswith(f"{empty} holds no performance"), err.value
     assert "puppet-batch-" not in str(err.value)
+
+
+def test_an_unclosed_ipv6_scheduler_and_a_runaway_worker_count_are_one_line(tmp_path: Path,
+                                                                          capsys: pytest.CaptureFixture) -> None:
+    """`--scheduler tcp://[::1` was urllib's 'Invalid IPv6 URL' traceback; `--workers 100000` began
+    starting a hundred thousand worker processes. Both are one line, exit 2, before anything runs."""
+    take = tmp_path / "a.jsonl"
+    write_take(take, seed=1)
+    out = tmp_path / "out"
+    for extra in (["--scheduler", "tcp://[::1"], ["--scheduler", "[::1:8786"], ["--workers", "100000"]):
+        assert main(["batch", "export", str(take), "--out", str(out), "--to", "csv", *extra]) == 2
+        _, err = capsys.readouterr()
+        assert err.count("\n") == 1 and extra[0] in err, (extra, err)
+    assert not out.exists()

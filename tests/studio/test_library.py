@@ -345,3 +345,40 @@ def test_the_listing_keeps_its_columns_however_long_a_cell(folder: Path, tmp_pat
     assert code == 0 and len(lines) == 3 and "happiness,sadness,surprise" in out, out
     column = lines[0].index("path")
     assert all(line[column:].startswith(str(folder)) for line in lines[1:]), out
+
+
+def test_two_imports_at_once_count_each_take_once(folder: Path, tmp_path: Path,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two `takes import` of one folder into one library at once: a take the other import
+    registered after this one looked was counted 'registered' by both (their counts added up to
+    more takes than the folder holds). Here the other import registers every take between this one's look and its write: this
+    one reports them all as already in the library, unchanged."""
+    from puppet.library.upkeep import import_folder
+
+    lib_path = tmp_path / "takes.db"
+    lib, other = Library(lib_path), Library(lib_path)
+    real = Library.register
+
+    def other_first(self: Library, path: str | Path, *args: object, **kwargs: object) -> int:
+        if self is lib:
+            real(other, path)
+        return real(self, path, *args, **kwargs)
+
+    monkeypatch.setattr(Library, "register", other_first)
+    rep = import_folder(lib, folder)
+    assert rep.registered == [] and len(rep.known) == 3
+    monkeypatch.setattr(Library, "register", real)
+    fresh = import_folder(Library(tmp_path / "fresh.db"), folder)
+    assert len(fresh.registered) == 3 and fresh.known == []
+
+
+def test_a_take_id_past_64_bits_is_no_take(folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """`puppet takes show 99999999999999999999999` (a pasted number, a page's URL): SQLite's
+    OverflowError was a traceback (the page's take routes answered 500 with it on the show's
+    terminal). It is 'no take N', one line, exit 2, like any id the library does not hold."""
+    lib = tmp_path / "takes.db"
+    assert takes_cli(capsys, lib, "import", str(folder))[0] == 0
+    huge = str(1 << 80)
+    for args in (("show", huge), ("tag", huge, "keep"), ("note", huge, "text"), ("show", str(-(1 << 70)))):
+        code, out, err = takes_cli(capsys, lib, *args)
+        assert code == 2 and err.count("\n") == 1 and f"no take {args[1]}" in err, (args, err)
