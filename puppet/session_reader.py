@@ -32,6 +32,10 @@ class _Damaged(ValueError):
     """One record cannot be used."""
 
 
+#: the header's keys that say how the recording program's step was made (puppet.replay reads them)
+STEP_KEYS = ("muscles", "lids", "jaw", "bending", "jaw bending", "solve")
+
+
 def _finite(text: str) -> float:
     x = float(text)
     if not math.isfinite(x):
@@ -72,16 +76,9 @@ def _header(p: Path, line: bytes) -> dict[str, Any]:
             raise BadFile(f"{where}: the header names a channel twice")
         header["tick_rate"] = number(header["tick_rate"], f"{where}: tick_rate", MIN_RATE, MAX_RATE)
         header["rig"] = _rig(header.get("rig"), where)
-        if header.get("muscles") is not None:
-            header["muscles"] = string(header["muscles"], f"{where}: muscles", 40)
-        if header.get("lids") is not None:
-            header["lids"] = string(header["lids"], f"{where}: lids", 40)
-        if header.get("jaw") is not None:
-            header["jaw"] = string(header["jaw"], f"{where}: jaw", 80)
-        if header.get("bending") is not None:
-            header["bending"] = string(header["bending"], f"{where}: bending", 80)
-        if header.get("solve") is not None:
-            header["solve"] = string(header["solve"], f"{where}: solve", 80)
+        for key in STEP_KEYS:  # how the step was made: words, each read by puppet.replay
+            if header.get(key) is not None:
+                header[key] = string(header[key], f"{where}: {key}", 80)
     except BadFile as err:
         raise ConfigError(f"{err} (the recording header is damaged)") from err
     header["channels"] = channels
