@@ -325,6 +325,17 @@ def _commit(tmp: Path, target: Path) -> None:
 
 
 @contextmanager
+def _disk_full_named(target: Path) -> Iterator[None]:
+    """A full disk (or quota) met by the caller's writes is one line naming the user's file."""
+    try:
+        yield
+    except OSError as err:
+        if err.errno in _DISK_FULL:
+            raise BadFile(f"{target}: cannot write: {err.strerror}") from err
+        raise
+
+
+@contextmanager
 def atomic_path(target: str | Path) -> Iterator[Path]:
     """A temporary path beside `target` for a writer that wants a file name (an encoder, numpy);
     renamed onto `target` when the block ends without error, removed otherwise."""
@@ -336,12 +347,8 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
     except OSError as err:
         raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
     try:
-        try:
+        with _disk_full_named(target):
             yield tmp
-        except OSError as err:
-            if err.errno in _DISK_FULL:
-                raise BadFile(f"{target}: cannot write: {err.strerror}") from err
-            raise
         try:
             _commit(tmp, target)
         except OSError as err:
@@ -379,12 +386,8 @@ def atomic_dir(target: str | Path, stale: str | None = None) -> Iterator[Path]:
     except OSError as err:
         raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
     try:
-        try:
+        with _disk_full_named(target):
             yield tmp
-        except OSError as err:
-            if err.errno in _DISK_FULL:
-                raise BadFile(f"{target}: cannot write: {err.strerror}") from err
-            raise
         try:
             target.mkdir(exist_ok=True)
             made = sorted(tmp.iterdir())
