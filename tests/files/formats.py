@@ -28,6 +28,16 @@ class Outcome:
     text: str
 
 
+def old_output(out: Path) -> Path:
+    """The user's earlier export at `out` (a frames folder when named "frames"): the file an export
+    must leave as it was if it fails; returns it."""
+    if out.name == "frames":
+        out.mkdir()
+        out = out / "frame_000000.png"
+    out.write_bytes(OLD)
+    return out
+
+
 def run_cli(argv: list[str], file: Path, outs: tuple[Path, ...] = (), also: str = "") -> Outcome:
     """Run `puppet ARGV` here; classify what the user sees. `outs` hold OLD before the run and
     must still hold it after a failed run. The error line must name `file` (or `also`)."""

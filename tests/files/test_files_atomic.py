@@ -47,13 +47,7 @@ def test_an_export_that_fails_midway_leaves_the_old_file_and_a_good_one_replaces
 
     perf = _performance(tmp_path)
     out = tmp_path / name
-    if name == "frames":
-        out.mkdir()
-        (out / "frame_000000.png").write_bytes(OLD)
-        old = out / "frame_000000.png"
-    else:
-        out.write_bytes(OLD)
-        old = out
+    old = formats.old_output(out)
     obj = out.with_suffix(".obj")
     old_obj = b"# facepuppet rest pose of an earlier export\n" + OLD  # a foreign OBJ is refused, not replaced
     if name.endswith(".pc2"):

@@ -50,13 +50,7 @@ def _leftovers(folder: Path) -> list[str]:
 def test_a_full_disk_is_one_line_naming_the_export_and_the_old_file_stays(tmp_path: Path, name: str) -> None:
     formats.good_recording(tmp_path)
     out = tmp_path / name
-    if name == "frames":
-        out.mkdir()
-        (out / "frame_000000.png").write_bytes(OLD)
-        old = out / "frame_000000.png"
-    else:
-        out.write_bytes(OLD)
-        old = out
+    old = formats.old_output(out)
     r = _puppet(["replay", "good.jsonl", "--fps", "60", "--size", "320x240", "--out", name], tmp_path, full=True)
     line = _one_line(r, name, *(["take.obj"] if name == "take.pc2" else []))  # the rest mesh is written first
     assert "cannot write" in line
