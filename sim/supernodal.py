@@ -106,6 +106,23 @@ def _dot4(typingctx, col, g0, g1, g2, blocks):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(inline="always")
+def _put4(y, i, p0, p1, p2, q0, q1, q2, u0, u1, u2, z0, z1, z2):  # type: ignore[no-untyped-def]
+    """Four unknowns of a backward sweep stored: rows i, i - 1, i - 2, i - 3 of y take (p, q, u, z)."""
+    y[i, 0] = p0
+    y[i, 1] = p1
+    y[i, 2] = p2
+    y[i - 1, 0] = q0
+    y[i - 1, 1] = q1
+    y[i - 1, 2] = q2
+    y[i - 2, 0] = u0
+    y[i - 2, 1] = u1
+    y[i - 2, 2] = u2
+    y[i - 3, 0] = z0
+    y[i - 3, 1] = z1
+    y[i - 3, 2] = z2
+
+
+@numba.njit(inline="always")
 def _take4(a0, a1, a2, c0, c1, c2, c3, p0, p1, p2, q0, q1, q2, u0, u1, u2, z0, z1, z2, lo, hi):  # type: ignore[no-untyped-def]
     """Rows lo..hi-1 of the buffer (a0, a1, a2) take four columns c0..c3 in turn, times the
     values (p, q, u, z): each subtraction separate and in that order (one pass, the column sweeps'
@@ -357,18 +374,7 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
             z0 = (((a0[jj - 3] - c0[jj - 3] * p0) - c1[jj - 3] * q0) - c2[jj - 3] * u0) / d
             z1 = (((a1[jj - 3] - c0[jj - 3] * p1) - c1[jj - 3] * q1) - c2[jj - 3] * u1) / d
             z2 = (((a2[jj - 3] - c0[jj - 3] * p2) - c1[jj - 3] * q2) - c2[jj - 3] * u2) / d
-            y[s + jj, 0] = p0
-            y[s + jj, 1] = p1
-            y[s + jj, 2] = p2
-            y[s + jj - 1, 0] = q0
-            y[s + jj - 1, 1] = q1
-            y[s + jj - 1, 2] = q2
-            y[s + jj - 2, 0] = u0
-            y[s + jj - 2, 1] = u1
-            y[s + jj - 2, 2] = u2
-            y[s + jj - 3, 0] = z0
-            y[s + jj - 3, 1] = z1
-            y[s + jj - 3, 2] = z2
+            _put4(y, s + jj, p0, p1, p2, q0, q1, q2, u0, u1, u2, z0, z1, z2)
             c3 = tv[t + (jj - 3) * w:t + (jj - 2) * w]
             _take4(a0, a1, a2, c0, c1, c2, c3, p0, p1, p2, q0, q1, q2, u0, u1, u2, z0, z1, z2, 0, jj - 3)
             jj -= BLOCK
@@ -465,18 +471,7 @@ def _sym_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, t_ptr, tl, u_diag, acc):  # 
             z0 = ((a0[jj - 3] - c0[jj - 3] * p0) - c1[jj - 3] * q0) - c2[jj - 3] * u0
             z1 = ((a1[jj - 3] - c0[jj - 3] * p1) - c1[jj - 3] * q1) - c2[jj - 3] * u1
             z2 = ((a2[jj - 3] - c0[jj - 3] * p2) - c1[jj - 3] * q2) - c2[jj - 3] * u2
-            y[s + jj, 0] = p0
-            y[s + jj, 1] = p1
-            y[s + jj, 2] = p2
-            y[s + jj - 1, 0] = q0
-            y[s + jj - 1, 1] = q1
-            y[s + jj - 1, 2] = q2
-            y[s + jj - 2, 0] = u0
-            y[s + jj - 2, 1] = u1
-            y[s + jj - 2, 2] = u2
-            y[s + jj - 3, 0] = z0
-            y[s + jj - 3, 1] = z1
-            y[s + jj - 3, 2] = z2
+            _put4(y, s + jj, p0, p1, p2, q0, q1, q2, u0, u1, u2, z0, z1, z2)
             c3 = tl[t + (jj - 3) * w:t + (jj - 2) * w]
             _take4(a0, a1, a2, c0, c1, c2, c3, p0, p1, p2, q0, q1, q2, u0, u1, u2, z0, z1, z2, 0, jj - 3)
             jj -= BLOCK
