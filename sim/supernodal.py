@@ -106,6 +106,17 @@ def _dot4(typingctx, col, g0, g1, g2, blocks):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(inline="always")
+def _prefetch_back(arr, p, start):  # type: ignore[no-untyped-def]
+    """A backward sweep's read-ahead: the cache lines of arr from p down to AHEAD values before
+    `start` (the next run's first value), a line of float64 at a time; returns the next p."""
+    end = max(start - AHEAD, 0)
+    while p >= end:
+        _prefetch(arr, p)
+        p -= 8
+    return p
+
+
+@numba.njit(inline="always")
 def _put4(y, i, p0, p1, p2, q0, q1, q2, u0, u1, u2, z0, z1, z2):  # type: ignore[no-untyped-def]
     """Four unknowns of a backward sweep stored: rows i, i - 1, i - 2, i - 3 of y take (p, q, u, z)."""
     y[i, 0] = p0
@@ -288,14 +299,8 @@ def _sn_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, uv, t_ptr, tv, u_diag, acc): 
     pl = nl - 1  # uv and tv are read from their ends
     pt = nt - 1
     for k in range(nodes - 1, -1, -1):  # backward: the columns after the run first, from the last
-        end = max(v_ptr[k] - AHEAD, 0)
-        while pl >= end:
-            _prefetch(uv, pl)
-            pl -= 8
-        end = max(t_ptr[k] - AHEAD, 0)
-        while pt >= end:
-            _prefetch(tv, pt)
-            pt -= 8
+        pl = _prefetch_back(uv, pl, v_ptr[k])
+        pt = _prefetch_back(tv, pt, t_ptr[k])
         s = sn_ptr[k]
         w = sn_ptr[k + 1] - s
         t = t_ptr[k]
@@ -415,14 +420,8 @@ def _sym_sweeps(y, sn_ptr, r_ptr, r_idx, v_ptr, lv, t_ptr, tl, u_diag, acc):  # 
     pl = lv.shape[0] - 1  # lv and tv are read from their ends
     pt = tl.shape[0] - 1
     for k in range(nodes - 1, -1, -1):
-        end = max(v_ptr[k] - AHEAD, 0)
-        while pl >= end:
-            _prefetch(lv, pl)
-            pl -= 8
-        end = max(t_ptr[k] - AHEAD, 0)
-        while pt >= end:
-            _prefetch(tl, pt)
-            pt -= 8
+        pl = _prefetch_back(lv, pl, v_ptr[k])
+        pt = _prefetch_back(tl, pt, t_ptr[k])
         s = sn_ptr[k]
         w = sn_ptr[k + 1] - s
         t = t_ptr[k]
