@@ -31,16 +31,22 @@ def test_prefactored_solve_matches_a_direct_solve(synth_model: FaceModel) -> Non
     assert np.allclose(out, spsolve(a, b), rtol=1e-10, atol=1e-12)
 
 
+def _forward_sweep(lu: object, low: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
+    """L^-1 Pr b by the plain column-by-column forward sweep (L has a unit diagonal)."""
+    y = np.zeros_like(b)
+    y[lu.perm_r] = b  # type: ignore[attr-defined]
+    for j in range(low.shape[0]):
+        for p in range(low.indptr[j], low.indptr[j + 1]):
+            if low.indices[p] > j:
+                y[low.indices[p]] -= low.data[p] * y[j]
+    return y
+
+
 def _column_sweeps(lu: object, b: np.ndarray) -> np.ndarray:
     """Pc U^-1 L^-1 Pr b by the plain column-by-column sweeps (each entry of L and U in turn)."""
     low, up = sp.csc_matrix(lu.L), sp.csc_matrix(lu.U)  # type: ignore[attr-defined]
     n = low.shape[0]
-    y = np.zeros_like(b)
-    y[lu.perm_r] = b  # type: ignore[attr-defined]
-    for j in range(n):
-        for p in range(low.indptr[j], low.indptr[j + 1]):
-            if low.indices[p] > j:
-                y[low.indices[p]] -= low.data[p] * y[j]
+    y = _forward_sweep(lu, low, b)
     for j in range(n - 1, -1, -1):
         rows, vals = up.indices[up.indptr[j]:up.indptr[j + 1]], up.data[up.indptr[j]:up.indptr[j + 1]]
         y[j] = y[j] / vals[rows == j][0]
@@ -226,12 +232,7 @@ def _symmetric_reference(lu: object, arrays: dict, b: np.ndarray) -> np.ndarray:
     n = low.shape[0]
     dense = low.toarray()
     diag = up.diagonal()
-    y = np.zeros_like(b)
-    y[lu.perm_r] = b  # type: ignore[attr-defined]
-    for j in range(n):
-        for p in range(low.indptr[j], low.indptr[j + 1]):
-            if low.indices[p] > j:
-                y[low.indices[p]] -= low.data[p] * y[j]
+    y = _forward_sweep(lu, low, b)
     sn, rp, ri = arrays["sn_ptr"], arrays["r_ptr"], arrays["r_idx"]
     for k in range(len(sn) - 2, -1, -1):
         s, e = int(sn[k]), int(sn[k + 1])
