@@ -145,15 +145,10 @@ def _open_locked(path: Path, append_to: int | None) -> IO[str]:
 def _aside(p: Path, n: int) -> Path:
     """`NAME.n.jsonl` beside `p`, NAME cut (in bytes, on a character boundary) when the name would
     pass the file system's limit: a take named near 255 bytes is kept aside like any other."""
-    try:
-        name_max = os.pathconf(p.parent if str(p.parent) else ".", "PC_NAME_MAX")
-    except (OSError, ValueError):
-        name_max = 255
+    from safefile import fitting_stem
+
     tail = f".{n}{p.suffix}"
-    raw = os.fsencode(p.stem)
-    if len(raw) + len(os.fsencode(tail)) > name_max:
-        raw = raw[:max(name_max - len(os.fsencode(tail)), 1)]
-    return p.with_name((raw.decode("utf-8", "ignore") or "x") + tail)
+    return p.with_name(fitting_stem(p.parent, p.stem, len(os.fsencode(tail))) + tail)
 
 
 def keep_previous(path: str | Path) -> Path | None:

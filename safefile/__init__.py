@@ -271,6 +271,20 @@ _DISK_FULL = frozenset(getattr(errno, n) for n in ("ENOSPC", "EDQUOT", "EFBIG") 
 _NO_SYNC = frozenset(getattr(errno, n) for n in ("EINVAL", "ENOTSUP", "EOPNOTSUPP", "ENOSYS") if hasattr(errno, n))
 
 
+def fitting_stem(folder: str | Path, stem: str, extra: int) -> str:
+    """`stem` cut (in bytes, as the kernel counts, on a character boundary) so that it and `extra`
+    more bytes make a name the file system in `folder` takes: a side or temporary file of a name
+    near the 255-byte limit is still made."""
+    try:
+        name_max = os.pathconf(folder if str(folder) else ".", "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    raw = os.fsencode(stem)
+    if len(raw) + extra <= name_max:
+        return stem
+    return raw[:max(name_max - extra, 1)].decode("utf-8", "ignore") or "x"
+
+
 def _temp_name(target: Path, folder: bool = False) -> Path:
     """A fresh hidden name beside `target` that keeps its suffix (encoders choose by suffix)."""
     fd_dir = target.parent if str(target.parent) else Path(".")
@@ -278,16 +292,9 @@ def _temp_name(target: Path, folder: bool = False) -> Path:
         suffix, stem = ".part", target.name
     else:
         suffix, stem = f".part{target.suffix}", target.stem
-    try:
-        name_max = os.pathconf(fd_dir, "PC_NAME_MAX")
-    except (OSError, ValueError):
-        name_max = 255
     # a name the file system takes for the target must not fail for its temporary one: the stem is
-    # cut to leave room for the dots, 8 random characters and the suffix (bytes, as the kernel counts)
-    room = name_max - 10 - len(os.fsencode(suffix))
-    raw = os.fsencode(stem)
-    if len(raw) > room:
-        stem = raw[:max(room, 1)].decode("utf-8", "ignore") or "x"
+    # cut to leave room for the dots, 8 random characters and the suffix
+    stem = fitting_stem(fd_dir, stem, 10 + len(os.fsencode(suffix)))
     if folder:
         return Path(tempfile.mkdtemp(prefix=f".{stem}.", suffix=suffix, dir=fd_dir))
     fd, name = tempfile.mkstemp(prefix=f".{stem}.", suffix=suffix, dir=fd_dir)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from safefile import MAX_BYTES, BadFile, read_bytes
+from safefile import MAX_BYTES, BadFile, fitting_stem, read_bytes
 
 _PCM, _FLOAT, _EXTENSIBLE = 1, 3, 0xFFFE
 
@@ -94,15 +94,7 @@ def _partial_name(path: Path) -> Path:
     """`NAME.partial` beside `path`; for a name within 8 bytes of the file system's limit (a take
     named near 255 bytes records `take.wav`), the part before `.wav` is cut to fit, in bytes on a
     character boundary, so the sound of a take the file system accepts is recorded."""
-    try:
-        name_max = os.pathconf(path.parent if str(path.parent) else ".", "PC_NAME_MAX")
-    except (OSError, ValueError):
-        name_max = 255
-    tail = os.fsencode(path.suffix + ".partial")
-    raw = os.fsencode(path.stem)
-    if len(raw) + len(tail) > name_max:
-        raw = raw[:max(name_max - len(tail), 1)]
-    stem = raw.decode("utf-8", "ignore") or "x"
+    stem = fitting_stem(path.parent, path.stem, len(os.fsencode(path.suffix + ".partial")))
     return path.with_name(stem + path.suffix + ".partial")
 
 
