@@ -302,8 +302,11 @@ class FaceRenderer:
             return Prepared(state, rows, (self._camera_key, (w, h), ss), self._made)
         if getattr(state, "interleaved", None) is not None:
             return Prepared(state, None, None, self._made)
-        surface = np.ascontiguousarray(state.surface, dtype=np.float32)
-        return Prepared(state, self.normals.interleaved(surface, head_turn(state)), None, self._made)
+        return Prepared(state, self._mesh_rows(state), None, self._made)
+
+    def _mesh_rows(self, state: Any) -> np.ndarray:
+        """A mesh face's rows (x y z nx ny nz per vertex) from its simulated surface, head turned."""
+        return self.normals.interleaved(np.ascontiguousarray(state.surface, dtype=np.float32), head_turn(state))
 
     def _prepared_rows(self, prepared: Prepared | None, state: Any, w: int, h: int, ss: int) -> np.ndarray | None:
         """The rows `prepared` made for this frame, or None when they are not this frame's."""
@@ -349,8 +352,7 @@ class FaceRenderer:
         elif rows is None:
             rows = ready
             if rows is None:
-                surface = np.ascontiguousarray(state.surface, dtype=np.float32)
-                rows = self.normals.interleaved(surface, head_turn(state))
+                rows = self._mesh_rows(state)
             surface = np.ascontiguousarray(rows[:n, :3])  # as drawn: the head turned on the neck
         else:
             surface = np.ascontiguousarray(rows[:n, :3])
