@@ -191,6 +191,9 @@ def run(args: argparse.Namespace) -> int:
                 gc.enable()
     finally:
         sys.stdout, sys.stderr = streams
+        live = sys.modules.get("puppet.live")  # (not imported: the command ended before the show)
+        if live is not None and not live.join_background(BACKGROUND_WAIT):
+            args.exit_at_once = True  # a compile outlived the wait: no interpreter teardown under it
 
 
 class _Unbroken:
@@ -350,6 +353,10 @@ def _open_panel(args: argparse.Namespace, face: Any, devs: list[Any], explicit: 
     if not dev.serve_later:
         announce(dev)
 
+
+#: how long the show's end waits for a background compile (the wrinkle layer's, a cold start's
+#: kernels) before ending the process without the interpreter's teardown
+BACKGROUND_WAIT = 60.0
 
 #: on a cold start, how long the first tick waits at most for the page's server to have started
 PAGE_START_WAIT = 5.0

@@ -166,7 +166,34 @@ def warm_up_in_background() -> None:
             _COLD_START_KNOWN.set()
 
     _COLD_START["started"] = True
-    threading.Thread(target=run, name="kernel-warm-up", daemon=True).start()
+    start_background(threading.Thread(target=run, name="kernel-warm-up", daemon=True))
+
+
+#: threads a show starts that may still run compiled code (numba, LLVM) when the show ends
+_BACKGROUND: list[Any] = []
+
+
+def start_background(thread: Any) -> None:
+    """Start `thread` and keep it, so the show's end can wait for it (`join_background`)."""
+    _BACKGROUND.append(thread)
+    thread.start()
+
+
+def join_background(timeout: float = 60.0) -> bool:
+    """Wait up to `timeout` seconds in all for the show's background threads (the kernels' warm-up,
+    the wrinkle layer's build). A thread still compiling when the interpreter tears down aborts the
+    process ("terminate called without an active exception") as LLVM's statics are destroyed under
+    it. False when one is still running: the caller then ends the process without the teardown."""
+    import time
+
+    end = time.monotonic() + timeout
+    while _BACKGROUND:
+        th = _BACKGROUND[0]
+        th.join(max(0.0, end - time.monotonic()))
+        if th.is_alive():
+            return False
+        _BACKGROUND.pop(0)
+    return True
 
 
 def build_mapping(vocab: Vocabulary, map_path: str | None, device_specs: Sequence[str | tuple[str, str]],
@@ -495,7 +522,7 @@ class LiveCore:
                 self.writer.service()
         if self._wrinkles_thread is not None:
             with _OrdinaryThreads():
-                self._wrinkles_thread.start()
+                start_background(self._wrinkles_thread)
             self._wrinkles_thread = None
         if self.after_first_frame:
             hooks, self.after_first_frame = self.after_first_frame, []

@@ -172,6 +172,45 @@ def test_sigterm_stops_cleanly_and_closes_the_recording(tmp_path: Path) -> None:
     assert read_session(rec).complete and "performed" in out
 
 
+def test_the_show_ends_after_its_background_builds(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A thread still loading compiled code (the wrinkle layer's build, started after the first
+    frame) when the interpreter tears down aborts the whole process ("terminate called without an
+    active exception", exit 134) after the show: a short show, or one stopped by SIGTERM right after
+    its first frame, must wait for the build before it returns."""
+    import threading
+
+    from puppet.cli import main
+
+    built = threading.Event()
+    build = live.LiveCore._build_wrinkles
+
+    def slow_build(self: live.LiveCore) -> None:
+        time.sleep(1.5)  # a loaded machine loading the layer's kernels
+        build(self)
+        built.set()
+
+    monkeypatch.setattr(live.LiveCore, "_build_wrinkles", slow_build)
+    rec = tmp_path / "short.jsonl"
+    code = main(["live", "--device", script(tmp_path, speed=1, duration=0.2), "--headless", "--record", str(rec),
+                 "--duration", "0.2"])
+    assert code == 0 and read_session(rec).complete
+    assert built.is_set(), "the show returned while its wrinkle layer was still being built"
+
+
+def test_background_wait_is_bounded() -> None:
+    """A build that never ends does not hold the show's end: the wait gives up (and `puppet live`
+    then ends the process without the interpreter's teardown)."""
+    import threading
+
+    release = threading.Event()
+    live.start_background(threading.Thread(target=release.wait, daemon=True))
+    t = time.monotonic()
+    assert not live.join_background(0.2)
+    assert time.monotonic() - t < 5
+    release.set()
+    assert live.join_background(5)
+
+
 def test_no_display_falls_back_to_headless_and_says_where(tmp_path: Path) -> None:
     env = {k: v for k, v in ENV.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     out = subprocess.run([sys.executable, "-m", "puppet", "live", "--device", script(tmp_path), "--duration", "0.5"],
