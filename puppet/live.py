@@ -181,9 +181,10 @@ def start_background(thread: Any) -> None:
 
 def join_background(timeout: float = 60.0) -> bool:
     """Wait up to `timeout` seconds in all for the show's background threads (the kernels' warm-up,
-    the wrinkle layer's build). A thread still compiling when the interpreter tears down aborts the
-    process ("terminate called without an active exception") as LLVM's statics are destroyed under
-    it. False when one is still running: the caller then ends the process without the teardown."""
+    the wrinkle layer's build). A thread still loading compiled kernels when the interpreter
+    finalizes is ended by pthread_exit from inside LLVM's call back into numba's cache, which aborts
+    the process ("terminate called without an active exception", exit 134). False when one is
+    still running: the caller then ends the process without the interpreter's teardown."""
     import time
 
     end = time.monotonic() + timeout
