@@ -17,7 +17,8 @@ prediction kept as an offset), with one mechanism added at a time:
   sides free from each other (every muscle's smoothness cut there): the orbicularis oris' marginal
   part per lip and side, which may curl the red lip apart from the skin;
 - unheld: the skin below the lower lip that the step holds (under the chin, moved by the jaw's
-  weights alone) free like the rest: what the chin's held skin costs the chin's shapes;
+  weights alone, and the mask's border rows there) free like the rest: what the held skin costs
+  the chin's shapes;
 - slide:S: the skin's tether to the tissue beneath resisting a tangential slide S times as
   strongly, its normal resistance kept (retinacula cutis lax over fat);
 - slide-lig:A:B: the same with the tangential tether A times over fat and B times on the retaining
@@ -222,7 +223,8 @@ class Split(Free):
 
 class Unheld(Free):
     """scan_limits' gains free per shape with the held skin below the lower lip (under the chin,
-    which the step moves with the jaw alone) free, tethered as the rest of the skin."""
+    which the step moves with the jaw alone, and the mask's border rows there) free, tethered as
+    the rest of the skin."""
 
     def __init__(self, model) -> None:  # type: ignore[no-untyped-def]
         from dataclasses import replace
