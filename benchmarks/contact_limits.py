@@ -315,7 +315,7 @@ def main() -> int:
     mouth = np.linalg.norm(np.asarray(model.rest) - 0.5 * (np.asarray(model.rest)[model.landmark_index("upper_lip_center")]
                                                             + np.asarray(model.rest)[model.landmark_index("lower_lip_center")]),
                            axis=1) < 3.0
-    print(f"(where: the share of the sheet's left error on the lips' red part ({red.sum()} vertices) and within 3 cm "
+    print(f"(where: the share of the sheet's remaining error on the lips' red part ({red.sum()} vertices) and within 3 cm "
           f"of the mouth's centre ({mouth.sum()}))")
     rows = []
     for label, (_, target) in targets.items():
