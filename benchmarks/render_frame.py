@@ -275,13 +275,13 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
     import statistics
 
     from render.offscreen import OffscreenRenderer
-    from render.scan_draw import FLUSH_AT
     from render.scan_rows import SMALL_BOX
 
     model, hud = _scan_and_hud()
     out = []
     with OffscreenRenderer(model, size, ctx=ctx) as off:  # type: ignore[arg-type]
         r = off.renderer
+        parts = (r.clear_first, r.scan.flush_at)  # the frame in parts, as drawn (none with LP_NUM_THREADS=0)
         for expression in ("happiness", "surprise", "jaw_open", "neutral"):
             states = _states(model, 30, expression)
             rows = [r.scan.rows(s).copy() for s in states]
@@ -308,8 +308,8 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                         if not use:
                             del s.scan_rows  # type: ignore[attr-defined]
                         r.scan.lod = lod
-                        r.clear_first = key != "one_pass"
-                        r.scan.flush_at = () if key == "one_pass" else FLUSH_AT
+                        r.clear_first = key != "one_pass" and parts[0]
+                        r.scan.flush_at = () if key == "one_pass" else parts[1]
                         r.scan.lod_inside = key != "full_inside"
                         r.scan.split_skin = split
                         r.scan.cull_on_cpu = cull

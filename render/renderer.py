@@ -15,7 +15,7 @@ from render.hud import HudInfo, HudRenderer
 from render.meshdata import (HAIR, SKIN, Cavity, brow_coords, MuscleLines, eye_rotation, face_frame, head_turn,
                              skin_tint, spatial_order,
                              surface_rows, unique_edges, uv_sphere)
-from render.pipeline import flush
+from render.pipeline import flush, threaded_rasterizer
 from render.trails import TrailHistory
 from sim.face.turn import is_turned, turn_eye
 from sim.gaze_lids import PITCH_MAX as EYE_PITCH_MAX
@@ -123,8 +123,9 @@ class FaceRenderer:
         self._gl: list[Any] = []
         # clear the frame first, flushed (render.pipeline.flush), so llvmpipe's rasterizer threads
         # clear its tiles while this thread makes the frame's CPU half (the scanned head's posing
-        # and rows) and sets up its triangles; False: clear just before the draw calls (the same pixels)
-        self.clear_first = True
+        # and rows) and sets up its triangles; False: clear just before the draw calls (the same
+        # pixels), as with no rasterizer threads (LP_NUM_THREADS=0), where it would gain nothing
+        self.clear_first = threaded_rasterizer()
 
     @property
     def antialias(self) -> str:

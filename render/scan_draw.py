@@ -12,7 +12,7 @@ import moderngl
 import numpy as np
 
 from render import scan_shaders
-from render.pipeline import flush
+from render.pipeline import flush, threaded_rasterizer
 from render.scan_look import IRIS_ANGLE, PUPIL_ANGLE, ScanLook
 from render.scan_rows import ScanRows
 from render.scan_soften import FoldSoftener
@@ -178,7 +178,8 @@ class ScanDraw:
         self._gl += [*self.vaos.values(), self.eye_vao, self.lash_vao, self.coarse_lash_vao, *self.progs.values(),
                      self.eye_prog, self.lash_prog]
         self.mouth_drawn = False
-        self.flush_at: tuple[str, ...] = FLUSH_AT  # (): the scan's triangles set up in one pass (the same pixels)
+        # (): the scan's triangles set up in one pass (the same pixels), as with no rasterizer threads
+        self.flush_at: tuple[str, ...] = FLUSH_AT if threaded_rasterizer() else ()
         self.split_skin = True  # False: the whole skin with every term (the highlight per pixel: slower)
         self.cull_on_cpu = True  # False: every triangle to OpenGL, which culls them (the same pixels)
         self.cull_unseen = True  # False: keep the triangles that cover no pixel or lie hidden inside the head (the same pixels)
