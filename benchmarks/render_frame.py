@@ -268,8 +268,9 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
     batches with the floor: each frame poses the whole scan from the simulated surface, makes its
     rows (normals, fold term) and draws; also with the full skin at any size (render.scan_lod's
     coarse plain skin not used), with the full lining, gums and tongue (render.scan_lod's coarse
-    inside not used), the drawing alone (rows made beforehand), for a
-    happiness onset, a surprise onset, the jaw dropped (AU27) and the face at rest (lips closed:
+    inside not used), the drawing alone (rows made beforehand), and in one pass (the frame cleared
+    just before the draw calls and no flush between them: FaceRenderer.clear_first,
+    ScanDraw.flush_at), for a happiness onset, a surprise onset, the jaw dropped (AU27) and the face at rest (lips closed:
     the mouth's inside left out)."""
     import statistics
 
@@ -280,6 +281,7 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
     out = []
     with OffscreenRenderer(model, size, ctx=ctx) as off:  # type: ignore[arg-type]
         r = off.renderer
+        parts = (r.clear_first, r.scan.flush_at)  # the frame in parts, as drawn (none with LP_NUM_THREADS=0)
         for expression in ("happiness", "surprise", "jaw_open", "neutral"):
             states = _states(model, 30, expression)
             rows = [r.scan.rows(s).copy() for s in states]
@@ -290,15 +292,15 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
             times: dict[str, list[tuple[float, float]]] = {"whole": [], "full_skin": [], "all_tris": [], "unseen": [],
                                                            "boxes": [], "full_lashes": [], "loose": [], "plane": [],
                                                            "full_inside": [], "draw": [],
-                                                           "unsplit": [], "floor": []}
+                                                           "unsplit": [], "one_pass": [], "floor": []}
             threads: dict[str, dict[str, list[float]]] = {k: {"main": [], "other": [], "raster": []}
                                                           for k in ("whole", "full_skin", "loose", "plane",
-                                                                    "full_inside")}
+                                                                    "full_inside", "one_pass")}
             for b in range(batches + 1):
                 for key, use_rows in (("whole", False), ("full_skin", False), ("all_tris", False), ("unseen", False),
                                       ("boxes", False), ("full_lashes", False), ("loose", False), ("plane", False),
                                       ("full_inside", False), ("draw", True),
-                                      ("unsplit", True)):
+                                      ("unsplit", True), ("one_pass", False)):
                     def frame(i: int, use: bool = use_rows, split: bool = key != "unsplit",
                               cull: bool = key != "all_tris", unseen: bool = key != "unseen",
                               lod: bool = key != "full_skin") -> None:
@@ -306,6 +308,8 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                         if not use:
                             del s.scan_rows  # type: ignore[attr-defined]
                         r.scan.lod = lod
+                        r.clear_first = key != "one_pass" and parts[0]
+                        r.scan.flush_at = () if key == "one_pass" else parts[1]
                         r.scan.lod_inside = key != "full_inside"
                         r.scan.split_skin = split
                         r.scan.cull_on_cpu = cull
@@ -338,6 +342,8 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
             f, whole, draw, unsplit = med["floor"], med["whole"], med["draw"], med["unsplit"]
             every, unseen, full, boxes = med["all_tris"], med["unseen"], med["full_skin"], med["boxes"]
             lashes, loose, plane, inside = med["full_lashes"], med["loose"], med["plane"], med["full_inside"]
+            one = med["one_pass"]
+            quicker = sum(a[0] < b[0] for a, b in zip(times["whole"], times["one_pass"]))
             out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; "
                        f"floor {f[0]:.2f} ms (cpu {f[1]:.2f}); whole frame {whole[0]:.2f} ms = "
                        f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x; coarse skin drawn: "
@@ -355,11 +361,15 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                        f"(cpu {inside[1] / f[1]:.2f}x); "
                        f"drawing alone "
                        f"{draw[0]:.2f} ms = {draw[0] / f[0]:.2f}x (cpu {draw[1] / f[1]:.2f}x); the same with "
-                       f"the skin in one shader {unsplit[0] / f[0]:.2f}x (cpu {unsplit[1] / f[1]:.2f}x)")
+                       f"the skin in one shader {unsplit[0] / f[0]:.2f}x (cpu {unsplit[1] / f[1]:.2f}x); the whole "
+                       f"frame in one pass (cleared just before the draw calls, no flush between them) "
+                       f"{one[0] / f[0]:.2f}x (cpu {one[1] / f[1]:.2f}x), the whole frame quicker in "
+                       f"{quicker}/{len(times['whole'])} batches")
             for key, label in (("whole", "whole frame's"), ("full_skin", "with the full skin,"),
                                ("loose", "with the small triangles' boxes alone and no eyeball hiding,"),
                                ("plane", "with the teeth and gums hidden only behind the mouth's opening,"),
-                               ("full_inside", "with the full lining, gums and tongue,")):
+                               ("full_inside", "with the full lining, gums and tongue,"),
+                               ("one_pass", "in one pass,")):
                 if threads[key]["main"]:
                     out.append(f"{'':<10} {label} CPU by thread, ms: " + ", ".join(
                         f"{kind} {statistics.median(v):.2f}" for kind, v in threads[key].items()))

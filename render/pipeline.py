@@ -40,6 +40,15 @@ def flush() -> None:
     _flush()
 
 
+def threaded_rasterizer() -> bool:
+    """Whether llvmpipe rasterises on threads of its own, so that a flush hands the frame over and
+    returns (LP_NUM_THREADS unset or above 0); with LP_NUM_THREADS=0 the calling thread rasterises
+    at the flush itself, and a frame handed over in parts only adds passes over its tiles."""
+    import os
+
+    return os.environ.get("LP_NUM_THREADS", "").strip() != "0"
+
+
 class FrameStream:
     """Frames of one `render.offscreen.OffscreenRenderer` drawn in a stream and read back.
     `push(state, hud, tag)` returns the frames read back by then as (tag, raw) pairs, raw being the

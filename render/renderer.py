@@ -15,6 +15,7 @@ from render.hud import HudInfo, HudRenderer
 from render.meshdata import (HAIR, SKIN, Cavity, brow_coords, MuscleLines, eye_rotation, face_frame, head_turn,
                              skin_tint, spatial_order,
                              surface_rows, unique_edges, uv_sphere)
+from render.pipeline import flush, threaded_rasterizer
 from render.trails import TrailHistory
 from sim.face.turn import is_turned, turn_eye
 from sim.gaze_lids import PITCH_MAX as EYE_PITCH_MAX
@@ -120,6 +121,11 @@ class FaceRenderer:
         self._scene: tuple[tuple[int, int], moderngl.Framebuffer, moderngl.Texture,
                            moderngl.Renderbuffer] | None = None
         self._gl: list[Any] = []
+        # clear the frame first, flushed (render.pipeline.flush), so llvmpipe's rasterizer threads
+        # clear its tiles while this thread makes the frame's CPU half (the scanned head's posing
+        # and rows) and sets up its triangles; False: clear just before the draw calls (the same
+        # pixels), as with no rasterizer threads (LP_NUM_THREADS=0), where it would gain nothing
+        self.clear_first = threaded_rasterizer()
 
     @property
     def antialias(self) -> str:
@@ -332,6 +338,11 @@ class FaceRenderer:
         ss = max(1, int(self.supersample))
         ready = self._prepared_rows(prepared, state, w, h, ss)
         self._made += 1
+        post = self._post_program(ss)
+        first = self.clear_first
+        if first:  # the rasterizer's threads clear the tiles while this thread makes the CPU half
+            fbo, tex = self._clear(target, post, w, h, ss)
+            flush()
         rows = getattr(state, "interleaved", None)  # x y z nx ny nz rows made elsewhere (an export's
         n = self.normals.n  # render process is handed them with the frame: see puppet.export.video)
         if self.scan is not None:
@@ -363,15 +374,8 @@ class FaceRenderer:
         if record or self.trails.count == 0:
             self.trails.push(surface, getattr(state, "time", None))
         view_m, mvp = self._matrices(w / max(h, 1))
-        post = self._post_program(ss)
-        if post is None:  # straight into the target: no extra full-screen pass
-            fbo, tex = target, None
-            whole = (vx, vy, w, h) == (0, 0, *fbo.size)  # a scissored clear is slow on llvmpipe
-            fbo.clear(*BACKGROUND, 1.0, depth=1.0, viewport=None if whole else (vx, vy, w, h))
-        else:
-            fbo, tex = self._scene_target(w * ss, h * ss)
-            fbo.use()
-            fbo.clear(*BACKGROUND, 1.0, depth=1.0)
+        if not first:
+            fbo, tex = self._clear(target, post, w, h, ss)
         ctx.enable_only(moderngl.DEPTH_TEST)
         self._draw_scene(state, surface, mvp, view_m, (w * ss, h * ss), ss)
         ctx.enable_only(moderngl.NOTHING)
@@ -389,6 +393,19 @@ class FaceRenderer:
                 hud = HudInfo(**{**hud.__dict__, "lines": hud.lines + [
                     f"heat: blue = still, red ≥ {self.heat_scale:g} cm from rest"]})
             self.hud.draw(hud, (w, h), view=self.view, age=getattr(state, "age", None))
+
+    def _clear(self, target: moderngl.Framebuffer, post: Any, w: int, h: int,
+               ss: int) -> tuple[moderngl.Framebuffer, moderngl.Texture | None]:
+        """Clear the frame's framebuffer (the target, or the scene's for a post pass) and bind it."""
+        vx, vy = target.viewport[:2]
+        if post is None:  # straight into the target: no extra full-screen pass
+            whole = (vx, vy, w, h) == (0, 0, *target.size)  # a scissored clear is slow on llvmpipe
+            target.clear(*BACKGROUND, 1.0, depth=1.0, viewport=None if whole else (vx, vy, w, h))
+            return target, None
+        fbo, tex = self._scene_target(w * ss, h * ss)
+        fbo.use()
+        fbo.clear(*BACKGROUND, 1.0, depth=1.0)
+        return fbo, tex
 
     def _overlay_rows(self, surface: np.ndarray) -> np.ndarray:
         buf = getattr(self, "_overlay_buf", None)

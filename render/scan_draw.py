@@ -12,6 +12,7 @@ import moderngl
 import numpy as np
 
 from render import scan_shaders
+from render.pipeline import flush, threaded_rasterizer
 from render.scan_look import IRIS_ANGLE, PUPIL_ANGLE, ScanLook
 from render.scan_rows import ScanRows
 from render.scan_soften import FoldSoftener
@@ -28,6 +29,11 @@ CULLED = ("plain", "features", "eyes", "sockets", "mouth")
 # (at 1280x720 the default camera gives 32 px² there, a median of 9 px² over the face as drawn; the
 # gallery's 2x2 supersampled 480x480, 90 px²)
 LOD_MAX_PX2 = 40.0
+# where the draw calls hand the triangles set up so far to llvmpipe's rasterizer threads (glFlush:
+# "half", after the first half of the plain skin; a group of CULLED or "lashes", before it), so they
+# rasterise them while this thread sets up the rest: llvmpipe does the two one after the other
+# within a flush, leaving a core idle while this thread sets up the frame's 13-15k triangles
+FLUSH_AT = ("half", "eyes")
 
 
 def dressing_of(model: Any) -> Any:
@@ -172,6 +178,8 @@ class ScanDraw:
         self._gl += [*self.vaos.values(), self.eye_vao, self.lash_vao, self.coarse_lash_vao, *self.progs.values(),
                      self.eye_prog, self.lash_prog]
         self.mouth_drawn = False
+        # (): the scan's triangles set up in one pass (the same pixels), as with no rasterizer threads
+        self.flush_at: tuple[str, ...] = FLUSH_AT if threaded_rasterizer() else ()
         self.split_skin = True  # False: the whole skin with every term (the highlight per pixel: slower)
         self.cull_on_cpu = True  # False: every triangle to OpenGL, which culls them (the same pixels)
         self.cull_unseen = True  # False: keep the triangles that cover no pixel or lie hidden inside the head (the same pixels)
@@ -262,11 +270,13 @@ class ScanDraw:
         if inside:
             self.counts[CULLED.index("mouth")] = len(self.coarse_mouth)
 
-    def _render(self, vao: moderngl.VertexArray, group: str) -> None:
+    def _render(self, vao: moderngl.VertexArray, group: str, lo: float = 0.0, hi: float = 1.0) -> None:
+        """Draw the group's listed triangles (from fraction `lo` of them to `hi`)."""
         g = CULLED.index(group)
         n = int(self.counts[g])
-        if n and group not in self.left_out:
-            vao.render(moderngl.TRIANGLES, vertices=3 * n, first=3 * int(self.starts[g]))
+        a, b = int(lo * n), int(hi * n)
+        if b > a and group not in self.left_out:
+            vao.render(moderngl.TRIANGLES, vertices=3 * (b - a), first=3 * (int(self.starts[g]) + a))
 
     def draw(self, rows: np.ndarray, kind: str, mvp: bytes, view_m: bytes, heat_scale: float) -> None:
         """Draw the posed scan (its rows) in look `kind`."""
@@ -286,13 +296,22 @@ class ScanDraw:
             prog["heat_scale"].value = float(heat_scale)
         ctx = self.ctx
         ctx.enable(moderngl.CULL_FACE)
-        self._render(self.vaos["PLAIN" if kind == "SKIN" and self.split_skin else kind], "plain")
-        self._render(self.vaos[kind], "features")
-        self._render(self.eye_vao, "eyes")
-        self._render(self.vaos[kind], "sockets")
-        if self.mouth_drawn:
-            self._render(self.vaos[kind], "mouth")
+        plain = self.vaos["PLAIN" if kind == "SKIN" and self.split_skin else kind]
+        if "half" in self.flush_at:  # Morton order: each half of the plain skin is a region of the face
+            self._render(plain, "plain", 0.0, 0.5)
+            flush()
+            self._render(plain, "plain", 0.5, 1.0)
+        else:
+            self._render(plain, "plain")
+        for vao, group in ((self.vaos[kind], "features"), (self.eye_vao, "eyes"), (self.vaos[kind], "sockets"),
+                           (self.vaos[kind], "mouth")):
+            if group in self.flush_at:
+                flush()
+            if group != "mouth" or self.mouth_drawn:
+                self._render(vao, group)
         ctx.disable(moderngl.CULL_FACE)
+        if "lashes" in self.flush_at:
+            flush()
         if kind == "SKIN" and "lashes" not in self.left_out:  # hair over the skin: blended, without depth writes
             fbo = ctx.fbo
             ctx.enable(moderngl.BLEND)

@@ -365,3 +365,48 @@ def test_sealed_triangles_hidden_beside_the_opening() -> None:
     assert list(_listed_through(pos, tri, loop, front, size, eye, sealed)) == [False, True]
     assert list(_listed_through(pos, tri, loop, front, size, eye, 0 * sealed)) == [True, True]
     assert list(_listed_through(pos, tri, loop, side, size, eye, sealed)) == [False, True]
+
+
+def test_frame_in_parts_is_the_frame_in_one_pass(gl) -> None:
+    """The frame cleared first and its triangles handed to the rasterizer in parts (glFlush between
+    them, so llvmpipe rasterises while the rest is made and set up) is the frame drawn in one pass:
+    with the mouth open and the HUD, drawn straight into the target, supersampled, and into a
+    viewport within a larger framebuffer."""
+    from puppet.face_cache import scan_model
+    from render.hud import HudInfo
+    from render.scan_draw import CULLED, FLUSH_AT
+    from sim.facs import apply_au
+    from sim.integrator import Simulator
+    from sim.state import FaceControl
+
+    model = scan_model(None)
+    sim, state = Simulator(model), model.rest_state()
+    control = FaceControl(model)
+    apply_au(control, "AU27", 1.0)
+    for _ in range(6):
+        sim.step(state, control)
+    hud = HudInfo(channels=[("jaw", 0.8, 0, 1)], age=30, devices=[], fps=60.0, latency_ms=10.0, lines=["? help"])
+    every = ("half", *CULLED, "lashes")
+    with OffscreenRenderer(model, (320, 180), ctx=gl) as off:
+        r = off.renderer
+        for ss, viewport in ((1, None), (2, None), (1, (40, 20, 200, 120))):
+            r.supersample = ss
+            shots = []
+            for first, at in ((False, ()), (True, FLUSH_AT), (True, every)):
+                r.clear_first, r.scan.flush_at = first, at
+                if viewport is None:
+                    shots.append(off.render_frame(state, hud, record=False))
+                else:
+                    off.fbo.use()
+                    off.fbo.viewport = (0, 0, *off.size)
+                    off.fbo.clear(1.0, 0.0, 0.0, 1.0)
+                    off.fbo.viewport = viewport
+                    r.draw(state, hud, record=False)
+                    whole = (0, 0, *off.size)
+                    shots.append(np.frombuffer(off.fbo.read(viewport=whole, components=3, alignment=1),
+                                               np.uint8).reshape(off.size[1], off.size[0], 3))
+                assert r.scan.mouth_drawn
+                assert gl.error == "GL_NO_ERROR"
+            assert np.abs(shots[0].astype(int) - shots[0][-1, -1]).max() > 50  # the head is in view
+            assert np.array_equal(shots[0], shots[1]), (ss, viewport)
+            assert np.array_equal(shots[0], shots[2]), (ss, viewport)
