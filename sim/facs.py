@@ -33,7 +33,7 @@ _BASE: dict[str, dict[str, float]] = {
     "AU4": {**_both("corrugator"), "procerus": 0.8},
     "AU5": _both("levator_palpebrae"),
     "AU6": _both("orbicularis_oculi"),
-    "AU7": _both("orbicularis_oculi_lid", 0.45),
+    "AU7": {**_both("orbicularis_oculi_lid", 0.45), **_both("orbicularis_oculi_lower_lid")},
     "AU9": {**_both("levator_labii_alaeque_nasi"), **_both("levator_labii", 0.3)},
     "AU10": _both("levator_labii"),
     "AU11": _both("zygomaticus_minor"),
