@@ -24,6 +24,10 @@ Anatomy modelled (per eye, on the lid channel `orbicularis_oculi_lid_<side>`, AU
   which holds while the raphe yields: both lids slide towards the nose as the fibres shorten. A
   force towards the inner corner over the lids (`MEDIAL_PULL`, a patch of the lid channel), in
   place of the transferred lower strips, which lifted the lower lid (the scan's does not rise).
+- The lower lid's palpebral orbicularis tightening (AU7, its own channel
+  `orbicularis_oculi_lower_lid_<side>`): its fibres arc under the eye and straighten as they
+  tighten, lifting the lower lid up the globe (`LOWER_FORCE`, a patch); a blink leaves the lower
+  lid where it is, the tightener narrows the eye from below.
 - The tarsal plates keep the lids' shape: the skin next to each margin stiffer (`TARSUS`).
 - The lid fold: the skin of the upper lid between the tarsus and the fold is laxer (`FOLD`, a
   multiplier of the skin's modulus over `FOLD_BAND` above the margin): skin that lies folded at
