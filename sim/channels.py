@@ -127,6 +127,9 @@ CHANNEL_SPECS: tuple[ChannelSpec, ...] = (
     ChannelSpec("eyes_vergence", "eyes", (), -1.0, 1.0, 0.0, None,
                 "the eyes turned towards each other (+, looking near) or apart (-): each eye turns by it on "
                 "top of eyes_yaw, the left one towards the face's right; 1 = 30 degrees each"),
+    *_pair("orbicularis_oculi_lower_lid", "patch", ("AU7",),
+           "lower lid tightener, orbicularis oculi pars palpebralis of the lower lid: its fibres, curved "
+           "under the eye from canthus to canthus, straighten as they tighten and raise the lower lid"),
 )
 
 CHANNEL_NAMES: tuple[str, ...] = tuple(spec.name for spec in CHANNEL_SPECS)

@@ -7,7 +7,9 @@ dropped a little, as it cannot show otherwise; AU30, the jaw sideways, is the si
 jaw_sideways, set directly, since a side's AU cannot lower a value); expressions after section D.1
 (EMFACS-style combinations; sadness as 1+4+15+17 with the lids drooping (AU41, here a light AU43):
 the scanned head's frontalis lifts the upper lids with the brows, which read as surprise without it;
-anger as the glare 4+5+7+23, the lids tightened, not shut); AU5 (upper lid raiser) is the levator
+anger as the glare 4+5+7+23, the lids tightened, not shut); AU7 (lid tightener) raises the lower lid
+by its own channel, the lower lid's palpebral orbicularis, with a share of the lid channel lowering
+the upper lid; AU5 (upper lid raiser) is the levator
 palpebrae, a lid muscle rather than a skin one, given its own channel. Fear has it (1+2+4+5+20+26);
 surprise leaves out the slight 5B FACS gives it, because this face's 1+2 already lifts the upper lid
 margin 8-10 mm with the brows. A side suffix restricts a bilateral AU to one side of the face:
@@ -33,7 +35,7 @@ _BASE: dict[str, dict[str, float]] = {
     "AU4": {**_both("corrugator"), "procerus": 0.8},
     "AU5": _both("levator_palpebrae"),
     "AU6": _both("orbicularis_oculi"),
-    "AU7": _both("orbicularis_oculi_lid", 0.45),
+    "AU7": {**_both("orbicularis_oculi_lid", 0.45), **_both("orbicularis_oculi_lower_lid")},
     "AU9": {**_both("levator_labii_alaeque_nasi"), **_both("levator_labii", 0.3)},
     "AU10": _both("levator_labii"),
     "AU11": _both("zygomaticus_minor"),
@@ -134,7 +136,10 @@ drooping as in sadness; Waters' anger pulls the outer frontalis too): angry 0.62
 the nine views (5 before; it read sad from below); AU2 0.25: 6 views, 0.32-0.35 reads neutral
 (the brows flatten), without AU2 5 views. Sadness deepens the nasolabial furrow harder (AU11 0.6,
 EMFACS 1+4+11+15): 0.92 and 8 views (AU11 0.4-0.7: 7-8). Disgust pulls the lip corners down
-(AU15 0.4, the 9+15+16 of the EMFACS table): 0.74 and 8 views (AU15 0.3-0.5: 0.69-0.71, 8 views)."""
+(AU15 0.4, the 9+15+16 of the EMFACS table): 0.74 and 8 views (AU15 0.3-0.5: 0.69-0.71, 8 views).
+Anger still read sad from two views below until AU7 raised the lower lid (its own channel; before,
+AU7 was the lid channel alone, which lowers the scan's upper lid as its blink does, and lids lowered
+under lowered brows read sad from below): the same mix reads angry from all nine views (0.47-0.78)."""
 
 
 FACE_EXPRESSIONS["imported"] = {

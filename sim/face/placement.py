@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.model import FaceMesh, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle
+from sim.model import FaceMesh, LinearMuscle, Muscle, PatchMuscle, SheetMuscle, SphincterMuscle
 from sim.rowmath import norm3
 
 REFERENCE_IPD = 6.3  # cm, inter-pupillary distance of the reference face the offsets are given on
@@ -202,6 +202,21 @@ def _lids(f: FaceFrame, side: str, sg: float) -> tuple[Muscle, ...]:
     return tuple(parts)
 
 
+LOWER_LID_STRENGTH = 2.0  # the lower lid tightener's push (BASE_FORCE units) at its centre
+
+
+def _lower_lid_tightener(f: FaceFrame, side: str, sg: float) -> tuple[Muscle, ...]:
+    """The lower lid's palpebral orbicularis (AU7) as its own channel: its fibres arc under the eye
+    from the lateral raphe to the medial canthal tendon, and tightening straightens the arc, which
+    lifts the lower lid up the globe's front. A push up over the lower lid, below its margin."""
+    xs, _, bottom = _margins(f, f.mesh.eye_loops[0 if side == "l" else 1])
+    x = 0.5 * (f.get(f"eye_inner_{side}")[0] + f.get(f"eye_outer_{side}")[0])
+    centre = f.skin(np.array([x, float(bottom.min()) - 0.2 * f.s, 0.0]))
+    d = np.array([0.0, 1.0, 0.2])
+    return (PatchMuscle(f"orbicularis_oculi_lower_lid_{side}", centre, f.s * np.array([0.9, 0.4, 1.0]),
+                        d / np.linalg.norm(d), BASE_FORCE * LOWER_LID_STRENGTH),)
+
+
 RAISER_STRIPS = 5  # sheets across the upper lid's middle, the levator's aponeurosis
 
 
@@ -287,6 +302,7 @@ def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle,
         f, f"orbicularis_oculi_{side}", f.at(ec, sg, 0.1, 0.4), 3.0, 2.4, 1.2),)
     out[f"orbicularis_oculi_lid_{side}"] = _lids(f, side, sg)
     out[f"levator_palpebrae_{side}"] = _lid_raiser(f, side, sg)
+    out[f"orbicularis_oculi_lower_lid_{side}"] = _lower_lid_tightener(f, side, sg)
     out[f"levator_labii_alaeque_nasi_{side}"] = (_linear(
         f, f"levator_labii_alaeque_nasi_{side}", f.at(f"eye_inner_{side}", sg, -0.3, -0.2, 0.4),
         f.at(f"nose_wing_{side}", sg, 0.0, -0.2), reach=1.3, angle=0.35, strength=1.3),)

@@ -92,6 +92,24 @@ def test_blink_closes_the_lids(face_model: FaceModel) -> None:
         assert opening > 0.8 and abs(now) < 0.2 * opening  # from ~1 cm to within 2 mm
 
 
+def test_lid_tightener_raises_the_lower_lid(face_model: FaceModel) -> None:
+    """AU7 narrows the eye from below: the lower lid's own palpebral orbicularis lifts it further
+    than the lid channel's share alone does."""
+    m = face_model
+    lifts = []
+    for channels in ({"orbicularis_oculi_lid": 0.45}, {"orbicularis_oculi_lid": 0.45, "orbicularis_oculi_lower_lid": 1.0}):
+        c = FaceControl()
+        for ch, v in channels.items():
+            c.set(f"{ch}_l", v)
+            c.set(f"{ch}_r", v)
+        sim = Simulator(m, wrinkles=False)
+        state = m.rest_state()
+        sim.settle(state, c, max_seconds=2.0)
+        i = m.mesh.landmarks["lower_lid_l"]
+        lifts.append(10.0 * (state.positions[i, 1] - m.rest[i, 1]))  # mm
+    assert lifts[1] > lifts[0] + 1.0 and lifts[1] > 2.0, lifts
+
+
 def test_jaw_opens_and_closes(face_model: FaceModel) -> None:
     m = face_model
     sim = Simulator(m, wrinkles=False)

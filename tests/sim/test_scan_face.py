@@ -152,6 +152,7 @@ def test_presets_move_their_landmarks_the_right_way(model, presets) -> None:  # 
         assert mv("fear", f"mouth_corner_{s}")["out"] > 0.5
         assert mv("anger", f"brow_inner_{s}")["up"] < -1.0
         assert mv("anger", f"brow_inner_{s}")["out"] < -1.0
+        assert mv("anger", f"lower_lid_{s}")["up"] > 2.0  # FACS 7: the lower lid tightened up over the eye
         assert mv("disgust", f"nose_wing_{s}")["up"] > 1.0
     assert mv("surprise", "lower_lip_center")["up"] < -5.0
     assert mv("disgust", "upper_lip_center")["up"] > 0.5
@@ -213,6 +214,18 @@ def test_closed_lids_cover_the_eyeballs(model) -> None:  # type: ignore[no-untyp
                 assert shown.mean() < 0.05, (part, int(shown.sum()))
             else:
                 assert shown.mean() > 0.3
+
+
+def test_the_lid_tightener_raises_the_lower_lid_and_the_blink_does_not(model) -> None:  # type: ignore[no-untyped-def]
+    """AU7 narrows the eye from below (its own channel, the lower lid's palpebral orbicularis); a
+    blink (AU45) brings the upper lid down onto a lower lid that stays, as the scan's own blink."""
+    for au, lower_up in (("AU7", (2.0, 8.0)), ("AU45", (-0.5, 0.5))):
+        c = FaceControl()
+        apply_au(c, au, 1.0)
+        pos = _settle(model, c)
+        for s in "lr":
+            up = _moves(model, pos, f"lower_lid_{s}")["up"]
+            assert lower_up[0] < up < lower_up[1], (au, s, up)
 
 
 def test_pose_keeps_the_scans_vertices_and_moves_every_part(model) -> None:  # type: ignore[no-untyped-def]

@@ -24,6 +24,10 @@ Anatomy modelled (per eye, on the lid channel `orbicularis_oculi_lid_<side>`, AU
   which holds while the raphe yields: both lids slide towards the nose as the fibres shorten. A
   force towards the inner corner over the lids (`MEDIAL_PULL`, a patch of the lid channel), in
   place of the transferred lower strips, which lifted the lower lid (the scan's does not rise).
+- The lower lid's palpebral orbicularis tightening (AU7, its own channel
+  `orbicularis_oculi_lower_lid_<side>`): its fibres arc under the eye and straighten as they
+  tighten, lifting the lower lid up the globe (`LOWER_FORCE`, a patch); a blink leaves the lower
+  lid where it is, the tightener narrows the eye from below.
 - The tarsal plates keep the lids' shape: the skin next to each margin stiffer (`TARSUS`).
 - The lid fold: the skin of the upper lid between the tarsus and the fold is laxer (`FOLD`, a
   multiplier of the skin's modulus over `FOLD_BAND` above the margin): skin that lies folded at
@@ -51,6 +55,7 @@ CHANNEL = "orbicularis_oculi_lid_{side}"
 LOWER_STRIP = "orbicularis_oculi_lid_lower_"  # the transferred lower strips' names start so
 UPPER_STRIP = "orbicularis_oculi_lid_upper_"
 MEDIAL = "orbicularis_oculi_lid_medial_{side}"
+LOWER = "orbicularis_oculi_lower_lid_{side}"  # the lower lid's tightener (AU7): its own channel
 LIGAMENT_KEY = "tether_orbital_retaining"  # FaceRig.tissue
 FOLD_KEY = "modulus_lid_fold"
 
@@ -72,6 +77,10 @@ FOLD_BAND = (0.2, 0.7)  # cm above the upper margin
 LIGAMENT = 10.0
 LIGAMENT_BAND = (0.6, 1.0)  # cm above the upper margin
 EDGE = 0.1  # cm: the bands' smooth edges (fold), 0.2 / 0.3 below / above (ligament)
+LOWER_FORCE = 24000.0  # dyn/cm2 at the lower lid tightener's centre: AU7 at 0.85 lifts the margin ~4 mm
+LOWER_DROP = 0.2  # cm: its centre below the lower margin's lowest point, under the canthi's midpoint
+LOWER_AXES = (0.9, 0.4, 1.0)  # cm, its semi-axes (along X, Y, Z): the lower lid from canthus to canthus
+LOWER_UP = (0.0, 1.0, 0.2)  # its push: up the globe's front (the contact keeps the lid on the eye)
 
 
 def _step(x: np.ndarray, a: float, b: float) -> np.ndarray:
@@ -127,6 +136,19 @@ def _upper_strip(m: SheetMuscle, lower: np.ndarray, share: float) -> SheetMuscle
                    width=round(OVERLAP * m.width, 7), scale=round(UPPER_FORCE * share / OVERLAP, 4))
 
 
+def _lower_tightener(v: np.ndarray, lower: np.ndarray, inner: np.ndarray, outer: np.ndarray,
+                     side: str) -> PatchMuscle:
+    """The lower lid's palpebral orbicularis (AU7), its own channel: the fibres run in an arc under
+    the eye from the lateral raphe to the medial canthal tendon, and tightening straightens the arc,
+    which lifts the lower lid up over the globe (a blink, the lid channel, leaves the lower lid where
+    it is, as the scan's does). A push up the lid's front over the lower lid's height."""
+    low = lower[int(np.argmin(lower[:, 1]))]
+    centre = np.array([0.5 * (inner[0] + outer[0]), low[1] - LOWER_DROP, low[2]])
+    up = np.asarray(LOWER_UP, np.float64)
+    return PatchMuscle(LOWER.format(side=side), np.round(centre, 7), np.array(LOWER_AXES),
+                       np.round(up / np.linalg.norm(up), 7), LOWER_FORCE)
+
+
 def with_lids(rig: FaceRig) -> FaceRig:
     """The rig with its lid channels, their insertion gains, the lid fold and the retaining
     ligament built as the module docstring says (idempotent: built again from the geometry)."""
@@ -156,6 +178,7 @@ def with_lids(rig: FaceRig) -> FaceRig:
         kept = tuple(_upper_strip(m, lower, share[m.name]) if m.name in share else m for m in muscles[ch]
                      if not m.name.startswith(LOWER_STRIP) and m.name != medial.name)
         muscles[ch] = kept + (medial,)
+        muscles[LOWER.format(side=side)] = (_lower_tightener(v, lower, inner, outer, side),)
         fold *= 1.0 + (TARSUS - 1.0) * np.where(above, 1.0 - _step(up, *TARSUS_HEIGHT),
                                                 1.0 - _step(low, *LOWER_TARSUS))
         fold *= 1.0 + (FOLD - 1.0) * above * _step(up, FOLD_BAND[0] - EDGE, FOLD_BAND[0]) * (
