@@ -232,6 +232,12 @@ def warm_up(implicit: bool = True) -> None:
     _constant_forces(np.zeros(4, dtype=np.int32), np.zeros(0, dtype=np.int32), np.zeros(0), np.zeros(1),
                      np.ones(1, dtype=np.bool_), frozen, np.ones(1), x1, np.ones(1), x1, np.zeros((1, 3)))
     _fixed_forces(frozen, np.ones(1), x1, np.ones(1), x1, np.zeros((1, 3)))
+    by_coordinate, turned, tmp = np.zeros((3, 1)), np.zeros((1, 3)), np.zeros((6, 1))
+    for rows in (np.zeros((0, 3)), np.zeros((1, 3))):  # (the rest shape turned or not)
+        _jaw_pose(by_coordinate, by_coordinate, np.ones((3, 1)), np.zeros(3), np.ones(1), np.eye(3), np.zeros(3),
+                  turned, rows, np.zeros((1, 3)), tmp, frozen, np.ones(1), np.ones(1), rows)
+    _place(np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)))
+    _active(np.ones(1), np.ones(1, dtype=np.bool_), np.zeros(1, dtype=np.int64), np.zeros(1))
     _max_deviation(x1, x1)
     _hold(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)))
     _eye_contact(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64),
@@ -407,6 +413,40 @@ def _fixed_forces(weight, kr, target, kn, nrm, out):  # type: ignore[no-untyped-
             out[i, d] = acc + weight[i, d] + kr[i] * target[i, d] + support * nrm[i, d]
 
 
+@numba.njit(**KERNEL)
+def _jaw_pose(rest, offset, normal3, pivot, weight, rot, slide, target, shape, normal, tmp, w3, kr, kn, fixed):  # type: ignore[no-untyped-def]
+    """A new jaw pose's constants in one call: eq 9's target (and the rest shape when `shape` has
+    rows: `_turn_with_jaw`), the support normals (`_turn_normals`) and, when `fixed` has rows, the
+    implicit step's constant forces without muscles (`_fixed_forces`) from them while they are in
+    the caches; each by its own kernel's code, so the same bits as the three called in turn."""
+    _turn_with_jaw(rest, offset, pivot, weight, rot, slide, target, shape, tmp)
+    _turn_normals(normal3, weight, rot, normal, tmp)
+    if fixed.shape[0] > 0:
+        _fixed_forces(w3, kr, target, kn, normal, fixed)
+
+
+@numba.njit(**KERNEL)
+def _place(x, held, target):  # type: ignore[no-untyped-def]
+    """x[held] = target[held] without numpy's gathered copy."""
+    for k in range(held.shape[0]):
+        i = held[k]
+        for d in range(3):
+            x[i, d] = target[i, d]
+
+
+@numba.njit(**KERNEL)
+def _active(values, is_muscle, act, val):  # type: ignore[no-untyped-def]
+    """The muscle channels whose value is not 0, in order, into act[:k] and their values into
+    val[:k]; returns k (numpy's flatnonzero and gather of the same, without their four arrays)."""
+    k = 0
+    for c in range(values.shape[0]):
+        if is_muscle[c] and values[c] != 0.0:
+            act[k] = c
+            val[k] = values[c]
+            k += 1
+    return k
+
+
 class JawTurn(NamedTuple):
     """The jaw's turn of the rest shape (`jaw_motion`): what the implicit step's margin bending
     makes its rest side from when `Simulator.bending_turned` (sim.implicit.ImplicitStepper.turn_basis)."""
@@ -430,12 +470,18 @@ def jaw_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     numpy's `np.eye(3) + s * k + c * times3(k, k)` does in its order (the same bits), because a
     moving jaw makes it every tick: 0.05 ms of small numpy operations, 4 us so."""
     a0, a1, a2 = float(axis[0]), float(axis[1]), float(axis[2])
-    k = ((0.0, -a2, a1), (a2, 0.0, -a0), (-a1, a0, 0.0))
+    m0, m1, m2 = -a0, -a1, -a2  # K = ((0, -a2, a1), (a2, 0, -a0), (-a1, a0, 0))
     s = math.sin(angle)
     c = 1.0 - math.cos(angle)
-    return np.array([[((1.0 if i == j else 0.0) + s * k[i][j])
-                      + c * ((k[i][0] * k[0][j] + k[i][1] * k[1][j]) + k[i][2] * k[2][j]) for j in range(3)]
-                     for i in range(3)])
+    # entry (i, j): (I_ij + s K_ij) + c ((K_i0 K_0j + K_i1 K_1j) + K_i2 K_2j), the zeros multiplied
+    # as written (a zero's sign can decide a sum's): written out, 4 us a call less than by loops
+    return np.array((
+        ((1.0 + s * 0.0) + c * ((0.0 * 0.0 + m2 * a2) + a1 * m1), (0.0 + s * m2) + c * ((0.0 * m2 + m2 * 0.0) + a1 * a0),
+         (0.0 + s * a1) + c * ((0.0 * a1 + m2 * m0) + a1 * 0.0)),
+        ((0.0 + s * a2) + c * ((a2 * 0.0 + 0.0 * a2) + m0 * m1), (1.0 + s * 0.0) + c * ((a2 * m2 + 0.0 * 0.0) + m0 * a0),
+         (0.0 + s * m0) + c * ((a2 * a1 + 0.0 * m0) + m0 * 0.0)),
+        ((0.0 + s * m1) + c * ((m1 * 0.0 + a0 * a2) + 0.0 * m1), (0.0 + s * a0) + c * ((m1 * m2 + a0 * 0.0) + 0.0 * a0),
+         (1.0 + s * 0.0) + c * ((m1 * a1 + a0 * m0) + 0.0 * 0.0))))
 
 
 def jaw_slide(model: FaceModel) -> np.ndarray:
@@ -565,6 +611,12 @@ class Simulator:
         self._jaw_forward_i = CHANNEL_INDEX["jaw_forward"]
         self._jaw_side_i = CHANNEL_INDEX["jaw_sideways"]
         self._age_i = CHANNEL_INDEX["age"]
+        self._tongue_i = CHANNEL_INDEX["tongue_out"]
+        self._head_i = (CHANNEL_INDEX["head_yaw"], CHANNEL_INDEX["head_pitch"], CHANNEL_INDEX["head_roll"])
+        self._pivot = np.array(model.jaw_pivot, dtype=np.float64)
+        self._no_rows = np.zeros((0, 3))
+        self._act = np.zeros(len(model.channels), dtype=np.int64)  # `_muscles`' active channels
+        self._act_val = np.zeros(len(model.channels))
         #: the implicit step starts from the jaw's opening and the skin's age of the state's last
         #: step, and the jaw's move since enters as the difference of its precomputed responses
         #: (`sim.implicit.ImplicitStepper.jaw_response`): a moved jaw or age needs no whole step at
@@ -630,40 +682,55 @@ class Simulator:
         rot, slide = self._jaw_motion(pose)
         target = np.empty_like(m.rest)
         turned_shape = np.empty_like(m.rest) if shape else np.empty((0, 3))
-        _turn_with_jaw(self._rest3, self._offset3, np.asarray(m.jaw_pivot, dtype=np.float64), self._jaw_weight,
-                       np.ascontiguousarray(rot, dtype=np.float64), np.asarray(slide, dtype=np.float64),
-                       target, turned_shape, self._turn_tmp)
+        _turn_with_jaw(self._rest3, self._offset3, self._pivot, self._jaw_weight, rot, slide, target, turned_shape,
+                       self._turn_tmp)
         return target, (turned_shape if shape else None), rot
 
     def _jaw_motion(self, pose: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
         """`jaw_motion` at `pose`, kept for the last pose asked: a moving jaw's step places the held
         nodes at the pose the next step starts from, whose constants `prepare` then makes (the
-        same arrays; 0.07 ms of small numpy operations each, on the scanned head)."""
+        same arrays; 0.07 ms of small numpy operations each, on the scanned head), as contiguous
+        float64 arrays (the kernels' one signature)."""
         if pose != self._motion_pose:
-            self._motion = jaw_motion(self.model, *pose, slide_one=self._slide_one)
+            rot, slide = jaw_motion(self.model, *pose, slide_one=self._slide_one)
+            self._motion = (np.ascontiguousarray(rot, dtype=np.float64), np.ascontiguousarray(slide, dtype=np.float64))
             self._motion_pose = pose
         return self._motion
 
     def _set_jaw(self, pose: tuple[float, float, float]) -> None:
         """The jaw-dependent frame constants: eq 9's target (`rest_target`) and the support normals
         n_i (the rest normals turned with the jaw like the target), recomputed only when the jaw
-        moves; for the implicit integrator also the reference of its margin bending term (`sim.implicit`)."""
+        moves; for the implicit integrator also the reference of its margin bending term (`sim.implicit`)
+        and, where its muscles enter as responses, its constant forces (`_constants`), all from one
+        kernel (`_jaw_pose`) away from rest."""
         if pose == self._jaw:
             return
         m = self.model
-        turned = self._implicit is not None and self.bending_turned
-        self._target, shape, rot = self._jaw_turned(pose, shape=self._implicit is not None and not turned)
-        if turned:  # (at rest the product with the rest shape: the bits of a take without the jaw stay)
-            self._shape = self._rest_shape if rot is None else JawTurn(
-                np.ascontiguousarray(rot, dtype=np.float64), np.ascontiguousarray(self._jaw_motion(pose)[1], dtype=np.float64))
-        elif shape is not None:
-            self._shape = shape
-        if rot is None:
+        implicit = self._implicit is not None
+        turned = implicit and self.bending_turned
+        if pose == (0.0, 0.0, 0.0):
+            self._target, shape, _ = self._jaw_turned(pose, shape=implicit and not turned)
+            if turned:  # (at rest the product with the rest shape: the bits of a take without the jaw stay)
+                self._shape = self._rest_shape
+            elif shape is not None:
+                self._shape = shape
             self._normal[...] = m.rest_normal
-        else:
-            _turn_normals(self._normal3, self._jaw_weight, np.ascontiguousarray(rot, dtype=np.float64), self._normal,
-                          self._turn_tmp)
+            self._jaw = pose
+            return
+        rot, slide = self._jaw_motion(pose)
+        target = np.empty_like(m.rest)
+        shape = np.empty_like(m.rest) if implicit and not turned else self._no_rows
+        fixed = self._ext_const if implicit and not self.muscles_summed else self._no_rows
+        _jaw_pose(self._rest3, self._offset3, self._normal3, self._pivot, self._jaw_weight, rot, slide, target, shape,
+                  self._normal, self._turn_tmp, self._weight, self._kr, self._kn, fixed)
+        self._target = target
+        if turned:
+            self._shape = JawTurn(rot, slide)
+        elif implicit:
+            self._shape = shape
         self._jaw = pose
+        if len(fixed):
+            self._const_jaw = pose
 
     def external_forces(self, control: FaceControl) -> np.ndarray:
         """Every force term that does not depend on x or v within a frame, (N,3) dyn (a buffer the
@@ -685,7 +752,8 @@ class Simulator:
         """The gaze (yaw, pitch, vergence) the lids are pulled by this frame (zeros unless they
         follow it)."""
         if self.lids_follow_gaze and len(self._gaze_lids[0]):
-            self._gaze = tuple(min(1.0, max(-1.0, float(v[i]))) for i in (self._yaw_i, self._pitch_i, self._verge_i))  # type: ignore[assignment]
+            self._gaze = (min(1.0, max(-1.0, float(v[self._yaw_i]))), min(1.0, max(-1.0, float(v[self._pitch_i]))),
+                          min(1.0, max(-1.0, float(v[self._verge_i]))))
         else:
             self._gaze = (0.0, 0.0, 0.0)
         return self._gaze
@@ -703,8 +771,12 @@ class Simulator:
         """The active muscle channels with their activations (their forces enter the implicit step
         as responses, `sim.implicit.muscle_responses`)."""
         v = control.values
-        act = np.flatnonzero(self._is_muscle & (v != 0.0))
-        val = np.ascontiguousarray(v[act], dtype=np.float64)
+        if v.shape == self._is_muscle.shape and v.dtype == np.float64 and v.flags.c_contiguous:
+            k = _active(v, self._is_muscle, self._act, self._act_val)
+            act, val = self._act[:k], self._act_val[:k]  # (rewritten by the next call)
+        else:
+            act = np.flatnonzero(self._is_muscle & (v != 0.0))
+            val = np.ascontiguousarray(v[act], dtype=np.float64)
         gaze = self._set_gaze(v)
         if gaze != (0.0, 0.0, 0.0):  # the lids' pull by the turned eyes, as responses after the muscles'
             coef = basis_coefficients(*gaze)
@@ -727,7 +799,7 @@ class Simulator:
         (each row of the target is the same bits whichever rows are turned, so the held nodes'
         rows turned alone gave these very values; this spares that second turn, 0.04 ms a tick)."""
         self._set_jaw(pose)
-        x[self._held] = self._target[self._held]
+        _place(x, self._held, self._target)
 
     # -- stepping
 
@@ -781,15 +853,15 @@ class Simulator:
             state.contact = self._implicit.margins.memory()
         state.time += self.frame_dt
         values = control.values
-        state.eye_yaw = float(values[CHANNEL_INDEX["eyes_yaw"]])
-        state.eye_pitch = float(values[CHANNEL_INDEX["eyes_pitch"]])
+        state.eye_yaw = float(values[self._yaw_i])
+        state.eye_pitch = float(values[self._pitch_i])
         state.eye_vergence = float(values[self._verge_i])
-        state.jaw = float(values[CHANNEL_INDEX["jaw"]])
-        state.tongue_out = float(values[CHANNEL_INDEX["tongue_out"]])
-        state.age = float(values[CHANNEL_INDEX["age"]])
-        state.head_yaw = float(values[CHANNEL_INDEX["head_yaw"]])
-        state.head_pitch = float(values[CHANNEL_INDEX["head_pitch"]])
-        state.head_roll = float(values[CHANNEL_INDEX["head_roll"]])
+        state.jaw = float(values[self._jaw_i])
+        state.tongue_out = float(values[self._tongue_i])
+        state.age = float(values[self._age_i])
+        state.head_yaw = float(values[self._head_i[0]])
+        state.head_pitch = float(values[self._head_i[1]])
+        state.head_roll = float(values[self._head_i[2]])
         if surface:
             self._surface(state)
         return state
