@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING
 import numba
 import numpy as np
 
-from sim.antifold import FoldGuard, _fold_forces, bending_of
+from sim.antifold import FoldGuard, _fold_forces_flat, bending_of
 from sim.antifold import warm_up as warm_up_folds
 from sim.build import FaceModel
 from sim.integrator import JawTurn, _eye_contact
@@ -101,7 +101,7 @@ def spring_layout(springs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _pd_springs(y, runs, si3, sj3, rest_len, k_low, k_high, thr, out, work):  # type: ignore[no-untyped-def]
+def _pd_springs(y, runs, si3, sj3, rest_len, k_low, kls, k_high, thr, out, work):  # type: ignore[no-untyped-def]
     """Adds sum_s k_h (e_j - e_i) d_s to out (the local step; see the module docstring); the
     springs laid out by `spring_layout`. Three passes over work (3, springs): gather the edge
     vectors, the per-spring math (no indexing, so the compiler vectorizes its square roots and
@@ -109,7 +109,8 @@ def _pd_springs(y, runs, si3, sj3, rest_len, k_low, k_high, thr, out, work):  # 
     guard catches), then the scatter in spring order, each run's shared first node kept in
     registers and stored once at the run's end (no spring of the run touches it otherwise, so it
     takes the very subtractions, in the same order: 76 -> 61 us for the scatter on the scanned
-    head). Every value is the same expression as in one pass, so the same bits."""
+    head). Every value is the same expression as in one pass, so the same bits. Each spring's k_low
+    is k_low[s] * kls (the skin's age: the product numpy made into an array before, the same bits)."""
     yf = y.reshape(-1)
     of = out.reshape(-1)
     ex = work[0]
@@ -129,8 +130,9 @@ def _pd_springs(y, runs, si3, sj3, rest_len, k_low, k_high, thr, out, work):  # 
         r = math.sqrt(dx * dx + dy * dy + dz * dz)
         stretch = r - rest_len[s]
         knee = thr * rest_len[s]
-        soft = k_low[s] * stretch
-        stiff = k_low[s] * knee + k_high[s] * (stretch - knee)
+        kl = k_low[s] * kls
+        soft = kl * stretch
+        stiff = kl * knee + k_high[s] * (stretch - knee)
         t = soft if stretch <= knee else stiff
         scale = (k_high[s] * r - t) / r  # k_h * l_s / r: d_s = l_s u_s
         ex[s] = scale * dx
@@ -229,9 +231,9 @@ def _bend_turned_add(b0, b1, c, rot, slide, ext, out, total):  # type: ignore[no
 
 
 @numba.njit(cache=True, nogil=True)
-def _predict(x, v, h, runs, si3, sj3, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,  # type: ignore[no-untyped-def]
-             c_idx, c_w, c_sg, c_dim, c_lam, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, base, ext, summed,
-             work, px, pv, keep):
+def _predict(x, v, h, runs, si3, sj3, rest_len, k_low, kls, k_high, thr, normal, kn, mass_h2, damp_h,  # type: ignore[no-untyped-def]
+             c_idx, c_w, c_sg, c_dim, c_lam, f_t3, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, f_dets, y, base, ext,
+             summed, work, px, pv, keep):
     """The part of a substep's right-hand side that no input changes (ImplicitStepper.predict): the
     predicted positions y = x + h v, then base = M/h^2 y + C/h x + the springs' local step + the
     skin's guard against turning over (sim.antifold) + the normal support + the last contact
@@ -239,7 +241,8 @@ def _predict(x, v, h, runs, si3, sj3, rest_len, k_low, k_high, thr, normal, kn, 
     constant forces `ext` (muscles included) go into base where takes recorded before the muscles'
     responses summed them (`ImplicitStepper.frame`'s summed), so those takes keep their bits.
     runs, si3, sj3: the springs as `spring_layout` lays them out; work: (3, springs) scratch of
-    `_pd_springs`; keep: also px, pv = copies of x, v (what
+    `_pd_springs`; f_*: the fold guard's triangles (`sim.antifold._fold_forces_flat`: f_t3 = 3 x
+    f_tri as uint32, f_dets its (T,) scratch); keep: also px, pv = copies of x, v (what
     `ImplicitStepper.predict` remembers, made in the same pass over them)."""
     n = x.shape[0]
     for i in range(n):
@@ -254,8 +257,8 @@ def _predict(x, v, h, runs, si3, sj3, rest_len, k_low, k_high, thr, normal, kn, 
             if keep:
                 px[i, d] = xi
                 pv[i, d] = vi
-    _pd_springs(y, runs, si3, sj3, rest_len, k_low, k_high, thr, base, work)
-    _fold_forces(y, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, base)
+    _pd_springs(y, runs, si3, sj3, rest_len, k_low, kls, k_high, thr, base, work)
+    _fold_forces_flat(y, f_t3, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, base, f_dets)
     for i in range(n):  # the support k_n n n^T: k_n (y - n (n . y)) on the right
         ny = (normal[i, 0] * y[i, 0] + normal[i, 2] * y[i, 2]) + normal[i, 1] * y[i, 1]
         k = kn[i]
@@ -565,8 +568,9 @@ class ImplicitStepper:
         self._fh = _flat_csr(prep["fh_ptr"], prep["fh_idx"], prep["fh_val"])
         self._bend = (prep["bend_ptr"], prep["bend_idx"], prep["bend_val"])
         self._bend_flat = _flat_csr(*self._bend)
-        self._folds = (prep["fold_tri"], prep["fold_frame"], prep["fold_dm_inv"], prep["fold_area"], prep["fold_k"],
-                       float(prep["fold_floor"]))
+        tri = prep["fold_tri"]  # (the flat indices and the dets' scratch: `sim.antifold._fold_forces_flat`)
+        self._folds = (np.ascontiguousarray(3 * tri, dtype=np.uint32), tri, prep["fold_frame"], prep["fold_dm_inv"],
+                       prep["fold_area"], prep["fold_k"], float(prep["fold_floor"]), np.zeros(len(tri)))
         self.solver = PrefactoredSolver(arrays={k: prep["lu_" + k] for k in PrefactoredSolver.KEYS})
         #: a substep's solve from the symmetric factor alone (`sim.supernodal._sym_sweeps`: L and D,
         #: U's values left unread); False: from L and U (`_sn_sweeps`), as takes recorded before
@@ -678,10 +682,11 @@ class ImplicitStepper:
         """ys = the solve of a substep's right-hand side without the inputs' responses: `_predict`,
         the held nodes' coupling (`_held_rhs`) and the prefactored solve (three kernels); keep:
         x and v are copied for `_is_predicted` on the way."""
-        idx, rest_len, k_low, k_high, thr = springs
+        idx, rest_len, k_low, k_high, thr = springs[:5]
+        kls = float(springs[5]) if len(springs) > 5 else 1.0  # k_low's scale (the skin's age)
         c = self._contact
         y, base, xh, held_term, ys = self._buf[:5]
-        _predict(x, v, self.h, *self._layout(idx), rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2, self.damp_h,
+        _predict(x, v, self.h, *self._layout(idx), rest_len, k_low, kls, k_high, thr, normal, self.kn, self.mass_h2, self.damp_h,
                  c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base, ext, summed,
                  self._spring_work(len(idx)), self._px, self._pv, keep)
         _held_rhs(x, self.held, *self._fh, base, ext, self.free, self.solver.perm_r, xh, held_term, ys, summed)
@@ -727,7 +732,7 @@ class ImplicitStepper:
               jaw: tuple[float, float] | None = None) -> None:
         """n_sub substeps in place. ext: the frame-constant forces (gravity, the target terms of the
         tether and of the normal support, and muscles not given by `active`); springs: (indices,
-        rest lengths, k_low, k_high, threshold) as the kernel takes them; normal (N,3): the
+        rest lengths, k_low, k_high, threshold[, a scale of k_low, 1 if left out]) as the kernel takes them; normal (N,3): the
         support's normals this frame. The support k_n n n^T enters like a spring: k_n I in the
         matrix, k_n (y - n (n . y)) on the right. eyes: (vertices, their eye, eye centres, radius)
         of the eyeball contact applied after each substep; shape (N,3): the rest shape of the margin

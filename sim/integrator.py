@@ -553,10 +553,12 @@ class Simulator:
         self._sj3 = np.ascontiguousarray(3 * self._springs[:, 1], dtype=np.uint32)
         self._work = np.zeros((9, len(self._springs)))
         self._rest_len = np.array(model.spring_rest_length[order], order="C")
-        self._k_low = np.array(model.spring_k_low[order], order="C")
+        self._k_low_now = np.array(model.spring_k_low[order], order="C")  # `_k_low`
         self._k_high = np.array(model.spring_k_high[order], order="C")
         self._k_damp = np.array(model.spring_damping[order], order="C")
-        self._k_low_base = self._k_low.copy()
+        self._k_low_base = self._k_low_now.copy()
+        self._k_low_scale = 1.0  # k_low's scale at the skin's age (`_age_skin`)
+        self._k_low_made = 1.0  # the scale `_k_low_now` was multiplied by
         self._k_high_base = self._k_high.copy()
         self._k_high_scale = 1.0  # the scale of `_k_high` (`_age_skin`)
         self._kr = np.array(model.rest_stiffness, order="C")
@@ -830,8 +832,7 @@ class Simulator:
         else:
             if self._implicit.margins is not None:  # the contact's memory is part of the state (a checkpoint's too)
                 self._implicit.margins.recall(state.contact)
-            self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
-                                                            self._k_high, self._threshold), self._normal,
+            self._implicit.frame(x, v, self.substeps, ext, self._spring_constants(), self._normal,
                                  self._eyes, self._shape, key=(self._jaw, self._skin_age), active=active,
                                  summed=summed, jaw=None if start == pose else (start[0], pose[0]))
             # a jaw or an age still moving will likely move again: `prepare` would be wasted then
@@ -885,12 +886,26 @@ class Simulator:
         if self._implicit.margins is not None:
             self._implicit.margins.recall(state.contact)
         self._implicit.predict(state.positions, state.velocities, self._ext_const,
-                               (self._springs, self._rest_len, self._k_low, self._k_high, self._threshold),
+                               self._spring_constants(),
                                self._normal, self._shape, (self._jaw, self._skin_age))
 
     def surface(self, state: FaceState) -> None:
         """Fill state.surface for the positions of the last step (see `step`'s surface=False)."""
         self._surface(state)
+
+    @property
+    def _k_low(self) -> np.ndarray:
+        """The springs' k_low at the skin's age: k_low_base times its scale (`_age_skin`),
+        multiplied when the scale has changed since it was last asked."""
+        if self._k_low_made != self._k_low_scale:
+            np.multiply(self._k_low_base, self._k_low_scale, out=self._k_low_now)
+            self._k_low_made = self._k_low_scale
+        return self._k_low_now
+
+    def _spring_constants(self) -> tuple:  # type: ignore[type-arg]
+        """The springs as the implicit step takes them: (indices, rest lengths, k_low at the young
+        skin, k_high, the strain threshold, k_low's scale at the skin's age)."""
+        return (self._springs, self._rest_len, self._k_low_base, self._k_high, self._threshold, self._k_low_scale)
 
     def _age_skin(self, age: float) -> None:
         """Aged skin is softer at low strain and stiffens later (seed 003 section 2; the law is
@@ -901,7 +916,8 @@ class Simulator:
         from sim.wrinkles.aging import skin_params_for_age
 
         skin = skin_params_for_age(age, float(self.model.strain_threshold))
-        np.multiply(self._k_low_base, skin.k_low_scale, out=self._k_low)
+        self._k_low_scale = skin.k_low_scale  # (multiplied when `_k_low` is asked; the implicit step's kernel
+        # multiplies each spring's as it reads it: the same products, 35k values a tick written less)
         high = min(skin.k_high_scale, 1.0)
         if high != self._k_high_scale:  # (the age law leaves k_h alone: skipped while the age moves)
             np.multiply(self._k_high_base, high, out=self._k_high)

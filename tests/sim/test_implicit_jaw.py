@@ -212,6 +212,9 @@ def test_the_turned_normals_and_fixed_forces_have_the_bits_of_numpy(model) -> No
         assert got.tobytes() == want.tobytes(), jaw
         s._set_jaw((jaw, 0.0, 0.0))
         assert s._normal.tobytes() == want.tobytes(), jaw
+        fixed_then = np.full_like(want, np.nan)  # made with the pose's target and normals (`_jaw_pose`)
+        _fixed_forces(s._weight, s._kr, s._target, s._kn, s._normal, fixed_then)
+        assert s._const_jaw == (jaw, 0.0, 0.0) and s._ext_const.tobytes() == fixed_then.tobytes(), jaw
         rest, offset = np.asarray(m.rest), np.asarray(m.rest_offset)
         pivot, slide = np.asarray(m.jaw_pivot, dtype=np.float64), s._jaw_motion((jaw, 0.0, 0.0))[1]
 
@@ -285,3 +288,34 @@ def test_the_bending_from_the_turn_moves_the_face_as_the_product_does(model) -> 
     travel = float(np.linalg.norm(sp_.positions[chin] - model.rest[chin], axis=1).max())
     assert st.positions.tobytes() != sp_.positions.tobytes()  # other bits: the header says which
     assert worst < 1e-9 * travel
+
+
+def test_the_active_muscles_and_the_bending_added_have_the_bits_of_numpy(model) -> None:  # type: ignore[no-untyped-def]
+    """The step's small kernels give numpy's answers to the bit: the active muscle channels and
+    their values (`_active`: flatnonzero and gather, a NaN counted as active as numpy does), and
+    the margin bending's rest side from the turn added to the constant forces in its own pass
+    (`_bend_turned_add`: `_bend_turned` then np.add)."""
+    from sim.implicit import _bend_turned, _bend_turned_add
+    from sim.integrator import _active
+
+    s = Simulator(model, 1.0 / 120.0)
+    rng = np.random.default_rng(11)
+    for k in range(5):
+        v = np.where(rng.random(len(s._is_muscle)) < 0.4, rng.uniform(-1.0, 1.0, len(s._is_muscle)), 0.0)
+        v[3] = -0.0
+        if k == 4:
+            v[np.flatnonzero(s._is_muscle)[2]] = np.nan
+        act, val = np.zeros(len(v), dtype=np.int64), np.zeros(len(v))
+        count = _active(v, s._is_muscle, act, val)
+        want = np.flatnonzero(s._is_muscle & (v != 0.0))
+        assert act[:count].tobytes() == want.tobytes() and val[:count].tobytes() == v[want].tobytes(), k
+    impl = s._implicit
+    ext = rng.normal(0.0, 1.0, (model.n_vertices, 3))
+    for pose in ((0.4, 0.0, 0.0), (0.3, 0.6, -0.2)):
+        rot, slide = s._jaw_motion(pose)
+        bend, want = np.zeros_like(ext), np.zeros_like(ext)
+        _bend_turned(*impl._turn_b, rot, slide, bend)
+        np.add(ext, bend, out=want)
+        got_bend, got = np.full_like(ext, np.nan), np.full_like(ext, np.nan)
+        _bend_turned_add(*impl._turn_b, rot, slide, ext, got_bend, got)
+        assert got_bend.tobytes() == bend.tobytes() and got.tobytes() == want.tobytes(), pose
