@@ -397,7 +397,7 @@ def _inputs(resp, act, act_val, jaw_resp, jaw_slope, jaw_from, jaw_to, du):  # t
 @numba.njit(cache=True, nogil=True)
 def _advance(x, v, h, ys, du, muscles, free, perm_c, xf_old, c_idx, c_w, c_sg, c_dim, c_opp, c_row_ptr, c_row_v,  # type: ignore[no-untyped-def]
              c_lam, c_loc, c_green, c_gptr, c_gvert, c_gval, c_work, c_cand, c_schur, c_df, rounds, sweeps,
-             eye_idx, eye_of, centres, radius):
+             eye_idx, eye_of, centres, radius, target, dev):
     """The end of a substep in place on x, v (ImplicitStepper.frame; the module docstring): x' =
     the solve ys (in the factors' order: perm_c reads it back) plus the inputs' du (`_inputs`,
     when `muscles`), the lid and lip contact (sim.margin_contact.SolvedContact), v = (x' - x) / h
@@ -421,6 +421,24 @@ def _advance(x, v, h, ys, du, muscles, free, perm_c, xf_old, c_idx, c_w, c_sg, c
         for d in range(3):
             v[i, d] = (x[i, d] - xf_old[q, d]) * inv_h
     _eye_contact(x, v, eye_idx, eye_of, centres, radius)
+    if dev.shape[0]:  # the guard's measure on the free nodes (`ImplicitStepper.frame`'s check)
+        dev[0] = _free_deviation(x, free, target)
+
+
+@numba.njit(cache=True, nogil=True)
+def _free_deviation(x, free, target):  # type: ignore[no-untyped-def]
+    """max |x - target| over the free nodes' coordinates, or -1 if one is not finite
+    (`sim.integrator._max_deviation` over those rows)."""
+    worst = 0.0
+    for q in range(free.shape[0]):
+        i = free[q]
+        for d in range(3):
+            if not math.isfinite(x[i, d]):
+                return -1.0
+            e = abs(x[i, d] - target[i, d])
+            if e > worst:
+                worst = e
+    return worst
 
 
 def warm_up() -> None:
@@ -601,6 +619,9 @@ class ImplicitStepper:
         #: and the slope of the normal support's response to the opening there (`frame`'s jaw)
         self.jaw_slope = np.zeros((0, nf, 3))
         self._no_act = (np.zeros(0, dtype=np.int64), np.zeros(0))
+        self._dev, self._no_dev = np.zeros(1), np.zeros(0)  # `frame`'s check
+        #: the last `frame`'s max |x - check| over the free nodes (-1: not finite), None without a check
+        self.last_deviation: float | None = None
         self._no_jaw = np.zeros((0, nf, 3))
         # what the last `predict` was made from: its key, x, v and the contact's memory
         self._predicted: object = None
@@ -729,7 +750,7 @@ class ImplicitStepper:
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
               normal: np.ndarray, eyes: tuple, shape: np.ndarray | JawTurn | None = None,  # type: ignore[type-arg]
               key: object = None, active: tuple[np.ndarray, np.ndarray] | None = None, summed: bool = False,
-              jaw: tuple[float, float] | None = None) -> None:
+              jaw: tuple[float, float] | None = None, check: np.ndarray | None = None) -> None:
         """n_sub substeps in place. ext: the frame-constant forces (gravity, the target terms of the
         tether and of the normal support, and muscles not given by `active`); springs: (indices,
         rest lengths, k_low, k_high, threshold[, a scale of k_low, 1 if left out]) as the kernel takes them; normal (N,3): the
@@ -742,7 +763,9 @@ class ImplicitStepper:
         the step before the responses, for the takes recorded with it (no prediction, no `active`);
         jaw: (from, to) openings: ext, shape, normal and the held nodes are the jaw's pose at `from`,
         and the difference of the jaw's responses (`jaw_resp`, `jaw_response`) and the support's
-        slope (`jaw_slope`) move it to `to`."""
+        slope (`jaw_slope`) move it to `to`. check: a target (N,3) to measure the free nodes
+        against after the last substep, max |x - target| (or -1: a coordinate not finite) into
+        `last_deviation` for the caller's guard (measured while x is in the caches)."""
         predicted = key is not None and not summed and self._is_predicted(x, v, key)
         self._predicted = None  # a prediction serves one frame
         self.last_predicted = predicted
@@ -754,9 +777,13 @@ class ImplicitStepper:
         jaw_resp, jaw_slope = (self.jaw_resp, self.jaw_slope) if jaw is not None else (self._no_jaw, self._no_jaw)
         jaw_from, jaw_to = jaw if jaw is not None else (0.0, 0.0)
         muscles = _inputs(self._resp, act, act_val, jaw_resp, jaw_slope, jaw_from, jaw_to, du)
+        self.last_deviation = None
         for sub in range(n_sub):
             if sub > 0 or not predicted:
                 self._solve_free(x, v, ext, springs, normal, summed)
+            last = check is not None and sub == n_sub - 1
             _advance(x, v, self.h, self._buf[4], du, muscles, self.free, self.solver.perm_c, self._buf[5], c.idx, c.w,
                      c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam, c.loc, c.green, c.gptr, c.gvert, c.gval, c._work,
-                     c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes)
+                     c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes, check if last else x, self._dev if last else self._no_dev)
+        if check is not None and n_sub > 0:
+            self.last_deviation = float(self._dev[0])

@@ -150,6 +150,23 @@ def _max_deviation(x, target):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(**KERNEL)
+def _held_deviation(x, held, target, worst):  # type: ignore[no-untyped-def]
+    """`_max_deviation` given `worst`, the free nodes' (sim.implicit._free_deviation, -1: not finite),
+    completed over the held ones: the same answer as over all rows when they are the two parts."""
+    if worst < 0.0:
+        return -1.0
+    for k in range(held.shape[0]):
+        i = held[k]
+        for d in range(3):
+            if not math.isfinite(x[i, d]):
+                return -1.0
+            dev = abs(x[i, d] - target[i, d])
+            if dev > worst:
+                worst = dev
+    return worst
+
+
+@numba.njit(**KERNEL)
 def _hold(x, v, held, target):  # type: ignore[no-untyped-def]
     """The held nodes on their targets, at rest (x[held] = target[held], v[held] = 0, without
     numpy's gathered copy)."""
@@ -237,6 +254,7 @@ def warm_up(implicit: bool = True) -> None:
         _jaw_pose(by_coordinate, by_coordinate, np.ones((3, 1)), np.zeros(3), np.ones(1), np.eye(3), np.zeros(3),
                   turned, rows, np.zeros((1, 3)), tmp, frozen, np.ones(1), np.ones(1), rows)
     _place(np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)))
+    _held_deviation(np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)), 0.0)
     _active(np.ones(1), np.ones(1, dtype=np.bool_), np.zeros(1, dtype=np.int64), np.zeros(1))
     _max_deviation(x1, x1)
     _hold(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)))
@@ -574,6 +592,8 @@ class Simulator:
         self._ext_values: np.ndarray | None = None  # the channel values self._ext was made for
         self._saved_x = np.zeros((n, 3))
         self._held = np.flatnonzero(model.held)
+        # the guard's measure split between the implicit step (the free nodes) and `_held_deviation`
+        self._split_check = self._implicit is not None and len(self._implicit.free) + len(self._held) == n
         self._is_muscle = np.array([s.kind == "muscle" for s in model.channels], dtype=np.bool_)
         self._weight = np.ascontiguousarray(model.weight, dtype=np.float64)
         if self._implicit is not None and self._implicit._resp.shape[0] < len(model.channels):
@@ -832,18 +852,22 @@ class Simulator:
         else:
             if self._implicit.margins is not None:  # the contact's memory is part of the state (a checkpoint's too)
                 self._implicit.margins.recall(state.contact)
+            checked = self._target  # the guard measures the step against the pose it started from
             self._implicit.frame(x, v, self.substeps, ext, self._spring_constants(), self._normal,
                                  self._eyes, self._shape, key=(self._jaw, self._skin_age), active=active,
-                                 summed=summed, jaw=None if start == pose else (start[0], pose[0]))
+                                 summed=summed, jaw=None if start == pose else (start[0], pose[0]),
+                                 check=checked if self._split_check else None)
             # a jaw or an age still moving will likely move again: `prepare` would be wasted then
             # (unless the step starts from the state's pose, `jaw_responses`)
             self._moving = (self._jaw, self._skin_age) != self._last_key
             self._last_key = (self._jaw, self._skin_age)
             self._last_pose = pose
             if start != pose:  # the held nodes follow the jaw to where the step moved it
-                checked = self._target  # (the guard checks the step against the pose it started from)
                 self._place_held(x, pose)
-        reason = self._check(x, checked)
+        if checked is not None and self._implicit.last_deviation is not None:  # (the free nodes measured in the step)
+            reason = self._judge(_held_deviation(x, self._held, checked, self._implicit.last_deviation))
+        else:
+            reason = self._check(x, checked)
         if reason:
             x[...] = self._saved_x
             v[...] = 0.0
@@ -936,7 +960,10 @@ class Simulator:
             state.surface[...] = state.positions
 
     def _check(self, x: np.ndarray, target: np.ndarray | None = None) -> str:
-        dev = _max_deviation(x, self._target if target is None else target)
+        return self._judge(_max_deviation(x, self._target if target is None else target))
+
+    def _judge(self, dev: float) -> str:
+        """The guard's verdict on the largest distance from the target (-1: not finite)."""
         if dev < 0.0:
             return "non-finite positions"
         if dev > self._bound:
