@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING
 import numba
 import numpy as np
 
-from sim.antifold import FoldGuard, _fold_forces_flat, bending_of
+from sim.antifold import FoldGuard, _fold_forces, bending_of
 from sim.antifold import warm_up as warm_up_folds
 from sim.build import FaceModel
 from sim.integrator import JawTurn, _eye_contact
@@ -241,7 +241,7 @@ def _predict(x, v, h, runs, si3, sj3, rest_len, k_low, kls, k_high, thr, normal,
     constant forces `ext` (muscles included) go into base where takes recorded before the muscles'
     responses summed them (`ImplicitStepper.frame`'s summed), so those takes keep their bits.
     runs, si3, sj3: the springs as `spring_layout` lays them out; work: (3, springs) scratch of
-    `_pd_springs`; f_*: the fold guard's triangles (`sim.antifold._fold_forces_flat`: f_t3 = 3 x
+    `_pd_springs`; f_*: the fold guard's triangles (`sim.antifold._fold_forces`: f_t3 = 3 x
     f_tri as uint32, f_dets its (T,) scratch); keep: also px, pv = copies of x, v (what
     `ImplicitStepper.predict` remembers, made in the same pass over them)."""
     n = x.shape[0]
@@ -258,7 +258,7 @@ def _predict(x, v, h, runs, si3, sj3, rest_len, k_low, kls, k_high, thr, normal,
                 px[i, d] = xi
                 pv[i, d] = vi
     _pd_springs(y, runs, si3, sj3, rest_len, k_low, kls, k_high, thr, base, work)
-    _fold_forces_flat(y, f_t3, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, base, f_dets)
+    _fold_forces(y, f_t3, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, base, f_dets)
     for i in range(n):  # the support k_n n n^T: k_n (y - n (n . y)) on the right
         ny = (normal[i, 0] * y[i, 0] + normal[i, 2] * y[i, 2]) + normal[i, 1] * y[i, 1]
         k = kn[i]
@@ -586,7 +586,7 @@ class ImplicitStepper:
         self._fh = _flat_csr(prep["fh_ptr"], prep["fh_idx"], prep["fh_val"])
         self._bend = (prep["bend_ptr"], prep["bend_idx"], prep["bend_val"])
         self._bend_flat = _flat_csr(*self._bend)
-        tri = prep["fold_tri"]  # (the flat indices and the dets' scratch: `sim.antifold._fold_forces_flat`)
+        tri = prep["fold_tri"]  # (the flat indices and the dets' scratch: `sim.antifold._fold_forces`)
         self._folds = (np.ascontiguousarray(3 * tri, dtype=np.uint32), tri, prep["fold_frame"], prep["fold_dm_inv"],
                        prep["fold_area"], prep["fold_k"], float(prep["fold_floor"]), np.zeros(len(tri)))
         self.solver = PrefactoredSolver(arrays={k: prep["lu_" + k] for k in PrefactoredSolver.KEYS})
