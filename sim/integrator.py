@@ -864,7 +864,8 @@ class Simulator:
             self._last_pose = pose
             if start != pose:  # the held nodes follow the jaw to where the step moved it
                 self._place_held(x, pose)
-        if checked is not None and self._implicit.last_deviation is not None:  # (the free nodes measured in the step)
+        if (checked is not None and self._implicit is not None
+                and self._implicit.last_deviation is not None):  # (the free nodes measured in the step)
             reason = self._judge(_held_deviation(x, self._held, checked, self._implicit.last_deviation))
         else:
             reason = self._check(x, checked)
