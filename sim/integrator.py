@@ -249,7 +249,7 @@ def warm_up(implicit: bool = True) -> None:
     _constant_forces(np.zeros(4, dtype=np.int32), np.zeros(0, dtype=np.int32), np.zeros(0), np.zeros(1),
                      np.ones(1, dtype=np.bool_), frozen, np.ones(1), x1, np.ones(1), x1, np.zeros((1, 3)))
     _fixed_forces(frozen, np.ones(1), x1, np.ones(1), x1, np.zeros((1, 3)))
-    by_coordinate, turned, tmp = np.zeros((3, 1)), np.zeros((1, 3)), np.zeros((6, 1))
+    by_coordinate, turned, tmp = np.zeros((3, 1)), np.zeros((1, 3)), np.zeros((10, 1))
     for rows in (np.zeros((0, 3)), np.zeros((1, 3))):  # (the rest shape turned or not)
         _jaw_pose(by_coordinate, by_coordinate, np.ones((3, 1)), np.zeros(3), np.ones(1), np.eye(3), np.zeros(3),
                   turned, rows, np.zeros((1, 3)), tmp, frozen, np.ones(1), np.ones(1), rows)
@@ -347,22 +347,40 @@ def jaw_motion(model: FaceModel, jaw: float, forward: float = 0.0,
     return rot, slide
 
 
-@numba.njit(cache=True, nogil=True)
-def _turn_with_jaw(rest, offset, pivot, weight, rot, slide, target, shape, tmp):  # type: ignore[no-untyped-def]
-    """Eq 9's target (and, when `shape` has rows, the rest shape) turned with the jaw, with the
-    operations in the order of the numpy expressions they replace (the same bits):
+@numba.njit(**KERNEL)
+def _fixed_forces(weight, kr, target, kn, nrm, out):  # type: ignore[no-untyped-def]
+    """`_constant_forces` with no muscle (the implicit step's, whose muscles enter as responses),
+    each value by the same operations (the same bits) without the muscle matrix's empty rows:
+    40 -> 15 us on the scanned head, remade at each new jaw pose."""
+    for i in range(out.shape[0]):
+        support = kn[i] * (nrm[i, 0] * target[i, 0] + nrm[i, 1] * target[i, 1] + nrm[i, 2] * target[i, 2])
+        for d in range(3):
+            acc = 0.0
+            out[i, d] = acc + weight[i, d] + kr[i] * target[i, d] + support * nrm[i, d]
+
+
+@numba.njit(**KERNEL)
+def _jaw_pose(rest, offset, normal3, pivot, weight, rot, slide, target, shape, normal, tmp, w3, kr, kn, fixed):  # type: ignore[no-untyped-def]
+    """A new jaw pose's constants in one call: eq 9's target (and the rest shape when `shape` has
+    rows), the support normals and, when `fixed` has rows, the implicit step's constant forces
+    without muscles (each value by `_fixed_forces`' operations). The turn of the rest shape and of
+    the normals, in the order of the numpy expressions they replaced (the same bits):
     turned = (rest - pivot) @ rot.T + pivot; base = rest + offset;
-    target = base + w ((turned + offset @ rot.T) + slide - base); shape = rest + w ((turned + slide) - rest).
-    rest, offset (3, N): by coordinate (`Simulator._by_coordinate`), so the pass over the vertices
-    is vector code, into tmp (6, N), then laid out in rows: 43 -> 20 us on the scanned head, where
-    a moving jaw recomputes this every tick."""
+    target = base + w ((turned + offset @ rot.T) + slide - base); shape = rest + w ((turned + slide) - rest);
+    normal = the unit rows of n + w (n @ rot.T - n) (squares summed left to right, as numpy's
+    reduction over a row of three). rest, offset, normal3 (3, N): by coordinate
+    (`Simulator._by_coordinate`), so the passes over the vertices, square roots and divisions
+    included, are vector code, into tmp (10, N); then one pass over the rows lays out the target,
+    the shape and the normals and makes the constant forces from them (four passes over the rows
+    before: 49 -> 45 us alone on the scanned head, where a moving jaw makes them every tick). A
+    normal turned to zero length raises ZeroDivisionError."""
     n = rest.shape[1]
     r00, r01, r02 = rot[0, 0], rot[0, 1], rot[0, 2]
     r10, r11, r12 = rot[1, 0], rot[1, 1], rot[1, 2]
     r20, r21, r22 = rot[2, 0], rot[2, 1], rot[2, 2]
     p0, p1, p2 = pivot[0], pivot[1], pivot[2]
     s0, s1, s2 = slide[0], slide[1], slide[2]
-    for i in range(n):
+    for i in range(n):  # the target and the shape
         w = weight[i]
         x0, x1, x2 = rest[0, i], rest[1, i], rest[2, i]
         o0, o1, o2 = offset[0, i], offset[1, i], offset[2, i]
@@ -380,67 +398,41 @@ def _turn_with_jaw(rest, offset, pivot, weight, rot, slide, target, shape, tmp):
         tmp[3, i] = x0 + w * (u0 + s0 - x0)
         tmp[4, i] = x1 + w * (u1 + s1 - x1)
         tmp[5, i] = x2 + w * (u2 + s2 - x2)
-    with_shape = shape.shape[0] > 0
-    for i in range(n):
-        for j in range(3):
-            target[i, j] = tmp[j, i]
-            if with_shape:
-                shape[i, j] = tmp[3 + j, i]
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _turn_normals(normal, weight, rot, out, tmp):  # type: ignore[no-untyped-def]
-    """out = the unit rows of normal + w (normal @ rot.T - normal), in the order of the numpy
-    expressions `n / np.linalg.norm(n, axis=1)[:, None]` they replace (the squares summed left to
-    right, as numpy's reduction over a row of three does), so the same bits; a moving jaw turns the
-    support normals every tick (the normalisation alone took 0.13 ms in numpy on the scanned head).
-    normal (3, N): by coordinate (`Simulator._by_coordinate`), so the pass over the vertices, square
-    roots and divisions included, is vector code, into tmp (4, N), then laid out in rows: 40 -> 15
-    us there. A normal turned to zero length raises ZeroDivisionError."""
-    n = normal.shape[1]
-    r00, r01, r02 = rot[0, 0], rot[0, 1], rot[0, 2]
-    r10, r11, r12 = rot[1, 0], rot[1, 1], rot[1, 2]
-    r20, r21, r22 = rot[2, 0], rot[2, 1], rot[2, 2]
-    for i in range(n):
+    for i in range(n):  # the normals
         w = weight[i]
-        n0, n1, n2 = normal[0, i], normal[1, i], normal[2, i]
+        n0, n1, n2 = normal3[0, i], normal3[1, i], normal3[2, i]
         t0 = n0 + w * (n0 * r00 + n1 * r01 + n2 * r02 - n0)
         t1 = n1 + w * (n0 * r10 + n1 * r11 + n2 * r12 - n1)
         t2 = n2 + w * (n0 * r20 + n1 * r21 + n2 * r22 - n2)
         length = math.sqrt((t0 * t0 + t1 * t1) + t2 * t2)
-        tmp[0, i] = t0 / length
-        tmp[1, i] = t1 / length
-        tmp[2, i] = t2 / length
-        tmp[3, i] = length
+        tmp[6, i] = t0 / length
+        tmp[7, i] = t1 / length
+        tmp[8, i] = t2 / length
+        tmp[9, i] = length
+    with_shape = shape.shape[0] > 0
+    with_fixed = fixed.shape[0] > 0
     for i in range(n):
-        if tmp[3, i] == 0.0:
+        if tmp[9, i] == 0.0:
             raise ZeroDivisionError("a support normal turned to zero length")
-        for j in range(3):
-            out[i, j] = tmp[j, i]
-
-
-@numba.njit(**KERNEL)
-def _fixed_forces(weight, kr, target, kn, nrm, out):  # type: ignore[no-untyped-def]
-    """`_constant_forces` with no muscle (the implicit step's, whose muscles enter as responses),
-    each value by the same operations (the same bits) without the muscle matrix's empty rows:
-    40 -> 15 us on the scanned head, remade at each new jaw pose."""
-    for i in range(out.shape[0]):
-        support = kn[i] * (nrm[i, 0] * target[i, 0] + nrm[i, 1] * target[i, 1] + nrm[i, 2] * target[i, 2])
-        for d in range(3):
+        g0, g1, g2 = tmp[0, i], tmp[1, i], tmp[2, i]
+        m0, m1, m2 = tmp[6, i], tmp[7, i], tmp[8, i]
+        target[i, 0] = g0
+        target[i, 1] = g1
+        target[i, 2] = g2
+        normal[i, 0] = m0
+        normal[i, 1] = m1
+        normal[i, 2] = m2
+        if with_shape:
+            shape[i, 0] = tmp[3, i]
+            shape[i, 1] = tmp[4, i]
+            shape[i, 2] = tmp[5, i]
+        if with_fixed:  # `_fixed_forces`' row
+            support = kn[i] * (m0 * g0 + m1 * g1 + m2 * g2)
             acc = 0.0
-            out[i, d] = acc + weight[i, d] + kr[i] * target[i, d] + support * nrm[i, d]
-
-
-@numba.njit(**KERNEL)
-def _jaw_pose(rest, offset, normal3, pivot, weight, rot, slide, target, shape, normal, tmp, w3, kr, kn, fixed):  # type: ignore[no-untyped-def]
-    """A new jaw pose's constants in one call: eq 9's target (and the rest shape when `shape` has
-    rows: `_turn_with_jaw`), the support normals (`_turn_normals`) and, when `fixed` has rows, the
-    implicit step's constant forces without muscles (`_fixed_forces`) from them while they are in
-    the caches; each by its own kernel's code, so the same bits as the three called in turn."""
-    _turn_with_jaw(rest, offset, pivot, weight, rot, slide, target, shape, tmp)
-    _turn_normals(normal3, weight, rot, normal, tmp)
-    if fixed.shape[0] > 0:
-        _fixed_forces(w3, kr, target, kn, normal, fixed)
+            k = kr[i]
+            fixed[i, 0] = acc + w3[i, 0] + k * g0 + support * m0
+            fixed[i, 1] = acc + w3[i, 1] + k * g1 + support * m1
+            fixed[i, 2] = acc + w3[i, 2] + k * g2 + support * m2
 
 
 @numba.njit(**KERNEL)
@@ -653,11 +645,12 @@ class Simulator:
         #: bits). Set before the first step.
         self.bending_turned = True
         self._last_pose: tuple[float, float, float] | None = None  # the last step's jaw pose
-        # the turns' inputs by coordinate (`_turn_with_jaw`, `_turn_normals`: vector code over the vertices)
+        # the turns' inputs by coordinate (`_jaw_pose`: vector code over the vertices)
         self._rest3, self._offset3 = self._by_coordinate(model.rest), self._by_coordinate(model.rest_offset)
         self._normal3 = self._by_coordinate(model.rest_normal)
         self._jaw_weight = np.array(model.jaw_weight, dtype=np.float64)
-        self._turn_tmp = np.zeros((6, n))
+        self._turn_tmp = np.zeros((10, n))  # (`_jaw_pose`'s)
+        self._turned_normal = np.zeros((n, 3))  # the normals `_jaw_turned` makes on the way
         if self._implicit is not None:
             self._implicit.jaw_resp, self._implicit.jaw_slope = _jaw_grid(self)
             self._implicit.turn_basis(self._jaw_weight, np.asarray(model.jaw_pivot, dtype=np.float64))
@@ -693,19 +686,21 @@ class Simulator:
         target, shape, _ = self._jaw_turned((jaw, forward, sideways), shape=not offset)
         return target if offset else shape  # type: ignore[return-value]
 
-    def _jaw_turned(self, pose: tuple[float, float, float],
-                    shape: bool) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    def _jaw_turned(self, pose: tuple[float, float, float], shape: bool,
+                    normals: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """(eq 9's target, the rest shape turned with the jaw or None unless `shape`, the jaw's
         rotation or None at rest) for the jaw pose (open, forward, sideways): the mandible's turn
-        and slide computed once for all three (`jaw_motion`)."""
+        and slide computed once for all three (`jaw_motion`); away from rest the support normals
+        turned with it into `normals` (N,3) when given (`_jaw_pose`)."""
         m = self.model
         if pose == (0.0, 0.0, 0.0):
             return np.array(m.rest + m.rest_offset), (np.array(m.rest) if shape else None), None
         rot, slide = self._jaw_motion(pose)
         target = np.empty_like(m.rest)
-        turned_shape = np.empty_like(m.rest) if shape else np.empty((0, 3))
-        _turn_with_jaw(self._rest3, self._offset3, self._pivot, self._jaw_weight, rot, slide, target, turned_shape,
-                       self._turn_tmp)
+        turned_shape = np.empty_like(m.rest) if shape else self._no_rows
+        _jaw_pose(self._rest3, self._offset3, self._normal3, self._pivot, self._jaw_weight, rot, slide, target,
+                  turned_shape, self._turned_normal if normals is None else normals, self._turn_tmp, self._weight,
+                  self._kr, self._kn, self._no_rows)
         return target, (turned_shape if shape else None), rot
 
     def _jaw_motion(self, pose: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -1037,8 +1032,9 @@ def _jaw_grid(s: Simulator) -> tuple[np.ndarray, np.ndarray]:
     # the origin); what is left is the target's move along the normals, the slope below
     no_support = np.zeros_like(s._kn)
     slope = np.zeros_like(grid)
+    turned_normal = np.zeros_like(normal)
     for k in range(JAW_GRID + 1):
-        target, shape, rot = s._jaw_turned((k / JAW_GRID, 0.0, 0.0), shape=True)
+        target, shape, rot = s._jaw_turned((k / JAW_GRID, 0.0, 0.0), shape=True, normals=turned_normal)
         _constant_forces(none, mm.indices, mm.data, np.zeros(len(s._is_muscle)), s._is_muscle, no_weight,
                          s._kr, target, no_support, normal, ext)
         edge = target[held_end]
@@ -1052,7 +1048,7 @@ def _jaw_grid(s: Simulator) -> tuple[np.ndarray, np.ndarray]:
         if rot is None:
             normal[...] = m.rest_normal
         else:
-            _turn_normals(s._normal3, s._jaw_weight, np.ascontiguousarray(rot, dtype=np.float64), normal, s._turn_tmp)
+            normal[...] = turned_normal  # (made with the pose's target: `_jaw_pose`)
         along = s._kn * np.einsum("ij,ij->i", normal, tangent)
         stepper.jaw_response(along[:, None] * normal, None, None, slope[k])
     if len(_JAW_MEMO) >= 2:
