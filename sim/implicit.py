@@ -271,17 +271,34 @@ def _predict(x, v, h, runs, si3, sj3, rest_len, k_low, kls, k_high, thr, normal,
 def _held_rhs(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, xh, held_term, ys, summed):  # type: ignore[no-untyped-def]
     """ys = base + ext minus the held nodes' coupling (they do not move within a frame), in the
     factors' row order: the right-hand side of the prefactored solve (`_sn_sweeps` then solves it
-    in place, a kernel of its own: compiled inside this one its loops ran 20 % slower)."""
+    in place, a kernel of its own: compiled inside this one its loops ran 20 % slower). Each free
+    row's coupling is summed as `_csr_times_flat` sums it (from 0, in stored order) where it is
+    used, not kept in an array of its own (the same bits; held_term is left unwritten)."""
     for k in range(held.shape[0]):
         i = held[k]
         for d in range(3):
             xh[k, d] = x[i, d]
-    _csr_times_flat(fh_ptr, fh_idx, fh_val, xh.reshape(-1), held_term)
+    xf = xh.reshape(-1)
     for q in range(free.shape[0]):
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        for p in range(fh_ptr[q], fh_ptr[q + 1]):
+            a = fh_val[p]
+            j = fh_idx[p]
+            a0 += a * xf[j]
+            a1 += a * xf[j + 1]
+            a2 += a * xf[j + 2]
         i = free[q]
         r = perm_r[q]
-        for d in range(3):
-            ys[r, d] = base[i, d] - held_term[q, d] if summed else (base[i, d] + ext[i, d]) - held_term[q, d]
+        if summed:
+            ys[r, 0] = base[i, 0] - a0
+            ys[r, 1] = base[i, 1] - a1
+            ys[r, 2] = base[i, 2] - a2
+        else:
+            ys[r, 0] = (base[i, 0] + ext[i, 0]) - a0
+            ys[r, 1] = (base[i, 1] + ext[i, 1]) - a1
+            ys[r, 2] = (base[i, 2] + ext[i, 2]) - a2
 
 
 @numba.njit(cache=True, nogil=True)

@@ -343,3 +343,26 @@ def test_the_bit_comparison_sees_one_bit() -> None:
         b = a.copy()
         b[k] = changed
         assert not _same_bits(a.view(np.int64), b.view(np.int64)), k
+
+
+def test_the_right_hand_side_sums_the_held_coupling_as_the_product_does(synth_model: FaceModel) -> None:
+    """The solve's right-hand side (`_held_rhs`) is base + ext less the held nodes' coupling, each
+    row's coupling summed as the flat product sums it (`_csr_times_flat`), in the factors' row
+    order: the same bits as the product made first into an array."""
+    from sim.implicit import _csr_times_flat, _held_rhs
+
+    sim = Simulator(synth_model, method="implicit")
+    imp = sim._implicit
+    assert imp is not None and len(imp.held) and len(imp._fh[2])
+    rng = np.random.default_rng(4)
+    x, base, ext = (rng.normal(0.0, 1.0, (synth_model.n_vertices, 3)) for _ in range(3))
+    nf = len(imp.free)
+    for summed in (False, True):
+        coupling = np.zeros((nf, 3))
+        _csr_times_flat(*imp._fh, np.ascontiguousarray(x[imp.held]).reshape(-1), coupling)
+        want = np.zeros((nf, 3))
+        want[imp.solver.perm_r] = (base[imp.free] if summed else base[imp.free] + ext[imp.free]) - coupling
+        got = np.full((nf, 3), np.nan)
+        _held_rhs(x, imp.held, *imp._fh, base, ext, imp.free, imp.solver.perm_r, np.zeros((len(imp.held), 3)),
+                  np.zeros((nf, 3)), got, summed)
+        assert got.tobytes() == want.tobytes(), summed
