@@ -268,12 +268,12 @@ def _predict(x, v, h, runs, si3, sj3, rest_len, k_low, kls, k_high, thr, normal,
 
 
 @numba.njit(cache=True, nogil=True)
-def _held_rhs(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, xh, held_term, ys, summed):  # type: ignore[no-untyped-def]
+def _held_rhs(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, xh, ys, summed):  # type: ignore[no-untyped-def]
     """ys = base + ext minus the held nodes' coupling (they do not move within a frame), in the
     factors' row order: the right-hand side of the prefactored solve (`_sn_sweeps` then solves it
     in place, a kernel of its own: compiled inside this one its loops ran 20 % slower). Each free
     row's coupling is summed as `_csr_times_flat` sums it (from 0, in stored order) where it is
-    used, not kept in an array of its own (the same bits; held_term is left unwritten)."""
+    used, not kept in an array of its own (the same bits)."""
     for k in range(held.shape[0]):
         i = held[k]
         for d in range(3):
@@ -625,8 +625,9 @@ class ImplicitStepper:
         self._bend_rhs = np.zeros((n, 3))
         self._ext = np.zeros((n, 3))
         nf, nh = len(self.free), len(self.held)
-        self._buf = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((nh, 3)), np.zeros((nf, 3)),
-                     np.zeros((nf, 3)), np.zeros((nf, 3)), np.zeros((nf, 3)))
+        # y, base, the held nodes' x, the solve's ys, the free nodes' x before a substep, du
+        self._buf = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((nh, 3)), np.zeros((nf, 3)), np.zeros((nf, 3)),
+                     np.zeros((nf, 3)))
         self._springs_scratch = np.zeros((3, 0))
         self._layout_of: np.ndarray | None = None  # the springs array `_spring_runs` was laid out from
         self._spring_runs = spring_layout(np.zeros((0, 2), dtype=np.int64))
@@ -723,11 +724,11 @@ class ImplicitStepper:
         idx, rest_len, k_low, k_high, thr = springs[:5]
         kls = float(springs[5]) if len(springs) > 5 else 1.0  # k_low's scale (the skin's age)
         c = self._contact
-        y, base, xh, held_term, ys = self._buf[:5]
+        y, base, xh, ys = self._buf[:4]
         _predict(x, v, self.h, *self._layout(idx), rest_len, k_low, kls, k_high, thr, normal, self.kn, self.mass_h2, self.damp_h,
                  c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base, ext, summed,
                  self._spring_work(len(idx)), self._px, self._pv, keep)
-        _held_rhs(x, self.held, *self._fh, base, ext, self.free, self.solver.perm_r, xh, held_term, ys, summed)
+        _held_rhs(x, self.held, *self._fh, base, ext, self.free, self.solver.perm_r, xh, ys, summed)
         if self.symmetric_solve:
             _sym_sweeps(ys, *self.solver.sym_factors, self.solver.work)
         else:
@@ -790,7 +791,7 @@ class ImplicitStepper:
             ext = self._with_bending(ext, shape)
         act, act_val = self._no_act if active is None else active
         c = self._contact
-        du = self._buf[6]
+        du = self._buf[5]
         jaw_resp, jaw_slope = (self.jaw_resp, self.jaw_slope) if jaw is not None else (self._no_jaw, self._no_jaw)
         jaw_from, jaw_to = jaw if jaw is not None else (0.0, 0.0)
         muscles = _inputs(self._resp, act, act_val, jaw_resp, jaw_slope, jaw_from, jaw_to, du)
@@ -799,7 +800,7 @@ class ImplicitStepper:
             if sub > 0 or not predicted:
                 self._solve_free(x, v, ext, springs, normal, summed)
             last = check is not None and sub == n_sub - 1
-            _advance(x, v, self.h, self._buf[4], du, muscles, self.free, self.solver.perm_c, self._buf[5], c.idx, c.w,
+            _advance(x, v, self.h, self._buf[3], du, muscles, self.free, self.solver.perm_c, self._buf[4], c.idx, c.w,
                      c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam, c.loc, c.green, c.gptr, c.gvert, c.gval, c._work,
                      c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes, check if last else x, self._dev if last else self._no_dev)
         if check is not None and n_sub > 0:

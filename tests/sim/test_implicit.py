@@ -363,6 +363,6 @@ def test_the_right_hand_side_sums_the_held_coupling_as_the_product_does(synth_mo
         want = np.zeros((nf, 3))
         want[imp.solver.perm_r] = (base[imp.free] if summed else base[imp.free] + ext[imp.free]) - coupling
         got = np.full((nf, 3), np.nan)
-        _held_rhs(x, imp.held, *imp._fh, base, ext, imp.free, imp.solver.perm_r, np.zeros((len(imp.held), 3)),
-                  np.zeros((nf, 3)), got, summed)
+        _held_rhs(x, imp.held, *imp._fh, base, ext, imp.free, imp.solver.perm_r, np.zeros((len(imp.held), 3)), got,
+                  summed)
         assert got.tobytes() == want.tobytes(), summed
