@@ -95,11 +95,13 @@ class FoldGuard:
         self.area = 0.5 * area2
         self.k = strength * _edge_stiffness(tri, springs, k_high)
         self.floor = float(floor)
-
+        self._t3 = np.ascontiguousarray(3 * tri, dtype=np.uint32)  # (`_fold_forces`)
+        self._dets = np.zeros(len(tri))
 
     def add_forces(self, y: np.ndarray, out: np.ndarray) -> int:
         """Adds the term's forces at positions y (N,3) to out (N,3); the number of triangles acting."""
-        return int(_fold_forces(y, self.tri, self.frame, self.dm_inv, self.area, self.k, self.floor, out))
+        return int(_fold_forces(np.ascontiguousarray(y, dtype=np.float64), self._t3, self.tri, self.frame,
+                                self.dm_inv, self.area, self.k, self.floor, out, self._dets))
 
 
 def _edge_stiffness(tri: np.ndarray, springs: np.ndarray, k_high: np.ndarray) -> np.ndarray:
@@ -126,69 +128,99 @@ def thin_skin(regions: dict[str, np.ndarray], n: int) -> np.ndarray:
 
 
 @numba.njit(cache=True, nogil=True)
-def _fold_forces(y, tri, frame, dm_inv, area, k, floor, out):  # type: ignore[no-untyped-def]
-    """The kernel of FoldGuard.add_forces (the module docstring's equations)."""
-    acting = 0
-    for t in range(tri.shape[0]):
-        i0 = tri[t, 0]
-        i1 = tri[t, 1]
-        i2 = tri[t, 2]
-        # current edges projected on the rest plane: Ds (2x2), columns = edges
+def _fold_at(y, tri, frame, dm_inv, area, k, floor, out, t):  # type: ignore[no-untyped-def]
+    """Triangle t's term (the module docstring's equations): its forces added to out when det F <
+    floor (or is not a number); returns 1 then, else 0."""
+    i0 = tri[t, 0]
+    i1 = tri[t, 1]
+    i2 = tri[t, 2]
+    # current edges projected on the rest plane: Ds (2x2), columns = edges
+    d00 = d01 = d10 = d11 = 0.0
+    for c in range(3):
+        ea = y[i1, c] - y[i0, c]
+        eb = y[i2, c] - y[i0, c]
+        d00 += ea * frame[t, 0, c]
+        d01 += eb * frame[t, 0, c]
+        d10 += ea * frame[t, 1, c]
+        d11 += eb * frame[t, 1, c]
+    m = dm_inv[t]
+    f00 = d00 * m[0, 0] + d01 * m[1, 0]
+    f01 = d00 * m[0, 1] + d01 * m[1, 1]
+    f10 = d10 * m[0, 0] + d11 * m[1, 0]
+    f11 = d10 * m[0, 1] + d11 * m[1, 1]
+    det = f00 * f11 - f01 * f10
+    if det >= floor:
+        return 0
+    # signed singular values of F (2x2, closed form): F = R(a) diag(s1, s2) R(-b)
+    e = 0.5 * (f00 + f11)
+    f = 0.5 * (f00 - f11)
+    g = 0.5 * (f10 + f01)
+    h = 0.5 * (f10 - f01)
+    q = math.sqrt(e * e + h * h)
+    r = math.sqrt(f * f + g * g)
+    s1 = q + r
+    s2 = q - r  # det = s1 s2: negative when turned over
+    a1 = math.atan2(g, f)
+    a2 = math.atan2(h, e)
+    th = 0.5 * (a2 - a1)
+    ph = 0.5 * (a2 + a1)
+    # the nearest deformation with det = floor: raise s2 (and s1 if it has collapsed too)
+    s1n = max(s1, math.sqrt(floor))
+    s2n = floor / s1n
+    # F' = R(ph) diag(s1n, s2n) R(th); F' - F = R(ph) diag(s1n - s1, s2n - s2) R(th)
+    cp, sp_ = math.cos(ph), math.sin(ph)
+    ct, st = math.cos(th), math.sin(th)
+    u1 = s1n - s1
+    u2 = s2n - s2
+    # R(ph) diag(u1, u2) R(th)
+    g00 = cp * u1 * ct - sp_ * u2 * st
+    g01 = -cp * u1 * st - sp_ * u2 * ct
+    g10 = sp_ * u1 * ct + cp * u2 * st
+    g11 = -sp_ * u1 * st + cp * u2 * ct
+    # forces on vertices 1, 2 (2D): 2 k A (F' - F) Dm^-T; the force scale k A |Dm^-1|^2 ~ k
+    w = 2.0 * k[t] * area[t]
+    p1x = w * (g00 * m[0, 0] + g01 * m[0, 1])
+    p1y = w * (g10 * m[0, 0] + g11 * m[0, 1])
+    p2x = w * (g00 * m[1, 0] + g01 * m[1, 1])
+    p2y = w * (g10 * m[1, 0] + g11 * m[1, 1])
+    for c in range(3):
+        v1 = p1x * frame[t, 0, c] + p1y * frame[t, 1, c]
+        v2 = p2x * frame[t, 0, c] + p2y * frame[t, 1, c]
+        out[i1, c] += v1
+        out[i2, c] += v2
+        out[i0, c] -= v1 + v2
+    return 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _fold_forces(y, t3, tri, frame, dm_inv, area, k, floor, out, dets):  # type: ignore[no-untyped-def]
+    """The kernel of FoldGuard.add_forces (and of the implicit step's prediction) in two passes:
+    every triangle's det F first (y read flat by t3 = 3 x tri as uint32: no negative-index
+    wraparound, no branch), into dets (T,), then `_fold_at` for the triangles whose det is not
+    >= floor, in triangle order (the few that act). The same bits as `_fold_at` over every
+    triangle in one pass, as it was written before: 83 -> 71 us on the scanned head."""
+    yf = y.reshape(-1)
+    for t in range(t3.shape[0]):
+        i0 = t3[t, 0]
+        i1 = t3[t, 1]
+        i2 = t3[t, 2]
         d00 = d01 = d10 = d11 = 0.0
         for c in range(3):
-            ea = y[i1, c] - y[i0, c]
-            eb = y[i2, c] - y[i0, c]
+            ea = yf[i1 + c] - yf[i0 + c]
+            eb = yf[i2 + c] - yf[i0 + c]
             d00 += ea * frame[t, 0, c]
             d01 += eb * frame[t, 0, c]
             d10 += ea * frame[t, 1, c]
             d11 += eb * frame[t, 1, c]
-        m = dm_inv[t]
-        f00 = d00 * m[0, 0] + d01 * m[1, 0]
-        f01 = d00 * m[0, 1] + d01 * m[1, 1]
-        f10 = d10 * m[0, 0] + d11 * m[1, 0]
-        f11 = d10 * m[0, 1] + d11 * m[1, 1]
-        det = f00 * f11 - f01 * f10
-        if det >= floor:
-            continue
-        acting += 1
-        # signed singular values of F (2x2, closed form): F = R(a) diag(s1, s2) R(-b)
-        e = 0.5 * (f00 + f11)
-        f = 0.5 * (f00 - f11)
-        g = 0.5 * (f10 + f01)
-        h = 0.5 * (f10 - f01)
-        q = math.sqrt(e * e + h * h)
-        r = math.sqrt(f * f + g * g)
-        s1 = q + r
-        s2 = q - r  # det = s1 s2: negative when turned over
-        a1 = math.atan2(g, f)
-        a2 = math.atan2(h, e)
-        th = 0.5 * (a2 - a1)
-        ph = 0.5 * (a2 + a1)
-        # the nearest deformation with det = floor: raise s2 (and s1 if it has collapsed too)
-        s1n = max(s1, math.sqrt(floor))
-        s2n = floor / s1n
-        # F' = R(ph) diag(s1n, s2n) R(th); F' - F = R(ph) diag(s1n - s1, s2n - s2) R(th)
-        cp, sp_ = math.cos(ph), math.sin(ph)
-        ct, st = math.cos(th), math.sin(th)
-        u1 = s1n - s1
-        u2 = s2n - s2
-        # R(ph) diag(u1, u2) R(th)
-        g00 = cp * u1 * ct - sp_ * u2 * st
-        g01 = -cp * u1 * st - sp_ * u2 * ct
-        g10 = sp_ * u1 * ct + cp * u2 * st
-        g11 = -sp_ * u1 * st + cp * u2 * ct
-        # forces on vertices 1, 2 (2D): 2 k A (F' - F) Dm^-T; the force scale k A |Dm^-1|^2 ~ k
-        w = 2.0 * k[t] * area[t]
-        p1x = w * (g00 * m[0, 0] + g01 * m[0, 1])
-        p1y = w * (g10 * m[0, 0] + g11 * m[0, 1])
-        p2x = w * (g00 * m[1, 0] + g01 * m[1, 1])
-        p2y = w * (g10 * m[1, 0] + g11 * m[1, 1])
-        for c in range(3):
-            v1 = p1x * frame[t, 0, c] + p1y * frame[t, 1, c]
-            v2 = p2x * frame[t, 0, c] + p2y * frame[t, 1, c]
-            out[i1, c] += v1
-            out[i2, c] += v2
-            out[i0, c] -= v1 + v2
+        f00 = d00 * dm_inv[t, 0, 0] + d01 * dm_inv[t, 1, 0]
+        f01 = d00 * dm_inv[t, 0, 1] + d01 * dm_inv[t, 1, 1]
+        f10 = d10 * dm_inv[t, 0, 0] + d11 * dm_inv[t, 1, 0]
+        f11 = d10 * dm_inv[t, 0, 1] + d11 * dm_inv[t, 1, 1]
+        dets[t] = f00 * f11 - f01 * f10
+    acting = 0
+    for t in range(t3.shape[0]):
+        if not dets[t] >= floor:
+            acting += _fold_at(y, tri, frame, dm_inv, area, k, floor, out, t)
     return acting
 
 

@@ -87,48 +87,78 @@ def implicit_substeps(model: FaceModel, frame_dt: float) -> int:
     return max(1, math.ceil(frame_dt * omega_r / OMEGA_H))
 
 
+def spring_layout(springs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(runs, si3, sj3): the springs (S, 2) as `_pd_springs` reads them: each end's flat index
+    3 x node as uint32 (no negative-index wraparound in the loops), and the bounds (R + 1,) of
+    the runs of consecutive springs that share their first node."""
+    springs = np.asarray(springs)
+    if len(springs) and np.any(springs[:, 0] == springs[:, 1]):
+        raise ValueError("a spring joins a node to itself")
+    first = springs[:, 0].astype(np.int64)
+    starts = np.flatnonzero(np.r_[True, first[1:] != first[:-1]]) if len(first) else np.zeros(0, dtype=np.int64)
+    return (np.ascontiguousarray(np.r_[starts, len(first)], dtype=np.int64),
+            np.ascontiguousarray(3 * first, dtype=np.uint32), np.ascontiguousarray(3 * springs[:, 1], dtype=np.uint32))
+
+
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _pd_springs(y, springs, rest_len, k_low, k_high, thr, out, work):  # type: ignore[no-untyped-def]
-    """Adds sum_s k_h (e_j - e_i) d_s to out (the local step; see the module docstring). Three
-    passes over work (3, springs): gather the edge vectors, the per-spring math (no indexing, so
-    the compiler vectorizes its square roots and divisions; error_model "numpy": a zero length
-    gives inf instead of raising, which the step's guard catches), then the scatter in spring
-    order. Every value is the same expression as in one pass, so the same bits."""
+def _pd_springs(y, runs, si3, sj3, rest_len, k_low, kls, k_high, thr, out, work):  # type: ignore[no-untyped-def]
+    """Adds sum_s k_h (e_j - e_i) d_s to out (the local step; see the module docstring); the
+    springs laid out by `spring_layout`. Three passes over work (3, springs): gather the edge
+    vectors, the per-spring math (no indexing, so the compiler vectorizes its square roots and
+    divisions; error_model "numpy": a zero length gives inf instead of raising, which the step's
+    guard catches), then the scatter in spring order, each run's shared first node kept in
+    registers and stored once at the run's end (no spring of the run touches it otherwise, so it
+    takes the very subtractions, in the same order: 76 -> 61 us for the scatter on the scanned
+    head). Every value is the same expression as in one pass, so the same bits. Each spring's k_low
+    is k_low[s] * kls (the skin's age: the product numpy made into an array before, the same bits)."""
+    yf = y.reshape(-1)
+    of = out.reshape(-1)
     ex = work[0]
     ey = work[1]
     ez = work[2]
-    for s in range(springs.shape[0]):
-        i = springs[s, 0]
-        j = springs[s, 1]
-        ex[s] = y[j, 0] - y[i, 0]
-        ey[s] = y[j, 1] - y[i, 1]
-        ez[s] = y[j, 2] - y[i, 2]
-    for s in range(springs.shape[0]):
+    m = si3.shape[0]
+    for s in range(m):
+        i = si3[s]
+        j = sj3[s]
+        ex[s] = yf[j] - yf[i]
+        ey[s] = yf[j + 1] - yf[i + 1]
+        ez[s] = yf[j + 2] - yf[i + 2]
+    for s in range(m):
         dx = ex[s]
         dy = ey[s]
         dz = ez[s]
         r = math.sqrt(dx * dx + dy * dy + dz * dz)
         stretch = r - rest_len[s]
         knee = thr * rest_len[s]
-        soft = k_low[s] * stretch
-        stiff = k_low[s] * knee + k_high[s] * (stretch - knee)
+        kl = k_low[s] * kls
+        soft = kl * stretch
+        stiff = kl * knee + k_high[s] * (stretch - knee)
         t = soft if stretch <= knee else stiff
         scale = (k_high[s] * r - t) / r  # k_h * l_s / r: d_s = l_s u_s
         ex[s] = scale * dx
         ey[s] = scale * dy
         ez[s] = scale * dz
-    for s in range(springs.shape[0]):
-        i = springs[s, 0]
-        j = springs[s, 1]
-        fx = ex[s]
-        fy = ey[s]
-        fz = ez[s]
-        out[j, 0] += fx
-        out[j, 1] += fy
-        out[j, 2] += fz
-        out[i, 0] -= fx
-        out[i, 1] -= fy
-        out[i, 2] -= fz
+    for r in range(runs.shape[0] - 1):
+        start = runs[r]
+        stop = runs[r + 1]
+        i = si3[start]
+        o0 = of[i]
+        o1 = of[i + 1]
+        o2 = of[i + 2]
+        for s in range(start, stop):
+            j = sj3[s]
+            fx = ex[s]
+            fy = ey[s]
+            fz = ez[s]
+            of[j] += fx
+            of[j + 1] += fy
+            of[j + 2] += fz
+            o0 -= fx
+            o1 -= fy
+            o2 -= fz
+        of[i] = o0
+        of[i + 1] = o1
+        of[i + 2] = o2
 
 
 @numba.njit(cache=True, nogil=True)
@@ -179,16 +209,40 @@ def _bend_turned(b0, b1, c, rot, slide, out):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True, nogil=True)
-def _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2, damp_h,  # type: ignore[no-untyped-def]
-             c_idx, c_w, c_sg, c_dim, c_lam, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, y, base, ext, summed,
-             work, px, pv, keep):
+def _bend_turned_add(b0, b1, c, rot, slide, ext, out, total):  # type: ignore[no-untyped-def]
+    """`_bend_turned` into out, and total = ext + out in the same pass (`np.add` after it: the same
+    bits, one pass and one call less)."""
+    r00, r01, r02 = rot[0, 0], rot[0, 1], rot[0, 2]
+    r10, r11, r12 = rot[1, 0], rot[1, 1], rot[1, 2]
+    r20, r21, r22 = rot[2, 0], rot[2, 1], rot[2, 2]
+    s0, s1, s2 = slide[0], slide[1], slide[2]
+    for i in range(out.shape[0]):
+        e0, e1, e2 = b1[i, 0], b1[i, 1], b1[i, 2]
+        ci = c[i]
+        o0 = b0[i, 0] + (r00 * e0 + r01 * e1 + r02 * e2) + ci * s0
+        o1 = b0[i, 1] + (r10 * e0 + r11 * e1 + r12 * e2) + ci * s1
+        o2 = b0[i, 2] + (r20 * e0 + r21 * e1 + r22 * e2) + ci * s2
+        out[i, 0] = o0
+        out[i, 1] = o1
+        out[i, 2] = o2
+        total[i, 0] = ext[i, 0] + o0
+        total[i, 1] = ext[i, 1] + o1
+        total[i, 2] = ext[i, 2] + o2
+
+
+@numba.njit(cache=True, nogil=True)
+def _predict(x, v, h, runs, si3, sj3, rest_len, k_low, kls, k_high, thr, normal, kn, mass_h2, damp_h,  # type: ignore[no-untyped-def]
+             c_idx, c_w, c_sg, c_dim, c_lam, f_t3, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, f_dets, y, base, ext,
+             summed, work, px, pv, keep):
     """The part of a substep's right-hand side that no input changes (ImplicitStepper.predict): the
     predicted positions y = x + h v, then base = M/h^2 y + C/h x + the springs' local step + the
     skin's guard against turning over (sim.antifold) + the normal support + the last contact
     forces. A substep's right-hand side is base + the frame's constant forces. summed: the frame's
     constant forces `ext` (muscles included) go into base where takes recorded before the muscles'
     responses summed them (`ImplicitStepper.frame`'s summed), so those takes keep their bits.
-    work: (3, springs) scratch of `_pd_springs`; keep: also px, pv = copies of x, v (what
+    runs, si3, sj3: the springs as `spring_layout` lays them out; work: (3, springs) scratch of
+    `_pd_springs`; f_*: the fold guard's triangles (`sim.antifold._fold_forces`: f_t3 = 3 x
+    f_tri as uint32, f_dets its (T,) scratch); keep: also px, pv = copies of x, v (what
     `ImplicitStepper.predict` remembers, made in the same pass over them)."""
     n = x.shape[0]
     for i in range(n):
@@ -203,8 +257,8 @@ def _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2
             if keep:
                 px[i, d] = xi
                 pv[i, d] = vi
-    _pd_springs(y, springs, rest_len, k_low, k_high, thr, base, work)
-    _fold_forces(y, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, base)
+    _pd_springs(y, runs, si3, sj3, rest_len, k_low, kls, k_high, thr, base, work)
+    _fold_forces(y, f_t3, f_tri, f_frame, f_dm_inv, f_area, f_k, f_floor, base, f_dets)
     for i in range(n):  # the support k_n n n^T: k_n (y - n (n . y)) on the right
         ny = (normal[i, 0] * y[i, 0] + normal[i, 2] * y[i, 2]) + normal[i, 1] * y[i, 1]
         k = kn[i]
@@ -214,29 +268,48 @@ def _predict(x, v, h, springs, rest_len, k_low, k_high, thr, normal, kn, mass_h2
 
 
 @numba.njit(cache=True, nogil=True)
-def _held_rhs(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, xh, held_term, ys, summed):  # type: ignore[no-untyped-def]
+def _held_rhs(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, xh, ys, summed):  # type: ignore[no-untyped-def]
     """ys = base + ext minus the held nodes' coupling (they do not move within a frame), in the
     factors' row order: the right-hand side of the prefactored solve (`_sn_sweeps` then solves it
-    in place, a kernel of its own: compiled inside this one its loops ran 20 % slower)."""
+    in place, a kernel of its own: compiled inside this one its loops ran 20 % slower). Each free
+    row's coupling is summed as `_csr_times_flat` sums it (from 0, in stored order) where it is
+    used, not kept in an array of its own (the same bits)."""
     for k in range(held.shape[0]):
         i = held[k]
         for d in range(3):
             xh[k, d] = x[i, d]
-    _csr_times_flat(fh_ptr, fh_idx, fh_val, xh.reshape(-1), held_term)
+    xf = xh.reshape(-1)
     for q in range(free.shape[0]):
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        for p in range(fh_ptr[q], fh_ptr[q + 1]):
+            a = fh_val[p]
+            j = fh_idx[p]
+            a0 += a * xf[j]
+            a1 += a * xf[j + 1]
+            a2 += a * xf[j + 2]
         i = free[q]
         r = perm_r[q]
-        for d in range(3):
-            ys[r, d] = base[i, d] - held_term[q, d] if summed else (base[i, d] + ext[i, d]) - held_term[q, d]
+        if summed:
+            ys[r, 0] = base[i, 0] - a0
+            ys[r, 1] = base[i, 1] - a1
+            ys[r, 2] = base[i, 2] - a2
+        else:
+            ys[r, 0] = (base[i, 0] + ext[i, 0]) - a0
+            ys[r, 1] = (base[i, 1] + ext[i, 1]) - a1
+            ys[r, 2] = (base[i, 2] + ext[i, 2]) - a2
 
 
 @numba.njit(cache=True, nogil=True)
 def _same_bits(a, b):  # type: ignore[no-untyped-def]
-    """Whether two int64 arrays (views of float arrays) of the same size hold the very same bits."""
+    """Whether two int64 arrays (views of float arrays) of the same size hold the very same bits:
+    their differences ORed over the whole arrays, a loop the compiler vectorizes (no early exit:
+    they are the same whenever a step uses its prediction; 16 -> 5 us for x or v of the scanned head)."""
+    diff = 0
     for i in range(a.shape[0]):
-        if a[i] != b[i]:
-            return False
-    return True
+        diff |= a[i] ^ b[i]
+    return diff == 0
 
 
 @numba.njit(cache=True, nogil=True)
@@ -341,7 +414,7 @@ def _inputs(resp, act, act_val, jaw_resp, jaw_slope, jaw_from, jaw_to, du):  # t
 @numba.njit(cache=True, nogil=True)
 def _advance(x, v, h, ys, du, muscles, free, perm_c, xf_old, c_idx, c_w, c_sg, c_dim, c_opp, c_row_ptr, c_row_v,  # type: ignore[no-untyped-def]
              c_lam, c_loc, c_green, c_gptr, c_gvert, c_gval, c_work, c_cand, c_schur, c_df, rounds, sweeps,
-             eye_idx, eye_of, centres, radius):
+             eye_idx, eye_of, centres, radius, target, dev):
     """The end of a substep in place on x, v (ImplicitStepper.frame; the module docstring): x' =
     the solve ys (in the factors' order: perm_c reads it back) plus the inputs' du (`_inputs`,
     when `muscles`), the lid and lip contact (sim.margin_contact.SolvedContact), v = (x' - x) / h
@@ -365,6 +438,24 @@ def _advance(x, v, h, ys, du, muscles, free, perm_c, xf_old, c_idx, c_w, c_sg, c
         for d in range(3):
             v[i, d] = (x[i, d] - xf_old[q, d]) * inv_h
     _eye_contact(x, v, eye_idx, eye_of, centres, radius)
+    if dev.shape[0]:  # the guard's measure on the free nodes (`ImplicitStepper.frame`'s check)
+        dev[0] = _free_deviation(x, free, target)
+
+
+@numba.njit(cache=True, nogil=True)
+def _free_deviation(x, free, target):  # type: ignore[no-untyped-def]
+    """max |x - target| over the free nodes' coordinates, or -1 if one is not finite
+    (`sim.integrator._max_deviation` over those rows)."""
+    worst = 0.0
+    for q in range(free.shape[0]):
+        i = free[q]
+        for d in range(3):
+            if not math.isfinite(x[i, d]):
+                return -1.0
+            e = abs(x[i, d] - target[i, d])
+            if e > worst:
+                worst = e
+    return worst
 
 
 def warm_up() -> None:
@@ -393,6 +484,8 @@ def warm_up() -> None:
     stepper._setup(x, prep)
     _csr_times_flat(*_flat_csr(*_sparse("w", sp.csr_matrix(np.ones((3, 3)))).values()), x.reshape(-1), np.zeros((3, 3)))
     _bend_turned(np.zeros((3, 3)), np.zeros((3, 3)), np.zeros(3), np.eye(3), np.zeros(3), np.zeros((3, 3)))
+    _bend_turned_add(np.zeros((3, 3)), np.zeros((3, 3)), np.zeros(3), np.eye(3), np.zeros(3), np.zeros((3, 3)),
+                     np.zeros((3, 3)), np.zeros((3, 3)))
     eyes = (np.array([1], dtype=np.int64), np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 5.0]]), 1.0)
     v, spring_arrays = np.zeros_like(x), (springs, np.ones(2), np.ones(2), np.ones(2), 0.1)
     stepper.predict(x, v, np.zeros_like(x), spring_arrays, np.zeros_like(x), None, "warm-up")  # between ticks
@@ -510,8 +603,9 @@ class ImplicitStepper:
         self._fh = _flat_csr(prep["fh_ptr"], prep["fh_idx"], prep["fh_val"])
         self._bend = (prep["bend_ptr"], prep["bend_idx"], prep["bend_val"])
         self._bend_flat = _flat_csr(*self._bend)
-        self._folds = (prep["fold_tri"], prep["fold_frame"], prep["fold_dm_inv"], prep["fold_area"], prep["fold_k"],
-                       float(prep["fold_floor"]))
+        tri = prep["fold_tri"]  # (the flat indices and the dets' scratch: `sim.antifold._fold_forces`)
+        self._folds = (np.ascontiguousarray(3 * tri, dtype=np.uint32), tri, prep["fold_frame"], prep["fold_dm_inv"],
+                       prep["fold_area"], prep["fold_k"], float(prep["fold_floor"]), np.zeros(len(tri)))
         self.solver = PrefactoredSolver(arrays={k: prep["lu_" + k] for k in PrefactoredSolver.KEYS})
         #: a substep's solve from the symmetric factor alone (`sim.supernodal._sym_sweeps`: L and D,
         #: U's values left unread); False: from L and U (`_sn_sweeps`), as takes recorded before
@@ -531,15 +625,21 @@ class ImplicitStepper:
         self._bend_rhs = np.zeros((n, 3))
         self._ext = np.zeros((n, 3))
         nf, nh = len(self.free), len(self.held)
-        self._buf = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((nh, 3)), np.zeros((nf, 3)),
-                     np.zeros((nf, 3)), np.zeros((nf, 3)), np.zeros((nf, 3)))
+        # y, base, the held nodes' x, the solve's ys, the free nodes' x before a substep, du
+        self._buf = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((nh, 3)), np.zeros((nf, 3)), np.zeros((nf, 3)),
+                     np.zeros((nf, 3)))
         self._springs_scratch = np.zeros((3, 0))
+        self._layout_of: np.ndarray | None = None  # the springs array `_spring_runs` was laid out from
+        self._spring_runs = spring_layout(np.zeros((0, 2), dtype=np.int64))
         self._resp = prep["resp"]  # each muscle channel's response (`muscle_responses`)
         #: the jaw's responses at evenly spaced openings (`jaw_response`), set by the Simulator
         self.jaw_resp = np.zeros((0, nf, 3))
         #: and the slope of the normal support's response to the opening there (`frame`'s jaw)
         self.jaw_slope = np.zeros((0, nf, 3))
         self._no_act = (np.zeros(0, dtype=np.int64), np.zeros(0))
+        self._dev, self._no_dev = np.zeros(1), np.zeros(0)  # `frame`'s check
+        #: the last `frame`'s max |x - check| over the free nodes (-1: not finite), None without a check
+        self.last_deviation: float | None = None
         self._no_jaw = np.zeros((0, nf, 3))
         # what the last `predict` was made from: its key, x, v and the contact's memory
         self._predicted: object = None
@@ -548,6 +648,9 @@ class ImplicitStepper:
         c = self._contact
         self._px, self._pv = np.zeros((n, 3)), np.zeros((n, 3))
         self._plam, self._pw, self._pidx = np.zeros_like(c.lam), np.zeros_like(c.w), np.zeros_like(c.idx)
+        bits = np.int64  # their bits as `_unchanged` compares them (views: they follow the copies)
+        self._kept_bits = (self._px.reshape(-1).view(bits), self._pv.reshape(-1).view(bits), self._plam.view(bits),
+                           self._pw.view(bits), self._pidx)
 
     def turn_basis(self, weight: np.ndarray, pivot: np.ndarray) -> None:
         """Make the products that give the margin bending's rest side for any turn of the jaw
@@ -575,6 +678,9 @@ class ImplicitStepper:
         if shape is not self._shape:
             self._shape = shape
             if isinstance(shape, JawTurn):
+                if ext.shape == self._ext.shape and ext.dtype == np.float64 and ext.flags.c_contiguous:
+                    _bend_turned_add(*self._turn_b, shape.rot, shape.slide, ext, self._bend_rhs, self._ext)
+                    return self._ext
                 _bend_turned(*self._turn_b, shape.rot, shape.slide, self._bend_rhs)
             else:
                 _csr_times_flat(*self._bend_flat, np.ascontiguousarray(shape, dtype=np.float64).reshape(-1),
@@ -597,6 +703,13 @@ class ImplicitStepper:
         _remember(c.lam, c.w, c.idx, self._plam, self._pw, self._pidx)
         self._predicted = key
 
+    def _layout(self, springs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`spring_layout` of the springs array given, made once for it (the Simulator passes the same array)."""
+        if self._layout_of is not springs:
+            self._spring_runs = spring_layout(springs)
+            self._layout_of = springs
+        return self._spring_runs
+
     def _spring_work(self, springs: int) -> np.ndarray:
         """The (3, springs) scratch of the springs' local step (`_pd_springs`), made once."""
         if self._springs_scratch.shape[1] != springs:
@@ -608,13 +721,14 @@ class ImplicitStepper:
         """ys = the solve of a substep's right-hand side without the inputs' responses: `_predict`,
         the held nodes' coupling (`_held_rhs`) and the prefactored solve (three kernels); keep:
         x and v are copied for `_is_predicted` on the way."""
-        idx, rest_len, k_low, k_high, thr = springs
+        idx, rest_len, k_low, k_high, thr = springs[:5]
+        kls = float(springs[5]) if len(springs) > 5 else 1.0  # k_low's scale (the skin's age)
         c = self._contact
-        y, base, xh, held_term, ys = self._buf[:5]
-        _predict(x, v, self.h, idx, rest_len, k_low, k_high, thr, normal, self.kn, self.mass_h2, self.damp_h,
+        y, base, xh, ys = self._buf[:4]
+        _predict(x, v, self.h, *self._layout(idx), rest_len, k_low, kls, k_high, thr, normal, self.kn, self.mass_h2, self.damp_h,
                  c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base, ext, summed,
                  self._spring_work(len(idx)), self._px, self._pv, keep)
-        _held_rhs(x, self.held, *self._fh, base, ext, self.free, self.solver.perm_r, xh, held_term, ys, summed)
+        _held_rhs(x, self.held, *self._fh, base, ext, self.free, self.solver.perm_r, xh, ys, summed)
         if self.symmetric_solve:
             _sym_sweeps(ys, *self.solver.sym_factors, self.solver.work)
         else:
@@ -649,16 +763,15 @@ class ImplicitStepper:
             return False
         bits = np.int64
         return bool(_unchanged(x.reshape(-1).view(bits), v.reshape(-1).view(bits), c.lam.view(bits), c.w.view(bits), c.idx,
-                               self._px.reshape(-1).view(bits), self._pv.reshape(-1).view(bits), self._plam.view(bits),
-                               self._pw.view(bits), self._pidx))
+                               *self._kept_bits))
 
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
               normal: np.ndarray, eyes: tuple, shape: np.ndarray | JawTurn | None = None,  # type: ignore[type-arg]
               key: object = None, active: tuple[np.ndarray, np.ndarray] | None = None, summed: bool = False,
-              jaw: tuple[float, float] | None = None) -> None:
+              jaw: tuple[float, float] | None = None, check: np.ndarray | None = None) -> None:
         """n_sub substeps in place. ext: the frame-constant forces (gravity, the target terms of the
         tether and of the normal support, and muscles not given by `active`); springs: (indices,
-        rest lengths, k_low, k_high, threshold) as the kernel takes them; normal (N,3): the
+        rest lengths, k_low, k_high, threshold[, a scale of k_low, 1 if left out]) as the kernel takes them; normal (N,3): the
         support's normals this frame. The support k_n n n^T enters like a spring: k_n I in the
         matrix, k_n (y - n (n . y)) on the right. eyes: (vertices, their eye, eye centres, radius)
         of the eyeball contact applied after each substep; shape (N,3): the rest shape of the margin
@@ -668,7 +781,9 @@ class ImplicitStepper:
         the step before the responses, for the takes recorded with it (no prediction, no `active`);
         jaw: (from, to) openings: ext, shape, normal and the held nodes are the jaw's pose at `from`,
         and the difference of the jaw's responses (`jaw_resp`, `jaw_response`) and the support's
-        slope (`jaw_slope`) move it to `to`."""
+        slope (`jaw_slope`) move it to `to`. check: a target (N,3) to measure the free nodes
+        against after the last substep, max |x - target| (or -1: a coordinate not finite) into
+        `last_deviation` for the caller's guard (measured while x is in the caches)."""
         predicted = key is not None and not summed and self._is_predicted(x, v, key)
         self._predicted = None  # a prediction serves one frame
         self.last_predicted = predicted
@@ -676,13 +791,17 @@ class ImplicitStepper:
             ext = self._with_bending(ext, shape)
         act, act_val = self._no_act if active is None else active
         c = self._contact
-        du = self._buf[6]
+        du = self._buf[5]
         jaw_resp, jaw_slope = (self.jaw_resp, self.jaw_slope) if jaw is not None else (self._no_jaw, self._no_jaw)
         jaw_from, jaw_to = jaw if jaw is not None else (0.0, 0.0)
         muscles = _inputs(self._resp, act, act_val, jaw_resp, jaw_slope, jaw_from, jaw_to, du)
+        self.last_deviation = None
         for sub in range(n_sub):
             if sub > 0 or not predicted:
                 self._solve_free(x, v, ext, springs, normal, summed)
-            _advance(x, v, self.h, self._buf[4], du, muscles, self.free, self.solver.perm_c, self._buf[5], c.idx, c.w,
+            last = check is not None and sub == n_sub - 1
+            _advance(x, v, self.h, self._buf[3], du, muscles, self.free, self.solver.perm_c, self._buf[4], c.idx, c.w,
                      c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam, c.loc, c.green, c.gptr, c.gvert, c.gval, c._work,
-                     c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes)
+                     c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes, check if last else x, self._dev if last else self._no_dev)
+        if check is not None and n_sub > 0:
+            self.last_deviation = float(self._dev[0])

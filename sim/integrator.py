@@ -150,6 +150,23 @@ def _max_deviation(x, target):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(**KERNEL)
+def _held_deviation(x, held, target, worst):  # type: ignore[no-untyped-def]
+    """`_max_deviation` given `worst`, the free nodes' (sim.implicit._free_deviation, -1: not finite),
+    completed over the held ones: the same answer as over all rows when they are the two parts."""
+    if worst < 0.0:
+        return -1.0
+    for k in range(held.shape[0]):
+        i = held[k]
+        for d in range(3):
+            if not math.isfinite(x[i, d]):
+                return -1.0
+            dev = abs(x[i, d] - target[i, d])
+            if dev > worst:
+                worst = dev
+    return worst
+
+
+@numba.njit(**KERNEL)
 def _hold(x, v, held, target):  # type: ignore[no-untyped-def]
     """The held nodes on their targets, at rest (x[held] = target[held], v[held] = 0, without
     numpy's gathered copy)."""
@@ -232,6 +249,13 @@ def warm_up(implicit: bool = True) -> None:
     _constant_forces(np.zeros(4, dtype=np.int32), np.zeros(0, dtype=np.int32), np.zeros(0), np.zeros(1),
                      np.ones(1, dtype=np.bool_), frozen, np.ones(1), x1, np.ones(1), x1, np.zeros((1, 3)))
     _fixed_forces(frozen, np.ones(1), x1, np.ones(1), x1, np.zeros((1, 3)))
+    by_coordinate, turned, tmp = np.zeros((3, 1)), np.zeros((1, 3)), np.zeros((10, 1))
+    for rows in (np.zeros((0, 3)), np.zeros((1, 3))):  # (the rest shape turned or not)
+        _jaw_pose(by_coordinate, by_coordinate, np.ones((3, 1)), np.zeros(3), np.ones(1), np.eye(3), np.zeros(3),
+                  turned, rows, np.zeros((1, 3)), tmp, frozen, np.ones(1), np.ones(1), rows)
+    _place(np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)))
+    _held_deviation(np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)), 0.0)
+    _active(np.ones(1), np.ones(1, dtype=np.bool_), np.zeros(1, dtype=np.int64), np.zeros(1))
     _max_deviation(x1, x1)
     _hold(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)))
     _eye_contact(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64),
@@ -323,22 +347,40 @@ def jaw_motion(model: FaceModel, jaw: float, forward: float = 0.0,
     return rot, slide
 
 
-@numba.njit(cache=True, nogil=True)
-def _turn_with_jaw(rest, offset, pivot, weight, rot, slide, target, shape, tmp):  # type: ignore[no-untyped-def]
-    """Eq 9's target (and, when `shape` has rows, the rest shape) turned with the jaw, with the
-    operations in the order of the numpy expressions they replace (the same bits):
+@numba.njit(**KERNEL)
+def _fixed_forces(weight, kr, target, kn, nrm, out):  # type: ignore[no-untyped-def]
+    """`_constant_forces` with no muscle (the implicit step's, whose muscles enter as responses),
+    each value by the same operations (the same bits) without the muscle matrix's empty rows:
+    40 -> 15 us on the scanned head, remade at each new jaw pose."""
+    for i in range(out.shape[0]):
+        support = kn[i] * (nrm[i, 0] * target[i, 0] + nrm[i, 1] * target[i, 1] + nrm[i, 2] * target[i, 2])
+        for d in range(3):
+            acc = 0.0
+            out[i, d] = acc + weight[i, d] + kr[i] * target[i, d] + support * nrm[i, d]
+
+
+@numba.njit(**KERNEL)
+def _jaw_pose(rest, offset, normal3, pivot, weight, rot, slide, target, shape, normal, tmp, w3, kr, kn, fixed):  # type: ignore[no-untyped-def]
+    """A new jaw pose's constants in one call: eq 9's target (and the rest shape when `shape` has
+    rows), the support normals and, when `fixed` has rows, the implicit step's constant forces
+    without muscles (each value by `_fixed_forces`' operations). The turn of the rest shape and of
+    the normals, in the order of the numpy expressions they replaced (the same bits):
     turned = (rest - pivot) @ rot.T + pivot; base = rest + offset;
-    target = base + w ((turned + offset @ rot.T) + slide - base); shape = rest + w ((turned + slide) - rest).
-    rest, offset (3, N): by coordinate (`Simulator._by_coordinate`), so the pass over the vertices
-    is vector code, into tmp (6, N), then laid out in rows: 43 -> 20 us on the scanned head, where
-    a moving jaw recomputes this every tick."""
+    target = base + w ((turned + offset @ rot.T) + slide - base); shape = rest + w ((turned + slide) - rest);
+    normal = the unit rows of n + w (n @ rot.T - n) (squares summed left to right, as numpy's
+    reduction over a row of three). rest, offset, normal3 (3, N): by coordinate
+    (`Simulator._by_coordinate`), so the passes over the vertices, square roots and divisions
+    included, are vector code, into tmp (10, N); then one pass over the rows lays out the target,
+    the shape and the normals and makes the constant forces from them (four passes over the rows
+    before: 49 -> 45 us alone on the scanned head, where a moving jaw makes them every tick). A
+    normal turned to zero length raises ZeroDivisionError."""
     n = rest.shape[1]
     r00, r01, r02 = rot[0, 0], rot[0, 1], rot[0, 2]
     r10, r11, r12 = rot[1, 0], rot[1, 1], rot[1, 2]
     r20, r21, r22 = rot[2, 0], rot[2, 1], rot[2, 2]
     p0, p1, p2 = pivot[0], pivot[1], pivot[2]
     s0, s1, s2 = slide[0], slide[1], slide[2]
-    for i in range(n):
+    for i in range(n):  # the target and the shape
         w = weight[i]
         x0, x1, x2 = rest[0, i], rest[1, i], rest[2, i]
         o0, o1, o2 = offset[0, i], offset[1, i], offset[2, i]
@@ -356,55 +398,63 @@ def _turn_with_jaw(rest, offset, pivot, weight, rot, slide, target, shape, tmp):
         tmp[3, i] = x0 + w * (u0 + s0 - x0)
         tmp[4, i] = x1 + w * (u1 + s1 - x1)
         tmp[5, i] = x2 + w * (u2 + s2 - x2)
-    with_shape = shape.shape[0] > 0
-    for i in range(n):
-        for j in range(3):
-            target[i, j] = tmp[j, i]
-            if with_shape:
-                shape[i, j] = tmp[3 + j, i]
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _turn_normals(normal, weight, rot, out, tmp):  # type: ignore[no-untyped-def]
-    """out = the unit rows of normal + w (normal @ rot.T - normal), in the order of the numpy
-    expressions `n / np.linalg.norm(n, axis=1)[:, None]` they replace (the squares summed left to
-    right, as numpy's reduction over a row of three does), so the same bits; a moving jaw turns the
-    support normals every tick (the normalisation alone took 0.13 ms in numpy on the scanned head).
-    normal (3, N): by coordinate (`Simulator._by_coordinate`), so the pass over the vertices, square
-    roots and divisions included, is vector code, into tmp (4, N), then laid out in rows: 40 -> 15
-    us there. A normal turned to zero length raises ZeroDivisionError."""
-    n = normal.shape[1]
-    r00, r01, r02 = rot[0, 0], rot[0, 1], rot[0, 2]
-    r10, r11, r12 = rot[1, 0], rot[1, 1], rot[1, 2]
-    r20, r21, r22 = rot[2, 0], rot[2, 1], rot[2, 2]
-    for i in range(n):
+    for i in range(n):  # the normals
         w = weight[i]
-        n0, n1, n2 = normal[0, i], normal[1, i], normal[2, i]
+        n0, n1, n2 = normal3[0, i], normal3[1, i], normal3[2, i]
         t0 = n0 + w * (n0 * r00 + n1 * r01 + n2 * r02 - n0)
         t1 = n1 + w * (n0 * r10 + n1 * r11 + n2 * r12 - n1)
         t2 = n2 + w * (n0 * r20 + n1 * r21 + n2 * r22 - n2)
         length = math.sqrt((t0 * t0 + t1 * t1) + t2 * t2)
-        tmp[0, i] = t0 / length
-        tmp[1, i] = t1 / length
-        tmp[2, i] = t2 / length
-        tmp[3, i] = length
+        tmp[6, i] = t0 / length
+        tmp[7, i] = t1 / length
+        tmp[8, i] = t2 / length
+        tmp[9, i] = length
+    with_shape = shape.shape[0] > 0
+    with_fixed = fixed.shape[0] > 0
     for i in range(n):
-        if tmp[3, i] == 0.0:
+        if tmp[9, i] == 0.0:
             raise ZeroDivisionError("a support normal turned to zero length")
-        for j in range(3):
-            out[i, j] = tmp[j, i]
+        g0, g1, g2 = tmp[0, i], tmp[1, i], tmp[2, i]
+        m0, m1, m2 = tmp[6, i], tmp[7, i], tmp[8, i]
+        target[i, 0] = g0
+        target[i, 1] = g1
+        target[i, 2] = g2
+        normal[i, 0] = m0
+        normal[i, 1] = m1
+        normal[i, 2] = m2
+        if with_shape:
+            shape[i, 0] = tmp[3, i]
+            shape[i, 1] = tmp[4, i]
+            shape[i, 2] = tmp[5, i]
+        if with_fixed:  # `_fixed_forces`' row
+            support = kn[i] * (m0 * g0 + m1 * g1 + m2 * g2)
+            acc = 0.0
+            k = kr[i]
+            fixed[i, 0] = acc + w3[i, 0] + k * g0 + support * m0
+            fixed[i, 1] = acc + w3[i, 1] + k * g1 + support * m1
+            fixed[i, 2] = acc + w3[i, 2] + k * g2 + support * m2
 
 
 @numba.njit(**KERNEL)
-def _fixed_forces(weight, kr, target, kn, nrm, out):  # type: ignore[no-untyped-def]
-    """`_constant_forces` with no muscle (the implicit step's, whose muscles enter as responses),
-    each value by the same operations (the same bits) without the muscle matrix's empty rows:
-    40 -> 15 us on the scanned head, remade at each new jaw pose."""
-    for i in range(out.shape[0]):
-        support = kn[i] * (nrm[i, 0] * target[i, 0] + nrm[i, 1] * target[i, 1] + nrm[i, 2] * target[i, 2])
+def _place(x, held, target):  # type: ignore[no-untyped-def]
+    """x[held] = target[held] without numpy's gathered copy."""
+    for k in range(held.shape[0]):
+        i = held[k]
         for d in range(3):
-            acc = 0.0
-            out[i, d] = acc + weight[i, d] + kr[i] * target[i, d] + support * nrm[i, d]
+            x[i, d] = target[i, d]
+
+
+@numba.njit(**KERNEL)
+def _active(values, is_muscle, act, val):  # type: ignore[no-untyped-def]
+    """The muscle channels whose value is not 0, in order, into act[:k] and their values into
+    val[:k]; returns k (numpy's flatnonzero and gather of the same, without their four arrays)."""
+    k = 0
+    for c in range(values.shape[0]):
+        if is_muscle[c] and values[c] != 0.0:
+            act[k] = c
+            val[k] = values[c]
+            k += 1
+    return k
 
 
 class JawTurn(NamedTuple):
@@ -430,12 +480,18 @@ def jaw_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     numpy's `np.eye(3) + s * k + c * times3(k, k)` does in its order (the same bits), because a
     moving jaw makes it every tick: 0.05 ms of small numpy operations, 4 us so."""
     a0, a1, a2 = float(axis[0]), float(axis[1]), float(axis[2])
-    k = ((0.0, -a2, a1), (a2, 0.0, -a0), (-a1, a0, 0.0))
+    m0, m1, m2 = -a0, -a1, -a2  # K = ((0, -a2, a1), (a2, 0, -a0), (-a1, a0, 0))
     s = math.sin(angle)
     c = 1.0 - math.cos(angle)
-    return np.array([[((1.0 if i == j else 0.0) + s * k[i][j])
-                      + c * ((k[i][0] * k[0][j] + k[i][1] * k[1][j]) + k[i][2] * k[2][j]) for j in range(3)]
-                     for i in range(3)])
+    # entry (i, j): (I_ij + s K_ij) + c ((K_i0 K_0j + K_i1 K_1j) + K_i2 K_2j), the zeros multiplied
+    # as written (a zero's sign can decide a sum's): written out, 4 us a call less than by loops
+    return np.array((
+        ((1.0 + s * 0.0) + c * ((0.0 * 0.0 + m2 * a2) + a1 * m1), (0.0 + s * m2) + c * ((0.0 * m2 + m2 * 0.0) + a1 * a0),
+         (0.0 + s * a1) + c * ((0.0 * a1 + m2 * m0) + a1 * 0.0)),
+        ((0.0 + s * a2) + c * ((a2 * 0.0 + 0.0 * a2) + m0 * m1), (1.0 + s * 0.0) + c * ((a2 * m2 + 0.0 * 0.0) + m0 * a0),
+         (0.0 + s * m0) + c * ((a2 * a1 + 0.0 * m0) + m0 * 0.0)),
+        ((0.0 + s * m1) + c * ((m1 * 0.0 + a0 * a2) + 0.0 * m1), (0.0 + s * a0) + c * ((m1 * m2 + a0 * 0.0) + 0.0 * a0),
+         (1.0 + s * 0.0) + c * ((m1 * a1 + a0 * m0) + 0.0 * 0.0))))
 
 
 def jaw_slide(model: FaceModel) -> np.ndarray:
@@ -507,10 +563,12 @@ class Simulator:
         self._sj3 = np.ascontiguousarray(3 * self._springs[:, 1], dtype=np.uint32)
         self._work = np.zeros((9, len(self._springs)))
         self._rest_len = np.array(model.spring_rest_length[order], order="C")
-        self._k_low = np.array(model.spring_k_low[order], order="C")
+        self._k_low_now = np.array(model.spring_k_low[order], order="C")  # `_k_low`
         self._k_high = np.array(model.spring_k_high[order], order="C")
         self._k_damp = np.array(model.spring_damping[order], order="C")
-        self._k_low_base = self._k_low.copy()
+        self._k_low_base = self._k_low_now.copy()
+        self._k_low_scale = 1.0  # k_low's scale at the skin's age (`_age_skin`)
+        self._k_low_made = 1.0  # the scale `_k_low_now` was multiplied by
         self._k_high_base = self._k_high.copy()
         self._k_high_scale = 1.0  # the scale of `_k_high` (`_age_skin`)
         self._kr = np.array(model.rest_stiffness, order="C")
@@ -526,6 +584,8 @@ class Simulator:
         self._ext_values: np.ndarray | None = None  # the channel values self._ext was made for
         self._saved_x = np.zeros((n, 3))
         self._held = np.flatnonzero(model.held)
+        # the guard's measure split between the implicit step (the free nodes) and `_held_deviation`
+        self._split_check = self._implicit is not None and len(self._implicit.free) + len(self._held) == n
         self._is_muscle = np.array([s.kind == "muscle" for s in model.channels], dtype=np.bool_)
         self._weight = np.ascontiguousarray(model.weight, dtype=np.float64)
         if self._implicit is not None and self._implicit._resp.shape[0] < len(model.channels):
@@ -565,6 +625,12 @@ class Simulator:
         self._jaw_forward_i = CHANNEL_INDEX["jaw_forward"]
         self._jaw_side_i = CHANNEL_INDEX["jaw_sideways"]
         self._age_i = CHANNEL_INDEX["age"]
+        self._tongue_i = CHANNEL_INDEX["tongue_out"]
+        self._head_i = (CHANNEL_INDEX["head_yaw"], CHANNEL_INDEX["head_pitch"], CHANNEL_INDEX["head_roll"])
+        self._pivot = np.array(model.jaw_pivot, dtype=np.float64)
+        self._no_rows = np.zeros((0, 3))
+        self._act = np.zeros(len(model.channels), dtype=np.int64)  # `_muscles`' active channels
+        self._act_val = np.zeros(len(model.channels))
         #: the implicit step starts from the jaw's opening and the skin's age of the state's last
         #: step, and the jaw's move since enters as the difference of its precomputed responses
         #: (`sim.implicit.ImplicitStepper.jaw_response`): a moved jaw or age needs no whole step at
@@ -579,11 +645,12 @@ class Simulator:
         #: bits). Set before the first step.
         self.bending_turned = True
         self._last_pose: tuple[float, float, float] | None = None  # the last step's jaw pose
-        # the turns' inputs by coordinate (`_turn_with_jaw`, `_turn_normals`: vector code over the vertices)
+        # the turns' inputs by coordinate (`_jaw_pose`: vector code over the vertices)
         self._rest3, self._offset3 = self._by_coordinate(model.rest), self._by_coordinate(model.rest_offset)
         self._normal3 = self._by_coordinate(model.rest_normal)
         self._jaw_weight = np.array(model.jaw_weight, dtype=np.float64)
-        self._turn_tmp = np.zeros((6, n))
+        self._turn_tmp = np.zeros((10, n))  # (`_jaw_pose`'s)
+        self._turned_normal = np.zeros((n, 3))  # the normals `_jaw_turned` makes on the way
         if self._implicit is not None:
             self._implicit.jaw_resp, self._implicit.jaw_slope = _jaw_grid(self)
             self._implicit.turn_basis(self._jaw_weight, np.asarray(model.jaw_pivot, dtype=np.float64))
@@ -619,51 +686,68 @@ class Simulator:
         target, shape, _ = self._jaw_turned((jaw, forward, sideways), shape=not offset)
         return target if offset else shape  # type: ignore[return-value]
 
-    def _jaw_turned(self, pose: tuple[float, float, float],
-                    shape: bool) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    def _jaw_turned(self, pose: tuple[float, float, float], shape: bool,
+                    normals: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """(eq 9's target, the rest shape turned with the jaw or None unless `shape`, the jaw's
         rotation or None at rest) for the jaw pose (open, forward, sideways): the mandible's turn
-        and slide computed once for all three (`jaw_motion`)."""
+        and slide computed once for all three (`jaw_motion`); away from rest the support normals
+        turned with it into `normals` (N,3) when given (`_jaw_pose`)."""
         m = self.model
         if pose == (0.0, 0.0, 0.0):
             return np.array(m.rest + m.rest_offset), (np.array(m.rest) if shape else None), None
         rot, slide = self._jaw_motion(pose)
         target = np.empty_like(m.rest)
-        turned_shape = np.empty_like(m.rest) if shape else np.empty((0, 3))
-        _turn_with_jaw(self._rest3, self._offset3, np.asarray(m.jaw_pivot, dtype=np.float64), self._jaw_weight,
-                       np.ascontiguousarray(rot, dtype=np.float64), np.asarray(slide, dtype=np.float64),
-                       target, turned_shape, self._turn_tmp)
+        turned_shape = np.empty_like(m.rest) if shape else self._no_rows
+        _jaw_pose(self._rest3, self._offset3, self._normal3, self._pivot, self._jaw_weight, rot, slide, target,
+                  turned_shape, self._turned_normal if normals is None else normals, self._turn_tmp, self._weight,
+                  self._kr, self._kn, self._no_rows)
         return target, (turned_shape if shape else None), rot
 
     def _jaw_motion(self, pose: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
         """`jaw_motion` at `pose`, kept for the last pose asked: a moving jaw's step places the held
         nodes at the pose the next step starts from, whose constants `prepare` then makes (the
-        same arrays; 0.07 ms of small numpy operations each, on the scanned head)."""
+        same arrays; 0.07 ms of small numpy operations each, on the scanned head), as contiguous
+        float64 arrays (the kernels' one signature)."""
         if pose != self._motion_pose:
-            self._motion = jaw_motion(self.model, *pose, slide_one=self._slide_one)
+            rot, slide = jaw_motion(self.model, *pose, slide_one=self._slide_one)
+            self._motion = (np.ascontiguousarray(rot, dtype=np.float64), np.ascontiguousarray(slide, dtype=np.float64))
             self._motion_pose = pose
         return self._motion
 
     def _set_jaw(self, pose: tuple[float, float, float]) -> None:
         """The jaw-dependent frame constants: eq 9's target (`rest_target`) and the support normals
         n_i (the rest normals turned with the jaw like the target), recomputed only when the jaw
-        moves; for the implicit integrator also the reference of its margin bending term (`sim.implicit`)."""
+        moves; for the implicit integrator also the reference of its margin bending term (`sim.implicit`)
+        and, where its muscles enter as responses, its constant forces (`_constants`), all from one
+        kernel (`_jaw_pose`) away from rest."""
         if pose == self._jaw:
             return
         m = self.model
-        turned = self._implicit is not None and self.bending_turned
-        self._target, shape, rot = self._jaw_turned(pose, shape=self._implicit is not None and not turned)
-        if turned:  # (at rest the product with the rest shape: the bits of a take without the jaw stay)
-            self._shape = self._rest_shape if rot is None else JawTurn(
-                np.ascontiguousarray(rot, dtype=np.float64), np.ascontiguousarray(self._jaw_motion(pose)[1], dtype=np.float64))
-        elif shape is not None:
-            self._shape = shape
-        if rot is None:
+        implicit = self._implicit is not None
+        turned = implicit and self.bending_turned
+        if pose == (0.0, 0.0, 0.0):
+            self._target, shape, _ = self._jaw_turned(pose, shape=implicit and not turned)
+            if turned:  # (at rest the product with the rest shape: the bits of a take without the jaw stay)
+                self._shape = self._rest_shape
+            elif shape is not None:
+                self._shape = shape
             self._normal[...] = m.rest_normal
-        else:
-            _turn_normals(self._normal3, self._jaw_weight, np.ascontiguousarray(rot, dtype=np.float64), self._normal,
-                          self._turn_tmp)
+            self._jaw = pose
+            return
+        rot, slide = self._jaw_motion(pose)
+        target = np.empty_like(m.rest)
+        shape = np.empty_like(m.rest) if implicit and not turned else self._no_rows
+        fixed = self._ext_const if implicit and not self.muscles_summed else self._no_rows
+        _jaw_pose(self._rest3, self._offset3, self._normal3, self._pivot, self._jaw_weight, rot, slide, target, shape,
+                  self._normal, self._turn_tmp, self._weight, self._kr, self._kn, fixed)
+        self._target = target
+        if turned:
+            self._shape = JawTurn(rot, slide)
+        elif implicit:
+            self._shape = shape
         self._jaw = pose
+        if len(fixed):
+            self._const_jaw = pose
 
     def external_forces(self, control: FaceControl) -> np.ndarray:
         """Every force term that does not depend on x or v within a frame, (N,3) dyn (a buffer the
@@ -685,7 +769,8 @@ class Simulator:
         """The gaze (yaw, pitch, vergence) the lids are pulled by this frame (zeros unless they
         follow it)."""
         if self.lids_follow_gaze and len(self._gaze_lids[0]):
-            self._gaze = tuple(min(1.0, max(-1.0, float(v[i]))) for i in (self._yaw_i, self._pitch_i, self._verge_i))  # type: ignore[assignment]
+            self._gaze = (min(1.0, max(-1.0, float(v[self._yaw_i]))), min(1.0, max(-1.0, float(v[self._pitch_i]))),
+                          min(1.0, max(-1.0, float(v[self._verge_i]))))
         else:
             self._gaze = (0.0, 0.0, 0.0)
         return self._gaze
@@ -703,8 +788,12 @@ class Simulator:
         """The active muscle channels with their activations (their forces enter the implicit step
         as responses, `sim.implicit.muscle_responses`)."""
         v = control.values
-        act = np.flatnonzero(self._is_muscle & (v != 0.0))
-        val = np.ascontiguousarray(v[act], dtype=np.float64)
+        if v.shape == self._is_muscle.shape and v.dtype == np.float64 and v.flags.c_contiguous:
+            k = _active(v, self._is_muscle, self._act, self._act_val)
+            act, val = self._act[:k], self._act_val[:k]  # (rewritten by the next call)
+        else:
+            act = np.flatnonzero(self._is_muscle & (v != 0.0))
+            val = np.ascontiguousarray(v[act], dtype=np.float64)
         gaze = self._set_gaze(v)
         if gaze != (0.0, 0.0, 0.0):  # the lids' pull by the turned eyes, as responses after the muscles'
             coef = basis_coefficients(*gaze)
@@ -727,7 +816,7 @@ class Simulator:
         (each row of the target is the same bits whichever rows are turned, so the held nodes'
         rows turned alone gave these very values; this spares that second turn, 0.04 ms a tick)."""
         self._set_jaw(pose)
-        x[self._held] = self._target[self._held]
+        _place(x, self._held, self._target)
 
     # -- stepping
 
@@ -758,19 +847,23 @@ class Simulator:
         else:
             if self._implicit.margins is not None:  # the contact's memory is part of the state (a checkpoint's too)
                 self._implicit.margins.recall(state.contact)
-            self._implicit.frame(x, v, self.substeps, ext, (self._springs, self._rest_len, self._k_low,
-                                                            self._k_high, self._threshold), self._normal,
+            checked = self._target  # the guard measures the step against the pose it started from
+            self._implicit.frame(x, v, self.substeps, ext, self._spring_constants(), self._normal,
                                  self._eyes, self._shape, key=(self._jaw, self._skin_age), active=active,
-                                 summed=summed, jaw=None if start == pose else (start[0], pose[0]))
+                                 summed=summed, jaw=None if start == pose else (start[0], pose[0]),
+                                 check=checked if self._split_check else None)
             # a jaw or an age still moving will likely move again: `prepare` would be wasted then
             # (unless the step starts from the state's pose, `jaw_responses`)
             self._moving = (self._jaw, self._skin_age) != self._last_key
             self._last_key = (self._jaw, self._skin_age)
             self._last_pose = pose
             if start != pose:  # the held nodes follow the jaw to where the step moved it
-                checked = self._target  # (the guard checks the step against the pose it started from)
                 self._place_held(x, pose)
-        reason = self._check(x, checked)
+        if (checked is not None and self._implicit is not None
+                and self._implicit.last_deviation is not None):  # (the free nodes measured in the step)
+            reason = self._judge(_held_deviation(x, self._held, checked, self._implicit.last_deviation))
+        else:
+            reason = self._check(x, checked)
         if reason:
             x[...] = self._saved_x
             v[...] = 0.0
@@ -781,15 +874,15 @@ class Simulator:
             state.contact = self._implicit.margins.memory()
         state.time += self.frame_dt
         values = control.values
-        state.eye_yaw = float(values[CHANNEL_INDEX["eyes_yaw"]])
-        state.eye_pitch = float(values[CHANNEL_INDEX["eyes_pitch"]])
+        state.eye_yaw = float(values[self._yaw_i])
+        state.eye_pitch = float(values[self._pitch_i])
         state.eye_vergence = float(values[self._verge_i])
-        state.jaw = float(values[CHANNEL_INDEX["jaw"]])
-        state.tongue_out = float(values[CHANNEL_INDEX["tongue_out"]])
-        state.age = float(values[CHANNEL_INDEX["age"]])
-        state.head_yaw = float(values[CHANNEL_INDEX["head_yaw"]])
-        state.head_pitch = float(values[CHANNEL_INDEX["head_pitch"]])
-        state.head_roll = float(values[CHANNEL_INDEX["head_roll"]])
+        state.jaw = float(values[self._jaw_i])
+        state.tongue_out = float(values[self._tongue_i])
+        state.age = float(values[self._age_i])
+        state.head_yaw = float(values[self._head_i[0]])
+        state.head_pitch = float(values[self._head_i[1]])
+        state.head_roll = float(values[self._head_i[2]])
         if surface:
             self._surface(state)
         return state
@@ -813,12 +906,26 @@ class Simulator:
         if self._implicit.margins is not None:
             self._implicit.margins.recall(state.contact)
         self._implicit.predict(state.positions, state.velocities, self._ext_const,
-                               (self._springs, self._rest_len, self._k_low, self._k_high, self._threshold),
+                               self._spring_constants(),
                                self._normal, self._shape, (self._jaw, self._skin_age))
 
     def surface(self, state: FaceState) -> None:
         """Fill state.surface for the positions of the last step (see `step`'s surface=False)."""
         self._surface(state)
+
+    @property
+    def _k_low(self) -> np.ndarray:
+        """The springs' k_low at the skin's age: k_low_base times its scale (`_age_skin`),
+        multiplied when the scale has changed since it was last asked."""
+        if self._k_low_made != self._k_low_scale:
+            np.multiply(self._k_low_base, self._k_low_scale, out=self._k_low_now)
+            self._k_low_made = self._k_low_scale
+        return self._k_low_now
+
+    def _spring_constants(self) -> tuple:  # type: ignore[type-arg]
+        """The springs as the implicit step takes them: (indices, rest lengths, k_low at the young
+        skin, k_high, the strain threshold, k_low's scale at the skin's age)."""
+        return (self._springs, self._rest_len, self._k_low_base, self._k_high, self._threshold, self._k_low_scale)
 
     def _age_skin(self, age: float) -> None:
         """Aged skin is softer at low strain and stiffens later (seed 003 section 2; the law is
@@ -829,7 +936,8 @@ class Simulator:
         from sim.wrinkles.aging import skin_params_for_age
 
         skin = skin_params_for_age(age, float(self.model.strain_threshold))
-        np.multiply(self._k_low_base, skin.k_low_scale, out=self._k_low)
+        self._k_low_scale = skin.k_low_scale  # (multiplied when `_k_low` is asked; the implicit step's kernel
+        # multiplies each spring's as it reads it: the same products, 35k values a tick written less)
         high = min(skin.k_high_scale, 1.0)
         if high != self._k_high_scale:  # (the age law leaves k_h alone: skipped while the age moves)
             np.multiply(self._k_high_base, high, out=self._k_high)
@@ -848,7 +956,10 @@ class Simulator:
             state.surface[...] = state.positions
 
     def _check(self, x: np.ndarray, target: np.ndarray | None = None) -> str:
-        dev = _max_deviation(x, self._target if target is None else target)
+        return self._judge(_max_deviation(x, self._target if target is None else target))
+
+    def _judge(self, dev: float) -> str:
+        """The guard's verdict on the largest distance from the target (-1: not finite)."""
         if dev < 0.0:
             return "non-finite positions"
         if dev > self._bound:
@@ -921,8 +1032,9 @@ def _jaw_grid(s: Simulator) -> tuple[np.ndarray, np.ndarray]:
     # the origin); what is left is the target's move along the normals, the slope below
     no_support = np.zeros_like(s._kn)
     slope = np.zeros_like(grid)
+    turned_normal = np.zeros_like(normal)
     for k in range(JAW_GRID + 1):
-        target, shape, rot = s._jaw_turned((k / JAW_GRID, 0.0, 0.0), shape=True)
+        target, shape, rot = s._jaw_turned((k / JAW_GRID, 0.0, 0.0), shape=True, normals=turned_normal)
         _constant_forces(none, mm.indices, mm.data, np.zeros(len(s._is_muscle)), s._is_muscle, no_weight,
                          s._kr, target, no_support, normal, ext)
         edge = target[held_end]
@@ -936,7 +1048,7 @@ def _jaw_grid(s: Simulator) -> tuple[np.ndarray, np.ndarray]:
         if rot is None:
             normal[...] = m.rest_normal
         else:
-            _turn_normals(s._normal3, s._jaw_weight, np.ascontiguousarray(rot, dtype=np.float64), normal, s._turn_tmp)
+            normal[...] = turned_normal  # (made with the pose's target: `_jaw_pose`)
         along = s._kn * np.einsum("ij,ij->i", normal, tangent)
         stepper.jaw_response(along[:, None] * normal, None, None, slope[k])
     if len(_JAW_MEMO) >= 2:

@@ -83,3 +83,38 @@ def test_the_forehead_bends_as_its_bound_layer_and_nothing_else_changes() -> Non
     shift = np.ones(len(w0))
     assert np.abs(b @ shift).max() < 1e-9 * abs(b).max()
     assert replace(SkinParams(), forehead_bending=1.0) == SkinParams()
+
+
+def test_the_guard_in_two_passes_has_the_bits_of_one_pass() -> None:
+    """The guard's kernel (every triangle's determinant first, then the term of those that act:
+    `_fold_forces`) adds the very bits of the term taken triangle by triangle in one pass (as the
+    kernel was written before), counts the same triangles, and treats a triangle whose determinant
+    is not a number as acting."""
+    import numba
+
+    from sim.antifold import _fold_at, _fold_forces
+
+    @numba.njit
+    def one_pass(y, tri, frame, dm_inv, area, k, floor, out):  # type: ignore[no-untyped-def]
+        acting = 0
+        for t in range(tri.shape[0]):
+            acting += _fold_at(y, tri, frame, dm_inv, area, k, floor, out, t)
+        return acting
+
+    rng = np.random.default_rng(7)
+    n = 40
+    rest = np.c_[rng.uniform(0.0, 4.0, (n, 2)), rng.normal(0.0, 0.05, n)]
+    tri = np.array([rng.choice(n, 3, replace=False) for _ in range(60)])
+    springs = np.unique(np.sort(np.r_[tri[:, :2], tri[:, 1:], tri[:, ::2]], axis=1), axis=0)
+    g = FoldGuard(rest, tri, springs, np.full(len(springs), 100.0))
+    t3 = np.ascontiguousarray(3 * g.tri, dtype=np.uint32)
+    for k in range(12):
+        y = rest + rng.normal(0.0, 0.6, rest.shape)  # squeezed hard: some triangles turn over
+        if k == 11:
+            y[int(tri[5, 0]), 1] = np.nan
+        base = rng.normal(0.0, 1.0, rest.shape)
+        one, two = base.copy(), base.copy()
+        acting = one_pass(y, g.tri, g.frame, g.dm_inv, g.area, g.k, g.floor, one)
+        assert _fold_forces(y, t3, g.tri, g.frame, g.dm_inv, g.area, g.k, g.floor, two, np.zeros(len(g.tri))) == acting
+        assert one.tobytes() == two.tobytes(), k
+        assert 0 < acting < len(g.tri)

@@ -4,6 +4,7 @@ prefactored solves, rest stays rest, determinism, and the automatic choice."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
@@ -292,3 +293,76 @@ def test_the_symmetric_solve_steps_to_the_same_face_up_to_rounding(synth_model_n
     moved = np.abs(out[False] - synth_model_nograv.rest).max()
     assert moved > 1e-3
     assert 0.0 < np.abs(out[True] - out[False]).max() < 1e-9 * moved
+
+
+def test_the_springs_local_step_by_runs_has_the_bits_of_one_pass() -> None:
+    """The local step's scatter with each run's shared first node kept in registers, its indices
+    flat and unsigned and k_low scaled as it is read (`_pd_springs` on `spring_layout`) adds to
+    each node the very bits of one pass in spring order over k_low multiplied into an array."""
+    import math
+
+    from sim.implicit import _pd_springs, spring_layout
+
+    rng = np.random.default_rng(3)
+    n = 30
+    pairs = np.array([(i, j) for i in range(n) for j in range(n) if i != j and rng.random() < 0.15])
+    springs = np.ascontiguousarray(pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))], dtype=np.int32)
+    m = len(springs)
+    rest_len, k_low, k_high = rng.uniform(0.5, 1.5, m), rng.uniform(1.0, 2.0, m), rng.uniform(20.0, 40.0, m)
+    runs, si3, sj3 = spring_layout(springs)
+    assert len(runs) - 1 < m  # runs longer than one spring
+    for scale in (1.0, 0.83, 0.6):
+        y = rng.normal(0.0, 1.0, (n, 3))
+        base = rng.normal(0.0, 1.0, (n, 3))
+        want, got = base.copy(), base.copy()
+        kl = k_low * scale
+        for s, (i, j) in enumerate(springs):  # one pass, as the kernel was written before
+            d = y[j] - y[i]
+            r = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+            stretch = r - rest_len[s]
+            knee = 0.1 * rest_len[s]
+            t = kl[s] * stretch if stretch <= knee else kl[s] * knee + k_high[s] * (stretch - knee)
+            f = ((k_high[s] * r - t) / r) * d
+            want[j] += f
+            want[i] -= f
+        _pd_springs(y, runs, si3, sj3, rest_len, k_low, scale, k_high, 0.1, got, np.zeros((3, m)))
+        assert got.tobytes() == want.tobytes(), scale
+    with pytest.raises(ValueError, match="itself"):
+        spring_layout(np.array([[0, 1], [2, 2]]))
+
+
+def test_the_bit_comparison_sees_one_bit() -> None:
+    """The check that a state is the one a prediction was made from (`_same_bits`) tells a sign
+    of zero or the last bit of one value apart, and nothing else."""
+    from sim.implicit import _same_bits
+
+    a = np.random.default_rng(5).normal(size=3001)
+    a[17] = 0.0
+    assert _same_bits(a.view(np.int64), a.copy().view(np.int64))
+    for k, changed in ((17, -0.0), (3000, np.nextafter(a[3000], 1.0)), (0, np.nextafter(a[0], -1.0))):
+        b = a.copy()
+        b[k] = changed
+        assert not _same_bits(a.view(np.int64), b.view(np.int64)), k
+
+
+def test_the_right_hand_side_sums_the_held_coupling_as_the_product_does(synth_model: FaceModel) -> None:
+    """The solve's right-hand side (`_held_rhs`) is base + ext less the held nodes' coupling, each
+    row's coupling summed as the flat product sums it (`_csr_times_flat`), in the factors' row
+    order: the same bits as the product made first into an array."""
+    from sim.implicit import _csr_times_flat, _held_rhs
+
+    sim = Simulator(synth_model, method="implicit")
+    imp = sim._implicit
+    assert imp is not None and len(imp.held) and len(imp._fh[2])
+    rng = np.random.default_rng(4)
+    x, base, ext = (rng.normal(0.0, 1.0, (synth_model.n_vertices, 3)) for _ in range(3))
+    nf = len(imp.free)
+    for summed in (False, True):
+        coupling = np.zeros((nf, 3))
+        _csr_times_flat(*imp._fh, np.ascontiguousarray(x[imp.held]).reshape(-1), coupling)
+        want = np.zeros((nf, 3))
+        want[imp.solver.perm_r] = (base[imp.free] if summed else base[imp.free] + ext[imp.free]) - coupling
+        got = np.full((nf, 3), np.nan)
+        _held_rhs(x, imp.held, *imp._fh, base, ext, imp.free, imp.solver.perm_r, np.zeros((len(imp.held), 3)), got,
+                  summed)
+        assert got.tobytes() == want.tobytes(), summed

@@ -194,10 +194,11 @@ def test_the_springs_follow_the_age_law_whichever_scale_moves(model, monkeypatch
 
 
 def test_the_turned_normals_and_fixed_forces_have_the_bits_of_numpy(model) -> None:  # type: ignore[no-untyped-def]
-    """A new jaw pose's support normals (`_turn_normals`) are numpy's unit rows of the turned
-    normals to the bit, its target, rest shape and held nodes (`_turn_with_jaw`) numpy's turn, and the implicit step's constant forces without muscles (`_fixed_forces`)
-    are the muscle kernel's with none counted: what takes recorded before were stepped with."""
-    from sim.integrator import _constant_forces, _fixed_forces, _turn_normals
+    """A new jaw pose's support normals are numpy's unit rows of the turned normals to the bit,
+    its target, rest shape and held nodes numpy's turn (`_jaw_pose`), and the implicit step's
+    constant forces without muscles (`_fixed_forces`, and `_jaw_pose`'s) are the muscle kernel's
+    with none counted: what takes recorded before were stepped with."""
+    from sim.integrator import _constant_forces, _fixed_forces, _jaw_pose
 
     s = Simulator(model, 1.0 / 120.0)
     s.bending_turned = False  # the turned rest shape too, which takes without "jaw bending" use
@@ -207,11 +208,15 @@ def test_the_turned_normals_and_fixed_forces_have_the_bits_of_numpy(model) -> No
         n, w = np.asarray(m.rest_normal), np.asarray(m.jaw_weight)[:, None]
         turned = n + w * (np.stack([n[:, 0] * rot[j, 0] + n[:, 1] * rot[j, 1] + n[:, 2] * rot[j, 2] for j in range(3)], axis=-1) - n)
         want = turned / np.sqrt((turned[:, 0] * turned[:, 0] + turned[:, 1] * turned[:, 1]) + turned[:, 2] * turned[:, 2])[:, None]
-        got = np.zeros_like(want)
-        _turn_normals(np.array(n.T), np.array(w[:, 0]), rot, got, np.zeros((4, len(n))))
+        got, none = np.zeros_like(want), np.zeros((0, 3))
+        _jaw_pose(s._rest3, s._offset3, np.array(n.T), s._pivot, np.array(w[:, 0]), rot, s._jaw_motion((jaw, 0.0, 0.0))[1],
+                  np.zeros_like(want), none, got, np.zeros((10, len(n))), s._weight, s._kr, s._kn, none)
         assert got.tobytes() == want.tobytes(), jaw
         s._set_jaw((jaw, 0.0, 0.0))
         assert s._normal.tobytes() == want.tobytes(), jaw
+        fixed_then = np.full_like(want, np.nan)  # made with the pose's target and normals (`_jaw_pose`)
+        _fixed_forces(s._weight, s._kr, s._target, s._kn, s._normal, fixed_then)
+        assert s._const_jaw == (jaw, 0.0, 0.0) and s._ext_const.tobytes() == fixed_then.tobytes(), jaw
         rest, offset = np.asarray(m.rest), np.asarray(m.rest_offset)
         pivot, slide = np.asarray(m.jaw_pivot, dtype=np.float64), s._jaw_motion((jaw, 0.0, 0.0))[1]
 
@@ -234,8 +239,10 @@ def test_the_turned_normals_and_fixed_forces_have_the_bits_of_numpy(model) -> No
                          s._weight, s._kr, target, s._kn, got, summed)
         _fixed_forces(s._weight, s._kr, target, s._kn, got, fixed)
         assert fixed.tobytes() == summed.tobytes(), jaw
+    rows, none = np.zeros((2, 3)), np.zeros((0, 3))
     with pytest.raises(ZeroDivisionError):
-        _turn_normals(np.zeros((3, 2)), np.zeros(2), np.eye(3), np.zeros((2, 3)), np.zeros((4, 2)))
+        _jaw_pose(np.ones((3, 2)), np.zeros((3, 2)), np.zeros((3, 2)), np.zeros(3), np.zeros(2), np.eye(3),
+                  np.zeros(3), rows, none, rows.copy(), np.zeros((10, 2)), np.ones((2, 3)), np.ones(2), np.ones(2), none)
 
 
 def test_the_bending_rest_side_from_the_turn_is_the_product_with_the_turned_shape(model) -> None:  # type: ignore[no-untyped-def]
@@ -285,3 +292,34 @@ def test_the_bending_from_the_turn_moves_the_face_as_the_product_does(model) -> 
     travel = float(np.linalg.norm(sp_.positions[chin] - model.rest[chin], axis=1).max())
     assert st.positions.tobytes() != sp_.positions.tobytes()  # other bits: the header says which
     assert worst < 1e-9 * travel
+
+
+def test_the_active_muscles_and_the_bending_added_have_the_bits_of_numpy(model) -> None:  # type: ignore[no-untyped-def]
+    """The step's small kernels give numpy's answers to the bit: the active muscle channels and
+    their values (`_active`: flatnonzero and gather, a NaN counted as active as numpy does), and
+    the margin bending's rest side from the turn added to the constant forces in its own pass
+    (`_bend_turned_add`: `_bend_turned` then np.add)."""
+    from sim.implicit import _bend_turned, _bend_turned_add
+    from sim.integrator import _active
+
+    s = Simulator(model, 1.0 / 120.0)
+    rng = np.random.default_rng(11)
+    for k in range(5):
+        v = np.where(rng.random(len(s._is_muscle)) < 0.4, rng.uniform(-1.0, 1.0, len(s._is_muscle)), 0.0)
+        v[3] = -0.0
+        if k == 4:
+            v[np.flatnonzero(s._is_muscle)[2]] = np.nan
+        act, val = np.zeros(len(v), dtype=np.int64), np.zeros(len(v))
+        count = _active(v, s._is_muscle, act, val)
+        want = np.flatnonzero(s._is_muscle & (v != 0.0))
+        assert act[:count].tobytes() == want.tobytes() and val[:count].tobytes() == v[want].tobytes(), k
+    impl = s._implicit
+    ext = rng.normal(0.0, 1.0, (model.n_vertices, 3))
+    for pose in ((0.4, 0.0, 0.0), (0.3, 0.6, -0.2)):
+        rot, slide = s._jaw_motion(pose)
+        bend, want = np.zeros_like(ext), np.zeros_like(ext)
+        _bend_turned(*impl._turn_b, rot, slide, bend)
+        np.add(ext, bend, out=want)
+        got_bend, got = np.full_like(ext, np.nan), np.full_like(ext, np.nan)
+        _bend_turned_add(*impl._turn_b, rot, slide, ext, got_bend, got)
+        assert got_bend.tobytes() == bend.tobytes() and got.tobytes() == want.tobytes(), pose

@@ -85,8 +85,9 @@ def test_all_channels_full_for_ten_seconds_stay_finite_and_bounded(synth_model: 
     assert np.abs(pos - synth_model.rest).max() < 5.0  # the open jaw moves the chin ~3.5 cm
 
 
-def test_guard_restores_after_injected_nan(synth_model: FaceModel) -> None:
-    sim = Simulator(synth_model)
+@pytest.mark.parametrize("method", ["rk2", "implicit"])
+def test_guard_restores_after_injected_nan(synth_model: FaceModel, method: str) -> None:
+    sim = Simulator(synth_model, method=method)
     state = synth_model.rest_state()
     c = FaceControl()
     c.set("zygomaticus_major_l", 1.0)
@@ -102,8 +103,9 @@ def test_guard_restores_after_injected_nan(synth_model: FaceModel) -> None:
     assert np.all(np.isfinite(state.positions)) and len(sim.guard_events) == 1
 
 
-def test_guard_catches_a_blow_up(synth_model: FaceModel) -> None:
-    sim = Simulator(synth_model)
+@pytest.mark.parametrize("method", ["rk2", "implicit"])
+def test_guard_catches_a_blow_up(synth_model: FaceModel, method: str) -> None:
+    sim = Simulator(synth_model, method=method)
     state = synth_model.rest_state()
     start = state.positions.copy()
     free = int(np.flatnonzero(~synth_model.held)[0])
@@ -248,3 +250,27 @@ def test_a_moving_jaws_compiled_turn_gives_the_bits_of_its_numpy_expression() ->
         assert got_shape is not None and got_shape.tobytes() == shape.tobytes()
         assert s._normal.tobytes() == (n / np.linalg.norm(n, axis=1)[:, None]).tobytes()
         assert not np.array_equal(got_target, base)  # the jaw did move the skin it carries
+
+
+def test_the_guard_measured_in_two_parts_is_the_whole_measure() -> None:
+    """The implicit step measures the free nodes' distance from the target while they are in the
+    caches (`sim.implicit._free_deviation`) and the guard completes it over the held nodes
+    (`_held_deviation`): the same answer as the measure over every row, a coordinate that is not
+    finite anywhere giving -1."""
+    from sim.implicit import _free_deviation
+    from sim.integrator import _held_deviation, _max_deviation
+
+    rng = np.random.default_rng(2)
+    held = np.zeros(50, dtype=bool)
+    held[rng.choice(50, 12, replace=False)] = True
+    free, fixed = np.flatnonzero(~held), np.flatnonzero(held)
+    for bad in (None, 0.0, np.inf, -np.inf, np.nan):
+        for row in (int(free[3]), int(fixed[2])):
+            x, target = rng.normal(0.0, 1.0, (50, 3)), rng.normal(0.0, 1.0, (50, 3))
+            x[int(fixed[5]), 1] += 9.0  # the largest distance on a held node
+            if bad is not None:
+                x[row, 2] = bad
+            whole = _max_deviation(x, target)
+            assert _held_deviation(x, fixed, target, _free_deviation(x, free, target)) == whole, (bad, row)
+            if bad is not None and not np.isfinite(bad):
+                assert whole == -1.0
