@@ -481,24 +481,35 @@ class PanelDevice(Device):
 
 
 def _start_editor(take: str) -> tuple[Any, str]:
-    """`python -m puppet edit TAKE` in a child process; its URL, read from its first line."""
+    """`python -m puppet edit TAKE` in a child process; its URL, read from its first line. When it
+    ends without serving, its own one-line reason (naming the take and what to do) is raised."""
     import os
     import subprocess
     import sys
+    import tempfile
 
-    proc = subprocess.Popen([sys.executable, "-m", "puppet", "edit", os.path.abspath(take)],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    assert proc.stdout is not None
-    end = time.monotonic() + 60
-    while time.monotonic() < end:
-        line = proc.stdout.readline()
-        if not line:
-            break
-        m = re.search(r"(http://\S+)", line)
-        if m:
-            return proc, m.group(1)
-    proc.kill()
-    raise RuntimeError("the editor did not start")
+    from puppet.errors import PuppetError
+
+    with tempfile.TemporaryFile("w+") as log:  # a file, not a pipe: a serving editor never blocks on it
+        proc = subprocess.Popen([sys.executable, "-m", "puppet", "edit", os.path.abspath(take)],
+                                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=log, text=True)
+        assert proc.stdout is not None
+        end = time.monotonic() + 60
+        while time.monotonic() < end:
+            line = proc.stdout.readline()
+            if not line:
+                break
+            m = re.search(r"(http://\S+)", line)
+            if m:
+                return proc, m.group(1)
+        proc.kill()
+        proc.wait()
+        log.seek(0)
+        said = [ln[len("puppet: error: "):] for ln in log.read().splitlines() if ln.startswith("puppet: error: ")]
+    if said:
+        raise PuppetError(said[-1])
+    raise PuppetError(f"the editor for {take} did not start (exit {proc.returncode}); "
+                      f"run `puppet edit {take}` in a terminal to see why")
 
 
 async def _no_icon(request: Any) -> Any:

@@ -99,7 +99,8 @@ class Editor:
         self.session = read_session(self.take)
         if self.session.ticks < 1:  # its export was an IndexError traceback (a 500 on the page)
             raise ConfigError(f"{self.take} holds no performance (its header only: the show stopped before its "
-                              "first tick); nothing to edit")
+                              "first tick, or has not written one yet); nothing to edit: record it again, or "
+                              "edit it once the show has run a moment")
         self.digest = take_digest(self.take)
         self.base = build_performance(self.session, None, rig)
         self.face = self.base.face
