@@ -118,6 +118,14 @@ class PanelDevice(Device):
             raise DeviceError(f"{spec.text}: port {self.port} is outside 0..65535")
         self.lan = spec.get_bool("lan", False)
         self.host = host or ("0.0.0.0" if self.lan else "127.0.0.1")
+        from puppet.panel.server import DEFAULT_PORT, is_loopback
+
+        if not self.lan and not is_loopback(self.host):
+            # served beyond the loopback without the LAN mode's token, the page's only guard would be
+            # the Host header, which any machine on the network can write as 127.0.0.1
+            raise DeviceError(f"{spec.text}: {self.host} would serve the page beyond this machine; say so with "
+                              f"lan=1 (panel://{self.host}:{port or DEFAULT_PORT}?lan=1: the printed URL then "
+                              "holds a token), or use 127.0.0.1")
         self.vocab = vocab
         self.roles = dict(roles or {})
         self.description = "browser panel"

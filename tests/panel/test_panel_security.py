@@ -263,3 +263,14 @@ def test_edit_a_take_with_no_tick_is_one_line(tmp_path: Path) -> None:
     errors = [ln for ln in r.stderr.splitlines() if ln.startswith("puppet: error:")]
     assert r.returncode == 2 and len(errors) == 1 and "nothing to edit" in errors[0], r.stdout + r.stderr
     assert "Traceback" not in r.stderr and not list(tmp_path.glob("*.curves"))
+
+
+@pytest.mark.parametrize("spec", ["panel://0.0.0.0:0", "panel://[::]:0"])
+def test_a_page_beyond_the_loopback_needs_lan_1(spec: str) -> None:
+    """`--device panel://0.0.0.0:PORT` served every interface with no token: its only guard was the
+    Host header, which a machine on the network writes as 127.0.0.1 as easily as a browser here.
+    It is refused, as a UDP device's address beyond the loopback is, naming lan=1."""
+    with pytest.raises(devices.DeviceError, match="lan=1"):
+        dev = devices.open_device(spec)
+        dev.close()
+
