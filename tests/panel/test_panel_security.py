@@ -274,3 +274,13 @@ def test_a_page_beyond_the_loopback_needs_lan_1(spec: str) -> None:
         dev = devices.open_device(spec)
         dev.close()
 
+
+def test_a_page_named_as_a_device_prints_its_url(tmp_path: Path) -> None:
+    """`puppet live --device 'panel://127.0.0.1:0?lan=1'` served the page behind a token it never
+    printed: nobody could open it. Its URL is printed like the default page's."""
+    r = subprocess.run([sys.executable, "-m", "puppet", "live", "--headless", "--no-panel", "--duration", "1",
+                        "--device", "panel://127.0.0.1:0?lan=1"], cwd=tmp_path, capture_output=True, text=True,
+                       env=CHILD_ENV, timeout=300)
+    assert r.returncode == 0, r.stderr
+    urls = [ln for ln in r.stdout.splitlines() if "performer's page at http://127.0.0.1:" in ln]
+    assert len(urls) == 1 and "?token=" in urls[0], r.stdout
