@@ -88,6 +88,11 @@ class LibraryDamaged(Exception):
     """The library file cannot be trusted; the message says why in a few words."""
 
 
+class LibraryUnwritable(ConfigError):
+    """A write the library's file refused (read-only, full, locked): the whole command's error,
+    never one take's."""
+
+
 def _migrate(con: sqlite3.Connection, path: Path) -> int:
     """Bring the file to SCHEMA_VERSION; returns the version it had (0: a new, empty file)."""
     version = con.execute("PRAGMA user_version").fetchone()[0]
@@ -170,11 +175,35 @@ def connect(path: Path) -> tuple[sqlite3.Connection, bool]:
 @contextmanager
 def write(con: sqlite3.Connection) -> Iterator[sqlite3.Connection]:
     """One write transaction that takes the write lock at its start (BEGIN IMMEDIATE): concurrent
-    writers wait their turn (busy timeout) rather than fail half way."""
-    con.execute("BEGIN IMMEDIATE")
+    writers wait their turn (busy timeout) rather than fail half way. A write the file refuses (a
+    read-only file or file system, a full disk, a lock held past the timeout) is a ConfigError
+    naming the library, rolled back: it was a traceback."""
     try:
-        yield con
-    except BaseException:
-        con.execute("ROLLBACK")
-        raise
-    con.execute("COMMIT")
+        con.execute("BEGIN IMMEDIATE")
+        try:
+            yield con
+        except BaseException:
+            if con.in_transaction:
+                con.execute("ROLLBACK")
+            raise
+        con.execute("COMMIT")
+    except sqlite3.OperationalError as err:
+        if con.in_transaction:
+            con.execute("ROLLBACK")
+        raise write_error(con, err) from err
+
+
+def write_error(con: sqlite3.Connection, err: sqlite3.OperationalError) -> LibraryUnwritable:
+    """The one line for a write the library's file refused."""
+    try:
+        path = con.execute("PRAGMA database_list").fetchone()[2] or "the take library"
+    except sqlite3.Error:
+        path = "the take library"
+    text = str(err)
+    if "readonly" in text or "read-only" in text:
+        return LibraryUnwritable(f"{path}: the take library is read-only here ({text}); the change was not "
+                                 "written: make it writable, or pass --library with a file you can write")
+    if "locked" in text or "busy" in text:
+        return LibraryUnwritable(f"{path}: the take library stayed locked by another program for "
+                                 f"{BUSY_TIMEOUT:g} s; the change was not written: try again")
+    return LibraryUnwritable(f"{path}: cannot write the take library ({text}); the change was not written")

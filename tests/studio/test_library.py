@@ -382,3 +382,32 @@ def test_a_take_id_past_64_bits_is_no_take(folder: Path, tmp_path: Path, capsys:
     for args in (("show", huge), ("tag", huge, "keep"), ("note", huge, "text"), ("show", str(-(1 << 70)))):
         code, out, err = takes_cli(capsys, lib, *args)
         assert code == 2 and err.count("\n") == 1 and f"no take {args[1]}" in err, (args, err)
+
+
+@pytest.mark.parametrize("args", [["tag", "1", "keeper"], ["note", "1", "a note"], ["import", "TAKE"]])
+def test_a_library_that_cannot_be_written_is_one_line(folder: Path, tmp_path: Path, args: list[str],
+                                                      capsys: pytest.CaptureFixture,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """A library on a read-only file or file system: `takes tag` and `takes note` were an
+    sqlite3.OperationalError traceback, and `takes import` counted each take as "not a
+    recording". Each is one line naming the library, exit 2, and the library is as it was."""
+    from puppet.library import schema
+
+    lib = tmp_path / "lib" / "takes.db"
+    with Library(lib) as library:
+        library.register(folder / "ana_smile.jsonl")
+    before = takes_cli(capsys, lib, "list", "--json")[1]
+    connect = schema.connect
+
+    def read_only(path: Path):  # what SQLite answers for a file it may not write
+        con, new = connect(path)
+        con.execute("PRAGMA query_only = ON")
+        return con, new
+
+    monkeypatch.setattr(schema, "connect", read_only)
+    args = [str(folder / "ana_brow.jsonl") if a == "TAKE" else a for a in args]
+    code, out, err = takes_cli(capsys, lib, *args)
+    assert code == 2 and err.count("\n") == 1 and err.startswith(f"puppet: error: {lib}: "), err
+    assert "read-only" in err and "--library" in err
+    monkeypatch.setattr(schema, "connect", connect)
+    assert takes_cli(capsys, lib, "list", "--json")[1] == before
