@@ -411,3 +411,15 @@ def test_a_library_that_cannot_be_written_is_one_line(folder: Path, tmp_path: Pa
     assert "read-only" in err and "--library" in err
     monkeypatch.setattr(schema, "connect", connect)
     assert takes_cli(capsys, lib, "list", "--json")[1] == before
+
+
+def test_reading_a_library_that_is_not_there_makes_nothing(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """`puppet takes list --library` with a mistyped path made its folders and an empty library
+    there; reading makes nothing: list and search find no takes, show names the missing library."""
+    lib = tmp_path / "typo" / "deeper" / "takes.db"
+    code, out, _ = takes_cli(capsys, lib, "list")
+    assert code == 0 and "no takes" in out and str(lib) in out
+    assert takes_cli(capsys, lib, "search", "smile", "--json")[:2] == (0, "[]\n")
+    code, _, err = takes_cli(capsys, lib, "show", "1")
+    assert code == 2 and str(lib) in err and err.count("\n") == 1
+    assert not (tmp_path / "typo").exists()
