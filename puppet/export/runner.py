@@ -251,7 +251,7 @@ def export_together(perf: Performance, outputs: list[tuple[Path, ExportOptions]]
                 target = stack.enter_context(atomic_path(out))
                 sink = FrameSink(perf.face.model, target, "mp4", opts.fps, opts.size, opts.view, opts.supersample,
                                  opts.preset or DEFAULT_PRESET, crf)
-                stack.callback(sink.close)
+                stack.push(sink.exit)
                 sinks.append(sink)
                 frames = iter(range(len(ticks)))
                 plan += [(k, i, lambda st, s=sink, f=frames: s.add(next(f), st)) for k in ticks]
