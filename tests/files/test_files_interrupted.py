@@ -34,7 +34,7 @@ def _alive(pid: int) -> bool:
     return True
 
 
-@pytest.mark.parametrize(("sig", "code"), [(signal.SIGINT, 130)])
+@pytest.mark.parametrize(("sig", "code"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_an_export_stopped_while_its_encoder_stalls_ends_and_leaves_nothing(tmp_path: Path, sig: int,
                                                                             code: int) -> None:
     """SIGTERM killed the export at once: its hidden `.take.*.part.mp4` stayed beside the video.
