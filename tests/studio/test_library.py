@@ -423,3 +423,15 @@ def test_reading_a_library_that_is_not_there_makes_nothing(tmp_path: Path, capsy
     code, _, err = takes_cli(capsys, lib, "show", "1")
     assert code == 2 and str(lib) in err and err.count("\n") == 1
     assert not (tmp_path / "typo").exists()
+
+
+@pytest.mark.parametrize("query", ["id:99999999999999999999999", "id:\u00b2"])
+def test_an_id_no_take_can_have_finds_nothing(folder: Path, tmp_path: Path, query: str,
+                                              capsys: pytest.CaptureFixture) -> None:
+    """An id past SQLite's 64-bit integers was an OverflowError traceback (and a 500 on the page's
+    take search), a superscript digit a ValueError from int()."""
+    lib = tmp_path / "lib" / "takes.db"
+    with Library(lib) as library:
+        library.register(folder / "ana_smile.jsonl")
+    code, out, err = takes_cli(capsys, lib, "search", query, "--json")
+    assert (code, out) == (0, "[]\n"), err
