@@ -8,7 +8,7 @@ Routes (behind the page server's guard like every other route):
   POST /api/takes/{id}/export?to=KIND  `puppet replay TAKE --out STEM.KIND` beside the take (mp4, pc2, csv)
   GET  /api/takes/exports              the exports started from this page, waiting, running or ended
 
-Exports run one at a time (each renders on every core already), up to MAX_WAITING more wait their
+Edit starts one editor per take (pressed again: the same one), at most MAX_EDITORS; exports run one at a time (each renders on every core already), up to MAX_WAITING more wait their
 turn, and past that a request is answered busy (429). An export never replaces a file: when
 STEM.KIND (or a PC2's STEM.obj) exists, it is written as STEM-2.KIND, STEM-3.KIND, ..."""
 
@@ -29,7 +29,8 @@ from puppet.library.store import recording_alive
 
 MAX_RESULTS = 200
 MAX_WAITING = 4  # exports waiting behind the running one; past that a request is answered busy (429)
-MAX_KEPT = 100  # exports remembered (the list the page polls shows the last 20)
+MAX_KEPT = 100
+MAX_EDITORS = 4  # `puppet edit` processes the page starts (each holds a face); past that: busy (429)  # exports remembered (the list the page polls shows the last 20)
 EXPORT_SUFFIXES = {"mp4": ".mp4", "pc2": ".pc2", "csv": ".csv"}
 
 
@@ -41,7 +42,8 @@ class TakeRoutes:
         self.exports: list[dict[str, Any]] = []  # newest last; state waiting, running, done or failed
         self._worker: asyncio.Task | None = None
         self._proc: subprocess.Popen | None = None
-        self.editors: list[subprocess.Popen] = []
+        self.editors: dict[str, tuple[subprocess.Popen, str]] = {}  # take's path -> its editor and URL
+        self._starting: set[str] = set()
 
     def add(self, app: web.Application) -> None:
         app.router.add_get("/api/takes", self._list)
@@ -106,11 +108,25 @@ class TakeRoutes:
         t = await self._run(lambda: self._take(int(request.match_info["id"])))
         if t["missing"] or not Path(t["path"]).is_file():
             return web.json_response({"ok": False, "error": f"{t['path']} is missing"})
+        key = str(Path(t["path"]).resolve())
+        self.editors = {k: v for k, v in self.editors.items() if v[0].poll() is None}
+        if key in self.editors:  # the same take again: its editor, not a second one
+            return web.json_response({"ok": True, "url": self.editors[key][1]})
+        if key in self._starting:
+            return web.json_response({"ok": False, "busy": True, "error": f"the editor for {Path(key).name} is "
+                                      "starting; press edit again in a moment"}, status=429)
+        if len(self.editors) + len(self._starting) >= MAX_EDITORS:
+            return web.json_response({"ok": False, "busy": True, "error": f"{MAX_EDITORS} editors are open from "
+                                      "this page already (they close when the show ends); edit one of their "
+                                      "takes, or run `puppet edit TAKE` in a terminal"}, status=429)
+        self._starting.add(key)
         try:
             proc, url = await self._run(lambda: _start_editor(t["path"]))
         except Exception as err:
             return web.json_response({"ok": False, "error": str(err)})
-        self.editors.append(proc)
+        finally:
+            self._starting.discard(key)
+        self.editors[key] = (proc, url)
         return web.json_response({"ok": True, "url": url})
 
     def argv(self, take: Path, out: Path) -> list[str]:
@@ -205,6 +221,6 @@ class TakeRoutes:
         dropped = [Path(j["out"]).name for j in self.exports if j["state"] == "waiting"]
         if dropped:
             print(f"puppet: the page's exports still waiting were not started: {', '.join(dropped)}", file=sys.stderr)
-        for p in self.editors:
+        for p, _ in self.editors.values():
             if p.poll() is None:
                 p.terminate()
