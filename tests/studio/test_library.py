@@ -435,3 +435,28 @@ def test_an_id_no_take_can_have_finds_nothing(folder: Path, tmp_path: Path, quer
         library.register(folder / "ana_smile.jsonl")
     code, out, err = takes_cli(capsys, lib, "search", query, "--json")
     assert (code, out) == (0, "[]\n"), err
+
+
+def test_a_library_in_a_folder_that_cannot_be_written_is_read(folder: Path, tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture,
+                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """A library on a read-only file system or share (SQLite cannot make its -shm file beside it)
+    was called damaged and could not even be listed. It is read as it is; a change to it is one
+    line saying it is read-only, and nothing is written beside it."""
+    d = tmp_path / "shared"
+    lib = d / "takes.db"
+    with Library(lib) as library:
+        library.tag(library.register(folder / "ana_smile.jsonl"), "keeper")
+    before = sorted(p.name for p in d.iterdir())
+    d.chmod(0o555)
+    try:
+        if os.access(d, os.W_OK):  # the superuser writes anyway: the folder as access(2) sees it on a read-only mount
+            real = os.access
+            monkeypatch.setattr(os, "access", lambda p, m, **kw: False if (Path(p) == d and m & os.W_OK) else real(p, m, **kw))
+        code, out, err = takes_cli(capsys, lib, "search", "keeper", "--json")
+        assert code == 0 and [t["path"] for t in json.loads(out)] == [str(folder / "ana_smile.jsonl")], err
+        code, _, err = takes_cli(capsys, lib, "tag", "1", "other")
+        assert code == 2 and "read-only" in err and err.count("\n") == 1, err
+    finally:
+        d.chmod(0o755)
+    assert sorted(p.name for p in d.iterdir()) == before
