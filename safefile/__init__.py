@@ -353,6 +353,7 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
         tmp = _temp_name(target)
     except OSError as err:
         raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
+    held = _hold(tmp)
     try:
         with _disk_full_named(target):
             yield tmp
@@ -364,6 +365,47 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
         tmp.unlink(missing_ok=True)
         _name_target(err, tmp, target)
         raise
+    finally:
+        if held is not None:
+            os.close(held)
+
+
+def _hold(tmp: Path) -> int | None:
+    """An open descriptor holding an exclusive lock on the temporary file while it is written
+    (the kernel drops it when the writer dies, SIGKILL included): `part_in_use` tells a live
+    writer's file from one a killed writer left. None where there are no locks."""
+    try:
+        import fcntl
+
+        fd = os.open(tmp, os.O_RDONLY)
+    except (ImportError, OSError):
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        return None
+    return fd
+
+
+def part_in_use(path: str | Path) -> bool:
+    """Whether the hidden temporary file `path` is being written now (its writer, in any
+    process, holds it; see `_hold`). A file left by a writer that died is not."""
+    try:
+        import fcntl
+
+        fd = os.open(path, os.O_RDONLY)
+    except (ImportError, OSError):
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+    return False
 
 
 @contextmanager
