@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import re
+import signal
 import sys
 
 from devices.errors import DeviceError
@@ -66,11 +67,15 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
+    if argv is None and args.command not in OWN_SIGNALS:
+        terminate_as_interrupt()
     try:
         code = int(args.func(args) or 0)
     except (PuppetError, DeviceError, BadFile) as err:
         print(f"puppet: error: {short_words(str(err))}", file=sys.stderr)
         code = 2
+    except Terminated:
+        return 128 + signal.SIGTERM
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:  # the reader stopped early (`puppet takes list | head`): not an error to report
@@ -81,6 +86,29 @@ def main(argv: list[str] | None = None) -> int:
     if argv is None and getattr(args, "exit_at_once", False):
         exit_at_once(code)
     return code
+
+
+#: commands that handle SIGINT and SIGTERM themselves (a show closes its recording)
+OWN_SIGNALS = ("live", "edit")
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where Ctrl-C's KeyboardInterrupt is: the command unwinds as on Ctrl-C."""
+
+
+def terminate_as_interrupt() -> None:
+    """SIGTERM (`kill`, a service manager, a batch system's time limit) ends a command the way
+    Ctrl-C does: its temporary files are removed and the files it was replacing stay as they
+    were. Python's default for SIGTERM ends the process at once, leaving a hidden `.NAME.*.part`
+    file beside every output it was writing."""
+
+    def handler(signum: int, frame: object) -> None:
+        raise Terminated
+
+    try:
+        signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread
+        pass
 
 
 def short_words(message: str, longest: int = 300) -> str:

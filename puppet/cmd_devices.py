@@ -88,6 +88,10 @@ def run_monitor(args: argparse.Namespace) -> int:
     from devices import EventQueue, open_device
 
     device = open_device(args.spec, require=not args.wait)
+    if getattr(device, "scheme", "") == "panel" and getattr(device, "server", None) is not None:
+        from puppet.panel import announce
+
+        announce(device)  # its URL (with the LAN mode's token: the page is unreachable without it)
     queue = EventQueue()
     device.add_listener(queue)
     end = None if args.duration is None else time.monotonic() + args.duration

@@ -102,6 +102,9 @@ def run(args: argparse.Namespace, stdin: TextIO | None = None) -> int:
         return learn_voice(args.device[0], args.profile, stdin)
     if not args.map:
         raise PuppetError("give --map FILE to learn bindings into (or --profile FILE with an audio:// device)")
+    from puppet.mapping.learn import check_learn_file
+
+    check_learn_file(args.map)  # before the performer touches anything
     face = load_face()
     devs = _open_devices(list(args.device), lambda m: print(f"puppet: {m}", file=sys.stderr))
     devs = [d for d in devs if not d.spec.startswith("keyboard")]

@@ -81,6 +81,10 @@ def _open_devices(specs: list[str], warn: Any) -> list[Any]:
             if not dev.connected:
                 warn(f"{spec} is there but did not open ({dev.last_error}); the show starts and it "
                      "connects once it answers")
+            if getattr(dev, "scheme", "") == "panel" and getattr(dev, "server", None) is not None:
+                from puppet.panel import announce
+
+                announce(dev)  # its URL (with the LAN mode's token: the page is unreachable without it)
             opened.append(dev)
         return opened
     try:

@@ -143,6 +143,11 @@ def run(args: argparse.Namespace) -> int:
     if suffix not in (".npz", ".obj", *IMAGE_SUFFIXES):
         raise PuppetError(f"--out {args.out}: unknown file type; use .npz, .obj, .png, .jpg or .jpeg")
     size = _size(args.size)
+    if suffix in IMAGE_SUFFIXES:  # an unknown view was a ValueError traceback after the simulation
+        from render.renderer import VIEWS
+
+        if args.view not in VIEWS:
+            raise PuppetError(f"--view {args.view!r}: choose one of {', '.join(VIEWS)}")
     if args.seconds is not None and not (0.0 <= args.seconds <= 600.0):
         raise PuppetError(f"--seconds {args.seconds:g}: expected 0..600")
     build_control(args)  # bad names and values fail before the face is built

@@ -106,11 +106,22 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from puppet.errors import PuppetError
-    from puppet.library import complete_died, open_library
+    from puppet.library import complete_died, library_path, open_library
     from puppet.library.upkeep import check, import_folder
 
+    path = library_path(args.library)
+    act = args.takes_command
+    if path is not None and act != "import" and not path.exists() and not Path(f"{path}.journal").exists():
+        # no library there yet (a new name, or a mistyped one): nothing to read, and nothing is made
+        if act in ("list", "search", "check"):
+            if getattr(args, "json", False) and act != "check":
+                print("[]")
+            else:
+                print(f"puppet: no takes (no take library at {path} yet: `puppet takes import FOLDER` or a "
+                      "recorded show starts it)")
+            return 0
+        raise PuppetError(f"no take {args.id}: there is no take library at {path} (see `puppet takes list`)")
     with open_library(args.library) as lib:
-        act = args.takes_command
         if act in ("list", "search", "show"):
             complete_died(lib, lambda s: print(f"puppet: {s}", file=sys.stderr))
         if act == "list":

@@ -257,13 +257,18 @@ def frame_ticks(perf: Performance, fps: float, start: float = 0.0, end: float | 
         raise PuppetError(f"--fps and --speed must be positive, at most {MAX_FPS:g}")
     if np.isnan(start) or (end is not None and np.isnan(end)):
         raise PuppetError("--from and --to must be numbers of seconds, not nan")
+    if end is not None and end < 0:
+        raise PuppetError(f"--to {end:g} must be at least 0 s")
+    if end is not None and start > end:
+        raise PuppetError(f"--from {start:g} s is after --to {end:g} s")
     end = perf.duration if end is None else min(end, perf.duration)
     if start < 0 or start > end:
-        raise PuppetError(f"--from {start} must lie in 0..{end:.3f} s (the end of the replay)")
-    n = max(1, int(round((end - start) * fps / speed)))
-    if n > MAX_FRAMES:
-        raise PuppetError(f"{n} frames asked ({end - start:.6g} s at {fps:g} fps, speed {speed:g}); "
-                          f"at most {MAX_FRAMES}: lower --fps or shorten --from/--to")
+        raise PuppetError(f"--from {start:g} must lie in 0..{end:.3f} s (the end of the replay)")
+    frames = (end - start) * fps / speed  # a float: a speed near 0 made it infinite (int() raised)
+    if not frames <= MAX_FRAMES:
+        raise PuppetError(f"{frames:.3g} frames asked ({end - start:.6g} s at {fps:g} fps, speed {speed:g}); "
+                          f"at most {MAX_FRAMES}: raise --speed, lower --fps or shorten --from/--to")
+    n = max(1, int(round(frames)))
     return [min(perf.ticks, int(round((start + j * speed / fps) * perf.rate))) for j in range(n)]
 
 

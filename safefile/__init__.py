@@ -353,6 +353,7 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
         tmp = _temp_name(target)
     except OSError as err:
         raise BadFile(f"{target}: cannot write: {err.strerror or err}") from err
+    held = _hold(tmp)
     try:
         with _disk_full_named(target):
             yield tmp
@@ -364,6 +365,79 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
         tmp.unlink(missing_ok=True)
         _name_target(err, tmp, target)
         raise
+    finally:
+        if held is not None:
+            os.close(held)
+
+
+#: the byte range a writer locks in its temporary file: far past any data, an open-file-description
+#: lock (F_OFD_SETLK), so it never meets the whole-file flock a take's recorder takes on its file
+#: (`puppet fit` writes its take through a temporary file too) and conflicts within one process
+_PART_LOCK = (1 << 62, 1)
+
+
+def _ofd_lock(fd: int, kind: int) -> bool:
+    """An OFD write lock (kind F_WRLCK) or its release (F_UNLCK) on `_PART_LOCK`; False when the
+    range is held elsewhere. OSError where there are no such locks."""
+    import fcntl
+    import struct
+
+    op = getattr(fcntl, "F_OFD_SETLK", None)
+    if op is None:
+        raise OSError("no open-file-description locks here")
+    try:
+        fcntl.fcntl(fd, op, struct.pack("hhqqi4x", kind, os.SEEK_SET, *_PART_LOCK, 0))
+    except (BlockingIOError, PermissionError):
+        return False
+    return True
+
+
+def _hold(tmp: Path) -> int | None:
+    """An open descriptor holding a lock on the temporary file while it is written (the kernel
+    drops it when the writer dies, SIGKILL included): `part_in_use` tells a live writer's file
+    from one a killed writer left. None where there are no locks."""
+    try:
+        import fcntl
+
+        fd = os.open(tmp, os.O_RDWR)
+    except (ImportError, OSError):
+        return None
+    try:
+        if _ofd_lock(fd, fcntl.F_WRLCK):
+            return fd
+    except OSError:
+        pass
+    os.close(fd)
+    return None
+
+
+def part_in_use(path: str | Path) -> bool:
+    """Whether the hidden temporary file `path` is being written now (its writer, in any
+    process, holds it; see `_hold`). A file left by a writer that died is not."""
+    try:
+        import fcntl
+
+        fd = os.open(path, os.O_RDWR)
+    except (ImportError, OSError):
+        return False
+    try:
+        if not _ofd_lock(fd, fcntl.F_WRLCK):
+            return True
+        _ofd_lock(fd, fcntl.F_UNLCK)
+        return False
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+    return False
 
 
 @contextmanager

@@ -322,7 +322,11 @@ def store_spans(rep: Report, library: str | None) -> None:
 def _remove_parts(out_dir: Path, todo: list[Output]) -> None:
     """Half-written files a worker killed mid-write left beside the outputs (safefile's hidden
     `.STEM.*.part*` names); the task ran again elsewhere and wrote the whole file. One listing of
-    the folder (a glob per output compiled a pattern each: ~20 ms after the last result)."""
+    the folder (a glob per output compiled a pattern each: ~20 ms after the last result). A file
+    another run is writing now (a second batch into the same folder, a `puppet replay --out`
+    there) is left to it: removing it failed that run's export."""
+    from safefile import part_in_use
+
     prefixes = tuple(f".{Path(o.name).stem}." for o in todo)
     try:
         names = os.listdir(out_dir)
@@ -330,6 +334,8 @@ def _remove_parts(out_dir: Path, todo: list[Output]) -> None:
         return
     for name in names:
         if name.startswith(prefixes) and any(name.startswith(p) and ".part" in name[len(p):] for p in prefixes):
+            if part_in_use(out_dir / name):
+                continue
             try:
                 (out_dir / name).unlink()
             except OSError:

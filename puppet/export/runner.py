@@ -12,8 +12,9 @@ Every export shows a tqdm progress bar on a terminal and writes its frame rate e
 
 from __future__ import annotations
 
+import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
@@ -57,6 +58,26 @@ def kind_of(out: Path) -> str:
         raise PuppetError(f"{out}: unknown export type {suffix!r}; expected .mp4, a folder for PNG frames, "
                           ".png, .pc2, .csv, .arkit.csv or .curves")
     return kinds[suffix]
+
+
+def written_files(out: Path) -> list[Path]:
+    """The files an export to `out` writes: a PC2's rest mesh beside it too."""
+    return [out, out.with_suffix(".obj")] if kind_of(out) == "pc2" else [out]
+
+
+def unused_output(out: Path, claimed: Collection[Path] = ()) -> Path:
+    """`out` if none of the files its export writes exists or is `claimed` (by an export not yet
+    written), else the first free `STEM-2.SUFFIX`, `STEM-3.SUFFIX`, ...: the page's exports never
+    replace a file (`take.arkit.csv` -> `take-2.arkit.csv`)."""
+    name = out.name
+    suffix = ".arkit.csv" if name.lower().endswith(".arkit.csv") and len(name) > 10 else out.suffix
+    stem = name[: len(name) - len(suffix)] if suffix else name
+    taken = {Path(c) for c in claimed}
+    for n in range(1, 10_000):
+        path = out if n == 1 else out.with_name(f"{stem}-{n}{suffix}")
+        if not any(os.path.lexists(p) or p in taken for p in written_files(path)):
+            return path
+    raise PuppetError(f"{out}: 10,000 exports of that name exist already; move some away")
 
 
 def _bar(total: int, what: str) -> tqdm:
@@ -230,7 +251,7 @@ def export_together(perf: Performance, outputs: list[tuple[Path, ExportOptions]]
                 target = stack.enter_context(atomic_path(out))
                 sink = FrameSink(perf.face.model, target, "mp4", opts.fps, opts.size, opts.view, opts.supersample,
                                  opts.preset or DEFAULT_PRESET, crf)
-                stack.callback(sink.close)
+                stack.push(sink.exit)
                 sinks.append(sink)
                 frames = iter(range(len(ticks)))
                 plan += [(k, i, lambda st, s=sink, f=frames: s.add(next(f), st)) for k in ticks]

@@ -77,6 +77,23 @@ class Encoder:
         if code != 0 and not failed:
             raise PuppetError(self._failure(None))
 
+    def abort(self) -> None:
+        """Ends the encoder without a video (an export interrupted or failed: its file is thrown
+        away): ffmpeg is killed, not waited for. Waiting let a Ctrl-C or SIGTERM hang for as long
+        as ffmpeg took to take in frames it had not read, forever if it had stopped reading."""
+        self._failed = True
+        proc = self._proc
+        try:
+            proc.kill()
+        except OSError:
+            pass
+        proc.wait()
+        if proc.stdin is not None:
+            try:
+                proc.stdin.close()
+            except (OSError, ValueError):  # the frame half written when the export stopped
+                pass
+
     def _failure(self, err: BaseException | None) -> str:
         """One line: ffmpeg's last words, or what stopped it."""
         import signal
@@ -166,14 +183,22 @@ class FrameSink:
         img = image(raw, self.renderer.size)
         self._save(img, self.out if self.kind == "png" else self.out / f"frame_{j:06d}.png")
 
-    def close(self) -> None:
-        """Release the renderer and close the file (a frame still drawn and not `finish`ed is dropped)."""
+    def close(self, abort: bool = False) -> None:
+        """Release the renderer and close the file (a frame still drawn and not `finish`ed is dropped);
+        `abort`: the export stopped, its video is thrown away (the encoder killed, not waited for)."""
         try:
             if self.writer is not None:
-                self.writer.close()
-                self.writer = None
+                writer, self.writer = self.writer, None
+                if abort:
+                    writer.abort()
+                else:
+                    writer.close()
         finally:
             self.renderer.release()
+
+    def exit(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        """`close` as an ExitStack exit callback: aborted when the stack unwinds with an exception."""
+        self.close(abort=exc_type is not None)
 
 
 FRAME_HEAD = struct.Struct("<iI")  # frame number (-1 ends), payload bytes
@@ -326,8 +351,10 @@ def render_serial(model: Any, out: Path, kind: str, fps: float, size: tuple[int,
             sink.add(j, state)
             progress(1)
         sink.finish()
-    finally:
-        sink.close()
+    except BaseException:
+        sink.close(abort=True)
+        raise
+    sink.close()
 
 
 class _Worker:
@@ -511,9 +538,9 @@ def render_parallel(model: Any, out: Path, kind: str, fps: float, size: tuple[in
     finally:
         for w in pool:
             w.stop()
-        if encoder is not None:
+        if encoder is not None:  # not closed above: the export stopped (an error, Ctrl-C, SIGTERM)
             try:
-                encoder.close()
+                encoder.abort()
             except Exception:  # the real error is already on its way
                 pass
         scratch.cleanup()

@@ -13,6 +13,7 @@ the takes and the journal beside it."""
 
 from __future__ import annotations
 
+import os
 import sqlite3
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -88,6 +89,11 @@ class LibraryDamaged(Exception):
     """The library file cannot be trusted; the message says why in a few words."""
 
 
+class LibraryUnwritable(ConfigError):
+    """A write the library's file refused (read-only, full, locked): the whole command's error,
+    never one take's."""
+
+
 def _migrate(con: sqlite3.Connection, path: Path) -> int:
     """Bring the file to SCHEMA_VERSION; returns the version it had (0: a new, empty file)."""
     version = con.execute("PRAGMA user_version").fetchone()[0]
@@ -125,6 +131,8 @@ def connect(path: Path) -> tuple[sqlite3.Connection, bool]:
     """Open (creating) and check the library at `path`, migrated to the current schema; returns
     the connection and whether the file was new (or empty). Raises LibraryDamaged for a damaged
     file, ConfigError for one that cannot be opened at all."""
+    if path.is_file() and path.parent.is_dir() and not os.access(path.parent, os.W_OK):
+        return _connect_read_only(path), False
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:
@@ -167,14 +175,66 @@ def connect(path: Path) -> tuple[sqlite3.Connection, bool]:
     return con, was == 0
 
 
+def _connect_read_only(path: Path) -> sqlite3.Connection:
+    """The library in a folder this process cannot write (a read-only file system or share): read
+    as it is. SQLite cannot open a WAL library there the usual way (it makes its -shm file beside
+    it), so the file is opened read-only, and immutable when no -wal file holds later writes. It
+    was called damaged; writes to it now say it is read-only (`write_error`)."""
+    from urllib.parse import quote
+
+    wal = Path(f"{path}-wal")
+    flags = "mode=ro" if wal.exists() and wal.stat().st_size else "mode=ro&immutable=1"
+    try:
+        con = sqlite3.connect(f"file:{quote(str(path.resolve()))}?{flags}", uri=True, timeout=BUSY_TIMEOUT,
+                              isolation_level=None, check_same_thread=False)
+        version = con.execute("PRAGMA user_version").fetchone()[0]
+        tables = con.execute("SELECT count(*) FROM sqlite_master WHERE name IN "
+                             "('takes','tags','spans','takes_text')").fetchone()[0]
+        check = con.execute("PRAGMA quick_check(1)").fetchone()[0]
+    except sqlite3.Error as err:
+        raise ConfigError(f"{path}: cannot read the take library in a folder this program cannot write "
+                          f"({err}); copy it somewhere writable and pass --library with the copy") from err
+    if version != SCHEMA_VERSION or tables != 4 or check != "ok":
+        con.close()
+        raise ConfigError(f"{path}: the take library is in a folder this program cannot write and "
+                          + ("is damaged" if check != "ok" or tables != 4 else f"has schema {version}, this "
+                             f"puppet reads {SCHEMA_VERSION}")
+                          + "; copy it somewhere writable and pass --library with the copy")
+    return con
+
+
 @contextmanager
 def write(con: sqlite3.Connection) -> Iterator[sqlite3.Connection]:
     """One write transaction that takes the write lock at its start (BEGIN IMMEDIATE): concurrent
-    writers wait their turn (busy timeout) rather than fail half way."""
-    con.execute("BEGIN IMMEDIATE")
+    writers wait their turn (busy timeout) rather than fail half way. A write the file refuses (a
+    read-only file or file system, a full disk, a lock held past the timeout) is a ConfigError
+    naming the library, rolled back: it was a traceback."""
     try:
-        yield con
-    except BaseException:
-        con.execute("ROLLBACK")
-        raise
-    con.execute("COMMIT")
+        con.execute("BEGIN IMMEDIATE")
+        try:
+            yield con
+        except BaseException:
+            if con.in_transaction:
+                con.execute("ROLLBACK")
+            raise
+        con.execute("COMMIT")
+    except sqlite3.OperationalError as err:
+        if con.in_transaction:
+            con.execute("ROLLBACK")
+        raise write_error(con, err) from err
+
+
+def write_error(con: sqlite3.Connection, err: sqlite3.OperationalError) -> LibraryUnwritable:
+    """The one line for a write the library's file refused."""
+    try:
+        path = con.execute("PRAGMA database_list").fetchone()[2] or "the take library"
+    except sqlite3.Error:
+        path = "the take library"
+    text = str(err)
+    if "readonly" in text or "read-only" in text:
+        return LibraryUnwritable(f"{path}: the take library is read-only here ({text}); the change was not "
+                                 "written: make it writable, or pass --library with a file you can write")
+    if "locked" in text or "busy" in text:
+        return LibraryUnwritable(f"{path}: the take library stayed locked by another program for "
+                                 f"{BUSY_TIMEOUT:g} s; the change was not written: try again")
+    return LibraryUnwritable(f"{path}: cannot write the take library ({text}); the change was not written")

@@ -508,7 +508,9 @@ class Library:
                 params.append(val)
             elif key == "id":
                 where.append("t.id = ?")
-                params.append(int(val) if val.isdigit() else -1)
+                # an id past SQLite's 64-bit integers (OverflowError) or of other scripts' digits
+                # (`id:²`, a ValueError for int) was a traceback: no take has it
+                params.append(int(val) if val.isascii() and val.isdigit() and len(val) < 19 else -1)
         if words:
             fts = " AND ".join('"' + w.replace('"', '""') + '"*' for w in words)
             where.append("t.id IN (SELECT rowid FROM takes_text WHERE takes_text MATCH ?)")
@@ -537,7 +539,7 @@ def recording_alive(path: str | Path, recorder: str | None) -> bool:
     if _being_recorded(Path(path)):
         return True
     host, _, pid = (recorder or "").rpartition(" ")
-    if not pid.isdigit():
+    if not (pid.isascii() and pid.isdigit() and len(pid) < 10):  # int() or os.kill would raise
         return False
     if host != socket.gethostname():
         return True

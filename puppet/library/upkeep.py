@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from puppet.errors import ConfigError, PuppetError
+from puppet.library.schema import LibraryUnwritable
 from puppet.library.store import Library, find_by_hash
 from puppet.library.takeinfo import file_hash
 
@@ -60,6 +61,8 @@ def import_folder(lib: Library, folder: str | Path, performer: str | None = None
             take_id = lib.register(p, performer=performer, unchanged=rep.known if performer is None else None)
             if len(rep.known) == known:
                 rep.registered.append(take_id)
+        except LibraryUnwritable:
+            raise  # the library's fault, not the file's: the import stops with that one line
         except (ConfigError, PuppetError) as err:
             rep.skipped.append(str(err))
     return rep
@@ -167,7 +170,7 @@ def complete_died(lib: Library) -> CheckReport:
             r = lib.get(i)
             if r["state"] == "died" and Path(r["path"]).is_file():
                 _complete(lib, rep, r)
-    except (sqlite3.Error, OSError):
+    except (sqlite3.Error, OSError, ConfigError):  # a library that cannot be written is still listed
         pass
     finally:
         lib.warn = warn

@@ -90,18 +90,34 @@ def learn_binding(path: str | Path, control: str, device: str, target: str, kind
         return _learn_binding(p, control, device, target, kind, mode, settings)
 
 
+def check_learn_file(path: str | Path) -> None:
+    """Raise ConfigError now if bindings could not be learned into `path`: a file there that
+    cannot be read as a mapping, or no folder to create it in. `puppet learn` asks this before
+    the first touch (it told only after the performer had touched a control and named its target)."""
+    p = Path(path)
+    if p.exists():
+        _read_doc(p)
+    elif not p.parent.is_dir():
+        raise ConfigError(f"{p}: cannot write the mapping file: {p.parent} is not a folder here; "
+                          "make it, or give --map another path")
+
+
+def _read_doc(p: Path) -> Any:
+    try:
+        text = read_text(p, "mapping file", 16 * 1024 * 1024)
+    except BadFile as err:
+        raise ConfigError(str(err)) from err
+    parse_mapping(text, str(p))  # a file we cannot read is reported, never rewritten
+    try:
+        return tomlkit.parse(text)
+    except (TOMLKitError, RecursionError, ValueError) as err:
+        raise ConfigError(f"{p}: cannot read the mapping file: {quote(str(err), 80)}") from err
+
+
 def _learn_binding(p: Path, control: str, device: str, target: str, kind: str, mode: str | None,
                    settings: dict[str, Any] | None) -> str:
     if p.exists():
-        try:
-            text = read_text(p, "mapping file", 16 * 1024 * 1024)
-        except BadFile as err:
-            raise ConfigError(str(err)) from err
-        parse_mapping(text, str(p))  # a file we cannot read is reported, never rewritten
-        try:
-            doc = tomlkit.parse(text)
-        except (TOMLKitError, RecursionError, ValueError) as err:
-            raise ConfigError(f"{p}: cannot read the mapping file: {quote(str(err), 80)}") from err
+        doc = _read_doc(p)
     else:
         doc = tomlkit.parse(NEW_FILE_HEADER)
         doc["version"] = 1

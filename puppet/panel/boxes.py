@@ -23,8 +23,14 @@ class BoxFeed:
         from puppet.live import build_mapping
         from puppet.mapping import Mapper
 
-        self.devs = [devices.open_device(s) for s in specs]
+        # first: close() needs them (a map that cannot be read closes the boxes opened; close()
+        # met no _stop and an AttributeError traceback hid the map's one line)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="editor boxes", daemon=True)
+        self.devs: list[Any] = []
         try:
+            for s in specs:
+                self.devs.append(devices.open_device(s))
             spec = build_mapping(vocab, map_path, [(d.spec, d.description) for d in self.devs])
             self.mapper = Mapper(spec, vocab)
         except Exception:
@@ -37,8 +43,6 @@ class BoxFeed:
         self.values = np.array(self.mapper.values, copy=True)
         self.driven: list[str] = []
         self.status: dict[str, bool] = {}
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="editor boxes", daemon=True)
 
     def start(self) -> None:
         for d in self.devs:

@@ -118,6 +118,14 @@ class PanelDevice(Device):
             raise DeviceError(f"{spec.text}: port {self.port} is outside 0..65535")
         self.lan = spec.get_bool("lan", False)
         self.host = host or ("0.0.0.0" if self.lan else "127.0.0.1")
+        from puppet.panel.server import DEFAULT_PORT, is_loopback
+
+        if not self.lan and not is_loopback(self.host):
+            # served beyond the loopback without the LAN mode's token, the page's only guard would be
+            # the Host header, which any machine on the network can write as 127.0.0.1
+            raise DeviceError(f"{spec.text}: {self.host} would serve the page beyond this machine; say so with "
+                              f"lan=1 (panel://{self.host}:{port or DEFAULT_PORT}?lan=1: the printed URL then "
+                              "holds a token), or use 127.0.0.1")
         self.vocab = vocab
         self.roles = dict(roles or {})
         self.description = "browser panel"
@@ -481,24 +489,35 @@ class PanelDevice(Device):
 
 
 def _start_editor(take: str) -> tuple[Any, str]:
-    """`python -m puppet edit TAKE` in a child process; its URL, read from its first line."""
+    """`python -m puppet edit TAKE` in a child process; its URL, read from its first line. When it
+    ends without serving, its own one-line reason (naming the take and what to do) is raised."""
     import os
     import subprocess
     import sys
+    import tempfile
 
-    proc = subprocess.Popen([sys.executable, "-m", "puppet", "edit", os.path.abspath(take)],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    assert proc.stdout is not None
-    end = time.monotonic() + 60
-    while time.monotonic() < end:
-        line = proc.stdout.readline()
-        if not line:
-            break
-        m = re.search(r"(http://\S+)", line)
-        if m:
-            return proc, m.group(1)
-    proc.kill()
-    raise RuntimeError("the editor did not start")
+    from puppet.errors import PuppetError
+
+    with tempfile.TemporaryFile("w+") as log:  # a file, not a pipe: a serving editor never blocks on it
+        proc = subprocess.Popen([sys.executable, "-m", "puppet", "edit", os.path.abspath(take)],
+                                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=log, text=True)
+        assert proc.stdout is not None
+        end = time.monotonic() + 60
+        while time.monotonic() < end:
+            line = proc.stdout.readline()
+            if not line:
+                break
+            m = re.search(r"(http://\S+)", line)
+            if m:
+                return proc, m.group(1)
+        proc.kill()
+        proc.wait()
+        log.seek(0)
+        said = [ln[len("puppet: error: "):] for ln in log.read().splitlines() if ln.startswith("puppet: error: ")]
+    if said:
+        raise PuppetError(said[-1])
+    raise PuppetError(f"the editor for {take} did not start (exit {proc.returncode}); "
+                      f"run `puppet edit {take}` in a terminal to see why")
 
 
 async def _no_icon(request: Any) -> Any:

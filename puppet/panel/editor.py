@@ -99,7 +99,8 @@ class Editor:
         self.session = read_session(self.take)
         if self.session.ticks < 1:  # its export was an IndexError traceback (a 500 on the page)
             raise ConfigError(f"{self.take} holds no performance (its header only: the show stopped before its "
-                              "first tick); nothing to edit")
+                              "first tick, or has not written one yet); nothing to edit: record it again, or "
+                              "edit it once the show has run a moment")
         self.digest = take_digest(self.take)
         self.base = build_performance(self.session, None, rig)
         self.face = self.base.face
@@ -122,6 +123,7 @@ class Editor:
         self.face_mode = "mesh"
         self.render_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="preview")
         self.work_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="export")
+        self.exporting: Path | None = None  # the export under way (the page's export runs one at a time)
 
     # --- state -----------------------------------------------------------------------------------
     def take_json(self) -> dict[str, Any]:
@@ -245,13 +247,20 @@ class Editor:
         self.face_scene()
         return bytes(self._stream.frame(rp.state, k, time.monotonic()))
 
-    def _export(self, name: str, perf: Any) -> str:
-        from puppet.export.runner import ExportOptions, export
+    def export_path(self, name: Any) -> Path:
+        """Where an export asked for as `name` goes: a plain name in the take's folder, never a file
+        that exists (`NAME-2.mp4`, `NAME-3.mp4`, ... instead)."""
+        from puppet.export.runner import unused_output
         from puppet.panel.server import safe_child
 
         path = safe_child(self.folder, name, EXPORT_SUFFIXES)
         if path == self.take:
             raise ValueError("the take itself is never written")
+        return unused_output(path)
+
+    def _export(self, path: Path, perf: Any) -> str:
+        from puppet.export.runner import ExportOptions, export
+
         kind_video = path.suffix == ".mp4"
         return export(perf, path, ExportOptions(fps=30.0 if kind_video else self.base.rate))
 
@@ -304,15 +313,23 @@ class Editor:
             return web.Response(body=png, content_type="image/png")
 
         async def do_export(request: web.Request) -> web.Response:
+            # one export at a time (it renders on every core); another is answered busy, not queued
+            # behind it where a script's requests would pile up
+            if self.exporting is not None:
+                return web.json_response({"ok": False, "busy": True, "error": f"{self.exporting.name} is being "
+                                          "exported; export again when it is done"}, status=429)
             try:
                 body = await _json_body(request)
-                name = body.get("name") if isinstance(body, dict) else None
+                path = self.export_path(body.get("name") if isinstance(body, dict) else None)
+                self.exporting = path
                 loop = asyncio.get_running_loop()
                 perf = await loop.run_in_executor(self.render_pool, self.performance)  # the pool that owns it
-                msg = await loop.run_in_executor(self.work_pool, self._export, name, perf)
+                msg = await loop.run_in_executor(self.work_pool, self._export, path, perf)
             except (ValueError, TypeError, PuppetError) as err:
                 return web.json_response({"ok": False, "error": str(err)}, status=400)
-            return web.json_response({"ok": True, "message": msg})
+            finally:
+                self.exporting = None
+            return web.json_response({"ok": True, "message": msg, "out": path.name})
 
         async def box_ws(request: web.Request) -> web.WebSocketResponse:
             ws = web.WebSocketResponse(max_msg_size=4096, heartbeat=10.0)

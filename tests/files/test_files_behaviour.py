@@ -162,3 +162,19 @@ def test_a_recording_resaved_as_utf16_is_one_line_with_the_hint(tmp_path: Path, 
     p.write_bytes(b"\xef\xbb\xbf" + good.encode())
     assert main(["replay", str(p), "--headless"]) == 0
     assert "replayed 24 ticks" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("args", "says"), [(["--speed", "5e-324"], "frames asked"),
+                                            (["--to", "-5"], "--to -5 must be at least 0"),
+                                            (["--from", "0.04", "--to", "0.02"], "is after --to")])
+def test_odd_replay_spans_are_one_line_naming_the_option(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                                         args: list[str], says: str) -> None:
+    """A speed so small the frame count overflows was an OverflowError traceback; `--to -5` said
+    "--from 0.0 must lie in 0..-5.000 s", naming the option the user did not give."""
+    from puppet.cli import main
+
+    formats.good_recording(tmp_path)
+    assert main(["replay", str(tmp_path / "good.jsonl"), "--out", str(tmp_path / "o.csv"), *args]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and says in err, err
+    assert not (tmp_path / "o.csv").exists()

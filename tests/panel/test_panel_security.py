@@ -263,3 +263,24 @@ def test_edit_a_take_with_no_tick_is_one_line(tmp_path: Path) -> None:
     errors = [ln for ln in r.stderr.splitlines() if ln.startswith("puppet: error:")]
     assert r.returncode == 2 and len(errors) == 1 and "nothing to edit" in errors[0], r.stdout + r.stderr
     assert "Traceback" not in r.stderr and not list(tmp_path.glob("*.curves"))
+
+
+@pytest.mark.parametrize("spec", ["panel://0.0.0.0:0", "panel://[::]:0"])
+def test_a_page_beyond_the_loopback_needs_lan_1(spec: str) -> None:
+    """`--device panel://0.0.0.0:PORT` served every interface with no token: its only guard was the
+    Host header, which a machine on the network writes as 127.0.0.1 as easily as a browser here.
+    It is refused, as a UDP device's address beyond the loopback is, naming lan=1."""
+    with pytest.raises(devices.DeviceError, match="lan=1"):
+        dev = devices.open_device(spec)
+        dev.close()
+
+
+def test_a_page_named_as_a_device_prints_its_url(tmp_path: Path) -> None:
+    """`puppet live --device 'panel://127.0.0.1:0?lan=1'` served the page behind a token it never
+    printed: nobody could open it. Its URL is printed like the default page's."""
+    r = subprocess.run([sys.executable, "-m", "puppet", "live", "--headless", "--no-panel", "--duration", "1",
+                        "--device", "panel://127.0.0.1:0?lan=1"], cwd=tmp_path, capture_output=True, text=True,
+                       env=CHILD_ENV, timeout=300)
+    assert r.returncode == 0, r.stderr
+    urls = [ln for ln in r.stdout.splitlines() if "performer's page at http://127.0.0.1:" in ln]
+    assert len(urls) == 1 and "?token=" in urls[0], r.stdout

@@ -242,3 +242,15 @@ def test_page_curves_with_an_integer_past_floats_are_refused_with_the_reason() -
     for key in ([0, 10**400], [10**400, 0.5], [0, -(10**400)]):
         with pytest.raises(ValueError, match="finite"):
             curves_from_json([{"target": "jaw", "keys": [key]}], ("take.jsonl", "0" * 16))
+
+
+def test_the_editors_boxes_with_a_map_that_cannot_be_read_say_so(vocab, tmp_path: Path) -> None:
+    """`puppet edit TAKE --device SPEC --map broken.toml`: closing the boxes opened met attributes
+    not made yet, and an AttributeError traceback hid the map's one line."""
+    from puppet.panel.boxes import BoxFeed
+
+    broken = tmp_path / "broken.toml"
+    broken.write_bytes(b"\xff\xfe not a map")
+    root = Path(__file__).resolve().parents[2]
+    with pytest.raises(ConfigError, match="broken.toml"):
+        BoxFeed([f"mock://{root / 'examples' / 'mock' / 'sgi_rehearsal.toml'}"], vocab, str(broken))

@@ -132,3 +132,12 @@ def test_an_image_size_beyond_what_can_be_drawn_is_one_line(argv: list[str], tmp
     lines = err.splitlines()
     assert ("8192" in lines[-1] or "16384" in lines[-1]) and "--size" in lines[-1], err
     assert not out.exists()
+
+
+def test_an_unknown_view_for_a_picture_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`puppet pose --view bogus --out p.png` was a ValueError traceback once the face had settled."""
+    out = tmp_path / "p.png"
+    assert main(["pose", "--seconds", "0", "--view", "bogus", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--view 'bogus'" in err and "shaded" in err
+    assert not out.exists()

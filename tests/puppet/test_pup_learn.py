@@ -156,3 +156,21 @@ def test_two_learns_on_one_map_at_once_keep_both_bindings(tmp_path: Path, monkey
     assert "added" in other
     got = {(b["control"], b["target"]) for b in tomlkit.parse(mp.read_text())["binding"]}
     assert got == {("dial0", "jaw"), ("dial1", "eyes_yaw"), ("dial2", "age")}
+
+
+@pytest.mark.parametrize("name", ["broken.toml", "missing/show.toml"])
+def test_cli_learn_says_the_map_cannot_be_used_before_anything_is_touched(tmp_path: Path, name: str) -> None:
+    """A damaged map or one in a folder that is not there was told only after the performer had
+    touched a control and named its target (the binding lost); it is told before the first touch,
+    one line, exit 2, and nothing is asked."""
+    script = tmp_path / "touch.toml"
+    script.write_text(SCRIPT)
+    mp = tmp_path / name
+    if name == "broken.toml":
+        mp.write_text("[[binding]\ncontrol = 'dial0'\n")
+    out = subprocess.run([sys.executable, "-m", "puppet", "learn", "--device", f"mock://{script}", "--map", str(mp),
+                          "--timeout", "3"], input="jaw\n", capture_output=True, text=True, timeout=60)
+    errors = [ln for ln in out.stderr.splitlines() if ln.startswith("puppet: error:")]
+    assert out.returncode == 2 and len(errors) == 1 and str(mp) in errors[0], out.stderr
+    assert "touched" not in out.stdout and "target" not in out.stdout, out.stdout
+    assert not (mp.exists() and "jaw" in mp.read_text())

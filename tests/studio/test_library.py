@@ -382,3 +382,81 @@ def test_a_take_id_past_64_bits_is_no_take(folder: Path, tmp_path: Path, capsys:
     for args in (("show", huge), ("tag", huge, "keep"), ("note", huge, "text"), ("show", str(-(1 << 70)))):
         code, out, err = takes_cli(capsys, lib, *args)
         assert code == 2 and err.count("\n") == 1 and f"no take {args[1]}" in err, (args, err)
+
+
+@pytest.mark.parametrize("args", [["tag", "1", "keeper"], ["note", "1", "a note"], ["import", "TAKE"]])
+def test_a_library_that_cannot_be_written_is_one_line(folder: Path, tmp_path: Path, args: list[str],
+                                                      capsys: pytest.CaptureFixture,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """A library on a read-only file or file system: `takes tag` and `takes note` were an
+    sqlite3.OperationalError traceback, and `takes import` counted each take as "not a
+    recording". Each is one line naming the library, exit 2, and the library is as it was."""
+    from puppet.library import schema
+
+    lib = tmp_path / "lib" / "takes.db"
+    with Library(lib) as library:
+        library.register(folder / "ana_smile.jsonl")
+    before = takes_cli(capsys, lib, "list", "--json")[1]
+    connect = schema.connect
+
+    def read_only(path: Path):  # what SQLite answers for a file it may not write
+        con, new = connect(path)
+        con.execute("PRAGMA query_only = ON")
+        return con, new
+
+    monkeypatch.setattr(schema, "connect", read_only)
+    args = [str(folder / "ana_brow.jsonl") if a == "TAKE" else a for a in args]
+    code, out, err = takes_cli(capsys, lib, *args)
+    assert code == 2 and err.count("\n") == 1 and err.startswith(f"puppet: error: {lib}: "), err
+    assert "read-only" in err and "--library" in err
+    monkeypatch.setattr(schema, "connect", connect)
+    assert takes_cli(capsys, lib, "list", "--json")[1] == before
+
+
+def test_reading_a_library_that_is_not_there_makes_nothing(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """`puppet takes list --library` with a mistyped path made its folders and an empty library
+    there; reading makes nothing: list and search find no takes, show names the missing library."""
+    lib = tmp_path / "typo" / "deeper" / "takes.db"
+    code, out, _ = takes_cli(capsys, lib, "list")
+    assert code == 0 and "no takes" in out and str(lib) in out
+    assert takes_cli(capsys, lib, "search", "smile", "--json")[:2] == (0, "[]\n")
+    code, _, err = takes_cli(capsys, lib, "show", "1")
+    assert code == 2 and str(lib) in err and err.count("\n") == 1
+    assert not (tmp_path / "typo").exists()
+
+
+@pytest.mark.parametrize("query", ["id:99999999999999999999999", "id:\u00b2"])
+def test_an_id_no_take_can_have_finds_nothing(folder: Path, tmp_path: Path, query: str,
+                                              capsys: pytest.CaptureFixture) -> None:
+    """An id past SQLite's 64-bit integers was an OverflowError traceback (and a 500 on the page's
+    take search), a superscript digit a ValueError from int()."""
+    lib = tmp_path / "lib" / "takes.db"
+    with Library(lib) as library:
+        library.register(folder / "ana_smile.jsonl")
+    code, out, err = takes_cli(capsys, lib, "search", query, "--json")
+    assert (code, out) == (0, "[]\n"), err
+
+
+def test_a_library_in_a_folder_that_cannot_be_written_is_read(folder: Path, tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture,
+                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """A library on a read-only file system or share (SQLite cannot make its -shm file beside it)
+    was called damaged and could not even be listed. It is read as it is; a change to it is one
+    line saying it is read-only, and nothing is written beside it."""
+    d = tmp_path / "shared"
+    lib = d / "takes.db"
+    with Library(lib) as library:
+        library.tag(library.register(folder / "ana_smile.jsonl"), "keeper")
+    before = sorted(p.name for p in d.iterdir())
+    d.chmod(0o555)
+    try:
+        if os.access(d, os.W_OK):  # the superuser writes anyway: the folder as access(2) sees it on a read-only mount
+            real = os.access
+            monkeypatch.setattr(os, "access", lambda p, m, **kw: False if (Path(p) == d and m & os.W_OK) else real(p, m, **kw))
+        code, out, err = takes_cli(capsys, lib, "search", "keeper", "--json")
+        assert code == 0 and [t["path"] for t in json.loads(out)] == [str(folder / "ana_smile.jsonl")], err
+        code, _, err = takes_cli(capsys, lib, "tag", "1", "other")
+        assert code == 2 and "read-only" in err and err.count("\n") == 1, err
+    finally:
+        d.chmod(0o755)
+    assert sorted(p.name for p in d.iterdir()) == before

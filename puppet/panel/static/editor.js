@@ -427,7 +427,7 @@
   $("save").onclick = () => sendCurves(true);
   $("export").onclick = () => { const name = E.take.take.replace(/\.jsonl$/, "") + "-edit" + $("exportname").value; msg("exporting " + name + " …");
     fetch("/api/export" + location.search, { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ name }) })
-      .then((r) => r.json()).then((j) => msg(j.ok ? j.message : "export failed: " + j.error)); };
+      .then((r) => r.json()).then((j) => msg(j.ok ? j.message : j.busy ? j.error : "export failed: " + j.error)); };
   $("addbtn").onclick = () => { const t = $("addtarget").value; if (!t) return;
     if (!E.curves.some((c) => c.target === t)) { push(); E.curves.push({ target: t, interp: "linear", mode: "replace", keys: [{ t: 0, v: 0, seg: "linear" }, { t: dur(), v: 0, seg: "linear" }] }); }
     changed(); selectTarget(t); };

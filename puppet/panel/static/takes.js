@@ -63,7 +63,8 @@
       b.textContent = kind;
       b.setAttribute("aria-label", `export take ${t.id} to ${kind}`);
       b.onclick = () => api(`/api/takes/${t.id}/export?to=${kind}`, { method: "POST" }).then((j) => {
-        say(j.ok ? `exporting to ${j.out}` : j.error);
+        say(!j.ok ? j.error : j.state === "waiting" ? `${j.out}: waits for ${j.ahead} export${j.ahead === 1 ? "" : "s"} before it`
+          : `exporting to ${j.out}`);
         if (j.ok) watchExports();
       });
       li.appendChild(b);
@@ -86,7 +87,7 @@
   function watchExports() {
     if (watching) return;
     watching = setInterval(() => api("/api/takes/exports").then((j) => {
-      const running = j.exports.filter((e) => e.state === "running");
+      const running = j.exports.filter((e) => e.state === "running" || e.state === "waiting");
       const last = j.exports[j.exports.length - 1];
       if (!running.length) {
         clearInterval(watching); watching = null;
