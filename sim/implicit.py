@@ -52,7 +52,7 @@ import numpy as np
 from sim.antifold import FoldGuard, _fold_forces, bending_of
 from sim.antifold import warm_up as warm_up_folds
 from sim.build import FaceModel
-from sim.integrator import JawTurn, _eye_contact
+from sim.integrator import JawTurn, _eye_contact, row_deviation
 from sim.margin_contact import (ROUNDS, SWEEPS, SolvedContact, _contact_force, _contact_resolve, _repair,
                                  solved_constraints, warm_up_solved)
 from sim.numba_start import prepare_blas_check
@@ -168,18 +168,25 @@ def _csr_times_flat(ptr, idx3, val, x, out):  # type: ignore[no-untyped-def]
     (`_flat_csr`), which spares the index arithmetic and the negative-index checks (0.13 -> 0.08
     ms on the scanned head's 114,578 entries of the margin bending, made every tick the jaw moves)."""
     for i in range(out.shape[0]):
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
-        for p in range(ptr[i], ptr[i + 1]):
-            a = val[p]
-            j = idx3[p]
-            a0 += a * x[j]
-            a1 += a * x[j + 1]
-            a2 += a * x[j + 2]
+        a0, a1, a2 = _row_times_flat(ptr, idx3, val, x, i)
         out[i, 0] = a0
         out[i, 1] = a1
         out[i, 2] = a2
+
+
+@numba.njit(inline="always")
+def _row_times_flat(ptr, idx3, val, x, i):  # type: ignore[no-untyped-def]
+    """Row i of A x (`_csr_times_flat`'s arrays), summed from 0 in stored order, as three numbers."""
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
+    for p in range(ptr[i], ptr[i + 1]):
+        a = val[p]
+        j = idx3[p]
+        a0 += a * x[j]
+        a1 += a * x[j + 1]
+        a2 += a * x[j + 2]
+    return a0, a1, a2
 
 
 def _flat_csr(ptr: np.ndarray, idx: np.ndarray, val: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -196,32 +203,36 @@ def _bend_turned(b0, b1, c, rot, slide, out):  # type: ignore[no-untyped-def]
     rotation `rot` and the slide `slide` (`ImplicitStepper.turn_basis`): K_b s is linear in them,
     row i = b0_i + rot b1_i + c_i slide, three values a row from K_b's products made once instead
     of its 114,578 entries (scanned head) a pose."""
-    r00, r01, r02 = rot[0, 0], rot[0, 1], rot[0, 2]
-    r10, r11, r12 = rot[1, 0], rot[1, 1], rot[1, 2]
-    r20, r21, r22 = rot[2, 0], rot[2, 1], rot[2, 2]
-    s0, s1, s2 = slide[0], slide[1], slide[2]
+    r, sl = _rotation_and_slide(rot, slide)
     for i in range(out.shape[0]):
-        e0, e1, e2 = b1[i, 0], b1[i, 1], b1[i, 2]
-        ci = c[i]
-        out[i, 0] = b0[i, 0] + (r00 * e0 + r01 * e1 + r02 * e2) + ci * s0
-        out[i, 1] = b0[i, 1] + (r10 * e0 + r11 * e1 + r12 * e2) + ci * s1
-        out[i, 2] = b0[i, 2] + (r20 * e0 + r21 * e1 + r22 * e2) + ci * s2
+        out[i, 0], out[i, 1], out[i, 2] = _turned_row(b0, b1, c, i, r, sl)
+
+
+@numba.njit(inline="always")
+def _rotation_and_slide(rot, slide):  # type: ignore[no-untyped-def]
+    """The jaw's rotation (row-major) and slide as tuples of numbers: values, which the compiler keeps
+    in registers over a loop that writes arrays (entries read from `rot` it must read again)."""
+    return ((rot[0, 0], rot[0, 1], rot[0, 2], rot[1, 0], rot[1, 1], rot[1, 2], rot[2, 0], rot[2, 1], rot[2, 2]),
+            (slide[0], slide[1], slide[2]))
+
+
+@numba.njit(inline="always")
+def _turned_row(b0, b1, c, i, r, sl):  # type: ignore[no-untyped-def]
+    """Row i of the margin bending's rest side turned with the jaw, b0_i + rot b1_i + c_i slide."""
+    e0, e1, e2 = b1[i, 0], b1[i, 1], b1[i, 2]
+    ci = c[i]
+    return (b0[i, 0] + (r[0] * e0 + r[1] * e1 + r[2] * e2) + ci * sl[0],
+            b0[i, 1] + (r[3] * e0 + r[4] * e1 + r[5] * e2) + ci * sl[1],
+            b0[i, 2] + (r[6] * e0 + r[7] * e1 + r[8] * e2) + ci * sl[2])
 
 
 @numba.njit(cache=True, nogil=True)
 def _bend_turned_add(b0, b1, c, rot, slide, ext, out, total):  # type: ignore[no-untyped-def]
     """`_bend_turned` into out, and total = ext + out in the same pass (`np.add` after it: the same
     bits, one pass and one call less)."""
-    r00, r01, r02 = rot[0, 0], rot[0, 1], rot[0, 2]
-    r10, r11, r12 = rot[1, 0], rot[1, 1], rot[1, 2]
-    r20, r21, r22 = rot[2, 0], rot[2, 1], rot[2, 2]
-    s0, s1, s2 = slide[0], slide[1], slide[2]
+    r, sl = _rotation_and_slide(rot, slide)
     for i in range(out.shape[0]):
-        e0, e1, e2 = b1[i, 0], b1[i, 1], b1[i, 2]
-        ci = c[i]
-        o0 = b0[i, 0] + (r00 * e0 + r01 * e1 + r02 * e2) + ci * s0
-        o1 = b0[i, 1] + (r10 * e0 + r11 * e1 + r12 * e2) + ci * s1
-        o2 = b0[i, 2] + (r20 * e0 + r21 * e1 + r22 * e2) + ci * s2
+        o0, o1, o2 = _turned_row(b0, b1, c, i, r, sl)
         out[i, 0] = o0
         out[i, 1] = o1
         out[i, 2] = o2
@@ -280,15 +291,7 @@ def _held_rhs(x, held, fh_ptr, fh_idx, fh_val, base, ext, free, perm_r, xh, ys, 
             xh[k, d] = x[i, d]
     xf = xh.reshape(-1)
     for q in range(free.shape[0]):
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
-        for p in range(fh_ptr[q], fh_ptr[q + 1]):
-            a = fh_val[p]
-            j = fh_idx[p]
-            a0 += a * xf[j]
-            a1 += a * xf[j + 1]
-            a2 += a * xf[j + 2]
+        a0, a1, a2 = _row_times_flat(fh_ptr, fh_idx, fh_val, xf, q)
         i = free[q]
         r = perm_r[q]
         if summed:
@@ -448,13 +451,9 @@ def _free_deviation(x, free, target):  # type: ignore[no-untyped-def]
     (`sim.integrator._max_deviation` over those rows)."""
     worst = 0.0
     for q in range(free.shape[0]):
-        i = free[q]
-        for d in range(3):
-            if not math.isfinite(x[i, d]):
-                return -1.0
-            e = abs(x[i, d] - target[i, d])
-            if e > worst:
-                worst = e
+        worst = row_deviation(x, free[q], target, worst)
+        if worst < 0.0:
+            break
     return worst
 
 

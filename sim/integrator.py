@@ -135,17 +135,27 @@ def _constant_forces(indptr, indices, data, values, is_muscle, weight, kr, targe
             out[i, d] = acc + weight[i, d] + kr[i] * target[i, d] + support * nrm[i, d]
 
 
+@numba.njit(inline="always")
+def row_deviation(x, i, target, worst):  # type: ignore[no-untyped-def]
+    """max(worst, |x[i] - target[i]|) over row i's coordinates, or -1 if one of x[i] is not finite
+    (the guard's measure, one row: `_max_deviation`, `_held_deviation`, sim.implicit's free rows)."""
+    for d in range(3):
+        if not math.isfinite(x[i, d]):
+            return -1.0
+        dev = abs(x[i, d] - target[i, d])
+        if dev > worst:
+            worst = dev
+    return worst
+
+
 @numba.njit(**KERNEL)
 def _max_deviation(x, target):  # type: ignore[no-untyped-def]
     """max |x - target| over all coordinates, or -1 if any coordinate of x is not finite."""
     worst = 0.0
     for i in range(x.shape[0]):
-        for d in range(3):
-            if not math.isfinite(x[i, d]):
-                return -1.0
-            dev = abs(x[i, d] - target[i, d])
-            if dev > worst:
-                worst = dev
+        worst = row_deviation(x, i, target, worst)
+        if worst < 0.0:
+            break
     return worst
 
 
@@ -153,16 +163,10 @@ def _max_deviation(x, target):  # type: ignore[no-untyped-def]
 def _held_deviation(x, held, target, worst):  # type: ignore[no-untyped-def]
     """`_max_deviation` given `worst`, the free nodes' (sim.implicit._free_deviation, -1: not finite),
     completed over the held ones: the same answer as over all rows when they are the two parts."""
-    if worst < 0.0:
-        return -1.0
     for k in range(held.shape[0]):
-        i = held[k]
-        for d in range(3):
-            if not math.isfinite(x[i, d]):
-                return -1.0
-            dev = abs(x[i, d] - target[i, d])
-            if dev > worst:
-                worst = dev
+        if worst < 0.0:
+            break
+        worst = row_deviation(x, held[k], target, worst)
     return worst
 
 

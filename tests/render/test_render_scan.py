@@ -85,18 +85,28 @@ def test_mouth_inside_drawn_when_open(gl) -> None:
         off.release()
 
 
-def test_every_view_draws_the_simulated_scanned_head(gl) -> None:
+def _scan_posed(what: str) -> tuple:
+    """The default scanned face and its state six steps into `what` (a preset, or an action unit
+    such as AU27, the jaw dropped) at full value: the mouth's and eyes' insides on show."""
     from puppet.face_cache import scan_model
-    from sim.facs import apply_expression
+    from sim.facs import apply_au, apply_expression
     from sim.integrator import Simulator
     from sim.state import FaceControl
 
     model = scan_model(None)
     sim, state = Simulator(model), model.rest_state()
     control = FaceControl(model)
-    apply_expression(control, "surprise", 1.0)
+    if what.startswith("AU"):
+        apply_au(control, what, 1.0)
+    else:
+        apply_expression(control, what, 1.0)
     for _ in range(6):
         sim.step(state, control)
+    return model, state
+
+def test_every_view_draws_the_simulated_scanned_head(gl) -> None:
+
+    model, state = _scan_posed("surprise")
     shots = {}
     with OffscreenRenderer(model, (160, 120), ctx=gl) as off:
         assert off.renderer.scan is not None  # the default face is drawn as the whole scan
@@ -135,18 +145,9 @@ def test_back_faces_left_out_on_the_cpu_change_no_pixel(gl) -> None:
     """The triangles turned away from the camera are left out before OpenGL sees them: from the
     front, the side and behind, with the mouth open, the picture is the one OpenGL's own culling
     makes, and a good share of the triangles is left out."""
-    from puppet.face_cache import scan_model
     from render.scan_draw import CULLED
-    from sim.facs import apply_au
-    from sim.integrator import Simulator
-    from sim.state import FaceControl
 
-    model = scan_model(None)
-    sim, state = Simulator(model), model.rest_state()
-    control = FaceControl(model)
-    apply_au(control, "AU27", 1.0)
-    for _ in range(6):
-        sim.step(state, control)
+    model, state = _scan_posed("AU27")
     with OffscreenRenderer(model, (240, 180), ctx=gl) as off:
         scan = off.renderer.scan
         for yaw, pitch in ((0.0, 0.0), (1.3, 0.4), (3.1, -0.3)):
@@ -174,18 +175,9 @@ def test_unseen_triangles_left_out_change_no_pixel(gl) -> None:
     mouth's triangles are drawn from the front (fewer of the mouth's than with the openings' boxes
     on screen alone, not their hulls, or with the teeth and gums hidden only behind the mouth's
     opening), and the listing made on the helper thread is the one made on the calling thread."""
-    from puppet.face_cache import scan_model
     from render.scan_draw import CULLED
-    from sim.facs import apply_au
-    from sim.integrator import Simulator
-    from sim.state import FaceControl
 
-    model = scan_model(None)
-    sim, state = Simulator(model), model.rest_state()
-    control = FaceControl(model)
-    apply_au(control, "AU27", 1.0)
-    for _ in range(6):
-        sim.step(state, control)
+    model, state = _scan_posed("AU27")
     inner = [CULLED.index(g) for g in ("eyes", "mouth")]
     mouth_g = CULLED.index("mouth")
     with OffscreenRenderer(model, (320, 180), ctx=gl) as off:
@@ -372,19 +364,10 @@ def test_frame_in_parts_is_the_frame_in_one_pass(gl) -> None:
     them, so llvmpipe rasterises while the rest is made and set up) is the frame drawn in one pass:
     with the mouth open and the HUD, drawn straight into the target, supersampled, and into a
     viewport within a larger framebuffer."""
-    from puppet.face_cache import scan_model
     from render.hud import HudInfo
     from render.scan_draw import CULLED, FLUSH_AT
-    from sim.facs import apply_au
-    from sim.integrator import Simulator
-    from sim.state import FaceControl
 
-    model = scan_model(None)
-    sim, state = Simulator(model), model.rest_state()
-    control = FaceControl(model)
-    apply_au(control, "AU27", 1.0)
-    for _ in range(6):
-        sim.step(state, control)
+    model, state = _scan_posed("AU27")
     hud = HudInfo(channels=[("jaw", 0.8, 0, 1)], age=30, devices=[], fps=60.0, latency_ms=10.0, lines=["? help"])
     every = ("half", *CULLED, "lashes")
     with OffscreenRenderer(model, (320, 180), ctx=gl) as off:
