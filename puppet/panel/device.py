@@ -118,7 +118,7 @@ class PanelDevice(Device):
             raise DeviceError(f"{spec.text}: port {self.port} is outside 0..65535")
         self.lan = spec.get_bool("lan", False)
         self.host = host or ("0.0.0.0" if self.lan else "127.0.0.1")
-        from puppet.panel.server import DEFAULT_PORT, is_loopback
+        from puppet.panel.address import DEFAULT_PORT, is_loopback
 
         if not self.lan and not is_loopback(self.host):
             # served beyond the loopback without the LAN mode's token, the page's only guard would be

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import asyncio
 import hmac
-import ipaddress
 import secrets
 import threading
 from collections.abc import Callable
@@ -27,20 +26,11 @@ from typing import Any
 from aiohttp import web
 
 from puppet.errors import PuppetError
+from puppet.panel.address import DEFAULT_PORT, is_loopback
 
-DEFAULT_PORT = 8765
 COOKIE = "puppet_token"
 STATIC_TYPES = {".html": "text/html", ".js": "text/javascript", ".css": "text/css", ".svg": "image/svg+xml"}
 LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
-
-
-def is_loopback(host: str) -> bool:
-    if host in ("localhost", ""):
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
 
 
 def static_files() -> dict[str, tuple[bytes, str]]:
