@@ -181,10 +181,11 @@ def start_background(thread: Any) -> None:
 
 def join_background(timeout: float = 60.0) -> bool:
     """Wait up to `timeout` seconds in all for the show's background threads (the kernels' warm-up,
-    the wrinkle layer's build). A thread still loading compiled kernels when the interpreter
-    finalizes is ended by pthread_exit from inside LLVM's call back into numba's cache, which aborts
-    the process ("terminate called without an active exception", exit 134). False when one is
-    still running: the caller then ends the process without the interpreter's teardown."""
+    the wrinkle layer's build). A daemon thread still in native code (numba's LLVM, a C++ library
+    running without the GIL) when Python 3.11 finalizes is ended by pthread_exit as it takes the GIL
+    back; unwinding C++ frames that way aborts the process ("terminate called without an active
+    exception", exit 134), which a show stopped right after its first frame met now and then. False
+    when one is still running: the caller then ends the process without the interpreter's teardown."""
     import time
 
     end = time.monotonic() + timeout
