@@ -46,7 +46,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import scan_limits  # noqa: E402
-from scan_limits import Free, rms  # noqa: E402
+from scan_limits import Free  # noqa: E402
 
 SHAPES = ("mouthPress_L,mouthClose,mouthShrugLower,mouthDimple_L,mouthRollLower,mouthRollUpper,mouthFunnel,"
           "BrowInnerUp,mouthSmile_L")
@@ -269,22 +269,12 @@ def main() -> int:
     ap.add_argument("--smooth", type=float, default=scan_limits.SMOOTH,
                     help="Laplacian weight per edge of every fit, relative to one shape's own size")
     args = ap.parse_args()
-    from scan_match import scan_targets
-
-    from puppet.capture.arkit_in import shape_channels
-    from puppet.face_cache import scan_model
     from sim.face.scan.layers import ligaments
-    from sim.fit.basis import Settler
 
     Free.MAXITER = args.maxiter
     scan_limits.SMOOTH = args.smooth
     t0 = time.monotonic()
-    model = scan_model()
-    st = Settler(model)
-    targets = scan_targets(args.shapes.split(","))
-    values = {label: shape_channels({arkit: np.ones(1)}, 1)[0] for label, (arkit, _) in targets.items()}
-    real = {label: st.pose(v) - st.rest for label, v in values.items()}
-    sheet = Free(model)
+    model, targets, values, real, sheet = scan_limits.settled_shapes(args.shapes)
     models: dict[str, Free] = {"sheet": sheet}
     for name in filter(None, args.variants.split(",")):
         if name == "split":
@@ -304,10 +294,7 @@ def main() -> int:
                 lax, tight = float(part[1]), float(part[2])
                 tang = lax + (tight - lax) * ligaments(model)
             m = Sliding(model, tang)
-            ratio = [rms(sheet.linear(v)) / rms(m.linear(v)) for v in values.values()]
-            m.scale = float(np.median(ratio))
-            print(f"{name}: compliance scaled by {m.scale:.2f} (per shape {min(ratio):.2f}..{max(ratio):.2f})",
-                  flush=True)
+            scan_limits.scale_like(name, m, sheet, values)
         models[name] = m
     print(f"settled and built in {time.monotonic() - t0:.0f} s")
     print(f"{'shape':20s} {'map':>5s} " + " ".join(f"{k:>16s}" for k in models))
@@ -317,26 +304,17 @@ def main() -> int:
                            axis=1) < 3.0
     print(f"(where: the share of the sheet's remaining error on the lips' red part ({red.sum()} vertices) and within 3 cm "
           f"of the mouth's centre ({mouth.sum()}))")
-    rows = []
-    for label, (_, target) in targets.items():
-        rel = [rms(real[label] - target) / rms(target)]
-        notes = []
-        for name, m in models.items():
-            offset = real[label] - m.linear(values[label])
-            if isinstance(m, Contact):
-                u, p = m.best_with_contact(target - offset)
-                notes.append(f"{name} pressure lips {p[:m.n_lips].sum():.1f} teeth {p[m.n_lips:].sum():.1f}")
-            else:
-                u = m.best_gains(target - offset)
-                if m is sheet:
-                    e = np.sum((u + offset - target) ** 2, axis=1)
-                    notes.append(f"where: red {e[red].sum() / e.sum():.2f}, mouth {e[mouth].sum() / e.sum():.2f}")
-            rel.append(rms(u + offset - target) / rms(target))
-        rows.append(rel)
-        print(f"{label:20s} " + f"{rel[0]:5.2f} " + " ".join(f"{r:16.3f}" for r in rel[1:]) +
-              f"   ({time.monotonic() - t0:.0f} s; {'; '.join(notes)})", flush=True)
-    med = np.median(np.array(rows), axis=0)
-    print(f"{'median':20s} {med[0]:5.2f} " + " ".join(f"{r:16.3f}" for r in med[1:]))
+    def fit(name: str, m, wanted: np.ndarray) -> tuple[np.ndarray, str | None]:
+        if isinstance(m, Contact):
+            u, p = m.best_with_contact(wanted)
+            return u, f"{name} pressure lips {p[:m.n_lips].sum():.1f} teeth {p[m.n_lips:].sum():.1f}"
+        u = m.best_gains(wanted)
+        if m is not sheet:
+            return u, None
+        e = np.sum((u - wanted) ** 2, axis=1)
+        return u, f"where: red {e[red].sum() / e.sum():.2f}, mouth {e[mouth].sum() / e.sum():.2f}"
+
+    scan_limits.ceiling_table(targets, real, values, models, fit, 16, t0)
     return 0
 
 

@@ -27,7 +27,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from scan_limits import Free, rms  # noqa: E402
+from scan_limits import Free, ceiling_table, scale_like, settled_shapes  # noqa: E402
 
 SHAPES = ("browDown_L,mouthClose,mouthDimple_L,mouthFunnel,mouthPress_L,mouthShrugLower,BrowInnerUp,"
           "mouthSmile_L")
@@ -115,41 +115,17 @@ def main() -> int:
     ap.add_argument("--maxiter", type=int, default=Free.MAXITER, help="L-BFGS-B iterations a fit")
     ap.add_argument("--no-sheet", action="store_true", help="leave out the shipped sheet's own fit")
     args = ap.parse_args()
-    from scan_match import scan_targets
-
-    from puppet.capture.arkit_in import shape_channels
-    from puppet.face_cache import scan_model
-    from sim.fit.basis import Settler
-
     Free.MAXITER = args.maxiter
     t0 = time.monotonic()
-    model = scan_model()
-    st = Settler(model)
-    targets = scan_targets(args.shapes.split(","))
-    values = {label: shape_channels({arkit: np.ones(1)}, 1)[0] for label, (arkit, _) in targets.items()}
-    real = {label: st.pose(v) - st.rest for label, v in values.items()}
-    sheet = Free(model)
+    model, targets, values, real, sheet = settled_shapes(args.shapes)
     models = {} if args.no_sheet else {"sheet": sheet}
     for name in args.variants.split(","):
         m = Sheet(model, float(name.split(":")[1])) if name.startswith("sheet:") else Layered(model, *VARIANTS[name])
-        ratio = [rms(sheet.linear(v)) / rms(m.linear(v)) for v in values.values()]
-        m.scale = float(np.median(ratio))
+        scale_like(name, m, sheet, values)
         models[name] = m
-        print(f"{name}: compliance scaled by "
-              f"{m.scale:.2f} (per shape {min(ratio):.2f}..{max(ratio):.2f})", flush=True)
     print(f"settled and built in {time.monotonic() - t0:.0f} s")
     print(f"{'shape':20s} {'map':>5s} " + " ".join(f"{k:>14s}" for k in models))
-    rows = []
-    for label, (_, target) in targets.items():
-        rel = [rms(real[label] - target) / rms(target)]
-        for m in models.values():
-            offset = real[label] - m.linear(values[label])
-            rel.append(rms(m.best_gains(target - offset) + offset - target) / rms(target))
-        rows.append(rel)
-        print(f"{label:20s} " + f"{rel[0]:5.2f} " + " ".join(f"{r:14.3f}" for r in rel[1:]) +
-              f"   ({time.monotonic() - t0:.0f} s)", flush=True)
-    med = np.median(np.array(rows), axis=0)
-    print(f"{'median':20s} {med[0]:5.2f} " + " ".join(f"{r:14.3f}" for r in med[1:]))
+    ceiling_table(targets, real, values, models, lambda name, m, wanted: (m.best_gains(wanted), None), 14, t0)
     return 0
 
 

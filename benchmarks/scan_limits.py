@@ -42,6 +42,54 @@ def rms(d: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
 
 
+def settled_shapes(shapes: str) -> tuple:
+    """The scanned head; its scan targets for `shapes` (comma-separated); each shape's channels by
+    the ARKit map; the shipped rig's settled displacement for them; the plain sheet's free fit."""
+    from scan_match import scan_targets
+
+    from puppet.capture.arkit_in import shape_channels
+    from puppet.face_cache import scan_model
+    from sim.fit.basis import Settler
+
+    model = scan_model()
+    st = Settler(model)
+    targets = scan_targets(shapes.split(","))
+    values = {label: shape_channels({arkit: np.ones(1)}, 1)[0] for label, (arkit, _) in targets.items()}
+    real = {label: st.pose(v) - st.rest for label, v in values.items()}
+    return model, targets, values, real, Free(model)
+
+
+def scale_like(name: str, m, sheet, values: dict) -> None:
+    """Scale model m's compliance so its linear statics move the shapes as much as the sheet's do
+    (the median ratio over the shapes): the ceilings then compare shapes of motion, not stiffness."""
+    ratio = [rms(sheet.linear(v)) / rms(m.linear(v)) for v in values.values()]
+    m.scale = float(np.median(ratio))
+    print(f"{name}: compliance scaled by {m.scale:.2f} (per shape {min(ratio):.2f}..{max(ratio):.2f})", flush=True)
+
+
+def ceiling_table(targets: dict, real: dict, values: dict, models: dict, fit, width: int, t0: float) -> None:
+    """Print, shape by shape as each is fitted, the map's relative error and each model's ceiling,
+    then their medians. `fit(name, model, wanted)` gives the model's best displacement for `wanted`
+    (the scan's displacement less what the model's linear statics leave of the settled pose) and a
+    note for the row, or None."""
+    rows = []
+    for label, (_, target) in targets.items():
+        rel = [rms(real[label] - target) / rms(target)]
+        notes = []
+        for name, m in models.items():
+            offset = real[label] - m.linear(values[label])
+            u, note = fit(name, m, target - offset)
+            if note:
+                notes.append(note)
+            rel.append(rms(u + offset - target) / rms(target))
+        rows.append(rel)
+        said = f"; {'; '.join(notes)}" if notes else ""
+        print(f"{label:20s} " + f"{rel[0]:5.2f} " + " ".join(f"{r:{width}.3f}" for r in rel[1:]) +
+              f"   ({time.monotonic() - t0:.0f} s{said})", flush=True)
+    med = np.median(np.array(rows), axis=0)
+    print(f"{'median':20s} {med[0]:5.2f} " + " ".join(f"{r:{width}.3f}" for r in med[1:]))
+
+
 class Free:
     """Per-shape free fits in the rig's linear statics: gains per (muscle, zone vertex) along the
     fixed lines of action, or a free smooth force per zone vertex."""
