@@ -8,9 +8,10 @@ Routes (behind the page server's guard like every other route):
   POST /api/takes/{id}/export?to=KIND  `puppet replay TAKE --out STEM.KIND` beside the take (mp4, pc2, csv)
   GET  /api/takes/exports              the exports started from this page, waiting, running or ended
 
-Edit starts one editor per take (pressed again: the same one), at most MAX_EDITORS; exports run one at a time (each renders on every core already), up to MAX_WAITING more wait their
-turn, and past that a request is answered busy (429). An export never replaces a file: when
-STEM.KIND (or a PC2's STEM.obj) exists, it is written as STEM-2.KIND, STEM-3.KIND, ..."""
+Edit starts one editor per take (pressed again: the same one), at most MAX_EDITORS. Exports run one
+at a time (each renders on every core already), up to MAX_WAITING more wait their turn, and past
+that a request is answered busy (429). An export never replaces a file: when STEM.KIND (or a PC2's
+STEM.obj) exists, it is written as STEM-2.KIND, STEM-3.KIND, ..."""
 
 from __future__ import annotations
 
@@ -29,8 +30,8 @@ from puppet.library.store import recording_alive
 
 MAX_RESULTS = 200
 MAX_WAITING = 4  # exports waiting behind the running one; past that a request is answered busy (429)
-MAX_KEPT = 100
-MAX_EDITORS = 4  # `puppet edit` processes the page starts (each holds a face); past that: busy (429)  # exports remembered (the list the page polls shows the last 20)
+MAX_KEPT = 100  # exports remembered (the list the page polls shows the last 20)
+MAX_EDITORS = 4  # `puppet edit` processes the page starts (each holds a face); past that: busy (429)
 EXPORT_SUFFIXES = {"mp4": ".mp4", "pc2": ".pc2", "csv": ".csv"}
 
 
