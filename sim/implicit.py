@@ -337,7 +337,7 @@ def _responses(resp, act, val, out):  # type: ignore[no-untyped-def]
     each value summed from 0 in the channels' order, four channels' responses a pass (contiguous
     passes, which the compiler vectorizes; each value takes its four terms one after the other, so
     the bits are those of a pass a channel; out is read and written a quarter as often: 49 -> 31
-    us for the dial box's 15 channels on the scanned head)."""
+    us for the dial box's 15 channels on the scanned head), the one to three left in one pass."""
     o = out.reshape(-1)
     m = o.shape[0]
     k = 0
@@ -354,14 +354,34 @@ def _responses(resp, act, val, out):  # type: ignore[no-untyped-def]
             s += r3[p] * a3
             o[p] = s
         k += 4
-    if k == 0:
-        o[:] = 0.0
-    while k < act.shape[0]:
-        r = resp[act[k]].reshape(-1)
-        a = val[k]
+    left = act.shape[0] - k  # the last one to three channels in one pass too (not a pass each:
+    first = k == 0  # each value still takes them one after the other; 42 -> 37 us for 15 channels)
+    if left == 3:
+        r0, r1, r2 = resp[act[k]].reshape(-1), resp[act[k + 1]].reshape(-1), resp[act[k + 2]].reshape(-1)
+        a0, a1, a2 = val[k], val[k + 1], val[k + 2]
         for p in range(m):
-            o[p] += r[p] * a
-        k += 1
+            s = 0.0 if first else o[p]
+            s += r0[p] * a0
+            s += r1[p] * a1
+            s += r2[p] * a2
+            o[p] = s
+    elif left == 2:
+        r0, r1 = resp[act[k]].reshape(-1), resp[act[k + 1]].reshape(-1)
+        a0, a1 = val[k], val[k + 1]
+        for p in range(m):
+            s = 0.0 if first else o[p]
+            s += r0[p] * a0
+            s += r1[p] * a1
+            o[p] = s
+    elif left == 1:
+        r0 = resp[act[k]].reshape(-1)
+        a0 = val[k]
+        for p in range(m):
+            s = 0.0 if first else o[p]
+            s += r0[p] * a0
+            o[p] = s
+    elif first:
+        o[:] = 0.0
 
 
 @numba.njit(inline="always")
@@ -624,6 +644,13 @@ class ImplicitStepper:
         self._bend_rhs = np.zeros((n, 3))
         self._ext = np.zeros((n, 3))
         nf, nh = len(self.free), len(self.held)
+        # the node lists and the factors' permutations as the kernels index with them: unsigned
+        # (never negative), so no index needs a check for wrapping around (the same values)
+        unsigned = np.uint64
+        self._index = (np.ascontiguousarray(self.free, dtype=np.int64).view(unsigned),
+                       np.ascontiguousarray(self.held, dtype=np.int64).view(unsigned),
+                       np.ascontiguousarray(self.solver.perm_r, dtype=np.int64).view(unsigned),
+                       np.ascontiguousarray(self.solver.perm_c, dtype=np.int64).view(unsigned))
         # y, base, the held nodes' x, the solve's ys, the free nodes' x before a substep, du
         self._buf = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((nh, 3)), np.zeros((nf, 3)), np.zeros((nf, 3)),
                      np.zeros((nf, 3)))
@@ -727,7 +754,8 @@ class ImplicitStepper:
         _predict(x, v, self.h, *self._layout(idx), rest_len, k_low, kls, k_high, thr, normal, self.kn, self.mass_h2, self.damp_h,
                  c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base, ext, summed,
                  self._spring_work(len(idx)), self._px, self._pv, keep)
-        _held_rhs(x, self.held, *self._fh, base, ext, self.free, self.solver.perm_r, xh, ys, summed)
+        free, held, perm_r = self._index[:3]
+        _held_rhs(x, held, *self._fh, base, ext, free, perm_r, xh, ys, summed)
         if self.symmetric_solve:
             _sym_sweeps(ys, *self.solver.sym_factors, self.solver.work)
         else:
@@ -799,7 +827,7 @@ class ImplicitStepper:
             if sub > 0 or not predicted:
                 self._solve_free(x, v, ext, springs, normal, summed)
             last = check is not None and sub == n_sub - 1
-            _advance(x, v, self.h, self._buf[3], du, muscles, self.free, self.solver.perm_c, self._buf[4], c.idx, c.w,
+            _advance(x, v, self.h, self._buf[3], du, muscles, self._index[0], self._index[3], self._buf[4], c.idx, c.w,
                      c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam, c.loc, c.green, c.gptr, c.gvert, c.gval, c._work,
                      c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes, check if last else x, self._dev if last else self._no_dev)
         if check is not None and n_sub > 0:
