@@ -323,3 +323,26 @@ def test_the_active_muscles_and_the_bending_added_have_the_bits_of_numpy(model) 
         got_bend, got = np.full_like(ext, np.nan), np.full_like(ext, np.nan)
         _bend_turned_add(*impl._turn_b, rot, slide, ext, got_bend, got)
         assert got_bend.tobytes() == bend.tobytes() and got.tobytes() == want.tobytes(), pose
+
+
+def test_the_right_hand_side_with_the_turned_bending_has_the_bits_of_the_sum_made_first(model) -> None:  # type: ignore[no-untyped-def]
+    """The prediction's right-hand side with the margin bending's rest side turned with the jaw made
+    row by row where it is used (`_held_rhs_turned`) has the bits of that side added to the
+    constant forces into an array first (`_bend_turned_add`) and then read (`_held_rhs`)."""
+    from sim.implicit import _bend_turned_add, _held_rhs, _held_rhs_turned
+
+    s = Simulator(model, 1.0 / 120.0)
+    impl = s._implicit
+    assert impl is not None and len(impl.held) and len(impl._bend[2])
+    rng = np.random.default_rng(5)
+    x, base, ext = (rng.normal(0.0, 1.0, (model.n_vertices, 3)) for _ in range(3))
+    free, held, perm_r = impl._index[:3]
+    nf, nh = len(impl.free), len(impl.held)
+    for pose in ((0.4, 0.0, 0.0), (0.3, 0.6, -0.2)):
+        rot, slide = s._jaw_motion(pose)
+        total = np.zeros_like(ext)
+        _bend_turned_add(*impl._turn_b, rot, slide, ext, np.zeros_like(ext), total)
+        want, got = np.full((nf, 3), np.nan), np.full((nf, 3), np.nan)
+        _held_rhs(x, held, *impl._fh, base, total, free, perm_r, np.zeros((nh, 3)), want, False)
+        _held_rhs_turned(x, held, *impl._fh, base, ext, *impl._turn_b, rot, slide, free, perm_r, np.zeros((nh, 3)), got)
+        assert np.all(np.isfinite(got)) and got.tobytes() == want.tobytes(), pose
