@@ -28,7 +28,9 @@ rounding (D: U's diagonal): `_sym_sweeps` solves from L and D alone, L^-T D^-1 L
 value of L twice and none of U's: the same answer to rounding, other bits (new takes; the take
 header's "solve", sim.Simulator.symmetric_solve), fewer bytes to bring from memory each solve. Its
 backward sweep takes L's columns (contiguous) as sums over the rows below a run, which it
-adds in four lanes of vector code; `_sn_sweeps` stays for the takes recorded with it.
+adds in four lanes of vector code (a lone column's straight from y by index: `_lone_back`);
+`_sn_sweeps` stays for the takes recorded with it. Both sweeps take the row indices as uint32
+(`PrefactoredSolver.factors`), so no index is checked for being negative in their loops.
 """
 
 from __future__ import annotations
@@ -715,8 +717,8 @@ class PrefactoredSolver:
         """What `_sym_sweeps` reads: L's values, the runs' triangles with L's values on both sides
         (`mirrored`, made on first use: 0.86 MB on the scanned head) and D; U's (uv) left unread."""
         a = self.arrays
-        return tuple(_unsigned(a[k]) if k == "r_idx" else a[k] for k in ("sn_ptr", "r_ptr", "r_idx", "v_ptr", "lv", "t_ptr")) + (
-            mirrored(a["sn_ptr"], a["t_ptr"], a["tv"]), a["u_diag"])
+        return (a["sn_ptr"], a["r_ptr"], _unsigned(a["r_idx"]), a["v_ptr"], a["lv"], a["t_ptr"],
+                mirrored(a["sn_ptr"], a["t_ptr"], a["tv"]), a["u_diag"])
 
     def solve_symmetric(self, b: np.ndarray, out: np.ndarray) -> np.ndarray:
         """out = A^-1 b for b (n, 3) from L and D alone (`_sym_sweeps`): the same up to rounding."""
