@@ -254,6 +254,24 @@ def _screen(pos: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndar
         deep[i] = e
 
 
+@numba.njit(cache=True, nogil=True)
+def screen_box(xy: np.ndarray, box: np.ndarray) -> None:
+    """box = (x0, y0, x1, y1): the box on screen, in pixels (x right, y up), of every vertex of
+    `xy` (as `_screen` left them); the whole plane when one is not in front of the camera."""
+    x0 = y0 = np.inf
+    x1 = y1 = -np.inf
+    for i in range(xy.shape[0]):
+        x, y = xy[i, 0], xy[i, 1]
+        if np.isnan(x) or np.isnan(y):
+            box[0], box[1], box[2], box[3] = -np.inf, -np.inf, np.inf, np.inf
+            return
+        x0 = min(x0, x)
+        x1 = max(x1, x)
+        y0 = min(y0, y)
+        y1 = max(y1, y)
+    box[0], box[1], box[2], box[3] = x0, y0, x1, y1
+
+
 @numba.njit(cache=True, nogil=True, inline="always")
 def _no_pixel(xy: np.ndarray, a: int, b: int, c: int, size: np.ndarray, small: float) -> bool:
     """Whether the triangle a b c (corners in pixels, xy) lies wholly off the picture, its box holds
