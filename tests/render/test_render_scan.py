@@ -426,3 +426,17 @@ def test_hud_composited_first_is_the_hud_composited_last(gl) -> None:
     # the first frame has no frame before; the close ones reach the panels (the first of them is
     # guessed free from the one before, then cleared again)
     assert first == [False, True, False, False, False, True]
+
+
+def test_screen_box_holds_every_vertex_and_gives_up_behind_the_camera() -> None:
+    """The scan's box on screen (what the HUD is kept clear of) is the vertices' own box, and the
+    whole plane when a vertex is not in front of the camera (its pixels NaN)."""
+    from render.scan_kernel import screen_box
+
+    xy = np.random.default_rng(3).normal(300.0, 80.0, (5000, 2)).astype(np.float32)
+    box = np.zeros(4)
+    screen_box(xy, box)
+    assert np.array_equal(box, [*xy.min(axis=0), *xy.max(axis=0)])
+    xy[1234, 1] = np.nan
+    screen_box(xy, box)
+    assert np.array_equal(box, [-np.inf, -np.inf, np.inf, np.inf])
