@@ -19,11 +19,12 @@ SNAP = 1.0 / 64.0  # pixels: slack for the rasterizer's rounding of a corner (it
 def _fold(pos: np.ndarray, nbr_ptr: np.ndarray, nbr: np.ndarray, inv_len: np.ndarray, scratch: np.ndarray,
           out: np.ndarray, skip_v: np.ndarray, closed: bool) -> None:
     """out[:, 6]: the fold term of scan_rows, from the positions and the unit normals in out
-    (left as it was at the vertices skip_v marks when `closed`)."""
+    (left as it was at the vertices skip_v marks: bit 2 always, bit 1 when `closed`)."""
     n = pos.shape[0]
+    mask = 3 if closed else 2
     for i in range(n):
         lo, hi = nbr_ptr[i], nbr_ptr[i + 1]
-        if hi == lo or (closed and skip_v[i]):
+        if hi == lo or skip_v[i] & mask:
             scratch[i] = 0.0
             continue
         sx = np.float32(0.0)
@@ -38,7 +39,7 @@ def _fold(pos: np.ndarray, nbr_ptr: np.ndarray, nbr: np.ndarray, inv_len: np.nda
         dx, dy, dz = sx * m - pos[i, 0], sy * m - pos[i, 1], sz * m - pos[i, 2]
         scratch[i] = (dx * out[i, 3] + dy * out[i, 4] + dz * out[i, 5]) * inv_len[i]
     for i in range(n):
-        if closed and skip_v[i]:
+        if skip_v[i] & mask:
             continue
         lo, hi = nbr_ptr[i], nbr_ptr[i + 1]
         s = scratch[i]
@@ -402,11 +403,14 @@ def scan_rows(pos: np.ndarray, tri: np.ndarray, nbr_ptr: np.ndarray, nbr: np.nda
     positive in a crease (a fold, the nasolabial groove, the frown lines), negative on a ridge.
     It is recomputed from the posed surface every frame, so a fold that deepens darkens.
 
-    When `closed` (the mouth's inside is not drawn), the triangles skip_tri marks and the vertices
-    skip_v marks (deep in the mouth: their normals and folds feed no drawn vertex) are passed over."""
+    The triangles skip_tri marks and the vertices skip_v marks are passed over: with bit 2 always
+    (what no shader reads: the lashes' normals, the eyeballs' and lashes' fold terms), with bit 1
+    when `closed` (the mouth's inside is not drawn; deep in the mouth: their normals and folds feed
+    no drawn vertex). Their rows are left as they were."""
     start_rows(pos, out)
+    mask = 3 if closed else 2
     for t in range(tri.shape[0]):
-        if closed and skip_tri[t]:
+        if skip_tri[t] & mask:
             continue
         add_face_normal(pos, tri, t, out)
     unit_normals(out, pos.shape[0])

@@ -55,11 +55,14 @@ class ScanRows:
         self.size = np.zeros(2)
         self.tri = np.ascontiguousarray(look.triangles, np.int32)
         self.skip_tri, self.skip_v = self._deep_mouth()
+        unread_tri, unread_v = self._unread()
+        self.skip_tri |= unread_tri << 1
+        self.skip_v |= unread_v << 1
         self.inside = np.zeros(N_VERTICES, np.uint8)  # the corners of triangles inside the head
         self.inside[self.tri[look.behind != 0].ravel()] = 1
         extra = np.zeros((0, 3), np.int32) if listed is None else np.asarray(listed, np.int32)
         self.list_tri = np.ascontiguousarray(np.concatenate([self.tri, extra]), np.int32)
-        self.list_skip = np.concatenate([self.skip_tri, np.zeros(len(extra), np.uint8)])
+        self.list_skip = np.concatenate([self.skip_tri & 1, np.zeros(len(extra), np.uint8)])
         self.list_behind = np.concatenate([look.behind, np.zeros(len(extra), look.behind.dtype)])
         if listed_mouth:
             lo = len(look.groups["skin"])  # `triangles` are the groups in order, the skin's first
@@ -127,6 +130,23 @@ class ScanRows:
         skip_tri = in_mouth & ~near[self.tri].any(axis=1)
         skip_v = mouth & ~near
         return skip_tri.astype(np.uint8), skip_v.astype(np.uint8)
+
+    def _unread(self) -> tuple[np.ndarray, np.ndarray]:
+        """(T,) uint8 the triangles whose corners' normals no shader reads, directly or through a
+        fold term, and (N,) uint8 the vertices whose fold term none reads (render.scan_shaders: the
+        skin's shader, which draws the skin, the sockets and the mouth's inside, reads both; the
+        eyes' reads the normal; the lashes' neither)."""
+        look = self.look
+        n = N_VERTICES
+        fold = np.zeros(n, bool)
+        for name in ("skin", "sockets", "mouth"):
+            fold[look.groups[name].ravel()] = True
+        near = fold.copy()  # a fold term reads its neighbours' normals and positions
+        for i in np.flatnonzero(fold):
+            near[look.nbr[look.nbr_ptr[i]:look.nbr_ptr[i + 1]]] = True
+        normal = near.copy()
+        normal[look.groups["eyes"].ravel()] = True
+        return (~normal[self.tri].any(axis=1)).astype(np.uint8), (~near).astype(np.uint8)
 
     def rows(self, posed: np.ndarray, eye: np.ndarray | None = None, group: np.ndarray | None = None,
              starts: np.ndarray | None = None, kept: np.ndarray | None = None,
