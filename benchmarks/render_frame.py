@@ -23,7 +23,8 @@ hulls (render.scan_rows's use_hulls off), and with the small triangles judged by
 alone and no eyeball hiding its socket (render.scan_rows's small_box 0, use_balls off), and with
 the teeth and gums hidden only behind the mouth's opening, not beside it (render.scan_rows's
 use_walls off), and with the full lining, gums and tongue drawn with the coarse skin
-(render.scan_draw's lod_inside off); and the drawing alone (rows made beforehand: every
+(render.scan_draw's lod_inside off), and with the HUD composited last, not with the clear
+(render.renderer.FaceRenderer's hud_first off); and the drawing alone (rows made beforehand: every
 triangle; also with the whole skin in its full shader, split_skin off), for comparison.
 `--scan N --stream` times the scanned head (shaded + HUD) and the floor as streams of frames, each
 frame's pixels read back (the floor's too), serial and pipelined (render.pipeline: the next frame's
@@ -292,15 +293,16 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
             times: dict[str, list[tuple[float, float]]] = {"whole": [], "full_skin": [], "all_tris": [], "unseen": [],
                                                            "boxes": [], "full_lashes": [], "loose": [], "plane": [],
                                                            "full_inside": [], "draw": [],
-                                                           "unsplit": [], "one_pass": [], "floor": []}
+                                                           "unsplit": [], "one_pass": [], "hud_last": [],
+                                                           "floor": []}
             threads: dict[str, dict[str, list[float]]] = {k: {"main": [], "other": [], "raster": []}
                                                           for k in ("whole", "full_skin", "loose", "plane",
-                                                                    "full_inside", "one_pass")}
+                                                                    "full_inside", "one_pass", "hud_last")}
             for b in range(batches + 1):
                 for key, use_rows in (("whole", False), ("full_skin", False), ("all_tris", False), ("unseen", False),
                                       ("boxes", False), ("full_lashes", False), ("loose", False), ("plane", False),
                                       ("full_inside", False), ("draw", True),
-                                      ("unsplit", True), ("one_pass", False)):
+                                      ("unsplit", True), ("one_pass", False), ("hud_last", False)):
                     def frame(i: int, use: bool = use_rows, split: bool = key != "unsplit",
                               cull: bool = key != "all_tris", unseen: bool = key != "unseen",
                               lod: bool = key != "full_skin") -> None:
@@ -309,6 +311,7 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                             del s.scan_rows  # type: ignore[attr-defined]
                         r.scan.lod = lod
                         r.clear_first = key != "one_pass" and parts[0]
+                        r.hud_first = key != "hud_last"
                         r.scan.flush_at = () if key == "one_pass" else parts[1]
                         r.scan.lod_inside = key != "full_inside"
                         r.scan.split_skin = split
@@ -342,8 +345,9 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
             f, whole, draw, unsplit = med["floor"], med["whole"], med["draw"], med["unsplit"]
             every, unseen, full, boxes = med["all_tris"], med["unseen"], med["full_skin"], med["boxes"]
             lashes, loose, plane, inside = med["full_lashes"], med["loose"], med["plane"], med["full_inside"]
-            one = med["one_pass"]
+            one, last = med["one_pass"], med["hud_last"]
             quicker = sum(a[0] < b[0] for a, b in zip(times["whole"], times["one_pass"]))
+            first = sum(a[0] < b[0] for a, b in zip(times["whole"], times["hud_last"]))
             out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; "
                        f"floor {f[0]:.2f} ms (cpu {f[1]:.2f}); whole frame {whole[0]:.2f} ms = "
                        f"{whole[0] / f[0]:.2f}x floor (cpu {whole[1] / f[1]:.2f}x; coarse skin drawn: "
@@ -364,12 +368,14 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                        f"the skin in one shader {unsplit[0] / f[0]:.2f}x (cpu {unsplit[1] / f[1]:.2f}x); the whole "
                        f"frame in one pass (cleared just before the draw calls, no flush between them) "
                        f"{one[0] / f[0]:.2f}x (cpu {one[1] / f[1]:.2f}x), the whole frame quicker in "
-                       f"{quicker}/{len(times['whole'])} batches")
+                       f"{quicker}/{len(times['whole'])} batches; with the HUD composited last (not with the "
+                       f"clear) {last[0] / f[0]:.2f}x (cpu {last[1] / f[1]:.2f}x), the whole frame quicker in "
+                       f"{first}/{len(times['whole'])} batches")
             for key, label in (("whole", "whole frame's"), ("full_skin", "with the full skin,"),
                                ("loose", "with the small triangles' boxes alone and no eyeball hiding,"),
                                ("plane", "with the teeth and gums hidden only behind the mouth's opening,"),
                                ("full_inside", "with the full lining, gums and tongue,"),
-                               ("one_pass", "in one pass,")):
+                               ("one_pass", "in one pass,"), ("hud_last", "with the HUD composited last,")):
                 if threads[key]["main"]:
                     out.append(f"{'':<10} {label} CPU by thread, ms: " + ", ".join(
                         f"{kind} {statistics.median(v):.2f}" for kind, v in threads[key].items()))

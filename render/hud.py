@@ -136,6 +136,7 @@ class HudRenderer:
         self.layer_vao = ctx.vertex_array(self.layer_prog, [(self.layer_vbo, "2f", "in_pos")])
         self._layer: tuple[tuple[int, int], moderngl.Texture, moderngl.Framebuffer, moderngl.Texture] | None = None
         self._layer_count = 0
+        self._panels = np.zeros((0, 4))  # the pixels the layer is composited over: x0 y0 x1 y1 from the top-left
 
     def atlas(self, px: int) -> tuple[FontAtlas, moderngl.Texture]:
         if self._atlas is None or self._atlas[0] != px:
@@ -266,6 +267,7 @@ class HudRenderer:
         """Draw the quads into the layer (once per change of content) and set the panel quads
         that composite it."""
         self._count = self._layer_count = 0
+        self._panels = np.zeros((0, 4))
         if not self._quads:
             return
         q = np.concatenate(self._quads)
@@ -298,6 +300,7 @@ class HudRenderer:
         y0 = np.clip(np.floor(rects[:, 1]), 0, h)
         x1 = np.clip(np.ceil(rects[:, 2]), 0, w)
         y1 = np.clip(np.ceil(rects[:, 3]), 0, h)
+        self._panels = np.stack([x0, y0, x1, y1], axis=1)
         corners = np.stack([x0, y0, x1, y0, x1, y1, x0, y0, x1, y1, x0, y1], 1).astype(np.float32)
         raw = corners.tobytes()
         if len(raw) > self.layer_vbo.size:
@@ -312,6 +315,15 @@ class HudRenderer:
             box = (int(a), int(h - d), int(c - a), int(d - b))
             if box[2] > 0 and box[3] > 0:
                 shown.write(layer_fbo.read(viewport=box, components=4, alignment=1), viewport=box, alignment=1)
+
+    def covers(self, box: tuple[float, float, float, float], margin: float = 0.0) -> bool:
+        """Whether the HUD as last drawn composites over any pixel of `box` (x0 y0 x1 y1 in pixels
+        from the top-left) widened by `margin` pixels."""
+        p = self._panels
+        if not len(p):
+            return False
+        x0, y0, x1, y1 = box[0] - margin, box[1] - margin, box[2] + margin, box[3] + margin
+        return bool(((p[:, 0] < x1) & (p[:, 2] > x0) & (p[:, 1] < y1) & (p[:, 3] > y0)).any())
 
     def _layer_target(self, size: tuple[int, int]) -> tuple[moderngl.Texture, moderngl.Framebuffer]:
         """The layer drawn into and its framebuffer (a third texture, sampled by the frames, holds

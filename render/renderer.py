@@ -23,6 +23,11 @@ from sim.gaze_lids import YAW_MAX as EYE_YAW_MAX
 from sim.gaze_lids import eye_yaws
 
 VIEWS = ("shaded", "wireframe", "muscles", "trails", "heat")
+# px: the HUD goes first (FaceRenderer.hud_first) while the scanned head's box on screen in the frame
+# before, this much wider, leaves its panels free, and stays first while this frame's box, HUD_CLEAR_PX
+# wider (the rasterizer's rounding of a corner is 1/256 px), does
+HUD_FIRST_MARGIN_PX = 24.0
+HUD_CLEAR_PX = 2.0
 ANTIALIAS = ("fxaa", "none")
 BACKGROUND = (0.29, 0.295, 0.305)  # neutral grey, display (gamma-encoded) values
 MAX_TRAIL_NODES = 4000
@@ -126,6 +131,14 @@ class FaceRenderer:
         # and rows) and sets up its triangles; False: clear just before the draw calls (the same
         # pixels), as with no rasterizer threads (LP_NUM_THREADS=0), where it would gain nothing
         self.clear_first = threaded_rasterizer()
+        # with clear_first, the scanned head's HUD composited with the clear, so the rasterizer's
+        # threads composite it while this thread poses the scan, when the scan's box on screen (made
+        # with its triangles' listing) leaves the HUD's panels free: the same pixels. Guessed from
+        # the frame before (its box HUD_FIRST_MARGIN_PX wider), and checked against this frame's:
+        # where the scan reaches a panel, the frame is cleared again and the HUD composited last
+        self.hud_first = True
+        self.hud_was_first = False  # whether the last frame drawn composited its HUD first
+        self._scan_box: tuple[np.ndarray, tuple[int, int]] | None = None  # the last frame's, with its size
 
     @property
     def antialias(self) -> str:
@@ -340,8 +353,12 @@ class FaceRenderer:
         self._made += 1
         post = self._post_program(ss)
         first = self.clear_first
+        hud_first = False
         if first:  # the rasterizer's threads clear the tiles while this thread makes the CPU half
             fbo, tex = self._clear(target, post, w, h, ss)
+            if hud is not None and self._hud_may_go_first(post, (w, h)):
+                self._draw_hud(hud, w, h, state)
+                hud_first = True
             flush()
         rows = getattr(state, "interleaved", None)  # x y z nx ny nz rows made elsewhere (an export's
         n = self.normals.n  # render process is handed them with the frame: see puppet.export.video)
@@ -355,6 +372,11 @@ class FaceRenderer:
                 eye = np.linalg.inv(view_m)[:3, 3]
                 scan_rows = self.scan.rows(state, eye, mvp, (w * ss, h * ss))
             self._scan_rows = scan_rows
+            box = self.scan.screen_box(scan_rows) if ss == 1 else None
+            self._scan_box = None if box is None else (box, (w, h))
+            if hud_first and (box is None or self.hud.covers(_top_down(box, h), HUD_CLEAR_PX)):
+                fbo, tex = self._clear(target, post, w, h, ss)  # the scan reaches a panel: the HUD goes last
+                hud_first = False
             surface = np.ascontiguousarray(state.surface, dtype=np.float32)
             if self.view in ("wireframe", "muscles", "trails"):  # the overlays' surface, no normals
                 rows = self._overlay_rows(surface)
@@ -388,11 +410,26 @@ class FaceRenderer:
             if "texel" in prog:
                 prog["texel"].value = (1.0 / w, 1.0 / h)
             vao.render(moderngl.TRIANGLES, vertices=3)
-        if hud is not None:
-            if self.view == "heat":
-                hud = HudInfo(**{**hud.__dict__, "lines": hud.lines + [
-                    f"heat: blue = still, red ≥ {self.heat_scale:g} cm from rest"]})
-            self.hud.draw(hud, (w, h), view=self.view, age=getattr(state, "age", None))
+        if hud is not None and not hud_first:
+            self._draw_hud(hud, w, h, state)
+        self.hud_was_first = hud_first
+
+    def _draw_hud(self, hud: HudInfo, w: int, h: int, state: Any) -> None:
+        if self.view == "heat":
+            hud = HudInfo(**{**hud.__dict__, "lines": hud.lines + [
+                f"heat: blue = still, red ≥ {self.heat_scale:g} cm from rest"]})
+        self.hud.draw(hud, (w, h), view=self.view, age=getattr(state, "age", None))
+
+    def _hud_may_go_first(self, post: Any, size: tuple[int, int]) -> bool:
+        """Whether to composite the HUD with the clear: the scanned head drawn straight into the
+        target in a view without overlays, and its box on screen in the frame before, at the same
+        size and HUD_FIRST_MARGIN_PX wider, clear of the HUD's panels (this frame's box is checked
+        once its triangles are listed)."""
+        last = self._scan_box
+        if (not self.hud_first or self.scan is None or post is not None or self.view not in ("shaded", "heat")
+                or last is None or last[1] != size):
+            return False
+        return not self.hud.covers(_top_down(last[0], size[1]), HUD_FIRST_MARGIN_PX)
 
     def _clear(self, target: moderngl.Framebuffer, post: Any, w: int, h: int,
                ss: int) -> tuple[moderngl.Framebuffer, moderngl.Texture | None]:
@@ -590,3 +627,8 @@ class FaceRenderer:
                     self.trail_prog, self.point_prog):
             obj.release()
         self.hud.release()
+
+
+def _top_down(box: np.ndarray, h: int) -> tuple[float, float, float, float]:
+    """A box on screen x0 y0 x1 y1 in pixels with y up as x0 y0 x1 y1 from the top-left (the HUD's)."""
+    return float(box[0]), float(h - box[3]), float(box[2]), float(h - box[1])

@@ -244,6 +244,14 @@ class ScanDraw:
         self._facing_rows = self._made_rows = rows
         return rows
 
+    def screen_box(self, rows: np.ndarray) -> np.ndarray | None:
+        """(4,) pixels x0 y0 x1 y1 (y up; infinite when a vertex lies behind the camera): the box on
+        screen of every vertex of `rows`, all the scan can draw on, if `rows` was last made here with
+        the camera and the picture's size; else None."""
+        if rows is not self._facing_rows or np.isnan(self.maker.box).any():
+            return None
+        return self.maker.box.copy()
+
     def _shaded(self, rows: np.ndarray) -> np.ndarray:
         return rows if self.softener is None else self.softener.shade(rows)
 

@@ -19,11 +19,12 @@ SNAP = 1.0 / 64.0  # pixels: slack for the rasterizer's rounding of a corner (it
 def _fold(pos: np.ndarray, nbr_ptr: np.ndarray, nbr: np.ndarray, inv_len: np.ndarray, scratch: np.ndarray,
           out: np.ndarray, skip_v: np.ndarray, closed: bool) -> None:
     """out[:, 6]: the fold term of scan_rows, from the positions and the unit normals in out
-    (left as it was at the vertices skip_v marks when `closed`)."""
+    (left as it was at the vertices skip_v marks: bit 2 always, bit 1 when `closed`)."""
     n = pos.shape[0]
+    mask = 3 if closed else 2
     for i in range(n):
         lo, hi = nbr_ptr[i], nbr_ptr[i + 1]
-        if hi == lo or (closed and skip_v[i]):
+        if hi == lo or skip_v[i] & mask:
             scratch[i] = 0.0
             continue
         sx = np.float32(0.0)
@@ -38,7 +39,7 @@ def _fold(pos: np.ndarray, nbr_ptr: np.ndarray, nbr: np.ndarray, inv_len: np.nda
         dx, dy, dz = sx * m - pos[i, 0], sy * m - pos[i, 1], sz * m - pos[i, 2]
         scratch[i] = (dx * out[i, 3] + dy * out[i, 4] + dz * out[i, 5]) * inv_len[i]
     for i in range(n):
-        if closed and skip_v[i]:
+        if skip_v[i] & mask:
             continue
         lo, hi = nbr_ptr[i], nbr_ptr[i + 1]
         s = scratch[i]
@@ -254,6 +255,47 @@ def _screen(pos: np.ndarray, clip: np.ndarray, size: np.ndarray, planes: np.ndar
         deep[i] = e
 
 
+@numba.njit(cache=True, nogil=True)
+def screen_box(xy: np.ndarray, box: np.ndarray) -> None:
+    """box = (x0, y0, x1, y1): the box on screen, in pixels (x right, y up), of every vertex of
+    `xy` (as `_screen` left them); the whole plane when one is not in front of the camera (NaN).
+    One pass without an early exit (a third quicker: 0.02 ms for the scan's 26,719 vertices)."""
+    x0 = y0 = np.float32(np.inf)
+    x1 = y1 = np.float32(-np.inf)
+    bad = False
+    for i in range(xy.shape[0]):
+        x, y = xy[i, 0], xy[i, 1]
+        bad |= (x != x) | (y != y)  # NaN: never taken by the comparisons below
+        x0 = x if x < x0 else x0
+        x1 = x if x > x1 else x1
+        y0 = y if y < y0 else y0
+        y1 = y if y > y1 else y1
+    if bad:
+        box[0], box[1], box[2], box[3] = -np.inf, -np.inf, np.inf, np.inf
+    else:
+        box[0], box[1], box[2], box[3] = x0, y0, x1, y1
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _turned_on_screen(xy: np.ndarray, a: int, b: int, c: int) -> int:
+    """How the triangle a b c (corners in pixels, xy, y up) faces the camera on screen: 0 when it
+    turns its back by more than its corners' rounding can undo, so that OpenGL's back-face culling
+    (counter-clockwise is front) drops it: its doubled signed area below -SNAP times its perimeter
+    (L1; a corner moving by SNAP moves the doubled area by at most that); 1 otherwise; -1 when a
+    corner is not in front of the camera. Cheaper than the test in space, from the pixels the
+    listing has."""
+    ax, bx, cx = xy[a, 0], xy[b, 0], xy[c, 0]
+    ay, by, cy = xy[a, 1], xy[b, 1], xy[c, 1]
+    if np.isnan(ax) or np.isnan(bx) or np.isnan(cx):
+        return -1
+    ux, uy, vx, vy = bx - ax, by - ay, cx - ax, cy - ay
+    area = ux * vy - uy * vx
+    if area >= 0.0:
+        return 1
+    edges = abs(ux) + abs(uy) + abs(vx) + abs(vy) + abs(cx - bx) + abs(cy - by)
+    return 0 if area < -SNAP * edges else 1
+
+
 @numba.njit(cache=True, nogil=True, inline="always")
 def _no_pixel(xy: np.ndarray, a: int, b: int, c: int, size: np.ndarray, small: float) -> bool:
     """Whether the triangle a b c (corners in pixels, xy) lies wholly off the picture, its box holds
@@ -361,11 +403,14 @@ def scan_rows(pos: np.ndarray, tri: np.ndarray, nbr_ptr: np.ndarray, nbr: np.nda
     positive in a crease (a fold, the nasolabial groove, the frown lines), negative on a ridge.
     It is recomputed from the posed surface every frame, so a fold that deepens darkens.
 
-    When `closed` (the mouth's inside is not drawn), the triangles skip_tri marks and the vertices
-    skip_v marks (deep in the mouth: their normals and folds feed no drawn vertex) are passed over."""
+    The triangles skip_tri marks and the vertices skip_v marks are passed over: with bit 2 always
+    (what no shader reads: the lashes' normals, the eyeballs' and lashes' fold terms), with bit 1
+    when `closed` (the mouth's inside is not drawn; deep in the mouth: their normals and folds feed
+    no drawn vertex). Their rows are left as they were."""
     start_rows(pos, out)
+    mask = 3 if closed else 2
     for t in range(tri.shape[0]):
-        if closed and skip_tri[t]:
+        if skip_tri[t] & mask:
             continue
         add_face_normal(pos, tri, t, out)
     unit_normals(out, pos.shape[0])
@@ -383,8 +428,9 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
     """The triangles of each drawn group g (group[t] = g >= 0) that may be seen from `eye` (the
     camera's position, model space), listed in order at kept[starts[g]:starts[g] + counts[g]]
     (independent of scan_rows, so the two can run at once). A triangle is left out when the eye
-    lies behind its plane by more than 1e-3 rad (OpenGL's back-face culling would drop it
-    anyway). Given the camera's `clip` matrix (projection @ view, row-major; size[0] > 0, the
+    lies behind its plane by more than 1e-3 rad, or, given the picture and its corners in front of
+    the camera, in place of that, when they turn clockwise on screen by more than their rounding
+    can undo (`_turned_on_screen`: it costs less): OpenGL's back-face culling would drop it anyway. Given the camera's `clip` matrix (projection @ view, row-major; size[0] > 0, the
     picture's size in pixels), also when it covers no pixel (`_no_pixel`: off the picture, or too
     thin to hold a pixel centre; one whose box holds at most `small` centres is tested at each);
     a triangle inside the head (behind[t]: a bit per opening of the skin it can be seen through,
@@ -418,11 +464,15 @@ def seen_triangles(pos: np.ndarray, tri: np.ndarray, skip_tri: np.ndarray, close
         if g < 0 or (closed and skip_tri[t]):
             continue
         a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
-        cx, cy, cz = face_cross(pos, a, b, c)
-        wx, wy, wz = ex - pos[a, 0], ey - pos[a, 1], ez - pos[a, 2]
-        d = cx * wx + cy * wy + cz * wz
-        if d < 0 and d * d > hair * (cx * cx + cy * cy + cz * cz) * (wx * wx + wy * wy + wz * wz):
+        on_screen = _turned_on_screen(xy, a, b, c) if view else -1
+        if on_screen == 0:
             continue
+        if on_screen < 0:  # a corner not in front of the camera, or no picture: the test in space
+            cx, cy, cz = face_cross(pos, a, b, c)
+            wx, wy, wz = ex - pos[a, 0], ey - pos[a, 1], ez - pos[a, 2]
+            d = cx * wx + cy * wy + cz * wz
+            if d < 0 and d * d > hair * (cx * cx + cy * cy + cz * cz) * (wx * wx + wy * wy + wz * wz):
+                continue
         if view:
             if _no_pixel(xy, a, b, c, size, small):
                 continue

@@ -21,6 +21,16 @@ OPENING_MARGIN_PX = 3.0  # pixels an opening's box and hull on screen are widene
 WALL_MARGIN_CM = 0.05  # cm the sides of an opening's prism are pushed out by (render.scan_kernel.openings)
 
 
+def _listing(args: tuple, xy: np.ndarray | None, box: np.ndarray) -> None:  # type: ignore[type-arg]
+    """The triangles seen (render.scan_kernel.seen_triangles(*args)) and, given the vertices' pixels
+    it leaves in `xy`, their box on screen into `box`."""
+    from render.scan_kernel import screen_box, seen_triangles
+
+    seen_triangles(*args)
+    if xy is not None:
+        screen_box(xy, box)
+
+
 class ScanRows:
     """The posed scan as the renderer's rows x y z nx ny nz fold (one (N, 7) float32 array,
     rewritten every call: upload it, don't keep it). While the lips are shut the mouth's inside is
@@ -45,11 +55,14 @@ class ScanRows:
         self.size = np.zeros(2)
         self.tri = np.ascontiguousarray(look.triangles, np.int32)
         self.skip_tri, self.skip_v = self._deep_mouth()
+        unread_tri, unread_v = self._unread()
+        self.skip_tri |= unread_tri << 1
+        self.skip_v |= unread_v << 1
         self.inside = np.zeros(N_VERTICES, np.uint8)  # the corners of triangles inside the head
         self.inside[self.tri[look.behind != 0].ravel()] = 1
         extra = np.zeros((0, 3), np.int32) if listed is None else np.asarray(listed, np.int32)
         self.list_tri = np.ascontiguousarray(np.concatenate([self.tri, extra]), np.int32)
-        self.list_skip = np.concatenate([self.skip_tri, np.zeros(len(extra), np.uint8)])
+        self.list_skip = np.concatenate([self.skip_tri & 1, np.zeros(len(extra), np.uint8)])
         self.list_behind = np.concatenate([look.behind, np.zeros(len(extra), look.behind.dtype)])
         if listed_mouth:
             lo = len(look.groups["skin"])  # `triangles` are the groups in order, the skin's first
@@ -89,6 +102,9 @@ class ScanRows:
                           np.zeros_like(self.occluded))
         self.use_balls = True  # False: the eyeballs hide nothing (the same pixels)
         self.small_box = SMALL_BOX  # 0: the triangles' boxes alone tell which hold no pixel centre (the same pixels)
+        # the box on screen (pixels x0 y0 x1 y1, y up) of every vertex in the rows last made with a
+        # camera and a picture size; NaN when they were made without
+        self.box = np.full(4, np.nan)
         self.closed = True  # whether the lips were shut in the rows last made
         self.threaded = True  # False: the listing of the triangles seen on the calling thread too
         self._pool: ThreadPoolExecutor | None = None
@@ -115,6 +131,23 @@ class ScanRows:
         skip_v = mouth & ~near
         return skip_tri.astype(np.uint8), skip_v.astype(np.uint8)
 
+    def _unread(self) -> tuple[np.ndarray, np.ndarray]:
+        """(T,) uint8 the triangles whose corners' normals no shader reads, directly or through a
+        fold term, and (N,) uint8 the vertices whose fold term none reads (render.scan_shaders: the
+        skin's shader, which draws the skin, the sockets and the mouth's inside, reads both; the
+        eyes' reads the normal; the lashes' neither)."""
+        look = self.look
+        n = N_VERTICES
+        fold = np.zeros(n, bool)
+        for name in ("skin", "sockets", "mouth"):
+            fold[look.groups[name].ravel()] = True
+        near = fold.copy()  # a fold term reads its neighbours' normals and positions
+        for i in np.flatnonzero(fold):
+            near[look.nbr[look.nbr_ptr[i]:look.nbr_ptr[i + 1]]] = True
+        normal = near.copy()
+        normal[look.groups["eyes"].ravel()] = True
+        return (~normal[self.tri].any(axis=1)).astype(np.uint8), (~near).astype(np.uint8)
+
     def rows(self, posed: np.ndarray, eye: np.ndarray | None = None, group: np.ndarray | None = None,
              starts: np.ndarray | None = None, kept: np.ndarray | None = None,
              counts: np.ndarray | None = None, mvp: np.ndarray | None = None,
@@ -124,14 +157,16 @@ class ScanRows:
         group g that may face the eye, at kept[starts[g]:][:counts[g]]; given also the camera's
         `mvp` (projection @ view) and the picture's `size`, without those that cover no pixel or that the skin hides
         (render.scan_kernel.seen_triangles, on a helper thread while this one makes the rows)."""
-        from render.scan_kernel import openings, scan_rows, seen_triangles
+        from render.scan_kernel import openings, scan_rows
 
         p = np.ascontiguousarray(posed, dtype=np.float32)
         closed = self.closed = not self.look.mouth_open(p)
         listing: Future[None] | None = None
+        self.box[:] = np.nan
         if not (eye is None or group is None or starts is None or kept is None or counts is None):
             planes, boxes, hulls, hull_n, clip, px = self._no_view
-            if mvp is not None and size is not None and min(size) > 0:
+            view = mvp is not None and size is not None and min(size) > 0
+            if view:
                 clip, px = np.ascontiguousarray(mvp, np.float64), self.size
                 px[:] = size
                 planes, boxes, hulls, hull_n = self.planes, self.boxes, self.hulls, self.hull_n
@@ -144,11 +179,11 @@ class ScanRows:
                     self.deep, *(self._balls if self.use_balls else self._no_balls), self.sides, float(self.small_box),
                     self.sealed if self.use_walls else self._no_walls, self.walls, self.wall_n)
             if not self.threaded:
-                seen_triangles(*args)
+                _listing(args, self.xy if view else None, self.box)
             else:
                 if self._pool is None:
                     self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="scan-rows")
-                listing = self._pool.submit(seen_triangles, *args)
+                listing = self._pool.submit(_listing, args, self.xy if view else None, self.box)
         try:
             scan_rows(p, self.tri, self.look.nbr_ptr, self.look.nbr, self.look.inv_len, self.scratch, self.buffer,
                       self.skip_tri, self.skip_v, closed)

