@@ -66,9 +66,11 @@ SHAPE_SPAN = {"BrowInnerUp": 0.55, "EyeSquint": 0.5, "MouthPress": 0.6, "MouthDi
 #: the mouth shifted sideways is drawn by that side's zygomaticus and risorius; the lips closed over
 #: an open jaw are pushed up by the chin (mentalis) and the corners' elevators. A share is at most
 #: the span of the shape that writes its channel back, so a pose exported and streamed back returns
-#: as itself.
+#: as itself. mouthPress' and mouthClose's shares were refitted by hand (a sweep of settled poses)
+#: once the skin under the chin was set free: the mentalis then carries it, and at the former
+#: shares (0.55, 1.0) lifted it too far (mouthPress 0.88) or turned it over (mouthClose 0.50 cm2).
 SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
-    "MouthPress": (("mentalis", 0.55), ("levator_anguli_oris", 0.1)),
+    "MouthPress": (("mentalis", 0.3), ("levator_anguli_oris", 0.3)),
     "CheekPuff": (("incisivus", 1.0),),
     "MouthFunnel": (("incisivus", 0.5),),
     "MouthShrugLower": (("lip_closure", 0.25), ("orbicularis_oris", 0.35), ("zygomaticus_major", 0.15),
@@ -82,7 +84,7 @@ SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
     "MouthShrugUpper": (("levator_labii", 0.2),),
     "MouthUpperUp": (("levator_labii_alaeque_nasi", 0.25),),
     "Mouth": (("zygomaticus_major", 0.5), ("risorius", 0.25), ("levator_labii_alaeque_nasi", 0.2), ("incisivus", 0.35)),
-    "MouthClose": (("mentalis", 1.0), ("levator_anguli_oris", 1.0), ("orbicularis_oris_peripheralis_upper", 0.8),
+    "MouthClose": (("mentalis", 0.3), ("levator_anguli_oris", 1.0), ("orbicularis_oris_peripheralis_upper", 0.8),
                    ("zygomaticus_major", 0.3)),
 }
 #: Shapes that are one channel each (besides the sided ones above).
@@ -96,10 +98,11 @@ ONE_CHANNEL = {
 
 #: The lids follow the gaze (the levator's tone is coupled to it): each eye's EyeLookUp also lifts
 #: its upper lid (levator palpebrae) and EyeLookDown lowers it (the lid strip), by these shares of
-#: the channel, fitted to the scanned eyeLook shapes (`sim.face.scan.calibrate`; docs/scan-face.md
-#: says how the look-down share was settled on the shipped lid strip). The map binds the
-#: same shares; the channel takes the larger of the lid's own shape and the gaze's share.
-GAZE_LIDS = {"EyeLookUp": ("levator_palpebrae", 1.000), "EyeLookDown": ("orbicularis_oculi_lid", 0.350)}
+#: the channel, fitted to the scanned eyeLook shapes on the settled poses of the rebuilt lids and the
+#: stronger levator (docs/scan-face.md, "The skin under the chin set free": each the best of a sweep
+#: by 0.05-0.1). The map binds the same shares; the channel takes the larger of the lid's own shape
+#: and the gaze's share.
+GAZE_LIDS = {"EyeLookUp": ("levator_palpebrae", 0.600), "EyeLookDown": ("orbicularis_oculi_lid", 0.700)}
 
 
 def _rule(shape: str) -> Callable[[Getter], float] | None:

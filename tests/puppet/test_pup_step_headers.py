@@ -43,10 +43,14 @@ WAYS = [
     Way("solve", SOLVE_AS, "symmetric_solve", DATA / "take_solve_lu.jsonl", "5ae0ccadeaf904ba"),
 ]
 IDS = [w.key for w in WAYS]
+#: the scanned head's rig both old takes replay bit for bit on (hash 5e71a5b7d3b2b2be, the shipped
+#: ict_rig.npz until the skin under the chin was set free; they were recorded on 9beb46811f320c14,
+#: which differs from it only by a channel they leave at 0): passed as `puppet replay --rig` would
+OLD_RIG = DATA / "take_ict_held_chin_rig.npz"
 
 
 def _replay(path: Path, way: Way, new: bool | None = None) -> Replayer:
-    perf = build_performance(read_session(path), None)
+    perf = build_performance(read_session(path), None, rig_path=str(OLD_RIG) if path == way.old else None)
     if new is not None:
         setattr(perf, way.attr, new)
     rp = Replayer(perf)

@@ -113,6 +113,20 @@ def test_rig_is_the_scans_own_skin_with_every_channel(model) -> None:  # type: i
     assert jw[lm["upper_lip_center"]] < 0.2 and jw[lm["nose_tip"]] < 0.1
 
 
+def test_the_skin_under_the_chin_follows_the_chin_pushed_up(model) -> None:  # type: ignore[no-untyped-def]
+    """The mentalis pushes the chin's soft tissue up: the skin under the chin goes with it (the
+    scanned mouthPress and mouthShrugLower carry it up 0.5-1 mm), only the border's ring stays."""
+    from sim.face.scan.make_rig import under_chin
+
+    under, ring = under_chin(model.rest, model.triangles, model.rest[model.mesh.landmarks["chin"]])
+    free = under & ~ring
+    assert free.sum() > 100 and not model.held[free].any() and model.held[ring].all()
+    c = FaceControl()
+    c.set("mentalis", 1.0)
+    up = 10.0 * (_settle(model, c) - model.rest)[free, 1]  # mm; held, all of it stayed (0)
+    assert up.mean() > 0.3 and np.percentile(up, 90) > 1.0
+
+
 @pytest.mark.parametrize("seed", [None, 0, 1, 2])
 def test_rest_is_an_equilibrium_under_gravity(seed) -> None:  # type: ignore[no-untyped-def]
     weights = None if seed is None else np.random.default_rng(seed).standard_normal(100)

@@ -1,6 +1,6 @@
 """How the scanned head's shipped rig (`ict_rig.npz`) is made: the reference face's rig
 transferred onto the generic head's skin (`sim.face.transfer`), carried back into the scan's frame,
-with the scan's own jaw weights (from its `jawOpen`), eyeballs and held skin under the chin, and the
+with the scan's own jaw weights (from its `jawOpen`), eyeballs and the skin under the chin free, and the
 muscles made stronger for the scan's stiffer skin (`sim.face.scan.rig`). The transfer runs linear
 algebra whose last bits follow the BLAS kernel, so it is run once and its result shipped; the
 application never runs it. Remake the file with `python -m sim.face.scan.make_rig`.
@@ -92,6 +92,31 @@ def jaw_weights(points: np.ndarray, skin: np.ndarray) -> np.ndarray:
     return np.clip(w, 0.0, 1.0)
 
 
+def under_chin(rest: np.ndarray, triangles: np.ndarray, chin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) bool twice: the skin under the chin (its normal pointing down, 3 mm or more below the
+    chin landmark), and of it the part within one ring of the mask's border."""
+    normal = vertex_normals(rest, triangles)
+    under = (normal[:, 1] < -0.5) & (rest[:, 1] < chin[1] - 0.3)
+    edges = np.unique(np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]),
+                              axis=1), axis=0, return_counts=True)
+    border = np.zeros(len(rest), bool)
+    border[edges[0][edges[1] == 1].ravel()] = True
+    ring = border.copy()
+    ring[edges[0][border[edges[0][:, 0]] | border[edges[0][:, 1]]].ravel()] = True
+    return under, under & ring
+
+
+def held_skin(held: np.ndarray, rest: np.ndarray, triangles: np.ndarray, chin: np.ndarray) -> np.ndarray:
+    """The held skin: the transfer's (the mask's border) and under the chin the border's first ring;
+    the rest of the skin under the chin is free. It was held (following the jaw by its weights)
+    while, squeezed between the chin and the neck as the jaw opened, it buckled (0.6-1.9 cm2 at
+    jaw = 1); the skin's thickness terms (`sim.antifold`) keep it smooth now (0.002 cm2), and held
+    it could not follow the chin pushed up by the mentalis, which carries 0.57-0.68 of the scanned
+    mouthPress' and mouthShrugLower's motion (docs/scan-face.md, "The lips' contacts ...")."""
+    under, ring = under_chin(rest, triangles, chin)
+    return (held | under) & ~(under & ~ring)
+
+
 def _stronger(m: Muscle, channel: str) -> Muscle:
     from dataclasses import replace
 
@@ -123,15 +148,11 @@ def transferred_rig(weights: np.ndarray | None = None, name: str = "ict") -> Fac
         c, r = _lid_sphere(points[lo:hi])
         centres.append(c)
         radii.append(r)
-    # under the chin the skin is held and follows the jaw by its weights: between the chin and the
-    # held neck it is squeezed as the jaw opens and buckled (0.6-1.9 cm2 of folds at jaw = 1)
     rest = points[skin]
-    normal = vertex_normals(rest, layout.triangles)
-    chin = rest[landmarks["chin"]]
-    under = (normal[:, 1] < -0.5) & (rest[:, 1] < chin[1] - 0.3)
     mesh = FaceMesh(
         vertices=rest.copy(), triangles=layout.triangles.copy(), landmarks=dict(m.landmarks),
-        held=np.asarray(m.held, bool) | under, jaw_weight=_r(jaw_weights(points, skin)),
+        held=held_skin(np.asarray(m.held, bool), rest, layout.triangles, rest[landmarks["chin"]]),
+        jaw_weight=_r(jaw_weights(points, skin)),
         jaw_pivot=back.point(m.jaw_pivot), jaw_axis=back.direction(m.jaw_axis),
         eye_centers=_r(np.array(centres)), eye_radius=float(_r(min(radii))),
         eye_loops=(np.asarray(m.eye_loops[0]), np.asarray(m.eye_loops[1])), mouth_loop=np.asarray(m.mouth_loop),
