@@ -702,6 +702,12 @@ class ImplicitStepper:
         bits = np.int64  # their bits as `_unchanged` compares them (views: they follow the copies)
         self._kept_bits = (self._px.reshape(-1).view(bits), self._pv.reshape(-1).view(bits), self._plam.view(bits),
                            self._pw.view(bits), self._pidx)
+        self._contact_bits = (c.lam.view(bits), c.w.view(bits), c.idx)  # (the contact's arrays are never replaced)
+        self._state_bits: tuple = (None, None, ())  # type: ignore[type-arg]  # x, v and their views, made once for them
+        # the contact's arrays as `_predict` and `_advance` take them, gathered once (not 20 lookups a tick)
+        self._predict_c = (c.idx, c.w, c.sg, c.dim, c.lam)
+        self._advance_c = (c.idx, c.w, c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam, c.loc, c.green, c.gptr, c.gvert,
+                           c.gval, c._work, c._cand, c._schur, c._df, ROUNDS, SWEEPS)
 
     def turn_basis(self, weight: np.ndarray, pivot: np.ndarray) -> None:
         """Make the products that give the margin bending's rest side for any turn of the jaw
@@ -781,10 +787,9 @@ class ImplicitStepper:
         bending's rest side, which is made for this turn of the jaw (`_held_rhs_turned`)."""
         idx, rest_len, k_low, k_high, thr = springs[:5]
         kls = float(springs[5]) if len(springs) > 5 else 1.0  # k_low's scale (the skin's age)
-        c = self._contact
         y, base, xh, ys = self._buf[:4]
         _predict(x, v, self.h, *self._layout(idx), rest_len, k_low, kls, k_high, thr, normal, self.kn, self.mass_h2, self.damp_h,
-                 c.idx, c.w, c.sg, c.dim, c.lam, *self._folds, y, base, ext, summed,
+                 *self._predict_c, *self._folds, y, base, ext, summed,
                  self._spring_work(len(idx)), self._px, self._pv, keep)
         free, held, perm_r = self._index[:3]
         if turn is not None:
@@ -823,9 +828,12 @@ class ImplicitStepper:
         c = self._contact
         if c.lam.shape != self._plam.shape or c.idx.shape != self._pidx.shape:
             return False
-        bits = np.int64
-        return bool(_unchanged(x.reshape(-1).view(bits), v.reshape(-1).view(bits), c.lam.view(bits), c.w.view(bits), c.idx,
-                               *self._kept_bits))
+        sx, sv, views = self._state_bits
+        if sx is not x or sv is not v:  # (the live loop steps the same state's arrays every tick)
+            bits = np.int64
+            views = (x.reshape(-1).view(bits), v.reshape(-1).view(bits))
+            self._state_bits = (x, v, views)
+        return bool(_unchanged(*views, *self._contact_bits, *self._kept_bits))
 
     def frame(self, x: np.ndarray, v: np.ndarray, n_sub: int, ext: np.ndarray, springs: tuple,  # type: ignore[type-arg]
               normal: np.ndarray, eyes: tuple, shape: np.ndarray | JawTurn | None = None,  # type: ignore[type-arg]
@@ -852,7 +860,6 @@ class ImplicitStepper:
         if n_sub > 1 or not predicted:  # (a prediction holds the first substep's)
             ext = self._with_bending(ext, shape)
         act, act_val = self._no_act if active is None else active
-        c = self._contact
         du = self._buf[5]
         jaw_resp, jaw_slope = (self.jaw_resp, self.jaw_slope) if jaw is not None else (self._no_jaw, self._no_jaw)
         jaw_from, jaw_to = jaw if jaw is not None else (0.0, 0.0)
@@ -862,8 +869,7 @@ class ImplicitStepper:
             if sub > 0 or not predicted:
                 self._solve_free(x, v, ext, springs, normal, summed)
             last = check is not None and sub == n_sub - 1
-            _advance(x, v, self.h, self._buf[3], du, muscles, self._index[0], self._index[3], self._buf[4], c.idx, c.w,
-                     c.sg, c.dim, c.opp, c.row_ptr, c.row_v, c.lam, c.loc, c.green, c.gptr, c.gvert, c.gval, c._work,
-                     c._cand, c._schur, c._df, ROUNDS, SWEEPS, *eyes, check if last else x, self._dev if last else self._no_dev)
+            _advance(x, v, self.h, self._buf[3], du, muscles, self._index[0], self._index[3], self._buf[4],
+                     *self._advance_c, *eyes, check if last else x, self._dev if last else self._no_dev)
         if check is not None and n_sub > 0:
             self.last_deviation = float(self._dev[0])

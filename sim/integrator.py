@@ -182,6 +182,21 @@ def _hold(x, v, held, target):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(**KERNEL)
+def _save_hold(x, v, held, target, saved):  # type: ignore[no-untyped-def]
+    """saved = x (the step's start, for the guard's restore), then `_hold`: one call where two ran
+    back to back (numpy's copy and the kernel), the same values."""
+    n = x.shape[0]
+    for i in range(n):
+        for d in range(3):
+            saved[i, d] = x[i, d]
+    for k in range(held.shape[0]):
+        i = held[k]
+        for d in range(3):
+            x[i, d] = target[i, d]
+            v[i, d] = 0.0
+
+
+@numba.njit(**KERNEL)
 def _eye_contact(x, v, idx, eye, centres, radius):  # type: ignore[no-untyped-def]
     """Keeps the contact vertices outside the eyeball spheres: a vertex inside is put back on the
     sphere and loses the inward part of its velocity (the eyeball is rigid and frictionless)."""
@@ -262,6 +277,7 @@ def warm_up(implicit: bool = True) -> None:
     _active(np.ones(1), np.ones(1, dtype=np.bool_), np.zeros(1, dtype=np.int64), np.zeros(1))
     _max_deviation(x1, x1)
     _hold(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)))
+    _save_hold(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)), np.zeros((1, 3)))
     _eye_contact(np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64),
                  np.array([0], dtype=np.int64), np.array([[0.0, 0.0, 1.0]]), 0.5)
     x = np.array([[0.0, 0.0, 0.0], [1.1, 0.0, 0.0]])
@@ -830,7 +846,6 @@ class Simulator:
         state.surface (the wrinkles, drawn only) to a later `surface(state)`: the live loop marks the
         simulated state ready before it, so an input's latency does not wait for the drawing's layer."""
         x, v = state.positions, state.velocities
-        np.copyto(self._saved_x, x)
         checked: np.ndarray | None = None  # the target the guard checks against (None: the frame's)
         summed = self._implicit is None or self.muscles_summed
         values = control.values
@@ -841,7 +856,11 @@ class Simulator:
             ext, active = self.external_forces(control), None
         else:
             ext, active = self._constants(start), self._muscles(control)
-        _hold(x, v, self._held, self._target)
+        if x.shape == self._saved_x.shape and x.dtype == np.float64 and x.flags.c_contiguous:
+            _save_hold(x, v, self._held, self._target, self._saved_x)  # (the copy and the hold in one call)
+        else:
+            np.copyto(self._saved_x, x)
+            _hold(x, v, self._held, self._target)
         self._age_skin(state.age if lagged else float(values[self._age_i]))
         if self._implicit is None:
             _rk2_frame(x, v, self.substeps, self.dt, self._si3, self._sj3, self._rest_len, self._k_low,

@@ -28,6 +28,8 @@ from sim.wrinkles.arclength import lookup, table
 from sim.wrinkles.arclength import ASYM_RATIO
 from sim.wrinkles.bulge import (
     _A_SAMPLES,
+    AGE_0,
+    AGE_MAX,
     A_CAP_RATIO,
     DIL_MAX,
     FULL_RELEASE_STRAIN,
@@ -461,7 +463,7 @@ def _age_params(age: float) -> FloatArray:
     the age channel rarely moves."""
     global _LAST_PARAMS
     if _LAST_PARAMS is None or _LAST_PARAMS[0] != age:
-        extra = float(dilatation(1.0, age)) - 1.0
+        extra = _unit_dilatation(age) - 1.0
         params = np.array([extra, INPLANE_LOSS_AT_MAX * extra / DIL_MAX, FULL_RELEASE_STRAIN,
                            A_CAP_RATIO, ASYM_RATIO, FURROW_MAX_DEPTH, float(SMOOTH_PASSES)])
         _LAST_PARAMS = (age, params)
@@ -469,6 +471,14 @@ def _age_params(age: float) -> FloatArray:
 
 
 _LAST_PARAMS: tuple[float, FloatArray] | None = None
+
+
+def _unit_dilatation(age: float) -> float:
+    """`dilatation(1.0, age)` on Python floats: the same operations in the same order, so the
+    same bits, NaN kept (numpy's on one value took 3 us, made every frame the age dial moves)."""
+    t = AGE_MAX if age > AGE_MAX else age  # np.minimum(age, AGE_MAX)
+    g = 1.0 + (t - AGE_0) * DIL_MAX / (AGE_MAX - AGE_0)
+    return 1.0 if g < 1.0 else g  # np.maximum(1.0, g) (times d_init = 1.0: the same value)
 
 
 def _kernel_args(layer: WrinkleLayer) -> tuple[tuple, tuple]:

@@ -274,3 +274,22 @@ def test_the_guard_measured_in_two_parts_is_the_whole_measure() -> None:
             assert _held_deviation(x, fixed, target, _free_deviation(x, free, target)) == whole, (bad, row)
             if bad is not None and not np.isfinite(bad):
                 assert whole == -1.0
+
+
+def test_save_hold_keeps_the_start_and_holds_like_the_copy_and_hold() -> None:
+    """The step's start kept for the guard's restore and the held nodes put on their targets in
+    one kernel give the values of numpy's copy followed by `_hold`, and the kept copy is the
+    positions from before the hold (a restore returns to them)."""
+    from sim.integrator import _hold, _save_hold
+
+    rng = np.random.default_rng(7)
+    x, v, target = rng.normal(size=(50, 3)), rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
+    held = np.array([0, 7, 8, 49], dtype=np.int64)
+    x1, v1, saved1 = x.copy(), v.copy(), np.zeros((50, 3))
+    np.copyto(saved1, x1)
+    _hold(x1, v1, held, target)
+    x2, v2, saved2 = x.copy(), v.copy(), np.zeros((50, 3))
+    _save_hold(x2, v2, held, target, saved2)
+    assert x2.tobytes() == x1.tobytes() and v2.tobytes() == v1.tobytes()
+    assert saved2.tobytes() == x.tobytes()
+    assert np.array_equal(x2[held], target[held]) and not v2[held].any()

@@ -141,3 +141,18 @@ def test_compiled_frame_matches_the_numpy_reference(patch) -> None:
         got = compiled_displacement(layer, p, age)
         np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-12)
         assert (np.abs(ref).max() > 0) == (age > AGE_0)
+
+
+def test_unit_dilatation_has_the_bits_of_the_numpy_law() -> None:
+    """The age's dilatation made on floats every frame the age dial moves is the very value of
+    `dilatation(1.0, age)`: the same wrinkles' bits, beyond the ramp's ends and for NaN too."""
+    import math
+
+    from sim.wrinkles.bulge import dilatation
+    from sim.wrinkles.layer import _unit_dilatation
+
+    ages = list(np.linspace(-40.0, 160.0, 4001)) + [35.0, 90.0, math.inf, -math.inf, math.nan, 0.0, -0.0]
+    for age in ages:
+        want = np.float64(dilatation(1.0, float(age)))
+        got = np.float64(_unit_dilatation(float(age)))
+        assert got.tobytes() == want.tobytes(), age
