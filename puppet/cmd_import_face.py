@@ -99,7 +99,8 @@ def run(args: argparse.Namespace) -> int:
         landmarks = read_landmarks(args.landmarks)
         result = transfer_rig(_reference(args), head, landmarks, name=args.name or Path(args.mesh).stem,
                               options=TransferOptions(seat_eyes=args.rest_eyes, rest_lips=args.rest_lips,
-                                                      cover_sheets=True, match_forces=True, refine=True))
+                                                      cover_sheets=True, match_forces=True, refine=True,
+                                                      place_lower_lids=True))
     except TransferError as err:
         raise ConfigError(str(err)) from err
     try:

@@ -64,7 +64,9 @@ SHAPE_SPAN = {"BrowInnerUp": 0.55, "EyeSquint": 0.5, "MouthPress": 0.6, "MouthDi
 #: sphincter); the dimple's buccinator pulls on the modiolus with the corner's elevators; the nose
 #: wrinkled brings the orbital orbicularis, the corner's elevator and the brow's head down with it;
 #: the mouth shifted sideways is drawn by that side's zygomaticus and risorius; the lips closed over
-#: an open jaw are pushed up by the chin (mentalis) and the corners' elevators. A share is at most
+#: an open jaw are pushed up by the chin (mentalis) and the corners' elevators; the squinting eye's
+#: lower lid is lifted by its own palpebral orbicularis (AU7's lower lid tightener; the cheek's
+#: squint, AU6, takes none: any share took it further from its scan). A share is at most
 #: the span of the shape that writes its channel back, so a pose exported and streamed back returns
 #: as itself. mouthPress' and mouthClose's shares were refitted by hand (a sweep of settled poses)
 #: once the skin under the chin was set free: the mentalis then carries it, and at the former
@@ -80,6 +82,7 @@ SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
     "MouthDimple": (("levator_anguli_oris", 0.4), ("zygomaticus_major", 0.15), ("mentalis", 0.2)),
     "MouthLowerDown": (("depressor_anguli_oris", 0.2),),
     "BrowDown": (("orbicularis_oculi", 0.15),),
+    "EyeSquint": (("orbicularis_oculi_lower_lid", 0.1),),
     "NoseSneer": (("orbicularis_oculi", 0.55), ("levator_anguli_oris", 0.4), ("corrugator", 0.35)),
     "MouthShrugUpper": (("levator_labii", 0.2),),
     "MouthUpperUp": (("levator_labii_alaeque_nasi", 0.25),),

@@ -68,7 +68,7 @@ def lid_chains(vertices: FloatArray, loop: IntArray, inner: FloatArray, outer: F
     return other, one
 
 
-def _point(vertices: FloatArray, chain: IntArray, a: FloatArray, axis: FloatArray, t: float) -> FloatArray:
+def margin_point(vertices: FloatArray, chain: IntArray, a: FloatArray, axis: FloatArray, t: float) -> FloatArray:
     """The chain's point (3,) at fraction `t` between the corners (interpolated along the axis)."""
     p = vertices[chain]
     tc = (p - a) @ axis / (axis @ axis)
@@ -140,8 +140,8 @@ def seen_opening(vertices: FloatArray, triangles: IntArray, upper: IntArray, low
     q = v - a
     s, h, d = q @ side, q @ up, q @ forward
     x = t * width
-    top = float((_point(v, upper, a, axis, t) - a) @ up)
-    bottom = float((_point(v, lower, a, axis, t) - a) @ up)
+    top = float((margin_point(v, upper, a, axis, t) - a) @ up)
+    bottom = float((margin_point(v, lower, a, axis, t) - a) @ up)
     centre = 0.5 * (top + bottom)
     tri = np.asarray(triangles, dtype=np.int64)
     ts, th = s[tri], h[tri]
@@ -194,7 +194,7 @@ def seat_eye(vertices: FloatArray, triangles: IntArray, loop: IntArray, inner: F
     before = top - bottom
     rest = rest_gap(eye_radius)
     target = rest
-    rims = float((_point(vertices, upper, a, axis, 0.5) - _point(vertices, lower, a, axis, 0.5)) @ up)
+    rims = float((margin_point(vertices, upper, a, axis, 0.5) - margin_point(vertices, lower, a, axis, 0.5)) @ up)
     v = np.asarray(vertices, float)
     if abs(before - target) > SEEN_TOLERANCE * eye_radius:
         sides = lid_sides(vertices, triangles, upper, lower)

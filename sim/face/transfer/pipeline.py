@@ -20,6 +20,7 @@ from sim.face.transfer.geometry import (closest_points, edge_use_counts, in_poly
 from sim.face.transfer.eyes import seat_eyes
 from sim.face.transfer.forces import match_forces
 from sim.face.transfer.lids import open_lids
+from sim.face.transfer.lower_lid import place_lower_lids
 from sim.face.transfer.landmarks import LANDMARK_NAMES, LandmarkFile, TransferError, require
 from sim.face.transfer.meshfile import HeadMesh
 from sim.face.transfer.mouth import rest_lips
@@ -56,7 +57,10 @@ class TransferOptions:
     channel's muscles so they pull as hard in all as the reference's (sim.face.transfer.forces;
     off here for the same reason, on in `puppet import-face`); refine: split the triangles of a
     head whose edges near the landmarks are over 2.5 x the reference's (sim.face.transfer.refine)
-    until they are within 1.5 x (off here for the same reason, on in `puppet import-face`)."""
+    until they are within 1.5 x (off here for the same reason, on in `puppet import-face`);
+    place_lower_lids: rebuild the lower lid's tightener (AU7) on the head's own lower lid, after the
+    lids are brought to rest, as the reference's sits on its lid (sim.face.transfer.lower_lid; off
+    here for the same reason, on in `puppet import-face`)."""
 
     region: float = 0.6
     landmark_offset: float = 0.1
@@ -70,6 +74,7 @@ class TransferOptions:
     cover_sheets: bool = False
     match_forces: bool = False
     refine: bool = False
+    place_lower_lids: bool = False
 
 
 @dataclass
@@ -313,6 +318,9 @@ def transfer_rig(
     if cavity.any():  # the head's own lining of the mouth, sockets, nostrils: drawn dark
         mesh.regions["cavity"] = cavity
     muscles = {ch: _carry(smap, parts, opt) for ch, parts in reference.muscles.items()}
+    if opt.place_lower_lids:
+        muscles, placed = place_lower_lids(reference, mesh, muscles)
+        opened += placed
     support = lid_support(mesh) if opt.lid_support else None
     rig = FaceRig(mesh=mesh, muscles=muscles, wrinkles=_carry_wrinkles(reference, smap), name=name,
                   integrator=opt.integrator, presets=IMPORTED_PRESETS,
