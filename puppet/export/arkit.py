@@ -64,19 +64,23 @@ SHAPE_SPAN = {"BrowInnerUp": 0.55, "EyeSquint": 0.5, "MouthPress": 0.6, "MouthDi
 #: sphincter); the dimple's buccinator pulls on the modiolus with the corner's elevators; the nose
 #: wrinkled brings the orbital orbicularis, the corner's elevator and the brow's head down with it;
 #: the mouth shifted sideways is drawn by that side's zygomaticus and risorius; the lips closed over
-#: an open jaw are pushed up by the chin (mentalis) and the corners' elevators; the squinting eye's
-#: lower lid is lifted by its own palpebral orbicularis (AU7's lower lid tightener; the cheek's
-#: squint, AU6, takes none: any share took it further from its scan). A share is at most
+#: an open jaw are pushed up by the chin (mentalis) and the corners' elevators; the lips pressed,
+#: the lower one pushed up and the lips closed carry the chin's soft tissue forward as a block,
+#: which the jaw thrust (jaw_forward) gives where more mentalis would evert the lower lip; the
+#: squinting eye's lower lid is lifted by its own palpebral orbicularis (AU7's lower lid
+#: tightener; the cheek's squint, AU6, takes none: any share took it further from its scan). A share is at most
 #: the span of the shape that writes its channel back, so a pose exported and streamed back returns
 #: as itself. mouthPress' and mouthClose's shares were refitted by hand (a sweep of settled poses)
 #: once the skin under the chin was set free: the mentalis then carries it, and at the former
-#: shares (0.55, 1.0) lifted it too far (mouthPress 0.88) or turned it over (mouthClose 0.50 cm2).
+#: shares (0.55, 1.0) lifted it too far (mouthPress 0.88) or turned it over (mouthClose 0.50 cm2);
+#: the jaw thrust's shares were swept the same way (mouthClose's kept at 0.3: more came closer
+#: still but parted the lips of a spoken "m").
 SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
-    "MouthPress": (("mentalis", 0.3), ("levator_anguli_oris", 0.3)),
+    "MouthPress": (("mentalis", 0.3), ("levator_anguli_oris", 0.3), ("jaw_forward", 0.08)),
     "CheekPuff": (("incisivus", 1.0),),
     "MouthFunnel": (("incisivus", 0.5),),
     "MouthShrugLower": (("lip_closure", 0.25), ("orbicularis_oris", 0.35), ("zygomaticus_major", 0.15),
-                        ("incisivus", 0.25)),
+                        ("incisivus", 0.25), ("jaw_forward", 0.3)),
     "MouthRollLower": (("lip_closure", 0.4),),
     "MouthRollUpper": (("risorius", 0.2), ("orbicularis_oris", 0.6)),
     "MouthDimple": (("levator_anguli_oris", 0.4), ("zygomaticus_major", 0.15), ("mentalis", 0.2)),
@@ -88,7 +92,7 @@ SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
     "MouthUpperUp": (("levator_labii_alaeque_nasi", 0.25),),
     "Mouth": (("zygomaticus_major", 0.5), ("risorius", 0.25), ("levator_labii_alaeque_nasi", 0.2), ("incisivus", 0.35)),
     "MouthClose": (("mentalis", 0.3), ("levator_anguli_oris", 1.0), ("orbicularis_oris_peripheralis_upper", 0.8),
-                   ("zygomaticus_major", 0.3)),
+                   ("zygomaticus_major", 0.3), ("jaw_forward", 0.3)),
 }
 #: Shapes that are one channel each (besides the sided ones above).
 ONE_CHANNEL = {
