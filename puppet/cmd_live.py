@@ -342,6 +342,13 @@ def _open_panel(args: argparse.Namespace, face: Any, devs: list[Any], explicit: 
         roles = parse_roles(getattr(args, "panel_role", []), face.vocab)
     except ValueError as err:
         raise devices.DeviceSpecError(str(err)) from err
+    named = [d for d in devs if getattr(d, "scheme", "") == "panel"]
+    if named and not explicit:
+        # `--device 'panel://127.0.0.1:8765?face=mesh'` is the page the user asked for: serving the
+        # default one beside it printed two URLs (the default moved to 8766); --panel-role roles it
+        for page in named:
+            page.roles = page.roles or dict(roles)
+        return
     port = "" if args.panel is None else f":{args.panel}"
     host = "0.0.0.0" if args.panel_lan else "127.0.0.1"
     spec = f"panel://{host}{port}" + ("?lan=1" if args.panel_lan else "")
