@@ -242,6 +242,45 @@ def test_point_cache_from_the_other_integrator(tmp_path, face0, basis0, capsys) 
     _one_line_exit_2(capsys, ["fit", str(path), "--out", str(tmp_path / "z.jsonl")], tmp_path / "z.jsonl")
 
 
+def test_the_scanned_heads_own_point_cache_is_read(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """`puppet replay --out take.pc2` on the scanned head writes the whole scan (26,719 points in
+    the scan's order); `puppet fit take.pc2` refused it ('26719 points, but the rig has 6020
+    vertices'), though docs/fit.md names that export as a PC2 it reads. Its simulated skin's
+    vertices are read out of it: each sample is the replayed state's surface."""
+    from puppet.capture.pc2file import read_pc2_capture
+    from puppet.export.pc2 import read_pc2
+    from puppet.live import load_face, session_header
+    from puppet.mapping.config import MappingSpec
+    from puppet.replay import Replayer, build_performance
+    from puppet.session import SessionWriter, read_session
+
+    face = load_face(face="ict")
+    names = [c.name for c in face.vocab.channels]
+    take = tmp_path / "jaw.jsonl"
+    header = session_header(face, MappingSpec(name="t", bindings=[], combine={}, source="t", text=""), 60.0, [])
+    values = np.array(face.vocab.defaults())
+    with SessionWriter(take, header, fsync_seconds=None) as w:
+        for k in range(12):
+            values[names.index("jaw")] = 0.05 * k
+            w.values(k, values)
+            w.tick(k + 1)
+        w.close(12)
+    cache = tmp_path / "jaw.pc2"
+    assert main(["replay", str(take), "--out", str(cache)]) == 0
+    assert read_pc2(cache)[0]["num_points"] == 26719 != face.model.n_vertices
+    cap = read_pc2_capture(cache, face.model)
+    rp = Replayer(build_performance(read_session(take), None, None))
+    assert cap.points.shape == (12, face.model.n_vertices, 3)
+    for k in range(12):
+        rp.seek(k)  # sample k: the state after k ticks (the first sample is the rest)
+        assert np.allclose(cap.points[k], rp.state.surface, atol=2e-4), k
+    assert np.abs(cap.points[-1] - cap.points[0]).max() > 0.3  # the jaw opened
+    cache.with_suffix(".obj").write_text("v 0 0 0\n")
+    capsys.readouterr()
+    assert "topology" in _one_line_exit_2(capsys, ["fit", str(cache), "--out", str(tmp_path / "z.jsonl")],
+                                          tmp_path / "z.jsonl")
+
+
 def test_arkit_csv_becomes_a_take_on_the_physical_face(tmp_path, face0, capsys) -> None:  # type: ignore[no-untyped-def]
     from puppet.export.arkit import ArkitCsvWriter
 
