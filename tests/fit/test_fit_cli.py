@@ -306,6 +306,31 @@ def test_arkit_csv_becomes_a_take_on_the_physical_face(tmp_path, face0, capsys) 
         _one_line_exit_2(capsys, ["fit", str(p), "--out", str(tmp_path / "o.jsonl")], tmp_path / "o.jsonl")
 
 
+def test_a_take_rate_a_replay_refuses_is_one_line(tmp_path, face0, capsys) -> None:  # type: ignore[no-untyped-def]
+    """--rate is a take's tick rate: 20000 wrote a take `puppet replay` refused (tick_rate above
+    10000), 1e9 filled the memory with 2e9 ticks until the kernel killed the process; a long
+    capture at a high rate that makes more values than a replay holds is refused before the fit."""
+    from puppet.export.arkit import ArkitCsvWriter
+
+    names = [c.name for c in face0.vocab.channels]
+    phone = tmp_path / "phone.arkit.csv"
+    w = ArkitCsvWriter(phone, names, 60.0)
+    for k in range(30):
+        w.add(k, np.array(face0.vocab.defaults()))
+    w.close()
+    out = tmp_path / "o.jsonl"
+    for rate in ("20000", "1e9", "0.5", "nan"):
+        assert "--rate" in _one_line_exit_2(capsys, ["fit", str(phone), "--rate", rate, "--out", str(out)], out)
+    assert main(["fit", str(phone), "--rate", "10000", "--out", str(out)]) == 0
+    assert main(["replay", str(out), "--out", str(tmp_path / "o.csv")]) == 0
+    out.unlink()
+    lines = phone.read_text().splitlines()
+    lines.append("02:00:00:00.000" + lines[-1][len("00:00:00:29.000"):])  # the capture runs two hours
+    phone.write_text("\n".join(lines) + "\n")
+    assert "more than a take holds" in _one_line_exit_2(
+        capsys, ["fit", str(phone), "--rate", "10000", "--out", str(out)], out)
+
+
 def test_damaged_landmark_csvs_are_one_line_errors(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
     times, names, pts = performance
     good = tmp_path / "good.csv"
