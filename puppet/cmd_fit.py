@@ -7,6 +7,8 @@ import sys
 from pathlib import Path
 
 OUT_KINDS = {".jsonl": "take", ".curves": "curves"}
+#: --smooth and --sparsity: relative to the basis' mean column energy (the defaults 0.02, 0.004)
+MAX_WEIGHT = 1000.0
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -133,9 +135,9 @@ def _check_length(seconds: float, rate: float, channels: int) -> None:
     from puppet.errors import PuppetError
     from puppet.session_reader import MAX_CELLS
 
-    ticks = int(seconds * rate) + 1
-    if ticks * channels > MAX_CELLS:
-        raise PuppetError(f"--rate {rate:g} over the capture's {seconds:.1f} s makes {ticks} ticks of {channels} "
+    ticks = seconds * rate + 1.0  # a float: a PC2's sampling field may spread its samples over 1e30 s
+    if not ticks * channels <= MAX_CELLS:
+        raise PuppetError(f"--rate {rate:g} over the capture's {seconds:.4g} s makes {ticks:.4g} ticks of {channels} "
                           f"channels, more than a take holds ({MAX_CELLS} values): lower --rate or cut the capture")
 
 
@@ -150,6 +152,12 @@ def run(args: argparse.Namespace) -> int:
     if args.report:
         _check_report(Path(args.report), args, out)
     neutral = _neutral(args.neutral)
+    for name in ("smooth", "sparsity"):
+        # nan or inf made the solver's Cholesky factor a ValueError traceback, a negative weight a
+        # LinAlgError (smooth) or every channel driven to its maximum (sparsity)
+        value = getattr(args, name)
+        if value is not None and not 0.0 <= value <= MAX_WEIGHT:
+            raise PuppetError(f"--{name} {value:g}: expected a weight 0..{MAX_WEIGHT:g}")
     if args.fps is not None and not args.fps > 0:
         raise PuppetError("--fps must be positive")
     from puppet.session_reader import MAX_RATE, MIN_RATE

@@ -331,6 +331,26 @@ def test_a_take_rate_a_replay_refuses_is_one_line(tmp_path, face0, capsys) -> No
         capsys, ["fit", str(phone), "--rate", "10000", "--out", str(out)], out)
 
 
+def test_fit_weights_and_capture_rates_out_of_range_are_one_line(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
+    """--smooth or --sparsity nan / inf was a ValueError traceback from the solver's factorisation,
+    --smooth -1 a LinAlgError, --sparsity -5 a take with every channel at its maximum; --fps 1e-300
+    spread a point cache's samples over 1e300 s."""
+    times, names, pts = performance
+    track = tmp_path / "track.csv"
+    write_landmark_csv(track, times[:6], pts[:6], names)
+    out = tmp_path / "o.jsonl"
+    for option, value in (("--smooth", "nan"), ("--smooth", "inf"), ("--smooth", "-1"), ("--sparsity", "nan"),
+                          ("--sparsity", "inf"), ("--sparsity", "-5")):
+        err = _one_line_exit_2(capsys, ["fit", str(track), option, value, "--out", str(out)], out)
+        assert option in err, err
+    for value in ("1e-300", "1e300", "0.5"):
+        err = _one_line_exit_2(capsys, ["fit", str(track), "--fps", value, "--out", str(out)], out)
+        assert "--fps" in err, err
+        assert main(["recognize", str(track), "--fps", value]) == 2
+        assert "--fps" in capsys.readouterr().err
+    assert main(["fit", str(track), "--smooth", "0", "--sparsity", "0", "--no-relinearise", "--out", str(out)]) == 0
+
+
 def test_damaged_landmark_csvs_are_one_line_errors(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
     times, names, pts = performance
     good = tmp_path / "good.csv"
