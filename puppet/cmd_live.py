@@ -268,6 +268,12 @@ def _run(args: argparse.Namespace) -> int:
             raise PuppetError("--demo plays once: leave out --supervise and --resume")
         if args.resume and not args.record:
             raise PuppetError("--resume continues the recording given with --record FILE")
+    if args.record and (args.record.endswith(("/", os.sep)) or Path(args.record).is_dir()
+                        or Path(args.record).name in ("", ".", "..")):
+        # '.' was a ValueError traceback, '/tmp' 'a take is already there and cannot be kept aside',
+        # 'takes/' a file named takes
+        raise PuppetError(f"--record {args.record}: that names a folder; name the take's file, e.g. "
+                          f"{Path(args.record) / 'take.jsonl'}")
     if args.record and not Path(args.record).parent.is_dir():
         raise PuppetError(f"--record {args.record}: the folder {Path(args.record).parent} does not exist; "
                           "create it or record elsewhere")

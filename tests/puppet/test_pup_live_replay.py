@@ -239,6 +239,13 @@ def test_no_display_falls_back_to_headless_and_says_where(tmp_path: Path) -> Non
     (["live", "--device", "mock://", "--headless", "--duration", "-1"], "--duration"),
     (["replay", "/nonexistent.jsonl", "--headless"], "nonexistent.jsonl"),
     (["replay", "--headless"], "recording FILE"),
+    # '.' was a ValueError traceback ('has an empty name'), a folder 'cannot be kept aside'
+    (["live", "--device", "mock://", "--headless", "--duration", "1", "--record", "."], "names a folder"),
+    (["live", "--device", "mock://", "--headless", "--duration", "1", "--record", "/tmp"], "names a folder"),
+    # nan or -1 ended the monitor, or the learn, at once and silently (exit 0)
+    (["monitor", "mock://", "--duration", "nan"], "--duration"),
+    (["monitor", "mock://", "--duration", "-1"], "--duration"),
+    (["learn", "--device", "mock://", "--map", "/tmp/x.toml", "--timeout", "nan"], "--timeout"),
 ])
 def test_user_errors_are_one_line(args: list[str], msg: str) -> None:
     out = puppet(*args)
