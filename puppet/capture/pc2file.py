@@ -78,7 +78,8 @@ def read_pc2_capture(path: Path, model: Any, fps: float = 60.0) -> PointCapture:
     skin = _scan_skin(model, int(head["num_points"]))
     if head["num_points"] != n and skin is None:
         raise ConfigError(f"{path}: {head['num_points']} points, but the rig has {n} vertices; a point cache "
-                          "must have the rig's topology (use a landmark CSV for other meshes)")
+                          "must have the rig's topology (a take's cache: --face or --rig as it was recorded; "
+                          "a landmark CSV for other meshes)")
     nv, faces = _obj(obj)
     if skin is not None:  # the whole scan, as the scanned head's exports write it: its faces are quads
         if nv != len(skin.scan):
