@@ -100,7 +100,16 @@ def parse_identity(text: str) -> tuple[tuple[float, ...], int | None]:
 
 def parse_face(spec: str | None, resolution: int = 0) -> FaceChoice:
     """The face a --face text names (None: the default face). PuppetError with the expected forms."""
-    text = (spec if spec is not None else default_face()).strip()
+    if spec is None and os.environ.get(ENV):
+        try:
+            return _parse_face(default_face(), resolution)
+        except PuppetError as err:  # the user gave no --face: name where the face came from
+            raise PuppetError(str(err).replace("--face ", f"${ENV} ", 1)) from err
+    return _parse_face(spec if spec is not None else DEFAULT_FACE, resolution)
+
+
+def _parse_face(spec: str, resolution: int) -> FaceChoice:
+    text = spec.strip()
     base, _, query = text.partition("?")
     if base == "procedural":
         if query:

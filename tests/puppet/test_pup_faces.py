@@ -36,6 +36,18 @@ def test_face_forms(monkeypatch: pytest.MonkeyPatch) -> None:
         faces.parse_face("procedural", 3)
 
 
+def test_a_bad_face_from_the_environment_is_named_as_such(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """PUPPET_FACE=nosuch with no --face said '--face nosuch: ...', an option the user never gave."""
+    monkeypatch.setenv("PUPPET_DATA_DIR", str(tmp_path))
+    for bad in ("nosuch", "ict?identity=x", "procedural?x=1"):
+        monkeypatch.setenv("PUPPET_FACE", bad)
+        with pytest.raises(PuppetError) as err:
+            faces.parse_face(None)
+        assert str(err.value).startswith("$PUPPET_FACE ") and "--face" not in str(err.value).split(":")[0]
+        with pytest.raises(PuppetError, match="^--face "):
+            faces.parse_face(bad)
+
+
 def test_saved_identity_round_trip(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
     monkeypatch.setenv("PUPPET_DATA_DIR", str(tmp_path / "ids"))
     assert main(["face", "save", "bob", "--identity", "7"]) == 0
