@@ -70,7 +70,13 @@ def connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
 
 
 def _connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
+    import warnings
+
     from dask.distributed import Client, LocalCluster
+
+    # a task carries its input's bytes (no shared folder needed): a 38 MB point cache made Dask warn
+    # 'Sending large graph of size 37.99 MiB ...' in six lines on the user's terminal, about its own API
+    warnings.filterwarnings("ignore", message="Sending large graph", category=UserWarning)
 
     if scheduler:
         _check_tls(scheduler)
