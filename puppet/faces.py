@@ -257,6 +257,9 @@ def list_identities() -> list[tuple[str, tuple[float, ...] | None, int | None, s
     folder = data_dir()
     out = []
     for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
+        if not path.is_file():  # a pipe there made the list wait for a writer, forever
+            out.append((path.stem, None, None, f"{path}: not a regular file; remove it or save the identity again"))
+            continue
         try:
             name, w, seed = read_identity(path)
             out.append((name, w, seed, ""))
