@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import sys
 import time
 from typing import Any
@@ -86,7 +87,11 @@ def run_monitor(args: argparse.Namespace) -> int:
     """Open the device, print events until the duration ends, the script ends or Ctrl-C."""
     _setup_logging()
     from devices import EventQueue, open_device
+    from puppet.errors import PuppetError
 
+    if args.duration is not None and not (args.duration > 0 and math.isfinite(args.duration)):
+        # nan or -1 ended the monitor at once, silently, exit 0
+        raise PuppetError(f"--duration must be a positive number of seconds, got {args.duration}")
     device = open_device(args.spec, require=not args.wait)
     if getattr(device, "scheme", "") == "panel" and getattr(device, "server", None) is not None:
         from puppet.panel import announce

@@ -7,6 +7,8 @@ import sys
 from pathlib import Path
 
 OUT_KINDS = {".jsonl": "take", ".curves": "curves"}
+#: --smooth and --sparsity: relative to the basis' mean column energy (the defaults 0.02, 0.004)
+MAX_WEIGHT = 1000.0
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -128,6 +130,17 @@ def _check_report(report: Path, args: argparse.Namespace, out: Path) -> None:
             raise PuppetError(f"--report {report}: that is {what} ({other}); name another file for the report")
 
 
+def _check_length(seconds: float, rate: float, channels: int) -> None:
+    """The take fits what a replay holds (`MAX_CELLS` tick x channel values)."""
+    from puppet.errors import PuppetError
+    from puppet.session_reader import MAX_CELLS
+
+    ticks = seconds * rate + 1.0  # a float: a PC2's sampling field may spread its samples over 1e30 s
+    if not ticks * channels <= MAX_CELLS:
+        raise PuppetError(f"--rate {rate:g} over the capture's {seconds:.4g} s makes {ticks:.4g} ticks of {channels} "
+                          f"channels, more than a take holds ({MAX_CELLS} values): lower --rate or cut the capture")
+
+
 def run(args: argparse.Namespace) -> int:
     from puppet.capture import ChannelCapture, read_capture
     from puppet.capture.take import full_values, resample, write_curves, write_report, write_take
@@ -139,10 +152,20 @@ def run(args: argparse.Namespace) -> int:
     if args.report:
         _check_report(Path(args.report), args, out)
     neutral = _neutral(args.neutral)
+    for name in ("smooth", "sparsity"):
+        # nan or inf made the solver's Cholesky factor a ValueError traceback, a negative weight a
+        # LinAlgError (smooth) or every channel driven to its maximum (sparsity)
+        value = getattr(args, name)
+        if value is not None and not 0.0 <= value <= MAX_WEIGHT:
+            raise PuppetError(f"--{name} {value:g}: expected a weight 0..{MAX_WEIGHT:g}")
     if args.fps is not None and not args.fps > 0:
         raise PuppetError("--fps must be positive")
-    if not args.rate > 0:
-        raise PuppetError("--rate must be positive")
+    from puppet.session_reader import MAX_RATE, MIN_RATE
+
+    if not MIN_RATE <= args.rate <= MAX_RATE:
+        # a take's reader holds its tick rate to this range: --rate 20000 wrote a take replay refused,
+        # and --rate 1e9 filled the memory with 2e9 ticks until the kernel killed the process
+        raise PuppetError(f"--rate {args.rate:g}: expected {MIN_RATE:g}..{MAX_RATE:g} ticks a second (a take's range)")
     face = load_face(args.rig, face=args.face)
     if Path(args.input).suffix.lower() == ".wav":  # a voice: the live audio analysis, offline
         if kind != "take":
@@ -158,6 +181,7 @@ def run(args: argparse.Namespace) -> int:
             raise PuppetError("--age takes years in 0..120")
         extra["age"] = float(args.age)
     cap = read_capture(args.input, face, args.map, args.fps)
+    _check_length(float(cap.times[-1] - cap.times[0]), args.rate, len(face.vocab.channels))
     if isinstance(cap, ChannelCapture):
         values = full_values(face, cap.channels, cap.values, extra)
         lines = [f"converted {len(cap.times)} blendshape frames ({cap.times[-1]:.2f} s) through the inverted "

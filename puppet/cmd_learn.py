@@ -7,6 +7,7 @@ Prompts go to stdout and answers come from stdin, one line each, so a session ca
 from __future__ import annotations
 
 import argparse
+import math
 import re
 import sys
 import time
@@ -94,6 +95,10 @@ def run(args: argparse.Namespace, stdin: TextIO | None = None) -> int:
     from puppet.mapping.learn import learn_binding
 
     stdin = stdin or sys.stdin
+    timeout = getattr(args, "timeout", None)
+    if timeout is not None and not (timeout > 0 and math.isfinite(timeout)):
+        # nan or -1 gave up at once ('learned 0 binding(s)'), before any control could be touched
+        raise PuppetError(f"--timeout must be a positive number of seconds, got {timeout}")
     if getattr(args, "profile", None):
         if len(args.device) != 1 or not args.device[0].lower().startswith("audio:"):
             raise PuppetError("--profile learns a voice: give exactly one --device audio://NAME")

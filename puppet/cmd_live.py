@@ -268,6 +268,12 @@ def _run(args: argparse.Namespace) -> int:
             raise PuppetError("--demo plays once: leave out --supervise and --resume")
         if args.resume and not args.record:
             raise PuppetError("--resume continues the recording given with --record FILE")
+    if args.record and (args.record.endswith(("/", os.sep)) or Path(args.record).is_dir()
+                        or Path(args.record).name in ("", ".", "..")):
+        # '.' was a ValueError traceback, '/tmp' 'a take is already there and cannot be kept aside',
+        # 'takes/' a file named takes
+        raise PuppetError(f"--record {args.record}: that names a folder; name the take's file, e.g. "
+                          f"{Path(args.record) / 'take.jsonl'}")
     if args.record and not Path(args.record).parent.is_dir():
         raise PuppetError(f"--record {args.record}: the folder {Path(args.record).parent} does not exist; "
                           "create it or record elsewhere")
@@ -342,6 +348,13 @@ def _open_panel(args: argparse.Namespace, face: Any, devs: list[Any], explicit: 
         roles = parse_roles(getattr(args, "panel_role", []), face.vocab)
     except ValueError as err:
         raise devices.DeviceSpecError(str(err)) from err
+    named = [d for d in devs if getattr(d, "scheme", "") == "panel"]
+    if named and not explicit:
+        # `--device 'panel://127.0.0.1:8765?face=mesh'` is the page the user asked for: serving the
+        # default one beside it printed two URLs (the default moved to 8766); --panel-role roles it
+        for page in named:
+            page.roles = page.roles or dict(roles)
+        return
     port = "" if args.panel is None else f":{args.panel}"
     host = "0.0.0.0" if args.panel_lan else "127.0.0.1"
     spec = f"panel://{host}{port}" + ("?lan=1" if args.panel_lan else "")

@@ -100,7 +100,16 @@ def parse_identity(text: str) -> tuple[tuple[float, ...], int | None]:
 
 def parse_face(spec: str | None, resolution: int = 0) -> FaceChoice:
     """The face a --face text names (None: the default face). PuppetError with the expected forms."""
-    text = (spec if spec is not None else default_face()).strip()
+    if spec is None and os.environ.get(ENV):
+        try:
+            return _parse_face(default_face(), resolution)
+        except PuppetError as err:  # the user gave no --face: name where the face came from
+            raise PuppetError(str(err).replace("--face ", f"${ENV} ", 1)) from err
+    return _parse_face(spec if spec is not None else DEFAULT_FACE, resolution)
+
+
+def _parse_face(spec: str, resolution: int) -> FaceChoice:
+    text = spec.strip()
     base, _, query = text.partition("?")
     if base == "procedural":
         if query:
@@ -248,6 +257,9 @@ def list_identities() -> list[tuple[str, tuple[float, ...] | None, int | None, s
     folder = data_dir()
     out = []
     for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
+        if not path.is_file():  # a pipe there made the list wait for a writer, forever
+            out.append((path.stem, None, None, f"{path}: not a regular file; remove it or save the identity again"))
+            continue
         try:
             name, w, seed = read_identity(path)
             out.append((name, w, seed, ""))

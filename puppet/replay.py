@@ -102,7 +102,7 @@ def face_for(session: Session | None, rig_path: str | None, face: str | None = N
         return load_face(rig_path, face=face)
     rig = session.header.get("rig") or {}  # checked by the reader: str path, int resolution 0..2
     path = rig_path or rig.get("path")
-    if path and not Path(path).exists():
+    if not rig_path and path and not Path(path).exists():  # a --rig of the user's is checked as it loads
         raise ConfigError(f"{session.path}: recorded with rig {quote(path, 120)}, which is missing; pass --rig PATH")
     # a take recorded before a scanned head's forehead bent as its bound layer (no "bending" in its
     # header, puppet.live.BENDING_AS, and another face hash than the face has now) replays on the

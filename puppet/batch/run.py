@@ -70,14 +70,27 @@ def connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
 
 
 def _connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
+    import warnings
+
     from dask.distributed import Client, LocalCluster
 
+    # a task carries its input's bytes (no shared folder needed): a 38 MB point cache made Dask warn
+    # 'Sending large graph of size 37.99 MiB ...' in six lines on the user's terminal, about its own API
+    warnings.filterwarnings("ignore", message="Sending large graph", category=UserWarning)
+
     if scheduler:
+        _check_tls(scheduler)
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError) as err:
             raise PuppetError(f"cannot reach the Dask scheduler at {scheduler} ({err}); start `dask "
                               "scheduler` there or check the address it printed") from err
+        except Exception as err:  # noqa: BLE001 - whatever Dask makes of another program's bytes
+            # an SSH or web server on that port: Dask took its first bytes for a frame length and
+            # tried to allocate exabytes (MemoryError), or could not unpack them (struct.error, ...)
+            other = " (or a tcp:// one: name it so)" if scheduler.startswith("tls://") else ""
+            raise PuppetError(f"what answers at {scheduler} is not a Dask scheduler{other}: Dask could not read "
+                              "its reply; check the address `dask scheduler` printed") from err
         return client, None
     import dask
 
@@ -86,6 +99,23 @@ def _connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                                dashboard_address="127.0.0.1:0", silence_logs=logging.CRITICAL)
     return Client(cluster), cluster
+
+
+def _check_tls(scheduler: str) -> None:
+    """A tls:// scheduler needs Dask's TLS settings for a client; without them Dask's connect
+    raised a TypeError traceback ('TLS expects a `ssl_context` argument')."""
+    if not scheduler.startswith("tls://"):
+        return
+    from distributed.security import Security
+
+    try:
+        context = Security().get_connection_args("client").get("ssl_context")
+    except (OSError, ValueError) as err:  # a certificate file missing or not PEM
+        raise PuppetError(f"--scheduler {scheduler}: Dask's TLS settings cannot be used ({err})") from err
+    if context is None:
+        raise PuppetError(f"--scheduler {scheduler}: Dask has no TLS settings for a client; set "
+                          "distributed.comm.tls.ca-file, .client.cert and .client.key (in ~/.config/dask/ or as "
+                          "DASK_DISTRIBUTED__COMM__TLS__CA_FILE, ...__CLIENT__CERT, ...__CLIENT__KEY)")
 
 
 def check_farm(client: Any) -> int:

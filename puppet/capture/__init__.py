@@ -28,11 +28,18 @@ def _first_line(path: Path) -> str:
     return head.decode("utf-8", "replace").lstrip("\ufeff").strip()
 
 
+#: --fps, the rate of a capture that stores none (PC2 samples, ARKit timecodes' frame field)
+MIN_FPS, MAX_FPS = 1.0, 10000.0
+
+
 def read_capture(path: str | Path, face: Any, correspondence: str | Path | None = None,
                  fps: float | None = None) -> PointCapture | ChannelCapture:
     """The capture in `path`, for the rig of `face` (a `puppet.live.Face`); fps: the rate of
     formats that store none (PC2; ARKit timecodes' frame field), default 60."""
     p = Path(path)
+    if fps is not None and not MIN_FPS <= fps <= MAX_FPS:
+        # --fps 1e-300 spread a point cache's samples over 1e300 s (the take's ticks filled the memory)
+        raise ConfigError(f"--fps {fps:g}: expected {MIN_FPS:g}..{MAX_FPS:g} frames a second")
     why = not_a_file(p, "capture file")  # a pipe cannot be read twice (its format is told by its first line)
     if why:
         raise ConfigError(why)

@@ -242,6 +242,45 @@ def test_point_cache_from_the_other_integrator(tmp_path, face0, basis0, capsys) 
     _one_line_exit_2(capsys, ["fit", str(path), "--out", str(tmp_path / "z.jsonl")], tmp_path / "z.jsonl")
 
 
+def test_the_scanned_heads_own_point_cache_is_read(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """`puppet replay --out take.pc2` on the scanned head writes the whole scan (26,719 points in
+    the scan's order); `puppet fit take.pc2` refused it ('26719 points, but the rig has 6020
+    vertices'), though docs/fit.md names that export as a PC2 it reads. Its simulated skin's
+    vertices are read out of it: each sample is the replayed state's surface."""
+    from puppet.capture.pc2file import read_pc2_capture
+    from puppet.export.pc2 import read_pc2
+    from puppet.live import load_face, session_header
+    from puppet.mapping.config import MappingSpec
+    from puppet.replay import Replayer, build_performance
+    from puppet.session import SessionWriter, read_session
+
+    face = load_face(face="ict")
+    names = [c.name for c in face.vocab.channels]
+    take = tmp_path / "jaw.jsonl"
+    header = session_header(face, MappingSpec(name="t", bindings=[], combine={}, source="t", text=""), 60.0, [])
+    values = np.array(face.vocab.defaults())
+    with SessionWriter(take, header, fsync_seconds=None) as w:
+        for k in range(12):
+            values[names.index("jaw")] = 0.05 * k
+            w.values(k, values)
+            w.tick(k + 1)
+        w.close(12)
+    cache = tmp_path / "jaw.pc2"
+    assert main(["replay", str(take), "--out", str(cache)]) == 0
+    assert read_pc2(cache)[0]["num_points"] == 26719 != face.model.n_vertices
+    cap = read_pc2_capture(cache, face.model)
+    rp = Replayer(build_performance(read_session(take), None, None))
+    assert cap.points.shape == (12, face.model.n_vertices, 3)
+    for k in range(12):
+        rp.seek(k)  # sample k: the state after k ticks (the first sample is the rest)
+        assert np.allclose(cap.points[k], rp.state.surface, atol=2e-4), k
+    assert np.abs(cap.points[-1] - cap.points[0]).max() > 0.3  # the jaw opened
+    cache.with_suffix(".obj").write_text("v 0 0 0\n")
+    capsys.readouterr()
+    assert "topology" in _one_line_exit_2(capsys, ["fit", str(cache), "--out", str(tmp_path / "z.jsonl")],
+                                          tmp_path / "z.jsonl")
+
+
 def test_arkit_csv_becomes_a_take_on_the_physical_face(tmp_path, face0, capsys) -> None:  # type: ignore[no-untyped-def]
     from puppet.export.arkit import ArkitCsvWriter
 
@@ -265,6 +304,51 @@ def test_arkit_csv_becomes_a_take_on_the_physical_face(tmp_path, face0, capsys) 
         p = tmp_path / f"bad_{kind}.csv"
         p.write_text(bad, encoding="latin-1" if kind == "garbage" else "utf-8")
         _one_line_exit_2(capsys, ["fit", str(p), "--out", str(tmp_path / "o.jsonl")], tmp_path / "o.jsonl")
+
+
+def test_a_take_rate_a_replay_refuses_is_one_line(tmp_path, face0, capsys) -> None:  # type: ignore[no-untyped-def]
+    """--rate is a take's tick rate: 20000 wrote a take `puppet replay` refused (tick_rate above
+    10000), 1e9 filled the memory with 2e9 ticks until the kernel killed the process; a long
+    capture at a high rate that makes more values than a replay holds is refused before the fit."""
+    from puppet.export.arkit import ArkitCsvWriter
+
+    names = [c.name for c in face0.vocab.channels]
+    phone = tmp_path / "phone.arkit.csv"
+    w = ArkitCsvWriter(phone, names, 60.0)
+    for k in range(30):
+        w.add(k, np.array(face0.vocab.defaults()))
+    w.close()
+    out = tmp_path / "o.jsonl"
+    for rate in ("20000", "1e9", "0.5", "nan"):
+        assert "--rate" in _one_line_exit_2(capsys, ["fit", str(phone), "--rate", rate, "--out", str(out)], out)
+    assert main(["fit", str(phone), "--rate", "10000", "--out", str(out)]) == 0
+    assert main(["replay", str(out), "--out", str(tmp_path / "o.csv")]) == 0
+    out.unlink()
+    lines = phone.read_text().splitlines()
+    lines.append("02:00:00:00.000" + lines[-1][len("00:00:00:29.000"):])  # the capture runs two hours
+    phone.write_text("\n".join(lines) + "\n")
+    assert "more than a take holds" in _one_line_exit_2(
+        capsys, ["fit", str(phone), "--rate", "10000", "--out", str(out)], out)
+
+
+def test_fit_weights_and_capture_rates_out_of_range_are_one_line(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]
+    """--smooth or --sparsity nan / inf was a ValueError traceback from the solver's factorisation,
+    --smooth -1 a LinAlgError, --sparsity -5 a take with every channel at its maximum; --fps 1e-300
+    spread a point cache's samples over 1e300 s."""
+    times, names, pts = performance
+    track = tmp_path / "track.csv"
+    write_landmark_csv(track, times[:6], pts[:6], names)
+    out = tmp_path / "o.jsonl"
+    for option, value in (("--smooth", "nan"), ("--smooth", "inf"), ("--smooth", "-1"), ("--sparsity", "nan"),
+                          ("--sparsity", "inf"), ("--sparsity", "-5")):
+        err = _one_line_exit_2(capsys, ["fit", str(track), option, value, "--out", str(out)], out)
+        assert option in err, err
+    for value in ("1e-300", "1e300", "0.5"):
+        err = _one_line_exit_2(capsys, ["fit", str(track), "--fps", value, "--out", str(out)], out)
+        assert "--fps" in err, err
+        assert main(["recognize", str(track), "--fps", value]) == 2
+        assert "--fps" in capsys.readouterr().err
+    assert main(["fit", str(track), "--smooth", "0", "--sparsity", "0", "--no-relinearise", "--out", str(out)]) == 0
 
 
 def test_damaged_landmark_csvs_are_one_line_errors(tmp_path, performance, capsys) -> None:  # type: ignore[no-untyped-def]

@@ -155,3 +155,35 @@ def test_panel_port_and_no_panel_contracts(tmp_path: Path) -> None:
     r = subprocess.run([sys.executable, "-m", "puppet", "live", "--headless", "--no-panel", "--device", f"mock://{script}",
                         "--duration", "1"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and "performer's page" not in r.stdout + r.stderr
+
+
+def test_a_page_named_as_a_device_is_the_only_page(tmp_path: Path) -> None:
+    """`puppet live --device 'panel://127.0.0.1:PORT?face=mesh'` served that page and the default
+    one beside it (two URLs, the default on the next port); the named page is the show's page, and
+    --panel-role gives it its roles."""
+    import asyncio
+    import re
+    import socket
+
+    import aiohttp
+
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    proc = PuppetProcess("live", "--headless", "--duration", "60", "--device", f"panel://127.0.0.1:{port}?face=mesh",
+                         "--panel-role", "mouth=jaw", cwd=tmp_path)
+
+    async def hello() -> dict:
+        async with aiohttp.ClientSession() as session, \
+                session.ws_connect(f"http://127.0.0.1:{port}/ws?role=mouth&face=0") as ws:
+            return json.loads((await ws.receive(timeout=30)).data)
+
+    try:
+        assert proc.url == f"http://127.0.0.1:{port}/"
+        first = asyncio.run(hello())
+        assert first["roles"] == ["mouth"] and "slider:jaw" in first["allowed"], first
+        assert not any("zygomaticus" in c for c in first["allowed"]), first["allowed"]
+    finally:
+        out = proc.stop()
+    assert len(re.findall(r"performer's page at http://", out)) == 1, out

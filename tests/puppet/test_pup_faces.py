@@ -36,6 +36,18 @@ def test_face_forms(monkeypatch: pytest.MonkeyPatch) -> None:
         faces.parse_face("procedural", 3)
 
 
+def test_a_bad_face_from_the_environment_is_named_as_such(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """PUPPET_FACE=nosuch with no --face said '--face nosuch: ...', an option the user never gave."""
+    monkeypatch.setenv("PUPPET_DATA_DIR", str(tmp_path))
+    for bad in ("nosuch", "ict?identity=x", "procedural?x=1"):
+        monkeypatch.setenv("PUPPET_FACE", bad)
+        with pytest.raises(PuppetError) as err:
+            faces.parse_face(None)
+        assert str(err.value).startswith("$PUPPET_FACE ") and "--face" not in str(err.value).split(":")[0]
+        with pytest.raises(PuppetError, match="^--face "):
+            faces.parse_face(bad)
+
+
 def test_saved_identity_round_trip(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
     monkeypatch.setenv("PUPPET_DATA_DIR", str(tmp_path / "ids"))
     assert main(["face", "save", "bob", "--identity", "7"]) == 0
@@ -132,3 +144,25 @@ def test_two_saves_of_one_name_at_once_never_both_report_saved(tmp_path: Path, m
     assert main(["face", "save", "bob", "--identity", "7"]) == 0  # the same weights: no fuss
     assert main(["face", "save", "bob", "--identity", "8", "--replace"]) == 0
     assert faces.parse_face("bob").identity == faces.parse_face("ict?identity=8").identity
+
+
+def test_face_list_names_what_is_not_a_file_and_never_waits(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """A pipe named like an identity in the folder made `puppet face list` wait for a writer, forever."""
+    import os
+    import threading
+
+    monkeypatch.setenv("PUPPET_DATA_DIR", str(tmp_path))
+    assert main(["face", "save", "ana", "--identity", "4"]) == 0
+    os.mkfifo(tmp_path / "pipe.json")
+    (tmp_path / "folder.json").mkdir()
+    codes: list[int] = []
+    t = threading.Thread(target=lambda: codes.append(main(["face", "list"])), daemon=True)
+    capsys.readouterr()
+    t.start()
+    t.join(20)
+    assert codes == [2], "face list waited on the pipe"
+    out, err = capsys.readouterr()
+    assert out.startswith("ana ") and "seed 4" in out
+    assert sorted(line.split(":")[2].strip() for line in err.splitlines()) == \
+        sorted([str(tmp_path / "folder.json"), str(tmp_path / "pipe.json")]), err

@@ -111,6 +111,17 @@ def test_cli_record_then_replay_verifies(tmp_path: Path) -> None:
     assert "bit-identical to the live session at 1 checkpoints" in out.stdout
 
 
+def test_a_missing_rig_given_to_replay_is_named_as_the_users(tmp_path: Path) -> None:
+    """`puppet replay take.jsonl --rig typo.npz` said 'take.jsonl: recorded with rig typo.npz, which
+    is missing; pass --rig PATH': the take blamed for a rig it never named, and told to do what was done."""
+    rec = tmp_path / "s.jsonl"
+    assert puppet("live", "--device", script(tmp_path), "--headless", "--record", str(rec), "--duration", "0.2",
+                  "--no-panel").returncode == 0
+    out = puppet("replay", str(rec), "--rig", str(tmp_path / "typo.npz"), "--out", str(tmp_path / "o.csv"))
+    assert out.returncode == 2
+    assert out.stderr.strip() == f"puppet: error: {tmp_path / 'typo.npz'}: no such rig file", out.stderr
+
+
 def test_recording_into_a_missing_folder_is_one_line_before_the_show(tmp_path: Path) -> None:
     rec = tmp_path / "no-such-folder" / "s.jsonl"
     out = puppet("live", "--device", script(tmp_path), "--headless", "--record", str(rec), "--duration", "0.2")
@@ -228,6 +239,13 @@ def test_no_display_falls_back_to_headless_and_says_where(tmp_path: Path) -> Non
     (["live", "--device", "mock://", "--headless", "--duration", "-1"], "--duration"),
     (["replay", "/nonexistent.jsonl", "--headless"], "nonexistent.jsonl"),
     (["replay", "--headless"], "recording FILE"),
+    # '.' was a ValueError traceback ('has an empty name'), a folder 'cannot be kept aside'
+    (["live", "--device", "mock://", "--headless", "--duration", "1", "--record", "."], "names a folder"),
+    (["live", "--device", "mock://", "--headless", "--duration", "1", "--record", "/tmp"], "names a folder"),
+    # nan or -1 ended the monitor, or the learn, at once and silently (exit 0)
+    (["monitor", "mock://", "--duration", "nan"], "--duration"),
+    (["monitor", "mock://", "--duration", "-1"], "--duration"),
+    (["learn", "--device", "mock://", "--map", "/tmp/x.toml", "--timeout", "nan"], "--timeout"),
 ])
 def test_user_errors_are_one_line(args: list[str], msg: str) -> None:
     out = puppet(*args)
