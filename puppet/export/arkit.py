@@ -162,13 +162,82 @@ RULES = {shape: _rule(shape) for shape in ARKIT_SHAPES}
 UNSUPPORTED = tuple(s for s, r in RULES.items() if r is None)
 
 
+def _drives(index: dict[str, int]) -> list[dict[int, float]]:
+    """Each shape's channels (by place in `index`) as the import drives them: the channel's value
+    per unit of the shape (its own channels at the shape's span, its `SHAPE_SHARES`, the gaze's
+    lids)."""
+    from puppet.capture.arkit_in import share_targets, shape_targets
+
+    out: list[dict[int, float]] = []
+    for shape in ARKIT_SHAPES:
+        base = shape.removesuffix("Left").removesuffix("Right")
+        own: dict[int, float] = {}
+        for ch in shape_targets(shape):
+            if ch in index:
+                own[index[ch]] = max(own.get(index[ch], 0.0), SHAPE_SPAN.get(base, 1.0))
+        for ch, share in SHAPE_SHARES.get(base, ()):
+            for t in share_targets(shape, ch, index):
+                if t in index:
+                    own[index[t]] = max(own.get(index[t], 0.0), share)
+        for look, (lid, share) in GAZE_LIDS.items():
+            if base == look and lid + _side(shape) in index:
+                own[index[lid + _side(shape)]] = share
+        out.append(own)
+    return out
+
+
+#: Shapes the import drives from their weight alone (the gaze, the jaw's opening and sideways turn
+#: and the inner brows' mean are written as they read).
+_FIXED = tuple(s for s in ARKIT_SHAPES if s in ("BrowInnerUp", "JawOpen", "JawLeft", "JawRight") or s.startswith("EyeLook"))
+
+
+class _Drives:
+    """The import as a table: `k[s, c]` is how far shape s at full weight drives channel c (the
+    channel takes the largest of its drives); `free` the shapes the export may choose."""
+
+    def __init__(self, index: dict[str, int]) -> None:
+        drives = _drives(index)
+        self.k = np.zeros((len(ARKIT_SHAPES), max(index.values(), default=-1) + 1))
+        for s, d in enumerate(drives):
+            for c, v in d.items():
+                self.k[s, c] = v
+        self.free = np.array([s not in _FIXED for s in ARKIT_SHAPES])
+        self.channels = np.flatnonzero(self.k.any(axis=0))
+        self.close = ARKIT_SHAPES.index("MouthClose")
+
+
+_TABLES: dict[tuple[str, ...], _Drives] = {}
+
+
 def arkit_row(values: np.ndarray, index: dict[str, int]) -> list[float]:
-    """The 52 blendshape weights (0..1) for one tick's channel values."""
+    """The 52 blendshape weights (0..1) for one tick's channel values.
+
+    Shapes share channels (pressed lips lift the chin, a sneer narrows the eye, the gaze lifts the
+    lid; `SHAPE_SHARES`, `GAZE_LIDS`). A pose the shapes can give (any pose a stream of them
+    gives) is written as each shape at the largest weight that drives none of its channels past the
+    pose: streamed back, those weights give the pose itself, and exported again the same weights.
+    Any other pose is written shape by shape from its own channel."""
     def g(name: str) -> float:
         i = index.get(name)
         return float(values[i]) if i is not None else 0.0
 
-    return [min(1.0, max(0.0, r(g))) if r is not None else 0.0 for r in RULES.values()]
+    row = [min(1.0, max(0.0, r(g))) if r is not None else 0.0 for r in RULES.values()]
+    key = tuple(index)
+    table = _TABLES.get(key)
+    if table is None:
+        table = _TABLES[key] = _Drives(index)
+    k = table.k
+    v = np.asarray(values, float)[: k.shape[1]]
+    unit = np.array(row)
+    unit[table.close] = min(1.0, unit[table.close] / MOUTH_CLOSE_SPAN)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        room = np.where(k > 0.0, np.maximum(v, 0.0) / np.where(k > 0.0, k, 1.0), np.inf).min(axis=1)
+    largest = np.where(table.free, np.clip(room, 0.0, 1.0), unit)
+    given = (k * largest[:, None]).max(axis=0)
+    if np.all(np.abs(given[table.channels] - v[table.channels]) <= 1e-9):
+        largest[table.close] *= MOUTH_CLOSE_SPAN
+        return [float(w) for w in largest]
+    return row
 
 
 def timecode(frame: int, fps: float) -> str:

@@ -121,6 +121,32 @@ def _arkit_events(values: np.ndarray, names: list[str]) -> list[ControlEvent]:
     return [axis(shape[0].lower() + shape[1:], w, LIVE) for shape, w in zip(ARKIT_SHAPES, row)] + turns
 
 
+def test_any_pose_exported_and_streamed_back_exports_the_same_weights(vocab: Vocabulary) -> None:
+    """Any pose of the face (not only one a stream of shapes gives) exported as ARKit weights and
+    streamed back returns as a pose that exports the same weights and streams back as itself: a
+    channel other shapes also drive (pressed lips lift the chin, a sneer narrows the eye, the gaze
+    lifts the lid) writes its own shape only for what their shares leave unexplained."""
+    names = [c.name for c in vocab.channels]
+    index = {n: i for i, n in enumerate(names)}
+    rng = np.random.default_rng(11)
+    worst = 0.0
+    for _ in range(40):
+        values = np.array([c.default for c in vocab.channels], float)
+        for i, c in enumerate(vocab.channels):
+            if rng.random() < 0.4:
+                values[i] = rng.uniform(max(c.lo, -1.0), min(c.hi, 1.0))
+        m = Mapper(merge([(load_default_map("arkit"), LIVE)]), vocab)
+        once = run(m, _arkit_events(values, names))
+        back = np.array([once[n] for n in names])
+        m = Mapper(merge([(load_default_map("arkit"), LIVE)]), vocab)
+        twice = run(m, _arkit_events(back, names))
+        assert arkit_row(np.array([twice[n] for n in names]), index) == pytest.approx(arkit_row(back, index), abs=1e-9)
+        for n in names:
+            assert twice[n] == pytest.approx(once[n], abs=1e-9), n
+        worst = max(worst, max(abs(a - b) for a, b in zip(arkit_row(back, index), arkit_row(values, index))))
+    assert worst > 0.05  # the poses were not all ones the shapes carry: the test has teeth
+
+
 def test_arkit_map_is_the_inverse_of_the_export(vocab: Vocabulary, arkit_expressible) -> None:  # type: ignore[no-untyped-def]
     """A pose exported as ARKit weights and streamed back comes back as the same pose, for every
     channel the export can express (procerus folds into browDown with corrugator: kept below it)."""
