@@ -21,7 +21,9 @@ triangle over (or nearly) in any pose, leaves a sliver or a long edge at rest, o
 manifold (the link condition). Kept whole: the skin's openings and the rings next to them (the
 lips' inner edge, the neck's cut), the skin around the eyes (lids, their folds, the crow's feet),
 the glabella's frown lines, the nose, the ears and the chin (which crumples for a moment as the
-jaw drops).
+jaw drops). The ears are then made coarser in a second pass over that list (`build_ears`): held to
+0.4 mm (their rim is the head's outline from the front and the sides) and 0.12 rad of normal (the
+plain shader lights per vertex: long triangles in the folds show stars of facets).
 
 The mouth's lining, gums and tongue as drawn (`build_inside`; the teeth stay whole: no collapse of
 theirs keeps within the tolerances) are made coarser the same way, judged in the open mouth's
@@ -29,7 +31,7 @@ poses (INSIDE_POSES, the tongue out among them), each part's borders and the two
 them kept whole (the lining's edge along the lips, the gums' and tongue's cut at their depth).
 
 The lists are made once (`python -m render.scan_lod`, a few minutes; `python -m render.scan_lod
-inside` the inside's alone) and shipped beside this module (`scan_lod.npz`): they depend only on
+inside` the inside's alone, `... ears` the ears' pass alone over the list before it, `skin_plain`) and shipped beside this module (`scan_lod.npz`): they depend only on
 the scan's topology, which every identity shares. `error_cm` (`inside_error_cm`) is the largest
 distance, over the poses, from a vertex of the full plain skin (inside) to the coarse one. The
 renderer draws both coarse lists while the skin's triangles are small on screen
