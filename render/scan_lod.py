@@ -25,6 +25,11 @@ jaw drops). The ears are then made coarser in a second pass over that list (`bui
 0.4 mm (their rim is the head's outline from the front and the sides) and 0.12 rad of normal (the
 plain shader lights per vertex: long triangles in the folds show stars of facets).
 
+The eyeballs' shells as drawn are made coarser too (`build_eyes`): held to 0.2 mm (a convex shell:
+facets lie inside it, so none pokes through a shut lid), and the gaze angle (the iris and pupil
+are drawn per pixel from it) and the iris's chart coordinates interpolated at each left-out vertex
+against its own.
+
 The mouth's lining, gums and tongue as drawn (`build_inside`; the teeth stay whole: no collapse of
 theirs keeps within the tolerances) are made coarser the same way, judged in the open mouth's
 poses (INSIDE_POSES, the tongue out among them), each part's borders and the two rings next to
@@ -424,6 +429,48 @@ def build_ears(plain: np.ndarray, verbose: bool = False) -> tuple[np.ndarray, fl
             deviation(out, full[ears[full].all(axis=1)], pos))
 
 
+EYE_TOL_CM = 0.02  # cm: the eyeballs' collapses (`build_eyes`): the gap a facet may open behind a lid's margin
+EYE_TOL_ANGLE = 0.01  # rad: the gaze angle interpolated at a left-out vertex (the iris's and pupil's edges)
+EYE_TOL_UV = 0.005  # the iris's chart coordinates interpolated there (its fibres)
+
+
+def build_eyes(verbose: bool = False) -> tuple[np.ndarray, float]:
+    """A coarser list of the eyeballs' shells as drawn (render.scan_look's "eyes" group) over the
+    same vertices: ((K, 3) int32, the largest distance (cm) of a full shell's vertex from it in the
+    poses). Judged in the skin's 26 poses (the eyeball turns rigidly with the gaze) by the distance
+    (EYE_TOL_CM: the shell is convex, so a collapse moves it inward only, never through a lid), the
+    normal (TOL_NORMAL), the gaze angle (EYE_TOL_ANGLE: the iris and pupil are drawn per pixel from
+    it, so its error would move their edges and lose their roundness) and the chart coordinates
+    (EYE_TOL_UV); the shells' borders and the rings next to them kept whole."""
+    from render.scan_look import ScanLook
+    from sim.face.scan.data import N_VERTICES, scan_data
+
+    global TOL_CM
+    look = ScanLook(scan_data().neutral)
+    tri = look.groups["eyes"].astype(np.int64)
+    pos, rows = _poses()
+    P = len(pos)
+    attr = np.concatenate([rows[..., :3],
+                           np.broadcast_to((look.gaze_angle * TOL_FOLD / EYE_TOL_ANGLE)[None, :, None], (P, N_VERTICES, 1)),
+                           np.zeros((P, N_VERTICES, 1)),
+                           np.broadcast_to((look.uv * TOL_ALBEDO / EYE_TOL_UV)[None], (P, N_VERTICES, 2))], axis=2)
+    removable = np.zeros(N_VERTICES, bool)
+    removable[np.unique(tri)] = True
+    removable &= ~_border_rings(tri, N_VERTICES)
+    col = _Collapser(tri, pos, attr, removable)
+    col.tol_cm = EYE_TOL_CM
+    col = _collapse(col, ~removable, len(tri), 200 if verbose else 0)
+    out = col.tri[col.alive]
+    return out.astype(np.int32), deviation(out, tri, pos[:4], every=True)
+
+
+@lru_cache(maxsize=1)
+def coarse_eyes() -> np.ndarray:
+    """(K, 3) int32 the shipped coarse eyeballs' shells (`build_eyes`)."""
+    with np.load(DATA, allow_pickle=False) as d:
+        return d["eyes"].astype(np.int32)
+
+
 def inside_of(tri: np.ndarray) -> np.ndarray:
     """(T,) bool which of these triangles lie in INSIDE_PARTS (of the mouth's: what `coarse_inside`
     stands for)."""
@@ -520,7 +567,7 @@ def main() -> None:
 
     ap = argparse.ArgumentParser(prog="python -m render.scan_lod",
                                  description=f"Rebuild the scanned head's coarse lists and rewrite {DATA.name}.")
-    ap.add_argument("part", nargs="?", choices=["all", "inside", "ears"], default="all",
+    ap.add_argument("part", nargs="?", choices=["all", "inside", "ears", "eyes"], default="all",
                     help="inside: the mouth's inside alone; ears: the ears' collapses alone (the rest of the "
                          "shipped lists kept); all: everything (default)")
     part = ap.parse_args().part
@@ -531,22 +578,27 @@ def main() -> None:
         print(f"{len(skin)} triangles, largest deviation over the poses {err * 10:.3f} mm")
     else:
         skin = shipped.get("skin_plain", shipped["plain"]).astype(np.int32)
-    if part == "inside":
+    if part in ("inside", "eyes"):
         coarse, err = coarse_plain()
     else:
         coarse, err, ear_err = build_ears(skin, verbose=True)
         print(f"ears: {len(skin)} -> {len(coarse)} triangles; largest deviation of the full plain skin "
               f"{err * 10:.3f} mm, of the ears {ear_err * 10:.3f} mm")
-    if part == "ears":
+    if part in ("ears", "eyes"):
         inside, inside_err = shipped["inside"], float(shipped["inside_error_cm"])
     else:
         full, inside, inside_err = build_inside(verbose=True)
         print(f"the mouth's inside {len(full)} -> {len(inside)} triangles, largest deviation {inside_err * 10:.3f} mm")
+    if part in ("all", "eyes"):
+        eyes, eyes_err = build_eyes(verbose=True)
+        print(f"the eyeballs' shells -> {len(eyes)} triangles, largest deviation {eyes_err * 10:.3f} mm")
+    else:
+        eyes = shipped["eyes"]
     fd, tmp = tempfile.mkstemp(dir=DATA.parent, suffix=".npz")
     os.close(fd)
     try:
         np.savez_compressed(tmp, plain=coarse.astype(np.uint16), error_cm=np.float64(err),
-                            skin_plain=skin.astype(np.uint16), inside=inside.astype(np.uint16),
+                            skin_plain=skin.astype(np.uint16), eyes=eyes.astype(np.uint16), inside=inside.astype(np.uint16),
                             inside_error_cm=np.float64(inside_err))
         os.replace(tmp, DATA)
     except BaseException:
