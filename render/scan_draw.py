@@ -24,7 +24,8 @@ KINDS = ("SKIN", "CLAY", "HEAT")
 # term and the rest, most pixels, with the plain shader: the same colours, the highlight per vertex),
 # the eyeballs, the eye sockets, the mouth's inside
 CULLED = ("plain", "features", "eyes", "sockets", "mouth")
-# px²: the coarse plain skin and mouth's inside (render.scan_lod) and the coarse lashes (render.scan_look) are drawn
+# px²: the coarse plain skin (its ears included), eyeballs and mouth's inside (render.scan_lod) and the coarse
+# lashes (render.scan_look) are drawn
 # while the full plain skin's median triangle would cover at most this at the head's nearest point
 # (at 1280x720 the default camera gives 32 px² there, a median of 9 px² over the face as drawn; the
 # gallery's 2x2 supersampled 480x480, 90 px²)
@@ -159,7 +160,8 @@ class ScanDraw:
                                             np.full(len(self.coarse_eyes), eyes),
                                             np.full(len(self.coarse_inside), mouth)]).astype(np.int8)
         self.group_coarse_skin = np.concatenate([np.where((own == plain) | (own == eyes), -1, own),
-                                                 np.full(len(self.coarse_tri), plain), np.full(len(self.coarse_eyes), eyes),
+                                                 np.full(len(self.coarse_tri), plain),
+                                                 np.full(len(self.coarse_eyes), eyes),
                                                  np.full(len(self.coarse_inside), -1)]).astype(np.int8)
         # the mouth's slice at the coarse level, as the listing orders it: the teeth, then the coarse inside
         self.coarse_mouth = np.ascontiguousarray(np.concatenate([groups["mouth"][~self.inside_full],

@@ -36,7 +36,8 @@ poses (INSIDE_POSES, the tongue out among them), each part's borders and the two
 them kept whole (the lining's edge along the lips, the gums' and tongue's cut at their depth).
 
 The lists are made once (`python -m render.scan_lod`, a few minutes; `python -m render.scan_lod
-inside` the inside's alone, `... ears` the ears' pass alone over the list before it, `skin_plain`) and shipped beside this module (`scan_lod.npz`): they depend only on
+inside` the inside's alone, `... ears` the ears' pass alone over the list before it, `skin_plain`;
+`... eyes` the eyeballs' alone) and shipped beside this module (`scan_lod.npz`): they depend only on
 the scan's topology, which every identity shares. `error_cm` (`inside_error_cm`) is the largest
 distance, over the poses, from a vertex of the full plain skin (inside) to the coarse one. The
 renderer draws both coarse lists while the skin's triangles are small on screen
@@ -450,8 +451,8 @@ def build_eyes(verbose: bool = False) -> tuple[np.ndarray, float]:
     tri = look.groups["eyes"].astype(np.int64)
     pos, rows = _poses()
     P = len(pos)
-    attr = np.concatenate([rows[..., :3],
-                           np.broadcast_to((look.gaze_angle * TOL_FOLD / EYE_TOL_ANGLE)[None, :, None], (P, N_VERTICES, 1)),
+    angle = look.gaze_angle * TOL_FOLD / EYE_TOL_ANGLE  # in the fold term's slot, scaled to its tolerance
+    attr = np.concatenate([rows[..., :3], np.broadcast_to(angle[None, :, None], (P, N_VERTICES, 1)),
                            np.zeros((P, N_VERTICES, 1)),
                            np.broadcast_to((look.uv * TOL_ALBEDO / EYE_TOL_UV)[None], (P, N_VERTICES, 2))], axis=2)
     removable = np.zeros(N_VERTICES, bool)
@@ -598,7 +599,8 @@ def main() -> None:
     os.close(fd)
     try:
         np.savez_compressed(tmp, plain=coarse.astype(np.uint16), error_cm=np.float64(err),
-                            skin_plain=skin.astype(np.uint16), eyes=eyes.astype(np.uint16), inside=inside.astype(np.uint16),
+                            skin_plain=skin.astype(np.uint16), eyes=eyes.astype(np.uint16),
+                            inside=inside.astype(np.uint16),
                             inside_error_cm=np.float64(inside_err))
         os.replace(tmp, DATA)
     except BaseException:
