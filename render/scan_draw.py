@@ -24,7 +24,8 @@ KINDS = ("SKIN", "CLAY", "HEAT")
 # term and the rest, most pixels, with the plain shader: the same colours, the highlight per vertex),
 # the eyeballs, the eye sockets, the mouth's inside
 CULLED = ("plain", "features", "eyes", "sockets", "mouth")
-# px²: the coarse plain skin and mouth's inside (render.scan_lod) and the coarse lashes (render.scan_look) are drawn
+# px²: the coarse plain skin (its ears included), eyeballs and mouth's inside (render.scan_lod) and the coarse
+# lashes (render.scan_look) are drawn
 # while the full plain skin's median triangle would cover at most this at the head's nearest point
 # (at 1280x720 the default camera gives 32 px² there, a median of 9 px² over the face as drawn; the
 # gallery's 2x2 supersampled 480x480, 90 px²)
@@ -110,7 +111,11 @@ class ScanDraw:
         self.coarse_tri = self.look.coarse_plain()
         # the mouth's lining, gums and tongue drawn from a coarser list with the coarse skin (render.scan_lod)
         self.inside_full, self.coarse_inside = self.look.coarse_inside()
-        self.maker = ScanRows(self.look, np.concatenate([self.coarse_tri, self.coarse_inside]),
+        from render.scan_lod import coarse_eyes
+
+        # the eyeballs' shells drawn from a coarser list with the coarse skin (render.scan_lod)
+        self.coarse_eyes = np.ascontiguousarray(coarse_eyes(), np.int32)
+        self.maker = ScanRows(self.look, np.concatenate([self.coarse_tri, self.coarse_eyes, self.coarse_inside]),
                               sealed_vertices(dressing), len(self.coarse_inside))
         self.softener: FoldSoftener | None = FoldSoftener(self.look)  # None: the buckles drawn as simulated
         from render.scan_lod import coarse_plain
@@ -145,14 +150,18 @@ class ScanDraw:
         # at each level of detail: the full skin, or its plain part from the coarse list
         own = look.group_of_triangles(CULLED)
         plain, mouth = CULLED.index("plain"), CULLED.index("mouth")
-        extra = len(self.coarse_tri) + len(self.coarse_inside)
+        eyes = CULLED.index("eyes")
+        extra = len(self.coarse_tri) + len(self.coarse_eyes) + len(self.coarse_inside)
         self.group = np.concatenate([own, np.full(extra, -1, np.int8)])
-        replaced = own == plain
+        replaced = (own == plain) | (own == eyes)
         lo = len(look.groups["skin"])  # `triangles` are the groups in order, the skin's first
         replaced[lo:lo + len(self.inside_full)] |= self.inside_full
         self.group_coarse = np.concatenate([np.where(replaced, -1, own), np.full(len(self.coarse_tri), plain),
+                                            np.full(len(self.coarse_eyes), eyes),
                                             np.full(len(self.coarse_inside), mouth)]).astype(np.int8)
-        self.group_coarse_skin = np.concatenate([np.where(own == plain, -1, own), np.full(len(self.coarse_tri), plain),
+        self.group_coarse_skin = np.concatenate([np.where((own == plain) | (own == eyes), -1, own),
+                                                 np.full(len(self.coarse_tri), plain),
+                                                 np.full(len(self.coarse_eyes), eyes),
                                                  np.full(len(self.coarse_inside), -1)]).astype(np.int8)
         # the mouth's slice at the coarse level, as the listing orders it: the teeth, then the coarse inside
         self.coarse_mouth = np.ascontiguousarray(np.concatenate([groups["mouth"][~self.inside_full],
@@ -269,12 +278,14 @@ class ScanDraw:
             self.ibo.write(self.cull_tri.tobytes())
             if self.coarse:  # the plain skin's slice comes first
                 self.ibo.write(self.coarse_tri.tobytes())
+                self.ibo.write(self.coarse_eyes.tobytes(), offset=int(self.starts[CULLED.index("eyes")]) * 12)
             if inside:
                 self.ibo.write(self.coarse_mouth.tobytes(), offset=int(self.starts[CULLED.index("mouth")]) * 12)
             self._ibo_level = (self.coarse, inside)
         self.counts[:] = self.full
         if self.coarse:
             self.counts[CULLED.index("plain")] = len(self.coarse_tri)
+            self.counts[CULLED.index("eyes")] = len(self.coarse_eyes)
         if inside:
             self.counts[CULLED.index("mouth")] = len(self.coarse_mouth)
 

@@ -21,7 +21,14 @@ triangle over (or nearly) in any pose, leaves a sliver or a long edge at rest, o
 manifold (the link condition). Kept whole: the skin's openings and the rings next to them (the
 lips' inner edge, the neck's cut), the skin around the eyes (lids, their folds, the crow's feet),
 the glabella's frown lines, the nose, the ears and the chin (which crumples for a moment as the
-jaw drops).
+jaw drops). The ears are then made coarser in a second pass over that list (`build_ears`): held to
+0.4 mm (their rim is the head's outline from the front and the sides) and 0.12 rad of normal (the
+plain shader lights per vertex: long triangles in the folds show stars of facets).
+
+The eyeballs' shells as drawn are made coarser too (`build_eyes`): held to 0.2 mm (a convex shell:
+facets lie inside it, so none pokes through a shut lid), and the gaze angle (the iris and pupil
+are drawn per pixel from it) and the iris's chart coordinates interpolated at each left-out vertex
+against its own.
 
 The mouth's lining, gums and tongue as drawn (`build_inside`; the teeth stay whole: no collapse of
 theirs keeps within the tolerances) are made coarser the same way, judged in the open mouth's
@@ -29,7 +36,8 @@ poses (INSIDE_POSES, the tongue out among them), each part's borders and the two
 them kept whole (the lining's edge along the lips, the gums' and tongue's cut at their depth).
 
 The lists are made once (`python -m render.scan_lod`, a few minutes; `python -m render.scan_lod
-inside` the inside's alone) and shipped beside this module (`scan_lod.npz`): they depend only on
+inside` the inside's alone, `... ears` the ears' pass alone over the list before it, `skin_plain`;
+`... eyes` the eyeballs' alone) and shipped beside this module (`scan_lod.npz`): they depend only on
 the scan's topology, which every identity shares. `error_cm` (`inside_error_cm`) is the largest
 distance, over the poses, from a vertex of the full plain skin (inside) to the coarse one. The
 renderer draws both coarse lists while the skin's triangles are small on screen
@@ -64,6 +72,9 @@ NOSE_BOX = ((-2.2, 2.2), (-2.2, 1.6), (9.2, 99.0))  # cm, the generic head: x, y
 EAR_BOX = ((6.6, 99.0), (-2.5, 6.5), (-5.0, 3.0))  # cm, the generic head: |x|, y, z of the ears kept whole
 GLABELLA_BOX = ((-1.8, 1.8), (3.0, 7.5), (8.0, 99.0))  # cm, the generic head: the frown lines kept whole
 CHIN_BOX = ((-4.2, 4.2), (-8.4, -6.4), (4.0, 99.0))  # cm, the generic head: the chin, that crumples as the jaw drops
+EAR_TOL_CM = 0.04  # cm: the ears' collapses (`build_ears`): a pixel at 1280x720 with the default camera
+TOL_ALBEDO = 0.015  # the ears' collapses: the albedo interpolated at a left-out vertex against its own (of 1)
+EAR_TOL_NORMAL = 0.12  # rad: the ears' collapses: their folds' shading (the skin's 0.35 left facets in the concha)
 EYE_REACH = 0.8  # cm from the eyes' openings kept whole: lids, their folds and the crow's feet
 
 
@@ -156,6 +167,7 @@ class _Collapser:
             self.fan[c].add(t)
         self.owned: list[list[int]] = [[] for _ in range(n)]
         self.version = np.zeros(n, np.int64)
+        self.tol_cm = TOL_CM  # the distance a left-out vertex may lie from the new triangles
 
     def neighbours(self, u: int) -> set[int]:
         out: set[int] = set()
@@ -208,8 +220,10 @@ class _Collapser:
         own = self.attr[:, w]
         nrm = guess[..., :3] / np.maximum(np.linalg.norm(guess[..., :3], axis=-1, keepdims=True), 1e-12)
         turn = np.arccos(np.clip((nrm * own[..., :3]).sum(-1), -1.0, 1.0))
-        err = np.maximum.reduce([geo / TOL_CM, turn / TOL_NORMAL, np.abs(guess[..., 3] - own[..., 3]) / TOL_FOLD,
+        err = np.maximum.reduce([geo / self.tol_cm, turn / TOL_NORMAL, np.abs(guess[..., 3] - own[..., 3]) / TOL_FOLD,
                                  np.abs(guess[..., 4] - own[..., 4]) / TOL_OCCLUSION])
+        if at.shape[-1] > 5:  # the albedo (the ears' redder skin), at rest
+            err = np.maximum(err, np.abs(guess[..., 5:] - own[..., 5:]).max(-1) / TOL_ALBEDO)
         worst = float(err.max())
         return worst if worst <= 1.0 else np.inf
 
@@ -353,6 +367,111 @@ def deviation(coarse: np.ndarray, fine: np.ndarray, poses: np.ndarray, every: bo
     return worst
 
 
+def ear_vertices(tri: np.ndarray, reach: int = 2) -> np.ndarray:
+    """(N,) bool the vertices an ear collapse may remove: inside EAR_BOX (the generic head) with
+    every vertex within `reach` edges of them inside it too, so the rest of the skin's list (judged
+    by `build`, whose owners are not kept) is not touched."""
+    from sim.face.scan.data import N_VERTICES, scan_data
+
+    neutral = scan_data().neutral
+    (x0, x1), (y0, y1), (z0, z1) = EAR_BOX
+    x, y, z = np.abs(neutral[:, 0]), neutral[:, 1], neutral[:, 2]
+    inner = (x > x0) & (x < x1) & (y > y0) & (y < y1) & (z > z0) & (z < z1)
+    edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]).astype(np.int64)
+    out = ~inner
+    for _ in range(reach):
+        grow = out.copy()
+        grow[edges[out[edges[:, 0]], 1]] = True
+        grow[edges[out[edges[:, 1]], 0]] = True
+        out = grow
+    return ~out & (np.bincount(tri.ravel(), minlength=N_VERTICES) > 0)
+
+
+def _plain_full() -> np.ndarray:
+    """(F, 3) int64 the full plain skin (render.scan_look.ScanLook.skin_split's "plain")."""
+    from render.scan_look import BROW_CLEAR, LIP_CLEAR, _static_layout
+
+    lay = _static_layout()
+    tri = lay["skin"].astype(np.int64)
+    plain = (lay["brow"][tri] >= BROW_CLEAR).all(axis=1) & (lay["lip"][tri] >= LIP_CLEAR).all(axis=1)
+    return tri[plain]
+
+
+def build_ears(plain: np.ndarray, verbose: bool = False) -> tuple[np.ndarray, float, float]:
+    """The coarse plain skin `plain` with its ears made coarser: collapses of the ears' vertices
+    (`ear_vertices`) judged in the skin's 26 poses by the skin's tolerances but the distance, held
+    to EAR_TOL_CM, and the normal, to EAR_TOL_NORMAL, so the ears' rim (the head's outline from the
+    front and the sides) stays within about a pixel at 1280x720 and their folds keep their shading.
+    ((K, 3) int32 the new list; the largest distance (cm), over the poses, of a vertex of the full
+    plain skin from it, and of one of the full ears')."""
+    from render.scan_look import ScanLook
+    from sim.face.scan.data import N_VERTICES, scan_data
+
+    global TOL_NORMAL
+    tri = plain.astype(np.int64)
+    pos, rows = _poses()
+    occ = ScanLook(scan_data().neutral).material[:, 2].astype(np.float64)
+    attr = np.concatenate([rows, np.broadcast_to(occ[None, :, None], (len(rows), N_VERTICES, 1))], axis=2)
+    look = ScanLook(scan_data().neutral)
+    albedo = np.broadcast_to(look.albedo.astype(np.float64)[None], (len(rows), N_VERTICES, 3))
+    attr = np.concatenate([attr, albedo], axis=2)
+    removable = ear_vertices(tri) & ~_border_rings(tri, N_VERTICES)
+    col = _Collapser(tri, pos, attr, removable)
+    col.tol_cm = EAR_TOL_CM
+    skin_normal, TOL_NORMAL = TOL_NORMAL, EAR_TOL_NORMAL
+    try:
+        col = _collapse(col, ~removable, len(tri), 200 if verbose else 0)
+    finally:
+        TOL_NORMAL = skin_normal
+    out = col.tri[col.alive]
+    full = _plain_full()
+    ears = ear_vertices(full, 0)
+    return (out.astype(np.int32), deviation(out, full, pos),
+            deviation(out, full[ears[full].all(axis=1)], pos))
+
+
+EYE_TOL_CM = 0.02  # cm: the eyeballs' collapses (`build_eyes`): the gap a facet may open behind a lid's margin
+EYE_TOL_ANGLE = 0.01  # rad: the gaze angle interpolated at a left-out vertex (the iris's and pupil's edges)
+EYE_TOL_UV = 0.005  # the iris's chart coordinates interpolated there (its fibres)
+
+
+def build_eyes(verbose: bool = False) -> tuple[np.ndarray, float]:
+    """A coarser list of the eyeballs' shells as drawn (render.scan_look's "eyes" group) over the
+    same vertices: ((K, 3) int32, the largest distance (cm) of a full shell's vertex from it in the
+    poses). Judged in the skin's 26 poses (the eyeball turns rigidly with the gaze) by the distance
+    (EYE_TOL_CM: the shell is convex, so a collapse moves it inward only, never through a lid), the
+    normal (TOL_NORMAL), the gaze angle (EYE_TOL_ANGLE: the iris and pupil are drawn per pixel from
+    it, so its error would move their edges and lose their roundness) and the chart coordinates
+    (EYE_TOL_UV); the shells' borders and the rings next to them kept whole."""
+    from render.scan_look import ScanLook
+    from sim.face.scan.data import N_VERTICES, scan_data
+
+    global TOL_CM
+    look = ScanLook(scan_data().neutral)
+    tri = look.groups["eyes"].astype(np.int64)
+    pos, rows = _poses()
+    P = len(pos)
+    angle = look.gaze_angle * TOL_FOLD / EYE_TOL_ANGLE  # in the fold term's slot, scaled to its tolerance
+    attr = np.concatenate([rows[..., :3], np.broadcast_to(angle[None, :, None], (P, N_VERTICES, 1)),
+                           np.zeros((P, N_VERTICES, 1)),
+                           np.broadcast_to((look.uv * TOL_ALBEDO / EYE_TOL_UV)[None], (P, N_VERTICES, 2))], axis=2)
+    removable = np.zeros(N_VERTICES, bool)
+    removable[np.unique(tri)] = True
+    removable &= ~_border_rings(tri, N_VERTICES)
+    col = _Collapser(tri, pos, attr, removable)
+    col.tol_cm = EYE_TOL_CM
+    col = _collapse(col, ~removable, len(tri), 200 if verbose else 0)
+    out = col.tri[col.alive]
+    return out.astype(np.int32), deviation(out, tri, pos[:4], every=True)
+
+
+@lru_cache(maxsize=1)
+def coarse_eyes() -> np.ndarray:
+    """(K, 3) int32 the shipped coarse eyeballs' shells (`build_eyes`)."""
+    with np.load(DATA, allow_pickle=False) as d:
+        return d["eyes"].astype(np.int32)
+
+
 def inside_of(tri: np.ndarray) -> np.ndarray:
     """(T,) bool which of these triangles lie in INSIDE_PARTS (of the mouth's: what `coarse_inside`
     stands for)."""
@@ -443,26 +562,46 @@ def build_inside(verbose: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 def main() -> None:
-    """Builds both lists; `python -m render.scan_lod inside` builds the mouth's inside alone and keeps
-    the shipped plain skin."""
+    """Builds the lists; `python -m render.scan_lod inside` builds the mouth's inside alone and keeps
+    the shipped plain skin, `ears` the ears' collapses alone over the shipped plain skin before them."""
     import argparse
 
     ap = argparse.ArgumentParser(prog="python -m render.scan_lod",
                                  description=f"Rebuild the scanned head's coarse lists and rewrite {DATA.name}.")
-    ap.add_argument("part", nargs="?", choices=["all", "inside"], default="all",
-                    help="inside: the mouth's inside alone (the shipped plain skin kept); all: both (default)")
-    if ap.parse_args().part == "inside":
+    ap.add_argument("part", nargs="?", choices=["all", "inside", "ears", "eyes"], default="all",
+                    help="inside: the mouth's inside alone; ears: the ears' collapses alone (the rest of the "
+                         "shipped lists kept); all: everything (default)")
+    part = ap.parse_args().part
+    with np.load(DATA, allow_pickle=False) as d:
+        shipped = {k: d[k] for k in d.files}
+    if part == "all":
+        skin, err = build(verbose=True)
+        print(f"{len(skin)} triangles, largest deviation over the poses {err * 10:.3f} mm")
+    else:
+        skin = shipped.get("skin_plain", shipped["plain"]).astype(np.int32)
+    if part in ("inside", "eyes"):
         coarse, err = coarse_plain()
     else:
-        coarse, err = build(verbose=True)
-        print(f"{len(coarse)} triangles, largest deviation over the poses {err * 10:.3f} mm")
-    full, inside, inside_err = build_inside(verbose=True)
-    print(f"the mouth's inside {len(full)} -> {len(inside)} triangles, largest deviation {inside_err * 10:.3f} mm")
+        coarse, err, ear_err = build_ears(skin, verbose=True)
+        print(f"ears: {len(skin)} -> {len(coarse)} triangles; largest deviation of the full plain skin "
+              f"{err * 10:.3f} mm, of the ears {ear_err * 10:.3f} mm")
+    if part in ("ears", "eyes"):
+        inside, inside_err = shipped["inside"], float(shipped["inside_error_cm"])
+    else:
+        full, inside, inside_err = build_inside(verbose=True)
+        print(f"the mouth's inside {len(full)} -> {len(inside)} triangles, largest deviation {inside_err * 10:.3f} mm")
+    if part in ("all", "eyes"):
+        eyes, eyes_err = build_eyes(verbose=True)
+        print(f"the eyeballs' shells -> {len(eyes)} triangles, largest deviation {eyes_err * 10:.3f} mm")
+    else:
+        eyes = shipped["eyes"]
     fd, tmp = tempfile.mkstemp(dir=DATA.parent, suffix=".npz")
     os.close(fd)
     try:
         np.savez_compressed(tmp, plain=coarse.astype(np.uint16), error_cm=np.float64(err),
-                            inside=inside.astype(np.uint16), inside_error_cm=np.float64(inside_err))
+                            skin_plain=skin.astype(np.uint16), eyes=eyes.astype(np.uint16),
+                            inside=inside.astype(np.uint16),
+                            inside_error_cm=np.float64(inside_err))
         os.replace(tmp, DATA)
     except BaseException:
         os.unlink(tmp)

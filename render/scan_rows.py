@@ -39,7 +39,9 @@ class ScanRows:
     vertices listed after the scan's own (a group index per triangle of both chooses which are
     drawn), that the normals and fold terms do not read (the coarse plain skin, render.scan_lod),
     the last `listed_mouth` of them the mouth's (the coarse lining, gums and tongue: hidden by the
-    mouth's opening as its triangles are, and passed over while the lips are shut).
+    mouth's opening as its triangles are, and passed over while the lips are shut); the others lie
+    behind the openings the scan's triangles at their corners all do (the coarse eyeballs' shells
+    behind their eyes').
     `sealed`: (N,) bool the vertices that never pass through the lips (the teeth and gums as the
     face's dressing poses them): the mouth's triangles among them may be hidden beside the mouth's
     opening as well as behind it (render.scan_kernel.seen_triangles)."""
@@ -64,6 +66,10 @@ class ScanRows:
         self.list_tri = np.ascontiguousarray(np.concatenate([self.tri, extra]), np.int32)
         self.list_skip = np.concatenate([self.skip_tri & 1, np.zeros(len(extra), np.uint8)])
         self.list_behind = np.concatenate([look.behind, np.zeros(len(extra), look.behind.dtype)])
+        if len(extra):  # a listed triangle lies behind the openings every scan triangle at its corners does
+            bits = np.zeros(N_VERTICES, look.behind.dtype)
+            np.bitwise_or.at(bits, self.tri.ravel(), np.repeat(look.behind, 3))
+            self.list_behind[len(self.tri):] = bits[extra[:, 0]] & bits[extra[:, 1]] & bits[extra[:, 2]]
         if listed_mouth:
             lo = len(look.groups["skin"])  # `triangles` are the groups in order, the skin's first
             self.list_skip[-listed_mouth:] = 1

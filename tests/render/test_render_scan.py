@@ -156,8 +156,9 @@ def test_back_faces_left_out_on_the_cpu_change_no_pixel(gl) -> None:
             culled = off.render_frame(state, record=False).astype(int)
             assert scan.mouth_drawn
             kept, whole = int(scan.counts.sum()), int(scan.full.sum())
-            if scan.coarse:  # this size draws the coarse plain skin and inside (render.scan_lod): their whole lists
+            if scan.coarse:  # this size draws the coarse plain skin, eyeballs and inside (render.scan_lod): whole lists
                 whole -= int(scan.full[0]) - len(scan.coarse_tri)
+                whole -= int(scan.full[CULLED.index("eyes")]) - len(scan.coarse_eyes)
                 whole -= int(scan.full[CULLED.index("mouth")]) - len(scan.coarse_mouth)
             scan.cull_on_cpu = False
             every = off.render_frame(state, record=False).astype(int)

@@ -123,6 +123,112 @@ def test_coarse_skin_drawn_while_small_looks_the_same(gl, posed) -> None:
             assert not off.renderer.scan.coarse, size
 
 
+def test_coarse_ears_stay_on_the_full_ears(posed) -> None:
+    """The ears are drawn from fewer triangles (render.scan_lod.build_ears), and every vertex of the
+    full ears lies within about a pixel at 1280x720 of the coarse skin, at rest and posed: the rim
+    that makes the head's outline from the front and the sides stays where it was."""
+    from render.scan_draw import ScanPoser, dressing_of
+    from render.scan_lod import EAR_TOL_CM, deviation, ear_vertices
+
+    model, states = posed
+    full = ScanLook(scan_data().neutral).skin_split()["plain"]
+    coarse = coarse_plain()[0]
+    in_full, in_coarse = ear_vertices(full, 0)[full].all(axis=1), ear_vertices(full, 0)[coarse].all(axis=1)
+    assert in_coarse.sum() < 0.8 * in_full.sum()  # 3,480 -> 2,466 in the ears' box
+    poser = ScanPoser(dressing_of(model))
+    for name, state in states.items():
+        p = poser.rows(state)[:, :3].astype(np.float64)
+        assert deviation(coarse, full[in_full], p[None]) < 1.5 * EAR_TOL_CM, name
+
+
+def test_coarse_ears_keep_the_outline_from_the_side(gl, posed, monkeypatch) -> None:
+    """Seen from either side and three-quarters at 1280x720, the coarse skin with its ears made coarser
+    covers the pixels the coarse skin with the full ears covers (the list before `build_ears`, shipped
+    as `skin_plain`) but for a few, and the ears look the same but for a few levels."""
+    import render.scan_lod as lod
+
+    model, states = posed
+    with np.load(lod.DATA) as d:
+        before = d["skin_plain"].astype(np.int32)
+    shots: list[list[np.ndarray]] = []
+    for plain in (None, before):
+        if plain is not None:
+            monkeypatch.setattr(lod, "coarse_plain", lambda: (plain, 0.1))
+        with OffscreenRenderer(model, (1280, 720), ctx=gl) as off:
+            assert len(off.renderer.scan.coarse_tri) == len(plain if plain is not None else coarse_plain()[0])
+            shots.append([])
+            for yaw in (1.5708, -1.5708, 0.7):
+                off.renderer.camera.yaw = yaw
+                shots[-1].append(off.render_frame(states["rest"], record=False).astype(int))
+                assert off.renderer.scan.coarse
+    for ears, whole in zip(*shots):
+        bg = whole[0, 0]
+        cover = lambda img: np.abs(img - bg).max(axis=2) > 0  # noqa: E731
+        assert (cover(ears) != cover(whole)).sum() <= 12
+        diff = np.abs(whole - ears).max(axis=2)
+        assert diff.max() > 0  # the ears were drawn coarser
+        assert diff.mean() < 0.05 and (diff > 8).mean() < 0.0005
+    assert gl.error == "GL_NO_ERROR"
+
+
+def test_coarse_eyeballs_cover_the_same_shells(posed) -> None:
+    """The eyeballs' shells drawn with the coarse skin (render.scan_lod.coarse_eyes) are fewer
+    triangles over the same vertices, with the same borders, and stay within 0.3 mm of the full
+    shells posed (the shell is convex: a facet lies inside it, so no lid is poked through)."""
+    from render.scan_draw import ScanPoser, dressing_of
+    from render.scan_lod import coarse_eyes, deviation
+
+    model, states = posed
+    full = ScanLook(scan_data().neutral).groups["eyes"]
+    coarse = coarse_eyes()
+    assert len(coarse) < 0.75 * len(full)
+    assert set(np.unique(coarse)) <= set(np.unique(full))
+    d_full, d_coarse = _directed(full), _directed(coarse)
+    assert max(d_coarse.values()) == 1
+    assert {e for e in d_coarse if (e[1], e[0]) not in d_coarse} == {e for e in d_full if (e[1], e[0]) not in d_full}
+    poser = ScanPoser(dressing_of(model))
+    for name, state in states.items():
+        p = poser.rows(state)[:, :3].astype(np.float64)
+        assert deviation(coarse, full, p[None], every=True) < 0.03, name
+
+
+def test_coarse_eyeballs_look_like_the_full_ones(gl, monkeypatch) -> None:
+    """At 1280x720 the eyes drawn from the coarse shells are the full shells' picture but for a few
+    levels on a few pixels (the iris and pupil round, the highlight in place), open, half shut and
+    shut, from the front and three-quarters."""
+    import render.scan_lod as lod
+    from puppet.face_cache import scan_model
+    from sim.facs import apply_au
+    from sim.integrator import Simulator
+    from sim.state import FaceControl
+
+    model = scan_model(None)
+    states = []
+    for w in (0.0, 0.5, 1.0):
+        sim, state = Simulator(model), model.rest_state()
+        for _ in range(30):
+            control = FaceControl(model)
+            apply_au(control, "AU45", w)
+            sim.step(state, control)
+        states.append(state)
+    full = ScanLook(scan_data().neutral).groups["eyes"].astype(np.int32)
+    shots: list[list[np.ndarray]] = []
+    for eyes in (None, full):
+        if eyes is not None:
+            monkeypatch.setattr(lod, "coarse_eyes", lambda: eyes)
+        with OffscreenRenderer(model, (1280, 720), ctx=gl) as off:
+            shots.append([])
+            for state in states:
+                for yaw in (0.0, 0.7):
+                    off.renderer.camera.yaw = yaw
+                    shots[-1].append(off.render_frame(state, record=False).astype(int))
+                    assert off.renderer.scan.coarse
+    for k, (coarse, whole) in enumerate(zip(*shots)):
+        diff = np.abs(whole - coarse).max(axis=2)
+        assert diff.mean() < 0.02 and (diff > 8).mean() < 0.0002, k
+    assert gl.error == "GL_NO_ERROR"
+
+
 def test_coarse_lashes_cover_the_same_strips() -> None:
     """The coarse lashes are fewer triangles over the lashes' own vertices, none degenerate, spanning
     the same strips: about the same area at rest, and the same extent on each side."""
