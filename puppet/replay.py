@@ -272,9 +272,13 @@ def frame_ticks(perf: Performance, fps: float, start: float = 0.0, end: float | 
     return [min(perf.ticks, int(round((start + j * speed / fps) * perf.rate))) for j in range(n)]
 
 
-def iter_frames(perf: Performance, ticks: list[int]) -> Iterator[tuple[int, int, Any, np.ndarray]]:
-    """(frame, tick, state, values) for each requested tick, simulating forward once."""
+def iter_frames(perf: Performance, ticks: list[int],
+                mismatches: list[int] | None = None) -> Iterator[tuple[int, int, Any, np.ndarray]]:
+    """(frame, tick, state, values) for each requested tick, simulating forward once; the ticks
+    whose state differs from the recording's checksum are added to `mismatches`."""
     rp = Replayer(perf)
+    if mismatches is not None:
+        rp.mismatches = mismatches
     for j, k in enumerate(ticks):
         rp.seek(k)
         vals = perf.values[k - 1] if k > 0 else perf.values[0]

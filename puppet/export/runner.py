@@ -119,9 +119,22 @@ def export(perf: Performance, out: str | Path, opts: ExportOptions) -> str:
         return f"wrote keyframe curves for ticks {a}..{b} to {out}"
     if kind in ("csv", "arkit"):
         return _export_csv(perf, out, kind, ticks, names, opts)
+    mismatches: list[int] = []
     if kind == "pc2":
-        return _export_pc2(perf, out, ticks, opts)
-    return _export_images(perf, out, kind, ticks, opts)
+        done = _export_pc2(perf, out, ticks, opts, mismatches)
+    else:
+        done = _export_images(perf, out, kind, ticks, opts, mismatches)
+    warn_diverged(out, mismatches)
+    return done
+
+
+def warn_diverged(out: Path, mismatches: list[int]) -> None:
+    """One line on stderr when the simulation behind an export left the recording's checksums: the
+    file shows this program's simulation of the take, not the show's."""
+    if mismatches:
+        print(f"puppet: warning: {out}: the simulation diverged from the recording at tick {mismatches[0]} "
+              "(a different rig, program or numpy build?): it shows this program's simulation of the take, "
+              "not the show's", file=sys.stderr)
 
 
 def _export_csv(perf: Performance, out: Path, kind: str, ticks: list[int], names: list[str],
@@ -202,11 +215,12 @@ def _pc2_summary(out: Path, n: int, opts: ExportOptions) -> str:
             "modifier Time Mode Frame, Frame Start 1, Forward -Z, Up +Y (docs/live.md)")
 
 
-def _export_pc2(perf: Performance, out: Path, ticks: list[int], opts: ExportOptions) -> str:
+def _export_pc2(perf: Performance, out: Path, ticks: list[int], opts: ExportOptions,
+                mismatches: list[int] | None = None) -> str:
     with ExitStack() as stack:
         add = _pc2_sink(perf, out, opts, stack)
         with _bar(len(ticks), out.name) as bar:
-            for _, _, state, _ in iter_frames(perf, ticks):
+            for _, _, state, _ in iter_frames(perf, ticks, mismatches):
                 add(state)
                 bar.update(1)
     return _pc2_summary(out, len(ticks), opts)
@@ -264,6 +278,7 @@ def export_together(perf: Performance, outputs: list[tuple[Path, ExportOptions]]
                 add(rp.state)
             for sink in sinks:
                 sink.finish()
+        warn_diverged(Path(", ".join(str(out) for _, out, _, _ in shared)), rp.mismatches)
     return [done[i] for i in range(len(outputs))]
 
 
@@ -276,7 +291,8 @@ def _check_drawn_side(opts: ExportOptions) -> None:
                           f"pixels a side, more than {MAX_DRAWN_SIDE}: lower one of them")
 
 
-def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], opts: ExportOptions) -> str:
+def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], opts: ExportOptions,
+                   mismatches: list[int] | None = None) -> str:
     from puppet.export.video import DEFAULT_CRF, DEFAULT_PRESET, PARALLEL_MIN_FRAMES, render_parallel, render_serial
 
     if not 1 <= opts.supersample <= 4:
@@ -291,7 +307,7 @@ def _export_images(perf: Performance, out: Path, kind: str, ticks: list[int], op
         from devices.audio.wavfile import read_wav
 
         read_wav(sound)
-    frames = ((j, state) for j, _, state, _ in iter_frames(perf, ticks))
+    frames = ((j, state) for j, _, state, _ in iter_frames(perf, ticks, mismatches))
     place = atomic_dir(out, stale="frame_*.png") if kind == "frames" else atomic_path(out)
     with place as target, _bar(len(ticks), out.name or str(out)) as bar:
         if len(ticks) >= PARALLEL_MIN_FRAMES and opts.parallel:

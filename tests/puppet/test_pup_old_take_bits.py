@@ -118,3 +118,26 @@ def test_the_bound_forehead_would_not_replay_it() -> None:
     rp = R(perf)
     rp.seek(perf.ticks)
     assert rp.mismatches
+
+
+def test_an_export_says_when_the_simulation_left_the_recording(tmp_path: Path) -> None:
+    """An export of a take this program does not simulate as the show did (here its first checksum
+    altered) is written, with one warning line naming the tick; the take as recorded exports
+    without one."""
+    import json
+
+    lines = OLD.read_text(encoding="utf-8").splitlines()
+    first = next(i for i, line in enumerate(lines) if json.loads(line).get("t") == "chk")
+    rec = json.loads(lines[first])
+    changed = dict(rec, sha="0" * len(rec["sha"]))
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text("\n".join(lines[:first] + [json.dumps(changed)] + lines[first + 1:]) + "\n", encoding="utf-8")
+    good = tmp_path / "good.jsonl"
+    shutil.copyfile(OLD, good)
+    for take, warned in ((bad, True), (good, False)):
+        out = subprocess.run([sys.executable, "-m", "puppet", "replay", str(take), "--out",
+                              str(take.with_suffix(".pc2")), "--fps", "30"], capture_output=True, text=True, timeout=300)
+        assert out.returncode == 0, out.stderr
+        assert take.with_suffix(".pc2").stat().st_size > 0
+        said = f"diverged from the recording at tick {rec['tick']}" in out.stderr
+        assert said == warned, out.stderr
