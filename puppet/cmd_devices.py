@@ -89,9 +89,9 @@ def run_monitor(args: argparse.Namespace) -> int:
     from devices import EventQueue, open_device
     from puppet.errors import PuppetError
 
-    if args.duration is not None and not (args.duration > 0 and math.isfinite(args.duration)):
-        # nan or -1 ended the monitor at once, silently, exit 0
-        raise PuppetError(f"--duration must be a positive number of seconds, got {args.duration}")
+    if args.duration is not None and not (args.duration >= 0 and math.isfinite(args.duration)):
+        # nan or -1 ended the monitor at once, silently, exit 0 (0 opens the device, checks it and ends)
+        raise PuppetError(f"--duration must be 0 or a positive number of seconds, got {args.duration}")
     device = open_device(args.spec, require=not args.wait)
     if getattr(device, "scheme", "") == "panel" and getattr(device, "server", None) is not None:
         from puppet.panel import announce
