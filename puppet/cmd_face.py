@@ -39,17 +39,11 @@ def _save(args: argparse.Namespace) -> int:
         weights, seed = parse_identity(args.identity)
     except ValueError as err:
         raise PuppetError(str(err)) from err
-    from puppet.faces import identity_path, read_identity
+    from puppet.faces import check_saved, identity_path
 
     old = identity_path(args.name)
-    if old.exists() and not args.replace:
-        try:
-            same = read_identity(old)[1:] == (tuple(weights), seed)
-        except Exception:  # an unreadable file of that name is not silently replaced either
-            same = False
-        if not same:
-            raise PuppetError(f"an identity named {args.name} is already saved ({old}) with other weights: "
-                              "add --replace to replace it, or choose another name")
+    if not args.replace and (old.exists() or old.is_symlink()):
+        check_saved(args.name, old, tuple(weights), seed)
     path = save_identity(args.name, weights, seed, replace=args.replace)
     print(f"saved identity {args.name} to {path}; use it with --face {args.name}")
     return 0

@@ -202,6 +202,18 @@ def save_identity(name: str, weights: tuple[float, ...], seed: int | None = None
                 os.unlink(made)
     except OSError as err:
         raise PuppetError(f"{path}: cannot save the identity: {err.strerror or err}") from err
+    check_saved(name, path, weights, seed)
+    return path
+
+
+def check_saved(name: str, path: Path, weights: tuple[float, ...], seed: int | None) -> None:
+    """Nothing at `path`, or the identity `name` saved there with these weights; anything else is
+    one error line (a folder, pipe or dangling link of that name says what it is)."""
+    if not os.path.lexists(path):
+        return
+    if not path.is_file():
+        what = "a folder" if path.is_dir() else "a broken link" if path.is_symlink() else "not a file"
+        raise PuppetError(f"{path}: {what} has the identity {name}'s file name: move it, or choose another name")
     try:
         same = read_identity(path)[1:] == (tuple(float(x) for x in weights), seed)
     except Exception:  # an unreadable file of that name is not silently replaced either
@@ -209,7 +221,6 @@ def save_identity(name: str, weights: tuple[float, ...], seed: int | None = None
     if not same:
         raise PuppetError(f"an identity named {name} is already saved ({path}) with other weights: "
                           "add --replace to replace it, or choose another name")
-    return path
 
 
 #: errno values of a link(2) the file system does not offer.

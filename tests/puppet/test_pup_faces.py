@@ -48,6 +48,21 @@ def test_a_bad_face_from_the_environment_is_named_as_such(monkeypatch: pytest.Mo
             faces.parse_face(bad)
 
 
+def test_a_folder_named_like_an_identity_is_named_as_a_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                              capsys) -> None:
+    """`face save NAME` where a folder (or a dangling link) has NAME's file name says what is there;
+    it said the identity was 'already saved with other weights', which sent the user to --replace."""
+    monkeypatch.setenv("PUPPET_DATA_DIR", str(tmp_path / "ids"))
+    (tmp_path / "ids" / "carl.json").mkdir(parents=True)
+    (tmp_path / "ids" / "dora.json").symlink_to(tmp_path / "nowhere.json")
+    for name, what in (("carl", "a folder"), ("dora", "a broken link")):
+        capsys.readouterr()
+        assert main(["face", "save", name, "--identity", "3"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and what in err and "already saved" not in err and f"{name}.json" in err
+    assert (tmp_path / "ids" / "carl.json").is_dir() and (tmp_path / "ids" / "dora.json").is_symlink()
+
+
 def test_saved_identity_round_trip(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
     monkeypatch.setenv("PUPPET_DATA_DIR", str(tmp_path / "ids"))
     assert main(["face", "save", "bob", "--identity", "7"]) == 0
