@@ -189,11 +189,7 @@ def _save_hold(x, v, held, target, saved):  # type: ignore[no-untyped-def]
     for i in range(n):
         for d in range(3):
             saved[i, d] = x[i, d]
-    for k in range(held.shape[0]):
-        i = held[k]
-        for d in range(3):
-            x[i, d] = target[i, d]
-            v[i, d] = 0.0
+    _hold(x, v, held, target)
 
 
 @numba.njit(**KERNEL)
