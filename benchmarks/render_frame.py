@@ -39,6 +39,9 @@ HUD) against the same frame with one part left out (the HUD; the lashes; the mou
 eyeballs; the eye sockets; the skin's brows and lips; its plain rest; every group; the posing and
 rows alone, no drawing), in N alternating batches with the floor, with the CPU of each kind of
 thread: what a part costs is the whole frame's figure less the figure without it.
+`--scan-areas` says where the scanned head's drawn triangles lie on screen, group by group: their
+summed area, the part of the eyes', sockets' and mouth's outside their openings' boxes on screen,
+and the pixels each group shows.
 `--head-vs-mask N` times the default face with its held head against the mask alone in N
 alternating batches instead (both see the same load: the issue-11 budget, head at most 1.2x).
 Run: .venv/bin/python benchmarks/render_frame.py [--lp-threads 1,2] [--resolutions 0,1] [--mask]
@@ -640,6 +643,80 @@ def scan_parts(size: tuple[int, int], batches: int, ctx: object) -> list[str]:
     return out
 
 
+def _clipped_area(tri: object, box: object) -> float:
+    """px²: the area of the triangle `tri` ((3, 2) pixels) within `box` (x0, x1, y0, y1), by clipping
+    it to each side in turn (Sutherland and Hodgman)."""
+    import numpy as np
+
+    poly = [tuple(float(v) for v in q) for q in tri]  # type: ignore[attr-defined]
+    for axis, edge, keep_above in ((0, box[0], True), (0, box[1], False), (1, box[2], True),  # type: ignore[index]
+                                   (1, box[3], False)):  # type: ignore[index]
+        out = []
+        for a, b in zip(poly, poly[1:] + poly[:1]):
+            a_in = a[axis] >= edge if keep_above else a[axis] <= edge
+            b_in = b[axis] >= edge if keep_above else b[axis] <= edge
+            if a_in:
+                out.append(a)
+            if a_in != b_in:
+                t = (edge - a[axis]) / (b[axis] - a[axis])
+                out.append((a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])))
+        poly = out
+        if len(poly) < 3:
+            return 0.0
+    q = np.array(poly)
+    return 0.5 * abs(float(q[:, 0] @ np.roll(q[:, 1], -1) - q[:, 1] @ np.roll(q[:, 0], -1)))
+
+
+def scan_areas(size: tuple[int, int], ctx: object) -> list[str]:
+    """Where the scanned head's drawn triangles lie on screen (shaded + HUD, the last frame of each
+    30-frame onset): per group drawn, the triangles listed, their summed area on screen, their median
+    and largest area, for the eyes', sockets' and mouth's the part of that area outside their
+    openings' boxes on screen (what a scissor rectangle over the boxes would keep llvmpipe from
+    rasterising), and the pixels the group shows (the picture with and without it)."""
+    import numpy as np
+
+    from render.offscreen import OffscreenRenderer
+    from render.scan_draw import CULLED
+
+    model, hud = _scan_and_hud()
+    out = []
+    w, h = size
+    with OffscreenRenderer(model, size, ctx=ctx) as off:  # type: ignore[arg-type]
+        scan = off.renderer.scan
+        look = scan.look
+        mouth = look.mouth_opening
+        for expression in ("happiness", "surprise", "jaw_open", "fear", "neutral"):
+            state = _states(model, 30, expression)[-1]
+            picture = off.render_frame(state, hud, record=False)
+            xy = scan.maker.xy.astype(np.float64)
+            b = scan.maker.boxes  # normalised device x0 x1 y0 y1 of each opening
+            boxes = np.stack([(b[:, 0] + 1) * w / 2, (b[:, 1] + 1) * w / 2, (b[:, 2] + 1) * h / 2,
+                              (b[:, 3] + 1) * h / 2], axis=1)
+            eyes = [k for k in range(len(boxes)) if k != mouth and boxes[k, 3] > 0.1 * h]  # not the neck's cut
+            kept, counts = scan.kept.copy(), scan.counts.copy()
+            out.append(f"{expression}: the mouth's inside drawn {scan.mouth_drawn}; the mouth's box on screen "
+                       f"{boxes[mouth, 1] - boxes[mouth, 0]:.0f} x {boxes[mouth, 3] - boxes[mouth, 2]:.0f} px")
+            for g, group in enumerate(CULLED):
+                n = int(counts[g])
+                if n == 0:
+                    continue
+                p = xy[kept[scan.starts[g]:scan.starts[g] + n]]
+                area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+                                    - (p[:, 2, 0] - p[:, 0, 0]) * (p[:, 1, 1] - p[:, 0, 1]))
+                line = (f"  {group:<9}{n:>6} triangles, {area.sum():>8.0f} px² (median {np.median(area):5.1f}, "
+                        f"largest {area.max():5.0f})")
+                if group in ("eyes", "sockets", "mouth"):
+                    own = [mouth] if group == "mouth" else eyes
+                    inside = sum(max(_clipped_area(t, boxes[k]) for k in own) for t in p)
+                    line += f", {area.sum() - inside:>6.0f} px² outside the opening's box"
+                scan.left_out = {group}
+                without = off.render_frame(state, hud, record=False)
+                scan.left_out = set()
+                line += f"; shows {int((picture != without).any(axis=2).sum()):>6} px"
+                out.append(line)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", default="1280x720")
@@ -653,6 +730,8 @@ def main() -> None:
     ap.add_argument("--scan-parts", type=int, default=0, metavar="BATCHES",
                     help="instead: the scanned head's frame against the same frame with one part left out in turn, "
                          "in BATCHES alternating 10-frame batches with the floor")
+    ap.add_argument("--scan-areas", action="store_true",
+                    help="instead: where the scanned head's drawn triangles lie on screen, group by group")
     ap.add_argument("--scan", type=int, default=0, metavar="BATCHES",
                     help="instead: the scanned head (the default face) shaded + HUD against the floor in "
                          "BATCHES alternating 10-frame batches")
@@ -693,6 +772,11 @@ def main() -> None:
         print(f"\nthe scanned head, shaded + HUD, and with one part left out: median per 10-frame batch over "
               f"{args.scan_parts} batches")
         for line in scan_parts(size, args.scan_parts, ctx):  # type: ignore[arg-type]
+            print(line)
+        return
+    if args.scan_areas:
+        print("\nthe scanned head, shaded + HUD, the last frame of each onset: the triangles drawn, group by group")
+        for line in scan_areas(size, ctx):  # type: ignore[arg-type]
             print(line)
         return
     if args.scan and args.stream:
