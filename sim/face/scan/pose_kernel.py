@@ -81,6 +81,9 @@ def pose_scan(rest, x, skin, lip_idx, lip_anchor, lip_rot, bound_idx, bound_tri,
         p1 = 0.0
         p2 = 0.0
         for f in range(2):
+            share = 1.0 - s if f == 0 else s
+            if share == 0.0:  # wholly in the other frame
+                continue
             if f == 0:
                 nx, ny, nz = fx - lid_centres[e, 0], fy - lid_centres[e, 1], fz - lid_centres[e, 2]
             else:
@@ -93,7 +96,6 @@ def pose_scan(rest, x, skin, lip_idx, lip_anchor, lip_rot, bound_idx, bound_tri,
             tx, ty, tz = tx / lt, ty / lt, tz / lt
             bx, by, bz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
             u0, u1, u2 = lid_local[k, f, 0], lid_local[k, f, 1], lid_local[k, f, 2]
-            share = 1.0 - s if f == 0 else s
             p0 += share * (u0 * tx + u1 * bx + u2 * nx)
             p1 += share * (u0 * ty + u1 * by + u2 * ny)
             p2 += share * (u0 * tz + u1 * bz + u2 * nz)
