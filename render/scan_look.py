@@ -19,7 +19,7 @@ from functools import lru_cache
 import numpy as np
 
 from render.meshdata import spatial_order
-from sim.face.scan.data import N_VERTICES, PARTS, SCLERA, scan_data
+from sim.face.scan.data import LASH_COLUMNS, LASH_ROWS, N_VERTICES, PARTS, SCLERA, lash_row, lash_strips, scan_data
 
 # Linear albedos.
 SKIN = np.array([0.60, 0.40, 0.30])
@@ -221,26 +221,17 @@ def _static_layout() -> dict[str, np.ndarray]:
             "stomion_y": np.array(stomion_y)}
 
 
-LASH_ROWS, LASH_COLUMNS = 6, 19  # each lash strip of the scan: rows from tip to root, columns along the lid
 COARSE_LASH_ROWS = (0, 1, 3, 5)  # the rows the coarse strips keep (the curl is sharpest near the tip)
 COARSE_LASH_STEP = 2  # and every second column, the last kept
-
-
-def _lash_row(uv: np.ndarray) -> np.ndarray:
-    """(K,) the row (0 .. LASH_ROWS - 1, tip to root) of each lash vertex from its chart coordinates."""
-    return np.rint((uv[:, 1] % 1.0 - 0.014) / 0.0278).astype(int) % LASH_ROWS
 
 
 @lru_cache(maxsize=1)
 def coarse_lashes() -> np.ndarray:
     """(K, 3) int32 the lashes as fewer triangles over the same vertices: each strip's grid of
-    LASH_ROWS x LASH_COLUMNS vertices kept at rows COARSE_LASH_ROWS and every COARSE_LASH_STEP-th
-    column, each quad split along the diagonal most of the scan's own quads it spans are split
-    along (2160 -> 648 triangles). Empty when a strip is not such a grid."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    every = scan_data().vertex_uv()
+    LASH_ROWS x LASH_COLUMNS vertices (`sim.face.scan.data.lash_strips`) kept at rows
+    COARSE_LASH_ROWS and every COARSE_LASH_STEP-th column, each quad split along the diagonal most
+    of the scan's own quads it spans are split along (2160 -> 648 triangles). Empty when a strip is
+    not such a grid."""
     full = _static_layout()["lashes"]
     cols = list(range(0, LASH_COLUMNS, COARSE_LASH_STEP))
     if cols[-1] != LASH_COLUMNS - 1:
@@ -249,22 +240,18 @@ def coarse_lashes() -> np.ndarray:
     out = []
     for part in LASH_PARTS:
         lo, hi = PARTS[part]
+        try:
+            grid = lash_strips(part) - lo
+        except ValueError:
+            return np.zeros((0, 3), np.int32)
         t = full[(full[:, 0] >= lo) & (full[:, 0] < hi)] - lo
-        n = hi - lo
-        uv = every[lo:hi]
-        row = _lash_row(uv)
-        link = coo_matrix((np.ones(t.size), (np.repeat(t[:, 0], 3), t.ravel())), shape=(n, n))
-        count, strip = connected_components(link + link.T, directed=False)
-        grid = np.zeros((count, LASH_ROWS, LASH_COLUMNS), np.int64)
+        n, count = hi - lo, len(grid)
         place = np.zeros((n, 2), np.int64)  # each vertex's (row, column)
+        strip = np.zeros(n, np.int64)
         for k in range(count):
-            for r in range(LASH_ROWS):
-                members = np.flatnonzero((strip == k) & (row == r))
-                if len(members) != LASH_COLUMNS:
-                    return np.zeros((0, 3), np.int32)
-                members = members[np.argsort(uv[members, 0] % 1.0)]
-                grid[k, r] = members
-                place[members] = np.stack([np.full(LASH_COLUMNS, r), np.arange(LASH_COLUMNS)], axis=1)
+            place[grid[k].ravel()] = np.stack(np.meshgrid(np.arange(LASH_ROWS), np.arange(LASH_COLUMNS),
+                                                          indexing="ij"), axis=-1).reshape(-1, 2)
+            strip[grid[k].ravel()] = k
         # the scan's split of each of its quads: +1 along the (row, column) diagonal, -1 across it
         split = np.zeros((count, LASH_ROWS - 1, LASH_COLUMNS - 1), np.int64)
         for tri in t:
@@ -296,7 +283,7 @@ def _extra_coords(face_uv: np.ndarray) -> np.ndarray:
         out[lo:hi] = every[lo:hi]
         lo, hi = PARTS[f"eyelashes_{side}"]
         uv = every[lo:hi]
-        row = _lash_row(uv)
+        row = lash_row(uv)
         block = np.floor(uv[:, 1] % 1.0 * 2.0)  # the lower lid's strips are the chart's lower half
         out[lo:hi, 0] = uv[:, 0] % 1.0 + 2.0 * (block == 0)
         out[lo:hi, 1] = 1.0 - row / 5.0

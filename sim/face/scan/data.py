@@ -42,6 +42,7 @@ PARTS: dict[str, tuple[int, int]] = {
 }
 NARROW_FACE = 6706
 SCLERA = 770  # the first vertices of each eyeball; the rest are the iris
+LASH_ROWS, LASH_COLUMNS = 6, 19  # each lash strip of the scan: rows from tip to root, columns along the lid
 
 
 @dataclass(frozen=True)
@@ -106,3 +107,36 @@ def scan_data() -> ScanData:
             identities=d["identities"],
             identity_scale=d["identity_scale"].astype(np.float64),
         )
+
+
+def lash_row(uv: np.ndarray) -> np.ndarray:
+    """(K,) the row (0 .. LASH_ROWS - 1, tip to root) of each lash vertex from its chart coordinates."""
+    return np.rint((uv[:, 1] % 1.0 - 0.014) / 0.0278).astype(int) % LASH_ROWS
+
+
+@lru_cache(maxsize=2)
+def lash_strips(part: str) -> np.ndarray:
+    """(S, LASH_ROWS, LASH_COLUMNS) int64 scan indices: the lash part's strips (`eyelashes_l` or
+    `_r`: three layered strips per lid), each a grid of rows from tip to root by columns along the
+    lid. Raises ValueError when a strip is not such a grid."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    d = scan_data()
+    lo, hi = PARTS[part]
+    n = hi - lo
+    t = d.triangles(part) - lo
+    uv = d.vertex_uv()[lo:hi]
+    row = lash_row(uv)
+    link = coo_matrix((np.ones(t.size), (np.repeat(t[:, 0], 3), t.ravel())), shape=(n, n))
+    count, strip = connected_components(link + link.T, directed=False)
+    grid = np.zeros((count, LASH_ROWS, LASH_COLUMNS), np.int64)
+    for k in range(count):
+        for r in range(LASH_ROWS):
+            members = np.flatnonzero((strip == k) & (row == r))
+            if len(members) != LASH_COLUMNS:
+                raise ValueError(f"{part}: strip {k} row {r} has {len(members)} vertices, not {LASH_COLUMNS}")
+            grid[k, r] = members[np.argsort(uv[members, 0] % 1.0)]
+    grid += lo
+    grid.flags.writeable = False
+    return grid

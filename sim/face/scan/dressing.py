@@ -5,10 +5,12 @@ gives all 26719 vertices in the scan's order.
 - The inside of the lips and the back of the lids follow their opening: each vertex takes the
   motion of the opening's vertex nearest to it along the mesh (so it stays with its own lip or
   lid) and turns with the jaw as that vertex's jaw weight says.
-- Lid things (eyelashes, eye occlusion, lacrimal fluid, eye blend) keep their offset in the frame
-  of the lid at the nearest margin vertex (the margin's tangent and the lid's surface above it),
-  so lashes turn with a closing lid; the face area's unsimulated skin within `BIND` of the
-  simulated skin keeps its offset in the frame of its nearest skin triangle.
+- Lid things (eyelashes, eye occlusion, lacrimal fluid, eye blend) hang from their nearest point
+  of the eye's margin (a lash's every row from its root's point, on its own lid) in a frame
+  along the margin: as a lid closes its lashes turn with the margin about the eyeball's centre,
+  as it opens with the lid's surface `LID_UP` rows up (the scan's own blink and widened eye move
+  them so); the face area's unsimulated skin within `BIND` of the simulated skin keeps its offset
+  in the frame of its nearest skin triangle.
 - The rest of the face area, head and neck and the eye sockets follow the skin's nearest vertices
   as the procedural face's head does (`sim.face.head`): their displacement, fading over
   `FOLLOW` cm, and over `JAW_FOLLOW` under the chin and down the throat.
@@ -38,7 +40,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sim.face.scan.anatomy import _rings, skin_layout
-from sim.face.scan.data import N_IDENTITIES, NARROW_FACE, PARTS, SCLERA, scan_data
+from sim.face.scan.data import N_IDENTITIES, NARROW_FACE, PARTS, SCLERA, lash_strips, scan_data
 from sim.gaze_lids import PITCH_MAX as EYE_PITCH_MAX
 from sim.gaze_lids import YAW_MAX as EYE_YAW_MAX
 
@@ -47,7 +49,8 @@ FOLLOW = 4.0  # cm over which the skin's displacement fades into the held head
 JAW_FOLLOW = 8.5  # cm: the same under the chin and jaw, down the throat
 NEAREST = 4  # skin vertices a following vertex takes its displacement from
 LIP_FADE = 1.2  # cm: how far into the mouth socket the lips' motion reaches
-LID_UP = 3  # rows up the lid from its margin: with the margin's tangent, the lid's surface frame
+LID_UP = 3  # rows up the lid from its margin: with the margin's tangent, the opening lid's frame
+LID_OPEN = 0.3  # cm the margin moves away from the opening's middle as its things go over to that frame
 LID_THINGS = ("eyelashes", "eye_occlusion", "lacrimal", "eye_blend")
 TONGUE_REACH = np.array([0.0, 0.95, 2.6])  # cm the tongue's tip moves at tongue_out = 1 (head frame),
 # on top of the jaw's share it follows: up over the lower teeth and out between the parted lips
@@ -109,6 +112,10 @@ class ScanDressing:
     rest (26719,3): the identity's rest head; skin (N,): scan index of each simulated vertex.
     lip_idx (L,), lip_anchor (L,) sim vertex, lip_rot (L,) jaw weight of the anchor.
     bound_idx (B,), bound_tri (B,3) sim vertices, bound_bary (B,3), bound_local (B,3).
+    lid_idx (D,), lid_margin (D,4) sim vertices: the ends of the eye opening's segment each lid
+    thing hangs from and the lid's vertices `LID_UP` rows up from either end, lid_t (D,) where on
+    the segment, lid_eye (D,) 0 left / 1 right, lid_local (D,2,3) the offset in the closing and the
+    opening frame, lid_open (D,3) away from the opening's middle at rest, over `LID_OPEN`.
     follow_idx (F,), follow_src (F,K) sim vertices, follow_w (F,K) weights (summing to the fade).
     jaw_idx (J,), jaw_w (J,): rigid followers of the jaw (weight 1: lower teeth).
     tongue_idx (T,), tongue_w (T,): the tongue's vertices and their share of `tongue_out`'s motion.
@@ -127,6 +134,12 @@ class ScanDressing:
     bound_tri: np.ndarray
     bound_bary: FloatArray
     bound_local: FloatArray
+    lid_idx: np.ndarray
+    lid_margin: np.ndarray
+    lid_t: FloatArray
+    lid_eye: np.ndarray
+    lid_local: FloatArray
+    lid_open: FloatArray
     follow_idx: np.ndarray
     follow_src: np.ndarray
     follow_w: FloatArray
@@ -166,6 +179,9 @@ class ScanDressing:
         return (c(self.skin, np.int64), c(self.lip_idx, np.int64),
                 c(self.lip_anchor, np.int64), c(self.lip_rot, np.float64), c(self.bound_idx, np.int64),
                 c(self.bound_tri, np.int64), c(self.bound_bary, np.float64), c(self.bound_local, np.float64),
+                c(self.lid_idx, np.int64), c(self.lid_margin, np.int64), c(self.lid_t, np.float64),
+                c(self.lid_eye, np.int64), c(self.lid_local, np.float64), c(self.lid_open, np.float64),
+                c(self.eye_centres, np.float64),
                 c(self.follow_idx, np.int64), c(self.follow_src, np.int64), c(self.follow_w, np.float64),
                 c(self.jaw_idx, np.int64), c(self.jaw_w, np.float64), c(self.socket_idx, np.int64),
                 c(self.socket_anchor, np.int64), c(self.socket_fade, np.float64))
@@ -206,6 +222,13 @@ class ScanDressing:
         tri = x[self.bound_tri]
         foot = np.einsum("pk,pkj->pj", self.bound_bary, tri)
         out[self.bound_idx] = foot + np.einsum("pk,pkj->pj", self.bound_local, _frames(tri))
+        # hanging from the eyes' margins
+        closing, opening, foot = _lid_frames(x, self.lid_margin, self.lid_t, self.eye_centres[self.lid_eye])
+        a = foot + np.einsum("pk,pkj->pj", self.lid_local[:, 0], closing)
+        b = foot + np.einsum("pk,pkj->pj", self.lid_local[:, 1], opening)
+        m, t = self.lid_margin, self.lid_t[:, None]
+        w = _smoothstep(np.einsum("pj,pj->p", d[m[:, 0]] + t * (d[m[:, 1]] - d[m[:, 0]]), self.lid_open))
+        out[self.lid_idx] = a + w[:, None] * (b - a)
         # following the skin's nearest vertices, fading
         out[self.follow_idx] += np.einsum("pk,pkj->pj", self.follow_w, d[self.follow_src])
         # the jaw's rigid followers
@@ -263,17 +286,68 @@ def _bind(points: FloatArray, skin_pts: FloatArray, tris: np.ndarray) -> tuple[n
     return tri, bary, local
 
 
-def _margin_frames(skin_pts: FloatArray, tris: np.ndarray, loop: np.ndarray, points: FloatArray) -> np.ndarray:
-    """(P,3) sim vertices (m, m', u) framing each point: m the eye opening's vertex nearest to it,
-    m' the next one along the opening and u the vertex `LID_UP` rows up the lid nearest to m. The
-    frame turns with the lid's surface at its margin (a closing lid takes its lashes along) and
-    does not depend on the small triangles at the margin."""
-    rows = _rings(tris, len(skin_pts), loop)
-    up = np.flatnonzero(rows == LID_UP)
-    _, k = cKDTree(skin_pts[loop]).query(points)
-    m, m_next = loop[k], loop[(k + 1) % len(loop)]
-    _, u = cKDTree(skin_pts[up]).query(skin_pts[m])
-    return np.stack([m, m_next, up[u]], axis=1)
+def _along(tan: FloatArray, n: FloatArray) -> FloatArray:
+    """(P,3,3) rows (t, n x t, n): the frame of normals n (P,3) and tangents tan made square to them."""
+    n = n / np.linalg.norm(n, axis=1)[:, None]
+    tan = tan - np.einsum("pj,pj->p", tan, n)[:, None] * n
+    tan /= np.linalg.norm(tan, axis=1)[:, None]
+    return np.stack([tan, np.cross(n, tan), n], axis=1)
+
+
+def _lid_frames(x: FloatArray, margin: np.ndarray, t: FloatArray,
+                centre: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(closing (P,3,3), opening (P,3,3), foot (P,3)) for lid things hanging from the margin
+    segments margin[:, :2] of `x` at `t` (P,): the foot on the segment; both frames run along the
+    segment, the closing one about the normal from the eyeball's `centre` (P,3) through the foot
+    (a closing lid slides over the eye), the opening one about the normal of the lid's surface
+    from the foot to the same place between margin[:, 2:] up the lid (an opening lid folds back
+    under the brow)."""
+    a, b = x[margin[:, 0]], x[margin[:, 1]]
+    foot = a + t[:, None] * (b - a)
+    up = x[margin[:, 2]] + t[:, None] * (x[margin[:, 3]] - x[margin[:, 2]])
+    return _along(b - a, foot - centre), _along(b - a, np.cross(b - a, up - foot)), foot
+
+
+def _nearest_on_loop(loop_pts: FloatArray, points: FloatArray,
+                     segments: np.ndarray) -> tuple[np.ndarray, FloatArray]:
+    """(segment k (P,), t (P,)): each point's nearest point on the closed polyline `loop_pts`,
+    among its `segments` (k: from corner k to k + 1), at t along it."""
+    a = loop_pts[segments]
+    ab = loop_pts[(segments + 1) % len(loop_pts)] - a
+    t = np.einsum("pkj,kj->pk", points[:, None] - a[None], ab) / np.einsum("kj,kj->k", ab, ab)[None]
+    t = np.clip(t, 0.0, 1.0)
+    gap = np.linalg.norm(points[:, None] - (a[None] + t[..., None] * ab[None]), axis=2)
+    j = np.argmin(gap, axis=1)
+    return segments[j], t[np.arange(len(points)), j]
+
+
+def _lid_binding(skin_pts: FloatArray, tris: np.ndarray, loop: np.ndarray, corners: tuple[int, int],
+                 rest: FloatArray, idx: np.ndarray, lashes: np.ndarray) -> tuple[np.ndarray, FloatArray]:
+    """(margin (P,4) sim vertices, t (P,)) where each lid thing `idx` (scan vertices) hangs from
+    the eye opening `loop` (sim vertices, in order; `corners` the positions in it of the inner and
+    outer corner): its nearest point on the margin, between margin[:, 0] and margin[:, 1] at t,
+    and margin[:, 2:] the vertices `LID_UP` rows up the lid nearest to either end; every row of a
+    lash strip (`lashes` (S,R,C), rows tip to root) at its root's nearest point on the lid the
+    strip's roots lie along, so a lash turns whole and an upper lash never hangs from the lower
+    lid at the corners."""
+    n = len(loop)
+    pts = skin_pts[loop]
+    every = np.arange(n)
+    i, o = sorted(corners)
+    lids = (every[i:o], np.concatenate([every[o:], every[:i]]))  # the segments of either lid
+    where = {int(v): j for j, v in enumerate(idx)}
+    k, t = _nearest_on_loop(pts, rest[idx], every)
+    for strip in lashes:
+        roots = np.array([where[int(v)] for v in strip[-1]])
+        own = lids[0] if np.isin(k[roots], lids[0]).mean() >= 0.5 else lids[1]
+        rk, rt = _nearest_on_loop(pts, rest[strip[-1]], own)
+        for row in strip:
+            at = np.array([where[int(v)] for v in row])
+            k[at], t[at] = rk, rt
+    m0, m1 = loop[k], loop[(k + 1) % n]
+    up = np.flatnonzero(_rings(tris, len(skin_pts), loop) == LID_UP)
+    tree = cKDTree(skin_pts[up])
+    return np.stack([m0, m1, up[tree.query(skin_pts[m0])[1]], up[tree.query(skin_pts[m1])[1]]], axis=1), t
 
 
 def _identity_of(rest_skin: FloatArray) -> np.ndarray | None:
@@ -329,15 +403,23 @@ def build_dressing(model: Any) -> ScanDressing | None:
     inside_all = np.concatenate(inside)
     inside = layout.lip_inside
 
-    # lid things and nearby unsimulated face skin: bound to triangles
-    bound_idx, bound_tri, bound_bary, bound_local = [], [], [], []
-    for s, loop in zip("lr", mesh.eye_loops):
+    # lid things: hanging from the eyes' margins
+    c_l, c_r = _eye_centres(rest)
+    centres = np.stack([c_l, c_r])
+    lid_idx, lid_margin, lid_t, lid_eye, lid_local, lid_open = [], [], [], [], [], []
+    for e, (s, loop) in enumerate(zip("lr", mesh.eye_loops)):
+        loop = np.asarray(loop)
         idx = np.concatenate([_range(f"{p}_{s}") for p in LID_THINGS])
-        frame = _margin_frames(skin_pts, tris, np.asarray(loop), rest[idx])
-        local = np.einsum("pij,pj->pi", _frames(skin_pts[frame]), rest[idx] - skin_pts[frame[:, 0]])
-        bary = np.zeros((len(idx), 3))
-        bary[:, 0] = 1.0
-        bound_idx.append(idx); bound_tri.append(frame); bound_bary.append(bary); bound_local.append(local)
+        corners = tuple(int(np.flatnonzero(loop == mesh.landmarks[f"eye_{c}_{s}"])[0]) for c in ("inner", "outer"))
+        lashes = lash_strips(f"eyelashes_{s}")
+        margin, t = _lid_binding(skin_pts, tris, loop, corners, rest, idx, lashes)  # type: ignore[arg-type]
+        closing, opening, foot = _lid_frames(skin_pts, margin, t, np.broadcast_to(centres[e], (len(idx), 3)))
+        lid_idx.append(idx); lid_margin.append(margin); lid_t.append(t); lid_eye.append(np.full(len(idx), e))
+        lid_local.append(np.stack([np.einsum("pij,pj->pi", f, rest[idx] - foot) for f in (closing, opening)], axis=1))
+        out = foot - skin_pts[loop].mean(axis=0)  # away from the opening's middle
+        lid_open.append(out / (np.linalg.norm(out, axis=1)[:, None] * LID_OPEN))
+    # nearby unsimulated face skin: bound to triangles
+    bound_idx, bound_tri, bound_bary, bound_local = [], [], [], []
     others = np.concatenate([np.arange(NARROW_FACE, PARTS["face"][1]), _range("eye_socket_l"), _range("eye_socket_r")])
     from sim.face.transfer.geometry import closest_points
 
@@ -377,7 +459,6 @@ def build_dressing(model: Any) -> ScanDressing | None:
     sd, si = cKDTree(rest[rim]).query(rest[socket])
     socket_fade = _smoothstep(1.0 - sd / LIP_FADE)
 
-    c_l, c_r = _eye_centres(rest)
     pivot = np.asarray(mesh.jaw_pivot, float)
     neck = rest[_range("head_neck")]
     return ScanDressing(
@@ -385,12 +466,14 @@ def build_dressing(model: Any) -> ScanDressing | None:
         lip_rot=np.asarray(mesh.jaw_weight, float)[lip_anchor],
         bound_idx=np.concatenate(bound_idx), bound_tri=np.concatenate(bound_tri),
         bound_bary=np.concatenate(bound_bary), bound_local=np.concatenate(bound_local),
+        lid_idx=np.concatenate(lid_idx), lid_margin=np.concatenate(lid_margin), lid_t=np.concatenate(lid_t),
+        lid_eye=np.concatenate(lid_eye), lid_local=np.concatenate(lid_local), lid_open=np.concatenate(lid_open),
         follow_idx=follow, follow_src=src, follow_w=follow_w,
         jaw_idx=np.concatenate([lower, gums, socket]),
         jaw_w=np.concatenate([np.ones(len(lower)), gum_w, sock_w]),
         tongue_idx=tongue_idx, tongue_w=tongue_w,
         socket_idx=socket, socket_anchor=rim[si], socket_fade=socket_fade,
-        eye_idx=(_range("eyeball_l"), _range("eyeball_r")), eye_centres=np.stack([c_l, c_r]),
+        eye_idx=(_range("eyeball_l"), _range("eyeball_r")), eye_centres=centres,
         jaw_pivot=pivot, jaw_axis=np.asarray(model.jaw_axis, float), jaw_max_angle=float(model.params.jaw_max_angle),
         jaw_slide=jaw_slide(model), neck_pivot=np.array([0.0, pivot[1] - 0.5, pivot[2] - 3.0]),
         neck_base_y=float(neck[:, 1].min() + 3.0), neck_top_y=float(pivot[1] - 0.5))

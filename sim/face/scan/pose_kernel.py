@@ -1,7 +1,7 @@
 """The scanned head's posing (`ScanDressing.pose`) as one compiled pass: the same steps in the same
 order as the numpy version it replaces (copy the rest, the skin, the lips' inside, the vertices
-bound to skin triangles, the followers, the jaw's rigid followers, the mouth socket, the eyes),
-without its temporaries: ~0.3 ms for the 26,719 vertices instead of ~2 ms, once per drawn frame.
+bound to skin triangles, the lid things on the eyes' margins, the followers, the jaw's rigid
+followers, the mouth socket, the eyes), without its temporaries: ~0.3 ms for the 26,719 vertices instead of ~2 ms, once per drawn frame.
 Only what is drawn or exported is posed here; the simulation never reads it."""
 
 from __future__ import annotations
@@ -18,13 +18,15 @@ prepare_blas_check()  # before this module's first kernel runs: see sim.numba_st
 
 @numba.njit(cache=True, nogil=True)
 def pose_scan(rest, x, skin, lip_idx, lip_anchor, lip_rot, bound_idx, bound_tri, bound_bary, bound_local,  # type: ignore[no-untyped-def]
+              lid_idx, lid_margin, lid_t, lid_eye, lid_local, lid_open, lid_centres,
               follow_idx, follow_src, follow_w, jaw_idx, jaw_w, socket_idx, socket_anchor, socket_fade,
               rot, shift, tongue_idx, tongue_w, tongue, reach, narrow, eye_l, eye_r, centres, eye_rot, turn_eyes,
               d, buf, out):
     """out (26719,3) float32: the scan posed by the simulated surface x (N,3) with the jaw's motion
     p -> rot p + shift, the tongue out by `tongue` (0..1: its vertices move by their share of
     `reach` and narrow by `narrow` of their sideways offset) and, if turn_eyes, the eyeballs turned by eye_rot (2,3,3: left, right) about their centres.
-    d (N,3) and buf (26719,3) are float64 scratch."""
+    The lid things hang from the eyes' margins (`ScanDressing` lid_*; lid_centres (2,3) the
+    eyeballs' centres). d (N,3) and buf (26719,3) are float64 scratch."""
     n = rest.shape[0]
     for i in range(n):
         for c in range(3):
@@ -61,6 +63,46 @@ def pose_scan(rest, x, skin, lip_idx, lip_anchor, lip_rot, bound_idx, bound_tri,
         buf[i, 0] = w0 * x[i0, 0] + w1 * x[i1, 0] + w2 * x[i2, 0] + u0 * tx + u1 * bx + u2 * nx
         buf[i, 1] = w0 * x[i0, 1] + w1 * x[i1, 1] + w2 * x[i2, 1] + u0 * ty + u1 * by + u2 * ny
         buf[i, 2] = w0 * x[i0, 2] + w1 * x[i1, 2] + w2 * x[i2, 2] + u0 * tz + u1 * bz + u2 * nz
+    for k in range(lid_idx.shape[0]):  # hanging from a margin segment, closing and opening frames blended
+        i0, i1, j0, j1 = lid_margin[k, 0], lid_margin[k, 1], lid_margin[k, 2], lid_margin[k, 3]
+        w = lid_t[k]
+        ex, ey, ez = x[i1, 0] - x[i0, 0], x[i1, 1] - x[i0, 1], x[i1, 2] - x[i0, 2]
+        fx, fy, fz = x[i0, 0] + w * ex, x[i0, 1] + w * ey, x[i0, 2] + w * ez
+        e = lid_eye[k]
+        ux = x[j0, 0] + w * (x[j1, 0] - x[j0, 0]) - fx  # from the foot up the lid
+        uy = x[j0, 1] + w * (x[j1, 1] - x[j0, 1]) - fy
+        uz = x[j0, 2] + w * (x[j1, 2] - x[j0, 2]) - fz
+        s = 0.0  # the margin's motion away from the opening, over LID_OPEN: 0 closing .. 1 opening
+        for c in range(3):
+            s += (d[i0, c] + w * (d[i1, c] - d[i0, c])) * lid_open[k, c]
+        s = min(max(s, 0.0), 1.0)
+        s = s * s * (3.0 - 2.0 * s)
+        p0 = 0.0
+        p1 = 0.0
+        p2 = 0.0
+        for f in range(2):
+            share = 1.0 - s if f == 0 else s
+            if share == 0.0:  # wholly in the other frame
+                continue
+            if f == 0:
+                nx, ny, nz = fx - lid_centres[e, 0], fy - lid_centres[e, 1], fz - lid_centres[e, 2]
+            else:
+                nx, ny, nz = ey * uz - ez * uy, ez * ux - ex * uz, ex * uy - ey * ux
+            ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+            nx, ny, nz = nx / ln, ny / ln, nz / ln
+            dot = ex * nx + ey * ny + ez * nz
+            tx, ty, tz = ex - dot * nx, ey - dot * ny, ez - dot * nz
+            lt = math.sqrt(tx * tx + ty * ty + tz * tz)
+            tx, ty, tz = tx / lt, ty / lt, tz / lt
+            bx, by, bz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
+            u0, u1, u2 = lid_local[k, f, 0], lid_local[k, f, 1], lid_local[k, f, 2]
+            p0 += share * (u0 * tx + u1 * bx + u2 * nx)
+            p1 += share * (u0 * ty + u1 * by + u2 * ny)
+            p2 += share * (u0 * tz + u1 * bz + u2 * nz)
+        i = lid_idx[k]
+        buf[i, 0] = fx + p0
+        buf[i, 1] = fy + p1
+        buf[i, 2] = fz + p2
     for k in range(follow_idx.shape[0]):  # the skin's nearest vertices' displacement, fading
         i = follow_idx[k]
         for c in range(3):
