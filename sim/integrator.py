@@ -995,7 +995,7 @@ class Simulator:
             self._recall_contact(state.contact)
         self._implicit.predict(state.positions, state.velocities, self._ext_const,
                                self._spring_constants(),
-                               self._normal, self._shape, (self._jaw, self._skin_age))
+                               self._normal, self._shape, (self._jaw, self._skin_age), ext_key=self._jaw)
 
     def _recall_contact(self, memory: np.ndarray | None) -> None:
         """The implicit step's contact arrays from a state's memory (`SolvedContact.recall`), unless
