@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import numba
 import numpy as np
@@ -44,6 +44,7 @@ from sim.margin_contact import margin_contact, margin_pairs
 from sim.state import FaceControl, FaceState
 from sim.numba_start import prepare_blas_check
 from sim.rowmath import norm3
+from sim.wrinkles import aging
 
 prepare_blas_check()  # before this module's first kernel runs: see sim.numba_start
 
@@ -269,6 +270,9 @@ def warm_up(implicit: bool = True) -> None:
         _jaw_pose(by_coordinate, by_coordinate, np.ones((3, 1)), np.zeros(3), np.ones(1), np.eye(3), np.zeros(3),
                   turned, rows, np.zeros((1, 3)), tmp, frozen, np.ones(1), np.ones(1), rows)
     _place(np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)))
+    _open_pose(np.array([1.0, 0.0, 0.0]), 0.1, 0.01, 0.2, np.zeros(3), np.zeros((3, 3)), np.zeros(3), by_coordinate,
+               by_coordinate, np.ones((3, 1)), np.zeros(3), np.ones(1), turned, np.zeros((0, 3)), np.zeros((1, 3)), tmp,
+               frozen, np.ones(1), np.ones(1), np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64))
     _held_deviation(np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)), 0.0)
     _active(np.ones(1), np.ones(1, dtype=np.bool_), np.zeros(1, dtype=np.int64), np.zeros(1))
     _max_deviation(x1, x1)
@@ -461,6 +465,33 @@ def _place(x, held, target):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(**KERNEL)
+def _open_pose(a, s, c, jaw, slide_one, rot, slide, rest, offset, normal3, pivot, weight, target, shape, normal, tmp,  # type: ignore[no-untyped-def]
+               w3, kr, kn, fixed, x, held):
+    """A new jaw opening (no thrust, no sideways move) in one call: `jaw_motion`'s rotation into
+    rot (3, 3) and slide (3,) = jaw * slide_one, then `_jaw_pose`, then the held nodes' rows of x
+    (when x has rows) onto the target (`_place`). The rotation's entries by `jaw_rotation`'s
+    operations in its order from the unit axis a, s = sin(angle), c = 1 - cos(angle) made by
+    Python's math (the same bits): the matrix, the slide, the pose and the placement were four
+    calls and ~60 small Python operations a tick while the jaw moves."""
+    a0, a1, a2 = a[0], a[1], a[2]
+    m0, m1, m2 = -a0, -a1, -a2
+    rot[0, 0] = (1.0 + s * 0.0) + c * ((0.0 * 0.0 + m2 * a2) + a1 * m1)
+    rot[0, 1] = (0.0 + s * m2) + c * ((0.0 * m2 + m2 * 0.0) + a1 * a0)
+    rot[0, 2] = (0.0 + s * a1) + c * ((0.0 * a1 + m2 * m0) + a1 * 0.0)
+    rot[1, 0] = (0.0 + s * a2) + c * ((a2 * 0.0 + 0.0 * a2) + m0 * m1)
+    rot[1, 1] = (1.0 + s * 0.0) + c * ((a2 * m2 + 0.0 * 0.0) + m0 * a0)
+    rot[1, 2] = (0.0 + s * m0) + c * ((a2 * a1 + 0.0 * m0) + m0 * 0.0)
+    rot[2, 0] = (0.0 + s * m1) + c * ((m1 * 0.0 + a0 * a2) + 0.0 * m1)
+    rot[2, 1] = (0.0 + s * a0) + c * ((m1 * m2 + a0 * 0.0) + 0.0 * a0)
+    rot[2, 2] = (1.0 + s * 0.0) + c * ((m1 * a1 + a0 * m0) + 0.0 * 0.0)
+    for d in range(3):
+        slide[d] = jaw * slide_one[d]
+    _jaw_pose(rest, offset, normal3, pivot, weight, rot, slide, target, shape, normal, tmp, w3, kr, kn, fixed)
+    if x.shape[0] > 0:
+        _place(x, held, target)
+
+
+@numba.njit(**KERNEL)
 def _active(values, is_muscle, act, val):  # type: ignore[no-untyped-def]
     """The muscle channels whose value is not 0, in order, into act[:k] and their values into
     val[:k]; returns k (numpy's flatnonzero and gather of the same, without their four arrays)."""
@@ -471,6 +502,9 @@ def _active(values, is_muscle, act, val):  # type: ignore[no-untyped-def]
             val[k] = values[c]
             k += 1
     return k
+
+
+_NOTHING = object()  # (`Simulator._recall_contact`: no memory known to be held)
 
 
 class JawTurn(NamedTuple):
@@ -536,6 +570,7 @@ class Simulator:
                  method: str = "auto") -> None:
         self.model = model
         self.wrinkles = wrinkles
+        self._wrinkle: Callable[[FaceModel, FaceState], None] | None = None  # (`_surface`: imported once)
         if wrinkles and model.rig.wrinkles:  # build the wrinkle layer and load its kernel now, not
             from sim.wrinkles.layer import warm_up as warm_up_wrinkles  # on the first live frame
 
@@ -629,6 +664,9 @@ class Simulator:
         self._verge_i = CHANNEL_INDEX["eyes_vergence"]
         self._jaw: tuple[float, float, float] | None = None  # the jaw pose the target and normals were set for
         self._slide_one = jaw_slide(model)  # the condyles' slide at jaw = 1 (`jaw_motion`)
+        self._axis = np.array(model.jaw_axis, dtype=np.float64)  # (`_set_opening`)
+        self._base_threshold = float(model.strain_threshold)
+        self._target_shape = model.rest.shape
         self._motion_pose: tuple[float, float, float] | None = None  # `_jaw_motion`'s last pose
         self._motion: tuple[np.ndarray, np.ndarray] = (np.eye(3), np.zeros(3))
         self._target = model.rest + model.rest_offset
@@ -671,6 +709,7 @@ class Simulator:
             self._implicit.jaw_resp, self._implicit.jaw_slope = _jaw_grid(self)
             self._implicit.turn_basis(self._jaw_weight, np.asarray(model.jaw_pivot, dtype=np.float64))
         self._rest_shape = np.array(model.rest)  # the margin bending's rest shape at rest (`bending_turned`)
+        self._recalled: object = _NOTHING  # the memory the contact's arrays hold (`_recall_contact`)
 
     @property
     def symmetric_solve(self) -> bool:
@@ -685,6 +724,12 @@ class Simulator:
     def symmetric_solve(self, on: bool) -> None:
         if self._implicit is not None:  # (factors permuted differently by rows and columns: L and U always)
             self._implicit.symmetric_solve = bool(on) and self._implicit.solver.symmetric
+
+    @property
+    def _opening_fast(self) -> bool:
+        """Whether `_set_jaw` makes a jaw opening by `_set_opening`: the implicit step with its
+        bending from the turn and its muscles as responses (what it makes then)."""
+        return self._implicit is not None and self.bending_turned and not self.muscles_summed
 
     @staticmethod
     def _by_coordinate(rows: np.ndarray) -> np.ndarray:
@@ -730,13 +775,19 @@ class Simulator:
             self._motion_pose = pose
         return self._motion
 
-    def _set_jaw(self, pose: tuple[float, float, float]) -> None:
+    def _set_jaw(self, pose: tuple[float, float, float], place: np.ndarray | None = None) -> None:
         """The jaw-dependent frame constants: eq 9's target (`rest_target`) and the support normals
         n_i (the rest normals turned with the jaw like the target), recomputed only when the jaw
         moves; for the implicit integrator also the reference of its margin bending term (`sim.implicit`)
         and, where its muscles enter as responses, its constant forces (`_constants`), all from one
-        kernel (`_jaw_pose`) away from rest."""
+        kernel (`_jaw_pose`) away from rest. place: positions whose held nodes are put on the
+        pose's target (`_place_held`)."""
         if pose == self._jaw:
+            if place is not None:
+                _place(place, self._held, self._target)
+            return
+        if pose[1] == 0.0 and pose[2] == 0.0 and pose[0] and self._opening_fast:
+            self._set_opening(pose, place)
             return
         m = self.model
         implicit = self._implicit is not None
@@ -764,6 +815,24 @@ class Simulator:
         self._jaw = pose
         if len(fixed):
             self._const_jaw = pose
+        if place is not None:
+            _place(place, self._held, target)
+
+    def _set_opening(self, pose: tuple[float, float, float], place: np.ndarray | None) -> None:
+        """`_set_jaw` for a jaw opened by pose[0] (not 0) with no thrust and no sideways move, on the
+        implicit step with its bending from the turn and its muscles as responses (a moving jaw's
+        every tick): `jaw_motion`, `_jaw_pose` and the held nodes' placement from one kernel
+        (`_open_pose`), the same values."""
+        jaw = pose[0]
+        angle = jaw * self.model.params.jaw_max_angle
+        rot, slide, target = np.empty((3, 3)), np.empty(3), np.empty(self._target_shape)
+        _open_pose(self._axis, math.sin(angle), 1.0 - math.cos(angle), jaw, self._slide_one, rot, slide, self._rest3,
+                   self._offset3, self._normal3, self._pivot, self._jaw_weight, target, self._no_rows, self._normal,
+                   self._turn_tmp, self._weight, self._kr, self._kn, self._ext_const,
+                   self._no_rows if place is None else place, self._held)
+        self._target = target
+        self._shape = JawTurn(rot, slide)
+        self._jaw = self._const_jaw = pose
 
     def external_forces(self, control: FaceControl) -> np.ndarray:
         """Every force term that does not depend on x or v within a frame, (N,3) dyn (a buffer the
@@ -831,8 +900,7 @@ class Simulator:
         that pose now (`_set_jaw`): the next step starts from it, and `prepare` finds them made
         (each row of the target is the same bits whichever rows are turned, so the held nodes'
         rows turned alone gave these very values; this spares that second turn, 0.04 ms a tick)."""
-        self._set_jaw(pose)
-        _place(x, self._held, self._target)
+        self._set_jaw(pose, place=x)
 
     # -- stepping
 
@@ -865,7 +933,8 @@ class Simulator:
                        *self._margins)
         else:
             if self._implicit.margins is not None:  # the contact's memory is part of the state (a checkpoint's too)
-                self._implicit.margins.recall(state.contact)
+                self._recall_contact(state.contact)
+                self._recalled = _NOTHING  # (the step changes the contact's arrays)
             checked = self._target  # the guard measures the step against the pose it started from
             self._implicit.frame(x, v, self.substeps, ext, self._spring_constants(), self._normal,
                                  self._eyes, self._shape, key=(self._jaw, self._skin_age), active=active,
@@ -890,7 +959,7 @@ class Simulator:
                 self._implicit.margins.lam[...] = 0.0  # no contact force carried into the restart
             self.guard_events.append(GuardEvent(state.time + self.frame_dt, reason))
         if self._implicit is not None and self._implicit.margins is not None:
-            state.contact = self._implicit.margins.memory()
+            state.contact = self._recalled = self._implicit.margins.memory()
         state.time += self.frame_dt
         values = control.values
         state.eye_yaw = float(values[self._yaw_i])
@@ -923,10 +992,20 @@ class Simulator:
         elif self._jaw is None or self._const_jaw != self._jaw or self._moving:
             return
         if self._implicit.margins is not None:
-            self._implicit.margins.recall(state.contact)
+            self._recall_contact(state.contact)
         self._implicit.predict(state.positions, state.velocities, self._ext_const,
                                self._spring_constants(),
-                               self._normal, self._shape, (self._jaw, self._skin_age))
+                               self._normal, self._shape, (self._jaw, self._skin_age), ext_key=self._jaw)
+
+    def _recall_contact(self, memory: np.ndarray | None) -> None:
+        """The implicit step's contact arrays from a state's memory (`SolvedContact.recall`), unless
+        they hold that very array's values already: the memory this simulator's last step made,
+        or recalled last, with no step since (the live loop's prepare and step recalled the
+        memory the step before had just made: two calls a tick for nothing)."""
+        if memory is None or memory is not self._recalled:
+            self._recalled = _NOTHING
+            self._implicit.margins.recall(memory)  # type: ignore[union-attr]
+            self._recalled = memory
 
     def surface(self, state: FaceState) -> None:
         """Fill state.surface for the positions of the last step (see `step`'s surface=False)."""
@@ -952,9 +1031,7 @@ class Simulator:
         k_h is never raised, so the stable substep stays valid."""
         if age == self._skin_age:
             return
-        from sim.wrinkles.aging import skin_params_for_age
-
-        skin = skin_params_for_age(age, float(self.model.strain_threshold))
+        skin = aging.skin_params_for_age(age, self._base_threshold)  # (the module's: looked up at each call)
         self._k_low_scale = skin.k_low_scale  # (multiplied when `_k_low` is asked; the implicit step's kernel
         # multiplies each spring's as it reads it: the same products, 35k values a tick written less)
         high = min(skin.k_high_scale, 1.0)
@@ -968,9 +1045,11 @@ class Simulator:
         """state.surface = positions plus the wrinkle bulges at state.age (sim.wrinkles), or the
         positions alone when the rig has no wrinkle lines."""
         if self.wrinkles and self.model.rig.wrinkles:
-            from sim.wrinkles.layer import apply_wrinkles
+            if self._wrinkle is None:
+                from sim.wrinkles.layer import apply_wrinkles
 
-            apply_wrinkles(self.model, state)
+                self._wrinkle = apply_wrinkles
+            self._wrinkle(self.model, state)
         else:
             state.surface[...] = state.positions
 

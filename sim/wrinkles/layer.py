@@ -447,9 +447,14 @@ def wrinkle_displacement(layer: WrinkleLayer, positions: FloatArray, age: float)
     return out
 
 
-def compiled_displacement(layer: WrinkleLayer, positions: FloatArray, age: float) -> FloatArray:
-    """wrinkle_displacement through kernels.frame_displacement: same numbers, one compiled pass."""
-    out = np.zeros((layer.n_vertices, 3))
+def compiled_displacement(layer: WrinkleLayer, positions: FloatArray, age: float,
+                          out: FloatArray | None = None) -> FloatArray:
+    """wrinkle_displacement through kernels.frame_displacement: same numbers, one compiled pass.
+    out: an (N, 3) float64 array to fill and return (a new one when None)."""
+    if out is None:
+        out = np.zeros((layer.n_vertices, 3))
+    else:
+        out.fill(0.0)
     if len(layer.roll_far) == 0:
         return out
     arrays, scratch = _kernel_args(layer)
@@ -542,5 +547,20 @@ def apply_wrinkles(model: object, state: object) -> None:
     if not getattr(model, "rig").wrinkles:
         state.surface[...] = pos  # type: ignore[attr-defined]
         return
-    disp = layer_for(model).displacement(pos, float(state.age))  # type: ignore[attr-defined]
+    layer = layer_for(model)
+    age = float(state.age)  # type: ignore[attr-defined]
+    disp = compiled_displacement(layer, pos, age, _displacement_buffer(layer))
     np.add(pos, disp, out=state.surface)  # type: ignore[attr-defined]
+
+
+def _displacement_buffer(layer: WrinkleLayer) -> FloatArray:
+    """An (N, 3) array for this thread's displacements of `layer` (`apply_wrinkles`: the live loop
+    surfaces every frame; an array of its own each time took 2-3x the Python around the kernel)."""
+    per_thread = _OUT.setdefault(layer, {})
+    out = per_thread.get(threading.get_ident())
+    if out is None:
+        out = per_thread[threading.get_ident()] = np.zeros((layer.n_vertices, 3))
+    return out
+
+
+_OUT: "weakref.WeakKeyDictionary[WrinkleLayer, dict[int, FloatArray]]" = weakref.WeakKeyDictionary()

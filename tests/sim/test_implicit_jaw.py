@@ -346,3 +346,78 @@ def test_the_right_hand_side_with_the_turned_bending_has_the_bits_of_the_sum_mad
         _held_rhs(x, held, *impl._fh, base, total, free, perm_r, np.zeros((nh, 3)), want, False)
         _held_rhs_turned(x, held, *impl._fh, base, ext, *impl._turn_b, rot, slide, free, perm_r, np.zeros((nh, 3)), got)
         assert np.all(np.isfinite(got)) and got.tobytes() == want.tobytes(), pose
+
+
+def test_a_jaw_opening_made_in_one_call_has_the_bits_of_the_motion_the_pose_and_the_placement(model) -> None:  # type: ignore[no-untyped-def]
+    """A new opening (no thrust or sideways move: a jaw dial's every tick) is made by one kernel
+    (`_set_opening`); its rotation, slide, target, normals, constant forces and held nodes are
+    those of `jaw_motion`, `_jaw_pose` and the placement one after the other, NaN included, and a
+    thrust or a replay's other bending still takes the general way with the same values."""
+    from sim.integrator import _jaw_pose, jaw_motion
+
+    s, plain = Simulator(model, 1.0 / 120.0), Simulator(model, 1.0 / 120.0)
+    assert s._opening_fast
+    rng = np.random.default_rng(8)
+    n = model.n_vertices
+    for jaw in [*rng.uniform(-0.2, 1.3, 12), 1e-300, -5e-324, 1.0, float("nan")]:
+        x = rng.normal(0.0, 1.0, (n, 3))
+        want_x = x.copy()
+        s._set_jaw((0.0, 0.0, 0.0))
+        s._place_held(x, (float(jaw), 0.0, 0.0))
+        rot, slide = jaw_motion(model, float(jaw), slide_one=s._slide_one)
+        target, normal, fixed = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+        _jaw_pose(plain._rest3, plain._offset3, plain._normal3, plain._pivot, plain._jaw_weight,
+                  np.ascontiguousarray(rot), slide, target, np.zeros((0, 3)), normal, np.zeros((10, n)),
+                  plain._weight, plain._kr, plain._kn, fixed)
+        want_x[s._held] = target[s._held]
+        assert s._shape.rot.tobytes() == np.ascontiguousarray(rot).tobytes(), jaw
+        assert s._shape.slide.tobytes() == slide.tobytes(), jaw
+        for got, want in ((s._target, target), (s._normal, normal), (s._ext_const, fixed), (x, want_x)):
+            assert got.tobytes() == want.tobytes(), jaw
+        assert s._const_jaw == s._jaw == (float(jaw), 0.0, 0.0) or np.isnan(jaw)
+    s.bending_turned = False  # (a take recorded before the bending from the turn)
+    assert not s._opening_fast
+    s._set_jaw((0.4, 0.0, 0.0))
+    assert isinstance(s._shape, np.ndarray)
+
+
+def test_the_bending_sum_kept_for_a_key_is_made_again_for_another(model) -> None:  # type: ignore[no-untyped-def]
+    """`predict` keeps the constant forces plus the margin bending's rest side while its key names
+    the same forces (a jaw at rest, tick after tick), and makes it again when the key changes,
+    even if the forces' array is the same one rewritten in place."""
+    s = Simulator(model, 1.0 / 120.0)
+    impl = s._implicit
+    assert impl is not None and len(impl._bend[2])
+    shape = np.array(model.rest)
+    ext = np.random.default_rng(2).normal(0.0, 1.0, (model.n_vertices, 3))
+    first = impl._with_bending(ext, shape, ("a", 1.0)).copy()
+    ext *= 2.0  # in place: only the key tells
+    kept = impl._with_bending(ext, shape, ("a", 1.0))
+    assert kept.tobytes() == first.tobytes()
+    again = impl._with_bending(ext, shape, ("b", 1.0))
+    assert again.tobytes() == (ext + impl._bend_rhs).tobytes() != first.tobytes()
+    assert impl._with_bending(ext, shape).tobytes() == again.tobytes()  # no key: always made
+
+
+def test_a_state_with_another_contact_memory_steps_from_its_own(model) -> None:  # type: ignore[no-untyped-def]
+    """The contact's arrays are recalled from each state's memory unless they hold it already: one
+    simulator stepping two states in turn (each prepared first, as the live loop does) steps each
+    as a simulator of its own does, to the bit."""
+    c = FaceControl(model)
+    c.set("orbicularis_oris", 0.8)  # the lips pressed together: the contact acts
+    shared, alone_a, alone_b = (Simulator(model, 1.0 / 120.0) for _ in range(3))
+    a = model.rest_state()
+    for _ in range(6):
+        alone_a.step(a, c)
+    b = model.rest_state()
+    mine = {"a": a.copy(), "b": b.copy()}
+    for k in range(8):
+        c.set("jaw", 0.02 * k)
+        for name, st, alone in (("a", a, alone_a), ("b", b, alone_b)):
+            shared.prepare(mine[name])
+            shared.step(mine[name], c)
+            alone.prepare(st)
+            alone.step(st, c)
+            assert mine[name].positions.tobytes() == st.positions.tobytes(), (k, name)
+            assert mine[name].contact.tobytes() == st.contact.tobytes(), (k, name)
+    assert np.any(a.contact != b.contact)
