@@ -130,6 +130,24 @@ def _check_report(report: Path, args: argparse.Namespace, out: Path) -> None:
             raise PuppetError(f"--report {report}: that is {what} ({other}); name another file for the report")
 
 
+def _check_report_kind(inp: Path) -> None:
+    """--report is the fit's per-frame residual: a Live Link / ARKit CSV is converted through the
+    ARKit map and a voice analysed, neither fitted, so there is nothing to report. Refused before
+    the face loads (it was silently ignored: no report written, nothing said)."""
+    from puppet.capture import is_arkit_csv
+    from puppet.errors import PuppetError
+    from safefile import not_a_file
+
+    suffix = inp.suffix.lower()
+    if suffix == ".wav":
+        what = "a voice is analysed, not fitted"
+    elif not_a_file(inp, "capture file") is None and is_arkit_csv(inp):
+        what = "a Live Link / ARKit CSV is converted through the ARKit map, not fitted"
+    else:
+        return
+    raise PuppetError(f"--report: {inp}: {what}, so there is no per-frame residual to report; leave out --report")
+
+
 def _check_length(seconds: float, rate: float, channels: int) -> None:
     """The take fits what a replay holds (`MAX_CELLS` tick x channel values)."""
     from puppet.errors import PuppetError
@@ -151,6 +169,7 @@ def run(args: argparse.Namespace) -> int:
     kind = _check_out(out)
     if args.report:
         _check_report(Path(args.report), args, out)
+        _check_report_kind(Path(args.input))
     neutral = _neutral(args.neutral)
     for name in ("smooth", "sparsity"):
         # nan or inf made the solver's Cholesky factor a ValueError traceback, a negative weight a

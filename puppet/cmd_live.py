@@ -263,6 +263,10 @@ def _run(args: argparse.Namespace) -> int:
         from puppet.faces import parse_face
 
         parse_face(args.face)
+    if args.panel is not None and not 0 <= args.panel <= 65535:
+        # said before the face loads, of the port the user typed (it was the page device's error,
+        # naming a panel:// URL the user never wrote, after the face had loaded)
+        raise PuppetError(f"--panel {args.panel}: a port is 1..65535 (0 takes any free port)")
     if args.supervise or args.resume:
         if args.demo:
             raise PuppetError("--demo plays once: leave out --supervise and --resume")
