@@ -230,9 +230,14 @@ def write_pose(model: Any, state: Any, out: Path, *, size: tuple[int, int] = (12
                 landmark_indices=np.array([model.mesh.landmarks[n] for n in names], dtype=np.int64),
             )
     elif suffix == ".obj":
+        from sim.face.turn import state_turn, turn_head, turn_weights
+
+        # as drawn and as a PC2 holds it: the head turned on the neck (head_yaw/pitch/roll); the
+        # skin is simulated in the head's frame, and the OBJ was written unturned
+        surface = turn_head(state.surface, turn_weights(model.rest), *state_turn(state))
         with atomic_write(out, "w", encoding="ascii") as fh:
             fh.write(f"# puppet pose, model {model.hash}, t = {state.time:.4f} s, cm\n")
-            for x, y, z in state.surface:
+            for x, y, z in surface:
                 fh.write(f"v {x:.6f} {y:.6f} {z:.6f}\n")
             for a, b, c in np.asarray(model.triangles) + 1:
                 fh.write(f"f {a} {b} {c}\n")
