@@ -119,6 +119,9 @@ def load_model(args: argparse.Namespace) -> Any:
         from sim.rig import RigFileError
         from sim.rig import load_model as load_rig_model
 
+        if args.resolution is not None:  # it was ignored without a word
+            raise ConfigError(f"--resolution {args.resolution}: a rig file has its own mesh; leave out --resolution")
+
         try:
             return load_rig_model(args.rig)
         except RigFileError as err:
@@ -127,6 +130,9 @@ def load_model(args: argparse.Namespace) -> Any:
 
     spec = args.face if args.face is not None else ("procedural" if args.resolution is not None else None)
     choice = parse_face(spec, 0 if args.resolution is None else args.resolution)
+    if choice.kind != "procedural" and args.resolution is not None:  # ignored without a word before
+        raise ConfigError(f"--resolution {args.resolution}: the resolutions are the procedural face's; --face "
+                          f"{choice.spec} has one mesh (leave out --resolution, or use --face procedural)")
     if choice.kind == "ict":
         from puppet.face_cache import scan_model
 

@@ -6,6 +6,8 @@
     --face NAME               an identity saved with `puppet face save NAME --identity SEED|w1,w2,...`
 
 Without --face (and --rig) a command uses $PUPPET_FACE, else the scanned head's generic identity.
+`--rig` and `--face` together are refused (the rig won, silently); so is `--resolution` with a face
+other than the procedural one or with a rig (it was ignored).
 
 Saved identities are small JSON files in the user's data folder ($PUPPET_DATA_DIR, else
 $XDG_DATA_HOME/facepuppet/identities, else ~/.local/share/facepuppet/identities), written to a

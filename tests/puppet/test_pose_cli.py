@@ -161,3 +161,22 @@ def test_an_unknown_view_for_a_picture_is_one_line(tmp_path: Path, capsys: pytes
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--view 'bogus'" in err and "shaded" in err
     assert not out.exists()
+
+
+def test_options_that_name_another_face_are_refused_not_ignored(tmp_path: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """`--rig R --face ict` ran the rig and `--face ict --resolution 2` the scanned head, each
+    option dropped without a word. One line naming both options, exit 2, nothing written (the
+    checks come before the face loads)."""
+    out = tmp_path / "p.png"
+    rig = tmp_path / "r.npz"
+    rig.write_bytes(b"never read")
+    for argv, words in ((["pose", "--rig", str(rig), "--face", "ict"], ("--rig", "--face")),
+                        (["view", "--rig", str(rig), "--face", "procedural"], ("--rig", "--face")),
+                        (["fit", "x.csv", "--rig", str(rig), "--face", "ict"], ("--rig", "--face")),
+                        (["pose", "--face", "ict", "--resolution", "2"], ("--resolution", "ict")),
+                        (["pose", "--rig", str(rig), "--resolution", "1"], ("--resolution",))):
+        assert main([*argv, "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and all(w in err for w in words), err
+        assert not out.exists()
