@@ -587,3 +587,9 @@ def test_a_report_of_a_capture_that_is_not_fitted_is_refused(tmp_path, capsys) -
         err = _one_line_exit_2(capsys, ["fit", str(capture), "--report", str(report), "--out", str(take)], take)
         assert "--report" in err and capture.name in err and what in err, err
         assert not report.exists()
+    # the fit's other options and a voice's missing ones were dropped the same way
+    for capture, extra in ((phone, ["--smooth", "0.1"]), (phone, ["--neutral", "3"]), (phone, ["--map", "ibug68"]),
+                           (speech, ["--age", "70"]), (speech, ["--no-relinearise"]), (speech, ["--fps", "30"]),
+                           (phone, ["--voice-profile", str(speech)])):
+        err = _one_line_exit_2(capsys, ["fit", str(capture), *extra, "--out", str(take)], take)
+        assert extra[0] in err and capture.name in err, err
