@@ -263,6 +263,11 @@ def _run(args: argparse.Namespace) -> int:
         from puppet.faces import parse_face
 
         parse_face(args.face)
+    if args.no_panel:  # each was dropped without a word: --no-panel won
+        given = [opt for opt, on in (("--panel", args.panel is not None), ("--panel-lan", args.panel_lan),
+                                     ("--panel-role", bool(args.panel_role))) if on]
+        if given:
+            raise PuppetError(f"--no-panel and {given[0]} contradict each other: leave out one of them")
     if args.panel is not None and not 0 <= args.panel <= 65535:
         # said before the face loads, of the port the user typed (it was the page device's error,
         # naming a panel:// URL the user never wrote, after the face had loaded)
