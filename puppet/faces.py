@@ -90,6 +90,8 @@ def parse_identity(text: str) -> tuple[tuple[float, ...], int | None]:
     if re.fullmatch(r"\d{1,18}", t):
         seed = int(t)
         return seed_identity(seed), seed
+    if re.fullmatch(r"\d{19,}", t):  # was "expected 1 to 100 finite weights", of a seed
+        raise ValueError(f"--identity {text:.40}: a seed has at most 18 digits")
     try:
         vals = [float(x) for x in t.split(",")]
     except ValueError:
@@ -124,7 +126,8 @@ def _parse_face(spec: str, resolution: int) -> FaceChoice:
             return FaceChoice("ict", "ict")
         key, _, value = query.partition("=")
         if key != "identity" or not re.fullmatch(r"\d{1,18}", value):
-            raise PuppetError(f"--face {text!r}: expected ict or ict?identity=SEED (SEED an integer >= 0)")
+            raise PuppetError(f"--face {text!r:.60}: expected ict or ict?identity=SEED (SEED an integer >= 0 of at "
+                              "most 18 digits)")
         return FaceChoice("ict", f"ict?identity={int(value)}", seed_identity(int(value)))
     if query or not NAME_RE.match(base):
         raise PuppetError(f"--face {text!r}: expected {FORMS}")
