@@ -429,19 +429,21 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         point = resume.resume_point(record, face, getattr(args, "follower", None))
     from puppet import audio_take
 
+    kept = None  # where a take already at --record went (the library follows it there)
+    if point is None and record:
+        from puppet.session import keep_previous
+
+        # before the new sound is started: the earlier take's sound and pictures go with it (the
+        # sound was kept aside on its own before, and the kept take then played the new one)
+        kept = keep_previous(record, companions=True)
+        if kept is not None:
+            warn(f"{record} already held a take: kept as {kept}")
     sound = audio_take.attach(devs, record if point is None else None, header)  # a WAV beside the take
     if point is not None:
         rate = float(point.header.get("tick_rate", rate))  # a take goes on at the rate it was made at
         header["tick_rate"] = rate
         writer = resume.open_resumed(point, SessionWriter, header)
-    kept = None  # where a take already at --record went (the library follows it there)
     if point is None:
-        if record:
-            from puppet.session import keep_previous
-
-            kept = keep_previous(record)
-            if kept is not None:
-                warn(f"{record} already held a take: kept as {kept}")
         writer = SessionWriter(record, header) if record else None
     if writer is not None and record:  # the library knows the take from its first tick
         from puppet.library import begin_recording
