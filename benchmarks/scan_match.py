@@ -58,9 +58,18 @@ def scan_targets(names: list[str] | None) -> dict[str, tuple[str, np.ndarray]]:
     data = scan_data()
     skin = skin_layout().vertices
     out: dict[str, tuple[str, np.ndarray]] = {}
+    # any case, and a pair's scan name without its side (browInnerUp, cheekPuff): `--shapes
+    # browInnerUp` matched nothing (the ARKit name is BrowInnerUp), and an empty table ended the
+    # judge in a ValueError
+    wanted = {n.lower() for n in names} if names else set()
+    known = set()
     for name in data.expression_names:
         shape = arkit_shape(name)
-        if shape is None or (names and name not in names and shape not in names):
+        if shape is None:
+            continue
+        aliases = {name.lower(), shape.lower(), name.lower().removesuffix("_l").removesuffix("_r")}
+        known |= aliases
+        if wanted and not aliases & wanted:
             continue
         if name.startswith(("cheekPuff", "browInnerUp")):
             if name.endswith("_R"):
@@ -69,6 +78,11 @@ def scan_targets(names: list[str] | None) -> dict[str, tuple[str, np.ndarray]]:
             out[f"{half} (L+R)"] = (shape, (data.expression(half + "_L") + data.expression(half + "_R"))[skin])
             continue
         out[name] = (shape, data.expression(name)[skin])
+    unknown = sorted(wanted - known)
+    if unknown:
+        valid = [n for n in data.expression_names if arkit_shape(n) is not None][:4]
+        raise SystemExit(f"--shapes: no scanned shape is named {', '.join(unknown)} (scan names such as "
+                         f"{', '.join(valid)}, ..., or ARKit names such as JawOpen)")
     return out
 
 

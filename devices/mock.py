@@ -65,11 +65,26 @@ def _infer(name: str) -> ControlInfo:
     return ControlInfo(name, "axis", 0.0, 1.0)
 
 
+#: the keys a script and each of its entries may have: a misspelt one (``[[rmp]]``, ``strat``) was
+#: ignored, and the script played nothing of it without a word
+SCRIPT_KEYS = frozenset({"impersonate", "counts_per_turn", "speed", "loop", "duration", "controls", "events",
+                         "ramp", "sine", "pattern", "status"})
+ENTRY_KEYS = {
+    "controls": ("name", "kind", "lo", "hi", "light"),
+    "events": ("t", "control", "value", "delta"),
+    "ramp": ("control", "start", "duration", "from", "to", "rate"),
+    "sine": ("control", "start", "duration", "freq", "amplitude", "offset", "rate"),
+    "pattern": ("control", "start", "period", "duty", "count"),
+    "status": ("t", "status"),
+}
+
+
 class Script:
     """A compiled script: declared controls and a sorted timeline."""
 
     def __init__(self, data: dict[str, Any], origin: str) -> None:
         self.origin = origin
+        self._check_keys(data)
         self.counts_per_turn = int(data.get("counts_per_turn", 200))
         if self.counts_per_turn <= 0:
             raise self._error("counts_per_turn must be positive")
@@ -109,6 +124,22 @@ class Script:
 
     def _error(self, msg: str) -> DeviceSpecError:
         return DeviceSpecError(f"{self.origin}: {msg}")
+
+    def _check_keys(self, data: dict[str, Any]) -> None:
+        unknown = sorted(str(k) for k in data if k not in SCRIPT_KEYS)
+        if unknown:
+            raise self._error(f"unknown key {quote(unknown[0])}; a script has "
+                              f"{', '.join(sorted(SCRIPT_KEYS))} (docs/devices.md, mock://)")
+        for table, allowed in ENTRY_KEYS.items():
+            entries = data.get(table, [])
+            if not isinstance(entries, list):
+                raise self._error(f"{table} must be a list of tables ([[{table}]])")
+            for i, entry in enumerate(entries):
+                if not isinstance(entry, dict):
+                    raise self._error(f"{table}[{i}] must be a table of keys")
+                bad = sorted(str(k) for k in entry if k not in allowed)
+                if bad:
+                    raise self._error(f"{table}[{i}]: unknown key {quote(bad[0])}; expected {', '.join(allowed)}")
 
     def info(self, name: str, where: str) -> ControlInfo:
         """The control ``name``; declared on first use unless the script impersonates a box."""
@@ -218,7 +249,7 @@ def load_script(location: str, query: dict[str, str], origin: str) -> Script:
                     {"control": query[key], "duration": duration, "rate": rate, "period": duration / 4,
                      "count": 4, "amplitude": 0.5 if kind == "sine" else None, "freq": 1.0 / duration}
                 )
-                data[kind][-1] = {k: v for k, v in data[kind][-1].items() if v is not None}
+                data[kind][-1] = {k: v for k, v in data[kind][-1].items() if v is not None and k in ENTRY_KEYS[kind]}
         data["duration"] = duration
     for key in ("speed", "loop", "counts_per_turn"):
         if key in query:

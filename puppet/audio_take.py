@@ -70,7 +70,15 @@ def take_audio(session: Any) -> Path | None:
     name = entries[0].get("file")
     if not isinstance(name, str) or "/" in name or "\\" in name or not name.lower().endswith(".wav"):
         return None
-    path = Path(session.path).parent / name
+    own = Path(session.path)
+    recorded = name[: -len(".wav")]
+    if "path" not in entries[0] and own.stem != recorded and own.stem.startswith(recorded + "."):
+        # a take kept aside (`take.jsonl` -> `take.1.jsonl`) took its sound with it (`take.1.wav`);
+        # the `take.wav` its header names is the newer take's now
+        moved = own.with_suffix(".wav")
+        if moved.is_file():
+            return moved
+    path = own.parent / name
     if path.is_file():
         return path
     elsewhere = entries[0].get("path")  # `puppet fit speech.wav` names the WAV where it is

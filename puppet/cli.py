@@ -70,6 +70,9 @@ def main(argv: list[str] | None = None) -> int:
     if argv is None and args.command not in OWN_SIGNALS:
         terminate_as_interrupt()
     try:
+        if getattr(args, "rig", None) and getattr(args, "face", None) is not None:
+            # both name the face: the rig won without a word (live, pose, view, fit, replay)
+            raise PuppetError(f"--rig {args.rig} and --face {args.face} each name the face: give one of them")
         code = int(args.func(args) or 0)
     except (PuppetError, DeviceError, BadFile) as err:
         print(f"puppet: error: {short_words(str(err))}", file=sys.stderr)

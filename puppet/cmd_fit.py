@@ -130,6 +130,34 @@ def _check_report(report: Path, args: argparse.Namespace, out: Path) -> None:
             raise PuppetError(f"--report {report}: that is {what} ({other}); name another file for the report")
 
 
+#: the options of the fit proper (points onto the displacement basis): a Live Link / ARKit CSV is
+#: converted through the ARKit map and a WAV analysed as a voice, neither fitted
+FIT_OPTIONS = (("report", "report"), ("map", "map"), ("smooth", "smooth"), ("sparsity", "sparsity"),
+               ("no_relinearise", "no-relinearise"))
+
+
+def _check_options_for_input(inp: Path, args: argparse.Namespace) -> None:
+    """Options the input's path does not use are refused before the face loads: they were ignored
+    without a word (`--report` wrote no report, `--age` left a voice's take at the default age)."""
+    from puppet.capture import is_arkit_csv
+    from puppet.errors import PuppetError
+    from safefile import not_a_file
+
+    if inp.suffix.lower() == ".wav":
+        what, unused = "a voice is analysed, not fitted", [*FIT_OPTIONS, ("age", "age"), ("fps", "fps")]
+    else:
+        if getattr(args, "voice_profile", None):
+            raise PuppetError(f"--voice-profile: {inp} is not a voice (a .wav); leave out --voice-profile")
+        if not (not_a_file(inp, "capture file") is None and is_arkit_csv(inp)):
+            return  # points: every option applies
+        what, unused = "a Live Link / ARKit CSV is converted through the ARKit map, not fitted", list(FIT_OPTIONS)
+    unused.append(("neutral", "neutral"))
+    for attr, opt in unused:
+        if getattr(args, attr, None) not in (None, False, "auto"):
+            why = ", so there is no per-frame residual to report" if opt == "report" else ""
+            raise PuppetError(f"--{opt}: {inp}: {what}{why}; leave out --{opt}")
+
+
 def _check_length(seconds: float, rate: float, channels: int) -> None:
     """The take fits what a replay holds (`MAX_CELLS` tick x channel values)."""
     from puppet.errors import PuppetError
@@ -152,6 +180,7 @@ def run(args: argparse.Namespace) -> int:
     if args.report:
         _check_report(Path(args.report), args, out)
     neutral = _neutral(args.neutral)
+    _check_options_for_input(Path(args.input), args)
     for name in ("smooth", "sparsity"):
         # nan or inf made the solver's Cholesky factor a ValueError traceback, a negative weight a
         # LinAlgError (smooth) or every channel driven to its maximum (sparsity)

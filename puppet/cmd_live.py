@@ -263,6 +263,15 @@ def _run(args: argparse.Namespace) -> int:
         from puppet.faces import parse_face
 
         parse_face(args.face)
+    if args.no_panel:  # each was dropped without a word: --no-panel won
+        given = [opt for opt, on in (("--panel", args.panel is not None), ("--panel-lan", args.panel_lan),
+                                     ("--panel-role", bool(args.panel_role))) if on]
+        if given:
+            raise PuppetError(f"--no-panel and {given[0]} contradict each other: leave out one of them")
+    if args.panel is not None and not 0 <= args.panel <= 65535:
+        # said before the face loads, of the port the user typed (it was the page device's error,
+        # naming a panel:// URL the user never wrote, after the face had loaded)
+        raise PuppetError(f"--panel {args.panel}: a port is 1..65535 (0 takes any free port)")
     if args.supervise or args.resume:
         if args.demo:
             raise PuppetError("--demo plays once: leave out --supervise and --resume")
@@ -420,19 +429,21 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         point = resume.resume_point(record, face, getattr(args, "follower", None))
     from puppet import audio_take
 
+    kept = None  # where a take already at --record went (the library follows it there)
+    if point is None and record:
+        from puppet.session import keep_previous
+
+        # before the new sound is started: the earlier take's sound and pictures go with it (the
+        # sound was kept aside on its own before, and the kept take then played the new one)
+        kept = keep_previous(record, companions=True)
+        if kept is not None:
+            warn(f"{record} already held a take: kept as {kept}")
     sound = audio_take.attach(devs, record if point is None else None, header)  # a WAV beside the take
     if point is not None:
         rate = float(point.header.get("tick_rate", rate))  # a take goes on at the rate it was made at
         header["tick_rate"] = rate
         writer = resume.open_resumed(point, SessionWriter, header)
-    kept = None  # where a take already at --record went (the library follows it there)
     if point is None:
-        if record:
-            from puppet.session import keep_previous
-
-            kept = keep_previous(record)
-            if kept is not None:
-                warn(f"{record} already held a take: kept as {kept}")
         writer = SessionWriter(record, header) if record else None
     if writer is not None and record:  # the library knows the take from its first tick
         from puppet.library import begin_recording

@@ -119,6 +119,9 @@ def load_model(args: argparse.Namespace) -> Any:
         from sim.rig import RigFileError
         from sim.rig import load_model as load_rig_model
 
+        if args.resolution is not None:  # it was ignored without a word
+            raise ConfigError(f"--resolution {args.resolution}: a rig file has its own mesh; leave out --resolution")
+
         try:
             return load_rig_model(args.rig)
         except RigFileError as err:
@@ -127,6 +130,9 @@ def load_model(args: argparse.Namespace) -> Any:
 
     spec = args.face if args.face is not None else ("procedural" if args.resolution is not None else None)
     choice = parse_face(spec, 0 if args.resolution is None else args.resolution)
+    if choice.kind != "procedural" and args.resolution is not None:  # ignored without a word before
+        raise ConfigError(f"--resolution {args.resolution}: the resolutions are the procedural face's; --face "
+                          f"{choice.spec} has one mesh (leave out --resolution, or use --face procedural)")
     if choice.kind == "ict":
         from puppet.face_cache import scan_model
 
@@ -230,9 +236,14 @@ def write_pose(model: Any, state: Any, out: Path, *, size: tuple[int, int] = (12
                 landmark_indices=np.array([model.mesh.landmarks[n] for n in names], dtype=np.int64),
             )
     elif suffix == ".obj":
+        from sim.face.turn import state_turn, turn_head, turn_weights
+
+        # as drawn and as a PC2 holds it: the head turned on the neck (head_yaw/pitch/roll); the
+        # skin is simulated in the head's frame, and the OBJ was written unturned
+        surface = turn_head(state.surface, turn_weights(model.rest), *state_turn(state))
         with atomic_write(out, "w", encoding="ascii") as fh:
             fh.write(f"# puppet pose, model {model.hash}, t = {state.time:.4f} s, cm\n")
-            for x, y, z in state.surface:
+            for x, y, z in surface:
                 fh.write(f"v {x:.6f} {y:.6f} {z:.6f}\n")
             for a, b, c in np.asarray(model.triangles) + 1:
                 fh.write(f"f {a} {b} {c}\n")

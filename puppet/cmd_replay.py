@@ -23,7 +23,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         "replay",
         help="replay a recorded session (window with transport keys, or export with --out)",
         description="Re-simulate a recording exactly. --out picks the export by suffix: .mp4, a folder "
-        "(PNG frames), .png, .pc2 (+ .obj), .csv (channels), .arkit.csv (ARKit blendshapes), .curves "
+        "(PNG frames), .png, .obj (the posed mesh at --from), .pc2 (+ .obj), .csv (channels), .arkit.csv (ARKit blendshapes), .curves "
         "(editable keyframe curves). Window keys: SPACE pause, LEFT/RIGHT seek 1 s, UP/DOWN speed, "
         "HOME restart, N next marker, ESC quit. See docs/live.md.",
     )

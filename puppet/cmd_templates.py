@@ -37,6 +37,8 @@ def run(args: argparse.Namespace) -> int:
     if not 0 < args.weight <= 1 or not 0 < args.gain <= MAX_GAIN:
         raise PuppetError(f"--weight takes 0..1 and --gain a positive number up to {MAX_GAIN:g}")
     out = Path(args.out)
+    if out.exists() and not out.is_dir():  # was "cannot create the folder: File exists"
+        raise PuppetError(f"{out}: a file is there; --out names the folder the pictures go into")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:

@@ -79,8 +79,13 @@ def run(args: argparse.Namespace) -> int:
     size = cmd_pose._size(args.size)
     if args.seconds is not None and not (0.0 <= args.seconds <= 600.0):
         raise PuppetError(f"--seconds {args.seconds:g}: expected 0..600")
-    control = cmd_pose.build_control(args)
+    cmd_pose.build_control(args)  # bad names and values fail before the face is built
     model = cmd_pose.load_model(args)
+    from sim.facs import preset_face
+
+    # the presets at the face's own intensities, as `puppet pose` plays them (the scanned head's
+    # surprise was drawn without its raised lids, AU5, and with the jaw at 0.4 instead of 0.5)
+    control = cmd_pose.build_control(args, preset_face(model.rig))
     state, history = pose(model, control, args.seconds)
 
     from render.hud import HudInfo, active_channels

@@ -6,6 +6,8 @@
     --face NAME               an identity saved with `puppet face save NAME --identity SEED|w1,w2,...`
 
 Without --face (and --rig) a command uses $PUPPET_FACE, else the scanned head's generic identity.
+`--rig` and `--face` together are refused (the rig won, silently); so is `--resolution` with a face
+other than the procedural one or with a rig (it was ignored).
 
 Saved identities are small JSON files in the user's data folder ($PUPPET_DATA_DIR, else
 $XDG_DATA_HOME/facepuppet/identities, else ~/.local/share/facepuppet/identities), written to a
@@ -88,6 +90,8 @@ def parse_identity(text: str) -> tuple[tuple[float, ...], int | None]:
     if re.fullmatch(r"\d{1,18}", t):
         seed = int(t)
         return seed_identity(seed), seed
+    if re.fullmatch(r"\d{19,}", t):  # was "expected 1 to 100 finite weights", of a seed
+        raise ValueError(f"--identity {text:.40}: a seed has at most 18 digits")
     try:
         vals = [float(x) for x in t.split(",")]
     except ValueError:
@@ -122,7 +126,8 @@ def _parse_face(spec: str, resolution: int) -> FaceChoice:
             return FaceChoice("ict", "ict")
         key, _, value = query.partition("=")
         if key != "identity" or not re.fullmatch(r"\d{1,18}", value):
-            raise PuppetError(f"--face {text!r}: expected ict or ict?identity=SEED (SEED an integer >= 0)")
+            raise PuppetError(f"--face {text!r:.60}: expected ict or ict?identity=SEED (SEED an integer >= 0 of at "
+                              "most 18 digits)")
         return FaceChoice("ict", f"ict?identity={int(value)}", seed_identity(int(value)))
     if query or not NAME_RE.match(base):
         raise PuppetError(f"--face {text!r}: expected {FORMS}")

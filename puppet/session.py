@@ -151,10 +151,34 @@ def _aside(p: Path, n: int) -> Path:
     return p.with_name(fitting_stem(p.parent, p.stem, len(os.fsencode(tail))) + tail)
 
 
-def keep_previous(path: str | Path) -> Path | None:
+#: what a show writes beside its take `NAME.jsonl`, named after it: the sound of its first audio
+#: input, the last frame of a show without a display, the demo's video
+COMPANIONS = (".wav", ".png", ".mp4")
+
+
+def _companions(p: Path) -> list[str]:
+    """The suffixes of the files beside the take `p` that belong to it (`NAME.wav`, ...): the
+    first sound and the show's pictures, and every further sound its header names (`NAME.2.wav`)."""
+    found = [c for c in COMPANIONS if p.with_suffix(c).is_file()]
+    try:
+        with open(p, "rb") as fh:
+            head = json.loads(fh.readline(1 << 20))
+        for entry in head.get("audio", [])[1:]:
+            name = entry.get("file") if isinstance(entry, dict) else None
+            if isinstance(name, str) and name.startswith(p.stem + ".") and name.endswith(".wav") \
+                    and "/" not in name and (p.parent / name).is_file():
+                found.append(name[len(p.stem):])
+    except (OSError, ValueError, AttributeError, TypeError):
+        pass  # a damaged take: its first sound and pictures still go with it
+    return found
+
+
+def keep_previous(path: str | Path, companions: bool = False) -> Path | None:
     """Before a new take is written to `path`, move a take already there aside (to the first free
     `NAME.1.jsonl`, `NAME.2.jsonl`, ...) so that starting a show never destroys an earlier one;
-    returns where it went, or None when there was nothing to keep."""
+    returns where it went, or None when there was nothing to keep. `companions`: the files the
+    take's show wrote beside it (`NAME.wav`, `NAME.png`, `NAME.mp4`) go with it (`NAME.1.wav`...),
+    so the new show's do not take their place: the kept take's sound was the new take's."""
     p = Path(path)
     try:
         if p.stat().st_size == 0:
@@ -163,9 +187,11 @@ def keep_previous(path: str | Path) -> Path | None:
         return None
     if _being_recorded(p):
         raise ConfigError(f"{p}: another show is recording to it; choose another --record name")
+    tails = _companions(p) if companions else []
     for n in range(1, 10_000):
         kept = _aside(p, n)
-        if not os.path.lexists(kept):
+        beside = [(p.with_name(p.stem + t), kept.with_name(kept.stem + t)) for t in tails]
+        if not os.path.lexists(kept) and not any(os.path.lexists(b) for _, b in beside):
             try:
                 os.link(p, kept)  # never replaces a file that appeared meanwhile
             except FileExistsError:
@@ -174,6 +200,12 @@ def keep_previous(path: str | Path) -> Path | None:
                 raise ConfigError(f"{p}: a take is already there and cannot be kept aside "
                                   f"({err.strerror}); choose another --record name") from err
             p.unlink()
+            for a, b in beside:
+                try:
+                    os.link(a, b)
+                    a.unlink()
+                except OSError:
+                    pass  # left where it was: the new show's file of that name is written beside it
             return kept
     raise ConfigError(f"{p}: a take is already there and {p.stem}.1..9999{p.suffix} are all taken; "
                       "choose another --record name")

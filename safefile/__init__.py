@@ -199,6 +199,14 @@ def load_json(text: str, source: str, what: str, max_depth: int = MAX_DEPTH) -> 
     return value
 
 
+def toml_end(text: str) -> str:
+    """LINE:COLUMN just past the last character that is not a line break: where tomllib's "at end
+    of document" error is (a value cut short on the file's last line)."""
+    body = text.rstrip("\r\n")
+    line = body.count("\n") + 1
+    return f"{line}:{len(body) - (body.rfind(chr(10)) + 1) + 1}"
+
+
 def load_toml(text: str, source: str, what: str, max_depth: int = MAX_DEPTH) -> dict[str, Any]:
     """TOML with bounded nesting; a syntax error names file:line:col."""
     import re
@@ -210,6 +218,9 @@ def load_toml(text: str, source: str, what: str, max_depth: int = MAX_DEPTH) -> 
         msg = str(err)
         m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
         where = f"{m.group(1)}:{m.group(2)}" if m else "1:1"
+        if not m and "(at end of document)" in msg:  # was 1:1 for a file cut short on its last line
+            where = toml_end(text)
+            msg = msg.replace("(at end of document)", "(at the end of the file)")
         what_ = re.sub(r"\s*\(at line \d+, column \d+\)", "", msg) or "invalid TOML"
         raise BadFile(f"{source}:{where}: TOML syntax error: {what_}") from err
     except RecursionError as err:

@@ -238,9 +238,15 @@ def _parse(data: Any, p: str) -> FaceRig:
     if tris.size and (tris.min() < 0 or tris.max() >= n):
         raise RigFileError(f"{p}: triangles refer to vertices outside 0..{n - 1}")
     loops = [_array(data, k, p, (None,), "iu") for k in ("eye_loop_l", "eye_loop_r", "mouth_loop")]
-    for loop in loops:
+    for key, loop in zip(("eye_loop_l", "eye_loop_r", "mouth_loop"), loops):
         if loop.size and (loop.min() < 0 or loop.max() >= n):
             raise RigFileError(f"{p}: an eye or mouth loop refers to vertices outside 0..{n - 1}")
+        if len(np.unique(loop)) < len(loop):
+            # an opening whose border touched itself (an import before pinched borders were split):
+            # the lid and lip rows walked it twice and the implicit integrator stopped with a traceback
+            twice = int(np.flatnonzero(np.bincount(loop) > 1)[0])
+            raise RigFileError(f"{p}: {key} passes vertex {twice} twice (the opening's border touches itself "
+                               "there); import the head again with `puppet import-face`")
     landmarks = table(header.get("landmarks", {}), f"{p}: landmarks", MAX_ENTRIES)
     if not all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v < n for v in landmarks.values()):
         raise RigFileError(f"{p}: landmarks must map names to vertex indices in 0..{n - 1}")

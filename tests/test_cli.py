@@ -87,3 +87,16 @@ def test_templates_refuse_an_unbounded_gain(tmp_path, capsys) -> None:
         assert main(["templates", "--out", str(out), "--gain", gain]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "--gain" in err and not out.exists()
+
+
+def test_templates_into_a_file_says_it_is_a_file(tmp_path, capsys) -> None:
+    """`--out` naming a file said "cannot create the folder: File exists"; it says a file is there
+    and that --out names a folder, and the file is kept."""
+    from puppet.cli import main
+
+    out = tmp_path / "notes.csv"
+    out.write_text("keep me\n")
+    assert main(["templates", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "a file is there" in err and "folder" in err, err
+    assert out.read_text() == "keep me\n"

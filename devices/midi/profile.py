@@ -184,8 +184,11 @@ def parse_profile(text: str, source: str = "<profile>", name: str | None = None,
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
+        from safefile import toml_end
+
         m = re.search(r"\(at line (\d+)", str(err))
-        raise ProfileError(f"{source}:{m.group(1) if m else 1}: TOML syntax error: "
+        line = m.group(1) if m else toml_end(text).split(":")[0] if "end of document" in str(err) else 1
+        raise ProfileError(f"{source}:{line}: TOML syntax error: "
                            f"{re.sub(r' [(]at line.*', '', str(err))}") from err
     except RecursionError as err:  # an array nested thousands deep
         raise ProfileError(f"{source}:1: the profile is nested too deep; a profile is flat tables") from err

@@ -51,7 +51,7 @@ def select(selection: list[str], library: str | None, suffixes: tuple[str, ...])
         if p.is_dir():
             paths += sorted(q for q in p.rglob("*") if q.is_file() and q.name.lower().endswith(suffixes)
                             and not any(part.startswith(".") for part in q.relative_to(p).parts)
-                            and not _channel_export(q))
+                            and not _channel_export(q) and not _take_sound(q))
         elif p.is_file():
             paths.append(p)
         else:
@@ -100,6 +100,12 @@ def _channel_export(path: Path) -> bool:
             return fh.read(len(CHANNEL_CSV_HEAD)) == CHANNEL_CSV_HEAD
     except OSError:
         return False
+
+
+def _take_sound(path: Path) -> bool:
+    """A take's sound (`take.wav` beside `take.jsonl`, recorded from a microphone): in a folder,
+    not a voice to fit (a voice's WAV alone is one; they were all left out without a word)."""
+    return path.name.lower().endswith(".wav") and path.with_suffix(".jsonl").is_file()
 
 
 def load(path: Path) -> Input:

@@ -22,7 +22,7 @@ from puppet.batch.plan import EXPORT_KINDS, Output, chunks, drop_token, load, ou
 from puppet.errors import PuppetError
 
 SUFFIXES = {"export": (".jsonl",), "recognize": (".jsonl", ".csv", ".c3d", ".pc2"),
-            "fit": (".csv", ".c3d", ".pc2")}
+            "fit": (".csv", ".c3d", ".pc2", ".wav")}
 CONNECT_TIMEOUT = 20.0
 
 

@@ -16,7 +16,7 @@ from puppet.capture.points import ChannelCapture, PointCapture, load_corresponde
 from puppet.errors import ConfigError
 from safefile import not_a_file
 
-__all__ = ["ChannelCapture", "PointCapture", "load_correspondence", "read_capture"]
+__all__ = ["ChannelCapture", "PointCapture", "is_arkit_csv", "load_correspondence", "read_capture"]
 
 
 def _first_line(path: Path) -> str:
@@ -26,6 +26,12 @@ def _first_line(path: Path) -> str:
     except OSError as err:
         raise ConfigError(f"{path}: cannot read the capture: {err.strerror}") from err
     return head.decode("utf-8", "replace").lstrip("\ufeff").strip()
+
+
+def is_arkit_csv(path: Path) -> bool:
+    """A Live Link Face / ARKit blendshape CSV (its header starts with Timecode), told from a
+    landmark CSV by its first line."""
+    return path.suffix.lower() == ".csv" and _first_line(path).lower().startswith("timecode")
 
 
 #: --fps, the rate of a capture that stores none (PC2 samples, ARKit timecodes' frame field)
@@ -54,8 +60,7 @@ def read_capture(path: str | Path, face: Any, correspondence: str | Path | None 
 
         return read_c3d(p, face.model.mesh, corr)
     if suffix == ".csv":
-        head = _first_line(p)
-        if head.lower().startswith("timecode"):
+        if is_arkit_csv(p):
             from puppet.capture.arkit_in import read_arkit_csv
 
             return read_arkit_csv(p, fps)

@@ -3,6 +3,8 @@
   .mp4         video (imageio-ffmpeg, H.264, any view)
   folder/      PNG frames frame_000000.png ... (a path without suffix, or an existing folder)
   .png         one still frame (at --from)
+  .obj         the posed mesh at --from (as `puppet pose --out X.obj` writes it; the scanned head: its
+               26,719 vertices in the scan's order)
   .pc2         point cache + a rest .obj beside it with the same vertex order (Blender Mesh Cache)
   .arkit.csv   Live Link Face-style ARKit blendshape CSV
   .csv         native channel curves
@@ -49,14 +51,14 @@ def kind_of(out: Path) -> str:
     if name.endswith(".arkit.csv"):
         return "arkit"
     suffix = out.suffix.lower()
-    kinds = {".mp4": "mp4", ".png": "png", ".pc2": "pc2", ".csv": "csv", ".curves": "curves"}
+    kinds = {".mp4": "mp4", ".png": "png", ".pc2": "pc2", ".csv": "csv", ".curves": "curves", ".obj": "obj"}
     # a folder in the way of `x.csv` is the file's name taken, not a request for PNG frames (they
     # went into it): the write names the folder; a folder of any other name gets the frames
     if (out.is_dir() and suffix not in kinds) or suffix == "" or str(out).endswith(("/", "\\")):
         return "frames"
     if suffix not in kinds:
         raise PuppetError(f"{out}: unknown export type {suffix!r}; expected .mp4, a folder for PNG frames, "
-                          ".png, .pc2, .csv, .arkit.csv or .curves")
+                          ".png, .obj, .pc2, .csv, .arkit.csv or .curves")
     return kinds[suffix]
 
 
@@ -100,7 +102,7 @@ def export(perf: Performance, out: str | Path, opts: ExportOptions) -> str:
         if opts.view not in VIEWS:
             raise PuppetError(f"unknown view {opts.view!r}; choose one of {', '.join(VIEWS)}")
     ticks = frame_ticks(perf, opts.fps, opts.start, opts.end, opts.speed)
-    if kind == "png":
+    if kind in ("png", "obj"):
         ticks = ticks[:1]
     names = [c.name for c in perf.face.vocab.channels]
     if kind == "curves":
@@ -120,7 +122,9 @@ def export(perf: Performance, out: str | Path, opts: ExportOptions) -> str:
     if kind in ("csv", "arkit"):
         return _export_csv(perf, out, kind, ticks, names, opts)
     mismatches: list[int] = []
-    if kind == "pc2":
+    if kind == "obj":
+        done = _export_obj(perf, out, ticks, mismatches)
+    elif kind == "pc2":
         done = _export_pc2(perf, out, ticks, opts, mismatches)
     else:
         done = _export_images(perf, out, kind, ticks, opts, mismatches)
@@ -213,6 +217,20 @@ def _pc2_summary(out: Path, n: int, opts: ExportOptions) -> str:
     return (f"wrote {n} samples at {opts.fps:g} fps (start frame {opts.start_frame:g}) to {out} "
             f"and the rest mesh to {out.with_suffix('.obj')}; in Blender: scene at {opts.fps:g} fps, Mesh Cache "
             "modifier Time Mode Frame, Frame Start 1, Forward -Z, Up +Y (docs/live.md)")
+
+
+def _export_obj(perf: Performance, out: Path, ticks: list[int], mismatches: list[int]) -> str:
+    """The posed mesh at the first of `ticks` (--from), written as `puppet pose` writes an OBJ.
+    (`--out take.obj` was refused: an OBJ came only as the rest mesh beside a PC2.)"""
+    from puppet.cmd_pose import write_pose
+
+    for _, k, state, _ in iter_frames(perf, ticks, mismatches):
+        try:
+            write_pose(perf.face.model, state, out)
+        except OSError as err:
+            raise ConfigError(f"{out}: cannot write the mesh: {err.strerror or err}") from err
+        return f"wrote the posed mesh at {k / perf.rate:.3f} s ({len(perf.face.model.rest)} simulated vertices) to {out}"
+    raise PuppetError(f"{out}: no frame to write")
 
 
 def _export_pc2(perf: Performance, out: Path, ticks: list[int], opts: ExportOptions,

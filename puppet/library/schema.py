@@ -133,6 +133,9 @@ def connect(path: Path) -> tuple[sqlite3.Connection, bool]:
     file, ConfigError for one that cannot be opened at all."""
     if path.is_file() and path.parent.is_dir() and not os.access(path.parent, os.W_OK):
         return _connect_read_only(path), False
+    if path.is_dir():  # was "cannot open the take library: unable to open database file"
+        raise ConfigError(f"{path}: is a folder, not a take library; pass --library with the library's file, "
+                          f"e.g. {path / 'takes.db'}")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:

@@ -4,6 +4,7 @@ that process; and `puppet live` recording a take and its sound while the voice s
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 import time
@@ -129,9 +130,9 @@ def test_puppet_live_records_the_take_and_its_sound(jack_server: str, speech, tm
     path, _ = speech
     take = tmp_path / "take.jsonl"
     voice = Voice().plug()
-    live = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--device", "audio://voice?api=jack",
-                             "--headless", "--no-panel", "--duration", "9", "--record", str(take)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    show = [sys.executable, "-m", "puppet", "live", "--device", "audio://voice?api=jack", "--headless", "--no-panel",
+            "--record", str(take)]
+    live = subprocess.Popen([*show, "--duration", "9"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         wait_connected(jack_server, "voice:out_1")
         deadline = time.monotonic() + 60
@@ -140,12 +141,25 @@ def test_puppet_live_records_the_take_and_its_sound(jack_server: str, speech, tm
             time.sleep(0.05)
         voice.play(path)
         out, err = live.communicate(timeout=120)
+        assert live.returncode == 0, err
+        first = (tmp_path / "take.wav").read_bytes()
+        # a second show recording to the same take: the first take is kept aside with its own sound
+        # (its sound was kept aside apart from it, and the kept take then played the new show's)
+        again = subprocess.run([*show, "--duration", "1"], capture_output=True, text=True, timeout=120)
+        assert again.returncode == 0, again.stderr
     finally:
         if live.poll() is None:
             live.kill()
             live.wait(10)
         voice.close()
-    assert live.returncode == 0, err
+    from puppet.audio_take import take_audio
+
+    kept = take_audio(read_session(tmp_path / "take.1.jsonl"))
+    assert kept == tmp_path / "take.1.wav" and kept.read_bytes() == first
+    assert take_audio(read_session(take)) == tmp_path / "take.wav"
+    assert (tmp_path / "take.wav").read_bytes() != first
+    shutil.copy(tmp_path / "take.1.jsonl", take)  # the first take where it was, for the checks below
+    shutil.copy(tmp_path / "take.1.wav", tmp_path / "take.wav")
     session = read_session(take)
     spec = "audio://voice?api=jack"
     evs = [(e["time"], e["ctl"], e["value"]) for e in session.events if e.get("dev") == spec and "ctl" in e]

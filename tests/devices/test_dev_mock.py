@@ -124,6 +124,22 @@ def test_inline_generators_and_bad_scripts(tmp_path: Path) -> None:
     assert [e.control for e in open_device("mock://" + js).play_all()] == ["button0"]
 
 
+def test_a_misspelt_script_key_is_one_line_naming_it(tmp_path: Path) -> None:
+    """A script's misspelt table (`[[rmp]]`, `[[press]]`) or entry key (`strat`) was ignored: the
+    device opened and played nothing of it, silently. One line naming the script, the entry and the
+    key, and what the script may hold; the inline form's generators keep working."""
+    for text, words in (('impersonate = "sgi"\n[[rmp]]\ncontrol = "dial1"\n', ("'rmp'", "ramp")),
+                        ('[[ramp]]\ncontrol = "dial1"\nstrat = 1.0\n', ("ramp[0]", "'strat'", "start")),
+                        ('[[events]]\nt = 0\ncontrol = "button1"\nvalu = 1\n', ("events[0]", "'valu'", "value"))):
+        path = _write(tmp_path, text, "typo.toml")
+        with pytest.raises(DeviceSpecError) as err:
+            open_device("mock://" + path)
+        msg = str(err.value)
+        assert path in msg and "\n" not in msg and all(w in msg for w in words), msg
+    dev = open_device("mock://?impersonate=sgi&sine=dial0&ramp=dial2&buttons=button3&duration=1&rate=20&speed=0")
+    assert {e.control for e in dev.play_all()} == {"dial0", "dial2", "button3"}
+
+
 def test_puppet_monitor_json_lines(tmp_path: Path) -> None:
     path = _write(tmp_path, SCRIPT)
     out = subprocess.run([sys.executable, "-m", "puppet", "monitor", f"mock://{path}", "--json", "--duration", "20"],

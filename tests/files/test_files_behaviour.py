@@ -115,6 +115,12 @@ def test_bounded_toml_names_the_line() -> None:
     with pytest.raises(BadFile, match=r"^f.toml:2:\d+: TOML syntax error"):
         load_toml("a = 1\nb = = 2\n", "f.toml", "test file")
     assert load_toml("a = [[1, 2], [3]]\n", "f.toml", "test file") == {"a": [[1, 2], [3]]}
+    # a file cut short on its last line: tomllib says "at end of document", which was reported as 1:1
+    for text, where in (('version = 1\n[[binding]]\ncontrol=', ":3:9:"), ('x = "abc', ":1:9:"),
+                        ('a = 1\nb = [1,\n\n', ":2:8:")):
+        with pytest.raises(BadFile, match="^f.toml" + where) as err:
+            load_toml(text, "f.toml", "test file")
+        assert "end of the file" in str(err.value)
 
 
 def test_a_rig_array_header_promising_terabytes_is_refused_before_numpy_allocates(tmp_path: Path) -> None:

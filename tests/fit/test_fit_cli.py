@@ -566,3 +566,30 @@ def test_a_deep_or_huge_correspondence_file_is_one_short_line(tmp_path, performa
         out = tmp_path / f"{kind}.jsonl"
         err = _one_line_exit_2(capsys, ["fit", str(good), "--map", str(corr), "--out", str(out)], out)
         assert corr.name in err and len(err) < 400, (kind, err[:300])
+
+
+def test_a_report_of_a_capture_that_is_not_fitted_is_refused(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """--report is the fit's per-frame residual. A Live Link Face CSV is converted through the ARKit
+    map and a WAV analysed as a voice: neither is fitted, and --report was silently ignored (no
+    report, nothing said). Refused in one line before the face loads; nothing written."""
+    import wave
+
+    phone = tmp_path / "phone.csv"
+    phone.write_text("Timecode,BlendShapeCount,JawOpen\n00:00:00:00.000,1,0.0\n00:00:00:01.000,1,0.5\n")
+    speech = tmp_path / "speech.wav"
+    with wave.open(str(speech), "wb") as w:
+        w.setnchannels(1)
+        w.setsampwidth(2)
+        w.setframerate(16000)
+        w.writeframes(b"\x00\x00" * 1600)
+    take, report = tmp_path / "take.jsonl", tmp_path / "report.csv"
+    for capture, what in ((phone, "ARKit"), (speech, "voice")):
+        err = _one_line_exit_2(capsys, ["fit", str(capture), "--report", str(report), "--out", str(take)], take)
+        assert "--report" in err and capture.name in err and what in err, err
+        assert not report.exists()
+    # the fit's other options and a voice's missing ones were dropped the same way
+    for capture, extra in ((phone, ["--smooth", "0.1"]), (phone, ["--neutral", "3"]), (phone, ["--map", "ibug68"]),
+                           (speech, ["--age", "70"]), (speech, ["--no-relinearise"]), (speech, ["--fps", "30"]),
+                           (phone, ["--voice-profile", str(speech)])):
+        err = _one_line_exit_2(capsys, ["fit", str(capture), *extra, "--out", str(take)], take)
+        assert extra[0] in err and capture.name in err, err

@@ -201,6 +201,33 @@ def test_edit_command_errors_are_one_line(tmp_path: Path) -> None:
         assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
 
 
+def test_a_page_port_out_of_range_speaks_of_the_option(tmp_path: Path) -> None:
+    """`--panel 99999` is refused in the user's own words (the option and the number typed), before
+    the face loads: it printed the page device's error about a panel:// URL nobody typed."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), PUPPET_LIBRARY="off")
+    env.pop("DISPLAY", None)
+    for port in ("99999", "-1"):
+        for extra in ([], ["--panel-lan"]):
+            r = subprocess.run([sys.executable, "-m", "puppet", "live", "--panel", port, "--duration", "1", *extra],
+                               capture_output=True, text=True, env=env, timeout=120, cwd=tmp_path)
+            assert r.returncode == 2, r.stderr
+            assert r.stderr.count("\n") == 1 and f"--panel {port}" in r.stderr and "panel://" not in r.stderr, r.stderr
+    assert list(tmp_path.iterdir()) == []  # no recording started, no picture left
+
+
+def test_no_panel_with_a_page_option_is_one_line(tmp_path: Path) -> None:
+    """`--no-panel --panel 9000` (or with --panel-lan, --panel-role) served no page and said nothing
+    of the page option given: one line naming both, before the face loads, nothing written."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), PUPPET_LIBRARY="off")
+    env.pop("DISPLAY", None)
+    for extra in (["--panel", "0"], ["--panel-lan"], ["--panel-role", "mouth=jaw"]):
+        r = subprocess.run([sys.executable, "-m", "puppet", "live", "--no-panel", *extra, "--duration", "1"],
+                           capture_output=True, text=True, env=env, timeout=120, cwd=tmp_path)
+        assert r.returncode == 2, r.stderr
+        assert r.stderr.count("\n") == 1 and "--no-panel" in r.stderr and extra[0] in r.stderr, r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_page_port_in_use_is_one_line(tmp_path: Path) -> None:
     """Another program holds the page's port: one line and exit 2, no asyncio complaint about the
     page's broadcast task after it."""

@@ -50,6 +50,26 @@ def test_pose_obj(tmp_path: Path) -> None:
     assert sum(1 for ln in lines if ln.startswith("f ")) > 1000
 
 
+def test_pose_obj_of_a_turned_head_is_turned_as_drawn(tmp_path: Path) -> None:
+    """The head turns on the neck (head_yaw), drawn and in a PC2 turned; the procedural face's OBJ
+    held the skin in the head's own frame, facing front. At head_yaw 0.5 (45 degrees) the nose tip
+    swings sideways by centimetres while the face keeps its shape (a turn, not a deformation)."""
+    def verts(path: Path) -> np.ndarray:
+        return np.array([[float(x) for x in ln.split()[1:4]] for ln in path.read_text().splitlines()
+                         if ln.startswith("v ")])
+
+    rest, turned = tmp_path / "rest.obj", tmp_path / "turned.obj"
+    for out, extra in ((rest, []), (turned, ["--set", "head_yaw=0.5"])):
+        assert main(["pose", "--face", "procedural", "--seconds", "0.05", *extra, "--out", str(out)]) == 0
+    a, b = verts(rest), verts(turned)
+    nose = int(np.argmax(a[:, 2]))
+    assert abs(b[nose, 0] - a[nose, 0]) > 3.0  # cm
+    top = np.flatnonzero(a[:, 1] > np.median(a[:, 1]))[::7]
+    def dist(p: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(p[top][:, None] - p[top][None], axis=2)
+    assert np.abs(dist(b) - dist(a)).max() < 0.05
+
+
 @pytest.mark.parametrize(
     "args, needle",
     [
@@ -141,3 +161,22 @@ def test_an_unknown_view_for_a_picture_is_one_line(tmp_path: Path, capsys: pytes
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--view 'bogus'" in err and "shaded" in err
     assert not out.exists()
+
+
+def test_options_that_name_another_face_are_refused_not_ignored(tmp_path: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """`--rig R --face ict` ran the rig and `--face ict --resolution 2` the scanned head, each
+    option dropped without a word. One line naming both options, exit 2, nothing written (the
+    checks come before the face loads)."""
+    out = tmp_path / "p.png"
+    rig = tmp_path / "r.npz"
+    rig.write_bytes(b"never read")
+    for argv, words in ((["pose", "--rig", str(rig), "--face", "ict"], ("--rig", "--face")),
+                        (["view", "--rig", str(rig), "--face", "procedural"], ("--rig", "--face")),
+                        (["fit", "x.csv", "--rig", str(rig), "--face", "ict"], ("--rig", "--face")),
+                        (["pose", "--face", "ict", "--resolution", "2"], ("--resolution", "ict")),
+                        (["pose", "--rig", str(rig), "--resolution", "1"], ("--resolution",))):
+        assert main([*argv, "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and all(w in err for w in words), err
+        assert not out.exists()

@@ -86,6 +86,21 @@ def test_pc2_matches_the_simulation_and_obj_order(recording: Path, tmp_path: Pat
     assert np.allclose(obj, perf.face.model.rest, atol=1e-5)
 
 
+def test_obj_is_the_posed_mesh_at_from_as_the_pc2_holds_it(recording: Path, tmp_path: Path) -> None:
+    """`replay --out X.obj` was refused (an OBJ came only as the rest mesh beside a PC2): it is the
+    posed mesh at --from, like .png's still, vertex for vertex the PC2's sample of that tick."""
+    perf = build_performance(read_session(recording), None)
+    export(perf, tmp_path / "all.pc2", ExportOptions(fps=60))
+    _, data = read_pc2(tmp_path / "all.pc2")
+    summary = export(perf, tmp_path / "at.obj", ExportOptions(fps=60, start=0.5))
+    assert "at.obj" in summary
+    obj = np.array([list(map(float, ln.split()[1:4])) for ln in (tmp_path / "at.obj").read_text().splitlines()
+                    if ln.startswith("v ")])
+    assert obj.shape == data[30].shape
+    assert np.allclose(obj, data[30], atol=1e-4)
+    assert not np.allclose(obj, data[0], atol=1e-3)  # the dials moved the face by then
+
+
 def test_csv_and_arkit_rows(recording: Path, tmp_path: Path) -> None:
     perf = build_performance(read_session(recording), None)
     export(perf, tmp_path / "c.csv", ExportOptions(fps=60))

@@ -34,6 +34,13 @@ def test_face_forms(monkeypatch: pytest.MonkeyPatch) -> None:
             faces.parse_face(bad)
     with pytest.raises(PuppetError):
         faces.parse_face("procedural", 3)
+    # a seed past 18 digits was "expected 1 to 100 finite weights within -10..10" (as a weight) and
+    # "SEED an integer >= 0" (which it is): both say a seed has at most 18 digits
+    with pytest.raises(ValueError, match="at most 18 digits"):
+        faces.parse_identity("9" * 23)
+    with pytest.raises(PuppetError, match="at most 18 digits"):
+        faces.parse_face("ict?identity=" + "9" * 23)
+    assert faces.parse_identity("9" * 18)[1] == int("9" * 18)
 
 
 def test_a_bad_face_from_the_environment_is_named_as_such(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:

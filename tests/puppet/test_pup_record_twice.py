@@ -43,3 +43,26 @@ def test_a_take_named_near_the_file_system_limit_is_kept_aside(tmp_path: Path) -
         assert kept is not None and kept.read_text() == f"take {k}\\n" and not path.exists()
         assert kept.name.endswith(f".{k + 1}.jsonl") and len(kept.name.encode()) <= 255
     assert len(list(tmp_path.iterdir())) == 3
+
+
+def test_a_kept_take_keeps_its_sound_and_pictures(tmp_path: Path) -> None:
+    """What a show wrote beside its take (`take.wav`, the last frame `take.png`, the demo's
+    `take.mp4`) goes aside with the take, under one number: the new show's files of those names
+    replaced them (a kept take then replayed with the new take's sound). A file already holding
+    that number (`take.1.wav`) moves them all to the next."""
+    path = tmp_path / "take.jsonl"
+    w = SessionWriter(path, {"channels": ["jaw"]}, fsync_seconds=None)
+    w.values(0, [0.25])
+    w.tick(1)
+    w.close(1)
+    for suffix in (".wav", ".png", ".mp4"):
+        path.with_suffix(suffix).write_bytes(b"the first show's " + suffix.encode())
+    (tmp_path / "take.1.wav").write_bytes(b"somebody else's")
+    (tmp_path / "other.png").write_bytes(b"not the take's")
+    kept = keep_previous(path, companions=True)
+    assert kept == tmp_path / "take.2.jsonl"
+    for suffix in (".wav", ".png", ".mp4"):
+        assert (tmp_path / f"take.2{suffix}").read_bytes() == b"the first show's " + suffix.encode()
+        assert not path.with_suffix(suffix).exists()
+    assert (tmp_path / "take.1.wav").read_bytes() == b"somebody else's"
+    assert (tmp_path / "other.png").exists()

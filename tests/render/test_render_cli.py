@@ -63,3 +63,27 @@ def test_view_opens_a_window_that_escape_closes(xvfb_display: str, tmp_path: Pat
             proc.wait()
     assert proc.returncode == 0, err
     assert not (tmp_path / "puppet-view.png").exists()  # it did not fall back
+
+
+def test_view_plays_a_preset_as_pose_does_on_the_scanned_head(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """`puppet view --expression surprise` drew the scanned head's surprise at the shared table's
+    intensities (no raised upper lids, AU5; the jaw at 0.4), where `puppet pose` plays the head's
+    own (sim.facs.FACE_EXPRESSIONS): the window showed another face than the pose's file."""
+    from puppet import cmd_view
+    from puppet.cli import main
+    from sim import facs
+    from sim.state import FaceControl
+
+    seen = []
+    real = cmd_view.pose
+    monkeypatch.setattr(cmd_view, "pose", lambda model, control, seconds: (seen.append(control.values.copy()),
+                                                                            real(model, control, seconds))[1])
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    out = tmp_path / "v.png"
+    assert main(["view", "--face", "ict", "--expression", "surprise", "--seconds", "0", "--size", "64x48",
+                 "--out", str(out)]) == 0
+    want = FaceControl()
+    facs.apply_expression(want, "surprise", 1.0, "ict")
+    assert np.array_equal(seen[0], want.values)
+    assert want.get("levator_palpebrae_l") > 0 and out.is_file()

@@ -60,7 +60,7 @@ def _header(src: Path) -> dict:
 
 
 @pytest.mark.parametrize("case", ["garbage", "missing", "no_header", "version", "tri_range", "muscle_field",
-                                  "pickled", "nan", "landmark"])
+                                  "pickled", "nan", "landmark", "pinched_loop"])
 def test_malformed_rig_raises_one_line_naming_the_file(synth_rig: FaceRig, tmp_path: Path, case: str) -> None:
     good = tmp_path / "good.npz"
     save_rig(synth_rig, good)
@@ -93,6 +93,10 @@ def test_malformed_rig_raises_one_line_naming_the_file(synth_rig: FaceRig, tmp_p
     elif case == "landmark":
         head["landmarks"]["chin"] = -5
         _rewrite(good, bad, header=np.array(json.dumps(head)))
+    elif case == "pinched_loop":  # an opening's border through one vertex twice (an older import)
+        with np.load(good) as d:
+            loop = d["mouth_loop"].copy()
+        _rewrite(good, bad, mouth_loop=np.concatenate([loop, loop[2:3]]))
     with pytest.raises(RigFileError) as info:
         load_rig(bad)
     msg = str(info.value)

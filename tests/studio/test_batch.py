@@ -433,3 +433,18 @@ def test_an_unclosed_ipv6_scheduler_and_a_runaway_worker_count_are_one_line(tmp_
         _, err = capsys.readouterr()
         assert err.count("\n") == 1 and extra[0] in err, (extra, err)
     assert not out.exists()
+
+
+def test_a_folder_of_voices_is_fitted_but_a_takes_sound_is_not(tmp_path: Path) -> None:
+    """`puppet fit speech.wav` fits a voice, and `batch fit speech.wav` did too, but `batch fit
+    FOLDER` left every WAV out without a word. A WAV alone is a voice to fit; `take.wav` beside
+    `take.jsonl` (a show's microphone) is the take's sound, not a capture."""
+    from puppet.batch.plan import select
+    from puppet.batch.run import SUFFIXES
+
+    (tmp_path / "voices").mkdir()
+    for name in ("voices/vowels.wav", "voices/Hum.WAV", "show.wav", "show.jsonl", "notes.txt"):
+        (tmp_path / name).write_bytes(b"RIFF")
+    got = sorted(p.relative_to(tmp_path).as_posix() for p in select([str(tmp_path)], None, SUFFIXES["fit"]))
+    assert got == ["voices/Hum.WAV", "voices/vowels.wav"]
+    assert [p.name for p in select([str(tmp_path / "show.wav")], None, SUFFIXES["fit"])] == ["show.wav"]

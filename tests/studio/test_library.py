@@ -307,6 +307,15 @@ def test_a_file_that_was_never_a_library_is_left_alone(tmp_path: Path, capsys: p
         assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(path.name)) == [path.name], path
 
 
+def test_a_folder_given_as_the_library_says_so(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """`--library DIR` said "cannot open the take library: unable to open database file"; it says
+    the name is a folder and which file to name instead, and the folder is left as it was."""
+    code, out, err = takes_cli(capsys, tmp_path, "list")
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and "is a folder" in err and str(tmp_path / "takes.db") in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_recording_again_to_a_take_keeps_its_tags_with_the_kept_take(tmp_path: Path) -> None:
     """Recording to a path that holds a take keeps the earlier take as NAME.1.jsonl: the library
     follows it there (its id, tags and notes), and the new recording is a take of its own."""

@@ -151,3 +151,46 @@ def ray_triangle(
     eps = 1e-9
     hit = ok & (u >= -eps) & (v >= -eps) & (u + v <= 1 + eps) & (t > 0)
     return np.where(hit, t, np.inf)
+
+
+def split_pinched(vertices: FloatArray, triangles: IntArray, where: np.ndarray) -> tuple[FloatArray, IntArray, IntArray]:
+    """Split each vertex of `where` (a (N,) mask) that a border loop (`boundary_loops`) passes twice:
+    the border touches itself there (e.g. lips modelled meeting at one point of the mouth's hole)
+    and the walk went round both holes as one. Every fan of its triangles joined to the others only
+    through the vertex gets a copy of its own, appended after the existing vertices, so the
+    opening's border is a simple loop (the simulation's lid and lip rows walk it corner to corner).
+    A border touching itself where the walk kept the holes apart is left as it is. Returns
+    (vertices, triangles, the split vertices' original indices)."""
+    twice: set[int] = set()
+    for loop in boundary_loops(triangles):
+        seen, count = np.unique(loop, return_counts=True)
+        twice.update(int(v) for v in seen[count > 1] if where[v])
+    pinched = np.array(sorted(twice), dtype=np.int64)
+    if not len(pinched):
+        return vertices, triangles, pinched
+    tris = np.array(triangles, copy=True)
+    extra: list[int] = []
+    for v in pinched.tolist():
+        edges, counts = edge_use_counts(tris)  # again: a split before may have renamed this fan's edges
+        shared = {tuple(e) for e in edges[counts == 2].tolist()}
+        fan = np.flatnonzero((tris == v).any(axis=1))
+        group = -np.ones(len(fan), dtype=np.int64)
+        for start in range(len(fan)):
+            if group[start] >= 0:
+                continue
+            group[start] = group.max() + 1
+            stack = [start]
+            while stack:  # triangles of the fan that share an inner edge (v, w) are one fan
+                a = stack.pop()
+                ws = set(tris[fan[a]].tolist()) - {v}
+                for b in np.flatnonzero(group < 0).tolist():
+                    common = ws & set(tris[fan[b]].tolist())
+                    if any((min(v, w), max(v, w)) in shared for w in common):
+                        group[b] = group[start]
+                        stack.append(b)
+        for g in range(1, int(group.max()) + 1):
+            block = tris[fan[group == g]]
+            block[block == v] = len(vertices) + len(extra)
+            tris[fan[group == g]] = block
+            extra.append(v)
+    return np.vstack([vertices, vertices[extra]]), tris, pinched

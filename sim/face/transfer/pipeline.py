@@ -16,7 +16,7 @@ from sim.face.transfer.cylinder import Cylinder, fit_cylinder
 from sim.face.transfer.flatten import CylinderChart, flat_triangulation, hidden_under, project_back
 from sim.face.transfer.frame import Similarity, fit_similarity, landmark_axes, rotation_angle
 from sim.face.transfer.geometry import (closest_points, edge_use_counts, in_polygon, locate_2d, outer_loop,
-                                   triangle_normals, unique_edges)
+                                   split_pinched, triangle_normals, unique_edges)
 from sim.face.transfer.eyes import seat_eyes
 from sim.face.transfer.forces import match_forces
 from sim.face.transfer.lids import open_lids
@@ -224,6 +224,7 @@ class _Head:
     cut: list[IntArray]
     flipped: bool
     dropped: int
+    split: int = 0  # vertices where the border touched itself, split (geometry.split_pinched)
 
 
 def _bring_in(head: HeadMesh, lf: LandmarkFile, names: list[str], pts: dict[str, FloatArray],
@@ -255,7 +256,11 @@ def _bring_in(head: HeadMesh, lf: LandmarkFile, names: list[str], pts: dict[str,
     flipped = _check_surface(verts, tris, region, head.path)
     if flipped:
         tris = tris[:, ::-1].copy()
-    return _Head(verts, tris, lm_new, lm_vid, declared, cut, flipped, int((remap < 0).sum()))
+    # a border touching itself near the face (lips modelled meeting at one point) that an opening's
+    # loop walked twice is split there: the lip rows held that vertex twice, and building the rig's
+    # integrator (`puppet pose --rig`) stopped with a traceback
+    verts, tris, pinched = split_pinched(verts, tris, region)
+    return _Head(verts, tris, lm_new, lm_vid, declared, cut, flipped, int((remap < 0).sum()), len(pinched))
 
 
 def transfer_rig(
@@ -336,6 +341,10 @@ def transfer_rig(
     if support is not None:
         notes.append(f"{int((support < 1).sum())} lid vertices turned away from the front (folded into the "
                      "socket) have less of the skin's normal support")
+    if new.split:
+        what = "1 vertex" if new.split == 1 else f"{new.split} vertices"
+        notes.append(f"{what} where the mesh's border touched itself near the face split in two (an opening's "
+                     "border must be a simple loop); check the lips and lids there")
     for what in opened:
         notes.append(what)
     if not relax.converged:
