@@ -8,6 +8,7 @@ switch views. Without a display it says so in one line and writes an offscreen i
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -35,8 +36,10 @@ def register(subparsers: Any) -> None:
         description="Pose the face like `puppet pose` and show it in a window. Keys: drag to orbit, "
                     "scroll to zoom, R/Home reset, 1-5 or V views, F11 fullscreen, ? help, Esc quit.",
     )
-    p.add_argument("--out", default=DEFAULT_FALLBACK, metavar="FILE",
-                   help=f"image written instead when there is no display (default {DEFAULT_FALLBACK})")
+    p.add_argument("--out", default=None, metavar="FILE",
+                   help=f"image written instead when there is no display (default {DEFAULT_FALLBACK}, "
+                        "or the next free puppet-view.N.png beside it: an earlier picture is never replaced "
+                        "unless named)")
     p.add_argument("--size", default="1280x720", metavar="WxH", help="window size (default 1280x720)")
     p.add_argument("--view", default="shaded", metavar="VIEW",
                    help="shaded, wireframe, muscles, trails or heat (default shaded)")
@@ -67,13 +70,26 @@ def pose(model: Any, control: Any, seconds: float | None) -> tuple[Any, list[Any
     return state, history[:-1]
 
 
+def free_name(path: Path, limit: int = 9999) -> Path:
+    """`path` when nothing is there, else the first free `STEM.N.SUFFIX` beside it (N = 1..limit);
+    a PuppetError when every one is taken."""
+    if not os.path.lexists(path):
+        return path
+    for n in range(1, limit + 1):
+        candidate = path.with_name(f"{path.stem}.{n}{path.suffix}")
+        if not os.path.lexists(candidate):
+            return candidate
+    raise PuppetError(f"{path}: it and {path.stem}.1..{limit}{path.suffix} are all taken; "
+                      "pass --out FILE or move the pictures away")
+
+
 def run(args: argparse.Namespace) -> int:
     from puppet import cmd_pose
     from render.renderer import VIEWS
 
     if args.view not in VIEWS:
         raise PuppetError(f"--view {args.view!r}: choose one of {', '.join(VIEWS)}")
-    out = Path(args.out)
+    out = Path(args.out) if args.out is not None else Path(DEFAULT_FALLBACK)
     if out.suffix.lower() not in cmd_pose.IMAGE_SUFFIXES:
         raise PuppetError(f"--out {args.out}: the fallback image must be .png, .jpg or .jpeg")
     size = cmd_pose._size(args.size)
@@ -99,6 +115,8 @@ def run(args: argparse.Namespace) -> int:
         from render.offscreen import render_to_file
         from safefile import atomic_path
 
+        if args.out is None:  # the default name: an earlier view's picture is kept, not replaced
+            out = free_name(out)
         with atomic_path(out) as tmp:  # renamed into place when complete
             render_to_file(model, state, tmp, size=size, view=args.view, history=history, hud=hud)
         print(f"puppet view: {err}; wrote {out.resolve()} instead", file=sys.stderr)

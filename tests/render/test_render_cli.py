@@ -34,6 +34,22 @@ def test_view_without_display_writes_an_image_and_says_where(tmp_path: Path) -> 
     assert ((img[..., 0] - img[..., 2]) > 25).mean() > 0.1  # a face is in it
 
 
+def test_view_without_display_keeps_an_earlier_picture_of_the_default_name(tmp_path: Path) -> None:
+    """With no --out, the fallback picture of an earlier `puppet view` is kept: the new one goes
+    beside it as puppet-view.1.png (it was replaced without a word)."""
+    earlier = tmp_path / "puppet-view.png"
+    earlier.write_bytes(b"an earlier picture the user kept")
+    run = subprocess.run([sys.executable, "-m", "puppet", "view", "--face", "procedural", "--size", "160x120",
+                          "--seconds", "0"], env=_env(), cwd=tmp_path, capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert earlier.read_bytes() == b"an earlier picture the user kept"
+    new = tmp_path / "puppet-view.1.png"
+    assert str(new) in run.stderr
+    with Image.open(new) as im:
+        assert im.size == (160, 120)
+
+
 def test_view_rejects_an_unknown_view(tmp_path: Path) -> None:
     run = subprocess.run([sys.executable, "-m", "puppet", "view", "--view", "xray"], env=_env(),
                          cwd=tmp_path, capture_output=True, text=True, timeout=60)
