@@ -170,7 +170,8 @@ def run(args: argparse.Namespace) -> int:
                 print(f"puppet: ... and {len(rep.skipped) - 5} more files skipped", file=sys.stderr)
             n = len(rep.registered)
             print(f"puppet: registered {n} take{'' if n == 1 else 's'} from {args.folder}"
-                  + (f" ({len(rep.skipped)} files were not recordings)" if rep.skipped else "")
+                  + (f" ({len(rep.skipped)} files were not recordings)" if len(rep.skipped) > 1
+                     else " (1 file was not a recording)" if rep.skipped else "")
                   + (f"; {len(rep.known)} already in the library, unchanged" if rep.known else "")
                   + ("; `puppet takes check` adds their thumbnails and expression spans" if n else ""))
         elif act == "check":
