@@ -287,10 +287,12 @@ def gravity_offsets(weight: np.ndarray, tether: np.ndarray, support: np.ndarray,
 
 def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray,
                    normal: np.ndarray | None = None,
-                   springs: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> sp.csr_matrix:
+                   springs: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+                   tether: np.ndarray | None = None) -> sp.csr_matrix:
     """(3N, C) each channel's force field at full value: its muscle's pull (times the fitted
     insertion gain), plus its active strain's force (`sim.active_strain`; `springs`: indices, rest
-    lengths, k_low of the skin's springs) where the rig has one."""
+    lengths, k_low of the skin's springs) where the rig has one, plus the tether's pull towards its
+    moved anchors (`FaceRig.anchor`, `tether` (N,) dyn/cm: k_r d, exact since the tether is linear)."""
     import scipy.sparse as sp
 
     n = len(rest)
@@ -309,6 +311,9 @@ def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray,
                 from sim.active_strain import strain_force
 
                 f = f + strain_force(rest, springs[0], springs[1], springs[2], np.asarray(strain, np.float64))
+            anchor = rig.anchor.get(spec.name)
+            if anchor is not None and tether is not None:  # the deep layer carrying the tether's anchors
+                f = f + np.asarray(tether, np.float64)[:, None] * np.asarray(anchor, np.float64)
             cols.append(sp.csc_matrix(f.reshape(3 * n, 1)))
         else:
             cols.append(sp.csc_matrix((3 * n, 1)))
@@ -335,6 +340,8 @@ def _rig_digest(rig: FaceRig, params: SkinParams) -> str:
         h.update(b"skin" + name.encode() + np.ascontiguousarray(rig.skin[name], np.float64).tobytes())
     for name in sorted(rig.strain):  # none on a face without active strain: its hash is unchanged
         h.update(b"strain" + name.encode() + np.ascontiguousarray(rig.strain[name], np.float64).tobytes())
+    for name in sorted(rig.anchor):  # none on a face whose anchors stay: its hash is unchanged
+        h.update(b"anchor" + name.encode() + np.ascontiguousarray(rig.anchor[name], np.float64).tobytes())
     for name in sorted(rig.tissue):  # none on a face without named structures: its hash is unchanged
         h.update(b"tissue" + name.encode() + np.ascontiguousarray(rig.tissue[name], np.float64).tobytes())
     if rig.integrator != "auto":  # a face that asks for its integrator replays on it
@@ -412,7 +419,7 @@ def compile_model(rig: FaceRig, params: SkinParams | None = None) -> FaceModel:
         jaw_pivot=_frozen(mesh.jaw_pivot, np.float64),
         jaw_axis=_frozen(np.asarray(mesh.jaw_axis) / norm3(mesh.jaw_axis), np.float64),
         gravity=_frozen(gravity),
-        muscle_matrix=_muscle_matrix(rig, rest, area, normal, (springs, rest_len, k_low)),
+        muscle_matrix=_muscle_matrix(rig, rest, area, normal, (springs, rest_len, k_low), tether),
         params=p,
         omega_max=omega,
         hash=_rig_digest(rig, p),

@@ -158,6 +158,12 @@ class FaceRig:
     it, where both ends carry one). Fitted to scanned expressions for the scanned head
     (`sim.face.scan.strain_fit`); a channel not named has none, the procedural face none.
 
+    anchor: channel name -> (N, 3) cm, the displacement of each skin vertex's tether anchor (its
+    rest place on the tissue beneath) per unit value: the deep layer the muscle lies in carrying the
+    places the skin is tied to (`sim.face.scan.anchor_fit`). The tether being linear, it joins the
+    channel's field as the force k_r d. Fitted to scanned expressions for the scanned head; a
+    channel not named has none, the procedural face none.
+
     integrator: what `sim.integrator.Simulator(method="auto")` runs this face on: "auto" (by the
     work per frame), "rk2" or "implicit". An imported head asks for "implicit", whose fold guard
     keeps a foreign mesh's skin from turning over (`sim.antifold`).
@@ -176,3 +182,4 @@ class FaceRig:
     presets: str = ""
     tissue: dict[str, np.ndarray] = field(default_factory=dict)
     strain: dict[str, np.ndarray] = field(default_factory=dict)
+    anchor: dict[str, np.ndarray] = field(default_factory=dict)

@@ -19,6 +19,8 @@ Named structures of the skin (`FaceRig.tissue`, optional): header "tissue": [nam
 skin field per vertex, on top of `skin_<field>`).
 Active strain (`FaceRig.strain`, optional; `sim.active_strain`): header "strain": [channel names],
 and an array `strain_<channel>` (N,6) f8 in -1..1 each (xx, yy, zz, xy, xz, yz per vertex).
+Tether anchors moved by a channel (`FaceRig.anchor`, optional; `sim.face.scan.anchor_fit`): header
+"anchor": [channel names], and an array `anchor_<channel>` (N,3) f8 in -2..2 cm each.
 The integrator the face asks for (`FaceRig.integrator`, optional): header "integrator": "rk2" or
 "implicit" (absent: "auto"; imported heads ask for "implicit").
 Whose preset intensities the face takes (`FaceRig.presets`, optional): header "presets": a name of
@@ -84,6 +86,8 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
         header["tissue"] = sorted(rig.tissue)
     if rig.strain:  # likewise: rig files of faces without active strain are unchanged
         header["strain"] = sorted(rig.strain)
+    if rig.anchor:  # likewise: rig files of faces whose anchors stay are unchanged
+        header["anchor"] = sorted(rig.anchor)
     if rig.integrator != "auto":  # rig files of faces that leave the choice to the simulator are unchanged
         header["integrator"] = rig.integrator
     if rig.presets:  # likewise: only a face that asks for other presets says so
@@ -113,6 +117,8 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
         arrays[f"tissue_{name}"] = np.asarray(mult, np.float64)
     for name, strain in rig.strain.items():
         arrays[f"strain_{name}"] = np.asarray(strain, np.float64)
+    for name, anchor in rig.anchor.items():
+        arrays[f"anchor_{name}"] = np.asarray(anchor, np.float64)
     with atomic_write(path, "wb") as fh:  # a failed save leaves the old rig as it was
         np.savez_compressed(fh, **arrays)
 
@@ -305,6 +311,11 @@ def _parse(data: Any, p: str) -> FaceRig:
         name = string(name, f"{p}: strain channel")
         strain[name] = _bounded(data, f"strain_{name}", p, (n, 6), (-1.0, 1.0),
                                 f"active strain of {quote(name)} must lie in -1..1")
+    anchor = {}
+    for name in sequence(header.get("anchor", []), f"{p}: anchor", MAX_ENTRIES):
+        name = string(name, f"{p}: anchor channel")
+        anchor[name] = _bounded(data, f"anchor_{name}", p, (n, 3), (-2.0, 2.0),
+                                f"anchor displacements of {quote(name)} must lie in -2..2 cm")
     integrator = header.get("integrator", "auto")
     if integrator not in INTEGRATORS:
         raise RigFileError(f"{p}: integrator must be one of {', '.join(INTEGRATORS)}, "
@@ -312,7 +323,8 @@ def _parse(data: Any, p: str) -> FaceRig:
     presets = string(header["presets"], f"{p}: presets") if "presets" in header else ""
     return FaceRig(mesh=mesh, muscles=muscles, wrinkles=_wrinkles(header.get("wrinkles", []), p),
                    name=string(header.get("name", "rig"), f"{p}: name"), insertion=insertion,
-                   skin=skin, integrator=integrator, presets=presets, tissue=tissue, strain=strain)
+                   skin=skin, integrator=integrator, presets=presets, tissue=tissue, strain=strain,
+                   anchor=anchor)
 
 
 def _wrinkles(entries: Any, p: str) -> tuple:

@@ -176,7 +176,8 @@ def pack(path: str | Path = RIG_FILE) -> None:
 
     old = load_rig(path) if Path(path).is_file() else None
     made = replace(transferred_rig(), insertion=old.insertion if old else {}, skin=old.skin if old else {},
-                   tissue=old.tissue if old else {}, strain=old.strain if old else {})
+                   tissue=old.tissue if old else {}, strain=old.strain if old else {},
+                   anchor=old.anchor if old else {})
     save_rig(with_lids(made), path)
 
 

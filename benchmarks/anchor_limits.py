@@ -1,0 +1,195 @@
+"""How far the skin's tether anchors moving with the muscles could bring the scanned face to the scans (run by hand).
+
+Every scanned ARKit shape (left and right apart, `scan_match.scan_targets`) is driven with the
+channels the shipped ARKit map gives it (`shape_channels`) and settled on the shipped rig, as
+`scan_match.py --no-fit` does. On top of that settled pose, each muscle channel gets a field of
+tether-anchor displacements over its zone (`sim.face.scan.anchor_fit`: the deep tissue the muscle
+lies in carrying the places the skin is tied to, scaled by the channel's value, the sides
+mirrored), fitted in the linear statics of the shipped skin to what the settled pose misses, one
+field per channel shared by every shape that drives it, on the left and unsided shapes; the right
+ones are held out. Prints per shape the settled relative error (0 = the scan, 1 = as wrong as not
+moving) and the linear model's prediction with the fitted fields.
+
+`--settle` applies the fitted fields to the running simulator (their force k_r d joins each
+channel's response in the implicit step: no recompile) and settles every shape from rest;
+`--rounds R` then refits R times about the settled poses (the linear model's change from the
+current fields added to what the simulator settled, the step damped by `--damp`), settling again
+after each. `--scale` also settles the fields scaled by each given factor. `--save FILE` keeps the
+fitted per-channel displacement fields (cm). `--settled FILE` caches the shipped rig's settled
+poses. docs/scan-face.md ("The tissue under the skin moving with the muscle") has the figures.
+
+    nice .venv/bin/python benchmarks/anchor_limits.py [--smooth 1e-3] [--grow 0] [--bound 5] [--iters 300]
+        [--settle [--rounds R] [--damp 0.5] [--scale 0.5,0.25]] [--save FILE] [--all] [--settled FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+STILL_MM = 0.3
+
+
+def rms(d: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
+
+
+class AnchoredSettler:
+    """A Settler whose channels carry extra constant forces (N, 3) per channel at full value,
+    written into the implicit step's responses (as `sim.fit.rig_settled.InsertionBumps` does)."""
+
+    def __init__(self, model) -> None:  # type: ignore[no-untyped-def]
+        from sim.fit.basis import Settler
+
+        self.settler = Settler(model)
+        st = self.settler.sim._implicit  # type: ignore[attr-defined]
+        if st is None:
+            raise ValueError("needs the implicit integrator")
+        st._resp = np.array(st._resp)  # this simulator's own copy
+        self.stepper, self.base = st, st._resp.copy()
+        self.free = np.asarray(st.prepared["free"])
+        self.model = model
+
+    def apply(self, forces: dict[str, np.ndarray]) -> None:
+        self.stepper._resp[...] = self.base
+        for c, f in forces.items():
+            out = np.zeros((len(self.free), 3))
+            self.stepper.solver.solve(np.ascontiguousarray(f[self.free]), out)
+            self.stepper._resp[self.model.channel_index[c]] += out
+
+    def displacement(self, values: np.ndarray) -> np.ndarray:
+        return self.settler.pose(values) - self.settler.rest
+
+
+def summary(name: str, rel: np.ndarray, held: np.ndarray) -> None:
+    for what, m in (("all", np.ones(len(rel), bool)), ("fitted", ~held), ("held out", held)):
+        if m.any():
+            print(f"  {name} {what} ({m.sum()}): median {np.median(rel[m]):.3f} max {rel[m].max():.3f}, "
+                  f"{int(np.sum(rel[m] > 0.6))} above 0.6", flush=True)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--smooth", type=float, default=1e-3, help="Laplacian weight per edge and component (per mm^2)")
+    ap.add_argument("--ridge", type=float, default=1e-5, help="pull of each component towards 0 (per mm^2)")
+    ap.add_argument("--bound", type=float, default=5.0, help="bound of each component, mm")
+    ap.add_argument("--grow", type=float, default=0.0, help="grow each channel's zone by this many cm")
+    ap.add_argument("--iters", type=int, default=300, help="L-BFGS-B iterations at most")
+    ap.add_argument("--settled", type=Path, help="cache of the shipped rig's settled poses (read if present, else written)")
+    ap.add_argument("--settle", action="store_true", help="settle every shape on the simulator with the fitted fields")
+    ap.add_argument("--rounds", type=int, default=0, help="with --settle: refits about the settled poses")
+    ap.add_argument("--damp", type=float, default=0.5, help="with --rounds: the share of each refit's step taken")
+    ap.add_argument("--scale", default="", help="with --settle: also settle the fields scaled by these factors")
+    ap.add_argument("--save", type=Path, help="write the fitted fields here (npz, channel -> (N,3) cm)")
+    ap.add_argument("--write-rig", type=Path, help="write the scanned head's rig with the fitted fields here (FaceRig.anchor)")
+    ap.add_argument("--all", action="store_true", help="fit on all shapes (no held-out right ones)")
+    ap.add_argument("--shapes", default="", help="only these labels (comma separated)")
+    ap.add_argument("--rig", type=Path, help="start from this rig file of the scanned head instead of the shipped one")
+    args = ap.parse_args()
+    from scan_match import scan_targets
+
+    from puppet.capture.arkit_in import shape_channels
+    from puppet.face_cache import scan_model
+    from sim.face.scan.anchor_fit import AnchorCalibration
+
+    t0 = time.monotonic()
+    if args.rig:
+        from sim.build import compile_model
+        from sim.face.scan.rig import scan_params
+        from sim.rig import load_rig
+
+        model = compile_model(load_rig(args.rig), scan_params())
+    else:
+        model = scan_model()
+    cache = dict(np.load(args.settled)) if args.settled and args.settled.exists() else None
+    anch = AnchoredSettler(model) if (cache is None or args.settle) else None
+    labels, vals, targets, real = [], [], [], []
+    only = set(args.shapes.split(",")) if args.shapes else None
+    for label, (shape, target) in scan_targets(None).items():
+        if rms(target) * 10 < STILL_MM or (only and label not in only):
+            continue
+        v = shape_channels({shape: np.ones(1)}, 1)[0]
+        labels.append(label)
+        vals.append(v)
+        targets.append(target)
+        real.append(anch.displacement(v) if cache is None else cache[label])  # type: ignore[union-attr]
+    vals_a = np.array(vals)
+    if args.settled and cache is None:
+        np.savez(args.settled, **dict(zip(labels, real)))
+    print(f"{len(labels)} shapes settled in {time.monotonic() - t0:.0f} s", flush=True)
+    cal = AnchorCalibration(model, smooth=args.smooth, ridge=args.ridge, bound=args.bound, grow=args.grow)
+    print(f"anchor fields: {cal.n_params} parameters over {len(cal.groups)} muscles "
+          f"({time.monotonic() - t0:.0f} s)", flush=True)
+    train = [k for k, lab in enumerate(labels) if args.all or not lab.endswith("_R")]
+    held = np.array([k not in train for k in range(len(labels))])
+    w = np.array([1.0 / float(np.sum(targets[k] ** 2)) for k in train])
+    tg = [targets[k].ravel() for k in range(len(labels))]
+    b = np.stack([tg[k] - real[k].ravel() for k in train], axis=1)
+    res = cal.fit(vals_a[train], b, w, iters=args.iters)
+    print(f"fitted in {time.monotonic() - t0:.0f} s: {res.nit} iterations, {res.message}", flush=True)
+    add = cal.predict_all(vals_a)
+    before = np.array([rms(real[k] - targets[k]) / rms(targets[k]) for k in range(len(labels))])
+    after = np.array([rms(real[k] + add[k] - targets[k]) / rms(targets[k]) for k in range(len(labels))])
+    print(f"{'shape':22s} {'settled':>8s} {'+anchors':>8s}")
+    for k, lab in enumerate(labels):
+        print(f"{lab:22s} {before[k]:8.3f} {after[k]:8.3f}{'' if k in train else '  (held out)'}")
+    summary("settled", before, held)
+    summary("+ anchors (linear)", after, held)
+    p = cal.params.reshape(-1, 3)
+    mag = np.linalg.norm(p, axis=1)
+    dp = (cal.diff @ cal.params).reshape(-1, 3)
+    print(f"anchor displacement at full value, mm: median {np.median(mag):.2f}, 95th {np.percentile(mag, 95):.2f}, "
+          f"max {mag.max():.2f}; change across an edge: median {np.median(np.linalg.norm(dp, axis=1)):.3f}, "
+          f"95th {np.percentile(np.linalg.norm(dp, axis=1), 95):.3f}", flush=True)
+    if args.settle:
+        assert anch is not None
+
+        def settle_with(params: np.ndarray) -> list[np.ndarray]:
+            anch.apply({c: cal.force(c, params) for c in cal.channels})
+            return [anch.displacement(vals[k]) for k in range(len(labels))]
+
+        def report(name: str, sim: list[np.ndarray]) -> np.ndarray:
+            rel = np.array([rms(sim[k] - targets[k]) / rms(targets[k]) for k in range(len(labels))])
+            print("  " + ", ".join(f"{lab} {r:.3f}" for lab, r in zip(labels, rel)))
+            summary(name, rel, held)
+            return rel
+
+        sim = settle_with(cal.params)
+        report("settled with anchors (simulator)", sim)
+        for s in [float(x) for x in args.scale.split(",") if x]:
+            report(f"settled with anchors x{s}", settle_with(s * cal.params))
+        for r in range(args.rounds):
+            lin = cal.predict_all(vals_a)
+            b = np.stack([tg[k] - sim[k].ravel() + lin[k].ravel() for k in train], axis=1)
+            p0 = cal.params.copy()
+            res = cal.fit(vals_a[train], b, w, iters=args.iters)
+            cal.params = p0 + args.damp * (cal.params - p0)
+            sim = settle_with(cal.params)
+            print(f"round {r + 1} ({res.nit} iterations, {time.monotonic() - t0:.0f} s):", flush=True)
+            report(f"round {r + 1} settled", sim)
+        anch.apply({})
+    if args.save:
+        np.savez(args.save, **{c: cal.field(c) for c in cal.channels})
+        print(f"wrote {args.save}")
+    if args.write_rig:
+        from dataclasses import replace
+
+        from sim.face.scan.rig import RIG_FILE
+        from sim.rig import load_rig, save_rig
+
+        fields = {c: np.round(np.clip(cal.field(c), -2.0, 2.0), 6) for c in cal.channels}
+        fields = {c: d for c, d in fields.items() if np.abs(d).max() > 1e-5}
+        save_rig(replace(load_rig(args.rig or RIG_FILE), anchor=fields), args.write_rig)
+        print(f"wrote {args.write_rig} ({len(fields)} channels' anchors)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

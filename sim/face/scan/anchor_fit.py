@@ -1,0 +1,183 @@
+"""The deep tissue moving with the muscle: the skin's tether anchors displaced per channel.
+
+The skin is tethered to its rest place on the tissue beneath (seed 003 eq 9: F_r = k_r (target -
+x)). A mimetic muscle lies in that deep layer (the superficial musculo-aponeurotic system), so as
+it contracts the places the skin is tied to over its zone move with it. Modelled per channel as a
+smooth displacement field of the tether's anchors over the channel's zone, d_c (three numbers per
+zone vertex; the right side's the left's mirrored, x -> -x), scaled by the channel's value: the
+tether's force gains k_r,i v_c d_c,i. Unlike active strain (`sim.face.scan.strain_fit`), whose
+forces are internal to the sheet and sum to zero over a zone, this force is external to the sheet:
+it can carry a region as a whole against the tether.
+
+The tether is linear in x, so the displaced anchors are exactly a constant force per channel,
+k_r d_c: the step can carry it as part of the channel's field (its response in the implicit step).
+
+Linear statics about the rest shape, as the other fits: u = K^-1 sum_c v_c K_r P_c p_c, K the
+skin's stiffness at rest with the step's bending terms (`strain_fit.step_stiffness`). Parameters
+are in millimetres; a graph-Laplacian smoothness over the zone's edges and a small ridge keep the
+fields tissue-like; each component is bounded (BOUND mm).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+SMOOTH = 1e-3  # Laplacian weight per edge and component (per mm squared), relative to one shape's own size
+RIDGE = 1e-5  # pull of each component towards 0 (per mm squared)
+BOUND = 5.0  # |d| at most this per component, mm
+MM = 0.1  # cm per parameter unit
+_MIRROR = np.array([-1.0, 1.0, 1.0])
+
+
+def channel_zones(model: Any, grow: float = 0.0) -> dict[str, np.ndarray]:
+    """Per muscle channel the (N,) bool zone its field reaches (above 1e-3 of its largest), grown by
+    `grow` cm over the skin (vertices within that distance of the zone)."""
+    from scipy.spatial import cKDTree
+
+    from sim.build import vertex_normals
+    from sim.muscles import muscle_field
+
+    rig = model.rig
+    rest = np.asarray(model.rest)
+    n = len(rest)
+    normal = vertex_normals(rest, np.asarray(rig.mesh.triangles, np.int32))
+    held = np.asarray(model.held, bool)
+    out = {}
+    for c in rig.muscles:
+        if c not in model.channel_index:
+            continue
+        f = muscle_field(rig.muscles[c], rest, np.asarray(model.area), normal)
+        mag = np.linalg.norm(f, axis=1)
+        z = mag > 1e-3 * mag.max() if mag.max() > 0 else np.zeros(n, bool)
+        if grow > 0 and z.any():
+            d, _ = cKDTree(rest[z]).query(rest)
+            z = d <= grow
+        out[c] = z & ~held
+    return out
+
+
+class AnchorCalibration:
+    """The linear model of one compiled face with a tether-anchor displacement field per muscle
+    (sides shared, mirrored)."""
+
+    def __init__(self, model: Any, smooth: float = SMOOTH, ridge: float = RIDGE, bound: float = BOUND,
+                 grow: float = 0.0, bending: bool = True, zones: dict[str, np.ndarray] | None = None) -> None:
+        import scipy.sparse as sp
+
+        from sim.face.scan.insertion_fit import mirror_map
+        from sim.face.scan.strain_fit import step_stiffness
+
+        self.model = model
+        rest = np.asarray(model.rest)
+        n = self.n = len(rest)
+        self.lu, self.free = step_stiffness(model, bending)
+        mirror = mirror_map(rest)
+        kr = np.asarray(model.rest_stiffness, np.float64)
+        tri = np.asarray(model.rig.mesh.triangles, np.int64)
+        e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+        e = np.unique(np.sort(e[(e < n).all(axis=1)], axis=1), axis=0)
+        zones = channel_zones(model, grow) if zones is None else zones
+        self.channels = sorted(zones)
+        groups: dict[str, list[str]] = {}
+        for c in self.channels:
+            groups.setdefault(c[:-2] if c.endswith(("_l", "_r")) else c, []).append(c)
+        self.groups = sorted(groups)
+        self.par_of: dict[str, tuple[np.ndarray, bool]] = {}
+        self.force_of: dict[str, Any] = {}
+        self.parts: dict[str, tuple[int, int]] = {}
+        lap, k = [], 0
+        for g in self.groups:
+            chans = groups[g]
+            zone = np.zeros(n, bool)
+            for c in chans:
+                z = np.flatnonzero(zones[c])
+                zone[z if c != g + "_r" else mirror[z]] = True
+            ids = np.flatnonzero(zone)
+            look = -np.ones(n, np.int64)
+            look[ids] = k + np.arange(len(ids))
+            inner = e[zone[e].all(axis=1)]
+            lap.append((look[inner[:, 0]], look[inner[:, 1]]))
+            self.parts[g] = (k, len(ids))
+            for c in chans:
+                right = c == g + "_r"
+                par = look[mirror] if right else look
+                par = np.where(zones[c], par, -1)
+                self.par_of[c] = (par, right)
+            k += len(ids)
+        self.n_params = 3 * k
+        for c, (par, right) in self.par_of.items():
+            on = np.flatnonzero(par >= 0)
+            sign = _MIRROR if right else np.ones(3)
+            rows = (3 * on[:, None] + np.arange(3)).ravel()
+            cols = (3 * par[on][:, None] + np.arange(3)).ravel()
+            vals = (MM * kr[on][:, None] * sign[None]).ravel()
+            self.force_of[c] = sp.csr_matrix((vals, (rows, cols)), shape=(3 * n, self.n_params))
+        r = np.concatenate([a for a, _ in lap])
+        c2 = np.concatenate([b for _, b in lap])
+        m = len(r)
+        d1 = (sp.csr_matrix((np.ones(m), (np.arange(m), r)), shape=(m, k))
+              - sp.csr_matrix((np.ones(m), (np.arange(m), c2)), shape=(m, k)))
+        self.diff = sp.kron(d1, sp.eye(3)).tocsr()
+        self.smooth, self.ridge, self.bound = smooth, ridge, bound
+        self.params = np.zeros(self.n_params)
+
+    def _solve(self, rhs: np.ndarray) -> np.ndarray:
+        out = np.zeros_like(rhs)
+        out[self.free] = self.lu.solve(np.ascontiguousarray(rhs[self.free]))
+        return out
+
+    def forces(self, p: np.ndarray, vals: np.ndarray) -> np.ndarray:
+        """(3N, S) the tether's added force in each shape (vals (S, C) channel values)."""
+        ci = self.model.channel_index
+        f = np.zeros((3 * self.n, len(vals)))
+        for c, t in self.force_of.items():
+            v = vals[:, ci[c]]
+            if np.any(v):
+                f += (t @ p)[:, None] * v[None]
+        return f
+
+    def predict_all(self, vals: np.ndarray, p: np.ndarray | None = None) -> np.ndarray:
+        """(S, N, 3) linear displacement the displaced anchors add to each shape."""
+        u = self._solve(self.forces(self.params if p is None else p, vals))
+        return u.T.reshape(len(vals), self.n, 3)
+
+    def objective(self, p: np.ndarray, vals: np.ndarray, b: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray]:
+        """Weighted squared misfit (targets b (3N, S), weights w (S,)) plus smoothness and ridge, and
+        its gradient (one adjoint solve a shape: K is symmetric)."""
+        r = self._solve(self.forces(p, vals)) - b
+        lam = 2.0 * self._solve(r * w[None])
+        ci = self.model.channel_index
+        grad = np.zeros_like(p)
+        for c, t in self.force_of.items():
+            v = vals[:, ci[c]]
+            if np.any(v):
+                grad += t.T @ (lam @ v)
+        dp = self.diff @ p
+        val = float(np.sum(w * np.sum(r * r, axis=0))) + self.smooth * float(dp @ dp) + self.ridge * float(p @ p)
+        grad += 2.0 * self.smooth * (self.diff.T @ dp) + 2.0 * self.ridge * p
+        return val, grad
+
+    def fit(self, vals: np.ndarray, b: np.ndarray, w: np.ndarray, iters: int = 300) -> Any:
+        """The anchor fields by L-BFGS-B (vals (S, C), targets b (3N, S), weights w (S,))."""
+        from scipy.optimize import minimize
+
+        res = minimize(lambda p: self.objective(p, vals, b, w), self.params, jac=True, method="L-BFGS-B",
+                       bounds=[(-self.bound, self.bound)] * self.n_params,
+                       options={"maxiter": iters, "ftol": 1e-15, "gtol": 1e-10})
+        self.params = res.x
+        return res
+
+    def field(self, c: str, p: np.ndarray | None = None) -> np.ndarray:
+        """(N, 3) channel c's anchor displacement at full value, cm (zero outside its zone)."""
+        p = (self.params if p is None else p).reshape(-1, 3)
+        par, right = self.par_of[c]
+        d = np.zeros((self.n, 3))
+        z = par >= 0
+        d[z] = MM * p[par[z]] * (_MIRROR if right else 1.0)
+        return d
+
+    def force(self, c: str, p: np.ndarray | None = None) -> np.ndarray:
+        """(N, 3) channel c's added tether force at full value, dyn."""
+        return np.asarray(self.model.rest_stiffness, np.float64)[:, None] * self.field(c, p)
