@@ -1,7 +1,7 @@
 """How the scanned head's shipped rig (`ict_rig.npz`) is made: the reference face's rig
 transferred onto the generic head's skin (`sim.face.transfer`), carried back into the scan's frame,
-with the scan's own jaw weights (from its `jawOpen`), eyeballs and the skin under the chin free, and the
-muscles made stronger for the scan's stiffer skin (`sim.face.scan.rig`). The transfer runs linear
+with the scan's own jaw weights (from its `jawOpen`), eyeballs and the skin under the chin free, its own
+pucker (`pucker_ring`), and the muscles made stronger for the scan's stiffer skin (`sim.face.scan.rig`). The transfer runs linear
 algebra whose last bits follow the BLAS kernel, so it is run once and its result shipped; the
 application never runs it. Remake the file with `python -m sim.face.scan.make_rig`.
 """
@@ -168,7 +168,7 @@ def transferred_rig(weights: np.ndarray | None = None, name: str = "ict") -> Fac
 #: face's incisivi (two lines from beside the lips' middle to the corners, 2.6 cm wide on the scan)
 #: and its forward patch over the lips' margins crumpled the scan's lips: the lines gathered the skin
 #: towards two points (creases from the nose to the lip) and the patch pushed the red margins out
-#: 13-17 mm, everting them apart over the teeth, while the scan carries the skin from the nose to
+#: until they everted apart over the teeth (3 mm), while the scan carries the skin from the nose to
 #: below the lower lip 7-8 mm forward with the lips closed. On the scan the lines keep
 #: PUCKER_LINES of their force (the corners still drawn in), the patch goes, and a ring as the lips'
 #: sphincter (its ellipse) pushes the lips' skin forward, strongest at the ring and nothing at the
