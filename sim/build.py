@@ -332,6 +332,8 @@ def _rig_digest(rig: FaceRig, params: SkinParams) -> str:
         for m in rig.muscles[name]:
             h.update(type(m).__name__.encode() + name.encode())
             for key, val in sorted(vars(m).items()):
+                if key == "protrude" and val == 0.0:  # a ring without it (every face's but the pucker's): hash unchanged
+                    continue
                 raw = val.encode() if isinstance(val, str) else np.asarray(val, np.float64).tobytes()
                 h.update(key.encode() + raw)
     for name in sorted(rig.insertion):  # none on a face without fitted insertions: its hash is unchanged

@@ -79,7 +79,9 @@ class LinearMuscle:
 @dataclass(frozen=True, eq=False)
 class SphincterMuscle:
     """Seed 000 section 3.2. centre o (cm), unit axes of the ellipse (major, minor), semi-axes a, b
-    (cm), force scale alpha_S (dyn)."""
+    (cm), force scale alpha_S (dyn). protrude: the push out of the face (along major x minor) per
+    unit of the pull towards the centre, as a ring of fibres squeezing incompressible lips carries
+    them forward (a pucker); 0 (the paper's sphincter) for every ring but the pucker's."""
 
     name: str
     center: FloatArray
@@ -88,6 +90,7 @@ class SphincterMuscle:
     a: float
     b: float
     scale: float
+    protrude: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)

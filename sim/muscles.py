@@ -133,9 +133,16 @@ def sphincter_direction(center: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def sphincter_force(m: SphincterMuscle, x: np.ndarray) -> np.ndarray:
-    """Eq 14: f_i = alpha_S Theta(d_i) nu_i, (N,3); alpha_S is m.scale."""
+    """Eq 14: f_i = alpha_S Theta(d_i) nu_i, (N,3); alpha_S is m.scale. With m.protrude = p (not in
+    the paper) the ring also pushes out of the face: f_i = alpha_S Theta(d_i) (nu_i + p n), n the
+    ellipse's normal major x minor (out of the face for a major axis towards the face's left and a
+    minor axis up), so the push, like the pull, is strongest at the ring and nothing at the centre."""
     w = m.scale * sphincter_falloff(sphincter_radius(m, x))
-    return w[:, None] * sphincter_direction(m.center, x)
+    nu = sphincter_direction(m.center, x)
+    if m.protrude:
+        n = np.cross(m.major_axis, m.minor_axis)
+        nu = nu + (m.protrude / float(np.linalg.norm(n))) * n[None, :]
+    return w[:, None] * nu
 
 
 # ---------------------------------------------------------------- sheet muscle, eqs 18-22

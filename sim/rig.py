@@ -32,7 +32,7 @@ from __future__ import annotations
 import json
 import zipfile
 import zlib
-from dataclasses import fields
+from dataclasses import MISSING, fields
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +61,8 @@ def _muscle_json(channel: str, m: Muscle) -> dict[str, Any]:
     out: dict[str, Any] = {"channel": channel, "type": _TYPE_NAMES[type(m)]}
     for f in fields(m):
         val = getattr(m, f.name)
+        if f.default is not MISSING and val == f.default:  # a field added later: files without it unchanged
+            continue
         out[f.name] = val if isinstance(val, str) else np.asarray(val, dtype=np.float64).tolist()
     return out
 
@@ -152,6 +154,8 @@ def _muscle(entry: Any, path: str) -> tuple[str, Muscle]:
     cls = _TYPES[entry["type"]]
     kwargs: dict[str, Any] = {}
     for f in fields(cls):
+        if f.name not in entry and f.default is not MISSING:  # written only where it is not the default
+            continue
         if f.name not in entry:
             raise RigFileError(f"{path}: {entry['type']} muscle lacks the field {f.name!r}")
         val = entry[f.name]

@@ -86,6 +86,19 @@ def test_sphincter_eqs_14_to_17() -> None:
     assert np.allclose(f[0], [-5 * C45, 0, 0]) and np.allclose(f[2], [-5.0, 0, 0]) and np.allclose(f[3], 0)
 
 
+def test_a_protruding_sphincter_pushes_out_of_the_face_as_it_pulls_in() -> None:
+    """protrude p adds p times the pull's size along major x minor (+z here): the ring's in-plane
+    pull is the paper's, and where the paper's pull is nothing (the centre, outside) so is the push."""
+    import dataclasses
+
+    ring = dataclasses.replace(SPH, protrude=2.0)
+    x = np.array([[1.0, 0, 0], [0.0, 0.5, 0.0], [2.0, 0, 0], [2.0, 1.0, 0], [0.0, 0.0, 0.0]])
+    plain, pushed = sphincter_force(SPH, x), sphincter_force(ring, x)
+    assert np.allclose(pushed[:, :2], plain[:, :2])
+    assert np.allclose(pushed[:, 2], 2.0 * np.linalg.norm(plain, axis=1))
+    assert pushed[0, 2] > 0 and np.allclose(pushed[3:], 0.0)
+
+
 def test_sheet_eqs_18_to_22() -> None:
     assert np.allclose(sheet_direction(SHEET), [0, 1, 0])  # eq 19
     assert sheet_length_ratio_limit(SHEET) == pytest.approx(1.5)  # eq 22

@@ -42,6 +42,26 @@ def test_hash_changes_with_a_muscle(synth_rig: FaceRig) -> None:
     assert compile_model(other).hash != compile_model(synth_rig).hash
 
 
+def test_a_protruding_ring_round_trips_and_changes_the_hash(synth_rig: FaceRig, tmp_path: Path) -> None:
+    """A sphincter's protrusion (the scanned head's pucker) is written only where it is not 0: rig
+    files and hashes of faces without it stay as they were, and it reads back as written."""
+    import dataclasses
+
+    from sim.model import SphincterMuscle
+
+    path = tmp_path / "face.npz"
+    save_rig(synth_rig, path)
+    assert not any("protrude" in m for m in _header(path)["muscles"])
+    ch, ring = next((ch, m) for ch, parts in synth_rig.muscles.items() for m in parts if isinstance(m, SphincterMuscle))
+    muscles = dict(synth_rig.muscles)
+    muscles[ch] = tuple(dataclasses.replace(m, protrude=2.5) if m is ring else m for m in muscles[ch])
+    pushed = dataclasses.replace(synth_rig, muscles=muscles)
+    save_rig(pushed, path)
+    back = load_rig(path)
+    assert [m.protrude for m in back.muscles[ch] if isinstance(m, SphincterMuscle)] == [2.5]
+    assert compile_model(back).hash == compile_model(pushed).hash != compile_model(synth_rig).hash
+
+
 def _rewrite(src: Path, dst: Path, **changes: object) -> None:
     with np.load(src, allow_pickle=False) as d:
         arrays = {k: d[k] for k in d.files}

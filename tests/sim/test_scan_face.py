@@ -82,17 +82,19 @@ def test_landmarks_are_found_where_they_are_stored() -> None:
 
 def test_the_shipped_rig_is_what_the_transfer_makes() -> None:
     """ict_rig.npz is remade by `python -m sim.face.scan.make_rig` (the transfer, then the lids
-    built on it); the transfer's last bits follow the BLAS kernel, so the comparison allows 1e-4 cm."""
+    built on it, the pucker's ring in place of its bunching patch); the transfer's last bits follow the
+    BLAS kernel, so the comparison allows 1e-4 cm."""
     from sim.face.scan.lids import with_lids
-    from sim.face.scan.make_rig import transferred_rig
+    from sim.face.scan.make_rig import pucker_ring, transferred_rig
     from sim.face.scan.rig import scan_rig
 
-    shipped, made = scan_rig(), with_lids(transferred_rig())
+    shipped, made = scan_rig(), with_lids(pucker_ring(transferred_rig()))
     assert np.array_equal(shipped.mesh.vertices, made.mesh.vertices)
     assert np.array_equal(shipped.mesh.held, made.mesh.held)
     assert np.abs(shipped.mesh.jaw_weight - made.mesh.jaw_weight).max() < 1e-4
     assert shipped.muscles.keys() == made.muscles.keys()
     for ch, parts in made.muscles.items():
+        assert [type(a) for a in parts] == [type(b) for b in shipped.muscles[ch]], ch
         for a, b in zip(parts, shipped.muscles[ch]):
             for key, val in vars(a).items():
                 if key != "name":
@@ -125,6 +127,20 @@ def test_the_skin_under_the_chin_follows_the_chin_pushed_up(model) -> None:  # t
     c.set("mentalis", 1.0)
     up = 10.0 * (_settle(model, c) - model.rest)[free, 1]  # mm; held, all of it stayed (0)
     assert up.mean() > 0.3 and np.percentile(up, 90) > 1.0
+
+
+def test_the_pucker_carries_the_lips_forward_closed(model) -> None:  # type: ignore[no-untyped-def]
+    """ARKit mouthPucker (AU18) as the scan's: the corners drawn in and forward, both lips forward,
+    the mouth still closed (before the pucker's ring the lips everted 3 mm apart over the teeth)."""
+    c = FaceControl()
+    c.set("incisivus", 1.0)
+    lm = model.mesh.landmarks
+    d = 10.0 * (_settle(model, c) - model.rest)  # mm
+    corners = d[lm["mouth_corner_l"], 0] - d[lm["mouth_corner_r"], 0]
+    opened = d[lm["upper_lip_center"], 1] - d[lm["lower_lip_center"], 1]
+    assert corners < -6.0 and min(d[lm["mouth_corner_l"], 2], d[lm["mouth_corner_r"], 2]) > 5.0
+    assert d[lm["upper_lip_center"], 2] > 1.0 and d[lm["lower_lip_center"], 2] > 1.0
+    assert opened < 1.0
 
 
 @pytest.mark.parametrize("seed", [None, 0, 1, 2])

@@ -1,7 +1,7 @@
 """How the scanned head's shipped rig (`ict_rig.npz`) is made: the reference face's rig
 transferred onto the generic head's skin (`sim.face.transfer`), carried back into the scan's frame,
-with the scan's own jaw weights (from its `jawOpen`), eyeballs and the skin under the chin free, and the
-muscles made stronger for the scan's stiffer skin (`sim.face.scan.rig`). The transfer runs linear
+with the scan's own jaw weights (from its `jawOpen`), eyeballs and the skin under the chin free, its own
+pucker (`pucker_ring`), and the muscles made stronger for the scan's stiffer skin (`sim.face.scan.rig`). The transfer runs linear
 algebra whose last bits follow the BLAS kernel, so it is run once and its result shipped; the
 application never runs it. Remake the file with `python -m sim.face.scan.make_rig`.
 """
@@ -164,6 +164,32 @@ def transferred_rig(weights: np.ndarray | None = None, name: str = "ict") -> Fac
 
 
 
+#: the pucker on the scanned head (ARKit mouthPucker, AU18: the `incisivus` channel). The procedural
+#: face's incisivi (two lines from beside the lips' middle to the corners, 2.6 cm wide on the scan)
+#: and its forward patch over the lips' margins crumpled the scan's lips: the lines gathered the skin
+#: towards two points (creases from the nose to the lip) and the patch pushed the red margins out
+#: until they everted apart over the teeth (3 mm), while the scan carries the skin from the nose to
+#: below the lower lip 7-8 mm forward with the lips closed. On the scan the lines keep
+#: PUCKER_LINES of their force (the corners still drawn in), the patch goes, and a ring as the lips'
+#: sphincter (its ellipse) pushes the lips' skin forward, strongest at the ring and nothing at the
+#: margins, and draws it in by 1/PUCKER_PROTRUDE of that (docs/scan-face.md, "The pucker").
+PUCKER_LINES = 0.3
+PUCKER_RING = 2.0 / 3.0  # the ring's pull in units of the sphincter's own (orbicularis_oris)
+PUCKER_PROTRUDE = 6.0
+
+
+def pucker_ring(rig: FaceRig) -> FaceRig:
+    """The rig with the scan's pucker (`PUCKER_*`) in place of the transferred one's: the
+    incisivus channel's lines weaker, its patch replaced by a protruding ring."""
+    from dataclasses import replace
+
+    oris = next(m for m in rig.muscles["orbicularis_oris"] if isinstance(m, SphincterMuscle))
+    lines = tuple(replace(m, scale=float(_r(m.scale * PUCKER_LINES)))
+                  for m in rig.muscles["incisivus"] if isinstance(m, LinearMuscle))
+    ring = replace(oris, name="incisivus_ring", scale=float(_r(oris.scale * PUCKER_RING)), protrude=PUCKER_PROTRUDE)
+    return replace(rig, muscles={**rig.muscles, "incisivus": (*lines, ring)})
+
+
 def pack(path: str | Path = RIG_FILE) -> None:
     """Write the generic head's rig as the shipped rig file, keeping the insertion gains and the
     skin's material fitted to the scans (`sim.face.scan.calibrate`, `sim.face.scan.skin_fit`, run
@@ -178,7 +204,7 @@ def pack(path: str | Path = RIG_FILE) -> None:
     made = replace(transferred_rig(), insertion=old.insertion if old else {}, skin=old.skin if old else {},
                    tissue=old.tissue if old else {}, strain=old.strain if old else {},
                    anchor=old.anchor if old else {})
-    save_rig(with_lids(made), path)
+    save_rig(with_lids(pucker_ring(made)), path)
 
 
 if __name__ == "__main__":

@@ -117,7 +117,8 @@ def carry_muscle(m: SurfaceMap, muscle: Muscle) -> Muscle:
         minor = na - nb
         minor = minor - (minor @ major) * major
         b = 0.5 * float(np.linalg.norm(na - nb))
-        return SphincterMuscle(muscle.name, c2, major, minor / np.linalg.norm(minor), a, b, muscle.scale)
+        return SphincterMuscle(muscle.name, c2, major, minor / np.linalg.norm(minor), a, b, muscle.scale,
+                               muscle.protrude)
     if isinstance(muscle, SheetMuscle):
         pts = np.stack([muscle.attach1, muscle.attach2, muscle.insert1, muscle.insert2]).astype(float)
         a1, a2, i1, i2 = m.points(pts)
