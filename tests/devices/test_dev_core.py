@@ -36,6 +36,9 @@ def test_unknown_scheme_and_option_show_the_expected_form() -> None:
         devices.open_device("nope://x")
     with pytest.raises(DeviceSpecError, match="keyboard://"):
         devices.open_device("keyboard://?colour=red")
+    with pytest.raises(DeviceSpecError, match="no address; expected keyboard://"):
+        devices.open_device("keyboard://x")  # was opened as the keyboard, the x ignored
+    devices.open_device("keyboard://").close()
 
 
 def test_importing_devices_imports_no_backend_library() -> None:
