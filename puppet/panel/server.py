@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import hmac
+import os
 import secrets
 import threading
 from collections.abc import Callable
@@ -128,7 +129,12 @@ class PanelServer:
         await self._runner.setup()
         last: OSError | None = None
         for port in range(self.port, self.port + 1 + self.try_ports):
-            site = web.TCPSite(self._runner, self.host, port, reuse_address=False)
+            # SO_REUSEADDR on POSIX (asyncio's own default there): a show restarted after a crash
+            # or a stop binds its port again although the pages' closed connections still hold it
+            # in TIME_WAIT for a minute (without it a fixed --panel PORT failed 'address already in
+            # use', and the default port moved to the next one, where the open pages never looked);
+            # a port another program listens on is still refused on Linux and taken as busy
+            site = web.TCPSite(self._runner, self.host, port, reuse_address=os.name == "posix")
             try:
                 await site.start()
             except OSError as err:

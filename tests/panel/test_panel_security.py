@@ -221,6 +221,33 @@ def test_a_page_port_in_use_is_one_line(tmp_path: Path) -> None:
     assert r.stderr.count("\n") == 1 and "in use" in r.stderr, r.stderr
 
 
+def test_a_restarted_server_binds_its_port_again_while_the_pages_closed_connections_linger() -> None:
+    """A show stopped (or crashed) while a page was connected leaves that connection in TIME_WAIT
+    on the page's port for a minute; the show started again must serve the same port, where the
+    open pages retry (it failed 'address already in use' for a fixed --panel PORT, and moved the
+    default port to the next one, where no page looks)."""
+    from puppet.panel.server import PanelServer
+
+    first = PanelServer("127.0.0.1", 0, "panel.html", lambda app: None)
+    first.start()
+    port = first.port
+    page = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+    page.request("GET", "/")  # a keep-alive connection, open when the server goes
+    assert page.getresponse().read()
+    first.stop()  # the server closes it first: its end waits in TIME_WAIT on `port`
+    page.close()
+    again = PanelServer("127.0.0.1", port, "panel.html", lambda app: None, try_ports=5)
+    try:
+        again.start()
+        assert again.port == port
+        c = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+        c.request("GET", "/")
+        assert c.getresponse().status == 200
+        c.close()
+    finally:
+        again.stop()
+
+
 def test_lan_url_is_printed_with_a_qr_code(lan_page) -> None:
     import io
 
