@@ -87,3 +87,19 @@ def test_templates_refuse_an_unbounded_gain(tmp_path, capsys) -> None:
         assert main(["templates", "--out", str(out), "--gain", gain]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "--gain" in err and not out.exists()
+
+
+def test_a_device_named_twice_is_one_line_saying_so() -> None:
+    """`--device osc://127.0.0.1:9300 --device osc://127.0.0.1:9300` said the port was 'in use by
+    another program' (it was this show's own first device); a box twice is named as the mistake."""
+    import pytest
+
+    from puppet.cmd_live import _open_devices
+    from puppet.errors import PuppetError
+
+    with pytest.raises(PuppetError, match=r"--device mock://\?sine=dial0 is given twice"):
+        _open_devices(["mock://?sine=dial0", "keyboard://", "mock://?sine=dial0"], print)
+    devs = _open_devices(["mock://?sine=dial0", "mock://?sine=dial1"], print)
+    assert len(devs) == 2
+    for d in devs:
+        d.close()
