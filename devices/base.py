@@ -272,10 +272,13 @@ class Device:
         if self._connected:
             self._restore_lights()
             self._status("connected")
+        opened = time.monotonic()
         while not self._stop.is_set():
             if not self._connected:
                 if not self._try_reopen():
                     self._stop.wait(self.reconnect_interval)
+                else:
+                    opened = time.monotonic()
                 continue
             try:
                 events = list(self._read(self.read_timeout))
@@ -283,6 +286,11 @@ class Device:
                 if self._stop.is_set():
                     break
                 self._lose(err)
+                if time.monotonic() - opened < self.reconnect_interval:
+                    # lost as soon as it opened (a node that opens and then reads end of file, a
+                    # box failing right after its handshake): reopening at once spun the thread,
+                    # 52,000 lost/connected pairs a second into the show and its recording
+                    self._stop.wait(self.reconnect_interval)
                 continue
             for event in events:
                 self.emit(event)

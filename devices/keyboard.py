@@ -15,6 +15,7 @@ from functools import lru_cache
 from typing import Any, Literal
 
 from devices.base import ControlInfo, Device
+from devices.errors import DeviceSpecError
 from devices.events import ControlEvent
 from devices.spec import DeviceSpec
 
@@ -81,6 +82,8 @@ class KeyboardDevice(Device):
 
     def __init__(self, spec: DeviceSpec, **options: Any) -> None:
         super().__init__(spec, **options)
+        if spec.location.strip("/"):  # keyboard://x was taken as the keyboard, the x ignored
+            raise DeviceSpecError(f"{spec.text}: the keyboard has no address; expected {self.FORM}")
         self.description = "keyboard of the application window"
         self.controls = [ControlInfo(f"key:{n}", "key", 0.0, 1.0) for n in _NAMED]
         self._down: set[str] = set()

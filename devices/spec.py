@@ -41,6 +41,10 @@ class DeviceSpec:
         except ValueError as err:
             raise DeviceSpecError(f"{self.text}: option {key}={raw!r} is not an integer") from err
         if (lo is not None and value < lo) or (hi is not None and value > hi):
+            if hi is None:  # it said 'outside 0..None'
+                raise DeviceSpecError(f"{self.text}: option {key}={value} must be {lo} or more")
+            if lo is None:
+                raise DeviceSpecError(f"{self.text}: option {key}={value} must be {hi} or less")
             raise DeviceSpecError(f"{self.text}: option {key}={value} is outside {lo}..{hi}")
         return value
 

@@ -168,9 +168,10 @@ class UdpListenerDevice(SelectWaking, Device):
         self._ancillary = False
         self._proc_read = 0.0
         if not self.lan and not is_loopback(self.host):
+            shown = f"[{self.host}]" if ":" in self.host else self.host  # the spec to type: 'facecap://:::8080' was no spec
             raise DeviceSpecError(
                 f"{spec.text}: {self.host} would listen beyond this machine; say so with lan=1 "
-                f"({self.scheme}://{self.host}:{self.port}?lan=1, and allow=ADDR,... to accept only those "
+                f"({self.scheme}://{shown}:{self.port}?lan=1, and allow=ADDR,... to accept only those "
                 f"senders), or use 127.0.0.1")
         self.parsed_host = self.host
         self.exposure = "" if is_loopback(self.host) else \

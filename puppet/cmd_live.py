@@ -73,6 +73,11 @@ def _open_devices(specs: list[str], warn: Any) -> list[Any]:
 
     opened = []
     if specs:
+        twice = sorted({s for s in specs if specs.count(s) > 1})
+        if twice:  # the second opened the same port again: 'in use by another program' (this show)
+            from puppet.errors import PuppetError
+
+            raise PuppetError(f"--device {twice[0]} is given twice; name each device once")
         for spec in specs:
             # a bad spec or a port that is not there is the user's error (one line, exit 2); a port
             # that is there but failed to open (a box powering up, a flaky first contact) is retried

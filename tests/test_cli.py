@@ -100,3 +100,19 @@ def test_templates_into_a_file_says_it_is_a_file(tmp_path, capsys) -> None:
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "a file is there" in err and "folder" in err, err
     assert out.read_text() == "keep me\n"
+
+
+def test_a_device_named_twice_is_one_line_saying_so() -> None:
+    """`--device osc://127.0.0.1:9300 --device osc://127.0.0.1:9300` said the port was 'in use by
+    another program' (it was this show's own first device); a box twice is named as the mistake."""
+    import pytest
+
+    from puppet.cmd_live import _open_devices
+    from puppet.errors import PuppetError
+
+    with pytest.raises(PuppetError, match=r"--device mock://\?sine=dial0 is given twice"):
+        _open_devices(["mock://?sine=dial0", "keyboard://", "mock://?sine=dial0"], print)
+    devs = _open_devices(["mock://?sine=dial0", "mock://?sine=dial1"], print)
+    assert len(devs) == 2
+    for d in devs:
+        d.close()

@@ -305,6 +305,11 @@ class MidiPortDevice(MidiDevice):
         return events
 
     def _check_port(self) -> None:
+        if self.api == "jack" and _server_identity(self.api) != self._server:
+            # a JACK client keeps its last copy of the server's graph when the server goes: the
+            # box's port stayed listed after the server stopped (or crashed and came back), so the
+            # device was never lost and never found the box on the new server
+            raise OSError("the JACK server stopped or was restarted")
         ports = self._in.get_ports() if self._in is not None else []
         if self._port_name not in ports:
             raise OSError(f"MIDI port {clean_name(self._port_name)!r} went away")

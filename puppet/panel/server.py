@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import hmac
+import os
 import secrets
 import threading
 from collections.abc import Callable
@@ -88,11 +89,13 @@ class PanelServer:
 
     @property
     def url(self) -> str:
-        host = self.host
+        host = self.host.strip("[]")
         if host in ("0.0.0.0", "::"):
             host = _lan_address()
         elif host == "localhost":
             host = "127.0.0.1"
+        if ":" in host:  # IPv6: bracketed in a URL
+            host = f"[{host}]"
         q = f"?token={self.token}" if self.token else ""
         return f"http://{host}:{self.port}/{q}"
 
@@ -128,7 +131,14 @@ class PanelServer:
         await self._runner.setup()
         last: OSError | None = None
         for port in range(self.port, self.port + 1 + self.try_ports):
-            site = web.TCPSite(self._runner, self.host, port, reuse_address=False)
+            # SO_REUSEADDR on POSIX (asyncio's own default there): a show restarted after a crash
+            # or a stop binds its port again although the pages' closed connections still hold it
+            # in TIME_WAIT for a minute (without it a fixed --panel PORT failed 'address already in
+            # use', and the default port moved to the next one, where the open pages never looked);
+            # a port another program listens on is still refused on Linux and taken as busy
+            # an IPv6 host is bound without the brackets of its spec and URL ('[::1]' was looked
+            # up as a name: 'Name or service not known; pick another port')
+            site = web.TCPSite(self._runner, self.host.strip("[]"), port, reuse_address=os.name == "posix")
             try:
                 await site.start()
             except OSError as err:
@@ -170,7 +180,10 @@ class PanelServer:
     def _allowed_host(self, host: str) -> bool:
         if self.lan:
             return True
-        return host in {f"{h}:{self.port}" for h in LOOPBACK_NAMES}
+        # the loopback names, and the address the page is served on (panel://127.0.0.2 served a
+        # URL whose every request it refused: 'served to the loopback address only')
+        served = self.url.split("/")[2]
+        return host == served or host in {f"{h}:{self.port}" for h in LOOPBACK_NAMES}
 
     def _has_token(self, request: web.Request) -> bool:
         if self.token is None:

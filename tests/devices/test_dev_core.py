@@ -23,8 +23,12 @@ def test_spec_parsing() -> None:
     for bad in ("/dev/ttyUSB0", "", "9x://a", "sgi://a?x=1&x=2"):
         with pytest.raises(DeviceSpecError):
             parse_spec(bad)
-    with pytest.raises(DeviceSpecError, match="outside"):
-        parse_spec("sgi://a?counts_per_turn=0").get_int("counts_per_turn", 200, lo=1)
+    with pytest.raises(DeviceSpecError, match="outside 1..9"):
+        parse_spec("sgi://a?counts_per_turn=0").get_int("counts_per_turn", 200, lo=1, hi=9)
+    with pytest.raises(DeviceSpecError, match=r"index=-1 must be 0 or more$"):  # not 'outside 0..None'
+        parse_spec("hid://077d:0410?index=-1").get_int("index", 0, lo=0)
+    with pytest.raises(DeviceSpecError, match=r"n=9 must be 8 or less$"):
+        parse_spec("x://a?n=9").get_int("n", 0, hi=8)
 
 
 def test_unknown_scheme_and_option_show_the_expected_form() -> None:
@@ -32,6 +36,9 @@ def test_unknown_scheme_and_option_show_the_expected_form() -> None:
         devices.open_device("nope://x")
     with pytest.raises(DeviceSpecError, match="keyboard://"):
         devices.open_device("keyboard://?colour=red")
+    with pytest.raises(DeviceSpecError, match="no address; expected keyboard://"):
+        devices.open_device("keyboard://x")  # was opened as the keyboard, the x ignored
+    devices.open_device("keyboard://").close()
 
 
 def test_importing_devices_imports_no_backend_library() -> None:
@@ -220,3 +227,26 @@ def test_a_first_open_that_fails_on_an_existing_address_is_retried(monkeypatch: 
     first = _wait_for(q, lambda e: isinstance(e, StatusEvent))
     assert [(e.status, e.detail) for e in first] == [("connected", "opened")] and dev.connected
     dev.close()
+
+
+def test_a_device_lost_as_soon_as_it_opens_is_retried_at_the_reconnect_pace(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A node that opens and then fails its first read (rawmidi:///dev/null reads end of file, a
+    box dying right after its handshake) must not spin: the reopen waits the reconnect interval,
+    so the show and its recording get a few status events a second, not tens of thousands."""
+    monkeypatch.setitem(devices.BACKENDS, "flaky", (__name__, "FlakyDevice"))
+    monkeypatch.setattr(FlakyDevice, "reconnect_interval", 0.05)
+
+    def dead_read(self: FlakyDevice, timeout: float) -> Iterable[ControlEvent]:
+        raise OSError("end of stream")
+
+    monkeypatch.setattr(FlakyDevice, "_read", dead_read)
+    dev = devices.open_device("flaky://x")
+    q = EventQueue()
+    dev.add_listener(q)
+    dev.start()
+    threading.Event().wait(0.5)
+    dev.close()
+    told = q.drain()
+    assert told and told[0].status == "connected"
+    assert len(told) <= 2 * (0.5 / 0.05 + 2), f"{len(told)} status events in 0.5 s"
+    assert dev.opens <= 0.5 / 0.05 + 2

@@ -256,3 +256,54 @@ def test_the_device_survives_a_jack_server_restart(jack_server: str, monkeypatch
         mon.wait(10)
         box.close()
         stop_jackd(server)
+
+
+def test_a_jack_server_stopped_under_a_plugged_box_is_a_loss_and_its_return_is_found(
+        jack_server: str, monkeypatch: pytest.MonkeyPatch) -> None:  # noqa: F811
+    """The JACK server stops (or crashes) while the box is still plugged in: a JACK client keeps its
+    last copy of the server's ports, so the box's port stayed listed; the device said nothing, and
+    after the server came back it never found the box (the box's messages were lost for the rest of
+    the show). It is `lost` when the server goes and `connected` again with the box on the new one."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    from midijack import start_jackd, stop_jackd, wait_for_host
+
+    name = f"fpstop{os.getpid()}"
+    monkeypatch.setenv("JACK_DEFAULT_SERVER", name)
+    server = start_jackd(name)
+    box = MidiBox("nanoKONTROL2").plug()
+    mon = subprocess.Popen([sys.executable, "-m", "puppet", "monitor", "midi://nanoKONTROL2?api=jack", "--json",
+                            "--duration", "60"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                           env=_puppet_env())
+    lines: list[dict] = []
+
+    def until(pred: object, timeout: float = 30.0) -> None:
+        assert mon.stdout is not None
+        deadline = time.monotonic() + timeout
+        while not pred(lines):  # type: ignore[operator]
+            assert time.monotonic() < deadline, lines
+            line = mon.stdout.readline()
+            assert line, f"monitor ended; got {lines}"
+            lines.append(json.loads(line))
+
+    try:
+        until(lambda ls: any(x.get("status") == "connected" for x in ls))
+        box.send((0xB0, 2, 50))
+        until(lambda ls: any(x.get("control") == "fader3" for x in ls))
+        stop_jackd(server)  # the box is still plugged in
+        until(lambda ls: ls[-1].get("status") == "lost")
+        box.unplug()
+        server = start_jackd(name)
+        box.plug()
+        wait_for_host(name, "nanoKONTROL2:_MIDI 1")
+        box.send((0xB0, 3, 77))
+        until(lambda ls: any(x.get("control") == "fader4" for x in ls))
+        assert [x.get("status") for x in lines if "status" in x] == ["connected", "lost", "connected"]
+    finally:
+        mon.kill()
+        mon.wait(10)
+        box.close()
+        stop_jackd(server)

@@ -204,8 +204,12 @@ def test_binds_localhost_by_default() -> None:
 
 @pytest.mark.parametrize("spec", ["osc://0.0.0.0:9000", "osc://192.168.1.5:9000", "osc://[::]:9000"])
 def test_listening_beyond_localhost_must_be_asked_for(spec: str) -> None:
-    with pytest.raises(devices.DeviceSpecError, match="lan=1"):
+    with pytest.raises(devices.DeviceSpecError, match="lan=1") as err:
         devices.open_device(spec)
+    # the spec the message suggests is one to type (it said osc://:::9000?lan=1 for [::])
+    suggested = str(err.value).split("(", 1)[1].split(",", 1)[0]
+    assert suggested == spec + "?lan=1"
+    devices.parse_spec(suggested)
 
 
 def test_lan_option_prints_what_it_exposes(capsys: pytest.CaptureFixture[str]) -> None:

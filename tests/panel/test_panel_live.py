@@ -187,3 +187,48 @@ def test_a_page_named_as_a_device_is_the_only_page(tmp_path: Path) -> None:
     finally:
         out = proc.stop()
     assert len(re.findall(r"performer's page at http://", out)) == 1, out
+
+
+def test_a_page_follows_the_show_through_a_restart(tmp_path: Path) -> None:
+    """The show stops (a crash, a restart) while a performer's page is open: the page says so and
+    shows no device as connected while nothing answers; the show started again on the same port
+    is found by the page by itself, no slider stays frozen at what the page sent the old show, and
+    the page drives the new one."""
+    import socket
+
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    show = PuppetProcess("live", "--headless", "--panel", str(port), "--duration", "120", "--record", "a.jsonl",
+                         cwd=tmp_path)
+    drv = browser()
+    again = None
+    try:
+        drv.get(show.url + "?name=alice")
+        wait_for(lambda: ticking(drv), 60, "the live loop's values on the page")
+        drag(drv, "jaw", 0.7)
+        wait_for(lambda: (applied(drv, "jaw") or 0) > 0.4, 10, "the jaw applied")
+        assert drv.find_elements(By.CSS_SELECTOR, "#devices .dev.ok")
+        show.stop()
+        wait_for(lambda: "retrying" in drv.find_element(By.ID, "conn").text, 10, "the page saying it lost the show")
+        wait_for(lambda: not drv.find_elements(By.CSS_SELECTOR, "#devices .dev.ok"), 10, "no device shown connected")
+        again = PuppetProcess("live", "--headless", "--panel", str(port), "--duration", "120", "--record", "b.jsonl",
+                              cwd=tmp_path)
+        assert again.url == f"http://127.0.0.1:{port}/"  # the same port, although the old page's connection lingers
+        wait_for(lambda: drv.find_element(By.ID, "conn").text == "connected", 30, "the page reconnected")
+        wait_for(lambda: ticking(drv) and drv.find_elements(By.CSS_SELECTOR, "#devices .dev.ok"), 30,
+                 "the new show's devices")
+        assert drv.execute_script("return window.puppetPanel.own") == {}
+        # the jaw's slider stands where the new show's jaw is (at rest), not at the old 0.7
+        jaw = drv.find_element(By.CSS_SELECTOR, '.slider[data-channel="jaw"]')
+        wait_for(lambda: float(jaw.get_attribute("aria-valuenow")) < 0.05, 10, "the jaw's slider at the face's jaw")
+        drag(drv, "jaw", 0.5)
+        wait_for(lambda: 0.3 < (applied(drv, "jaw") or 0) < 0.65, 10, "the jaw driven in the new show")
+    finally:
+        quit_browser(drv)
+        if again is not None:
+            again.stop()
+        show.stop()
+    evs = [r for r in records(tmp_path / "b.jsonl") if r["t"] == "ev"]
+    assert any(r["ctl"] == "slider:jaw" and r["dev"].endswith("/alice") for r in evs)

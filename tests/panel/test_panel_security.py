@@ -248,6 +248,64 @@ def test_a_page_port_in_use_is_one_line(tmp_path: Path) -> None:
     assert r.stderr.count("\n") == 1 and "in use" in r.stderr, r.stderr
 
 
+def test_a_restarted_server_binds_its_port_again_while_the_pages_closed_connections_linger() -> None:
+    """A show stopped (or crashed) while a page was connected leaves that connection in TIME_WAIT
+    on the page's port for a minute; the show started again must serve the same port, where the
+    open pages retry (it failed 'address already in use' for a fixed --panel PORT, and moved the
+    default port to the next one, where no page looks)."""
+    from puppet.panel.server import PanelServer
+
+    first = PanelServer("127.0.0.1", 0, "panel.html", lambda app: None)
+    first.start()
+    port = first.port
+    page = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+    page.request("GET", "/")  # a keep-alive connection, open when the server goes
+    assert page.getresponse().read()
+    first.stop()  # the server closes it first: its end waits in TIME_WAIT on `port`
+    page.close()
+    again = PanelServer("127.0.0.1", port, "panel.html", lambda app: None, try_ports=5)
+    try:
+        again.start()
+        assert again.port == port
+        c = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+        c.request("GET", "/")
+        assert c.getresponse().status == 200
+        c.close()
+    finally:
+        again.stop()
+
+
+@pytest.mark.parametrize("host", ["127.0.0.2", "[::1]"])
+def test_a_page_on_another_loopback_address_is_served_at_its_url(host: str) -> None:
+    """panel://127.0.0.2:PORT printed its URL and refused every request to it ('served to the
+    loopback address only'); panel://[::1]:PORT did not start ('Name or service not known; pick
+    another port'). Both serve their URL; a foreign Host is still refused."""
+    import socket
+
+    from puppet.panel.server import PanelServer
+
+    if host.startswith("["):
+        try:
+            with socket.socket(socket.AF_INET6) as s6:
+                s6.bind(("::1", 0))
+        except OSError:
+            pytest.skip("no IPv6 loopback on this machine")
+    srv = PanelServer(host, 0, "panel.html", lambda app: None)
+    url = srv.start()
+    try:
+        assert url == f"http://{host}:{srv.port}/"
+        c = http.client.HTTPConnection(host.strip("[]"), srv.port, timeout=30)
+        c.request("GET", "/")  # Host: HOST:PORT, as a browser sends it for the URL
+        assert c.getresponse().status == 200
+        c.close()
+        c = http.client.HTTPConnection(host.strip("[]"), srv.port, timeout=30)
+        c.request("GET", "/", headers={"Host": f"evil.example:{srv.port}"})
+        assert c.getresponse().status == 403
+        c.close()
+    finally:
+        srv.stop()
+
+
 def test_lan_url_is_printed_with_a_qr_code(lan_page) -> None:
     import io
 

@@ -294,11 +294,24 @@
     ws.binaryType = "arraybuffer";
     state.ws = ws;
     ws.onopen = () => { $("conn").textContent = "connected"; $("conn").className = "up"; bestRtt = Infinity; ping(); faceWish(); };
-    ws.onclose = () => { $("conn").textContent = "disconnected (retrying)"; $("conn").className = "down"; setTimeout(connect, 1000); };
+    ws.onclose = () => {
+      $("conn").textContent = "disconnected (retrying)"; $("conn").className = "down";
+      // what the devices do is unknown until the show answers again: none is shown connected (the
+      // list stayed green while the show was gone), and the next state redraws the list
+      for (const tag of document.querySelectorAll("#devices .dev")) {
+        tag.className = "dev lost"; tag.title = "unknown: the show does not answer";
+        if (tag.firstChild && tag.firstChild.nodeType === 3) tag.firstChild.textContent = tag.firstChild.textContent.replace(/^● /, "○ ");
+      }
+      delete last.devices;
+      setTimeout(connect, 1000);
+    };
     ws.onmessage = (ev) => {
       if (typeof ev.data !== "string") { face.message(ev.data); return; }
       const msg = JSON.parse(ev.data);
       if (msg.t === "hello") {
+        // a show (re)started: it holds nothing from this page, so no slider stands at a value this
+        // page sent to the show before (they stayed there, frozen, no longer following the face)
+        state.own = {};
         state.me = msg.you; state.allowed = new Set(msg.allowed); state.layout = msg.layout;
         $("me").textContent = msg.you; build(msg.layout);
       } else if (msg.t === "state") {  // applied in the next animation frame, with the face's: one redraw
