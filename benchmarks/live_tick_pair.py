@@ -92,6 +92,26 @@ def _sim_ticks(tree: str, rate: float) -> None:
               flush=True)
 
 
+def run_ticks(core, events: list, i: int, n: int, per_frame: int, later: bool) -> int:  # type: ignore[no-untyped-def]
+    """`n` ticks of the live loop headless as `run_realtime` runs them (the events due by each
+    tick's end from `events[i:]`, the next step's input-free part, the tick, and on every tick that
+    ends a 60 Hz frame the surface where the loop leaves it for the frame and the recording's
+    frame); returns the index of the next event."""
+    for _ in range(n):
+        boundary = core.tick_count * core.dt + 1e-12
+        batch = []
+        while i < len(events) and events[i].t <= boundary:
+            batch.append(events[i])
+            i += 1
+        core.prepare_next()
+        core.tick(batch)
+        if core.tick_count % per_frame == 0:
+            if later:
+                core.finish_surface()
+            core.after_frame()
+    return i
+
+
 def _worker(tree: str, rate: float, seconds: float) -> None:
     """One tree's live loop, driven by batch requests on stdin ("N" ticks), answering one JSON line
     per batch: CPU seconds and the positions' digest."""
@@ -134,18 +154,7 @@ def _worker(tree: str, rate: float, seconds: float) -> None:
         n = int(line)
         spent[0] = 0.0
         t0 = clock()
-        for _ in range(n):
-            boundary = core.tick_count * core.dt + 1e-12
-            batch = []
-            while i < len(events) and events[i].t <= boundary:
-                batch.append(events[i])
-                i += 1
-            core.prepare_next()
-            core.tick(batch)
-            if core.tick_count % per_frame == 0:
-                if later:
-                    core.finish_surface()
-                core.after_frame()
+        i = run_ticks(core, events, i, n, per_frame, later)
         cpu = clock() - t0
         digest = hashlib.sha256(core.state.positions.tobytes()).hexdigest()[:16]
         print(json.dumps({"cpu": cpu, "sim": spent[0], "digest": digest, "events": i,

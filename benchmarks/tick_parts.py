@@ -141,21 +141,10 @@ def _dials(face: Any, still: set[str], rate: float, seconds: float) -> tuple[Cal
     per_frame = max(1, int(round(rate / 60.0)))
     at = [0]
 
+    from live_tick_pair import run_ticks  # this folder: the loop live_tick_pair.py times
+
     def run(n: int) -> None:
-        i = at[0]
-        for _ in range(n):
-            boundary = core.tick_count * core.dt + 1e-12
-            batch = []
-            while i < len(events) and events[i].t <= boundary:
-                batch.append(events[i])
-                i += 1
-            core.prepare_next()
-            core.tick(batch)
-            if core.tick_count % per_frame == 0:
-                if later:
-                    core.finish_surface()
-                core.after_frame()
-        at[0] = i
+        at[0] = run_ticks(core, events, at[0], n, per_frame, later)
     return run, lambda: core.state
 
 

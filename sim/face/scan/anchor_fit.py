@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from sim.face.scan.strain_fit import FieldCalibration
+
 SMOOTH = 1e-3  # Laplacian weight per edge and component (per mm squared), relative to one shape's own size
 RIDGE = 1e-5  # pull of each component towards 0 (per mm squared)
 BOUND = 5.0  # |d| at most this per component, mm
@@ -58,9 +60,11 @@ def channel_zones(model: Any, grow: float = 0.0) -> dict[str, np.ndarray]:
     return out
 
 
-class AnchorCalibration:
+class AnchorCalibration(FieldCalibration):
     """The linear model of one compiled face with a tether-anchor displacement field per muscle
     (sides shared, mirrored)."""
+
+    FTOL = 1e-15
 
     def __init__(self, model: Any, smooth: float = SMOOTH, ridge: float = RIDGE, bound: float = BOUND,
                  grow: float = 0.0, bending: bool = True, zones: dict[str, np.ndarray] | None = None) -> None:
@@ -114,60 +118,9 @@ class AnchorCalibration:
             cols = (3 * par[on][:, None] + np.arange(3)).ravel()
             vals = (MM * kr[on][:, None] * sign[None]).ravel()
             self.force_of[c] = sp.csr_matrix((vals, (rows, cols)), shape=(3 * n, self.n_params))
-        r = np.concatenate([a for a, _ in lap])
-        c2 = np.concatenate([b for _, b in lap])
-        m = len(r)
-        d1 = (sp.csr_matrix((np.ones(m), (np.arange(m), r)), shape=(m, k))
-              - sp.csr_matrix((np.ones(m), (np.arange(m), c2)), shape=(m, k)))
-        self.diff = sp.kron(d1, sp.eye(3)).tocsr()
+        self._edge_differences(lap, k, 3)
         self.smooth, self.ridge, self.bound = smooth, ridge, bound
         self.params = np.zeros(self.n_params)
-
-    def _solve(self, rhs: np.ndarray) -> np.ndarray:
-        out = np.zeros_like(rhs)
-        out[self.free] = self.lu.solve(np.ascontiguousarray(rhs[self.free]))
-        return out
-
-    def forces(self, p: np.ndarray, vals: np.ndarray) -> np.ndarray:
-        """(3N, S) the tether's added force in each shape (vals (S, C) channel values)."""
-        ci = self.model.channel_index
-        f = np.zeros((3 * self.n, len(vals)))
-        for c, t in self.force_of.items():
-            v = vals[:, ci[c]]
-            if np.any(v):
-                f += (t @ p)[:, None] * v[None]
-        return f
-
-    def predict_all(self, vals: np.ndarray, p: np.ndarray | None = None) -> np.ndarray:
-        """(S, N, 3) linear displacement the displaced anchors add to each shape."""
-        u = self._solve(self.forces(self.params if p is None else p, vals))
-        return u.T.reshape(len(vals), self.n, 3)
-
-    def objective(self, p: np.ndarray, vals: np.ndarray, b: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray]:
-        """Weighted squared misfit (targets b (3N, S), weights w (S,)) plus smoothness and ridge, and
-        its gradient (one adjoint solve a shape: K is symmetric)."""
-        r = self._solve(self.forces(p, vals)) - b
-        lam = 2.0 * self._solve(r * w[None])
-        ci = self.model.channel_index
-        grad = np.zeros_like(p)
-        for c, t in self.force_of.items():
-            v = vals[:, ci[c]]
-            if np.any(v):
-                grad += t.T @ (lam @ v)
-        dp = self.diff @ p
-        val = float(np.sum(w * np.sum(r * r, axis=0))) + self.smooth * float(dp @ dp) + self.ridge * float(p @ p)
-        grad += 2.0 * self.smooth * (self.diff.T @ dp) + 2.0 * self.ridge * p
-        return val, grad
-
-    def fit(self, vals: np.ndarray, b: np.ndarray, w: np.ndarray, iters: int = 300) -> Any:
-        """The anchor fields by L-BFGS-B (vals (S, C), targets b (3N, S), weights w (S,))."""
-        from scipy.optimize import minimize
-
-        res = minimize(lambda p: self.objective(p, vals, b, w), self.params, jac=True, method="L-BFGS-B",
-                       bounds=[(-self.bound, self.bound)] * self.n_params,
-                       options={"maxiter": iters, "ftol": 1e-15, "gtol": 1e-10})
-        self.params = res.x
-        return res
 
     def field(self, c: str, p: np.ndarray | None = None) -> np.ndarray:
         """(N, 3) channel c's anchor displacement at full value, cm (zero outside its zone)."""

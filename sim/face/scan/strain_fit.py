@@ -74,7 +74,86 @@ def spring_strain_matrix(rest: np.ndarray, springs: np.ndarray, sel: np.ndarray,
     return sp.csr_matrix((v, (r, c)), shape=(m, 6 * n_params))
 
 
-class StrainCalibration:
+class FieldCalibration:
+    """What the fits of a field per channel in the linear statics share (`StrainCalibration`,
+    `sim.face.scan.anchor_fit.AnchorCalibration`): a subclass sets `model`, `n`, the factored
+    stiffness `lu` over the `free` rows, `force_of` (channel -> sparse (3N, n_params) force per
+    parameter), `diff` (the smoothness's edge differences), `smooth`, `ridge`, `bound` and `params`."""
+
+    FTOL = 1e-12  # L-BFGS-B's relative tolerance on the objective
+
+    model: Any
+    n: int
+    lu: Any
+    free: np.ndarray
+    force_of: dict[str, Any]
+    diff: Any
+    smooth: float
+    ridge: float
+    bound: float
+    params: np.ndarray
+    n_params: int
+
+    def _edge_differences(self, lap: list[tuple[np.ndarray, np.ndarray]], k: int, width: int) -> None:
+        """`diff`: one row per zone edge and component, the difference of its two ends' parameters
+        (`lap`: per group the edges' two parameter indices; `k` parameters of `width` components)."""
+        import scipy.sparse as sp
+
+        r = np.concatenate([i for i, _ in lap])
+        c2 = np.concatenate([j for _, j in lap])
+        m = len(r)
+        d1 = (sp.csr_matrix((np.ones(m), (np.arange(m), r)), shape=(m, k))
+              - sp.csr_matrix((np.ones(m), (np.arange(m), c2)), shape=(m, k)))
+        self.diff = sp.kron(d1, sp.eye(width)).tocsr()
+
+    def _solve(self, rhs: np.ndarray) -> np.ndarray:
+        out = np.zeros_like(rhs)
+        out[self.free] = self.lu.solve(np.ascontiguousarray(rhs[self.free]))
+        return out
+
+    def forces(self, p: np.ndarray, vals: np.ndarray) -> np.ndarray:
+        """(3N, S) nodal force of each shape (vals (S, C) channel values)."""
+        ci = self.model.channel_index
+        f = np.zeros((3 * self.n, len(vals)))
+        for c, t in self.force_of.items():
+            v = vals[:, ci[c]]
+            if np.any(v):
+                f += (t @ p)[:, None] * v[None]
+        return f
+
+    def predict_all(self, vals: np.ndarray, p: np.ndarray | None = None) -> np.ndarray:
+        """(S, N, 3) linear displacement the fields add to each shape."""
+        u = self._solve(self.forces(self.params if p is None else p, vals))
+        return u.T.reshape(len(vals), self.n, 3)
+
+    def objective(self, p: np.ndarray, vals: np.ndarray, b: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray]:
+        """Weighted squared misfit (targets b (3N, S), weights w (S,)) plus smoothness and ridge, and
+        its gradient (one adjoint solve a shape: K is symmetric)."""
+        r = self._solve(self.forces(p, vals)) - b
+        lam = 2.0 * self._solve(r * w[None])
+        ci = self.model.channel_index
+        grad = np.zeros_like(p)
+        for c, t in self.force_of.items():
+            v = vals[:, ci[c]]
+            if np.any(v):
+                grad += t.T @ (lam @ v)
+        dp = self.diff @ p
+        val = float(np.sum(w * np.sum(r * r, axis=0))) + self.smooth * float(dp @ dp) + self.ridge * float(p @ p)
+        grad += 2.0 * self.smooth * (self.diff.T @ dp) + 2.0 * self.ridge * p
+        return val, grad
+
+    def fit(self, vals: np.ndarray, b: np.ndarray, w: np.ndarray, iters: int = 300) -> Any:
+        """The fields by L-BFGS-B (vals (S, C), targets b (3N, S), weights w (S,))."""
+        from scipy.optimize import minimize
+
+        res = minimize(lambda p: self.objective(p, vals, b, w), self.params, jac=True, method="L-BFGS-B",
+                       bounds=[(-self.bound, self.bound)] * self.n_params,
+                       options={"maxiter": iters, "ftol": self.FTOL, "gtol": 1e-10})
+        self.params = res.x
+        return res
+
+
+class StrainCalibration(FieldCalibration):
     """The linear model of one compiled face with an active strain field per muscle (sides shared)."""
 
     def __init__(self, model: Any, smooth: float = SMOOTH, ridge: float = RIDGE, bound: float = BOUND,
@@ -148,59 +227,9 @@ class StrainCalibration:
             g_mat = sp.csr_matrix((vv, (rr, cc)), shape=(3 * n, m))
             self.strain_mat[c] = s
             self.force_of[c] = (g_mat @ s).tocsr()
-        r = np.concatenate([a for a, _ in lap])
-        c2 = np.concatenate([b for _, b in lap])
-        m = len(r)
-        d1 = (sp.csr_matrix((np.ones(m), (np.arange(m), r)), shape=(m, k))
-              - sp.csr_matrix((np.ones(m), (np.arange(m), c2)), shape=(m, k)))
-        self.diff = sp.kron(d1, sp.eye(6)).tocsr()
+        self._edge_differences(lap, k, 6)
         self.smooth, self.ridge, self.bound = smooth, ridge, bound
         self.params = np.zeros(self.n_params)
-
-    def _solve(self, rhs: np.ndarray) -> np.ndarray:
-        out = np.zeros_like(rhs)
-        out[self.free] = self.lu.solve(np.ascontiguousarray(rhs[self.free]))
-        return out
-
-    def forces(self, p: np.ndarray, vals: np.ndarray) -> np.ndarray:
-        """(3N, S) nodal force of each shape (vals (S, C) channel values)."""
-        ci = self.model.channel_index
-        f = np.zeros((3 * self.n, len(vals)))
-        for c, t in self.force_of.items():
-            v = vals[:, ci[c]]
-            if np.any(v):
-                f += (t @ p)[:, None] * v[None]
-        return f
-
-    def predict_all(self, vals: np.ndarray, p: np.ndarray | None = None) -> np.ndarray:
-        """(S, N, 3) linear displacement the strain fields add to each shape."""
-        u = self._solve(self.forces(self.params if p is None else p, vals))
-        return u.T.reshape(len(vals), self.n, 3)
-
-    def objective(self, p: np.ndarray, vals: np.ndarray, b: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray]:
-        """Weighted squared misfit (targets b (3N, S), weights w (S,)) plus smoothness and ridge, and
-        its gradient (one adjoint solve a shape: K is symmetric)."""
-        r = self._solve(self.forces(p, vals)) - b
-        lam = 2.0 * self._solve(r * w[None])
-        ci = self.model.channel_index
-        grad = np.zeros_like(p)
-        for c, t in self.force_of.items():
-            v = vals[:, ci[c]]
-            if np.any(v):
-                grad += t.T @ (lam @ v)
-        dp = self.diff @ p
-        val = float(np.sum(w * np.sum(r * r, axis=0))) + self.smooth * float(dp @ dp) + self.ridge * float(p @ p)
-        grad += 2.0 * self.smooth * (self.diff.T @ dp) + 2.0 * self.ridge * p
-        return val, grad
-
-    def fit(self, vals: np.ndarray, b: np.ndarray, w: np.ndarray, iters: int = 300) -> Any:
-        """The strain fields by L-BFGS-B (vals (S, C), targets b (3N, S), weights w (S,))."""
-        from scipy.optimize import minimize
-
-        res = minimize(lambda p: self.objective(p, vals, b, w), self.params, jac=True, method="L-BFGS-B",
-                       bounds=[(-self.bound, self.bound)] * self.n_params, options={"maxiter": iters, "ftol": 1e-12, "gtol": 1e-10})
-        self.params = res.x
-        return res
 
     def spring_strain(self) -> dict[str, np.ndarray]:
         """Per channel the (S,) strain of every spring at full value (0 outside the zone)."""
