@@ -211,21 +211,14 @@ def test_puppet_learn_binds_a_fader_and_a_button(jack_server: str, tmp_path) -> 
                    ("ch1.cc80", "midi", "age", "momentary", "relative", "twos_complement")}
 
 
-def test_the_device_survives_a_jack_server_restart(jack_server: str, monkeypatch: pytest.MonkeyPatch) -> None:  # noqa: F811
-    """The JACK server itself goes down and comes back under the same name: the device's clients
-    belonged to the old server, so it makes new ones and finds the box again. (`puppet monitor` in
-    its own process: one process does not talk to two JACK servers, and this one has the module's.)"""
+def _monitor_nanokontrol():  # type: ignore[no-untyped-def]
+    """`puppet monitor midi://nanoKONTROL2?api=jack --json` started on the JACK server named by
+    $JACK_DEFAULT_SERVER; returns the process, the JSON lines read so far and `until(pred)`, which
+    reads lines until pred(lines) holds (30 s at most)."""
     import json
-    import os
     import subprocess
     import sys
 
-    from midijack import start_jackd, stop_jackd, wait_for_host
-
-    name = f"fprestart{os.getpid()}"
-    monkeypatch.setenv("JACK_DEFAULT_SERVER", name)
-    server = start_jackd(name)
-    box = MidiBox("nanoKONTROL2").plug()
     mon = subprocess.Popen([sys.executable, "-m", "puppet", "monitor", "midi://nanoKONTROL2?api=jack", "--json",
                             "--duration", "60"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
                            env=_puppet_env())
@@ -239,6 +232,23 @@ def test_the_device_survives_a_jack_server_restart(jack_server: str, monkeypatch
             line = mon.stdout.readline()
             assert line, f"monitor ended; got {lines}"
             lines.append(json.loads(line))
+
+    return mon, lines, until
+
+
+def test_the_device_survives_a_jack_server_restart(jack_server: str, monkeypatch: pytest.MonkeyPatch) -> None:  # noqa: F811
+    """The JACK server itself goes down and comes back under the same name: the device's clients
+    belonged to the old server, so it makes new ones and finds the box again. (`puppet monitor` in
+    its own process: one process does not talk to two JACK servers, and this one has the module's.)"""
+    import os
+
+    from midijack import start_jackd, stop_jackd, wait_for_host
+
+    name = f"fprestart{os.getpid()}"
+    monkeypatch.setenv("JACK_DEFAULT_SERVER", name)
+    server = start_jackd(name)
+    box = MidiBox("nanoKONTROL2").plug()
+    mon, lines, until = _monitor_nanokontrol()
 
     try:
         until(lambda ls: any(x.get("status") == "connected" for x in ls))
@@ -264,10 +274,7 @@ def test_a_jack_server_stopped_under_a_plugged_box_is_a_loss_and_its_return_is_f
     last copy of the server's ports, so the box's port stayed listed; the device said nothing, and
     after the server came back it never found the box (the box's messages were lost for the rest of
     the show). It is `lost` when the server goes and `connected` again with the box on the new one."""
-    import json
     import os
-    import subprocess
-    import sys
 
     from midijack import start_jackd, stop_jackd, wait_for_host
 
@@ -275,19 +282,7 @@ def test_a_jack_server_stopped_under_a_plugged_box_is_a_loss_and_its_return_is_f
     monkeypatch.setenv("JACK_DEFAULT_SERVER", name)
     server = start_jackd(name)
     box = MidiBox("nanoKONTROL2").plug()
-    mon = subprocess.Popen([sys.executable, "-m", "puppet", "monitor", "midi://nanoKONTROL2?api=jack", "--json",
-                            "--duration", "60"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-                           env=_puppet_env())
-    lines: list[dict] = []
-
-    def until(pred: object, timeout: float = 30.0) -> None:
-        assert mon.stdout is not None
-        deadline = time.monotonic() + timeout
-        while not pred(lines):  # type: ignore[operator]
-            assert time.monotonic() < deadline, lines
-            line = mon.stdout.readline()
-            assert line, f"monitor ended; got {lines}"
-            lines.append(json.loads(line))
+    mon, lines, until = _monitor_nanokontrol()
 
     try:
         until(lambda ls: any(x.get("status") == "connected" for x in ls))
