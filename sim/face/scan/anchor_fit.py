@@ -94,15 +94,8 @@ class AnchorCalibration(FieldCalibration):
         lap, k = [], 0
         for g in self.groups:
             chans = groups[g]
-            zone = np.zeros(n, bool)
-            for c in chans:
-                z = np.flatnonzero(zones[c])
-                zone[z if c != g + "_r" else mirror[z]] = True
-            ids = np.flatnonzero(zone)
-            look = -np.ones(n, np.int64)
-            look[ids] = k + np.arange(len(ids))
-            inner = e[zone[e].all(axis=1)]
-            lap.append((look[inner[:, 0]], look[inner[:, 1]]))
+            zone, ids, look, edges = self._group_zone(g, chans, zones, mirror, e, k)
+            lap.append(edges)
             self.parts[g] = (k, len(ids))
             for c in chans:
                 right = c == g + "_r"

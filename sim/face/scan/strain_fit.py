@@ -94,6 +94,22 @@ class FieldCalibration:
     params: np.ndarray
     n_params: int
 
+    @staticmethod
+    def _group_zone(g: str, chans: list[str], zones: dict[str, np.ndarray], mirror: np.ndarray, e: np.ndarray,
+                    k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """One group's zone (its channels' zones, a right channel's mirrored onto the left), its
+        vertices, each vertex's parameter index (k on; -1 outside) and its inner edges' two indices."""
+        n = len(mirror)
+        zone = np.zeros(n, bool)
+        for c in chans:
+            z = np.flatnonzero(zones[c])
+            zone[z if c != g + "_r" else mirror[z]] = True
+        ids = np.flatnonzero(zone)
+        look = -np.ones(n, np.int64)
+        look[ids] = k + np.arange(len(ids))
+        inner = e[zone[e].all(axis=1)]
+        return zone, ids, look, (look[inner[:, 0]], look[inner[:, 1]])
+
     def _edge_differences(self, lap: list[tuple[np.ndarray, np.ndarray]], k: int, width: int) -> None:
         """`diff`: one row per zone edge and component, the difference of its two ends' parameters
         (`lap`: per group the edges' two parameter indices; `k` parameters of `width` components)."""
@@ -192,15 +208,8 @@ class StrainCalibration(FieldCalibration):
         self.strain_of: dict[str, Any] = {}  # channel -> (E_c, 6P) spring strains from the parameters
         for g in self.groups:
             chans = groups[g]
-            zone = np.zeros(n, bool)
-            for c in chans:
-                z = np.flatnonzero(zones[c])
-                zone[z if c != g + "_r" else mirror[z]] = True
-            ids = np.flatnonzero(zone)
-            look = -np.ones(n, np.int64)
-            look[ids] = k + np.arange(len(ids))
-            inner = e[zone[e].all(axis=1)]
-            lap.append((look[inner[:, 0]], look[inner[:, 1]]))
+            zone, ids, look, edges = self._group_zone(g, chans, zones, mirror, e, k)
+            lap.append(edges)
             parts[g] = (k, len(ids))
             for c in chans:
                 right = c == g + "_r"
