@@ -93,9 +93,9 @@ FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
         "happiness": {"AU6": 0.3, "AU10": 0.3, "AU12": 1.0, "AU13": 1.0, "AU25": 1.0},
         "sadness": {"AU1": 1.0, "AU4": 0.42, "AU11": 0.6, "AU15": 1.0, "AU17": 1.0, "AU43": 0.7},
         "surprise": {"AU1": 1.0, "AU2": 1.0, "AU5": 0.6, "AU26": 1.0},
-        "fear": {"AU1": 1.0, "AU2": 0.15, "AU4": 1.0, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
-        "anger": {"AU2": 0.3, "AU4": 1.0, "AU5": 0.5, "AU7": 0.85, "AU17": 1.0, "AU23": 1.0},
-        "disgust": {"AU9": 0.55, "AU10": 0.55, "AU4": 0.6, "AU15": 0.4, "AU25": 1.0},
+        "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 1.0, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
+        "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.5, "AU7": 0.85, "AU17": 1.0, "AU23": 1.0},
+        "disgust": {"AU9": 0.7, "AU10": 0.7, "AU4": 0.75, "AU15": 0.3, "AU25": 1.0},
     },
 }
 """Per face (its rig's name: "ict" is the scanned head and its identities), the presets whose
