@@ -139,7 +139,12 @@ EMFACS 1+4+11+15): 0.92 and 8 views (AU11 0.4-0.7: 7-8). Disgust pulls the lip c
 (AU15 0.4, the 9+15+16 of the EMFACS table): 0.74 and 8 views (AU15 0.3-0.5: 0.69-0.71, 8 views).
 Anger still read sad from two views below until AU7 raised the lower lid (its own channel; before,
 AU7 was the lid channel alone, which lowers the scan's upper lid as its blink does, and lids lowered
-under lowered brows read sad from below): the same mix reads angry from all nine views (0.47-0.78)."""
+under lowered brows read sad from below): the same mix reads angry from all nine views (0.47-0.78).
+Retuned on the rig with the skin's tether anchors and the hanging lashes (frontal: fear read as
+surprise, anger as neutral, disgust as anger, 4 of 7): disgust AU9+10 0.7 with AU4 0.75 and AU15 0.3
+(disgust 0.85; 8 of 9 views over AU4 0.7-0.9 and AU15 0.3-0.4), fear and anger with the outer brows
+raised less (AU2 0.1: fear 0.63; AU2 0.15: angry 0.71): 7 of 7, mean 0.83 (docs/scan-face.md,
+"Retuned on the anchored rig")."""
 
 
 FACE_EXPRESSIONS["imported"] = {
