@@ -93,9 +93,9 @@ FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
         "happiness": {"AU6": 0.3, "AU10": 0.3, "AU12": 1.0, "AU13": 1.0, "AU25": 1.0},
         "sadness": {"AU1": 1.0, "AU4": 0.42, "AU11": 0.6, "AU15": 1.0, "AU17": 1.0, "AU43": 0.7},
         "surprise": {"AU1": 1.0, "AU2": 1.0, "AU5": 0.6, "AU26": 1.0},
-        "fear": {"AU1": 1.0, "AU2": 0.15, "AU4": 1.0, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
-        "anger": {"AU2": 0.3, "AU4": 1.0, "AU5": 0.5, "AU7": 0.85, "AU17": 1.0, "AU23": 1.0},
-        "disgust": {"AU9": 0.55, "AU10": 0.55, "AU4": 0.6, "AU15": 0.4, "AU25": 1.0},
+        "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 1.0, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
+        "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.5, "AU7": 0.85, "AU17": 1.0, "AU23": 1.0},
+        "disgust": {"AU9": 0.7, "AU10": 0.7, "AU4": 0.75, "AU15": 0.3, "AU25": 1.0},
     },
 }
 """Per face (its rig's name: "ict" is the scanned head and its identities), the presets whose
@@ -139,7 +139,12 @@ EMFACS 1+4+11+15): 0.92 and 8 views (AU11 0.4-0.7: 7-8). Disgust pulls the lip c
 (AU15 0.4, the 9+15+16 of the EMFACS table): 0.74 and 8 views (AU15 0.3-0.5: 0.69-0.71, 8 views).
 Anger still read sad from two views below until AU7 raised the lower lid (its own channel; before,
 AU7 was the lid channel alone, which lowers the scan's upper lid as its blink does, and lids lowered
-under lowered brows read sad from below): the same mix reads angry from all nine views (0.47-0.78)."""
+under lowered brows read sad from below): the same mix reads angry from all nine views (0.47-0.78).
+Retuned on the rig with the skin's tether anchors and the hanging lashes (frontal: fear read as
+surprise, anger as neutral, disgust as anger, 4 of 7): disgust AU9+10 0.7 with AU4 0.75 and AU15 0.3
+(disgust 0.85; 8 of 9 views over AU4 0.7-0.9 and AU15 0.3-0.4), fear and anger with the outer brows
+raised less (AU2 0.1: fear 0.63; AU2 0.15: angry 0.71): 7 of 7, mean 0.83 (docs/scan-face.md,
+"Retuned on the anchored rig")."""
 
 
 FACE_EXPRESSIONS["imported"] = {
