@@ -91,7 +91,7 @@ EXPRESSIONS: dict[str, dict[str, float]] = {
 FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
     "ict": {
         "happiness": {"AU6": 0.3, "AU10": 0.3, "AU12": 1.0, "AU13": 1.0, "AU25": 1.0},
-        "sadness": {"AU1": 1.0, "AU4": 0.42, "AU11": 0.6, "AU15": 1.0, "AU17": 1.0, "AU43": 0.7},
+        "sadness": {"AU1": 1.0, "AU4": 0.42, "AU11": 0.6, "AU15": 1.0, "AU17": 1.0, "AU43": 0.35},
         "surprise": {"AU1": 1.0, "AU2": 1.0, "AU5": 0.6, "AU26": 1.0},
         "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 1.0, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
         "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.5, "AU7": 0.85, "AU17": 1.0, "AU23": 1.0},
@@ -144,7 +144,9 @@ Retuned on the rig with the skin's tether anchors and the hanging lashes (fronta
 surprise, anger as neutral, disgust as anger, 4 of 7): disgust AU9+10 0.7 with AU4 0.75 and AU15 0.3
 (disgust 0.85; 8 of 9 views over AU4 0.7-0.9 and AU15 0.3-0.4), fear and anger with the outer brows
 raised less (AU2 0.1: fear 0.63; AU2 0.15: angry 0.71): 7 of 7, mean 0.83 (docs/scan-face.md,
-"Retuned on the anchored rig")."""
+"Retuned on the anchored rig"). Sadness's lids then droop less (AU43 0.7 -> 0.35): at 0.7 the
+eyes were nearly shut where the scan's sadness keeps them open under heavy lids; at 0.35 the iris
+shows as in the scan and it reads sad 0.94 (0.95 at 0.7), 8 of 9 views (0.3-0.45: 0.86-0.91, 8 of 9)."""
 
 
 FACE_EXPRESSIONS["imported"] = {
