@@ -79,6 +79,8 @@ class TextParser:
             self._bad("range", raw, f"no control {kind}{n} declared (see the buttons/dials/axes options)")
             return
         try:
+            if "_" in arg:  # Python reads "1_0" as 10 (digits grouped); the protocol has no such numbers
+                raise ValueError(arg)
             value = float(arg) if kind == "A" else int(arg.strip(), 10)
         except ValueError:
             self._bad("garbage", raw, "bad number")

@@ -81,6 +81,15 @@ def test_parser_counts_and_ranges() -> None:
     assert p.feed(b"A0 -0.01\n", 4.0)[0].value == 0.0
 
 
+def test_digits_grouped_by_underscores_are_a_bad_number() -> None:
+    """`D0 +1_0` was read as a step of 10 and `A0 0.5_0` as 0.5 (Python's literals group digits with
+    underscores; the protocol does not): a box sending such a line has a fault, counted as garbage."""
+    p = TextParser("x", n_buttons=2, n_dials=1, n_axes=1, counts_per_turn=24)
+    assert p.feed(b"D0 +1_0\nA0 0.5_0\nB1 1_0\n", 1.0) == []
+    assert p.warnings.counts["garbage"] == 3
+    assert [e.delta for e in p.feed(b"D0 +10\n", 2.0)] == [10.0]
+
+
 def test_permission_denied_says_what_to_do(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import errno
 
