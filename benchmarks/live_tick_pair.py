@@ -92,6 +92,27 @@ def _sim_ticks(tree: str, rate: float) -> None:
               flush=True)
 
 
+def dial_core(face, script: str, rate: float, prefix: str):  # type: ignore[no-untyped-def]
+    """A `LiveCore` on `face` at `rate` recording to a temporary folder, mapped from the mock
+    device of `script` (a mock:// TOML script), with the script's events; the surface left for the
+    frame where the tree's loop can (as run_realtime sets it headless with frames slower than ticks)."""
+    import devices
+    from puppet import live
+    from puppet.mapping import Mapper
+    from puppet.session import SessionWriter
+
+    tmp = Path(tempfile.mkdtemp(prefix=prefix))
+    (tmp / "s.toml").write_text(script)
+    dev = devices.open_device(f"mock://{tmp / 's.toml'}")
+    spec = live.build_mapping(face.vocab, None, [dev.spec])
+    events = live.scripted_events([dev])
+    dev.close()
+    writer = SessionWriter(tmp / "take.jsonl", live.session_header(face, spec, rate, [dev.spec]), fsync_seconds=None)
+    core = live.LiveCore(face, Mapper(spec, face.vocab), rate=rate, writer=writer)
+    core.surface_later = hasattr(core, "finish_surface")
+    return core, events
+
+
 def run_ticks(core, events: list, i: int, n: int, per_frame: int, later: bool) -> int:  # type: ignore[no-untyped-def]
     """`n` ticks of the live loop headless as `run_realtime` runs them (the events due by each
     tick's end from `events[i:]`, the next step's input-free part, the tick, and on every tick that
@@ -116,23 +137,12 @@ def _worker(tree: str, rate: float, seconds: float) -> None:
     """One tree's live loop, driven by batch requests on stdin ("N" ticks), answering one JSON line
     per batch: CPU seconds and the positions' digest."""
     sys.path.insert(0, tree)
-    import devices
     from puppet import live
-    from puppet.mapping import Mapper
-    from puppet.session import SessionWriter
 
-    tmp = Path(tempfile.mkdtemp(prefix="tick-pair-"))
-    dials = "".join(DIAL.format(n=n, seconds=seconds, freq=0.3 + 0.17 * n) for n in range(8))
-    (tmp / "s.toml").write_text(SCRIPT.format(seconds=seconds, dials=dials))
     face = live.load_face()
-    dev = devices.open_device(f"mock://{tmp / 's.toml'}")
-    spec = live.build_mapping(face.vocab, None, [dev.spec])
-    events = live.scripted_events([dev])
-    dev.close()
-    writer = SessionWriter(tmp / "take.jsonl", live.session_header(face, spec, rate, [dev.spec]), fsync_seconds=None)
-    core = live.LiveCore(face, Mapper(spec, face.vocab), rate=rate, writer=writer)
-    later = hasattr(core, "finish_surface")
-    core.surface_later = later  # as run_realtime sets it headless with frames slower than ticks
+    dials = "".join(DIAL.format(n=n, seconds=seconds, freq=0.3 + 0.17 * n) for n in range(8))
+    core, events = dial_core(face, SCRIPT.format(seconds=seconds, dials=dials), rate, "tick-pair-")
+    later = core.surface_later
     per_frame = max(1, int(round(rate / 60.0)))
     i = 0
     clock = time.thread_time

@@ -27,7 +27,6 @@ import argparse
 import hashlib
 import statistics
 import sys
-import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -118,26 +117,16 @@ def _instrument(timer: Timer, lean: bool) -> None:
 
 def _dials(face: Any, still: set[str], rate: float, seconds: float) -> tuple[Callable[[int], None], Callable[[], Any]]:
     """The dials scenario's loop (live_tick_pair.py's worker), with the `still` dials not turned."""
-    import devices
-    from puppet import live
-    from puppet.mapping import Mapper
-    from puppet.session import SessionWriter
 
     def amp(n: int) -> float:
         held = (n == 0 and "age" in still) or (n == 7 and "jaw" in still) or (1 <= n <= 6 and "muscles" in still)
         return 0.0 if held else 0.4
 
-    tmp = Path(tempfile.mkdtemp(prefix="tick-parts-"))
+    from live_tick_pair import dial_core  # this folder: the core live_tick_pair.py times
+
     dials = "".join(DIAL.format(n=n, seconds=seconds, freq=0.3 + 0.17 * n, amp=amp(n)) for n in range(8))
-    (tmp / "s.toml").write_text(SCRIPT.format(seconds=seconds, dials=dials))
-    dev = devices.open_device(f"mock://{tmp / 's.toml'}")
-    spec = live.build_mapping(face.vocab, None, [dev.spec])
-    events = live.scripted_events([dev])
-    dev.close()
-    writer = SessionWriter(tmp / "take.jsonl", live.session_header(face, spec, rate, [dev.spec]), fsync_seconds=None)
-    core = live.LiveCore(face, Mapper(spec, face.vocab), rate=rate, writer=writer)
-    later = hasattr(core, "finish_surface")
-    core.surface_later = later
+    core, events = dial_core(face, SCRIPT.format(seconds=seconds, dials=dials), rate, "tick-parts-")
+    later = core.surface_later
     per_frame = max(1, int(round(rate / 60.0)))
     at = [0]
 
