@@ -15,6 +15,7 @@ from render import scan_shaders
 from render.pipeline import flush, threaded_rasterizer
 from render.scan_look import IRIS_ANGLE, PUPIL_ANGLE, ScanLook
 from render.scan_rows import ScanRows
+from render.scan_seam import LidSeam
 from render.scan_soften import FoldSoftener
 from sim.face.scan.blendshapes import StateControl as PoseControl
 
@@ -91,9 +92,11 @@ class ScanPoser:
         self.look = ScanLook(np.asarray(dressing.rest, np.float64))
         self.maker = ScanRows(self.look)
         self.softener = FoldSoftener(self.look)
+        self.seam = LidSeam(self.look)
 
     def rows(self, state: Any) -> np.ndarray:
-        return self.softener.shade(self.maker.rows(posed_scan(self.dressing, self.softener, state)))
+        rows = self.maker.rows(posed_scan(self.dressing, self.softener, state))
+        return self.seam.shade(self.softener.shade(rows))
 
 
 class ScanDraw:
@@ -118,6 +121,7 @@ class ScanDraw:
         self.maker = ScanRows(self.look, np.concatenate([self.coarse_tri, self.coarse_eyes, self.coarse_inside]),
                               sealed_vertices(dressing), len(self.coarse_inside))
         self.softener: FoldSoftener | None = FoldSoftener(self.look)  # None: the buckles drawn as simulated
+        self.seam: LidSeam | None = LidSeam(self.look)  # None: no shadow in the closing lids' seam
         from render.scan_lod import coarse_plain
 
         self.lod_error = coarse_plain()[1]  # cm: the coarse skin's largest distance from the full one
@@ -262,7 +266,9 @@ class ScanDraw:
         return self.maker.box.copy()
 
     def _shaded(self, rows: np.ndarray) -> np.ndarray:
-        return rows if self.softener is None else self.softener.shade(rows)
+        if self.softener is not None:
+            rows = self.softener.shade(rows)
+        return rows if self.seam is None else self.seam.shade(rows)
 
     def _indices(self, rows: np.ndarray, groups: int) -> None:
         """The index buffer's first `groups` slices for these rows: the triangles that may face the

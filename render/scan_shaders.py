@@ -7,7 +7,9 @@ from __future__ import annotations
 from render.shaders import HEADER, LIGHTING, LIGHTING_RAMP_ONLY
 
 # Per vertex: the light (key with a wider, redder wrap for the light scattered under the skin;
-# fill; sky; rim), the baked occlusion times the fold term of this frame, the albedo. Per pixel:
+# fill; sky; rim), the baked occlusion times the fold term of this frame, the albedo; a fold term
+# beyond 1 (never a fold's: they stay under 0.5) is a cast shadow, the key light and the highlight
+# taken down by what lies past 1 (at most 0.85; the closing lids' seam, render.scan_seam). Per pixel:
 # the vermilion and the brows' edges from their interpolated signed distances (cm), the brows'
 # hair from the face chart's coordinates, and a Blinn highlight, glossier on the lips (PLAIN: the
 # highlight per vertex too).
@@ -39,9 +41,10 @@ void main() {
     vec3 v = normalize(-p);
     float fold = clamp(1.0 - 1.8 * max(in_fold, 0.0), 0.3, 1.0) * (1.0 + 0.25 * clamp(-in_fold, 0.0, 0.3));
     float occ = in_mat.z * fold;
+    float shaded = 1.0 - clamp(in_fold - 1.0, 0.0, 0.85);  // a fold term past 1: the key light shaded
     float k = dot(n, KEY_D);
     vec3 key = vec3(max((k + 0.55) / 1.55, 0.0), max((k + 0.3) / 1.3, 0.0), max((k + 0.25) / 1.25, 0.0));
-    key *= key;                                  // a softer terminator, red reaching furthest
+    key *= key * shaded;                         // a softer terminator, red reaching furthest
     float fill = max((dot(n, FILL_D) + 0.2) / 1.2, 0.0);
     vec3 sky = mix(vec3(0.13, 0.12, 0.11), vec3(0.30, 0.32, 0.36), 0.5 + 0.5 * n.y);
     vec3 light = key * vec3(1.75, 1.62, 1.48) * mix(1.0, occ, 0.55) + (fill * vec3(0.30, 0.34, 0.42) + sky) * occ;
@@ -57,11 +60,11 @@ void main() {
 #if defined(PLAIN)
     float x = max(dot(n, normalize(KEY_D + v)), 0.0) * inversesqrt(dot(n, n));
     x *= x; x *= x; x *= x; x *= x; x *= x;
-    v_lit += in_mat.w * occ * x * vec3(1.0, 0.97, 0.92);
+    v_lit += in_mat.w * occ * shaded * x * vec3(1.0, 0.97, 0.92);
 #else
     v_normal = n;
     v_half = normalize(KEY_D + v);
-    v_mat = vec4(in_mat.xy, in_mat.w * occ, occ);
+    v_mat = vec4(in_mat.xy, in_mat.w * occ * shaded, occ);
     v_uv = in_uv;
 #endif
 }
@@ -122,7 +125,8 @@ void main() {
 
 # The eyeballs: the sclera, a textured iris and the pupil from each vertex's angle to the gaze axis
 # at rest (so they turn with the eyeball however the eye is posed), the shadow of the upper lid,
-# and the cornea's wet highlights (a sharp one from the key light, a broad one from the fill).
+# the shadow of lids shut over it (its rows' fold term, render.scan_seam), and the cornea's wet
+# highlights (a sharp one from the key light, a broad one from the fill).
 SCAN_EYE_VS = HEADER + """
 uniform mat4 mvp;
 uniform mat4 view;
@@ -130,13 +134,16 @@ in vec3 in_pos;
 in vec3 in_normal;
 in float in_angle;
 in vec2 in_uv;
+in float in_fold;
 out vec3 v_pos;
 out vec3 v_normal;
 out float v_angle;
 out float v_up;
 out vec2 v_uv;
+out float v_open;
 void main() {
     gl_Position = mvp * vec4(in_pos, 1.0);
+    v_open = 1.0 - 0.85 * clamp(in_fold, 0.0, 1.0);  // the eye shut: its seam's shadow (render.scan_seam)
     v_pos = (view * vec4(in_pos, 1.0)).xyz;
     v_normal = mat3(view) * in_normal;
     v_angle = in_angle;
@@ -153,6 +160,7 @@ in vec3 v_normal;
 in float v_angle;
 in float v_up;
 in vec2 v_uv;
+in float v_open;
 out vec4 frag;
 void main() {
     float a = v_angle;
@@ -170,7 +178,7 @@ void main() {
     c += specular(n, v, 1.6, 180.0);
     vec3 h2 = normalize(FILL_D + v);
     c += 0.25 * pow(max(dot(n, h2), 0.0), 60.0) * vec3(0.85, 0.9, 1.0);
-    frag = vec4(encode(c), 1.0);
+    frag = vec4(encode(c * v_open), 1.0);
 }
 """
 

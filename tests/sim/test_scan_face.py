@@ -246,6 +246,41 @@ def test_closed_lids_cover_the_eyeballs(model) -> None:  # type: ignore[no-untyp
                 assert shown.mean() > 0.3
 
 
+def test_surprise_raises_the_forehead_without_lumps(model, presets) -> None:  # type: ignore[no-untyped-def]
+    """Surprise lifts the forehead evenly: what its displacement keeps beyond a 1 cm average over the
+    forehead (the lumps) stays under 1.5 mm (1.4 mm; with AU1 and AU2 at full 2.1 mm: two ridges over the
+    brows where the scan's forehead creases evenly), while the brows still rise (above)."""
+    from scipy.spatial import cKDTree
+
+    rest = model.rest
+    eye_y = float(np.mean([rest[model.mesh.landmarks[f"upper_lid_{s}"], 1] for s in "lr"]))
+    fh = np.flatnonzero((rest[:, 1] > eye_y + 2.0) & (rest[:, 1] < eye_y + 7.0) & (np.abs(rest[:, 0]) < 5.5)
+                        & (rest[:, 2] > rest[:, 2].max() - 4.0))
+    d = presets["surprise"] - rest
+    near = cKDTree(rest[fh]).query_ball_point(rest[fh], 1.0)
+    smooth = np.array([d[fh[j]].mean(axis=0) for j in near])
+    lumps = 10.0 * np.linalg.norm(d[fh] - smooth, axis=1)
+    assert lumps.max() < 1.5, float(lumps.max())
+
+
+def test_anger_glares_with_the_irises_showing(model, presets) -> None:  # type: ignore[no-untyped-def]
+    """Anger narrows the eyes (the lower lid raised, above) but glares: most of each iris shows past
+    the lids and the lashes, seen from the front (the front 2.5 mm of the eyeball: 87 % at rest;
+    anger with the lids tightened harder than they were raised, AU7 0.85 with AU5 0.5, left 9-11 %,
+    the eyes nearly shut under the lashes)."""
+    dressing = dressing_for(model)
+    lashes = np.concatenate([scan_data().triangles(p) for p in ("eyelashes_l", "eyelashes_r")])
+    c = _preset("anger")
+    pos = presets["anger"]
+    posed = dressing.pose(pos, c).astype(np.float64)
+    ahead = np.array([0.0, 0.0, 1.0])
+    for part in ("eyeball_l", "eyeball_r"):
+        eye = posed[slice(*PARTS[part])]
+        iris = eye[eye[:, 2] > eye[:, 2].max() - 0.25]
+        shown = ~ray_hits(iris, pos[model.triangles], ahead) & ~ray_hits(iris, posed[lashes], ahead)
+        assert shown.mean() > 0.4, (part, float(shown.mean()))
+
+
 def test_the_lid_tightener_raises_the_lower_lid_and_the_blink_does_not(model) -> None:  # type: ignore[no-untyped-def]
     """AU7 narrows the eye from below (its own channel, the lower lid's palpebral orbicularis); a
     blink (AU45) brings the upper lid down onto a lower lid that stays, as the scan's own blink."""
