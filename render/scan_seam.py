@@ -82,34 +82,35 @@ class LidSeam:
             keep = dist < BAND
             self.band.append(skin[keep].astype(np.int64))
             self.weight.append((1.0 - _smoothstep(dist[keep] / BAND)).astype(np.float32))
-            self.at.append(near[keep])
+            self.at.append(near[keep].astype(np.int64))
             self.rest_gap.append(gap)
             xs = rest[chain, 0]
             span = xs.max() - xs.min()
-            self.middle.append((xs > xs.min() + 0.25 * span) & (xs < xs.max() - 0.25 * span))
+            self.middle.append(np.flatnonzero((xs > xs.min() + 0.25 * span) & (xs < xs.max() - 0.25 * span)))
             own = int(np.argmin([np.linalg.norm(rest[lo:hi].mean(axis=0) - rest[lp].mean(axis=0)) for lo, hi in balls]))
             self.balls.append(balls[own])
-
-    def gaps(self, pos: np.ndarray) -> list[np.ndarray]:
-        """Per eye, each margin vertex's distance (cm) from the other lid's margin (upper then lower)."""
-        p = np.asarray(pos, np.float64)
-        return [np.concatenate([_to_polyline(p[u], p[lo]), _to_polyline(p[lo], p[u])]) for u, lo in self.lids]
+        self._gap, self._closed, self._shut = np.array(GAP), np.array(CLOSED), np.array(SHUT)
+        self._scratch = np.zeros(max(len(u) + len(lo) for u, lo in self.lids))
 
     def shadow(self, pos: np.ndarray) -> list[np.ndarray]:
         """Per eye, 0..1 per margin vertex (upper then lower): how closed the seam is there."""
+        from render.seam_kernel import seam_shadow
+
         out = []
-        for gap, rest_gap in zip(self.gaps(pos), self.rest_gap):
-            closed = (rest_gap - gap) / np.maximum(rest_gap, 2.0 * GAP[1])  # none at the corners
-            out.append(_smoothstep((GAP[1] - gap) / (GAP[1] - GAP[0]))
-                       * _smoothstep((closed - CLOSED[0]) / (CLOSED[1] - CLOSED[0])))
+        for (upper, lower), rest_gap in zip(self.lids, self.rest_gap):
+            s = np.zeros(len(upper) + len(lower))
+            seam_shadow(pos, upper, lower, rest_gap, self._gap, self._closed, s)
+            out.append(s)
         return out
 
     def shade(self, rows: np.ndarray) -> np.ndarray:
         """`rows` (the renderer's x y z nx ny nz fold) with the closing seams' shadow added to the
-        fold term of the skin within BAND of the margins."""
-        for s, band, w, at, middle, (lo, hi) in zip(self.shadow(rows[:, :3]), self.band, self.weight, self.at,
-                                                    self.middle, self.balls):
-            if s.max() > 0.0:
-                rows[band, 6] += (SEAM_FOLD * w * s[at]).astype(np.float32)
-            rows[lo:hi, 6] = float(_smoothstep((s[middle].mean() - SHUT[0]) / (SHUT[1] - SHUT[0])))
+        fold term of the skin within BAND of the margins, and each eyeball's fold term set to how
+        shut its eye is (0..1, which its shader reads)."""
+        from render.seam_kernel import seam_shade
+
+        for (upper, lower), rest_gap, band, w, at, middle, (lo, hi) in zip(
+                self.lids, self.rest_gap, self.band, self.weight, self.at, self.middle, self.balls):
+            seam_shade(rows, upper, lower, rest_gap, band, w, at, middle, lo, hi, SEAM_FOLD, self._gap,
+                       self._closed, self._shut, self._scratch)
         return rows
