@@ -24,9 +24,10 @@ from scipy.spatial import cKDTree
 SEAM_FOLD = 2.6  # the fold term added at a closed seam: up to 0.4 darkens the ambient light to its least, past
 # 1 the key light and the highlight too (render.scan_shaders: at most 0.85 of them taken)
 GAP = (0.1, 0.3)  # cm between the margins: all of the shadow at the first, none beyond the second
-# how much of its rest width (taken as at least 2 GAP[1]) the gap closed: none of the shadow below the
+# how much of its rest width (taken as at least REST_FLOOR) the gap closed: none of the shadow below the
 # first, all of it above the second
 CLOSED = (0.2, 0.5)
+REST_FLOOR = 0.3  # cm: near the corners, where the margins meet at rest, the gap closes by nothing
 BAND = 0.4  # cm (rest) from a margin: the skin darkened, fading to nothing there
 SHUT = (0.6, 0.95)  # the seam's mean shadow over the middle half of the eye at which the eyeball seen
 # through it starts to darken, and is darkened fully (render.scan_shaders: to 0.15 of its light)
@@ -89,7 +90,7 @@ class LidSeam:
             self.middle.append(np.flatnonzero((xs > xs.min() + 0.25 * span) & (xs < xs.max() - 0.25 * span)))
             own = int(np.argmin([np.linalg.norm(rest[lo:hi].mean(axis=0) - rest[lp].mean(axis=0)) for lo, hi in balls]))
             self.balls.append(balls[own])
-        self._gap, self._closed, self._shut = np.array(GAP), np.array(CLOSED), np.array(SHUT)
+        self._gap, self._closed, self._shut = np.array([*GAP, REST_FLOOR]), np.array(CLOSED), np.array(SHUT)
         self._scratch = np.zeros(max(len(u) + len(lo) for u, lo in self.lids))
 
     def shadow(self, pos: np.ndarray) -> list[np.ndarray]:

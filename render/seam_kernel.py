@@ -22,7 +22,7 @@ def seam_shadow(pos: np.ndarray, upper: np.ndarray, lower: np.ndarray, rest_gap:
     """out[k], 0..1, for each margin vertex of one eye (upper then lower; `pos` (N, >=3), its first
     three columns the positions): how closed the seam is there, from its distance to the other
     lid's margin (a polyline) against `gap` (cm: all of the shadow at gap[0], none beyond gap[1])
-    and the share of its rest distance `rest_gap` closed (taken as at least 2 gap[1]; none below
+    and the share of its rest distance `rest_gap` closed (taken as at least gap[2]; none below
     closed[0], all above closed[1])."""
     nu = upper.shape[0]
     for k in range(nu + lower.shape[0]):
@@ -39,7 +39,7 @@ def seam_shadow(pos: np.ndarray, upper: np.ndarray, lower: np.ndarray, rest_gap:
             dx, dy, dz = px - ax - t * bx, py - ay - t * by, pz - az - t * bz
             best = min(best, dx * dx + dy * dy + dz * dz)
         g = np.sqrt(best)
-        shut = (rest_gap[k] - g) / max(rest_gap[k], 2.0 * gap[1])
+        shut = (rest_gap[k] - g) / max(rest_gap[k], gap[2])
         out[k] = (_smoothstep((gap[1] - g) / (gap[1] - gap[0]))
                   * _smoothstep((shut - closed[0]) / (closed[1] - closed[0])))
 

@@ -94,7 +94,7 @@ FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
         "sadness": {"AU1": 1.0, "AU4": 0.42, "AU11": 0.6, "AU15": 1.0, "AU17": 1.0, "AU43": 0.35},
         "surprise": {"AU1": 0.8, "AU2": 0.8, "AU5": 0.7, "AU26": 1.0},
         "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 1.0, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
-        "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 1.0, "AU7": 0.75, "AU17": 1.0, "AU23": 1.0},
+        "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 1.0, "AU7": 0.8, "AU17": 1.0, "AU23": 1.0},
         "disgust": {"AU9": 0.7, "AU10": 0.7, "AU4": 0.75, "AU15": 0.3, "AU25": 1.0},
     },
 }
@@ -150,7 +150,7 @@ shows as in the scan and it reads sad 0.94 (0.95 at 0.7), 8 of 9 views (0.3-0.45
 Looked at beside the scan's own shapes (docs/scan-face.md, "The gallery's weak points fixed"):
 surprise raises the brows by less (AU1 and AU2 0.8) with the lids raised more (AU5 0.7), which
 leaves the forehead even where AU1+2 at full pushed two lumps up over the brows; anger glares
-with the lids raised fully (AU5 1.0) and tightened less (AU7 0.75), the irises showing under the
+with the lids raised fully (AU5 1.0) and tightened less (AU7 0.8), the irises showing under the
 lowered brows where AU7 0.85 over AU5 0.5 all but shut the eyes under the lashes."""
 
 

@@ -89,8 +89,8 @@ def test_a_simulated_blink_is_drawn_with_its_seam_in_shadow() -> None:
 
 def test_a_closed_lids_seam_is_drawn_no_paler_than_the_lid(gl) -> None:  # type: ignore[no-untyped-def]
     """The simulated blink drawn: in the box on screen around each closed eye's margins, few pixels
-    are as pale as the closed upper lid 5-8 mm above them (7-9 %; without the seam's shadow 25-28 %:
-    where the upper margin stays 0.6-1.9 mm above the lower one, the lower lid's upturned margin
+    are as pale as the closed upper lid 5-8 mm above them (5-7 %; without the seam's shadow 25-28 %:
+    where the upper margin stays 0.4-1.9 mm above the lower one, the lower lid's upturned margin
     showed as a pale fleck between the seam and the lashes)."""
     from puppet.face_cache import scan_model
     from render.offscreen import OffscreenRenderer
