@@ -222,6 +222,14 @@ class UdpListenerDevice(SelectWaking, Device):
         self._sock = sock
         self._backlog_left = None
         self.bound = sock.getsockname()[:2]
+        if self.port == 0:
+            # port 0 asks the system for a free port: say which, once, and keep it on a reopen
+            # (the senders were told this one); before, nothing named it anywhere
+            self.port = self.bound[1]
+            self.description = self.description.replace(f"udp {self.host}:0", f"udp {self.host}:{self.port}")
+            if not self.exposure:
+                print(f"{self.spec}: listening for {self.WHAT} on UDP port {self.port} of {self.host}",
+                      file=sys.stderr, flush=True)
         if self.exposure and not self._announced:
             self._announced = True
             self.exposure = exposure_text(self.spec, self.WHAT, self.parsed_host, self.bound[1], self.allow)

@@ -227,6 +227,23 @@ def test_lan_option_prints_what_it_exposes(capsys: pytest.CaptureFixture[str]) -
     assert "any machine" in open_all and "allow=" in open_all
 
 
+def test_port_0_says_the_port_it_bound_and_keeps_it(capsys: pytest.CaptureFixture[str]) -> None:
+    """Port 0 lets the system pick a free port; the sender must be told which. It was named nowhere
+    (the description said udp 127.0.0.1:0, nothing was printed), and a reopen would pick another."""
+    dev = OscDevice(parse_spec("osc://127.0.0.1:0"))
+    try:
+        dev.open()
+        port = dev.bound[1]
+        err = capsys.readouterr().err
+        assert err == f"osc://127.0.0.1:0: listening for OSC on UDP port {port} of 127.0.0.1\n"
+        assert dev.description.endswith(f"udp 127.0.0.1:{port}")
+        dev._close_handle()  # as when the socket is lost: the reconnect reopens on the told port
+        dev._open()
+        assert dev.bound[1] == port and capsys.readouterr().err == ""
+    finally:
+        dev.close()
+
+
 def test_sender_allow_list() -> None:
     with listening("osc://127.0.0.1:0?allow=10.9.8.7") as lis:  # not us: everything is refused
         lis.send(osc_message("/x", 1.0))
