@@ -110,3 +110,18 @@ def test_bad_specs(tmp_path: Path) -> None:
         open_device(f"can://virtual/x?dbc={bad}")
     with pytest.raises(DeviceSpecError, match="INTERFACE/CHANNEL"):
         open_device(f"can://virtual?dbc={PANEL}")
+
+
+def test_an_extended_frame_is_not_the_standard_message_of_its_number(channel: str, panel_bus: can.BusABC) -> None:
+    """The panel DBC's PanelButtons is the standard frame 0x101; an extended frame 0x101 is another
+    frame (another node's, a J1939 one): it moves no button and is counted as unknown."""
+    d, q = _open(f"can://virtual/{channel}?dbc={PANEL}")
+    try:
+        panel_bus.send(can.Message(arbitration_id=0x101, data=b"\x01\x00", is_extended_id=True))
+        panel_bus.send(can.Message(arbitration_id=0x101, data=b"\x02\x00", is_extended_id=False))
+        got = controls(wait_for(q, lambda e: getattr(e, "control", None) == "Button1"))
+        assert [(e.control, e.value) for e in got] == [("Button1", 1.0)]
+        assert q.get(timeout=0.2) is None  # nothing else: Button0 never pressed
+        assert d.decoder.unknown_frames == 1
+    finally:
+        d.close()
