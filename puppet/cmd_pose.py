@@ -37,7 +37,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--face", metavar="SPEC", default=None,
                    help="the face: ict (the scanned head), ict?identity=SEED, procedural or a saved identity's NAME")
     p.add_argument("--resolution", type=int, default=None, metavar="N",
-                   help="procedural face resolution: 0 ~ 700, 1 ~ 3k, 2 ~ 12k vertices (default 0; alone, it "
+                   help="procedural face resolution: 0 ~ 860, 1 ~ 2.7k, 2 ~ 12k vertices (default 0; alone, it "
                    "picks the procedural face)")
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="CHANNEL=VALUE",
                    help="set one channel (repeatable); see `puppet channels`")

@@ -30,7 +30,7 @@ def run(args: argparse.Namespace) -> int:
     from puppet.capture.pictures import contact_sheet, draw_template, onset, save_png
     from puppet.errors import PuppetError
     from puppet.live import load_face
-    from sim.facs import EXPRESSIONS
+    from sim.facs import EXPRESSIONS, preset_face
     from sim.fit.basis import Settler, preset_values
 
     # --gain inf (or 1e308) drew a picture flooded by one arrow and said it was written
@@ -47,7 +47,8 @@ def run(args: argparse.Namespace) -> int:
     settler = Settler(face.model)
     images = []
     for name in EXPRESSIONS:
-        frames = onset(face.model, settler.rest_state, settler.values_for(preset_values(name, args.weight)))
+        frames = onset(face.model, settler.rest_state,
+                       settler.values_for(preset_values(name, args.weight, preset_face(face.model.rig))))
         img = draw_template(face.model, frames, f"{name} (weight {args.weight:g})", args.style, gain=args.gain)
         save_png(img, out / f"template_{name}.png")
         images.append(img)
