@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+from typing import Any
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -58,6 +59,10 @@ KIND_WORDS = {"pc2": "a .pc2 point cache", "csv": "a .csv of channels", "arkit":
               "frames": "PNG frames", "mp4": "an .mp4", None: "a replay without --out"}
 
 
+def _or(given: Any, default: Any) -> Any:
+    return default if given is None else given
+
+
 def unused_options(args: argparse.Namespace, kind: str | None) -> str:
     """One line naming the drawing options given that do nothing for this output ('' if none):
     `--view wireframe --size 640x480` on a .csv export were dropped without a word."""
@@ -109,8 +114,8 @@ def run(args: argparse.Namespace) -> int:
         if note:
             print(note, file=sys.stderr)
         fps = args.fps if args.fps is not None else (30.0 if kind in ("mp4", "frames", "png") else perf.rate)
-        opts = ExportOptions(fps=fps, start=args.start, end=args.end, speed=args.speed, view=args.view or "shaded",
-                             size=args.size or (1280, 720), supersample=args.supersample or 1, crf=args.crf)
+        opts = ExportOptions(fps=fps, start=args.start, end=args.end, speed=args.speed, view=_or(args.view, "shaded"),
+                             size=_or(args.size, (1280, 720)), supersample=_or(args.supersample, 1), crf=args.crf)
         if session is not None:
             from puppet.audio_take import take_audio
 
@@ -126,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
         if note:
             print(note, file=sys.stderr)
         sound = take_audio(session) if session is not None else None
-        return run_replay_window(perf, start=args.start, end=args.end, speed=args.speed, view=args.view or "shaded",
+        return run_replay_window(perf, start=args.start, end=args.end, speed=args.speed, view=_or(args.view, "shaded"),
                                  sound=sound)
     args.headless = True  # no display: the replay below draws nothing
     note = unused_options(args, None)

@@ -471,3 +471,17 @@ def test_a_folder_of_voices_is_fitted_but_a_takes_sound_is_not(tmp_path: Path) -
     got = sorted(p.relative_to(tmp_path).as_posix() for p in select([str(tmp_path)], None, SUFFIXES["fit"]))
     assert got == ["voices/Hum.WAV", "voices/vowels.wav"]
     assert [p.name for p in select([str(tmp_path / "show.wav")], None, SUFFIXES["fit"])] == ["show.wav"]
+
+
+def test_drawing_options_on_data_kinds_are_said_not_to_apply(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """`--to csv --view wireframe` dropped the view without a word, as `puppet replay` did."""
+    take = tmp_path / "a.jsonl"
+    write_take(take, seed=2)
+    plain, drawn = tmp_path / "plain", tmp_path / "drawn"
+    assert main(["batch", "export", str(take), "--out", str(plain), "--to", "csv", "--workers", "1"]) == 0
+    assert "note" not in capsys.readouterr().err
+    assert main(["batch", "export", str(take), "--out", str(drawn), "--to", "csv", "--workers", "1",
+                 "--view", "wireframe", "--size", "320x240"]) == 0
+    err = [line for line in capsys.readouterr().err.splitlines() if "note" in line]
+    assert err == ["puppet: note: --view and --size do not apply to --to csv (only mp4 is drawn); ignored"], err
+    assert (drawn / "a.csv").read_bytes() == (plain / "a.csv").read_bytes()
