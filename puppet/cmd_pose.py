@@ -49,8 +49,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--seconds", type=float, default=None, metavar="S",
                    help="simulated seconds (default: until the face has settled, at most 5 s)")
     p.add_argument("--out", required=True, metavar="FILE", help="output .npz, .obj, .png or .jpg")
-    p.add_argument("--size", default="1280x720", metavar="WxH", help="image size (default 1280x720)")
-    p.add_argument("--view", default="shaded", metavar="VIEW", help="render view (default shaded)")
+    p.add_argument("--size", metavar="WxH", help="image size (default 1280x720)")
+    p.add_argument("--view", metavar="VIEW", help="image: shaded, wireframe, muscles, trails or heat (default shaded)")
     p.set_defaults(func=run)
 
 
@@ -148,6 +148,12 @@ def run(args: argparse.Namespace) -> int:
     suffix = out.suffix.lower()
     if suffix not in (".npz", ".obj", *IMAGE_SUFFIXES):
         raise PuppetError(f"--out {args.out}: unknown file type; use .npz, .obj, .png, .jpg or .jpeg")
+    unused = [f"--{name}" for name in ("size", "view") if getattr(args, name) is not None]
+    if unused and suffix not in IMAGE_SUFFIXES:  # dropped without a word before
+        print(f"puppet: note: {' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} not apply to "
+              f"{suffix} (only images are drawn); ignored", file=sys.stderr)
+    args.size = "1280x720" if args.size is None else args.size
+    args.view = "shaded" if args.view is None else args.view
     size = _size(args.size)
     if suffix in IMAGE_SUFFIXES:  # an unknown view was a ValueError traceback after the simulation
         from render.renderer import VIEWS
