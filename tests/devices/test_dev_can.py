@@ -125,3 +125,24 @@ def test_an_extended_frame_is_not_the_standard_message_of_its_number(channel: st
         assert d.decoder.unknown_frames == 1
     finally:
         d.close()
+
+
+def test_a_j1939_pdu1_message_matches_whatever_its_destination(channel: str, panel_bus: can.BusABC,
+                                                               tmp_path: Path) -> None:
+    """PDU1 messages (PDU format below 240) carry a destination address where PDU2 ones carry part
+    of the PGN. The DBC names the message sent to the global address (0x18EFFFFE); the panel sends it
+    to this host (0x27) from another source (0x13): it matched nothing before (the destination was
+    taken as part of the PGN), and is the DBC's message now."""
+    dbc = tmp_path / "pdu1.dbc"
+    dbc.write_text('VERSION ""\n\nNS_ :\n\nBS_:\n\nBU_: Panel Host\n\n'
+                   'BO_ 2565865470 PropA: 8 Panel\n'  # 0x80000000 | 0x18EFFFFE: extended, PGN 0xEF00
+                   ' SG_ Knob : 0|8@1+ (1,0) [0|255] "" Host\n\n'
+                   'CM_ SG_ 2565865470 Knob "kind=axis";\n')
+    d, q = _open(f"can://virtual/{channel}?dbc={dbc}")
+    try:
+        panel_bus.send(can.Message(arbitration_id=0x18EF2713, data=bytes([51, 0, 0, 0, 0, 0, 0, 0]),
+                                   is_extended_id=True))
+        got = controls(wait_for(q, lambda e: getattr(e, "control", None) == "Knob"))
+        assert got[-1].value == pytest.approx(51 / 255) and d.decoder.unknown_frames == 0
+    finally:
+        d.close()
