@@ -308,3 +308,16 @@ def test_a_damaged_message_is_named_in_a_short_line() -> None:
     with pytest.raises(Exception) as err:
         decode_packet(data)
     assert "damaged message" in str(err.value) and len(str(err.value)) < 200
+
+
+def test_lan_on_the_loopback_is_refused_and_no_address_means_every_interface() -> None:
+    """README said 'add lan=1 to listen beyond this machine' beside `osc://127.0.0.1:9000`: that spec
+    with lan=1 still listened on the loopback alone, and the phone never reached it, without a word.
+    Now lan=1 on a loopback address is one line naming the spec that listens on the LAN, and lan=1
+    with no address named listens on every interface (as panel:// does)."""
+    for spec in ("osc://127.0.0.1:9000?lan=1", "osc://localhost:9000?lan=1", "osc://[::1]:9000?lan=1"):
+        with pytest.raises(devices.DeviceSpecError, match="this machine alone") as err:
+            OscDevice(parse_spec(spec))
+        assert "osc://0.0.0.0:9000?lan=1" in str(err.value)
+    dev = OscDevice(parse_spec("osc://:9000?lan=1&allow=10.1.2.3"))
+    assert dev.host == "0.0.0.0" and "every network interface" in dev.exposure
