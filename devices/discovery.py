@@ -149,13 +149,22 @@ def serial_ports(probe: bool = False) -> list[DeviceInfo]:
     from serial.tools import list_ports
 
     out = []
-    for port in sorted(list_ports.comports(), key=lambda p: p.device):
+    ports = sorted(list_ports.comports(), key=lambda p: p.device)
+    schemes: dict[str, str | None] = {}
+    if probe and ports:
+        # each port takes up to ~6 s (the SGI reset, the Firmata board's boot, the text box's
+        # hello): probed one after the other, a few ports outlasted the discovery's minute
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=min(16, len(ports)), thread_name_prefix="probe") as pool:
+            schemes = dict(zip((p.device for p in ports), pool.map(probe_serial_port, (p.device for p in ports))))
+    for port in ports:
         usb = f"USB {port.vid:04x}:{port.pid:04x} " if port.vid is not None else ""
         desc = f"{usb}{port.description or port.device}"
         if port.serial_number:
             desc += f" (serial {port.serial_number})"
         if probe:
-            scheme = probe_serial_port(port.device)
+            scheme = schemes.get(port.device)
             if scheme == "sgi":
                 out.append(DeviceInfo(f"sgi://{port.device}", f"SGI dial-and-button box; {desc}", "serial", True))
                 continue

@@ -132,3 +132,27 @@ def test_a_stuck_midi_listing_makes_the_next_one_give_up(monkeypatch: pytest.Mon
         assert mdisc.midi_ports() == []  # both APIs left out, with a warning, no exception
     finally:
         port._ENUM_LOCK.release()
+
+
+def test_serial_ports_are_probed_side_by_side(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A probe takes up to ~6 s a port (the SGI reset, a Firmata board's boot, a text box's hello);
+    one after the other, ten ports outlasted discovery's minute and the whole family was left out.
+    Three ports' probes must be under way at once (a barrier of three: one at a time never passes)."""
+    import threading
+
+    from serial.tools import list_ports, list_ports_common
+
+    import devices.discovery as disc
+
+    barrier = threading.Barrier(3, timeout=20)
+
+    def probe(path: str) -> str | None:
+        barrier.wait()  # BrokenBarrierError unless all three are probing together
+        return "sgi" if path.endswith("1") else None
+
+    monkeypatch.setattr(disc, "probe_serial_port", probe)
+    monkeypatch.setattr(list_ports, "comports",
+                        lambda: [list_ports_common.ListPortInfo(f"/dev/ttyFAKE{i}") for i in range(3)])
+    infos = {i.spec: i for i in disc.serial_ports(probe=True)}
+    assert set(infos) == {"serial:///dev/ttyFAKE0", "sgi:///dev/ttyFAKE1", "serial:///dev/ttyFAKE2"}
+    assert infos["sgi:///dev/ttyFAKE1"].usable and not infos["serial:///dev/ttyFAKE0"].usable
