@@ -78,13 +78,20 @@ def jack_server_running() -> bool:
     return (os.path.exists(sock) and unix_socket_listened(sock)) or os.path.isdir(f"/dev/shm/jack-{uid}")
 
 
+_ANSWERED: set[tuple[str, int, int]] = set()  # sockets that took a connection (path, inode, mtime)
+#: the kernel's list of this network namespace's Unix sockets
+PROC_NET_UNIX = "/proc/net/unix"
+
+
 def unix_socket_listened(path: str) -> bool:
     """Whether a process listens on the Unix socket at ``path``: a JACK server killed (SIGKILL, a
     crash) leaves its socket file behind, and the file alone kept the server looking alive. Linux's
     /proc/net/unix lists the listening sockets (flag __SO_ACCEPTCON, 0x10000) by path; where it
-    cannot be read, the file is taken at its word."""
+    cannot be read, the file is taken at its word. It lists only this network namespace's sockets:
+    a socket not listed is connected to once (refused: nobody listens; taken: a server in another
+    namespace sharing /dev/shm, remembered for that socket file, never asked again)."""
     try:
-        with open("/proc/net/unix", encoding="utf-8", errors="replace") as f:
+        with open(PROC_NET_UNIX, encoding="utf-8", errors="replace") as f:
             next(f, None)  # the header
             for line in f:
                 parts = line.split(None, 7)
@@ -92,7 +99,23 @@ def unix_socket_listened(path: str) -> bool:
                     return True
     except (OSError, ValueError):
         return True
-    return False
+    import socket
+
+    try:
+        st = os.stat(path)
+    except OSError:
+        return False
+    key = (path, st.st_ino, st.st_mtime_ns)
+    if key in _ANSWERED:
+        return True
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as probe:
+        probe.settimeout(1.0)
+        try:
+            probe.connect(path)
+        except OSError:
+            return False
+    _ANSWERED.add(key)
+    return True
 
 
 def api_available(api: str) -> bool:
