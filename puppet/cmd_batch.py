@@ -59,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
     from puppet.errors import PuppetError
 
     action = args.batch_command
+    note = ""  # said with the batch's result: a batch that cannot start stays one line
     kinds: list[str] = []
     opts: dict = {"fps": args.fps}
     if args.workers is not None and args.workers < 1:
@@ -77,8 +78,8 @@ def run(args: argparse.Namespace) -> int:
             raise PuppetError(f"--to takes {', '.join(EXPORT_KINDS)}; got {args.to!r}")
         unused = [f"--{name}" for name in ("view", "size", "supersample", "crf") if getattr(args, name) is not None]
         if unused and "mp4" not in kinds:  # as `puppet replay`: dropped without a word before
-            print(f"puppet: note: {' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} not apply to "
-                  f"--to {','.join(kinds)} (only mp4 is drawn); ignored", file=sys.stderr)
+            note = (f"puppet: note: {' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} not apply to "
+                    f"--to {','.join(kinds)} (only mp4 is drawn); ignored")
         args.view = "shaded" if args.view is None else args.view
         args.size = (1280, 720) if args.size is None else args.size
         args.supersample = 1 if args.supersample is None else args.supersample
@@ -99,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
     rep = run_batch(action, args.selection, out, kinds=kinds, opts=opts, scheduler=args.scheduler,
                     workers=args.workers, chunk_frames=getattr(args, "chunk_frames", 0), library=args.library,
                     force=args.force)
-    for text in rep.warnings:
+    for text in [*rep.warnings, *([note] if note else [])]:
         print(text, file=sys.stderr)
     for origin, why in rep.failed.items():
         print(f"puppet: failed: {why}", file=sys.stderr)

@@ -149,9 +149,10 @@ def run(args: argparse.Namespace) -> int:
     if suffix not in (".npz", ".obj", *IMAGE_SUFFIXES):
         raise PuppetError(f"--out {args.out}: unknown file type; use .npz, .obj, .png, .jpg or .jpeg")
     unused = [f"--{name}" for name in ("size", "view") if getattr(args, name) is not None]
-    if unused and suffix not in IMAGE_SUFFIXES:  # dropped without a word before
-        print(f"puppet: note: {' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} not apply to "
-              f"{suffix} (only images are drawn); ignored", file=sys.stderr)
+    note = ""  # dropped without a word before; said once the pose is written (a failure stays one line)
+    if unused and suffix not in IMAGE_SUFFIXES:
+        note = (f"puppet: note: {' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} not apply to "
+                f"{suffix} (only images are drawn); ignored")
     args.size = "1280x720" if args.size is None else args.size
     args.view = "shaded" if args.view is None else args.view
     size = _size(args.size)
@@ -198,6 +199,8 @@ def run(args: argparse.Namespace) -> int:
     what = f"{len(model.rest)} vertices" if dressing is None else \
         f"{len(model.rest)} simulated skin vertices posing the scan's {len(dressing.rest)}"
     print(f"pose: {what}, {seconds:.2f} s simulated, wrote {out}")
+    if note:
+        print(note, file=sys.stderr)
     return 0
 
 

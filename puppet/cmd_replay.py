@@ -110,9 +110,7 @@ def run(args: argparse.Namespace) -> int:
         from puppet.export.runner import ExportOptions, export, kind_of
 
         kind = kind_of(__import__("pathlib").Path(args.out))
-        note = unused_options(args, kind)
-        if note:
-            print(note, file=sys.stderr)
+        note = unused_options(args, kind)  # said once the export is written: a failure stays one line
         fps = args.fps if args.fps is not None else (30.0 if kind in ("mp4", "frames", "png") else perf.rate)
         opts = ExportOptions(fps=fps, start=args.start, end=args.end, speed=args.speed, view=_or(args.view, "shaded"),
                              size=_or(args.size, (1280, 720)), supersample=_or(args.supersample, 1), crf=args.crf)
@@ -121,6 +119,8 @@ def run(args: argparse.Namespace) -> int:
 
             opts.sound = take_audio(session)
         print(f"puppet: {export(perf, args.out, opts)}")
+        if note:
+            print(note, file=sys.stderr)
         return 0
     if not args.headless and live.display_available():
         from puppet.live import run_replay_window
@@ -135,8 +135,6 @@ def run(args: argparse.Namespace) -> int:
                                  sound=sound)
     args.headless = True  # no display: the replay below draws nothing
     note = unused_options(args, None)
-    if note:
-        print(note, file=sys.stderr)
     rp = Replayer(perf)
     end_tick = perf.ticks if args.end is None else min(perf.ticks, int(round(args.end * perf.rate)))
     rp.seek(end_tick)
@@ -148,4 +146,6 @@ def run(args: argparse.Namespace) -> int:
         checked = f"; bit-identical to the live session at {rp.verified} checkpoints"
     print(f"puppet: replayed {rp.tick} ticks ({rp.tick / perf.rate:.2f} s){checked}; "
           f"final state {state_digest(rp.state)}")
+    if note:
+        print(note, file=sys.stderr)
     return 0
