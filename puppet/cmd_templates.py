@@ -16,6 +16,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     p.add_argument("--out", required=True, metavar="DIR", help="folder for the pictures (created if missing)")
     p.add_argument("--rig", metavar="R", help="rig file (default: the built-in face)")
+    p.add_argument("--face", metavar="SPEC", help="the face: ict (the scanned head), ict?identity=SEED, procedural or a saved identity's NAME")
     p.add_argument("--style", choices=("trails", "arrows"), default="trails")
     p.add_argument("--gain", type=float, default=1.0, metavar="X", help="magnify the motion (default 1, at most 100)")
     p.add_argument("--weight", type=float, default=1.0, metavar="W", help="preset weight 0..1 (default 1)")
@@ -43,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise PuppetError(f"{out}: cannot create the folder: {err.strerror}") from err
-    face = load_face(args.rig)
+    face = load_face(args.rig, face=args.face)
     settler = Settler(face.model)
     images = []
     for name in EXPRESSIONS:

@@ -150,3 +150,18 @@ def test_the_helps_say_what_the_commands_do() -> None:
     assert "MIDI" in devices and "audio" in devices, devices
     imported = _help("import-face")
     assert "procedural face's rig" in imported and "default face's rig" not in imported, imported
+
+
+def test_templates_and_recognize_take_the_face_as_fit_and_replay_do(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """`puppet templates --face procedural` was 'unrecognized arguments' (only --rig), while pose,
+    fit and replay take --face; a saved identity or the procedural face could not be drawn."""
+    from pathlib import Path
+
+    from puppet.cli import main
+
+    out = Path(tmp_path) / "tpl"
+    assert main(["templates", "--face", "procedural", "--out", str(out), "--weight", "0.3"]) == 0
+    assert len(list(out.glob("template_*.png"))) == 7 and (out / "templates.png").is_file()
+    assert main(["templates", "--face", "nobody-saved-this", "--out", str(out)]) == 2
+    assert "nobody-saved-this" in capsys.readouterr().err
+    assert "--face SPEC" in _help("recognize")
