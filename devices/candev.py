@@ -7,7 +7,7 @@ buttons and the rest axes. Dials are wrapping counters (``counts_per_turn=N`` in
 axis may carry ``negative_if=SIGNAL`` (J1939 joysticks send a magnitude plus a direction status).
 Error frames and undecodable frames are counted and logged, never fatal; a bus that fails is
 reopened like any lost device. Extended frames that match no DBC ID exactly are matched by their
-J1939 PGN, so any source address works.
+J1939 PGN, so any source address works (and, for PDU1 messages, any destination address).
 """
 
 from __future__ import annotations
@@ -45,6 +45,14 @@ def describe_error_frame(arbitration_id: int, data: bytes) -> str:
                  0x10: "RX passive", 0x20: "TX passive"}
         names += [v for k, v in flags.items() if data[1] & k]
     return ", ".join(names) or f"error frame 0x{arbitration_id:x}"
+
+
+def j1939_pgn(frame_id: int) -> int:
+    """The J1939 parameter group number of a 29-bit ID. In the PDU1 format (PDU format byte below
+    240) the PDU specific byte is the destination address, not part of the PGN: a panel sending to
+    this host's address matched no DBC message written for the global address (0xFF), or for another."""
+    pgn = (frame_id >> 8) & 0x3FFFF
+    return pgn & 0x3FF00 if (pgn >> 8) & 0xFF < 240 else pgn
 
 
 @dataclass
@@ -87,7 +95,7 @@ class CanDecoder:
         for msg in self.db.messages:
             self._by_id[(msg.frame_id, bool(msg.is_extended_frame))] = msg
             if msg.is_extended_frame:
-                self._by_pgn.setdefault((msg.frame_id >> 8) & 0x3FFFF, msg)
+                self._by_pgn.setdefault(j1939_pgn(msg.frame_id), msg)
             sigs: list[_Sig] = []
             for sig in msg.signals:
                 hints = _hints(sig.comment)
@@ -117,7 +125,7 @@ class CanDecoder:
     def _message(self, frame_id: int, extended: bool) -> Any:
         msg = self._by_id.get((frame_id, extended))
         if msg is None and extended:
-            msg = self._by_pgn.get((frame_id >> 8) & 0x3FFFF)
+            msg = self._by_pgn.get(j1939_pgn(frame_id))
         return msg
 
     def decode(self, frame: Any, t: float) -> list[ControlEvent]:

@@ -67,17 +67,43 @@ def discover(probe: bool = False, hid_api_module: Any = None, timeout: float | N
     return found
 
 
+#: seconds a probed port is listened to for text-protocol lines (an Arduino reset by the opening
+#: of its port says its hello ~1.6 s later)
+TEXT_LISTEN = 3.0
+#: seconds after an SGI box's ack in which nothing but acks may arrive, probing
+ACK_QUIET = 0.15
+
+
 def probe_serial_port(path: str) -> str | None:
-    """``"sgi"`` or ``"firmata"`` when the box on ``path`` answers like one, else None.
+    """``"sgi"`` or ``"firmata"`` when the box on ``path`` answers like one, ``"serial"`` when it
+    speaks the text protocol within TEXT_LISTEN seconds at 115200 baud, else None (silent).
     Writes a reset byte at 9600 baud and a version query at 57600 baud: opt-in only."""
+    import time
     from devices.errors import DeviceError
     from devices.firmata import FirmataDevice
-    from devices.sgi import SgiDevice
+    from devices.sgi import RESET, SgiDevice
     from devices.spec import parse_spec
 
     class QuickSgi(SgiDevice):
         RESET_TRIES = 2
         RESET_WAIT = 0.3
+
+        def _wait_for_ack(self, seconds: float, settle: bool = False) -> bool:
+            """The box's ack is 0x20, an ASCII space: a port that talks text (a text-protocol box, a
+            console, a GPS) was taken for an SGI box by the first space in its stream. Probing, the
+            reply must be acks alone, with nothing else until a short while after."""
+            if settle:
+                return super()._wait_for_ack(seconds, settle)
+            deadline = time.monotonic() + seconds
+            acked = False
+            while (left := deadline - time.monotonic()) > 0:
+                data, _t = self.read_raw(max(0.001, left))
+                if data.strip(bytes([RESET])):
+                    return False
+                if data and not acked:
+                    acked = True
+                    deadline = min(deadline, time.monotonic() + ACK_QUIET)
+            return acked
 
     for scheme, cls, query in (("sgi", QuickSgi, ""), ("firmata", FirmataDevice, "?boot_wait=2.5")):
         dev = cls(parse_spec(f"{scheme}://{path}{query}"))
@@ -88,7 +114,34 @@ def probe_serial_port(path: str) -> str | None:
             continue
         finally:
             dev.close()
-    return None
+    return "serial" if speaks_text_protocol(path) else None
+
+
+def speaks_text_protocol(path: str, seconds: float = TEXT_LISTEN) -> bool:
+    """Whether a line of the text protocol (a hello, a button, dial or axis line) arrives on
+    ``path`` at 115200 baud within ``seconds``; garbage, comments and silence are not enough."""
+    import time
+
+    import serial
+
+    from devices.textserial import TextParser
+
+    parser = TextParser(path)
+    try:
+        port = serial.Serial(path, 115200, timeout=0.1)
+    except (OSError, ValueError, serial.SerialException):
+        return False
+    try:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            data = port.read(256)
+            if data and (parser.feed(data, 0.0) or parser.hello):
+                return True
+    except (OSError, serial.SerialException):
+        return False
+    finally:
+        port.close()
+    return False
 
 
 def serial_ports(probe: bool = False) -> list[DeviceInfo]:
@@ -96,21 +149,38 @@ def serial_ports(probe: bool = False) -> list[DeviceInfo]:
     from serial.tools import list_ports
 
     out = []
-    for port in sorted(list_ports.comports(), key=lambda p: p.device):
+    ports = sorted(list_ports.comports(), key=lambda p: p.device)
+    schemes: dict[str, str | None] = {}
+    if probe and ports:
+        # each port takes up to ~6 s (the SGI reset, the Firmata board's boot, the text box's
+        # hello): probed one after the other, a few ports outlasted the discovery's minute
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=min(16, len(ports)), thread_name_prefix="probe") as pool:
+            schemes = dict(zip((p.device for p in ports), pool.map(probe_serial_port, (p.device for p in ports))))
+    for port in ports:
         usb = f"USB {port.vid:04x}:{port.pid:04x} " if port.vid is not None else ""
         desc = f"{usb}{port.description or port.device}"
         if port.serial_number:
             desc += f" (serial {port.serial_number})"
         if probe:
-            scheme = probe_serial_port(port.device)
+            scheme = schemes.get(port.device)
             if scheme == "sgi":
                 out.append(DeviceInfo(f"sgi://{port.device}", f"SGI dial-and-button box; {desc}", "serial", True))
                 continue
             if scheme == "firmata":
                 out.append(DeviceInfo(f"firmata://{port.device}", f"Firmata board; {desc}", "serial", True))
                 continue
-            desc += "; no SGI/Firmata answer (try serial:// for the text protocol)"
-        out.append(DeviceInfo(f"serial://{port.device}", desc, "serial", port.vid is not None or probe))
+            if scheme == "serial":
+                out.append(DeviceInfo(f"serial://{port.device}", f"text-protocol box; {desc}", "serial", True))
+                continue
+            # silent: no answer to either probe and no text-protocol line; before, every probed port
+            # was marked usable, so `--probe --json` offered a modem or a console as a control box
+            desc += ("; silent: no SGI/Firmata answer and no text-protocol line at 115200 baud (a text box "
+                     "that speaks only when touched: try puppet monitor serial://PORT and move a control)")
+            out.append(DeviceInfo(f"serial://{port.device}", desc, "serial", False))
+            continue
+        out.append(DeviceInfo(f"serial://{port.device}", desc, "serial", port.vid is not None))
     return out
 
 

@@ -157,6 +157,14 @@ class UdpListenerDevice(SelectWaking, Device):
         super().__init__(spec, **options)
         self.host, self.port = split_host_port(spec.location, self.DEFAULT_PORT, spec.text)
         self.lan = spec.get_bool("lan", False)
+        if self.lan and not spec.location.strip().strip("/").partition(":")[0]:
+            self.host = "0.0.0.0"  # `osc://:9000?lan=1`: no address named, every interface (as panel://)
+        elif self.lan and is_loopback(self.host):
+            # `osc://127.0.0.1:9000?lan=1` listened on this machine alone: the phone never reached it
+            raise DeviceSpecError(
+                f"{spec.text}: lan=1 asks for the LAN, but {self.host} is this machine alone; listen on "
+                f"every interface with {self.scheme}://0.0.0.0:{self.port}?lan=1 (or one of this machine's "
+                "addresses)")
         self.allow = parse_allow(spec.query.get("allow"), spec.text)
         self.max_size = spec.get_int("max_size", self.MAX_SIZE, lo=64, hi=65507)
         self.max_rate = spec.get_int("max_rate", 20000, lo=10, hi=10_000_000)
@@ -222,6 +230,14 @@ class UdpListenerDevice(SelectWaking, Device):
         self._sock = sock
         self._backlog_left = None
         self.bound = sock.getsockname()[:2]
+        if self.port == 0:
+            # port 0 asks the system for a free port: say which, once, and keep it on a reopen
+            # (the senders were told this one); before, nothing named it anywhere
+            self.port = self.bound[1]
+            self.description = self.description.replace(f"udp {self.host}:0", f"udp {self.host}:{self.port}")
+            if not self.exposure:
+                print(f"{self.spec}: listening for {self.WHAT} on UDP port {self.port} of {self.host}",
+                      file=sys.stderr, flush=True)
         if self.exposure and not self._announced:
             self._announced = True
             self.exposure = exposure_text(self.spec, self.WHAT, self.parsed_host, self.bound[1], self.allow)

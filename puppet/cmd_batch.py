@@ -38,9 +38,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     e = sub.add_parser("export", parents=[common], help="as `puppet replay TAKE --out FILE`, for many takes")
     e.add_argument("--to", default="mp4,pc2,csv", metavar="KINDS",
                    help="comma-separated: mp4, pc2 (+ obj), csv, arkit, curves (default mp4,pc2,csv)")
-    e.add_argument("--view", default="shaded", metavar="V", help="video view (as puppet replay)")
-    e.add_argument("--size", type=_size, default=(1280, 720), metavar="WxH", help="video size")
-    e.add_argument("--supersample", type=int, default=1, metavar="N", help="video: N x N samples per pixel")
+    e.add_argument("--view", metavar="V", help="video view (as puppet replay; default shaded)")
+    e.add_argument("--size", type=_size, metavar="WxH", help="video size (default 1280x720)")
+    e.add_argument("--supersample", type=int, metavar="N", help="video: N x N samples per pixel (default 1)")
     e.add_argument("--crf", type=int, metavar="Q", help="video: H.264 quality (default as puppet replay)")
     e.add_argument("--chunk-frames", type=int, default=1800, metavar="N",
                    help="split videos longer than N frames into chunks rendered in parallel (0: never)")
@@ -59,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
     from puppet.errors import PuppetError
 
     action = args.batch_command
+    note = ""  # said with the batch's result: a batch that cannot start stays one line
     kinds: list[str] = []
     opts: dict = {"fps": args.fps}
     if args.workers is not None and args.workers < 1:
@@ -75,6 +76,13 @@ def run(args: argparse.Namespace) -> int:
         bad = [k for k in kinds if k not in EXPORT_KINDS]
         if bad or not kinds:
             raise PuppetError(f"--to takes {', '.join(EXPORT_KINDS)}; got {args.to!r}")
+        unused = [f"--{name}" for name in ("view", "size", "supersample", "crf") if getattr(args, name) is not None]
+        if unused and "mp4" not in kinds:  # as `puppet replay`: dropped without a word before
+            note = (f"puppet: note: {' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} not apply to "
+                    f"--to {','.join(kinds)} (only mp4 is drawn); ignored")
+        args.view = "shaded" if args.view is None else args.view
+        args.size = (1280, 720) if args.size is None else args.size
+        args.supersample = 1 if args.supersample is None else args.supersample
         if "mp4" in kinds:  # the renderer's import (~1 s) only where a view is drawn
             from render.renderer import VIEWS
         else:
@@ -92,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
     rep = run_batch(action, args.selection, out, kinds=kinds, opts=opts, scheduler=args.scheduler,
                     workers=args.workers, chunk_frames=getattr(args, "chunk_frames", 0), library=args.library,
                     force=args.force)
-    for text in rep.warnings:
+    for text in [*rep.warnings, *([note] if note else [])]:
         print(text, file=sys.stderr)
     for origin, why in rep.failed.items():
         print(f"puppet: failed: {why}", file=sys.stderr)

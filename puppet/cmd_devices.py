@@ -19,7 +19,8 @@ from typing import Any
 def register(subparsers: Any) -> None:
     """Add the ``devices`` and ``monitor`` subcommands."""
     p = subparsers.add_parser("devices", help="list connected control boxes",
-                              description="List serial ports, HID devices and CAN channels usable as control boxes.")
+                              description="List serial ports, HID devices, CAN channels, MIDI ports (ALSA and JACK) and "
+                              "audio inputs usable as control boxes, and the keyboard fallback.")
     p.add_argument("--json", action="store_true", help="one JSON object per device")
     p.add_argument("--probe", action="store_true",
                    help="talk to serial ports/HID devices to recognise SGI boxes, Firmata boards and HID panels")

@@ -195,8 +195,14 @@ def run(args: argparse.Namespace) -> int:
         # a take's reader holds its tick rate to this range: --rate 20000 wrote a take replay refused,
         # and --rate 1e9 filled the memory with 2e9 ticks until the kernel killed the process
         raise PuppetError(f"--rate {args.rate:g}: expected {MIN_RATE:g}..{MAX_RATE:g} ticks a second (a take's range)")
+    suffix = Path(args.input).suffix.lower()
+    if Path(args.input).is_file() and suffix not in (".csv", ".c3d", ".pc2", ".wav"):
+        # said after the face had loaded, and without the voice: `fit speech.mp3` was told to bring
+        # a .csv, .c3d or .pc2
+        raise PuppetError(f"{args.input}: unknown capture type {suffix!r}; expected a landmark or ARKit .csv, "
+                          ".c3d, .pc2, or a voice's .wav")
     face = load_face(args.rig, face=args.face)
-    if Path(args.input).suffix.lower() == ".wav":  # a voice: the live audio analysis, offline
+    if suffix == ".wav":  # a voice: the live audio analysis, offline
         if kind != "take":
             raise PuppetError(f"{out}: a voice is fitted into a take: --out must end in .jsonl")
         from puppet.capture.voice import voice_take

@@ -21,16 +21,16 @@ def register(subparsers: Any) -> None:
     """Add the ``import-face`` subcommand."""
     p = subparsers.add_parser(
         "import-face", help="make a rig for your own head mesh",
-        description="Transfer the default face's rig (muscles, wrinkles, jaw, eyes, held border) onto "
-                    "a head mesh (OBJ, PLY, glTF/GLB; any scale and orientation) marked with landmarks.")
+        description="Transfer the procedural face's rig (muscles, wrinkles, jaw, eyes, held border; "
+                    "not the scanned head's) onto a head mesh (OBJ, PLY, glTF/GLB; any scale and orientation) marked with landmarks.")
     p.add_argument("mesh", metavar="MESH", help="head or face mesh: .obj, .ply, .gltf, .glb, .off, .stl")
     p.add_argument("--landmarks", required=True, metavar="FILE",
                    help="JSON: landmark name -> vertex index or [x, y, z] (docs/import-face.md)")
     p.add_argument("--out", required=True, metavar="RIG", help="rig file to write (.npz)")
     p.add_argument("--rig", metavar="RIG", default=None,
-                   help="rig to transfer from (default: the built-in face at --resolution)")
+                   help="rig to transfer from (default: the procedural face at --resolution)")
     p.add_argument("--resolution", type=int, choices=(0, 1, 2), default=1,
-                   help="resolution of the built-in reference face (default 1)")
+                   help="resolution of the procedural reference face (default 1)")
     p.add_argument("--name", default=None, help="rig name (default: the mesh file's stem)")
     p.add_argument("--no-image", action="store_true", help="do not render the muscles picture")
     p.add_argument("--rest-eyes", action="store_true",

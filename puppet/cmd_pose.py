@@ -37,7 +37,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--face", metavar="SPEC", default=None,
                    help="the face: ict (the scanned head), ict?identity=SEED, procedural or a saved identity's NAME")
     p.add_argument("--resolution", type=int, default=None, metavar="N",
-                   help="procedural face resolution: 0 ~ 700, 1 ~ 3k, 2 ~ 12k vertices (default 0; alone, it "
+                   help="procedural face resolution: 0 ~ 860, 1 ~ 2.7k, 2 ~ 12k vertices (default 0; alone, it "
                    "picks the procedural face)")
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="CHANNEL=VALUE",
                    help="set one channel (repeatable); see `puppet channels`")
@@ -49,8 +49,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--seconds", type=float, default=None, metavar="S",
                    help="simulated seconds (default: until the face has settled, at most 5 s)")
     p.add_argument("--out", required=True, metavar="FILE", help="output .npz, .obj, .png or .jpg")
-    p.add_argument("--size", default="1280x720", metavar="WxH", help="image size (default 1280x720)")
-    p.add_argument("--view", default="shaded", metavar="VIEW", help="render view (default shaded)")
+    p.add_argument("--size", metavar="WxH", help="image size (default 1280x720)")
+    p.add_argument("--view", metavar="VIEW", help="image: shaded, wireframe, muscles, trails or heat (default shaded)")
     p.set_defaults(func=run)
 
 
@@ -148,6 +148,13 @@ def run(args: argparse.Namespace) -> int:
     suffix = out.suffix.lower()
     if suffix not in (".npz", ".obj", *IMAGE_SUFFIXES):
         raise PuppetError(f"--out {args.out}: unknown file type; use .npz, .obj, .png, .jpg or .jpeg")
+    unused = [f"--{name}" for name in ("size", "view") if getattr(args, name) is not None]
+    note = ""  # dropped without a word before; said once the pose is written (a failure stays one line)
+    if unused and suffix not in IMAGE_SUFFIXES:
+        note = (f"puppet: note: {' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} not apply to "
+                f"{suffix} (only images are drawn); ignored")
+    args.size = "1280x720" if args.size is None else args.size
+    args.view = "shaded" if args.view is None else args.view
     size = _size(args.size)
     if suffix in IMAGE_SUFFIXES:  # an unknown view was a ValueError traceback after the simulation
         from render.renderer import VIEWS
@@ -192,6 +199,8 @@ def run(args: argparse.Namespace) -> int:
     what = f"{len(model.rest)} vertices" if dressing is None else \
         f"{len(model.rest)} simulated skin vertices posing the scan's {len(dressing.rest)}"
     print(f"pose: {what}, {seconds:.2f} s simulated, wrote {out}")
+    if note:
+        print(note, file=sys.stderr)
     return 0
 
 

@@ -20,6 +20,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     p.add_argument("input", metavar="TAKE|INPUT", help="a take (.jsonl) or a capture")
     p.add_argument("--rig", metavar="R", help="rig file (default: the take's rig or the built-in face)")
+    p.add_argument("--face", metavar="SPEC", help="the face, if not the take's (as puppet fit and replay): ict, "
+                   "ict?identity=SEED, procedural or a saved identity's NAME")
     p.add_argument("--map", metavar="CORR.json", help="correspondence file for other point layouts")
     p.add_argument("--fps", type=float, metavar="N", help="frame rate of PC2 samples / ARKit timecodes")
     p.add_argument("--json", action="store_true", help="machine-readable spans")
@@ -29,7 +31,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.set_defaults(func=run)
 
 
-def _take_motion(path: str, rig: str | None) -> tuple[object, object, object, object]:
+def _take_motion(path: str, rig: str | None, face: str | None = None) -> tuple[object, object, object, object]:
     """(face, times, displacement of every vertex (T, N, 3), activations (T, K)) of a take."""
     import sys
 
@@ -43,7 +45,7 @@ def _take_motion(path: str, rig: str | None) -> tuple[object, object, object, ob
         from puppet.errors import ConfigError
 
         raise ConfigError(f"{path}: the take has no ticks")
-    perf = build_performance(session, None, rig)
+    perf = build_performance(session, None, rig, face=face)
     return perf.face, perf.values, perf.rate, [c.name for c in perf.face.vocab.channels]
 
 
@@ -59,9 +61,9 @@ def analyse(args: argparse.Namespace) -> tuple[list, list]:
 
     p = Path(args.input)
     if p.suffix.lower() == ".jsonl":
-        face, values, rate, names = _take_motion(args.input, args.rig)
+        face, values, rate, names = _take_motion(args.input, args.rig, getattr(args, "face", None))
     else:
-        face = load_face(args.rig)
+        face = load_face(args.rig, face=getattr(args, "face", None))
         cap = read_capture(p, face, args.map, args.fps)
         values = None
         if isinstance(cap, ChannelCapture):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+from typing import Any
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -35,10 +36,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--from", dest="start", type=float, default=0.0, metavar="T", help="start at T seconds")
     p.add_argument("--to", dest="end", type=float, metavar="T", help="end at T seconds")
     p.add_argument("--speed", type=float, default=1.0, metavar="X", help="playback speed (2 = twice as fast)")
-    p.add_argument("--view", default="shaded", metavar="V",
-                   help="shaded, wireframe, muscles, trails or heat")
-    p.add_argument("--size", type=_size, default=(1280, 720), metavar="WxH", help="video/image size")
-    p.add_argument("--supersample", type=int, default=1, metavar="N",
+    p.add_argument("--view", metavar="V",
+                   help="window, video and images: shaded (default), wireframe, muscles, trails or heat")
+    p.add_argument("--size", type=_size, metavar="WxH", help="video/image size (default 1280x720)")
+    p.add_argument("--supersample", type=int, metavar="N",
                    help="video/images: N x N samples per pixel (smoother edges, N*N times the rendering; "
                    "default 1)")
     p.add_argument("--crf", type=int, metavar="Q",
@@ -48,6 +49,33 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--face", metavar="SPEC", help="the face, if not the one recorded (ict, ict?identity=SEED, "
                    "procedural or a saved identity's NAME)")
     p.set_defaults(func=run)
+
+
+#: the drawing options and the outputs they shape (None: the window, or the headless check)
+DRAWING_OPTIONS = {"view": ("mp4", "frames", "png", None), "size": ("mp4", "frames", "png"),
+                   "supersample": ("mp4", "frames", "png"), "crf": ("mp4",)}
+KIND_WORDS = {"pc2": "a .pc2 point cache", "csv": "a .csv of channels", "arkit": "an .arkit.csv",
+              "curves": "a .curves file", "obj": "an .obj mesh", "png": "a .png still",
+              "frames": "PNG frames", "mp4": "an .mp4", None: "a replay without --out"}
+
+
+def _or(given: Any, default: Any) -> Any:
+    return default if given is None else given
+
+
+def unused_options(args: argparse.Namespace, kind: str | None) -> str:
+    """One line naming the drawing options given that do nothing for this output ('' if none):
+    `--view wireframe --size 640x480` on a .csv export were dropped without a word."""
+    if kind is None and (args.headless or args.file is None):
+        kind_ok = ()  # a headless replay draws nothing
+    else:
+        kind_ok = (kind,)
+    unused = [f"--{name}" for name, kinds in DRAWING_OPTIONS.items()
+              if getattr(args, name) is not None and not set(kind_ok) & set(kinds)]
+    if not unused:
+        return ""
+    what = "a headless replay (it draws nothing)" if not kind_ok else KIND_WORDS[kind]
+    return f"puppet: note: {' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} not apply to {what}; ignored"
 
 
 def run(args: argparse.Namespace) -> int:
@@ -82,22 +110,31 @@ def run(args: argparse.Namespace) -> int:
         from puppet.export.runner import ExportOptions, export, kind_of
 
         kind = kind_of(__import__("pathlib").Path(args.out))
+        note = unused_options(args, kind)  # said once the export is written: a failure stays one line
         fps = args.fps if args.fps is not None else (30.0 if kind in ("mp4", "frames", "png") else perf.rate)
-        opts = ExportOptions(fps=fps, start=args.start, end=args.end, speed=args.speed, view=args.view,
-                             size=args.size, supersample=args.supersample, crf=args.crf)
+        opts = ExportOptions(fps=fps, start=args.start, end=args.end, speed=args.speed, view=_or(args.view, "shaded"),
+                             size=_or(args.size, (1280, 720)), supersample=_or(args.supersample, 1), crf=args.crf)
         if session is not None:
             from puppet.audio_take import take_audio
 
             opts.sound = take_audio(session)
         print(f"puppet: {export(perf, args.out, opts)}")
+        if note:
+            print(note, file=sys.stderr)
         return 0
     if not args.headless and live.display_available():
         from puppet.live import run_replay_window
 
         from puppet.audio_take import take_audio
 
+        note = unused_options(args, None)
+        if note:
+            print(note, file=sys.stderr)
         sound = take_audio(session) if session is not None else None
-        return run_replay_window(perf, start=args.start, end=args.end, speed=args.speed, view=args.view, sound=sound)
+        return run_replay_window(perf, start=args.start, end=args.end, speed=args.speed, view=_or(args.view, "shaded"),
+                                 sound=sound)
+    args.headless = True  # no display: the replay below draws nothing
+    note = unused_options(args, None)
     rp = Replayer(perf)
     end_tick = perf.ticks if args.end is None else min(perf.ticks, int(round(args.end * perf.rate)))
     rp.seek(end_tick)
@@ -109,4 +146,6 @@ def run(args: argparse.Namespace) -> int:
         checked = f"; bit-identical to the live session at {rp.verified} checkpoints"
     print(f"puppet: replayed {rp.tick} ticks ({rp.tick / perf.rate:.2f} s){checked}; "
           f"final state {state_digest(rp.state)}")
+    if note:
+        print(note, file=sys.stderr)
     return 0

@@ -16,6 +16,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     p.add_argument("--out", required=True, metavar="DIR", help="folder for the pictures (created if missing)")
     p.add_argument("--rig", metavar="R", help="rig file (default: the built-in face)")
+    p.add_argument("--face", metavar="SPEC", help="the face: ict (the scanned head), ict?identity=SEED, procedural or a saved identity's NAME")
     p.add_argument("--style", choices=("trails", "arrows"), default="trails")
     p.add_argument("--gain", type=float, default=1.0, metavar="X", help="magnify the motion (default 1, at most 100)")
     p.add_argument("--weight", type=float, default=1.0, metavar="W", help="preset weight 0..1 (default 1)")
@@ -30,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     from puppet.capture.pictures import contact_sheet, draw_template, onset, save_png
     from puppet.errors import PuppetError
     from puppet.live import load_face
-    from sim.facs import EXPRESSIONS
+    from sim.facs import EXPRESSIONS, preset_face
     from sim.fit.basis import Settler, preset_values
 
     # --gain inf (or 1e308) drew a picture flooded by one arrow and said it was written
@@ -43,11 +44,12 @@ def run(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise PuppetError(f"{out}: cannot create the folder: {err.strerror}") from err
-    face = load_face(args.rig)
+    face = load_face(args.rig, face=args.face)
     settler = Settler(face.model)
     images = []
     for name in EXPRESSIONS:
-        frames = onset(face.model, settler.rest_state, settler.values_for(preset_values(name, args.weight)))
+        frames = onset(face.model, settler.rest_state,
+                       settler.values_for(preset_values(name, args.weight, preset_face(face.model.rig))))
         img = draw_template(face.model, frames, f"{name} (weight {args.weight:g})", args.style, gain=args.gain)
         save_png(img, out / f"template_{name}.png")
         images.append(img)

@@ -116,3 +116,52 @@ def test_a_device_named_twice_is_one_line_saying_so() -> None:
     assert len(devs) == 2
     for d in devs:
         d.close()
+
+
+def _help(*argv: str) -> str:
+    import contextlib
+    import io
+
+    import pytest
+
+    from puppet.cli import main
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out), pytest.raises(SystemExit):
+        main([*argv, "--help"])
+    return " ".join(out.getvalue().split())
+
+
+def test_the_helps_say_what_the_commands_do() -> None:
+    """Checked against what each command does: `pose --resolution` said 0 ~ 700 vertices (the face
+    has 860) and 1 ~ 3k (2,715); `devices` named serial, HID and CAN but lists MIDI ports and audio
+    inputs too; `import-face` said it transfers the default face's rig, which is the scanned head
+    now, while it transfers the procedural face's."""
+    import re
+
+    import sim.face
+
+    text = _help("pose")
+    for res, approx in re.findall(r"(\d) ~ ([\d.]+k?)", text):
+        n = float(approx.rstrip("k")) * (1000 if approx.endswith("k") else 1)
+        real = sim.face.default_model(int(res)).n_vertices
+        assert abs(n - real) <= 0.05 * real, (res, approx, real)
+    devices = _help("devices")
+    assert "MIDI" in devices and "audio" in devices, devices
+    imported = _help("import-face")
+    assert "procedural face's rig" in imported and "default face's rig" not in imported, imported
+
+
+def test_templates_and_recognize_take_the_face_as_fit_and_replay_do(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """`puppet templates --face procedural` was 'unrecognized arguments' (only --rig), while pose,
+    fit and replay take --face; a saved identity or the procedural face could not be drawn."""
+    from pathlib import Path
+
+    from puppet.cli import main
+
+    out = Path(tmp_path) / "tpl"
+    assert main(["templates", "--face", "procedural", "--out", str(out), "--weight", "0.3"]) == 0
+    assert len(list(out.glob("template_*.png"))) == 7 and (out / "templates.png").is_file()
+    assert main(["templates", "--face", "nobody-saved-this", "--out", str(out)]) == 2
+    assert "nobody-saved-this" in capsys.readouterr().err
+    assert "--face SPEC" in _help("recognize")

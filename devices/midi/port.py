@@ -74,7 +74,48 @@ def jack_server_running() -> bool:
         return True
     server = os.environ.get("JACK_DEFAULT_SERVER", "default")
     uid = os.getuid() if hasattr(os, "getuid") else 0
-    return os.path.exists(f"/dev/shm/jack_{server}_{uid}_0") or os.path.isdir(f"/dev/shm/jack-{uid}")
+    sock = f"/dev/shm/jack_{server}_{uid}_0"
+    return (os.path.exists(sock) and unix_socket_listened(sock)) or os.path.isdir(f"/dev/shm/jack-{uid}")
+
+
+_ANSWERED: set[tuple[str, int, int]] = set()  # sockets that took a connection (path, inode, mtime)
+#: the kernel's list of this network namespace's Unix sockets
+PROC_NET_UNIX = "/proc/net/unix"
+
+
+def unix_socket_listened(path: str) -> bool:
+    """Whether a process listens on the Unix socket at ``path``: a JACK server killed (SIGKILL, a
+    crash) leaves its socket file behind, and the file alone kept the server looking alive. Linux's
+    /proc/net/unix lists the listening sockets (flag __SO_ACCEPTCON, 0x10000) by path; where it
+    cannot be read, the file is taken at its word. It lists only this network namespace's sockets:
+    a socket not listed is connected to once (refused: nobody listens; taken: a server in another
+    namespace sharing /dev/shm, remembered for that socket file, never asked again)."""
+    try:
+        with open(PROC_NET_UNIX, encoding="utf-8", errors="replace") as f:
+            next(f, None)  # the header
+            for line in f:
+                parts = line.split(None, 7)
+                if len(parts) == 8 and parts[7].rstrip("\n") == path and int(parts[3], 16) & 0x10000:
+                    return True
+    except (OSError, ValueError):
+        return True
+    import socket
+
+    try:
+        st = os.stat(path)
+    except OSError:
+        return False
+    key = (path, st.st_ino, st.st_mtime_ns)
+    if key in _ANSWERED:
+        return True
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as probe:
+        probe.settimeout(1.0)
+        try:
+            probe.connect(path)
+        except OSError:
+            return False
+    _ANSWERED.add(key)
+    return True
 
 
 def api_available(api: str) -> bool:
@@ -338,9 +379,12 @@ def _server_identity(api: str) -> object:
         return api
     server = os.environ.get("JACK_DEFAULT_SERVER", "default")
     uid = os.getuid() if hasattr(os, "getuid") else 0
+    sock = f"/dev/shm/jack_{server}_{uid}_0"
     try:
-        st = os.stat(f"/dev/shm/jack_{server}_{uid}_0")
+        st = os.stat(sock)
     except OSError:
+        return (server, None)
+    if not unix_socket_listened(sock):  # killed: its socket file left behind, nobody listening
         return (server, None)
     return (server, st.st_ino, st.st_mtime_ns)
 

@@ -80,6 +80,7 @@ def _connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
 
     if scheduler:
         _check_tls(scheduler)
+        _reach(scheduler)
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError) as err:
@@ -99,6 +100,29 @@ def _connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                                dashboard_address="127.0.0.1:0", silence_logs=logging.CRITICAL)
     return Client(cluster), cluster
+
+
+def _reach(scheduler: str) -> None:
+    """One plain TCP connection to the scheduler's port before Dask's: Dask retries a refused
+    connection until its timeout (a scheduler may still be starting), so a closed port or an unknown
+    host kept the user waiting CONNECT_TIMEOUT (20 s) before a word was said."""
+    import socket
+    from urllib.parse import urlsplit
+
+    url = urlsplit(scheduler)
+    what = f"cannot reach the Dask scheduler at {scheduler}"
+    todo = "start `dask scheduler` there or check the address it printed"
+    try:
+        with socket.create_connection((url.hostname, url.port), timeout=CONNECT_TIMEOUT):
+            pass
+    except ConnectionRefusedError as err:
+        raise PuppetError(f"{what} (nothing listens on port {url.port}); {todo}") from err
+    except socket.gaierror as err:
+        raise PuppetError(f"{what} (unknown host {url.hostname}); {todo}") from err
+    except TimeoutError as err:
+        raise PuppetError(f"{what} (no answer within {CONNECT_TIMEOUT:g} s); {todo}") from err
+    except OSError as err:
+        raise PuppetError(f"{what} ({err.strerror or err}); {todo}") from err
 
 
 def _check_tls(scheduler: str) -> None:

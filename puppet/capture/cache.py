@@ -38,7 +38,10 @@ def _key(model: Any) -> str:
     from sim.fit.basis import DEFAULT_AMPLITUDE, SETTLE_SECONDS, TEMPLATE_WEIGHTS
 
     h = hashlib.sha256()
-    h.update(f"{FORMAT_VERSION}:{model.hash}:{DEFAULT_AMPLITUDE}:{TEMPLATE_WEIGHTS}:{SETTLE_SECONDS}".encode())
+    from sim.facs import preset_face
+
+    presets = preset_face(getattr(model, "rig", None)) or ""  # the templates are the face's own presets
+    h.update(f"{FORMAT_VERSION}:{model.hash}:{DEFAULT_AMPLITUDE}:{TEMPLATE_WEIGHTS}:{SETTLE_SECONDS}:{presets}".encode())
     root = Path(sim.__file__).parent
     for name in _SIM_SOURCES:
         try:

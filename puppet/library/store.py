@@ -53,6 +53,9 @@ def clean_tag(tag: str) -> str:
     return t
 
 
+#: the states a `state:` filter takes (died: a show killed while recording, stored as recording)
+QUERY_STATES = ("complete", "recording", "crashed", "damaged", "died")
+
 class Library:
     """One open library file. Every method is one transaction; safe with other processes writing."""
 
@@ -497,12 +500,17 @@ class Library:
             elif key == "before":
                 where.append("t.recorded < ?")
                 params.append(val)
+            elif key == "missing" and val.lower() not in ("yes", "no", "1", "0", "true", "false"):
+                # `missing:maybe` was taken as no and `state:crash` matched nothing, without a word
+                raise PuppetError(f"query {tok!r:.80}: missing: takes yes or no")
+            elif key == "state" and val.lower() not in QUERY_STATES:
+                raise PuppetError(f"query {tok!r:.80}: state: takes {', '.join(QUERY_STATES)}")
             elif key == "missing":
                 where.append("t.missing = ?")
                 params.append(1 if val.lower() in ("yes", "1", "true") else 0)
             elif key == "state":
                 where.append("t.state = lower(?)")
-                params.append("recording" if val.lower() == "died" else val)
+                params.append("recording" if val.lower() == "died" else val.lower())
             elif key == "face":
                 where.append("t.face = ?")
                 params.append(val)

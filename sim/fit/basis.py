@@ -111,15 +111,16 @@ def build_basis(settler: Settler, channels: Sequence[str] | None = None,
     return Basis(names, hi, settler.rest.copy(), cols, amplitude, str(getattr(settler.model, "hash", "")))
 
 
-def preset_values(name: str, weight: float = 1.0) -> dict[str, float]:
+def preset_values(name: str, weight: float = 1.0, face: str | None = None) -> dict[str, float]:
     """The channel values a preset sets at a weight (through `sim.facs.apply_expression`), only
-    the channels it moves."""
+    the channels it moves; `face` (`sim.facs.preset_face` of a rig) picks the face's own
+    intensities, None the shared table."""
     from sim.facs import apply_expression
     from sim.state import FaceControl
 
     c = FaceControl()
     base = c.values.copy()
-    apply_expression(c, name, weight)
+    apply_expression(c, name, weight, face)
     return {CHANNEL_SPECS[i].name: float(c.values[i]) for i in np.flatnonzero(c.values != base)}
 
 
@@ -138,9 +139,13 @@ class Templates:
 
 def build_templates(settler: Settler, weights: Sequence[float] = TEMPLATE_WEIGHTS,
                     channels: Sequence[str] | None = None, progress: Progress | None = None) -> Templates:
-    """The settled displacement of every preset at each weight (the seed's flow templates)."""
-    from sim.facs import EXPRESSIONS
+    """The settled displacement of every preset at each weight (the seed's flow templates), at
+    the intensities the settler's face plays them with (`sim.facs.FACE_EXPRESSIONS`: the scanned
+    head's surprise raises the lids, its sadness leaves the outer brows; the templates were the
+    shared table's, so a take's own presets were matched against other poses)."""
+    from sim.facs import EXPRESSIONS, preset_face
 
+    face = preset_face(getattr(settler.model, "rig", None))
     names = tuple(EXPRESSIONS)
     chans = tuple(channels or fit_channels())
     fields = np.empty((len(names), len(weights), *settler.rest.shape))
@@ -148,11 +153,11 @@ def build_templates(settler: Settler, weights: Sequence[float] = TEMPLATE_WEIGHT
     step = 0
     for e, name in enumerate(names):
         for w, weight in enumerate(weights):
-            fields[e, w] = settler.pose(settler.values_for(preset_values(name, weight))) - settler.rest
+            fields[e, w] = settler.pose(settler.values_for(preset_values(name, weight, face))) - settler.rest
             step += 1
             if progress:
                 progress(step, len(names) * len(weights))
-        for ch, v in preset_values(name, 1.0).items():
+        for ch, v in preset_values(name, 1.0, face).items():
             if ch in chans:
                 acts[e, chans.index(ch)] = v
     return Templates(names, tuple(float(w) for w in weights), fields, chans, acts)

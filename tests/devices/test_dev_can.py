@@ -110,3 +110,39 @@ def test_bad_specs(tmp_path: Path) -> None:
         open_device(f"can://virtual/x?dbc={bad}")
     with pytest.raises(DeviceSpecError, match="INTERFACE/CHANNEL"):
         open_device(f"can://virtual?dbc={PANEL}")
+
+
+def test_an_extended_frame_is_not_the_standard_message_of_its_number(channel: str, panel_bus: can.BusABC) -> None:
+    """The panel DBC's PanelButtons is the standard frame 0x101; an extended frame 0x101 is another
+    frame (another node's, a J1939 one): it moves no button and is counted as unknown."""
+    d, q = _open(f"can://virtual/{channel}?dbc={PANEL}")
+    try:
+        panel_bus.send(can.Message(arbitration_id=0x101, data=b"\x01\x00", is_extended_id=True))
+        panel_bus.send(can.Message(arbitration_id=0x101, data=b"\x02\x00", is_extended_id=False))
+        got = controls(wait_for(q, lambda e: getattr(e, "control", None) == "Button1"))
+        assert [(e.control, e.value) for e in got] == [("Button1", 1.0)]
+        assert q.get(timeout=0.2) is None  # nothing else: Button0 never pressed
+        assert d.decoder.unknown_frames == 1
+    finally:
+        d.close()
+
+
+def test_a_j1939_pdu1_message_matches_whatever_its_destination(channel: str, panel_bus: can.BusABC,
+                                                               tmp_path: Path) -> None:
+    """PDU1 messages (PDU format below 240) carry a destination address where PDU2 ones carry part
+    of the PGN. The DBC names the message sent to the global address (0x18EFFFFE); the panel sends it
+    to this host (0x27) from another source (0x13): it matched nothing before (the destination was
+    taken as part of the PGN), and is the DBC's message now."""
+    dbc = tmp_path / "pdu1.dbc"
+    dbc.write_text('VERSION ""\n\nNS_ :\n\nBS_:\n\nBU_: Panel Host\n\n'
+                   'BO_ 2565865470 PropA: 8 Panel\n'  # 0x80000000 | 0x18EFFFFE: extended, PGN 0xEF00
+                   ' SG_ Knob : 0|8@1+ (1,0) [0|255] "" Host\n\n'
+                   'CM_ SG_ 2565865470 Knob "kind=axis";\n')
+    d, q = _open(f"can://virtual/{channel}?dbc={dbc}")
+    try:
+        panel_bus.send(can.Message(arbitration_id=0x18EF2713, data=bytes([51, 0, 0, 0, 0, 0, 0, 0]),
+                                   is_extended_id=True))
+        got = controls(wait_for(q, lambda e: getattr(e, "control", None) == "Knob"))
+        assert got[-1].value == pytest.approx(51 / 255) and d.decoder.unknown_frames == 0
+    finally:
+        d.close()

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from emulators import FirmataEmulator, SgiBoxEmulator
+from emulators import FirmataEmulator, PtyPort, SgiBoxEmulator, TextBoxEmulator
 from fakehid import FakeHidApi, FakeHidUnit
 from devdata import MAPLE_RDESC
 
@@ -42,6 +42,44 @@ def test_probe_tells_sgi_from_firmata(tmp_path: Path) -> None:
     finally:
         sgi.port.close()
         fir.port.close()
+
+
+def test_a_probed_silent_port_is_not_usable_and_a_text_box_is(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`puppet devices --probe --json` marked every probed serial port usable, a port where nothing
+    answered (a modem, a console, nothing plugged) too. Now a silent port is listed as not usable,
+    and a text-protocol box that says its hello (as the example Arduino does on reset) as usable."""
+    import threading
+
+    from serial.tools import list_ports, list_ports_common
+
+    import devices.discovery as disc
+
+    monkeypatch.setattr(disc, "TEXT_LISTEN", 1.5)
+    silent = PtyPort(tmp_path / "silent")
+    box = TextBoxEmulator(tmp_path / "box")
+    stop = threading.Event()
+
+    def hello() -> None:  # the box says its hello every 0.3 s (as after each reset)
+        while not stop.wait(0.3):
+            box.send("H breadboard 4 buttons\n")
+
+    talker = threading.Thread(target=hello, daemon=True)
+    talker.start()
+    ports = [list_ports_common.ListPortInfo(str(tmp_path / "silent")), list_ports_common.ListPortInfo(str(tmp_path / "box"))]
+    monkeypatch.setattr(list_ports, "comports", lambda: ports)
+    try:
+        infos = {i.spec: i for i in disc.serial_ports(probe=True)}
+    finally:
+        stop.set()
+        talker.join(2)
+        silent.close()
+        box.port.close()
+    # the SGI box's ack is 0x20, a space: the first space of the box's hello passed for one
+    assert not any(spec.startswith("sgi://") for spec in infos), infos
+    quiet = infos[f"serial://{tmp_path / 'silent'}"]
+    assert not quiet.usable and "silent" in quiet.description, quiet
+    talking = infos[f"serial://{tmp_path / 'box'}"]
+    assert talking.usable and "text-protocol box" in talking.description, talking
 
 
 def test_puppet_devices_json_runs() -> None:
@@ -94,3 +132,27 @@ def test_a_stuck_midi_listing_makes_the_next_one_give_up(monkeypatch: pytest.Mon
         assert mdisc.midi_ports() == []  # both APIs left out, with a warning, no exception
     finally:
         port._ENUM_LOCK.release()
+
+
+def test_serial_ports_are_probed_side_by_side(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A probe takes up to ~6 s a port (the SGI reset, a Firmata board's boot, a text box's hello);
+    one after the other, ten ports outlasted discovery's minute and the whole family was left out.
+    Three ports' probes must be under way at once (a barrier of three: one at a time never passes)."""
+    import threading
+
+    from serial.tools import list_ports, list_ports_common
+
+    import devices.discovery as disc
+
+    barrier = threading.Barrier(3, timeout=20)
+
+    def probe(path: str) -> str | None:
+        barrier.wait()  # BrokenBarrierError unless all three are probing together
+        return "sgi" if path.endswith("1") else None
+
+    monkeypatch.setattr(disc, "probe_serial_port", probe)
+    monkeypatch.setattr(list_ports, "comports",
+                        lambda: [list_ports_common.ListPortInfo(f"/dev/ttyFAKE{i}") for i in range(3)])
+    infos = {i.spec: i for i in disc.serial_ports(probe=True)}
+    assert set(infos) == {"serial:///dev/ttyFAKE0", "sgi:///dev/ttyFAKE1", "serial:///dev/ttyFAKE2"}
+    assert infos["sgi:///dev/ttyFAKE1"].usable and not infos["serial:///dev/ttyFAKE0"].usable

@@ -379,3 +379,29 @@ def test_rpn_increment_and_the_null_rpn() -> None:
     assert ev(d, (0xB0, 101, 127), (0xB0, 100, 127), (0xB0, 6, 50)) == []  # the null RPN selects nothing
     e = ev(d, (0xB0, 99, 0), (0xB0, 98, 5), (0xB0, 6, 66), (0xB0, 96, 0))
     assert [(x.control, x.delta) for x in e] == [("tune", 2.0), ("tune", 1.0)]  # a relative NRPN encoder
+
+
+def test_a_unix_socket_file_is_a_server_only_while_someone_listens(tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """A JACK server killed leaves its socket file: the file alone is no server. Listed as listening
+    in /proc/net/unix it is; unlisted (another network namespace sharing /dev/shm), a connection
+    decides: taken, a server; refused, a left-over file."""
+    import socket
+
+    from devices.midi import port
+
+    live, stale = tmp_path / "live.sock", tmp_path / "stale.sock"
+    server = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    server.bind(str(live))
+    server.listen(1)
+    gone = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    gone.bind(str(stale))
+    gone.close()  # as a killed server leaves it: the file, nobody behind it
+    try:
+        assert port.unix_socket_listened(str(live)) and not port.unix_socket_listened(str(stale))
+        empty = tmp_path / "unix"
+        empty.write_text("Num       RefCount Protocol Flags    Type St Inode Path\n")
+        monkeypatch.setattr(port, "PROC_NET_UNIX", str(empty))  # another namespace: nothing listed
+        assert port.unix_socket_listened(str(live)) and not port.unix_socket_listened(str(stale))
+        assert not port.unix_socket_listened(str(tmp_path / "none.sock"))
+    finally:
+        server.close()

@@ -302,3 +302,40 @@ def test_a_jack_server_stopped_under_a_plugged_box_is_a_loss_and_its_return_is_f
         mon.wait(10)
         box.close()
         stop_jackd(server)
+
+
+def test_a_jack_server_killed_and_never_restarted_is_a_loss(jack_server: str, monkeypatch: pytest.MonkeyPatch) -> None:  # noqa: F811
+    """A JACK server killed (SIGKILL, a crash) leaves its socket file in /dev/shm: the device took
+    the file for a live server and stayed `connected`, with nothing arriving, for the rest of the
+    show. Now nobody listening on that socket is the server gone: `lost`, and it stays lost."""
+    import glob
+    import os
+
+    from midijack import start_jackd, stop_jackd, wait_for_host
+
+    name = f"fpkill{os.getpid()}"
+    monkeypatch.setenv("JACK_DEFAULT_SERVER", name)
+    server = start_jackd(name)
+    box = MidiBox("nanoKONTROL2").plug()
+    mon, lines, until = _monitor_nanokontrol()
+    try:
+        wait_for_host(name, "nanoKONTROL2:_MIDI 1")
+        until(lambda ls: any(x.get("status") == "connected" for x in ls))
+        server.kill()  # SIGKILL: no clean-up of its files
+        server.wait(5)
+        assert glob.glob(f"/dev/shm/jack_{name}_*"), "the killed server's socket file is the case tested"
+        until(lambda ls: ls[-1].get("status") == "lost", timeout=15.0)
+        assert [x.get("status") for x in lines if "status" in x] == ["connected", "lost"]
+    finally:
+        mon.kill()
+        mon.wait(10)
+        box.close()
+        if server.poll() is None:
+            server.kill()
+            server.wait(5)
+        # a killed server keeps its slot in JACK's shared registry (8 slots, freed only by a server
+        # of the same name): start one under the name and stop it cleanly, or after a few runs no
+        # JACK server starts on this machine ("Too many servers already active")
+        stop_jackd(start_jackd(name))
+        for leftover in glob.glob(f"/dev/shm/jack_sem.*_{name}_*"):  # the killed server's clients'
+            os.unlink(leftover)

@@ -227,6 +227,23 @@ def test_lan_option_prints_what_it_exposes(capsys: pytest.CaptureFixture[str]) -
     assert "any machine" in open_all and "allow=" in open_all
 
 
+def test_port_0_says_the_port_it_bound_and_keeps_it(capsys: pytest.CaptureFixture[str]) -> None:
+    """Port 0 lets the system pick a free port; the sender must be told which. It was named nowhere
+    (the description said udp 127.0.0.1:0, nothing was printed), and a reopen would pick another."""
+    dev = OscDevice(parse_spec("osc://127.0.0.1:0"))
+    try:
+        dev.open()
+        port = dev.bound[1]
+        err = capsys.readouterr().err
+        assert err == f"osc://127.0.0.1:0: listening for OSC on UDP port {port} of 127.0.0.1\n"
+        assert dev.description.endswith(f"udp 127.0.0.1:{port}")
+        dev._close_handle()  # as when the socket is lost: the reconnect reopens on the told port
+        dev._open()
+        assert dev.bound[1] == port and capsys.readouterr().err == ""
+    finally:
+        dev.close()
+
+
 def test_sender_allow_list() -> None:
     with listening("osc://127.0.0.1:0?allow=10.9.8.7") as lis:  # not us: everything is refused
         lis.send(osc_message("/x", 1.0))
@@ -291,3 +308,16 @@ def test_a_damaged_message_is_named_in_a_short_line() -> None:
     with pytest.raises(Exception) as err:
         decode_packet(data)
     assert "damaged message" in str(err.value) and len(str(err.value)) < 200
+
+
+def test_lan_on_the_loopback_is_refused_and_no_address_means_every_interface() -> None:
+    """README said 'add lan=1 to listen beyond this machine' beside `osc://127.0.0.1:9000`: that spec
+    with lan=1 still listened on the loopback alone, and the phone never reached it, without a word.
+    Now lan=1 on a loopback address is one line naming the spec that listens on the LAN, and lan=1
+    with no address named listens on every interface (as panel:// does)."""
+    for spec in ("osc://127.0.0.1:9000?lan=1", "osc://localhost:9000?lan=1", "osc://[::1]:9000?lan=1"):
+        with pytest.raises(devices.DeviceSpecError, match="this machine alone") as err:
+            OscDevice(parse_spec(spec))
+        assert "osc://0.0.0.0:9000?lan=1" in str(err.value)
+    dev = OscDevice(parse_spec("osc://:9000?lan=1&allow=10.1.2.3"))
+    assert dev.host == "0.0.0.0" and "every network interface" in dev.exposure

@@ -593,3 +593,14 @@ def test_a_report_of_a_capture_that_is_not_fitted_is_refused(tmp_path, capsys) -
                            (phone, ["--voice-profile", str(speech)])):
         err = _one_line_exit_2(capsys, ["fit", str(capture), *extra, "--out", str(take)], take)
         assert extra[0] in err and capture.name in err, err
+
+
+def test_an_input_of_unknown_type_names_every_type_fit_reads(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """`puppet fit speech.mp3` was told to bring a .csv, .c3d or .pc2, leaving out the voice's .wav
+    that fit reads too; the line names it now."""
+    clip = tmp_path / "speech.mp3"
+    clip.write_bytes(b"ID3\x03\x00" + bytes(64))
+    assert main(["fit", str(clip), "--out", str(tmp_path / "t.jsonl")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "speech.mp3" in err and ".wav" in err and ".c3d" in err, err
+    assert not (tmp_path / "t.jsonl").exists()

@@ -180,3 +180,17 @@ def test_options_that_name_another_face_are_refused_not_ignored(tmp_path: Path,
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and all(w in err for w in words), err
         assert not out.exists()
+
+
+def test_image_options_on_a_mesh_pose_are_said_not_to_apply(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """`pose --out smile.npz --view wireframe --size 640x480` dropped both without a word; now one line
+    names them, and the pose written is the one written without them."""
+    plain, given = tmp_path / "plain.npz", tmp_path / "given.npz"
+    base = ["pose", "--face", "procedural", "--au", "AU12=0.6", "--seconds", "0.1"]
+    assert main([*base, "--out", str(plain)]) == 0
+    assert "note" not in capsys.readouterr().err
+    assert main([*base, "--out", str(given), "--view", "wireframe", "--size", "640x480"]) == 0
+    err = [line for line in capsys.readouterr().err.splitlines() if "note" in line]
+    assert err == ["puppet: note: --size and --view do not apply to .npz (only images are drawn); ignored"], err
+    with np.load(plain) as a, np.load(given) as b:
+        assert set(a.files) == set(b.files) and all(np.array_equal(a[k], b[k]) for k in a.files)

@@ -217,3 +217,23 @@ def test_an_export_into_a_log_has_no_progress_bar(recording: Path, tmp_path: Pat
     perf = build_performance(read_session(recording), None)
     export(perf, tmp_path / "c.csv", ExportOptions(fps=60))
     assert "\r" not in capsys.readouterr().err
+
+
+def test_drawing_options_on_a_data_export_are_said_not_to_apply(recording: Path, tmp_path: Path,
+                                                                 capsys: pytest.CaptureFixture) -> None:
+    """`--view wireframe --size 640x480` on a .csv export were dropped without a word; now one line
+    names them, the export is the one written without them, and options that apply stay silent."""
+    from puppet.cli import main
+
+    plain, drawn = tmp_path / "plain.csv", tmp_path / "drawn.csv"
+    assert main(["replay", str(recording), "--out", str(plain)]) == 0
+    assert "note" not in capsys.readouterr().err
+    assert main(["replay", str(recording), "--out", str(drawn), "--view", "wireframe", "--size", "640x480"]) == 0
+    err = [line for line in capsys.readouterr().err.splitlines() if "note" in line]
+    assert err == ["puppet: note: --view and --size do not apply to a .csv of channels; ignored"], err
+    assert drawn.read_bytes() == plain.read_bytes()
+    assert main(["replay", str(recording), "--out", str(tmp_path / "x.pc2"), "--crf", "18"]) == 0
+    assert "--crf does not apply to a .pc2 point cache" in capsys.readouterr().err
+    assert main(["replay", str(recording), "--out", str(tmp_path / "s.png"), "--view", "heat", "--size", "64x48",
+                 "--to", "0.1"]) == 0
+    assert "note" not in capsys.readouterr().err

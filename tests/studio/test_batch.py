@@ -52,6 +52,29 @@ def test_a_bad_scheduler_address_is_one_line(tmp_path: Path, capsys: pytest.Capt
         assert err.count("\n") == 1 and "tcp://HOST:PORT" in err, (bad, err)
 
 
+def test_a_closed_scheduler_port_is_said_at_once(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """Dask retries a refused connection until its connect timeout (20 s): the user waited that long
+    to learn nothing listens there. Now one line naming the port, exit 2, without Dask's wait (its
+    timeout is cut to 3 s here so the old code fails fast, with its 'Timed out' message)."""
+    import socket
+
+    import puppet.batch.run as batch_run
+
+    monkeypatch.setattr(batch_run, "CONNECT_TIMEOUT", 3.0)
+    with socket.socket() as s:  # a port just free on this machine: nothing listens there
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    take = tmp_path / "a.jsonl"
+    write_take(take, seed=1)
+    code = main(["batch", "export", str(take), "--out", str(tmp_path / "out"), "--to", "csv",
+                 "--scheduler", f"tcp://127.0.0.1:{port}"])
+    _, err = capsys.readouterr()
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"nothing listens on port {port}" in err and "dask scheduler" in err, err
+    assert not (tmp_path / "out" / "a.csv").exists()
+
+
 def test_export_through_the_farm_equals_replay(farm: Farm, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     shoot = tmp_path / "shoot"
     takes = [write_take(shoot / f"take{k}.jsonl", ticks=30 + 15 * k, seed=k, performer="ana") for k in range(3)]
@@ -448,3 +471,17 @@ def test_a_folder_of_voices_is_fitted_but_a_takes_sound_is_not(tmp_path: Path) -
     got = sorted(p.relative_to(tmp_path).as_posix() for p in select([str(tmp_path)], None, SUFFIXES["fit"]))
     assert got == ["voices/Hum.WAV", "voices/vowels.wav"]
     assert [p.name for p in select([str(tmp_path / "show.wav")], None, SUFFIXES["fit"])] == ["show.wav"]
+
+
+def test_drawing_options_on_data_kinds_are_said_not_to_apply(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """`--to csv --view wireframe` dropped the view without a word, as `puppet replay` did."""
+    take = tmp_path / "a.jsonl"
+    write_take(take, seed=2)
+    plain, drawn = tmp_path / "plain", tmp_path / "drawn"
+    assert main(["batch", "export", str(take), "--out", str(plain), "--to", "csv", "--workers", "1"]) == 0
+    assert "note" not in capsys.readouterr().err
+    assert main(["batch", "export", str(take), "--out", str(drawn), "--to", "csv", "--workers", "1",
+                 "--view", "wireframe", "--size", "320x240"]) == 0
+    err = [line for line in capsys.readouterr().err.splitlines() if "note" in line]
+    assert err == ["puppet: note: --view and --size do not apply to --to csv (only mp4 is drawn); ignored"], err
+    assert (drawn / "a.csv").read_bytes() == (plain / "a.csv").read_bytes()

@@ -469,3 +469,18 @@ def test_a_library_in_a_folder_that_cannot_be_written_is_read(folder: Path, tmp_
     finally:
         d.chmod(0o755)
     assert sorted(p.name for p in d.iterdir()) == before
+
+
+def test_a_filter_value_the_library_does_not_know_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """`state:crash` (for crashed) matched nothing and `missing:maybe` was taken as no, without a
+    word: the user read 'no takes' as an answer. Now one line names what the filter takes, exit 2."""
+    lib = tmp_path / "takes.db"
+    write_take(tmp_path / "a.jsonl", seed=3)
+    assert main(["takes", "--library", str(lib), "import", str(tmp_path)]) == 0
+    capsys.readouterr()
+    for query, says in (("state:crash", "complete, recording, crashed, damaged"), ("missing:maybe", "yes or no")):
+        assert main(["takes", "--library", str(lib), "search", query]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and query in err and says in err, err
+    assert main(["takes", "--library", str(lib), "search", "state:Complete missing:no"]) == 0
+    assert "a.jsonl" in capsys.readouterr().out
