@@ -17,9 +17,15 @@ current fields added to what the simulator settled, the step damped by `--damp`)
 after each. `--scale` also settles the fields scaled by each given factor. `--save FILE` keeps the
 fitted per-channel displacement fields (cm). `--settled FILE` caches the shipped rig's settled
 poses. docs/scan-face.md ("The tissue under the skin moving with the muscle") has the figures.
+`--channels NAME=GROW,...` refits only those channels' fields, each over its zone grown by GROW cm,
+on the shapes that drive them, on top of the rig's own anchors: `--write-rig` adds the fitted
+fields to the rig's and keeps every other channel's ("The inner brows and the cheek's squint").
 
     nice .venv/bin/python benchmarks/anchor_limits.py [--smooth 1e-3] [--grow 0] [--bound 5] [--iters 300]
         [--settle [--rounds R] [--damp 0.5] [--scale 0.5,0.25]] [--save FILE] [--all] [--settled FILE]
+    # the shipped rig, run once on the one before it:
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --channels frontalis_inner=1.5,orbicularis_oculi=5
+        --smooth 1e-4 --bound 10 --write-rig sim/face/scan/ict_rig.npz
 """
 
 from __future__ import annotations
