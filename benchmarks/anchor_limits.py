@@ -17,9 +17,15 @@ current fields added to what the simulator settled, the step damped by `--damp`)
 after each. `--scale` also settles the fields scaled by each given factor. `--save FILE` keeps the
 fitted per-channel displacement fields (cm). `--settled FILE` caches the shipped rig's settled
 poses. docs/scan-face.md ("The tissue under the skin moving with the muscle") has the figures.
+`--channels NAME=GROW,...` refits only those channels' fields, each over its zone grown by GROW cm,
+on the shapes that drive them, on top of the rig's own anchors: `--write-rig` adds the fitted
+fields to the rig's and keeps every other channel's ("The inner brows and the cheek's squint").
 
     nice .venv/bin/python benchmarks/anchor_limits.py [--smooth 1e-3] [--grow 0] [--bound 5] [--iters 300]
         [--settle [--rounds R] [--damp 0.5] [--scale 0.5,0.25]] [--save FILE] [--all] [--settled FILE]
+    # the shipped rig, run once on the one before it:
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --channels frontalis_inner=1.5,orbicularis_oculi=5
+        --smooth 1e-4 --bound 10 --write-rig sim/face/scan/ict_rig.npz
 """
 
 from __future__ import annotations
@@ -68,6 +74,22 @@ class AnchoredSettler:
         return self.settler.pose(values) - self.settler.rest
 
 
+def refit_zones(model, spec: str) -> dict[str, np.ndarray]:  # type: ignore[no-untyped-def]
+    """The zones of the channels named in `spec` ("frontalis_inner=1.5,orbicularis_oculi=5": base
+    names, each zone grown by that many cm over the skin; both sides of a paired muscle)."""
+    from sim.face.scan.anchor_fit import channel_zones
+
+    out: dict[str, np.ndarray] = {}
+    for item in spec.split(","):
+        base, _, grow = item.partition("=")
+        zones = channel_zones(model, float(grow or 0.0))
+        named = {c: z for c, z in zones.items() if c == base or c in (base + "_l", base + "_r")}
+        if not named:
+            raise SystemExit(f"--channels: {base} is no muscle channel of the scanned head")
+        out.update(named)
+    return out
+
+
 def summary(name: str, rel: np.ndarray, held: np.ndarray) -> None:
     for what, m in (("all", np.ones(len(rel), bool)), ("fitted", ~held), ("held out", held)):
         if m.any():
@@ -92,6 +114,11 @@ def main() -> int:
     ap.add_argument("--all", action="store_true", help="fit on all shapes (no held-out right ones)")
     ap.add_argument("--shapes", default="", help="only these labels (comma separated)")
     ap.add_argument("--rig", type=Path, help="start from this rig file of the scanned head instead of the shipped one")
+    ap.add_argument("--channels", default="",
+                    help="refit only these channels' anchors (base names, comma separated, each with its own zone "
+                         "growth in cm as NAME=GROW), on top of the rig's own anchors: the fitted fields are added "
+                         "to the rig's, the shapes are those driving the channels, and --write-rig keeps every "
+                         "other channel's anchors")
     args = ap.parse_args()
     from scan_match import scan_targets
 
@@ -112,10 +139,14 @@ def main() -> int:
     anch = AnchoredSettler(model) if (cache is None or args.settle) else None
     labels, vals, targets, real = [], [], [], []
     only = set(args.shapes.split(",")) if args.shapes else None
+    zones = refit_zones(model, args.channels) if args.channels else None
+    driven = [model.channel_index[c] for c in zones] if zones else []
     for label, (shape, target) in scan_targets(None).items():
         if rms(target) * 10 < STILL_MM or (only and label not in only):
             continue
         v = shape_channels({shape: np.ones(1)}, 1)[0]
+        if driven and not np.any(v[driven] > 0):
+            continue
         labels.append(label)
         vals.append(v)
         targets.append(target)
@@ -124,7 +155,7 @@ def main() -> int:
     if args.settled and cache is None:
         np.savez(args.settled, **dict(zip(labels, real)))
     print(f"{len(labels)} shapes settled in {time.monotonic() - t0:.0f} s", flush=True)
-    cal = AnchorCalibration(model, smooth=args.smooth, ridge=args.ridge, bound=args.bound, grow=args.grow)
+    cal = AnchorCalibration(model, smooth=args.smooth, ridge=args.ridge, bound=args.bound, grow=args.grow, zones=zones)
     print(f"anchor fields: {cal.n_params} parameters over {len(cal.groups)} muscles "
           f"({time.monotonic() - t0:.0f} s)", flush=True)
     train = [k for k, lab in enumerate(labels) if args.all or not lab.endswith("_R")]
@@ -184,9 +215,11 @@ def main() -> int:
         from sim.face.scan.rig import RIG_FILE
         from sim.rig import load_rig, save_rig
 
-        fields = {c: np.round(np.clip(cal.field(c), -2.0, 2.0), 6) for c in cal.channels}
-        fields = {c: d for c, d in fields.items() if np.abs(d).max() > 1e-5}
-        save_rig(replace(load_rig(args.rig or RIG_FILE), anchor=fields), args.write_rig)
+        rig = load_rig(args.rig or RIG_FILE)
+        own = dict(rig.anchor) if args.channels else {}
+        fields = {c: np.round(np.clip(own.get(c, 0.0) + cal.field(c), -2.0, 2.0), 6) for c in cal.channels}
+        fields = {**own, **{c: d for c, d in fields.items() if np.abs(d).max() > 1e-5}}
+        save_rig(replace(rig, anchor=fields), args.write_rig)
         print(f"wrote {args.write_rig} ({len(fields)} channels' anchors)")
     return 0
 

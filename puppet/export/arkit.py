@@ -46,10 +46,13 @@ MOUTH_CLOSE_SPAN = 0.25
 #: Calibrated against the ICT FaceKit's scanned shapes on the scanned face (benchmarks/scan_match.py;
 #: fitted on the simulator's settled poses by benchmarks/map_fit.py): the value of a shape's channel
 #: that the shape at 1 stands for. Driven at 1, these channels moved the skin further than the scans
-#: (the inner brows 1.8 times as far, over more of the forehead; the squint's orbital sphincter pulled
-#: the skin round the whole eye in); at these values each is closest to its scan (docs/scan-face.md).
+#: (the squint's orbital sphincter pulled the skin round the whole eye in); at these values each is
+#: closest to its scan (docs/scan-face.md). browInnerUp drives the inner frontalis to 0.85 (0.55
+#: while the muscle lifted the forehead rather than the brows' heads; its anchors, refitted at 0.85,
+#: carry the glabella and the brows' heads as the medial fibres do, and the brows raised in full
+#: stay within real brows: docs/scan-face.md, "The inner brows and the cheek's squint").
 #: The export divides by it (a larger channel value writes 1), the import and the map multiply.
-SHAPE_SPAN = {"BrowInnerUp": 0.55, "EyeSquint": 0.5, "MouthPress": 0.6, "MouthDimple": 0.6, "MouthLowerDown": 0.8,
+SHAPE_SPAN = {"BrowInnerUp": 0.85, "EyeSquint": 0.5, "MouthPress": 0.6, "MouthDimple": 0.6, "MouthLowerDown": 0.8,
               "EyeWide": 0.7, "MouthShrugUpper": 0.8, "MouthUpperUp": 0.7}
 #: Shapes that also drive other channels, each by a share of the shape (the channel takes the larger
 #: of its own shape and the share, as the lids do with the gaze; a channel named without its side is
