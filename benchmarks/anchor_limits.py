@@ -10,6 +10,14 @@ field per channel shared by every shape that drives it, on the left and unsided 
 ones are held out. Prints per shape the settled relative error (0 = the scan, 1 = as wrong as not
 moving) and the linear model's prediction with the fitted fields.
 
+`--halves` fits the sided halves' fields alone (`sim.channels.HALVES`: the lips' sphincter and
+the mentalis per side) on the shapes that drive them, every other channel's anchors kept: each half
+starts from its whole channel's field weighted by the side's share
+(`sim.face.scan.anchor_fit.half_anchors`) and the fit adds to it; with `--write-rig` the rig keeps
+every other field. The shipped halves: `--halves --all --smooth 1e-4 --bound 10 --grow 1.5
+--write-rig sim/face/scan/ict_rig.npz` run on the rig before them. `--only CHANNELS` refits the
+named channels' fields the same way, added to the rig's own.
+
 `--settle` applies the fitted fields to the running simulator (their force k_r d joins each
 channel's response in the implicit step: no recompile) and settles every shape from rest;
 `--rounds R` then refits R times about the settled poses (the linear model's change from the
@@ -92,6 +100,9 @@ def main() -> int:
     ap.add_argument("--all", action="store_true", help="fit on all shapes (no held-out right ones)")
     ap.add_argument("--shapes", default="", help="only these labels (comma separated)")
     ap.add_argument("--rig", type=Path, help="start from this rig file of the scanned head instead of the shipped one")
+    ap.add_argument("--halves", action="store_true", help="fit the sided halves' fields alone, the others kept")
+    ap.add_argument("--only", default="", help="refit these channels' fields alone (comma separated), added to "
+                    "the rig's, the others kept")
     args = ap.parse_args()
     from scan_match import scan_targets
 
@@ -99,13 +110,20 @@ def main() -> int:
     from puppet.face_cache import scan_model
     from sim.face.scan.anchor_fit import AnchorCalibration
 
-    t0 = time.monotonic()
-    if args.rig:
-        from sim.build import compile_model
-        from sim.face.scan.rig import scan_params
-        from sim.rig import load_rig
+    from sim.build import compile_model
+    from sim.channels import HALVES
+    from sim.face.scan.anchor_fit import channel_zones, half_anchors
+    from sim.face.scan.rig import RIG_FILE, scan_params
+    from sim.rig import load_rig
 
-        model = compile_model(load_rig(args.rig), scan_params())
+    t0 = time.monotonic()
+    only_fit = set(HALVES) if args.halves else {c for c in args.only.split(",") if c}
+    start_rig = load_rig(args.rig or RIG_FILE)
+    if args.halves:
+        start_rig = half_anchors(start_rig)
+        model = compile_model(start_rig, scan_params())
+    elif args.rig or only_fit:
+        model = compile_model(start_rig, scan_params())
     else:
         model = scan_model()
     cache = dict(np.load(args.settled)) if args.settled and args.settled.exists() else None
@@ -116,6 +134,8 @@ def main() -> int:
         if rms(target) * 10 < STILL_MM or (only and label not in only):
             continue
         v = shape_channels({shape: np.ones(1)}, 1)[0]
+        if only_fit and not any(v[model.channel_index[c]] > 0 for c in only_fit):
+            continue
         labels.append(label)
         vals.append(v)
         targets.append(target)
@@ -124,7 +144,10 @@ def main() -> int:
     if args.settled and cache is None:
         np.savez(args.settled, **dict(zip(labels, real)))
     print(f"{len(labels)} shapes settled in {time.monotonic() - t0:.0f} s", flush=True)
-    cal = AnchorCalibration(model, smooth=args.smooth, ridge=args.ridge, bound=args.bound, grow=args.grow)
+    zones = None
+    if only_fit:
+        zones = {c: z for c, z in channel_zones(model, args.grow).items() if c in only_fit}
+    cal = AnchorCalibration(model, smooth=args.smooth, ridge=args.ridge, bound=args.bound, grow=args.grow, zones=zones)
     print(f"anchor fields: {cal.n_params} parameters over {len(cal.groups)} muscles "
           f"({time.monotonic() - t0:.0f} s)", flush=True)
     train = [k for k, lab in enumerate(labels) if args.all or not lab.endswith("_R")]
@@ -181,12 +204,16 @@ def main() -> int:
     if args.write_rig:
         from dataclasses import replace
 
-        from sim.face.scan.rig import RIG_FILE
-        from sim.rig import load_rig, save_rig
+        from sim.rig import save_rig
 
-        fields = {c: np.round(np.clip(cal.field(c), -2.0, 2.0), 6) for c in cal.channels}
+        if only_fit:  # the fields' start plus the fitted change; every other field kept
+            fields = {c: np.round(np.clip(start_rig.anchor.get(c, 0.0) + cal.field(c), -2.0, 2.0), 6)
+                      for c in cal.channels}
+            fields = {**start_rig.anchor, **fields}
+        else:
+            fields = {c: np.round(np.clip(cal.field(c), -2.0, 2.0), 6) for c in cal.channels}
         fields = {c: d for c, d in fields.items() if np.abs(d).max() > 1e-5}
-        save_rig(replace(load_rig(args.rig or RIG_FILE), anchor=fields), args.write_rig)
+        save_rig(replace(start_rig, anchor=fields), args.write_rig)
         print(f"wrote {args.write_rig} ({len(fields)} channels' anchors)")
     return 0
 
