@@ -90,9 +90,13 @@ class AnchorCalibration(FieldCalibration):
         e = np.unique(np.sort(e[(e < n).all(axis=1)], axis=1), axis=0)
         zones = channel_zones(model, grow) if zones is None else zones
         self.channels = sorted(zones)
+        from sim.channels import HALVES
+
+        halved = {whole for half, (whole, _) in HALVES.items() if half in zones}
         groups: dict[str, list[str]] = {}
-        for c in self.channels:  # a whole channel with sided halves (HALVES) is a group apart from theirs
-            groups.setdefault(c[:-2] if c.endswith(("_l", "_r")) else c + " whole", []).append(c)
+        for c in self.channels:  # a whole channel beside its sided halves (HALVES) is a group apart from theirs
+            key = c[:-2] if c.endswith(("_l", "_r")) else c + " whole" if c in halved else c
+            groups.setdefault(key, []).append(c)
         self.groups = sorted(groups)
         self.par_of: dict[str, tuple[np.ndarray, bool]] = {}
         self.force_of: dict[str, Any] = {}
