@@ -15,7 +15,8 @@ the mentalis per side) on the shapes that drive them, every other channel's anch
 starts from its whole channel's field weighted by the side's share
 (`sim.face.scan.anchor_fit.half_anchors`) and the fit adds to it; with `--write-rig` the rig keeps
 every other field. The shipped halves: `--halves --all --smooth 1e-4 --bound 10 --grow 1.5
---write-rig sim/face/scan/ict_rig.npz` run on the rig before them. `--only CHANNELS` refits the
+--write-rig sim/face/scan/ict_rig.npz` on the current rig (the halves restart from their wholes' fields, so
+it rewrites the shipped rig byte for byte). `--only CHANNELS` refits the
 named channels' fields the same way, added to the rig's own.
 
 `--settle` applies the fitted fields to the running simulator (their force k_r d joins each

@@ -140,10 +140,11 @@ class AnchorCalibration(FieldCalibration):
 
 
 def half_anchors(rig: Any) -> Any:
-    """The rig with an anchor field for every sided half (`sim.channels.HALVES`) it lacks: its
-    whole channel's weighted by the side's share (`sim.build.side_weight`), rounded as the fitted
-    fields are, so the two halves at one value move the anchors as the whole does. The start of
-    the halves' own fit (`benchmarks/anchor_limits.py --halves`)."""
+    """The rig with every sided half's (`sim.channels.HALVES`) anchor field set to its whole
+    channel's weighted by the side's share (`sim.build.side_weight`), rounded as the fitted fields
+    are, so the two halves at one value move the anchors as the whole does; a half's field the rig
+    had is replaced. The start of the halves' own fit (`benchmarks/anchor_limits.py --halves`),
+    which so gives the same rig whether or not the rig it starts from had them."""
     from dataclasses import replace
 
     from sim.build import side_weight
@@ -152,6 +153,7 @@ def half_anchors(rig: Any) -> Any:
     rest = np.asarray(rig.mesh.vertices, np.float64)
     anchor = dict(rig.anchor)
     for half, (whole, side) in HALVES.items():
-        if half not in anchor and whole in anchor:
+        anchor.pop(half, None)
+        if whole in anchor:
             anchor[half] = np.round(np.asarray(anchor[whole], np.float64) * side_weight(rig.mesh, rest, side)[:, None], 6)
     return replace(rig, anchor=anchor)
