@@ -86,3 +86,23 @@ def test_the_scans_one_sided_press_settles_one_sided() -> None:
         shares[shape] = _left_share(settler.pose(v) - settler.rest, x)
     assert shares["MouthPressLeft"] > 0.75
     assert shares["MouthPressRight"] < 0.25
+
+
+def test_the_halves_anchors_start_from_the_wholes_split_by_side() -> None:
+    """The start of the halves' anchor fit (`anchor_limits.py --halves`): the whole's field split by
+    the side's share, whatever halves' fields the rig had, so the command rewrites the same rig."""
+    from dataclasses import replace
+
+    from sim.face.scan.anchor_fit import half_anchors
+    from sim.face.scan.rig import scan_rig
+
+    rig = scan_rig()
+    assert set(HALVES) <= set(rig.anchor)  # the shipped rig carries the halves' fitted fields
+    start = half_anchors(rig)
+    again = half_anchors(replace(rig, anchor={k: v for k, v in rig.anchor.items() if k not in HALVES}))
+    for whole in ("orbicularis_oris", "mentalis"):
+        both = start.anchor[whole + "_l"] + start.anchor[whole + "_r"]
+        assert np.abs(both - rig.anchor[whole]).max() <= 2e-6
+        assert not np.array_equal(start.anchor[whole + "_l"], rig.anchor[whole + "_l"])  # the fitted one replaced
+        for half in (whole + "_l", whole + "_r"):
+            assert np.array_equal(start.anchor[half], again.anchor[half])
