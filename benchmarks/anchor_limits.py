@@ -10,6 +10,23 @@ field per channel shared by every shape that drives it, on the left and unsided 
 ones are held out. Prints per shape the settled relative error (0 = the scan, 1 = as wrong as not
 moving) and the linear model's prediction with the fitted fields.
 
+`--halves` fits the sided halves' fields alone (`sim.channels.HALVES`: the lips' sphincter and
+the mentalis per side) on the shapes that drive them, every other channel's anchors kept: each half
+starts from its whole channel's field weighted by the side's share
+(`sim.face.scan.anchor_fit.half_anchors`) and the fit adds to it; with `--write-rig` the rig keeps
+every other field. The shipped halves: `--halves --all --smooth 1e-4 --bound 10 --grow 1.5
+--write-rig sim/face/scan/ict_rig.npz` on the current rig (the halves restart from their wholes' fields, so
+it rewrites the shipped rig byte for byte). `--only NAME[=GROW],...` (also spelt `--channels`)
+refits the named channels' fields the same way, added to the rig's own: a channel's name, or a
+muscle's base name for both its sides, each zone grown by its own GROW cm (`--grow` where none is
+given), fitted on the shapes that drive them ("The inner brows and the cheek's squint"):
+
+    # the shipped rig, the halves and the upper face's two fields each run once on the rig before
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only frontalis_inner=1.5,orbicularis_oculi=5
+        --smooth 1e-4 --bound 10 --write-rig sim/face/scan/ict_rig.npz
+    nice .venv/bin/python benchmarks/anchor_limits.py --halves --all --smooth 1e-4 --bound 10 --grow 1.5
+        --write-rig sim/face/scan/ict_rig.npz
+
 `--settle` applies the fitted fields to the running simulator (their force k_r d joins each
 channel's response in the implicit step: no recompile) and settles every shape from rest;
 `--rounds R` then refits R times about the settled poses (the linear model's change from the
@@ -17,15 +34,9 @@ current fields added to what the simulator settled, the step damped by `--damp`)
 after each. `--scale` also settles the fields scaled by each given factor. `--save FILE` keeps the
 fitted per-channel displacement fields (cm). `--settled FILE` caches the shipped rig's settled
 poses. docs/scan-face.md ("The tissue under the skin moving with the muscle") has the figures.
-`--channels NAME=GROW,...` refits only those channels' fields, each over its zone grown by GROW cm,
-on the shapes that drive them, on top of the rig's own anchors: `--write-rig` adds the fitted
-fields to the rig's and keeps every other channel's ("The inner brows and the cheek's squint").
 
     nice .venv/bin/python benchmarks/anchor_limits.py [--smooth 1e-3] [--grow 0] [--bound 5] [--iters 300]
         [--settle [--rounds R] [--damp 0.5] [--scale 0.5,0.25]] [--save FILE] [--all] [--settled FILE]
-    # the shipped rig, run once on the one before it:
-    nice .venv/bin/python benchmarks/anchor_limits.py --all --channels frontalis_inner=1.5,orbicularis_oculi=5
-        --smooth 1e-4 --bound 10 --write-rig sim/face/scan/ict_rig.npz
 """
 
 from __future__ import annotations
@@ -74,20 +85,20 @@ class AnchoredSettler:
         return self.settler.pose(values) - self.settler.rest
 
 
-def refit_zones(model, spec: str) -> dict[str, np.ndarray]:  # type: ignore[no-untyped-def]
-    """The zones of the channels named in `spec` ("frontalis_inner=1.5,orbicularis_oculi=5": base
-    names, each zone grown by that many cm over the skin; both sides of a paired muscle)."""
+def refit_zones(model, spec: list[str], grow: float) -> dict[str, np.ndarray]:  # type: ignore[no-untyped-def]
+    """The zones of the channels named in `spec` (items NAME or NAME=GROW: a channel, or a muscle's
+    base name for both its sides; each zone grown by its GROW cm over the skin, `grow` where none)."""
     from sim.face.scan.anchor_fit import channel_zones
 
     out: dict[str, np.ndarray] = {}
-    for item in spec.split(","):
-        base, _, grow = item.partition("=")
-        zones = channel_zones(model, float(grow or 0.0))
-        named = {c: z for c, z in zones.items() if c == base or c in (base + "_l", base + "_r")}
+    for item in spec:
+        base, _, g = item.partition("=")
+        zones = channel_zones(model, float(g) if g else grow)
+        named = {c: z for c, z in zones.items() if c in (base, base + "_l", base + "_r")}
         if not named:
-            raise SystemExit(f"--channels: {base} is no muscle channel of the scanned head")
+            raise SystemExit(f"--only: {base} is no muscle channel of the scanned head")
         out.update(named)
-    return out
+    return {c: out[c] for c in sorted(out, key=model.channel_index.__getitem__)}  # in the model's order
 
 
 def summary(name: str, rel: np.ndarray, held: np.ndarray) -> None:
@@ -114,11 +125,11 @@ def main() -> int:
     ap.add_argument("--all", action="store_true", help="fit on all shapes (no held-out right ones)")
     ap.add_argument("--shapes", default="", help="only these labels (comma separated)")
     ap.add_argument("--rig", type=Path, help="start from this rig file of the scanned head instead of the shipped one")
-    ap.add_argument("--channels", default="",
-                    help="refit only these channels' anchors (base names, comma separated, each with its own zone "
-                         "growth in cm as NAME=GROW), on top of the rig's own anchors: the fitted fields are added "
-                         "to the rig's, the shapes are those driving the channels, and --write-rig keeps every "
-                         "other channel's anchors")
+    ap.add_argument("--halves", action="store_true", help="fit the sided halves' fields alone, the others kept")
+    ap.add_argument("--only", "--channels", dest="only", default="",
+                    help="refit these channels' fields alone (NAME[=GROW], comma separated: a channel or a muscle's "
+                         "base name for both sides, its zone grown GROW cm, default --grow), added to the rig's, "
+                         "the others kept")
     args = ap.parse_args()
     from scan_match import scan_targets
 
@@ -126,26 +137,32 @@ def main() -> int:
     from puppet.face_cache import scan_model
     from sim.face.scan.anchor_fit import AnchorCalibration
 
-    t0 = time.monotonic()
-    if args.rig:
-        from sim.build import compile_model
-        from sim.face.scan.rig import scan_params
-        from sim.rig import load_rig
+    from sim.build import compile_model
+    from sim.channels import HALVES
+    from sim.face.scan.anchor_fit import half_anchors
+    from sim.face.scan.rig import RIG_FILE, scan_params
+    from sim.rig import load_rig
 
-        model = compile_model(load_rig(args.rig), scan_params())
+    t0 = time.monotonic()
+    only_fit = set(HALVES) if args.halves else {c for c in args.only.split(",") if c}
+    start_rig = load_rig(args.rig or RIG_FILE)
+    if args.halves:
+        start_rig = half_anchors(start_rig)
+        model = compile_model(start_rig, scan_params())
+    elif args.rig or only_fit:
+        model = compile_model(start_rig, scan_params())
     else:
         model = scan_model()
+    zones = refit_zones(model, sorted(only_fit), args.grow) if only_fit else None
     cache = dict(np.load(args.settled)) if args.settled and args.settled.exists() else None
     anch = AnchoredSettler(model) if (cache is None or args.settle) else None
     labels, vals, targets, real = [], [], [], []
     only = set(args.shapes.split(",")) if args.shapes else None
-    zones = refit_zones(model, args.channels) if args.channels else None
-    driven = [model.channel_index[c] for c in zones] if zones else []
     for label, (shape, target) in scan_targets(None).items():
         if rms(target) * 10 < STILL_MM or (only and label not in only):
             continue
         v = shape_channels({shape: np.ones(1)}, 1)[0]
-        if driven and not np.any(v[driven] > 0):
+        if zones and not any(v[model.channel_index[c]] > 0 for c in zones):
             continue
         labels.append(label)
         vals.append(v)
@@ -212,14 +229,16 @@ def main() -> int:
     if args.write_rig:
         from dataclasses import replace
 
-        from sim.face.scan.rig import RIG_FILE
-        from sim.rig import load_rig, save_rig
+        from sim.rig import save_rig
 
-        rig = load_rig(args.rig or RIG_FILE)
-        own = dict(rig.anchor) if args.channels else {}
-        fields = {c: np.round(np.clip(own.get(c, 0.0) + cal.field(c), -2.0, 2.0), 6) for c in cal.channels}
-        fields = {**own, **{c: d for c, d in fields.items() if np.abs(d).max() > 1e-5}}
-        save_rig(replace(rig, anchor=fields), args.write_rig)
+        if only_fit:  # the fields' start plus the fitted change; every other field kept
+            fields = {c: np.round(np.clip(start_rig.anchor.get(c, 0.0) + cal.field(c), -2.0, 2.0), 6)
+                      for c in cal.channels}
+            fields = {**start_rig.anchor, **fields}
+        else:
+            fields = {c: np.round(np.clip(cal.field(c), -2.0, 2.0), 6) for c in cal.channels}
+        fields = {c: d for c, d in fields.items() if np.abs(d).max() > 1e-5}
+        save_rig(replace(start_rig, anchor=fields), args.write_rig)
         print(f"wrote {args.write_rig} ({len(fields)} channels' anchors)")
     return 0
 

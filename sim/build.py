@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sim.channels import CHANNEL_INDEX, CHANNEL_SPECS, ChannelSpec
+from sim.channels import CHANNEL_INDEX, CHANNEL_SPECS, HALVES, ChannelSpec
 from sim.model import SKIN_FIELDS, FaceMesh, FaceRig
 from sim.muscles import muscle_field
 from sim.rowmath import norm3
@@ -285,6 +285,24 @@ def gravity_offsets(weight: np.ndarray, tether: np.ndarray, support: np.ndarray,
     return d
 
 
+#: The width of the sided halves' blend across the midline (`side_weight`), a share of the eyes'
+#: distance: 3 mm on a face whose eyes are 6.2 cm apart.
+SIDE_BLEND = 0.3 / 6.2
+
+
+def side_weight(mesh: FaceMesh, rest: np.ndarray, side: str) -> np.ndarray:
+    """(N,) the share of a paired muscle's field that is the face's `side` ("l" or "r") half:
+    0.5 (1 + tanh(s / w)) of the signed distance s from the midline (the plane halfway between the
+    eyes' centres, + towards the left eye), w = SIDE_BLEND times the eyes' distance. The two sides'
+    shares sum to 1, so both halves at one value pull as the whole channel does."""
+    ec = np.asarray(mesh.eye_centers, np.float64)
+    axis = ec[0] - ec[1]
+    dist = float(np.linalg.norm(axis))
+    s = (np.asarray(rest, np.float64) - 0.5 * (ec[0] + ec[1])) @ (axis / dist)
+    left = 0.5 * (1.0 + np.tanh(s / (SIDE_BLEND * dist)))
+    return left if side == "l" else 1.0 - left
+
+
 def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray,
                    normal: np.ndarray | None = None,
                    springs: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
@@ -292,25 +310,42 @@ def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray,
     """(3N, C) each channel's force field at full value: its muscle's pull (times the fitted
     insertion gain), plus its active strain's force (`sim.active_strain`; `springs`: indices, rest
     lengths, k_low of the skin's springs) where the rig has one, plus the tether's pull towards its
-    moved anchors (`FaceRig.anchor`, `tether` (N,) dyn/cm: k_r d, exact since the tether is linear)."""
+    moved anchors (`FaceRig.anchor`, `tether` (N,) dyn/cm: k_r d, exact since the tether is linear).
+    A sided half (`sim.channels.HALVES`) pulls as its whole channel weighted by `side_weight`, with
+    anchors of its own."""
     import scipy.sparse as sp
 
     n = len(rest)
     if normal is None:
         normal = vertex_normals(rest, np.asarray(rig.mesh.triangles, np.int32))
+
+    def pull(name: str) -> np.ndarray | None:
+        parts = rig.muscles.get(name, ())
+        if not parts:
+            return None
+        f = muscle_field(parts, rest, area, normal)
+        gain = rig.insertion.get(name)
+        if gain is not None:  # the fitted insertion density (sim.model.FaceRig.insertion)
+            f = f * np.asarray(gain, np.float64)[:, None]
+        strain = rig.strain.get(name)
+        if strain is not None and springs is not None:  # the tissue's active strain (FaceRig.strain)
+            from sim.active_strain import strain_force
+
+            f = f + strain_force(rest, springs[0], springs[1], springs[2], np.asarray(strain, np.float64))
+        return f
+
     cols = []
     for spec in CHANNEL_SPECS:
-        parts = rig.muscles.get(spec.name, ())
-        if spec.kind == "muscle" and parts:
-            f = muscle_field(parts, rest, area, normal)
-            gain = rig.insertion.get(spec.name)
-            if gain is not None:  # the fitted insertion density (sim.model.FaceRig.insertion)
-                f = f * np.asarray(gain, np.float64)[:, None]
-            strain = rig.strain.get(spec.name)
-            if strain is not None and springs is not None:  # the tissue's active strain (FaceRig.strain)
-                from sim.active_strain import strain_force
-
-                f = f + strain_force(rest, springs[0], springs[1], springs[2], np.asarray(strain, np.float64))
+        f = None
+        if spec.kind == "muscle":
+            if spec.name in HALVES:
+                whole, side = HALVES[spec.name]
+                f = pull(whole)
+                if f is not None:
+                    f = f * side_weight(rig.mesh, rest, side)[:, None]
+            else:
+                f = pull(spec.name)
+        if f is not None:
             anchor = rig.anchor.get(spec.name)
             if anchor is not None and tether is not None:  # the deep layer carrying the tether's anchors
                 f = f + np.asarray(tether, np.float64)[:, None] * np.asarray(anchor, np.float64)

@@ -130,11 +130,25 @@ CHANNEL_SPECS: tuple[ChannelSpec, ...] = (
     *_pair("orbicularis_oculi_lower_lid", "patch", ("AU7",),
            "lower lid tightener, orbicularis oculi pars palpebralis of the lower lid: its fibres, curved "
            "under the eye from canthus to canthus, straighten as they tighten and raise the lower lid"),
+    *_pair("orbicularis_oris", "sphincter", ("AU23", "AU24"),
+           "one side's half of the lips' sphincter (the lips pressed on that side, ARKit's mouthPress): the "
+           "whole channel's field weighted smoothly across the midline"),
+    *_pair("mentalis", "sheet", ("AU17",),
+           "one side's half of the chin raiser (the chin's soft tissue pushed up on that side): the whole "
+           "channel's field weighted smoothly across the midline"),
 )
 
 CHANNEL_NAMES: tuple[str, ...] = tuple(spec.name for spec in CHANNEL_SPECS)
 CHANNEL_INDEX: dict[str, int] = {name: i for i, name in enumerate(CHANNEL_NAMES)}
 MUSCLE_CHANNELS: tuple[str, ...] = tuple(s.name for s in CHANNEL_SPECS if s.kind == "muscle")
+
+#: Sided halves of unsided paired muscles: half -> (whole channel, side). A half's pull is its whole
+#: channel's field weighted by the side's share across the midline (`sim.build.side_weight`), so the
+#: two halves at one value pull as the whole does; the whole stays for the unsided uses (the FACS
+#: table's AU17/AU23/AU24, the presets, takes recorded before the halves).
+HALVES: dict[str, tuple[str, str]] = {
+    f"{whole}_{side}": (whole, side) for whole in ("orbicularis_oris", "mentalis") for side in ("l", "r")
+}
 
 
 def unknown_name(kind: str, name: object, valid: Iterable[str]) -> str:

@@ -13,7 +13,9 @@ the upper lid; AU5 (upper lid raiser) is the levator
 palpebrae, a lid muscle rather than a skin one, given its own channel. Fear has it (1+2+4+5+20+26);
 surprise leaves out the slight 5B FACS gives it, because this face's 1+2 already lifts the upper lid
 margin 8-10 mm with the brows. A side suffix restricts a bilateral AU to one side of the face:
-"AU12_L" (the face's own left) or "AU12_R".
+"AU12_L" (the face's own left) or "AU12_R"; AU17, AU23 and AU24 are one channel for both sides
+(the mentalis, the lips' sphincter), and their one-sided forms drive that side's half
+(`sim.channels.HALVES`).
 
 Combination rule: applying an AU sets each of its channels to max(current, weight * intensity), so
 presets and AUs that share a muscle do not add up beyond what either asks for.
@@ -69,9 +71,15 @@ def _sided(table: dict[str, dict[str, float]]) -> dict[str, dict[str, float]]:
     for au, chans in table.items():
         for suffix, keep in (("_L", "_l"), ("_R", "_r")):
             side = {c: w for c, w in chans.items() if c.endswith(keep)}
+            if au in HALF_AUS:  # the unsided muscle's half on that side (sim.channels.HALVES)
+                side = {c + keep: w for c, w in chans.items()}
             if side:
                 out[au + suffix] = side
     return out
+
+
+#: AUs of one unsided paired muscle whose one-sided form ("AU24_L") drives that side's half.
+HALF_AUS = ("AU17", "AU23", "AU24")
 
 
 AU_TABLE: dict[str, dict[str, float]] = _sided(_BASE)

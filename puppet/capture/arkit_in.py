@@ -44,17 +44,20 @@ def shape_targets(shape: str) -> list[str]:
     if shape in ONE_CHANNEL:
         return [ONE_CHANNEL[shape]] + (["orbicularis_oris_peripheralis_upper"] if shape == "MouthFunnel" else [])
     return {"BrowInnerUp": ["frontalis_inner_l", "frontalis_inner_r"], "JawOpen": ["jaw"],
-            "MouthShrugLower": ["mentalis"], "MouthPressLeft": ["orbicularis_oris"],
-            "MouthPressRight": ["orbicularis_oris"]}.get(shape, [])
+            "MouthShrugLower": ["mentalis"], "MouthPressLeft": ["orbicularis_oris_l"],
+            "MouthPressRight": ["orbicularis_oris_r"]}.get(shape, [])
 
 
 def share_targets(shape: str, channel: str, index: dict[str, int]) -> list[str]:
-    """The channels a shape's share (`SHAPE_SHARES`) drives: the channel itself, or, named without
-    its side, the shape's own side (both sides for an unsided shape)."""
+    """The channels a shape's share (`SHAPE_SHARES`) drives: named without its side, the shape's
+    own side (a one-sided shape drives the side's half of an unsided muscle, `sim.channels.HALVES`,
+    where the face has one; both sides for an unsided shape); else the channel itself."""
+    if shape.endswith(("Left", "Right")):
+        sided = channel + ("_l" if shape.endswith("Left") else "_r")
+        if sided in index or channel not in index:
+            return [sided]
     if channel in index:
         return [channel]
-    if shape.endswith(("Left", "Right")):
-        return [channel + ("_l" if shape.endswith("Left") else "_r")]
     return [channel + "_l", channel + "_r"]
 
 

@@ -52,7 +52,7 @@ MOUTH_CLOSE_SPAN = 0.25
 #: carry the glabella and the brows' heads as the medial fibres do, and the brows raised in full
 #: stay within real brows: docs/scan-face.md, "The inner brows and the cheek's squint").
 #: The export divides by it (a larger channel value writes 1), the import and the map multiply.
-SHAPE_SPAN = {"BrowInnerUp": 0.85, "EyeSquint": 0.5, "MouthPress": 0.6, "MouthDimple": 0.6, "MouthLowerDown": 0.8,
+SHAPE_SPAN = {"BrowInnerUp": 0.85, "EyeSquint": 0.5, "MouthPress": 0.85, "MouthDimple": 1.0, "MouthLowerDown": 0.8,
               "EyeWide": 0.7, "MouthShrugUpper": 0.8, "MouthUpperUp": 0.7}
 #: Shapes that also drive other channels, each by a share of the shape (the channel takes the larger
 #: of its own shape and the share, as the lids do with the gaze; a channel named without its side is
@@ -77,16 +77,20 @@ SHAPE_SPAN = {"BrowInnerUp": 0.85, "EyeSquint": 0.5, "MouthPress": 0.6, "MouthDi
 #: once the skin under the chin was set free: the mentalis then carries it, and at the former
 #: shares (0.55, 1.0) lifted it too far (mouthPress 0.88) or turned it over (mouthClose 0.50 cm2);
 #: the jaw thrust's shares were swept the same way (mouthClose's kept at 0.3: more came closer
-#: still but parted the lips of a spoken "m").
+#: still but parted the lips of a spoken "m"). mouthPress and mouthDimple are one-sided, as their
+#: scans are: they drive the side's halves of the lips' sphincter and the mentalis
+#: (`sim.channels.HALVES`; `share_targets` picks the half for a one-sided shape), their spans and
+#: shares fitted again on the settled poses with the halves (docs/scan-face.md, "The press in
+#: halves").
 SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
-    "MouthPress": (("mentalis", 0.3), ("levator_anguli_oris", 0.3), ("jaw_forward", 0.08)),
+    "MouthPress": (("mentalis", 0.64), ("levator_anguli_oris", 0.34), ("jaw_forward", 0.07)),
     "CheekPuff": (("incisivus", 1.0),),
     "MouthFunnel": (("incisivus", 0.5),),
     "MouthShrugLower": (("lip_closure", 0.25), ("orbicularis_oris", 0.35), ("zygomaticus_major", 0.15),
                         ("incisivus", 0.25), ("jaw_forward", 0.3)),
     "MouthRollLower": (("lip_closure", 0.4),),
     "MouthRollUpper": (("risorius", 0.2), ("orbicularis_oris", 0.6)),
-    "MouthDimple": (("levator_anguli_oris", 0.4), ("zygomaticus_major", 0.15), ("mentalis", 0.2)),
+    "MouthDimple": (("levator_anguli_oris", 0.57), ("zygomaticus_major", 0.11), ("mentalis", 0.15), ("orbicularis_oris", 0.85)),
     "MouthLowerDown": (("depressor_anguli_oris", 0.2),),
     "BrowDown": (("orbicularis_oculi", 0.15),),
     "EyeSquint": (("orbicularis_oculi_lower_lid", 0.1),),
@@ -126,8 +130,8 @@ def _rule(shape: str) -> Callable[[Getter], float] | None:
         return lambda g: g(name) / span
     if base == "BrowDown":
         return lambda g: max(g("corrugator" + s), g("procerus")) / span
-    if base == "MouthPress":
-        return lambda g: g("orbicularis_oris") / span
+    if base == "MouthPress":  # the side's half of the lips' sphincter, or the whole (AU23/24) where larger
+        return lambda g: max(g("orbicularis_oris" + s), g("orbicularis_oris")) / span
     if shape == "BrowInnerUp":
         return lambda g: 0.5 * (g("frontalis_inner_l") + g("frontalis_inner_r")) / span
     if shape == "JawOpen":

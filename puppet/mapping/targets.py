@@ -98,7 +98,7 @@ class Vocabulary:
         raise ChannelError(self.unknown_message(name))
 
     def unknown_message(self, name: str) -> str:
-        pairs = sorted({c.name[:-2] for c in self.channels if c.name.endswith(("_l", "_r"))})
+        pairs = sorted({c.name[:-2] for c in self.channels if c.name.endswith(("_l", "_r"))} - set(self.index))
         names = [c.name for c in self.channels if not c.name.endswith(("_l", "_r"))] + pairs
         close = [n for n in names if name.lower()[:4] in n.lower()][:6]
         hint = f" (did you mean {', '.join(close)}?)" if close else ""
@@ -108,7 +108,7 @@ class Vocabulary:
     def all_targets(self) -> list[str]:
         """Every target name a user can pick in learn mode, channels first."""
         pairs = sorted({c.name[:-2] for c in self.channels if c.name.endswith("_l")
-                        and c.name[:-2] + "_r" in self.index})
+                        and c.name[:-2] + "_r" in self.index} - set(self.index))  # a whole channel's name is the channel
         out = pairs + [c.name for c in self.channels]
         out += sorted(self.aus, key=_au_key)
         out += [f"expr:{e}" for e in sorted(self.expressions)]

@@ -44,7 +44,7 @@ def _pairs(vocab: Vocabulary) -> list[dict[str, Any]]:
         base = c.name[:-2]
         if c.name.endswith("_l") and base + "_r" in names:
             chans = [c.name, base + "_r"]
-            label = base
+            label = base + " half" if base in names else base  # a whole channel's sided halves (sim.channels.HALVES)
         else:
             chans, label = [c.name], c.name
         done.update(chans)

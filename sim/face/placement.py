@@ -335,7 +335,7 @@ def _side_muscles(f: FaceFrame, side: str, sg: float) -> dict[str, tuple[Muscle,
 
 def place_muscles(mesh: FaceMesh) -> dict[str, tuple[Muscle, ...]]:
     """Channel name -> muscle parts, placed from the mesh's landmarks (see the module docstring)."""
-    from sim.channels import MUSCLE_CHANNELS
+    from sim.channels import HALVES, MUSCLE_CHANNELS
 
     f = FaceFrame(mesh)
     out: dict[str, tuple[Muscle, ...]] = {}
@@ -356,4 +356,4 @@ def place_muscles(mesh: FaceMesh) -> dict[str, tuple[Muscle, ...]]:
     from sim.face.mouth_actions import mouth_actions
 
     out.update(mouth_actions(f))
-    return {name: out[name] for name in MUSCLE_CHANNELS}
+    return {name: out[name] for name in MUSCLE_CHANNELS if name not in HALVES}  # halves: sim.build

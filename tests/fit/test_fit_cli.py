@@ -441,7 +441,7 @@ def test_the_arkit_reader_inverts_the_export_mapping(tmp_path, arkit_expressible
     from sim.channels import CHANNEL_NAMES, CHANNEL_SPECS
 
     one_to_one = {b + s for b in set(SIMPLE_SHAPES.values()) - {"orbicularis_oculi"} for s in ("_l", "_r")}
-    one_to_one |= {"jaw", "mentalis", "orbicularis_oris", "eyes_yaw", "eyes_pitch"}
+    one_to_one |= {"jaw", "mentalis", "orbicularis_oris_l", "orbicularis_oris_r", "eyes_yaw", "eyes_pitch"}  # the press: a half
     rng = np.random.default_rng(15)
     values = np.tile([s.default for s in CHANNEL_SPECS], (20, 1))
     for ch in one_to_one:

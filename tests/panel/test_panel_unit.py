@@ -254,3 +254,17 @@ def test_the_editors_boxes_with_a_map_that_cannot_be_read_say_so(vocab, tmp_path
     root = Path(__file__).resolve().parents[2]
     with pytest.raises(ConfigError, match="broken.toml"):
         BoxFeed([f"mock://{root / 'examples' / 'mock' / 'sgi_rehearsal.toml'}"], vocab, str(broken))
+
+
+def test_the_sided_halves_get_a_row_of_their_own_beside_the_whole(vocab) -> None:
+    """The lips' sphincter and the mentalis are a whole channel and a pair of halves: two rows whose
+    labels differ, the halves' with a left and a right slider; learn offers each name once."""
+    rows = [r for reg in build_layout(vocab)["regions"] for r in reg["rows"]]
+    for whole in ("orbicularis_oris", "mentalis"):
+        mine = [r for r in rows if r["channels"][0].startswith(whole) and r["channels"][-1] in
+                (whole, whole + "_r")]
+        assert [r["channels"] for r in mine] == [[whole], [whole + "_l", whole + "_r"]]
+        assert len({r["label"] for r in mine}) == 2
+    targets = vocab.all_targets()
+    assert len(targets) == len(set(targets))
+    assert vocab.resolve("orbicularis_oris").channels == ((vocab.index["orbicularis_oris"], 1.0),)

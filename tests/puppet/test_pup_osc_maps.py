@@ -168,8 +168,11 @@ def test_arkit_map_is_the_inverse_of_the_export(vocab: Vocabulary, arkit_express
         values[names.index("frontalis_inner_l")] = values[names.index("frontalis_inner_r")] = inner
         values[names.index("procerus")] = 0.1
         values[names.index("jaw")] = rng.uniform(0, 1)
-        press = rng.uniform(0, SHAPE_SPAN["MouthPress"])
-        values[names.index("orbicularis_oris")] = press
+        # each side's press is that side's half of the lips' sphincter; the whole one is what the
+        # lower lip's shrug and the upper lip's roll share of it (below)
+        for side in ("_l", "_r"):
+            values[names.index("orbicularis_oris" + side)] = rng.uniform(0, SHAPE_SPAN["MouthPress"])
+        values[names.index("orbicularis_oris")] = 0.0
         values[names.index("mentalis")] = rng.uniform(0, 1.0)
         values[names.index("eyes_yaw")] = rng.uniform(-1, 1)
         values[names.index("eyes_pitch")] = rng.uniform(-1, 1)

@@ -94,3 +94,21 @@ def test_written_anchors_join_the_channels_field_and_a_rig_without_keeps_its_has
         assert np.linalg.norm(cols[:, i] - plain[:, i] - want) < 1e-9 * np.linalg.norm(want)
     save_rig(synth_rig, tmp_path / "plain.npz")
     assert "anchor" not in json.loads(str(np.load(tmp_path / "plain.npz")["header"]))
+
+
+def test_the_sphincters_halves_have_fields_of_their_own_beside_the_whole(cal, synth_model) -> None:  # type: ignore[no-untyped-def]
+    """The lips' sphincter and its sided halves (sim.channels.HALVES) are fitted apart: the whole's
+    field is not its left half's, each half reaches only its side of the zone (and the blend across
+    the midline), and the right half mirrors the left."""
+    from sim.face.scan.insertion_fit import mirror_map
+
+    assert {"orbicularis_oris", "orbicularis_oris_l", "orbicularis_oris_r"} <= set(cal.channels)
+    rest = np.asarray(synth_model.rest)
+    p = np.random.default_rng(3).standard_normal(cal.n_params)
+    whole, left, right = (cal.field(c, p) for c in ("orbicularis_oris", "orbicularis_oris_l", "orbicularis_oris_r"))
+    on = np.linalg.norm(left, axis=1) > 0
+    assert on.sum() > 5 and not np.allclose(whole[on], left[on])
+    assert np.all(rest[on, 0] > -0.7)  # the left half reaches the right side only across the blend (1 % at 7 mm)
+    mirror = mirror_map(rest)
+    zone = np.flatnonzero(np.linalg.norm(right, axis=1) > 0)
+    assert np.allclose(right[zone], left[mirror[zone]] * np.array([-1.0, 1.0, 1.0]))

@@ -57,6 +57,12 @@ def channel_zones(model: Any, grow: float = 0.0) -> dict[str, np.ndarray]:
             d, _ = cKDTree(rest[z]).query(rest)
             z = d <= grow
         out[c] = z & ~held
+    from sim.build import side_weight
+    from sim.channels import HALVES
+
+    for half, (whole, side) in HALVES.items():  # a half reaches its whole's zone on its side
+        if whole in out and half in model.channel_index:
+            out[half] = out[whole] & (side_weight(rig.mesh, rest, side) > 0.01)
     return out
 
 
@@ -84,9 +90,13 @@ class AnchorCalibration(FieldCalibration):
         e = np.unique(np.sort(e[(e < n).all(axis=1)], axis=1), axis=0)
         zones = channel_zones(model, grow) if zones is None else zones
         self.channels = sorted(zones)
+        from sim.channels import HALVES
+
+        halved = {whole for half, (whole, _) in HALVES.items() if half in zones}
         groups: dict[str, list[str]] = {}
-        for c in self.channels:
-            groups.setdefault(c[:-2] if c.endswith(("_l", "_r")) else c, []).append(c)
+        for c in self.channels:  # a whole channel beside its sided halves (HALVES) is a group apart from theirs
+            key = c[:-2] if c.endswith(("_l", "_r")) else c + " whole" if c in halved else c
+            groups.setdefault(key, []).append(c)
         self.groups = sorted(groups)
         self.par_of: dict[str, tuple[np.ndarray, bool]] = {}
         self.force_of: dict[str, Any] = {}
@@ -127,3 +137,23 @@ class AnchorCalibration(FieldCalibration):
     def force(self, c: str, p: np.ndarray | None = None) -> np.ndarray:
         """(N, 3) channel c's added tether force at full value, dyn."""
         return np.asarray(self.model.rest_stiffness, np.float64)[:, None] * self.field(c, p)
+
+
+def half_anchors(rig: Any) -> Any:
+    """The rig with every sided half's (`sim.channels.HALVES`) anchor field set to its whole
+    channel's weighted by the side's share (`sim.build.side_weight`), rounded as the fitted fields
+    are, so the two halves at one value move the anchors as the whole does; a half's field the rig
+    had is replaced. The start of the halves' own fit (`benchmarks/anchor_limits.py --halves`),
+    which so gives the same rig whether or not the rig it starts from had them."""
+    from dataclasses import replace
+
+    from sim.build import side_weight
+    from sim.channels import HALVES
+
+    rest = np.asarray(rig.mesh.vertices, np.float64)
+    anchor = dict(rig.anchor)
+    for half, (whole, side) in HALVES.items():
+        anchor.pop(half, None)
+        if whole in anchor:
+            anchor[half] = np.round(np.asarray(anchor[whole], np.float64) * side_weight(rig.mesh, rest, side)[:, None], 6)
+    return replace(rig, anchor=anchor)
