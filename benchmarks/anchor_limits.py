@@ -137,6 +137,8 @@ def main() -> int:
                          "all the free skin ('skin'); every shape fitted (no held-out ones)")
     ap.add_argument("--keep", default="", help="channels (comma-separated; a name without _l/_r both sides) whose fields are not fitted "
                     "(left as the rig has them)")
+    ap.add_argument("--channels", default="", help="fit only these channels' fields (comma-separated; a name "
+                    "without _l/_r both sides)")
     ap.add_argument("--leave", default="", help="shapes (comma-separated labels or prefixes) left out of the fit "
                     "(still settled and printed)")
     ap.add_argument("--where", action="store_true", help="print where each shape's remaining error lies (regions)")
@@ -179,8 +181,13 @@ def main() -> int:
         from sim.face.scan.anchor_fit import channel_zones
 
         keep = {x for x in args.keep.split(",") if x}
+        only = {x for x in args.channels.split(",") if x}
+
+        def named(c: str, names: set[str]) -> bool:
+            return c in names or c.removesuffix("_l").removesuffix("_r") in names
+
         zones = {c: z for c, z in channel_zones(model, args.grow).items()
-                 if c not in keep and c.removesuffix("_l").removesuffix("_r") not in keep}
+                 if not named(c, keep) and (not only or named(c, only))}
         cal = AnchorCalibration(model, smooth=args.smooth, ridge=args.ridge, bound=args.bound, zones=zones)
     print(f"anchor fields: {cal.n_params} parameters over {len(cal.groups)} muscles "
           f"({time.monotonic() - t0:.0f} s)", flush=True)

@@ -4,7 +4,7 @@ Used by `anchor_limits.py --where` and `scan_residuals.py`. Regions (each vertex
 takes it, in this order): the lips' inside edge (the mouth opening's first two rings of the mesh),
 the upper and lower lips' red part (`contact_limits.lip_parts` without that edge), the lids (within
 1 cm of an eye's opening), the nasolabial band (within 6 mm of the line from the nose's wing to a
-point 8 mm outside the mouth's corner), the nose, the skin of the upper lip (between the nose and
+point 8 mm outside and 3 mm below the mouth's corner), the nose, the skin of the upper lip (between the nose and
 the red lip), the chin (below the red lower lip, as wide as the mouth and 5 mm more), the brows
 (within 12 mm of the brows' landmark line), the forehead (above the brows), the cheeks (between the
 eyes' and the mouth's height) and the rest (the jaw's sides, the neck, the ears' side).
@@ -28,6 +28,7 @@ def face_regions(model) -> np.ndarray:  # type: ignore[no-untyped-def]
     """(N,) int index into REGIONS for every vertex of the compiled scanned head."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import dijkstra
+    from scipy.spatial import cKDTree
 
     from contact_limits import lip_parts
     from sim.springs import boundary_loops
@@ -60,16 +61,13 @@ def face_regions(model) -> np.ndarray:  # type: ignore[no-untyped-def]
     for side in ("l", "r"):
         centre = 0.5 * (lm(f"eye_inner_{side}") + lm(f"eye_outer_{side}"))
         lp = min(loops, key=lambda lp: float(np.linalg.norm(rest[lp].mean(axis=0) - centre)))
-        from scipy.spatial import cKDTree
-
         eye_d = np.minimum(eye_d, cKDTree(rest[lp]).query(rest)[0])
     take("lids", eye_d <= 1.0)
     fold = np.full(n, np.inf)
-    for side, sign in (("l", 1.0), ("r", -1.0)):
+    for side in ("l", "r"):
         corner = lm(f"mouth_corner_{side}")
         wing = lm(f"nose_wing_{side}")
-        out_dir = np.sign(corner[0]) if corner[0] != 0 else sign
-        fold = np.minimum(fold, _segment_distance(rest, wing, corner + np.array([0.8 * out_dir, -0.3, 0.0])))
+        fold = np.minimum(fold, _segment_distance(rest, wing, corner + np.array([0.8 * np.sign(corner[0]), -0.3, 0.0])))
     take("nasolabial", fold <= 0.6)
     wing_x = max(abs(lm("nose_wing_l")[0]), abs(lm("nose_wing_r")[0]))
     corner_x = max(abs(lm("mouth_corner_l")[0]), abs(lm("mouth_corner_r")[0]))
