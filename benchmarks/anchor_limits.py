@@ -18,8 +18,17 @@ after each. `--scale` also settles the fields scaled by each given factor. `--sa
 fitted per-channel displacement fields (cm). `--settled FILE` caches the shipped rig's settled
 poses. docs/scan-face.md ("The tissue under the skin moving with the muscle") has the figures.
 
+`--per-shape zones|skin` fits a field per shape instead (as if each shape had its own channel: over
+its channels' zones, grown by `--grow`, or over all the free skin), the ceiling of more channels or
+parts; `--where` prints where each shape's error lies (`face_regions.py`). `--channels` fits only
+those channels' fields, `--keep` leaves those channels' fields as the rig has them, `--leave` leaves
+those shapes out of the fit; `--write-rig --add` adds the fitted fields to the rig's own (the fit is
+of what the rig's settled poses miss). docs/scan-face.md ("A shape's own anchors, and where the
+median's error lies") has those figures and the commands that wrote the shipped rig.
+
     nice .venv/bin/python benchmarks/anchor_limits.py [--smooth 1e-3] [--grow 0] [--bound 5] [--iters 300]
         [--settle [--rounds R] [--damp 0.5] [--scale 0.5,0.25]] [--save FILE] [--all] [--settled FILE]
+        [--per-shape zones|skin] [--where] [--channels C,..] [--keep C,..] [--leave S,..] [--write-rig RIG [--add]]
 """
 
 from __future__ import annotations
