@@ -27,6 +27,14 @@ given), fitted on the shapes that drive them ("The inner brows and the cheek's s
     nice .venv/bin/python benchmarks/anchor_limits.py --halves --all --smooth 1e-4 --bound 10 --grow 1.5
         --write-rig sim/face/scan/ict_rig.npz
 
+`--per-shape zones|skin` fits a field per shape instead (as if each shape had its own channel: over
+its channels' zones, grown by `--grow`, or over all the free skin), the ceiling of more channels or
+parts; `--where` prints where each shape's error lies (`face_regions.py`). `--keep` leaves those
+channels' fields as the rig has them, `--leave` leaves those shapes out of the fit; `--write-rig
+--add` adds the fitted fields to the rig's own (the fit is of what the rig's settled poses miss; so
+does `--only`). docs/scan-face.md ("A shape's own anchors, and where the median's error lies") has
+those figures and the commands that wrote the shipped rig.
+
 `--settle` applies the fitted fields to the running simulator (their force k_r d joins each
 channel's response in the implicit step: no recompile) and settles every shape from rest;
 `--rounds R` then refits R times about the settled poses (the linear model's change from the
@@ -37,6 +45,7 @@ poses. docs/scan-face.md ("The tissue under the skin moving with the muscle") ha
 
     nice .venv/bin/python benchmarks/anchor_limits.py [--smooth 1e-3] [--grow 0] [--bound 5] [--iters 300]
         [--settle [--rounds R] [--damp 0.5] [--scale 0.5,0.25]] [--save FILE] [--all] [--settled FILE]
+        [--per-shape zones|skin] [--where] [--only C[=GROW],..] [--keep C,..] [--leave S,..] [--write-rig RIG [--add]]
 """
 
 from __future__ import annotations
@@ -108,6 +117,43 @@ def summary(name: str, rel: np.ndarray, held: np.ndarray) -> None:
                   f"{int(np.sum(rel[m] > 0.6))} above 0.6", flush=True)
 
 
+class _ShapeChannels:
+    """The compiled model seen with one pseudo-channel per scanned shape (its `channel_index`)."""
+
+    def __init__(self, model, labels: list[str]) -> None:  # type: ignore[no-untyped-def]
+        self._model = model
+        self.channel_index = {lab: k for k, lab in enumerate(labels)}
+
+    def __getattr__(self, name: str):  # type: ignore[no-untyped-def]
+        return getattr(self._model, name)
+
+
+def per_shape_calibration(model, labels: list[str], vals: np.ndarray, args):  # type: ignore[no-untyped-def]
+    """An AnchorCalibration with one field per shape (no mirroring: each shape is its own group)
+    and the shapes' values as the identity (each shape drives its own field at 1)."""
+    from sim.face.scan.anchor_fit import AnchorCalibration, channel_zones
+
+    held = np.asarray(model.held, bool)
+    if args.per_shape == "skin":
+        skin = (np.asarray(model.rest_stiffness) > 0) & ~held
+        zones = {lab: skin for lab in labels}
+    else:
+        by_channel = channel_zones(model, args.grow)
+        zones = {}
+        for k, lab in enumerate(labels):
+            z = np.zeros(len(held), bool)
+            for c, zc in by_channel.items():
+                if vals[k, model.channel_index[c]] != 0:
+                    z |= zc
+            zones[lab] = z
+    zones = {lab: z for lab, z in zones.items() if z.any()}
+    cal = AnchorCalibration(model, smooth=args.smooth, ridge=args.ridge, bound=args.bound, zones=zones)
+    cal.model = _ShapeChannels(model, labels)
+    print(f"per-shape fields: {len(zones)} of {len(labels)} shapes have a zone; zone sizes median "
+          f"{int(np.median([z.sum() for z in zones.values()]))} vertices", flush=True)
+    return cal, np.eye(len(labels))
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--smooth", type=float, default=1e-3, help="Laplacian weight per edge and component (per mm^2)")
@@ -122,6 +168,8 @@ def main() -> int:
     ap.add_argument("--scale", default="", help="with --settle: also settle the fields scaled by these factors")
     ap.add_argument("--save", type=Path, help="write the fitted fields here (npz, channel -> (N,3) cm)")
     ap.add_argument("--write-rig", type=Path, help="write the scanned head's rig with the fitted fields here (FaceRig.anchor)")
+    ap.add_argument("--add", action="store_true", help="with --write-rig: add the fitted fields to the rig's own "
+                    "anchors (the fit is of what the rig's settled poses miss; --only always adds)")
     ap.add_argument("--all", action="store_true", help="fit on all shapes (no held-out right ones)")
     ap.add_argument("--shapes", default="", help="only these labels (comma separated)")
     ap.add_argument("--rig", type=Path, help="start from this rig file of the scanned head instead of the shipped one")
@@ -130,6 +178,15 @@ def main() -> int:
                     help="refit these channels' fields alone (NAME[=GROW], comma separated: a channel or a muscle's "
                          "base name for both sides, its zone grown GROW cm, default --grow), added to the rig's, "
                          "the others kept")
+    ap.add_argument("--per-shape", choices=("", "zones", "skin"), default="",
+                    help="a field per scanned shape instead of per channel, as if each shape had its own channel: "
+                         "over the zones of the channels its map entry drives ('zones', grown by --grow) or over "
+                         "all the free skin ('skin'); every shape fitted (no held-out ones)")
+    ap.add_argument("--keep", default="", help="channels (comma-separated; a name without _l/_r both sides) whose fields are not fitted "
+                    "(left as the rig has them)")
+    ap.add_argument("--leave", default="", help="shapes (comma-separated labels or prefixes) left out of the fit "
+                    "(still settled and printed)")
+    ap.add_argument("--where", action="store_true", help="print where each shape's remaining error lies (regions)")
     args = ap.parse_args()
     from scan_match import scan_targets
 
@@ -172,10 +229,23 @@ def main() -> int:
     if args.settled and cache is None:
         np.savez(args.settled, **dict(zip(labels, real)))
     print(f"{len(labels)} shapes settled in {time.monotonic() - t0:.0f} s", flush=True)
-    cal = AnchorCalibration(model, smooth=args.smooth, ridge=args.ridge, bound=args.bound, grow=args.grow, zones=zones)
+    if args.per_shape:
+        cal, vals_a = per_shape_calibration(model, labels, vals_a, args)
+        args.all = True
+    else:
+        if zones is None and args.keep:  # every channel's field but the kept ones
+            from sim.face.scan.anchor_fit import channel_zones
+
+            keep = {x for x in args.keep.split(",") if x}
+            zones = {c: z for c, z in channel_zones(model, args.grow).items()
+                     if c not in keep and c.removesuffix("_l").removesuffix("_r") not in keep}
+        cal = AnchorCalibration(model, smooth=args.smooth, ridge=args.ridge, bound=args.bound, grow=args.grow,
+                                zones=zones)
     print(f"anchor fields: {cal.n_params} parameters over {len(cal.groups)} muscles "
           f"({time.monotonic() - t0:.0f} s)", flush=True)
-    train = [k for k, lab in enumerate(labels) if args.all or not lab.endswith("_R")]
+    leave = tuple(x for x in args.leave.split(",") if x)
+    train = [k for k, lab in enumerate(labels) if (args.all or not lab.endswith("_R"))
+             and not (leave and lab.startswith(leave))]
     held = np.array([k not in train for k in range(len(labels))])
     w = np.array([1.0 / float(np.sum(targets[k] ** 2)) for k in train])
     tg = [targets[k].ravel() for k in range(len(labels))]
@@ -190,6 +260,12 @@ def main() -> int:
         print(f"{lab:22s} {before[k]:8.3f} {after[k]:8.3f}{'' if k in train else '  (held out)'}")
     summary("settled", before, held)
     summary("+ anchors (linear)", after, held)
+    if args.where:
+        from face_regions import print_scales, print_where
+
+        print_where(model, labels, targets, real, "settled")
+        print_scales(model, labels, targets, real, "settled")
+        print_where(model, labels, targets, [real[k] + add[k] for k in range(len(labels))], "+ anchors (linear)")
     p = cal.params.reshape(-1, 3)
     mag = np.linalg.norm(p, axis=1)
     dp = (cal.diff @ cal.params).reshape(-1, 3)
@@ -231,7 +307,7 @@ def main() -> int:
 
         from sim.rig import save_rig
 
-        if only_fit:  # the fields' start plus the fitted change; every other field kept
+        if only_fit or args.add:  # the fields' start plus the fitted change; every other field kept
             fields = {c: np.round(np.clip(start_rig.anchor.get(c, 0.0) + cal.field(c), -2.0, 2.0), 6)
                       for c in cal.channels}
             fields = {**start_rig.anchor, **fields}
