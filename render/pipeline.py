@@ -49,6 +49,70 @@ def threaded_rasterizer() -> bool:
     return os.environ.get("LP_NUM_THREADS", "").strip() != "0"
 
 
+def rasterizer_threads() -> list[int]:
+    """Thread ids of llvmpipe's rasterizer threads in this process (named "llvmpipe-N"; made with
+    the context's screen), from Linux's /proc; [] elsewhere or with LP_NUM_THREADS=0."""
+    import os
+
+    out = []
+    try:
+        tids = os.listdir("/proc/self/task")
+    except OSError:
+        return out
+    for tid in tids:
+        try:
+            with open(f"/proc/self/task/{tid}/comm") as f:
+                if f.read().startswith("llvmpipe"):
+                    out.append(int(tid))
+        except (OSError, ValueError):
+            continue
+    return out
+
+
+_yielding: list[int] = []  # llvmpipe's rasterizer threads that `rasterizer_yields` switches
+
+
+def find_rasterizer() -> int:
+    """List llvmpipe's rasterizer threads for `rasterizer_yields` (those under Linux's normal or
+    batch policy; threads a user put under another policy are left alone); called where a context
+    is made (its screen starts them). Returns how many were found."""
+    import os
+
+    global _yielding
+    if not hasattr(os, "sched_getscheduler"):
+        return 0
+    keep = []
+    for tid in rasterizer_threads():
+        try:
+            if os.sched_getscheduler(tid) in (os.SCHED_OTHER, os.SCHED_BATCH):
+                keep.append(tid)
+        except OSError:
+            continue
+    _yielding = keep
+    return len(keep)
+
+
+def rasterizer_yields(on: bool) -> None:
+    """While `on`, llvmpipe's rasterizer threads (`find_rasterizer`) run under SCHED_BATCH, else
+    under the normal policy. A flush wakes them, and under the normal policy Linux's scheduler then
+    gives the woken threads the drawing thread's core: it waits runnable, not blocked, until they
+    have rasterised what was flushed (docs/rendering.md, "The drawing thread's core at a flush"), so
+    a frame handed over in parts was set up and rasterised one part after the other. Batch threads
+    do not preempt on waking: the drawing thread keeps its core and sets up the next part while they
+    rasterise on the other. `FaceRenderer.draw` turns it on for its draw calls and off before it
+    returns, so that once the caller waits (finish, read, swap) the threads are normal again and
+    preempt whatever else runs, as before. Two system calls a thread (about 1 us each); what the
+    OS refuses is left as it is (the same pixels either way)."""
+    import os
+
+    policy = os.SCHED_BATCH if on else os.SCHED_OTHER
+    for tid in list(_yielding):
+        try:
+            os.sched_setscheduler(tid, policy, os.sched_param(0))
+        except OSError:  # the thread is gone (its context released)
+            _yielding.remove(tid)
+
+
 class FrameStream:
     """Frames of one `render.offscreen.OffscreenRenderer` drawn in a stream and read back.
     `push(state, hud, tag)` returns the frames read back by then as (tag, raw) pairs, raw being the
