@@ -114,38 +114,3 @@ def test_prepared_frame_for_another_state_or_camera_is_not_used(gl, surprise_ons
         r.prepare(states[0], size)  # made after it: its rows are gone
         assert np.array_equal(drawn(states[-1], prepared), want_last)
         assert not np.array_equal(want_last, want_turned)
-
-
-def test_rasterizer_threads_yield_while_the_renderer_draws(gl, surprise_onset, monkeypatch) -> None:
-    """While FaceRenderer.draw sets up a frame, llvmpipe's rasterizer threads are under SCHED_BATCH
-    (a flush does not hand them the drawing thread's core), and under the normal policy again once
-    it returns (the caller's wait, finish or read, is theirs to fill); the pixels are those drawn
-    with them normal throughout."""
-    import os
-
-    from render import pipeline
-
-    threads = pipeline.rasterizer_threads()
-    if not hasattr(os, "sched_getscheduler") or not threads or not pipeline.threaded_rasterizer():
-        pytest.skip("no llvmpipe rasterizer threads to schedule here")
-    assert sorted(pipeline._yielding) == sorted(threads)
-    seen: list[set[int]] = []
-    flush = pipeline.flush
-
-    def flush_seen() -> None:  # the policy at each flush of the frame's parts
-        seen.append({os.sched_getscheduler(t) for t in threads})
-        flush()
-
-    monkeypatch.setattr("render.renderer.flush", flush_seen)
-    monkeypatch.setattr("render.scan_draw.flush", flush_seen)
-    model, states = surprise_onset
-    with OffscreenRenderer(model, (1280, 720), ctx=gl) as off:
-        yielding = [off.render_frame(s, HUD) for s in states[-3:]]
-        assert {os.sched_getscheduler(t) for t in threads} == {os.SCHED_OTHER}
-        assert seen and all(p == {os.SCHED_BATCH} for p in seen)
-        seen.clear()
-        off.renderer.yield_raster = False
-        normal = [off.render_frame(s, HUD) for s in states[-3:]]
-        assert seen and all(p == {os.SCHED_OTHER} for p in seen)
-    for got, want in zip(yielding, normal):
-        assert np.array_equal(got, want)
