@@ -129,7 +129,8 @@ there are other CPUs (counted as each frame begins, `runnable_threads`, smoothed
 where other programs load the cores, the steered threads waited for their CPU while others ran
 there (frames 1.2-2.7x slower at load 19-25), so they are left to the OS. One system call a thread
 at the start, two at the end, and a read of /proc/loadavg; if the OS refuses, the threads are left
-free and no longer steered (the same pixels either way)."""
+free and no longer steered (the same pixels either way); the threads of a context released since
+they were listed are dropped from the list."""
     import os
 
     threads, cpus = _Steering.threads, _Steering.cpus
@@ -156,7 +157,10 @@ free and no longer steered (the same pixels either way)."""
             every = set(cpus)
             for tid in threads:  # ... and free to move on, where other programs load a CPU
                 os.sched_setaffinity(tid, every)
-    except OSError:  # a thread gone (its context released), or the OS refuses: stop steering
+    except ProcessLookupError:  # a thread gone (its context released): list the ones left
+        free_rasterizer()
+        find_rasterizer()
+    except OSError:  # the OS refuses: stop steering
         free_rasterizer()
         _Steering.threads = []
 
