@@ -118,19 +118,19 @@ def find_rasterizer() -> int:
 
 def steer_rasterizer(drawing: bool) -> None:
     """Where llvmpipe's rasterizer threads may run while this thread draws a frame, when the machine
-has a core to spare. `drawing` True (FaceRenderer.draw begins): on every CPU but the one this
-thread is on, so the parts of the frame flushed while this thread sets up the rest rasterise beside
-it. False (draw ends): each moved to a CPU of its own, then free to run anywhere again, so the
-rasterisation left when the caller waits (finish, a read, a swap) starts on every core. Left to
-themselves the two threads, busy on one core while this thread set up the frame, stayed on it when
-this thread went to wait: the frame's last 3-4 ms rasterised at one core's rate (docs/rendering.md,
-"Steering llvmpipe's threads"). Only while fewer other threads are runnable on the machine than
-there are other CPUs (counted as each frame begins, `runnable_threads`, smoothed over frames):
-where other programs load the cores, the steered threads waited for their CPU while others ran
-there (frames 1.2-2.7x slower at load 19-25), so they are left to the OS. One system call a thread
-at the start, two at the end, and a read of /proc/loadavg; if the OS refuses, the threads are left
-free and no longer steered (the same pixels either way); the threads of a context released since
-they were listed are dropped from the list."""
+    has a core to spare. `drawing` True (FaceRenderer.draw begins): on every CPU but the one this
+    thread is on, so the parts of the frame flushed while this thread sets up the rest rasterise beside
+    it. False (draw ends): each moved to a CPU of its own, then free to run anywhere again, so the
+    rasterisation left when the caller waits (finish, a read, a swap) starts on every core. Left to
+    themselves the two threads, busy on one core while this thread set up the frame, stayed on it when
+    this thread went to wait: the frame's last 3-4 ms rasterised at one core's rate (docs/rendering.md,
+    "Steering llvmpipe's threads"). Only while fewer other threads are runnable on the machine than
+    there are other CPUs (counted as each frame begins, `runnable_threads`, smoothed over frames):
+    where other programs load the cores, the steered threads waited for their CPU while others ran
+    there (frames 1.2-2.7x slower at load 19-25), so they are left to the OS. One system call a thread
+    at the start, two at the end, and a read of /proc/loadavg; if the OS refuses, the threads are left
+    free and no longer steered (the same pixels either way); the threads of a context released since
+    they were listed are dropped from the list."""
     import os
 
     threads, cpus = _Steering.threads, _Steering.cpus
@@ -166,8 +166,8 @@ they were listed are dropped from the list."""
 
 
 def free_rasterizer() -> None:
-    """llvmpipe's rasterizer threads and this thread back on any of the process's CPUs (as the OS
-    left them before `steer_rasterizer`): for a renderer that stops steering them."""
+    """llvmpipe's rasterizer threads free to run on any of the process's CPUs again (as the OS left
+    them before `steer_rasterizer`): for a renderer that stops steering them."""
     import os
 
     for tid in _Steering.threads:

@@ -138,8 +138,9 @@ class FaceRenderer:
         # where the scan reaches a panel, the frame is cleared again and the HUD composited last
         self.hud_first = True
         self.hud_was_first = False  # whether the last frame drawn composited its HUD first
-        # while this thread draws, llvmpipe's rasterizer threads on the other CPUs, and each on a CPU
-        # of its own once it returns: render.pipeline.steer_rasterizer. False: left to the OS (the same pixels)
+        # while this thread draws, llvmpipe's rasterizer threads kept off its CPU, and as it returns each
+        # moved to a CPU of its own and freed, when the machine has a core to spare:
+        # render.pipeline.steer_rasterizer. False: left to the OS (the same pixels)
         self.steer = True
         self._scan_box: tuple[np.ndarray, tuple[int, int]] | None = None  # the last frame's, with its size
 
