@@ -24,7 +24,9 @@ alone and no eyeball hiding its socket (render.scan_rows's small_box 0, use_ball
 the teeth and gums hidden only behind the mouth's opening, not beside it (render.scan_rows's
 use_walls off), and with the full lining, gums and tongue drawn with the coarse skin
 (render.scan_draw's lod_inside off), and with the HUD composited last, not with the clear
-(render.renderer.FaceRenderer's hud_first off); and the drawing alone (rows made beforehand: every
+(render.renderer.FaceRenderer's hud_first off), and with llvmpipe's rasterizer threads left to the
+OS, not steered off the drawing thread's CPU while it draws and onto a CPU each after
+(FaceRenderer's steer off: render.pipeline.steer_rasterizer); and the drawing alone (rows made beforehand: every
 triangle; also with the whole skin in its full shader, split_skin off), for comparison.
 `--scan N --stream` times the scanned head (shaded + HUD) and the floor as streams of frames, each
 frame's pixels read back (the floor's too), serial and pipelined (render.pipeline: the next frame's
@@ -279,6 +281,7 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
     import statistics
 
     from render.offscreen import OffscreenRenderer
+    from render.pipeline import free_rasterizer
     from render.scan_rows import SMALL_BOX
 
     model, hud = _scan_and_hud()
@@ -297,15 +300,17 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                                                            "boxes": [], "full_lashes": [], "loose": [], "plane": [],
                                                            "full_inside": [], "draw": [],
                                                            "unsplit": [], "one_pass": [], "hud_last": [],
-                                                           "floor": []}
+                                                           "unsteered": [], "floor": []}
             threads: dict[str, dict[str, list[float]]] = {k: {"main": [], "other": [], "raster": []}
                                                           for k in ("whole", "full_skin", "loose", "plane",
-                                                                    "full_inside", "one_pass", "hud_last")}
+                                                                    "full_inside", "one_pass", "hud_last",
+                                                                    "unsteered")}
             for b in range(batches + 1):
                 for key, use_rows in (("whole", False), ("full_skin", False), ("all_tris", False), ("unseen", False),
                                       ("boxes", False), ("full_lashes", False), ("loose", False), ("plane", False),
                                       ("full_inside", False), ("draw", True),
-                                      ("unsplit", True), ("one_pass", False), ("hud_last", False)):
+                                      ("unsplit", True), ("one_pass", False), ("hud_last", False),
+                                      ("unsteered", False)):
                     def frame(i: int, use: bool = use_rows, split: bool = key != "unsplit",
                               cull: bool = key != "all_tris", unseen: bool = key != "unseen",
                               lod: bool = key != "full_skin") -> None:
@@ -315,6 +320,7 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                         r.scan.lod = lod
                         r.clear_first = key != "one_pass" and parts[0]
                         r.hud_first = key != "hud_last"
+                        r.steer = key != "unsteered"
                         r.scan.flush_at = () if key == "one_pass" else parts[1]
                         r.scan.lod_inside = key != "full_inside"
                         r.scan.split_skin = split
@@ -332,6 +338,8 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                         off.ctx.finish()  # type: ignore[attr-defined]
                         r.scan.coarse_lash_vao = few
                         s.scan_rows = rows[i % len(states)]  # type: ignore[attr-defined]
+                    if key == "unsteered":
+                        free_rasterizer()  # as the OS left them
                     before = _thread_cpu()
                     t = _timed(frame, 10)
                     after = _thread_cpu()
@@ -348,8 +356,9 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
             f, whole, draw, unsplit = med["floor"], med["whole"], med["draw"], med["unsplit"]
             every, unseen, full, boxes = med["all_tris"], med["unseen"], med["full_skin"], med["boxes"]
             lashes, loose, plane, inside = med["full_lashes"], med["loose"], med["plane"], med["full_inside"]
-            one, last = med["one_pass"], med["hud_last"]
+            one, last, free = med["one_pass"], med["hud_last"], med["unsteered"]
             quicker = sum(a[0] < b[0] for a, b in zip(times["whole"], times["one_pass"]))
+            steered = sum(a[0] < b[0] for a, b in zip(times["whole"], times["unsteered"]))
             first = sum(a[0] < b[0] for a, b in zip(times["whole"], times["hud_last"]))
             out.append(f"{expression:<10} mouth's inside drawn in {sum(drawn)}/{len(drawn)} frames; "
                        f"floor {f[0]:.2f} ms (cpu {f[1]:.2f}); whole frame {whole[0]:.2f} ms = "
@@ -373,12 +382,15 @@ def scan_vs_floor(size: tuple[int, int], batches: int, ctx: object) -> list[str]
                        f"{one[0] / f[0]:.2f}x (cpu {one[1] / f[1]:.2f}x), the whole frame quicker in "
                        f"{quicker}/{len(times['whole'])} batches; with the HUD composited last (not with the "
                        f"clear) {last[0] / f[0]:.2f}x (cpu {last[1] / f[1]:.2f}x), the whole frame quicker in "
-                       f"{first}/{len(times['whole'])} batches")
+                       f"{first}/{len(times['whole'])} batches; with llvmpipe's threads left to the OS (not "
+                       f"steered) {free[0] / f[0]:.2f}x (cpu {free[1] / f[1]:.2f}x), the whole frame quicker in "
+                       f"{steered}/{len(times['whole'])} batches")
             for key, label in (("whole", "whole frame's"), ("full_skin", "with the full skin,"),
                                ("loose", "with the small triangles' boxes alone and no eyeball hiding,"),
                                ("plane", "with the teeth and gums hidden only behind the mouth's opening,"),
                                ("full_inside", "with the full lining, gums and tongue,"),
-                               ("one_pass", "in one pass,"), ("hud_last", "with the HUD composited last,")):
+                               ("one_pass", "in one pass,"), ("hud_last", "with the HUD composited last,"),
+                               ("unsteered", "with llvmpipe's threads left to the OS,")):
                 if threads[key]["main"]:
                     out.append(f"{'':<10} {label} CPU by thread, ms: " + ", ".join(
                         f"{kind} {statistics.median(v):.2f}" for kind, v in threads[key].items()))

@@ -13,7 +13,7 @@ import numpy as np
 from PIL import Image
 
 from render.hud import HudInfo
-from render.pipeline import FrameStream
+from render.pipeline import FrameStream, find_rasterizer
 from render.renderer import FaceRenderer
 
 IMAGE_SUFFIXES = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG"}
@@ -25,8 +25,11 @@ MAX_DRAWN_SIDE = 16384
 
 
 def create_context() -> moderngl.Context:
-    """A headless OpenGL 3.3+ context through EGL (one of the two places contexts are made)."""
-    return moderngl.create_context(standalone=True, backend="egl", require=330)
+    """A headless OpenGL 3.3+ context through EGL (one of the two places contexts are made); its
+    rasterizer threads (llvmpipe's) listed for render.pipeline.steer_rasterizer."""
+    ctx = moderngl.create_context(standalone=True, backend="egl", require=330)
+    find_rasterizer()
+    return ctx
 
 
 class OffscreenRenderer:

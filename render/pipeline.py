@@ -49,6 +49,134 @@ def threaded_rasterizer() -> bool:
     return os.environ.get("LP_NUM_THREADS", "").strip() != "0"
 
 
+def rasterizer_threads() -> list[int]:
+    """Thread ids of llvmpipe's rasterizer threads in this process (named "llvmpipe-N", started with
+    a context's screen), from Linux's /proc, in their numbering; [] elsewhere or with LP_NUM_THREADS=0."""
+    import os
+
+    found = []
+    try:
+        tids = os.listdir("/proc/self/task")
+    except OSError:
+        return []
+    for tid in tids:
+        try:
+            with open(f"/proc/self/task/{tid}/comm") as f:
+                name = f.read().strip()
+        except OSError:
+            continue
+        if name.startswith("llvmpipe-") and name[9:].isdigit():
+            found.append((int(name[9:]), int(tid)))
+    return [tid for _, tid in sorted(found)]
+
+
+class _Steering:
+    """llvmpipe's rasterizer threads and the CPUs this process may use, for `steer_rasterizer`;
+    `others`: how many threads besides this one were runnable on the machine as frames began
+    (smoothed over frames), `steered`: whether the frame being drawn was."""
+
+    threads: list[int] = []
+    cpus: list[int] = []
+    getcpu: Any = None
+    others = 0.0
+    steered = False
+
+
+# the weight of each frame's count of other runnable threads in `_Steering.others`
+RUNNABLE_SMOOTHING = 0.2
+
+
+def runnable_threads() -> int:
+    """How many threads are runnable on the machine now, this one included (Linux's
+    /proc/loadavg, its fourth field); -1 where unknown."""
+    try:
+        with open("/proc/loadavg") as f:
+            return int(f.read().split()[3].split("/")[0])
+    except (OSError, ValueError, IndexError):
+        return -1
+
+
+def find_rasterizer() -> int:
+    """List llvmpipe's rasterizer threads and this process's CPUs for `steer_rasterizer`; called
+    where a context is made (its screen starts the threads). Returns how many threads were found
+    (0 where there is nothing to steer: not Linux, one CPU, no rasterizer threads)."""
+    import os
+
+    _Steering.threads, _Steering.cpus = [], []
+    if not hasattr(os, "sched_setaffinity"):
+        return 0
+    try:
+        cpus = sorted(os.sched_getaffinity(0))
+        getcpu = ctypes.CDLL(None).sched_getcpu
+    except (OSError, AttributeError):
+        return 0
+    if len(cpus) < 2:
+        return 0
+    _Steering.threads, _Steering.cpus, _Steering.getcpu = rasterizer_threads(), cpus, getcpu
+    return len(_Steering.threads)
+
+
+def steer_rasterizer(drawing: bool) -> None:
+    """Where llvmpipe's rasterizer threads may run while this thread draws a frame, when the machine
+    has a core to spare. `drawing` True (FaceRenderer.draw begins): on every CPU but the one this
+    thread is on, so the parts of the frame flushed while this thread sets up the rest rasterise beside
+    it. False (draw ends): each moved to a CPU of its own, then free to run anywhere again, so the
+    rasterisation left when the caller waits (finish, a read, a swap) starts on every core. Left to
+    themselves the two threads, busy on one core while this thread set up the frame, stayed on it when
+    this thread went to wait: the frame's last 3-4 ms rasterised at one core's rate (docs/rendering.md,
+    "Steering llvmpipe's threads"). Only while fewer other threads are runnable on the machine than
+    there are other CPUs (counted as each frame begins, `runnable_threads`, smoothed over frames):
+    where other programs load the cores, the steered threads waited for their CPU while others ran
+    there (frames 1.2-2.7x slower at load 19-25), so they are left to the OS. One system call a thread
+    at the start, two at the end, and a read of /proc/loadavg; if the OS refuses, the threads are left
+    free and no longer steered (the same pixels either way); the threads of a context released since
+    they were listed are dropped from the list."""
+    import os
+
+    threads, cpus = _Steering.threads, _Steering.cpus
+    if not threads:
+        return
+    try:
+        if drawing:
+            _Steering.steered = False
+            now = runnable_threads()
+            if now < 0:
+                return
+            _Steering.others += RUNNABLE_SMOOTHING * (now - 1 - _Steering.others)
+            here = int(_Steering.getcpu())
+            others = {c for c in cpus if c != here}
+            if _Steering.others >= len(others) or here not in cpus or not others:
+                return  # no core idles while this thread draws: left to the OS
+            for tid in threads:
+                os.sched_setaffinity(tid, others)
+            _Steering.steered = True
+        elif _Steering.steered:
+            _Steering.steered = False
+            for k, tid in enumerate(threads):  # moved now, each to a CPU of its own ...
+                os.sched_setaffinity(tid, {cpus[k % len(cpus)]})
+            every = set(cpus)
+            for tid in threads:  # ... and free to move on, where other programs load a CPU
+                os.sched_setaffinity(tid, every)
+    except ProcessLookupError:  # a thread gone (its context released): list the ones left
+        free_rasterizer()
+        find_rasterizer()
+    except OSError:  # the OS refuses: stop steering
+        free_rasterizer()
+        _Steering.threads = []
+
+
+def free_rasterizer() -> None:
+    """llvmpipe's rasterizer threads free to run on any of the process's CPUs again (as the OS left
+    them before `steer_rasterizer`): for a renderer that stops steering them."""
+    import os
+
+    for tid in _Steering.threads:
+        try:
+            os.sched_setaffinity(tid, set(_Steering.cpus))
+        except OSError:
+            continue
+
+
 class FrameStream:
     """Frames of one `render.offscreen.OffscreenRenderer` drawn in a stream and read back.
     `push(state, hud, tag)` returns the frames read back by then as (tag, raw) pairs, raw being the

@@ -15,7 +15,7 @@ from render.hud import HudInfo, HudRenderer
 from render.meshdata import (HAIR, SKIN, Cavity, brow_coords, MuscleLines, eye_rotation, face_frame, head_turn,
                              skin_tint, spatial_order,
                              surface_rows, unique_edges, uv_sphere)
-from render.pipeline import flush, threaded_rasterizer
+from render.pipeline import flush, steer_rasterizer, threaded_rasterizer
 from render.trails import TrailHistory
 from sim.face.turn import is_turned, turn_eye
 from sim.gaze_lids import PITCH_MAX as EYE_PITCH_MAX
@@ -138,6 +138,10 @@ class FaceRenderer:
         # where the scan reaches a panel, the frame is cleared again and the HUD composited last
         self.hud_first = True
         self.hud_was_first = False  # whether the last frame drawn composited its HUD first
+        # while this thread draws, llvmpipe's rasterizer threads kept off its CPU, and as it returns each
+        # moved to a CPU of its own and freed, when the machine has a core to spare:
+        # render.pipeline.steer_rasterizer. False: left to the OS (the same pixels)
+        self.steer = True
         self._scan_box: tuple[np.ndarray, tuple[int, int]] | None = None  # the last frame's, with its size
 
     @property
@@ -343,6 +347,16 @@ class FaceRenderer:
         `prepared`: this frame's CPU half made beforehand by `prepare` (the same pixels)."""
         if self.model is None or self.trails is None:
             raise RuntimeError("FaceRenderer.draw before populate(model)")
+        if not self.steer:
+            self._draw(state, hud, record, prepared)
+            return
+        steer_rasterizer(True)
+        try:
+            self._draw(state, hud, record, prepared)
+        finally:
+            steer_rasterizer(False)
+
+    def _draw(self, state: Any, hud: HudInfo | None, record: bool, prepared: Prepared | None) -> None:
         ctx = self.ctx
         target = ctx.fbo
         if target is None:

@@ -18,7 +18,7 @@ import moderngl
 import numpy as np
 
 from render.hud import HudInfo
-from render.pipeline import flush
+from render.pipeline import find_rasterizer, flush
 from render.renderer import VIEWS, FaceRenderer, affordable_antialias
 
 KeyCallback = Callable[[str, str, float], None]
@@ -96,6 +96,7 @@ class FaceWindow:
         glfw.make_context_current(self.win)
         glfw.swap_interval(1 if vsync else 0)
         self.ctx = moderngl.create_context(require=330)
+        find_rasterizer()  # llvmpipe's threads, for render.pipeline.steer_rasterizer
         self.renderer = FaceRenderer(self.ctx, view=view,
                                      antialias=antialias or affordable_antialias(self.ctx))
         self.renderer.populate(model)

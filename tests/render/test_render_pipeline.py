@@ -114,3 +114,61 @@ def test_prepared_frame_for_another_state_or_camera_is_not_used(gl, surprise_ons
         r.prepare(states[0], size)  # made after it: its rows are gone
         assert np.array_equal(drawn(states[-1], prepared), want_last)
         assert not np.array_equal(want_last, want_turned)
+
+
+def test_rasterizer_threads_steered_while_the_renderer_draws(gl, surprise_onset, monkeypatch) -> None:
+    """On a machine with a core to spare, while FaceRenderer.draw sets up a frame llvmpipe's
+    rasterizer threads may run only on CPUs other than the one the drawing thread was on when it
+    began, and anywhere again once it returns; where other threads keep the cores busy they are
+    left to the OS throughout. The pixels are the same either way."""
+    import os
+
+    from render import pipeline
+
+    threads = pipeline.rasterizer_threads()
+    cpus = set(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else set()
+    if len(cpus) < 2 or not threads or not pipeline.threaded_rasterizer():
+        pytest.skip("no llvmpipe rasterizer threads and two CPUs to steer them over here")
+    seen: list[list[set[int]]] = []
+    began: list[int] = []
+    getcpu = pipeline._Steering.getcpu
+    runnable = [1]  # the machine as each frame begins: this thread alone runnable
+
+    def getcpu_seen() -> int:  # the CPU the drawing thread is on as a frame begins
+        began.append(int(getcpu()))
+        return began[-1]
+
+    def flush_seen() -> None:  # where each rasterizer thread may run at each flush of the frame's parts
+        seen.append([os.sched_getaffinity(t) for t in threads])
+        pipeline.flush()
+
+    monkeypatch.setattr(pipeline._Steering, "getcpu", getcpu_seen)
+    monkeypatch.setattr(pipeline._Steering, "others", 0.0)
+    monkeypatch.setattr(pipeline, "runnable_threads", lambda: runnable[0])
+    monkeypatch.setattr("render.renderer.flush", flush_seen)
+    monkeypatch.setattr("render.scan_draw.flush", flush_seen)
+    model, states = surprise_onset
+    pictures: dict[str, list[np.ndarray]] = {}
+    with OffscreenRenderer(model, (1280, 720), ctx=gl) as off:
+        pictures["steered"] = []
+        for s in states[-3:]:
+            seen.clear()
+            pictures["steered"].append(off.render_frame(s, HUD))
+            assert seen and all(t == cpus - {began[-1]} for theirs in seen for t in theirs)
+            assert all(os.sched_getaffinity(t) == cpus for t in threads) and os.sched_getaffinity(0) == cpus
+        runnable[0] = 1 + 8 * len(cpus)  # other programs' threads keep every core busy
+        pictures["loaded"] = []
+        for s in states[-3:]:
+            seen.clear()
+            pictures["loaded"].append(off.render_frame(s, HUD))
+        assert all(t == cpus for theirs in seen for t in theirs)  # the last frames: left to the OS
+        off.renderer.steer = False
+        try:
+            seen.clear()
+            pictures["free"] = [off.render_frame(s, HUD) for s in states[-3:]]
+            assert seen and all(t == cpus for theirs in seen for t in theirs)
+        finally:
+            off.renderer.steer = True
+    for k in range(3):
+        assert np.array_equal(pictures["steered"][k], pictures["free"][k])
+        assert np.array_equal(pictures["loaded"][k], pictures["free"][k])
