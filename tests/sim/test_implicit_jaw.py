@@ -58,7 +58,8 @@ def test_the_jaw_moves_in_the_step_that_takes_it(model) -> None:  # type: ignore
         st = state.copy()
         s.step(st, c)
         moved[name] = st.positions - state.positions
-        np.testing.assert_array_equal(st.positions[held], s.rest_target(0.5)[held])
+        np.testing.assert_array_equal(st.positions[held], s._target[held])  # (the constants' grid: within 5 um
+        np.testing.assert_allclose(s._target[held], s.rest_target(0.5)[held], rtol=0, atol=5e-4)  # of the turn)
     down_fast, down_whole = -moved["fast"][chin, 1].mean(), -moved["whole"][chin, 1].mean()
     assert down_whole > 0.0
     assert 0.85 * down_whole < down_fast < 1.15 * down_whole
@@ -273,6 +274,7 @@ def test_the_bending_from_the_turn_moves_the_face_as_the_product_does(model) -> 
     turned, product = Simulator(model, 1.0 / 120.0), Simulator(model, 1.0 / 120.0)
     assert turned.bending_turned
     product.bending_turned = False
+    turned.constants_from_grid = False  # (the bending alone differs: the jaw's constants turned both ways)
     c = FaceControl(model)
     st, sp_ = model.rest_state(), model.rest_state()
     c.set("zygomaticus_major_l", 0.6)
@@ -357,6 +359,7 @@ def test_a_jaw_opening_made_in_one_call_has_the_bits_of_the_motion_the_pose_and_
 
     s, plain = Simulator(model, 1.0 / 120.0), Simulator(model, 1.0 / 120.0)
     assert s._opening_fast
+    s.constants_from_grid = False  # (the turn's constants, as takes recorded before the grid's)
     rng = np.random.default_rng(8)
     n = model.n_vertices
     for jaw in [*rng.uniform(-0.2, 1.3, 12), 1e-300, -5e-324, 1.0, float("nan")]:
@@ -421,3 +424,66 @@ def test_a_state_with_another_contact_memory_steps_from_its_own(model) -> None: 
             assert mine[name].positions.tobytes() == st.positions.tobytes(), (k, name)
             assert mine[name].contact.tobytes() == st.contact.tobytes(), (k, name)
     assert np.any(a.contact != b.contact)
+
+
+def test_the_jaw_constants_from_the_grid_are_the_turns_to_a_few_micrometres(model) -> None:  # type: ignore[no-untyped-def]
+    """Read between the grid's openings, eq 9's target lies within 5 um of the turned one (the
+    chord of a 1-degree arc), the support normals are unit and within 2e-5 of the turned ones,
+    the constant forces are made from those rows, the held nodes sit on the target; on the grid's
+    openings all of it is the turn's to float32 rounding; at rest the rest pose's very bits."""
+    from sim.integrator import JAW_GRID, _fixed_forces
+
+    grid, turn = Simulator(model, 1.0 / 120.0), Simulator(model, 1.0 / 120.0)
+    assert grid.constants_from_grid
+    turn.constants_from_grid = False
+    n = model.n_vertices
+    rng = np.random.default_rng(3)
+    for jaw in [*rng.uniform(0.0, 1.0, 8), 0.5 / JAW_GRID, 1e-9, 1.0, 7 / JAW_GRID]:
+        x = rng.normal(0.0, 1.0, (n, 3))
+        grid._place_held(x, (float(jaw), 0.0, 0.0))
+        turn._set_jaw((float(jaw), 0.0, 0.0))
+        on_grid = float(jaw) * JAW_GRID == round(float(jaw) * JAW_GRID)
+        near = 1e-6 if on_grid else 5e-4  # cm
+        assert np.abs(grid._target - turn._target).max() < near, jaw
+        assert np.abs(grid._normal - turn._normal).max() < (1e-7 if on_grid else 2e-5), jaw
+        assert np.abs(np.linalg.norm(grid._normal, axis=1) - 1.0).max() < 1e-8, jaw
+        fixed = np.zeros((n, 3))
+        _fixed_forces(grid._weight, grid._kr, grid._target, grid._kn, grid._normal, fixed)
+        np.testing.assert_allclose(grid._ext_const, fixed, rtol=0, atol=1e-12 * np.abs(fixed).max())
+        np.testing.assert_array_equal(x[grid._held], grid._target[grid._held])
+        assert grid._shape.rot.tobytes() == turn._shape.rot.tobytes()  # (the bending's turn: exact)
+    for s in (grid, turn):
+        s._set_jaw((0.0, 0.0, 0.0))
+    assert grid._target.tobytes() == turn._target.tobytes()
+    assert grid._normal.tobytes() == turn._normal.tobytes()
+
+
+def test_float32_responses_and_the_jaw_grid_move_the_face_as_before(model) -> None:  # type: ignore[no-untyped-def]
+    """Stepped with the inputs' responses in float32 and the jaw's constants from the grid, or
+    with both as before (float64, the turn), the face at rest keeps the very same bits (no input
+    reads a response), and while the jaw opens, the skin ages and a smile comes, and once held,
+    the two part by under 1e-3 of the chin's travel (procedural face: ~7 um on 3.5 cm, the
+    constants' chord); other bits (the take header's "responses" and "jaw constants")."""
+    new, old = Simulator(model, 1.0 / 120.0), Simulator(model, 1.0 / 120.0)
+    assert new.single_responses and new.constants_from_grid
+    old.single_responses = old.constants_from_grid = False
+    c = FaceControl(model)
+    sn, so = model.rest_state(), model.rest_state()
+    for _ in range(30):
+        new.step(sn, c)
+        old.step(so, c)
+    assert sn.positions.tobytes() == so.positions.tobytes()
+    worst = 0.0
+    for k in range(360):
+        c.set("jaw", 0.7 * min(1.0, k / 36))
+        c.set("age", 30.0 + 40.0 * min(1.0, k / 60))
+        c.set("zygomaticus_major_l", 0.6 if k > 20 else 0.0)
+        for s, state in ((new, sn), (old, so)):
+            s.step(state, c)
+            s.prepare(state)
+        worst = max(worst, float(np.abs(sn.positions - so.positions).max()))
+    chin = _chin(model)
+    travel = float(np.linalg.norm(so.positions[chin] - model.rest[chin], axis=1).max())
+    assert travel > 1.0
+    assert sn.positions.tobytes() != so.positions.tobytes()
+    assert worst < 1e-3 * travel
