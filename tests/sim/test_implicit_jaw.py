@@ -165,12 +165,32 @@ def test_the_jaw_move_sums_its_three_terms_in_order() -> None:
     for a, b in ((0.31, 0.37), (0.9, 0.2), (0.0, 1.0), (0.5, 0.5)):
         for add in (True, False):
             du = held.copy()
-            _jaw_moves(jr, js, a, b, du, add)
+            _jaw_moves(jr, js, a, b, du, add, False)
             want = held.copy() if add else np.zeros_like(held)
             want += 1.0 * lerp(jr, b)
             want += -1.0 * lerp(jr, a)
             want += (b - a) * lerp(js, 0.5 * (a + b))
             assert du.tobytes() == want.tobytes(), (a, b, add)
+
+
+def test_a_jaw_move_within_a_grid_step_reads_two_rows_for_the_same_move() -> None:
+    """With float32 responses (`single_responses`) a move between two openings in the same grid
+    step is the fraction's change times the step's difference: the same move as the two lerps'
+    difference to rounding, exactly none for no move, and the general way across steps."""
+    from sim.implicit import _jaw_moves
+
+    rng = np.random.default_rng(6)
+    jr, js = rng.normal(size=(9, 40, 3)).astype(np.float32), rng.normal(size=(9, 40, 3)).astype(np.float32)
+    held = rng.normal(size=(40, 3))
+    for a, b in ((0.31, 0.33), (0.33, 0.31), (0.5, 0.5), (0.9, 0.2), (0.0, 0.1)):
+        du, general = held.copy(), held.copy()
+        _jaw_moves(jr, js, a, b, du, True, True)
+        _jaw_moves(jr, js, a, b, general, True, False)
+        np.testing.assert_allclose(du, general, rtol=0, atol=1e-14)
+        if int(a * 8) != int(b * 8):
+            assert du.tobytes() == general.tobytes()
+        if a == b:
+            assert du.tobytes() == held.tobytes()
 
 
 def test_the_springs_follow_the_age_law_whichever_scale_moves(model, monkeypatch) -> None:  # type: ignore[no-untyped-def]
