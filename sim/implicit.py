@@ -699,7 +699,7 @@ class ImplicitStepper:
         self._springs_scratch = np.zeros((3, 0))
         self._layout_of: np.ndarray | None = None  # the springs array `_spring_runs` was laid out from
         self._spring_runs = spring_layout(np.zeros((0, 2), dtype=np.int64))
-        self._resp = prep["resp"]  # each muscle channel's response (`muscle_responses`)
+        self._resp64 = prep["resp"]  # each muscle channel's response (`muscle_responses`; `_resp`)
         #: the jaw's responses at evenly spaced openings (`jaw_response`), set by the Simulator
         self.jaw_resp = np.zeros((0, nf, 3))
         #: and the slope of the normal support's response to the opening there (`frame`'s jaw)
@@ -710,7 +710,7 @@ class ImplicitStepper:
         #: other bits: the take header's "responses", sim.Simulator.single_responses. False: the
         #: float64 responses and four rows, as takes recorded before
         self.single_responses = True
-        self._resp32 = np.ascontiguousarray(self._resp, dtype=np.float32)
+        self._resp32 = np.ascontiguousarray(self._resp64, dtype=np.float32)
         self._jaw32: tuple[object, object, np.ndarray, np.ndarray] = (None, None, np.zeros((0, nf, 3), np.float32),
                                                                      np.zeros((0, nf, 3), np.float32))
         self._no_jaw32 = np.zeros((0, nf, 3), dtype=np.float32)
@@ -854,6 +854,22 @@ class ImplicitStepper:
         if held_at is not None:
             _csr_times_flat(*self._fh, np.ascontiguousarray(held_at, dtype=np.float64).reshape(-1), held_term)
         self.solver.solve(np.ascontiguousarray(b[self.free] - held_term), out)
+
+    @property
+    def _resp(self) -> np.ndarray:
+        """Each input's response (channels, free nodes, 3), float64. Set anew: its float32 copy
+        (`single_responses`) is made again; changed in place (a fit's gains, `sim.fit`), call
+        `responses_changed` before the next frame."""
+        return self._resp64
+
+    @_resp.setter
+    def _resp(self, resp: np.ndarray) -> None:
+        self._resp64 = resp
+        self.responses_changed()
+
+    def responses_changed(self) -> None:
+        """The float32 copy of the responses made again from `_resp` (changed in place)."""
+        self._resp32 = np.ascontiguousarray(self._resp64, dtype=np.float32)
 
     def _single(self, jaw: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The inputs' responses as a frame reads them with `single_responses`: float32 copies of

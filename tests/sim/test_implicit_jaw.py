@@ -507,3 +507,30 @@ def test_float32_responses_and_the_jaw_grid_move_the_face_as_before(model) -> No
     assert travel > 1.0
     assert sn.positions.tobytes() != so.positions.tobytes()
     assert worst < 1e-3 * travel
+
+
+def test_the_float32_responses_follow_responses_set_anew_or_changed_in_place(model) -> None:  # type: ignore[no-untyped-def]
+    """A fit that sets a channel's response anew, or changes it in place and says so, moves the
+    face by the new response with float32 responses: a channel's response doubled at 0.5 steps
+    to the bits of the original at 1.0 (the doubling is exact in float32); unsaid, the old copy."""
+    ci = model.channel_index["zygomaticus_major_l"]
+    c_full, c_half = FaceControl(model), FaceControl(model)
+    c_full.set("zygomaticus_major_l", 1.0)
+    c_half.set("zygomaticus_major_l", 0.5)
+    plain, set_anew, in_place = (Simulator(model, 1.0 / 120.0) for _ in range(3))
+    set_anew._implicit._resp = np.array(set_anew._implicit._resp)  # (a copy of its own, then doubled)
+    set_anew._implicit._resp = set_anew._implicit._resp * np.where(np.arange(len(set_anew._implicit._resp)) == ci,
+                                                                   2.0, 1.0)[:, None, None]
+    in_place._implicit._resp = np.array(in_place._implicit._resp)
+    in_place._implicit._resp[ci] *= 2.0
+    states = [model.rest_state() for _ in range(4)]
+    for k in range(5):
+        plain.step(states[0], c_full)
+        set_anew.step(states[1], c_half)
+        in_place.step(states[2], c_half)  # the copy made before the change: not the doubled response
+    assert states[1].positions.tobytes() == states[0].positions.tobytes()
+    assert states[2].positions.tobytes() != states[0].positions.tobytes()
+    in_place._implicit.responses_changed()
+    for k in range(5):
+        in_place.step(states[3], c_half)
+    assert states[3].positions.tobytes() == states[0].positions.tobytes()
