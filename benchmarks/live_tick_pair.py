@@ -169,7 +169,7 @@ def _worker(tree: str, rate: float, seconds: float) -> None:
         digest = hashlib.sha256(core.state.positions.tobytes()).hexdigest()[:16]
         print(json.dumps({"cpu": cpu, "sim": spent[0], "digest": digest, "events": i,
                           "x": core.state.positions.ravel().tolist()}), flush=True)
-    writer.close(core.tick_count)
+    core.writer.close(core.tick_count)
 
 
 def _start(tree: str, rate: float, seconds: float, scenario: str) -> subprocess.Popen:  # type: ignore[type-arg]

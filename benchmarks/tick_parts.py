@@ -40,7 +40,7 @@ DIAL = ('[[sine]]\ncontrol = "dial{n}"\nduration = {seconds}\nfreq = {freq}\namp
 KERNELS = {  # the kernels the simulator calls from Python (a module without one of them: skipped)
     "sim.implicit": ["_predict", "_held_rhs", "_held_rhs_turned", "_sym_sweeps", "_sn_sweeps", "_inputs", "_advance",
                      "_unchanged", "_remember", "_bend_turned_add", "_bend_turned", "_csr_times_flat"],
-    "sim.integrator": ["_jaw_pose", "_open_pose", "_place", "_active", "_save_hold", "_held_deviation",
+    "sim.integrator": ["_jaw_pose", "_open_pose", "_grid_pose", "_place", "_active", "_save_hold", "_held_deviation",
                        "_fixed_forces", "_hold", "_max_deviation"],
     "sim.margin_contact": ["_memory", "_recall"],
     "sim.wrinkles.layer": ["frame_displacement"],

@@ -250,6 +250,14 @@ JAW_BENDING_AS = "from the turn"
 #: (sim.Simulator.symmetric_solve: L and D, U's values unread); a take without it is replayed with
 #: the solve from L and U, as it was recorded (puppet.replay)
 SOLVE_AS = "symmetric factor"
+#: the take header's "responses": the implicit step reads the inputs' precomputed responses in
+#: float32 (sim.Simulator.single_responses); a take without it is replayed with them in float64,
+#: as it was recorded (puppet.replay)
+RESPONSES_AS = "float32"
+#: the take header's "jaw constants": at a jaw opening the implicit step reads its target, support
+#: normals and constant forces linearly between precomputed openings (sim.Simulator.
+#: constants_from_grid); a take without it is replayed with them turned at each opening (puppet.replay)
+JAW_CONSTANTS_AS = "from the grid"
 #: the take header's "bending": a scanned head's forehead bends as its bound layer
 #: (sim.antifold.bound_layer); a take without it, made on another face hash, was recorded on the
 #: thinner forehead and is replayed on it (puppet.replay)
@@ -282,6 +290,8 @@ def take_header(face: Face, rate: float, mapping: dict[str, str], devices: Seque
         "jaw": JAW_AS,
         "jaw bending": JAW_BENDING_AS,
         "solve": SOLVE_AS,
+        "responses": RESPONSES_AS,
+        "jaw constants": JAW_CONSTANTS_AS,
         # how a scanned head's forehead bends: a take without it is replayed on the forehead it
         # was recorded on (puppet.replay)
         "bending": BENDING_AS,

@@ -18,7 +18,8 @@ import numpy as np
 
 from puppet.curves import CurveLayer, CurveSet
 from puppet.errors import ConfigError, PuppetError
-from puppet.live import BENDING_AS, JAW_AS, JAW_BENDING_AS, LIDS_AS, MUSCLES_AS, SOLVE_AS, Face, load_face
+from puppet.live import (BENDING_AS, JAW_AS, JAW_BENDING_AS, JAW_CONSTANTS_AS, LIDS_AS, MUSCLES_AS, RESPONSES_AS,
+                         SOLVE_AS, Face, load_face)
 from puppet.session import Session
 from safefile import quote
 
@@ -58,6 +59,12 @@ class Performance:
     #: recorded with the substeps solving from L and U (no "solve" in its header): replayed that way
     #: (sim.Simulator.symmetric_solve off)
     symmetric_solve: bool = True
+    #: recorded with the inputs' responses read in float64 (no "responses" in its header): replayed
+    #: that way (sim.Simulator.single_responses off)
+    single_responses: bool = True
+    #: recorded with the jaw's constants turned at each opening (no "jaw constants" in its header):
+    #: replayed that way (sim.Simulator.constants_from_grid off)
+    constants_from_grid: bool = True
 
     @property
     def ticks(self) -> int:
@@ -175,7 +182,10 @@ def build_performance(session: Session | None, curves: CurveSet | None, rig_path
     jaw = session is None or session.header.get("jaw") == JAW_AS
     turned = session is None or session.header.get("jaw bending") == JAW_BENDING_AS
     symmetric = session is None or session.header.get("solve") == SOLVE_AS
-    return Performance(face, values, rate, markers, checks, restarts, summed, follow, jaw, turned, symmetric)
+    single = session is None or session.header.get("responses") == RESPONSES_AS
+    grid = session is None or session.header.get("jaw constants") == JAW_CONSTANTS_AS
+    return Performance(face, values, rate, markers, checks, restarts, summed, follow, jaw, turned, symmetric, single,
+                       grid)
 
 
 def _clamp(values: np.ndarray, face: Face, source: str) -> None:
@@ -219,6 +229,8 @@ class Replayer:
         s.jaw_responses = self.perf.jaw_responses
         s.bending_turned = self.perf.bending_turned
         s.symmetric_solve = self.perf.symmetric_solve
+        s.single_responses = self.perf.single_responses
+        s.constants_from_grid = self.perf.constants_from_grid
         return s
 
     def step(self) -> None:

@@ -417,11 +417,14 @@ def _on_grid(rows, jaw):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True, nogil=True)
-def _jaw_moves(jr, js, jaw_from, jaw_to, du, add):  # type: ignore[no-untyped-def]
+def _jaw_moves(jr, js, jaw_from, jaw_to, du, add, cell):  # type: ignore[no-untyped-def]
     """du (+= where add, else =) the jaw's response at `jaw_to` minus the one at `jaw_from` plus
     the slope `js` at the middle opening times the move, each linear between the grid's openings;
     one pass over the values laid flat (which the compiler vectorizes: 23 -> 10 us on the scanned
-    head), each value receiving the three terms in that order (as three passes gave it)."""
+    head), each value receiving the three terms in that order (as three passes gave it). cell:
+    where both openings lie between the same two of the grid's, the difference is taken as the
+    fraction's change times the difference of those two rows (the same quantity, other bits: two
+    rows read instead of four; the float32 responses', `ImplicitStepper.single_responses`)."""
     kt, ft = _on_grid(jr.shape[0], jaw_to)
     kf, ff = _on_grid(jr.shape[0], jaw_from)
     ks, fs = _on_grid(js.shape[0], 0.5 * (jaw_from + jaw_to))
@@ -430,28 +433,38 @@ def _jaw_moves(jr, js, jaw_from, jaw_to, du, add):  # type: ignore[no-untyped-de
     t0, t1 = jr[kt].reshape(-1), jr[kt + 1].reshape(-1)
     f0, f1 = jr[kf].reshape(-1), jr[kf + 1].reshape(-1)
     s0, s1 = js[ks].reshape(-1), js[ks + 1].reshape(-1)
-    for p in range(o.shape[0]):
+    if cell and kt == kf:
+        df = ft - ff
+        for p in range(o.shape[0]):
+            val = o[p] if add else 0.0
+            val += df * (float(t1[p]) - float(t0[p]))
+            a = float(s0[p])
+            val += move * (a + fs * (float(s1[p]) - a))
+            o[p] = val
+        return
+    for p in range(o.shape[0]):  # (float32 responses, `ImplicitStepper.single_responses`: in float64 as read)
         val = o[p] if add else 0.0
-        a = t0[p]
-        val += 1.0 * (a + ft * (t1[p] - a))
-        a = f0[p]
-        val += -1.0 * (a + ff * (f1[p] - a))
-        a = s0[p]
-        val += move * (a + fs * (s1[p] - a))
+        a = float(t0[p])
+        val += 1.0 * (a + ft * (float(t1[p]) - a))
+        a = float(f0[p])
+        val += -1.0 * (a + ff * (float(f1[p]) - a))
+        a = float(s0[p])
+        val += move * (a + fs * (float(s1[p]) - a))
         o[p] = val
 
 
 @numba.njit(cache=True, nogil=True)
-def _inputs(resp, act, act_val, jaw_resp, jaw_slope, jaw_from, jaw_to, du):  # type: ignore[no-untyped-def]
+def _inputs(resp, act, act_val, jaw_resp, jaw_slope, jaw_from, jaw_to, du, cell):  # type: ignore[no-untyped-def]
     """du = what a frame's inputs add to each substep's solve (ImplicitStepper.frame): the muscles'
     responses, plus the jaw's move from `jaw_from` to `jaw_to` as the difference of its responses
     and the support's turn as its slope at the middle opening times the move (`jaw_response`; none
-    when jaw_resp has no rows). Returns False when there is nothing to add (du not written)."""
+    when jaw_resp has no rows; cell: `_jaw_moves`'). Returns False when there is nothing to add
+    (du not written)."""
     muscles = act.shape[0] > 0
     if muscles:
         _responses(resp, act, act_val, du)
     if jaw_resp.shape[0] > 0:
-        _jaw_moves(jaw_resp, jaw_slope, jaw_from, jaw_to, du, muscles)
+        _jaw_moves(jaw_resp, jaw_slope, jaw_from, jaw_to, du, muscles, cell)
         muscles = True
     return muscles
 
@@ -539,6 +552,9 @@ def warm_up() -> None:
     stepper.jaw_response(np.zeros_like(x), x, x[:1], stepper.jaw_resp[1])
     stepper.frame(x, v, 1, np.zeros_like(x), spring_arrays, np.zeros_like(x), eyes, active=active, jaw=(0.2, 0.7))
     stepper.frame(x, v, 1, np.zeros_like(x), spring_arrays, np.zeros_like(x), eyes)
+    stepper.single_responses = False  # (the float64 responses of takes recorded before)
+    stepper.frame(x, v, 1, np.zeros_like(x), spring_arrays, np.zeros_like(x), eyes, active=active, jaw=(0.2, 0.7))
+    stepper.frame(x, v, 1, np.zeros_like(x), spring_arrays, np.zeros_like(x), eyes, active=active)
 
 
 def _sparse(name: str, m: sp.spmatrix) -> dict[str, np.ndarray]:
@@ -683,11 +699,21 @@ class ImplicitStepper:
         self._springs_scratch = np.zeros((3, 0))
         self._layout_of: np.ndarray | None = None  # the springs array `_spring_runs` was laid out from
         self._spring_runs = spring_layout(np.zeros((0, 2), dtype=np.int64))
-        self._resp = prep["resp"]  # each muscle channel's response (`muscle_responses`)
+        self._resp64 = prep["resp"]  # each muscle channel's response (`muscle_responses`; `_resp`)
         #: the jaw's responses at evenly spaced openings (`jaw_response`), set by the Simulator
         self.jaw_resp = np.zeros((0, nf, 3))
         #: and the slope of the normal support's response to the opening there (`frame`'s jaw)
         self.jaw_slope = np.zeros((0, nf, 3))
+        #: a frame reads the inputs' responses (the muscles', the gaze's, the jaw's and its slope)
+        #: rounded to float32 (`_single`: half the bytes from memory a tick, the sums still in
+        #: float64), a jaw's move within a grid step from two of its rows (`_jaw_moves`' cell);
+        #: other bits: the take header's "responses", sim.Simulator.single_responses. False: the
+        #: float64 responses and four rows, as takes recorded before
+        self.single_responses = True
+        self._resp32 = np.ascontiguousarray(self._resp64, dtype=np.float32)
+        self._jaw32: tuple[object, object, np.ndarray, np.ndarray] = (None, None, np.zeros((0, nf, 3), np.float32),
+                                                                     np.zeros((0, nf, 3), np.float32))
+        self._no_jaw32 = np.zeros((0, nf, 3), dtype=np.float32)
         self._no_act = (np.zeros(0, dtype=np.int64), np.zeros(0))
         self._dev, self._no_dev = np.zeros(1), np.zeros(0)  # `frame`'s check
         #: the last `frame`'s max |x - check| over the free nodes (-1: not finite), None without a check
@@ -829,6 +855,35 @@ class ImplicitStepper:
             _csr_times_flat(*self._fh, np.ascontiguousarray(held_at, dtype=np.float64).reshape(-1), held_term)
         self.solver.solve(np.ascontiguousarray(b[self.free] - held_term), out)
 
+    @property
+    def _resp(self) -> np.ndarray:
+        """Each input's response (channels, free nodes, 3), float64. Set anew: its float32 copy
+        (`single_responses`) is made again; changed in place (a fit's gains, `sim.fit`), call
+        `responses_changed` before the next frame."""
+        return self._resp64
+
+    @_resp.setter
+    def _resp(self, resp: np.ndarray) -> None:
+        self._resp64 = resp
+        self.responses_changed()
+
+    def responses_changed(self) -> None:
+        """The float32 copy of the responses made again from `_resp` (changed in place)."""
+        self._resp32 = np.ascontiguousarray(self._resp64, dtype=np.float32)
+
+    def _single(self, jaw: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The inputs' responses as a frame reads them with `single_responses`: float32 copies of
+        the muscles' (made with the stepper) and of the jaw's grid and slope (made when the
+        Simulator sets them); with jaw False, no jaw rows."""
+        if not jaw:
+            return self._resp32, self._no_jaw32, self._no_jaw32
+        made_r, made_s, r32, s32 = self._jaw32
+        if made_r is not self.jaw_resp or made_s is not self.jaw_slope:
+            r32 = np.ascontiguousarray(self.jaw_resp, dtype=np.float32)
+            s32 = np.ascontiguousarray(self.jaw_slope, dtype=np.float32)
+            self._jaw32 = (self.jaw_resp, self.jaw_slope, r32, s32)
+        return self._resp32, r32, s32
+
     def _is_predicted(self, x: np.ndarray, v: np.ndarray, key: object) -> bool:
         """True when the last `predict` was made from these very bits and key."""
         if self._predicted is None or key != self._predicted:
@@ -871,9 +926,13 @@ class ImplicitStepper:
             ext = self._with_bending(ext, shape)
         act, act_val = self._no_act if active is None else active
         du = self._buf[5]
-        jaw_resp, jaw_slope = (self.jaw_resp, self.jaw_slope) if jaw is not None else (self._no_jaw, self._no_jaw)
+        if self.single_responses:
+            resp, jaw_resp, jaw_slope = self._single(jaw is not None)
+        else:
+            resp = self._resp
+            jaw_resp, jaw_slope = (self.jaw_resp, self.jaw_slope) if jaw is not None else (self._no_jaw, self._no_jaw)
         jaw_from, jaw_to = jaw if jaw is not None else (0.0, 0.0)
-        muscles = _inputs(self._resp, act, act_val, jaw_resp, jaw_slope, jaw_from, jaw_to, du)
+        muscles = _inputs(resp, act, act_val, jaw_resp, jaw_slope, jaw_from, jaw_to, du, self.single_responses)
         self.last_deviation = None
         for sub in range(n_sub):
             if sub > 0 or not predicted:

@@ -273,6 +273,9 @@ def warm_up(implicit: bool = True) -> None:
     _open_pose(np.array([1.0, 0.0, 0.0]), 0.1, 0.01, 0.2, np.zeros(3), np.zeros((3, 3)), np.zeros(3), by_coordinate,
                by_coordinate, np.ones((3, 1)), np.zeros(3), np.ones(1), turned, np.zeros((0, 3)), np.zeros((1, 3)), tmp,
                frozen, np.ones(1), np.ones(1), np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64))
+    _grid_pose(np.array([1.0, 0.0, 0.0]), 0.1, 0.01, 0.2, np.zeros(3), np.zeros((3, 3)), np.zeros(3),
+               np.zeros((3, 2, 1, 3), dtype=np.float32), frozen, np.ones(1), np.ones(1), turned, np.zeros((1, 3)),
+               np.zeros((1, 3)), np.zeros((1, 3)), np.array([0], dtype=np.int64))
     _held_deviation(np.zeros((1, 3)), np.array([0], dtype=np.int64), np.zeros((1, 3)), 0.0)
     _active(np.ones(1), np.ones(1, dtype=np.bool_), np.zeros(1, dtype=np.int64), np.zeros(1))
     _max_deviation(x1, x1)
@@ -473,6 +476,16 @@ def _open_pose(a, s, c, jaw, slide_one, rot, slide, rest, offset, normal3, pivot
     operations in its order from the unit axis a, s = sin(angle), c = 1 - cos(angle) made by
     Python's math (the same bits): the matrix, the slide, the pose and the placement were four
     calls and ~60 small Python operations a tick while the jaw moves."""
+    _open_motion(a, s, c, jaw, slide_one, rot, slide)
+    _jaw_pose(rest, offset, normal3, pivot, weight, rot, slide, target, shape, normal, tmp, w3, kr, kn, fixed)
+    if x.shape[0] > 0:
+        _place(x, held, target)
+
+
+@numba.njit(inline="always")
+def _open_motion(a, s, c, jaw, slide_one, rot, slide):  # type: ignore[no-untyped-def]
+    """`jaw_motion` of an opening alone into rot (3, 3) and slide (3,), by `jaw_rotation`'s
+    operations in its order (`_open_pose`)."""
     a0, a1, a2 = a[0], a[1], a[2]
     m0, m1, m2 = -a0, -a1, -a2
     rot[0, 0] = (1.0 + s * 0.0) + c * ((0.0 * 0.0 + m2 * a2) + a1 * m1)
@@ -486,7 +499,50 @@ def _open_pose(a, s, c, jaw, slide_one, rot, slide, rest, offset, normal3, pivot
     rot[2, 2] = (1.0 + s * 0.0) + c * ((m1 * a1 + a0 * m0) + 0.0 * 0.0)
     for d in range(3):
         slide[d] = jaw * slide_one[d]
-    _jaw_pose(rest, offset, normal3, pivot, weight, rot, slide, target, shape, normal, tmp, w3, kr, kn, fixed)
+
+
+@numba.njit(**KERNEL)
+def _grid_pose(a, s, c, jaw, slide_one, rot, slide, grid, w3, kr, kn, target, normal, fixed, x, held):  # type: ignore[no-untyped-def]
+    """A new jaw opening (0 < jaw <= 1, no thrust, no sideways move) with its constants read from
+    a grid (`Simulator.constants_from_grid`): rot and slide as `_open_pose` makes them (the margin
+    bending's turn), then eq 9's target and the support normals, each linear between the grid's two
+    openings about `jaw` (grid (openings, 2, N, 3) float32: `_pose_grid`; read in float64), the
+    normals brought back to unit length by a Newton step of 1 / sqrt (they are shorter by <= 4e-5:
+    left at 1e-9), the constant forces without muscles from those rows as `_fixed_forces` makes
+    them (made from the rows, not read: the support's constant side must turn with its side on x,
+    or it pulls the skin by the normals' error times the distance from the origin), then the held
+    nodes' rows of x onto the target. A pass over the values laid flat, then one over the rows: no
+    turn, square root or division (42 -> 30 us alone on the scanned head, 50 -> 35 after 12 MB
+    written)."""
+    _open_motion(a, s, c, jaw, slide_one, rot, slide)
+    steps = grid.shape[0] - 1
+    t = jaw * steps
+    k = min(int(t), steps - 1)
+    f = t - k
+    ta, tb = grid[k, 0].reshape(-1), grid[k + 1, 0].reshape(-1)
+    na, nb = grid[k, 1].reshape(-1), grid[k + 1, 1].reshape(-1)
+    to, no = target.reshape(-1), normal.reshape(-1)
+    for p in range(to.shape[0]):  # (laid flat: vector code)
+        u = float(ta[p])
+        to[p] = u + f * (float(tb[p]) - u)
+        u = float(na[p])
+        no[p] = u + f * (float(nb[p]) - u)
+    for i in range(target.shape[0]):
+        g0, g1, g2 = target[i, 0], target[i, 1], target[i, 2]
+        m0, m1, m2 = normal[i, 0], normal[i, 1], normal[i, 2]
+        e = 1.5 - 0.5 * ((m0 * m0 + m1 * m1) + m2 * m2)
+        m0 *= e
+        m1 *= e
+        m2 *= e
+        normal[i, 0] = m0
+        normal[i, 1] = m1
+        normal[i, 2] = m2
+        support = kn[i] * (m0 * g0 + m1 * g1 + m2 * g2)
+        acc = 0.0
+        q = kr[i]
+        fixed[i, 0] = acc + w3[i, 0] + q * g0 + support * m0
+        fixed[i, 1] = acc + w3[i, 1] + q * g1 + support * m1
+        fixed[i, 2] = acc + w3[i, 2] + q * g2 + support * m2
     if x.shape[0] > 0:
         _place(x, held, target)
 
@@ -699,6 +755,14 @@ class Simulator:
         #: bits). Set before the first step.
         self.bending_turned = True
         self._last_pose: tuple[float, float, float] | None = None  # the last step's jaw pose
+        #: the implicit step's constants at a jaw opening (eq 9's target, the support normals, the
+        #: constant forces; not the margin bending's turn) read linearly between openings 1 / JAW_GRID
+        #: apart, kept in float32 (`_grid_pose`, `_pose_grid`), instead of the mandible's turn of every
+        #: vertex at each new opening: the target off the turn's arc by ~4 um at a chin 10 cm from
+        #: the hinge, the normals shorter by <= 4e-5; other bits. False: the turn, as takes recorded
+        #: before (puppet.replay sets it for them, for their bits). Only where `_opening_fast`.
+        self.constants_from_grid = True
+        self._grid: np.ndarray | None = None  # (`_pose_grid`: made below for the implicit step)
         # the turns' inputs by coordinate (`_jaw_pose`: vector code over the vertices)
         self._rest3, self._offset3 = self._by_coordinate(model.rest), self._by_coordinate(model.rest_offset)
         self._normal3 = self._by_coordinate(model.rest_normal)
@@ -708,6 +772,8 @@ class Simulator:
         if self._implicit is not None:
             self._implicit.jaw_resp, self._implicit.jaw_slope = _jaw_grid(self)
             self._implicit.turn_basis(self._jaw_weight, np.asarray(model.jaw_pivot, dtype=np.float64))
+            self._grid = self._pose_grid()  # (now, not at the live show's first opening)
+            self._implicit._single(True)  # (the jaw's float32 responses too: 8.6 MB cast, ~4 ms)
         self._rest_shape = np.array(model.rest)  # the margin bending's rest shape at rest (`bending_turned`)
         self._recalled: object = _NOTHING  # the memory the contact's arrays hold (`_recall_contact`)
 
@@ -724,6 +790,18 @@ class Simulator:
     def symmetric_solve(self, on: bool) -> None:
         if self._implicit is not None:  # (factors permuted differently by rows and columns: L and U always)
             self._implicit.symmetric_solve = bool(on) and self._implicit.solver.symmetric
+
+    @property
+    def single_responses(self) -> bool:
+        """The implicit step reads the inputs' precomputed responses (muscles, gaze, jaw) rounded
+        to float32 (`sim.implicit.ImplicitStepper.single_responses`; sums in float64). False: in
+        float64, as takes recorded before (puppet.replay sets it for them, for their bits)."""
+        return self._implicit is not None and self._implicit.single_responses
+
+    @single_responses.setter
+    def single_responses(self, on: bool) -> None:
+        if self._implicit is not None:
+            self._implicit.single_responses = bool(on)
 
     @property
     def _opening_fast(self) -> bool:
@@ -826,6 +904,16 @@ class Simulator:
         jaw = pose[0]
         angle = jaw * self.model.params.jaw_max_angle
         rot, slide, target = np.empty((3, 3)), np.empty(3), np.empty(self._target_shape)
+        if self.constants_from_grid and jaw <= 1.0 and jaw > 0.0:
+            if self._grid is None:
+                self._grid = self._pose_grid()
+            _grid_pose(self._axis, math.sin(angle), 1.0 - math.cos(angle), jaw, self._slide_one, rot, slide,
+                       self._grid, self._weight, self._kr, self._kn, target, self._normal, self._ext_const,
+                       self._no_rows if place is None else place, self._held)
+            self._target = target
+            self._shape = JawTurn(rot, slide)
+            self._jaw = self._const_jaw = pose
+            return
         _open_pose(self._axis, math.sin(angle), 1.0 - math.cos(angle), jaw, self._slide_one, rot, slide, self._rest3,
                    self._offset3, self._normal3, self._pivot, self._jaw_weight, target, self._no_rows, self._normal,
                    self._turn_tmp, self._weight, self._kr, self._kn, self._ext_const,
@@ -833,6 +921,29 @@ class Simulator:
         self._target = target
         self._shape = JawTurn(rot, slide)
         self._jaw = self._const_jaw = pose
+
+    def _pose_grid(self) -> np.ndarray:
+        """(JAW_GRID + 1, 2, N, 3) float32: eq 9's target and the support normals at the openings
+        k / JAW_GRID (`_grid_pose` reads them linearly between two): the opening 0's as the rest
+        pose has them, the others by `_open_pose` (33 poses: ~2 ms on the scanned head, once per
+        simulator)."""
+        m, n = self.model, self.model.n_vertices
+        grid = np.zeros((JAW_GRID + 1, 2, n, 3), dtype=np.float32)
+        target, normal, fixed = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+        rot, slide, none = np.empty((3, 3)), np.empty(3), np.zeros((0, 3))
+        for k in range(JAW_GRID + 1):
+            if k == 0:
+                target[...] = m.rest + m.rest_offset
+                normal[...] = m.rest_normal
+                _fixed_forces(self._weight, self._kr, target, self._kn, normal, fixed)
+            else:
+                jaw = k / JAW_GRID
+                angle = jaw * m.params.jaw_max_angle
+                _open_pose(self._axis, math.sin(angle), 1.0 - math.cos(angle), jaw, self._slide_one, rot, slide,
+                           self._rest3, self._offset3, self._normal3, self._pivot, self._jaw_weight, target, none,
+                           normal, self._turn_tmp, self._weight, self._kr, self._kn, fixed, none, self._held)
+            grid[k, 0], grid[k, 1] = target, normal
+        return grid
 
     def external_forces(self, control: FaceControl) -> np.ndarray:
         """Every force term that does not depend on x or v within a frame, (N,3) dyn (a buffer the

@@ -165,7 +165,9 @@ class Editor:
             self._perf = Performance(self.face, values, p.rate, p.markers, p.checks if not self.curves.curves else {},
                                      restarts=p.restarts, muscles_summed=p.muscles_summed,
                                      lids_follow_gaze=p.lids_follow_gaze, jaw_responses=p.jaw_responses,
-                                     bending_turned=p.bending_turned, symmetric_solve=p.symmetric_solve)
+                                     bending_turned=p.bending_turned, symmetric_solve=p.symmetric_solve,
+                                     single_responses=p.single_responses,
+                                     constants_from_grid=p.constants_from_grid)
             self._replayer = Replayer(self._perf)
             if old is not None and old_rp is not None and old.values.shape == values.shape:
                 # states before the first tick the edit changed are still right: keep their checkpoints

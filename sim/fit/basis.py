@@ -41,6 +41,9 @@ class Settler:
 
         self.model = model
         self.sim = Simulator(model, wrinkles=False, method=method)
+        # the fits change the implicit step's float64 responses in place (sim.fit.rig_settled,
+        # benchmarks/anchor_limits.py, sided_limits.py): read them, not a float32 copy made before
+        self.sim.single_responses = False
         self.control = FaceControl(model)
         self.defaults = self.control.values.copy()
         self.max_seconds = max_seconds

@@ -5,7 +5,12 @@ recorded before replay the old way, bit for bit:
   from the jaw's turn, three values a row; before, the product of the bending matrix with the
   turned rest shape;
 - "solve" (`sim.Simulator.symmetric_solve`): the substeps' solve from the symmetric factor alone
-  (L and D); before, from L and U."""
+  (L and D); before, from L and U;
+- "responses" (`sim.Simulator.single_responses`): the inputs' precomputed responses read in
+  float32; before, in float64;
+- "jaw constants" (`sim.Simulator.constants_from_grid`): at a jaw opening the target, support
+  normals and constant forces read linearly between precomputed openings; before, the turn of
+  every vertex at each opening."""
 
 from __future__ import annotations
 
@@ -18,7 +23,7 @@ import pytest
 
 from puppet.capture.take import write_take
 from puppet.errors import ConfigError
-from puppet.live import JAW_BENDING_AS, SOLVE_AS, load_face
+from puppet.live import JAW_BENDING_AS, JAW_CONSTANTS_AS, RESPONSES_AS, SOLVE_AS, load_face
 from puppet.replay import Replayer, build_performance, state_digest
 from puppet.session import read_session
 
@@ -32,6 +37,7 @@ class Way:
     attr: str  # the performance's and the simulator's switch
     old: Path  # a take recorded by the code before, without the key
     final: str  # that recording program's last state
+    old_rig: bool = True  # recorded on OLD_RIG (else on the shipped rig)
 
 
 WAYS = [
@@ -41,6 +47,11 @@ WAYS = [
     # the ict face at 120 Hz, one second of the jaw opening to 0.8, the age 30 -> 70 and the left
     # smile at 0.5 from tick 40 (`_open_and_age` below, written by `write_take`)
     Way("solve", SOLVE_AS, "symmetric_solve", DATA / "take_solve_lu.jsonl", "5ae0ccadeaf904ba"),
+    # the same performance recorded by main at 2ed57ef on the shipped rig (float64 responses, the
+    # jaw's constants turned at each opening): one take for both keys
+    Way("responses", RESPONSES_AS, "single_responses", DATA / "take_responses_f64.jsonl", "fafa1c948267615b", old_rig=False),
+    Way("jaw constants", JAW_CONSTANTS_AS, "constants_from_grid", DATA / "take_responses_f64.jsonl", "fafa1c948267615b",
+        old_rig=False),
 ]
 IDS = [w.key for w in WAYS]
 #: the scanned head's rig both old takes replay bit for bit on (hash 5e71a5b7d3b2b2be, the shipped
@@ -50,7 +61,7 @@ OLD_RIG = DATA / "take_ict_held_chin_rig.npz"
 
 
 def _replay(path: Path, way: Way, new: bool | None = None) -> Replayer:
-    perf = build_performance(read_session(path), None, rig_path=str(OLD_RIG) if path == way.old else None)
+    perf = build_performance(read_session(path), None, rig_path=str(OLD_RIG) if path == way.old and way.old_rig else None)
     if new is not None:
         setattr(perf, way.attr, new)
     rp = Replayer(perf)
