@@ -382,6 +382,18 @@ def _fixed_forces(weight, kr, target, kn, nrm, out):  # type: ignore[no-untyped-
             out[i, d] = acc + weight[i, d] + kr[i] * target[i, d] + support * nrm[i, d]
 
 
+@numba.njit(inline="always")
+def _fixed_row(i, g0, g1, g2, m0, m1, m2, w3, kr, kn, fixed):  # type: ignore[no-untyped-def]
+    """Row i of `_fixed_forces`: the tether's pull to the target g and the support's along the unit
+    normal m, beside the constant force w3 (the same sums in the same order wherever it is made)."""
+    support = kn[i] * (m0 * g0 + m1 * g1 + m2 * g2)
+    acc = 0.0
+    q = kr[i]
+    fixed[i, 0] = acc + w3[i, 0] + q * g0 + support * m0
+    fixed[i, 1] = acc + w3[i, 1] + q * g1 + support * m1
+    fixed[i, 2] = acc + w3[i, 2] + q * g2 + support * m2
+
+
 @numba.njit(**KERNEL)
 def _jaw_pose(rest, offset, normal3, pivot, weight, rot, slide, target, shape, normal, tmp, w3, kr, kn, fixed):  # type: ignore[no-untyped-def]
     """A new jaw pose's constants in one call: eq 9's target (and the rest shape when `shape` has
@@ -450,12 +462,7 @@ def _jaw_pose(rest, offset, normal3, pivot, weight, rot, slide, target, shape, n
             shape[i, 1] = tmp[4, i]
             shape[i, 2] = tmp[5, i]
         if with_fixed:  # `_fixed_forces`' row
-            support = kn[i] * (m0 * g0 + m1 * g1 + m2 * g2)
-            acc = 0.0
-            k = kr[i]
-            fixed[i, 0] = acc + w3[i, 0] + k * g0 + support * m0
-            fixed[i, 1] = acc + w3[i, 1] + k * g1 + support * m1
-            fixed[i, 2] = acc + w3[i, 2] + k * g2 + support * m2
+            _fixed_row(i, g0, g1, g2, m0, m1, m2, w3, kr, kn, fixed)
 
 
 @numba.njit(**KERNEL)
@@ -537,12 +544,7 @@ def _grid_pose(a, s, c, jaw, slide_one, rot, slide, grid, w3, kr, kn, target, no
         normal[i, 0] = m0
         normal[i, 1] = m1
         normal[i, 2] = m2
-        support = kn[i] * (m0 * g0 + m1 * g1 + m2 * g2)
-        acc = 0.0
-        q = kr[i]
-        fixed[i, 0] = acc + w3[i, 0] + q * g0 + support * m0
-        fixed[i, 1] = acc + w3[i, 1] + q * g1 + support * m1
-        fixed[i, 2] = acc + w3[i, 2] + q * g2 + support * m2
+        _fixed_row(i, g0, g1, g2, m0, m1, m2, w3, kr, kn, fixed)
     if x.shape[0] > 0:
         _place(x, held, target)
 
