@@ -118,3 +118,17 @@ def test_the_guard_in_two_passes_has_the_bits_of_one_pass() -> None:
         assert _fold_forces(y, t3, g.tri, g.frame, g.dm_inv, g.area, g.k, g.floor, two, np.zeros(len(g.tri))) == acting
         assert one.tobytes() == two.tobytes(), k
         assert 0 < acting < len(g.tri)
+
+
+def test_lid_margin_distances_are_a_kd_trees_to_the_bit() -> None:
+    """The bound layer's distance to the lid margins is found by brute force (no scipy.spatial import
+    before a start's first tick); it must be a k-d tree's query bit for bit, or every take recorded on
+    a face with a bound forehead would replay to other bits."""
+    from scipy.spatial import cKDTree
+
+    from sim.antifold import _nearest_distance
+
+    rng = np.random.default_rng(7)
+    points = rng.normal(size=(3000, 3)) * np.array([6.0, 8.0, 4.0])
+    margins = points[rng.choice(len(points), 60, replace=False)] + rng.normal(size=(60, 3)) * 0.01
+    assert np.array_equal(_nearest_distance(points, margins), cKDTree(margins).query(points)[0])
