@@ -236,19 +236,33 @@ def _monitor_nanokontrol():  # type: ignore[no-untyped-def]
     return mon, lines, until
 
 
+def _show_on_own_server(monkeypatch: pytest.MonkeyPatch, prefix: str):  # type: ignore[no-untyped-def]
+    """A JACK server of this test's own (named prefix + pid, made the default), the nanoKONTROL2
+    plugged into it and `puppet monitor` following it: (name, server, box, monitor, lines, until)."""
+    import os
+
+    from midijack import start_jackd
+
+    name = f"{prefix}{os.getpid()}"
+    monkeypatch.setenv("JACK_DEFAULT_SERVER", name)
+    server = start_jackd(name)
+    box = MidiBox("nanoKONTROL2").plug()
+    return (name, server, box, *_monitor_nanokontrol())
+
+
+def _end_show(mon, box) -> None:  # type: ignore[no-untyped-def]
+    mon.kill()
+    mon.wait(10)
+    box.close()
+
+
 def test_the_device_survives_a_jack_server_restart(jack_server: str, monkeypatch: pytest.MonkeyPatch) -> None:  # noqa: F811
     """The JACK server itself goes down and comes back under the same name: the device's clients
     belonged to the old server, so it makes new ones and finds the box again. (`puppet monitor` in
     its own process: one process does not talk to two JACK servers, and this one has the module's.)"""
-    import os
-
     from midijack import start_jackd, stop_jackd, wait_for_host
 
-    name = f"fprestart{os.getpid()}"
-    monkeypatch.setenv("JACK_DEFAULT_SERVER", name)
-    server = start_jackd(name)
-    box = MidiBox("nanoKONTROL2").plug()
-    mon, lines, until = _monitor_nanokontrol()
+    name, server, box, mon, lines, until = _show_on_own_server(monkeypatch, "fprestart")
 
     try:
         until(lambda ls: any(x.get("status") == "connected" for x in ls))
@@ -262,9 +276,7 @@ def test_the_device_survives_a_jack_server_restart(jack_server: str, monkeypatch
         until(lambda ls: any(x.get("control") == "fader4" for x in ls))
         assert [x.get("status") for x in lines if "status" in x] == ["connected", "lost", "connected"]
     finally:
-        mon.kill()
-        mon.wait(10)
-        box.close()
+        _end_show(mon, box)
         stop_jackd(server)
 
 
@@ -274,15 +286,9 @@ def test_a_jack_server_stopped_under_a_plugged_box_is_a_loss_and_its_return_is_f
     last copy of the server's ports, so the box's port stayed listed; the device said nothing, and
     after the server came back it never found the box (the box's messages were lost for the rest of
     the show). It is `lost` when the server goes and `connected` again with the box on the new one."""
-    import os
-
     from midijack import start_jackd, stop_jackd, wait_for_host
 
-    name = f"fpstop{os.getpid()}"
-    monkeypatch.setenv("JACK_DEFAULT_SERVER", name)
-    server = start_jackd(name)
-    box = MidiBox("nanoKONTROL2").plug()
-    mon, lines, until = _monitor_nanokontrol()
+    name, server, box, mon, lines, until = _show_on_own_server(monkeypatch, "fpstop")
 
     try:
         until(lambda ls: any(x.get("status") == "connected" for x in ls))
@@ -298,9 +304,7 @@ def test_a_jack_server_stopped_under_a_plugged_box_is_a_loss_and_its_return_is_f
         until(lambda ls: any(x.get("control") == "fader4" for x in ls))
         assert [x.get("status") for x in lines if "status" in x] == ["connected", "lost", "connected"]
     finally:
-        mon.kill()
-        mon.wait(10)
-        box.close()
+        _end_show(mon, box)
         stop_jackd(server)
 
 
@@ -313,11 +317,7 @@ def test_a_jack_server_killed_and_never_restarted_is_a_loss(jack_server: str, mo
 
     from midijack import start_jackd, stop_jackd, wait_for_host
 
-    name = f"fpkill{os.getpid()}"
-    monkeypatch.setenv("JACK_DEFAULT_SERVER", name)
-    server = start_jackd(name)
-    box = MidiBox("nanoKONTROL2").plug()
-    mon, lines, until = _monitor_nanokontrol()
+    name, server, box, mon, lines, until = _show_on_own_server(monkeypatch, "fpkill")
     try:
         wait_for_host(name, "nanoKONTROL2:_MIDI 1")
         until(lambda ls: any(x.get("status") == "connected" for x in ls))
@@ -327,9 +327,7 @@ def test_a_jack_server_killed_and_never_restarted_is_a_loss(jack_server: str, mo
         until(lambda ls: ls[-1].get("status") == "lost", timeout=15.0)
         assert [x.get("status") for x in lines if "status" in x] == ["connected", "lost"]
     finally:
-        mon.kill()
-        mon.wait(10)
-        box.close()
+        _end_show(mon, box)
         if server.poll() is None:
             server.kill()
             server.wait(5)
