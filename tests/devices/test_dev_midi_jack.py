@@ -250,6 +250,20 @@ def _show_on_own_server(monkeypatch: pytest.MonkeyPatch, prefix: str):  # type: 
     return (name, server, box, *_monitor_nanokontrol())
 
 
+def _server_back(name: str, box, lines: list, until):  # type: ignore[no-untyped-def]
+    """The server started again under its name with the box plugged into it: the box's fader is
+    followed, and the monitor said connected, lost, connected. Returns the new server."""
+    from midijack import start_jackd, wait_for_host
+
+    server = start_jackd(name)
+    box.plug()
+    wait_for_host(name, "nanoKONTROL2:_MIDI 1")
+    box.send((0xB0, 3, 77))
+    until(lambda ls: any(x.get("control") == "fader4" for x in ls))
+    assert [x.get("status") for x in lines if "status" in x] == ["connected", "lost", "connected"]
+    return server
+
+
 def _end_show(mon, box) -> None:  # type: ignore[no-untyped-def]
     mon.kill()
     mon.wait(10)
@@ -260,7 +274,7 @@ def test_the_device_survives_a_jack_server_restart(jack_server: str, monkeypatch
     """The JACK server itself goes down and comes back under the same name: the device's clients
     belonged to the old server, so it makes new ones and finds the box again. (`puppet monitor` in
     its own process: one process does not talk to two JACK servers, and this one has the module's.)"""
-    from midijack import start_jackd, stop_jackd, wait_for_host
+    from midijack import stop_jackd
 
     name, server, box, mon, lines, until = _show_on_own_server(monkeypatch, "fprestart")
 
@@ -269,12 +283,7 @@ def test_the_device_survives_a_jack_server_restart(jack_server: str, monkeypatch
         box.unplug()
         stop_jackd(server)
         until(lambda ls: ls[-1].get("status") == "lost")
-        server = start_jackd(name)
-        box.plug()
-        wait_for_host(name, "nanoKONTROL2:_MIDI 1")
-        box.send((0xB0, 3, 77))
-        until(lambda ls: any(x.get("control") == "fader4" for x in ls))
-        assert [x.get("status") for x in lines if "status" in x] == ["connected", "lost", "connected"]
+        server = _server_back(name, box, lines, until)
     finally:
         _end_show(mon, box)
         stop_jackd(server)
@@ -286,7 +295,7 @@ def test_a_jack_server_stopped_under_a_plugged_box_is_a_loss_and_its_return_is_f
     last copy of the server's ports, so the box's port stayed listed; the device said nothing, and
     after the server came back it never found the box (the box's messages were lost for the rest of
     the show). It is `lost` when the server goes and `connected` again with the box on the new one."""
-    from midijack import start_jackd, stop_jackd, wait_for_host
+    from midijack import stop_jackd
 
     name, server, box, mon, lines, until = _show_on_own_server(monkeypatch, "fpstop")
 
@@ -297,12 +306,7 @@ def test_a_jack_server_stopped_under_a_plugged_box_is_a_loss_and_its_return_is_f
         stop_jackd(server)  # the box is still plugged in
         until(lambda ls: ls[-1].get("status") == "lost")
         box.unplug()
-        server = start_jackd(name)
-        box.plug()
-        wait_for_host(name, "nanoKONTROL2:_MIDI 1")
-        box.send((0xB0, 3, 77))
-        until(lambda ls: any(x.get("control") == "fader4" for x in ls))
-        assert [x.get("status") for x in lines if "status" in x] == ["connected", "lost", "connected"]
+        server = _server_back(name, box, lines, until)
     finally:
         _end_show(mon, box)
         stop_jackd(server)
