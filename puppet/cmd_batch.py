@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
 
     from puppet.batch.plan import EXPORT_KINDS
     from puppet.batch.run import run as run_batch
-    from puppet.errors import PuppetError
+    from puppet.errors import PuppetError, not_applying
 
     action = args.batch_command
     note = ""  # said with the batch's result: a batch that cannot start stays one line
@@ -77,9 +77,8 @@ def run(args: argparse.Namespace) -> int:
         if bad or not kinds:
             raise PuppetError(f"--to takes {', '.join(EXPORT_KINDS)}; got {args.to!r}")
         unused = [f"--{name}" for name in ("view", "size", "supersample", "crf") if getattr(args, name) is not None]
-        if unused and "mp4" not in kinds:  # as `puppet replay`: dropped without a word before
-            note = (f"puppet: note: {' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} not apply to "
-                    f"--to {','.join(kinds)} (only mp4 is drawn); ignored")
+        if "mp4" not in kinds:  # as `puppet replay`: dropped without a word before
+            note = not_applying(unused, f"--to {','.join(kinds)} (only mp4 is drawn)")
         args.view = "shaded" if args.view is None else args.view
         args.size = (1280, 720) if args.size is None else args.size
         args.supersample = 1 if args.supersample is None else args.supersample

@@ -20,7 +20,7 @@ from collections import deque
 from pathlib import Path
 from typing import Any
 
-from puppet.errors import ChannelError, ConfigError, PuppetError
+from puppet.errors import ChannelError, ConfigError, PuppetError, not_applying
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 HISTORY_SECONDS = 2.0
@@ -149,10 +149,8 @@ def run(args: argparse.Namespace) -> int:
     if suffix not in (".npz", ".obj", *IMAGE_SUFFIXES):
         raise PuppetError(f"--out {args.out}: unknown file type; use .npz, .obj, .png, .jpg or .jpeg")
     unused = [f"--{name}" for name in ("size", "view") if getattr(args, name) is not None]
-    note = ""  # dropped without a word before; said once the pose is written (a failure stays one line)
-    if unused and suffix not in IMAGE_SUFFIXES:
-        note = (f"puppet: note: {' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} not apply to "
-                f"{suffix} (only images are drawn); ignored")
+    # dropped without a word before; said once the pose is written (a failure stays one line)
+    note = not_applying(unused if suffix not in IMAGE_SUFFIXES else [], f"{suffix} (only images are drawn)")
     args.size = "1280x720" if args.size is None else args.size
     args.view = "shaded" if args.view is None else args.view
     size = _size(args.size)

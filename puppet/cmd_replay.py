@@ -72,10 +72,9 @@ def unused_options(args: argparse.Namespace, kind: str | None) -> str:
         kind_ok = (kind,)
     unused = [f"--{name}" for name, kinds in DRAWING_OPTIONS.items()
               if getattr(args, name) is not None and not set(kind_ok) & set(kinds)]
-    if not unused:
-        return ""
-    what = "a headless replay (it draws nothing)" if not kind_ok else KIND_WORDS[kind]
-    return f"puppet: note: {' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} not apply to {what}; ignored"
+    from puppet.errors import not_applying
+
+    return not_applying(unused, "a headless replay (it draws nothing)" if not kind_ok else KIND_WORDS[kind])
 
 
 def run(args: argparse.Namespace) -> int:

@@ -13,3 +13,11 @@ class ConfigError(PuppetError):
 
 class ChannelError(PuppetError, ValueError):
     """An unknown channel, AU or expression, or a value out of range."""
+
+
+def not_applying(options: "list[str]", what: str) -> str:
+    """The one line said (after the result) for options given that do nothing for `what`, '' if none:
+    `puppet: note: --view and --size do not apply to a .csv of channels; ignored`."""
+    if not options:
+        return ""
+    return f"puppet: note: {' and '.join(options)} {'does' if len(options) == 1 else 'do'} not apply to {what}; ignored"
