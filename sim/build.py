@@ -319,7 +319,14 @@ def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray,
     if normal is None:
         normal = vertex_normals(rest, np.asarray(rig.mesh.triangles, np.int32))
 
+    pulls: dict[str, np.ndarray | None] = {}  # a whole channel's pull, made once for it and its halves
+
     def pull(name: str) -> np.ndarray | None:
+        if name not in pulls:
+            pulls[name] = _pull(name)
+        return pulls[name]
+
+    def _pull(name: str) -> np.ndarray | None:
         parts = rig.muscles.get(name, ())
         if not parts:
             return None
