@@ -3,7 +3,9 @@
 
 The heads are not shipped and never used by the tests; this benchmark reads them from a folder
 (`--meshes DIR`, default `$PUPPET_MESHES` or `~/.cache/facepuppet/meshes`) and, when a file is
-missing, downloads it by hand from its public address (the product itself never downloads):
+missing, downloads it by hand from its public address (the product itself never downloads). Where the machine
+cannot reach those addresses, copy each file from a local clone of its repository into the folder
+under the name below (`git -C CLONE show COMMIT:PATH > DIR/NAME`):
 
 - `makehuman` (development head): the MakeHuman base mesh `hm08`, `makehuman/data/3dobjs/base.obj`
   of https://github.com/makehumancommunity/makehuman (commit a8bc2d54; released CC0 1.0 by Data
