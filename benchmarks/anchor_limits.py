@@ -26,6 +26,10 @@ given), fitted on the shapes that drive them ("The inner brows and the cheek's s
         --smooth 1e-4 --bound 10 --write-rig sim/face/scan/ict_rig.npz
     nice .venv/bin/python benchmarks/anchor_limits.py --halves --all --smooth 1e-4 --bound 10 --grow 1.5
         --write-rig sim/face/scan/ict_rig.npz
+    # the tissue under the pursed lips (docs/scan-face.md, "The tissue under the lips refitted"), on
+    # the rig the commands before made
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only incisivus=3,orbicularis_oris_peripheralis_lower=3
+        --smooth 1e-5 --bound 10 --write-rig sim/face/scan/ict_rig.npz
 
 `--per-shape zones|skin` fits a field per shape instead (as if each shape had its own channel: over
 its channels' zones, grown by `--grow`, or over all the free skin), the ceiling of more channels or
