@@ -89,7 +89,7 @@ class ScanPoser:
 
     def __init__(self, dressing: Any) -> None:
         self.dressing = dressing
-        self.look = ScanLook(np.asarray(dressing.rest, np.float64))
+        self.look = ScanLook(np.asarray(dressing.rest, np.float64), dressing.eye_margins)
         self.maker = ScanRows(self.look)
         self.softener = FoldSoftener(self.look)
         self.seam = LidSeam(self.look)
@@ -110,7 +110,10 @@ class ScanDraw:
         if rest_scan is None:  # the scan posed by the face at rest
             rest_state = model.rest_state()
             rest_scan = dressing.pose(np.asarray(rest_state.surface), PoseControl(rest_state))
-        self.look = ScanLook(np.asarray(rest_scan, np.float64))
+        from sim.face.scan.dressing import eye_margins
+
+        # the lids' margins from the simulated mesh (the scan's own shapes drawn in its place too)
+        self.look = ScanLook(np.asarray(rest_scan, np.float64), eye_margins(model.mesh))
         self.coarse_tri = self.look.coarse_plain()
         # the mouth's lining, gums and tongue drawn from a coarser list with the coarse skin (render.scan_lod)
         self.inside_full, self.coarse_inside = self.look.coarse_inside()

@@ -121,6 +121,8 @@ class ScanDressing:
     tongue_idx (T,), tongue_w (T,): the tongue's vertices and their share of `tongue_out`'s motion.
     socket_idx (S,), socket_anchor (S,) scan index of the nearest lip-inside rim vertex, socket_fade (S,).
     eye_idx: two (E,) index arrays; eye_centres (2,3).
+    eye_margins: per eye (left, right) its (upper, lower) lid margin, scan indices from the inner
+    corner to the outer: the simulated mesh's eye loop split at its corner landmarks.
     jaw_pivot, jaw_axis (3,), jaw_max_angle rad, jaw_slide (3,) cm at jaw = 1.
     neck_pivot (3,), neck_base_y, neck_top_y: the head turn's pivot and its fade down the neck.
     """
@@ -152,6 +154,7 @@ class ScanDressing:
     socket_fade: FloatArray
     eye_idx: tuple[np.ndarray, np.ndarray]
     eye_centres: FloatArray
+    eye_margins: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
     jaw_pivot: FloatArray
     jaw_axis: FloatArray
     jaw_max_angle: float
@@ -473,10 +476,20 @@ def build_dressing(model: Any) -> ScanDressing | None:
         jaw_w=np.concatenate([np.ones(len(lower)), gum_w, sock_w]),
         tongue_idx=tongue_idx, tongue_w=tongue_w,
         socket_idx=socket, socket_anchor=rim[si], socket_fade=socket_fade,
-        eye_idx=(_range("eyeball_l"), _range("eyeball_r")), eye_centres=centres,
+        eye_idx=(_range("eyeball_l"), _range("eyeball_r")), eye_centres=centres, eye_margins=eye_margins(mesh),
         jaw_pivot=pivot, jaw_axis=np.asarray(model.jaw_axis, float), jaw_max_angle=float(model.params.jaw_max_angle),
         jaw_slide=jaw_slide(model), neck_pivot=np.array([0.0, pivot[1] - 0.5, pivot[2] - 3.0]),
         neck_base_y=float(neck[:, 1].min() + 3.0), neck_top_y=float(pivot[1] - 0.5))
+
+
+def eye_margins(mesh: Any) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """Per eye (left, right) the (upper, lower) lid margin of the scanned head's simulated `mesh`
+    (a FaceMesh) in scan indices, each from the inner corner to the outer."""
+    from sim.face.transfer.eyes import mesh_lids
+
+    skin = skin_layout().vertices
+    left, right = (tuple(skin[m] for m in mesh_lids(mesh, k)) for k in range(2))
+    return (left[0], left[1]), (right[0], right[1])
 
 
 def _eye_centres(rest: FloatArray) -> tuple[FloatArray, FloatArray]:
