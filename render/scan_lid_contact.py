@@ -10,14 +10,16 @@ the lashes, which hang from the margin, following the peak. A real lid rides ove
 margin pressed onto the globe's curve.
 
 Here, every frame, each lid vertex near a margin that lies deeper in its eyeball than it did at rest
-(or deeper than `CLEAR` outside it, whichever is less deep) is moved out along the eye's gaze axis
-onto the eyeball's drawn front (the eyeball's radius about its centre by the angle from its axis,
-`PROFILE_BINS` bins over the rest shell, the largest in each, so the cornea's bulge and the
-sclera's), the margin's push spreading over the lid within `BAND` of it, and the lid things
-hanging from the margin (lashes, the eye's occlusion and blend skins, the lacrimal) and the back of
-the lids moving with their margin point. A lid that does not sink (open eyes, a blink over the
-sclera) is drawn as simulated, exactly. Only the drawing changes: the simulation, its bits and the
-exported vertices (`ScanDressing.pose`) are not.
+(or deeper than `CLEAR` outside it, whichever is less deep) is moved out along the eyeball's normal
+onto its drawn front (the eyeball's radius about its centre by the angle from its gaze axis,
+`PROFILE_BINS` bins over the rest shell, the largest in each: the cornea's bulge and the sclera),
+as a lid pressed onto the globe rides over the cornea; the margin's push spreads over the lid within
+`BAND` of it, and the lid things hanging from the margin (lashes, the eye's occlusion and blend
+skins, the lacrimal) and the back of the lids move with their margin point. Moved along the gaze
+axis instead (the margins' outline in the front view kept as simulated), the lids came out over the
+whole cornea and anger read less angry (observer 0.44 against 0.55; docs/scan-face.md). A lid that
+does not sink (open eyes) is drawn as simulated, exactly. Only the drawing changes: the simulation,
+its bits and the exported vertices (`ScanDressing.pose`) are not.
 """
 
 from __future__ import annotations
@@ -105,7 +107,7 @@ class LidContact:
         backs = np.asarray(dressing.lip_idx, np.int64)
         self.things = [(things[eye == e], ends[eye == e], t[eye == e]) for e in range(2)]
         self.backs = [(backs[eye_of[anchor] == e], margin_of[anchor[eye_of[anchor] == e]]) for e in range(2)]
-        self._push = np.zeros(max(len(b) for b in bands))
+        self._push = np.zeros((max(len(b) for b in bands), 3))
 
     def _depth(self, p: np.ndarray, e: int, axis: np.ndarray) -> np.ndarray:
         """(P,) cm each point lies outside eye e's drawn front (negative: inside), its gaze `axis`."""
@@ -115,13 +117,13 @@ class LidContact:
         return r - np.interp(ang, np.arange(PROFILE_BINS + 1) * (90.0 / PROFILE_BINS), self.profile[e])
 
     def pushes(self, posed: np.ndarray) -> list[np.ndarray]:
-        """Per eye, cm along its gaze axis for each vertex of its band (the margins first): how far
-        the drawing moves it out."""
+        """Per eye, (B, 3) cm for each vertex of its band (the margins first): how far the drawing
+        moves it out along the eyeball's normal."""
         from render.seam_kernel import lid_pushes
 
         out = []
         for e in range(2):
-            s = np.zeros(len(self.bands[e]))
+            s = np.zeros((len(self.bands[e]), 3))
             lid_pushes(posed, self.bands[e], self.allowed[e], self.weights[e], self.nears[e], len(self.chains[e]),
                        self.centres[e], int(self.apex[e]), self.profile[e], 90.0 / PROFILE_BINS, s)
             out.append(s)

@@ -68,27 +68,27 @@ def seam_shade(rows: np.ndarray, upper: np.ndarray, lower: np.ndarray, rest_gap:
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _front_depth(qx: float, qy: float, qz: float, ax: float, ay: float, az: float, profile: np.ndarray,
-                 bin_deg: float) -> tuple[float, float]:
-    """(cm outside the eyeball's drawn front, the cosine of the angle from its axis) of the point q
-    from the eyeball's centre, the front's radius read off `profile` by that angle (linear)."""
+def _front(qx: float, qy: float, qz: float, ax: float, ay: float, az: float, profile: np.ndarray,
+           bin_deg: float) -> tuple[float, float]:
+    """(the point q's distance from the eyeball's centre, the eyeball's drawn front's radius in its
+    direction: `profile` read by the angle from the axis a, linearly)."""
     r = np.sqrt(qx * qx + qy * qy + qz * qz)
     cos = min(max((qx * ax + qy * ay + qz * az) / max(r, 1e-9), -1.0), 1.0)
     f = np.degrees(np.arccos(cos)) / bin_deg
     k = min(int(f), profile.shape[0] - 2)
     w = min(f - k, 1.0)
-    return r - (profile[k] + w * (profile[k + 1] - profile[k])), cos
+    return r, profile[k] + w * (profile[k + 1] - profile[k])
 
 
 @numba.njit(cache=True, nogil=True)
 def lid_pushes(pos: np.ndarray, band: np.ndarray, allowed: np.ndarray, weight: np.ndarray, near: np.ndarray,
                n_chain: int, centre: np.ndarray, apex: int, profile: np.ndarray, bin_deg: float,
                out: np.ndarray) -> None:
-    """render.scan_lid_contact for one eye: out[i] (cm, >= 0) how far along the gaze axis (from the
-    eyeball's `centre` through its vertex `apex`) the lid vertex band[i] must move to lie no deeper
-    in the eyeball's drawn front (`profile`, its radius by the angle from the axis in bins of
-    `bin_deg` degrees) than allowed[i]; past the margins (the first `n_chain` of the band) at
-    least weight[i] times its nearest margin vertex's (near[i])."""
+    """render.scan_lid_contact for one eye: out[i] (3,) cm, how far the lid vertex band[i] must move
+    out along the eyeball's normal (from its `centre`) to lie no deeper in the eyeball's drawn front
+    (`profile`, its radius by the angle from the gaze axis through the vertex `apex`, in bins of
+    `bin_deg` degrees) than allowed[i]; past the margins (the first `n_chain` of the band) at least
+    weight[i] times its nearest margin vertex's (near[i]), the longer of the two."""
     cx, cy, cz = centre[0], centre[1], centre[2]
     ax, ay, az = np.float64(pos[apex, 0]) - cx, np.float64(pos[apex, 1]) - cy, np.float64(pos[apex, 2]) - cz
     n = np.sqrt(ax * ax + ay * ay + az * az)
@@ -96,15 +96,17 @@ def lid_pushes(pos: np.ndarray, band: np.ndarray, allowed: np.ndarray, weight: n
     for i in range(band.shape[0]):
         v = band[i]
         qx, qy, qz = np.float64(pos[v, 0]) - cx, np.float64(pos[v, 1]) - cy, np.float64(pos[v, 2]) - cz
-        depth, cos = _front_depth(qx, qy, qz, ax, ay, az, profile, bin_deg)
-        s = 0.0
-        if allowed[i] - depth > 1e-4:  # sunk (past a micrometre of rounding): out along the axis
-            for _ in range(4):  # Newton on the distance from the centre; the profile taken as level
-                s += (allowed[i] - depth) / max(cos, 0.3)
-                depth, cos = _front_depth(qx + s * ax, qy + s * ay, qz + s * az, ax, ay, az, profile, bin_deg)
-        out[i] = s
+        r, front = _front(qx, qy, qz, ax, ay, az, profile, bin_deg)
+        s = front + allowed[i] - r
+        if s > 1e-4:  # sunk (past a micrometre of rounding): out along the normal, onto the front
+            out[i, 0], out[i, 1], out[i, 2] = s * qx / r, s * qy / r, s * qz / r
+        else:
+            out[i, 0], out[i, 1], out[i, 2] = 0.0, 0.0, 0.0
     for i in range(n_chain, band.shape[0]):
-        out[i] = max(out[i], weight[i] * out[near[i]])
+        j = near[i]
+        w = weight[i]
+        if w * w * (out[j, 0] ** 2 + out[j, 1] ** 2 + out[j, 2] ** 2) > out[i, 0] ** 2 + out[i, 1] ** 2 + out[i, 2] ** 2:
+            out[i, 0], out[i, 1], out[i, 2] = w * out[j, 0], w * out[j, 1], w * out[j, 2]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -113,39 +115,26 @@ def lid_press(pos: np.ndarray, band: np.ndarray, allowed: np.ndarray, weight: np
               things: np.ndarray, ends: np.ndarray, t: np.ndarray, backs: np.ndarray, back_at: np.ndarray,
               push: np.ndarray) -> None:
     """render.scan_lid_contact.LidContact.press for one eye, in place on `pos` (N, 3): the band's
-    pushes (`lid_pushes`, into push[:len(band)]) along the gaze axis, the lid things by their margin
-    segment's ends (ends (T, 2) places in the chain, t (T,) along it) and the lids' backs by their
-    margin vertex (back_at)."""
+    pushes (`lid_pushes`, into push[:len(band)]), the lid things by their margin segment's ends'
+    (ends (T, 2) places in the chain, t (T,) along it) and the lids' backs by their margin
+    vertex's (back_at)."""
     lid_pushes(pos, band, allowed, weight, near, n_chain, centre, apex, profile, bin_deg, push)
     moved = False
     for i in range(band.shape[0]):
-        if push[i] > 0.0:
+        if push[i, 0] != 0.0 or push[i, 1] != 0.0 or push[i, 2] != 0.0:
             moved = True
             break
     if not moved:
         return
-    cx, cy, cz = centre[0], centre[1], centre[2]
-    ax, ay, az = np.float64(pos[apex, 0]) - cx, np.float64(pos[apex, 1]) - cy, np.float64(pos[apex, 2]) - cz
-    n = np.sqrt(ax * ax + ay * ay + az * az)
-    ax, ay, az = ax / n, ay / n, az / n
     for i in range(band.shape[0]):
-        s = push[i]
-        if s > 0.0:
-            v = band[i]
-            pos[v, 0] += s * ax
-            pos[v, 1] += s * ay
-            pos[v, 2] += s * az
+        v = band[i]
+        for c in range(3):
+            pos[v, c] += push[i, c]
     for k in range(things.shape[0]):
-        s = (1.0 - t[k]) * push[ends[k, 0]] + t[k] * push[ends[k, 1]]
-        if s > 0.0:
-            v = things[k]
-            pos[v, 0] += s * ax
-            pos[v, 1] += s * ay
-            pos[v, 2] += s * az
+        v = things[k]
+        for c in range(3):
+            pos[v, c] += (1.0 - t[k]) * push[ends[k, 0], c] + t[k] * push[ends[k, 1], c]
     for k in range(backs.shape[0]):
-        s = push[back_at[k]]
-        if s > 0.0:
-            v = backs[k]
-            pos[v, 0] += s * ax
-            pos[v, 1] += s * ay
-            pos[v, 2] += s * az
+        v = backs[k]
+        for c in range(3):
+            pos[v, c] += push[back_at[k], c]
