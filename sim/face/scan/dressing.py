@@ -177,6 +177,14 @@ class ScanDressing:
         return np.ascontiguousarray(self.rest, np.float64)
 
     @cached_property
+    def _lid_rest_normals(self) -> FloatArray:
+        """(D,2,3) the closing and the opening frame's normal of each lid thing at rest (the opening
+        frame keeps its own: `_lid_frames`)."""
+        closing, opening, _ = _lid_frames(self.rest[self.skin].astype(np.float64), self.lid_margin, self.lid_t,
+                                          self.eye_centres[self.lid_eye])
+        return np.ascontiguousarray(np.stack([closing[:, 2], opening[:, 2]], axis=1))
+
+    @cached_property
     def _kernel_args(self) -> tuple:  # type: ignore[type-arg]
         c = np.ascontiguousarray
         return (c(self.skin, np.int64), c(self.lip_idx, np.int64),
@@ -184,7 +192,7 @@ class ScanDressing:
                 c(self.bound_tri, np.int64), c(self.bound_bary, np.float64), c(self.bound_local, np.float64),
                 c(self.lid_idx, np.int64), c(self.lid_margin, np.int64), c(self.lid_t, np.float64),
                 c(self.lid_eye, np.int64), c(self.lid_local, np.float64), c(self.lid_open, np.float64),
-                c(self.eye_centres, np.float64),
+                c(self.eye_centres, np.float64), c(self._lid_rest_normals, np.float64),
                 c(self.follow_idx, np.int64), c(self.follow_src, np.int64), c(self.follow_w, np.float64),
                 c(self.jaw_idx, np.int64), c(self.jaw_w, np.float64), c(self.socket_idx, np.int64),
                 c(self.socket_anchor, np.int64), c(self.socket_fade, np.float64))
@@ -226,7 +234,8 @@ class ScanDressing:
         foot = np.einsum("pk,pkj->pj", self.bound_bary, tri)
         out[self.bound_idx] = foot + np.einsum("pk,pkj->pj", self.bound_local, _frames(tri))
         # hanging from the eyes' margins
-        closing, opening, foot = _lid_frames(x, self.lid_margin, self.lid_t, self.eye_centres[self.lid_eye])
+        closing, opening, foot = _lid_frames(x, self.lid_margin, self.lid_t, self.eye_centres[self.lid_eye],
+                                             self._lid_rest_normals)
         a = foot + np.einsum("pk,pkj->pj", self.lid_local[:, 0], closing)
         b = foot + np.einsum("pk,pkj->pj", self.lid_local[:, 1], opening)
         m, t = self.lid_margin, self.lid_t[:, None]
@@ -297,18 +306,26 @@ def _along(tan: FloatArray, n: FloatArray) -> FloatArray:
     return np.stack([tan, np.cross(n, tan), n], axis=1)
 
 
-def _lid_frames(x: FloatArray, margin: np.ndarray, t: FloatArray,
-                centre: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+def _lid_frames(x: FloatArray, margin: np.ndarray, t: FloatArray, centre: FloatArray,
+                rest_normals: FloatArray | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
     """(closing (P,3,3), opening (P,3,3), foot (P,3)) for lid things hanging from the margin
     segments margin[:, :2] of `x` at `t` (P,): the foot on the segment; both frames run along the
     segment, the closing one about the normal from the eyeball's `centre` (P,3) through the foot
-    (a closing lid slides over the eye), the opening one about the normal of the lid's surface
-    from the foot to the same place between margin[:, 2:] up the lid (an opening lid folds back
-    under the brow)."""
+    (a closing lid slides over the eye), the opening one about the normal of the lid's surface at
+    rest (`rest_normals[:, 1]`, (P,2,3); without them, at `x`: from the foot to the same place
+    between margin[:, 2:] up the lid), turning with the segment only. An opening lid's lashes stand
+    out from its margin as at rest: in the scan's own widened eye the lid's surface above the
+    margin turns 1 degree (median) while the margin's path about the eyeball turns 10; the
+    simulated lid folds back higher (surprise 28, fear 19 degrees), and lashes turned with its
+    surface lay over the lid's skin."""
     a, b = x[margin[:, 0]], x[margin[:, 1]]
     foot = a + t[:, None] * (b - a)
-    up = x[margin[:, 2]] + t[:, None] * (x[margin[:, 3]] - x[margin[:, 2]])
-    return _along(b - a, foot - centre), _along(b - a, np.cross(b - a, up - foot)), foot
+    if rest_normals is None:
+        up = x[margin[:, 2]] + t[:, None] * (x[margin[:, 3]] - x[margin[:, 2]])
+        opening = np.cross(b - a, up - foot)
+    else:
+        opening = rest_normals[:, 1]
+    return _along(b - a, foot - centre), _along(b - a, opening), foot
 
 
 def _nearest_on_loop(loop_pts: FloatArray, points: FloatArray,
