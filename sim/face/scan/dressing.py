@@ -7,9 +7,10 @@ gives all 26719 vertices in the scan's order.
   lid) and turns with the jaw as that vertex's jaw weight says.
 - Lid things (eyelashes, eye occlusion, lacrimal fluid, eye blend) hang from their nearest point
   of the eye's margin (a lash's every row from its root's point, on its own lid) in a frame
-  along the margin: as a lid closes its lashes turn with the margin about the eyeball's centre,
-  as it opens with the lid's surface `LID_UP` rows up (the scan's own blink and widened eye move
-  them so); the face area's unsimulated skin within `BIND` of the simulated skin keeps its offset
+  along the margin: as a lid closes its lashes turn with the margin about the eyeball's centre
+  (the scan's own blink moves them so), as it opens they keep the frame of the lid's surface
+  `LID_UP` rows up at rest, turning with the margin only (the scan's widened eye's lid surface
+  turns 1 degree; the simulated one folds back further); the face area's unsimulated skin within `BIND` of the simulated skin keeps its offset
   in the frame of its nearest skin triangle.
 - The rest of the face area, head and neck and the eye sockets follow the skin's nearest vertices
   as the procedural face's head does (`sim.face.head`): their displacement, fading over
@@ -49,7 +50,7 @@ FOLLOW = 4.0  # cm over which the skin's displacement fades into the held head
 JAW_FOLLOW = 8.5  # cm: the same under the chin and jaw, down the throat
 NEAREST = 4  # skin vertices a following vertex takes its displacement from
 LIP_FADE = 1.2  # cm: how far into the mouth socket the lips' motion reaches
-LID_UP = 3  # rows up the lid from its margin: with the margin's tangent, the opening lid's frame
+LID_UP = 3  # rows up the lid from its margin: with the margin's tangent, the opening lid's frame (at rest)
 LID_OPEN = 0.3  # cm the margin moves away from the opening's middle as its things go over to that frame
 LID_THINGS = ("eyelashes", "eye_occlusion", "lacrimal", "eye_blend")
 TONGUE_REACH = np.array([0.0, 0.95, 2.6])  # cm the tongue's tip moves at tongue_out = 1 (head frame),
