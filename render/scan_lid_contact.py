@@ -84,9 +84,7 @@ class LidContact:
             self.profile[e] = eyeball_profile(shell, c, axis)
             chain = np.unique(np.concatenate([upper, lower]))
             margin_of[chain], eye_of[chain] = np.arange(len(chain)), e
-            dist, near = cKDTree(rest[chain]).query(rest[skin])
-            keep = dist < BAND
-            band = skin[keep]
+            band = skin[cKDTree(rest[chain]).query(rest[skin])[0] < BAND]
             # the band lists the chain first (at distance 0, its own weight 1)
             band = np.concatenate([chain, band[~np.isin(band, chain)]])
             dist, near = cKDTree(rest[chain]).query(rest[band])
@@ -115,19 +113,6 @@ class LidContact:
         r = np.linalg.norm(q, axis=1)
         ang = np.degrees(np.arccos(np.clip(q @ axis / np.maximum(r, 1e-9), -1.0, 1.0)))
         return r - np.interp(ang, np.arange(PROFILE_BINS + 1) * (90.0 / PROFILE_BINS), self.profile[e])
-
-    def pushes(self, posed: np.ndarray) -> list[np.ndarray]:
-        """Per eye, (B, 3) cm for each vertex of its band (the margins first): how far the drawing
-        moves it out along the eyeball's normal."""
-        from render.seam_kernel import lid_pushes
-
-        out = []
-        for e in range(2):
-            s = np.zeros((len(self.bands[e]), 3))
-            lid_pushes(posed, self.bands[e], self.allowed[e], self.weights[e], self.nears[e], len(self.chains[e]),
-                       self.centres[e], int(self.apex[e]), self.profile[e], 90.0 / PROFILE_BINS, s)
-            out.append(s)
-        return out
 
     def press(self, posed: np.ndarray) -> np.ndarray:
         """`posed` (the scan posed, before a head turn) with the lids that sank into their eyeballs
