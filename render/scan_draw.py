@@ -13,6 +13,7 @@ import numpy as np
 
 from render import scan_shaders
 from render.pipeline import flush, threaded_rasterizer
+from render.scan_lid_contact import LidContact
 from render.scan_look import IRIS_ANGLE, PUPIL_ANGLE, ScanLook
 from render.scan_rows import ScanRows
 from render.scan_seam import LidSeam
@@ -68,13 +69,18 @@ def sealed_vertices(dressing: Any) -> np.ndarray | None:
     return out
 
 
-def posed_scan(dressing: Any, softener: FoldSoftener | None, state: Any) -> np.ndarray:
+def posed_scan(dressing: Any, softener: FoldSoftener | None, state: Any, contact: LidContact | None = None) -> np.ndarray:
     """The scan as drawn for `state`: posed by the dressing, the upper face's buckles softened
-    (render.scan_soften; in the head's own frame, before a head turn), turned with the head."""
+    (render.scan_soften) and the lids that sank into their eyeballs laid back onto them
+    (render.scan_lid_contact; both in the head's own frame, before a head turn), turned with the head."""
     control = PoseControl(state)
-    if softener is None:
+    if softener is None and contact is None:
         return dressing.pose_turned(np.asarray(state.surface), control, state)
-    posed = softener.soften(dressing.pose(np.asarray(state.surface), control))
+    posed = dressing.pose(np.asarray(state.surface), control)
+    if softener is not None:
+        posed = softener.soften(posed)
+    if contact is not None:
+        posed = contact.press(posed)
     turn = getattr(dressing, "turn_head", None)
     if turn is None:
         return posed
@@ -89,13 +95,14 @@ class ScanPoser:
 
     def __init__(self, dressing: Any) -> None:
         self.dressing = dressing
-        self.look = ScanLook(np.asarray(dressing.rest, np.float64))
+        self.look = ScanLook(np.asarray(dressing.rest, np.float64), dressing.eye_margins)
         self.maker = ScanRows(self.look)
         self.softener = FoldSoftener(self.look)
         self.seam = LidSeam(self.look)
+        self.contact = LidContact(self.look, dressing)
 
     def rows(self, state: Any) -> np.ndarray:
-        rows = self.maker.rows(posed_scan(self.dressing, self.softener, state))
+        rows = self.maker.rows(posed_scan(self.dressing, self.softener, state, self.contact))
         return self.seam.shade(self.softener.shade(rows))
 
 
@@ -110,7 +117,10 @@ class ScanDraw:
         if rest_scan is None:  # the scan posed by the face at rest
             rest_state = model.rest_state()
             rest_scan = dressing.pose(np.asarray(rest_state.surface), PoseControl(rest_state))
-        self.look = ScanLook(np.asarray(rest_scan, np.float64))
+        from sim.face.scan.dressing import eye_margins
+
+        # the lids' margins from the simulated mesh (the scan's own shapes drawn in its place too)
+        self.look = ScanLook(np.asarray(rest_scan, np.float64), eye_margins(model.mesh))
         self.coarse_tri = self.look.coarse_plain()
         # the mouth's lining, gums and tongue drawn from a coarser list with the coarse skin (render.scan_lod)
         self.inside_full, self.coarse_inside = self.look.coarse_inside()
@@ -122,6 +132,9 @@ class ScanDraw:
                               sealed_vertices(dressing), len(self.coarse_inside))
         self.softener: FoldSoftener | None = FoldSoftener(self.look)  # None: the buckles drawn as simulated
         self.seam: LidSeam | None = LidSeam(self.look)  # None: no shadow in the closing lids' seam
+        # None: the lids drawn as simulated, sunk into the eyeballs where they close over the cornea (a
+        # dressing of the scan's own shapes has no lid things, and its lids do not sink)
+        self.contact: LidContact | None = LidContact(self.look, dressing) if hasattr(dressing, "lid_idx") else None
         from render.scan_lod import coarse_plain
 
         self.lod_error = coarse_plain()[1]  # cm: the coarse skin's largest distance from the full one
@@ -245,7 +258,7 @@ class ScanDraw:
         row-major) and the picture's `size` too, without the triangles that cover no pixel or that
         the skin hides (the eyes' and the mouth's, seen only through their openings), unless
         `cull_unseen` is False (the same pixels)."""
-        posed = posed_scan(self.dressing, self.softener, state)
+        posed = posed_scan(self.dressing, self.softener, state, self.contact)
         if eye is None or not self.cull_on_cpu:
             self._facing_rows = None
             self._made_rows = self._shaded(self.maker.rows(posed))

@@ -14,6 +14,7 @@ darken). The mouth's inside is darker the deeper it lies behind the front teeth.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from functools import lru_cache
 
 import numpy as np
@@ -318,14 +319,17 @@ class ScanLook:
     the eyeballs' outer shells; sockets; lashes), per-vertex albedo (N, 3), material (N, 4: brow
     and vermilion signed distances in cm, baked occlusion 0..1, specular strength), the face
     chart's coordinates (N, 2, for the brows' hair), the eyeballs' angle from their gaze axis (N,),
-    and the lip pairs that tell when the mouth is open."""
+    and the lip pairs that tell when the mouth is open. `lids`, carried from the simulated mesh
+    (`ScanDressing.eye_margins`; None when drawn without one): per eye its (upper, lower) lid
+    margin, scan indices from the inner corner to the outer (render.scan_seam reads them)."""
 
-    def __init__(self, rest: np.ndarray) -> None:
+    def __init__(self, rest: np.ndarray, lids: Sequence[tuple[np.ndarray, np.ndarray]] | None = None) -> None:
         lay = _static_layout()
         rest = np.asarray(rest, np.float64)
         if rest.shape != (N_VERTICES, 3):
             raise ValueError(f"a scanned head has {N_VERTICES} vertices, got {rest.shape}")
         self.rest = rest
+        self.lids = None if lids is None else [(np.asarray(u, np.int64), np.asarray(lo, np.int64)) for u, lo in lids]
         self.groups = {k: spatial_order(lay[k], rest).astype(np.int32)
                        for k in ("skin", "mouth", "eyes", "sockets", "lashes")}
         tri = np.concatenate(list(self.groups.values()))

@@ -48,34 +48,23 @@ def _to_polyline(p: np.ndarray, line: np.ndarray) -> np.ndarray:
 
 
 class LidSeam:
-    """For one rest pose of the scan (a ScanLook): `shade(rows)` adds the closing seams' shadow to
-    the rows' fold term (in place; the rows are returned) and sets the eyeballs' (how shut each
-    eye is, 0..1)."""
+    """For one rest pose of the scan (a ScanLook carrying the simulated mesh's lid margins: its eye
+    loops split at the corner landmarks, `ScanDressing.eye_margins`): `shade(rows)` adds the closing
+    seams' shadow to the rows' fold term (in place; the rows are returned) and sets the eyeballs'
+    (how shut each eye is, 0..1)."""
 
     def __init__(self, look: object) -> None:
-        from render.scan_look import eye_centres
-        from sim.face.scan.anatomy import skin_layout
-        from sim.springs import boundary_loops
-
-        rest = np.asarray(look.rest, np.float64)  # type: ignore[attr-defined]
-        layout = skin_layout()
-        eyes = eye_centres(rest)
-        skin = np.unique(np.asarray(look.groups["skin"]))  # type: ignore[attr-defined]
-        # the eyes' openings of the simulated skin: the margins the lashes hang from
-        loops = [layout.vertices[np.asarray(lp)] for lp in boundary_loops(layout.triangles)]
-        margins = [lp for lp in loops if np.min(np.linalg.norm(rest[lp].mean(axis=0) - eyes, axis=1)) < 1.5]
-        if len(margins) != 2:
-            raise ValueError(f"the scan's simulated skin has {len(margins)} openings at the eyes, expected 2")
-        self.lids: list[tuple[np.ndarray, np.ndarray]] = []  # per eye (upper, lower) margin, corner to corner
-        self.band, self.weight, self.at, self.rest_gap, self.middle, self.balls = [], [], [], [], [], []
         from sim.face.scan.data import PARTS
 
-        balls = [PARTS[f"eyeball_{s}"] for s in "lr"]
-        for lp in margins:
-            x = rest[lp, 0]
-            i, o = sorted((int(np.argmin(x)), int(np.argmax(x))))
-            one, two = lp[i:o + 1], np.concatenate([lp[o:], lp[:i + 1]])
-            upper, lower = (one, two) if rest[one, 1].mean() > rest[two, 1].mean() else (two, one)
+        rest = np.asarray(look.rest, np.float64)  # type: ignore[attr-defined]
+        margins = look.lids  # type: ignore[attr-defined]  # per eye (upper, lower), from the simulated mesh
+        if margins is None or len(margins) != 2:
+            raise ValueError("the scan's look carries no lid margins of the simulated mesh (ScanLook(rest, lids))")
+        skin = np.unique(np.asarray(look.groups["skin"]))  # type: ignore[attr-defined]
+        self.lids: list[tuple[np.ndarray, np.ndarray]] = []  # per eye (upper, lower) margin, corner to corner
+        self.band, self.weight, self.at, self.rest_gap, self.middle, self.balls = [], [], [], [], [], []
+        for (upper, lower), side in zip(margins, "lr"):  # the left eye's then the right's
+            upper, lower = np.asarray(upper, np.int64), np.asarray(lower, np.int64)
             self.lids.append((upper, lower))
             chain = np.concatenate([upper, lower])
             gap = np.concatenate([_to_polyline(rest[upper], rest[lower]), _to_polyline(rest[lower], rest[upper])])
@@ -88,8 +77,7 @@ class LidSeam:
             xs = rest[chain, 0]
             span = xs.max() - xs.min()
             self.middle.append(np.flatnonzero((xs > xs.min() + 0.25 * span) & (xs < xs.max() - 0.25 * span)))
-            own = int(np.argmin([np.linalg.norm(rest[lo:hi].mean(axis=0) - rest[lp].mean(axis=0)) for lo, hi in balls]))
-            self.balls.append(balls[own])
+            self.balls.append(PARTS[f"eyeball_{side}"])
         self._gap, self._closed, self._shut = np.array([*GAP, REST_FLOOR]), np.array(CLOSED), np.array(SHUT)
         self._scratch = np.zeros(max(len(u) + len(lo) for u, lo in self.lids))
 

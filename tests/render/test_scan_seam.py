@@ -16,7 +16,33 @@ from sim.face.scan.data import scan_data
 
 @pytest.fixture(scope="module")
 def seam() -> LidSeam:
-    return LidSeam(ScanLook(scan_data().neutral))
+    from puppet.face_cache import scan_model
+    from sim.face.scan.dressing import eye_margins
+
+    return LidSeam(ScanLook(scan_data().neutral, eye_margins(scan_model(None).mesh)))
+
+
+def test_the_seam_lies_along_the_simulated_meshs_eye_openings(seam: LidSeam) -> None:
+    """Each eye's two margins are its eye loop of the simulated mesh split at the corner landmarks:
+    together the whole loop, meeting at the corners, the upper above the lower, each running from
+    the inner corner (nearer the nose) to the outer; and a look without them is refused."""
+    from puppet.face_cache import scan_model
+    from sim.face.scan.anatomy import skin_layout
+    from sim.face.scan.data import PARTS
+
+    mesh = scan_model(None).mesh
+    skin, rest = skin_layout().vertices, scan_data().neutral
+    for k, (side, (upper, lower)) in enumerate(zip("lr", seam.lids)):
+        assert set(upper) | set(lower) == set(skin[mesh.eye_loops[k]])
+        assert len(upper) + len(lower) == len(mesh.eye_loops[k]) + 2  # the corners in both
+        for lid in (upper, lower):
+            assert (lid[0], lid[-1]) == tuple(skin[mesh.landmarks[f"eye_{c}_{side}"]] for c in ("inner", "outer"))
+        assert rest[upper[1:-1], 1].min() > rest[lower[1:-1], 1].max() - 0.3
+        assert rest[upper[1:-1], 1].mean() > rest[lower[1:-1], 1].mean()
+        assert abs(rest[upper[0], 0]) < abs(rest[upper[-1], 0])
+        assert seam.balls[k] == PARTS[f"eyeball_{side}"]
+    with pytest.raises(ValueError, match="lid margins"):
+        LidSeam(ScanLook(scan_data().neutral))
 
 
 def _middle(seam: LidSeam, eye: int) -> np.ndarray:

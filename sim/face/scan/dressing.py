@@ -7,9 +7,10 @@ gives all 26719 vertices in the scan's order.
   lid) and turns with the jaw as that vertex's jaw weight says.
 - Lid things (eyelashes, eye occlusion, lacrimal fluid, eye blend) hang from their nearest point
   of the eye's margin (a lash's every row from its root's point, on its own lid) in a frame
-  along the margin: as a lid closes its lashes turn with the margin about the eyeball's centre,
-  as it opens with the lid's surface `LID_UP` rows up (the scan's own blink and widened eye move
-  them so); the face area's unsimulated skin within `BIND` of the simulated skin keeps its offset
+  along the margin: as a lid closes its lashes turn with the margin about the eyeball's centre
+  (the scan's own blink moves them so), as it opens they keep the frame of the lid's surface
+  `LID_UP` rows up at rest, turning with the margin only (the scan's widened eye's lid surface
+  turns 1 degree; the simulated one folds back further); the face area's unsimulated skin within `BIND` of the simulated skin keeps its offset
   in the frame of its nearest skin triangle.
 - The rest of the face area, head and neck and the eye sockets follow the skin's nearest vertices
   as the procedural face's head does (`sim.face.head`): their displacement, fading over
@@ -49,7 +50,7 @@ FOLLOW = 4.0  # cm over which the skin's displacement fades into the held head
 JAW_FOLLOW = 8.5  # cm: the same under the chin and jaw, down the throat
 NEAREST = 4  # skin vertices a following vertex takes its displacement from
 LIP_FADE = 1.2  # cm: how far into the mouth socket the lips' motion reaches
-LID_UP = 3  # rows up the lid from its margin: with the margin's tangent, the opening lid's frame
+LID_UP = 3  # rows up the lid from its margin: with the margin's tangent, the opening lid's frame (at rest)
 LID_OPEN = 0.3  # cm the margin moves away from the opening's middle as its things go over to that frame
 LID_THINGS = ("eyelashes", "eye_occlusion", "lacrimal", "eye_blend")
 TONGUE_REACH = np.array([0.0, 0.95, 2.6])  # cm the tongue's tip moves at tongue_out = 1 (head frame),
@@ -121,6 +122,8 @@ class ScanDressing:
     tongue_idx (T,), tongue_w (T,): the tongue's vertices and their share of `tongue_out`'s motion.
     socket_idx (S,), socket_anchor (S,) scan index of the nearest lip-inside rim vertex, socket_fade (S,).
     eye_idx: two (E,) index arrays; eye_centres (2,3).
+    eye_margins: per eye (left, right) its (upper, lower) lid margin, scan indices from the inner
+    corner to the outer: the simulated mesh's eye loop split at its corner landmarks.
     jaw_pivot, jaw_axis (3,), jaw_max_angle rad, jaw_slide (3,) cm at jaw = 1.
     neck_pivot (3,), neck_base_y, neck_top_y: the head turn's pivot and its fade down the neck.
     """
@@ -152,6 +155,7 @@ class ScanDressing:
     socket_fade: FloatArray
     eye_idx: tuple[np.ndarray, np.ndarray]
     eye_centres: FloatArray
+    eye_margins: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
     jaw_pivot: FloatArray
     jaw_axis: FloatArray
     jaw_max_angle: float
@@ -174,6 +178,14 @@ class ScanDressing:
         return np.ascontiguousarray(self.rest, np.float64)
 
     @cached_property
+    def _lid_rest_normals(self) -> FloatArray:
+        """(D,2,3) the closing and the opening frame's normal of each lid thing at rest (the opening
+        frame keeps its own: `_lid_frames`)."""
+        closing, opening, _ = _lid_frames(self.rest[self.skin].astype(np.float64), self.lid_margin, self.lid_t,
+                                          self.eye_centres[self.lid_eye])
+        return np.ascontiguousarray(np.stack([closing[:, 2], opening[:, 2]], axis=1))
+
+    @cached_property
     def _kernel_args(self) -> tuple:  # type: ignore[type-arg]
         c = np.ascontiguousarray
         return (c(self.skin, np.int64), c(self.lip_idx, np.int64),
@@ -181,7 +193,7 @@ class ScanDressing:
                 c(self.bound_tri, np.int64), c(self.bound_bary, np.float64), c(self.bound_local, np.float64),
                 c(self.lid_idx, np.int64), c(self.lid_margin, np.int64), c(self.lid_t, np.float64),
                 c(self.lid_eye, np.int64), c(self.lid_local, np.float64), c(self.lid_open, np.float64),
-                c(self.eye_centres, np.float64),
+                c(self.eye_centres, np.float64), c(self._lid_rest_normals, np.float64),
                 c(self.follow_idx, np.int64), c(self.follow_src, np.int64), c(self.follow_w, np.float64),
                 c(self.jaw_idx, np.int64), c(self.jaw_w, np.float64), c(self.socket_idx, np.int64),
                 c(self.socket_anchor, np.int64), c(self.socket_fade, np.float64))
@@ -223,7 +235,8 @@ class ScanDressing:
         foot = np.einsum("pk,pkj->pj", self.bound_bary, tri)
         out[self.bound_idx] = foot + np.einsum("pk,pkj->pj", self.bound_local, _frames(tri))
         # hanging from the eyes' margins
-        closing, opening, foot = _lid_frames(x, self.lid_margin, self.lid_t, self.eye_centres[self.lid_eye])
+        closing, opening, foot = _lid_frames(x, self.lid_margin, self.lid_t, self.eye_centres[self.lid_eye],
+                                             self._lid_rest_normals)
         a = foot + np.einsum("pk,pkj->pj", self.lid_local[:, 0], closing)
         b = foot + np.einsum("pk,pkj->pj", self.lid_local[:, 1], opening)
         m, t = self.lid_margin, self.lid_t[:, None]
@@ -294,18 +307,26 @@ def _along(tan: FloatArray, n: FloatArray) -> FloatArray:
     return np.stack([tan, np.cross(n, tan), n], axis=1)
 
 
-def _lid_frames(x: FloatArray, margin: np.ndarray, t: FloatArray,
-                centre: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+def _lid_frames(x: FloatArray, margin: np.ndarray, t: FloatArray, centre: FloatArray,
+                rest_normals: FloatArray | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
     """(closing (P,3,3), opening (P,3,3), foot (P,3)) for lid things hanging from the margin
     segments margin[:, :2] of `x` at `t` (P,): the foot on the segment; both frames run along the
     segment, the closing one about the normal from the eyeball's `centre` (P,3) through the foot
-    (a closing lid slides over the eye), the opening one about the normal of the lid's surface
-    from the foot to the same place between margin[:, 2:] up the lid (an opening lid folds back
-    under the brow)."""
+    (a closing lid slides over the eye), the opening one about the normal of the lid's surface at
+    rest (`rest_normals[:, 1]`, (P,2,3); without them, at `x`: from the foot to the same place
+    between margin[:, 2:] up the lid), turning with the segment only. An opening lid's lashes stand
+    out from its margin as at rest: in the scan's own widened eye the lid's surface above the
+    margin turns 1 degree (median) while the margin's path about the eyeball turns 10; the
+    simulated lid folds back higher (surprise 28, fear 19 degrees), and lashes turned with its
+    surface lay over the lid's skin."""
     a, b = x[margin[:, 0]], x[margin[:, 1]]
     foot = a + t[:, None] * (b - a)
-    up = x[margin[:, 2]] + t[:, None] * (x[margin[:, 3]] - x[margin[:, 2]])
-    return _along(b - a, foot - centre), _along(b - a, np.cross(b - a, up - foot)), foot
+    if rest_normals is None:
+        up = x[margin[:, 2]] + t[:, None] * (x[margin[:, 3]] - x[margin[:, 2]])
+        opening = np.cross(b - a, up - foot)
+    else:
+        opening = rest_normals[:, 1]
+    return _along(b - a, foot - centre), _along(b - a, opening), foot
 
 
 def _nearest_on_loop(loop_pts: FloatArray, points: FloatArray,
@@ -473,10 +494,20 @@ def build_dressing(model: Any) -> ScanDressing | None:
         jaw_w=np.concatenate([np.ones(len(lower)), gum_w, sock_w]),
         tongue_idx=tongue_idx, tongue_w=tongue_w,
         socket_idx=socket, socket_anchor=rim[si], socket_fade=socket_fade,
-        eye_idx=(_range("eyeball_l"), _range("eyeball_r")), eye_centres=centres,
+        eye_idx=(_range("eyeball_l"), _range("eyeball_r")), eye_centres=centres, eye_margins=eye_margins(mesh),
         jaw_pivot=pivot, jaw_axis=np.asarray(model.jaw_axis, float), jaw_max_angle=float(model.params.jaw_max_angle),
         jaw_slide=jaw_slide(model), neck_pivot=np.array([0.0, pivot[1] - 0.5, pivot[2] - 3.0]),
         neck_base_y=float(neck[:, 1].min() + 3.0), neck_top_y=float(pivot[1] - 0.5))
+
+
+def eye_margins(mesh: Any) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """Per eye (left, right) the (upper, lower) lid margin of the scanned head's simulated `mesh`
+    (a FaceMesh) in scan indices, each from the inner corner to the outer."""
+    from sim.face.transfer.eyes import mesh_lids
+
+    skin = skin_layout().vertices
+    left, right = (tuple(skin[m] for m in mesh_lids(mesh, k)) for k in range(2))
+    return (left[0], left[1]), (right[0], right[1])
 
 
 def _eye_centres(rest: FloatArray) -> tuple[FloatArray, FloatArray]:

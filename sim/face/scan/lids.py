@@ -49,6 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.face.transfer.eyes import mesh_lids
 from sim.model import FaceMesh, FaceRig, PatchMuscle, SheetMuscle
 
 CHANNEL = "orbicularis_oculi_lid_{side}"
@@ -89,25 +90,12 @@ def _step(x: np.ndarray, a: float, b: float) -> np.ndarray:
     return t * t * (3.0 - 2.0 * t)
 
 
-def _arcs(mesh: FaceMesh, side: str) -> tuple[np.ndarray, np.ndarray]:
-    """The upper and the lower lid's margin: the eye loop's vertices split at the corners'
-    landmarks, corner to corner."""
-    loop = [int(i) for i in mesh.eye_loops[0 if side == "l" else 1]]
-    v = np.asarray(mesh.vertices, np.float64)
-    i, o = loop.index(mesh.landmarks[f"eye_inner_{side}"]), loop.index(mesh.landmarks[f"eye_outer_{side}"])
-    n = len(loop)
-    a = [loop[(i + k) % n] for k in range((o - i) % n + 1)]
-    b = [loop[(o + k) % n] for k in range((i - o) % n + 1)]
-    upper, lower = (a, b) if v[a, 1].mean() > v[b, 1].mean() else (b, a)
-    return np.asarray(upper), np.asarray(lower)
-
-
 def margin_distances(mesh: FaceMesh, side: str) -> tuple[np.ndarray, np.ndarray]:
     """(N,) distance (cm) of every vertex to the nearest vertex of the upper lid's margin and to
     the lower lid's."""
     v = np.asarray(mesh.vertices, np.float64)
     out = []
-    for arc in _arcs(mesh, side):
+    for arc in mesh_lids(mesh, "lr".index(side)):
         p = v[np.asarray(arc)]
         out.append(np.sqrt(np.min(np.sum((v[:, None, :] - p[None]) ** 2, axis=2), axis=1)))
     return out[0], out[1]
@@ -170,7 +158,7 @@ def with_lids(rig: FaceRig) -> FaceRig:
         centre = 0.5 * (inner + outer) - np.array([0.0, MEDIAL_DROP, 0.0])
         medial = PatchMuscle(MEDIAL.format(side=side), np.round(centre, 7), np.array(MEDIAL_AXES),
                              np.round(towards / np.linalg.norm(towards), 7), MEDIAL_PULL)
-        lower = v[_arcs(mesh, side)[1]]
+        lower = v[mesh_lids(mesh, "lr".index(side))[1]]
         strips = [m for m in muscles[ch] if m.name.startswith(UPPER_STRIP)]
         drops = np.array([_drop(m, lower) for m in strips])
         h = drops / drops.max()

@@ -18,7 +18,7 @@ prepare_blas_check()  # before this module's first kernel runs: see sim.numba_st
 
 @numba.njit(cache=True, nogil=True)
 def pose_scan(rest, x, skin, lip_idx, lip_anchor, lip_rot, bound_idx, bound_tri, bound_bary, bound_local,  # type: ignore[no-untyped-def]
-              lid_idx, lid_margin, lid_t, lid_eye, lid_local, lid_open, lid_centres,
+              lid_idx, lid_margin, lid_t, lid_eye, lid_local, lid_open, lid_centres, lid_rest_n,
               follow_idx, follow_src, follow_w, jaw_idx, jaw_w, socket_idx, socket_anchor, socket_fade,
               rot, shift, tongue_idx, tongue_w, tongue, reach, narrow, eye_l, eye_r, centres, eye_rot, turn_eyes,
               d, buf, out):
@@ -26,7 +26,8 @@ def pose_scan(rest, x, skin, lip_idx, lip_anchor, lip_rot, bound_idx, bound_tri,
     p -> rot p + shift, the tongue out by `tongue` (0..1: its vertices move by their share of
     `reach` and narrow by `narrow` of their sideways offset) and, if turn_eyes, the eyeballs turned by eye_rot (2,3,3: left, right) about their centres.
     The lid things hang from the eyes' margins (`ScanDressing` lid_*; lid_centres (2,3) the
-    eyeballs' centres). d (N,3) and buf (26719,3) are float64 scratch."""
+    eyeballs' centres; lid_rest_n (D,2,3) their closing and opening frames' normals at rest, the
+    opening frame's kept: `dressing._lid_frames`). d (N,3) and buf (26719,3) are float64 scratch."""
     n = rest.shape[0]
     for i in range(n):
         for c in range(3):
@@ -64,14 +65,11 @@ def pose_scan(rest, x, skin, lip_idx, lip_anchor, lip_rot, bound_idx, bound_tri,
         buf[i, 1] = w0 * x[i0, 1] + w1 * x[i1, 1] + w2 * x[i2, 1] + u0 * ty + u1 * by + u2 * ny
         buf[i, 2] = w0 * x[i0, 2] + w1 * x[i1, 2] + w2 * x[i2, 2] + u0 * tz + u1 * bz + u2 * nz
     for k in range(lid_idx.shape[0]):  # hanging from a margin segment, closing and opening frames blended
-        i0, i1, j0, j1 = lid_margin[k, 0], lid_margin[k, 1], lid_margin[k, 2], lid_margin[k, 3]
+        i0, i1 = lid_margin[k, 0], lid_margin[k, 1]
         w = lid_t[k]
         ex, ey, ez = x[i1, 0] - x[i0, 0], x[i1, 1] - x[i0, 1], x[i1, 2] - x[i0, 2]
         fx, fy, fz = x[i0, 0] + w * ex, x[i0, 1] + w * ey, x[i0, 2] + w * ez
         e = lid_eye[k]
-        ux = x[j0, 0] + w * (x[j1, 0] - x[j0, 0]) - fx  # from the foot up the lid
-        uy = x[j0, 1] + w * (x[j1, 1] - x[j0, 1]) - fy
-        uz = x[j0, 2] + w * (x[j1, 2] - x[j0, 2]) - fz
         s = 0.0  # the margin's motion away from the opening, over LID_OPEN: 0 closing .. 1 opening
         for c in range(3):
             s += (d[i0, c] + w * (d[i1, c] - d[i0, c])) * lid_open[k, c]
@@ -84,12 +82,12 @@ def pose_scan(rest, x, skin, lip_idx, lip_anchor, lip_rot, bound_idx, bound_tri,
             share = 1.0 - s if f == 0 else s
             if share == 0.0:  # wholly in the other frame
                 continue
-            if f == 0:
+            if f == 0:  # about the eyeball's centre
                 nx, ny, nz = fx - lid_centres[e, 0], fy - lid_centres[e, 1], fz - lid_centres[e, 2]
-            else:
-                nx, ny, nz = ey * uz - ez * uy, ez * ux - ex * uz, ex * uy - ey * ux
-            ln = math.sqrt(nx * nx + ny * ny + nz * nz)
-            nx, ny, nz = nx / ln, ny / ln, nz / ln
+                ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+                nx, ny, nz = nx / ln, ny / ln, nz / ln
+            else:  # the lid's surface at rest, turning with the margin's segment only
+                nx, ny, nz = lid_rest_n[k, 1, 0], lid_rest_n[k, 1, 1], lid_rest_n[k, 1, 2]
             dot = ex * nx + ey * ny + ez * nz
             tx, ty, tz = ex - dot * nx, ey - dot * ny, ez - dot * nz
             lt = math.sqrt(tx * tx + ty * ty + tz * tz)

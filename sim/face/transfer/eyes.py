@@ -68,6 +68,14 @@ def lid_chains(vertices: FloatArray, loop: IntArray, inner: FloatArray, outer: F
     return other, one
 
 
+def mesh_lids(mesh: FaceMesh, k: int) -> tuple[IntArray, IntArray]:
+    """(upper, lower) lid margins of the mesh's eye `k` (0 left, 1 right) at rest, each from the
+    inner corner to the outer: its eye loop split at the corner landmarks (`lid_chains`)."""
+    s = "lr"[k]
+    return lid_chains(np.asarray(mesh.vertices, np.float64), mesh.eye_loops[k], mesh.landmark(f"eye_inner_{s}"),
+                      mesh.landmark(f"eye_outer_{s}"))
+
+
 def margin_point(vertices: FloatArray, chain: IntArray, a: FloatArray, axis: FloatArray, t: float) -> FloatArray:
     """The chain's point (3,) at fraction `t` between the corners (interpolated along the axis)."""
     p = vertices[chain]

@@ -19,7 +19,7 @@ import dataclasses
 import numpy as np
 
 from sim.model import FaceMesh, FaceRig, Muscle, PatchMuscle
-from sim.face.transfer.eyes import lid_chains, margin_point
+from sim.face.transfer.eyes import margin_point, mesh_lids
 
 FloatArray = np.ndarray
 CHANNEL = "orbicularis_oculi_lower_lid_{side}"
@@ -32,7 +32,7 @@ def _anchor(mesh: FaceMesh, k: int, side: str) -> tuple[FloatArray, float]:
     eye's width (cm)."""
     inner, outer = mesh.landmark(f"eye_inner_{side}"), mesh.landmark(f"eye_outer_{side}")
     v = np.asarray(mesh.vertices, float)
-    _, lower = lid_chains(v, mesh.eye_loops[k], inner, outer)
+    _, lower = mesh_lids(mesh, k)
     a = v[lower[0]]
     # the corners' axis seen from the front (along the 3D axis, a margin bulging forward in its
     # middle put the reference's halfway point 3.5 mm towards the outer corner)
