@@ -16,6 +16,7 @@ UPPER_SHARE = 0.75  # of the opening made by the upper lid (it moves most in a r
 REACH_UP = 0.55  # how far above the lid line (of the eye's width) the skin follows the upper lid
 REACH_DOWN = 0.3  # and below it, the lower lid
 SIDE_REACH = 2.0  # of the width: how far along the skin `lid_sides` tells the lids apart
+TIE = 0.05  # of the width: skin whose distances along the skin to the two margins differ less is a tie
 DEPTH = 0.5  # skin further than this (of the eye's width) in front of or behind the lid line stays
 
 
@@ -47,7 +48,17 @@ def lid_sides(vertices: FloatArray, triangles: IntArray, upper: IntArray, lower:
     limit = SIDE_REACH * float(np.linalg.norm(v[upper[-1]] - v[upper[0]]))
     to_upper = dijkstra(graph, directed=False, indices=upper[1:-1], min_only=True, limit=limit)
     to_lower = dijkstra(graph, directed=False, indices=lower[1:-1], min_only=True, limit=limit)
-    return np.isfinite(to_upper) & (to_upper < to_lower)
+    sides = np.isfinite(to_upper) & (to_upper < to_lower)
+    # skin that both margins reach only round the corners (a sheet lying over the opening, such as
+    # a shut lid's front hanging over a line cut behind it) is about as far from either: which one
+    # won turned on an edge at a corner, and a sheet torn between the lids stretched across the
+    # opening. Between the corners such skin follows the upper lid, which covers a shut eye.
+    axis = v[upper[-1]] - v[upper[0]]
+    along = (v - v[upper[0]]) @ axis / (axis @ axis)
+    tie = np.isfinite(to_upper) & np.isfinite(to_lower) & (along > 0.0) & (along < 1.0)
+    tie[tie] = np.abs(to_upper[tie] - to_lower[tie]) < TIE * limit / SIDE_REACH
+    sides[tie] = True
+    return sides
 
 
 def set_gap(vertices: FloatArray, upper: IntArray, lower: IntArray, gap: float, up: FloatArray,
