@@ -44,6 +44,11 @@ under the name below (`git -C CLONE show COMMIT:PATH > DIR/NAME`):
   each eye's hole closed by a strip of triangles joining its rims from corner to corner, so its
   lids are one shut surface as a scan with closed eyes is; the lid lines are declared as slits.
 
+- `ict-shut-corner` (development): `ict-shut` with each lid line traced one edge further at the
+  inner corner (to the corner's neighbour furthest towards the nose and up), the corner landmarks
+  left where they are: a line snapped to a scan's vertices can start so. It showed the held-out
+  scan's fault (one eye a blank, crumpled lid) until the transfer's lids no longer turned on it.
+
 - `ict-lowres` (development): the `ict-identity` skin decimated by quadric error
   (`fast_simplification`) to about 2,000 vertices over the whole head and neck: a coarse scan of a
   real person, so the transfer's refining of coarse heads is tried on a head other than MakeHuman's.
@@ -441,6 +446,16 @@ def _zip_loop(v: np.ndarray, loop: np.ndarray) -> list[list[int]]:
     return out
 
 
+def past_corner(v: np.ndarray, t: np.ndarray, path: list[int]) -> list[int]:
+    """A lid line (inner corner first) traced one edge further at the inner corner, to the corner's
+    neighbour furthest towards the nose and up, as a line snapped to a scan's vertices can start."""
+    inner, outer = path[0], path[-1]
+    axis = v[outer] - v[inner]
+    ring = [int(n) for n in np.unique(t[(t == inner).any(axis=1)]) if n not in path]
+    score = [(v[n] - v[inner]) @ axis / (axis @ axis) - (v[n, 1] - v[inner, 1]) for n in ring]
+    return [ring[int(np.argmin(score))], *path]
+
+
 HEADS: dict[str, dict[str, Any]] = {
     "ict-identity": {"file": None, "url": None, "load": load_ict_identity, "points": None,
                      "eyes_open": True, "lips_open": None, "role": "development"},
@@ -448,6 +463,8 @@ HEADS: dict[str, dict[str, Any]] = {
                    "eyes_open": True, "lips_open": None, "role": "development"},
     "ict-shut": {"file": None, "url": None, "load": load_ict_shut, "points": None,
                  "eyes_open": False, "lips_open": None, "role": "development"},
+    "ict-shut-corner": {"file": None, "url": None, "load": load_ict_shut, "points": None, "eyes_open": False,
+                        "lips_open": None, "role": "development", "past_corner": True},
     "makehuman": {"file": "makehuman_base.obj", "url": MH_URL, "load": load_makehuman, "points": MH_POINTS,
                   "eyes_open": True, "lips_open": True, "role": "development"},
     "makehuman-mask": {"file": "makehuman_base.obj", "url": MH_URL, "load": load_makehuman_mask,
@@ -476,6 +493,8 @@ def import_head(name: str, folder: Path, work: Path) -> Path:
         lm: dict[str, Any] = {"landmarks": pts}
         if not spec["eyes_open"]:
             lm["openings"] = {k: p for k, p in openings(v, t, pts, False, False).items() if k != "mouth"}
+            if spec.get("past_corner"):
+                lm["openings"] = {k: past_corner(v, t, p) for k, p in lm["openings"].items()}
     else:
         lm = {"landmarks": spec["points"],
               "openings": openings(v, t, spec["points"], spec["eyes_open"], spec["lips_open"])}

@@ -172,3 +172,36 @@ def test_a_layer_under_the_skin_is_found_as_cavity() -> None:
     assert not hidden[:th.size].any() and hidden[th.size:].all()
     uv1, _, keep1 = flat_triangulation(chart, verts[th.size:], tris)
     assert not hidden_under(chart, verts[th.size:], tris, uv1, keep1, 0.1).any()
+
+
+def test_a_lid_line_traced_past_the_corner_has_its_lids_meet_at_its_end() -> None:
+    """The lids meet where the cut lid line ends, whichever vertex the corner landmark names: a
+    line traced one edge past the inner corner (as one snapped to a scan's vertices can start, up
+    and towards the nose) left the landmark on the line's second vertex, and the eye's loop, split
+    there into the lids, began the lower lid's margin with that vertex of the upper one and went back
+    to the line's start (the lid contact's rows, and the rims the eyes are seated by)."""
+    import dataclasses
+
+    from sim.face.transfer.lids import slit_sides
+    from sim.smoothness import margin_rows, out_of_order
+
+    reference = synthetic_rig(48, 44)
+    head, lms = closed_head(reference)
+    v, t = head.vertices, head.triangles
+    openings = dict(lms.openings)
+    for side in "lr":
+        line = [int(x) for x in openings[f"eye_{side}"]]
+        inner, outer = int(lms.entries[f"eye_inner_{side}"]), int(lms.entries[f"eye_outer_{side}"])
+        axis = v[outer] - v[inner]
+        ring = [int(n) for n in np.unique(t[(t == inner).any(axis=1)]) if n not in line]
+        past = ring[int(np.argmin([(v[n] - v[inner]) @ axis - (v[n, 1] - v[inner, 1]) for n in ring]))]
+        openings[f"eye_{side}"] = np.asarray([past, *line] if line[0] == inner else [*line, past])
+    res = transfer_rig(reference, head, dataclasses.replace(lms, openings=openings))
+    m = res.rig.mesh
+    rows = margin_rows(m)
+    for k, side in enumerate("lr"):
+        path, _ = slit_sides(m.eye_loops[k])
+        assert m.landmarks[f"eye_inner_{side}"] in (path[0], path[-1])
+        for name in ("upper", "lower"):  # each margin runs from corner to corner without turning back
+            assert out_of_order(m.vertices, m.vertices, rows[f"eye_{side}_{name}"]) == 0, (side, name)
+    assert any("put on the end of its cut line" in n for n in res.notes)

@@ -205,14 +205,17 @@ def seat_eye(vertices: FloatArray, triangles: IntArray, loop: IntArray, inner: F
     rims = float((margin_point(vertices, upper, a, axis, 0.5) - margin_point(vertices, lower, a, axis, 0.5)) @ up)
     v = np.asarray(vertices, float)
     if abs(before - target) > SEEN_TOLERANCE * eye_radius:
+        widest = rims + MAX_OPENING * rest
         sides = lid_sides(vertices, triangles, upper, lower)
 
         def seen(gap: float) -> float:
             return _seen_gap(set_gap(vertices, upper, lower, gap, UP, upper_side=sides), triangles, upper, lower)
 
+        if seen(widest) < target:  # skin torn between the lids covers the opening: ties go up
+            sides = lid_sides(vertices, triangles, upper, lower, ties_upper=True)
         lo, hi = 0.0, max(rims, target)
-        while seen(hi) < target and hi < rims + MAX_OPENING * rest:
-            lo, hi = hi, min(2.0 * hi, rims + MAX_OPENING * rest)
+        while seen(hi) < target and hi < widest:
+            lo, hi = hi, min(2.0 * hi, widest)
         if seen(hi) >= target:  # else skin bridging the lids covers the opening however far they part
             for _ in range(30):
                 if hi - lo < 1e-4:

@@ -16,6 +16,7 @@ UPPER_SHARE = 0.75  # of the opening made by the upper lid (it moves most in a r
 REACH_UP = 0.55  # how far above the lid line (of the eye's width) the skin follows the upper lid
 REACH_DOWN = 0.3  # and below it, the lower lid
 SIDE_REACH = 2.0  # of the width: how far along the skin `lid_sides` tells the lids apart
+TIE = 0.05  # of the width: skin whose distances along the skin to the two margins differ less is a tie
 DEPTH = 0.5  # skin further than this (of the eye's width) in front of or behind the lid line stays
 
 
@@ -29,12 +30,17 @@ def slit_sides(loop: IntArray) -> tuple[IntArray, IntArray]:
     return path, lower
 
 
-def lid_sides(vertices: FloatArray, triangles: IntArray, upper: IntArray, lower: IntArray) -> np.ndarray:
+def lid_sides(vertices: FloatArray, triangles: IntArray, upper: IntArray, lower: IntArray,
+              ties_upper: bool = False) -> np.ndarray:
     """(N,) bool: the vertices nearer, along the mesh's edges, to the upper chain's inner vertices
     than to the lower's, within SIDE_REACH x the opening's width of them; the rest False. A thick
     lid's front can hang below the rims' middle (the scanned head's upper lid, blinked, reaches
     down over its own margin to the lower lid's): by height such skin would be taken for the lower
-    lid's and torn from its own when the lids part."""
+    lid's and torn from its own when the lids part. `ties_upper`: skin between the corners about as
+    far from either chain (within TIE x the width) is given to the upper lid. Such skin is reached
+    from both only round the corners (a sheet lying over the opening, such as a shut lid's front
+    hanging over a line cut behind it), and which chain is nearer turns on an edge at a corner: a
+    sheet torn between the lids is stretched across the opening when they part."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import dijkstra
 
@@ -47,7 +53,14 @@ def lid_sides(vertices: FloatArray, triangles: IntArray, upper: IntArray, lower:
     limit = SIDE_REACH * float(np.linalg.norm(v[upper[-1]] - v[upper[0]]))
     to_upper = dijkstra(graph, directed=False, indices=upper[1:-1], min_only=True, limit=limit)
     to_lower = dijkstra(graph, directed=False, indices=lower[1:-1], min_only=True, limit=limit)
-    return np.isfinite(to_upper) & (to_upper < to_lower)
+    sides = np.isfinite(to_upper) & (to_upper < to_lower)
+    if ties_upper:
+        axis = v[upper[-1]] - v[upper[0]]
+        along = (v - v[upper[0]]) @ axis / (axis @ axis)
+        tie = np.isfinite(to_upper) & np.isfinite(to_lower) & (along > 0.0) & (along < 1.0)
+        tie[tie] = np.abs(to_upper[tie] - to_lower[tie]) < TIE * limit / SIDE_REACH
+        sides[tie] = True
+    return sides
 
 
 def set_gap(vertices: FloatArray, upper: IntArray, lower: IntArray, gap: float, up: FloatArray,

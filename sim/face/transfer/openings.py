@@ -13,6 +13,7 @@ FloatArray = np.ndarray
 IntArray = np.ndarray
 
 _WHERE = {"eye_l": EYE_LANDMARKS["eye_l"], "eye_r": EYE_LANDMARKS["eye_r"], "mouth": MOUTH_LANDMARKS}
+CORNERS = {"eye_l": EYE_LANDMARKS["eye_l"][:2], "eye_r": EYE_LANDMARKS["eye_r"][:2], "mouth": MOUTH_LANDMARKS[:2]}
 _TITLE = {"eye_l": "left eye", "eye_r": "right eye", "mouth": "mouth"}
 
 
@@ -118,6 +119,21 @@ def cut_slit(
         verts.append(vertices[v][None])
     loop = np.concatenate([path, np.asarray(copies[::-1], dtype=np.int64)])
     return np.vstack(verts), tris, loop, {int(a): b for a, b in zip(path[1:-1], copies)}
+
+
+def slit_corners(vertices: FloatArray, ends: tuple[int, int], points: tuple[FloatArray, FloatArray]
+                 ) -> tuple[int, int]:
+    """The ends of a cut line (corner to corner) that stand for the opening's two corner landmarks,
+    in the landmarks' order: the pairing that puts them nearer their points. A cut's two sides meet
+    only at its ends, so that is where the lids (lips) meet, whichever vertex the landmark itself
+    snapped to: a lid line traced an edge past the corner, or a corner given as a point off the
+    surface that snaps to the line's second vertex, left that vertex as the corner, and the
+    opening's loop, split there into the two lids, gave one lid part of the other's margin."""
+    a, b = (np.asarray(vertices[e], float) for e in ends)
+    p, q = (np.asarray(x, float) for x in points)
+    straight = np.linalg.norm(a - p) + np.linalg.norm(b - q)
+    crossed = np.linalg.norm(b - p) + np.linalg.norm(a - q)
+    return (ends[0], ends[1]) if straight <= crossed else (ends[1], ends[0])
 
 
 def _split_fan(tris: IntArray, fan: IntArray, v: int, cut: set[int]) -> tuple[IntArray, IntArray] | None:

@@ -24,7 +24,8 @@ from sim.face.transfer.lower_lid import place_lower_lids
 from sim.face.transfer.landmarks import LANDMARK_NAMES, LandmarkFile, TransferError, require
 from sim.face.transfer.meshfile import HeadMesh
 from sim.face.transfer.mouth import rest_lips
-from sim.face.transfer.openings import cut_slit, find_openings, is_closed_path, is_hole_loop, open_loop
+from sim.face.transfer.openings import (CORNERS, cut_slit, find_openings, is_closed_path, is_hole_loop, open_loop,
+                                       slit_corners)
 from sim.face.transfer.refine import edge_scale, levels_needed, subdivide
 from sim.face.transfer.relax import Relaxation, relax_mask
 from sim.face.transfer.skin import lid_support
@@ -225,6 +226,7 @@ class _Head:
     flipped: bool
     dropped: int
     split: int = 0  # vertices where the border touched itself, split (geometry.split_pinched)
+    corners: dict[str, float] = field(default_factory=dict)  # corner landmarks put on a cut's ends: how far (cm)
 
 
 def _bring_in(head: HeadMesh, lf: LandmarkFile, names: list[str], pts: dict[str, FloatArray],
@@ -245,10 +247,17 @@ def _bring_in(head: HeadMesh, lf: LandmarkFile, names: list[str], pts: dict[str,
     lm_new = {n: sim.apply(pts[n]) for n in names}
     lm_vid = {n: int(remap[vids[n]]) for n in names}
     cut: list[IntArray] = []
+    corners: dict[str, float] = {}
     for key, path in list(declared.items()):
         if not is_hole_loop(path, tris):
             verts, tris, declared[key], lower = cut_slit(verts, tris, path, UP, key, lf.path)
             cut.append(declared[key])
+            names_at = CORNERS[key]  # the lids (lips) meet at the cut's ends: the corners are there
+            ends = slit_corners(verts, (int(path[0]), int(path[-1])), tuple(lm_new[n] for n in names_at))
+            for n, end in zip(names_at, ends):
+                if lm_vid[n] != end:
+                    corners[n] = float(np.linalg.norm(verts[end] - lm_new[n]))
+                    lm_vid[n], lm_new[n] = end, verts[end].copy()
             for n in names:  # a lower-lip or lower-lid landmark on the cut moves to the lower copy
                 if n.startswith("lower_") and lm_vid[n] in lower:
                     lm_vid[n] = lower[lm_vid[n]]
@@ -260,7 +269,7 @@ def _bring_in(head: HeadMesh, lf: LandmarkFile, names: list[str], pts: dict[str,
     # loop walked twice is split there: the lip rows held that vertex twice, and building the rig's
     # integrator (`puppet pose --rig`) stopped with a traceback
     verts, tris, pinched = split_pinched(verts, tris, region)
-    return _Head(verts, tris, lm_new, lm_vid, declared, cut, flipped, int((remap < 0).sum()), len(pinched))
+    return _Head(verts, tris, lm_new, lm_vid, declared, cut, flipped, int((remap < 0).sum()), len(pinched), corners)
 
 
 def transfer_rig(
@@ -415,9 +424,11 @@ def _gap_ratio(mesh: FaceMesh, upper: str, lower: str, a: str, b: str) -> float:
 
 def _rest_openings(new: _Head, ref: FaceMesh) -> list[str]:
     """Lids shut in the file (declared as a lid line) are parted at rest by the reference's eye
-    opening (sim.face.transfer.lids); landmarks follow. Returns notes for the report. (Lips are
+    opening (sim.face.transfer.lids); landmarks follow. Returns notes for the report (with the corner
+    landmarks that `_bring_in` put on a cut's ends). (Lips are
     left as modelled: brought to the reference's gap, a modelled head's mouth read worse.)"""
-    notes = []
+    notes = [f"{n} put on the end of its cut line, where the two sides meet ({d:.2f} cm from where it was given)"
+             for n, d in new.corners.items()]
     before = new.vertices
     for side in "lr":
         loop = new.openings.get(f"eye_{side}")
@@ -426,7 +437,7 @@ def _rest_openings(new: _Head, ref: FaceMesh) -> list[str]:
         ratio = _gap_ratio(ref, f"upper_lid_{side}", f"lower_lid_{side}", f"eye_outer_{side}", f"eye_inner_{side}")
         new.vertices = open_lids(new.vertices, loop, ratio, UP, new.triangles)
         notes.append(f"the lids of eye_{side} were shut; they were parted at rest by the reference's opening")
-    if notes:  # landmarks given as points keep their place on the skin: they move as their vertex
+    if new.vertices is not before:  # landmarks given as points keep their place on the skin: they move as their vertex
         for n in new.landmarks:
             vid = new.landmark_vertex[n]
             new.landmarks[n] = new.landmarks[n] + new.vertices[vid] - before[vid]
