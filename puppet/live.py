@@ -239,10 +239,10 @@ MUSCLES_AS = "responses"
 #: the take header's "lids": the lids follow the eyes' turn (`sim.gaze_lids`); a take without it
 #: was recorded before they did and is replayed with them still (puppet.replay)
 LIDS_AS = "gaze"
-#: the take header's "lid coupling": the upper and lower lids are held to the turning eye apart
-#: (`sim.gaze_lids.UPPER`, `LOWER`); a take without it was recorded with them held alike and is
-#: replayed so (puppet.replay)
-LIDS_APART_AS = "upper and lower apart"
+#: the take header's "lid coupling": the lids' upper and lower, inner and outer parts are carried
+#: sideways by the turning eye apart (`sim.gaze_lids.lid_couplings`); a take without it was recorded
+#: with them held alike and is replayed so (puppet.replay)
+LIDS_APART_AS = "upper and lower, inner and outer apart"
 #: the take header's "jaw": the implicit step starts from the last step's jaw opening and skin age
 #: and adds the jaw's move as precomputed responses (sim.Simulator.jaw_responses)
 JAW_AS = "responses from the last step's pose"
