@@ -30,6 +30,9 @@ given), fitted on the shapes that drive them ("The inner brows and the cheek's s
     # the rig the commands before made
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only incisivus=3,orbicularis_oris_peripheralis_lower=3
         --smooth 1e-5 --bound 10 --write-rig sim/face/scan/ict_rig.npz
+    # then the corrugator's field over its zone grown 1.5 cm ("The brows carried whole")
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only corrugator=1.5 --smooth 1e-4 --bound 10
+        --write-rig sim/face/scan/ict_rig.npz
 
 `--per-shape zones|skin` fits a field per shape instead (as if each shape had its own channel: over
 its channels' zones, grown by `--grow`, or over all the free skin), the ceiling of more channels or

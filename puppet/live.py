@@ -239,6 +239,10 @@ MUSCLES_AS = "responses"
 #: the take header's "lids": the lids follow the eyes' turn (`sim.gaze_lids`); a take without it
 #: was recorded before they did and is replayed with them still (puppet.replay)
 LIDS_AS = "gaze"
+#: the take header's "lid coupling": the lids' upper and lower, inner and outer parts are carried
+#: sideways by the turning eye apart (`sim.gaze_lids.lid_couplings`); a take without it was recorded
+#: with them held alike and is replayed so (puppet.replay)
+LIDS_APART_AS = "upper and lower, inner and outer apart"
 #: the take header's "jaw": the implicit step starts from the last step's jaw opening and skin age
 #: and adds the jaw's move as precomputed responses (sim.Simulator.jaw_responses)
 JAW_AS = "responses from the last step's pose"
@@ -285,6 +289,7 @@ def take_header(face: Face, rate: float, mapping: dict[str, str], devices: Seque
         # the muscles summed into the frame's forces, as it was recorded (puppet.replay)
         "muscles": MUSCLES_AS,
         "lids": LIDS_AS,
+        "lid coupling": LIDS_APART_AS,
         # how it moves the jaw and ages the skin: a take without it is replayed with the jaw and the
         # age taken whole at each step, as it was recorded (puppet.replay)
         "jaw": JAW_AS,

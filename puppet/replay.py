@@ -18,8 +18,8 @@ import numpy as np
 
 from puppet.curves import CurveLayer, CurveSet
 from puppet.errors import ConfigError, PuppetError
-from puppet.live import (BENDING_AS, JAW_AS, JAW_BENDING_AS, JAW_CONSTANTS_AS, LIDS_AS, MUSCLES_AS, RESPONSES_AS,
-                         SOLVE_AS, Face, load_face)
+from puppet.live import (BENDING_AS, JAW_AS, JAW_BENDING_AS, JAW_CONSTANTS_AS, LIDS_APART_AS, LIDS_AS, MUSCLES_AS,
+                         RESPONSES_AS, SOLVE_AS, Face, load_face)
 from puppet.session import Session
 from safefile import quote
 
@@ -50,6 +50,9 @@ class Performance:
     #: the lids follow the eyes' turn (`sim.gaze_lids`); False for a take recorded before they did
     #: (no "lids" in its header), replayed with the lids still, as recorded
     lids_follow_gaze: bool = True
+    #: the upper and lower lids held to the turning eye apart; False for a take recorded with them
+    #: held alike (no "lid coupling" in its header), replayed so (sim.Simulator.lids_apart off)
+    lids_apart: bool = True
     #: recorded with the jaw and the skin's age taken whole at each step (no "jaw" in its header):
     #: replayed that way (sim.Simulator.jaw_responses off), for the same bits
     jaw_responses: bool = True
@@ -184,8 +187,9 @@ def build_performance(session: Session | None, curves: CurveSet | None, rig_path
     symmetric = session is None or session.header.get("solve") == SOLVE_AS
     single = session is None or session.header.get("responses") == RESPONSES_AS
     grid = session is None or session.header.get("jaw constants") == JAW_CONSTANTS_AS
-    return Performance(face, values, rate, markers, checks, restarts, summed, follow, jaw, turned, symmetric, single,
-                       grid)
+    apart = session is None or session.header.get("lid coupling") == LIDS_APART_AS
+    return Performance(face, values, rate, markers, checks, restarts, summed, follow, apart, jaw, turned, symmetric,
+                       single, grid)
 
 
 def _clamp(values: np.ndarray, face: Face, source: str) -> None:
@@ -226,6 +230,7 @@ class Replayer:
         s = _new_simulator(self.perf.face.model, 1.0 / self.perf.rate)
         s.muscles_summed = self.perf.muscles_summed
         s.lids_follow_gaze = self.perf.lids_follow_gaze
+        s.lids_apart = self.perf.lids_apart
         s.jaw_responses = self.perf.jaw_responses
         s.bending_turned = self.perf.bending_turned
         s.symmetric_solve = self.perf.symmetric_solve

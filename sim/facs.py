@@ -101,9 +101,9 @@ FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
         "happiness": {"AU6": 0.3, "AU10": 0.3, "AU12": 1.0, "AU13": 1.0, "AU25": 1.0},
         "sadness": {"AU1": 1.0, "AU4": 0.42, "AU11": 0.6, "AU15": 1.0, "AU17": 1.0, "AU43": 0.35},
         "surprise": {"AU1": 0.8, "AU2": 0.8, "AU5": 0.7, "AU26": 1.0},
-        "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 1.0, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
-        "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.6, "AU7": 0.8, "AU17": 1.0, "AU23": 1.0},
-        "disgust": {"AU9": 0.7, "AU10": 0.7, "AU4": 0.75, "AU15": 0.3, "AU25": 1.0},
+        "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 0.7, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
+        "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.7, "AU7": 0.8, "AU17": 1.0, "AU23": 1.0},
+        "disgust": {"AU9": 0.7, "AU10": 0.7, "AU4": 0.6, "AU15": 0.3, "AU25": 1.0},
     },
 }
 """Per face (its rig's name: "ict" is the scanned head and its identities), the presets whose
@@ -159,7 +159,15 @@ Looked at beside the scan's own shapes (docs/scan-face.md, "The gallery's weak p
 surprise raises the brows by less (AU1 and AU2 0.8) with the lids raised more (AU5 0.7), which
 leaves the forehead even where AU1+2 at full pushed two lumps up over the brows; anger glares
 with the lids raised fully (AU5 1.0) and tightened less (AU7 0.8), the irises showing under the
-lowered brows where AU7 0.85 over AU5 0.5 all but shut the eyes under the lashes."""
+lowered brows where AU7 0.85 over AU5 0.5 all but shut the eyes under the lashes. With the
+corrugator's anchors refitted over a zone grown 1.5 cm (its pull carries the brow's tail and the
+temple as the scan's browDown does, docs/scan-face.md "The brows carried whole"), disgust's brows
+at AU4 0.75 came down far enough to read angry (disgust 0.55, angry 0.31): at AU4 0.6 disgust
+0.77 (0.5: 0.65); and fear's brows drawn fully down against its inner brows raised turned 0.26 cm2
+of the glabella's skin over (limit 0.1): at AU4 0.7 0.07 cm2, fear 0.60 (0.8: 0.11 cm2, 0.60; at
+1.0 it read fear 0.79); and anger's brows, lower, left 18.7 % of the left iris showing (the glare's
+test asks a fifth): its lids raised harder, AU5 0.7, show more and read angry 0.56 (AU5 0.6: 0.57,
+0.8: 0.47; AU4 0.85 with AU5 0.6: 18.9 %, angry 0.34)."""
 
 
 FACE_EXPRESSIONS["imported"] = {

@@ -40,15 +40,45 @@ STIFFNESS = 3000.0
 #: cm: its fall-off with the distance from the globe's surface (Gaussian width), and where it ends
 WIDTH = 0.55
 REACH = 1.5
+#: the upper and the lower lid carried sideways apart (`coupling`'s `upper`, `lower`: factors of
+#: the gain above and below the eye's centre, blended over `SPLIT` cm of height), in the turn about
+#: the vertical axis only (`lid_couplings`). The upper lid's tarsus is about twice as tall as the
+#: lower's (10 against 4-5 mm) and its margin rests on the cornea's bulge, which sweeps sideways
+#: under it as the eye turns; the lower margin lies below the bulge. On the scanned head our upper
+#: lid followed a sideways look half as far as the scan's (eyeLookIn_L: 0.71 mm against 1.38
+#: across) and the lower lid as far (best scale 0.95). Up and down, the upper lid's height is the
+#: levator's (its tone follows the gaze: the ARKit map's shares and the levator's fitted anchors,
+#: which were fitted on top of the lids held alike), so the turn about the horizontal axis keeps
+#: the gain alike: a stronger upper lid there took eyeLookUp from 0.35 to 0.38.
+UPPER = 1.75
+LOWER = 0.8
+SPLIT = 0.1
+#: and the inner and outer parts of the lids apart in the sideways turn (`coupling`'s `medial`,
+#: `lateral`: factors of the gain on the nose's side of the eye's centre and on the temple's,
+#: blended over `ACROSS` cm): the medial canthal tendon ties the lids' inner ends to the lacrimal
+#: crests, while the lateral canthus, on the more yielding lateral retinaculum, moves with the
+#: globe. The scan's looks aside move the lids' outer third about twice as far as their inner third
+#: (eyeLookIn_L 1.25 against 0.58 mm across); ours, coupled alike across, moved them about as far
+#: (0.79 against 0.84).
+MEDIAL = 0.8
+LATERAL = 1.2
+ACROSS = 0.3
 
 
 def coupling(rest: np.ndarray, area: np.ndarray, held: np.ndarray, centres: np.ndarray,
              radius: float, stiffness: float = STIFFNESS, width: float = WIDTH,
-             reach: float = REACH) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+             reach: float = REACH, upper: float = 1.0, lower: float = 1.0, split: float = SPLIT,
+             medial: float = 1.0, lateral: float = 1.0,
+             across: float = ACROSS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(vertex indices (G,) int64, their eye (G,) int64: 0 left, 1 right, gains (G,) dyn/cm):
     the free skin within `reach` of an eye's sphere (`centres` (2,3), `radius` cm), in front of
     its centre, with gain stiffness * area * exp(-(d / width)^2) at a distance d outside the
-    sphere (d <= 0, the lids resting on the cornea: the full gain)."""
+    sphere (d <= 0, the lids resting on the cornea: the full gain), times `upper` above the eye's
+    centre and `lower` below it, blended as 0.5 (1 + tanh(h / split)) of the height h above the
+    centre, and `medial` on the nose's side of it and `lateral` on the temple's, blended as
+    0.5 (1 + tanh(s / across)) of the distance s further from the face's midline than the centre
+    (all 1: the lids alike, the coupling takes recorded before the header's "lid coupling" replay
+    with)."""
     c = np.asarray(centres, dtype=np.float64)
     dist = np.stack([np.sqrt(np.sum((rest - c[e]) ** 2, axis=1)) for e in range(2)], axis=1)
     eye = np.argmin(dist, axis=1)
@@ -57,7 +87,28 @@ def coupling(rest: np.ndarray, area: np.ndarray, held: np.ndarray, centres: np.n
     near = np.flatnonzero((d < reach) & front & ~np.asarray(held, dtype=bool))
     dd = np.maximum(d[near], 0.0)
     gain = stiffness * np.asarray(area, dtype=np.float64)[near] * np.exp(-(dd / width) ** 2)
+    if upper != 1.0 or lower != 1.0:
+        h = np.asarray(rest, dtype=np.float64)[near, 1] - c[eye[near], 1]
+        gain = gain * (lower + (upper - lower) * 0.5 * (1.0 + np.tanh(h / float(split))))
+    if medial != 1.0 or lateral != 1.0:
+        s = np.abs(np.asarray(rest, dtype=np.float64)[near, 0]) - np.abs(c[eye[near], 0])
+        gain = gain * (medial + (lateral - medial) * 0.5 * (1.0 + np.tanh(s / float(across))))
     return near.astype(np.int64), eye[near].astype(np.int64), gain
+
+
+Coupling = tuple[np.ndarray, np.ndarray, np.ndarray, "np.ndarray | None"]
+
+
+def lid_couplings(model: object) -> tuple[Coupling, Coupling]:
+    """The model's two couplings (vertex indices, their eye, gains in the sideways turn, gains in
+    the turn up and down: None, the same), the lids alike and the lids apart (`UPPER`, `LOWER`,
+    `MEDIAL`, `LATERAL` in the sideways turn): the first for takes recorded before the take
+    header's "lid coupling", the second for every other."""
+    m = model
+    args = (m.rest, m.area, m.held, m.mesh.eye_centers, float(m.eye_contact_radius))  # type: ignore[attr-defined]
+    idx, eye, gain = coupling(*args)
+    apart = coupling(*args, upper=UPPER, lower=LOWER, medial=MEDIAL, lateral=LATERAL)[2]
+    return (idx, eye, gain, None), (idx, eye, apart, gain)
 
 
 def eye_yaws(yaw: float, vergence: float) -> tuple[float, float]:
@@ -89,14 +140,37 @@ def _add_gaze_forces(rest, idx, eye, gain, centres, rot, out):  # type: ignore[n
             out[i, j] += gain[k] * (turned - rest[i, j])
 
 
+@numba.njit(cache=True, nogil=True)
+def _add_gaze_forces_apart(rest, idx, eye, gain, pitch_gain, centres, side, updown, out):  # type: ignore[no-untyped-def]
+    for k in range(idx.shape[0]):
+        i = idx[k]
+        e = eye[k]
+        d0 = rest[i, 0] - centres[e, 0]
+        d1 = rest[i, 1] - centres[e, 1]
+        d2 = rest[i, 2] - centres[e, 2]
+        for j in range(3):
+            a = d0 * side[e, j, 0] + d1 * side[e, j, 1] + d2 * side[e, j, 2]
+            b = d0 * updown[e, j, 0] + d1 * updown[e, j, 1] + d2 * updown[e, j, 2]
+            out[i, j] += gain[k] * a + pitch_gain[k] * b
+
+
 def gaze_forces(rest: np.ndarray, idx: np.ndarray, eye: np.ndarray, gain: np.ndarray,
-                centres: np.ndarray, yaw: float, pitch: float, vergence: float, out: np.ndarray) -> None:
+                centres: np.ndarray, yaw: float, pitch: float, vergence: float, out: np.ndarray,
+                pitch_gain: np.ndarray | None = None) -> None:
     """Adds to `out` (N,3) dyn the coupling's pull for the gaze (yaw, pitch, vergence): each
     coupled vertex towards where its rest position would be if its eye turned it rigidly, times
-    its gain."""
-    rot = np.stack([eye_rotation(y, pitch) for y in eye_yaws(yaw, vergence)])
-    _add_gaze_forces(rest, idx, eye, gain, np.ascontiguousarray(centres, dtype=np.float64),
-                     np.ascontiguousarray(rot), out)
+    its gain; with `pitch_gain`, R - I = (Ry - I) Rx + (Rx - I) split into the sideways turn's part,
+    times `gain`, and the turn up or down's, times `pitch_gain`."""
+    yaws = eye_yaws(yaw, vergence)
+    c = np.ascontiguousarray(centres, dtype=np.float64)
+    if pitch_gain is None:
+        rot = np.stack([eye_rotation(y, pitch) for y in yaws])
+        _add_gaze_forces(rest, idx, eye, gain, c, np.ascontiguousarray(rot), out)
+        return
+    rx = eye_rotation(0.0, pitch)
+    side = np.stack([(eye_rotation(y, 0.0) - np.eye(3)) @ rx for y in yaws])
+    updown = np.stack([rx - np.eye(3)] * 2)
+    _add_gaze_forces_apart(rest, idx, eye, gain, pitch_gain, c, side, updown, out)
 
 
 #: The eye's turn minus the identity, R - I with R = Ry(a) Rx(b), as a sum of eight fixed matrices
@@ -111,17 +185,23 @@ _BASIS = (_KY, _KY @ _KY, _KX, _KX @ _KX, _KY @ _KX, _KY @ _KX @ _KX, _KY @ _KY 
 N_BASIS = 2 * len(_BASIS)  # fields: eye 0's eight, then eye 1's
 
 
+#: the fields of the turn up or down alone (B's), which take `pitch_gain` (`basis_fields`)
+_UPDOWN = (2, 3)
+
+
 def basis_fields(rest: np.ndarray, idx: np.ndarray, eye: np.ndarray, gain: np.ndarray,
-                 centres: np.ndarray) -> np.ndarray:
+                 centres: np.ndarray, pitch_gain: np.ndarray | None = None) -> np.ndarray:
     """(N_BASIS, N, 3) dyn: the fixed force fields whose sum, each times its `basis_coefficients`,
-    is the coupling's pull (`gaze_forces`): gain_i M_k (p_i - c_e) on eye e's vertices."""
+    is the coupling's pull (`gaze_forces`): gain_i M_k (p_i - c_e) on eye e's vertices (the turn up
+    or down's alone with `pitch_gain`, when given)."""
     out = np.zeros((N_BASIS, len(rest), 3))
     c = np.asarray(centres, dtype=np.float64)
     for e in range(2):
         on = eye == e
         d = np.asarray(rest, dtype=np.float64)[idx[on]] - c[e]
         for k, m in enumerate(_BASIS):
-            out[e * len(_BASIS) + k, idx[on]] = gain[on, None] * (d @ m.T)
+            g = gain if pitch_gain is None or k not in _UPDOWN else pitch_gain
+            out[e * len(_BASIS) + k, idx[on]] = g[on, None] * (d @ m.T)
     return out
 
 

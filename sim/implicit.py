@@ -597,17 +597,18 @@ def muscle_responses(solver: PrefactoredSolver, free: np.ndarray, n: int, fields
 
 
 def gaze_responses(solver: PrefactoredSolver, free: np.ndarray, model: FaceModel) -> np.ndarray:
-    """(N_BASIS, free nodes, 3): the step's response to each fixed field of the lids' pull by the
-    turning eyes (`sim.gaze_lids.basis_fields`); a frame adds them times the gaze's coefficients
-    after the muscles' responses, as it adds those."""
-    from sim.gaze_lids import N_BASIS, basis_fields, coupling
+    """(2 N_BASIS, free nodes, 3): the step's response to each fixed field of the lids' pull by the
+    turning eyes (`sim.gaze_lids.basis_fields`), first with the lids alike (takes recorded before
+    the header's "lid coupling"), then with the upper and lower lids apart (`lid_couplings`); a
+    frame adds one set times the gaze's coefficients after the muscles' responses, as it adds those."""
+    from sim.gaze_lids import N_BASIS, basis_fields, lid_couplings
 
-    lids = coupling(model.rest, model.area, model.held, model.mesh.eye_centers, float(model.eye_contact_radius))
-    out = np.zeros((N_BASIS, len(free), 3))
-    for k, f in enumerate(basis_fields(np.asarray(model.rest), *lids, model.mesh.eye_centers)):
-        f3 = np.ascontiguousarray(f[free])
-        if f3.any():
-            solver.solve(f3, out[k])
+    out = np.zeros((2 * N_BASIS, len(free), 3))
+    for j, (idx, eye, gain, pitch_gain) in enumerate(lid_couplings(model)):
+        for k, f in enumerate(basis_fields(np.asarray(model.rest), idx, eye, gain, model.mesh.eye_centers, pitch_gain)):
+            f3 = np.ascontiguousarray(f[free])
+            if f3.any():
+                solver.solve(f3, out[j * N_BASIS + k])
     return out
 
 

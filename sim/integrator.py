@@ -39,7 +39,7 @@ import numpy as np
 
 from sim.build import FaceModel
 from sim.channels import CHANNEL_INDEX
-from sim.gaze_lids import N_BASIS, basis_coefficients, coupling, gaze_forces
+from sim.gaze_lids import N_BASIS, basis_coefficients, gaze_forces, lid_couplings
 from sim.margin_contact import margin_contact, margin_pairs
 from sim.state import FaceControl, FaceState
 from sim.numba_start import prepare_blas_check
@@ -710,12 +710,18 @@ class Simulator:
         #: the lids follow the eyes' turn (`sim.gaze_lids`): cleared by a replay of a take recorded
         #: before they did, so it keeps its bits (puppet.replay)
         self.lids_follow_gaze = True
-        self._gaze_lids = coupling(model.rest, model.area, model.held, model.mesh.eye_centers,
-                                   float(model.eye_contact_radius))
+        #: the upper and lower lids held to the turning globe apart (`sim.gaze_lids.UPPER`, `LOWER`):
+        #: cleared by a replay of a take recorded before (no "lid coupling" in its header), whose
+        #: lids were held alike, so it keeps its bits (puppet.replay)
+        self.lids_apart = True
+        self._couplings = lid_couplings(model)  # (alike, apart)
         self._gaze = (0.0, 0.0, 0.0)  # the gaze (yaw, pitch, vergence) of the last frame
-        # the implicit step's responses to the gaze's fields follow the muscles' (sim.implicit.gaze_responses)
-        self._gaze_rows = np.arange(len(model.channels), len(model.channels) + N_BASIS, dtype=np.int64)
-        if self._implicit is not None and self._implicit._resp.shape[0] < len(model.channels) + N_BASIS:
+        # the implicit step's responses to the gaze's fields follow the muscles', the lids alike's
+        # then apart's (sim.implicit.gaze_responses)
+        c = len(model.channels)
+        self._gaze_rows_of = (np.arange(c, c + N_BASIS, dtype=np.int64),
+                              np.arange(c + N_BASIS, c + 2 * N_BASIS, dtype=np.int64))
+        if self._implicit is not None and self._implicit._resp.shape[0] < c + 2 * N_BASIS:
             raise ValueError("the implicit step's responses do not cover the gaze's pull on the lids")
         self._yaw_i = CHANNEL_INDEX["eyes_yaw"]
         self._pitch_i = CHANNEL_INDEX["eyes_pitch"]
@@ -959,14 +965,15 @@ class Simulator:
                          self._kr, self._target, self._kn, self._normal, self._ext)
         gaze = self._set_gaze(v)
         if gaze != (0.0, 0.0, 0.0):
-            gaze_forces(self.model.rest, *self._gaze_lids, self.model.mesh.eye_centers, *gaze, self._ext)
+            idx, eye, gain, pitch_gain = self._couplings[self.lids_apart]
+            gaze_forces(self.model.rest, idx, eye, gain, self.model.mesh.eye_centers, *gaze, self._ext, pitch_gain)
         self._ext_values = np.array(v)
         return self._ext
 
     def _set_gaze(self, v: np.ndarray) -> tuple[float, float, float]:
         """The gaze (yaw, pitch, vergence) the lids are pulled by this frame (zeros unless they
         follow it)."""
-        if self.lids_follow_gaze and len(self._gaze_lids[0]):
+        if self.lids_follow_gaze and len(self._couplings[0][0]):
             self._gaze = (min(1.0, max(-1.0, float(v[self._yaw_i]))), min(1.0, max(-1.0, float(v[self._pitch_i]))),
                           min(1.0, max(-1.0, float(v[self._verge_i]))))
         else:
@@ -996,7 +1003,7 @@ class Simulator:
         if gaze != (0.0, 0.0, 0.0):  # the lids' pull by the turned eyes, as responses after the muscles'
             coef = basis_coefficients(*gaze)
             on = coef != 0.0  # (a look straight aside or up needs a quarter of them)
-            act = np.concatenate([act, self._gaze_rows[on]])
+            act = np.concatenate([act, self._gaze_rows_of[self.lids_apart][on]])
             val = np.concatenate([val, coef[on]])
         return act, val
 

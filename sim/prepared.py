@@ -40,12 +40,13 @@ def inputs_digest(model: Any, h: float) -> str:
     the lid and lip rows and regions the fold guard's constants and the muscle matrix (a face's hash alone leaves out the mesh's
     annotations the rows and the thin skin come from)."""
     from sim.antifold import FLOOR, STRENGTH, bending_weights
-    from sim.gaze_lids import N_BASIS, REACH, STIFFNESS, WIDTH
+    from sim.gaze_lids import ACROSS, LATERAL, LOWER, MEDIAL, N_BASIS, REACH, SPLIT, STIFFNESS, UPPER, WIDTH
     from sim.margin_contact import _rows
 
     d = hashlib.sha256(f"implicit h={float(h).hex()} lid={model.params.lid_bending!r} "
                        f"lip={model.params.lip_bending!r} skin={model.params.skin_bending!r} "
-                       f"fold={FLOOR!r},{STRENGTH!r} gaze={STIFFNESS!r},{WIDTH!r},{REACH!r},{N_BASIS}".encode())
+                       f"fold={FLOOR!r},{STRENGTH!r} gaze={STIFFNESS!r},{WIDTH!r},{REACH!r},{N_BASIS} "
+                       f"lids apart={UPPER!r},{LOWER!r},{SPLIT!r},{MEDIAL!r},{LATERAL!r},{ACROSS!r}".encode())
     for arr in (model.spring_indices, model.spring_k_high, model.mass, model.damping, model.support_stiffness,
                 model.rest_stiffness, model.held, model.rest, model.triangles,
                 bending_weights(model)):

@@ -164,7 +164,8 @@ class Editor:
             old, old_rp = getattr(self, "_last_perf", None), self._replayer
             self._perf = Performance(self.face, values, p.rate, p.markers, p.checks if not self.curves.curves else {},
                                      restarts=p.restarts, muscles_summed=p.muscles_summed,
-                                     lids_follow_gaze=p.lids_follow_gaze, jaw_responses=p.jaw_responses,
+                                     lids_follow_gaze=p.lids_follow_gaze, lids_apart=p.lids_apart,
+                                     jaw_responses=p.jaw_responses,
                                      bending_turned=p.bending_turned, symmetric_solve=p.symmetric_solve,
                                      single_responses=p.single_responses,
                                      constants_from_grid=p.constants_from_grid)

@@ -123,3 +123,54 @@ def test_the_eyes_pull_is_its_fixed_fields_times_the_gazes_coefficients(ict) -> 
         summed = np.tensordot(basis_coefficients(*gaze), fields, axes=1)
         assert np.abs(direct).max() > 1.0
         assert np.abs(summed - direct).max() < 1e-9 * np.abs(direct).max()
+
+
+def test_the_lids_apart_pull_is_its_fixed_fields_too(ict) -> None:  # type: ignore[no-untyped-def]
+    """With the upper and lower lids apart in the sideways turn (`lid_couplings`), the pull the
+    explicit step adds is still the sum of the fields the implicit step adds as responses; the turn
+    up or down alone pulls as with the lids alike, the turn aside does not."""
+    from sim.gaze_lids import basis_coefficients, basis_fields, gaze_forces, lid_couplings
+
+    rest = np.asarray(ict.rest)
+    (idx, eye, gain, none), (_, _, apart, pitch_gain) = lid_couplings(ict)
+    assert none is None and pitch_gain is gain
+    fields = basis_fields(rest, idx, eye, apart, ict.mesh.eye_centers, pitch_gain)
+    rng = np.random.default_rng(8)
+    for gaze in [(1.0, 0.0, 0.0), (0.0, -1.0, 0.0), *rng.uniform(-1, 1, (5, 3))]:
+        direct = np.zeros_like(rest)
+        gaze_forces(rest, idx, eye, apart, ict.mesh.eye_centers, *gaze, direct, pitch_gain)
+        summed = np.tensordot(basis_coefficients(*gaze), fields, axes=1)
+        assert np.abs(direct).max() > 1.0
+        assert np.abs(summed - direct).max() < 1e-9 * np.abs(direct).max()
+    for gaze, same in (((0.0, 0.7, 0.0), True), ((0.7, 0.0, 0.0), False)):
+        alike, split = np.zeros_like(rest), np.zeros_like(rest)
+        gaze_forces(rest, idx, eye, gain, ict.mesh.eye_centers, *gaze, alike)
+        gaze_forces(rest, idx, eye, apart, ict.mesh.eye_centers, *gaze, split, pitch_gain)
+        assert np.allclose(alike, split, rtol=0, atol=1e-9 * np.abs(alike).max()) == same
+
+
+def test_a_sideways_look_carries_the_upper_lid_further_than_the_lower(ict) -> None:  # type: ignore[no-untyped-def]
+    """The upper lid's margin rides the cornea's bulge: with the lids apart a look aside carries
+    the upper lid's landmark further than with the lids alike and the lower one less far, and the
+    settled skin comes closer to the scan's own look aside (both eyes towards the face's left)."""
+    data, skin = scan_data(), skin_layout().vertices
+    target = (data.expression("eyeLookOut_L") + data.expression("eyeLookIn_R"))[skin]
+    lm = ict.mesh.landmarks
+    rest = _settled(ict, {})
+    moved = {}
+    for apart in (False, True):
+        sim = Simulator(ict, wrinkles=False)
+        sim.lids_apart = apart
+        c = FaceControl(ict)
+        c.set("eyes_yaw", 1.0)
+        state = ict.rest_state()
+        sim.settle(state, c, max_seconds=2.0)
+        moved[apart] = state.positions - rest
+    for side in "lr":
+        assert moved[True][lm[f"upper_lid_{side}"], 0] > 1.2 * moved[False][lm[f"upper_lid_{side}"], 0] > 0.0
+        assert 0.0 < moved[True][lm[f"lower_lid_{side}"], 0] < moved[False][lm[f"lower_lid_{side}"], 0]
+
+    def rel(u: np.ndarray) -> float:
+        return float(np.sqrt(np.sum((u - target) ** 2) / np.sum(target ** 2)))
+
+    assert rel(moved[True]) < rel(moved[False]) - 0.02

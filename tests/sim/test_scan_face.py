@@ -269,8 +269,9 @@ def test_surprise_raises_the_forehead_without_lumps(model, presets) -> None:  # 
 def test_anger_glares_with_the_irises_showing(model, presets) -> None:  # type: ignore[no-untyped-def]
     """Anger narrows the eyes (the lower lid raised, above) but glares: over a fifth of each iris shows
     past the lids and the lashes, seen from the front (the front 2.5 mm of the eyeball: 87 % at rest;
-    the shipped AU5 0.6 with AU7 0.8 22-24 %; AU7 0.85 with AU5 0.5 left 9-11 %, the eyes nearly shut
-    under the lashes; AU5 1.0 shows 55 % but, with the levator's grown anchors, reads as neutral)."""
+    AU5 0.6 with AU7 0.8 22-24 %, 18.7 % once the corrugator's grown anchors brought the brows
+    lower, so AU5 is 0.7; AU7 0.85 with AU5 0.5 left 9-11 %, the eyes nearly shut under the lashes;
+    AU5 1.0 shows 55 % but, with the levator's grown anchors, reads as neutral)."""
     dressing = dressing_for(model)
     lashes = np.concatenate([scan_data().triangles(p) for p in ("eyelashes_l", "eyelashes_r")])
     c = _preset("anger")
