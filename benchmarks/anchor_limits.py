@@ -33,6 +33,9 @@ given), fitted on the shapes that drive them ("The inner brows and the cheek's s
     # then the corrugator's field over its zone grown 1.5 cm ("The brows carried whole")
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only corrugator=1.5 --smooth 1e-4 --bound 10
         --write-rig sim/face/scan/ict_rig.npz
+    # the nose wing's slip (sim.face.scan.make_rig.ala_slip) and the upper lip's elevators refitted on it
+    nice .venv/bin/python benchmarks/anchor_limits.py --ala-slip --all --only levator_labii,levator_labii_alaeque_nasi
+        --grow 1.5 --smooth 1e-4 --bound 10 --add --write-rig sim/face/scan/ict_rig.npz
 
 `--per-shape zones|skin` fits a field per shape instead (as if each shape had its own channel: over
 its channels' zones, grown by `--grow`, or over all the free skin), the ceiling of more channels or
@@ -180,6 +183,8 @@ def main() -> int:
     ap.add_argument("--all", action="store_true", help="fit on all shapes (no held-out right ones)")
     ap.add_argument("--shapes", default="", help="only these labels (comma separated)")
     ap.add_argument("--rig", type=Path, help="start from this rig file of the scanned head instead of the shipped one")
+    ap.add_argument("--ala-slip", action="store_true",
+                    help="add the nose wing's slip to the rig (sim.face.scan.make_rig.ala_slip) before the fit")
     ap.add_argument("--halves", action="store_true", help="fit the sided halves' fields alone, the others kept")
     ap.add_argument("--only", "--channels", dest="only", default="",
                     help="refit these channels' fields alone (NAME[=GROW], comma separated: a channel or a muscle's "
@@ -210,10 +215,14 @@ def main() -> int:
     t0 = time.monotonic()
     only_fit = set(HALVES) if args.halves else {c for c in args.only.split(",") if c}
     start_rig = load_rig(args.rig or RIG_FILE)
+    if args.ala_slip:  # the nose wing's slip first (sim.face.scan.make_rig.ala_slip), then the fit on it
+        from sim.face.scan.make_rig import ala_slip
+
+        start_rig = ala_slip(start_rig)
     if args.halves:
         start_rig = half_anchors(start_rig)
         model = compile_model(start_rig, scan_params())
-    elif args.rig or only_fit:
+    elif args.rig or only_fit or args.ala_slip:
         model = compile_model(start_rig, scan_params())
     else:
         model = scan_model()

@@ -103,7 +103,7 @@ FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
         "surprise": {"AU1": 0.8, "AU2": 0.8, "AU5": 0.7, "AU26": 1.0},
         "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 0.7, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
         "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.7, "AU7": 0.8, "AU17": 1.0, "AU23": 1.0},
-        "disgust": {"AU9": 0.7, "AU10": 0.7, "AU4": 0.6, "AU15": 0.3, "AU25": 1.0},
+        "disgust": {"AU9": 0.9, "AU10": 0.7, "AU4": 0.6, "AU15": 0.3, "AU25": 1.0},
     },
 }
 """Per face (its rig's name: "ict" is the scanned head and its identities), the presets whose
@@ -167,7 +167,13 @@ at AU4 0.75 came down far enough to read angry (disgust 0.55, angry 0.31): at AU
 of the glabella's skin over (limit 0.1): at AU4 0.7 0.07 cm2, fear 0.60 (0.8: 0.11 cm2, 0.60; at
 1.0 it read fear 0.79); and anger's brows, lower, left 18.7 % of the left iris showing (the glare's
 test asks a fifth): its lids raised harder, AU5 0.7, show more and read angry 0.56 (AU5 0.6: 0.57,
-0.8: 0.47; AU4 0.85 with AU5 0.6: 18.9 %, angry 0.34)."""
+0.8: 0.47; AU4 0.85 with AU5 0.6: 18.9 %, angry 0.34).
+Retuned when the nose wing's slip of AU9's muscle and the upper lip's elevators refitted over grown
+zones came (docs/scan-face.md, "The nose wing's slip and the upper lip's elevators"): at the preset
+before (AU9+10 0.7, AU4 0.75) the lip rose higher and read angry 0.38 (disgust 0.36); disgust lifts
+the nose harder than the lip (AU9 0.9, AU10 0.7) under brows drawn down harder (AU4 0.9): disgust
+0.90 and in all nine views (0.73-0.90), where AU9+10 0.8 with AU4 0.85-0.9 read 0.87-0.88 frontally
+and missed one view, AU9+10 1.0 read angry."""
 
 
 FACE_EXPRESSIONS["imported"] = {

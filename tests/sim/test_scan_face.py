@@ -82,13 +82,13 @@ def test_landmarks_are_found_where_they_are_stored() -> None:
 
 def test_the_shipped_rig_is_what_the_transfer_makes() -> None:
     """ict_rig.npz is remade by `python -m sim.face.scan.make_rig` (the transfer, then the lids
-    built on it, the pucker's ring in place of its bunching patch); the transfer's last bits follow the
-    BLAS kernel, so the comparison allows 1e-4 cm."""
+    built on it, the pucker's ring in place of its bunching patch, the nose wing's slip); the
+    transfer's last bits follow the BLAS kernel, so the comparison allows 1e-4 cm."""
     from sim.face.scan.lids import with_lids
-    from sim.face.scan.make_rig import pucker_ring, transferred_rig
+    from sim.face.scan.make_rig import ala_slip, pucker_ring, transferred_rig
     from sim.face.scan.rig import scan_rig
 
-    shipped, made = scan_rig(), with_lids(pucker_ring(transferred_rig()))
+    shipped, made = scan_rig(), ala_slip(with_lids(pucker_ring(transferred_rig())))
     assert np.array_equal(shipped.mesh.vertices, made.mesh.vertices)
     assert np.array_equal(shipped.mesh.held, made.mesh.held)
     assert np.abs(shipped.mesh.jaw_weight - made.mesh.jaw_weight).max() < 1e-4
@@ -143,6 +143,23 @@ def test_the_pucker_carries_the_lips_forward_closed(model) -> None:  # type: ign
     assert corners < -6.0 and min(d[lm["mouth_corner_l"], 2], d[lm["mouth_corner_r"], 2]) > 5.0
     assert d[lm["upper_lip_center"], 2] > 1.0 and d[lm["lower_lip_center"], 2] > 1.0
     assert opened < 1.0
+
+
+def _near(model, point) -> int:  # type: ignore[no-untyped-def]
+    return int(np.argmin(np.linalg.norm(model.rest - np.asarray(point, float), axis=1)))
+
+
+def test_disgust_lifts_the_nose_wings_with_the_lip(model, presets) -> None:  # type: ignore[no-untyped-def]
+    """The levator labii superioris alaeque nasi's slip into the nose wing lifts the wing with the
+    upper lip: each nostril, seen from the front (the wing's rim over the columella's base), stays
+    open as in the scan's own disgust (its height grows 0.3 mm there), where the lip rising under a
+    nose wing left behind squeezed it 2.8 mm shut."""
+    d = 10.0 * (presets["disgust"] - model.rest)  # mm
+    for sign in (1.0, -1.0):
+        rim = _near(model, (sign * 1.0, -0.31, 12.04))  # the wing's rim in front, over the nostril
+        base = _near(model, (sign * 0.22, -0.96, 11.69))  # the columella's base, under it
+        assert d[rim, 1] > 2.0
+        assert d[rim, 1] - d[base, 1] > -2.0
 
 
 @pytest.mark.parametrize("seed", [None, 0, 1, 2])

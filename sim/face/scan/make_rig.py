@@ -1,9 +1,10 @@
 """How the scanned head's shipped rig (`ict_rig.npz`) is made: the reference face's rig
 transferred onto the generic head's skin (`sim.face.transfer`), carried back into the scan's frame,
 with the scan's own jaw weights (from its `jawOpen`), eyeballs and the skin under the chin free, its own
-pucker (`pucker_ring`), and the muscles made stronger for the scan's stiffer skin (`sim.face.scan.rig`). The transfer runs linear
+pucker (`pucker_ring`), the nose wing's slip of AU9's muscle (`ala_slip`), and the muscles made stronger for the scan's stiffer skin (`sim.face.scan.rig`). The transfer runs linear
 algebra whose last bits follow the BLAS kernel, so it is run once and its result shipped; the
-application never runs it. Remake the file with `python -m sim.face.scan.make_rig`.
+application never runs it. Remake the file with `python -m sim.face.scan.make_rig`; `--ala-slip`
+adds the nose wing's slip to the file as it is (every fitted field kept).
 """
 
 from __future__ import annotations
@@ -190,6 +191,48 @@ def pucker_ring(rig: FaceRig) -> FaceRig:
     return replace(rig, muscles={**rig.muscles, "incisivus": (*lines, ring)})
 
 
+#: the levator labii superioris alaeque nasi's slip into the nose wing (AU9's channel). The muscle
+#: arises on the frontal process of the maxilla and splits as it descends: a medial slip into the
+#: perichondrium and skin over the lateral crus of the major alar cartilage, a lateral slip into the
+#: upper lip, where it blends with the levator labii superioris and the orbicularis oris; the medial
+#: slip raises the nose wing with the lip and dilates the nostril (Gray's Anatomy, 41st ed., the
+#: muscles of the face; Park and Hur 2024, Int J Morphol 42:35, dissecting 40 hemifaces: the muscle
+#: 5.0 +- 2.4 mm wide at the wing's middle, its fibres shared about equally between the wing and the
+#: lip in a third, more into the wing in 28 %, more into the lip in 40 %). The transferred channel is one line of pull aimed beside the ala, which
+#: the fitted insertion gain (`FaceRig.insertion`) moved onto the cheek and the lip (0.04-0.26 on the
+#: ala, 2-3 on the cheek beside it): under disgust the lip rose over a nose base left behind and the
+#: nostrils were squeezed to slits, where the scan lifts and flares the wings. The slip is a second
+#: line from the same origin to the ala's lateral wall (ALA_INSERTION, in the scan's frame, cm),
+#: reaching ALA_REACH past it within ALA_ANGLE of its axis, its force ALA_FORCE of the channel's line
+#: (the fitted gain over the ala applies to it too). Applied to the shipped rig by
+#: `python -m sim.face.scan.make_rig --ala-slip` (it replaces a slip the rig already has).
+ALA_INSERTION = (1.3, -0.2, 11.9)
+ALA_REACH = 0.6
+ALA_ANGLE = 0.15
+ALA_FORCE = 6.5
+ALA_SHIFT = (0.5, 0.0, 1.2)
+
+
+def ala_slip(rig: FaceRig, insertion: tuple[float, float, float] = ALA_INSERTION, reach: float = ALA_REACH,
+             angle: float = ALA_ANGLE, force: float = ALA_FORCE, shift: tuple[float, float, float] = ALA_SHIFT) -> FaceRig:
+    """The rig with the levator labii superioris alaeque nasi's slip into the nose wing (`ALA_*`)
+    added to both sides' channels, mirrored for the right; any slip it had is replaced."""
+    from dataclasses import replace
+
+    muscles = dict(rig.muscles)
+    for side, sign in (("l", 1.0), ("r", -1.0)):
+        ch = f"levator_labii_alaeque_nasi_{side}"
+        parts = tuple(m for m in muscles[ch] if not m.name.endswith("_ala"))
+        line = next(m for m in parts if isinstance(m, LinearMuscle))
+        ins = _r(np.array(insertion, float) * np.array([sign, 1.0, 1.0]))
+        origin = _r(line.attachment + np.array(shift, float) * np.array([sign, 1.0, 1.0]))
+        length = float(np.linalg.norm(ins - origin))
+        slip = LinearMuscle(f"{ch}_ala", origin, ins, float(_r(length + reach)), float(_r(angle)),
+                            line.eta, float(_r(line.scale * force)))
+        muscles[ch] = (*parts, slip)
+    return replace(rig, muscles=muscles)
+
+
 def pack(path: str | Path = RIG_FILE) -> None:
     """Write the generic head's rig as the shipped rig file, keeping the insertion gains and the
     skin's material fitted to the scans (`sim.face.scan.calibrate`, `sim.face.scan.skin_fit`, run
@@ -204,9 +247,21 @@ def pack(path: str | Path = RIG_FILE) -> None:
     made = replace(transferred_rig(), insertion=old.insertion if old else {}, skin=old.skin if old else {},
                    tissue=old.tissue if old else {}, strain=old.strain if old else {},
                    anchor=old.anchor if old else {})
-    save_rig(with_lids(pucker_ring(made)), path)
+    save_rig(ala_slip(with_lids(pucker_ring(made))), path)
+
+
+def add_ala_slip(path: str | Path = RIG_FILE) -> None:
+    """Write the rig file again with the nose wing's slip (`ala_slip`), everything else as it is."""
+    from sim.rig import load_rig, save_rig
+
+    save_rig(ala_slip(load_rig(path)), path)
 
 
 if __name__ == "__main__":
-    pack()
+    import sys
+
+    if "--ala-slip" in sys.argv[1:]:
+        add_ala_slip()
+    else:
+        pack()
     print(f"wrote {RIG_FILE}")
