@@ -164,7 +164,8 @@ def main() -> int:
         log = print if args.verbose else None
         l1 = np.array([0.0] + [args.sparsity] * len(cands))
         if log:
-            log("  candidates: " + " ".join(f"{c} {cosine[c]:.2f}" for c in cands))
+            log("  candidates: " + " ".join(f"{c} {cosine.get(c, float('nan')):.2f}" for c in cands))  # (a shipped share
+            # such as the jaw's thrust is not a candidate: no cosine)
         fit = fit_settled(settler, values, targets[shape], x0, lo, hi, rounds=args.rounds, sparsity=l1, log=log)
         kept = {c: round(float(v) * 20) / 20 for c, v in zip(cands, fit.x[1:]) if v >= args.min_share}
         kept = {c: v for c, v in kept.items() if v > 0.0}
