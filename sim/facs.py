@@ -103,7 +103,7 @@ FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
         "surprise": {"AU1": 0.8, "AU2": 0.8, "AU5": 0.7, "AU26": 1.0},
         "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 0.7, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
         "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.7, "AU7": 0.8, "AU17": 1.0, "AU23": 1.0},
-        "disgust": {"AU9": 0.9, "AU10": 0.7, "AU4": 0.6, "AU15": 0.3, "AU25": 1.0},
+        "disgust": {"AU9": 0.9, "AU10": 0.7, "AU4": 0.9, "AU15": 0.3, "AU25": 1.0},
     },
 }
 """Per face (its rig's name: "ict" is the scanned head and its identities), the presets whose
