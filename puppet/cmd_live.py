@@ -586,7 +586,7 @@ def _demo(args: argparse.Namespace, live: Any, windowed: bool, warn: Any, quiet:
     if not quiet:
         where = "in the window" if windowed else "headless"
         warn(f"performing the built-in demo ({args.duration:.1f} s) {where}, recording to {record}")
-    face = live.load_face(args.rig, face=args.face)
+    face = _load_face_saying(live, args, warn)  # the README's first command: minutes on a new install
     devs = [dev]
     mapped = [(dev.spec, dev.description)]
     if windowed:
