@@ -476,7 +476,7 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         t0 = time.monotonic()
         core = live.LiveCore(face, mapper, rate=rate, writer=writer, t0=0.0 if virtual else t0, lights=lights,
                              wrinkles_later=not virtual and not live.compiling_kernels(),
-                             announce=None if virtual else warn)
+                             announce=warn)  # a scripted show too: the demo compiled for minutes unsaid
         if point is not None:
             resume.start_segment(core, point)
         if sound:

@@ -58,3 +58,16 @@ def test_the_demo_says_so_too_while_its_face_loads(argv: list[str], monkeypatch:
     notice = [i for i, line in enumerate(lines) if line.startswith("puppet: preparing the face")]
     stop = [i for i, line in enumerate(lines) if "the face stops here" in line]
     assert notice and stop and notice[0] < stop[0], err
+
+
+def test_the_headless_demo_says_it_prepares_the_face(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                    capsys: pytest.CaptureFixture) -> None:
+    """The headless demo runs on its script's clock; its show left out "preparing the face", so
+    the minutes numba spent compiling on a new install passed without a word after "about 20 s"."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(live, "display_available", lambda: False)
+    monkeypatch.setenv("PUPPET_LIBRARY", "off")
+    code = main(["live", "--demo", "--headless", "--no-panel", "--no-realtime", "--duration", "0.1"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "puppet: preparing the face" in err.splitlines(), err
