@@ -253,6 +253,8 @@ class Device:
             return False
         self._connected = True
         self._restore_lights()
+        if self.reported == "lost":  # said as the loss was: a show without a window hears it is back
+            self.warnings.warn("back", "connected again")
         self._status("connected", "reopened" if self.reported else "opened")
         return True
 

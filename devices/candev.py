@@ -26,7 +26,7 @@ from devices.errors import DeviceSpecError
 from devices.events import ControlEvent
 from devices.spec import DeviceSpec
 from devices.warn import WarningCounter
-from safefile import quote
+from safefile import file_kind, not_a_file, quote
 
 MAX_DBC_BYTES = 16 * 1024 * 1024
 
@@ -199,6 +199,8 @@ def load_dbc(path: str, spec: str) -> Any:
 
     if not path:
         raise DeviceSpecError(f"{spec}: a DBC file is needed: can://INTERFACE/CHANNEL?dbc=FILE")
+    if file_kind(path) in ("folder", "other"):  # a device such as /dev/zero was read until memory ran out
+        raise DeviceSpecError(f"{spec}: {not_a_file(path, 'DBC file')}")
     try:
         if Path(path).is_file() and Path(path).stat().st_size > MAX_DBC_BYTES:
             raise DeviceSpecError(f"{spec}: DBC file {Path(path).name} is larger than "

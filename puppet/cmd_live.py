@@ -476,7 +476,7 @@ def _perform(args: argparse.Namespace, live: Any, face: Any, devs: list[Any], ma
         t0 = time.monotonic()
         core = live.LiveCore(face, mapper, rate=rate, writer=writer, t0=0.0 if virtual else t0, lights=lights,
                              wrinkles_later=not virtual and not live.compiling_kernels(),
-                             announce=None if virtual else warn)
+                             announce=warn)  # a scripted show too: the demo compiled for minutes unsaid
         if point is not None:
             resume.start_segment(core, point)
         if sound:
@@ -586,7 +586,7 @@ def _demo(args: argparse.Namespace, live: Any, windowed: bool, warn: Any, quiet:
     if not quiet:
         where = "in the window" if windowed else "headless"
         warn(f"performing the built-in demo ({args.duration:.1f} s) {where}, recording to {record}")
-    face = live.load_face(args.rig, face=args.face)
+    face = _load_face_saying(live, args, warn)  # the README's first command: minutes on a new install
     devs = [dev]
     mapped = [(dev.spec, dev.description)]
     if windowed:

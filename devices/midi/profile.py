@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from devices.errors import DeviceSpecError
-from safefile import quote
+from safefile import BadFile, file_kind, quote, read_text
 
 MESSAGES = ("cc", "cc14", "note", "pitchbend", "nrpn", "rpn")
 KINDS = ("axis", "dial", "button")
@@ -43,6 +43,8 @@ ENCODINGS = ("twos_complement", "offset64", "sign_magnitude")
 ORDERS = ("msb_lsb", "lsb_msb", "msb")
 LIGHT_MESSAGES = ("cc", "note")
 MAX_FILE = 256 * 1024
+#: Read no more than this of a profile file (parse_profile then refuses what passes MAX_FILE).
+MAX_PROFILE_BYTES = 1024 * 1024
 MAX_CONTROLS = 1024
 TOP_KEYS = {"name", "match", "channel", "note", "control", "dead_band", "port"}
 CONTROL_KEYS = {"name", "count", "message", "number", "step", "channel", "kind", "encoding", "counts_per_turn",
@@ -347,12 +349,12 @@ def load_profile(name_or_path: str, channel: int | None = None) -> MidiProfile:
     (1-16) replaces its default channel."""
     if name_or_path.endswith(".toml") or "/" in name_or_path:
         p = Path(name_or_path)
-        try:
-            text = p.read_text(encoding="utf-8")
-        except FileNotFoundError as err:
-            raise ProfileError(f"{p}: MIDI profile file not found") from err
-        except (OSError, UnicodeDecodeError) as err:
-            raise ProfileError(f"{p}: cannot read the MIDI profile: {err}") from err
+        if file_kind(p) == "missing":
+            raise ProfileError(f"{p}: MIDI profile file not found")
+        try:  # bounded: a wrong name (/dev/zero, a recording) must not read gigabytes into memory
+            text = read_text(p, "MIDI profile", MAX_PROFILE_BYTES)
+        except BadFile as err:
+            raise ProfileError(str(err)) from err
         return parse_profile(text, str(p), channel=channel)
     key = name_or_path.lower()
     if key not in profile_names():

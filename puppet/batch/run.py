@@ -162,6 +162,36 @@ def check_farm(client: Any) -> int:
     return len(theirs)
 
 
+#: Seconds between two looks at the farm's workers while a batch runs.
+WATCH_INTERVAL = 2.0
+
+
+def watch_workers(client: Any, scheduler: str, interval: float = WATCH_INTERVAL) -> tuple[threading.Thread, threading.Event]:
+    """A thread saying (one line each time) when the farm is left without a worker while the batch
+    waits, and when one joins again: the scheduler keeps the tasks for a worker to come, and the
+    batch waited without a word, forever. Set the event to stop it."""
+    done = threading.Event()
+
+    def look() -> None:
+        alone = False
+        while not done.wait(interval):
+            try:
+                n = len(client.scheduler_info().get("workers", {}))
+            except Exception:  # closing, or the scheduler gone (the batch says that itself)
+                continue
+            if n == 0 and not alone and not done.is_set():
+                print(f"puppet: batch: the farm has no worker now; its tasks wait for one: start `dask worker "
+                      f"{scheduler}` to go on, or Ctrl+C (the files written are kept)", file=sys.stderr, flush=True)
+            elif n > 0 and alone:
+                print(f"puppet: batch: {n} worker{'' if n == 1 else 's'} in the farm again; going on",
+                      file=sys.stderr, flush=True)
+            alone = n == 0
+
+    t = threading.Thread(target=look, name="batch-workers", daemon=True)
+    t.start()
+    return t, done
+
+
 def _video_plan(o: Output, chunk_frames: int) -> list[int] | None:
     """The frames' ticks when the video is long enough to split, else None (one task)."""
     if chunk_frames <= 0 or o.opts.get("view", "shaded") == "trails":  # trails: one renderer sees all
@@ -235,8 +265,13 @@ def run(action: str, selection: list[str], out_dir: Path, *, kinds: list[str] | 
         return rep
     client, cluster = connect(scheduler, workers)
     plugins: list[threading.Thread] = []
+    stop_watching: Any = lambda: None  # noqa: E731
     try:
         rep.workers = check_farm(client)
+        if scheduler:  # a farm's workers may all go; a local cluster's nannies bring theirs back
+            watcher, watched = watch_workers(client, scheduler)
+            plugins.append(watcher)
+            stop_watching = watched.set
         dest = reach_token(out_dir)
         try:
             _submit_and_collect(client, todo, out_dir, chunk_frames, rep, bar, dest,
@@ -249,6 +284,7 @@ def run(action: str, selection: list[str], out_dir: Path, *, kinds: list[str] | 
             drop_token(out_dir, dest)
             _remove_parts(out_dir, todo)
     finally:
+        stop_watching()
         for t in plugins:
             t.join(CONNECT_TIMEOUT)
         client.close()

@@ -219,6 +219,17 @@ def _pc2_summary(out: Path, n: int, opts: ExportOptions) -> str:
             "modifier Time Mode Frame, Frame Start 1, Forward -Z, Up +Y (docs/live.md)")
 
 
+def _obj_vertices(model: Any) -> str:
+    """What an OBJ of the face holds, as `puppet pose` says it: the scanned head's OBJ is the whole
+    scan (its vertices in its order) posed from the simulated skin."""
+    from puppet.export.scan import scan_dressing
+
+    dressing = scan_dressing(model)
+    if dressing is None:
+        return f"{len(model.rest)} vertices"
+    return f"the scan's {len(dressing.rest)} vertices, posed from {len(model.rest)} simulated"
+
+
 def _export_obj(perf: Performance, out: Path, ticks: list[int], mismatches: list[int]) -> str:
     """The posed mesh at the first of `ticks` (--from), written as `puppet pose` writes an OBJ.
     (`--out take.obj` was refused: an OBJ came only as the rest mesh beside a PC2.)"""
@@ -229,7 +240,7 @@ def _export_obj(perf: Performance, out: Path, ticks: list[int], mismatches: list
             write_pose(perf.face.model, state, out)
         except OSError as err:
             raise ConfigError(f"{out}: cannot write the mesh: {err.strerror or err}") from err
-        return f"wrote the posed mesh at {k / perf.rate:.3f} s ({len(perf.face.model.rest)} simulated vertices) to {out}"
+        return f"wrote the posed mesh at {k / perf.rate:.3f} s ({_obj_vertices(perf.face.model)}) to {out}"
     raise PuppetError(f"{out}: no frame to write")
 
 

@@ -64,6 +64,19 @@ def read_take_info(path: str | Path) -> TakeInfo:
     )
 
 
+def _face(rig: dict[str, Any]) -> str | None:
+    """The face as `--face` names it (ict, ict?identity=3, procedural, a saved identity's name),
+    which `face:NAME` searches; a take made with `--rig FILE` (or before faces were named) by its
+    rig's name. (The rig's name alone said "ict" for every character and "default" for the
+    procedural face, so `face:bob` and `face:procedural` found nothing.)"""
+    spec = rig.get("face")
+    if isinstance(spec, str) and spec:
+        return spec[:200]
+    if isinstance(rig.get("name"), str):
+        return rig["name"][:200]
+    return "file" if rig.get("path") else None
+
+
 def header_fields(h: dict[str, Any]) -> dict[str, Any]:
     """The library's fields a recording's header holds (date, tick rate, face and identity,
     program, devices, performer): all the library knows of a take when its recording starts."""
@@ -78,7 +91,7 @@ def header_fields(h: dict[str, Any]) -> dict[str, Any]:
     return dict(
         recorded=str(start)[:40] if isinstance(start, str) else None,
         tick_rate=float(rate) if isinstance(rate, (int, float)) and not isinstance(rate, bool) else 60.0,
-        face=rig.get("name") if isinstance(rig.get("name"), str) else ("file" if rig.get("path") else None),
+        face=_face(rig),
         identity=rig.get("hash") if isinstance(rig.get("hash"), str) else None,
         resolution=rig.get("resolution") if isinstance(rig.get("resolution"), int) else None,
         program=str(program)[:100] if isinstance(program, str) else None,

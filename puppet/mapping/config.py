@@ -13,7 +13,7 @@ from puppet.errors import ConfigError
 from puppet.mapping.buttons import BUTTON_MODES
 from puppet.mapping.filters import ENCODINGS
 from puppet.mapping.locate import PathItem, locate
-from safefile import BadFile, load_toml, quote
+from safefile import BadFile, file_kind, load_toml, quote, read_text
 
 COMBINE_RULES = ("max", "sum", "last")
 MAX_NUMBER = 1e9  # any parameter beyond this is a typo (and an integer beyond a float's range is one)
@@ -289,13 +289,17 @@ def _binding(c: _Checker, i: int, b: Any, default_device: str | None) -> Binding
     return spec
 
 
+#: A mapping file is a few kilobytes; `puppet learn` reads it with the same bound.
+MAX_MAP_BYTES = 16 * 1024 * 1024
+
+
 def load_mapping(path: str | Path) -> MappingSpec:
     """Read and parse a mapping file; a missing or unreadable file is a one-line ConfigError."""
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError as err:
-        raise ConfigError(f"{p}: mapping file not found") from err
-    except (OSError, UnicodeDecodeError) as err:
-        raise ConfigError(f"{p}: cannot read mapping file: {err}") from err
+    if file_kind(p) == "missing":
+        raise ConfigError(f"{p}: mapping file not found")
+    try:  # bounded: a wrong name (a take, /dev/zero) must not read gigabytes into memory
+        text = read_text(p, "mapping file", MAX_MAP_BYTES)
+    except BadFile as err:
+        raise ConfigError(str(err)) from err
     return parse_mapping(text, str(p))

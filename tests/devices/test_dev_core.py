@@ -133,6 +133,28 @@ def test_loss_and_reconnect_with_plugin_registry(monkeypatch: pytest.MonkeyPatch
     assert not dev.connected
 
 
+def test_a_box_back_after_a_loss_is_said_as_the_loss_was(monkeypatch: pytest.MonkeyPatch,
+                                                        caplog: pytest.LogCaptureFixture) -> None:
+    """A headless show's log said "lost (...); reconnecting" when a box went, and nothing when it
+    came back: the performer without a window could not tell the box worked again."""
+    monkeypatch.setitem(devices.BACKENDS, "flaky", (__name__, "FlakyDevice"))
+    with caplog.at_level("WARNING", logger="devices"):
+        dev = devices.open_device("flaky://x")
+        q = EventQueue()
+        dev.add_listener(q)
+        dev.start()
+        try:
+            _wait_for(q, lambda e: isinstance(e, StatusEvent))
+            dev.present.clear()
+            _wait_for(q, lambda e: isinstance(e, StatusEvent) and e.status == "lost")
+            dev.present.set()
+            _wait_for(q, lambda e: isinstance(e, StatusEvent) and e.status == "connected")
+        finally:
+            dev.close()
+    said = [r.getMessage() for r in caplog.records if r.getMessage().startswith("flaky://x: ")]
+    assert len(said) == 2 and "lost" in said[0] and said[1] == "flaky://x: connected again", said
+
+
 def test_missing_device_raises_or_waits(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(devices.BACKENDS, "flaky", (__name__, "FlakyDevice"))
     monkeypatch.setattr(FlakyDevice, "_open", lambda self: (_ for _ in ()).throw(OSError("absent")))

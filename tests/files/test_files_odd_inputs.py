@@ -84,3 +84,35 @@ def test_a_take_read_from_a_pipe_says_it_waits_then_replays_what_comes(tmp_path:
         proc.kill()
         proc.wait()
     assert proc.returncode == 0 and "bit-identical" in out, out + err
+
+
+def _endless_device_run(argv: list[str]) -> "subprocess.CompletedProcess[str]":
+    """`puppet ARGV` in a child whose address space is capped at 4 GB: a reader with no bound on
+    an endless device fails there at once instead of taking the machine's memory."""
+    import resource
+    import subprocess
+    import sys
+
+    def cap() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))
+
+    env = {**os.environ, "JACK_NO_START_SERVER": "1"}
+    return subprocess.run([sys.executable, "-m", "puppet", *argv], capture_output=True, text=True, timeout=300,
+                          preexec_fn=cap, env=env)
+
+
+@pytest.mark.parametrize("argv", [
+    ["live", "--map", "/dev/zero", "--headless", "--no-panel", "--duration", "0.05", "--device", "mock://?sine=dial0"],
+    ["monitor", "midi://nanoKONTROL2?profile=/dev/zero&api=jack", "--duration", "0.1"],
+    ["monitor", "can://virtual/x?dbc=/dev/zero", "--duration", "0.1"],
+], ids=["live --map", "midi profile=", "can dbc="])
+def test_an_endless_device_named_as_a_small_file_is_one_line(argv: list[str]) -> None:
+    """`--map /dev/zero` (or a profile= or dbc= naming it, or any multi-gigabyte file given by
+    mistake) was read whole: 21 GB of memory before a MemoryError traceback, or exit 0 saying
+    nothing. Now the read stops at the file's bound: one line naming it, exit 2."""
+    r = _endless_device_run(argv)
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("puppet: error:")]
+    assert r.returncode == 2 and len(lines) == 1, r.stderr[-1500:]
+    assert "/dev/zero" in lines[0], lines[0]
+    assert "larger than" in lines[0] or "not a regular file" in lines[0], lines[0]  # not "MemoryError"
+    assert "Traceback" not in r.stderr

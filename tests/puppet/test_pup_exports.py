@@ -237,3 +237,31 @@ def test_drawing_options_on_a_data_export_are_said_not_to_apply(recording: Path,
     assert main(["replay", str(recording), "--out", str(tmp_path / "s.png"), "--view", "heat", "--size", "64x48",
                  "--to", "0.1"]) == 0
     assert "note" not in capsys.readouterr().err
+
+
+def test_replay_out_obj_on_the_scanned_head_says_it_holds_the_whole_scan(tmp_path: Path,
+                                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """`puppet replay take.jsonl --out take.obj` on the default face wrote the scan's 26,719
+    vertices but said "(6020 simulated vertices)": a user checking the README's promise read that
+    the OBJ had lost the scan's topology. It says what the file holds, as `puppet pose` does."""
+    from puppet.cli import main
+    from puppet.mapping.config import MappingSpec
+
+    face = live.load_face(face="ict")
+    names = [c.name for c in face.vocab.channels]
+    take = tmp_path / "jaw.jsonl"
+    header = live.session_header(face, MappingSpec(name="t", bindings=[], combine={}, source="t", text=""), 60.0, [])
+    values = np.array(face.vocab.defaults())
+    with SessionWriter(take, header, fsync_seconds=None) as w:
+        for k in range(6):
+            values[names.index("jaw")] = 0.1 * k
+            w.values(k, values)
+            w.tick(k + 1)
+        w.close(6)
+    obj = tmp_path / "at.obj"
+    capsys.readouterr()
+    assert main(["replay", str(take), "--out", str(obj), "--from", "0.05"]) == 0
+    said = capsys.readouterr().out
+    n = sum(1 for ln in obj.read_text().splitlines() if ln.startswith("v "))
+    assert n == 26719 != face.model.n_vertices
+    assert "the scan's 26719 vertices" in said and f"{face.model.n_vertices} simulated vertices" not in said, said

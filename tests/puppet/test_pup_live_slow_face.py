@@ -32,3 +32,42 @@ def test_a_slow_face_load_is_announced_while_it_loads(monkeypatch: pytest.Monkey
     notice = [i for i, line in enumerate(lines) if line.startswith("puppet: preparing the face")]
     stop = [i for i, line in enumerate(lines) if "the face stops here" in line]
     assert notice and stop and notice[0] < stop[0], err
+
+
+@pytest.mark.parametrize("argv", [["live", "--headless", "--no-panel", "--no-realtime"],  # no box: the demo
+                                  ["live", "--demo", "--headless", "--no-panel", "--no-realtime"]],
+                         ids=["no box, no display", "--demo"])
+def test_the_demo_says_so_too_while_its_face_loads(argv: list[str], monkeypatch: pytest.MonkeyPatch,
+                                                   capsys: pytest.CaptureFixture) -> None:
+    """The README's first command on a new install (no display, no box: the built-in demo) said
+    "performing the built-in demo (about 20 s)" and then nothing for 3-4 minutes while the face and
+    its compiled parts were built (seen at load 15); the show with a box said it was preparing."""
+    def slow_load(*args: object, **kwargs: object) -> None:
+        time.sleep(1.0)
+        raise PuppetError("the face stops here")
+
+    monkeypatch.setattr(live, "load_face", slow_load)
+    monkeypatch.setattr(live, "display_available", lambda: False)
+    monkeypatch.setattr(cmd_live, "SLOW_FACE_NOTICE", 0.05)
+    monkeypatch.setattr(cmd_live, "_open_devices", lambda specs, warn: [])
+    monkeypatch.setenv("PUPPET_LIBRARY", "off")
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    lines = err.splitlines()
+    notice = [i for i, line in enumerate(lines) if line.startswith("puppet: preparing the face")]
+    stop = [i for i, line in enumerate(lines) if "the face stops here" in line]
+    assert notice and stop and notice[0] < stop[0], err
+
+
+def test_the_headless_demo_says_it_prepares_the_face(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                    capsys: pytest.CaptureFixture) -> None:
+    """The headless demo runs on its script's clock; its show left out "preparing the face", so
+    the minutes numba spent compiling on a new install passed without a word after "about 20 s"."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(live, "display_available", lambda: False)
+    monkeypatch.setenv("PUPPET_LIBRARY", "off")
+    code = main(["live", "--demo", "--headless", "--no-panel", "--no-realtime", "--duration", "0.1"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "puppet: preparing the face" in err.splitlines(), err

@@ -47,7 +47,7 @@ def test_import_search_tag_note_show(folder: Path, tmp_path: Path, capsys: pytes
     smile = by_name["ana_smile.jsonl"]
     assert smile["performer"] == "ana" and smile["duration"] == pytest.approx(0.5)
     assert smile["markers"] == [[pytest.approx(10 / 60, abs=1e-4), "good bit"]]
-    assert smile["devices"] == ["mock://studio"] and smile["face"] == "default" and len(smile["hash"]) == 64
+    assert smile["devices"] == ["mock://studio"] and smile["face"] == "procedural" and len(smile["hash"]) == 64
 
     def ids(query: str) -> list[str]:
         code, out, _ = takes_cli(capsys, lib, "search", query, "--json")
@@ -70,6 +70,30 @@ def test_import_search_tag_note_show(folder: Path, tmp_path: Path, capsys: pytes
     assert "keeper" in out and "good bit" in out and "ana" in out
     code, _, err = takes_cli(capsys, lib, "show", "999")
     assert code == 2 and "no take 999" in err
+
+
+def test_a_take_is_found_by_the_face_named_when_it_was_recorded(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """`face:NAME` searched the rig's name: every character of the scanned head was "ict" and the
+    procedural face "default" (no longer the default face), so `face:bob` for a take recorded with
+    `--face bob` and `face:procedural` found nothing. The library keeps the face as --face named it."""
+    shoot = tmp_path / "shoot"
+    plain = write_take(shoot / "plain.jsonl", ticks=6)  # the procedural face
+    lines = plain.read_text().splitlines(keepends=True)
+    head = json.loads(lines[0])
+    head["rig"] = {"name": "ict", "hash": "0123456789abcdef", "path": None, "face": "bob",
+                   "identity": [0.5] * 100, "identity_hash": "fedcba9876543210"}
+    (shoot / "second.jsonl").write_text(json.dumps(head) + "\n" + "".join(lines[1:]))
+    lib = tmp_path / "lib" / "takes.db"
+    assert takes_cli(capsys, lib, "import", str(shoot))[0] == 0
+
+    def found(query: str) -> list[str]:
+        code, out, _ = takes_cli(capsys, lib, "search", query, "--json")
+        assert code == 0
+        return sorted(Path(r["path"]).name for r in json.loads(out))
+
+    assert found("face:bob") == ["second.jsonl"]
+    assert found("face:procedural") == ["plain.jsonl"]
+    assert found("bob") == ["second.jsonl"]  # the words search the face too
 
 
 def test_expression_search_after_check(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
