@@ -37,6 +37,18 @@ given), fitted on the shapes that drive them ("The inner brows and the cheek's s
     nice .venv/bin/python benchmarks/anchor_limits.py --ala-slip --all --only levator_labii,levator_labii_alaeque_nasi
         --grow 1.5 --smooth 1e-4 --bound 10 --add --write-rig sim/face/scan/ict_rig.npz
 
+`--even W` joins the forehead's evenness to the objective: the lumps (`sim.face.scan.anchor_fit.
+forehead_lumps`, what the displacement keeps beyond its 1 cm average, the figure tests/sim/test_scan_face.py
+holds) of the poses `--even-poses` (the scanned head's surprise and AU1+2 at full), settled on the
+rig the fit starts from, with the fields' linear change, relative to each pose's forehead displacement
+and weighted W; `--even-keep W2` holds those poses' smooth part (their 1 cm average from 1 cm above the
+upper lids: the brows' lift) where it was. With `--settle --rounds R` the terms are taken about the
+settled poses too. The frontalis' fields refitted so, last, on the rig the commands above made ("Surprise's forehead evened",
+docs/scan-face.md):
+
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only frontalis_inner=1.5,frontalis_outer --smooth 1e-4
+        --bound 10 --even 100 --even-keep 30 --settle --rounds 1 --write-rig sim/face/scan/ict_rig.npz
+
 `--per-shape zones|skin` fits a field per shape instead (as if each shape had its own channel: over
 its channels' zones, grown by `--grow`, or over all the free skin), the ceiling of more channels or
 parts; `--where` prints where each shape's error lies (`face_regions.py`). `--keep` leaves those
@@ -56,6 +68,7 @@ poses. docs/scan-face.md ("The tissue under the skin moving with the muscle") ha
     nice .venv/bin/python benchmarks/anchor_limits.py [--smooth 1e-3] [--grow 0] [--bound 5] [--iters 300]
         [--settle [--rounds R] [--damp 0.5] [--scale 0.5,0.25]] [--save FILE] [--all] [--settled FILE]
         [--per-shape zones|skin] [--where] [--only C[=GROW],..] [--keep C,..] [--leave S,..] [--write-rig RIG [--add]]
+        [--even W [--even-keep W2] [--even-poses surprise,AU1+2]]
 """
 
 from __future__ import annotations
@@ -164,6 +177,41 @@ def per_shape_calibration(model, labels: list[str], vals: np.ndarray, args):  # 
     return cal, np.eye(len(labels))
 
 
+def lumps_mm(smoothing, u: np.ndarray) -> str:  # type: ignore[no-untyped-def]
+    """The largest and 95th percentile lump (`sim.face.scan.anchor_fit.forehead_lumps`) of u (N, 3) cm."""
+    lump = 10.0 * np.linalg.norm((smoothing @ np.ravel(u)).reshape(-1, 3), axis=1)
+    return f"{lump.max():.2f} / {np.percentile(lump, 95):.2f}"
+
+
+def even_poses(model, cal, anch, args) -> list:  # type: ignore[no-untyped-def]
+    """The --even terms joined to the calibration: per pose its name, channel values, displacement
+    settled on the rig the fit starts from and the lumps' matrix."""
+    from sim.face import targets as et
+    from sim.face.scan.anchor_fit import forehead_lumps
+    from sim.facs import EXPRESSIONS, apply_expression
+    from sim.state import FaceControl
+
+    if anch is None:
+        raise SystemExit("--even settles its poses: leave out --settled")
+    s = forehead_lumps(model)
+    keep = forehead_lumps(model, low=1.0, average=True)
+    out = []
+    for pose in (x for x in args.even_poses.split(",") if x):
+        if pose in EXPRESSIONS:
+            c = FaceControl()
+            apply_expression(c, pose, face="ict")
+        else:
+            c = et.pose_control(pose)
+        u0 = anch.displacement(c.values)
+        size = float(np.sum(u0.ravel()[np.unique(s.indices)] ** 2))
+        cal.even_over(c.values, u0, s, args.even / size)
+        if args.even_keep > 0:  # the pose's smooth lift (the brows' with it) kept
+            cal.even_over(c.values, u0, keep, args.even_keep / size, keep @ u0.ravel())
+        out.append((pose, c.values.copy(), u0, s))
+        print(f"even: {pose} lumps {lumps_mm(s, u0)} mm settled", flush=True)
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--smooth", type=float, default=1e-3, help="Laplacian weight per edge and component (per mm^2)")
@@ -198,6 +246,14 @@ def main() -> int:
                     "(left as the rig has them)")
     ap.add_argument("--leave", default="", help="shapes (comma-separated labels or prefixes) left out of the fit "
                     "(still settled and printed)")
+    ap.add_argument("--even", type=float, default=0.0,
+                    help="weight of the forehead's evenness in the objective (its lumps in --even-poses, relative "
+                         "to each pose's forehead displacement, squared)")
+    ap.add_argument("--even-keep", type=float, default=0.0,
+                    help="with --even: weight of keeping those poses' smooth part (their 1 cm average from 1 cm above "
+                         "the upper lids up, the brows' lift) as the rig before settled it")
+    ap.add_argument("--even-poses", default="surprise,AU1+2",
+                    help="with --even: the poses (a preset on the scanned head, or AUs joined by '+') whose lumps count")
     ap.add_argument("--where", action="store_true", help="print where each shape's remaining error lies (regions)")
     args = ap.parse_args()
     from scan_match import scan_targets
@@ -259,6 +315,7 @@ def main() -> int:
                                 zones=zones)
     print(f"anchor fields: {cal.n_params} parameters over {len(cal.groups)} muscles "
           f"({time.monotonic() - t0:.0f} s)", flush=True)
+    even = even_poses(model, cal, anch, args) if args.even > 0 else []
     leave = tuple(x for x in args.leave.split(",") if x)
     train = [k for k, lab in enumerate(labels) if (args.all or not lab.endswith("_R"))
              and not (leave and lab.startswith(leave))]
@@ -282,6 +339,9 @@ def main() -> int:
         print_where(model, labels, targets, real, "settled")
         print_scales(model, labels, targets, real, "settled")
         print_where(model, labels, targets, [real[k] + add[k] for k in range(len(labels))], "+ anchors (linear)")
+    for pose, v, u0, s in even:
+        print(f"{pose} lumps, max / p95 mm: settled {lumps_mm(s, u0)}, + anchors (linear) "
+              f"{lumps_mm(s, u0 + cal.predict_all(v[None])[0])}", flush=True)
     p = cal.params.reshape(-1, 3)
     mag = np.linalg.norm(p, axis=1)
     dp = (cal.diff @ cal.params).reshape(-1, 3)
@@ -303,17 +363,26 @@ def main() -> int:
 
         sim = settle_with(cal.params)
         report("settled with anchors (simulator)", sim)
+        for pose, v, u0, s in even:
+            print(f"{pose} lumps, max / p95 mm, settled with anchors: {lumps_mm(s, anch.displacement(v))}", flush=True)
         for s in [float(x) for x in args.scale.split(",") if x]:
             report(f"settled with anchors x{s}", settle_with(s * cal.params))
         for r in range(args.rounds):
             lin = cal.predict_all(vals_a)
             b = np.stack([tg[k] - sim[k].ravel() + lin[k].ravel() for k in train], axis=1)
+            for j, (pose, v, _, s) in enumerate(even):  # the evenness about the settled poses too
+                u0 = anch.displacement(v) - cal.predict_all(v[None])[0]
+                even[j] = (pose, v, u0, s)
+            by_pose = {e[1].tobytes(): e[2].ravel() for e in even}
+            cal.even = [(v, by_pose[v.tobytes()], s, wt, t) for v, _, s, wt, t in cal.even]
             p0 = cal.params.copy()
             res = cal.fit(vals_a[train], b, w, iters=args.iters)
             cal.params = p0 + args.damp * (cal.params - p0)
             sim = settle_with(cal.params)
             print(f"round {r + 1} ({res.nit} iterations, {time.monotonic() - t0:.0f} s):", flush=True)
             report(f"round {r + 1} settled", sim)
+            for pose, v, _, s in even:
+                print(f"{pose} lumps, max / p95 mm, round {r + 1} settled: {lumps_mm(s, anch.displacement(v))}", flush=True)
         anch.apply({})
     if args.save:
         np.savez(args.save, **{c: cal.field(c) for c in cal.channels})

@@ -65,6 +65,36 @@ def test_the_fits_gradient_is_its_objectives(cal, synth_model) -> None:  # type:
         assert abs(numeric - grad[i]) < 1e-4 * np.abs(grad).max()
 
 
+def test_the_evenness_terms_gradient_is_their_objectives(synth_model) -> None:  # type: ignore[no-untyped-def]
+    """A pose's lumps (and its smooth part held to a target) joined to the objective
+    (`even_over`): the gradient the fit follows is still the objective's."""
+    import scipy.sparse as sp
+
+    from sim.face.scan.anchor_fit import AnchorCalibration
+
+    cal = AnchorCalibration(synth_model)
+    rng = np.random.default_rng(11)
+    chans = list(cal.force_of)[:2]
+    vals = np.zeros((1, len(synth_model.channels)))
+    vals[0, synth_model.channel_index[chans[0]]] = 1.0
+    pose = np.zeros(len(synth_model.channels))
+    pose[[synth_model.channel_index[c] for c in chans]] = [0.8, 0.6]
+    s = sp.random(60, 3 * cal.n, density=0.02, random_state=3, format="csr")
+    cal.even_over(pose, 1e-2 * rng.standard_normal((cal.n, 3)), s, 3.0)
+    cal.even_over(pose, np.zeros((cal.n, 3)), s, 2.0, 1e-2 * rng.standard_normal(60))
+    b = 1e-2 * rng.standard_normal((3 * cal.n, 1))
+    w = np.array([1.0])
+    p = rng.standard_normal(cal.n_params)
+    _, grad = cal.objective(p, vals, b, w)
+    for i in rng.choice(np.flatnonzero(grad), 12, replace=False):
+        h = np.zeros_like(p)
+        h[i] = 1e-5
+        numeric = (cal.objective(p + h, vals, b, w)[0] - cal.objective(p - h, vals, b, w)[0]) / 2e-5
+        assert abs(numeric - grad[i]) < 1e-4 * np.abs(grad).max()
+    bare = AnchorCalibration(synth_model)
+    assert cal.objective(p, vals, b, w)[0] > bare.objective(p, vals, b, w)[0]
+
+
 def test_written_anchors_join_the_channels_field_and_a_rig_without_keeps_its_hash(  # type: ignore[no-untyped-def]
         cal, synth_model, synth_rig, tmp_path) -> None:
     """The fields written to a rig file load back; compiled, each channel's field gains the force
@@ -112,3 +142,25 @@ def test_the_sphincters_halves_have_fields_of_their_own_beside_the_whole(cal, sy
     mirror = mirror_map(rest)
     zone = np.flatnonzero(np.linalg.norm(right, axis=1) > 0)
     assert np.allclose(right[zone], left[mirror[zone]] * np.array([-1.0, 1.0, 1.0]))
+
+
+def test_the_foreheads_lumps_leave_out_a_lift_and_find_a_bump() -> None:
+    """`forehead_lumps` on the scanned head: the forehead carried up or forward as a whole keeps
+    no lump, a bump 5 mm high and 1 cm wide keeps most of its height, and the average with it is
+    the lift itself."""
+    from sim.face.scan.anchor_fit import forehead_lumps
+    from sim.face.scan.rig import scan_model
+
+    model = scan_model()
+    s, avg = forehead_lumps(model), forehead_lumps(model, average=True)
+    rest = np.asarray(model.rest)
+    lift = np.zeros_like(rest)
+    lift[:] = [0.0, 0.8, -0.3]
+    assert np.abs(s @ lift.ravel()).max() < 1e-9
+    assert np.allclose((avg @ lift.ravel()).reshape(-1, 3), lift[0])
+    cols = np.unique(s.indices // 3)
+    centre = rest[cols[np.argmin(np.abs(rest[cols, 0] - 3.0) + np.abs(rest[cols, 1] - rest[cols, 1].mean()))]]
+    bump = np.zeros_like(rest)
+    bump[:, 2] = 0.5 * np.exp(-np.sum((rest - centre) ** 2, axis=1) / (2 * 0.25 ** 2))
+    lumps = np.linalg.norm((s @ bump.ravel()).reshape(-1, 3), axis=1)
+    assert lumps.max() > 0.5 * 0.5

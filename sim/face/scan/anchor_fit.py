@@ -15,7 +15,9 @@ k_r d_c: the step can carry it as part of the channel's field (its response in t
 Linear statics about the rest shape, as the other fits: u = K^-1 sum_c v_c K_r P_c p_c, K the
 skin's stiffness at rest with the step's bending terms (`strain_fit.step_stiffness`). Parameters
 are in millimetres; a graph-Laplacian smoothness over the zone's edges and a small ridge keep the
-fields tissue-like; each component is bounded (BOUND mm).
+fields tissue-like; each component is bounded (BOUND mm). A pose's evenness can join the objective
+(`AnchorCalibration.even_over`): the lumps its displacement keeps beyond a local average
+(`forehead_lumps`), and how far the fields move its smooth part.
 """
 
 from __future__ import annotations
@@ -64,6 +66,29 @@ def channel_zones(model: Any, grow: float = 0.0) -> dict[str, np.ndarray]:
         if whole in out and half in model.channel_index:
             out[half] = out[whole] & (side_weight(rig.mesh, rest, side) > 0.01)
     return out
+
+
+def forehead_lumps(model: Any, radius: float = 1.0, low: float = 2.0, average: bool = False) -> Any:
+    """(3M, 3N) sparse: a displacement (3N,) of the scanned head to what it keeps beyond its average
+    within `radius` cm on the forehead (M vertices: `low` to 7 cm above the upper lids' middles,
+    within 5.5 cm of the midline, the front 4 cm), the lumps `tests/sim/test_scan_face.py` measures;
+    with `average` to that average."""
+    import scipy.sparse as sp
+    from scipy.spatial import cKDTree
+
+    rest = np.asarray(model.rest, np.float64)
+    lm = model.mesh.landmarks
+    eye_y = float(np.mean([rest[lm[f"upper_lid_{s}"], 1] for s in "lr"]))
+    fh = np.flatnonzero((rest[:, 1] > eye_y + low) & (rest[:, 1] < eye_y + 7.0) & (np.abs(rest[:, 0]) < 5.5)
+                        & (rest[:, 2] > rest[:, 2].max() - 4.0))
+    near = cKDTree(rest[fh]).query_ball_point(rest[fh], radius)
+    rows = np.concatenate([np.full(len(j), i) for i, j in enumerate(near)])
+    cols = np.concatenate([fh[np.asarray(j)] for j in near])
+    vals = np.concatenate([np.full(len(j), 1.0 / len(j)) for j in near])
+    a = sp.csr_matrix((vals, (rows, cols)), shape=(len(fh), len(rest)))
+    if not average:
+        a = sp.csr_matrix((np.ones(len(fh)), (np.arange(len(fh)), fh)), shape=a.shape) - a
+    return sp.kron(a, sp.eye(3)).tocsr()
 
 
 class AnchorCalibration(FieldCalibration):
@@ -124,6 +149,32 @@ class AnchorCalibration(FieldCalibration):
         self._edge_differences(lap, k, 3)
         self.smooth, self.ridge, self.bound = smooth, ridge, bound
         self.params = np.zeros(self.n_params)
+        self.even: list[tuple[np.ndarray, np.ndarray, Any, float, np.ndarray]] = []
+
+    def even_over(self, values: np.ndarray, settled: np.ndarray, smoothing: Any, weight: float,
+                  target: np.ndarray | None = None) -> None:
+        """Adds to the objective weight * |S (u0 + u(p)) - t|^2 for the pose of channel `values` (C,),
+        settled `settled` (N, 3) cm on the rig the fit adds to, u(p) the fields' linear change to it:
+        with `smoothing` S taking a displacement to what it keeps beyond its local average
+        (`forehead_lumps`) and t 0 the pose's lumps; with S the local average and t that of the pose
+        as it was, how far the fields move the pose's smooth part."""
+        s = smoothing
+        self.even.append((np.asarray(values, np.float64), np.asarray(settled, np.float64).ravel(), s, float(weight),
+                          np.zeros(s.shape[0]) if target is None else np.asarray(target, np.float64)))
+
+    def objective(self, p: np.ndarray, vals: np.ndarray, b: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray]:
+        """The misfit, smoothness and ridge (`FieldCalibration.objective`) plus each evenness term
+        (`even_over`) and its gradient (one adjoint solve a pose)."""
+        val, grad = super().objective(p, vals, b, w)
+        ci = self.model.channel_index
+        for v, u0, s, wt, t in self.even:
+            su = s @ (self._solve(self.forces(p, v[None]))[:, 0] + u0) - t
+            val += wt * float(su @ su)
+            lam = 2.0 * wt * self._solve((s.T @ su)[:, None])[:, 0]
+            for c, f in self.force_of.items():
+                if v[ci[c]]:
+                    grad += v[ci[c]] * (f.T @ lam)
+        return val, grad
 
     def field(self, c: str, p: np.ndarray | None = None) -> np.ndarray:
         """(N, 3) channel c's anchor displacement at full value, cm (zero outside its zone)."""
