@@ -94,6 +94,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from observer import SIZE, Observer, perform, score  # noqa: E402
+from sim.face.transfer.openings import zip_hole  # noqa: E402
 
 MH_URL = ("https://raw.githubusercontent.com/makehumancommunity/makehuman/"
           "a8bc2d54/makehuman/data/3dobjs/base.obj")
@@ -381,7 +382,7 @@ def load_ict_shut(_path: Path) -> tuple[np.ndarray, np.ndarray]:
         for s in "lr":
             centre = 0.5 * (np.asarray(points[f"eye_inner_{s}"]) + np.asarray(points[f"eye_outer_{s}"]))
             if len(loop) > 10 and np.linalg.norm(v[loop].mean(axis=0) - centre) < 1.0:
-                new += _zip_loop(v, np.asarray(loop))
+                new += zip_hole(v, np.asarray(loop))
     directed = {(x[k], x[(k + 1) % 3]) for x in t.tolist() for k in range(3)}
     uses = Counter(tuple(sorted(e)) for x in t.tolist() for e in ((x[0], x[1]), (x[1], x[2]), (x[2], x[0])))
     added = []
@@ -421,29 +422,6 @@ def _boundary_loops(t: np.ndarray) -> list[list[int]]:
         loops.append(loop)
     return loops
 
-
-def _zip_loop(v: np.ndarray, loop: np.ndarray) -> list[list[int]]:
-    """Triangles joining a hole's two halves (split at its leftmost and rightmost vertices), walked
-    from one corner to the other by their arc length."""
-    a, b = int(np.argmin(v[loop, 0])), int(np.argmax(v[loop, 0]))
-    i, j = min(a, b), max(a, b)
-    one = [int(x) for x in loop[i:j + 1]]
-    other = [int(x) for x in np.r_[loop[j:], loop[:i + 1]][::-1]]
-
-    def frac(arc: list[int]) -> np.ndarray:
-        s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(v[arc], axis=0), axis=1))]
-        return s / s[-1]
-
-    f1, f2 = frac(one), frac(other)
-    out, p, q = [], 0, 0
-    while p < len(one) - 1 or q < len(other) - 1:
-        if q >= len(other) - 1 or (p < len(one) - 1 and f1[p + 1] < f2[q + 1]):
-            out.append([one[p], one[p + 1], other[q]])
-            p += 1
-        else:
-            out.append([one[p], other[q + 1], other[q]])
-            q += 1
-    return out
 
 
 def past_corner(v: np.ndarray, t: np.ndarray, path: list[int]) -> list[int]:

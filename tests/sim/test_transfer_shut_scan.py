@@ -22,37 +22,13 @@ from scipy.sparse.csgraph import dijkstra
 from sim.face.transfer.eyes import lid_chains, margin_point, rest_gap, seat_eye
 from sim.face.transfer.geometry import boundary_loops
 from sim.face.transfer.lids import open_lids
-from sim.face.transfer.openings import cut_slit
+from sim.face.transfer.openings import cut_slit, zip_hole
 
 UP = np.array([0.0, 1.0, 0.0])
 SEED = 7  # the development identity (puppet.faces.seed_identity)
 RADIUS = 0.88  # cm: the eyeball `puppet import-face` carries onto this head from the built-in face
 RATIO = 0.33  # the reference's opening over the eye's width
 
-
-def _zip(v: np.ndarray, loop: list[int]) -> list[list[int]]:
-    """Triangles joining a hole's two halves (split at its leftmost and rightmost vertices),
-    walked from one end to the other by arc length."""
-    loop_a = np.asarray(loop)
-    a, b = int(np.argmin(v[loop_a, 0])), int(np.argmax(v[loop_a, 0]))
-    i, j = min(a, b), max(a, b)
-    one = [int(x) for x in loop_a[i:j + 1]]
-    other = [int(x) for x in np.r_[loop_a[j:], loop_a[:i + 1]][::-1]]
-
-    def frac(arc: list[int]) -> np.ndarray:
-        s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(v[arc], axis=0), axis=1))]
-        return s / s[-1]
-
-    f1, f2 = frac(one), frac(other)
-    out, p, q = [], 0, 0
-    while p < len(one) - 1 or q < len(other) - 1:
-        if q >= len(other) - 1 or (p < len(one) - 1 and f1[p + 1] < f2[q + 1]):
-            out.append([one[p], one[p + 1], other[q]])
-            p += 1
-        else:
-            out.append([one[p], other[q + 1], other[q]])
-            q += 1
-    return out
 
 
 def _shut_scan() -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
@@ -77,7 +53,7 @@ def _shut_scan() -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
         for s in "lr":
             centre = 0.5 * (v[lm[f"eye_inner_{s}"]] + v[lm[f"eye_outer_{s}"]])
             if len(loop) > 10 and np.linalg.norm(v[loop].mean(axis=0) - centre) < 1.0:
-                for x in _zip(v, list(loop)):
+                for x in zip_hole(v, list(loop)):
                     es = {tuple(sorted(e)) for e in ((x[0], x[1]), (x[1], x[2]), (x[2], x[0]))}
                     if len(set(x)) < 3 or es <= used_edges:
                         continue

@@ -189,3 +189,29 @@ def open_loop(triangles: IntArray, loop: IntArray, name: str, path_file: str) ->
     touching = {int(label[i]) for i in np.nonzero((np.isin(triangles, loop)).any(axis=1))[0]}
     inner = [c for c in touching if c != int(sizes.argmax())]
     return triangles[~np.isin(label, inner)]
+
+
+def zip_hole(vertices: FloatArray, loop: IntArray) -> list[list[int]]:
+    """Triangles closing a hole: its loop split at its leftmost and rightmost vertices into two
+    halves, joined by a strip walked from one corner to the other by each half's arc length (the
+    inverse of `cut_slit`: a scan's shut lids made from open ones)."""
+    loop = np.asarray(loop)
+    a, b = int(np.argmin(vertices[loop, 0])), int(np.argmax(vertices[loop, 0]))
+    i, j = min(a, b), max(a, b)
+    one = [int(x) for x in loop[i:j + 1]]
+    other = [int(x) for x in np.r_[loop[j:], loop[:i + 1]][::-1]]
+
+    def frac(arc: list[int]) -> FloatArray:
+        s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(vertices[arc], axis=0), axis=1))]
+        return s / s[-1]
+
+    f1, f2 = frac(one), frac(other)
+    out, p, q = [], 0, 0
+    while p < len(one) - 1 or q < len(other) - 1:
+        if q >= len(other) - 1 or (p < len(one) - 1 and f1[p + 1] < f2[q + 1]):
+            out.append([one[p], one[p + 1], other[q]])
+            p += 1
+        else:
+            out.append([one[p], other[q + 1], other[q]])
+            q += 1
+    return out
