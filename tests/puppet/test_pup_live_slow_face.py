@@ -26,12 +26,7 @@ def test_a_slow_face_load_is_announced_while_it_loads(monkeypatch: pytest.Monkey
     monkeypatch.setenv("PUPPET_LIBRARY", "off")
     code = main(["live", "--headless", "--no-panel", "--no-realtime", "--device", f"mock://{SCRIPT}",
                  "--duration", "1"])
-    err = capsys.readouterr().err
-    assert code == 2, err
-    lines = err.splitlines()
-    notice = [i for i, line in enumerate(lines) if line.startswith("puppet: preparing the face")]
-    stop = [i for i, line in enumerate(lines) if "the face stops here" in line]
-    assert notice and stop and notice[0] < stop[0], err
+    _assert_notice_before_the_stop(code, capsys.readouterr().err)
 
 
 @pytest.mark.parametrize("argv", [["live", "--headless", "--no-panel", "--no-realtime"],  # no box: the demo
@@ -52,12 +47,7 @@ def test_the_demo_says_so_too_while_its_face_loads(argv: list[str], monkeypatch:
     monkeypatch.setattr(cmd_live, "_open_devices", lambda specs, warn: [])
     monkeypatch.setenv("PUPPET_LIBRARY", "off")
     code = main(argv)
-    err = capsys.readouterr().err
-    assert code == 2, err
-    lines = err.splitlines()
-    notice = [i for i, line in enumerate(lines) if line.startswith("puppet: preparing the face")]
-    stop = [i for i, line in enumerate(lines) if "the face stops here" in line]
-    assert notice and stop and notice[0] < stop[0], err
+    _assert_notice_before_the_stop(code, capsys.readouterr().err)
 
 
 def test_the_headless_demo_says_it_prepares_the_face(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
@@ -71,3 +61,12 @@ def test_the_headless_demo_says_it_prepares_the_face(tmp_path: Path, monkeypatch
     err = capsys.readouterr().err
     assert code == 0, err
     assert "puppet: preparing the face" in err.splitlines(), err
+
+
+def _assert_notice_before_the_stop(code: int, err: str) -> None:
+    """The run stopped on the slow face's error (exit 2) after saying it was preparing the face."""
+    assert code == 2, err
+    lines = err.splitlines()
+    notice = [i for i, line in enumerate(lines) if line.startswith("puppet: preparing the face")]
+    stop = [i for i, line in enumerate(lines) if "the face stops here" in line]
+    assert notice and stop and notice[0] < stop[0], err

@@ -57,12 +57,7 @@ def test_the_fits_gradient_is_its_objectives(cal, synth_model) -> None:  # type:
     b = 1e-2 * rng.standard_normal((3 * cal.n, 2))
     w = np.array([1.0, 2.0])
     p = rng.standard_normal(cal.n_params)
-    _, grad = cal.objective(p, vals, b, w)
-    for i in rng.choice(np.flatnonzero(grad), 12, replace=False):
-        h = np.zeros_like(p)
-        h[i] = 1e-5
-        numeric = (cal.objective(p + h, vals, b, w)[0] - cal.objective(p - h, vals, b, w)[0]) / 2e-5
-        assert abs(numeric - grad[i]) < 1e-4 * np.abs(grad).max()
+    _assert_gradient_is_the_objectives(cal, p, vals, b, w, rng)
 
 
 def test_the_evenness_terms_gradient_is_their_objectives(synth_model) -> None:  # type: ignore[no-untyped-def]
@@ -85,12 +80,7 @@ def test_the_evenness_terms_gradient_is_their_objectives(synth_model) -> None:  
     b = 1e-2 * rng.standard_normal((3 * cal.n, 1))
     w = np.array([1.0])
     p = rng.standard_normal(cal.n_params)
-    _, grad = cal.objective(p, vals, b, w)
-    for i in rng.choice(np.flatnonzero(grad), 12, replace=False):
-        h = np.zeros_like(p)
-        h[i] = 1e-5
-        numeric = (cal.objective(p + h, vals, b, w)[0] - cal.objective(p - h, vals, b, w)[0]) / 2e-5
-        assert abs(numeric - grad[i]) < 1e-4 * np.abs(grad).max()
+    _assert_gradient_is_the_objectives(cal, p, vals, b, w, rng)
     bare = AnchorCalibration(synth_model)
     assert cal.objective(p, vals, b, w)[0] > bare.objective(p, vals, b, w)[0]
 
@@ -164,3 +154,13 @@ def test_the_foreheads_lumps_leave_out_a_lift_and_find_a_bump() -> None:
     bump[:, 2] = 0.5 * np.exp(-np.sum((rest - centre) ** 2, axis=1) / (2 * 0.25 ** 2))
     lumps = np.linalg.norm((s @ bump.ravel()).reshape(-1, 3), axis=1)
     assert lumps.max() > 0.5 * 0.5
+
+
+def _assert_gradient_is_the_objectives(cal, p, vals, b, w, rng) -> None:  # type: ignore[no-untyped-def]
+    """The fit's gradient against central differences of its objective, on 12 of its nonzero entries."""
+    _, grad = cal.objective(p, vals, b, w)
+    for i in rng.choice(np.flatnonzero(grad), 12, replace=False):
+        h = np.zeros_like(p)
+        h[i] = 1e-5
+        numeric = (cal.objective(p + h, vals, b, w)[0] - cal.objective(p - h, vals, b, w)[0]) / 2e-5
+        assert abs(numeric - grad[i]) < 1e-4 * np.abs(grad).max()
