@@ -19,6 +19,8 @@ was asked for (the default face at a resolution, or the bytes of a rig file). Fi
   (`sim.implicit.prepare`: the factored matrix, the lid and lip contact's Green's function; 0.2-1 s
   to make for the scanned head), keyed by the sim sources and a digest of what they are made from
   (`sim.prepared.inputs_digest`), with a JSON `meta` of checksums; read back through `sim.prepared.check`.
+- `jaw-<key>.npz`: the jaw's responses and poses at the grid's openings for a face and a substep
+  (`sim.integrator._jaw_arrays`, ~0.1 s to make), kept the same way and checked by shape and finiteness.
 
 An entry is never trusted blindly: a missing, corrupt, foreign (another key) or inconsistent entry
 (checksums, shapes, index ranges, finiteness, the rig's own digest) is ignored and rebuilt. Entries
@@ -49,7 +51,10 @@ VERSION = 1
 ENV = "PUPPET_CACHE_DIR"
 MAX_ENTRY_BYTES = 1 << 30  # an entry larger than this is not a face of ours
 KEEP_ENTRIES = 8  # after writing an entry, only the most recently used this many are kept
-KEEP_STEPPERS = 4  # the same for the implicit integrator's entries (~9 MB each for the scanned head)
+KEEP_STEPPERS = 4  # the same for the implicit integrator's entries (~25 MB each for the scanned head)
+#: arrays kept beside the implicit integrator's (`sim.prepared.kept`), each kind KEEP_STEPPERS entries:
+#: the jaw's responses and poses at the grid's openings (~13 MB for the scanned head)
+KEPT_KINDS = ("jaw",)
 #: FaceModel fields that are not stored as arrays or scalars (rebuilt from the rig or constant)
 _NOT_STORED = {"rig", "mesh", "channels", "channel_index", "muscle_matrix", "params"}
 
@@ -167,8 +172,11 @@ def _evict(directory: Path) -> None:
             except OSError:
                 pass
     heads = sorted(directory.glob("head-*[0-9a-f].npz"), key=lambda p: p.stat().st_mtime, reverse=True)
-    steppers = sorted(directory.glob("implicit-*[0-9a-f].npz"), key=lambda p: p.stat().st_mtime, reverse=True)
-    for p in heads[KEEP_ENTRIES:] + steppers[KEEP_STEPPERS:]:
+    old = heads[KEEP_ENTRIES:]
+    for prefix in ("implicit", *KEPT_KINDS):
+        steppers = sorted(directory.glob(f"{prefix}-*[0-9a-f].npz"), key=lambda p: p.stat().st_mtime, reverse=True)
+        old += steppers[KEEP_STEPPERS:]
+    for p in old:
         try:
             p.unlink()
         except OSError:
@@ -424,7 +432,11 @@ class StepperStore:
         self.directory = directory
 
     def path(self, key: str) -> Path:
-        return self.directory / f"implicit-{entry_key(b'implicit:' + key.encode())}.npz"
+        """`implicit-<key>.npz` for the prepared arrays; `KIND-<key>.npz` for other arrays kept
+        with them (`sim.prepared.kept`, a key `KIND:digest`: the jaw's grid)."""
+        kind, sep, _ = key.partition(":")
+        prefix = kind if sep and kind in KEPT_KINDS else "implicit"
+        return self.directory / f"{prefix}-{entry_key(b'implicit:' + key.encode())}.npz"
 
     def load(self, key: str) -> dict[str, np.ndarray] | None:
         path = self.path(key)

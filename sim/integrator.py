@@ -30,6 +30,7 @@ the same inputs give bit-identical positions (on one machine and build).
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
 from typing import Callable, NamedTuple
@@ -778,9 +779,9 @@ class Simulator:
         self._turn_tmp = np.zeros((10, n))  # (`_jaw_pose`'s)
         self._turned_normal = np.zeros((n, 3))  # the normals `_jaw_turned` makes on the way
         if self._implicit is not None:
-            self._implicit.jaw_resp, self._implicit.jaw_slope = _jaw_grid(self)
+            # (the poses' grid now, not at the live show's first opening)
+            self._implicit.jaw_resp, self._implicit.jaw_slope, self._grid = _jaw_arrays(self)
             self._implicit.turn_basis(self._jaw_weight, np.asarray(model.jaw_pivot, dtype=np.float64))
-            self._grid = self._pose_grid()  # (now, not at the live show's first opening)
             self._implicit._single(True)  # (the jaw's float32 responses too: 8.6 MB cast, ~4 ms)
         self._rest_shape = np.array(model.rest)  # the margin bending's rest shape at rest (`bending_turned`)
         self._recalled: object = _NOTHING  # the memory the contact's arrays hold (`_recall_contact`)
@@ -1203,8 +1204,46 @@ class Simulator:
 #: between them: a grid step turns the mandible 1.0 degree at the default jaw_max_angle (0.55 rad),
 #: which moves a chin 10 cm from the hinge off the chord by ~4 micrometres
 JAW_GRID = 32
-_JAW_MEMO: dict[tuple[int, str], tuple[object, tuple[np.ndarray, np.ndarray]]] = {}
 _JAW_EPS = 1e-4  # the opening's step of the target's central difference (the support's slope)
+
+
+def _jaw_arrays(s: Simulator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The jaw's responses and their slopes at the grid's openings (`_jaw_grid`) and the poses at
+    them (`Simulator._pose_grid`), made once per face and substep and kept with the integrator's
+    prepared arrays (`sim.prepared.kept`: this process's memory, else the application's store, the
+    face cache on disk): making them took 0.1-0.15 s of CPU at every start of the scanned head (66
+    solves and 33 poses), reading them back ~0.02 s. The same arrays either way, so the same bits."""
+    from sim.prepared import key_of, kept
+
+    m, stepper = s.model, s._implicit
+    assert stepper is not None
+    p = m.params
+    d = hashlib.sha256(f"jaw grid {JAW_GRID} eps={_JAW_EPS!r} h={float(s.dt).hex()} {key_of(stepper.prepared, m, s.dt)} "
+                       f"{p.jaw_max_angle!r} {p.jaw_max_slide!r} {p.jaw_slide_angle!r}".encode())
+    for arr in (m.rest, m.rest_offset, m.rest_normal, m.jaw_weight, m.jaw_pivot, m.jaw_axis, m.mesh.eye_centers,
+                m.held, s._weight, s._kr, s._kn, s._springs, s._k_low_base, s._k_high_base, s._is_muscle):
+        a = np.ascontiguousarray(arr)
+        d.update(f"{a.dtype.str}{a.shape}".encode() + a.tobytes())
+    nf, n = len(stepper.free), m.n_vertices
+    want = {"resp": ((JAW_GRID + 1, nf, 3), np.float64), "slope": ((JAW_GRID + 1, nf, 3), np.float64),
+            "pose": ((JAW_GRID + 1, 2, n, 3), np.float32)}
+
+    def make() -> dict[str, np.ndarray]:
+        grid, slope = _jaw_grid(s)
+        return {"resp": grid, "slope": slope, "pose": s._pose_grid()}
+
+    def check(a: dict[str, np.ndarray]) -> None:
+        if set(a) != set(want):
+            raise ValueError("not the jaw's arrays")
+        for name, (shape, dtype) in want.items():
+            arr = a[name]
+            # as made: C-ordered and writable (the kernels' one compiled signature), finite
+            if arr.shape != shape or arr.dtype != dtype or not arr.flags.c_contiguous or not arr.flags.writeable \
+                    or not np.all(np.isfinite(arr)):
+                raise ValueError(f"{name}: not the jaw's {shape} {np.dtype(dtype).name}")
+
+    a = kept("jaw", d.hexdigest(), make, check)
+    return a["resp"], a["slope"], a["pose"]
 
 
 def _jaw_grid(s: Simulator) -> tuple[np.ndarray, np.ndarray]:
@@ -1212,20 +1251,10 @@ def _jaw_grid(s: Simulator) -> tuple[np.ndarray, np.ndarray]:
     to the jaw's pose (`sim.implicit.ImplicitStepper.jaw_response`: eq 9's target, the margin
     bending's rest shape and the held nodes with their springs' pull, all turned with the jaw), and
     the slope in the opening of the normal support's response, k_n n (n . d target / d jaw). Made
-    once per face and substep in a process (2 (JAW_GRID + 1) solves: 0.17 s of CPU on the scanned
-    head, 0.3 s at load 6)."""
-    import hashlib
-
+    once per face and substep (2 (JAW_GRID + 1) solves: 0.17 s of CPU on the scanned head, 0.3 s
+    at load 6) and kept (`_jaw_arrays`)."""
     m, stepper = s.model, s._implicit
     assert stepper is not None
-    d = hashlib.sha256(repr((m.params.jaw_max_angle, m.params.jaw_max_slide, m.params.jaw_slide_angle)).encode())
-    for arr in (m.rest, m.rest_offset, m.jaw_weight, m.jaw_pivot, m.jaw_axis, m.rest_normal, s._kr, s._kn,
-                m.mesh.eye_centers):
-        d.update(np.ascontiguousarray(arr, dtype=np.float64).tobytes())
-    key = (id(stepper.prepared), d.hexdigest())
-    hit = _JAW_MEMO.get(key)
-    if hit is not None and hit[0] is stepper.prepared:
-        return hit[1]
     grid = np.zeros((JAW_GRID + 1, len(stepper.free), 3))
     # the springs from a held node to a free one: a step's local step (sim.implicit._pd_springs)
     # carries their rest direction along with the held end, so the matrix's pull k_h on the free end
@@ -1269,9 +1298,6 @@ def _jaw_grid(s: Simulator) -> tuple[np.ndarray, np.ndarray]:
             normal[...] = turned_normal  # (made with the pose's target: `_jaw_pose`)
         along = s._kn * np.einsum("ij,ij->i", normal, tangent)
         stepper.jaw_response(along[:, None] * normal, None, None, slope[k])
-    if len(_JAW_MEMO) >= 2:
-        _JAW_MEMO.clear()
-    _JAW_MEMO[key] = (stepper.prepared, (grid, slope))
     return grid, slope
 
 

@@ -11,6 +11,8 @@ nothing heavy: a start from the cache needs neither scipy nor the matrix."""
 from __future__ import annotations
 
 import hashlib
+import weakref
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
@@ -33,7 +35,24 @@ def use_store(store: Store | None) -> None:
     _STORE = store
 
 
+#: each face's digests by substep, while the face lives: a face is frozen with read-only arrays,
+#: so a second simulator of it (a show's kernel warm-up) does not hash it again (~15 ms)
+_DIGESTS: weakref.WeakKeyDictionary[Any, dict[float, str]] = weakref.WeakKeyDictionary()
+
+
 def inputs_digest(model: Any, h: float) -> str:
+    """`_inputs_digest`, once per face object and substep."""
+    try:
+        known = _DIGESTS.setdefault(model, {})
+    except TypeError:  # (not weakly referable: hashed every time)
+        return _inputs_digest(model, h)
+    key = known.get(float(h))
+    if key is None:
+        key = known[float(h)] = _inputs_digest(model, h)
+    return key
+
+
+def _inputs_digest(model: Any, h: float) -> str:
     """SHA-256 of everything `sim.implicit.prepare(model, h)` reads: the substep, the springs and
     their stiffness, the per-vertex masses, damping and stiffnesses, the held vertices, the rest
     shape, the margin and skin bending parameters and the skin's bending weights, the triangles,
@@ -59,6 +78,16 @@ def inputs_digest(model: Any, h: float) -> str:
     for name, row in sorted(_rows(model.mesh).items()):
         d.update(name.encode() + np.ascontiguousarray(row, dtype=np.int64).tobytes())
     return d.hexdigest()
+
+
+_KEYS: dict[int, tuple[dict[str, np.ndarray], str]] = {}
+
+
+def key_of(arrays: dict[str, np.ndarray], model: Any, h: float) -> str:
+    """The key (`inputs_digest`) of prepared `arrays` that `prepared` gave for this face and
+    substep, without hashing the face again; made anew for arrays from elsewhere."""
+    hit = _KEYS.get(id(arrays))
+    return hit[1] if hit is not None and hit[0] is arrays else inputs_digest(model, h)
 
 
 def prepared(model: Any, h: float) -> dict[str, np.ndarray]:
@@ -89,6 +118,44 @@ def prepared(model: Any, h: float) -> dict[str, np.ndarray]:
     while len(_MEMO) >= MEMO_ENTRIES:
         _MEMO.pop(next(iter(_MEMO)))
     _MEMO[key] = arrays
+    _KEYS.clear()
+    _KEYS.update((id(a), (a, k)) for k, a in _MEMO.items())
+    return arrays
+
+
+_KEPT: dict[str, dict[str, np.ndarray]] = {}
+
+
+def kept(kind: str, key: str, make: Callable[[], dict[str, np.ndarray]],
+         check_arrays: Callable[[dict[str, np.ndarray]], None]) -> dict[str, np.ndarray]:
+    """Other arrays made once per face and substep, kept like the prepared ones: from this process's
+    memory, else the store (under `kind:key`, checked by `check_arrays`, which raises ValueError
+    for anything it cannot step on), else `make()` (and given to the store). `key` must be a digest
+    of everything `make` reads; the store adds the version of the code. The arrays are shared: a
+    simulator must not write to them."""
+    name = f"{kind}:{key}"
+    if name in _KEPT:
+        return _KEPT[name]
+    arrays = None
+    if _STORE is not None:
+        try:
+            arrays = _STORE.load(name)
+            if arrays is not None:
+                check_arrays(arrays)
+        except (ValueError, KeyError, TypeError, OSError):
+            arrays = None
+    if arrays is None:
+        arrays = make()
+        if _STORE is not None:
+            try:
+                saved = _STORE.save(name, arrays)
+                if isinstance(saved, dict):
+                    arrays = saved
+            except OSError:
+                pass
+    while len(_KEPT) >= MEMO_ENTRIES:
+        _KEPT.pop(next(iter(_KEPT)))
+    _KEPT[name] = arrays
     return arrays
 
 

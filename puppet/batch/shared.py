@@ -28,9 +28,9 @@ from typing import Any
 
 import numpy as np
 
-#: shared files kept (one per face and substep size); older ones are removed (a process that
-#: mapped one keeps its pages)
-KEEP = 4
+#: shared files kept (two per face and substep size: the prepared arrays and the jaw's grid,
+#: `sim.prepared.kept`); older ones are removed (a process that mapped one keeps its pages)
+KEEP = 8
 #: each array starts on a multiple of this many bytes (a cache line; numpy's own alignment)
 ALIGN = 64
 PREFIX = "puppet-prepared-"

@@ -29,10 +29,12 @@ def store(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):  # type: ignore[no-u
     """The face cache's stepper store in tmp_path, this process's memory emptied before and after."""
     monkeypatch.setenv("PUPPET_CACHE_DIR", str(tmp_path))
     prepared._MEMO.clear()
+    prepared._KEPT.clear()
     face_cache.use_stepper_store()
     yield face_cache.StepperStore(tmp_path)
     prepared.use_store(None)
     prepared._MEMO.clear()
+    prepared._KEPT.clear()
 
 
 class Counted:
@@ -53,6 +55,7 @@ def _run(model: object) -> bytes:
     """A fresh process's view: nothing in memory, a simulator stepped through a blink and a smile
     with the jaw open (lid and lip contact, jaw-turned bending), its final state's bytes."""
     prepared._MEMO.clear()
+    prepared._KEPT.clear()
     s = Simulator(model, 1.0 / RATE, wrinkles=False, method="implicit")  # type: ignore[arg-type]
     st = model.rest_state()  # type: ignore[attr-defined]
     for pose in ("AU45", "AU27+12"):
@@ -158,3 +161,28 @@ def test_only_the_most_recently_used_steppers_are_kept(face: object, store: obje
     kept = sorted(tmp_path.glob("implicit-*.npz"))
     newest = {store.path(prepared.inputs_digest(face, 1.0 / r)) for r in rates[-face_cache.KEEP_STEPPERS:]}  # type: ignore[attr-defined]
     assert len(kept) == face_cache.KEEP_STEPPERS and set(kept) == newest
+
+
+def test_the_jaws_grid_is_kept_beside_the_stepper(face: object, store: object, tmp_path: Path,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """The jaw's responses and poses at the grid's openings (66 solves and 33 poses a start) are
+    made by the first start and read back by the next, which steps the opening jaw to the same bits;
+    a damaged or misshapen entry is made again."""
+    import sim.integrator
+
+    made, real = [], sim.integrator._jaw_grid
+    monkeypatch.setattr(sim.integrator, "_jaw_grid", lambda s: made.append(1) or real(s))
+    fresh = _run(face)
+    (path,) = tmp_path.glob("jaw-*.npz")
+    assert len(made) == 1 and len(list(tmp_path.glob("implicit-*.npz"))) == 1
+    assert _run(face) == fresh and len(made) == 1  # read back, not made
+    good = path.read_bytes()
+    data = bytearray(good)
+    data[len(data) // 2] ^= 0xFF
+    path.write_bytes(bytes(data))
+    assert _run(face) == fresh and len(made) == 2
+    path.write_bytes(good)
+    _rewrite(path, lambda a: a.update(pose=a["pose"][:, :, :-1].copy()))  # another face's poses
+    assert _run(face) == fresh and len(made) == 3
+    prepared.use_store(None)
+    assert _run(face) == fresh and len(made) == 4  # and with no cache at all
