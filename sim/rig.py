@@ -70,6 +70,12 @@ def _muscle_json(channel: str, m: Muscle) -> dict[str, Any]:
 def save_rig(rig: FaceRig, path: str | Path) -> None:
     """Write the rig file described in the module docstring (beside the target, then renamed
     into place)."""
+    with atomic_write(path, "wb") as fh:  # a failed save leaves the old rig as it was
+        np.savez_compressed(fh, **rig_arrays(rig))
+
+
+def rig_arrays(rig: FaceRig) -> dict[str, np.ndarray]:
+    """The arrays of the rig file of `rig` (its "header" a 0-d JSON text), by name."""
     mesh = rig.mesh
     header = {
         "format": FORMAT,
@@ -121,8 +127,7 @@ def save_rig(rig: FaceRig, path: str | Path) -> None:
         arrays[f"strain_{name}"] = np.asarray(strain, np.float64)
     for name, anchor in rig.anchor.items():
         arrays[f"anchor_{name}"] = np.asarray(anchor, np.float64)
-    with atomic_write(path, "wb") as fh:  # a failed save leaves the old rig as it was
-        np.savez_compressed(fh, **arrays)
+    return arrays
 
 
 def _array(data: Any, key: str, path: str, shape: tuple[int | None, ...], kind: str) -> np.ndarray:
@@ -198,6 +203,30 @@ def load_rig(path: str | Path) -> FaceRig:
     except (OSError, ValueError, zipfile.BadZipFile, KeyError, EOFError, zlib.error, RecursionError,
             NotImplementedError, OverflowError) as err:
         raise RigFileError(f"{p}: not a readable rig file ({type(err).__name__}: {quote(str(err), 80)})") from err
+
+
+class _Arrays:
+    """Arrays by name, read as an open npz is (`files`, `[name]`)."""
+
+    def __init__(self, arrays: dict[str, np.ndarray]) -> None:
+        self._arrays = arrays
+        self.files = list(arrays)
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        return self._arrays[key]
+
+
+def rig_from_arrays(arrays: dict[str, np.ndarray], name: str) -> FaceRig:
+    """The rig whose file's arrays (`rig_arrays`) are `arrays` (read elsewhere, e.g. mapped from
+    the face cache), checked as `load_rig` checks a file's; RigFileError naming `name` if not."""
+    try:
+        return _parse(_Arrays(arrays), name)
+    except RigFileError:
+        raise
+    except BadFile as err:
+        raise RigFileError(str(err)) from err
+    except (ValueError, KeyError, TypeError, RecursionError, OverflowError) as err:
+        raise RigFileError(f"{name}: not a readable rig ({type(err).__name__}: {quote(str(err), 80)})") from err
 
 
 def _check_members(p: str) -> None:

@@ -49,7 +49,7 @@ def test_warm_load_is_the_same_face_and_steps_bit_identically(fresh: object, tmp
     build = Builds(fresh)
     first = cached_model(WHAT, build)
     assert first is fresh and build.calls == 1
-    assert sorted(p.suffix for p in tmp_path.iterdir()) == [".npz", ".npz"]
+    assert sorted(p.suffix for p in tmp_path.iterdir()) == [".arrays", ".npz"]
     assert not list(tmp_path.glob("*.tmp*"))  # written beside, renamed into place
     warm = cached_model(WHAT, build)
     assert build.calls == 1 and warm is not fresh
@@ -154,7 +154,7 @@ def test_damaged_entries_are_ignored_and_rebuilt(fresh: object, tmp_path: Path,
     same face as a fresh build, never an exception; a variant that still loads is the same face."""
     monkeypatch.setenv("PUPPET_CACHE_DIR", str(tmp_path))
     key = _entry(tmp_path, fresh)
-    model_path, rig_path = tmp_path / f"{key}.npz", tmp_path / f"{key}.rig.npz"
+    model_path, rig_path = tmp_path / f"{key}.npz", tmp_path / f"{key}.rig.arrays"
     good = {model_path: model_path.read_bytes(), rig_path: rig_path.read_bytes()}
     rng = np.random.default_rng(14)
     build = Builds(fresh)
@@ -182,7 +182,7 @@ def test_a_foreign_entry_under_our_name_is_not_used(fresh: object, tmp_path: Pat
     other = face_cache.entry_key(b"default-face:7")
     face_cache.save_entry(tmp_path, other, fresh, with_rig=True)
     key = face_cache.entry_key(WHAT)
-    for suffix in (".npz", ".rig.npz"):
+    for suffix in (".npz", ".rig.arrays"):
         shutil.copy(tmp_path / f"{other}{suffix}", tmp_path / f"{key}{suffix}")
     with pytest.raises(CacheEntryError, match="foreign"):
         load_entry(tmp_path, key, None)
@@ -267,7 +267,7 @@ def test_only_the_most_recently_used_entries_are_kept(fresh: object, tmp_path: P
     assert len(kept) == 2 * face_cache.KEEP_ENTRIES
     for i in (0, 1, n - 1):
         key = face_cache.entry_key(f"face {i}".encode())
-        assert f"{key}.npz" in kept and f"{key}.rig.npz" in kept
+        assert f"{key}.npz" in kept and f"{key}.rig.arrays" in kept
     assert f"{face_cache.entry_key(b'face 3')}.npz" not in kept
 
 
