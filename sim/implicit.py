@@ -646,6 +646,24 @@ def prepare(model: FaceModel, h: float) -> dict[str, np.ndarray]:
     return prep
 
 
+_SINGLE: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def single_of(a: np.ndarray) -> np.ndarray:
+    """The float32 copy of `a`, an array nothing writes to (the prepared responses, the jaw's grid:
+    shared by the simulators of a face), made once per array in a process: a show's simulator and
+    its kernel warm-up's share it (~20 MB cast at each start of the scanned head). The copy is
+    read only."""
+    hit = _SINGLE.get(id(a))
+    if hit is not None and hit[0] is a:
+        return hit[1]
+    out = np.ascontiguousarray(a, dtype=np.float32)
+    if len(_SINGLE) >= 8:
+        _SINGLE.clear()
+    _SINGLE[id(a)] = (a, out)
+    return out
+
+
 class ImplicitStepper:
     """Runs the substeps of one frame for a Simulator (method "implicit"). `prepared`: the arrays
     of `prepare(model, h)` made before (`sim.prepared`: this process's or the face cache's), else
@@ -711,7 +729,7 @@ class ImplicitStepper:
         #: other bits: the take header's "responses", sim.Simulator.single_responses. False: the
         #: float64 responses and four rows, as takes recorded before
         self.single_responses = True
-        self._resp32 = np.ascontiguousarray(self._resp64, dtype=np.float32)
+        self._resp32 = single_of(self._resp64)  # (the shared arrays' copy: once per process)
         self._jaw32: tuple[object, object, np.ndarray, np.ndarray] = (None, None, np.zeros((0, nf, 3), np.float32),
                                                                      np.zeros((0, nf, 3), np.float32))
         self._no_jaw32 = np.zeros((0, nf, 3), dtype=np.float32)
@@ -880,8 +898,7 @@ class ImplicitStepper:
             return self._resp32, self._no_jaw32, self._no_jaw32
         made_r, made_s, r32, s32 = self._jaw32
         if made_r is not self.jaw_resp or made_s is not self.jaw_slope:
-            r32 = np.ascontiguousarray(self.jaw_resp, dtype=np.float32)
-            s32 = np.ascontiguousarray(self.jaw_slope, dtype=np.float32)
+            r32, s32 = single_of(self.jaw_resp), single_of(self.jaw_slope)
             self._jaw32 = (self.jaw_resp, self.jaw_slope, r32, s32)
         return self._resp32, r32, s32
 

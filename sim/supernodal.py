@@ -681,6 +681,10 @@ def _unsigned(r_idx: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(r_idx, dtype=np.int32).view(np.uint32)
 
 
+#: `mirrored` of a factor's triangles by the array they came from (never written to), with it
+_MIRRORED: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+
 class PrefactoredSolver:
     """A sparse LU of a fixed matrix with a compiled supernodal solve for (n, 3) right-hand sides.
     `arrays` holds everything the solve reads (kept in the face cache, `sim.prepared`); a solver
@@ -720,8 +724,12 @@ class PrefactoredSolver:
         """What `_sym_sweeps` reads: L's values, the runs' triangles with L's values on both sides
         (`mirrored`, made on first use: 0.86 MB on the scanned head) and D; U's (uv) left unread."""
         a = self.arrays
-        return (a["sn_ptr"], a["r_ptr"], _unsigned(a["r_idx"]), a["v_ptr"], a["lv"], a["t_ptr"],
-                mirrored(a["sn_ptr"], a["t_ptr"], a["tv"]), a["u_diag"])
+        hit = _MIRRORED.get(id(a["tv"]))  # (the solvers of one face's prepared arrays share one)
+        if hit is None or hit[0] is not a["tv"]:
+            if len(_MIRRORED) >= 4:
+                _MIRRORED.clear()
+            hit = _MIRRORED[id(a["tv"])] = (a["tv"], mirrored(a["sn_ptr"], a["t_ptr"], a["tv"]))
+        return (a["sn_ptr"], a["r_ptr"], _unsigned(a["r_idx"]), a["v_ptr"], a["lv"], a["t_ptr"], hit[1], a["u_diag"])
 
     def solve_symmetric(self, b: np.ndarray, out: np.ndarray) -> np.ndarray:
         """out = A^-1 b for b (n, 3) from L and D alone (`_sym_sweeps`): the same up to rounding."""
