@@ -136,6 +136,9 @@ def connect(path: Path) -> tuple[sqlite3.Connection, bool]:
     if path.is_dir():  # was "cannot open the take library: unable to open database file"
         raise ConfigError(f"{path}: is a folder, not a take library; pass --library with the library's file, "
                           f"e.g. {path / 'takes.db'}")
+    if path.exists() and not path.is_file():  # a pipe or a device: SQLite said "disk I/O error"
+        raise ConfigError(f"{path}: not a regular file (a pipe or a device), not a take library; pass --library "
+                          "with the library's file (a new name starts a new one)")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:
