@@ -6,8 +6,10 @@ Outside checks rely on this contract:
                 [--size WxH] [--view VIEW]
 FILE .npz: arrays rest (N,3), positions (N,3), surface (N,3), triangles (M,3), landmark_names (K,),
 landmark_indices (K,), and for the scanned head scan_rest and scan_positions (26719,3), the whole scan in
-its own vertex order; .obj: the drawn surface (the scanned head: the whole posed scan, its 26719
-vertices and its faces in the scan's order); .png/.jpg/.jpeg: rendered by render.offscreen.
+its own vertex order, posed as drawn (the lids laid back onto the eyeballs where the simulated
+margins sink into the cornea: sim.face.scan.lid_contact; `surface` is the simulation's own); .obj:
+the drawn surface (the scanned head: the whole posed scan as scan_positions, its 26719 vertices and
+its faces in the scan's order); .png/.jpg/.jpeg: rendered by render.offscreen.
 Values combine in this order: expressions, then AUs (each raises its channels to max(current,
 weight * intensity)), then --set (overrides), then --age.
 """
