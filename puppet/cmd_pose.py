@@ -150,6 +150,11 @@ def run(args: argparse.Namespace) -> int:
     suffix = out.suffix.lower()
     if suffix not in (".npz", ".obj", *IMAGE_SUFFIXES):
         raise PuppetError(f"--out {args.out}: unknown file type; use .npz, .obj, .png, .jpg or .jpeg")
+    if not out.parent.is_dir():  # said before the simulation (it was said after it, 10-30 s later)
+        why = "is not a folder" if out.parent.exists() else "does not exist"
+        raise PuppetError(f"{out}: the folder {out.parent} {why}")
+    if out.is_dir():
+        raise PuppetError(f"--out {out}: is a folder; name the file to write in it")
     unused = [f"--{name}" for name in ("size", "view") if getattr(args, name) is not None]
     # dropped without a word before; said once the pose is written (a failure stays one line)
     note = not_applying(unused if suffix not in IMAGE_SUFFIXES else [], f"{suffix} (only images are drawn)")

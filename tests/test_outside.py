@@ -61,3 +61,15 @@ def test_a_take_library_that_cannot_be_created_says_why(tmp_path: Path) -> None:
     r = _puppet("takes", "--library", "/sys/lib.db", "import", str(tmp_path), cwd=tmp_path)
     line = _one_error(r)
     assert "/sys/lib.db" in line and "cannot create it" in line and "unable to open" not in line
+
+
+def test_pose_into_a_missing_folder_is_said_before_the_simulation(tmp_path: Path) -> None:
+    """`puppet pose --out /nonexistent/dir/a.npz` simulated for 10-30 s, then said it could not
+    write; a folder named as --out was found only then too."""
+    r = _puppet("pose", "--au", "AU12=0.8", "--out", str(tmp_path / "no" / "such" / "a.npz"), cwd=tmp_path)
+    line = _one_error(r)
+    assert "does not exist" in line and str(tmp_path / "no" / "such") in line
+    assert "preparing" not in r.stderr and "simulat" not in r.stderr.replace(line, "")
+    (tmp_path / "dir.obj").mkdir()
+    line = _one_error(_puppet("pose", "--out", str(tmp_path / "dir.obj"), cwd=tmp_path))
+    assert "is a folder" in line
