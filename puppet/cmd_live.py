@@ -273,6 +273,13 @@ def _run(args: argparse.Namespace) -> int:
                                      ("--panel-role", bool(args.panel_role))) if on]
         if given:
             raise PuppetError(f"--no-panel and {given[0]} contradict each other: leave out one of them")
+    if args.panel_role:  # the form said before the face loads, and in a demo, which serves no page
+        from puppet.panel.device import parse_roles
+
+        try:
+            parse_roles(args.panel_role)
+        except ValueError as err:
+            raise PuppetError(str(err)) from err
     if args.panel is not None and not 0 <= args.panel <= 65535:
         # said before the face loads, of the port the user typed (it was the page device's error,
         # naming a panel:// URL the user never wrote, after the face had loaded)

@@ -6,8 +6,10 @@ Outside checks rely on this contract:
                 [--size WxH] [--view VIEW]
 FILE .npz: arrays rest (N,3), positions (N,3), surface (N,3), triangles (M,3), landmark_names (K,),
 landmark_indices (K,), and for the scanned head scan_rest and scan_positions (26719,3), the whole scan in
-its own vertex order; .obj: the drawn surface (the scanned head: the whole posed scan, its 26719
-vertices and its faces in the scan's order); .png/.jpg/.jpeg: rendered by render.offscreen.
+its own vertex order, posed as drawn (the lids laid back onto the eyeballs where the simulated
+margins sink into the cornea: sim.face.scan.lid_contact; `surface` is the simulation's own); .obj:
+the drawn surface (the scanned head: the whole posed scan as scan_positions, its 26719 vertices and
+its faces in the scan's order); .png/.jpg/.jpeg: rendered by render.offscreen.
 Values combine in this order: expressions, then AUs (each raises its channels to max(current,
 weight * intensity)), then --set (overrides), then --age.
 """
@@ -148,6 +150,11 @@ def run(args: argparse.Namespace) -> int:
     suffix = out.suffix.lower()
     if suffix not in (".npz", ".obj", *IMAGE_SUFFIXES):
         raise PuppetError(f"--out {args.out}: unknown file type; use .npz, .obj, .png, .jpg or .jpeg")
+    if not out.parent.is_dir():  # said before the simulation (it was said after it, 10-30 s later)
+        why = "is not a folder" if out.parent.exists() else "does not exist"
+        raise PuppetError(f"{out}: the folder {out.parent} {why}")
+    if out.is_dir():
+        raise PuppetError(f"--out {out}: is a folder; name the file to write in it")
     unused = [f"--{name}" for name in ("size", "view") if getattr(args, name) is not None]
     # dropped without a word before; said once the pose is written (a failure stays one line)
     note = not_applying(unused if suffix not in IMAGE_SUFFIXES else [], f"{suffix} (only images are drawn)")

@@ -15,7 +15,7 @@ from typing import Any
 
 from puppet.errors import ConfigError
 from puppet.session import FORMAT, VERSION, Session
-from safefile import BadFile, number, quote, read_bytes, sequence, string, table
+from safefile import BadFile, bounded_lines, number, open_to_read, quote, sequence, string, table
 
 MAX_CHANNELS = 4096
 MIN_RATE = 1.0
@@ -24,6 +24,16 @@ MAX_TICKS = 100_000_000
 #: ticks x channels of a take's value array (8 bytes each): 400 MB
 MAX_CELLS = 50_000_000
 MAX_BYTES = 2 * 1024 * 1024 * 1024
+#: a header line's bytes (4096 channel names of 100 characters are 0.4 MB): a file whose first line
+#: runs on past this (/dev/zero, a video, one line of gigabytes) is refused after reading this much
+MAX_HEADER_BYTES = 4 * 1024 * 1024
+#: a record line's bytes (a tick of 4096 channels with long names and long numbers is under 0.6 MB)
+MAX_RECORD_BYTES = 4 * 1024 * 1024
+#: event records ("ev", "st") one take holds (a dial box sends at most a few hundred a second: an
+#: hour is about a million): a file of endless events stops here instead of filling the memory
+MAX_EVENTS = 20_000_000
+#: blank lines looked at after a damaged record to tell a file cut by a crash from damage inside
+LOOK_AHEAD = 64
 MAX_LABEL = 200
 RESOLUTIONS = (0, 1, 2)
 
@@ -129,26 +139,45 @@ def _values(rec: dict[str, Any], index: dict[str, int]) -> dict[int, float]:
     return out
 
 
+def _too_many(p: Path, ticks: int, channels: int, rate: float) -> ConfigError:
+    hours = ticks / rate / 3600
+    return ConfigError(f"{p}: the recording claims {ticks} ticks ({hours:.3g} h at {rate:g} Hz) of "
+                       f"{channels} channels, more than one replay holds ({MAX_CELLS} values); "
+                       "is the file damaged?")
+
+
 def read_session(path: str | Path) -> Session:
     """Read a recording. A file cut short (crash, SIGKILL) reads up to its last complete record
     and gets a warning in `session.warnings`; a file that is not a recording, or whose header is
-    damaged, is a ConfigError naming file:line."""
+    damaged, is a ConfigError naming file:line. The file is read line by line, each line bounded
+    (`MAX_HEADER_BYTES`, `MAX_RECORD_BYTES`): what is not a recording (/dev/zero, /dev/urandom, a
+    video, a file of one endless line) is refused after reading a few megabytes at most."""
     p = Path(path)
     try:
-        data = read_bytes(p, "recording", MAX_BYTES)
+        with open_to_read(p, "recording") as fh:
+            return _read(p, bounded_lines(fh, str(p), "recording", MAX_RECORD_BYTES, MAX_BYTES))
     except BadFile as err:
         raise ConfigError(str(err)) from err
-    lines = data.split(b"\n")
-    header = _header(p, lines[0])
+
+
+def _read(p: Path, lines: Any) -> Session:
+    first = next(lines, b"")
+    if len(first) > MAX_HEADER_BYTES:
+        raise ConfigError(f"{p}:1: not a facepuppet recording (its first line runs on past "
+                          f"{MAX_HEADER_BYTES // (1024 * 1024)} MB; is it the right file?)")
+    header = _header(p, first.rstrip(b"\r\n"))
     channels: list[str] = header["channels"]
     index = {n: i for i, n in enumerate(channels)}
     s = Session(p, header, channels, header["tick_rate"], 0, complete=False)
     last_tick = -1
     sync = 0
-    for lineno, raw in enumerate(lines[1:], start=2):
+    most = MAX_CELLS // len(channels)  # ticks one replay holds
+    for lineno, raw in enumerate(lines, start=2):
         if not raw.strip():
             continue
         try:
+            if len(raw) > MAX_RECORD_BYTES:
+                raise _Damaged("a line too long")
             rec = _json_line(raw)
             if not isinstance(rec, dict):
                 raise _Damaged("not an object")
@@ -159,9 +188,14 @@ def read_session(path: str | Path) -> Session:
                 break
             tick = _tick(rec)
             if kind == "v":
+                if tick >= most:
+                    raise _too_many(p, tick + 1, len(channels), s.tick_rate)
                 s.values[tick] = _values(rec, index)
                 last_tick = max(last_tick, tick)
             elif kind in ("ev", "st"):
+                if len(s.events) >= MAX_EVENTS:
+                    raise ConfigError(f"{p}:{lineno}: the recording holds more than {MAX_EVENTS} device events, "
+                                      "more than one replay holds; is the file damaged?")
                 s.events.append(rec)
             elif kind == "mark":
                 s.markers.append((tick, str(rec.get("label", ""))[:MAX_LABEL]))
@@ -172,8 +206,13 @@ def read_session(path: str | Path) -> Session:
             elif kind == "seg":
                 s.segments.append(tick)
         except (ValueError, KeyError, TypeError, UnicodeDecodeError, RecursionError, OverflowError):
-            cut = lineno == len(lines) or all(not x.strip() for x in lines[lineno:])
-            why = "was cut off (crash or kill)" if cut else f"has a damaged record at line {lineno}"
+            if len(raw) > MAX_RECORD_BYTES:
+                why = (f"has a line longer than {MAX_RECORD_BYTES // (1024 * 1024)} MB at line {lineno} "
+                       "(damaged, or not a recording from there on)")
+            elif raw.endswith(b"\n") and not _blank_to_end(lines):
+                why = f"has a damaged record at line {lineno}"
+            else:
+                why = "was cut off (crash or kill)"
             s.warnings.append(f"{p}: recording {why}; reading it up to its last complete record")
             break
     if not s.complete:
@@ -182,13 +221,19 @@ def read_session(path: str | Path) -> Session:
             s.warnings.append(f"{p}: recording has no end record (the program was stopped); "
                               f"reading its {s.ticks} complete ticks")
     if s.ticks * len(channels) > MAX_CELLS:
-        hours = s.ticks / s.tick_rate / 3600
-        raise ConfigError(f"{p}: the recording claims {s.ticks} ticks ({hours:.3g} h at {s.tick_rate:g} Hz) of "
-                          f"{len(channels)} channels, more than one replay holds ({MAX_CELLS} values); "
-                          "is the file damaged?")
+        raise _too_many(p, s.ticks, len(channels), s.tick_rate)
     for k in [k for k in s.values if k >= s.ticks]:
         del s.values[k]
     s.markers = [(k, label) for k, label in s.markers if k <= s.ticks]
     s.checks = {k: v for k, v in s.checks.items() if k <= s.ticks}
     s.segments = [k for k in s.segments if 0 < k < s.ticks]
     return s
+
+
+def _blank_to_end(lines: Any) -> bool:
+    """Whether the lines left are blank (a record cut by a crash is followed by nothing else); at
+    most `LOOK_AHEAD` of them are read."""
+    for n, raw in enumerate(lines):
+        if raw.strip() or n >= LOOK_AHEAD:
+            return False
+    return True

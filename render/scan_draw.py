@@ -13,12 +13,12 @@ import numpy as np
 
 from render import scan_shaders
 from render.pipeline import flush, threaded_rasterizer
-from render.scan_lid_contact import LidContact
 from render.scan_look import IRIS_ANGLE, PUPIL_ANGLE, ScanLook
 from render.scan_rows import ScanRows
 from render.scan_seam import LidSeam
 from render.scan_soften import FoldSoftener
 from sim.face.scan.blendshapes import StateControl as PoseControl
+from sim.face.scan.lid_contact import LidContact
 
 KINDS = ("SKIN", "CLAY", "HEAT")
 # the groups drawn with back faces culled, in drawing order: the skin first (so that the depth test
@@ -72,7 +72,7 @@ def sealed_vertices(dressing: Any) -> np.ndarray | None:
 def posed_scan(dressing: Any, softener: FoldSoftener | None, state: Any, contact: LidContact | None = None) -> np.ndarray:
     """The scan as drawn for `state`: posed by the dressing, the upper face's buckles softened
     (render.scan_soften) and the lids that sank into their eyeballs laid back onto them
-    (render.scan_lid_contact; both in the head's own frame, before a head turn), turned with the head."""
+    (sim.face.scan.lid_contact, as exports lay them; both in the head's own frame, before a head turn), turned with the head."""
     control = PoseControl(state)
     if softener is None and contact is None:
         return dressing.pose_turned(np.asarray(state.surface), control, state)
@@ -99,7 +99,7 @@ class ScanPoser:
         self.maker = ScanRows(self.look)
         self.softener = FoldSoftener(self.look)
         self.seam = LidSeam(self.look)
-        self.contact = LidContact(self.look, dressing)
+        self.contact = LidContact(self.look.rest, self.look.lids, dressing)
 
     def rows(self, state: Any) -> np.ndarray:
         rows = self.maker.rows(posed_scan(self.dressing, self.softener, state, self.contact))
@@ -134,7 +134,7 @@ class ScanDraw:
         self.seam: LidSeam | None = LidSeam(self.look)  # None: no shadow in the closing lids' seam
         # None: the lids drawn as simulated, sunk into the eyeballs where they close over the cornea (a
         # dressing of the scan's own shapes has no lid things, and its lids do not sink)
-        self.contact: LidContact | None = LidContact(self.look, dressing) if hasattr(dressing, "lid_idx") else None
+        self.contact: LidContact | None = LidContact(self.look.rest, self.look.lids, dressing) if hasattr(dressing, "lid_idx") else None
         from render.scan_lod import coarse_plain
 
         self.lod_error = coarse_plain()[1]  # cm: the coarse skin's largest distance from the full one

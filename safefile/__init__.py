@@ -115,12 +115,58 @@ def _open_to_read(p: Path, what: str) -> Any:
         raise
 
 
+@contextmanager
+def open_to_read(path: str | Path, what: str) -> Iterator[IO[bytes]]:
+    """The file opened for reading in binary (a pipe watched as `read_bytes` does); a name that
+    cannot be opened is a `BadFile` naming it. For readers that stream a file line by line, each
+    line bounded (`bounded_lines`), instead of holding it whole."""
+    p = Path(path)
+    try:
+        fh = _open_to_read(p, what)
+    except FileNotFoundError as err:
+        raise BadFile(f"{p}: cannot read {what} (no such file)") from err
+    except IsADirectoryError as err:
+        raise BadFile(f"{p}: cannot read {what} (it is a folder)") from err
+    except OSError as err:
+        raise BadFile(f"{p}: cannot read {what} ({err.strerror or err})") from err
+    with fh:
+        yield fh
+
+
+def bounded_lines(fh: IO[bytes], source: str, what: str, line_limit: int,
+                  limit: int = MAX_BYTES) -> Iterator[bytes]:
+    """The lines of an open file (each with its newline, the last one perhaps without), reading
+    at most `limit` bytes in all and `line_limit + 1` for any one line: a line longer than
+    `line_limit` is yielded cut there (it has no newline, so a parser sees it as damaged) and ends
+    the reading, so a file of one endless line (/dev/zero, a binary file) costs one bound's read;
+    a file longer than `limit` is a `BadFile` raised once that much has been read."""
+    total = 0
+    while True:
+        try:
+            line = fh.readline(line_limit + 1)
+        except IsADirectoryError as err:
+            raise BadFile(f"{source}: cannot read {what} (it is a folder)") from err
+        except OSError as err:
+            raise BadFile(f"{source}: cannot read {what} ({err.strerror or err})") from err
+        if not line:
+            return
+        total += len(line)
+        if total > limit:
+            raise BadFile(f"{source}: the {what} is larger than {limit // (1024 * 1024)} MB; is it the right file?")
+        yield line
+        if len(line) > line_limit and not line.endswith(b"\n"):
+            return
+
+
 def read_bytes(path: str | Path, what: str, limit: int = MAX_BYTES) -> bytes:
     """The file's bytes; a file larger than `limit` is refused after reading `limit + 1` bytes at
     most (never more, whatever the file claims or holds)."""
     p = Path(path)
     try:
         with _open_to_read(p, what) as fh:
+            st = os.fstat(fh.fileno())
+            if stat.S_ISREG(st.st_mode) and st.st_size > limit:  # said at once, nothing read
+                raise BadFile(f"{p}: the {what} is larger than {limit // (1024 * 1024)} MB; is it the right file?")
             data = fh.read(limit + 1)
     except FileNotFoundError as err:
         raise BadFile(f"{p}: cannot read {what} (no such file)") from err

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from puppet.capture.points import ChannelCapture, check_times, csv_rows
+from puppet.capture.points import ChannelCapture, check_times, csv_rows, read_csv_text
 from puppet.errors import ConfigError
 from puppet.export.arkit import (ARKIT_SHAPES, GAZE_LIDS, MOUTH_CLOSE_SPAN, ONE_CHANNEL, ROTATIONS, SHAPE_SHARES, SHAPE_SPAN,
                                  SIMPLE_SHAPES, UNSUPPORTED)
@@ -136,12 +136,7 @@ def _rate(stamps: list[tuple[int, int, float]], max_ff: int) -> float:
 def read_arkit_csv(path: Path, fps: float | None = None) -> ChannelCapture:
     from sim.channels import CHANNEL_NAMES
 
-    try:
-        rows = csv_rows(path, path.read_text(encoding="utf-8-sig"), "ARKit CSV")
-    except OSError as err:
-        raise ConfigError(f"{path}: cannot read the ARKit CSV: {err.strerror}") from err
-    except UnicodeDecodeError as err:
-        raise ConfigError(f"{path}: the ARKit CSV is not UTF-8 text") from err
+    rows = csv_rows(path, read_csv_text(path, "ARKit CSV"), "ARKit CSV")
     header = [h.strip() for h in rows[0]] if rows else []
     if len(header) < 2 or header[0].lower() != "timecode":
         raise ConfigError(f"{path}:1: expected a header 'Timecode,BlendShapeCount,EyeBlinkLeft,...'")

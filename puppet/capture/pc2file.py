@@ -18,10 +18,12 @@ from puppet.errors import ConfigError
 
 
 def _obj(path: Path) -> tuple[int, np.ndarray | None]:
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as err:
-        raise ConfigError(f"{path}: cannot read the OBJ beside the point cache: {err.strerror}") from err
+    from safefile import BadFile, read_bytes
+
+    try:  # the scan's rest OBJ is under 2 MB
+        text = read_bytes(path, "OBJ beside the point cache", 256 * 1024 * 1024).decode("utf-8", "replace")
+    except BadFile as err:
+        raise ConfigError(str(err)) from err
     nv = 0
     faces = []
     for lineno, line in enumerate(text.splitlines(), start=1):

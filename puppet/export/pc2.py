@@ -8,6 +8,7 @@ written explicitly, so the cache lands on the frames the user expects."""
 
 from __future__ import annotations
 
+import os
 import struct
 from pathlib import Path
 
@@ -74,18 +75,29 @@ class PC2Writer:
 def read_pc2(path: str | Path) -> tuple[dict[str, float | int], np.ndarray]:
     """(header fields, (samples, points, 3) float32) of a PC2 file: used by tests and to check
     a cache before handing it to Blender."""
-    data = Path(path).read_bytes()
-    if len(data) < PC2_HEADER.size:
-        raise ConfigError(f"{path}: too short for a PC2 file")
-    magic, version, n, start, sampling, samples = PC2_HEADER.unpack_from(data)
-    if magic != PC2_MAGIC:
-        raise ConfigError(f"{path}: not a PC2 file (bad magic)")
-    if n < 0 or samples < 0:
-        raise ConfigError(f"{path}: the PC2 header counts {n} points and {samples} samples; not a PC2 file")
-    if len(data) - PC2_HEADER.size != samples * n * 12:
-        raise ConfigError(f"{path}: PC2 body holds {len(data) - PC2_HEADER.size} bytes, header promises "
-                          f"{samples * n * 12} (cut short or damaged; export it again)")
-    body = np.frombuffer(data, dtype="<f4", offset=PC2_HEADER.size)
+    # the header first, the body's size against the file's before the body is read: a file that is
+    # not a point cache (a 3 GB video named .pc2) was read whole, a MemoryError traceback
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(PC2_HEADER.size)
+            size = os.fstat(fh.fileno()).st_size
+            if len(data) < PC2_HEADER.size:
+                raise ConfigError(f"{path}: too short for a PC2 file")
+            magic, version, n, start, sampling, samples = PC2_HEADER.unpack_from(data)
+            if magic != PC2_MAGIC:
+                raise ConfigError(f"{path}: not a PC2 file (bad magic)")
+            if n < 0 or samples < 0:
+                raise ConfigError(f"{path}: the PC2 header counts {n} points and {samples} samples; not a PC2 file")
+            if size - PC2_HEADER.size != samples * n * 12:
+                raise ConfigError(f"{path}: PC2 body holds {size - PC2_HEADER.size} bytes, header promises "
+                                  f"{samples * n * 12} (cut short or damaged; export it again)")
+            body = np.fromfile(fh, dtype="<f4", count=samples * n * 3)
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read the point cache: {err.strerror or err}") from err
+    except MemoryError as err:
+        raise ConfigError(f"{path}: the point cache ({size // (1024 * 1024)} MB) does not fit in the memory") from err
+    if len(body) != samples * n * 3:
+        raise ConfigError(f"{path}: the point cache was cut short while it was read; export it again")
     head = {"version": version, "num_points": n, "start_frame": start, "sampling": sampling, "num_samples": samples}
     return head, body.reshape(samples, n, 3)
 

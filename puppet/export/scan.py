@@ -1,6 +1,8 @@
 """Exports of the scanned head keep the scan's own vertices: 26,719 in the scan's order (the ICT
 FaceKit's topology, so a take drops onto ICT-topology assets), its quads and triangles as the scan
-has them, posed each frame by the face's dressing from the simulated surface, jaw and eyes."""
+has them, posed each frame by the face's dressing from the simulated surface, jaw and eyes, with
+the lids laid back onto the eyeballs where a closing margin sank into the cornea, as the drawing
+lays them (sim.face.scan.lid_contact; the simulation's surface itself is not changed)."""
 
 from __future__ import annotations
 
@@ -23,10 +25,11 @@ def scan_dressing(model: Any) -> Any:
 
 
 def posed(dressing: Any, state: Any) -> np.ndarray:
-    """(26719, 3) float32: the whole scan posed to a state (the head turned on the neck)."""
+    """(26719, 3) float32: the whole scan posed to a state as it is drawn: the lids that sank into
+    the eyeballs laid back onto them (sim.face.scan.lid_contact), the head turned on the neck."""
     from sim.face.scan.blendshapes import StateControl
 
-    return dressing.pose_turned(np.asarray(state.surface), StateControl(state), state)
+    return dressing.pose_exported(np.asarray(state.surface), StateControl(state), state)
 
 
 def write_scan_obj(path: str | Path, vertices: np.ndarray, comment: str = "") -> None:

@@ -127,6 +127,19 @@ def _statements(script: str) -> Iterator[str]:
             buf = ""
 
 
+def _why(path: Path, err: sqlite3.Error) -> str:
+    """SQLite's reason, or the system's where SQLite only says "unable to open database file" (a
+    library to be made in a folder that cannot be written: a read-only disk, another user's)."""
+    if path.exists():
+        return str(err)
+    try:
+        os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+    except OSError as made:
+        return f"cannot create it: {made.strerror} (--library PATH names another place)"
+    os.unlink(path)
+    return str(err)
+
+
 def connect(path: Path) -> tuple[sqlite3.Connection, bool]:
     """Open (creating) and check the library at `path`, migrated to the current schema; returns
     the connection and whether the file was new (or empty). Raises LibraryDamaged for a damaged
@@ -136,6 +149,9 @@ def connect(path: Path) -> tuple[sqlite3.Connection, bool]:
     if path.is_dir():  # was "cannot open the take library: unable to open database file"
         raise ConfigError(f"{path}: is a folder, not a take library; pass --library with the library's file, "
                           f"e.g. {path / 'takes.db'}")
+    if path.exists() and not path.is_file():  # a pipe or a device: SQLite said "disk I/O error"
+        raise ConfigError(f"{path}: not a regular file (a pipe or a device), not a take library; pass --library "
+                          "with the library's file (a new name starts a new one)")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:
@@ -143,7 +159,7 @@ def connect(path: Path) -> tuple[sqlite3.Connection, bool]:
     try:
         con = sqlite3.connect(path, timeout=BUSY_TIMEOUT, isolation_level=None, check_same_thread=False)
     except sqlite3.Error as err:
-        raise ConfigError(f"{path}: cannot open the take library: {err}") from err
+        raise ConfigError(f"{path}: cannot open the take library: {_why(path, err)}") from err
     try:
         if con.execute("PRAGMA user_version").fetchone()[0] == 0:
             other = [r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")]

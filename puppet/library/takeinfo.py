@@ -55,8 +55,8 @@ def read_take_info(path: str | Path) -> TakeInfo:
     from puppet.session import read_session
 
     p = Path(path).resolve()
+    s = read_session(p)  # first: bounded, it refuses what is not a recording (hashing read a 3 GB file whole)
     digest, size = file_hash(p)
-    s = read_session(p)
     return TakeInfo(
         path=str(p), hash=digest, size=size, duration=float(s.duration), ticks=int(s.ticks),
         markers=[(k / s.tick_rate, str(label)[:200]) for k, label in s.markers[:10_000]],

@@ -178,6 +178,14 @@ def recording_variants(good: bytes, seed: int = 14, n: int = 300) -> Iterator[Va
     yield "terabyte-sync", (lines[0] + '\n{"t":"sync","tick":10000000000000}\n').encode()
     yield "huge-value-tick", (lines[0] + '\n{"t":"v","tick":99999999999,"v":{}}\n').encode()
     yield "jaw-1e308", (lines[0] + '\n{"t":"v","tick":0,"v":{"jaw":1e308}}\n{"t":"end","ticks":5}\n').encode()
+    # lines past the reader's bounds (4 MB): a record, the header, junk after the header
+    mid = len(lines) // 2
+    long_rec = '{"t":"v","tick":0,"v":{"jaw":0.' + "1" * (5 << 20) + "}}"
+    yield "long-record", ("\n".join(lines[:mid] + [long_rec] + lines[mid:]) + "\n").encode()
+    yield "long-record-cut", ("\n".join(lines[:mid]) + "\n" + long_rec[:-2]).encode()
+    yield "long-header", (lines[0][:-1] + ', "pad": "' + "x" * (5 << 20) + '"}\n' + "\n".join(lines[1:])).encode()
+    yield "junk-after-header", (lines[0] + "\n").encode() + bytes(rng.randrange(256) for _ in range(1 << 16))
+    yield "nul-line-after-header", (lines[0] + "\n").encode() + bytes(5 << 20)
     yield from generic(good, rng, n // 5, n // 5)
 
 

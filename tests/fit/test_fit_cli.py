@@ -271,9 +271,17 @@ def test_the_scanned_heads_own_point_cache_is_read(tmp_path, capsys) -> None:  #
     cap = read_pc2_capture(cache, face.model)
     rp = Replayer(build_performance(read_session(take), None, None))
     assert cap.points.shape == (12, face.model.n_vertices, 3)
+    # the export lays lids that sank into the eyeballs back onto them, as drawn (sim.face.scan.lid_contact):
+    # those few vertices around the eyes may lie off the simulated surface, by a fraction of a millimetre
+    from puppet.export.scan import scan_dressing
+
+    dressing = scan_dressing(face.model)
+    lids = np.isin(dressing.skin, np.concatenate([e.band for e in dressing.lid_contact.eyes]))
     for k in range(12):
         rp.seek(k)  # sample k: the state after k ticks (the first sample is the rest)
-        assert np.allclose(cap.points[k], rp.state.surface, atol=2e-4), k
+        surface = np.asarray(rp.state.surface)
+        assert np.allclose(cap.points[k][~lids], surface[~lids], atol=2e-4), k
+        assert np.abs(cap.points[k][lids] - surface[lids]).max() < 0.05, k
     assert np.abs(cap.points[-1] - cap.points[0]).max() > 0.3  # the jaw opened
     cache.with_suffix(".obj").write_text("v 0 0 0\n")
     capsys.readouterr()

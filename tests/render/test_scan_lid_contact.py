@@ -1,7 +1,8 @@
-"""The lids drawn over the eyeballs they close on (render.scan_lid_contact): where anger's narrowed
+"""The lids drawn over the eyeballs they close on (sim.face.scan.lid_contact): where anger's narrowed
 lids sank into the cornea (the cornea's outline then showed as the margin: an upper margin peaking
 over the iris, an uneven lower one) the drawn margins lie on the eyeball's front, the lashes with
-them; lids that do not sink are drawn exactly as simulated."""
+them; lids that do not sink are drawn exactly as simulated. Exports of the scan lay them the same
+way: tests/puppet/test_pup_export_lids.py."""
 
 from __future__ import annotations
 
@@ -139,3 +140,11 @@ def _covered(tri: np.ndarray, p: np.ndarray) -> bool:
         return False
     z = tri[inside, 0, 2] + v[inside] * (tri[inside, 1, 2] - tri[inside, 0, 2]) + w[inside] * (tri[inside, 2, 2] - tri[inside, 0, 2])
     return bool((z > p[2]).any())
+
+
+def test_the_compiled_press_is_the_numpy_steps_to_the_bit(scene) -> None:  # type: ignore[no-untyped-def]
+    model, poser, posed = scene
+    kernel = poser.contact.press(posed.copy())
+    steps = poser.contact.press_steps(posed.copy())
+    assert not np.array_equal(kernel, posed)  # anger's lids sank: something moved
+    assert np.array_equal(kernel, steps)

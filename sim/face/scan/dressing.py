@@ -282,10 +282,26 @@ class ScanDressing:
         return turn_head(points, self.turn_weights, yaw, pitch, roll, pivot=self.neck_pivot)
 
     def pose_turned(self, surface: FloatArray, control: Any, state: Any) -> FloatArray:
-        """`pose`, then the head turned as the state's head channels say (what is drawn and exported)."""
+        """`pose`, then the head turned as the state's head channels say (the lids as simulated)."""
         from sim.face.turn import state_turn
 
         return self.turn_head(self.pose(surface, control), *state_turn(state))
+
+    @cached_property
+    def lid_contact(self) -> Any:
+        """The lids laid back onto the eyeballs they sank into (sim.face.scan.lid_contact)."""
+        from sim.face.scan.lid_contact import LidContact
+
+        return LidContact(self.rest, self.eye_margins, self)
+
+    def pose_exported(self, surface: FloatArray, control: Any, state: Any) -> FloatArray:
+        """What exports write (OBJ, PC2, `puppet pose --out`): `pose`, the lids that sank into
+        their eyeballs laid back onto them as the drawing lays them (`lid_contact`), then the head
+        turned; 26,719 vertices in the scan's order. The drawing also softens the upper face's
+        buckles (render.scan_soften), which exports leave as simulated."""
+        from sim.face.turn import state_turn
+
+        return self.turn_head(self.lid_contact.press(self.pose(surface, control)), *state_turn(state))
 
 
 def _bind(points: FloatArray, skin_pts: FloatArray, tris: np.ndarray) -> tuple[np.ndarray, FloatArray, FloatArray]:
