@@ -242,12 +242,7 @@ def seat_eye(vertices: FloatArray, triangles: IntArray, loop: IntArray, inner: F
                                      (True, sheet, 1.0 - UPPER_SHARE), (None, sheet, UPPER_SHARE)):
             if seen(widest) >= target:
                 break
-            uncovered = ", ".join(
-                ["the lids told apart by height" if ties is None else
-                 "skin torn between the lids given to the upper lid" if ties else ""]
-                + ["the sheet of a lid hanging over it moved whole with its lid" if whole_ is not None else ""]
-                + [f"the upper lid taking {share_:.0%} of the parting" if share_ != UPPER_SHARE else ""])
-            uncovered = ", ".join(x for x in uncovered.split(", ") if x)
+            uncovered = _uncovering(ties, whole_ is not None, share_)
             sides = None if ties is None else lid_sides(vertices, triangles, upper, lower, ties_upper=ties)
             whole, share = whole_, share_
         lo, hi = 0.0, max(rims, target)
@@ -281,6 +276,15 @@ def seat_eye(vertices: FloatArray, triangles: IntArray, loop: IntArray, inner: F
     centre = base + depth * forward
     v = tuck_back_layer(v, upper, lower, centre, eye_radius, forward)
     return v, centre, EyeSeat(before, after, uncovered)
+
+
+def _uncovering(ties: bool | None, whole: bool, share: float) -> str:
+    """The report's words for how the seat moved skin off a covered opening."""
+    parts = ["the lids told apart by height" if ties is None else
+             "skin torn between the lids given to the upper lid" if ties else "",
+             "the sheet of a lid hanging over it moved whole with its lid" if whole else "",
+             f"the upper lid taking {share:.0%} of the parting" if share != UPPER_SHARE else ""]
+    return ", ".join(p for p in parts if p)
 
 
 def tuck_back_layer(vertices: FloatArray, upper: IntArray, lower: IntArray, centre: FloatArray,
