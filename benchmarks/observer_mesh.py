@@ -49,6 +49,15 @@ under the name below (`git -C CLONE show COMMIT:PATH > DIR/NAME`):
   left where they are: a line snapped to a scan's vertices can start so. It showed the held-out
   scan's fault (one eye a blank, crumpled lid) until the transfer's lids no longer turned on it.
 
+- `ict-shut-squeezed` (development): `ict-shut` with the eyes squeezed shut (the scan's own
+  cheekSquint_L and _R at 1 over the blinks): the raised cheeks push the lower lids up against the
+  shut upper ones, and skin of one lid hangs in front of the other's margin. It showed the held-out
+  scan's fault (the face's right eye a blank lid) until skin hanging over the opening followed its
+  lid whole (docs/import-face.md, "Skin hanging over a shut eye").
+
+- `ict-open-mouth` (development): `ict-identity` with its jaw dropped (the scan's jawOpen at 0.6,
+  the lips 2 cm apart at rest): a head scanned or modelled with its mouth open.
+
 - `ict-lowres` (development): the `ict-identity` skin decimated by quadric error
   (`fast_simplification`) to about 2,000 vertices over the whole head and neck: a coarse scan of a
   real person, so the transfer's refining of coarse heads is tried on a head other than MakeHuman's.
@@ -334,9 +343,10 @@ def load_ict_identity(_path: Path) -> tuple[np.ndarray, np.ndarray]:
     return _compact(*_ict_skin(shut=False))
 
 
-def _ict_skin(shut: bool) -> tuple[np.ndarray, np.ndarray]:
+def _ict_skin(shut: bool, squeezed: bool = False, jaw: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """The identity's skin vertices (the scan's order, all parts) and the skin's triangles; `shut`:
-    with the scan's own blinks (eyeBlink_L and _R at 1) applied."""
+    with the scan's own blinks (eyeBlink_L and _R at 1) applied; `squeezed`: and its cheeks raised
+    (cheekSquint_L and _R at 1), the eyes squeezed shut; `jaw`: the scan's jawOpen at that weight."""
     from puppet.faces import seed_identity
     from sim.face.scan.data import scan_data
 
@@ -344,14 +354,18 @@ def _ict_skin(shut: bool) -> tuple[np.ndarray, np.ndarray]:
     v = d.neutral + d.identity_delta(np.asarray(seed_identity(ICT_SEED)))
     if shut:
         v = v + d.expression("eyeBlink_L") + d.expression("eyeBlink_R")
+    if squeezed:
+        v = v + d.expression("cheekSquint_L") + d.expression("cheekSquint_R")
+    if jaw:
+        v = v + jaw * d.expression("jawOpen")
     return v, np.concatenate([d.triangles("face"), d.triangles("head_neck")])
 
 
-def ict_points(shut: bool = False) -> dict[str, list[float]]:
+def ict_points(shut: bool = False, squeezed: bool = False, jaw: float = 0.0) -> dict[str, list[float]]:
     """The scanned head's own landmarks (its vertex numbers, `sim/face/scan/landmarks.json`, all in
     the face part, which the compaction keeps in place) as points on the identity's skin."""
     lm = json.loads((ROOT / "sim" / "face" / "scan" / "landmarks.json").read_text())
-    v, _ = _ict_skin(shut)
+    v, _ = _ict_skin(shut, squeezed, jaw)
     return {k: [float(x) for x in v[i]] for k, i in lm.items()}
 
 
@@ -371,12 +385,12 @@ def load_ict_lowres(_path: Path) -> tuple[np.ndarray, np.ndarray]:
     return _compact(np.asarray(vo, float), np.asarray(fo, np.int64))
 
 
-def load_ict_shut(_path: Path) -> tuple[np.ndarray, np.ndarray]:
+def load_ict_shut(_path: Path, squeezed: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The identity scanned with its eyes shut, as a scan with closed lids comes: the blinked
     lids' rims (which meet) joined by a strip of triangles, so each eye is one closed surface, to
-    be declared as a lid line (a slit) like any shut scan's."""
-    v, t = _compact(*_ict_skin(shut=True))
-    points = ict_points(shut=True)
+    be declared as a lid line (a slit) like any shut scan's; `squeezed`: the cheeks raised too."""
+    v, t = _compact(*_ict_skin(shut=True, squeezed=squeezed))
+    points = ict_points(shut=True, squeezed=squeezed)
     new: list[list[int]] = []
     for loop in _boundary_loops(t):
         for s in "lr":
@@ -396,6 +410,20 @@ def load_ict_shut(_path: Path) -> tuple[np.ndarray, np.ndarray]:
         directed.update((x[k], x[(k + 1) % 3]) for k in range(3))
         added.append(x)
     return v, np.concatenate([t, np.asarray(added, dtype=t.dtype).reshape(-1, 3)])
+
+
+ICT_OPEN_JAW = 0.6  # the scan's jawOpen for the head modelled with its mouth open
+
+
+def load_ict_open_mouth(_path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The identity's skin (`load_ict_identity`) with its jaw dropped (jawOpen at ICT_OPEN_JAW): a
+    head scanned or modelled with its mouth open at rest, the lips 2 cm apart."""
+    return _compact(*_ict_skin(shut=False, jaw=ICT_OPEN_JAW))
+
+
+def load_ict_squeezed(_path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """`load_ict_shut` with the eyes squeezed shut (the cheeks raised, pushing the lower lids up)."""
+    return load_ict_shut(_path, squeezed=True)
 
 
 def _boundary_loops(t: np.ndarray) -> list[list[int]]:
@@ -443,6 +471,10 @@ HEADS: dict[str, dict[str, Any]] = {
                  "eyes_open": False, "lips_open": None, "role": "development"},
     "ict-shut-corner": {"file": None, "url": None, "load": load_ict_shut, "points": None, "eyes_open": False,
                         "lips_open": None, "role": "development", "past_corner": True},
+    "ict-shut-squeezed": {"file": None, "url": None, "load": load_ict_squeezed, "points": None,
+                          "eyes_open": False, "lips_open": None, "role": "development", "squeezed": True},
+    "ict-open-mouth": {"file": None, "url": None, "load": load_ict_open_mouth, "points": None,
+                       "eyes_open": True, "lips_open": None, "role": "development", "jaw": ICT_OPEN_JAW},
     "makehuman": {"file": "makehuman_base.obj", "url": MH_URL, "load": load_makehuman, "points": MH_POINTS,
                   "eyes_open": True, "lips_open": True, "role": "development"},
     "makehuman-mask": {"file": "makehuman_base.obj", "url": MH_URL, "load": load_makehuman_mask,
@@ -467,7 +499,7 @@ def import_head(name: str, folder: Path, work: Path) -> Path:
     v, t = loader(fetch_once(folder, spec["file"], spec["url"]) if spec["file"] else folder)
     trimesh.Trimesh(v, t, process=False).export(work / f"{name}.obj")
     if spec["points"] is None:  # the scanned head: its mouth (and open eyes) are holes the importer finds
-        pts = ict_points(shut=not spec["eyes_open"])
+        pts = ict_points(shut=not spec["eyes_open"], squeezed=bool(spec.get("squeezed")), jaw=spec.get("jaw", 0.0))
         lm: dict[str, Any] = {"landmarks": pts}
         if not spec["eyes_open"]:
             lm["openings"] = {k: p for k, p in openings(v, t, pts, False, False).items() if k != "mouth"}

@@ -128,4 +128,6 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {out} ({len(m.vertices)} vertices, {sum(len(p) for p in result.rig.muscles.values())} "
           f"muscle parts, scale x{result.similarity.scale:.4g} to cm) in {seconds:.1f} s")
     print(f"report: {report}" + (f"; picture: {image}" if image else ""))
+    if result.dense:
+        print(f"puppet: warning: {args.mesh}: {result.dense}", file=sys.stderr)
     return 0

@@ -256,3 +256,48 @@ def test_the_back_layer_goes_behind_the_seated_eyeball() -> None:
     np.testing.assert_allclose(out[[8, 9], :2], v[[8, 9], :2])  # straight back
     stay = [0, 1, 2, 3, 4, 5, 6, 7, 10, 11]
     np.testing.assert_array_equal(out[stay], v[stay])
+
+
+def _flapped_lid() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(vertices, triangles, the eye's loop) of a shut lid cut along its line (3 cm, on a gently
+    curved sheet), with a flap of the lower lid's skin joined to it 3 mm under the line, rising in
+    front of the line to 5 mm above it: a scan's lower lid pushed up over the shut upper one."""
+    from sim.face.transfer.openings import cut_slit
+
+    x, y = np.meshgrid(np.linspace(-2.0, 2.0, 41), np.linspace(-1.5, 1.5, 31))
+    v = np.stack([x.ravel(), y.ravel(), -0.05 * (x.ravel() ** 2 + y.ravel() ** 2)], axis=1)
+    t = Delaunay(v[:, :2]).simplices
+    row = np.flatnonzero((np.abs(v[:, 1]) < 1e-9) & (np.abs(v[:, 0]) <= 1.5 + 1e-9))
+    path = row[np.argsort(v[row, 0])]
+    v, t, loop, _ = cut_slit(v, t, path, np.array([0.0, 1.0, 0.0]), "eye_l", "lm.json")
+    base = np.flatnonzero((np.abs(v[:, 1] + 0.3) < 1e-9) & (np.abs(v[:, 0]) <= 1.0 + 1e-9))
+    base = base[np.argsort(v[base, 0])]
+    rows = [base]
+    for k, h in enumerate((-0.1, 0.1, 0.3, 0.5)):  # the flap: up and in front of the line
+        layer = v[base] * [1.0, 0.0, 1.0] + [0.0, h, 0.15 + 0.05 * k]
+        rows.append(np.arange(len(v), len(v) + len(base)))
+        v = np.vstack([v, layer])
+    flap = [[a[i], a[i + 1], b[i + 1]] for a, b in zip(rows[:-1], rows[1:]) for i in range(len(base) - 1)]
+    flap += [[a[i], b[i + 1], b[i]] for a, b in zip(rows[:-1], rows[1:]) for i in range(len(base) - 1)]
+    return v, np.vstack([t, np.asarray(flap)]), loop
+
+
+def test_a_sheet_of_the_lower_lid_over_the_shut_eye_goes_down_with_it() -> None:
+    """A scan's shut eye can hang a sheet of the lower lid's skin in front of the upper margin,
+    reached from the lower margin only (the lower lid pushed up over the upper one): parting the
+    lids, skin lying beyond the other lid's margin followed its own lid less the further it lay,
+    so the sheet stayed over the opening and the eye was a blank lid however far the lids parted.
+    Seated, the sheet goes down whole with its lid and the eye opens to a resting eye's height."""
+    from sim.face.transfer.eyes import rest_gap, seat_eye, seen_opening
+    from sim.face.transfer.lids import slit_sides
+
+    v, t, loop = _flapped_lid()
+    upper, lower = slit_sides(loop)
+    radius = 0.8
+    top, bottom = seen_opening(v, t, upper, lower)
+    assert top == bottom  # shut, and the flap lies over the line
+    seated, _, seat = seat_eye(v, t, loop, v[upper[0]], v[upper[-1]], radius)
+    assert seat.gap_after > 0.9 * rest_gap(radius), seat
+    assert seat.uncovered, seat  # the report says what was moved off the opening
+    flap = np.arange(len(v) - 4 * 21, len(v))
+    assert np.all(seated[flap, 1] < v[flap, 1] - 0.1)  # the sheet went down with the lower lid

@@ -137,3 +137,32 @@ def test_lids_facing_the_front_keep_their_material(reference) -> None:
     m = reference.mesh
     result = transfer_rig(reference, from_arrays(m.vertices, m.triangles, "face.obj"), _landmarks(m))
     assert not result.rig.skin
+
+
+def _chin(mesh) -> float:
+    """The chin's distance from the nose's base over the eyes' width (the transfer fits the head's
+    size and place to the reference's by all the landmarks, the dropped chin's too)."""
+    width = np.linalg.norm(mesh.landmark("eye_outer_l") - mesh.landmark("eye_outer_r"))
+    return float(np.linalg.norm(mesh.landmark("chin") - mesh.landmark("subnasale")) / width)
+
+
+def test_a_mouth_open_at_rest_is_closed_by_its_jaw(reference) -> None:
+    """A head modelled or scanned with its jaw dropped (the built-in face with its mandible turned
+    0.3 rad about its own hinge: the lips 1.5 cm apart): brought together by the lips alone, the
+    lips met only part way and the chin stayed dropped in every expression. The jaw is turned shut
+    about the hinge the transfer carries, and the rig made again on the closed head: the lips and
+    the chin come back to the reference's."""
+    from sim.face.transfer.mouth import turn_jaw
+
+    m = reference.mesh
+    head = from_arrays(turn_jaw(m, 0.3), m.triangles, "open.obj")
+    lms = _landmarks(m)
+    kept = transfer_rig(reference, head, lms).rig.mesh
+    assert _gap(kept) > _gap(m) + 1.0  # the head as given: its mouth stands open
+    closed = transfer_rig(reference, head, lms, options=TransferOptions(rest_lips=True))
+    mesh = closed.rig.mesh
+    assert abs(_gap(mesh) - _gap(m)) < 0.1
+    assert abs(_chin(mesh) / _chin(m) - 1.0) < 0.05  # the chin back up (dropped: 1.35 x)
+    assert any("jaw" in n for n in closed.notes)
+    model = compile_model(closed.rig)
+    assert np.isfinite(model.rest).all()

@@ -7,7 +7,11 @@ the lids it opened both eyes, but traced one edge further at the inner corner (u
 nose, as a line snapped to a scan's vertices can start) it left the face's right eye a blank lid.
 The scan's shut lids hang a sheet of skin over the opening that both margins reach only round the
 corners; which margin was nearer along the skin turned on that one edge, and the sheet was torn
-between the lids and stretched across the opening."""
+between the lids and stretched across the opening. Scanned with the eyes squeezed shut (the
+cheeks raised, `cheekSquint` at 1, pushing the lower lids up against the shut upper ones), the
+face's right eye stayed a blank lid too: skin of one lid hanging in front of the other's margin
+followed its lid less the further it lay beyond that margin, so it stayed over the opening however
+far the lids parted."""
 
 from __future__ import annotations
 
@@ -31,14 +35,17 @@ RATIO = 0.33  # the reference's opening over the eye's width
 
 
 
-def _shut_scan() -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
-    """(vertices, triangles, landmark vertices) of the scanned skin with its eyes shut and closed."""
+def _shut_scan(squeezed: bool = False) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+    """(vertices, triangles, landmark vertices) of the scanned skin with its eyes shut and closed;
+    `squeezed`: with the cheeks raised too (the eyes squeezed shut)."""
     from puppet.faces import seed_identity
     from sim.face.scan.data import scan_data
 
     d = scan_data()
     v = (d.neutral + d.identity_delta(np.asarray(seed_identity(SEED))) + d.expression("eyeBlink_L")
          + d.expression("eyeBlink_R"))
+    if squeezed:
+        v = v + d.expression("cheekSquint_L") + d.expression("cheekSquint_R")
     t = np.concatenate([d.triangles("face"), d.triangles("head_neck")])
     used = np.unique(t)
     remap = -np.ones(len(v), dtype=np.int64)
@@ -80,9 +87,9 @@ def _edge_path(v: np.ndarray, t: np.ndarray, stops: list[int]) -> list[int]:
     return path
 
 
-@pytest.fixture(scope="module")
-def shut_scan():
-    return _shut_scan()
+@pytest.fixture(scope="module", params=[False, True], ids=["shut", "squeezed shut"])
+def shut_scan(request):
+    return _shut_scan(request.param)
 
 
 def _lid_lines(v: np.ndarray, t: np.ndarray, lm: dict[str, int], past_corner: bool) -> dict[str, list[int]]:

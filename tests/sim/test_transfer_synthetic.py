@@ -3,6 +3,8 @@ answer) and check the error cases, independently of the default face."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -166,7 +168,7 @@ def test_closed_mouth_needs_an_opening_or_a_declaration(reference) -> None:
     verts = np.vstack([m.vertices, m.vertices[loop].mean(axis=0)])
     fan = np.stack([np.roll(loop, -1), loop, np.full(len(loop), centre)], axis=1)
     tris = np.vstack([m.triangles, fan])
-    with pytest.raises(TransferError, match=r"closed.obj: no opening for the mouth .*openings\.mouth in lm\.json"):
+    with pytest.raises(TransferError, match=r"closed.obj: no opening for the mouth .*openings\.mouth in lm\.json: the rim.s loop if the lips stand apart.*the line where they meet"):
         transfer_rig(reference, from_arrays(verts, tris, "closed.obj"), parse_landmarks(_points(reference), "lm.json"))
     data = {"landmarks": _points(reference), "openings": {"mouth": [int(i) for i in loop]}}
     res = transfer_rig(reference, from_arrays(verts, tris, "closed.obj"), parse_landmarks(data, "lm.json"))
@@ -181,6 +183,26 @@ def test_non_manifold_face_is_refused(reference) -> None:
     tris = np.vstack([m.triangles, [[tri[0], tri[1], extra]]])
     with pytest.raises(TransferError, match="bad.ply: the face is not manifold"):
         transfer_rig(reference, from_arrays(verts, tris, "bad.ply"), parse_landmarks(_points(reference), "lm.json"))
+
+
+def test_a_non_manifold_edge_is_named_by_the_files_own_vertices(reference) -> None:
+    """The refusal names the edge by the file's vertex numbers (0-based, as the landmark file
+    counts), whatever the import renumbers: here the file splits its vertices at a texture seam
+    (each triangle with its own three vertices, welded back on reading) and holds a loose part
+    first, which the import drops. It named the renumbered vertices, which the file does not have."""
+    m = reference.mesh
+    tri = m.triangles[np.nonzero((m.triangles == m.landmarks["cheek_l"]).any(axis=1))[0][0]]
+    verts = np.vstack([m.vertices, m.vertices[tri].mean(axis=0) + [0, 0, 0.5]])
+    tris = np.vstack([m.triangles, [[tri[0], tri[1], len(m.vertices)]]])
+    loose = np.array([[30.0, 0.0, 0.0], [31.0, 0.0, 0.0], [30.0, 1.0, 0.0]])  # a hair card, far off
+    soup = np.vstack([loose, verts[tris.ravel()]])  # every triangle its own vertices, after the card
+    soup_tris = np.vstack([[0, 1, 2], 3 + np.arange(3 * len(tris)).reshape(-1, 3)])
+    points = {k: m.landmark(k).tolist() for k in m.landmarks}  # as points: the soup renumbers every vertex
+    with pytest.raises(TransferError, match="not manifold") as err:
+        transfer_rig(reference, from_arrays(soup, soup_tris, "bad.obj"), parse_landmarks(points, "lm.json"))
+    named = [int(x) for x in re.findall(r"between vertices (\d+) and (\d+)", str(err.value))[0]]
+    ends = {tuple(np.round(soup[i], 9)) for i in named}
+    assert ends == {tuple(np.round(m.vertices[tri[0]], 9)), tuple(np.round(m.vertices[tri[1]], 9))}
 
 
 def test_inward_winding_is_flipped(reference) -> None:
@@ -221,3 +243,14 @@ def test_declared_opening_must_follow_mesh_edges(reference) -> None:
     data = {"landmarks": pts, "openings": {"mouth": [int(line[0]), int(line[3]), int(line[-1])]}}
     with pytest.raises(TransferError, match=r"lm\.json: opening 'mouth': vertices .* are not joined by a mesh edge"):
         transfer_rig(reference, from_arrays(v, t), parse_landmarks(data, "lm.json"))
+
+
+def test_a_head_too_dense_to_simulate_live_is_told_what_to_change() -> None:
+    """A scan of 45,000 vertices imported (in 192 s) into a rig whose every simulation step costs
+    17 x the reference face's, without a word; now one line says so and what to do. A head of the
+    scanned identity's density (11,382 vertices, 4.2 x) is not warned about."""
+    from sim.face.transfer.pipeline import dense_warning
+
+    line = dense_warning(45254, 2709)
+    assert "45254" in line and "decimate" in line and "\n" not in line
+    assert dense_warning(11382, 2709) == ""

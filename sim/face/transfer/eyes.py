@@ -17,7 +17,7 @@ import dataclasses
 import numpy as np
 
 from sim.model import FaceMesh
-from sim.face.transfer.lids import lid_sides, set_gap
+from sim.face.transfer.lids import UPPER_SHARE, lid_sides, set_gap
 
 FloatArray = np.ndarray
 IntArray = np.ndarray
@@ -40,6 +40,7 @@ class EyeSeat:
 
     gap_before: float
     gap_after: float
+    uncovered: str = ""  # how skin covering the opening was moved off it ("" when none had to be)
 
 
 def iris_radius(eye_radius: float) -> float:
@@ -106,6 +107,23 @@ def _not_behind(v: FloatArray, upper: IntArray, lower: IntArray, forward: FloatA
     rim = np.minimum(_along_margin(v, upper, a, axis, t, d), _along_margin(v, lower, a, axis, t, d))
     deepest = float(d[np.r_[upper, lower]].min())
     return np.where((t > 0.0) & (t < 1.0), d >= rim - 1e-9, d >= deepest - 1e-9)
+
+
+def covering_sheet(vertices: FloatArray, upper: IntArray, lower: IntArray) -> np.ndarray:
+    """(N,) bool: the skin between the corners lying in front of the lid margins there, the skin
+    that can hang over an eye's opening. A scan's shut lid can hang a sheet of one lid in front of
+    the other's margin (the lower lid pushed up over a screwed-shut upper one, an upper lid blinked
+    past the lower): beyond the other lid's margin such skin followed its own lid less the further
+    it lay (`lids.set_gap`), so it stayed over the opening however far the lids parted."""
+    v = np.asarray(vertices, float)
+    a, b = v[upper[0]], v[upper[-1]]
+    axis = b - a
+    up = UP - (UP @ axis) * axis / (axis @ axis)
+    up /= np.linalg.norm(up)
+    forward = FORWARD - (FORWARD @ up) * up - (FORWARD @ axis) * axis / (axis @ axis)
+    forward /= np.linalg.norm(forward)
+    t = (v - a) @ axis / (axis @ axis)
+    return (t > 0.0) & (t < 1.0) & _not_behind(v, upper, lower, forward)
 
 
 def _within_opening(v: FloatArray, upper: IntArray, lower: IntArray, forward: FloatArray) -> np.ndarray:
@@ -204,15 +222,29 @@ def seat_eye(vertices: FloatArray, triangles: IntArray, loop: IntArray, inner: F
     target = rest
     rims = float((margin_point(vertices, upper, a, axis, 0.5) - margin_point(vertices, lower, a, axis, 0.5)) @ up)
     v = np.asarray(vertices, float)
+    uncovered = ""
     if abs(before - target) > SEEN_TOLERANCE * eye_radius:
         widest = rims + MAX_OPENING * rest
-        sides = lid_sides(vertices, triangles, upper, lower)
+        sheet = covering_sheet(v, upper, lower)
+        sides, whole, share = lid_sides(vertices, triangles, upper, lower), None, UPPER_SHARE
+        uncovered = ""
 
         def seen(gap: float) -> float:
-            return _seen_gap(set_gap(vertices, upper, lower, gap, UP, upper_side=sides), triangles, upper, lower)
+            return _seen_gap(set_gap(vertices, upper, lower, gap, UP, upper_share=share, upper_side=sides,
+                                     whole=whole), triangles, upper, lower)
 
-        if seen(widest) < target:  # skin torn between the lids covers the opening: ties go up
-            sides = lid_sides(vertices, triangles, upper, lower, ties_upper=True)
+        # skin still covering the opening with the rims at their widest: first skin torn between
+        # the lids (ties) goes up; then a sheet of one lid hanging in front beyond the other's
+        # margin follows its lid whole (each, then both); then the lower lid takes more of the
+        # parting (a lower lid pushed up in front of the upper one must go down for the eye to show)
+        for ties, whole_, share_ in ((True, None, UPPER_SHARE), (False, sheet, UPPER_SHARE), (True, sheet, UPPER_SHARE),
+                                     (False, sheet, 0.5), (True, sheet, 0.5), (False, sheet, 1.0 - UPPER_SHARE),
+                                     (True, sheet, 1.0 - UPPER_SHARE), (None, sheet, UPPER_SHARE)):
+            if seen(widest) >= target:
+                break
+            uncovered = _uncovering(ties, whole_ is not None, share_)
+            sides = None if ties is None else lid_sides(vertices, triangles, upper, lower, ties_upper=ties)
+            whole, share = whole_, share_
         lo, hi = 0.0, max(rims, target)
         while seen(hi) < target and hi < widest:
             lo, hi = hi, min(2.0 * hi, widest)
@@ -222,7 +254,9 @@ def seat_eye(vertices: FloatArray, triangles: IntArray, loop: IntArray, inner: F
                     break
                 g = 0.5 * (lo + hi)
                 lo, hi = (g, hi) if seen(g) < target else (lo, g)
-            v = set_gap(vertices, upper, lower, hi, UP, upper_side=sides)
+            v = set_gap(vertices, upper, lower, hi, UP, upper_share=share, upper_side=sides, whole=whole)
+        else:
+            uncovered = "none: skin bridging the lids covers the opening however far they part"
     top, bottom = seen_opening(v, triangles, upper, lower)
     after = top - bottom
     r_iris = iris_radius(eye_radius)
@@ -241,7 +275,16 @@ def seat_eye(vertices: FloatArray, triangles: IntArray, loop: IntArray, inner: F
     depth = float(np.min(along[lids] - np.sqrt(reach[lids]))) if lids.any() else -eye_radius
     centre = base + depth * forward
     v = tuck_back_layer(v, upper, lower, centre, eye_radius, forward)
-    return v, centre, EyeSeat(before, after)
+    return v, centre, EyeSeat(before, after, uncovered)
+
+
+def _uncovering(ties: bool | None, whole: bool, share: float) -> str:
+    """The report's words for how the seat moved skin off a covered opening."""
+    parts = ["the lids told apart by height" if ties is None else
+             "skin torn between the lids given to the upper lid" if ties else "",
+             "the sheet of a lid hanging over it moved whole with its lid" if whole else "",
+             f"the upper lid taking {share:.0%} of the parting" if share != UPPER_SHARE else ""]
+    return ", ".join(p for p in parts if p)
 
 
 def tuck_back_layer(vertices: FloatArray, upper: IntArray, lower: IntArray, centre: FloatArray,
@@ -309,6 +352,7 @@ def seat_eyes(mesh: FaceMesh) -> tuple[FaceMesh, list[str]]:
                          f"(carried: {float(mesh.eye_radius):.2f} cm, whose iris is shorter than them)")
         notes.append(f"eye_{s}: the opening seen from the front {seat.gap_after:.2f} cm (was "
                      f"{seat.gap_before:.2f}); the eyeball seated behind it ({moved:.2f} cm from where "
-                     "the correspondence put it)")
+                     "the correspondence put it)" + (f"; skin covering the opening: {seat.uncovered}"
+                                                    if seat.uncovered else ""))
     return dataclasses.replace(mesh, vertices=v, eye_centers=centres, eye_radius=radius), notes
 

@@ -65,7 +65,7 @@ def lid_sides(vertices: FloatArray, triangles: IntArray, upper: IntArray, lower:
 
 def set_gap(vertices: FloatArray, upper: IntArray, lower: IntArray, gap: float, up: FloatArray,
             upper_share: float = UPPER_SHARE, upper_side: np.ndarray | None = None,
-            profile: FloatArray | None = None) -> FloatArray:
+            profile: FloatArray | None = None, whole: np.ndarray | None = None) -> FloatArray:
     """The vertices with the opening between two chains (corner to corner, both from the same
     corner) made `gap` wide at the middle: a shut line opens along a sine that is nothing at the
     corners; an open one keeps its shape, scaled. The upper chain takes `upper_share` of the
@@ -75,7 +75,9 @@ def set_gap(vertices: FloatArray, upper: IntArray, lower: IntArray, gap: float, 
     above the middle between the chains; a vertex of one lid lying beyond the other's chain
     (skin hanging over the opening) follows less the further it lies beyond, over the other
     side's reach. `profile` (K,): the gap wanted at K evenly spaced points from corner to corner
-    (over `gap`, the middle's), closing only: each column narrower than that is left as it is."""
+    (over `gap`, the middle's), closing only: each column narrower than that is left as it is.
+    `whole` (N,) bool: vertices that follow their lid whole wherever they lie (a sheet of one lid
+    hanging in front of the opening beyond the other's chain, `covering_sheet`)."""
     v = np.asarray(vertices, float).copy()
     upper, lower = np.asarray(upper, dtype=np.int64), np.asarray(lower, dtype=np.int64)
     a, b = v[upper[0]], v[upper[-1]]
@@ -112,8 +114,14 @@ def set_gap(vertices: FloatArray, upper: IntArray, lower: IntArray, gap: float, 
     below = near & ~high
     over = np.clip(h - top, 0.0, None) / (REACH_UP * width)
     under = np.clip(bottom - h, 0.0, None) / (REACH_DOWN * width)
-    move[above] = upper_share * (np.clip(1.0 - over[above], 0.0, 1.0) * np.clip(1.0 - under[above], 0.0, 1.0)) ** 2
-    move[below] = -(1.0 - upper_share) * (np.clip(1.0 - under[below], 0.0, 1.0) * np.clip(1.0 - over[below], 0.0, 1.0)) ** 2
+    beyond_top, beyond_bottom = over.copy(), under.copy()  # of the other lid's chain: follows less
+    if whole is not None:
+        beyond_top[np.asarray(whole, bool)] = 0.0
+        beyond_bottom[np.asarray(whole, bool)] = 0.0
+    move[above] = upper_share * (np.clip(1.0 - over[above], 0.0, 1.0)
+                                 * np.clip(1.0 - beyond_bottom[above], 0.0, 1.0)) ** 2
+    move[below] = -(1.0 - upper_share) * (np.clip(1.0 - under[below], 0.0, 1.0)
+                                          * np.clip(1.0 - beyond_top[below], 0.0, 1.0)) ** 2
     move[upper[1:-1]] = upper_share
     move[lower[1:-1]] = -(1.0 - upper_share)
     move[[upper[0], upper[-1]]] = 0.0

@@ -29,6 +29,9 @@ LIP_SHARE = 0.5  # of the closing made by the upper lip
 PARTED = 2.0  # lips further apart than this x the reference's gap were modelled apart (MakeHuman's
 # 4.8 x); a scan's lips that meet, their landmarks a hair off the rims (1.7 x on the scanned head's
 # identity), are only brought to the reference's gap at the middle
+OPEN_AT_REST = 0.2  # of the mouth's width: lips further apart than this stand open at rest (a jaw
+# dropped in the file: 0.40 on the scanned identity with jawOpen at 0.6; MakeHuman's modelled gap 0.12)
+MOST_CLOSING = 0.6  # rad: the furthest the jaw is turned shut at rest
 COLUMNS = 21  # points from corner to corner at which the gap seen from the front is compared
 UP = np.array([0.0, 1.0, 0.0])
 
@@ -57,6 +60,48 @@ def seen_gaps(mesh: FaceMesh, columns: int = COLUMNS) -> tuple[float, FloatArray
 
 def mouth_width(mesh: FaceMesh) -> float:
     return float(np.linalg.norm(mesh.landmark("mouth_corner_l") - mesh.landmark("mouth_corner_r")))
+
+
+def turn_jaw(mesh: FaceMesh, angle: float) -> FloatArray:
+    """(N, 3) the mesh's vertices with the mandible turned by `angle` (rad; negative closes) about
+    its hinge, each vertex by its jaw weight, as the simulation opens the jaw."""
+    from sim.integrator import jaw_rotation
+
+    v = np.asarray(mesh.vertices, float)
+    axis = np.asarray(mesh.jaw_axis, float) / float(np.linalg.norm(mesh.jaw_axis))
+    pivot = np.asarray(mesh.jaw_pivot, float)
+    turned = (v - pivot) @ jaw_rotation(axis, angle).T + pivot
+    w = np.clip(np.asarray(mesh.jaw_weight, float), 0.0, 1.0)[:, None]
+    return v + w * (turned - v)
+
+
+def close_jaw(mesh: FaceMesh) -> tuple[FaceMesh, list[str]]:
+    """The mesh with a mouth that stands open at rest (lips more than OPEN_AT_REST x the mouth's
+    width apart: a head modelled or scanned with the jaw dropped) closed by turning its jaw about
+    the rig's own hinge, by its jaw weights, until the lips' middles are nearest (at most
+    MOST_CLOSING). The transfer then makes the correspondence again on the closed head, so the
+    muscles are carried onto the closed jaw. Brought together by the lips alone (`lids.set_gap`, which moves the skin within
+    a lip's reach) the open jaw's lips met only half way (a 2 cm gap closed to 1.1 cm) and the
+    chin stayed dropped in every expression."""
+    from scipy.optimize import minimize_scalar
+
+    now = float(np.linalg.norm(lip_gap(mesh)))
+    if now <= OPEN_AT_REST * mouth_width(mesh):
+        return mesh, []
+    up, low = mesh.landmarks["upper_lip_center"], mesh.landmarks["lower_lip_center"]
+
+    def gap(angle: float) -> float:
+        v = turn_jaw(mesh, angle)
+        return float(np.linalg.norm(v[up] - v[low]))
+
+    best = minimize_scalar(gap, bounds=(-MOST_CLOSING, 0.0), method="bounded", options={"xatol": 1e-4})
+    angle = float(best.x)
+    if gap(angle) >= now:
+        return mesh, []
+    out = dataclasses.replace(mesh, vertices=turn_jaw(mesh, angle))
+    return out, [f"the mouth stood open at rest (the lips {now:.2f} cm apart, {now / mouth_width(mesh):.2f} of its "
+                 f"width); the jaw was turned {np.degrees(-angle):.1f} degrees shut about its hinge "
+                 f"(lips {gap(angle):.2f} cm apart)"]
 
 
 def rest_lips(mesh: FaceMesh, reference: FaceMesh) -> tuple[FaceMesh, list[str]]:

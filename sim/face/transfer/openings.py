@@ -17,6 +17,9 @@ CORNERS = {"eye_l": EYE_LANDMARKS["eye_l"][:2], "eye_r": EYE_LANDMARKS["eye_r"][
 _TITLE = {"eye_l": "left eye", "eye_r": "right eye", "mouth": "mouth"}
 
 
+_PARTS = {"eye_l": "lids", "eye_r": "lids", "mouth": "lips"}
+
+
 def _match(loops: list[IntArray], vertices: FloatArray, pts: FloatArray) -> IntArray | None:
     """The boundary loop that surrounds the landmark group: its centroid near the group's centre
     and its size comparable to the group's spread."""
@@ -62,7 +65,9 @@ def find_openings(
         if found is None:
             raise TransferError(
                 f"{mesh_path}: no opening for the {_TITLE[key]} (near {', '.join(names)}); cut a "
-                f"hole there or declare its vertex loop as openings.{key} in {landmark_path}")
+                f"hole there or declare its vertices as openings.{key} in {landmark_path}: the rim's loop "
+                f"if the {_PARTS[key]} stand apart (what it encloses is removed), the line where they "
+                "meet, from corner to corner, if they are shut")
         out[key] = found
     return out
 

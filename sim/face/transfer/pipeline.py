@@ -4,6 +4,7 @@ characteristic points onto the new face's, relax (eq 8), cast back, and carry ev
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,7 +24,7 @@ from sim.face.transfer.lids import open_lids
 from sim.face.transfer.lower_lid import place_lower_lids
 from sim.face.transfer.landmarks import LANDMARK_NAMES, LandmarkFile, TransferError, require
 from sim.face.transfer.meshfile import HeadMesh
-from sim.face.transfer.mouth import rest_lips
+from sim.face.transfer.mouth import close_jaw, rest_lips
 from sim.face.transfer.openings import (CORNERS, cut_slit, find_openings, is_closed_path, is_hole_loop, open_loop,
                                        slit_corners)
 from sim.face.transfer.refine import edge_scale, levels_needed, subdivide
@@ -95,6 +96,26 @@ class Transfer:
     flipped_winding: bool
     dropped_vertices: int
     notes: list[str] = field(default_factory=list)
+    dense: str = ""  # what to change when the head is too dense to simulate live (`dense_warning`)
+
+
+DENSE = 8.0  # x the reference's vertices: a head denser than this is too slow to simulate live
+
+
+def dense_warning(vertices: int, reference_vertices: int) -> str:
+    """One line for a head whose mesh is much denser than the reference's, "" otherwise. The skin's
+    step costs about in proportion to its vertices: the default (scanned) face simulates 6,706
+    vertices in about a seventh of a 60 Hz frame, and a head over DENSE x the reference's at
+    resolution 1 (21,672) has more than three times as many. The scanned identity subdivided once
+    (45,254 vertices) took 192 s to import. The rig is still written: offline work (`puppet pose`,
+    `puppet render`) needs no live rate."""
+    ratio = vertices / max(reference_vertices, 1)
+    if ratio <= DENSE:
+        return ""
+    want = int(round(2 * reference_vertices, -3))
+    return (f"the head has {vertices} vertices, {ratio:.1f} x the reference face's {reference_vertices}: each "
+            f"simulation step costs about as much more, too slow for live use; decimate the mesh to about "
+            f"{want} vertices (e.g. quadric decimation in Blender or MeshLab) and import it again")
 
 
 def _carry(smap: SurfaceMap, parts: tuple[Muscle, ...], opt: TransferOptions) -> tuple[Muscle, ...]:
@@ -183,17 +204,30 @@ def _region(vertices: FloatArray, landmark_pts: FloatArray, radius: float) -> np
     return d < radius
 
 
-def _check_surface(vertices: FloatArray, triangles: IntArray, region: np.ndarray, path: str) -> bool:
+def _file_vertex(head: HeadMesh, sim: Similarity, point: FloatArray) -> int:
+    """The file's index (0-based, as the landmark file counts) of the vertex at `point` (project
+    frame): the file's first vertex welded to the head's vertex nearest it."""
+    welded = int(np.argmin(np.linalg.norm(head.vertices - sim.invert(point), axis=1)))
+    return int(np.flatnonzero(np.asarray(head.file_to_vertex) == welded)[0])
+
+
+def _check_surface(vertices: FloatArray, triangles: IntArray, region: np.ndarray, path: str,
+                   file_vertex: Callable[[FloatArray], int] | None = None) -> bool:
     """The face region must be an oriented manifold; returns True when the whole mesh's winding
-    had to be flipped so normals point out of the skin."""
+    had to be flipped so normals point out of the skin. `file_vertex`: a point's vertex in the
+    file's own numbering, for the message (welding, dropped parts and cuts renumber the mesh; the
+    message named the renumbered vertices, which the file does not have)."""
     tri = triangles[region[triangles].all(axis=1)]
     if len(tri) == 0:
         raise TransferError(f"{path}: no surface near the landmarks; this is not a face mesh")
     edges, counts = edge_use_counts(tri)
     if (counts > 2).any():
         a, b = edges[np.argmax(counts > 2)]
-        raise TransferError(f"{path}: the face is not manifold ({int((counts > 2).sum())} edges "
-                            f"shared by 3+ triangles, e.g. vertices {a}-{b}); repair the mesh")
+        if file_vertex is not None:
+            a, b = file_vertex(vertices[a]), file_vertex(vertices[b])
+        n = int((counts > 2).sum())
+        raise TransferError(f"{path}: the face is not manifold ({n} edge{'s' if n > 1 else ''} shared by 3 or more "
+                            f"triangles, e.g. between vertices {a} and {b}, 0-based in the file); repair the mesh")
     directed = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
     if len(np.unique(directed, axis=0)) < len(directed):
         raise TransferError(f"{path}: the face's triangles are not consistently oriented; "
@@ -262,7 +296,7 @@ def _bring_in(head: HeadMesh, lf: LandmarkFile, names: list[str], pts: dict[str,
                 if n.startswith("lower_") and lm_vid[n] in lower:
                     lm_vid[n] = lower[lm_vid[n]]
     region = _region(verts, np.stack([lm_new[n] for n in names]), region_radius)
-    flipped = _check_surface(verts, tris, region, head.path)
+    flipped = _check_surface(verts, tris, region, head.path, lambda p: _file_vertex(head, sim, p))
     if flipped:
         tris = tris[:, ::-1].copy()
     # a border touching itself near the face (lips modelled meeting at one point) that an opening's
@@ -291,33 +325,47 @@ def transfer_rig(
     new = _bring_in(head, landmarks, names, pts, vids, sim, radius)
     refined = _refine(new, ref, ref_pts, landmarks, names, radius) if opt.refine else None
     opened = _rest_openings(new, ref)
-    lm_arr = np.stack([new.landmarks[n] for n in names])
 
-    # seed 003 section 3.1: one cylinder per face, fitted near the landmarks, unrolled
-    cyl_ref = fit_cylinder(ref.vertices[_region(ref.vertices, np.stack(list(ref_pts.values())), radius)])
-    cyl_new = fit_cylinder(new.vertices[_region(new.vertices, lm_arr, radius)])
-    chart_new = CylinderChart.facing(cyl_new, FORWARD)
-    uv_ref, _ = CylinderChart.facing(cyl_ref, FORWARD).flatten(ref.vertices)
-    uv_new, _, keep = flat_triangulation(chart_new, new.vertices, new.triangles)
-    ref_ids = np.array([ref.landmarks[n] for n in names])
-    lm_uv_new, _ = chart_new.flatten(lm_arr)
+    def correspond() -> tuple:
+        """The correspondence (seed 003 sections 3.1-3.2) and the new mesh with the fields pulled back."""
+        lm_arr = np.stack([new.landmarks[n] for n in names])
 
-    # section 3.2: move the characteristic points, relax (eq 8), project back
-    relax, rest_pos = _relax(uv_ref, ref.triangles, ref_ids, lm_uv_new, opt.area_stiffness)
-    flat = relax.positions
-    folded = int((np.sign(_signed_areas(flat, ref.triangles))
-                  != np.sign(_signed_areas(rest_pos, ref.triangles))).sum())
-    on_new, hit = project_back(chart_new, flat, new.vertices, new.triangles, uv_new, keep)
-    errors = {n: float(np.linalg.norm(on_new[i] - new.landmarks[n])) for n, i in zip(names, ref_ids)}
-    on_new[ref_ids] = lm_arr
-    smap = SurfaceMap(ref.vertices, ref.triangles, on_new)
+        # seed 003 section 3.1: one cylinder per face, fitted near the landmarks, unrolled
+        cyl_ref = fit_cylinder(ref.vertices[_region(ref.vertices, np.stack(list(ref_pts.values())), radius)])
+        cyl_new = fit_cylinder(new.vertices[_region(new.vertices, lm_arr, radius)])
+        chart_new = CylinderChart.facing(cyl_new, FORWARD)
+        uv_ref, _ = CylinderChart.facing(cyl_ref, FORWARD).flatten(ref.vertices)
+        uv_new, _, keep = flat_triangulation(chart_new, new.vertices, new.triangles)
+        ref_ids = np.array([ref.landmarks[n] for n in names])
+        lm_uv_new, _ = chart_new.flatten(lm_arr)
 
-    # the rig: per-vertex fields pulled back through the chart, points carried forward
-    tri, bary, _ = locate_2d(_probes(chart_new, new.vertices, new.triangles, new.cut, uv_new), flat, ref.triangles)
-    # inside the mask's outer border, or less than about a triangle beyond it (the two meshes'
-    # borders never match exactly; the reference decides there what is held)
-    inside = in_polygon(uv_new, flat[outer_loop(flat, ref.triangles)]) | (bary.min(axis=1) > -0.75)
-    mesh = _new_mesh(reference, smap, new, tri, bary, inside, landmarks.path, head.path)
+        # section 3.2: move the characteristic points, relax (eq 8), project back
+        relax, rest_pos = _relax(uv_ref, ref.triangles, ref_ids, lm_uv_new, opt.area_stiffness)
+        flat = relax.positions
+        folded = int((np.sign(_signed_areas(flat, ref.triangles))
+                      != np.sign(_signed_areas(rest_pos, ref.triangles))).sum())
+        on_new, hit = project_back(chart_new, flat, new.vertices, new.triangles, uv_new, keep)
+        errors = {n: float(np.linalg.norm(on_new[i] - new.landmarks[n])) for n, i in zip(names, ref_ids)}
+        on_new[ref_ids] = lm_arr
+        smap = SurfaceMap(ref.vertices, ref.triangles, on_new)
+
+        # the rig: per-vertex fields pulled back through the chart, points carried forward
+        tri, bary, _ = locate_2d(_probes(chart_new, new.vertices, new.triangles, new.cut, uv_new), flat, ref.triangles)
+        # inside the mask's outer border, or less than about a triangle beyond it (the two meshes'
+        # borders never match exactly; the reference decides there what is held)
+        inside = in_polygon(uv_new, flat[outer_loop(flat, ref.triangles)]) | (bary.min(axis=1) > -0.75)
+        mesh = _new_mesh(reference, smap, new, tri, bary, inside, landmarks.path, head.path)
+        return (mesh, cyl_ref, cyl_new, chart_new, uv_new, keep, relax, folded, hit, errors, smap, inside)
+
+    mesh, cyl_ref, cyl_new, chart_new, uv_new, keep, relax, folded, hit, errors, smap, inside = correspond()
+    if opt.rest_lips:  # a mouth open at rest: its jaw closed by the hinge just carried, then all made again
+        closed, shut = close_jaw(mesh)
+        if shut:
+            moved = np.asarray(closed.vertices, float) - new.vertices
+            new.vertices = np.asarray(closed.vertices, float)
+            new.landmarks = {n: p + moved[new.landmark_vertex[n]] for n, p in new.landmarks.items()}
+            opened += shut
+            mesh, cyl_ref, cyl_new, chart_new, uv_new, keep, relax, folded, hit, errors, smap, inside = correspond()
     if opt.seat_eyes:
         mesh, seated = seat_eyes(mesh)
         opened += seated
@@ -363,8 +411,11 @@ def transfer_rig(
     if max(shape.values()) > 1.5:
         worst = max(shape, key=shape.get)  # type: ignore[arg-type]
         notes.append(f"{worst} is {shape[worst]:.1f} cm from where the reference face has it: check it")
+    dense = dense_warning(len(mesh.vertices), len(ref.vertices))
+    if dense:
+        notes.append(dense)
     return Transfer(rig, sim, cyl_ref, cyl_new, relax, shape, errors, int((~hit).sum()), folded,
-                    int((~inside).sum()), new.flipped, new.dropped, notes)
+                    int((~inside).sum()), new.flipped, new.dropped, notes, dense)
 
 
 def _refine(new: _Head, ref: FaceMesh, ref_pts: dict[str, FloatArray], lf: LandmarkFile, names: list[str],
