@@ -135,7 +135,8 @@ def test_puppet_live_records_the_take_and_its_sound(jack_server: str, speech, tm
     live = subprocess.Popen([*show, "--duration", "9"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         wait_connected(jack_server, "voice:out_1")
-        deadline = time.monotonic() + 60
+        # a hang guard: the first show of a test run builds the face's caches (a minute or more on a busy machine)
+        deadline = time.monotonic() + 300
         while not (take.exists() and '"tick"' in take.read_text()):  # the show has begun
             assert time.monotonic() < deadline and live.poll() is None, live.stderr.read() if live.stderr else ""
             time.sleep(0.05)
