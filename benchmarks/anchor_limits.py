@@ -40,14 +40,16 @@ given), fitted on the shapes that drive them ("The inner brows and the cheek's s
     # the lids' tissue ("The blink's lid fold held: the lid channel's tissue", docs/scan-face.md): the lid
     # channel's field with the closed lids held meeting (--hold), then the orbital orbicularis' refitted
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only orbicularis_oculi_lid=0.5 --smooth 1e-4 --bound 10
-        --hold AU45 --hold-weight 5 --write-rig sim/face/scan/ict_rig.npz
+        --hold AU45 --hold-weight 30 --hold-close 0.5 --write-rig sim/face/scan/ict_rig.npz
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only orbicularis_oculi=5 --smooth 1e-4 --bound 10
         --write-rig sim/face/scan/ict_rig.npz
 
 `--hold POSE,..` keeps, in each pose (a preset on the scanned head, or AUs joined by '+'), how far the
 upper lids' margins move against the lower margins beneath them where the rig the fit starts from
 settled them (`margin_rows`; weighted `--hold-weight` over that motion's size, squared): closed lids
-still meet, while both lids may move together.
+still meet, while both lids may move together; `--hold-close MM` asks the upper margins MM further down
+than that (the settled lids opened 0.2 mm more than the linear model held them: the contact stops
+them where they meet).
 
 `--even W` joins the forehead's evenness to the objective: the lumps (`sim.face.scan.anchor_fit.
 forehead_lumps`, what the displacement keeps beyond its 1 cm average, the figure tests/sim/test_scan_face.py
@@ -80,7 +82,7 @@ poses. docs/scan-face.md ("The tissue under the skin moving with the muscle") ha
     nice .venv/bin/python benchmarks/anchor_limits.py [--smooth 1e-3] [--grow 0] [--bound 5] [--iters 300]
         [--settle [--rounds R] [--damp 0.5] [--scale 0.5,0.25]] [--save FILE] [--all] [--settled FILE]
         [--per-shape zones|skin] [--where] [--only C[=GROW],..] [--keep C,..] [--leave S,..] [--write-rig RIG [--add]]
-        [--even W [--even-keep W2] [--even-poses surprise,AU1+2]] [--hold AU45 [--hold-weight 5]]
+        [--even W [--even-keep W2] [--even-poses surprise,AU1+2]] [--hold AU45 [--hold-weight 30] [--hold-close 0.5]]
 """
 
 from __future__ import annotations
@@ -267,7 +269,9 @@ def hold_margins(model, cal, anch, args) -> list:  # type: ignore[no-untyped-def
             c = et.pose_control(pose)
         u0 = anch.displacement(c.values)
         su = s @ u0.ravel()
-        cal.even_over(c.values, u0, s, args.hold_weight / float(su @ su), su)
+        close = np.zeros(s.shape[0])
+        close[1::3] = -0.1 * args.hold_close  # the upper margins asked this much further down (cm)
+        cal.even_over(c.values, u0, s, args.hold_weight / float(su @ su), su + close)
         out.append((pose, c.values.copy(), u0, s))
         print(f"hold: {pose} margins moved {margin_mm(s, u0)} mm settled", flush=True)
     return out
@@ -326,6 +330,9 @@ def main() -> int:
                          "keep where the rig the fit starts from settled them (the closed lids still meet)")
     ap.add_argument("--hold-weight", type=float, default=100.0,
                     help="with --hold: weight of the margins' change, relative to their displacement, squared")
+    ap.add_argument("--hold-close", type=float, default=0.0,
+                    help="with --hold: the upper margins held this many mm further down against the lower ones than "
+                         "the rig settled them (the contact stops them where the lids meet)")
     ap.add_argument("--where", action="store_true", help="print where each shape's remaining error lies (regions)")
     args = ap.parse_args()
     from scan_match import scan_targets
