@@ -37,6 +37,20 @@ given), fitted on the shapes that drive them ("The inner brows and the cheek's s
     nice .venv/bin/python benchmarks/anchor_limits.py --ala-slip --all --only levator_labii,levator_labii_alaeque_nasi
         --grow 1.5 --smooth 1e-4 --bound 10 --add --write-rig sim/face/scan/ict_rig.npz
 
+    # the lids' tissue ("The blink's lid fold held: the lid channel's tissue", docs/scan-face.md): the lid
+    # channel's field with the closed lids held meeting (--hold), then the orbital orbicularis' refitted
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only orbicularis_oculi_lid=0.5 --smooth 1e-4 --bound 10
+        --hold AU45 --hold-weight 30 --hold-close 0.5 --write-rig sim/face/scan/ict_rig.npz
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only orbicularis_oculi=5 --smooth 1e-4 --bound 10
+        --write-rig sim/face/scan/ict_rig.npz
+
+`--hold POSE,..` keeps, in each pose (a preset on the scanned head, or AUs joined by '+'), how far the
+upper lids' margins move against the lower margins beneath them where the rig the fit starts from
+settled them (`margin_rows`; weighted `--hold-weight` over that motion's size, squared): closed lids
+still meet, while both lids may move together; `--hold-close MM` asks the upper margins MM further down
+than that (the settled lids opened 0.2 mm more than the linear model held them: the contact stops
+them where they meet).
+
 `--even W` joins the forehead's evenness to the objective: the lumps (`sim.face.scan.anchor_fit.
 forehead_lumps`, what the displacement keeps beyond its 1 cm average, the figure tests/sim/test_scan_face.py
 holds) of the poses `--even-poses` (the scanned head's surprise and AU1+2 at full), settled on the
@@ -68,7 +82,7 @@ poses. docs/scan-face.md ("The tissue under the skin moving with the muscle") ha
     nice .venv/bin/python benchmarks/anchor_limits.py [--smooth 1e-3] [--grow 0] [--bound 5] [--iters 300]
         [--settle [--rounds R] [--damp 0.5] [--scale 0.5,0.25]] [--save FILE] [--all] [--settled FILE]
         [--per-shape zones|skin] [--where] [--only C[=GROW],..] [--keep C,..] [--leave S,..] [--write-rig RIG [--add]]
-        [--even W [--even-keep W2] [--even-poses surprise,AU1+2]]
+        [--even W [--even-keep W2] [--even-poses surprise,AU1+2]] [--hold AU45 [--hold-weight 30] [--hold-close 0.5]]
 """
 
 from __future__ import annotations
@@ -212,6 +226,63 @@ def even_poses(model, cal, anch, args) -> list:  # type: ignore[no-untyped-def]
     return out
 
 
+def margin_rows(model):  # type: ignore[no-untyped-def]
+    """(3M, 3N) sparse: a displacement (3N,) of the scanned head to how far its upper lids' margins
+    move against the lower margins beneath them (M: both eyes' upper margin vertices, each less the
+    lower margin's vertex nearest across the face at rest), what keeps closed lids meeting while
+    both lids may move together."""
+    import scipy.sparse as sp
+
+    from sim.face.transfer.eyes import mesh_lids
+
+    rest = np.asarray(model.rest)
+    pairs = []
+    for k in (0, 1):
+        upper, lower = (np.asarray(a) for a in mesh_lids(model.mesh, k))
+        below = lower[np.argmin(np.abs(rest[upper, 0][:, None] - rest[lower, 0][None]), axis=1)]
+        pairs.append(np.stack([upper, below], axis=1))
+    p = np.concatenate(pairs)
+    m = len(p)
+    a = sp.csr_matrix((np.r_[np.ones(m), -np.ones(m)], (np.r_[np.arange(m), np.arange(m)], np.r_[p[:, 0], p[:, 1]])),
+                      shape=(m, len(rest)))
+    return sp.kron(a, sp.eye(3)).tocsr()
+
+
+def hold_margins(model, cal, anch, args) -> list:  # type: ignore[no-untyped-def]
+    """The --hold terms joined to the calibration: per pose the upper lids' margins kept where the rig
+    the fit starts from settled them against the lower margins (`margin_rows`) (`AnchorCalibration.even_over` with the margins' rows and their
+    settled displacement as the target), weighted `--hold-weight` over that displacement's size.
+    Returns per pose (name, channel values, settled displacement, rows)."""
+    from sim.face import targets as et
+    from sim.facs import EXPRESSIONS, apply_expression
+    from sim.state import FaceControl
+
+    if anch is None:
+        raise SystemExit("--hold settles its poses: leave out --settled")
+    s = margin_rows(model)
+    out = []
+    for pose in (x for x in args.hold.split(",") if x):
+        if pose in EXPRESSIONS:
+            c = FaceControl()
+            apply_expression(c, pose, face="ict")
+        else:
+            c = et.pose_control(pose)
+        u0 = anch.displacement(c.values)
+        su = s @ u0.ravel()
+        close = np.zeros(s.shape[0])
+        close[1::3] = -0.1 * args.hold_close  # the upper margins asked this much further down (cm)
+        cal.even_over(c.values, u0, s, args.hold_weight / float(su @ su), su + close)
+        out.append((pose, c.values.copy(), u0, s))
+        print(f"hold: {pose} margins moved {margin_mm(s, u0)} mm settled", flush=True)
+    return out
+
+
+def margin_mm(rows, u: np.ndarray) -> str:  # type: ignore[no-untyped-def]
+    """The largest and median of the upper margins' displacement against the lower ones, mm."""
+    m = 10.0 * np.linalg.norm((rows @ np.ravel(u)).reshape(-1, 3), axis=1)
+    return f"{m.max():.2f} / {np.median(m):.2f}"
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--smooth", type=float, default=1e-3, help="Laplacian weight per edge and component (per mm^2)")
@@ -254,6 +325,14 @@ def main() -> int:
                          "the upper lids up, the brows' lift) as the rig before settled it")
     ap.add_argument("--even-poses", default="surprise,AU1+2",
                     help="with --even: the poses (a preset on the scanned head, or AUs joined by '+') whose lumps count")
+    ap.add_argument("--hold", default="",
+                    help="poses (a preset on the scanned head, or AUs joined by '+') whose lid margins the fields "
+                         "keep where the rig the fit starts from settled them (the closed lids still meet)")
+    ap.add_argument("--hold-weight", type=float, default=100.0,
+                    help="with --hold: weight of the margins' change, relative to their displacement, squared")
+    ap.add_argument("--hold-close", type=float, default=0.0,
+                    help="with --hold: the upper margins held this many mm further down against the lower ones than "
+                         "the rig settled them (the contact stops them where the lids meet)")
     ap.add_argument("--where", action="store_true", help="print where each shape's remaining error lies (regions)")
     args = ap.parse_args()
     from scan_match import scan_targets
@@ -316,6 +395,7 @@ def main() -> int:
     print(f"anchor fields: {cal.n_params} parameters over {len(cal.groups)} muscles "
           f"({time.monotonic() - t0:.0f} s)", flush=True)
     even = even_poses(model, cal, anch, args) if args.even > 0 else []
+    held_poses = hold_margins(model, cal, anch, args) if args.hold else []
     leave = tuple(x for x in args.leave.split(",") if x)
     train = [k for k, lab in enumerate(labels) if (args.all or not lab.endswith("_R"))
              and not (leave and lab.startswith(leave))]
@@ -363,6 +443,10 @@ def main() -> int:
 
         sim = settle_with(cal.params)
         report("settled with anchors (simulator)", sim)
+        for pose, v, u0, rows in held_poses:
+            u1 = anch.displacement(v)
+            print(f"{pose} margins, max / median mm: settled {margin_mm(rows, u0)}, with anchors {margin_mm(rows, u1)}, "
+                  f"moved by them {margin_mm(rows, u1 - u0)}", flush=True)
         for pose, v, u0, s in even:
             print(f"{pose} lumps, max / p95 mm, settled with anchors: {lumps_mm(s, anch.displacement(v))}", flush=True)
         for s in [float(x) for x in args.scale.split(",") if x]:
@@ -373,7 +457,9 @@ def main() -> int:
             for j, (pose, v, _, s) in enumerate(even):  # the evenness about the settled poses too
                 u0 = anch.displacement(v) - cal.predict_all(v[None])[0]
                 even[j] = (pose, v, u0, s)
-            by_pose = {e[1].tobytes(): e[2].ravel() for e in even}
+            for j, (pose, v, _, s) in enumerate(held_poses):  # and the held margins
+                held_poses[j] = (pose, v, anch.displacement(v) - cal.predict_all(v[None])[0], s)
+            by_pose = {e[1].tobytes(): e[2].ravel() for e in even + held_poses}
             cal.even = [(v, by_pose[v.tobytes()], s, wt, t) for v, _, s, wt, t in cal.even]
             p0 = cal.params.copy()
             res = cal.fit(vals_a[train], b, w, iters=args.iters)
