@@ -63,6 +63,16 @@ docs/scan-face.md):
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only frontalis_inner=1.5,frontalis_outer --smooth 1e-4
         --bound 10 --even 100 --even-keep 30 --settle --rounds 1 --write-rig sim/face/scan/ict_rig.npz
 
+Then, on the rig all of those made, the mouth corner's muscles' fields refitted over zones grown
+3 cm (the zygomaticus major, the risorius, the buccinator and the corner's elevator carrying the
+cheek's tissue; docs/scan-face.md, "The smile's cheek: the corner's muscles over grown zones"):
+
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only zygomaticus_major=3,risorius=3,buccinator=3,
+        levator_anguli_oris=3 --smooth 1e-4 --bound 10 --write-rig sim/face/scan/ict_rig.npz
+
+`--nasolabial` first gives the skin along the nasolabial fold a laxer support (`nasolabial_fold`;
+tried there, not shipped).
+
 `--per-shape zones|skin` fits a field per shape instead (as if each shape had its own channel: over
 its channels' zones, grown by `--grow`, or over all the free skin), the ceiling of more channels or
 parts; `--where` prints where each shape's error lies (`face_regions.py`). `--keep` leaves those
@@ -129,6 +139,24 @@ class AnchoredSettler:
 
     def displacement(self, values: np.ndarray) -> np.ndarray:
         return self.settler.pose(values) - self.settler.rest
+
+
+def nasolabial_fold(rig, width: float = 0.5, support: float = 0.3):  # type: ignore[no-untyped-def]
+    """The rig with the skin within `width` cm of each nasolabial fold's line (the nose wing's landmark
+    to 8 mm outside and 3 mm below the mouth's corner, as `face_regions` draws it) resisting
+    indentation `support` times as much (`FaceRig.tissue["support_nasolabial"]`): no malar fat holds
+    the fold's skin out, so it sinks as the corner is drawn back."""
+    from dataclasses import replace
+
+    rest = np.asarray(rig.mesh.vertices, float)
+    lm = rig.mesh.landmarks
+    dist = np.full(len(rest), np.inf)
+    for side, sign in (("l", 1.0), ("r", -1.0)):
+        a = rest[lm[f"nose_wing_{side}"]]
+        b = rest[lm[f"mouth_corner_{side}"]] + np.array([0.8 * sign, -0.3, 0.0])
+        t = np.clip((rest - a) @ (b - a) / float((b - a) @ (b - a)), 0.0, 1.0)
+        dist = np.minimum(dist, np.linalg.norm(rest - (a + t[:, None] * (b - a)), axis=1))
+    return replace(rig, tissue={**rig.tissue, "support_nasolabial": np.where(dist <= width, support, 1.0)})
 
 
 def refit_zones(model, spec: list[str], grow: float) -> dict[str, np.ndarray]:  # type: ignore[no-untyped-def]
@@ -304,6 +332,8 @@ def main() -> int:
     ap.add_argument("--rig", type=Path, help="start from this rig file of the scanned head instead of the shipped one")
     ap.add_argument("--ala-slip", action="store_true",
                     help="add the nose wing's slip to the rig (sim.face.scan.make_rig.ala_slip) before the fit")
+    ap.add_argument("--nasolabial", action="store_true",
+                    help="give the nasolabial fold's skin a laxer support first (nasolabial_fold), then fit on it")
     ap.add_argument("--halves", action="store_true", help="fit the sided halves' fields alone, the others kept")
     ap.add_argument("--only", "--channels", dest="only", default="",
                     help="refit these channels' fields alone (NAME[=GROW], comma separated: a channel or a muscle's "
@@ -354,10 +384,12 @@ def main() -> int:
         from sim.face.scan.make_rig import ala_slip
 
         start_rig = ala_slip(start_rig)
+    if args.nasolabial:  # likewise the nasolabial fold's laxer support
+        start_rig = nasolabial_fold(start_rig)
     if args.halves:
         start_rig = half_anchors(start_rig)
         model = compile_model(start_rig, scan_params())
-    elif args.rig or only_fit or args.ala_slip:
+    elif args.rig or only_fit or args.ala_slip or args.nasolabial:
         model = compile_model(start_rig, scan_params())
     else:
         model = scan_model()

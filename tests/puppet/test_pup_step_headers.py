@@ -48,7 +48,8 @@ WAYS = [
     # smile at 0.5 from tick 40 (`_open_and_age` below, written by `write_take`)
     Way("solve", SOLVE_AS, "symmetric_solve", DATA / "take_solve_lu.jsonl", "5ae0ccadeaf904ba"),
     # the same performance recorded by main at 2ed57ef on the shipped rig (float64 responses, the
-    # jaw's constants turned at each opening): one take for both keys
+    # jaw's constants turned at each opening): one take for both keys, replayed on the shipped rig with
+    # the zygomaticus' fields from before their refit (`rig_before_grown_smile`: it drives the smile)
     Way("responses", RESPONSES_AS, "single_responses", DATA / "take_responses_f64.jsonl", "fafa1c948267615b", old_rig=False),
     Way("jaw constants", JAW_CONSTANTS_AS, "constants_from_grid", DATA / "take_responses_f64.jsonl", "fafa1c948267615b",
         old_rig=False),
@@ -60,8 +61,8 @@ IDS = [w.key for w in WAYS]
 OLD_RIG = DATA / "take_ict_held_chin_rig.npz"
 
 
-def _replay(path: Path, way: Way, new: bool | None = None) -> Replayer:
-    perf = build_performance(read_session(path), None, rig_path=str(OLD_RIG) if path == way.old and way.old_rig else None)
+def _replay(path: Path, way: Way, new: bool | None = None, rig: str | None = None) -> Replayer:
+    perf = build_performance(read_session(path), None, rig_path=str(OLD_RIG) if path == way.old and way.old_rig else rig)
     if new is not None:
         setattr(perf, way.attr, new)
     rp = Replayer(perf)
@@ -70,18 +71,18 @@ def _replay(path: Path, way: Way, new: bool | None = None) -> Replayer:
 
 
 @pytest.mark.parametrize("way", WAYS, ids=IDS)
-def test_a_take_from_before_replays_bit_for_bit(way: Way) -> None:
+def test_a_take_from_before_replays_bit_for_bit(way: Way, rig_before_grown_smile: str) -> None:
     assert way.key not in read_session(way.old).header
-    rp = _replay(way.old, way)
+    rp = _replay(way.old, way, rig=rig_before_grown_smile)
     assert not getattr(rp.perf, way.attr) and not getattr(rp.sim, way.attr)
     assert rp.verified == 2 and not rp.mismatches
     assert state_digest(rp.state) == way.final
 
 
 @pytest.mark.parametrize("way", WAYS, ids=IDS)
-def test_the_new_way_would_not_replay_it(way: Way) -> None:
+def test_the_new_way_would_not_replay_it(way: Way, rig_before_grown_smile: str) -> None:
     """What the header is for: the takes open the jaw, where the two ways part in the last bits."""
-    assert _replay(way.old, way, new=True).mismatches
+    assert _replay(way.old, way, new=True, rig=rig_before_grown_smile).mismatches
 
 
 def _open_and_age(tmp_path: Path) -> Path:
