@@ -67,7 +67,8 @@ SHAPE_SPAN = {"BrowInnerUp": 0.85, "EyeSquint": 0.5, "MouthPress": 0.85, "MouthD
 #: sphincter); the dimple's buccinator pulls on the modiolus with the corner's elevators; the nose
 #: wrinkled brings the orbital orbicularis, the corner's elevator and the brow's head down with it;
 #: the mouth shifted sideways is drawn by that side's zygomaticus and risorius; the lips closed over
-#: an open jaw are pushed up by the chin (mentalis) and the corners' elevators; the lips pressed,
+#: an open jaw are pushed up by the chin (mentalis) and the corners' elevators and lifted and
+#: carried forward as one by the lower lip's elevators (lip_lift); the lips pressed,
 #: the lower one pushed up and the lips closed carry the chin's soft tissue forward as a block,
 #: which the jaw thrust (jaw_forward) gives where more mentalis would evert the lower lip; the
 #: squinting eye's lower lid is lifted by its own palpebral orbicularis (AU7's lower lid
@@ -102,7 +103,7 @@ SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
     "MouthUpperUp": (("levator_labii_alaeque_nasi", 0.25),),
     "Mouth": (("zygomaticus_major", 0.5), ("risorius", 0.25), ("levator_labii_alaeque_nasi", 0.2), ("incisivus", 0.35)),
     "MouthClose": (("mentalis", 0.3), ("levator_anguli_oris", 1.0), ("orbicularis_oris_peripheralis_upper", 0.8),
-                   ("zygomaticus_major", 0.3), ("jaw_forward", 0.3)),
+                   ("zygomaticus_major", 0.3), ("jaw_forward", 0.3), ("lip_lift", 1.0)),
 }
 #: Shapes that are one channel each (besides the sided ones above).
 ONE_CHANNEL = {
