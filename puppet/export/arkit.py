@@ -108,8 +108,8 @@ SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
 #: closure's span: the channel at 1 is the scan's mouthClose at 1 (the lower lip 17 mm up and 5.5
 #: forward on the scanned head), so over a jaw opened w the shape w lifts them by w of it (tied to
 #: the span, a spoken "m", mouthClose 0.1, lifted the lips 6.5 mm where the scan's shape gives 3.8,
-#: docs/scan-face.md "mouthClose: the lips lifted"). Read back only (the export writes MouthClose
-#: from lip_closure).
+#: docs/scan-face.md "mouthClose: the lips lifted"). The export writes MouthClose as the larger of
+#: the closure over its span and the lift.
 MOUTH_CLOSE_LIFT = "lip_lift"
 #: Shapes that are one channel each (besides the sided ones above).
 ONE_CHANNEL = {
