@@ -36,6 +36,9 @@ given), fitted on the shapes that drive them ("The inner brows and the cheek's s
     # the nose wing's slip (sim.face.scan.make_rig.ala_slip) and the upper lip's elevators refitted on it
     nice .venv/bin/python benchmarks/anchor_limits.py --ala-slip --all --only levator_labii,levator_labii_alaeque_nasi
         --grow 1.5 --smooth 1e-4 --bound 10 --add --write-rig sim/face/scan/ict_rig.npz
+    # the lips' lift (the lip_lift channel's two patches, sim.face.scan.make_rig.lip_lift; ARKit
+    # mouthClose, docs/scan-face.md "mouthClose: the lips lifted"), on top of any of the above
+    nice .venv/bin/python -m sim.face.scan.make_rig --lip-lift
 
     # the lids' tissue ("The blink's lid fold held: the lid channel's tissue", docs/scan-face.md): the lid
     # channel's field with the closed lids held meeting (--hold), then the orbital orbicularis' refitted

@@ -136,6 +136,10 @@ CHANNEL_SPECS: tuple[ChannelSpec, ...] = (
     *_pair("mentalis", "sheet", ("AU17",),
            "one side's half of the chin raiser (the chin's soft tissue pushed up on that side): the whole "
            "channel's field weighted smoothly across the midline"),
+    _muscle("lip_lift", "patch", (),
+            "the closed lips lifted and carried forward as one, as they are when they meet over an open jaw "
+            "(ARKit's mouthClose): the lower lip's elevators push it up against the upper lip, which rides up "
+            "on it, and forward"),
 )
 
 CHANNEL_NAMES: tuple[str, ...] = tuple(spec.name for spec in CHANNEL_SPECS)

@@ -55,11 +55,12 @@ def xvfb_display() -> Iterator[str]:
 def arkit_expressible():  # type: ignore[no-untyped-def]
     """A function making a pose one the ARKit shapes can carry (in place, values (..., C) in the
     order of `names`): each calibrated shape's channels within its span (`SHAPE_SPAN`), and each
-    share (`SHAPE_SHARES`) at least its share of the shape, as a stream of shapes gives it."""
+    share (`SHAPE_SHARES`) at least its share of the shape, and the lips' lift mouthClose's own weight, as a
+    stream of shapes gives it."""
     import numpy as np
 
     from puppet.capture.arkit_in import share_targets, shape_targets
-    from puppet.export.arkit import ARKIT_SHAPES, SHAPE_SHARES, SHAPE_SPAN
+    from puppet.export.arkit import ARKIT_SHAPES, MOUTH_CLOSE_LIFT, MOUTH_CLOSE_SPAN, SHAPE_SHARES, SHAPE_SPAN
 
     def base(shape: str) -> str:
         return shape.removesuffix("Left").removesuffix("Right")
@@ -75,6 +76,9 @@ def arkit_expressible():  # type: ignore[no-untyped-def]
                 for ch, share in SHAPE_SHARES[base(shape)]:
                     for t in share_targets(shape, ch, index):
                         values[..., index[t]] = np.maximum(values[..., index[t]], share * unit)
+        if MOUTH_CLOSE_LIFT in index:  # the lips' lift is mouthClose's own weight, the closure over its span
+            close = np.minimum(1.0, values[..., index["lip_closure"]])
+            values[..., index[MOUTH_CLOSE_LIFT]] = MOUTH_CLOSE_SPAN * close
         return values
 
     return expressible

@@ -21,7 +21,7 @@ import numpy as np
 
 from puppet.capture.points import ChannelCapture, check_times, csv_rows, read_csv_text
 from puppet.errors import ConfigError
-from puppet.export.arkit import (ARKIT_SHAPES, GAZE_LIDS, MOUTH_CLOSE_SPAN, ONE_CHANNEL, ROTATIONS, SHAPE_SHARES, SHAPE_SPAN,
+from puppet.export.arkit import (ARKIT_SHAPES, GAZE_LIDS, MOUTH_CLOSE_LIFT, MOUTH_CLOSE_SPAN, ONE_CHANNEL, ROTATIONS, SHAPE_SHARES, SHAPE_SPAN,
                                  SIMPLE_SHAPES, UNSUPPORTED)
 
 _TC = re.compile(r"(\d+):(\d{2}):(\d{2})[:;](\d+)(?:\.(\d+))?")
@@ -75,6 +75,11 @@ def shape_channels(shapes: dict[str, np.ndarray], n: int,
     for shape, col in shapes.items():
         col = np.asarray(col, float)
         if shape == "MouthClose":
+            if MOUTH_CLOSE_LIFT in index:  # the lips' lift follows the shape itself (MOUTH_CLOSE_LIFT)
+                i = index[MOUTH_CLOSE_LIFT]
+                own = np.clip(col, 0.0, 1.0)
+                values[:, i] = np.maximum(values[:, i], own) if driven[i] else own
+                driven[i] = True
             col = col / MOUTH_CLOSE_SPAN
         base = shape.removesuffix("Left").removesuffix("Right")
         span = SHAPE_SPAN.get(base, 1.0)

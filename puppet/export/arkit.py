@@ -104,6 +104,13 @@ SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
     "MouthClose": (("mentalis", 0.3), ("levator_anguli_oris", 1.0), ("orbicularis_oris_peripheralis_upper", 0.8),
                    ("zygomaticus_major", 0.3), ("jaw_forward", 0.3)),
 }
+#: The lips lifted and carried forward as one (`lip_lift`) follow mouthClose itself, not the
+#: closure's span: the channel at 1 is the scan's mouthClose at 1 (the lower lip 17 mm up and 5.5
+#: forward on the scanned head), so over a jaw opened w the shape w lifts them by w of it (tied to
+#: the span, a spoken "m", mouthClose 0.1, lifted the lips 6.5 mm where the scan's shape gives 3.8,
+#: docs/scan-face.md "mouthClose: the lips lifted"). The export writes MouthClose as the larger of
+#: the closure over its span and the lift.
+MOUTH_CLOSE_LIFT = "lip_lift"
 #: Shapes that are one channel each (besides the sided ones above).
 ONE_CHANNEL = {
     "JawForward": "jaw_forward", "MouthClose": "lip_closure", "MouthPucker": "incisivus",
@@ -145,8 +152,8 @@ def _rule(shape: str) -> Callable[[Getter], float] | None:
         return lambda g: max(0.0, g("jaw_sideways"))
     if shape == "JawRight":
         return lambda g: max(0.0, -g("jaw_sideways"))
-    if shape == "MouthClose":
-        return lambda g: MOUTH_CLOSE_SPAN * g("lip_closure") / span
+    if shape == "MouthClose":  # the closure over its span, or the lips' lift, which follows the shape itself
+        return lambda g: max(MOUTH_CLOSE_SPAN * g("lip_closure") / span, g(MOUTH_CLOSE_LIFT))
     if shape in ONE_CHANNEL:
         name = ONE_CHANNEL[shape]
         return lambda g: g(name) / span
@@ -243,9 +250,13 @@ def arkit_row(values: np.ndarray, index: dict[str, int]) -> list[float]:
     with np.errstate(divide="ignore", invalid="ignore"):
         room = np.where(k > 0.0, np.maximum(v, 0.0) / np.where(k > 0.0, k, 1.0), np.inf).min(axis=1)
     largest = np.where(table.free, np.clip(room, 0.0, 1.0), unit)
+    lift = index.get(MOUTH_CLOSE_LIFT)
+    if lift is not None:  # the lips' lift is mouthClose itself: the stream gave the shape that weight
+        close = min(1.0, max(0.0, float(values[lift])))
+        largest[table.close] = min(1.0, close / MOUTH_CLOSE_SPAN)
     given = (k * largest[:, None]).max(axis=0)
     if np.all(np.abs(given[table.channels] - v[table.channels]) <= 1e-9):
-        largest[table.close] *= MOUTH_CLOSE_SPAN
+        largest[table.close] = close if lift is not None else largest[table.close] * MOUTH_CLOSE_SPAN
         return [float(w) for w in largest]
     return row
 

@@ -14,6 +14,13 @@ What each models:
   teeth: backwards and towards the line where the lips meet.
 - Lips meeting: the same marginal fibres draw the free edges together, the upper lip down and the
   lower lip up, whatever the jaw does (ARKit's mouthClose is used over an open jaw).
+- Lips lifted: the closed lips carried up and forward as one, as when they meet over an open jaw
+  (ARKit's mouthClose, whose scan lifts the lower lip 38 mm and carries it 17 mm forward, over the
+  upper one). The lower lip's elevators (the mentalis pushing its base, the marginal fibres rolling
+  it) lift it against the upper lip, which rides up on it: an upward patch over both lips and the
+  modioli, so the lips rise together and the margin between them is not squeezed (a lift on the
+  lower lip alone buckled it against the upper one); and a forward patch over the lower lip and
+  the skin below it, so the lower lip comes forward more than the upper.
 - Mouth left/right: one side's buccinator and risorius pull the modiolus back and out, the other
   side's let go, and the orbicularis ring, a closed band, carries both lips towards the pulling
   side (a sideways patch over the lips and the skin around them).
@@ -30,6 +37,12 @@ import numpy as np
 
 from sim.face.placement import BASE_FORCE, FaceFrame, _linear
 from sim.model import Muscle, PatchMuscle
+
+
+#: the lips' lift (`lip_lift`), in units of BASE_FORCE: the scanned head's fitted parts
+#: (`sim.face.scan.make_rig.LIP_LIFT_*`) divided by BASE_FORCE and the scan's muscles' factor (1.6)
+LIP_LIFT_UP = 3.3
+LIP_LIFT_FORWARD = 4.6
 
 
 def _patch(f: FaceFrame, name: str, center: np.ndarray, semi: tuple[float, float, float],
@@ -66,6 +79,11 @@ def mouth_actions(f: FaceFrame) -> dict[str, tuple[Muscle, ...]]:
         _patch(f, "marginalis_lower", lower, lip, (0.0, 0.5, -1.0), 1.8),)
     out["lip_closure"] = (_patch(f, "closure_upper", upper, lip, (0.0, -1.0, 0.0), 25.0),
                           _patch(f, "closure_lower", lower, lip, (0.0, 1.0, 0.0), 25.0))
+    wide = half + 2.8  # as wide as the modioli and more: the corners ride up with the lips
+    out["lip_lift"] = (_patch(f, "lip_lift_up", lower - f.s * np.array([0.0, 0.5, 0.0]), (wide, 0.8, 3.3),
+                              (0.0, 1.0, 0.0), LIP_LIFT_UP),
+                       _patch(f, "lip_lift_forward", lower - f.s * np.array([0.0, 1.0, 0.0]), (wide, 1.0, 3.3),
+                              (0.0, 0.0, 1.0), LIP_LIFT_FORWARD))
     band = (half + 1.3, 1.9, 1.6)
     out["mouth_shift_l"] = (_patch(f, "mouth_shift_l", mouth, band, (1.0, 0.0, 0.0), 1.0),)
     out["mouth_shift_r"] = (_patch(f, "mouth_shift_r", mouth, band, (-1.0, 0.0, 0.0), 1.0),)

@@ -32,3 +32,31 @@ def test_new_actions_on_the_scanned_head(scan) -> None:  # type: ignore[no-untyp
     cheeks = (settler.pose(settler.values_for({"cheek_puff": 1.0})) - settler.rest) * 10.0
     out = np.einsum("ij,ij->i", cheeks, model.rest_normal)
     assert out.max() > 3.0 and out.min() > -2.0
+
+
+def test_mouth_close_lifts_the_lower_lip_up_and_forward_closed(scan) -> None:  # type: ignore[no-untyped-def]
+    """ARKit mouthClose, the lips meeting over an open jaw, as the scan's: the lower lip's middle
+    lifted and carried forward (the scan's 38 mm up and 17 forward; before the lips' lift, 11 up
+    and 3.5 back), the chin with it, the lips still closed and no skin turned over; a spoken "m"
+    (mouthClose 0.1 over jawOpen 0.08, the lips pressed) still closes the lips."""
+    from puppet.capture.arkit_in import shape_channels
+    from sim.antifold import turned_over_area
+
+    model, settler = scan
+    lm = model.mesh.landmarks
+    x = settler.pose(shape_channels({"MouthClose": np.ones(1)}, 1)[0])
+    d = (x - settler.rest) * 10.0  # mm
+    lower, upper = d[lm["lower_lip_center"]], d[lm["upper_lip_center"]]
+    assert lower[1] > 14.0 and lower[2] > 1.0
+    assert d[lm["chin"], 1] > 7.0
+    assert abs(upper[1] - lower[1]) < 1.0  # the lips meet: the upper one rides on the lower
+    assert turned_over_area(model.triangles, model.rest, x) < 0.1
+
+    def gap(p: np.ndarray) -> float:
+        return float(p[lm["upper_lip_center"], 1] - p[lm["lower_lip_center"], 1])
+
+    m = {"JawOpen": 0.08, "MouthClose": 0.1, "MouthPressLeft": 0.35, "MouthPressRight": 0.35, "MouthRollLower": 0.15}
+    said = settler.pose(shape_channels({k: np.array([v]) for k, v in m.items()}, 1)[0])
+    jaw = settler.pose(shape_channels({"JawOpen": np.array([0.08])}, 1)[0])
+    assert gap(jaw) > gap(settler.rest) + 0.2  # the jaw alone parts them
+    assert gap(said) < gap(settler.rest) + 0.1

@@ -4,7 +4,7 @@ with the scan's own jaw weights (from its `jawOpen`), eyeballs and the skin unde
 pucker (`pucker_ring`), the nose wing's slip of AU9's muscle (`ala_slip`), and the muscles made stronger for the scan's stiffer skin (`sim.face.scan.rig`). The transfer runs linear
 algebra whose last bits follow the BLAS kernel, so it is run once and its result shipped; the
 application never runs it. Remake the file with `python -m sim.face.scan.make_rig`; `--ala-slip`
-adds the nose wing's slip to the file as it is (every fitted field kept).
+adds the nose wing's slip to the file as it is (every fitted field kept), `--lip-lift` the lips' lift.
 """
 
 from __future__ import annotations
@@ -233,6 +233,38 @@ def ala_slip(rig: FaceRig, insertion: tuple[float, float, float] = ALA_INSERTION
     return replace(rig, muscles=muscles)
 
 
+#: the closed lips lifted and carried forward (the `lip_lift` channel, ARKit mouthClose; placed on the
+#: procedural face by `sim.face.mouth_actions`). The scan's mouthClose alone lifts the lower lip's
+#: middle 38 mm and carries it 17 mm forward, the mouth's corners 15 mm up, the chin 5.5 mm up: the
+#: lips closing over a jaw opened as far as its jawOpen, made to be added to it. Our lips cannot pass
+#: through each other, so the lower lip's own elevators (the mentalis at its base, the marginal
+#: orbicularis rolling it) lift both lips as one, the upper riding on the lower, and push the lower
+#: lip forward. Two patches of skin, without the channel's fitted insertion (it has none), centred
+#: below the lower lip's middle (the offsets, cm, straight down) and as wide as the modioli and
+#: more (a narrower lift sheared the corners and turned their skin over): one pushing up over
+#: both lips (LIP_LIFT_UP, dyn/cm^2 at its centre), one pushing forward over the lower lip and
+#: the skin below it (LIP_LIFT_FORWARD). Fitted by settling the scan's mouthClose with the rest of
+#: its map entry (docs/scan-face.md, "mouthClose: the lips lifted"); applied to the shipped rig by
+#: `python -m sim.face.scan.make_rig --lip-lift`.
+LIP_LIFT_UP = (0.5, (5.0, 0.8, 3.3), 16000.0)  # (offset below the lower lip, semi-axes, force density)
+LIP_LIFT_FORWARD = (1.0, (5.0, 1.0, 3.3), 22000.0)
+
+
+def lip_lift(rig: FaceRig, up: tuple = LIP_LIFT_UP, forward: tuple = LIP_LIFT_FORWARD) -> FaceRig:  # type: ignore[type-arg]
+    """The rig with the scan's lips' lift (`LIP_LIFT_*`) as the `lip_lift` channel's parts (any it
+    had are replaced)."""
+    from dataclasses import replace
+
+    lower = np.asarray(rig.mesh.vertices[rig.mesh.landmarks["lower_lip_center"]], np.float64)
+    parts = []
+    for name, (drop, semi, scale), direction in (("lip_lift_up", up, (0.0, 1.0, 0.0)),
+                                                  ("lip_lift_forward", forward, (0.0, 0.0, 1.0))):
+        centre = _r(lower - np.array([0.0, drop, 0.0]))
+        parts.append(PatchMuscle(name, centre, _r(np.array(semi, np.float64)), np.array(direction, np.float64),
+                                 float(scale)))
+    return replace(rig, muscles={**rig.muscles, "lip_lift": tuple(parts)})
+
+
 def pack(path: str | Path = RIG_FILE) -> None:
     """Write the generic head's rig as the shipped rig file, keeping the insertion gains and the
     skin's material fitted to the scans (`sim.face.scan.calibrate`, `sim.face.scan.skin_fit`, run
@@ -247,7 +279,7 @@ def pack(path: str | Path = RIG_FILE) -> None:
     made = replace(transferred_rig(), insertion=old.insertion if old else {}, skin=old.skin if old else {},
                    tissue=old.tissue if old else {}, strain=old.strain if old else {},
                    anchor=old.anchor if old else {})
-    save_rig(ala_slip(with_lids(pucker_ring(made))), path)
+    save_rig(lip_lift(ala_slip(with_lids(pucker_ring(made)))), path)
 
 
 def add_ala_slip(path: str | Path = RIG_FILE) -> None:
@@ -257,11 +289,20 @@ def add_ala_slip(path: str | Path = RIG_FILE) -> None:
     save_rig(ala_slip(load_rig(path)), path)
 
 
+def add_lip_lift(path: str | Path = RIG_FILE) -> None:
+    """Write the rig file again with the lips' lift (`lip_lift`), everything else as it is."""
+    from sim.rig import load_rig, save_rig
+
+    save_rig(lip_lift(load_rig(path)), path)
+
+
 if __name__ == "__main__":
     import sys
 
     if "--ala-slip" in sys.argv[1:]:
         add_ala_slip()
+    elif "--lip-lift" in sys.argv[1:]:
+        add_lip_lift()
     else:
         pack()
     print(f"wrote {RIG_FILE}")
