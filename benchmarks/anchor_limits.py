@@ -36,6 +36,14 @@ given), fitted on the shapes that drive them ("The inner brows and the cheek's s
     # the nose wing's slip (sim.face.scan.make_rig.ala_slip) and the upper lip's elevators refitted on it
     nice .venv/bin/python benchmarks/anchor_limits.py --ala-slip --all --only levator_labii,levator_labii_alaeque_nasi
         --grow 1.5 --smooth 1e-4 --bound 10 --add --write-rig sim/face/scan/ict_rig.npz
+    # after every other command here (the frontalis' below included): the puff's pressure over the
+    # vestibule and the rolls' margins (sim.face.scan.make_rig), then the puff's, the rolls' and the
+    # pressed halves' fields over grown zones (docs/scan-face.md, "The lips and the puff")
+    .venv/bin/python -m sim.face.scan.make_rig --puff-vestibule
+    .venv/bin/python -m sim.face.scan.make_rig --roll-margins
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only cheek_puff=1,orbicularis_oris_marginalis_upper=3,
+        orbicularis_oris_marginalis_lower=3,orbicularis_oris_l=3,orbicularis_oris_r=3 --smooth 1e-5 --bound 10 --settle
+        --write-rig sim/face/scan/ict_rig.npz
 
 `--even W` joins the forehead's evenness to the objective: the lumps (`sim.face.scan.anchor_fit.
 forehead_lumps`, what the displacement keeps beyond its 1 cm average, the figure tests/sim/test_scan_face.py
