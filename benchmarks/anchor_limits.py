@@ -53,6 +53,14 @@ settled them (`margin_rows`; weighted `--hold-weight` over that motion's size, s
 still meet, while both lids may move together; `--hold-close MM` asks the upper margins MM further down
 than that (the settled lids opened 0.2 mm more than the linear model held them: the contact stops
 them where they meet).
+    # after every other command here (the frontalis' below included): the puff's pressure over the
+    # vestibule and the rolls' margins (sim.face.scan.make_rig), then the puff's, the rolls' and the
+    # pressed halves' fields over grown zones (docs/scan-face.md, "The lips and the puff")
+    .venv/bin/python -m sim.face.scan.make_rig --puff-vestibule
+    .venv/bin/python -m sim.face.scan.make_rig --roll-margins
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only cheek_puff=1,orbicularis_oris_marginalis_upper=3,
+        orbicularis_oris_marginalis_lower=3,orbicularis_oris_l=3,orbicularis_oris_r=3 --smooth 1e-5 --bound 10 --settle
+        --write-rig sim/face/scan/ict_rig.npz
 
 `--even W` joins the forehead's evenness to the objective: the lumps (`sim.face.scan.anchor_fit.
 forehead_lumps`, what the displacement keeps beyond its 1 cm average, the figure tests/sim/test_scan_face.py

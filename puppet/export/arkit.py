@@ -53,7 +53,7 @@ MOUTH_CLOSE_SPAN = 0.25
 #: stay within real brows: docs/scan-face.md, "The inner brows and the cheek's squint").
 #: The export divides by it (a larger channel value writes 1), the import and the map multiply.
 SHAPE_SPAN = {"BrowInnerUp": 0.85, "EyeSquint": 0.5, "MouthPress": 0.85, "MouthDimple": 1.0, "MouthLowerDown": 0.8,
-              "EyeWide": 0.7, "MouthShrugUpper": 0.8, "MouthUpperUp": 0.7}
+              "EyeWide": 0.7, "MouthShrugUpper": 0.8, "MouthUpperUp": 0.7, "MouthFunnel": 0.4}
 #: Shapes that also drive other channels, each by a share of the shape (the channel takes the larger
 #: of its own shape and the share, as the lids do with the gaze; a channel named without its side is
 #: the shape's side, both sides for an unsided shape; "Mouth" is MouthLeft / MouthRight). Fitted on
@@ -62,8 +62,10 @@ SHAPE_SPAN = {"BrowInnerUp": 0.85, "EyeSquint": 0.5, "MouthPress": 0.85, "MouthD
 #: shape came closer to its scan by more than 0.01 and its right twin, held out, followed. What they
 #: model: pressed lips push the chin's soft tissue up (mentalis), as the scanned mouthPress does;
 #: puffed cheeks hold the air behind pursed lips (incisivus), which the scanned cheekPuff carries
-#: 13 mm forward; funnelled lips are carried forward by
-#: the incisivi; the lower lip pushed up or rolled in meets the upper one (lip closure, the
+#: 13 mm forward, and lift the nose's wings with the lip (the scan's puff lifts the nose 1.3 mm and
+#: carries its base 6.6 mm forward); funnelled lips are carried forward by
+#: the incisivi and opened by the lower lip's depressor (the scanned mouthFunnel parts the lips
+#: 13.5 mm, the lower one 8 mm down, the everting pars peripheralis at 0.4 of full); the lower lip pushed up or rolled in meets the upper one (lip closure, the
 #: sphincter); the dimple's buccinator pulls on the modiolus with the corner's elevators; the nose
 #: wrinkled brings the orbital orbicularis, the corner's elevator and the brow's head down with it;
 #: the mouth shifted sideways is drawn by that side's zygomaticus and risorius; the lips closed over
@@ -86,8 +88,8 @@ SHAPE_SPAN = {"BrowInnerUp": 0.85, "EyeSquint": 0.5, "MouthPress": 0.85, "MouthD
 #: halves").
 SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
     "MouthPress": (("mentalis", 0.64), ("levator_anguli_oris", 0.34), ("jaw_forward", 0.07)),
-    "CheekPuff": (("incisivus", 1.0),),
-    "MouthFunnel": (("incisivus", 0.5),),
+    "CheekPuff": (("incisivus", 1.0), ("levator_labii_alaeque_nasi", 0.25)),
+    "MouthFunnel": (("incisivus", 0.65), ("depressor_labii", 0.7), ("levator_labii", 0.15)),
     "MouthShrugLower": (("lip_closure", 0.25), ("orbicularis_oris", 0.35), ("zygomaticus_major", 0.15),
                         ("incisivus", 0.25), ("jaw_forward", 0.3)),
     "MouthRollLower": (("lip_closure", 0.4),),

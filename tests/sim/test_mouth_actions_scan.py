@@ -31,7 +31,13 @@ def test_new_actions_on_the_scanned_head(scan) -> None:  # type: ignore[no-untyp
     assert left[lm["upper_lip_center"], 0] > 2.0 and left[lm["lower_lip_center"], 0] > 2.0
     cheeks = (settler.pose(settler.values_for({"cheek_puff": 1.0})) - settler.rest) * 10.0
     out = np.einsum("ij,ij->i", cheeks, model.rest_normal)
-    assert out.max() > 3.0 and out.min() > -2.0
+    # the pressure reaches the lips' inside (the vestibule), so it pushes the corners apart; their
+    # rim's normals face into the mouth (the scan's own puff moves them 4-6 mm against them): the
+    # skin within 3 mm of a corner is not held to "out"
+    corners = np.zeros(len(out), bool)
+    for c in ("mouth_corner_l", "mouth_corner_r"):
+        corners |= np.linalg.norm(model.rest - model.rest[lm[c]], axis=1) < 0.3
+    assert out.max() > 3.0 and out[~corners].min() > -2.0
 
 
 def test_mouth_close_lifts_the_lower_lip_up_and_forward_closed(scan) -> None:  # type: ignore[no-untyped-def]

@@ -82,13 +82,14 @@ def test_landmarks_are_found_where_they_are_stored() -> None:
 
 def test_the_shipped_rig_is_what_the_transfer_makes() -> None:
     """ict_rig.npz is remade by `python -m sim.face.scan.make_rig` (the transfer, then the lids
-    built on it, the pucker's ring in place of its bunching patch, the nose wing's slip); the
+    built on it, the pucker's ring in place of its bunching patch, the nose wing's slip, the puff's
+    pressure over the vestibule, the rolls' margins); the
     transfer's last bits follow the BLAS kernel, so the comparison allows 1e-4 cm."""
     from sim.face.scan.lids import with_lids
-    from sim.face.scan.make_rig import ala_slip, pucker_ring, transferred_rig
+    from sim.face.scan.make_rig import ala_slip, pucker_ring, puff_vestibule, roll_margins, transferred_rig
     from sim.face.scan.rig import scan_rig
 
-    shipped, made = scan_rig(), ala_slip(with_lids(pucker_ring(transferred_rig())))
+    shipped, made = scan_rig(), roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(transferred_rig())))))
     assert np.array_equal(shipped.mesh.vertices, made.mesh.vertices)
     assert np.array_equal(shipped.mesh.held, made.mesh.held)
     assert np.abs(shipped.mesh.jaw_weight - made.mesh.jaw_weight).max() < 1e-4
@@ -144,6 +145,43 @@ def test_the_pucker_carries_the_lips_forward_closed(model) -> None:  # type: ign
     assert d[lm["upper_lip_center"], 2] > 1.0 and d[lm["lower_lip_center"], 2] > 1.0
     assert opened < 1.0
 
+
+
+def test_the_puff_presses_the_whole_vestibule(model) -> None:  # type: ignore[no-untyped-def]
+    """ARKit cheekPuff (the puff's pressure with the pursed lips): the air presses on the whole
+    vestibule, so the skin between the nose wing and the mouth's corner bulges forward as the
+    scan's (11 mm there) and is not drawn in towards the midline. With the pressure over each
+    cheek's middle only, that skin came 2.9 mm forward and was drawn 2.5 mm in."""
+    c = FaceControl()
+    c.set("cheek_puff", 1.0)
+    c.set("incisivus", 1.0)
+    lm = model.mesh.landmarks
+    d = 10.0 * (_settle(model, c) - model.rest)  # mm
+    for side, sign in (("l", 1.0), ("r", -1.0)):
+        between = _near(model, 0.5 * (model.rest[lm[f"nose_wing_{side}"]] + model.rest[lm[f"mouth_corner_{side}"]]))
+        assert d[between, 2] > 5.0
+        assert sign * d[between, 0] > -1.5
+    assert d[lm["upper_lip_center"], 1] - d[lm["lower_lip_center"], 1] < 1.0  # the lips still sealed
+
+
+@pytest.mark.parametrize("lip", ["upper", "lower"])
+def test_the_roll_turns_its_own_lip_in(model, lip) -> None:  # type: ignore[no-untyped-def]
+    """AU28's halves (mouthRollUpper, mouthRollLower): the lip's free margin goes into the mouth,
+    the upper one without sliding down the teeth, its border follows it, and the other lip stays
+    where it is (the scan's own rolls: the margin 11-13 mm back, the upper margin 2 mm up, the other
+    lip still). The pars marginalis pushed the whole red lip down (up), so the upper margin went
+    2.5 mm down and dragged the lower lip 1.8 mm with it; the lower one pushed the upper lip 1.6 mm up."""
+    c = FaceControl()
+    c.set(f"orbicularis_oris_marginalis_{lip}", 1.0)
+    lm = model.mesh.landmarks
+    d = 10.0 * (_settle(model, c) - model.rest)  # mm
+    own, other = ("upper_lip_center", "lower_lip_center")[:: 1 if lip == "upper" else -1]
+    border = "upper_lip_top" if lip == "upper" else "lower_lip_bottom"
+    toward = -1.0 if lip == "upper" else 1.0  # the border towards the margin
+    assert d[lm[own], 2] < -8.0
+    assert lip == "lower" or d[lm[own], 1] > -1.0
+    assert toward * d[lm[border], 1] > 2.0 and d[lm[border], 2] < -3.0
+    assert np.abs(d[lm[other], 1]) < 1.0
 
 def _near(model, point) -> int:  # type: ignore[no-untyped-def]
     return int(np.argmin(np.linalg.norm(model.rest - np.asarray(point, float), axis=1)))

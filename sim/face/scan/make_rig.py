@@ -1,10 +1,13 @@
 """How the scanned head's shipped rig (`ict_rig.npz`) is made: the reference face's rig
 transferred onto the generic head's skin (`sim.face.transfer`), carried back into the scan's frame,
 with the scan's own jaw weights (from its `jawOpen`), eyeballs and the skin under the chin free, its own
-pucker (`pucker_ring`), the nose wing's slip of AU9's muscle (`ala_slip`), and the muscles made stronger for the scan's stiffer skin (`sim.face.scan.rig`). The transfer runs linear
+pucker (`pucker_ring`), the nose wing's slip of AU9's muscle (`ala_slip`), the puffed air's pressure over
+the whole vestibule (`puff_vestibule`), the lips' free margins turned in by the pars marginalis
+(`roll_margins`), and the muscles made stronger for the scan's stiffer skin (`sim.face.scan.rig`). The transfer runs linear
 algebra whose last bits follow the BLAS kernel, so it is run once and its result shipped; the
 application never runs it. Remake the file with `python -m sim.face.scan.make_rig`; `--ala-slip`
-adds the nose wing's slip to the file as it is (every fitted field kept), `--lip-lift` the lips' lift.
+adds the nose wing's slip to the file as it is (every fitted field kept), `--lip-lift` the lips' lift,
+`--puff-vestibule` the puff's pressure over the vestibule, `--roll-margins` the rolls' margins.
 """
 
 from __future__ import annotations
@@ -263,6 +266,69 @@ def lip_lift(rig: FaceRig, up: tuple = LIP_LIFT_UP, forward: tuple = LIP_LIFT_FO
         parts.append(PatchMuscle(name, centre, _r(np.array(semi, np.float64)), np.array(direction, np.float64),
                                  float(scale)))
     return replace(rig, muscles={**rig.muscles, "lip_lift": tuple(parts)})
+#: The air of a puff (AU34, cheek_puff) presses on the whole wall of the mouth's vestibule: the
+#: cheeks' buccal wall from the masseter's front edge to the lips' corners, and on across the lips'
+#: inside to the midline (the lips sealed, the vestibule is one space from cheek to cheek), between
+#: its two fornices (under the cheekbone, above the mandible's lower border). The transferred
+#: channel is a pressure over each cheek's middle only (an ellipsoid 5.4 cm across, 6.6 deep,
+#: centred 5.2 cm off the midline), so the scan's puffed lips and the skin beside the nose came out
+#: half as far as the scan's (docs/scan-face.md, "The lips and the puff"). The pressure patch is
+#: grown PUFF_ACROSS times across (to the midline and a little past it, where the two sides' patches
+#: overlap on the lips) and PUFF_DEEP times front to back, no taller (the fornices), its peak
+#: PUFF_PRESSURE of the transferred one (the same air over more wall). The grown parts are named
+#: with PUFF_SUFFIX, so applying it again changes nothing.
+PUFF_ACROSS = 2.4
+PUFF_DEEP = 2.0
+PUFF_PRESSURE = 0.6
+PUFF_SUFFIX = "_vestibule"
+
+
+def puff_vestibule(rig: FaceRig) -> FaceRig:
+    """The rig with the cheek_puff channel's pressure patches grown over the vestibule (`PUFF_*`)."""
+    from dataclasses import replace
+
+    parts = []
+    for m in rig.muscles["cheek_puff"]:
+        if isinstance(m, PatchMuscle) and not m.name.endswith(PUFF_SUFFIX):
+            grow = np.array([PUFF_ACROSS, 1.0, PUFF_DEEP])
+            m = replace(m, name=m.name + PUFF_SUFFIX, semi_axes=_r(np.asarray(m.semi_axes, float) * grow),
+                        scale=float(_r(m.scale * PUFF_PRESSURE)))
+        parts.append(m)
+    return replace(rig, muscles={**rig.muscles, "cheek_puff": tuple(parts)})
+
+
+#: The pars marginalis runs in the vermilion along each lip's free margin; contracting, it turns
+#: the lip in about its own core (AU28, the rolls): the free margin goes into the mouth over the
+#: teeth and the vermilion's border follows it to where the margin was (the scan's mouthRollUpper:
+#: the upper lip's margin 2.1 mm up and 10.9 back, its border 5 down and 8.4 back; mouthRollLower:
+#: the lower margin 12.8 back, its border 9 up and 7.4 back). The transferred channel is one patch
+#: over the red lip pushing it all down and back (up and back for the lower lip), so the margin
+#: went down with it (-2.3 mm). A second patch per lip on the margin itself (ROLL_MARGIN_*: its
+#: centre in the scan's frame, cm, its semi-axes, its direction for the upper lip, mirrored in
+#: height for the lower, its force in units of the lip's own patch) turns the margin up and back
+#: (down and back), so the two patches together roll the lip (docs/scan-face.md, "The lips and
+#: the puff"). Applying it again changes nothing (it replaces a margin the rig already has).
+ROLL_MARGIN_UPPER = (0.0, -3.3, 11.0)
+ROLL_MARGIN_LOWER = (0.0, -3.42, 11.05)
+ROLL_MARGIN_AXES = (2.4, 0.35, 0.8)
+ROLL_MARGIN_DIRECTION = (0.0, 0.8, -0.6)
+ROLL_MARGIN_FORCE = 1.0
+
+
+def roll_margins(rig: FaceRig) -> FaceRig:
+    """The rig with the pars marginalis' margin patches (`ROLL_MARGIN_*`) added to both lips' channels."""
+    from dataclasses import replace
+
+    muscles = dict(rig.muscles)
+    for lip, centre, sign in (("upper", ROLL_MARGIN_UPPER, 1.0), ("lower", ROLL_MARGIN_LOWER, -1.0)):
+        ch = f"orbicularis_oris_marginalis_{lip}"
+        parts = tuple(m for m in muscles[ch] if not m.name.endswith("_margin"))
+        own = next(m for m in parts if isinstance(m, PatchMuscle))
+        d = np.array(ROLL_MARGIN_DIRECTION, float) * np.array([1.0, sign, 1.0])
+        margin = PatchMuscle(f"marginalis_{lip}_margin", _r(np.array(centre, float)), _r(np.array(ROLL_MARGIN_AXES, float)),
+                             _r(d / np.linalg.norm(d)), float(_r(own.scale * ROLL_MARGIN_FORCE)))
+        muscles[ch] = (*parts, margin)
+    return replace(rig, muscles=muscles)
 
 
 def pack(path: str | Path = RIG_FILE) -> None:
@@ -279,7 +345,7 @@ def pack(path: str | Path = RIG_FILE) -> None:
     made = replace(transferred_rig(), insertion=old.insertion if old else {}, skin=old.skin if old else {},
                    tissue=old.tissue if old else {}, strain=old.strain if old else {},
                    anchor=old.anchor if old else {})
-    save_rig(lip_lift(ala_slip(with_lids(pucker_ring(made)))), path)
+    save_rig(lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(made)))))), path)
 
 
 def add_ala_slip(path: str | Path = RIG_FILE) -> None:
@@ -296,6 +362,21 @@ def add_lip_lift(path: str | Path = RIG_FILE) -> None:
     save_rig(lip_lift(load_rig(path)), path)
 
 
+def add_puff_vestibule(path: str | Path = RIG_FILE) -> None:
+    """Write the rig file again with the puff's pressure over the vestibule (`puff_vestibule`),
+    everything else as it is."""
+    from sim.rig import load_rig, save_rig
+
+    save_rig(puff_vestibule(load_rig(path)), path)
+
+
+def add_roll_margins(path: str | Path = RIG_FILE) -> None:
+    """Write the rig file again with the rolls' margins (`roll_margins`), everything else as it is."""
+    from sim.rig import load_rig, save_rig
+
+    save_rig(roll_margins(load_rig(path)), path)
+
+
 if __name__ == "__main__":
     import sys
 
@@ -303,6 +384,10 @@ if __name__ == "__main__":
         add_ala_slip()
     elif "--lip-lift" in sys.argv[1:]:
         add_lip_lift()
+    elif "--puff-vestibule" in sys.argv[1:]:
+        add_puff_vestibule()
+    elif "--roll-margins" in sys.argv[1:]:
+        add_roll_margins()
     else:
         pack()
     print(f"wrote {RIG_FILE}")
