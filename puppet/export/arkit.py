@@ -103,7 +103,7 @@ SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
     "MouthShrugUpper": (("levator_labii", 0.2),),
     "MouthUpperUp": (("levator_labii_alaeque_nasi", 0.25),),
     "Mouth": (("zygomaticus_major", 0.5), ("risorius", 0.25), ("levator_labii_alaeque_nasi", 0.2), ("incisivus", 0.35)),
-    "MouthClose": (("mentalis", 0.3), ("levator_anguli_oris", 1.0), ("orbicularis_oris_peripheralis_upper", 0.8),
+    "MouthClose": (("mentalis", 0.3), ("levator_anguli_oris", 0.3), ("orbicularis_oris_peripheralis_upper", 0.8),
                    ("zygomaticus_major", 0.3), ("jaw_forward", 0.3)),
 }
 #: The lips lifted and carried forward as one (`lip_lift`) follow mouthClose itself, not the
