@@ -239,10 +239,7 @@ def lumps_mm(smoothing, u: np.ndarray) -> str:  # type: ignore[no-untyped-def]
 def even_poses(model, cal, anch, args) -> list:  # type: ignore[no-untyped-def]
     """The --even terms joined to the calibration: per pose its name, channel values, displacement
     settled on the rig the fit starts from and the lumps' matrix."""
-    from sim.face import targets as et
     from sim.face.scan.anchor_fit import forehead_lumps
-    from sim.facs import EXPRESSIONS, apply_expression
-    from sim.state import FaceControl
 
     if anch is None:
         raise SystemExit("--even settles its poses: leave out --settled")
@@ -250,11 +247,7 @@ def even_poses(model, cal, anch, args) -> list:  # type: ignore[no-untyped-def]
     keep = forehead_lumps(model, low=1.0, average=True)
     out = []
     for pose in (x for x in args.even_poses.split(",") if x):
-        if pose in EXPRESSIONS:
-            c = FaceControl()
-            apply_expression(c, pose, face="ict")
-        else:
-            c = et.pose_control(pose)
+        c = pose_control(pose)
         u0 = anch.displacement(c.values)
         size = float(np.sum(u0.ravel()[np.unique(s.indices)] ** 2))
         cal.even_over(c.values, u0, s, args.even / size)
@@ -263,6 +256,19 @@ def even_poses(model, cal, anch, args) -> list:  # type: ignore[no-untyped-def]
         out.append((pose, c.values.copy(), u0, s))
         print(f"even: {pose} lumps {lumps_mm(s, u0)} mm settled", flush=True)
     return out
+
+
+def pose_control(pose: str):  # type: ignore[no-untyped-def]
+    """A preset on the scanned head, or action units joined by '+' (`sim.face.targets.pose_control`)."""
+    from sim.face import targets as et
+    from sim.facs import EXPRESSIONS, apply_expression
+    from sim.state import FaceControl
+
+    if pose in EXPRESSIONS:
+        c = FaceControl()
+        apply_expression(c, pose, face="ict")
+        return c
+    return et.pose_control(pose)
 
 
 def margin_rows(model):  # type: ignore[no-untyped-def]
@@ -292,20 +298,12 @@ def hold_margins(model, cal, anch, args) -> list:  # type: ignore[no-untyped-def
     the fit starts from settled them against the lower margins (`margin_rows`) (`AnchorCalibration.even_over` with the margins' rows and their
     settled displacement as the target), weighted `--hold-weight` over that displacement's size.
     Returns per pose (name, channel values, settled displacement, rows)."""
-    from sim.face import targets as et
-    from sim.facs import EXPRESSIONS, apply_expression
-    from sim.state import FaceControl
-
     if anch is None:
         raise SystemExit("--hold settles its poses: leave out --settled")
     s = margin_rows(model)
     out = []
     for pose in (x for x in args.hold.split(",") if x):
-        if pose in EXPRESSIONS:
-            c = FaceControl()
-            apply_expression(c, pose, face="ict")
-        else:
-            c = et.pose_control(pose)
+        c = pose_control(pose)
         u0 = anch.displacement(c.values)
         su = s @ u0.ravel()
         close = np.zeros(s.shape[0])

@@ -115,6 +115,20 @@ def _open_to_read(p: Path, what: str) -> Any:
         raise
 
 
+def _unreadable(source: object, what: str, err: OSError) -> BadFile:
+    """The one line for a file that cannot be opened or read."""
+    if isinstance(err, FileNotFoundError):
+        return BadFile(f"{source}: cannot read {what} (no such file)")
+    if isinstance(err, IsADirectoryError):
+        return BadFile(f"{source}: cannot read {what} (it is a folder)")
+    return BadFile(f"{source}: cannot read {what} ({err.strerror or err})")
+
+
+def _too_large(source: object, what: str, limit: int) -> BadFile:
+    """The one line for a file over its bound."""
+    return BadFile(f"{source}: the {what} is larger than {limit // (1024 * 1024)} MB; is it the right file?")
+
+
 @contextmanager
 def open_to_read(path: str | Path, what: str) -> Iterator[IO[bytes]]:
     """The file opened for reading in binary (a pipe watched as `read_bytes` does); a name that
@@ -123,12 +137,8 @@ def open_to_read(path: str | Path, what: str) -> Iterator[IO[bytes]]:
     p = Path(path)
     try:
         fh = _open_to_read(p, what)
-    except FileNotFoundError as err:
-        raise BadFile(f"{p}: cannot read {what} (no such file)") from err
-    except IsADirectoryError as err:
-        raise BadFile(f"{p}: cannot read {what} (it is a folder)") from err
     except OSError as err:
-        raise BadFile(f"{p}: cannot read {what} ({err.strerror or err})") from err
+        raise _unreadable(p, what, err) from err
     with fh:
         yield fh
 
@@ -144,15 +154,13 @@ def bounded_lines(fh: IO[bytes], source: str, what: str, line_limit: int,
     while True:
         try:
             line = fh.readline(line_limit + 1)
-        except IsADirectoryError as err:
-            raise BadFile(f"{source}: cannot read {what} (it is a folder)") from err
         except OSError as err:
-            raise BadFile(f"{source}: cannot read {what} ({err.strerror or err})") from err
+            raise _unreadable(source, what, err) from err
         if not line:
             return
         total += len(line)
         if total > limit:
-            raise BadFile(f"{source}: the {what} is larger than {limit // (1024 * 1024)} MB; is it the right file?")
+            raise _too_large(source, what, limit)
         yield line
         if len(line) > line_limit and not line.endswith(b"\n"):
             return
@@ -166,16 +174,12 @@ def read_bytes(path: str | Path, what: str, limit: int = MAX_BYTES) -> bytes:
         with _open_to_read(p, what) as fh:
             st = os.fstat(fh.fileno())
             if stat.S_ISREG(st.st_mode) and st.st_size > limit:  # said at once, nothing read
-                raise BadFile(f"{p}: the {what} is larger than {limit // (1024 * 1024)} MB; is it the right file?")
+                raise _too_large(p, what, limit)
             data = fh.read(limit + 1)
-    except FileNotFoundError as err:
-        raise BadFile(f"{p}: cannot read {what} (no such file)") from err
-    except IsADirectoryError as err:
-        raise BadFile(f"{p}: cannot read {what} (it is a folder)") from err
     except OSError as err:
-        raise BadFile(f"{p}: cannot read {what} ({err.strerror or err})") from err
+        raise _unreadable(p, what, err) from err
     if len(data) > limit:
-        raise BadFile(f"{p}: the {what} is larger than {limit // (1024 * 1024)} MB; is it the right file?")
+        raise _too_large(p, what, limit)
     return data
 
 
