@@ -36,6 +36,10 @@ given), fitted on the shapes that drive them ("The inner brows and the cheek's s
     # the nose wing's slip (sim.face.scan.make_rig.ala_slip) and the upper lip's elevators refitted on it
     nice .venv/bin/python benchmarks/anchor_limits.py --ala-slip --all --only levator_labii,levator_labii_alaeque_nasi
         --grow 1.5 --smooth 1e-4 --bound 10 --add --write-rig sim/face/scan/ict_rig.npz
+    # the jaw's hinge fitted to the scan's jawOpen and the skin's jaw weights to the settled jaw
+    # shapes (docs/scan-face.md, "The jaw's hinge and the skin carried by the mandible"); it reads
+    # no channel's anchors, so it may run before or after the others
+    nice .venv/bin/python -m sim.face.scan.jaw_fit --rig sim/face/scan/ict_rig.npz
 
 `--even W` joins the forehead's evenness to the objective: the lumps (`sim.face.scan.anchor_fit.
 forehead_lumps`, what the displacement keeps beyond its 1 cm average, the figure tests/sim/test_scan_face.py

@@ -91,7 +91,12 @@ def test_the_shipped_rig_is_what_the_transfer_makes() -> None:
     shipped, made = scan_rig(), ala_slip(with_lids(pucker_ring(transferred_rig())))
     assert np.array_equal(shipped.mesh.vertices, made.mesh.vertices)
     assert np.array_equal(shipped.mesh.held, made.mesh.held)
-    assert np.abs(shipped.mesh.jaw_weight - made.mesh.jaw_weight).max() < 1e-4
+    # the jaw's hinge and weights are fitted on top (`sim.face.scan.jaw_fit`; the test below): the
+    # weights stay in [0, 1], and above the nose's tip, where the scan's jaw moves little skin, they
+    # grow by hardly anything
+    grown = shipped.mesh.jaw_weight - made.mesh.jaw_weight
+    assert shipped.mesh.jaw_weight.min() >= 0.0 and shipped.mesh.jaw_weight.max() <= 1.0
+    assert grown[shipped.mesh.vertices[:, 1] > shipped.mesh.vertices[shipped.mesh.landmarks["nose_tip"], 1]].max() < 0.05
     assert shipped.muscles.keys() == made.muscles.keys()
     for ch, parts in made.muscles.items():
         assert [type(a) for a in parts] == [type(b) for b in shipped.muscles[ch]], ch
@@ -129,6 +134,29 @@ def test_the_skin_under_the_chin_follows_the_chin_pushed_up(model) -> None:  # t
     c.set("mentalis", 1.0)
     up = 10.0 * (_settle(model, c) - model.rest)[free, 1]  # mm; held, all of it stayed (0)
     assert up.mean() > 0.3 and np.percentile(up, 90) > 1.0
+
+
+def test_the_jaw_opens_as_the_scans_jaw_and_the_chin_goes_with_it(model) -> None:  # type: ignore[no-untyped-def]
+    """ARKit's jawOpen at 1 (the jaw at `OPENING_SPAN`) turns the mandible as the scan's jawOpen
+    turns its lower teeth (the transferred hinge put them 15 mm RMS off: the chin went down where
+    the scan's goes back), and the skin over the chin follows the bone as the scan's does (before
+    the weights were fitted on the settled poses it made 0.6-0.75 of the scan's motion: relative
+    error 0.29 at the jaw's full turn, 0.42 at the scan's)."""
+    from sim.face.scan.jaw_fit import OPENING_SPAN, teeth_motion
+    from sim.integrator import jaw_motion
+
+    teeth, rot, t = teeth_motion()
+    ours, glide = jaw_motion(model, OPENING_SPAN)
+    pivot = model.jaw_pivot
+    off = (teeth - pivot) @ ours.T + pivot + glide - (teeth @ rot.T + t)
+    assert np.sqrt(np.mean(np.sum(off * off, axis=1))) < 0.05  # cm
+    c = FaceControl()
+    c.set("jaw", OPENING_SPAN)
+    d = _settle(model, c) - model.rest
+    scan = scan_data().expression("jawOpen")[skin_layout().vertices]
+    chin = np.linalg.norm(model.rest - model.rest[model.mesh.landmarks["chin"]], axis=1) < 2.0
+    assert chin.sum() > 50
+    assert np.sqrt(np.sum((d[chin] - scan[chin]) ** 2) / np.sum(scan[chin] ** 2)) < 0.15
 
 
 def test_the_pucker_carries_the_lips_forward_closed(model) -> None:  # type: ignore[no-untyped-def]

@@ -4,7 +4,8 @@ with the scan's own jaw weights (from its `jawOpen`), eyeballs and the skin unde
 pucker (`pucker_ring`), the nose wing's slip of AU9's muscle (`ala_slip`), and the muscles made stronger for the scan's stiffer skin (`sim.face.scan.rig`). The transfer runs linear
 algebra whose last bits follow the BLAS kernel, so it is run once and its result shipped; the
 application never runs it. Remake the file with `python -m sim.face.scan.make_rig`; `--ala-slip`
-adds the nose wing's slip to the file as it is (every fitted field kept).
+adds the nose wing's slip to the file as it is (every fitted field kept). The jaw's hinge and the
+skin's jaw weights are then fitted to the scan's jaw shapes by `python -m sim.face.scan.jaw_fit`.
 """
 
 from __future__ import annotations
