@@ -40,6 +40,9 @@ given), fitted on the shapes that drive them ("The inner brows and the cheek's s
     # shapes (docs/scan-face.md, "The jaw's hinge and the skin carried by the mandible"); it reads
     # no channel's anchors, so it may run before or after the others
     nice .venv/bin/python -m sim.face.scan.jaw_fit --rig sim/face/scan/ict_rig.npz
+    # the lips' corner depressor's and stretcher's fields over their zones grown 3 cm (the same section)
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only risorius=3,depressor_anguli_oris=3 --smooth 1e-4
+        --bound 10 --add --settle --write-rig sim/face/scan/ict_rig.npz
 
 `--even W` joins the forehead's evenness to the objective: the lumps (`sim.face.scan.anchor_fit.
 forehead_lumps`, what the displacement keeps beyond its 1 cm average, the figure tests/sim/test_scan_face.py
