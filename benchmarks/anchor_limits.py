@@ -43,6 +43,9 @@ given), fitted on the shapes that drive them ("The inner brows and the cheek's s
     # the lips' corner depressor's and stretcher's fields over their zones grown 3 cm (the same section)
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only risorius=3,depressor_anguli_oris=3 --smooth 1e-4
         --bound 10 --add --settle --write-rig sim/face/scan/ict_rig.npz
+    # then the lips' sideways band's field over its zone grown 3 cm (the same section)
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only mouth_shift=3 --smooth 1e-4 --bound 10 --add
+        --settle --write-rig sim/face/scan/ict_rig.npz
 
 `--even W` joins the forehead's evenness to the objective: the lumps (`sim.face.scan.anchor_fit.
 forehead_lumps`, what the displacement keeps beyond its 1 cm average, the figure tests/sim/test_scan_face.py
