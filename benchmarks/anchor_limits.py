@@ -61,6 +61,16 @@ them where they meet).
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only cheek_puff=1,orbicularis_oris_marginalis_upper=3,
         orbicularis_oris_marginalis_lower=3,orbicularis_oris_l=3,orbicularis_oris_r=3 --smooth 1e-5 --bound 10 --settle
         --write-rig sim/face/scan/ict_rig.npz
+    # the jaw's hinge fitted to the scan's jawOpen and the skin's jaw weights to the settled jaw
+    # shapes (docs/scan-face.md, "The jaw's hinge and the skin carried by the mandible"); it reads
+    # no channel's anchors, so it may run before or after the others
+    nice .venv/bin/python -m sim.face.scan.jaw_fit --rig sim/face/scan/ict_rig.npz
+    # the lips' corner depressor's and stretcher's fields over their zones grown 3 cm (the same section)
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only risorius=3,depressor_anguli_oris=3 --smooth 1e-4
+        --bound 10 --add --settle --write-rig sim/face/scan/ict_rig.npz
+    # then the lips' sideways band's field over its zone grown 3 cm (the same section)
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only mouth_shift=3 --smooth 1e-4 --bound 10 --add
+        --settle --write-rig sim/face/scan/ict_rig.npz
 
 `--even W` joins the forehead's evenness to the objective: the lumps (`sim.face.scan.anchor_fit.
 forehead_lumps`, what the displacement keeps beyond its 1 cm average, the figure tests/sim/test_scan_face.py

@@ -98,12 +98,12 @@ EXPRESSIONS: dict[str, dict[str, float]] = {
 
 FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
     "ict": {
-        "happiness": {"AU6": 0.3, "AU10": 0.3, "AU12": 1.0, "AU13": 1.0, "AU25": 1.0},
+        "happiness": {"AU6": 0.3, "AU10": 0.3, "AU12": 1.0, "AU13": 1.0, "AU25": 0.8},
         "sadness": {"AU1": 1.0, "AU4": 0.42, "AU11": 0.6, "AU15": 1.0, "AU17": 1.0, "AU43": 0.35},
         "surprise": {"AU1": 0.8, "AU2": 0.8, "AU5": 0.7, "AU26": 1.0},
         "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 0.7, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
         "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.7, "AU7": 0.8, "AU17": 1.0, "AU23": 1.0},
-        "disgust": {"AU9": 0.9, "AU10": 0.7, "AU4": 0.9, "AU15": 0.3, "AU25": 1.0},
+        "disgust": {"AU9": 0.9, "AU10": 0.7, "AU4": 0.9, "AU15": 0.3, "AU25": 0.6},
     },
 }
 """Per face (its rig's name: "ict" is the scanned head and its identities), the presets whose
@@ -173,7 +173,12 @@ zones came (docs/scan-face.md, "The nose wing's slip and the upper lip's elevato
 before (AU9+10 0.7, AU4 0.75) the lip rose higher and read angry 0.38 (disgust 0.36); disgust lifts
 the nose harder than the lip (AU9 0.9, AU10 0.7) under brows drawn down harder (AU4 0.9): disgust
 0.90 and in all nine views (0.73-0.90), where AU9+10 0.8 with AU4 0.85-0.9 read 0.87-0.88 frontally
-and missed one view, AU9+10 1.0 read angry."""
+and missed one view, AU9+10 1.0 read angry.
+Retuned when the jaw's hinge was fitted to the scan's jawOpen (`sim.face.scan.jaw_fit`; the parted
+lips' small opening, AU25's jaw 0.1, now carries the chin back 2 mm as the scan's opening does, and
+the lips' skin follows the mandible closer): at AU25 1.0 happiness read happy 0.40 (surprise and
+neutral 0.24) and disgust 0.78 (angry 0.20); with the lips parted less, happiness at AU25 0.8 reads
+0.75 (0.3 / 0.45 / 0.6: 0.72 / 0.69 / 0.71) and disgust at AU25 0.6 0.94 (0.8: 0.78)."""
 
 
 FACE_EXPRESSIONS["imported"] = {

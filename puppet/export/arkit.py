@@ -51,9 +51,12 @@ MOUTH_CLOSE_SPAN = 0.25
 #: while the muscle lifted the forehead rather than the brows' heads; its anchors, refitted at 0.85,
 #: carry the glabella and the brows' heads as the medial fibres do, and the brows raised in full
 #: stay within real brows: docs/scan-face.md, "The inner brows and the cheek's squint").
+#: jawOpen at 1 opens the jaw 0.8 (the scan's 25.3 degrees of our 31.5 at 1, about the hinge fitted
+#: to it: `sim.face.scan.jaw_fit.OPENING_SPAN`, docs/scan-face.md, "The jaw's hinge ...").
 #: The export divides by it (a larger channel value writes 1), the import and the map multiply.
 SHAPE_SPAN = {"BrowInnerUp": 0.85, "EyeSquint": 0.5, "MouthPress": 0.85, "MouthDimple": 1.0, "MouthLowerDown": 0.8,
-              "EyeWide": 0.7, "MouthShrugUpper": 0.8, "MouthUpperUp": 0.7, "MouthFunnel": 0.4}
+              "EyeWide": 0.7, "MouthShrugUpper": 0.8, "MouthUpperUp": 0.7, "MouthFunnel": 0.4,
+              "JawOpen": 0.8}
 #: Shapes that also drive other channels, each by a share of the shape (the channel takes the larger
 #: of its own shape and the share, as the lids do with the gaze; a channel named without its side is
 #: the shape's side, both sides for an unsided shape; "Mouth" is MouthLeft / MouthRight). Fitted on
@@ -81,7 +84,8 @@ SHAPE_SPAN = {"BrowInnerUp": 0.85, "EyeSquint": 0.5, "MouthPress": 0.85, "MouthD
 #: once the skin under the chin was set free: the mentalis then carries it, and at the former
 #: shares (0.55, 1.0) lifted it too far (mouthPress 0.88) or turned it over (mouthClose 0.50 cm2);
 #: the jaw thrust's shares were swept the same way (mouthClose's kept at 0.3: more came closer
-#: still but parted the lips of a spoken "m"). mouthPress and mouthDimple are one-sided, as their
+#: still but parted the lips of a spoken "m"; mouthShrugLower's 0.3 -> 0.2 once the jaw's hinge and
+#: weights were fitted to the scan, the chin then following the thrust closer). mouthPress and mouthDimple are one-sided, as their
 #: scans are: they drive the side's halves of the lips' sphincter and the mentalis
 #: (`sim.channels.HALVES`; `share_targets` picks the half for a one-sided shape), their spans and
 #: shares fitted again on the settled poses with the halves (docs/scan-face.md, "The press in
@@ -91,7 +95,7 @@ SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
     "CheekPuff": (("incisivus", 1.0), ("levator_labii_alaeque_nasi", 0.25)),
     "MouthFunnel": (("incisivus", 0.65), ("depressor_labii", 0.7), ("levator_labii", 0.15)),
     "MouthShrugLower": (("lip_closure", 0.25), ("orbicularis_oris", 0.35), ("zygomaticus_major", 0.15),
-                        ("incisivus", 0.25), ("jaw_forward", 0.3)),
+                        ("incisivus", 0.25), ("jaw_forward", 0.2)),
     "MouthRollLower": (("lip_closure", 0.4),),
     "MouthRollUpper": (("risorius", 0.2), ("orbicularis_oris", 0.6)),
     "MouthDimple": (("levator_anguli_oris", 0.57), ("zygomaticus_major", 0.11), ("mentalis", 0.15), ("orbicularis_oris", 0.85)),
@@ -147,7 +151,7 @@ def _rule(shape: str) -> Callable[[Getter], float] | None:
     if shape == "BrowInnerUp":
         return lambda g: 0.5 * (g("frontalis_inner_l") + g("frontalis_inner_r")) / span
     if shape == "JawOpen":
-        return lambda g: g("jaw")
+        return lambda g: g("jaw") / span
     if shape == "MouthShrugLower":
         return lambda g: g("mentalis") / span
     if shape == "JawLeft":

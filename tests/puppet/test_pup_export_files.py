@@ -50,7 +50,7 @@ def test_arkit_csv_header_timecode_and_mapping(tmp_path: Path) -> None:
     r = dict(zip(head, rows[2]))
     assert r["Timecode"] == "00:00:01:01.000" and r["BlendShapeCount"] == "61"
     assert float(r["MouthSmileLeft"]) == pytest.approx(0.7) and float(r["MouthSmileRight"]) == pytest.approx(0.2)
-    assert float(r["JawOpen"]) == 0.5
+    assert float(r["JawOpen"]) == pytest.approx(0.5 / 0.8)  # jawOpen at 1 opens the jaw 0.8 (the scan's opening)
     assert float(r["EyeLookOutLeft"]) == pytest.approx(0.4) and float(r["EyeLookInRight"]) == pytest.approx(0.4)
     assert float(r["EyeLookDownLeft"]) == pytest.approx(0.3) and float(r["EyeLookUpLeft"]) == 0.0
     # the eyes' rotations in quarter turns (the gaze's full range is 30 degrees sideways, 20 up/down)

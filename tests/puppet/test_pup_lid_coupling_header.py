@@ -19,12 +19,13 @@ from puppet.session import read_session
 
 DATA = Path(__file__).parent / "data"
 #: recorded by main at 37b0100 on the scanned head (rig hash b1e3de12b4e812a7, the shipped rig
-#: then; the rig since differs in channels the take leaves at 0 but for the zygomaticus' anchors,
-#: refitted over a grown zone, so it replays to the same bits on the shipped rig with the
-#: zygomaticus' fields from before, `rig_before_grown_smile`): 120 ticks at 120 Hz, the
+#: then; it replays to the same bits on the rig shipped at 095760e, hash 3eae69a52ccd3d38, which
+#: differs from it only in channels the take leaves at 0: `RIG`, passed as `puppet replay --rig`
+#: would pass it; the smile's, the lids' and the jaw's fields were refitted since): 120 ticks at 120 Hz, the
 #: gaze turning aside to 0.8, then down to -0.6 from tick 30, the eyes converging 0.3 from tick 60,
 #: the left smile rising to 0.4 (`_look_around` below, on that code)
 OLD = DATA / "take_lids_alike.jsonl"
+RIG = str(DATA / "take_responses_f64_rig.npz")
 
 
 def _look_around(tmp_path: Path) -> Path:
@@ -54,18 +55,18 @@ def new_take(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return _look_around(tmp_path_factory.mktemp("new"))
 
 
-def test_a_take_from_before_replays_bit_for_bit(rig_before_grown_smile: str) -> None:
+def test_a_take_from_before_replays_bit_for_bit() -> None:
     header = read_session(OLD).header
     assert "lid coupling" not in header and header["lids"] == "gaze"
     assert header["rig"]["hash"] == "b1e3de12b4e812a7"
-    rp = _replay(OLD, rig=rig_before_grown_smile)
+    rp = _replay(OLD, rig=RIG)
     assert rp.sim.method == "implicit"
     assert not rp.perf.lids_apart and not rp.sim.lids_apart
     assert rp.verified == 2 and not rp.mismatches
 
 
-def test_the_new_way_would_not_replay_it(rig_before_grown_smile: str) -> None:
-    assert _replay(OLD, apart=True, rig=rig_before_grown_smile).mismatches
+def test_the_new_way_would_not_replay_it() -> None:
+    assert _replay(OLD, apart=True, rig=RIG).mismatches
 
 
 def test_a_new_take_says_so_and_replays_bit_for_bit(new_take: Path) -> None:

@@ -28,6 +28,8 @@ from puppet.replay import Replayer, build_performance, state_digest
 from puppet.session import read_session
 
 DATA = Path(__file__).parent / "data"
+#: the shipped rig before the jaw was fitted to the scan (hash 3eae69a52ccd3d38)
+RESPONSES_RIG = DATA / "take_responses_f64_rig.npz"
 
 
 @dataclass(frozen=True)
@@ -37,7 +39,7 @@ class Way:
     attr: str  # the performance's and the simulator's switch
     old: Path  # a take recorded by the code before, without the key
     final: str  # that recording program's last state
-    old_rig: bool = True  # recorded on OLD_RIG (else on the shipped rig)
+    rig: Path | None = None  # the rig it replays on, as `puppet replay --rig` would pass it (None: OLD_RIG)
 
 
 WAYS = [
@@ -48,11 +50,13 @@ WAYS = [
     # smile at 0.5 from tick 40 (`_open_and_age` below, written by `write_take`)
     Way("solve", SOLVE_AS, "symmetric_solve", DATA / "take_solve_lu.jsonl", "5ae0ccadeaf904ba"),
     # the same performance recorded by main at 2ed57ef on the shipped rig (float64 responses, the
-    # jaw's constants turned at each opening): one take for both keys, replayed on the shipped rig with
-    # the zygomaticus' fields from before their refit (`rig_before_grown_smile`: it drives the smile)
-    Way("responses", RESPONSES_AS, "single_responses", DATA / "take_responses_f64.jsonl", "fafa1c948267615b", old_rig=False),
+    # jaw's constants turned at each opening): one take for both keys. It replays on the shipped rig
+    # as it was before the jaw's hinge and weights were fitted to the scan (`sim.face.scan.jaw_fit`),
+    # the last rig whose jaw, age and smile moved the skin as the one it was recorded on
+    Way("responses", RESPONSES_AS, "single_responses", DATA / "take_responses_f64.jsonl", "fafa1c948267615b",
+        rig=RESPONSES_RIG),
     Way("jaw constants", JAW_CONSTANTS_AS, "constants_from_grid", DATA / "take_responses_f64.jsonl", "fafa1c948267615b",
-        old_rig=False),
+        rig=RESPONSES_RIG),
 ]
 IDS = [w.key for w in WAYS]
 #: the scanned head's rig both old takes replay bit for bit on (hash 5e71a5b7d3b2b2be, the shipped
@@ -61,8 +65,8 @@ IDS = [w.key for w in WAYS]
 OLD_RIG = DATA / "take_ict_held_chin_rig.npz"
 
 
-def _replay(path: Path, way: Way, new: bool | None = None, rig: str | None = None) -> Replayer:
-    perf = build_performance(read_session(path), None, rig_path=str(OLD_RIG) if path == way.old and way.old_rig else rig)
+def _replay(path: Path, way: Way, new: bool | None = None) -> Replayer:
+    perf = build_performance(read_session(path), None, rig_path=str(way.rig or OLD_RIG) if path == way.old else None)
     if new is not None:
         setattr(perf, way.attr, new)
     rp = Replayer(perf)
@@ -71,18 +75,18 @@ def _replay(path: Path, way: Way, new: bool | None = None, rig: str | None = Non
 
 
 @pytest.mark.parametrize("way", WAYS, ids=IDS)
-def test_a_take_from_before_replays_bit_for_bit(way: Way, rig_before_grown_smile: str) -> None:
+def test_a_take_from_before_replays_bit_for_bit(way: Way) -> None:
     assert way.key not in read_session(way.old).header
-    rp = _replay(way.old, way, rig=rig_before_grown_smile)
+    rp = _replay(way.old, way)
     assert not getattr(rp.perf, way.attr) and not getattr(rp.sim, way.attr)
     assert rp.verified == 2 and not rp.mismatches
     assert state_digest(rp.state) == way.final
 
 
 @pytest.mark.parametrize("way", WAYS, ids=IDS)
-def test_the_new_way_would_not_replay_it(way: Way, rig_before_grown_smile: str) -> None:
+def test_the_new_way_would_not_replay_it(way: Way) -> None:
     """What the header is for: the takes open the jaw, where the two ways part in the last bits."""
-    assert _replay(way.old, way, new=True, rig=rig_before_grown_smile).mismatches
+    assert _replay(way.old, way, new=True).mismatches
 
 
 def _open_and_age(tmp_path: Path) -> Path:

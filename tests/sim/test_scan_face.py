@@ -92,7 +92,12 @@ def test_the_shipped_rig_is_what_the_transfer_makes() -> None:
     shipped, made = scan_rig(), roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(transferred_rig())))))
     assert np.array_equal(shipped.mesh.vertices, made.mesh.vertices)
     assert np.array_equal(shipped.mesh.held, made.mesh.held)
-    assert np.abs(shipped.mesh.jaw_weight - made.mesh.jaw_weight).max() < 1e-4
+    # the jaw's hinge and weights are fitted on top (`sim.face.scan.jaw_fit`; the test below): the
+    # weights stay in [0, 1], and above the nose's tip, where the scan's jaw moves little skin, they
+    # grow by hardly anything
+    grown = shipped.mesh.jaw_weight - made.mesh.jaw_weight
+    assert shipped.mesh.jaw_weight.min() >= 0.0 and shipped.mesh.jaw_weight.max() <= 1.0
+    assert grown[shipped.mesh.vertices[:, 1] > shipped.mesh.vertices[shipped.mesh.landmarks["nose_tip"], 1]].max() < 0.05
     assert shipped.muscles.keys() == made.muscles.keys()
     for ch, parts in made.muscles.items():
         assert [type(a) for a in parts] == [type(b) for b in shipped.muscles[ch]], ch
@@ -130,6 +135,58 @@ def test_the_skin_under_the_chin_follows_the_chin_pushed_up(model) -> None:  # t
     c.set("mentalis", 1.0)
     up = 10.0 * (_settle(model, c) - model.rest)[free, 1]  # mm; held, all of it stayed (0)
     assert up.mean() > 0.3 and np.percentile(up, 90) > 1.0
+
+
+def test_the_jaw_opens_as_the_scans_jaw_and_the_chin_goes_with_it(model) -> None:  # type: ignore[no-untyped-def]
+    """ARKit's jawOpen at 1 (the jaw at `OPENING_SPAN`) turns the mandible as the scan's jawOpen
+    turns its lower teeth (the transferred hinge put them 15 mm RMS off: the chin went down where
+    the scan's goes back), and the skin over the chin follows the bone as the scan's does (before
+    the weights were fitted on the settled poses it made 0.6-0.75 of the scan's motion: relative
+    error 0.29 at the jaw's full turn, 0.42 at the scan's)."""
+    from sim.face.scan.jaw_fit import OPENING_SPAN, teeth_motion
+    from sim.integrator import jaw_motion
+
+    teeth, rot, t = teeth_motion()
+    ours, glide = jaw_motion(model, OPENING_SPAN)
+    pivot = model.jaw_pivot
+    off = (teeth - pivot) @ ours.T + pivot + glide - (teeth @ rot.T + t)
+    assert np.sqrt(np.mean(np.sum(off * off, axis=1))) < 0.05  # cm
+    c = FaceControl()
+    c.set("jaw", OPENING_SPAN)
+    d = _settle(model, c) - model.rest
+    scan = scan_data().expression("jawOpen")[skin_layout().vertices]
+    chin = np.linalg.norm(model.rest - model.rest[model.mesh.landmarks["chin"]], axis=1) < 2.0
+    assert chin.sum() > 50
+    assert np.sqrt(np.sum((d[chin] - scan[chin]) ** 2) / np.sum(scan[chin] ** 2)) < 0.15
+
+
+@pytest.mark.parametrize("channel,shape,limit", [("depressor_anguli_oris_l", "mouthFrown_L", 0.40),
+                                                 ("risorius_l", "mouthStretch_L", 0.42)])
+def test_the_corner_depressor_and_the_stretcher_move_the_skin_as_the_scans(model, channel: str, shape: str,
+                                                                           limit: float) -> None:  # type: ignore[no-untyped-def]
+    """AU15 and AU20 (ARKit mouthFrown and mouthStretch, one channel each at 1) settle within
+    `limit` of the scan's motion (relative error): with their tether anchors fitted over their own
+    zones they stayed at 0.43 and 0.45, the skin beside them (the jowl, the chin, the nose's base,
+    the platysma's sheet under the corner) left behind; over zones grown 3 cm, 0.37 and 0.39."""
+    c = FaceControl()
+    c.set(channel, 1.0)
+    d = _settle(model, c) - model.rest
+    scan = scan_data().expression(shape)[skin_layout().vertices]
+    assert np.sqrt(np.sum((d - scan) ** 2) / np.sum(scan * scan)) < limit
+
+
+def test_the_mouth_drawn_sideways_moves_the_skin_as_the_scans(model) -> None:  # type: ignore[no-untyped-def]
+    """ARKit mouthLeft (both lips drawn sideways as one band, `mouth_shift_l`, with that side's
+    smile, stretcher, nose wing's elevator and the incisivi by shares) settles within 0.465 of the
+    scan's motion: with the band's tether anchors over its own zone 0.477 (the lips' surround and
+    the nose's base left behind), over its zone grown 3 cm 0.452."""
+    from puppet.capture.arkit_in import shape_channels
+
+    c = FaceControl()
+    c.values[...] = shape_channels({"MouthLeft": np.ones(1)}, 1)[0]
+    d = _settle(model, c) - model.rest
+    scan = scan_data().expression("mouthLeft")[skin_layout().vertices]
+    assert np.sqrt(np.sum((d - scan) ** 2) / np.sum(scan * scan)) < 0.465
 
 
 def test_the_pucker_carries_the_lips_forward_closed(model) -> None:  # type: ignore[no-untyped-def]

@@ -53,8 +53,10 @@ LIP_FADE = 1.2  # cm: how far into the mouth socket the lips' motion reaches
 LID_UP = 3  # rows up the lid from its margin: with the margin's tangent, the opening lid's frame (at rest)
 LID_OPEN = 0.3  # cm the margin moves away from the opening's middle as its things go over to that frame
 LID_THINGS = ("eyelashes", "eye_occlusion", "lacrimal", "eye_blend")
-TONGUE_REACH = np.array([0.0, 0.95, 2.6])  # cm the tongue's tip moves at tongue_out = 1 (head frame),
+TONGUE_REACH = np.array([0.0, 0.95, 3.2])  # cm the tongue's tip moves at tongue_out = 1 (head frame),
 # on top of the jaw's share it follows: up over the lower teeth and out between the parted lips
+# (2.6 forward until the jaw's hinge was fitted to the scan's jawOpen, `sim.face.scan.jaw_fit`: AU19's
+# jaw 0.35 now carries the tip 6.4 mm further back, and at 2.6 it came 4 mm past the lips, not 5)
 TONGUE_NARROW = 0.25  # its tip's width shrinks by this share as it stretches out
 TONGUE_ROOT, TONGUE_TIP = 6.0, 9.6  # cm (z): where its motion starts, where it is whole
 TONGUE_FLOOR = 1.3  # cm below the teeth's occlusal plane: the floor of the mouth, which stays

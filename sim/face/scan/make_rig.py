@@ -7,7 +7,9 @@ the whole vestibule (`puff_vestibule`), the lips' free margins turned in by the 
 algebra whose last bits follow the BLAS kernel, so it is run once and its result shipped; the
 application never runs it. Remake the file with `python -m sim.face.scan.make_rig`; `--ala-slip`
 adds the nose wing's slip to the file as it is (every fitted field kept), `--lip-lift` the lips' lift,
-`--puff-vestibule` the puff's pressure over the vestibule, `--roll-margins` the rolls' margins.
+`--puff-vestibule` the puff's pressure over the vestibule, `--roll-margins` the rolls' margins. The
+jaw's hinge and the skin's jaw weights are fitted to the scan's jaw shapes by
+`python -m sim.face.scan.jaw_fit`.
 """
 
 from __future__ import annotations
