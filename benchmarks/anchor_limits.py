@@ -36,41 +36,6 @@ given), fitted on the shapes that drive them ("The inner brows and the cheek's s
     # the nose wing's slip (sim.face.scan.make_rig.ala_slip) and the upper lip's elevators refitted on it
     nice .venv/bin/python benchmarks/anchor_limits.py --ala-slip --all --only levator_labii,levator_labii_alaeque_nasi
         --grow 1.5 --smooth 1e-4 --bound 10 --add --write-rig sim/face/scan/ict_rig.npz
-    # the lips' lift (the lip_lift channel's two patches, sim.face.scan.make_rig.lip_lift; ARKit
-    # mouthClose, docs/scan-face.md "mouthClose: the lips lifted"), on top of any of the above
-    nice .venv/bin/python -m sim.face.scan.make_rig --lip-lift
-
-    # the lids' tissue ("The blink's lid fold held: the lid channel's tissue", docs/scan-face.md): the lid
-    # channel's field with the closed lids held meeting (--hold), then the orbital orbicularis' refitted
-    nice .venv/bin/python benchmarks/anchor_limits.py --all --only orbicularis_oculi_lid=0.5 --smooth 1e-4 --bound 10
-        --hold AU45 --hold-weight 30 --hold-close 0.5 --write-rig sim/face/scan/ict_rig.npz
-    nice .venv/bin/python benchmarks/anchor_limits.py --all --only orbicularis_oculi=5 --smooth 1e-4 --bound 10
-        --write-rig sim/face/scan/ict_rig.npz
-
-`--hold POSE,..` keeps, in each pose (a preset on the scanned head, or AUs joined by '+'), how far the
-upper lids' margins move against the lower margins beneath them where the rig the fit starts from
-settled them (`margin_rows`; weighted `--hold-weight` over that motion's size, squared): closed lids
-still meet, while both lids may move together; `--hold-close MM` asks the upper margins MM further down
-than that (the settled lids opened 0.2 mm more than the linear model held them: the contact stops
-them where they meet).
-    # after every other command here (the frontalis' below included): the puff's pressure over the
-    # vestibule and the rolls' margins (sim.face.scan.make_rig), then the puff's, the rolls' and the
-    # pressed halves' fields over grown zones (docs/scan-face.md, "The lips and the puff")
-    .venv/bin/python -m sim.face.scan.make_rig --puff-vestibule
-    .venv/bin/python -m sim.face.scan.make_rig --roll-margins
-    nice .venv/bin/python benchmarks/anchor_limits.py --all --only cheek_puff=1,orbicularis_oris_marginalis_upper=3,
-        orbicularis_oris_marginalis_lower=3,orbicularis_oris_l=3,orbicularis_oris_r=3 --smooth 1e-5 --bound 10 --settle
-        --write-rig sim/face/scan/ict_rig.npz
-    # the jaw's hinge fitted to the scan's jawOpen and the skin's jaw weights to the settled jaw
-    # shapes (docs/scan-face.md, "The jaw's hinge and the skin carried by the mandible"); it reads
-    # no channel's anchors, so it may run before or after the others
-    nice .venv/bin/python -m sim.face.scan.jaw_fit --rig sim/face/scan/ict_rig.npz
-    # the lips' corner depressor's and stretcher's fields over their zones grown 3 cm (the same section)
-    nice .venv/bin/python benchmarks/anchor_limits.py --all --only risorius=3,depressor_anguli_oris=3 --smooth 1e-4
-        --bound 10 --add --settle --write-rig sim/face/scan/ict_rig.npz
-    # then the lips' sideways band's field over its zone grown 3 cm (the same section)
-    nice .venv/bin/python benchmarks/anchor_limits.py --all --only mouth_shift=3 --smooth 1e-4 --bound 10 --add
-        --settle --write-rig sim/face/scan/ict_rig.npz
 
 `--even W` joins the forehead's evenness to the objective: the lumps (`sim.face.scan.anchor_fit.
 forehead_lumps`, what the displacement keeps beyond its 1 cm average, the figure tests/sim/test_scan_face.py
@@ -78,18 +43,51 @@ holds) of the poses `--even-poses` (the scanned head's surprise and AU1+2 at ful
 rig the fit starts from, with the fields' linear change, relative to each pose's forehead displacement
 and weighted W; `--even-keep W2` holds those poses' smooth part (their 1 cm average from 1 cm above the
 upper lids: the brows' lift) where it was. With `--settle --rounds R` the terms are taken about the
-settled poses too. The frontalis' fields refitted so, last, on the rig the commands above made ("Surprise's forehead evened",
+settled poses too. The frontalis' fields refitted so, on the rig the commands above made ("Surprise's forehead evened",
 docs/scan-face.md):
 
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only frontalis_inner=1.5,frontalis_outer --smooth 1e-4
         --bound 10 --even 100 --even-keep 30 --settle --rounds 1 --write-rig sim/face/scan/ict_rig.npz
 
-Then, on the rig all of those made, the mouth corner's muscles' fields refitted over zones grown
-3 cm (the zygomaticus major, the risorius, the buccinator and the corner's elevator carrying the
-cheek's tissue; docs/scan-face.md, "The smile's cheek: the corner's muscles over grown zones"):
+The later commands, each run once in this order on the rig the commands above made (the rig that
+ships; docs/scan-face.md has each one's section):
 
+    # the lids' tissue ("The blink's lid fold held: the lid channel's tissue"): the lid channel's
+    # field with the closed lids held meeting (--hold), then the orbital orbicularis' refitted
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only orbicularis_oculi_lid=0.5 --smooth 1e-4 --bound 10
+        --hold AU45 --hold-weight 30 --hold-close 0.5 --write-rig sim/face/scan/ict_rig.npz
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only orbicularis_oculi=5 --smooth 1e-4 --bound 10
+        --write-rig sim/face/scan/ict_rig.npz
+    # the mouth corner's muscles' fields over zones grown 3 cm (the zygomaticus major, the risorius,
+    # the buccinator and the corner's elevator carrying the cheek's tissue; "The smile's cheek: the
+    # corner's muscles over grown zones")
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only zygomaticus_major=3,risorius=3,buccinator=3,
         levator_anguli_oris=3 --smooth 1e-4 --bound 10 --write-rig sim/face/scan/ict_rig.npz
+    # the lips' lift (the lip_lift channel's two patches, sim.face.scan.make_rig.lip_lift; ARKit
+    # mouthClose, "mouthClose: the lips lifted")
+    nice .venv/bin/python -m sim.face.scan.make_rig --lip-lift
+    # the puff's pressure over the vestibule and the rolls' margins (sim.face.scan.make_rig), then the
+    # puff's, the rolls' and the pressed halves' fields over grown zones ("The lips and the puff")
+    .venv/bin/python -m sim.face.scan.make_rig --puff-vestibule
+    .venv/bin/python -m sim.face.scan.make_rig --roll-margins
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only cheek_puff=1,orbicularis_oris_marginalis_upper=3,
+        orbicularis_oris_marginalis_lower=3,orbicularis_oris_l=3,orbicularis_oris_r=3 --smooth 1e-5 --bound 10 --settle
+        --write-rig sim/face/scan/ict_rig.npz
+    # the jaw's hinge fitted to the scan's jawOpen and the skin's jaw weights to the settled jaw
+    # shapes ("The jaw's hinge and the skin carried by the mandible"), then the corner depressor's
+    # and the stretcher's fields, and the lips' sideways band's, over zones grown 3 cm
+    nice .venv/bin/python -m sim.face.scan.jaw_fit --rig sim/face/scan/ict_rig.npz
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only risorius=3,depressor_anguli_oris=3 --smooth 1e-4
+        --bound 10 --add --settle --write-rig sim/face/scan/ict_rig.npz
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only mouth_shift=3 --smooth 1e-4 --bound 10 --add
+        --settle --write-rig sim/face/scan/ict_rig.npz
+
+`--hold POSE,..` keeps, in each pose (a preset on the scanned head, or AUs joined by '+'), how far the
+upper lids' margins move against the lower margins beneath them where the rig the fit starts from
+settled them (`margin_rows`; weighted `--hold-weight` over that motion's size, squared): closed lids
+still meet, while both lids may move together; `--hold-close MM` asks the upper margins MM further down
+than that (the settled lids opened 0.2 mm more than the linear model held them: the contact stops
+them where they meet).
 
 `--nasolabial` first gives the skin along the nasolabial fold a laxer support (`nasolabial_fold`;
 tried there, not shipped).
