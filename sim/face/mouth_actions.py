@@ -39,10 +39,11 @@ from sim.face.placement import BASE_FORCE, FaceFrame, _linear
 from sim.model import Muscle, PatchMuscle
 
 
-#: the lips' lift (`lip_lift`), in units of BASE_FORCE: the scanned head's fitted parts
-#: (`sim.face.scan.make_rig.LIP_LIFT_*`) divided by BASE_FORCE and the scan's muscles' factor (1.6)
-LIP_LIFT_UP = 3.3
-LIP_LIFT_FORWARD = 4.6
+#: the lips' lift (`lip_lift`), in units of BASE_FORCE: under a third of the scanned head's fitted
+#: parts (`sim.face.scan.make_rig.LIP_LIFT_*`, 3.3 and 4.6 of these units with the scan's factor
+#: 1.6), which on the synthetic test face with every channel at full outran the explicit step's guard
+LIP_LIFT_UP = 1.0
+LIP_LIFT_FORWARD = 1.4
 
 
 def _patch(f: FaceFrame, name: str, center: np.ndarray, semi: tuple[float, float, float],

@@ -83,13 +83,13 @@ def test_landmarks_are_found_where_they_are_stored() -> None:
 def test_the_shipped_rig_is_what_the_transfer_makes() -> None:
     """ict_rig.npz is remade by `python -m sim.face.scan.make_rig` (the transfer, then the lids
     built on it, the pucker's ring in place of its bunching patch, the nose wing's slip, the puff's
-    pressure over the vestibule, the rolls' margins); the
+    pressure over the vestibule, the rolls' margins, the lips' lift); the
     transfer's last bits follow the BLAS kernel, so the comparison allows 1e-4 cm."""
     from sim.face.scan.lids import with_lids
-    from sim.face.scan.make_rig import ala_slip, pucker_ring, puff_vestibule, roll_margins, transferred_rig
+    from sim.face.scan.make_rig import ala_slip, lip_lift, pucker_ring, puff_vestibule, roll_margins, transferred_rig
     from sim.face.scan.rig import scan_rig
 
-    shipped, made = scan_rig(), roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(transferred_rig())))))
+    shipped, made = scan_rig(), lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(transferred_rig()))))))
     assert np.array_equal(shipped.mesh.vertices, made.mesh.vertices)
     assert np.array_equal(shipped.mesh.held, made.mesh.held)
     # the jaw's hinge and weights are fitted on top (`sim.face.scan.jaw_fit`; the test below): the
