@@ -33,6 +33,7 @@ the KEEP_ENTRIES most recently used entries are kept.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
@@ -116,10 +117,8 @@ def _write_atomic(target: Path, write: Callable[[str], None]) -> None:
             os.fsync(fh.fileno())
         os.replace(tmp, target)
     except BaseException:
-        try:
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
-        except OSError:
-            pass
         raise
 
 

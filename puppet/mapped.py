@@ -8,6 +8,7 @@ entries (`puppet.face_cache.StepperStore`) and the batch's machine-wide store (`
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import mmap
@@ -70,10 +71,8 @@ def write(path: Path, arrays: dict[str, np.ndarray], replace: bool = True) -> bo
         finally:
             os.unlink(tmp)
     except BaseException:
-        try:
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
-        except OSError:
-            pass
         raise
 
 
