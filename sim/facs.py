@@ -178,7 +178,12 @@ Retuned when the jaw's hinge was fitted to the scan's jawOpen (`sim.face.scan.ja
 lips' small opening, AU25's jaw 0.1, now carries the chin back 2 mm as the scan's opening does, and
 the lips' skin follows the mandible closer): at AU25 1.0 happiness read happy 0.40 (surprise and
 neutral 0.24) and disgust 0.78 (angry 0.20); with the lips parted less, happiness at AU25 0.8 reads
-0.75 (0.3 / 0.45 / 0.6: 0.72 / 0.69 / 0.71) and disgust at AU25 0.6 0.94 (0.8: 0.78)."""
+0.75 (0.3 / 0.45 / 0.6: 0.72 / 0.69 / 0.71) and disgust at AU25 0.6 0.94 (0.8: 0.78).
+Retuned when the lid channel's tissue was fitted with the closed lids held meeting (docs/scan-face.md,
+"The blink's lid fold held"): AU7's share of the lid channel narrows the glare from above, and
+anger at AU5 0.7 / AU7 0.8 read angry 0.41 with the eyes all but shut; its lids raised harder and
+tightened less, AU5 0.9 / AU7 0.6, read 0.50 and angry in 7 of the nine views (AU7 0.4: 0.42, 7 of 9;
+AU7 0.5: 0.36, 7; AU2 0.3: 0.49, 7; AU7 0.9: 0.54 frontally, but a sixth of the iris shows)."""
 
 
 FACE_EXPRESSIONS["imported"] = {
