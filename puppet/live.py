@@ -132,7 +132,7 @@ def load_face(rig_path: str | None = None, resolution: int = 0, face: Any = None
     return Face(model, Vocabulary.from_model(model), info)
 
 
-_COLD_START: dict[str, bool] = {}
+_COLD_START: dict[str, Any] = {}
 _COLD_START_KNOWN = __import__("threading").Event()
 
 
@@ -166,7 +166,9 @@ def warm_up_in_background() -> None:
             _COLD_START_KNOWN.set()
 
     _COLD_START["started"] = True
-    start_background(threading.Thread(target=run, name="kernel-warm-up", daemon=True))
+    thread = threading.Thread(target=run, name="kernel-warm-up", daemon=True)
+    _COLD_START["thread"] = thread
+    start_background(thread)
 
 
 #: threads a show starts that may still run compiled code (numba, LLVM) when the show ends
@@ -341,6 +343,9 @@ def prepare_kernels(model: Any, dt: float) -> None:
     import sim
     from sim.channels import CHANNEL_SPECS
 
+    warming = _COLD_START.get("thread")
+    if warming is not None:  # the background load finishes first, so no compile of it lands in the show
+        warming.join()
     s, state, control = sim.Simulator(model, dt, wrinkles=False), model.rest_state(), sim.FaceControl(model)
     s.step(state, control)
     control.values[:] = [c.default + (c.hi - c.default) / 3 for c in CHANNEL_SPECS]
