@@ -174,18 +174,27 @@ def watch_workers(client: Any, scheduler: str, interval: float = WATCH_INTERVAL)
 
     def look() -> None:
         alone = False
-        while not done.wait(interval):
+        while True:
+            # looked at more often while alone, and once more when the batch ends alone: a worker that
+            # joins and finishes the last tasks between two looks is still reported
+            finished = done.wait(min(interval, 0.5) if alone else interval)
+            if finished and not alone:
+                return
             try:
                 n = len(client.scheduler_info().get("workers", {}))
             except Exception:  # closing, or the scheduler gone (the batch says that itself)
+                if finished:
+                    return
                 continue
-            if n == 0 and not alone and not done.is_set():
+            if n == 0 and not alone and not finished:
                 print(f"puppet: batch: the farm has no worker now; its tasks wait for one: start `dask worker "
                       f"{scheduler}` to go on, or Ctrl+C (the files written are kept)", file=sys.stderr, flush=True)
             elif n > 0 and alone:
                 print(f"puppet: batch: {n} worker{'' if n == 1 else 's'} in the farm again; going on",
                       file=sys.stderr, flush=True)
             alone = n == 0
+            if finished:
+                return
 
     t = threading.Thread(target=look, name="batch-workers", daemon=True)
     t.start()

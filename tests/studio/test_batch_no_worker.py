@@ -36,7 +36,8 @@ def test_a_farm_left_without_workers_says_so_and_goes_on_when_one_joins(tmp_path
             for line in batch.stderr:
                 lines.put(line)
 
-        threading.Thread(target=pump, daemon=True).start()
+        pumping = threading.Thread(target=pump, daemon=True)
+        pumping.start()
         with f.client() as c:  # the only worker (and its nanny) stopped once a task runs
             deadline = time.monotonic() + 300
             while not any(str(k).startswith("export-") for keys in c.processing().values() for k in keys):
@@ -55,8 +56,11 @@ def test_a_farm_left_without_workers_says_so_and_goes_on_when_one_joins(tmp_path
                 pass
         assert f"dask worker {f.address}" in said and "Ctrl+C" in said, said
         f.procs.append(f._spawn("again", "worker", "--scheduler-file", str(f.file), *WORKER_ARGS))
-        stdout, _ = batch.communicate(timeout=600)
-        rest = "".join(iter(lambda: lines.get(timeout=5) if not lines.empty() else "", ""))
+        assert batch.stdout is not None  # stderr is the pump's alone: communicate() would take lines from it
+        stdout = batch.stdout.read()
+        batch.wait(600)
+        pumping.join(60)
+        rest = "".join(iter(lambda: lines.get_nowait() if not lines.empty() else "", ""))
         assert batch.returncode == 0, said + rest
         assert "wrote 6 files" in stdout, stdout
         assert "in the farm again" in said + rest, said + rest
