@@ -245,6 +245,10 @@ LIDS_AS = "gaze"
 #: sideways by the turning eye apart (`sim.gaze_lids.lid_couplings`); a take without it was recorded
 #: with them held alike and is replayed so (puppet.replay)
 LIDS_APART_AS = "upper and lower, inner and outer apart"
+#: the take header's "gaze tissue": the tissue round each globe is carried by the turning eye (the
+#: rig's `gaze`, `sim.gaze_lids.tissue_fields`); a take without it was recorded before and is
+#: replayed without it (puppet.replay)
+GAZE_TISSUE_AS = "carried by the turning eye"
 #: the take header's "jaw": the implicit step starts from the last step's jaw opening and skin age
 #: and adds the jaw's move as precomputed responses (sim.Simulator.jaw_responses)
 JAW_AS = "responses from the last step's pose"
@@ -292,6 +296,7 @@ def take_header(face: Face, rate: float, mapping: dict[str, str], devices: Seque
         "muscles": MUSCLES_AS,
         "lids": LIDS_AS,
         "lid coupling": LIDS_APART_AS,
+        "gaze tissue": GAZE_TISSUE_AS,
         # how it moves the jaw and ages the skin: a take without it is replayed with the jaw and the
         # age taken whole at each step, as it was recorded (puppet.replay)
         "jaw": JAW_AS,

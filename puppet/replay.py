@@ -18,8 +18,8 @@ import numpy as np
 
 from puppet.curves import CurveLayer, CurveSet
 from puppet.errors import ConfigError, PuppetError
-from puppet.live import (BENDING_AS, JAW_AS, JAW_BENDING_AS, JAW_CONSTANTS_AS, LIDS_APART_AS, LIDS_AS, MUSCLES_AS,
-                         RESPONSES_AS, SOLVE_AS, Face, load_face)
+from puppet.live import (BENDING_AS, GAZE_TISSUE_AS, JAW_AS, JAW_BENDING_AS, JAW_CONSTANTS_AS, LIDS_APART_AS, LIDS_AS,
+                         MUSCLES_AS, RESPONSES_AS, SOLVE_AS, Face, load_face)
 from puppet.session import Session
 from safefile import quote
 
@@ -68,6 +68,9 @@ class Performance:
     #: recorded with the jaw's constants turned at each opening (no "jaw constants" in its header):
     #: replayed that way (sim.Simulator.constants_from_grid off)
     constants_from_grid: bool = True
+    #: the tissue round the globe carried by the turning eye; False for a take recorded before (no
+    #: "gaze tissue" in its header), replayed without it (sim.Simulator.gaze_tissue off)
+    gaze_tissue: bool = True
 
     @property
     def ticks(self) -> int:
@@ -188,8 +191,9 @@ def build_performance(session: Session | None, curves: CurveSet | None, rig_path
     single = session is None or session.header.get("responses") == RESPONSES_AS
     grid = session is None or session.header.get("jaw constants") == JAW_CONSTANTS_AS
     apart = session is None or session.header.get("lid coupling") == LIDS_APART_AS
+    tissue = session is None or session.header.get("gaze tissue") == GAZE_TISSUE_AS
     return Performance(face, values, rate, markers, checks, restarts, summed, follow, apart, jaw, turned, symmetric,
-                       single, grid)
+                       single, grid, tissue)
 
 
 def _clamp(values: np.ndarray, face: Face, source: str) -> None:
@@ -231,6 +235,7 @@ class Replayer:
         s.muscles_summed = self.perf.muscles_summed
         s.lids_follow_gaze = self.perf.lids_follow_gaze
         s.lids_apart = self.perf.lids_apart
+        s.gaze_tissue = self.perf.gaze_tissue
         s.jaw_responses = self.perf.jaw_responses
         s.bending_turned = self.perf.bending_turned
         s.symmetric_solve = self.perf.symmetric_solve

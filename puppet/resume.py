@@ -208,8 +208,8 @@ def open_resumed(point: ResumePoint, writer_cls: Any, header: dict[str, Any]) ->
 def start_segment(core: Any, point: ResumePoint) -> None:
     """Put a fresh LiveCore where the take stopped: tick count, held values, seg + marker."""
     core.tick_count = point.ticks
-    from puppet.live import (JAW_AS, JAW_BENDING_AS, JAW_CONSTANTS_AS, LIDS_APART_AS, LIDS_AS, MUSCLES_AS, RESPONSES_AS,
-                             SOLVE_AS)
+    from puppet.live import (GAZE_TISSUE_AS, JAW_AS, JAW_BENDING_AS, JAW_CONSTANTS_AS, LIDS_APART_AS, LIDS_AS,
+                             MUSCLES_AS, RESPONSES_AS, SOLVE_AS)
 
     # the new segment is stepped as the take's header says its steps were (puppet.replay reads it)
     core.sim.muscles_summed = point.header.get("muscles") != MUSCLES_AS
@@ -220,6 +220,7 @@ def start_segment(core: Any, point: ResumePoint) -> None:
     core.sim.constants_from_grid = point.header.get("jaw constants") == JAW_CONSTANTS_AS
     core.sim.lids_follow_gaze = point.header.get("lids") == LIDS_AS
     core.sim.lids_apart = point.header.get("lid coupling") == LIDS_APART_AS
+    core.sim.gaze_tissue = point.header.get("gaze tissue") == GAZE_TISSUE_AS
     if core._crash_at <= point.ticks:  # the test hook's crash happened in the segment before
         core._crash_at = -1
     core.hold = HeldValues(core.mapper, point.values)

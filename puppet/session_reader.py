@@ -44,7 +44,7 @@ class _Damaged(ValueError):
 
 #: the header's keys that say how the recording program's step was made (puppet.replay reads them)
 STEP_KEYS = ("muscles", "lids", "jaw", "bending", "jaw bending", "solve", "responses", "jaw constants",
-             "lid coupling")
+             "lid coupling", "gaze tissue")
 
 
 def _finite(text: str) -> float:

@@ -386,6 +386,8 @@ def _rig_digest(rig: FaceRig, params: SkinParams) -> str:
         h.update(b"strain" + name.encode() + np.ascontiguousarray(rig.strain[name], np.float64).tobytes())
     for name in sorted(rig.anchor):  # none on a face whose anchors stay: its hash is unchanged
         h.update(b"anchor" + name.encode() + np.ascontiguousarray(rig.anchor[name], np.float64).tobytes())
+    for name in sorted(rig.gaze):  # none on a face without the tissue carried by the eyes: its hash is unchanged
+        h.update(b"gaze" + name.encode() + np.ascontiguousarray(rig.gaze[name], np.float64).tobytes())
     for name in sorted(rig.tissue):  # none on a face without named structures: its hash is unchanged
         h.update(b"tissue" + name.encode() + np.ascontiguousarray(rig.tissue[name], np.float64).tobytes())
     if rig.integrator != "auto":  # a face that asks for its integrator replays on it

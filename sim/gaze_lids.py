@@ -216,3 +216,69 @@ def basis_coefficients(yaw: float, pitch: float, vergence: float) -> np.ndarray:
         sa, va = math.sin(a), 1.0 - math.cos(a)
         out += [sa, va, sb, vb, sa * sb, sa * vb, va * sb, va * vb]
     return np.array(out)
+
+
+#: the looks of `FaceRig.gaze` (the tissue round the globe) per eye, as the eye's own yaw and pitch
+#: take them at +1 and -1: the left eye (eye 0, on the face's left, +X) looks out at yaw +1 and in at
+#: -1, the right eye in at +1 and out at -1; both look up at pitch +1
+_LOOKS = (("out", "in"), ("in", "out"))
+_SIDES = ("l", "r")
+
+
+def tissue_fields(model: object) -> np.ndarray | None:
+    """(N_BASIS, N, 3) dyn, or None when the face has none: the tissue round each globe (Tenon's
+    capsule, the orbital fat, the check ligaments, the lids' retractors) carried by the turning eye,
+    as forces to add to `basis_fields`' (so a frame reads no more responses than without it). The rig
+    gives the tether anchors' displacement d with each eye turned fully each way (`FaceRig.gaze`,
+    "<look>_<side>", cm); the tether being linear, they pull k_r d. A turn part of the way carries
+    them as a smooth function of its angle to second order, which the two full turns fix: about the
+    vertical axis, sin a (d+ - d-) / (2 sin A) + (1 - cos a) (d+ + d-) / (2 (1 - cos A)) for the
+    eye's yaw angle a of the most A (d+ at yaw +1, d- at -1), and likewise about the horizontal axis
+    (the fields of the coefficients sin a, 1 - cos a, sin b and 1 - cos b, `basis_coefficients`)."""
+    rig = getattr(model, "rig", None)
+    gaze = getattr(rig, "gaze", None)
+    if not gaze:
+        return None
+    kr = np.asarray(model.rest_stiffness, dtype=np.float64)[:, None]  # type: ignore[attr-defined]
+    n = len(kr)
+    zero = np.zeros((n, 3))
+    out = np.zeros((N_BASIS, n, 3))
+    sa, va = math.sin(YAW_MAX), 1.0 - math.cos(YAW_MAX)
+    sb, vb = math.sin(PITCH_MAX), 1.0 - math.cos(PITCH_MAX)
+    for e, side in enumerate(_SIDES):
+        f = {look: kr * np.asarray(gaze.get(f"{look}_{side}", zero), dtype=np.float64)
+             for look in ("in", "out", "up", "down")}
+        plus, minus = (f[look] for look in _LOOKS[e])
+        row = e * len(_BASIS)
+        out[row + 0] = (plus - minus) / (2.0 * sa)  # sin a, a = yaw * YAW_MAX
+        out[row + 1] = (plus + minus) / (2.0 * va)  # 1 - cos a
+        out[row + 2] = (f["down"] - f["up"]) / (2.0 * sb)  # sin b, b = -pitch * PITCH_MAX
+        out[row + 3] = (f["up"] + f["down"]) / (2.0 * vb)  # 1 - cos b
+    return out
+
+
+def add_tissue_forces(tissue: np.ndarray, yaw: float, pitch: float, vergence: float, out: np.ndarray) -> None:
+    """Adds to `out` (N,3) dyn the pull of the tissue carried by the turned eyes (`tissue_fields`)
+    for the gaze (the explicit step's; the implicit one reads their responses)."""
+    coef = basis_coefficients(yaw, pitch, vergence)
+    for k in np.flatnonzero(coef):
+        if k % len(_BASIS) < 4:
+            out += coef[k] * tissue[k]
+
+
+def look_coefficients(yaw: float, pitch: float, vergence: float) -> dict[str, float]:
+    """{"<look>_<side>": coefficient}: how much of each of the rig's look fields (`FaceRig.gaze`) the
+    gaze carries the tissue by (`tissue_fields`: 1 for the look an eye turns fully, and for a turn
+    part of the way the sine's and the versine's shares of the full turn's fields)."""
+    out = {}
+    sa, va = math.sin(YAW_MAX), 1.0 - math.cos(YAW_MAX)
+    sb, vb = math.sin(PITCH_MAX), 1.0 - math.cos(PITCH_MAX)
+    p = pitch * PITCH_MAX
+    for e, y in enumerate(eye_yaws(yaw, vergence)):
+        a = y * YAW_MAX
+        plus, minus = _LOOKS[e]
+        s, v = math.sin(a) / (2.0 * sa), (1.0 - math.cos(a)) / (2.0 * va)
+        out[f"{plus}_{_SIDES[e]}"], out[f"{minus}_{_SIDES[e]}"] = s + v, v - s
+        s, v = math.sin(p) / (2.0 * sb), (1.0 - math.cos(p)) / (2.0 * vb)
+        out[f"up_{_SIDES[e]}"], out[f"down_{_SIDES[e]}"] = s + v, v - s
+    return out

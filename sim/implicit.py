@@ -597,18 +597,27 @@ def muscle_responses(solver: PrefactoredSolver, free: np.ndarray, n: int, fields
 
 
 def gaze_responses(solver: PrefactoredSolver, free: np.ndarray, model: FaceModel) -> np.ndarray:
-    """(2 N_BASIS, free nodes, 3): the step's response to each fixed field of the lids' pull by the
+    """(3 N_BASIS, free nodes, 3): the step's response to each fixed field of the lids' pull by the
     turning eyes (`sim.gaze_lids.basis_fields`), first with the lids alike (takes recorded before
-    the header's "lid coupling"), then with the upper and lower lids apart (`lid_couplings`); a
-    frame adds one set times the gaze's coefficients after the muscles' responses, as it adds those."""
-    from sim.gaze_lids import N_BASIS, basis_fields, lid_couplings
+    the header's "lid coupling"), then with the upper and lower lids apart (`lid_couplings`), then
+    apart with the tissue round the globe carried by the turning eye (`sim.gaze_lids.tissue_fields`,
+    the rig's `gaze`: takes recorded before the header's "gaze tissue" replay without it; a face
+    without it has the second set again); a frame adds one set times the gaze's coefficients after
+    the muscles' responses, as it adds those."""
+    from sim.gaze_lids import N_BASIS, basis_fields, lid_couplings, tissue_fields
 
-    out = np.zeros((2 * N_BASIS, len(free), 3))
+    out = np.zeros((3 * N_BASIS, len(free), 3))
+    tissue = tissue_fields(model)
     for j, (idx, eye, gain, pitch_gain) in enumerate(lid_couplings(model)):
         for k, f in enumerate(basis_fields(np.asarray(model.rest), idx, eye, gain, model.mesh.eye_centers, pitch_gain)):
             f3 = np.ascontiguousarray(f[free])
             if f3.any():
                 solver.solve(f3, out[j * N_BASIS + k])
+            if j == 1:
+                if tissue is None or not tissue[k].any():
+                    out[2 * N_BASIS + k] = out[N_BASIS + k]
+                else:
+                    solver.solve(np.ascontiguousarray((f + tissue[k])[free]), out[2 * N_BASIS + k])
     return out
 
 

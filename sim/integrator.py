@@ -40,7 +40,7 @@ import numpy as np
 
 from sim.build import FaceModel
 from sim.channels import CHANNEL_INDEX
-from sim.gaze_lids import N_BASIS, basis_coefficients, gaze_forces, lid_couplings
+from sim.gaze_lids import N_BASIS, add_tissue_forces, basis_coefficients, gaze_forces, lid_couplings, tissue_fields
 from sim.margin_contact import margin_contact, margin_pairs
 from sim.state import FaceControl, FaceState
 from sim.numba_start import prepare_blas_check
@@ -716,13 +716,17 @@ class Simulator:
         #: lids were held alike, so it keeps its bits (puppet.replay)
         self.lids_apart = True
         self._couplings = lid_couplings(model)  # (alike, apart)
+        #: the tissue round the globe carried by the turning eye (`sim.gaze_lids.tissue_fields`, the
+        #: rig's `gaze`), with the lids apart: cleared by a replay of a take recorded before (no "gaze
+        #: tissue" in its header), so it keeps its bits (puppet.replay)
+        self.gaze_tissue = True
+        self._tissue = tissue_fields(model)  # None: the face has none
         self._gaze = (0.0, 0.0, 0.0)  # the gaze (yaw, pitch, vergence) of the last frame
-        # the implicit step's responses to the gaze's fields follow the muscles', the lids alike's
-        # then apart's (sim.implicit.gaze_responses)
+        # the implicit step's responses to the gaze's fields follow the muscles', the lids alike's,
+        # apart's, then apart's with the tissue (sim.implicit.gaze_responses)
         c = len(model.channels)
-        self._gaze_rows_of = (np.arange(c, c + N_BASIS, dtype=np.int64),
-                              np.arange(c + N_BASIS, c + 2 * N_BASIS, dtype=np.int64))
-        if self._implicit is not None and self._implicit._resp.shape[0] < c + 2 * N_BASIS:
+        self._gaze_rows_of = tuple(np.arange(c + j * N_BASIS, c + (j + 1) * N_BASIS, dtype=np.int64) for j in range(3))
+        if self._implicit is not None and self._implicit._resp.shape[0] < c + 3 * N_BASIS:
             raise ValueError("the implicit step's responses do not cover the gaze's pull on the lids")
         self._yaw_i = CHANNEL_INDEX["eyes_yaw"]
         self._pitch_i = CHANNEL_INDEX["eyes_pitch"]
@@ -968,6 +972,8 @@ class Simulator:
         if gaze != (0.0, 0.0, 0.0):
             idx, eye, gain, pitch_gain = self._couplings[self.lids_apart]
             gaze_forces(self.model.rest, idx, eye, gain, self.model.mesh.eye_centers, *gaze, self._ext, pitch_gain)
+            if self._tissue is not None and self.lids_apart and self.gaze_tissue:
+                add_tissue_forces(self._tissue, *gaze, self._ext)
         self._ext_values = np.array(v)
         return self._ext
 
@@ -1004,7 +1010,8 @@ class Simulator:
         if gaze != (0.0, 0.0, 0.0):  # the lids' pull by the turned eyes, as responses after the muscles'
             coef = basis_coefficients(*gaze)
             on = coef != 0.0  # (a look straight aside or up needs a quarter of them)
-            act = np.concatenate([act, self._gaze_rows_of[self.lids_apart][on]])
+            rows = self._gaze_rows_of[self.lids_apart + (self.lids_apart and self.gaze_tissue)]
+            act = np.concatenate([act, rows[on]])
             val = np.concatenate([val, coef[on]])
         return act, val
 

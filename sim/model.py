@@ -167,6 +167,13 @@ class FaceRig:
     channel's field as the force k_r d. Fitted to scanned expressions for the scanned head; a
     channel not named has none, the procedural face none.
 
+    gaze: "<look>_<side>" (look: in, out, up, down; side: l, r) -> (N, 3) cm, the displacement of
+    each skin vertex's tether anchor with that eye turned fully that way: the tissue round the globe
+    (Tenon's capsule, the orbital fat, the check ligaments, the lids' retractors) carried by the
+    turning eye (`sim.gaze_lids.tissue_fields`; a turn part of the way carries them by the
+    sine and versine of its angle). Fitted to the scan's eyeLook shapes for the scanned head
+    (`sim.face.scan.gaze_fit`); the procedural face has none.
+
     integrator: what `sim.integrator.Simulator(method="auto")` runs this face on: "auto" (by the
     work per frame), "rk2" or "implicit". An imported head asks for "implicit", whose fold guard
     keeps a foreign mesh's skin from turning over (`sim.antifold`).
@@ -186,3 +193,4 @@ class FaceRig:
     tissue: dict[str, np.ndarray] = field(default_factory=dict)
     strain: dict[str, np.ndarray] = field(default_factory=dict)
     anchor: dict[str, np.ndarray] = field(default_factory=dict)
+    gaze: dict[str, np.ndarray] = field(default_factory=dict)

@@ -65,7 +65,8 @@ def _inputs_digest(model: Any, h: float) -> str:
     d = hashlib.sha256(f"implicit h={float(h).hex()} lid={model.params.lid_bending!r} "
                        f"lip={model.params.lip_bending!r} skin={model.params.skin_bending!r} "
                        f"fold={FLOOR!r},{STRENGTH!r} gaze={STIFFNESS!r},{WIDTH!r},{REACH!r},{N_BASIS} "
-                       f"lids apart={UPPER!r},{LOWER!r},{SPLIT!r},{MEDIAL!r},{LATERAL!r},{ACROSS!r}".encode())
+                       f"lids apart={UPPER!r},{LOWER!r},{SPLIT!r},{MEDIAL!r},{LATERAL!r},{ACROSS!r} "
+                       f"gaze tissue=3".encode())
     for arr in (model.spring_indices, model.spring_k_high, model.mass, model.damping, model.support_stiffness,
                 model.rest_stiffness, model.held, model.rest, model.triangles,
                 bending_weights(model)):
@@ -75,6 +76,9 @@ def _inputs_digest(model: Any, h: float) -> str:
     for arr in (mm.indptr, mm.indices, mm.data, np.array([c.kind == "muscle" for c in model.channels])):
         a = np.ascontiguousarray(arr)
         d.update(f"{a.dtype.str}{a.shape}".encode() + a.tobytes())
+    gaze = getattr(getattr(model, "rig", None), "gaze", None) or {}  # the tissue carried by the eyes
+    for name in sorted(gaze):
+        d.update(b"gaze" + name.encode() + np.ascontiguousarray(gaze[name], np.float64).tobytes())
     for name, row in sorted(_rows(model.mesh).items()):
         d.update(name.encode() + np.ascontiguousarray(row, dtype=np.int64).tobytes())
     return d.hexdigest()

@@ -21,6 +21,8 @@ Active strain (`FaceRig.strain`, optional; `sim.active_strain`): header "strain"
 and an array `strain_<channel>` (N,6) f8 in -1..1 each (xx, yy, zz, xy, xz, yz per vertex).
 Tether anchors moved by a channel (`FaceRig.anchor`, optional; `sim.face.scan.anchor_fit`): header
 "anchor": [channel names], and an array `anchor_<channel>` (N,3) f8 in -2..2 cm each.
+Tether anchors carried by the turning eye (`FaceRig.gaze`, optional; `sim.face.scan.gaze_fit`):
+header "gaze": [names "<in|out|up|down>_<l|r>"], and an array `gaze_<name>` (N,3) f8 in -2..2 cm each.
 The integrator the face asks for (`FaceRig.integrator`, optional): header "integrator": "rk2" or
 "implicit" (absent: "auto"; imported heads ask for "implicit").
 Whose preset intensities the face takes (`FaceRig.presets`, optional): header "presets": a name of
@@ -50,6 +52,8 @@ MAX_MEMBERS = 256
 MAX_ARRAY_BYTES = 512 * 1024 * 1024
 MAX_VERTICES = 2_000_000
 INTEGRATORS = ("auto", "rk2", "implicit")  # FaceRig.integrator
+#: FaceRig.gaze's names: each eye's four looks
+GAZE_FIELDS = tuple(f"{look}_{side}" for side in ("l", "r") for look in ("in", "out", "up", "down"))
 MAX_ENTRIES = 10_000  # muscles, landmarks, regions, wrinkle lines
 
 
@@ -96,6 +100,8 @@ def rig_arrays(rig: FaceRig) -> dict[str, np.ndarray]:
         header["strain"] = sorted(rig.strain)
     if rig.anchor:  # likewise: rig files of faces whose anchors stay are unchanged
         header["anchor"] = sorted(rig.anchor)
+    if rig.gaze:  # likewise: rig files of faces without the tissue carried by the eyes are unchanged
+        header["gaze"] = sorted(rig.gaze)
     if rig.integrator != "auto":  # rig files of faces that leave the choice to the simulator are unchanged
         header["integrator"] = rig.integrator
     if rig.presets:  # likewise: only a face that asks for other presets says so
@@ -127,6 +133,8 @@ def rig_arrays(rig: FaceRig) -> dict[str, np.ndarray]:
         arrays[f"strain_{name}"] = np.asarray(strain, np.float64)
     for name, anchor in rig.anchor.items():
         arrays[f"anchor_{name}"] = np.asarray(anchor, np.float64)
+    for name, anchor in rig.gaze.items():
+        arrays[f"gaze_{name}"] = np.asarray(anchor, np.float64)
     return arrays
 
 
@@ -349,6 +357,13 @@ def _parse(data: Any, p: str) -> FaceRig:
         name = string(name, f"{p}: anchor channel")
         anchor[name] = _bounded(data, f"anchor_{name}", p, (n, 3), (-2.0, 2.0),
                                 f"anchor displacements of {quote(name)} must lie in -2..2 cm")
+    gaze = {}
+    for name in sequence(header.get("gaze", []), f"{p}: gaze", MAX_ENTRIES):
+        name = string(name, f"{p}: gaze field")
+        if name not in GAZE_FIELDS:
+            raise RigFileError(f"{p}: a gaze field is one of {', '.join(GAZE_FIELDS)}, not {quote(name[:40])}")
+        gaze[name] = _bounded(data, f"gaze_{name}", p, (n, 3), (-2.0, 2.0),
+                              f"anchor displacements of the gaze's {quote(name)} must lie in -2..2 cm")
     integrator = header.get("integrator", "auto")
     if integrator not in INTEGRATORS:
         raise RigFileError(f"{p}: integrator must be one of {', '.join(INTEGRATORS)}, "
@@ -357,7 +372,7 @@ def _parse(data: Any, p: str) -> FaceRig:
     return FaceRig(mesh=mesh, muscles=muscles, wrinkles=_wrinkles(header.get("wrinkles", []), p),
                    name=string(header.get("name", "rig"), f"{p}: name"), insertion=insertion,
                    skin=skin, integrator=integrator, presets=presets, tissue=tissue, strain=strain,
-                   anchor=anchor)
+                   anchor=anchor, gaze=gaze)
 
 
 def _wrinkles(entries: Any, p: str) -> tuple:

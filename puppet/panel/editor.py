@@ -168,7 +168,7 @@ class Editor:
                                      jaw_responses=p.jaw_responses,
                                      bending_turned=p.bending_turned, symmetric_solve=p.symmetric_solve,
                                      single_responses=p.single_responses,
-                                     constants_from_grid=p.constants_from_grid)
+                                     constants_from_grid=p.constants_from_grid, gaze_tissue=p.gaze_tissue)
             self._replayer = Replayer(self._perf)
             if old is not None and old_rp is not None and old.values.shape == values.shape:
                 # states before the first tick the edit changed are still right: keep their checkpoints

@@ -1,7 +1,9 @@
 """The lids carried by the turning eye (`sim.gaze_lids`): on the scanned head and the procedural
 face a sideways look carries the lids a couple of millimetres towards the side looked to and
 leaves the brows' and mouth's skin where it was, the scanned head's skin then moves closer to the
-scan's own look aside than without, and a still gaze leaves every step's bits as they were."""
+scan's own look aside than without, and a still gaze leaves every step's bits as they were. The
+coupling is measured alone here: the tissue round the globe fitted on top of it (the rig's `gaze`)
+is off, and `test_gaze_tissue.py` holds the two together to the scan's looks."""
 
 from __future__ import annotations
 
@@ -24,6 +26,7 @@ def ict():  # type: ignore[no-untyped-def]
 def _settled(model, values: dict[str, float], follow: bool = True) -> np.ndarray:  # type: ignore[no-untyped-def]
     sim = Simulator(model, wrinkles=False)
     sim.lids_follow_gaze = follow
+    sim.gaze_tissue = False
     c = FaceControl(model)
     for name, v in values.items():
         c.set(name, v)
@@ -161,6 +164,7 @@ def test_a_sideways_look_carries_the_upper_lid_further_than_the_lower(ict) -> No
     for apart in (False, True):
         sim = Simulator(ict, wrinkles=False)
         sim.lids_apart = apart
+        sim.gaze_tissue = False
         c = FaceControl(ict)
         c.set("eyes_yaw", 1.0)
         state = ict.rest_state()

@@ -296,3 +296,31 @@ def test_a_tissue_structure_not_named_after_a_skin_field_is_one_clear_line(synth
     np.savez(tmp_path / "neg.npz", **data)
     with pytest.raises(RigFileError, match=r"neg\.npz: tissue multipliers of .tether_ligament. must lie"):
         load_rig(tmp_path / "neg.npz")
+
+
+def test_the_tissue_carried_by_the_eyes_round_trips(synth_rig: FaceRig, tmp_path: Path) -> None:
+    """The look fields (`FaceRig.gaze`) are kept by the rig file and change the face's hash; a face
+    without them keeps its hash; a field named for no look, or out of range, is one clear line."""
+    from dataclasses import replace
+
+    n = len(synth_rig.mesh.vertices)
+    field = np.where(np.arange(n)[:, None] % 4 == 0, 0.1, 0.0) * np.array([1.0, -0.5, 0.2])
+    rig = replace(synth_rig, gaze={"in_l": field, "down_r": -field})
+    save_rig(rig, tmp_path / "g.npz")
+    back = load_rig(tmp_path / "g.npz")
+    assert set(back.gaze) == {"in_l", "down_r"} and np.array_equal(back.gaze["down_r"], -field)
+    assert compile_model(back).hash != compile_model(synth_rig).hash
+    assert compile_model(replace(synth_rig, gaze={})).hash == compile_model(synth_rig).hash
+    data = dict(np.load(tmp_path / "g.npz"))
+    header = json.loads(str(data["header"]))
+    data["header"] = np.array(json.dumps({**header, "gaze": ["sideways_l"]}))
+    data["gaze_sideways_l"] = field
+    np.savez(tmp_path / "bad.npz", **data)
+    with pytest.raises(RigFileError, match=r"bad\.npz: a gaze field is one of") as err:
+        load_rig(tmp_path / "bad.npz")
+    assert "\n" not in str(err.value)
+    data["header"] = np.array(json.dumps(header))
+    data["gaze_in_l"] = 3.0 + field
+    np.savez(tmp_path / "far.npz", **data)
+    with pytest.raises(RigFileError, match=r"far\.npz: anchor displacements of the gaze's .in_l. must lie"):
+        load_rig(tmp_path / "far.npz")

@@ -346,7 +346,7 @@ def pack(path: str | Path = RIG_FILE) -> None:
     old = load_rig(path) if Path(path).is_file() else None
     made = replace(transferred_rig(), insertion=old.insertion if old else {}, skin=old.skin if old else {},
                    tissue=old.tissue if old else {}, strain=old.strain if old else {},
-                   anchor=old.anchor if old else {})
+                   anchor=old.anchor if old else {}, gaze=old.gaze if old else {})
     save_rig(lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(made)))))), path)
 
 

@@ -195,7 +195,7 @@ def scan_rig(weights: np.ndarray | None = None, name: str = "ict") -> FaceRig:
         wrinkles.append(replace(line, points=_r(np.asarray(line.points, float) + disp[k, :2]),
                                 width_minus=float(_r(line.width_minus * s)), width_plus=float(_r(line.width_plus * s))))
     return FaceRig(mesh=mesh, muscles=muscles, wrinkles=tuple(wrinkles), name=name, insertion=rig.insertion,
-                   skin=rig.skin, tissue=rig.tissue, strain=rig.strain, anchor=rig.anchor)
+                   skin=rig.skin, tissue=rig.tissue, strain=rig.strain, anchor=rig.anchor, gaze=rig.gaze)
 
 
 def is_scan_rig(rig: FaceRig) -> bool:
