@@ -84,6 +84,12 @@ ships; docs/scan-face.md has each one's section):
     # the tissue round the globe carried by the turning eye: the eight look fields (FaceRig.gaze) fitted
     # to the scan's eyeLook shapes ("The tissue round the globe carried by the turning eye")
     nice .venv/bin/python benchmarks/gaze_tissue.py --write-rig sim/face/scan/ict_rig.npz
+    # the upper lip's elevators pushing the infraorbital triangle out (sim.face.scan.make_rig.levator_bulge)
+    # with their fields refitted on it, then the upper pars peripheralis turned up (make_rig.shrug_up)
+    # ("The infraorbital triangle's bulge and the upper lip's shrug")
+    nice .venv/bin/python benchmarks/anchor_limits.py --levator-bulge --all --only levator_labii,levator_labii_alaeque_nasi
+        --grow 1.5 --smooth 1e-4 --bound 10 --add --settle --write-rig sim/face/scan/ict_rig.npz
+    .venv/bin/python -m sim.face.scan.make_rig --shrug-up
 
 `--hold POSE,..` keeps, in each pose (a preset on the scanned head, or AUs joined by '+'), how far the
 upper lids' margins move against the lower margins beneath them where the rig the fit starts from
@@ -92,8 +98,10 @@ still meet, while both lids may move together; `--hold-close MM` asks the upper 
 than that (the settled lids opened 0.2 mm more than the linear model held them: the contact stops
 them where they meet).
 
-`--nasolabial` first gives the skin along the nasolabial fold a laxer support (`nasolabial_fold`;
-tried there, not shipped).
+`--levator-bulge` first adds the infraorbital triangle's bulge to both elevators of the upper lip
+(`sim.face.scan.make_rig.levator_bulge`), as `--ala-slip` adds the nose wing's slip. `--nasolabial`
+first gives the skin along the nasolabial fold a laxer support (`nasolabial_fold`; tried there, not
+shipped).
 
 `--per-shape zones|skin` fits a field per shape instead (as if each shape had its own channel: over
 its channels' zones, grown by `--grow`, or over all the free skin), the ceiling of more channels or
@@ -112,7 +120,7 @@ fitted per-channel displacement fields (cm). `--settled FILE` caches the shipped
 poses. docs/scan-face.md ("The tissue under the skin moving with the muscle") has the figures.
 
     nice .venv/bin/python benchmarks/anchor_limits.py [--smooth 1e-3] [--grow 0] [--bound 5] [--iters 300]
-        [--settle [--rounds R] [--damp 0.5] [--scale 0.5,0.25]] [--save FILE] [--all] [--settled FILE]
+        [--settle [--rounds R] [--damp 0.5] [--scale 0.5,0.25]] [--save FILE] [--all] [--settled FILE] [--levator-bulge]
         [--per-shape zones|skin] [--where] [--only C[=GROW],..] [--keep C,..] [--leave S,..] [--write-rig RIG [--add]]
         [--even W [--even-keep W2] [--even-poses surprise,AU1+2]] [--hold AU45 [--hold-weight 30] [--hold-close 0.5]]
 """
@@ -352,6 +360,8 @@ def main() -> int:
     ap.add_argument("--rig", type=Path, help="start from this rig file of the scanned head instead of the shipped one")
     ap.add_argument("--ala-slip", action="store_true",
                     help="add the nose wing's slip to the rig (sim.face.scan.make_rig.ala_slip) before the fit")
+    ap.add_argument("--levator-bulge", action="store_true",
+                    help="add the infraorbital triangle's bulge to the rig (sim.face.scan.make_rig.levator_bulge) before the fit")
     ap.add_argument("--nasolabial", action="store_true",
                     help="give the nasolabial fold's skin a laxer support first (nasolabial_fold), then fit on it")
     ap.add_argument("--halves", action="store_true", help="fit the sided halves' fields alone, the others kept")
@@ -404,12 +414,16 @@ def main() -> int:
         from sim.face.scan.make_rig import ala_slip
 
         start_rig = ala_slip(start_rig)
+    if args.levator_bulge:  # the infraorbital triangle's bulge (sim.face.scan.make_rig.levator_bulge), then the fit on it
+        from sim.face.scan.make_rig import levator_bulge
+
+        start_rig = levator_bulge(start_rig)
     if args.nasolabial:  # likewise the nasolabial fold's laxer support
         start_rig = nasolabial_fold(start_rig)
     if args.halves:
         start_rig = half_anchors(start_rig)
         model = compile_model(start_rig, scan_params())
-    elif args.rig or only_fit or args.ala_slip or args.nasolabial:
+    elif args.rig or only_fit or args.ala_slip or args.levator_bulge or args.nasolabial:
         model = compile_model(start_rig, scan_params())
     else:
         model = scan_model()

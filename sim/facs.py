@@ -103,7 +103,7 @@ FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
         "surprise": {"AU1": 0.8, "AU2": 0.8, "AU5": 0.7, "AU26": 1.0},
         "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 0.7, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
         "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.9, "AU7": 0.6, "AU17": 1.0, "AU23": 1.0},
-        "disgust": {"AU9": 0.9, "AU10": 0.7, "AU4": 0.9, "AU15": 0.3, "AU25": 0.6},
+        "disgust": {"AU9": 1.0, "AU10": 0.5, "AU4": 0.9, "AU15": 0.3, "AU25": 0.6},
     },
 }
 """Per face (its rig's name: "ict" is the scanned head and its identities), the presets whose
@@ -183,7 +183,13 @@ Retuned when the lid channel's tissue was fitted with the closed lids held meeti
 "The blink's lid fold held"): AU7's share of the lid channel narrows the glare from above, and
 anger at AU5 0.7 / AU7 0.8 read angry 0.41 with the eyes all but shut; its lids raised harder and
 tightened less, AU5 0.9 / AU7 0.6, read 0.50 and angry in 7 of the nine views (AU7 0.4: 0.42, 7 of 9;
-AU7 0.5: 0.36, 7; AU2 0.3: 0.49, 7; AU7 0.9: 0.54 frontally, but a sixth of the iris shows)."""
+AU7 0.5: 0.36, 7; AU2 0.3: 0.49, 7; AU7 0.9: 0.54 frontally, but a sixth of the iris shows).
+Retuned when the upper lip's elevators came to push the infraorbital triangle out and their fields were
+refitted on it (docs/scan-face.md, "The infraorbital triangle's bulge"): at AU9 0.9 / AU10 0.7 disgust
+still read 0.84, but the lip under the nose rose over the wings' rims (each nostril 1.7-2.0 mm lower
+from the front, 1.0-1.4 before) and 0.063 cm2 of skin beside the wings turned over; the nose lifted
+at full and the lip less, AU9 1.0 / AU10 0.5, reads 0.85 with nothing turned over and the nostrils
+0.7-1.0 mm lower (AU10 0.6: 0.82, 1.2-1.4 mm)."""
 
 
 FACE_EXPRESSIONS["imported"] = {

@@ -83,13 +83,16 @@ def test_landmarks_are_found_where_they_are_stored() -> None:
 def test_the_shipped_rig_is_what_the_transfer_makes() -> None:
     """ict_rig.npz is remade by `python -m sim.face.scan.make_rig` (the transfer, then the lids
     built on it, the pucker's ring in place of its bunching patch, the nose wing's slip, the puff's
-    pressure over the vestibule, the rolls' margins, the lips' lift); the
+    pressure over the vestibule, the rolls' margins, the lips' lift, the infraorbital triangle's bulge,
+    the upper pars peripheralis turned up); the
     transfer's last bits follow the BLAS kernel, so the comparison allows 1e-4 cm."""
     from sim.face.scan.lids import with_lids
-    from sim.face.scan.make_rig import ala_slip, lip_lift, pucker_ring, puff_vestibule, roll_margins, transferred_rig
+    from sim.face.scan.make_rig import (ala_slip, levator_bulge, lip_lift, pucker_ring, puff_vestibule, roll_margins,
+                                        shrug_up, transferred_rig)
     from sim.face.scan.rig import scan_rig
 
-    shipped, made = scan_rig(), lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(transferred_rig()))))))
+    shipped = scan_rig()
+    made = shrug_up(levator_bulge(lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(transferred_rig()))))))))
     assert np.array_equal(shipped.mesh.vertices, made.mesh.vertices)
     assert np.array_equal(shipped.mesh.held, made.mesh.held)
     # the jaw's hinge and weights are fitted on top (`sim.face.scan.jaw_fit`; the test below): the
@@ -255,6 +258,36 @@ def test_disgust_lifts_the_nose_wings_with_the_lip(model, presets) -> None:  # t
         base = _near(model, (sign * 0.22, -0.96, 11.69))  # the columella's base, under it
         assert d[rim, 1] > 2.0
         assert d[rim, 1] - d[base, 1] > -2.0
+
+
+@pytest.mark.parametrize("channel", ["levator_labii_l", "levator_labii_alaeque_nasi_r"])
+def test_the_upper_lips_elevators_push_the_infraorbital_triangle_out(model, channel) -> None:  # type: ignore[no-untyped-def]
+    """The upper lip's elevators bunch the medial cheek's fat over their bellies: the skin beside the
+    nose wing, over the top of the nasolabial furrow, bulges outwards along its normal with the lift
+    (the scan's noseSneer and mouthUpperUp 3.9-4.3 mm there), where a line of pull alone slid it
+    over the curved face (0.1-0.5 mm out under AU10's channel, 2.9 under AU9's)."""
+    from sim.build import vertex_normals
+
+    c = FaceControl()
+    c.set(channel, 1.0)
+    d = 10.0 * (_settle(model, c) - model.rest)  # mm
+    sign = 1.0 if channel.endswith("_l") else -1.0
+    i = _near(model, (sign * 2.5, 0.65, 10.0))  # beside the wing, 1.8 cm above its crease
+    normal = vertex_normals(model.rest, np.asarray(model.triangles, np.int32))[i]
+    assert d[i] @ normal > 4.0
+    assert d[i, 1] > 2.0  # and lifted with the lip
+
+
+def test_the_upper_lips_shrug_lifts_it_more_than_it_pushes_it_forward(model) -> None:  # type: ignore[no-untyped-def]
+    """The upper pars peripheralis (ARKit mouthShrugUpper) shrugs the upper lip up against the nose's
+    base, as the scan's does (its red lip 5-6 mm up, 0.7-1.2 forward): pushing half forward, it
+    carried the lip's middle 3.2 mm forward and 2.5 up."""
+    c = FaceControl()
+    c.set("orbicularis_oris_peripheralis_upper", 1.0)
+    d = 10.0 * (_settle(model, c) - model.rest)[model.mesh.landmarks["upper_lip_center"]]  # mm
+    assert d[1] > 2.8
+    assert d[1] > 1.5 * d[2] and d[2] > 0.0
+    assert abs(d[0]) < 0.2
 
 
 @pytest.mark.parametrize("seed", [None, 0, 1, 2])

@@ -3,10 +3,13 @@ transferred onto the generic head's skin (`sim.face.transfer`), carried back int
 with the scan's own jaw weights (from its `jawOpen`), eyeballs and the skin under the chin free, its own
 pucker (`pucker_ring`), the nose wing's slip of AU9's muscle (`ala_slip`), the puffed air's pressure over
 the whole vestibule (`puff_vestibule`), the lips' free margins turned in by the pars marginalis
-(`roll_margins`), and the muscles made stronger for the scan's stiffer skin (`sim.face.scan.rig`). The transfer runs linear
+(`roll_margins`), the infraorbital triangle pushed out by the upper lip's elevators (`levator_bulge`),
+the upper lip's shrug turned up (`shrug_up`), and the muscles made stronger for the scan's stiffer skin (`sim.face.scan.rig`). The transfer runs linear
 algebra whose last bits follow the BLAS kernel, so it is run once and its result shipped; the
 application never runs it. Remake the file with `python -m sim.face.scan.make_rig`; `--ala-slip`
-adds the nose wing's slip to the file as it is (every fitted field kept), `--lip-lift` the lips' lift,
+adds the nose wing's slip to the file as it is (every fitted field kept), `--levator-bulge` the
+infraorbital triangle's bulge (`levator_bulge`), `--shrug-up` the upper pars peripheralis turned
+up (`shrug_up`), `--lip-lift` the lips' lift,
 `--puff-vestibule` the puff's pressure over the vestibule, `--roll-margins` the rolls' margins. The
 jaw's hinge and the skin's jaw weights are fitted to the scan's jaw shapes by
 `python -m sim.face.scan.jaw_fit`.
@@ -238,6 +241,68 @@ def ala_slip(rig: FaceRig, insertion: tuple[float, float, float] = ALA_INSERTION
     return replace(rig, muscles=muscles)
 
 
+#: The infraorbital triangle pushed out by the upper lip's elevators (AU9's and AU10's channels). The
+#: levator labii superioris and its alar head lie under the medial cheek's fat (the nasolabial fat
+#: compartment, lateral to the fold); contracting, each muscle's belly shortens and thickens and the fat
+#: over it is bunched upwards against the fold, so the skin between the nose's side, the lower lid
+#: and the top of the nasolabial furrow bulges outwards: FACS describes AU9 and AU10 both raising the
+#: infraorbital triangle and deepening the furrow's upper part (Ekman, Friesen and Hager, FACS
+#: manual 2002). A line of pull can only slide the skin over the curved face: settled, the transferred
+#: channels carried that skin 0.8-0.9 mm inwards where the scan's noseSneer and mouthUpperUp move it
+#: 3.9-4.3 mm outwards (their largest error along the normal, 4.9-5.1 mm, centred 1.8-2.4 cm off the
+#: midline beside the wing). A pressure patch per side (along the skin's outward normal: the bulge
+#: of the tissue beneath) on both channels, centred LEVATOR_BULGE_CENTRE (the scan's frame, cm,
+#: mirrored for the right), its semi-axes LEVATOR_BULGE_AXES, its density LEVATOR_BULGE_FORCE times
+#: the channel's own line's scale (the channel's fitted insertion gain scales it as it scales the
+#: line). Applied to the shipped rig by `python -m sim.face.scan.make_rig --levator-bulge` (it
+#: replaces a bulge the rig already has; docs/scan-face.md, "The infraorbital triangle's bulge").
+LEVATOR_BULGE_CENTRE = (2.6, 0.5, 10.0)
+LEVATOR_BULGE_AXES = (1.0, 1.0, 1.0)
+LEVATOR_BULGE_FORCE = 2.0
+LEVATOR_BULGE_CHANNELS = ("levator_labii_alaeque_nasi", "levator_labii")
+
+
+def levator_bulge(rig: FaceRig, centre: tuple[float, float, float] = LEVATOR_BULGE_CENTRE,
+                  axes: tuple[float, float, float] = LEVATOR_BULGE_AXES, force: float = LEVATOR_BULGE_FORCE) -> FaceRig:
+    """The rig with the infraorbital triangle's bulge (`LEVATOR_BULGE_*`) added to both sides' channels
+    of the upper lip's two elevators, mirrored for the right; any bulge they had is replaced."""
+    from dataclasses import replace
+
+    muscles = dict(rig.muscles)
+    for base in LEVATOR_BULGE_CHANNELS:
+        for side, sign in (("l", 1.0), ("r", -1.0)):
+            ch = f"{base}_{side}"
+            parts = tuple(m for m in muscles[ch] if not m.name.endswith("_bulge"))
+            line = next(m for m in parts if isinstance(m, LinearMuscle))
+            c = _r(np.array(centre, float) * np.array([sign, 1.0, 1.0]))
+            bulge = PatchMuscle(f"{ch}_bulge", c, _r(np.array(axes, float)), np.zeros(3), float(_r(line.scale * force)))
+            muscles[ch] = (*parts, bulge)
+    return replace(rig, muscles=muscles)
+
+
+#: The upper lip's pars peripheralis (its channel drives ARKit mouthShrugUpper, and with the lower
+#: one the funneler AU22 and mouthClose) is one patch over the upper lip's skin and red part, pushing
+#: it along a fixed direction. The transferred one pushed half up and half forward (0, 0.70, 0.72):
+#: settled under the scan's mouthShrugUpper the red lip went 1.9 mm forward where the scan's goes 0.7-1.2
+#: and the skin above it only 1.8-3.1 mm up (the scan's 3.5-5.1: the upper lip shrugged up against
+#: the nose's base, carrying the columella's base 3 mm with it). Turned up along the lip's own
+#: surface (SHRUG_DIRECTION, unit once normalised; fitted by settling the shapes that drive the
+#: channel, docs/scan-face.md, "The infraorbital triangle's bulge"). Applied to the shipped rig by
+#: `python -m sim.face.scan.make_rig --shrug-up`.
+SHRUG_DIRECTION = (0.0, 1.0, 0.2)
+
+
+def shrug_up(rig: FaceRig, direction: tuple[float, float, float] = SHRUG_DIRECTION) -> FaceRig:
+    """The rig with the upper pars peripheralis' patch pushing along `direction` (normalised)."""
+    from dataclasses import replace
+
+    ch = "orbicularis_oris_peripheralis_upper"
+    d = np.array(direction, float)
+    parts = tuple(replace(m, direction=_r(d / np.linalg.norm(d))) if isinstance(m, PatchMuscle) else m
+                  for m in rig.muscles[ch])
+    return replace(rig, muscles={**rig.muscles, ch: parts})
+
+
 #: the closed lips lifted and carried forward (the `lip_lift` channel, ARKit mouthClose; placed on the
 #: procedural face by `sim.face.mouth_actions`). The scan's mouthClose alone lifts the lower lip's
 #: middle 38 mm and carries it 17 mm forward, the mouth's corners 15 mm up, the chin 5.5 mm up: the
@@ -347,7 +412,7 @@ def pack(path: str | Path = RIG_FILE) -> None:
     made = replace(transferred_rig(), insertion=old.insertion if old else {}, skin=old.skin if old else {},
                    tissue=old.tissue if old else {}, strain=old.strain if old else {},
                    anchor=old.anchor if old else {}, gaze=old.gaze if old else {})
-    save_rig(lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(made)))))), path)
+    save_rig(shrug_up(levator_bulge(lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(made)))))))), path)
 
 
 def add_ala_slip(path: str | Path = RIG_FILE) -> None:
@@ -355,6 +420,22 @@ def add_ala_slip(path: str | Path = RIG_FILE) -> None:
     from sim.rig import load_rig, save_rig
 
     save_rig(ala_slip(load_rig(path)), path)
+
+
+def add_levator_bulge(path: str | Path = RIG_FILE) -> None:
+    """Write the rig file again with the infraorbital triangle's bulge (`levator_bulge`), everything
+    else as it is."""
+    from sim.rig import load_rig, save_rig
+
+    save_rig(levator_bulge(load_rig(path)), path)
+
+
+def add_shrug_up(path: str | Path = RIG_FILE) -> None:
+    """Write the rig file again with the upper pars peripheralis turned up (`shrug_up`), everything
+    else as it is."""
+    from sim.rig import load_rig, save_rig
+
+    save_rig(shrug_up(load_rig(path)), path)
 
 
 def add_lip_lift(path: str | Path = RIG_FILE) -> None:
@@ -384,6 +465,10 @@ if __name__ == "__main__":
 
     if "--ala-slip" in sys.argv[1:]:
         add_ala_slip()
+    elif "--levator-bulge" in sys.argv[1:]:
+        add_levator_bulge()
+    elif "--shrug-up" in sys.argv[1:]:
+        add_shrug_up()
     elif "--lip-lift" in sys.argv[1:]:
         add_lip_lift()
     elif "--puff-vestibule" in sys.argv[1:]:
