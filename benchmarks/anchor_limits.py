@@ -90,6 +90,11 @@ ships; docs/scan-face.md has each one's section):
     nice .venv/bin/python benchmarks/anchor_limits.py --levator-bulge --all --only levator_labii,levator_labii_alaeque_nasi
         --grow 1.5 --smooth 1e-4 --bound 10 --add --settle --write-rig sim/face/scan/ict_rig.npz
     .venv/bin/python -m sim.face.scan.make_rig --shrug-up
+    # the orbital orbicularis' field refitted again over its zone grown 5 cm with a ridge a hundredth of
+    # the default (the malar fat carried further up and forward: "The cheek's squint: the malar fat
+    # carried further")
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only orbicularis_oculi=5 --smooth 1e-5 --ridge 1e-7
+        --bound 10 --write-rig sim/face/scan/ict_rig.npz
 
 `--hold POSE,..` keeps, in each pose (a preset on the scanned head, or AUs joined by '+'), how far the
 upper lids' margins move against the lower margins beneath them where the rig the fit starts from

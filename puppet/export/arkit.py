@@ -78,7 +78,8 @@ SHAPE_SPAN = {"BrowInnerUp": 0.85, "EyeSquint": 0.5, "MouthPress": 0.85, "MouthD
 #: squinting eye's lower lid is lifted by its own palpebral orbicularis (AU7's lower lid
 #: tightener; the cheek's squint, AU6, lifts the cheek with a trace of the zygomaticus major, whose
 #: upper fibres lie under the malar fat the orbital orbicularis bunches: 0.06, fitted on the
-#: anchored rig, where before any share took it further from its scan). A share is at most
+#: anchored rig, where before any share took it further from its scan; 0.1 once the orbital
+#: orbicularis' field carried the cheek further, swept on the settled poses). A share is at most
 #: the span of the shape that writes its channel back, so a pose exported and streamed back returns
 #: as itself. mouthPress' and mouthClose's shares were refitted by hand (a sweep of settled poses)
 #: once the skin under the chin was set free: the mentalis then carries it, and at the former
@@ -102,7 +103,7 @@ SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
     "MouthLowerDown": (("depressor_anguli_oris", 0.2),),
     "BrowDown": (("orbicularis_oculi", 0.15),),
     "EyeSquint": (("orbicularis_oculi_lower_lid", 0.1),),
-    "CheekSquint": (("zygomaticus_major", 0.06),),
+    "CheekSquint": (("zygomaticus_major", 0.1),),
     "NoseSneer": (("orbicularis_oculi", 0.55), ("levator_anguli_oris", 0.4), ("corrugator", 0.35)),
     "MouthShrugUpper": (("levator_labii", 0.2),),
     "MouthUpperUp": (("levator_labii_alaeque_nasi", 0.25),),

@@ -66,7 +66,24 @@ def test_the_cheeks_squint_carries_the_cheek_up_as_a_block(settler) -> None:  # 
     low = ((rest[:, 1] < rest[lm["nose_wing_l"], 1]) & (rest[:, 1] > rest[lm["mouth_corner_l"], 1])
            & (rest[:, 0] > rest[lm["mouth_corner_l"], 0] + 0.5) & (rest[:, 0] < rest[lm["eye_outer_l"], 0]))
     assert low.sum() > 50
-    assert ours[low, 1].mean() > 0.6 * scan[low, 1].mean() > 0.0
+    # 0.72 as far with the zygomaticus major's share at 0.06, 0.82 at 0.1 (docs/scan-face.md, "The cheek's
+    # squint: the malar fat carried further")
+    assert ours[low, 1].mean() > 0.75 * scan[low, 1].mean() > 0.0
+
+
+@pytest.mark.parametrize(("scan", "shape", "bound"), [
+    ("cheekSquint_L", "CheekSquintLeft", 0.545),
+    ("eyeSquint_L", "EyeSquintLeft", 0.433),
+])
+def test_the_squints_come_closer_with_the_malar_fat_carried(settler, scan: str, shape: str, bound: float) -> None:  # type: ignore[no-untyped-def]
+    """The orbital orbicularis' tissue field, refitted with a ridge that no longer held the wide
+    zone's field small, carries the cheek's fat further forward under the lid (cheekSquint 0.556 ->
+    0.543, and 0.537 with the zygomaticus major's share at 0.1; 0.552 with that share on the rig
+    before) and leaves less of it on the eye's squint, whose scan barely lifts the cheek (eyeSquint
+    0.438 -> 0.427): both settled above these bounds on the rig before."""
+    target = _scan(scan)
+    ours = _ours(settler, shape)
+    assert _rms(ours - target) / _rms(target) < bound
 
 
 @pytest.mark.parametrize("pose", ["AU1", "AU1+2", "surprise"])
