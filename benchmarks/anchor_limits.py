@@ -81,6 +81,9 @@ ships; docs/scan-face.md has each one's section):
         --bound 10 --add --settle --write-rig sim/face/scan/ict_rig.npz
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only mouth_shift=3 --smooth 1e-4 --bound 10 --add
         --settle --write-rig sim/face/scan/ict_rig.npz
+    # the lower lip's turning: the rolled lower lip's sulcus swung forward (sim.face.scan.make_rig.
+    # roll_sulcus; ARKit mouthRollLower, "The lower lip's turning: the sulcus filled")
+    .venv/bin/python -m sim.face.scan.make_rig --roll-sulcus
 
 `--hold POSE,..` keeps, in each pose (a preset on the scanned head, or AUs joined by '+'), how far the
 upper lids' margins move against the lower margins beneath them where the rig the fit starts from

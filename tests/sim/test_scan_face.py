@@ -83,13 +83,15 @@ def test_landmarks_are_found_where_they_are_stored() -> None:
 def test_the_shipped_rig_is_what_the_transfer_makes() -> None:
     """ict_rig.npz is remade by `python -m sim.face.scan.make_rig` (the transfer, then the lids
     built on it, the pucker's ring in place of its bunching patch, the nose wing's slip, the puff's
-    pressure over the vestibule, the rolls' margins, the lips' lift); the
+    pressure over the vestibule, the rolls' margins, the lips' lift, the lower lip's turning); the
     transfer's last bits follow the BLAS kernel, so the comparison allows 1e-4 cm."""
     from sim.face.scan.lids import with_lids
-    from sim.face.scan.make_rig import ala_slip, lip_lift, pucker_ring, puff_vestibule, roll_margins, transferred_rig
+    from sim.face.scan.make_rig import (ala_slip, lip_lift, pucker_ring, puff_vestibule, roll_margins, roll_sulcus,
+                                        transferred_rig)
     from sim.face.scan.rig import scan_rig
 
-    shipped, made = scan_rig(), lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(transferred_rig()))))))
+    made = roll_sulcus(lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(transferred_rig())))))))
+    shipped = scan_rig()
     assert np.array_equal(shipped.mesh.vertices, made.mesh.vertices)
     assert np.array_equal(shipped.mesh.held, made.mesh.held)
     # the jaw's hinge and weights are fitted on top (`sim.face.scan.jaw_fit`; the test below): the
@@ -239,6 +241,22 @@ def test_the_roll_turns_its_own_lip_in(model, lip) -> None:  # type: ignore[no-u
     assert lip == "lower" or d[lm[own], 1] > -1.0
     assert toward * d[lm[border], 1] > 2.0 and d[lm[border], 2] < -3.0
     assert np.abs(d[lm[other], 1]) < 1.0
+
+def test_the_lower_roll_fills_the_sulcus_below_the_lip(model) -> None:  # type: ignore[no-untyped-def]
+    """AU28's lower half (mouthRollLower): the lower lip turns about its core, so as its margin goes
+    into the mouth the skin of the labiomental sulcus below the red lip swings forward (the scan's
+    rollLower: 3-5 mm at y -5.0 to -5.7 cm), while the chin's boss below stays (the scan's 0.2 mm).
+    Before the sulcus' patch (`make_rig.roll_sulcus`) it came 0.6 mm forward."""
+    c = FaceControl()
+    c.set("orbicularis_oris_marginalis_lower", 1.0)
+    d = 10.0 * (_settle(model, c) - model.rest)  # mm
+    lm = model.mesh.landmarks
+    for point in ((0.0, -5.34, 10.93), (0.86, -5.37, 10.81), (-0.86, -5.37, 10.81)):
+        assert d[_near(model, point), 2] > 3.0
+    boss = _near(model, (0.0, -6.86, 10.94))
+    assert np.linalg.norm(d[boss]) < 1.5
+    assert d[lm["lower_lip_center"], 2] < -8.0  # the margin still rolled in
+
 
 def _near(model, point) -> int:  # type: ignore[no-untyped-def]
     return int(np.argmin(np.linalg.norm(model.rest - np.asarray(point, float), axis=1)))
