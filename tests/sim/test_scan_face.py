@@ -83,14 +83,16 @@ def test_landmarks_are_found_where_they_are_stored() -> None:
 def test_the_shipped_rig_is_what_the_transfer_makes() -> None:
     """ict_rig.npz is remade by `python -m sim.face.scan.make_rig` (the transfer, then the lids
     built on it, the pucker's ring in place of its bunching patch, the nose wing's slip, the puff's
-    pressure over the vestibule, the rolls' margins, the lips' lift, the lower lip's turning); the
+    pressure over the vestibule, the rolls' margins, the lips' lift, the lower lip's turning, the
+    mentalis' pout); the
     transfer's last bits follow the BLAS kernel, so the comparison allows 1e-4 cm."""
     from sim.face.scan.lids import with_lids
-    from sim.face.scan.make_rig import (ala_slip, lip_lift, pucker_ring, puff_vestibule, roll_margins, roll_sulcus,
-                                        transferred_rig)
+    from sim.face.scan.make_rig import (ala_slip, lip_lift, mentalis_pout, pucker_ring, puff_vestibule, roll_margins,
+                                        roll_sulcus, transferred_rig)
     from sim.face.scan.rig import scan_rig
 
-    made = roll_sulcus(lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(transferred_rig())))))))
+    made = mentalis_pout(roll_sulcus(lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(
+        transferred_rig()))))))))
     shipped = scan_rig()
     assert np.array_equal(shipped.mesh.vertices, made.mesh.vertices)
     assert np.array_equal(shipped.mesh.held, made.mesh.held)
@@ -256,6 +258,26 @@ def test_the_lower_roll_fills_the_sulcus_below_the_lip(model) -> None:  # type: 
     boss = _near(model, (0.0, -6.86, 10.94))
     assert np.linalg.norm(d[boss]) < 1.5
     assert d[lm["lower_lip_center"], 2] < -8.0  # the margin still rolled in
+
+
+def test_the_mentalis_pouts_the_lower_lip_with_both_sides_only(model) -> None:  # type: ignore[no-untyped-def]
+    """AU17 (mouthShrugLower): the mentalis' two bellies together push the lower red lip out and up
+    (the scan's shrug: 3.5 mm forward), the lips still closed; its sided halves (the press' mentalis
+    share), both at full value, raise the chin as the whole does but push the red lip out no more
+    than before the pout (`make_rig.mentalis_pout`, `sim.build.BOTH_SIDES`), where the whole drew
+    it 0.5 mm back."""
+    lm = model.mesh.landmarks
+    red = _near(model, (0.0, -3.9, 11.6))
+    whole, halves = FaceControl(), FaceControl()
+    whole.set("mentalis", 1.0)
+    halves.set("mentalis_l", 1.0)
+    halves.set("mentalis_r", 1.0)
+    dw = 10.0 * (_settle(model, whole) - model.rest)  # mm
+    dh = 10.0 * (_settle(model, halves) - model.rest)
+    assert dw[red, 2] > 1.5 and dw[red, 1] > 1.0
+    assert dw[lm["lower_lip_center"], 1] - dw[lm["upper_lip_center"], 1] > -0.5  # not parted
+    assert dh[red, 2] < 0.5
+    assert dh[lm["chin"], 1] > 5.0 and abs(dw[lm["chin"], 1] - dh[lm["chin"], 1]) < 1.0
 
 
 def _near(model, point) -> int:  # type: ignore[no-untyped-def]

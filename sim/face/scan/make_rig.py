@@ -362,6 +362,34 @@ def roll_sulcus(rig: FaceRig) -> FaceRig:
     return replace(rig, muscles={**rig.muscles, ch: (*parts, sulcus)})
 
 
+#: The mentalis raises the chin's soft tissue and, its two bellies together, pushes the lower lip
+#: out and up (the pout of ARKit's mouthShrugLower: the scan's lower red lip 3.5 mm forward and
+#: 4.1 up, its margin 2.3 forward; ours, the sheet pushing the chin up, 2.0 and 1.0 forward). A
+#: patch over the lower red lip pushing it forward and up (MENTALIS_POUT_*: centre in the scan's
+#: frame, cm, semi-axes, direction, force density dyn/cm^2), part of the whole channel only
+#: (`sim.build.BOTH_SIDES`): the press' halves of the mentalis (mouthPress) raise the chin on one
+#: side without a pout (docs/scan-face.md, "The mentalis' pout"). Applying it again changes nothing.
+MENTALIS_POUT_CENTRE = (0.0, -3.9, 11.4)
+MENTALIS_POUT_AXES = (2.4, 0.6, 1.0)
+MENTALIS_POUT_DIRECTION = (0.0, 0.5, 1.0)
+MENTALIS_POUT_FORCE = 5000.0
+
+
+def mentalis_pout(rig: FaceRig) -> FaceRig:
+    """The rig with the mentalis' pout (`MENTALIS_POUT_*`) added to its whole channel (any pout it
+    had is replaced)."""
+    from dataclasses import replace
+
+    from sim.build import BOTH_SIDES
+
+    name = "mentalis_pout" + BOTH_SIDES
+    parts = tuple(m for m in rig.muscles["mentalis"] if m.name != name)
+    d = np.array(MENTALIS_POUT_DIRECTION, float)
+    pout = PatchMuscle(name, _r(np.array(MENTALIS_POUT_CENTRE, float)), _r(np.array(MENTALIS_POUT_AXES, float)),
+                       _r(d / np.linalg.norm(d)), MENTALIS_POUT_FORCE)
+    return replace(rig, muscles={**rig.muscles, "mentalis": (*parts, pout)})
+
+
 def pack(path: str | Path = RIG_FILE) -> None:
     """Write the generic head's rig as the shipped rig file, keeping the insertion gains and the
     skin's material fitted to the scans (`sim.face.scan.calibrate`, `sim.face.scan.skin_fit`, run
@@ -376,7 +404,7 @@ def pack(path: str | Path = RIG_FILE) -> None:
     made = replace(transferred_rig(), insertion=old.insertion if old else {}, skin=old.skin if old else {},
                    tissue=old.tissue if old else {}, strain=old.strain if old else {},
                    anchor=old.anchor if old else {})
-    save_rig(roll_sulcus(lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(made))))))), path)
+    save_rig(mentalis_pout(roll_sulcus(lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(made)))))))), path)
 
 
 def add_ala_slip(path: str | Path = RIG_FILE) -> None:
@@ -415,6 +443,13 @@ def add_roll_sulcus(path: str | Path = RIG_FILE) -> None:
     save_rig(roll_sulcus(load_rig(path)), path)
 
 
+def add_mentalis_pout(path: str | Path = RIG_FILE) -> None:
+    """Write the rig file again with the mentalis' pout (`mentalis_pout`), everything else as it is."""
+    from sim.rig import load_rig, save_rig
+
+    save_rig(mentalis_pout(load_rig(path)), path)
+
+
 if __name__ == "__main__":
     import sys
 
@@ -428,6 +463,8 @@ if __name__ == "__main__":
         add_roll_margins()
     elif "--roll-sulcus" in sys.argv[1:]:
         add_roll_sulcus()
+    elif "--mentalis-pout" in sys.argv[1:]:
+        add_mentalis_pout()
     else:
         pack()
     print(f"wrote {RIG_FILE}")
