@@ -95,6 +95,12 @@ ships; docs/scan-face.md has each one's section):
     # carried further")
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only orbicularis_oculi=5 --smooth 1e-5 --ridge 1e-7
         --bound 10 --write-rig sim/face/scan/ict_rig.npz
+    # the lower lip's turning: the rolled lower lip's sulcus swung forward (sim.face.scan.make_rig.
+    # roll_sulcus; ARKit mouthRollLower, "The lower lip's turning: the sulcus filled")
+    .venv/bin/python -m sim.face.scan.make_rig --roll-sulcus
+    # the mentalis' pout: its two bellies together push the lower red lip out and up, not its sided
+    # halves (sim.face.scan.make_rig.mentalis_pout; ARKit mouthShrugLower, "The mentalis' pout")
+    .venv/bin/python -m sim.face.scan.make_rig --mentalis-pout
 
 `--hold POSE,..` keeps, in each pose (a preset on the scanned head, or AUs joined by '+'), how far the
 upper lids' margins move against the lower margins beneath them where the rig the fit starts from

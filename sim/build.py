@@ -285,6 +285,11 @@ def gravity_offsets(weight: np.ndarray, tether: np.ndarray, support: np.ndarray,
     return d
 
 
+#: A muscle part whose name ends so belongs to its whole channel only, not to the channel's sided
+#: halves (`sim.channels.HALVES`): what the two sides make only together (the mentalis' bellies
+#: pushing the lower lip out over the midline, `sim.face.scan.make_rig.mentalis_pout`).
+BOTH_SIDES = "_both_sides"
+
 #: The width of the sided halves' blend across the midline (`side_weight`), a share of the eyes'
 #: distance: 3 mm on a face whose eyes are 6.2 cm apart.
 SIDE_BLEND = 0.3 / 6.2
@@ -311,23 +316,25 @@ def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray,
     insertion gain), plus its active strain's force (`sim.active_strain`; `springs`: indices, rest
     lengths, k_low of the skin's springs) where the rig has one, plus the tether's pull towards its
     moved anchors (`FaceRig.anchor`, `tether` (N,) dyn/cm: k_r d, exact since the tether is linear).
-    A sided half (`sim.channels.HALVES`) pulls as its whole channel weighted by `side_weight`, with
-    anchors of its own."""
+    A sided half (`sim.channels.HALVES`) pulls as its whole channel weighted by `side_weight`, but
+    for the whole's parts named with BOTH_SIDES, with anchors of its own."""
     import scipy.sparse as sp
 
     n = len(rest)
     if normal is None:
         normal = vertex_normals(rest, np.asarray(rig.mesh.triangles, np.int32))
 
-    pulls: dict[str, np.ndarray | None] = {}  # a whole channel's pull, made once for it and its halves
+    pulls: dict[tuple[str, bool], np.ndarray | None] = {}  # a whole channel's pull, made once for it and its halves
 
-    def pull(name: str) -> np.ndarray | None:
-        if name not in pulls:
-            pulls[name] = _pull(name)
-        return pulls[name]
+    def pull(name: str, half: bool = False) -> np.ndarray | None:
+        if (name, half) not in pulls:
+            pulls[name, half] = _pull(name, half)
+        return pulls[name, half]
 
-    def _pull(name: str) -> np.ndarray | None:
+    def _pull(name: str, half: bool) -> np.ndarray | None:
         parts = rig.muscles.get(name, ())
+        if half:  # a part both sides make together is the whole channel's only (BOTH_SIDES)
+            parts = tuple(m for m in parts if not m.name.endswith(BOTH_SIDES))
         if not parts:
             return None
         f = muscle_field(parts, rest, area, normal)
@@ -347,7 +354,7 @@ def _muscle_matrix(rig: FaceRig, rest: np.ndarray, area: np.ndarray,
         if spec.kind == "muscle":
             if spec.name in HALVES:
                 whole, side = HALVES[spec.name]
-                f = pull(whole)
+                f = pull(whole, half=True)
                 if f is not None:
                     f = f * side_weight(rig.mesh, rest, side)[:, None]
             else:

@@ -84,15 +84,16 @@ def test_the_shipped_rig_is_what_the_transfer_makes() -> None:
     """ict_rig.npz is remade by `python -m sim.face.scan.make_rig` (the transfer, then the lids
     built on it, the pucker's ring in place of its bunching patch, the nose wing's slip, the puff's
     pressure over the vestibule, the rolls' margins, the lips' lift, the infraorbital triangle's bulge,
-    the upper pars peripheralis turned up); the
+    the upper pars peripheralis turned up, the lower lip's turning, the mentalis' pout); the
     transfer's last bits follow the BLAS kernel, so the comparison allows 1e-4 cm."""
     from sim.face.scan.lids import with_lids
-    from sim.face.scan.make_rig import (ala_slip, levator_bulge, lip_lift, pucker_ring, puff_vestibule, roll_margins,
-                                        shrug_up, transferred_rig)
+    from sim.face.scan.make_rig import (ala_slip, levator_bulge, lip_lift, mentalis_pout, pucker_ring, puff_vestibule,
+                                        roll_margins, roll_sulcus, shrug_up, transferred_rig)
     from sim.face.scan.rig import scan_rig
 
     shipped = scan_rig()
-    made = shrug_up(levator_bulge(lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(transferred_rig()))))))))
+    made = mentalis_pout(roll_sulcus(shrug_up(levator_bulge(lip_lift(roll_margins(puff_vestibule(ala_slip(
+        with_lids(pucker_ring(transferred_rig()))))))))))
     assert np.array_equal(shipped.mesh.vertices, made.mesh.vertices)
     assert np.array_equal(shipped.mesh.held, made.mesh.held)
     # the jaw's hinge and weights are fitted on top (`sim.face.scan.jaw_fit`; the test below): the
@@ -242,6 +243,42 @@ def test_the_roll_turns_its_own_lip_in(model, lip) -> None:  # type: ignore[no-u
     assert lip == "lower" or d[lm[own], 1] > -1.0
     assert toward * d[lm[border], 1] > 2.0 and d[lm[border], 2] < -3.0
     assert np.abs(d[lm[other], 1]) < 1.0
+
+def test_the_lower_roll_fills_the_sulcus_below_the_lip(model) -> None:  # type: ignore[no-untyped-def]
+    """AU28's lower half (mouthRollLower): the lower lip turns about its core, so as its margin goes
+    into the mouth the skin of the labiomental sulcus below the red lip swings forward (the scan's
+    rollLower: 3-5 mm at y -5.0 to -5.7 cm), while the chin's boss below stays (the scan's 0.2 mm).
+    Before the sulcus' patch (`make_rig.roll_sulcus`) it came 0.6 mm forward."""
+    c = FaceControl()
+    c.set("orbicularis_oris_marginalis_lower", 1.0)
+    d = 10.0 * (_settle(model, c) - model.rest)  # mm
+    lm = model.mesh.landmarks
+    for point in ((0.0, -5.34, 10.93), (0.86, -5.37, 10.81), (-0.86, -5.37, 10.81)):
+        assert d[_near(model, point), 2] > 3.0
+    boss = _near(model, (0.0, -6.86, 10.94))
+    assert np.linalg.norm(d[boss]) < 1.5
+    assert d[lm["lower_lip_center"], 2] < -8.0  # the margin still rolled in
+
+
+def test_the_mentalis_pouts_the_lower_lip_with_both_sides_only(model) -> None:  # type: ignore[no-untyped-def]
+    """AU17 (mouthShrugLower): the mentalis' two bellies together push the lower red lip out and up
+    (the scan's shrug: 3.5 mm forward), the lips still closed; its sided halves (the press' mentalis
+    share), both at full value, raise the chin as the whole does but push the red lip out no more
+    than before the pout (`make_rig.mentalis_pout`, `sim.build.BOTH_SIDES`), where the whole drew
+    it 0.5 mm back."""
+    lm = model.mesh.landmarks
+    red = _near(model, (0.0, -3.9, 11.6))
+    whole, halves = FaceControl(), FaceControl()
+    whole.set("mentalis", 1.0)
+    halves.set("mentalis_l", 1.0)
+    halves.set("mentalis_r", 1.0)
+    dw = 10.0 * (_settle(model, whole) - model.rest)  # mm
+    dh = 10.0 * (_settle(model, halves) - model.rest)
+    assert dw[red, 2] > 1.5 and dw[red, 1] > 1.0
+    assert dw[lm["lower_lip_center"], 1] - dw[lm["upper_lip_center"], 1] > -0.5  # not parted
+    assert dh[red, 2] < 0.5
+    assert dh[lm["chin"], 1] > 5.0 and abs(dw[lm["chin"], 1] - dh[lm["chin"], 1]) < 1.0
+
 
 def _near(model, point) -> int:  # type: ignore[no-untyped-def]
     return int(np.argmin(np.linalg.norm(model.rest - np.asarray(point, float), axis=1)))

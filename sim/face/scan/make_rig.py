@@ -398,6 +398,63 @@ def roll_margins(rig: FaceRig) -> FaceRig:
     return replace(rig, muscles=muscles)
 
 
+#: The lower lip rolled in turns about its core as a whole (AU28, the lower pars marginalis): as its
+#: free margin goes back over the lower teeth, the lip's lower part (the vermilion's border and the
+#: skin down to the labiomental sulcus, over the bulk of the orbicularis) swings forward and up
+#: and the sulcus fills. The scan's mouthRollLower carries the skin 5-10 mm below the red lip
+#: (y -5.0 to -5.7 cm) 8-9 mm up and 3-5 mm forward while the chin's boss below stays; the two
+#: patches of the channel (`roll_margins`) push only the red lip and its margin, so ours rose 4-6
+#: mm and came 0-1 mm forward there. A third patch on the sulcus (ROLL_SULCUS_*: centre in the
+#: scan's frame, cm, semi-axes, direction, force in units of the lip's own patch) pushes it
+#: forward (docs/scan-face.md, "The lower lip's turning"). Applying it again changes nothing.
+ROLL_SULCUS_CENTRE = (0.0, -5.5, 10.9)
+ROLL_SULCUS_AXES = (2.4, 0.8, 1.0)
+ROLL_SULCUS_DIRECTION = (0.0, 0.0, 1.0)
+ROLL_SULCUS_FORCE = 7500.0 / 8640.0
+
+
+def roll_sulcus(rig: FaceRig) -> FaceRig:
+    """The rig with the lower lip's turning (`ROLL_SULCUS_*`) added to the lower pars marginalis'
+    channel (any sulcus part it had is replaced)."""
+    from dataclasses import replace
+
+    ch = "orbicularis_oris_marginalis_lower"
+    parts = tuple(m for m in rig.muscles[ch] if not m.name.endswith("_sulcus"))
+    own = next(m for m in parts if isinstance(m, PatchMuscle))
+    sulcus = PatchMuscle("marginalis_lower_sulcus", _r(np.array(ROLL_SULCUS_CENTRE, float)),
+                         _r(np.array(ROLL_SULCUS_AXES, float)), np.array(ROLL_SULCUS_DIRECTION, float),
+                         float(_r(own.scale * ROLL_SULCUS_FORCE)))
+    return replace(rig, muscles={**rig.muscles, ch: (*parts, sulcus)})
+
+
+#: The mentalis raises the chin's soft tissue and, its two bellies together, pushes the lower lip
+#: out and up (the pout of ARKit's mouthShrugLower: the scan's lower red lip 3.5 mm forward and
+#: 4.1 up, its margin 2.3 forward; ours, the sheet pushing the chin up, 2.0 and 1.0 forward). A
+#: patch over the lower red lip pushing it forward and up (MENTALIS_POUT_*: centre in the scan's
+#: frame, cm, semi-axes, direction, force density dyn/cm^2), part of the whole channel only
+#: (`sim.build.BOTH_SIDES`): the press' halves of the mentalis (mouthPress) raise the chin on one
+#: side without a pout (docs/scan-face.md, "The mentalis' pout"). Applying it again changes nothing.
+MENTALIS_POUT_CENTRE = (0.0, -3.9, 11.4)
+MENTALIS_POUT_AXES = (2.4, 0.6, 1.0)
+MENTALIS_POUT_DIRECTION = (0.0, 0.5, 1.0)
+MENTALIS_POUT_FORCE = 5000.0
+
+
+def mentalis_pout(rig: FaceRig) -> FaceRig:
+    """The rig with the mentalis' pout (`MENTALIS_POUT_*`) added to its whole channel (any pout it
+    had is replaced)."""
+    from dataclasses import replace
+
+    from sim.build import BOTH_SIDES
+
+    name = "mentalis_pout" + BOTH_SIDES
+    parts = tuple(m for m in rig.muscles["mentalis"] if m.name != name)
+    d = np.array(MENTALIS_POUT_DIRECTION, float)
+    pout = PatchMuscle(name, _r(np.array(MENTALIS_POUT_CENTRE, float)), _r(np.array(MENTALIS_POUT_AXES, float)),
+                       _r(d / np.linalg.norm(d)), MENTALIS_POUT_FORCE)
+    return replace(rig, muscles={**rig.muscles, "mentalis": (*parts, pout)})
+
+
 def pack(path: str | Path = RIG_FILE) -> None:
     """Write the generic head's rig as the shipped rig file, keeping the insertion gains and the
     skin's material fitted to the scans (`sim.face.scan.calibrate`, `sim.face.scan.skin_fit`, run
@@ -412,7 +469,8 @@ def pack(path: str | Path = RIG_FILE) -> None:
     made = replace(transferred_rig(), insertion=old.insertion if old else {}, skin=old.skin if old else {},
                    tissue=old.tissue if old else {}, strain=old.strain if old else {},
                    anchor=old.anchor if old else {}, gaze=old.gaze if old else {})
-    save_rig(shrug_up(levator_bulge(lip_lift(roll_margins(puff_vestibule(ala_slip(with_lids(pucker_ring(made)))))))), path)
+    save_rig(mentalis_pout(roll_sulcus(shrug_up(levator_bulge(lip_lift(roll_margins(puff_vestibule(ala_slip(
+        with_lids(pucker_ring(made)))))))))), path)
 
 
 def add_ala_slip(path: str | Path = RIG_FILE) -> None:
@@ -460,6 +518,20 @@ def add_roll_margins(path: str | Path = RIG_FILE) -> None:
     save_rig(roll_margins(load_rig(path)), path)
 
 
+def add_roll_sulcus(path: str | Path = RIG_FILE) -> None:
+    """Write the rig file again with the lower lip's turning (`roll_sulcus`), everything else as it is."""
+    from sim.rig import load_rig, save_rig
+
+    save_rig(roll_sulcus(load_rig(path)), path)
+
+
+def add_mentalis_pout(path: str | Path = RIG_FILE) -> None:
+    """Write the rig file again with the mentalis' pout (`mentalis_pout`), everything else as it is."""
+    from sim.rig import load_rig, save_rig
+
+    save_rig(mentalis_pout(load_rig(path)), path)
+
+
 if __name__ == "__main__":
     import sys
 
@@ -475,6 +547,10 @@ if __name__ == "__main__":
         add_puff_vestibule()
     elif "--roll-margins" in sys.argv[1:]:
         add_roll_margins()
+    elif "--roll-sulcus" in sys.argv[1:]:
+        add_roll_sulcus()
+    elif "--mentalis-pout" in sys.argv[1:]:
+        add_mentalis_pout()
     else:
         pack()
     print(f"wrote {RIG_FILE}")
