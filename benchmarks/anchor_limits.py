@@ -81,6 +81,10 @@ ships; docs/scan-face.md has each one's section):
         --bound 10 --add --settle --write-rig sim/face/scan/ict_rig.npz
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only mouth_shift=3 --smooth 1e-4 --bound 10 --add
         --settle --write-rig sim/face/scan/ict_rig.npz
+    # the corrugator's field over its zone grown 4.5 cm: the brow's layer carrying the temple beside
+    # the brow's tail ("The temple carried with the brows"; the scanned head's fear at AU4 0.6)
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only corrugator=4.5 --smooth 1e-4 --bound 10 --settle
+        --write-rig sim/face/scan/ict_rig.npz
 
 `--hold POSE,..` keeps, in each pose (a preset on the scanned head, or AUs joined by '+'), how far the
 upper lids' margins move against the lower margins beneath them where the rig the fit starts from

@@ -101,7 +101,7 @@ FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
         "happiness": {"AU6": 0.3, "AU10": 0.3, "AU12": 1.0, "AU13": 1.0, "AU25": 0.8},
         "sadness": {"AU1": 1.0, "AU4": 0.42, "AU11": 0.6, "AU15": 1.0, "AU17": 1.0, "AU43": 0.35},
         "surprise": {"AU1": 0.8, "AU2": 0.8, "AU5": 0.7, "AU26": 1.0},
-        "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 0.7, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
+        "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 0.6, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
         "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.9, "AU7": 0.6, "AU17": 1.0, "AU23": 1.0},
         "disgust": {"AU9": 0.9, "AU10": 0.7, "AU4": 0.9, "AU15": 0.3, "AU25": 0.6},
     },
@@ -183,7 +183,10 @@ Retuned when the lid channel's tissue was fitted with the closed lids held meeti
 "The blink's lid fold held"): AU7's share of the lid channel narrows the glare from above, and
 anger at AU5 0.7 / AU7 0.8 read angry 0.41 with the eyes all but shut; its lids raised harder and
 tightened less, AU5 0.9 / AU7 0.6, read 0.50 and angry in 7 of the nine views (AU7 0.4: 0.42, 7 of 9;
-AU7 0.5: 0.36, 7; AU2 0.3: 0.49, 7; AU7 0.9: 0.54 frontally, but a sixth of the iris shows)."""
+AU7 0.5: 0.36, 7; AU2 0.3: 0.49, 7; AU7 0.9: 0.54 frontally, but a sixth of the iris shows).
+Retuned when the corrugator's field was refitted over a zone grown 4.5 cm (docs/scan-face.md, "The
+temple carried with the brows"): fear's brows drawn together at AU4 0.7 turned 0.108 cm2 of the
+glabella's skin over (limit 0.1); at AU4 0.6 0.067 cm2 and fear 0.76 (the observer 7 of 7, mean 0.79)."""
 
 
 FACE_EXPRESSIONS["imported"] = {
