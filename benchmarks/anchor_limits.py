@@ -101,6 +101,10 @@ ships; docs/scan-face.md has each one's section):
     # the mentalis' pout: its two bellies together push the lower red lip out and up, not its sided
     # halves (sim.face.scan.make_rig.mentalis_pout; ARKit mouthShrugLower, "The mentalis' pout")
     .venv/bin/python -m sim.face.scan.make_rig --mentalis-pout
+    # the corrugator's field over its zone grown 4.5 cm: the brow's layer carrying the temple beside
+    # the brow's tail ("The temple carried with the brows"; the scanned head's fear at AU4 0.6)
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only corrugator=4.5 --smooth 1e-4 --bound 10 --settle
+        --write-rig sim/face/scan/ict_rig.npz
 
 `--hold POSE,..` keeps, in each pose (a preset on the scanned head, or AUs joined by '+'), how far the
 upper lids' margins move against the lower margins beneath them where the rig the fit starts from

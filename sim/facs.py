@@ -101,7 +101,7 @@ FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
         "happiness": {"AU6": 0.3, "AU10": 0.3, "AU12": 1.0, "AU13": 1.0, "AU25": 0.8},
         "sadness": {"AU1": 1.0, "AU4": 0.42, "AU11": 0.6, "AU15": 1.0, "AU17": 1.0, "AU43": 0.35},
         "surprise": {"AU1": 0.8, "AU2": 0.8, "AU5": 0.7, "AU26": 1.0},
-        "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 0.7, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
+        "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 0.6, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
         "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.9, "AU7": 0.6, "AU17": 1.0, "AU23": 1.0},
         "disgust": {"AU9": 1.0, "AU10": 0.5, "AU4": 0.9, "AU15": 0.3, "AU25": 0.6},
     },
@@ -189,7 +189,10 @@ refitted on it (docs/scan-face.md, "The infraorbital triangle's bulge"): at AU9 
 still read 0.84, but the lip under the nose rose over the wings' rims (each nostril 1.7-2.0 mm lower
 from the front, 1.0-1.4 before) and 0.063 cm2 of skin beside the wings turned over; the nose lifted
 at full and the lip less, AU9 1.0 / AU10 0.5, reads 0.85 with nothing turned over and the nostrils
-0.7-1.0 mm lower (AU10 0.6: 0.82, 1.2-1.4 mm)."""
+0.7-1.0 mm lower (AU10 0.6: 0.82, 1.2-1.4 mm).
+Retuned when the corrugator's field was refitted over a zone grown 4.5 cm (docs/scan-face.md, "The
+temple carried with the brows"): fear's brows drawn together at AU4 0.7 turned 0.108 cm2 of the
+glabella's skin over (limit 0.1); at AU4 0.6 0.067 cm2 and fear 0.76 (the observer 7 of 7, mean 0.79)."""
 
 
 FACE_EXPRESSIONS["imported"] = {
