@@ -81,6 +81,10 @@ ships; docs/scan-face.md has each one's section):
         --bound 10 --add --settle --write-rig sim/face/scan/ict_rig.npz
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only mouth_shift=3 --smooth 1e-4 --bound 10 --add
         --settle --write-rig sim/face/scan/ict_rig.npz
+    # the corner's four fields refitted over the same zones on the merged rig, with the ARKit map's
+    # smile and stretch refitted ("The mouth corner's shapes again")
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only zygomaticus_major=3,risorius=3,buccinator=3,
+        levator_anguli_oris=3 --smooth 1e-4 --bound 10 --write-rig sim/face/scan/ict_rig.npz
 
 `--hold POSE,..` keeps, in each pose (a preset on the scanned head, or AUs joined by '+'), how far the
 upper lids' margins move against the lower margins beneath them where the rig the fit starts from
