@@ -105,6 +105,10 @@ ships; docs/scan-face.md has each one's section):
     # the brow's tail ("The temple carried with the brows"; the scanned head's fear at AU4 0.6)
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only corrugator=4.5 --smooth 1e-4 --bound 10 --settle
         --write-rig sim/face/scan/ict_rig.npz
+    # the corner's four fields refitted over the same zones on the merged rig, with the ARKit map's
+    # smile and stretch refitted ("The mouth corner's shapes again")
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only zygomaticus_major=3,risorius=3,buccinator=3,
+        levator_anguli_oris=3 --smooth 1e-4 --bound 10 --write-rig sim/face/scan/ict_rig.npz
 
 `--hold POSE,..` keeps, in each pose (a preset on the scanned head, or AUs joined by '+'), how far the
 upper lids' margins move against the lower margins beneath them where the rig the fit starts from
@@ -117,6 +121,11 @@ them where they meet).
 (`sim.face.scan.make_rig.levator_bulge`), as `--ala-slip` adds the nose wing's slip. `--nasolabial`
 first gives the skin along the nasolabial fold a laxer support (`nasolabial_fold`; tried there, not
 shipped).
+
+`--tether S` fits the fields in the linear statics of the skin with its tether (`rest_stiffness`) S
+times as stiff, in the stiffness and in the fields' force alike, on top of the shipped skin's settled
+poses: how much more of what they miss the same smooth fields could shape on a stiffer tie (a
+measurement only: no --settle, no --write-rig; docs/scan-face.md, "The mouth corner's shapes again").
 
 `--per-shape zones|skin` fits a field per shape instead (as if each shape had its own channel: over
 its channels' zones, grown by `--grow`, or over all the free skin), the ceiling of more channels or
@@ -137,6 +146,8 @@ poses. docs/scan-face.md ("The tissue under the skin moving with the muscle") ha
     nice .venv/bin/python benchmarks/anchor_limits.py [--smooth 1e-3] [--grow 0] [--bound 5] [--iters 300]
         [--settle [--rounds R] [--damp 0.5] [--scale 0.5,0.25]] [--save FILE] [--all] [--settled FILE] [--levator-bulge]
         [--per-shape zones|skin] [--where] [--only C[=GROW],..] [--keep C,..] [--leave S,..] [--write-rig RIG [--add]]
+        [--settle [--rounds R] [--damp 0.5] [--scale 0.5,0.25]] [--save FILE] [--all] [--settled FILE]
+        [--per-shape zones|skin] [--tether S] [--where] [--only C[=GROW],..] [--keep C,..] [--leave S,..] [--write-rig RIG [--add]]
         [--even W [--even-keep W2] [--even-poses surprise,AU1+2]] [--hold AU45 [--hold-weight 30] [--hold-close 0.5]]
 """
 
@@ -233,6 +244,18 @@ class _ShapeChannels:
     def __init__(self, model, labels: list[str]) -> None:  # type: ignore[no-untyped-def]
         self._model = model
         self.channel_index = {lab: k for k, lab in enumerate(labels)}
+
+    def __getattr__(self, name: str):  # type: ignore[no-untyped-def]
+        return getattr(self._model, name)
+
+
+class _Tethered:
+    """The compiled model seen with its skin's tether (`rest_stiffness`, the tie to the tissue beneath)
+    scaled by `scale`: the linear statics of a stiffer or laxer tether against the same membrane."""
+
+    def __init__(self, model, scale: float) -> None:  # type: ignore[no-untyped-def]
+        self._model = model
+        self.rest_stiffness = np.asarray(model.rest_stiffness, np.float64) * scale
 
     def __getattr__(self, name: str):  # type: ignore[no-untyped-def]
         return getattr(self._model, name)
@@ -408,6 +431,9 @@ def main() -> int:
     ap.add_argument("--hold-close", type=float, default=0.0,
                     help="with --hold: the upper margins held this many mm further down against the lower ones than "
                          "the rig settled them (the contact stops them where the lids meet)")
+    ap.add_argument("--tether", type=float, default=1.0,
+                    help="fit the fields in the linear statics of the skin with its tether this many times as stiff "
+                         "(the settled poses, and --settle, stay the shipped skin's)")
     ap.add_argument("--where", action="store_true", help="print where each shape's remaining error lies (regions)")
     args = ap.parse_args()
     from scan_match import scan_targets
@@ -461,8 +487,11 @@ def main() -> int:
     if args.settled and cache is None:
         np.savez(args.settled, **dict(zip(labels, real)))
     print(f"{len(labels)} shapes settled in {time.monotonic() - t0:.0f} s", flush=True)
+    fit_model = model if args.tether == 1.0 else _Tethered(model, args.tether)
+    if args.tether != 1.0 and (args.settle or args.write_rig):
+        raise SystemExit("--tether is a measurement of the linear statics: leave out --settle and --write-rig")
     if args.per_shape:
-        cal, vals_a = per_shape_calibration(model, labels, vals_a, args)
+        cal, vals_a = per_shape_calibration(fit_model, labels, vals_a, args)
         args.all = True
     else:
         if zones is None and args.keep:  # every channel's field but the kept ones
@@ -471,7 +500,7 @@ def main() -> int:
             keep = {x for x in args.keep.split(",") if x}
             zones = {c: z for c, z in channel_zones(model, args.grow).items()
                      if c not in keep and c.removesuffix("_l").removesuffix("_r") not in keep}
-        cal = AnchorCalibration(model, smooth=args.smooth, ridge=args.ridge, bound=args.bound, grow=args.grow,
+        cal = AnchorCalibration(fit_model, smooth=args.smooth, ridge=args.ridge, bound=args.bound, grow=args.grow,
                                 zones=zones)
     print(f"anchor fields: {cal.n_params} parameters over {len(cal.groups)} muscles "
           f"({time.monotonic() - t0:.0f} s)", flush=True)

@@ -14,7 +14,8 @@ the span rounded and tried 0.05 either way; each entry is settled from rest exac
 sided shape is fitted on its left side; its right twin is settled with the same entry and reported
 (held out). Prints per shape the shipped and fitted errors and the entry as `SHAPE_SPAN` /
 `SHAPE_SHARES` (puppet/export/arkit.py) write it; those and `puppet/maps/arkit.toml` are edited by
-hand from it (a test holds the map and the import to the same channels).
+hand from it (a test holds the map and the import to the same channels). `--min-span 1` holds the
+span at 1 and fits the shares alone.
 
     nice .venv/bin/python benchmarks/map_fit.py [--shapes MouthClose,MouthDimpleLeft,...] [--rounds 8]
 """
@@ -109,7 +110,7 @@ def main() -> int:
     ap.add_argument("--shapes", help="comma-separated ARKit names (default: SHAPES)")
     ap.add_argument("--rounds", type=int, default=8, help="Levenberg-Marquardt steps per shape")
     ap.add_argument("--min-share", type=float, default=0.1, help="shares below this are dropped")
-    ap.add_argument("--min-span", type=float, default=0.2, help="the own channel at least this (the export divides by it)")
+    ap.add_argument("--min-span", type=float, default=0.2, help="the own channel at least this (the export divides by it; 1 keeps the span at 1)")
     ap.add_argument("--candidates", type=int, default=8, help="share channels per shape (by cosine at rest)")
     ap.add_argument("--sparsity", type=float, default=0.01, help="L1 cost of a share, relative to the scan's energy")
     ap.add_argument("--verbose", action="store_true")
@@ -158,7 +159,7 @@ def main() -> int:
             return entry_values(shape, float(x[0]), dict(zip(cands, (float(v) for v in x[1:]))))
 
         x0 = np.array([span0] + [shipped.get(c, 0.0) for c in cands])
-        lo = np.array([args.min_span] + [0.0] * len(cands))
+        lo = np.array([min(args.min_span, 1.0 - 1e-6)] + [0.0] * len(cands))  # --min-span 1 holds the span at 1
         hi = np.array([1.0] + [limits.get(c, 1.0) for c in cands])
         x0 = np.minimum(x0, hi)
         log = print if args.verbose else None

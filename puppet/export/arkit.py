@@ -55,7 +55,7 @@ MOUTH_CLOSE_SPAN = 0.25
 #: to it: `sim.face.scan.jaw_fit.OPENING_SPAN`, docs/scan-face.md, "The jaw's hinge ...").
 #: The export divides by it (a larger channel value writes 1), the import and the map multiply.
 SHAPE_SPAN = {"BrowInnerUp": 0.85, "EyeSquint": 0.5, "MouthPress": 0.85, "MouthDimple": 1.0, "MouthLowerDown": 0.8,
-              "EyeWide": 0.7, "MouthShrugUpper": 0.8, "MouthUpperUp": 0.7, "MouthFunnel": 0.4,
+              "MouthSmile": 0.55, "EyeWide": 0.7, "MouthShrugUpper": 0.8, "MouthUpperUp": 0.7, "MouthFunnel": 0.4,
               "JawOpen": 0.8}
 #: Shapes that also drive other channels, each by a share of the shape (the channel takes the larger
 #: of its own shape and the share, as the lids do with the gaze; a channel named without its side is
@@ -71,7 +71,13 @@ SHAPE_SPAN = {"BrowInnerUp": 0.85, "EyeSquint": 0.5, "MouthPress": 0.85, "MouthD
 #: 13.5 mm, the lower one 8 mm down, the everting pars peripheralis at 0.4 of full); the lower lip pushed up or rolled in meets the upper one (lip closure, the
 #: sphincter); the dimple's buccinator pulls on the modiolus with the corner's elevators; the nose
 #: wrinkled brings the orbital orbicularis, the corner's elevator and the brow's head down with it;
-#: the mouth shifted sideways is drawn by that side's zygomaticus and risorius; the lips closed over
+#: the smile is the whole modiolus drawn up and back (the corner's elevator, the buccinator and the
+#: risorius with the zygomaticus major at 0.55: at 1 alone it draws the corner too far along its own
+#: line, and no share helps while it does) with the upper lip lifted (levator labii) and the cheek
+#: bunched under the eye (the orbital orbicularis), as the scan's mouthSmile is;
+#: the mouth shifted sideways is drawn by that side's zygomaticus and risorius; the stretched
+#: corner is drawn down and back with the depressor anguli oris and a trace of the buccinator (the
+#: scan's mouthStretch carries the lower lip 1.6 mm down and the jowl out); the lips closed over
 #: an open jaw are pushed up by the chin (mentalis) and the corners' elevators; the lips pressed,
 #: the lower one pushed up and the lips closed carry the chin's soft tissue forward as a block,
 #: which the jaw thrust (jaw_forward) gives where more mentalis would evert the lower lip; the
@@ -99,6 +105,9 @@ SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
                         ("incisivus", 0.25), ("jaw_forward", 0.2)),
     "MouthRollLower": (("lip_closure", 0.4),),
     "MouthRollUpper": (("risorius", 0.2), ("orbicularis_oris", 0.6)),
+    "MouthStretch": (("buccinator", 0.1), ("depressor_anguli_oris", 0.25)),
+    "MouthSmile": (("levator_anguli_oris", 1.0), ("buccinator", 0.5), ("risorius", 0.45), ("levator_labii", 0.35),
+                   ("orbicularis_oculi", 0.2)),
     "MouthDimple": (("levator_anguli_oris", 0.57), ("zygomaticus_major", 0.11), ("mentalis", 0.15), ("orbicularis_oris", 0.85)),
     "MouthLowerDown": (("depressor_anguli_oris", 0.2),),
     "BrowDown": (("orbicularis_oculi", 0.15),),

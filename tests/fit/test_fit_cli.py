@@ -295,7 +295,7 @@ def test_arkit_csv_becomes_a_take_on_the_physical_face(tmp_path, face0, capsys) 
     names = [c.name for c in face0.vocab.channels]
     w = ArkitCsvWriter(tmp_path / "phone.arkit.csv", names, 60.0)
     values = np.tile(np.array(face0.vocab.defaults()), (90, 1))
-    values[30:, names.index("zygomaticus_major_l")] = 0.7
+    values[30:, names.index("zygomaticus_major_l")] = 0.385  # mouthSmile 0.7 (its span is 0.55: the scanned smile)
     values[30:, names.index("jaw")] = 0.3
     for k, v in enumerate(values):
         w.add(k, v)
@@ -303,7 +303,7 @@ def test_arkit_csv_becomes_a_take_on_the_physical_face(tmp_path, face0, capsys) 
     take = tmp_path / "phone.jsonl"
     assert main(["fit", str(tmp_path / "phone.arkit.csv"), "--out", str(take), "--age", "70"]) == 0
     chans, got = _take_values(take, face0)
-    assert got[60, chans.index("zygomaticus_major_l")] == pytest.approx(0.7)
+    assert got[60, chans.index("zygomaticus_major_l")] == pytest.approx(0.385)
     assert got[60, chans.index("jaw")] == pytest.approx(0.3)
     assert got[60, chans.index("age")] == 70.0
     assert main(["replay", str(take), "--headless"]) == 0

@@ -41,7 +41,7 @@ def test_arkit_csv_header_timecode_and_mapping(tmp_path: Path) -> None:
     names = ["zygomaticus_major_l", "zygomaticus_major_r", "jaw", "eyes_yaw", "eyes_pitch"]
     w = ArkitCsvWriter(tmp_path / "a.csv", names, 30)
     w.add(0, np.array([0.0, 0.0, 0.0, 0.0, 0.0]))
-    w.add(31, np.array([0.7, 0.2, 0.5, 0.4, -0.3]))
+    w.add(31, np.array([0.385, 0.11, 0.5, 0.4, -0.3]))
     w.close()
     rows = list(csv.reader(open(tmp_path / "a.csv")))
     head = rows[0]
@@ -49,6 +49,7 @@ def test_arkit_csv_header_timecode_and_mapping(tmp_path: Path) -> None:
     assert len(ARKIT_SHAPES) == 52 and UNSUPPORTED == ()  # every shape has a channel
     r = dict(zip(head, rows[2]))
     assert r["Timecode"] == "00:00:01:01.000" and r["BlendShapeCount"] == "61"
+    # mouthSmile at 1 drives the zygomaticus 0.55 (the scan's smile): the export divides by it
     assert float(r["MouthSmileLeft"]) == pytest.approx(0.7) and float(r["MouthSmileRight"]) == pytest.approx(0.2)
     assert float(r["JawOpen"]) == pytest.approx(0.5 / 0.8)  # jawOpen at 1 opens the jaw 0.8 (the scan's opening)
     assert float(r["EyeLookOutLeft"]) == pytest.approx(0.4) and float(r["EyeLookInRight"]) == pytest.approx(0.4)
