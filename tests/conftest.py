@@ -13,6 +13,12 @@ import pytest
 _FACE_CACHE = os.environ["PUPPET_CACHE_DIR"] = __import__("tempfile").mkdtemp(prefix="puppet-test-cache-")
 # recordings made by tests are registered in a take library inside that folder, never the user's
 os.environ["PUPPET_LIBRARY"] = os.path.join(_FACE_CACHE, "takes.db")
+# so are the fit's basis (puppet/capture/cache.py: ~/.cache/facepuppet otherwise, which tests/files'
+# in-process `puppet fit` runs wrote before tests/fit/conftest.py named its own folder, and which
+# another run of the suite or the user's shows rewrite meanwhile) and saved identities (`--face NAME`
+# reads them: a user's saved face must not change what a test sees)
+os.environ["FACEPUPPET_CACHE"] = os.path.join(_FACE_CACHE, "fit")
+os.environ["PUPPET_DATA_DIR"] = os.path.join(_FACE_CACHE, "identities")
 
 
 # the suite's own fixtures and expectations are the procedural face's unless a test asks for another
