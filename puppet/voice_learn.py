@@ -2,7 +2,8 @@
 
 The room is measured first (quiet, 1.5 s: it sets the gate), then the performer says each sound
 when asked (A, I, U, E, O, and closed lips), pressing Enter before each; two seconds are
-recorded from the line "X: listening", and the frames of the steady middle of what was heard become that sound's template.
+recorded from the line "X: listening", and the frames of the steady middle of what was heard
+become that sound's template.
 Sounds not asked for (F) keep the shipped profile's. The file is written in one rename, and
 `audio://NAME?profile=FILE` (or `puppet fit X.wav --voice-profile FILE`) uses it.
 Prompts go to stdout and Enter comes from stdin, so a session can be scripted."""
