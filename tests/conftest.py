@@ -75,11 +75,15 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     import time
 
     t0 = time.monotonic()
-    run = subprocess.run([sys.executable, "-c", _WARM_UP], cwd=root.parent, capture_output=True, text=True,
-                         env={**os.environ, "PYTHONPATH": str(root.parent)})
+    try:  # a hang guard only: a fresh clone's compile took 427 s at load 17-19
+        run = subprocess.run([sys.executable, "-c", _WARM_UP], cwd=root.parent, capture_output=True, text=True,
+                             env={**os.environ, "PYTHONPATH": str(root.parent)}, timeout=1800)
+        failed = run.stderr[-2000:] if run.returncode != 0 else None
+    except subprocess.TimeoutExpired:
+        failed = "no end in 1800 s"
     said = (f"the default face and the show's kernels prepared before the first test ({time.monotonic() - t0:.0f} s)"
-            if run.returncode == 0 else  # the tests that need the face say what is wrong, each in its place
-            f"preparing the default face and the show's kernels failed:\n{run.stderr[-2000:]}")
+            if failed is None else  # the tests that need the face say what is wrong, each in its place
+            f"preparing the default face and the show's kernels failed:\n{failed}")
     reporter = session.config.pluginmanager.get_plugin("terminalreporter")
     if reporter is not None:
         reporter.write_line(f"tests/conftest.py: {said}")
