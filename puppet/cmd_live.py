@@ -316,6 +316,13 @@ def _run(args: argparse.Namespace) -> int:
             raise PuppetError(f"{args.map}: no such map file (`puppet learn --map FILE` makes one)")
         if kind == "folder":
             raise PuppetError(f"{args.map}: is a folder, not a map file")
+        if kind == "file":
+            # its own errors (TOML, a binding's fields, a filter's type) said now, not after the face
+            # has loaded: that takes seconds on a busy machine (a minute on a new install), and the
+            # "preparing the face" notice then came before the error line (a pipe is read once, later)
+            from puppet.mapping import load_mapping
+
+            load_mapping(args.map)
     windowed = not args.headless and live.display_available()
     if args.demo:
         if args.device:

@@ -2,7 +2,8 @@
 
 The room is measured first (quiet, 1.5 s: it sets the gate), then the performer says each sound
 when asked (A, I, U, E, O, and closed lips), pressing Enter before each; two seconds are
-recorded, and the frames of the steady middle of what was heard become that sound's template.
+recorded from the line "X: listening", and the frames of the steady middle of what was heard
+become that sound's template.
 Sounds not asked for (F) keep the shipped profile's. The file is written in one rename, and
 `audio://NAME?profile=FILE` (or `puppet fit X.wav --voice-profile FILE`) uses it.
 Prompts go to stdout and Enter comes from stdin, so a session can be scripted."""
@@ -36,10 +37,13 @@ class _Buffer:
             with self.lock:
                 self.blocks.append(np.array(block))
 
-    def record(self, seconds: float) -> np.ndarray:
+    def record(self, seconds: float, started: Any = None) -> np.ndarray:
+        """What arrives in the next `seconds`; `started()` is called once blocks are being kept."""
         with self.lock:
             self.blocks = []
         self.on = True
+        if started is not None:
+            started()
         time.sleep(seconds)
         self.on = False
         with self.lock:
@@ -90,7 +94,9 @@ def learn_voice(spec: str, out: str, stdin: TextIO | None = None, timeout: float
                 print(f"{name}: {prompt} for about a second; press Enter, then start", flush=True)
                 if stdin.readline() == "":
                     raise PuppetError("learning stopped before every sound was recorded; nothing written")
-                sound = buf.record(TAKE_S)
+                # said once it listens: a performer (or a script) who starts at Enter on a busy
+                # machine spoke before the recording began and was told "heard too little"
+                sound = buf.record(TAKE_S, lambda: print(f"{name}: listening ({TAKE_S:g} s)", flush=True))
                 f, d = steady(sound, rate, gate)
                 if len(f) >= MIN_FRAMES:
                     frames[name] = f

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from midijack import jack_lsp, stop_child
+from midijack import jack_lsp, ready_line, stop_child
 
 PLAYER = Path(__file__).with_name("voice_player.py")
 
@@ -28,7 +28,7 @@ class Voice:
         self.proc = subprocess.Popen([sys.executable, str(PLAYER), self.name], stdin=subprocess.PIPE,
                                      stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, bufsize=1)
         threading.Thread(target=self._pump, args=(self.proc,), daemon=True).start()
-        assert self.lines.get(timeout=30) == "ready"
+        assert ready_line(self.lines, self.proc) == "ready"
         return self
 
     def _pump(self, proc: subprocess.Popen[str]) -> None:
@@ -56,6 +56,32 @@ class Voice:
         self.proc = None
 
     close = unplug
+
+
+class Analysed:
+    """How far an audio:// device has analysed what it heard: made its `tap` (`Analysed(dev)`), it
+    sees every block, stamped with its capture time on the monotonic clock, just before the block is
+    analysed. `wait_past(t)` returns once a block captured after `t` and one more have come: by then
+    the events of all the sound heard before `t` have been sent, however far the device's thread
+    lags on a busy machine (a fixed pause after the voice ended stood in for this)."""
+
+    def __init__(self, dev: object) -> None:
+        self._cond = threading.Condition()
+        self.last: float | None = None
+        self.blocks = 0
+        dev.tap = self  # type: ignore[attr-defined]
+
+    def __call__(self, block: np.ndarray, t: float) -> None:
+        with self._cond:
+            self.last, self.blocks = t, self.blocks + 1
+            self._cond.notify_all()
+
+    def wait_past(self, t: float, timeout: float = 120.0) -> None:
+        with self._cond:
+            ok = self._cond.wait_for(lambda: self.last is not None and self.last > t, timeout)
+            assert ok, f"the device analysed nothing heard after the voice ended (last block at {self.last})"
+            n = self.blocks
+            assert self._cond.wait_for(lambda: self.blocks > n, timeout), "the device stopped analysing"
 
 
 def speech_wav(path: Path, parts: list[tuple[str, float]], rate: int = 48000, noise_db: float | None = None,

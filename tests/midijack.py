@@ -130,7 +130,7 @@ class MidiBox:
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                                      text=True, bufsize=1)
         threading.Thread(target=self._pump, args=(self.proc,), daemon=True).start()
-        line = self._lines.get(timeout=20)
+        line = ready_line(self._lines, self.proc)
         assert line == "ready", line
         return self
 
@@ -166,6 +166,19 @@ class MidiBox:
         self.proc = None
 
     close = unplug
+
+
+def ready_line(lines: queue.Queue[str], proc: subprocess.Popen, timeout: float = 120.0) -> str:  # type: ignore[type-arg]
+    """The first line a port-playing child says ("ready" once its JACK port is up). Its start (an
+    interpreter, numpy, a JACK client) took over 30 s at a load of 25 on 2 cores: `timeout` is only a
+    hang guard, and a child that exited fails at once."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return lines.get(timeout=0.2)
+        except queue.Empty:
+            assert proc.poll() is None, f"the port's process exited ({proc.returncode}) before it was ready"
+            assert time.monotonic() < deadline, f"the port's process said nothing in {timeout:g} s"
 
 
 def connected_to(server: str, port: str) -> list[str]:

@@ -10,15 +10,30 @@ import subprocess
 import time
 
 
-def start_xvfb(timeout: float = 10.0) -> tuple[subprocess.Popen, str]:  # type: ignore[type-arg]
+def _die_with_parent() -> None:
+    """In the child: SIGTERM when the process that started it dies, even killed (Linux's
+    PR_SET_PDEATHSIG): a test run stopped by a signal left its Xvfb running, its fixture's
+    teardown never reached."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)
+    except Exception:  # noqa: BLE001 - not Linux: the fixture's teardown still stops it
+        pass
+
+
+def start_xvfb(timeout: float = 60.0) -> tuple[subprocess.Popen, str]:  # type: ignore[type-arg]
     """Start Xvfb and return (process, DISPLAY string such as ':93'); RuntimeError if it cannot.
-    -displayfd: the server picks a free display number itself and writes it to the pipe, so runs
-    started side by side never race for the same number."""
+    -displayfd: the server picks a free display number itself and writes it to the pipe once it
+    accepts connections, so runs started side by side never race for the same number. `timeout`
+    only bounds a server that never answers (a loaded machine's start can take seconds)."""
     if shutil.which("Xvfb") is None:
         raise RuntimeError("Xvfb is not installed: run `bash .ci/setup`")
     rfd, wfd = os.pipe()
     proc = subprocess.Popen(["Xvfb", "-displayfd", str(wfd), "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, pass_fds=(wfd,))
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, pass_fds=(wfd,),
+                            preexec_fn=_die_with_parent)
     os.close(wfd)
     deadline = time.monotonic() + timeout
     text = b""
@@ -28,6 +43,7 @@ def start_xvfb(timeout: float = 10.0) -> tuple[subprocess.Popen, str]:  # type: 
             chunk = os.read(rfd, 16) if ready else b""
             if not chunk:
                 proc.kill()
+                proc.wait()
                 raise RuntimeError("Xvfb did not start")
             text += chunk
     finally:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from audiojack import Voice, speech_wav, wait_connected
+from audiojack import Analysed, Voice, speech_wav, wait_connected
 from midijack import jack_server  # noqa: F401  (the fixture)
 
 import devices
@@ -62,12 +62,13 @@ def test_vowels_move_the_mouth_and_silence_and_noise_do_not(jack_server: str, sp
     dev = open_device("audio://VOI?api=jack")  # a substring of the client's name, any case
     got: list[object] = []
     dev.add_listener(got.append)
+    analysed = Analysed(dev)
     dev.start()
     try:
         wait_connected(jack_server, "voice:out_1")
         voice.play(path)
         voice.wait_done()
-        time.sleep(0.5)
+        analysed.wait_past(time.monotonic())
         controls = [(e.t, e.control, e.value) for e in got if isinstance(e, ControlEvent)]
         check_mouth(segments(controls))
         # the mouth came back to rest after the last sound, and the noise below the gate moved nothing
@@ -86,7 +87,7 @@ def test_vowels_move_the_mouth_and_silence_and_noise_do_not(jack_server: str, sp
         wait_connected(jack_server, "voice:out_1")
         voice.play(path)
         voice.wait_done()
-        time.sleep(0.5)
+        analysed.wait_past(time.monotonic())
         again = [e for e in got[n:]]
         assert [e.status for e in again if isinstance(e, StatusEvent)] == ["connected"]
         check_mouth(segments([(e.t, e.control, e.value) for e in again if isinstance(e, ControlEvent)]))
@@ -262,7 +263,8 @@ def test_puppet_learn_records_a_voice_profile_the_device_then_uses(jack_server: 
                 asked.append(m.group(1))
                 learn.stdin.write("\n")
                 learn.stdin.flush()
-                time.sleep(0.3)
+            m = re.match(r"([AIUEOM]): listening", line)
+            if m:  # the sound once learn records (0.3 s after Enter was too soon on a busy machine)
                 voice.play(wavs[m.group(1)])
         learn.wait(60)
     finally:
@@ -279,12 +281,13 @@ def test_puppet_learn_records_a_voice_profile_the_device_then_uses(jack_server: 
     dev = open_device(f"audio://voice?api=jack&profile={profile}")
     got: list[object] = []
     dev.add_listener(got.append)
+    analysed = Analysed(dev)
     dev.start()
     try:
         wait_connected(jack_server, "voice:out_1")
         voice.play(seq)
         voice.wait_done()
-        time.sleep(0.6)
+        analysed.wait_past(time.monotonic())
     finally:
         dev.close()
         voice.close()

@@ -5,6 +5,7 @@ private JACK server, the box emulated in a third process."""
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -18,6 +19,23 @@ from midijack import MidiBox, jack_server, wait_for_host  # noqa: F401  (the fix
 from puppet.session import read_session
 
 SPEC = "midi://nanoKONTROL2?profile=nanokontrol2&api=jack"
+
+
+def wait_recorded(rec: Path, proc: subprocess.Popen, want: dict, timeout: float = 120) -> None:  # type: ignore[type-arg]
+    """Until the show's recording (written tick by tick) holds a record with `want`'s fields; the
+    show ending first fails, and `timeout` is only a hang guard."""
+    deadline = time.monotonic() + timeout
+    while True:
+        for line in rec.read_text(errors="replace").splitlines() if rec.exists() else []:
+            try:
+                r = json.loads(line)
+            except ValueError:  # the line being written
+                continue
+            if isinstance(r, dict) and all(r.get(k) == v for k, v in want.items()):
+                return
+        assert proc.poll() is None, f"the show ended before its recording held {want}"
+        assert time.monotonic() < deadline, f"the recording never held {want}"
+        time.sleep(0.05)
 
 
 def test_nanokontrol2_live_show_with_unplug(tmp_path: Path, jack_server: str) -> None:  # noqa: F811
@@ -37,7 +55,10 @@ def test_nanokontrol2_live_show_with_unplug(tmp_path: Path, jack_server: str) ->
         box.wait_received(lambda r: (0xB0, 32, 127) in r, timeout=90)    # ... and its LED lit, once the show runs
         time.sleep(1.5)                                                    # the preset eases in
         box.unplug()                                                       # mid-show
-        time.sleep(0.6)
+        # the show looks for its port every 0.25 s: a box plugged back before one look would be a
+        # port replaced unseen (the show connected to the old one), not the unplug this test is about;
+        # so the box comes back once the recording says the show lost it, however long that takes
+        wait_recorded(rec, proc, {"t": "st", "dev": SPEC, "status": "lost"})
         box.received.clear()
         box.plug()
         box.wait_received(lambda r: (0xB0, 32, 127) in r)                 # the LED comes back by itself

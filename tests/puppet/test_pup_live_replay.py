@@ -263,6 +263,26 @@ def test_bad_mapping_file_is_one_line_with_location(tmp_path: Path) -> None:
                                   "smooth, one_euro, slew for type, got 'smoth'")
 
 
+def test_a_bad_mapping_file_is_said_before_the_face_loads(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                          capsys: pytest.CaptureFixture) -> None:
+    """The map's own error came after the face had loaded: seconds on a busy machine, and the
+    "preparing the face" notice (due after 3 s) then came first, which the test above met once."""
+    from puppet.cli import main
+
+    m = tmp_path / "bad.toml"
+    m.write_text('[[binding]]\ncontrol = "dial0"\ntarget = "jaw"\nfilters = [{type = "smoth"}]\n')
+
+    def no_face(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the face was loaded before the map was read")
+
+    monkeypatch.setattr(live, "load_face", no_face)
+    monkeypatch.setenv("PUPPET_LIBRARY", "off")
+    assert main(["live", "--device", script(tmp_path), "--map", str(m), "--headless", "--duration", "0.1"]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        f"puppet: error: {m}:4:13: expected one of range, invert, curve, deadzone, smooth, one_euro, slew for type, "
+        "got 'smoth'"]
+
+
 def test_recording_header(tmp_path: Path) -> None:
     rec = tmp_path / "h.jsonl"
     assert puppet("live", "--device", script(tmp_path), "--headless", "--record", str(rec)).returncode == 0

@@ -23,12 +23,22 @@ from puppet.session import read_session
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
 
 
-def free_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
+def listening_ports(proc: subprocess.Popen, specs: list[str]) -> list[int]:  # type: ignore[type-arg]
+    """The ports the show's UDP devices, given port 0, bound: each says so on stderr once it
+    listens ("SPEC: listening for ... on UDP port N of HOST"). A port picked here, closed and handed
+    to the show could be taken by another program in between; and the line is the moment the
+    port listens."""
+    assert proc.stderr is not None
+    ports: dict[str, int] = {}
+    said = []
+    while len(ports) < len(specs):
+        line = proc.stderr.readline()
+        assert line, f"the show ended before its devices listened: {''.join(said)}"
+        said.append(line)
+        for spec in specs:
+            if line.startswith(f"{spec}: listening for ") and " on UDP port " in line:
+                ports[spec] = int(line.split(" on UDP port ")[1].split()[0])
+    return [ports[spec] for spec in specs]
 
 
 def osc(address: str, value: float) -> bytes:
@@ -65,12 +75,18 @@ def reached(v: dict[str, float]) -> bool:
 
 def test_touchosc_and_live_link_face_drive_the_live_face(tmp_path: Path) -> None:
     """...while another sender floods the OSC port with garbage and a stream of values."""
-    osc_port, ll_port = free_port(), free_port()
+    osc_spec, ll_spec = "osc://127.0.0.1:0?profile=touchosc", "livelink://127.0.0.1:0"
     rec = tmp_path / "phone.jsonl"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "puppet", "live", "--device", f"osc://127.0.0.1:{osc_port}?profile=touchosc",
-         "--device", f"livelink://127.0.0.1:{ll_port}", "--headless", "--record", str(rec)],
+        [sys.executable, "-m", "puppet", "live", "--device", osc_spec, "--device", ll_spec, "--headless",
+         "--record", str(rec)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+    try:
+        osc_port, ll_port = listening_ports(proc, [osc_spec, ll_spec])
+    except BaseException:
+        proc.kill()
+        proc.wait(10)
+        raise
     weights = {"mouthSmileLeft": 0.6, "eyeLookOutLeft": 0.3, "eyeLookInRight": 0.3}
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     stop = threading.Event()
@@ -90,13 +106,12 @@ def test_touchosc_and_live_link_face_drive_the_live_face(tmp_path: Path) -> None
     blaster.start()
     try:
         deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and proc.poll() is None:  # until reached, then 1.5 s more
-            # (a little more show, so the recording holds a replay checkpoint)
+        while time.monotonic() < deadline and proc.poll() is None:  # until reached (a hang guard)
             sock.sendto(osc("/1/fader4", 0.7), ("127.0.0.1", osc_port))  # TouchOSC's jaw fader
             sock.sendto(osc("/face/channel/age", 80.0), ("127.0.0.1", osc_port))  # a generic address
             sock.sendto(encode_frame(weights), ("127.0.0.1", ll_port))  # the phone's face tracking
-            if reached(latest_values(rec)):
-                deadline = min(deadline, time.monotonic() + 1.5)
+            if reached(latest_values(rec)) and '"t":"chk"' in rec.read_text(errors="replace"):
+                break  # the values reached, and a checkpoint for the replay below to verify
             time.sleep(0.1)
         proc.send_signal(signal.SIGTERM)
         out, err = proc.communicate(timeout=60)
@@ -110,7 +125,7 @@ def test_touchosc_and_live_link_face_drive_the_live_face(tmp_path: Path) -> None
     assert proc.returncode == 0, err
     assert "performed" in out
     s = read_session(rec)
-    assert s.complete and f"osc://127.0.0.1:{osc_port}?profile=touchosc" in s.header["devices"]
+    assert s.complete and osc_spec in s.header["devices"]
     final: dict[str, float] = {}
     for k in sorted(s.values):
         final.update({s.channels[i]: v for i, v in s.values[k].items()})

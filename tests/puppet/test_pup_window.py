@@ -22,7 +22,9 @@ def _xdo(display: str, *args: str) -> str:
     return out.stdout.strip()
 
 
-def _wait_window(display: str, title: str, proc: subprocess.Popen, timeout: float = 60) -> str:
+def _wait_window(display: str, title: str, proc: subprocess.Popen, timeout: float = 240) -> str:
+    """The window's id once it is mapped; `timeout` is a hang guard (the run's first show builds the
+    face's caches first: over a minute on a loaded machine)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if proc.poll() is not None:
@@ -32,6 +34,29 @@ def _wait_window(display: str, title: str, proc: subprocess.Popen, timeout: floa
             return wid
         time.sleep(0.1)
     pytest.fail(f"no window named {title!r} appeared")
+
+
+def _smile(s, j: int) -> np.ndarray:  # type: ignore[no-untyped-def]
+    return s.value_array(np.zeros(len(s.channels)))[:, j]
+
+
+def _recorded(rec: Path, proc: subprocess.Popen, what: str, pred, timeout: float = 240):  # type: ignore[no-untyped-def]
+    """The recording read as the show writes it (up to its last whole record), once `pred` holds;
+    the test fails if the show ends first or (a hang guard) nothing comes for `timeout` seconds."""
+    deadline = time.monotonic() + timeout
+    while True:
+        if proc.poll() is not None:
+            pytest.fail(f"puppet exited before {what}: {proc.communicate()[1][-2000:]}")
+        if rec.exists():
+            try:
+                s = read_session(rec)
+            except Exception:  # noqa: BLE001 - the header itself not written yet
+                s = None
+            if s is not None and s.ticks > 0 and pred(s):
+                return s
+        if time.monotonic() > deadline:
+            pytest.fail(f"the recording never showed {what}")
+        time.sleep(0.05)
 
 
 @pytest.fixture(autouse=True)
@@ -44,22 +69,24 @@ def _need_xdotool() -> None:
 def test_keyboard_fallback_drives_a_muscle_in_the_window(xvfb_display: str, tmp_path: Path, mode: list[str]) -> None:
     rec = tmp_path / "kb.jsonl"
     env = {**os.environ, "DISPLAY": xvfb_display}
-    proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--record", str(rec), "--duration", "30", *mode],
+    proc = subprocess.Popen([sys.executable, "-m", "puppet", "live", "--record", str(rec), "--duration", "120", *mode],
                             env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         wid = _wait_window(xvfb_display, "facepuppet live", proc)
         _xdo(xvfb_display, "windowfocus", "--sync", wid)
-        time.sleep(0.5)
+        # the window opens while the show is still being prepared: keys pressed before its loop
+        # polls them arrive together, press and release in one tick; so each step waits for the
+        # recording (written tick by tick) to show the one before, never for a stretch of time
+        s = _recorded(rec, proc, "the show's first tick", lambda s: s.ticks > 0)
+        j = s.channels.index("zygomaticus_major_l")
         _xdo(xvfb_display, "keydown", "a")   # A = smile in the keyboard map
-        time.sleep(1.5)
+        _recorded(rec, proc, "the smile rising while A is held", lambda s: _smile(s, j).max() > 0.5)
         _xdo(xvfb_display, "keyup", "a")
         _xdo(xvfb_display, "key", "m")       # marker
-        time.sleep(0.5)
-        # on a loaded machine the loop may not have run a second of ticks yet: wait for the
-        # recording's first checkpoint, which the replay below verifies
-        deadline = time.monotonic() + 30
-        while '"chk"' not in rec.read_text(errors="replace") and time.monotonic() < deadline:
-            time.sleep(0.2)
+        # released, the smile relaxes; and a checkpoint, which the replay below verifies
+        _recorded(rec, proc, "the marker, the smile relaxing and a checkpoint",
+                  lambda s: bool(s.markers) and _smile(s, j)[-1] < _smile(s, j).max()
+                  and '"chk"' in rec.read_text(errors="replace"))
         _xdo(xvfb_display, "key", "F10")     # quit
         out, err = proc.communicate(timeout=60)
     finally:

@@ -36,15 +36,19 @@ def main(out_dir: str) -> int:
         views = []
         for key in ("2", "3", "v", "r"):
             subprocess.run(["xdotool", "key", "--window", wid, key], check=True)
-            deadline = time.monotonic() + 5.0
+            deadline = time.monotonic() + 60.0  # a hang guard: the key's arrival is the event
             while time.monotonic() < deadline and not any(k == (key, "press") for k in keys):
                 win.step()
                 time.sleep(0.01)
             views.append(win.renderer.view)
         win.renderer.camera.orbit(0.5, 0.2)
         subprocess.run(["xdotool", "key", "--window", wid, "Home"], check=True)
-        for _ in range(20):
+        # until the key has come (20 frames stood in for it), as for the keys above
+        deadline = time.monotonic() + 60.0
+        while time.monotonic() < deadline and not any(k == ("home", "press") for k in keys):
             win.step()
+            time.sleep(0.01)
+        win.step()
         reset = win.renderer.camera.yaw == 0.0
         size = win.framebuffer_size()
         renderer = win.ctx.info["GL_RENDERER"]

@@ -22,16 +22,23 @@ class Farm:
         self.procs.append(self._spawn("scheduler", "scheduler", "--host", "127.0.0.1", "--port", "0",
                                       "--dashboard-address", "127.0.0.1:0", "--scheduler-file", str(self.file)))
         deadline = time.monotonic() + 60
-        while not self.file.exists() or not self.file.read_text().strip():
+        # the scheduler writes its file in place (not renamed into place): it is ready when the whole
+        # of it parses, not when it first holds a few bytes
+        while (address := self._scheduler_address()) is None:
             if time.monotonic() > deadline or self.procs[0].poll() is not None:
                 self.stop()
                 raise RuntimeError("the dask scheduler did not start: " + (folder / "scheduler.log").read_text()[-800:])
             time.sleep(0.1)
-        time.sleep(0.2)
-        self.address = json.loads(self.file.read_text())["address"]
+        self.address = address
         for k in range(workers):
             self.procs.append(self._spawn(f"worker{k}", "worker", "--scheduler-file", str(self.file), *WORKER_ARGS))
         self.wait_for_workers(workers)
+
+    def _scheduler_address(self) -> str | None:
+        try:
+            return str(json.loads(self.file.read_text())["address"])
+        except (OSError, ValueError, KeyError, TypeError):
+            return None
 
     def _spawn(self, log: str, *args: str) -> subprocess.Popen:
         out = open(self.folder / f"{log}.log", "wb")
