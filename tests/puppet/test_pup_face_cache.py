@@ -298,6 +298,7 @@ def _same_shell(a: object, b: object) -> None:
     assert a.head_triangles == b.head_triangles  # type: ignore[attr-defined]
 
 
+@pytest.mark.timeout(900)  # a hang guard: ~120 rebuilds of the shell (~50 s quiet) ran past 300 s at load 30
 def test_the_head_shell_is_kept_beside_the_faces_and_damaged_copies_are_rebuilt(
         fresh: object, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The default face's held head (~0.4 s to build) is built once and read back by the next
