@@ -103,7 +103,7 @@ FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
         "surprise": {"AU1": 0.8, "AU2": 0.8, "AU5": 0.7, "AU26": 1.0},
         "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 0.6, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
         "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.9, "AU7": 0.6, "AU17": 1.0, "AU23": 1.0},
-        "disgust": {"AU9": 1.0, "AU10": 0.5, "AU4": 0.9, "AU15": 0.3, "AU25": 0.6},
+        "disgust": {"AU9": 1.0, "AU10": 0.5, "AU4": 0.9, "AU15": 1.0, "AU25": 0.6},
     },
 }
 """Per face (its rig's name: "ict" is the scanned head and its identities), the presets whose
@@ -192,7 +192,11 @@ at full and the lip less, AU9 1.0 / AU10 0.5, reads 0.85 with nothing turned ove
 0.7-1.0 mm lower (AU10 0.6: 0.82, 1.2-1.4 mm).
 Retuned when the corrugator's field was refitted over a zone grown 4.5 cm (docs/scan-face.md, "The
 temple carried with the brows"): fear's brows drawn together at AU4 0.7 turned 0.108 cm2 of the
-glabella's skin over (limit 0.1); at AU4 0.6 0.067 cm2 and fear 0.76 (the observer 7 of 7, mean 0.79)."""
+glabella's skin over (limit 0.1); at AU4 0.6 0.067 cm2 and fear 0.76 (the observer 7 of 7, mean 0.79).
+Retuned when the corrugator's field over the temple and the infraorbital triangle's bulge came together
+(the merged rig): disgust at AU15 0.3 read angry (0.21; angry 0.72: the brows' V and the creases from
+the nose's wings); the corners pulled down harder, AU15 1.0, read disgusted 0.94 and in 9 of the nine
+views (0.51-0.97; AU15 0.8: 0.91 and 7 of 9; AU4 0.7, 0.5, 0.3 or 0 at AU15 0.3: angry)."""
 
 
 FACE_EXPRESSIONS["imported"] = {
