@@ -48,6 +48,7 @@ _BASE: dict[str, dict[str, float]] = {
     "AU16": _both("depressor_labii"),
     "AU17": {"mentalis": 1.0},
     "AU20": _both("risorius"),
+    "AU21": _both("platysma"),
     "AU23": {"orbicularis_oris": 0.7},
     "AU24": {"orbicularis_oris": 1.0},
     "AU25": {**_both("depressor_labii", 0.4), "jaw": 0.1},
