@@ -109,6 +109,9 @@ ships; docs/scan-face.md has each one's section):
     # smile and stretch refitted ("The mouth corner's shapes again")
     nice .venv/bin/python benchmarks/anchor_limits.py --all --only zygomaticus_major=3,risorius=3,buccinator=3,
         levator_anguli_oris=3 --smooth 1e-4 --bound 10 --write-rig sim/face/scan/ict_rig.npz
+    # the platysma (AU21, platysma_l/_r; sim.face.scan.make_rig.platysma): its patches over the jowl
+    # and under the chin; no field of its own (fitted on jawOpen it took 0.241 to 0.241, "The platysma")
+    .venv/bin/python -m sim.face.scan.make_rig --platysma
 
 `--hold POSE,..` keeps, in each pose (a preset on the scanned head, or AUs joined by '+'), how far the
 upper lids' margins move against the lower margins beneath them where the rig the fit starts from

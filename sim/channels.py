@@ -140,6 +140,10 @@ CHANNEL_SPECS: tuple[ChannelSpec, ...] = (
             "the closed lips lifted and carried forward as one, as they are when they meet over an open jaw "
             "(ARKit's mouthClose): the lower lip's elevators push it up against the upper lip, which rides up "
             "on it, and forward"),
+    *_pair("platysma", "patch", ("AU21",),
+           "neck tightener, platysma: the thin sheet from the lower face's skin (the mandible's border, the "
+           "corner's depressors, the jowl) down over the neck draws the jowl out and down and the skin under "
+           "the chin down towards the chest"),
 )
 
 CHANNEL_NAMES: tuple[str, ...] = tuple(spec.name for spec in CHANNEL_SPECS)

@@ -2,7 +2,8 @@
 
 AU -> muscles after the AU/muscle table in peers-facs-formats.md section D.2 (AU18 incisivus; AU22
 both lips everted by the pars peripheralis, just parted; AU28 both lips rolled in; AU29 jaw thrust;
-AU33 cheek blow, AU34 puff with the lips sealed; AU19 tongue show, with the lips parted and the jaw
+AU33 cheek blow, AU34 puff with the lips sealed; AU21 neck tightener, the platysma (its sheet over the
+jowl and under the chin); AU19 tongue show, with the lips parted and the jaw
 dropped a little, as it cannot show otherwise; AU30, the jaw sideways, is the signed channel
 jaw_sideways, set directly, since a side's AU cannot lower a value); expressions after section D.1
 (EMFACS-style combinations; sadness as 1+4+15+17 with the lids drooping (AU41, here a light AU43):
@@ -48,6 +49,7 @@ _BASE: dict[str, dict[str, float]] = {
     "AU16": _both("depressor_labii"),
     "AU17": {"mentalis": 1.0},
     "AU20": _both("risorius"),
+    "AU21": _both("platysma"),
     "AU23": {"orbicularis_oris": 0.7},
     "AU24": {"orbicularis_oris": 1.0},
     "AU25": {**_both("depressor_labii", 0.4), "jaw": 0.1},

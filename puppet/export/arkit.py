@@ -96,7 +96,11 @@ SHAPE_SPAN = {"BrowInnerUp": 0.85, "EyeSquint": 0.5, "MouthPress": 0.85, "MouthD
 #: scans are: they drive the side's halves of the lips' sphincter and the mentalis
 #: (`sim.channels.HALVES`; `share_targets` picks the half for a one-sided shape), their spans and
 #: shares fitted again on the settled poses with the halves (docs/scan-face.md, "The press in
-#: halves").
+#: halves"). The jaw opened tenses the platysma (AU21, both sides at the shape's own weight): its
+#: cervical sheet hangs the skin under the chin down with the jaw, as the scan's jawOpen does (22
+#: mm; 11 without it, 15 with it), and draws the jowls out (docs/scan-face.md, "The platysma"); the mouth's
+#: shapes that reach the jowl (mouthStretch, mouthFrown, mouthLowerDown, mouthPress) came further
+#: from their scans with any share of it, so none takes one.
 SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
     "MouthPress": (("mentalis", 0.64), ("levator_anguli_oris", 0.34), ("jaw_forward", 0.07)),
     "CheekPuff": (("incisivus", 1.0), ("levator_labii_alaeque_nasi", 0.25)),
@@ -117,6 +121,7 @@ SHAPE_SHARES: dict[str, tuple[tuple[str, float], ...]] = {
     "MouthShrugUpper": (("levator_labii", 0.2),),
     "MouthUpperUp": (("levator_labii_alaeque_nasi", 0.25),),
     "Mouth": (("zygomaticus_major", 0.5), ("risorius", 0.25), ("levator_labii_alaeque_nasi", 0.2), ("incisivus", 0.35)),
+    "JawOpen": (("platysma", 1.0),),
     "MouthClose": (("mentalis", 0.3), ("levator_anguli_oris", 0.3), ("orbicularis_oris_peripheralis_upper", 0.8),
                    ("zygomaticus_major", 0.3), ("jaw_forward", 0.3)),
 }

@@ -18,7 +18,7 @@ REGIONS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("eyes", ("orbicularis_oculi", "levator_palpebrae", "eyes_")),
     ("nose and cheeks", ("levator_labii", "zygomaticus", "levator_anguli", "buccinator", "cheek_")),
     ("mouth", ("orbicularis_oris", "depressor", "mentalis", "risorius", "incisivus", "lip_", "mouth_",
-               "tongue")),
+               "tongue", "platysma")),
     ("jaw", ("jaw",)),
     ("head", ("head_",)),
 )

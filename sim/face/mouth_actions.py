@@ -21,6 +21,9 @@ What each models:
   modioli, so the lips rise together and the margin between them is not squeezed (a lift on the
   lower lip alone buckled it against the upper one); and a forward patch over the lower lip and
   the skin below it, so the lower lip comes forward more than the upper.
+- Neck tightener (AU21): the platysma, a thin sheet from the skin over the mandible's body and
+  under the corner of the mouth down over the neck, draws the jowl out and down and the skin under
+  the chin down towards the chest: one patch per side over the jowl, one under the chin.
 - Mouth left/right: one side's buccinator and risorius pull the modiolus back and out, the other
   side's let go, and the orbicularis ring, a closed band, carries both lips towards the pulling
   side (a sideways patch over the lips and the skin around them).
@@ -44,6 +47,10 @@ from sim.model import Muscle, PatchMuscle
 #: 1.6), which on the synthetic test face with every channel at full outran the explicit step's guard
 LIP_LIFT_UP = 1.0
 LIP_LIFT_FORWARD = 1.4
+#: the platysma (`platysma_l/_r`, AU21), in units of BASE_FORCE: the scanned head's patches
+#: (`sim.face.scan.make_rig.PLATYSMA_*`) divided by BASE_FORCE and the scan's muscles' factor (1.6)
+PLATYSMA_FACE = 0.3
+PLATYSMA_NECK = 2.5
 
 
 def _patch(f: FaceFrame, name: str, center: np.ndarray, semi: tuple[float, float, float],
@@ -85,6 +92,13 @@ def mouth_actions(f: FaceFrame) -> dict[str, tuple[Muscle, ...]]:
                               (0.0, 1.0, 0.0), LIP_LIFT_UP),
                        _patch(f, "lip_lift_forward", lower - f.s * np.array([0.0, 1.0, 0.0]), (wide, 1.0, 3.3),
                               (0.0, 0.0, 1.0), LIP_LIFT_FORWARD))
+    for side, sg in (("l", 1.0), ("r", -1.0)):  # the scan's places (make_rig.PLATYSMA_*) from corner and chin
+        jowl = f.get(f"mouth_corner_{side}") + f.s * np.array([2.4 * sg, -1.7, -3.1])
+        neck = f.get("chin") + f.s * np.array([1.4 * sg, -1.6, -1.6])  # its shallower underside
+        out[f"platysma_{side}"] = (_patch(f, f"platysma_face_{side}", jowl, (2.2, 2.6, 3.0), (0.95 * sg, -0.3, 0.0),
+                                          PLATYSMA_FACE),
+                                   _patch(f, f"platysma_neck_{side}", neck, (2.6, 2.0, 2.2), (0.0, -0.95, 0.3),
+                                          PLATYSMA_NECK))
     band = (half + 1.3, 1.9, 1.6)
     out["mouth_shift_l"] = (_patch(f, "mouth_shift_l", mouth, band, (1.0, 0.0, 0.0), 1.0),)
     out["mouth_shift_r"] = (_patch(f, "mouth_shift_r", mouth, band, (-1.0, 0.0, 0.0), 1.0),)

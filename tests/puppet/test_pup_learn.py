@@ -104,7 +104,7 @@ def test_learn_into_a_missing_folder_is_a_config_error(tmp_path: Path) -> None:
 @pytest.mark.parametrize("target,event_value,want", [
     ("head_yaw", 0.25, -0.5),  # an absolute axis 0..1 spans the channel's -1..1
     ("incisivus", 0.6, 0.6), ("cheek_puff", 1.0, 1.0), ("jaw_sideways", 1.0, 1.0), ("tongue_out", 0.5, 0.5),
-    ("AU18", 1.0, None), ("AU28", 1.0, None)])
+    ("platysma_l", 0.6, 0.6), ("AU18", 1.0, None), ("AU28", 1.0, None), ("AU21", 1.0, None)])
 def test_learn_binds_the_new_actions(tmp_path: Path, target: str, event_value: float, want: float | None) -> None:
     """The turn, the lips' and cheeks' actions, the jaw's sideways move and their AUs can be learnt
     onto the face's own channels."""

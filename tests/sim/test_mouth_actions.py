@@ -38,6 +38,7 @@ def moves() -> dict[str, np.ndarray]:
         "jaw_left": {"jaw_sideways": 1.0},
         "open": {"jaw": 0.2},
         "open_closed": {"jaw": 0.2, "lip_closure": 1.0},
+        "platysma_l": {"platysma_l": 1.0},
     }.items()}
 
 
@@ -83,6 +84,21 @@ def test_jaw_thrust_and_sideways_move_the_chin(moves: dict[str, np.ndarray]) -> 
     assert abs(_at(moves["thrust"], "upper_lip_center")).max() < 1.0  # the maxilla stays
 
 
+def test_the_platysma_draws_the_jowl_out_and_the_skin_under_the_chin_down(moves: dict[str, np.ndarray]) -> None:
+    """AU21 on one side (platysma_l): the skin under the chin on that side goes down towards the
+    chest, the jowl over the jaw's body out, the other side's jowl and the lips hardly move."""
+    model = default_model(0)
+    d, rest = moves["platysma_l"], model.rest
+    chin = rest[model.mesh.landmarks["chin"]]
+    under = (rest[:, 1] < chin[1] - 0.5) & (rest[:, 0] > 0.0) & (rest[:, 0] < 2.5)
+    assert under.sum() >= 3 and d[under, 1].mean() < -3.0
+    jowl = (rest[:, 1] < chin[1] + 3.5) & (rest[:, 1] > chin[1] + 1.5) & (np.abs(rest[:, 0]) > 4.0)
+    left, right = jowl & (rest[:, 0] > 0), jowl & (rest[:, 0] < 0)
+    assert left.sum() >= 2 and d[left, 0].max() > 0.5  # out (+X is the face's left)
+    assert np.abs(d[right]).max() < 0.1
+    assert np.abs(_at(d, "upper_lip_center")).max() < 0.5 and np.abs(_at(d, "mouth_corner_r")).max() < 0.5
+
+
 def test_lips_meet_over_an_open_jaw(moves: dict[str, np.ndarray]) -> None:
     model = default_model(0)
     gap = lambda d: (model.rest[model.mesh.landmarks["upper_lip_center"]][1] + _at(d, "upper_lip_center")[1] / 10
@@ -96,7 +112,7 @@ def test_each_new_action_has_a_force_and_none_at_zero() -> None:
     names = list(model.channels and [c.name for c in model.channels])
     for ch in ("incisivus", "orbicularis_oris_peripheralis_upper", "orbicularis_oris_peripheralis_lower",
                "orbicularis_oris_marginalis_upper", "orbicularis_oris_marginalis_lower", "lip_closure",
-               "mouth_shift_l", "mouth_shift_r", "cheek_puff"):
+               "mouth_shift_l", "mouth_shift_r", "cheek_puff", "platysma_l", "platysma_r"):
         assert model.muscle_matrix[:, names.index(ch)].nnz > 0, ch
     still = _settled({"tongue_out": 1.0, "jaw_forward": 0.0, "jaw_sideways": 0.0}, seconds=0.2)
     assert np.abs(still).max() < 1e-9  # the procedural face has no tongue: tongue_out moves no skin

@@ -84,16 +84,16 @@ def test_the_shipped_rig_is_what_the_transfer_makes() -> None:
     """ict_rig.npz is remade by `python -m sim.face.scan.make_rig` (the transfer, then the lids
     built on it, the pucker's ring in place of its bunching patch, the nose wing's slip, the puff's
     pressure over the vestibule, the rolls' margins, the lips' lift, the infraorbital triangle's bulge,
-    the upper pars peripheralis turned up, the lower lip's turning, the mentalis' pout); the
+    the upper pars peripheralis turned up, the lower lip's turning, the mentalis' pout, the platysma); the
     transfer's last bits follow the BLAS kernel, so the comparison allows 1e-4 cm."""
     from sim.face.scan.lids import with_lids
-    from sim.face.scan.make_rig import (ala_slip, levator_bulge, lip_lift, mentalis_pout, pucker_ring, puff_vestibule,
-                                        roll_margins, roll_sulcus, shrug_up, transferred_rig)
+    from sim.face.scan.make_rig import (ala_slip, levator_bulge, lip_lift, mentalis_pout, platysma, pucker_ring,
+                                        puff_vestibule, roll_margins, roll_sulcus, shrug_up, transferred_rig)
     from sim.face.scan.rig import scan_rig
 
     shipped = scan_rig()
-    made = mentalis_pout(roll_sulcus(shrug_up(levator_bulge(lip_lift(roll_margins(puff_vestibule(ala_slip(
-        with_lids(pucker_ring(transferred_rig()))))))))))
+    made = platysma(mentalis_pout(roll_sulcus(shrug_up(levator_bulge(lip_lift(roll_margins(puff_vestibule(ala_slip(
+        with_lids(pucker_ring(transferred_rig())))))))))))
     assert np.array_equal(shipped.mesh.vertices, made.mesh.vertices)
     assert np.array_equal(shipped.mesh.held, made.mesh.held)
     # the jaw's hinge and weights are fitted on top (`sim.face.scan.jaw_fit`; the test below): the
@@ -177,6 +177,43 @@ def test_the_corner_depressor_and_the_stretcher_move_the_skin_as_the_scans(model
     d = _settle(model, c) - model.rest
     scan = scan_data().expression(shape)[skin_layout().vertices]
     assert np.sqrt(np.sum((d - scan) ** 2) / np.sum(scan * scan)) < limit
+
+
+def test_the_platysma_hangs_the_skin_under_the_chin_with_the_open_jaw(model) -> None:  # type: ignore[no-untyped-def]
+    """ARKit jawOpen tenses the platysma (AU21, both sides): the skin under the chin goes down with
+    the jaw as the scan's does (its 22 mm; 11 without the platysma, sliding back with the chin),
+    and the shape settles closer to its scan (0.278 without it), no skin turned over."""
+    from puppet.capture.arkit_in import shape_channels
+
+    c = FaceControl()
+    c.values[...] = shape_channels({"JawOpen": np.ones(1)}, 1)[0]
+    assert c.get("platysma_l") == c.get("platysma_r") == 1.0
+    x = _settle(model, c)
+    d = x - model.rest
+    scan = scan_data().expression("jawOpen")[skin_layout().vertices]
+    under = (model.rest[:, 1] < model.rest[model.mesh.landmarks["chin"], 1] - 0.55) & ~model.held
+    assert under.sum() > 50
+    assert d[under, 1].mean() < -1.3  # cm (-1.09 without the platysma)
+    assert np.sqrt(np.sum((d - scan) ** 2) / np.sum(scan * scan)) < 0.26
+    assert turned_over_area(model, x) < FOLD_LIMIT_CM2
+
+
+def test_one_sides_platysma_draws_its_jowl_out_and_its_skin_under_the_chin_down(model) -> None:  # type: ignore[no-untyped-def]
+    """AU21 on the face's left (platysma_l): that side's jowl over the jaw's body goes out and the
+    skin under that side of the chin down; the right side's jowl and the lips hardly move."""
+    c = FaceControl()
+    c.set("platysma_l", 1.0)
+    d = (_settle(model, c) - model.rest) * 10.0  # mm
+    rest, free, lm = model.rest, ~model.held, model.mesh.landmarks
+    jowl = (rest[:, 1] > -7.0) & (rest[:, 1] < -3.5) & (np.abs(rest[:, 0]) > 3.5) & free  # over the jaw's body
+    left, right = jowl & (rest[:, 0] > 0), jowl & (rest[:, 0] < 0)
+    assert d[left, 0].mean() > 0.3 and d[left, 1].mean() < -0.2  # out (+X is the face's left) and down
+    assert np.abs(d[right]).mean() < 0.1
+    under = (rest[:, 1] < rest[lm["chin"], 1] - 0.55) & free
+    assert d[under & (rest[:, 0] > 1.0), 1].mean() < -2.5
+    assert d[under & (rest[:, 0] < -1.0), 1].mean() > -0.5
+    for name in ("upper_lip_center", "lower_lip_center", "mouth_corner_r"):
+        assert np.abs(d[lm[name]]).max() < 1.0, name
 
 
 def test_the_mouth_drawn_sideways_moves_the_skin_as_the_scans(model) -> None:  # type: ignore[no-untyped-def]

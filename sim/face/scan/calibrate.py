@@ -50,7 +50,7 @@ STILL_CM = 0.03  # a scan shape moving the skin less than this (RMS) is not fitt
 SHIPPED_SHARE = 1.0
 NOT_SHIPPED = ("incisivus", "orbicularis_oris_peripheralis_upper", "orbicularis_oris_peripheralis_lower",
                "orbicularis_oris_marginalis_upper", "orbicularis_oris_marginalis_lower", "lip_closure", "lip_lift",
-               "mouth_shift", "levator_labii", "levator_labii_alaeque_nasi", "levator_palpebrae", "mentalis",
+               "mouth_shift", "platysma", "levator_labii", "levator_labii_alaeque_nasi", "levator_palpebrae", "mentalis",
                "orbicularis_oculi_lid")  # the fitted lid strip no longer closed the lids over the eyes
 
 

@@ -10,7 +10,8 @@ application never runs it. Remake the file with `python -m sim.face.scan.make_ri
 adds the nose wing's slip to the file as it is (every fitted field kept), `--levator-bulge` the
 infraorbital triangle's bulge (`levator_bulge`), `--shrug-up` the upper pars peripheralis turned
 up (`shrug_up`), `--lip-lift` the lips' lift,
-`--puff-vestibule` the puff's pressure over the vestibule, `--roll-margins` the rolls' margins. The
+`--puff-vestibule` the puff's pressure over the vestibule, `--roll-margins` the rolls' margins, `--roll-sulcus` the lower lip's
+turning, `--mentalis-pout` the mentalis' pout, `--platysma` the platysma's sheet (`platysma`). The
 jaw's hinge and the skin's jaw weights are fitted to the scan's jaw shapes by
 `python -m sim.face.scan.jaw_fit`.
 """
@@ -453,6 +454,41 @@ def mentalis_pout(rig: FaceRig) -> FaceRig:
     pout = PatchMuscle(name, _r(np.array(MENTALIS_POUT_CENTRE, float)), _r(np.array(MENTALIS_POUT_AXES, float)),
                        _r(d / np.linalg.norm(d)), MENTALIS_POUT_FORCE)
     return replace(rig, muscles={**rig.muscles, "mentalis": (*parts, pout)})
+#: The platysma (AU21, the `platysma_l/_r` channels; placed on the procedural face by
+#: `sim.face.mouth_actions`): a thin sheet in the subcutaneous fat from the skin of the lower face
+#: (over the mandible's body from the chin to the masseter's front edge, interlacing with the
+#: corner's depressor and the risorius below the modiolus) down over the front of the neck to the
+#: chest. Contracting, its facial part draws the jowl's skin out and down over the jaw's border and
+#: its cervical part tenses the skin under the chin down towards the chest. The scan shows both:
+#: mouthStretch carries the jowl over the jaw's body 2.5 mm out (ours 1.3), jawOpen hangs the skin
+#: under the chin 22 mm down (ours 11, it slid back with the chin). Two patches per side (the face's
+#: left; the right mirrored, x -> -x): the facial part over the jowl (PLATYSMA_FACE) and the
+#: cervical part under the chin, reaching across the midline where the two sides' sheets meet
+#: (PLATYSMA_NECK); each (centre cm in the scan's frame, semi-axes cm, direction, force density
+#: dyn/cm^2 at the centre): the neck's force swept on the scan's jawOpen (the share ARKit's map
+#: gives it) up to what turns no skin over (stronger, the skin under the chin buckled against the
+#: held border), the face's on mouthStretch; no tether-anchor field (fitted on jawOpen by
+#: `benchmarks/anchor_limits.py --only platysma=1.5` it took 0.241 to 0.241). Applied to the shipped
+#: rig by `python -m sim.face.scan.make_rig --platysma` (docs/scan-face.md, "The platysma").
+PLATYSMA_FACE = ((4.6, -5.2, 7.0), (2.2, 2.6, 3.0), (0.95, -0.3, 0.0), 1500.0)
+PLATYSMA_NECK = ((1.4, -8.4, 6.0), (2.6, 2.0, 2.2), (0.0, -0.95, 0.3), 12000.0)
+
+
+def platysma(rig: FaceRig, face: tuple = PLATYSMA_FACE, neck: tuple = PLATYSMA_NECK) -> FaceRig:  # type: ignore[type-arg]
+    """The rig with the platysma's patches (`PLATYSMA_*`) as the `platysma_l/_r` channels' parts (any
+    they had are replaced)."""
+    from dataclasses import replace
+
+    muscles = dict(rig.muscles)
+    for side, sign in (("l", 1.0), ("r", -1.0)):
+        flip = np.array([sign, 1.0, 1.0])
+        parts = []
+        for part, (centre, semi, direction, scale) in (("face", face), ("neck", neck)):
+            d = np.array(direction, np.float64) * flip
+            parts.append(PatchMuscle(f"platysma_{part}_{side}", _r(np.array(centre, np.float64) * flip),
+                                     _r(np.array(semi, np.float64)), _r(d / np.linalg.norm(d)), float(scale)))
+        muscles[f"platysma_{side}"] = tuple(parts)
+    return replace(rig, muscles=muscles)
 
 
 def pack(path: str | Path = RIG_FILE) -> None:
@@ -469,8 +505,8 @@ def pack(path: str | Path = RIG_FILE) -> None:
     made = replace(transferred_rig(), insertion=old.insertion if old else {}, skin=old.skin if old else {},
                    tissue=old.tissue if old else {}, strain=old.strain if old else {},
                    anchor=old.anchor if old else {}, gaze=old.gaze if old else {})
-    save_rig(mentalis_pout(roll_sulcus(shrug_up(levator_bulge(lip_lift(roll_margins(puff_vestibule(ala_slip(
-        with_lids(pucker_ring(made)))))))))), path)
+    save_rig(platysma(mentalis_pout(roll_sulcus(shrug_up(levator_bulge(lip_lift(roll_margins(puff_vestibule(
+        ala_slip(with_lids(pucker_ring(made))))))))))), path)
 
 
 def add_ala_slip(path: str | Path = RIG_FILE) -> None:
@@ -530,6 +566,11 @@ def add_mentalis_pout(path: str | Path = RIG_FILE) -> None:
     from sim.rig import load_rig, save_rig
 
     save_rig(mentalis_pout(load_rig(path)), path)
+def add_platysma(path: str | Path = RIG_FILE) -> None:
+    """Write the rig file again with the platysma's patches (`platysma`), everything else as it is."""
+    from sim.rig import load_rig, save_rig
+
+    save_rig(platysma(load_rig(path)), path)
 
 
 if __name__ == "__main__":
@@ -551,6 +592,8 @@ if __name__ == "__main__":
         add_roll_sulcus()
     elif "--mentalis-pout" in sys.argv[1:]:
         add_mentalis_pout()
+    elif "--platysma" in sys.argv[1:]:
+        add_platysma()
     else:
         pack()
     print(f"wrote {RIG_FILE}")
