@@ -104,7 +104,7 @@ FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
         "sadness": {"AU1": 1.0, "AU4": 0.42, "AU11": 0.6, "AU15": 1.0, "AU17": 1.0, "AU43": 0.35},
         "surprise": {"AU1": 0.8, "AU2": 0.8, "AU5": 0.7, "AU26": 1.0},
         "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 0.6, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
-        "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.9, "AU7": 0.6, "AU17": 1.0, "AU23": 1.0},
+        "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.9, "AU7": 0.6, "AU10": 0.3, "AU17": 0.7, "AU23": 1.0},
         "disgust": {"AU9": 1.0, "AU10": 0.5, "AU4": 0.9, "AU15": 1.0, "AU25": 0.6},
     },
 }
@@ -198,7 +198,11 @@ glabella's skin over (limit 0.1); at AU4 0.6 0.067 cm2 and fear 0.76 (the observ
 Retuned when the corrugator's field over the temple and the infraorbital triangle's bulge came together
 (the merged rig): disgust at AU15 0.3 read angry (0.21; angry 0.72: the brows' V and the creases from
 the nose's wings); the corners pulled down harder, AU15 1.0, read disgusted 0.94 and in 9 of the nine
-views (0.51-0.97; AU15 0.8: 0.91 and 7 of 9; AU4 0.7, 0.5, 0.3 or 0 at AU15 0.3: angry)."""
+views (0.51-0.97; AU15 0.8: 0.91 and 7 of 9; AU4 0.7, 0.5, 0.3 or 0 at AU15 0.3: angry). On the same rig the mentalis' pout (its
+two bellies pushing the lower lip out) made anger's AU17 1.0 a pout: anger read 0.42 and sad from three
+of the nine views; the upper lip raised a little, AU10 0.3 (anger's prototype 4+5+7+10+23), with AU17
+0.7 reads 0.67 and angry in 9 of 9 (AU10 0.3 alone: 0.60, 8 of 9; AU10 0.45: disgust from three views;
+AU17 0.6 or 0.3, AU7 0.8, AU2 0.3: 6-7 of 9)."""
 
 
 FACE_EXPRESSIONS["imported"] = {
