@@ -10,19 +10,6 @@ import subprocess
 import time
 
 
-def _die_with_parent() -> None:
-    """In the child: SIGTERM when the process that started it dies, even killed (Linux's
-    PR_SET_PDEATHSIG): a test run stopped by a signal left its Xvfb running, its fixture's
-    teardown never reached."""
-    try:
-        import ctypes
-        import signal
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)
-    except Exception:  # noqa: BLE001 - not Linux: the fixture's teardown still stops it
-        pass
-
-
 def start_xvfb(timeout: float = 60.0) -> tuple[subprocess.Popen, str]:  # type: ignore[type-arg]
     """Start Xvfb and return (process, DISPLAY string such as ':93'); RuntimeError if it cannot.
     -displayfd: the server picks a free display number itself and writes it to the pipe once it
@@ -32,8 +19,7 @@ def start_xvfb(timeout: float = 60.0) -> tuple[subprocess.Popen, str]:  # type: 
         raise RuntimeError("Xvfb is not installed: run `bash .ci/setup`")
     rfd, wfd = os.pipe()
     proc = subprocess.Popen(["Xvfb", "-displayfd", str(wfd), "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, pass_fds=(wfd,),
-                            preexec_fn=_die_with_parent)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, pass_fds=(wfd,))
     os.close(wfd)
     deadline = time.monotonic() + timeout
     text = b""
