@@ -112,6 +112,12 @@ ships; docs/scan-face.md has each one's section):
     # the platysma (AU21, platysma_l/_r; sim.face.scan.make_rig.platysma): its patches over the jowl
     # and under the chin; no field of its own (fitted on jawOpen it took 0.241 to 0.241, "The platysma")
     .venv/bin/python -m sim.face.scan.make_rig --platysma
+    # the depressors' and the upper lip's elevators' fields refitted with a ridge a hundredth of the default
+    # (their tissue carried further: "The depressors' and the elevators' fields carried further")
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only depressor_anguli_oris=3,depressor_labii=3 --smooth 1e-5
+        --ridge 1e-7 --bound 10 --add --write-rig sim/face/scan/ict_rig.npz
+    nice .venv/bin/python benchmarks/anchor_limits.py --all --only levator_labii=1.5,levator_labii_alaeque_nasi=1.5
+        --smooth 1e-5 --ridge 1e-7 --bound 10 --add --write-rig sim/face/scan/ict_rig.npz
 
 `--hold POSE,..` keeps, in each pose (a preset on the scanned head, or AUs joined by '+'), how far the
 upper lids' margins move against the lower margins beneath them where the rig the fit starts from

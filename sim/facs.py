@@ -100,12 +100,12 @@ EXPRESSIONS: dict[str, dict[str, float]] = {
 
 FACE_EXPRESSIONS: dict[str, dict[str, dict[str, float]]] = {
     "ict": {
-        "happiness": {"AU6": 0.3, "AU10": 0.3, "AU12": 1.0, "AU13": 1.0, "AU25": 0.8},
+        "happiness": {"AU6": 0.3, "AU10": 0.4, "AU12": 1.0, "AU13": 1.0, "AU25": 0.8},
         "sadness": {"AU1": 1.0, "AU4": 0.42, "AU11": 0.6, "AU15": 1.0, "AU17": 1.0, "AU43": 0.35},
         "surprise": {"AU1": 0.8, "AU2": 0.8, "AU5": 0.7, "AU26": 1.0},
-        "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 0.6, "AU5": 1.0, "AU20": 1.0, "AU25": 1.0, "AU26": 0.3},
+        "fear": {"AU1": 1.0, "AU2": 0.1, "AU4": 0.6, "AU5": 1.0, "AU20": 1.0, "AU25": 0.5, "AU26": 0.3},
         "anger": {"AU2": 0.15, "AU4": 1.0, "AU5": 0.9, "AU7": 0.6, "AU10": 0.3, "AU17": 0.7, "AU23": 1.0},
-        "disgust": {"AU9": 1.0, "AU10": 0.5, "AU4": 0.9, "AU15": 1.0, "AU25": 0.6},
+        "disgust": {"AU9": 1.0, "AU10": 0.4, "AU4": 0.9, "AU15": 1.0, "AU25": 0.6},
     },
 }
 """Per face (its rig's name: "ict" is the scanned head and its identities), the presets whose
@@ -202,7 +202,12 @@ views (0.51-0.97; AU15 0.8: 0.91 and 7 of 9; AU4 0.7, 0.5, 0.3 or 0 at AU15 0.3:
 two bellies pushing the lower lip out) made anger's AU17 1.0 a pout: anger read 0.42 and sad from three
 of the nine views; the upper lip raised a little, AU10 0.3 (anger's prototype 4+5+7+10+23), with AU17
 0.7 reads 0.67 and angry in 9 of 9 (AU10 0.3 alone: 0.60, 8 of 9; AU10 0.45: disgust from three views;
-AU17 0.6 or 0.3, AU7 0.8, AU2 0.3: 6-7 of 9)."""
+AU17 0.6 or 0.3, AU7 0.8, AU2 0.3: 6-7 of 9). Then the depressors' and the upper lip's elevators'
+fields refitted with a smaller ridge (docs/scan-face.md, "The depressors' and the elevators' fields
+carried further"): the lifters reach further, so disgust AU10 0.5 read angry (0.24) and AU10 0.4 reads
+0.68 (8 of 9 views; AU9 0.7: 0.85 but 6 of 9; AU10 0.3: 0.81, 7 of 9); fear's lips parted by AU25 1.0
+read 0.55 (its depressor_labii share pulls the lower lip further), AU25 0.5 reads 0.83 and fear in 9 of
+9 (0.7: 0.81, 8 of 9); happiness AU10 0.3 read 0.69, 0.4 reads 0.83 (0.15: 0.62; 0: neutral)."""
 
 
 FACE_EXPRESSIONS["imported"] = {
