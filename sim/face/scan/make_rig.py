@@ -19,6 +19,7 @@ jaw's hinge and the skin's jaw weights are fitted to the scan's jaw shapes by
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -509,91 +510,26 @@ def pack(path: str | Path = RIG_FILE) -> None:
         ala_slip(with_lids(pucker_ring(made))))))))))), path)
 
 
-def add_ala_slip(path: str | Path = RIG_FILE) -> None:
-    """Write the rig file again with the nose wing's slip (`ala_slip`), everything else as it is."""
+#: The steps `python -m sim.face.scan.make_rig --FLAG` adds to the rig file as it is (every fitted
+#: field kept), by flag; run on top of the shipped rig in the order benchmarks/anchor_limits.py lists.
+ADD_STEPS = {"--ala-slip": ala_slip, "--levator-bulge": levator_bulge, "--shrug-up": shrug_up, "--lip-lift": lip_lift,
+             "--puff-vestibule": puff_vestibule, "--roll-margins": roll_margins, "--roll-sulcus": roll_sulcus,
+             "--mentalis-pout": mentalis_pout, "--platysma": platysma}
+
+
+def add_step(step: Callable[[FaceRig], FaceRig], path: str | Path = RIG_FILE) -> None:
+    """Write the rig file again with one step (`ADD_STEPS`) applied, everything else as it is."""
     from sim.rig import load_rig, save_rig
 
-    save_rig(ala_slip(load_rig(path)), path)
-
-
-def add_levator_bulge(path: str | Path = RIG_FILE) -> None:
-    """Write the rig file again with the infraorbital triangle's bulge (`levator_bulge`), everything
-    else as it is."""
-    from sim.rig import load_rig, save_rig
-
-    save_rig(levator_bulge(load_rig(path)), path)
-
-
-def add_shrug_up(path: str | Path = RIG_FILE) -> None:
-    """Write the rig file again with the upper pars peripheralis turned up (`shrug_up`), everything
-    else as it is."""
-    from sim.rig import load_rig, save_rig
-
-    save_rig(shrug_up(load_rig(path)), path)
-
-
-def add_lip_lift(path: str | Path = RIG_FILE) -> None:
-    """Write the rig file again with the lips' lift (`lip_lift`), everything else as it is."""
-    from sim.rig import load_rig, save_rig
-
-    save_rig(lip_lift(load_rig(path)), path)
-
-
-def add_puff_vestibule(path: str | Path = RIG_FILE) -> None:
-    """Write the rig file again with the puff's pressure over the vestibule (`puff_vestibule`),
-    everything else as it is."""
-    from sim.rig import load_rig, save_rig
-
-    save_rig(puff_vestibule(load_rig(path)), path)
-
-
-def add_roll_margins(path: str | Path = RIG_FILE) -> None:
-    """Write the rig file again with the rolls' margins (`roll_margins`), everything else as it is."""
-    from sim.rig import load_rig, save_rig
-
-    save_rig(roll_margins(load_rig(path)), path)
-
-
-def add_roll_sulcus(path: str | Path = RIG_FILE) -> None:
-    """Write the rig file again with the lower lip's turning (`roll_sulcus`), everything else as it is."""
-    from sim.rig import load_rig, save_rig
-
-    save_rig(roll_sulcus(load_rig(path)), path)
-
-
-def add_mentalis_pout(path: str | Path = RIG_FILE) -> None:
-    """Write the rig file again with the mentalis' pout (`mentalis_pout`), everything else as it is."""
-    from sim.rig import load_rig, save_rig
-
-    save_rig(mentalis_pout(load_rig(path)), path)
-def add_platysma(path: str | Path = RIG_FILE) -> None:
-    """Write the rig file again with the platysma's patches (`platysma`), everything else as it is."""
-    from sim.rig import load_rig, save_rig
-
-    save_rig(platysma(load_rig(path)), path)
+    save_rig(step(load_rig(path)), path)
 
 
 if __name__ == "__main__":
     import sys
 
-    if "--ala-slip" in sys.argv[1:]:
-        add_ala_slip()
-    elif "--levator-bulge" in sys.argv[1:]:
-        add_levator_bulge()
-    elif "--shrug-up" in sys.argv[1:]:
-        add_shrug_up()
-    elif "--lip-lift" in sys.argv[1:]:
-        add_lip_lift()
-    elif "--puff-vestibule" in sys.argv[1:]:
-        add_puff_vestibule()
-    elif "--roll-margins" in sys.argv[1:]:
-        add_roll_margins()
-    elif "--roll-sulcus" in sys.argv[1:]:
-        add_roll_sulcus()
-    elif "--mentalis-pout" in sys.argv[1:]:
-        add_mentalis_pout()
-    elif "--platysma" in sys.argv[1:]:
-        add_platysma()
+    flags = [a for a in sys.argv[1:] if a in ADD_STEPS]
+    if flags:
+        add_step(ADD_STEPS[flags[0]])
     else:
         pack()
     print(f"wrote {RIG_FILE}")
