@@ -5,16 +5,15 @@ ways part on a turning gaze, which is what the header is for."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+from header_takes import replay_to_end, with_header
 
 from puppet.capture.take import write_take
 from puppet.errors import ConfigError
 from puppet.live import GAZE_TISSUE_AS, load_face
-from puppet.replay import Replayer, build_performance
 from puppet.session import read_session
 
 DATA = Path(__file__).parent / "data"
@@ -42,15 +41,6 @@ def _look_around(tmp_path: Path) -> Path:
     return take
 
 
-def _replay(take: Path, tissue: bool | None = None, rig: str | None = None) -> Replayer:
-    perf = build_performance(read_session(take), None, rig_path=rig)
-    if tissue is not None:
-        perf.gaze_tissue = tissue
-    rp = Replayer(perf)
-    rp.seek(perf.ticks)
-    return rp
-
-
 @pytest.fixture(scope="module")
 def new_take(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return _look_around(tmp_path_factory.mktemp("new"))
@@ -60,39 +50,31 @@ def test_a_take_from_before_replays_bit_for_bit() -> None:
     header = read_session(OLD).header
     assert "gaze tissue" not in header and header["rig"]["hash"] == "babc28fc2073568e"
     assert load_face(face="ict").model.rig.gaze  # the shipped rig carries the tissue now
-    rp = _replay(OLD, rig=RIG)
+    rp = replay_to_end(OLD, rig=RIG)
     assert rp.sim.method == "implicit"
     assert not rp.perf.gaze_tissue and not rp.sim.gaze_tissue
     assert rp.verified == 2 and not rp.mismatches
 
 
 def test_the_new_way_would_not_replay_it() -> None:
-    assert _replay(OLD, tissue=True, rig=RIG).mismatches
+    assert replay_to_end(OLD, rig=RIG, gaze_tissue=True).mismatches
 
 
 def test_a_new_take_says_so_and_replays_bit_for_bit(new_take: Path) -> None:
     assert read_session(new_take).header["gaze tissue"] == GAZE_TISSUE_AS
-    rp = _replay(new_take)
+    rp = replay_to_end(new_take)
     assert rp.perf.gaze_tissue and rp.sim.gaze_tissue
     assert rp.verified == 2 and not rp.mismatches
 
 
 def test_without_its_key_a_new_take_is_replayed_the_old_way(new_take: Path, tmp_path: Path) -> None:
-    lines = new_take.read_text().splitlines()
-    header = json.loads(lines[0])
-    del header["gaze tissue"]
-    take = tmp_path / "without.jsonl"
-    take.write_text("\n".join([json.dumps(header)] + lines[1:]) + "\n")
-    rp = _replay(take)
+    take = with_header(new_take, tmp_path / "without.jsonl", lambda h: h.pop("gaze tissue"))
+    rp = replay_to_end(take)
     assert not rp.perf.gaze_tissue
     assert rp.mismatches
 
 
 def test_a_damaged_entry_is_named(tmp_path: Path) -> None:
-    lines = OLD.read_text().splitlines()
-    header = json.loads(lines[0])
-    header["gaze tissue"] = [GAZE_TISSUE_AS]
-    take = tmp_path / "bad.jsonl"
-    take.write_text("\n".join([json.dumps(header)] + lines[1:]) + "\n")
+    take = with_header(OLD, tmp_path / "bad.jsonl", lambda h: h.update({"gaze tissue": [GAZE_TISSUE_AS]}))
     with pytest.raises(ConfigError, match="gaze tissue"):
         read_session(take)

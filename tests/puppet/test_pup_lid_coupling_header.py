@@ -5,16 +5,15 @@ part on a moving gaze, which is what the header is for."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+from header_takes import replay_to_end, with_header
 
 from puppet.capture.take import write_take
 from puppet.errors import ConfigError
 from puppet.live import LIDS_APART_AS, load_face
-from puppet.replay import Replayer, build_performance
 from puppet.session import read_session
 
 DATA = Path(__file__).parent / "data"
@@ -41,15 +40,6 @@ def _look_around(tmp_path: Path) -> Path:
     return take
 
 
-def _replay(take: Path, apart: bool | None = None, rig: str | None = None) -> Replayer:
-    perf = build_performance(read_session(take), None, rig_path=rig)
-    if apart is not None:
-        perf.lids_apart = apart
-    rp = Replayer(perf)
-    rp.seek(perf.ticks)
-    return rp
-
-
 @pytest.fixture(scope="module")
 def new_take(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return _look_around(tmp_path_factory.mktemp("new"))
@@ -59,39 +49,31 @@ def test_a_take_from_before_replays_bit_for_bit() -> None:
     header = read_session(OLD).header
     assert "lid coupling" not in header and header["lids"] == "gaze"
     assert header["rig"]["hash"] == "b1e3de12b4e812a7"
-    rp = _replay(OLD, rig=RIG)
+    rp = replay_to_end(OLD, rig=RIG)
     assert rp.sim.method == "implicit"
     assert not rp.perf.lids_apart and not rp.sim.lids_apart
     assert rp.verified == 2 and not rp.mismatches
 
 
 def test_the_new_way_would_not_replay_it() -> None:
-    assert _replay(OLD, apart=True, rig=RIG).mismatches
+    assert replay_to_end(OLD, rig=RIG, lids_apart=True).mismatches
 
 
 def test_a_new_take_says_so_and_replays_bit_for_bit(new_take: Path) -> None:
     assert read_session(new_take).header["lid coupling"] == LIDS_APART_AS
-    rp = _replay(new_take)
+    rp = replay_to_end(new_take)
     assert rp.perf.lids_apart and rp.sim.lids_apart
     assert rp.verified == 2 and not rp.mismatches
 
 
 def test_without_its_key_a_new_take_is_replayed_the_old_way(new_take: Path, tmp_path: Path) -> None:
-    lines = new_take.read_text().splitlines()
-    header = json.loads(lines[0])
-    del header["lid coupling"]
-    take = tmp_path / "without.jsonl"
-    take.write_text("\n".join([json.dumps(header)] + lines[1:]) + "\n")
-    rp = _replay(take)
+    take = with_header(new_take, tmp_path / "without.jsonl", lambda h: h.pop("lid coupling"))
+    rp = replay_to_end(take)
     assert not rp.perf.lids_apart
     assert rp.mismatches
 
 
 def test_a_damaged_entry_is_named(tmp_path: Path) -> None:
-    lines = OLD.read_text().splitlines()
-    header = json.loads(lines[0])
-    header["lid coupling"] = [LIDS_APART_AS]
-    take = tmp_path / "bad.jsonl"
-    take.write_text("\n".join([json.dumps(header)] + lines[1:]) + "\n")
+    take = with_header(OLD, tmp_path / "bad.jsonl", lambda h: h.update({"lid coupling": [LIDS_APART_AS]}))
     with pytest.raises(ConfigError, match="lid coupling"):
         read_session(take)
